@@ -1,0 +1,45 @@
+# Two commands do everything from a fresh clone: `make demo` (the main job) and `make test`.
+# Each creates the virtualenv and builds what it needs.
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+FMU    := build/plant/quadrotor.fmu
+CC     ?= gcc
+CFLAGS_BENCH := -std=c11 -O2 -Wall -Wextra -Werror
+
+PLANT_SOURCES := $(wildcard plant/c/*.c plant/c/*.h plant/fmi2/*) plant/variables.py plant/build.py
+
+.PHONY: all venv fmu demo test test-slow lint bench clean
+
+all: fmu
+
+venv: $(VENV)/.installed
+$(VENV)/.installed: pyproject.toml tools/bootstrap.sh
+	PYTHON=$(PYTHON) tools/bootstrap.sh
+	touch $@
+
+fmu: $(FMU)
+$(FMU): $(PLANT_SOURCES) | venv
+	$(PY) -m plant.build
+
+demo: venv $(FMU)
+	$(VENV)/bin/rig demo
+
+lint: venv
+	$(VENV)/bin/ruff check .
+
+test: venv $(FMU) lint
+	$(PY) -m pytest -q -m "not slow"
+
+test-slow: venv $(FMU)
+	$(PY) -m pytest -q -m slow
+
+build/bench/physics_bench: bench/physics_bench.c $(PLANT_SOURCES) | venv $(FMU)
+	@mkdir -p build/bench
+	$(CC) $(CFLAGS_BENCH) -Ibuild/plant/gen -Iplant/c -o $@ bench/physics_bench.c plant/c/quadrotor_physics.c -lm
+
+bench: venv $(FMU) build/bench/physics_bench
+	$(PY) bench/plant_rates.py
+
+clean:
+	rm -rf build

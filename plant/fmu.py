@@ -1,0 +1,303 @@
+"""The plant FMU from Python: fmpy loads it, and a fast path steps it.
+
+fmpy's high-level ``setReal/doStep/getReal`` builds ctypes arrays and Python lists on every call
+(about 12 µs a step here). A session steps the plant hundreds of thousands of times per run, so
+``Plant.step`` calls the raw FMI function pointers with preallocated ctypes buffers instead, and
+exposes numpy views on them: write inputs into ``plant.u``, read outputs from ``plant.y``. Every FMI
+status is checked; an error raises ``PlantError`` with the FMU's own message.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import shutil
+import tempfile
+from collections.abc import Mapping
+from ctypes import POINTER, byref, c_double, c_int, c_size_t, c_uint, c_void_p
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import (
+    FMU2Slave,
+    fmi2CallbackAllocateMemoryTYPE,
+    fmi2CallbackFreeMemoryTYPE,
+    fmi2CallbackFunctions,
+    fmi2CallbackLoggerTYPE,
+    fmi2StepFinishedTYPE,
+)
+from fmpy.fmi2 import calloc as _calloc
+from fmpy.fmi2 import free as _free
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+
+#: Where ``make fmu`` puts the plant; ``RIG_PLANT_FMU`` overrides it.
+DEFAULT_FMU = Path(os.environ.get("RIG_PLANT_FMU", REPO_ROOT / "build" / "plant" / "quadrotor.fmu"))
+
+_STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
+
+
+class PlantError(RuntimeError):
+    """The FMU refused a call or could not be loaded; the message says why."""
+
+
+@dataclass
+class PlantState:
+    """A saved FMU state (``fmi2GetFMUstate``) with the Python-side time and inputs that go with it."""
+
+    handle: c_void_p
+    time: float
+    inputs: np.ndarray
+
+
+class Plant:
+    """One instance of the quadrotor FMU, initialised and ready to step.
+
+    ``params`` and ``inputs`` set start values by variable name before initialisation (names as in
+    DESIGN.md §4). After construction the time is ``start_time`` and the outputs describe the initial
+    state.
+    """
+
+    def __init__(self, params: Mapping[str, float] | None = None,
+                 inputs: Mapping[str, float] | None = None, fmu_path: str | Path | None = None,
+                 start_time: float = 0.0, instance_name: str = "quadrotor") -> None:
+        self.fmu_path = Path(fmu_path or DEFAULT_FMU).resolve()
+        if not self.fmu_path.is_file():
+            raise PlantError(f"plant FMU not found at {self.fmu_path}; build it with `make fmu`")
+        self.messages: list[str] = []
+        self._states: list[PlantState] = []
+        self._unzip_dir = extract(str(self.fmu_path), unzipdir=tempfile.mkdtemp(prefix="plant-"))
+        try:
+            self._load(instance_name)
+            self._init(params or {}, inputs or {}, start_time)
+        except BaseException:
+            self.close()
+            raise
+
+    # ---- loading ----------------------------------------------------------------------------
+
+    def _load(self, instance_name: str) -> None:
+        md = read_model_description(self._unzip_dir)
+        self.model_description = md
+        self.variables = {v.name: v for v in md.modelVariables}
+        self.input_names = [v.name for v in md.modelVariables
+                            if v.causality == "input" and v.type == "Real"]
+        self.output_names = [v.name for v in md.modelVariables
+                             if v.causality == "output" and v.type == "Real"]
+        self._fmu = FMU2Slave(guid=md.guid, unzipDirectory=self._unzip_dir,
+                              modelIdentifier=md.coSimulation.modelIdentifier,
+                              instanceName=instance_name)
+        self._callbacks = fmi2CallbackFunctions()
+        self._callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
+        self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(_calloc)
+        self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(_free)
+        self._callbacks.stepFinished = fmi2StepFinishedTYPE()
+        self._fmu.instantiate(callbacks=self._callbacks)
+        self._component = c_void_p(self._fmu.component)
+
+        # Raw function pointers with our own prototypes: dll[name] returns a fresh function object,
+        # so fmpy's checked wrappers keep theirs.
+        dll = self._fmu.dll
+        vr_p, real_p = POINTER(c_uint), POINTER(c_double)
+        self._set_real = self._proto(dll, "fmi2SetReal", c_void_p, vr_p, c_size_t, real_p)
+        self._get_real = self._proto(dll, "fmi2GetReal", c_void_p, vr_p, c_size_t, real_p)
+        int_p = POINTER(c_int)
+        self._get_int = {t: self._proto(dll, f"fmi2Get{t}", c_void_p, vr_p, c_size_t, int_p)
+                         for t in ("Integer", "Boolean")}
+        self._set_int = {t: self._proto(dll, f"fmi2Set{t}", c_void_p, vr_p, c_size_t, int_p)
+                         for t in ("Integer", "Boolean")}
+        self._do_step = self._proto(dll, "fmi2DoStep", c_void_p, c_double, c_double, c_int)
+        self._get_state = self._proto(dll, "fmi2GetFMUstate", c_void_p, POINTER(c_void_p))
+        self._set_state = self._proto(dll, "fmi2SetFMUstate", c_void_p, c_void_p)
+        self._free_state = self._proto(dll, "fmi2FreeFMUstate", c_void_p, POINTER(c_void_p))
+
+        n_u, n_y = len(self.input_names), len(self.output_names)
+        self._u_vr = (c_uint * n_u)(*[self.variables[n].valueReference for n in self.input_names])
+        self._y_vr = (c_uint * n_y)(*[self.variables[n].valueReference for n in self.output_names])
+        self._u_buf = (c_double * n_u)()
+        self._y_buf = (c_double * n_y)()
+        self._n_u, self._n_y = c_size_t(n_u), c_size_t(n_y)
+        #: Inputs (in ``input_names`` order); written to the FMU before every step.
+        self.u = np.ctypeslib.as_array(self._u_buf)
+        #: Outputs (in ``output_names`` order); refreshed after every step.
+        self.y = np.ctypeslib.as_array(self._y_buf)
+        self.u_index = {n: i for i, n in enumerate(self.input_names)}
+        self.y_index = {n: i for i, n in enumerate(self.output_names)}
+        self._on_ground_vr = (c_uint * 1)(self.variables["on_ground"].valueReference)
+        self._bool_buf = (c_int * 1)()
+
+    @staticmethod
+    def _proto(dll: ctypes.CDLL, name: str, *argtypes: object) -> ctypes._CFuncPtr:
+        fn = dll[name]
+        fn.argtypes = list(argtypes)
+        fn.restype = c_int
+        return fn
+
+    def _log(self, env: object, instance: bytes, status: int, category: bytes, message: bytes) -> None:
+        text = message.decode("utf-8", "replace") if message else ""
+        self.messages.append(f"[{_STATUS.get(status, status)}] {text}")
+
+    def _fail(self, what: str, status: int) -> None:
+        detail = self.messages[-1] if self.messages else "no message from the FMU"
+        raise PlantError(f"{what} returned {_STATUS.get(status, status)}: {detail}")
+
+    def _check(self, what: str, status: int) -> None:
+        if status > 1:  # warnings are kept in self.messages, not raised
+            self._fail(what, status)
+
+    def _init(self, params: Mapping[str, float], inputs: Mapping[str, float], start_time: float) -> None:
+        for name in params:
+            self._require(name, "parameter")
+        for name in inputs:
+            self._require(name, "input")
+        self._check("fmi2SetupExperiment",
+                    self._fmu.fmi2SetupExperiment(self._component, 0, 0.0, start_time, 0, 0.0))
+        self._check("fmi2EnterInitializationMode",
+                    self._fmu.fmi2EnterInitializationMode(self._component))
+        for name, value in {**params, **inputs}.items():
+            self.set_value(name, value)
+        for i, name in enumerate(self.input_names):
+            self.u[i] = self.get_value(name)
+        self._call_checked("fmi2ExitInitializationMode", self._fmu.fmi2ExitInitializationMode)
+        self.time = float(start_time)
+        self._read_outputs()
+
+    def _require(self, name: str, causality: str) -> None:
+        var = self.variables.get(name)
+        if var is None or var.causality != causality:
+            known = sorted(v.name for v in self.variables.values() if v.causality == causality)
+            raise PlantError(f"unknown {causality} {name!r}; the plant's {causality}s are: "
+                             + ", ".join(known))
+
+    def _call_checked(self, what: str, fn: object, *args: object) -> None:
+        """Calls one of fmpy's checked wrappers, turning its exception into a PlantError."""
+        try:
+            fn(self._component, *args)  # type: ignore[operator]
+        except Exception as exc:  # fmpy raises FMICallException with the status
+            self._fail(what, getattr(exc, "status", 3))
+
+    # ---- by name (slow path: setup, tests, scenario events) ----------------------------------
+
+    def set_value(self, name: str, value: float) -> None:
+        """Sets one variable by name through the FMU (any type); inputs also go into ``u``."""
+        var = self.variables.get(name)
+        if var is None:
+            raise PlantError(f"the plant has no variable {name!r}")
+        vr = (c_uint * 1)(var.valueReference)
+        if var.type == "Real":
+            status = self._set_real(self._component, vr, 1, (c_double * 1)(float(value)))
+        elif var.type in ("Integer", "Boolean"):
+            if float(value) != int(value):
+                raise PlantError(f"{name} takes a whole number, not {value!r}")
+            status = self._set_int[var.type](self._component, vr, 1, (c_int * 1)(int(value)))
+        else:
+            raise PlantError(f"{name} has unsupported type {var.type}")
+        self._check(f"setting {name}", status)
+        if name in self.u_index:
+            self.u[self.u_index[name]] = value
+
+    def get_value(self, name: str) -> float:
+        """Reads one variable by name from the FMU (any type; booleans as 0.0/1.0)."""
+        var = self.variables.get(name)
+        if var is None:
+            raise PlantError(f"the plant has no variable {name!r}")
+        vr = (c_uint * 1)(var.valueReference)
+        if var.type == "Real":
+            out = (c_double * 1)()
+            self._check(f"reading {name}", self._get_real(self._component, vr, 1, out))
+            return float(out[0])
+        iout = (c_int * 1)()
+        self._check(f"reading {name}", self._get_int[var.type](self._component, vr, 1, iout))
+        return float(iout[0])
+
+    def set_input(self, name: str, value: float) -> None:
+        """Sets an input in ``u``; it reaches the FMU with the next step."""
+        try:
+            self.u[self.u_index[name]] = value
+        except KeyError:
+            self._require(name, "input")
+            raise
+
+    def output(self, name: str) -> float:
+        """The latest value of a Real output."""
+        return float(self.y[self.y_index[name]])
+
+    def outputs(self) -> dict[str, float]:
+        """All Real outputs and ``on_ground``, by name."""
+        values = dict(zip(self.output_names, self.y.tolist(), strict=True))
+        values["on_ground"] = float(self.on_ground)
+        return values
+
+    @property
+    def on_ground(self) -> bool:
+        status = self._get_int["Boolean"](self._component, self._on_ground_vr, 1, self._bool_buf)
+        self._check("reading on_ground", status)
+        return bool(self._bool_buf[0])
+
+    # ---- fast path ---------------------------------------------------------------------------
+
+    def _read_outputs(self) -> None:
+        status = self._get_real(self._component, self._y_vr, self._n_y, self._y_buf)
+        if status > 1:
+            self._fail("fmi2GetReal", status)
+
+    def step(self, dt: float) -> None:
+        """Writes ``u`` to the FMU, advances by ``dt`` seconds and refreshes ``y``."""
+        c = self._component
+        status = self._set_real(c, self._u_vr, self._n_u, self._u_buf)
+        if status > 1:
+            self._fail("fmi2SetReal", status)
+        status = self._do_step(c, self.time, dt, 1)
+        if status > 1:
+            self._fail("fmi2DoStep", status)
+        status = self._get_real(c, self._y_vr, self._n_y, self._y_buf)
+        if status > 1:
+            self._fail("fmi2GetReal", status)
+        self.time += dt
+
+    def run(self, duration: float, dt: float) -> None:
+        """Steps with constant inputs for ``duration`` (a whole number of ``dt``)."""
+        for _ in range(int(round(duration / dt))):
+            self.step(dt)
+
+    # ---- saved states ------------------------------------------------------------------------
+
+    def save(self) -> PlantState:
+        """Saves the complete FMU state, to start runs again from here with ``restore``."""
+        handle = c_void_p()
+        self._check("fmi2GetFMUstate", self._get_state(self._component, byref(handle)))
+        state = PlantState(handle, self.time, self.u.copy())
+        self._states.append(state)
+        return state
+
+    def restore(self, state: PlantState) -> None:
+        """Puts the FMU back to a saved state: time, inputs, physics and outputs."""
+        self._check("fmi2SetFMUstate", self._set_state(self._component, state.handle))
+        self.time = state.time
+        self.u[:] = state.inputs
+        self._read_outputs()
+
+    # ---- lifetime ----------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Frees the instance, its saved states and the extracted files; safe to call twice."""
+        fmu = getattr(self, "_fmu", None)
+        if fmu is not None and fmu.component:
+            for state in self._states:
+                self._free_state(self._component, byref(state.handle))
+            self._states.clear()
+            fmu.fmi2FreeInstance(self._component)
+            fmu.component = None
+            fmu.freeLibrary()
+        self._fmu = None
+        if getattr(self, "_unzip_dir", None):
+            shutil.rmtree(self._unzip_dir, ignore_errors=True)
+            self._unzip_dir = None
+
+    def __enter__(self) -> Plant:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,259 @@
+"""The one table of the plant FMU's variables (DESIGN.md §4).
+
+Everything that names a variable is generated from this table: the C structs the physics works on and
+the value-reference switch of the FMI wrapper (``quadrotor_vars.h``), and ``modelDescription.xml``.
+Adding a variable here and rebuilding is the whole change; the C compiler then refuses physics code that
+uses a field the table does not declare. Names, units and defaults are a public interface: scenarios,
+tests and outside tools address variables by name.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import uuid
+from dataclasses import dataclass
+from typing import Literal
+from xml.sax.saxutils import quoteattr
+
+Causality = Literal["input", "parameter", "output"]
+VarType = Literal["Real", "Integer", "Boolean"]
+
+MODEL_IDENTIFIER = "quadrotor"
+MODEL_NAME = "quadrotor"
+
+#: Standard gravity, also the default of the ``gravity`` parameter (specs/sensors.md §6).
+G0 = 9.80665
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One FMI scalar variable and the C struct field that holds it."""
+
+    name: str
+    causality: Causality
+    type: VarType
+    start: float
+    unit: str
+    description: str
+    field: str  # C field inside qr_inputs / qr_params / qr_outputs, e.g. "pwm_us[0]"
+
+
+def _v(name: str, causality: Causality, start: float, unit: str, description: str,
+       field: str | None = None, type: VarType = "Real") -> Variable:
+    return Variable(name, causality, type, start, unit, description, field or name)
+
+
+def _four(stem: str, causality: Causality, start: float, unit: str, description: str,
+          field: str, suffix: str = "") -> list[Variable]:
+    return [_v(f"{stem}{i}{suffix}", causality, start, unit, f"{description}, motor {i}",
+               f"{field}[{i - 1}]") for i in range(1, 5)]
+
+
+def _axes(names: tuple[str, str, str], causality: Causality, start: tuple[float, float, float],
+          unit: str, description: str, field: str) -> list[Variable]:
+    return [_v(n, causality, s, unit, f"{description} ({n.rsplit('_', 1)[-1]})", f"{field}[{k}]")
+            for k, (n, s) in enumerate(zip(names, start, strict=True))]
+
+
+_INPUTS: list[Variable] = [
+    *_four("pwm", "input", 1000.0, "us", "ESC pulse width", "pwm_us", "_us"),
+    *_axes(("wind_n", "wind_e", "wind_d"), "input", (0, 0, 0), "m/s", "wind velocity, world NED",
+           "wind"),
+    *_axes(("f_ext_n", "f_ext_e", "f_ext_d"), "input", (0, 0, 0), "N", "external force, world NED",
+           "f_ext"),
+    *_axes(("tau_ext_x", "tau_ext_y", "tau_ext_z"), "input", (0, 0, 0), "N.m",
+           "external torque, body FRD", "tau_ext"),
+    *_four("motor_health", "input", 1.0, "1",
+           "rotor effectiveness (multiplies thrust and reaction torque; clamped to >= 0)",
+           "motor_health"),
+]
+
+_PARAMETERS: list[Variable] = [
+    _v("mass", "parameter", 1.2, "kg", "vehicle mass (seed 001 Table 1)"),
+    _v("arm_length", "parameter", 0.2, "m", "rotor centre to centre of mass (seed 001 Table 1)"),
+    _v("k_thrust", "parameter", 3.13e-5, "N.s2", "thrust = k_thrust * omega^2 (seed 001 Table 1)"),
+    _v("k_torque", "parameter", 7.5e-7, "N.m.s2",
+       "reaction torque = k_torque * omega^2 (seed 001 Table 1)"),
+    _v("Ixx", "parameter", 2.353e-3, "kg.m2", "roll inertia (seed 001 Table 1)"),
+    _v("Iyy", "parameter", 2.353e-3, "kg.m2", "pitch inertia (seed 001 Table 1)"),
+    _v("Izz", "parameter", 5.262e-2, "kg.m2", "yaw inertia (seed 001 Table 1)"),
+    _v("frame", "parameter", 0, "",
+       "0 '+' frame (1 front, 2 left, 3 rear, 4 right); 1 X frame (the '+' layout turned 45 deg "
+       "clockwise seen from above: 1 front-right, 2 front-left, 3 rear-left, 4 rear-right)",
+       type="Integer"),
+    _v("motor_tau", "parameter", 0.02, "s", "first-order motor time constant"),
+    _v("omega_max", "parameter", 600.0, "rad/s", "rotor speed at full throttle"),
+    _v("esc_min_us", "parameter", 1000.0, "us", "pulse width for zero throttle"),
+    _v("esc_max_us", "parameter", 2000.0, "us", "pulse width for full throttle"),
+    *_four("esc_gain", "parameter", 1.0, "1",
+           "ESC curve gain: omega_cmd = omega_max * clamp(gain * u + offset, 0, 1)", "esc_gain"),
+    *_four("esc_offset", "parameter", 0.0, "1",
+           "ESC curve offset: omega_cmd = omega_max * clamp(gain * u + offset, 0, 1)",
+           "esc_offset"),
+    *_axes(("drag_n", "drag_e", "drag_d"), "parameter", (0.25, 0.25, 0.25), "N.s/m",
+           "linear drag on air-relative velocity, world axis", "drag"),
+    _v("gravity", "parameter", G0, "m/s2", "gravitational acceleration"),
+    _v("stand", "parameter", 0, "",
+       "0 free flight, 1 roll gimbal, 2 pitch gimbal, 3 yaw gimbal, 4 attitude gimbal "
+       "(gimbals hold the position fixed)", type="Integer"),
+    _v("stand_damping", "parameter", 0.0, "N.m.s/rad", "viscous friction of the stand's bearings"),
+    _v("roll0", "parameter", 0.0, "rad", "initial roll"),
+    _v("pitch0", "parameter", 0.0, "rad", "initial pitch"),
+    _v("yaw0", "parameter", 0.0, "rad", "initial yaw"),
+    _v("pn0", "parameter", 0.0, "m", "initial north position"),
+    _v("pe0", "parameter", 0.0, "m", "initial east position"),
+    _v("pd0", "parameter", 0.0, "m",
+       "initial down position (the ground is pd = 0; free flight needs pd0 <= 0)"),
+    *_axes(("mag_n", "mag_e", "mag_d"), "parameter", (0.25, 0.0, 0.433), "G",
+           "Earth magnetic field, world NED", "mag"),
+    _v("p_ground", "parameter", 101325.0, "Pa", "static pressure at pd = 0"),
+    _v("t_ground", "parameter", 15.0, "degC", "air temperature at pd = 0"),
+    _v("h_max_step", "parameter", 1e-3, "s", "longest internal RK4 sub-step"),
+]
+
+_OUTPUTS: list[Variable] = [
+    *_axes(("pn", "pe", "pd"), "output", (0, 0, 0), "m", "position, world NED", "pos"),
+    *_axes(("vn", "ve", "vd"), "output", (0, 0, 0), "m/s", "velocity, world NED", "vel"),
+    *[_v(n, "output", 0.0, "1", f"attitude quaternion body to world, scalar first ({n})",
+         f"q[{k}]") for k, n in enumerate(("qw", "qx", "qy", "qz"))],
+    _v("roll", "output", 0.0, "rad", "Euler ZYX roll (right wing down positive)"),
+    _v("pitch", "output", 0.0, "rad", "Euler ZYX pitch (nose up positive)"),
+    _v("yaw", "output", 0.0, "rad", "Euler ZYX yaw (nose right positive)"),
+    *[_v(n, "output", 0.0, "rad/s", f"body angular rate ({n})", f"rate[{k}]")
+      for k, n in enumerate(("p", "q", "r"))],
+    *[_v(n, "output", 0.0, "m/s2", "specific force (what an accelerometer measures), body FRD "
+         f"({n})", f"f_body[{k}]") for k, n in enumerate(("fx", "fy", "fz"))],
+    *[_v(n, "output", 0.0, "G", f"Earth magnetic field in body FRD ({n})", f"mag_body[{k}]")
+      for k, n in enumerate(("mag_x", "mag_y", "mag_z"))],
+    _v("pressure", "output", 0.0, "Pa", "static pressure (ISA troposphere from altitude)"),
+    _v("temperature", "output", 0.0, "degC", "air temperature (ISA lapse from altitude)"),
+    *_four("omega", "output", 0.0, "rad/s", "rotor speed", "omega"),
+    *_four("thrust", "output", 0.0, "N", "rotor thrust", "thrust"),
+    _v("on_ground", "output", 0, "", "resting on the ground (free flight only)", type="Boolean"),
+]
+
+VARIABLES: list[Variable] = [*_INPUTS, *_PARAMETERS, *_OUTPUTS]
+
+#: Value references: Reals, Integers and Booleans each count from their own base.
+_VR_BASE: dict[VarType, int] = {"Real": 0, "Integer": 1000, "Boolean": 2000}
+
+
+def value_references() -> dict[str, int]:
+    """Name -> FMI value reference, in table order within each type."""
+    counters = dict(_VR_BASE)
+    refs = {}
+    for v in VARIABLES:
+        refs[v.name] = counters[v.type]
+        counters[v.type] += 1
+    return refs
+
+
+_STRUCTS: dict[Causality, str] = {"input": "qr_inputs", "parameter": "qr_params",
+                                  "output": "qr_outputs"}
+_KIND: dict[Causality, str] = {"input": "INPUT", "parameter": "PARAM", "output": "OUTPUT"}
+_C_TYPE: dict[VarType, str] = {"Real": "double", "Integer": "int", "Boolean": "int"}
+
+# Units in modelDescription, with their SI base units (FMI 2 §2.2.2).
+_UNITS: dict[str, str] = {
+    "us": 's="1" factor="1e-6"', "m/s": 'm="1" s="-1"', "N": 'kg="1" m="1" s="-2"',
+    "N.m": 'kg="1" m="2" s="-2"', "1": "", "kg": 'kg="1"', "m": 'm="1"',
+    "N.s2": 'kg="1" m="1"', "N.m.s2": 'kg="1" m="2"', "kg.m2": 'kg="1" m="2"', "s": 's="1"',
+    "rad/s": 'rad="1" s="-1"', "N.s/m": 'kg="1" s="-1"', "m/s2": 'm="1" s="-2"',
+    "N.m.s/rad": 'kg="1" m="2" s="-1" rad="-1"', "rad": 'rad="1"', "G": 'kg="1" s="-2" A="-1" factor="1e-4"',
+    "Pa": 'kg="1" m="-1" s="-2"', "degC": 'K="1" offset="273.15"',
+}
+
+
+def _fmt(v: Variable) -> str:
+    if v.type == "Real":
+        return repr(float(v.start))
+    return str(int(v.start))
+
+
+def _struct_fields(causality: Causality) -> list[str]:
+    """C declarations for one struct: indexed fields become arrays sized by their largest index."""
+    sizes: dict[str, int] = {}
+    types: dict[str, str] = {}
+    for v in VARIABLES:
+        if v.causality != causality:
+            continue
+        base, _, idx = v.field.partition("[")
+        sizes[base] = max(sizes.get(base, 0), int(idx.rstrip("]")) + 1 if idx else 0)
+        types[base] = _C_TYPE[v.type]
+    return [f"    {types[b]} {b}{f'[{n}]' if n else ''};" for b, n in sizes.items()]
+
+
+def guid() -> str:
+    """A GUID that changes exactly when the variable interface changes (deterministic builds)."""
+    digest = hashlib.sha256(repr(VARIABLES).encode()).hexdigest()
+    return "{" + str(uuid.uuid5(uuid.NAMESPACE_OID, digest)) + "}"
+
+
+def c_header() -> str:
+    """The generated C header: structs for the physics and X-macro lists for the FMI wrapper."""
+    refs = value_references()
+    out = ["/* Generated by plant/variables.py: do not edit. */",
+           "#ifndef QUADROTOR_VARS_H", "#define QUADROTOR_VARS_H", "",
+           f'#define QR_GUID "{guid()}"', f'#define QR_MODEL_IDENTIFIER "{MODEL_IDENTIFIER}"', ""]
+    for causality, struct in _STRUCTS.items():
+        out += ["typedef struct {", *_struct_fields(causality), f"}} {struct};", ""]
+    for vtype in ("Real", "Integer", "Boolean"):
+        rows = [v for v in VARIABLES if v.type == vtype]
+        out.append(f"#define QR_{vtype.upper()}_VR_BASE {_VR_BASE[vtype]}")
+        out.append(f"#define QR_NUM_{vtype.upper()} {len(rows)}")
+        out.append(f"/* X(vr, field, KIND, start, name) */\n#define QR_{vtype.upper()}_VARIABLES(X) \\")
+        out += [f'    X({refs[v.name]}, {v.field}, {_KIND[v.causality]}, {_fmt(v)}, "{v.name}") \\'
+                for v in rows]
+        out.append("")
+    out += ["#endif", ""]
+    return "\n".join(out)
+
+
+def model_description() -> str:
+    """modelDescription.xml (FMI 2.0 co-simulation); no timestamps, so builds are reproducible."""
+    refs = value_references()
+    units = sorted({v.unit for v in VARIABLES if v.unit})
+    lines = [
+        '<?xml version="1.0" encoding="UTF-8"?>',
+        f'<fmiModelDescription fmiVersion="2.0" modelName="{MODEL_NAME}" guid="{guid()}"',
+        '  description="Quadrotor 6-DOF plant for hardware-in-the-loop testing (NED world, FRD body)"',
+        '  generationTool="plant/build.py" variableNamingConvention="flat" numberOfEventIndicators="0">',
+        f'  <CoSimulation modelIdentifier="{MODEL_IDENTIFIER}" canHandleVariableCommunicationStepSize="true"',
+        '    canGetAndSetFMUstate="true" canSerializeFMUstate="true"',
+        '    canNotUseMemoryManagementFunctions="true"/>',
+        "  <UnitDefinitions>",
+        *[f'    <Unit name="{u}"><BaseUnit {_UNITS[u]}/></Unit>' if _UNITS[u]
+          else f'    <Unit name="{u}"/>' for u in units],
+        "  </UnitDefinitions>",
+        "  <LogCategories>",
+        '    <Category name="logStatusWarning" description="bad input that was clamped or rejected"/>',
+        '    <Category name="logStatusError" description="calls that failed and changed nothing"/>',
+        "  </LogCategories>",
+        '  <DefaultExperiment startTime="0" stopTime="10" stepSize="0.001"/>',
+        "  <ModelVariables>",
+    ]
+    for v in VARIABLES:
+        attrs = f'name="{v.name}" valueReference="{refs[v.name]}" causality="{v.causality}"'
+        if v.causality == "parameter":
+            attrs += ' variability="fixed" initial="exact"'
+        elif v.type == "Real":
+            attrs += ' variability="continuous"'
+        else:
+            attrs += ' variability="discrete"'
+        attrs += f" description={quoteattr(v.description)}"
+        type_attrs = f' unit="{v.unit}"' if v.unit and v.type == "Real" else ""
+        if v.causality != "output":
+            type_attrs += f' start="{_fmt(v)}"'
+        lines.append(f"    <ScalarVariable {attrs}><{v.type}{type_attrs}/></ScalarVariable>")
+    outputs = [i for i, v in enumerate(VARIABLES, start=1) if v.causality == "output"]
+    lines += [
+        "  </ModelVariables>",
+        "  <ModelStructure>",
+        "    <Outputs>", *[f'      <Unknown index="{i}"/>' for i in outputs], "    </Outputs>",
+        "    <InitialUnknowns>", *[f'      <Unknown index="{i}"/>' for i in outputs],
+        "    </InitialUnknowns>",
+        "  </ModelStructure>",
+        "</fmiModelDescription>",
+        "",
+    ]
+    return "\n".join(lines)

@@ -1,0 +1,1 @@
+"""JUnit XML, JSON and HTML report renderers."""

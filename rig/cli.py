@@ -1,0 +1,26 @@
+"""The ``rig`` command line."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from rig import __version__
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="rig", description="Quadrotor hardware-in-the-loop test rig")
+    parser.add_argument("--version", action="version", version=f"rig {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+    sub.add_parser("demo", help="fly the plant FMU: seed-000 roll-stand release and open-loop hovers")
+    args = parser.parse_args(argv)
+    if args.command == "demo":
+        from rig import demo
+
+        return demo.main()
+    parser.error(f"unknown command {args.command}")
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Scenario schema, metrics and criteria, and the scenario library (``*.toml``)."""
