@@ -97,9 +97,13 @@ class Plant:
         self._fmu.instantiate(callbacks=self._callbacks)
         self._component = c_void_p(self._fmu.component)
 
-        # Raw function pointers with our own prototypes: dll[name] returns a fresh function object,
-        # so fmpy's checked wrappers keep theirs.
+        # Raw function pointers: dll[name] returns a fresh function object, so fmpy's checked wrappers
+        # keep their prototypes. The hot three (set inputs, step, get outputs) have no argtypes and are
+        # called only with prebuilt ctypes objects: argument conversion costs more than the physics.
         dll = self._fmu.dll
+        self._raw_set_real, self._raw_do_step, self._raw_get_real = (
+            self._proto(dll, name) for name in ("fmi2SetReal", "fmi2DoStep", "fmi2GetReal"))
+        self._t, self._h, self._no_rollback = c_double(0.0), c_double(0.0), c_int(1)
         vr_p, real_p = POINTER(c_uint), POINTER(c_double)
         self._set_real = self._proto(dll, "fmi2SetReal", c_void_p, vr_p, c_size_t, real_p)
         self._get_real = self._proto(dll, "fmi2GetReal", c_void_p, vr_p, c_size_t, real_p)
@@ -108,7 +112,6 @@ class Plant:
                          for t in ("Integer", "Boolean")}
         self._set_int = {t: self._proto(dll, f"fmi2Set{t}", c_void_p, vr_p, c_size_t, int_p)
                          for t in ("Integer", "Boolean")}
-        self._do_step = self._proto(dll, "fmi2DoStep", c_void_p, c_double, c_double, c_int)
         self._get_state = self._proto(dll, "fmi2GetFMUstate", c_void_p, POINTER(c_void_p))
         self._set_state = self._proto(dll, "fmi2SetFMUstate", c_void_p, c_void_p)
         self._free_state = self._proto(dll, "fmi2FreeFMUstate", c_void_p, POINTER(c_void_p))
@@ -131,7 +134,8 @@ class Plant:
     @staticmethod
     def _proto(dll: ctypes.CDLL, name: str, *argtypes: object) -> ctypes._CFuncPtr:
         fn = dll[name]
-        fn.argtypes = list(argtypes)
+        if argtypes:
+            fn.argtypes = list(argtypes)
         fn.restype = c_int
         return fn
 
@@ -214,14 +218,15 @@ class Plant:
 
     def set_input(self, name: str, value: float) -> None:
         """Sets an input in ``u``; it reaches the FMU with the next step."""
-        try:
-            self.u[self.u_index[name]] = value
-        except KeyError:
+        if name not in self.u_index:
             self._require(name, "input")
-            raise
+        self.u[self.u_index[name]] = value
 
     def output(self, name: str) -> float:
         """The latest value of a Real output."""
+        if name not in self.y_index:
+            self._require(name, "output")
+            raise PlantError(f"{name} is not a Real output; read it with get_value")
         return float(self.y[self.y_index[name]])
 
     def outputs(self) -> dict[str, float]:
@@ -243,19 +248,29 @@ class Plant:
         if status > 1:
             self._fail("fmi2GetReal", status)
 
+    @property
+    def time(self) -> float:
+        """The plant's time (s): the communication point of the next step."""
+        return self._t.value
+
+    @time.setter
+    def time(self, value: float) -> None:
+        self._t.value = value
+
     def step(self, dt: float) -> None:
         """Writes ``u`` to the FMU, advances by ``dt`` seconds and refreshes ``y``."""
         c = self._component
-        status = self._set_real(c, self._u_vr, self._n_u, self._u_buf)
+        self._h.value = dt
+        status = self._raw_set_real(c, self._u_vr, self._n_u, self._u_buf)
         if status > 1:
             self._fail("fmi2SetReal", status)
-        status = self._do_step(c, self.time, dt, 1)
+        status = self._raw_do_step(c, self._t, self._h, self._no_rollback)
         if status > 1:
             self._fail("fmi2DoStep", status)
-        status = self._get_real(c, self._y_vr, self._n_y, self._y_buf)
+        status = self._raw_get_real(c, self._y_vr, self._n_y, self._y_buf)
         if status > 1:
             self._fail("fmi2GetReal", status)
-        self.time += dt
+        self._t.value += dt
 
     def run(self, duration: float, dt: float) -> None:
         """Steps with constant inputs for ``duration`` (a whole number of ``dt``)."""
