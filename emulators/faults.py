@@ -1,0 +1,133 @@
+"""One fault vocabulary for every device, switched on and off by sim time (after PX4's failure
+injection): off (NACK), stuck, noise burst, bias step, drift, scale error, delay, intermittent,
+garbage bytes. Signal faults act in the sensor models; bus faults (off, intermittent, garbage) act on
+the device's presence and bytes."""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+SIGNAL_KINDS = ("stuck", "noise_burst", "bias_step", "drift", "scale_error", "delay")
+BUS_KINDS = ("off", "intermittent", "garbage")
+KINDS = SIGNAL_KINDS + BUS_KINDS
+
+
+@dataclass(frozen=True)
+class Fault:
+    """``magnitude`` means: noise_burst sigma, bias_step offset, drift rate per second, scale_error
+    factor, delay seconds (in the signal's units); intermittent NACKs for ``duty`` of each ``period``."""
+
+    kind: str
+    start: float
+    end: float = math.inf
+    magnitude: float = 0.0
+    period: float = 0.1
+    duty: float = 0.5
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise ValueError(f"unknown fault kind {self.kind!r}; known: {', '.join(KINDS)}")
+        if not self.end > self.start:
+            raise ValueError(f"fault {self.kind}: end ({self.end}) must be after start ({self.start})")
+        if self.kind == "intermittent" and not (self.period > 0 and 0 <= self.duty <= 1):
+            raise ValueError("intermittent fault needs period > 0 and 0 <= duty <= 1")
+        if self.kind == "delay" and self.magnitude < 0:
+            raise ValueError("delay fault needs magnitude >= 0 (seconds)")
+
+    def active(self, t: float) -> bool:
+        return self.start <= t < self.end
+
+
+@dataclass
+class FaultSet:
+    """The faults scheduled for one device; deterministic for a given seed."""
+
+    faults: list[Fault] = field(default_factory=list)
+    seed: int = 0
+    _rng: np.random.Generator = field(init=False)
+    _stuck: dict[int, np.ndarray] = field(default_factory=dict)
+    _history: deque[tuple[float, np.ndarray]] = field(default_factory=deque)
+
+    def __post_init__(self) -> None:
+        self._rng = np.random.default_rng(self.seed)
+
+    def add(self, fault: Fault) -> None:
+        self.faults.append(fault)
+
+    # ---- bus faults --------------------------------------------------------------------------
+
+    def acks(self, t: float) -> bool:
+        for f in self.faults:
+            if not f.active(t):
+                continue
+            if f.kind == "off":
+                return False
+            if f.kind == "intermittent" and ((t - f.start) % f.period) < f.duty * f.period:
+                return False
+        return True
+
+    def garble(self, t: float, data: bytes) -> bytes:
+        if any(f.kind == "garbage" and f.active(t) for f in self.faults):
+            return bytes(self._rng.integers(0, 256, len(data), dtype=np.uint8))
+        return data
+
+    # ---- signal faults -----------------------------------------------------------------------
+
+    def apply(self, t: float, value: np.ndarray) -> np.ndarray:
+        """The measured value with every active signal fault applied (in schedule order)."""
+        if any(f.kind == "delay" for f in self.faults):
+            self._history.append((t, value.copy()))
+            horizon = max(f.magnitude for f in self.faults if f.kind == "delay")
+            while len(self._history) > 2 and self._history[1][0] <= t - horizon:
+                self._history.popleft()
+        out = value.astype(float, copy=True)
+        for i, f in enumerate(self.faults):
+            if not f.active(t):
+                self._stuck.pop(i, None)
+                continue
+            if f.kind == "stuck":
+                out = self._stuck.setdefault(i, out.copy()).copy()
+            elif f.kind == "noise_burst":
+                out = out + self._rng.normal(0.0, f.magnitude, out.shape)
+            elif f.kind == "bias_step":
+                out = out + f.magnitude
+            elif f.kind == "drift":
+                out = out + f.magnitude * (t - f.start)
+            elif f.kind == "scale_error":
+                out = out * f.magnitude
+            elif f.kind == "delay":
+                past = [v for (tt, v) in self._history if tt <= t - f.magnitude]
+                out = past[-1].copy() if past else self._history[0][1].copy()
+        return out
+
+
+@dataclass
+class FaultyDevice:
+    """Wraps a bus device with its bus faults: the bus asks ``acks(t)`` before addressing it."""
+
+    device: object
+    faults: FaultSet
+    now: float = 0.0
+
+    def acks(self, t: float) -> bool:
+        return self.faults.acks(t)
+
+    def advance_to(self, t: float) -> None:
+        self.now = max(self.now, t)
+        self.device.advance_to(t)  # type: ignore[attr-defined]
+
+    def start(self, read: bool) -> None:
+        self.device.start(read)  # type: ignore[attr-defined]
+
+    def write(self, data: bytes) -> None:
+        self.device.write(data)  # type: ignore[attr-defined]
+
+    def read(self, n: int) -> bytes:
+        return self.faults.garble(self.now, self.device.read(n))  # type: ignore[attr-defined]
+
+    def stop(self) -> None:
+        self.device.stop()  # type: ignore[attr-defined]

@@ -1,0 +1,138 @@
+"""An emulated I2C bus: transfers as lists of messages, devices addressed by 7-bit address.
+
+A transfer is what Linux's ``I2C_RDWR`` carries: messages joined by repeated STARTs, one STOP at the
+end. Devices see ``start``/``write``/``read``/``stop`` calls in wire order and are told the sim time
+before every transfer (devices never read the wall clock). The bus only moves bytes; physics reaches
+devices through their sources.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
+
+
+class I2CNack(Exception):
+    """No device acknowledged the address (the kernel reports ENXIO/EREMOTEIO)."""
+
+    def __init__(self, addr: int) -> None:
+        super().__init__(f"no ACK from address 0x{addr:02x}")
+        self.addr = addr
+
+
+class I2CDevice(Protocol):
+    """What the bus needs from a device; the emulators implement it."""
+
+    def advance_to(self, t: float) -> None: ...
+    def start(self, read: bool) -> None: ...
+    def write(self, data: bytes) -> None: ...
+    def read(self, n: int) -> bytes: ...
+    def stop(self) -> None: ...
+
+
+@dataclass(frozen=True)
+class Msg:
+    """One message of a transfer: a write of ``data`` or a read of ``length`` bytes."""
+
+    addr: int
+    read: bool = False
+    data: bytes = b""
+    length: int = 0
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.addr <= 0x7F:
+            raise ValueError(f"I2C address 0x{self.addr:x} is not a 7-bit address")
+        if self.read and (self.length < 0 or self.data):
+            raise ValueError("a read message has a length and no data")
+
+
+def write(addr: int, *data: int) -> Msg:
+    return Msg(addr, False, bytes(data))
+
+
+def read(addr: int, length: int) -> Msg:
+    return Msg(addr, True, b"", length)
+
+
+Resolver = Callable[[int], I2CDevice | None]
+
+
+@dataclass
+class I2CBus:
+    """A bus of devices at fixed addresses, plus resolvers for devices that appear conditionally
+    (the HMC5883L behind the MPU-6050's bypass switch)."""
+
+    devices: dict[int, I2CDevice] = field(default_factory=dict)
+    resolvers: list[Resolver] = field(default_factory=list)
+    #: devices that keep sim time without a fixed address (reached through resolvers or another device)
+    hidden: list[I2CDevice] = field(default_factory=list)
+    log: list[tuple[float, tuple[Msg, ...], tuple[bytes, ...] | str]] | None = None
+    clock_hz: float | None = None
+
+    def attach(self, addr: int, device: I2CDevice) -> None:
+        if addr in self.devices:
+            raise ValueError(f"address 0x{addr:02x} is already taken")
+        self.devices[addr] = device
+
+    def device_at(self, addr: int, t: float | None = None) -> I2CDevice | None:
+        """The device that acknowledges ``addr`` now: fixed ones first, then resolvers; a device
+        with a bus fault (``acks(t)`` false) does not answer."""
+        dev = self.devices.get(addr)
+        if dev is None:
+            dev = next((d for d in (resolve(addr) for resolve in self.resolvers) if d is not None), None)
+        if dev is not None and t is not None and not getattr(dev, "acks", lambda _t: True)(t):
+            return None
+        return dev
+
+    def all_devices(self) -> Iterable[I2CDevice]:
+        yield from self.devices.values()
+        yield from self.hidden
+
+    def advance_to(self, t: float) -> None:
+        for dev in self.all_devices():
+            dev.advance_to(t)
+
+    def transfer(self, msgs: Sequence[Msg], t: float) -> list[bytes]:
+        """Runs one transfer at sim time ``t``; returns the bytes of each read message in order.
+
+        Raises I2CNack when a message's address is not acknowledged; messages before it have taken
+        effect (as on a real bus), and the device that was addressed sees its STOP.
+        """
+        self.advance_to(t)
+        results: list[bytes] = []
+        current: I2CDevice | None = None
+        try:
+            for msg in msgs:
+                dev = self.device_at(msg.addr, t)
+                if dev is None:
+                    raise I2CNack(msg.addr)
+                if current is not None and current is not dev:
+                    current.stop()
+                current = dev
+                dev.start(msg.read)
+                if msg.read:
+                    data = dev.read(msg.length)
+                    if len(data) != msg.length:
+                        raise AssertionError(f"device at 0x{msg.addr:02x} returned {len(data)} bytes")
+                    results.append(data)
+                else:
+                    dev.write(msg.data)
+        except I2CNack:
+            if self.log is not None:
+                self.log.append((t, tuple(msgs), "nack"))
+            raise
+        finally:
+            if current is not None:
+                current.stop()
+        if self.log is not None:
+            self.log.append((t, tuple(msgs), tuple(results)))
+        return results
+
+    def bus_time(self, msgs: Sequence[Msg]) -> float:
+        """Seconds the transfer occupies the wire at ``clock_hz`` (9 clocks a byte incl. ACK, plus
+        START/address per message and STOP); 0 when no clock is set."""
+        if not self.clock_hz:
+            return 0.0
+        clocks = sum(9 * (1 + (m.length if m.read else len(m.data))) + 1 for m in msgs) + 1
+        return clocks / self.clock_hz

@@ -1,0 +1,342 @@
+"""MPU-6050 accelerometer/gyro (specs/sensors.md §3): register map with reset values and exact
+read-back, sleep and DEVICE_RESET, FS scaling, DLPF and sample-rate divider, coherent bursts,
+INT_STATUS, FIFO with latched count, bypass and aux master, self-test. Sim time only."""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from emulators.i2c_bus import I2CDevice
+from emulators.registers import RegisterMap, RegisterSpec, clamp16, round_half_away
+
+ADDRESS = 0x68
+G0 = 9.80665
+ACCEL_LSB_PER_G = (16384.0, 8192.0, 4096.0, 2048.0)
+GYRO_LSB_PER_DPS = (131.0, 65.5, 32.8, 16.4)
+#: DLPF_CFG -> (accel bandwidth Hz, accel delay s, gyro bandwidth Hz, gyro delay s), specs §3.5.
+DLPF = ((260, 0.0, 256, 0.98e-3), (184, 2.0e-3, 188, 1.9e-3), (94, 3.0e-3, 98, 2.8e-3),
+        (44, 4.9e-3, 42, 4.8e-3), (21, 8.5e-3, 20, 8.3e-3), (10, 13.8e-3, 10, 13.4e-3),
+        (5, 19.0e-3, 5, 18.6e-3), (260, 0.0, 256, 0.98e-3))
+FIFO_SIZE = 1024
+
+# Self-test: factory-trim codes and the matching actuation (specs §3.10). Gyro code 16 gives
+# FT = 25 * 1.046**15 deg/s (+X, -Y, +Z); accel code 12 gives FT = 0.34 * (0.92/0.34)**(11/30) g.
+ST_GYRO_CODE, ST_ACCEL_CODE = 16, 12
+ST_GYRO_DPS = 25.0 * 1.046 ** (ST_GYRO_CODE - 1)
+ST_ACCEL_G = 0.34 * (0.92 / 0.34) ** ((ST_ACCEL_CODE - 1) / 30)
+
+(SELF_TEST_X, SELF_TEST_A, SMPLRT_DIV, CONFIG, GYRO_CONFIG, ACCEL_CONFIG, FIFO_EN, I2C_MST_CTRL,
+ I2C_MST_STATUS, INT_PIN_CFG, INT_ENABLE, INT_STATUS, ACCEL_XOUT_H, TEMP_OUT_H, GYRO_XOUT_H,
+ EXT_SENS_DATA_00, SIGNAL_PATH_RESET, USER_CTRL, PWR_MGMT_1, PWR_MGMT_2, FIFO_COUNT_H, FIFO_COUNT_L,
+ FIFO_R_W, WHO_AM_I) = (0x0D, 0x10, 0x19, 0x1A, 0x1B, 0x1C, 0x23, 0x24, 0x36, 0x37, 0x38, 0x3A, 0x3B,
+                        0x41, 0x43, 0x49, 0x68, 0x6A, 0x6B, 0x6C, 0x72, 0x73, 0x74, 0x75)
+I2C_SLV0_ADDR, I2C_SLV0_DO, I2C_MST_DELAY_CTRL = 0x25, 0x63, 0x67
+DATA_FIRST, DATA_LAST = ACCEL_XOUT_H, 0x60
+
+
+def _self_test_regs() -> tuple[int, int, int, int]:
+    xa_hi = (ST_ACCEL_CODE >> 2) & 0x7
+    axis = (xa_hi << 5) | ST_GYRO_CODE
+    a_lo = ST_ACCEL_CODE & 0x3
+    return axis, axis, axis, (a_lo << 4) | (a_lo << 2) | a_lo
+
+
+_ST = _self_test_regs()
+
+REGISTERS = RegisterMap("MPU-6050", [
+    RegisterSpec(0x0C, "PRODUCT_ID", 0x00, "r"),
+    *[RegisterSpec(0x0D + i, f"SELF_TEST_{n}", _ST[i], "r") for i, n in enumerate("XYZA")],
+    RegisterSpec(0x19, "SMPLRT_DIV", 0x00, "rw"),
+    RegisterSpec(0x1A, "CONFIG", 0x00, "rw"),
+    RegisterSpec(0x1B, "GYRO_CONFIG", 0x00, "rw"),
+    RegisterSpec(0x1C, "ACCEL_CONFIG", 0x00, "rw"),
+    RegisterSpec(0x23, "FIFO_EN", 0x00, "rw"),
+    RegisterSpec(0x24, "I2C_MST_CTRL", 0x00, "rw"),
+    *[RegisterSpec(0x25 + 3 * n + k, f"I2C_SLV{n}_{f}", 0x00, "rw")
+      for n in range(4) for k, f in enumerate(("ADDR", "REG", "CTRL"))],
+    *[RegisterSpec(0x31 + k, f"I2C_SLV4_{f}", 0x00, "rw" if f != "DI" else "r")
+      for k, f in enumerate(("ADDR", "REG", "DO", "CTRL", "DI"))],
+    RegisterSpec(0x36, "I2C_MST_STATUS", 0x00, "r"),
+    RegisterSpec(0x37, "INT_PIN_CFG", 0x00, "rw"),
+    RegisterSpec(0x38, "INT_ENABLE", 0x00, "rw"),
+    RegisterSpec(0x3A, "INT_STATUS", 0x00, "r"),
+    *[RegisterSpec(0x3B + i, n, 0x00, "r") for i, n in enumerate(
+        ("ACCEL_XOUT_H", "ACCEL_XOUT_L", "ACCEL_YOUT_H", "ACCEL_YOUT_L", "ACCEL_ZOUT_H", "ACCEL_ZOUT_L",
+         "TEMP_OUT_H", "TEMP_OUT_L", "GYRO_XOUT_H", "GYRO_XOUT_L", "GYRO_YOUT_H", "GYRO_YOUT_L",
+         "GYRO_ZOUT_H", "GYRO_ZOUT_L"))],
+    *[RegisterSpec(0x49 + i, f"EXT_SENS_DATA_{i:02d}", 0x00, "r") for i in range(24)],
+    *[RegisterSpec(0x63 + n, f"I2C_SLV{n}_DO", 0x00, "rw") for n in range(4)],
+    RegisterSpec(0x67, "I2C_MST_DELAY_CTRL", 0x00, "rw"),
+    RegisterSpec(0x68, "SIGNAL_PATH_RESET", 0x00, "w", self_clearing=0x07),
+    RegisterSpec(0x6A, "USER_CTRL", 0x00, "rw", self_clearing=0x07),
+    RegisterSpec(0x6B, "PWR_MGMT_1", 0x40, "rw", self_clearing=0x80),
+    RegisterSpec(0x6C, "PWR_MGMT_2", 0x00, "rw"),
+    RegisterSpec(0x72, "FIFO_COUNT_H", 0x00, "r"),
+    RegisterSpec(0x73, "FIFO_COUNT_L", 0x00, "r"),
+    RegisterSpec(0x74, "FIFO_R_W", 0x00, "rw"),
+    RegisterSpec(0x75, "WHO_AM_I", 0x68, "r"),
+])
+
+
+@dataclass
+class ImuTruth:
+    """Physical inputs in the sensor frame: specific force (m/s²), angular rate (rad/s), die °C."""
+
+    accel: tuple[float, float, float]
+    gyro: tuple[float, float, float]
+    temperature_c: float = 25.0
+
+
+class _LowPass:
+    """First-order low-pass at the DLPF bandwidth plus a pure delay, stepped at the sample clock."""
+
+    def __init__(self) -> None:
+        self.y: list[float] | None = None
+        self.pipe: deque[list[float]] = deque()
+
+    def step(self, x: tuple[float, float, float], bw_hz: float, delay_s: float, dt: float) -> list[float]:
+        if self.y is None:
+            self.y = list(x)
+        a = 1.0 - math.exp(-2.0 * math.pi * bw_hz * dt)
+        self.y = [yi + a * (xi - yi) for yi, xi in zip(self.y, x, strict=True)]
+        depth = max(0, round(delay_s / dt)) if dt > 0 else 0
+        self.pipe.append(list(self.y))
+        while len(self.pipe) > depth + 1:
+            self.pipe.popleft()
+        return self.pipe[0]
+
+
+@dataclass
+class MPU6050:
+    """The device. ``source(t)`` gives ImuTruth in the sensor frame at sim time t. ``aux`` holds the
+    devices on the auxiliary bus (the GY-86's HMC5883L), reached through bypass or the aux master."""
+
+    source: Callable[[float], ImuTruth]
+    aux: dict[int, I2CDevice] = field(default_factory=dict)
+    dlpf: bool = True
+    now: float = 0.0
+    regs: bytearray = field(default_factory=REGISTERS.reset_bytes)
+    pointer: int = 0
+    fifo: deque[int] = field(default_factory=deque)
+    samples: int = 0
+    _next_t: float = 0.0
+    _snapshot: bytes = b""
+    _fifo_count_latch: int = 0
+    _fifo_last: int = 0
+    _accel_f: _LowPass = field(default_factory=_LowPass)
+    _gyro_f: _LowPass = field(default_factory=_LowPass)
+
+    # ---- configuration decoded ----------------------------------------------------------------
+
+    @property
+    def asleep(self) -> bool:
+        return bool(self.regs[PWR_MGMT_1] & 0x40)
+
+    @property
+    def bypass(self) -> bool:
+        """Pass-through to the aux bus: I2C_BYPASS_EN set and I2C_MST_EN clear."""
+        return bool(self.regs[INT_PIN_CFG] & 0x02) and not self.regs[USER_CTRL] & 0x20
+
+    def sample_rate(self) -> float:
+        cfg = self.regs[CONFIG] & 0x07
+        gyro_rate = 8000.0 if cfg in (0, 7) else 1000.0
+        return gyro_rate / (1 + self.regs[SMPLRT_DIV])
+
+    def accel_scale(self) -> float:
+        return ACCEL_LSB_PER_G[(self.regs[ACCEL_CONFIG] >> 3) & 3]
+
+    def gyro_scale(self) -> float:
+        return GYRO_LSB_PER_DPS[(self.regs[GYRO_CONFIG] >> 3) & 3]
+
+    # ---- reset ---------------------------------------------------------------------------------
+
+    def reset(self) -> None:
+        """DEVICE_RESET / power-on: registers to defaults (asleep), FIFO empty, bypass off."""
+        self.regs = REGISTERS.reset_bytes()
+        self.fifo.clear()
+        self._snapshot, self._fifo_count_latch, self._fifo_last = b"", 0, 0
+        self._accel_f, self._gyro_f = _LowPass(), _LowPass()
+
+    # ---- time ------------------------------------------------------------------------------
+
+    def advance_to(self, t: float) -> None:
+        if t < self.now:
+            return
+        if self.asleep:
+            self.now = t
+            self._next_t = t
+            return
+        period = 1.0 / self.sample_rate()
+        if self._next_t < self.now:
+            self._next_t = self.now
+        n = math.floor((t - self._next_t) / period + 1e-9) + 1 if self._next_t <= t else 0
+        # With nothing that keeps every sample (FIFO, aux master), a long wait needs only its last
+        # few samples: enough to refill the DLPF's delay line.
+        keeps_all = self.regs[USER_CTRL] & 0x60
+        if n > 64 and not keeps_all:
+            skip = n - 64
+            self._next_t += skip * period
+            n = 64
+        for _ in range(n):
+            self.now = self._next_t
+            self._sample(period)
+            self._next_t += period
+        self.now = t
+
+    def _sample(self, dt: float) -> None:
+        truth = self.source(self.now)
+        cfg = self.regs[CONFIG] & 0x07
+        a_bw, a_delay, g_bw, g_delay = DLPF[cfg]
+        accel, gyro = truth.accel, truth.gyro
+        if self.dlpf:
+            accel = self._accel_f.step(accel, a_bw, a_delay, dt)
+            gyro = self._gyro_f.step(gyro, g_bw, g_delay, dt)
+        a_lsb, g_lsb = self.accel_scale(), self.gyro_scale()
+        a_st, g_st = self.regs[ACCEL_CONFIG] >> 5, self.regs[GYRO_CONFIG] >> 5
+        stby = self.regs[PWR_MGMT_2]
+        live = self.regs
+        for i in range(3):
+            if not stby & (0x20 >> i):
+                st = ST_ACCEL_G * a_lsb if a_st & (0x4 >> i) else 0.0
+                raw = clamp16(round_half_away(accel[i] / G0 * a_lsb + st))
+                live[ACCEL_XOUT_H + 2 * i:ACCEL_XOUT_H + 2 * i + 2] = (raw & 0xFFFF).to_bytes(2, "big")
+            if not stby & (0x04 >> i):
+                sign = -1.0 if i == 1 else 1.0
+                st = sign * ST_GYRO_DPS * g_lsb if g_st & (0x4 >> i) else 0.0
+                raw = clamp16(round_half_away(math.degrees(gyro[i]) * g_lsb + st))
+                live[GYRO_XOUT_H + 2 * i:GYRO_XOUT_H + 2 * i + 2] = (raw & 0xFFFF).to_bytes(2, "big")
+        if not self.regs[PWR_MGMT_1] & 0x08:  # TEMP_DIS holds the last value
+            raw = clamp16(round_half_away((truth.temperature_c - 36.53) * 340.0))
+            live[TEMP_OUT_H:TEMP_OUT_H + 2] = (raw & 0xFFFF).to_bytes(2, "big")
+        if self.regs[USER_CTRL] & 0x20:
+            self._run_aux_master()
+        if self.regs[USER_CTRL] & 0x40:
+            self._push_fifo()
+        self.regs[INT_STATUS] |= 0x01  # DATA_RDY, set whatever INT_ENABLE says (specs §3.7)
+        self.samples += 1
+
+    def _run_aux_master(self) -> None:
+        ext = EXT_SENS_DATA_00
+        status = 0
+        for n in range(4):
+            addr_reg, reg, ctrl = self.regs[I2C_SLV0_ADDR + 3 * n:I2C_SLV0_ADDR + 3 * n + 3]
+            if not ctrl & 0x80:
+                continue
+            length = ctrl & 0x0F
+            dev = self.aux.get(addr_reg & 0x7F)
+            if dev is None:
+                status |= 1 << n  # I2C_SLVn_NACK
+                if addr_reg & 0x80:
+                    ext += length
+                continue
+            dev.advance_to(self.now)
+            if addr_reg & 0x80:  # read LEN bytes into EXT_SENS_DATA
+                dev.start(False)
+                if not ctrl & 0x20:
+                    dev.write(bytes([reg]))
+                dev.start(True)
+                data = dev.read(length)
+                dev.stop()
+                end = min(ext + length, DATA_LAST + 1)
+                self.regs[ext:end] = data[:end - ext]
+                ext = end
+            else:
+                dev.start(False)
+                dev.write(bytes([reg, self.regs[I2C_SLV0_DO + n]]) if not ctrl & 0x20
+                          else bytes([self.regs[I2C_SLV0_DO + n]]))
+                dev.stop()
+        self.regs[I2C_MST_STATUS] = status
+
+    def _push_fifo(self) -> None:
+        en = self.regs[FIFO_EN]
+        record = bytearray()
+        if en & 0x08:
+            record += self.regs[ACCEL_XOUT_H:ACCEL_XOUT_H + 6]
+        if en & 0x80:
+            record += self.regs[TEMP_OUT_H:TEMP_OUT_H + 2]
+        for i, bit in enumerate((0x40, 0x20, 0x10)):
+            if en & bit:
+                record += self.regs[GYRO_XOUT_H + 2 * i:GYRO_XOUT_H + 2 * i + 2]
+        # Slave data: each enabled slave's LEN bytes, in slave order, after the previous ones.
+        ext = EXT_SENS_DATA_00
+        for n in range(3):
+            ctrl = self.regs[I2C_SLV0_ADDR + 3 * n + 2]
+            length = ctrl & 0x0F if ctrl & 0x80 else 0
+            if en & (1 << n):
+                record += self.regs[ext:ext + length]
+            ext += length
+        for byte in record:
+            if len(self.fifo) >= FIFO_SIZE:
+                self.fifo.popleft()  # overflow: oldest out, newest kept
+                self.regs[INT_STATUS] |= 0x10
+            self.fifo.append(byte)
+
+    # ---- bus -------------------------------------------------------------------------------
+
+    def start(self, read: bool) -> None:
+        if read:  # coherent bursts: the whole read is served from one sampling instant
+            self._snapshot = bytes(self.regs[DATA_FIRST:DATA_LAST + 1])
+
+    def stop(self) -> None:
+        self._snapshot = b""
+
+    def write(self, data: bytes) -> None:
+        if not data:
+            return
+        self.pointer = data[0] & 0x7F
+        for byte in data[1:]:
+            self._write_reg(self.pointer, byte)
+            if self.pointer != FIFO_R_W:
+                self.pointer = self._next(self.pointer)
+
+    @staticmethod
+    def _next(r: int) -> int:
+        return 0 if r >= WHO_AM_I else r + 1  # past WHO_AM_I: wrap to 0 (open point, specs §9)
+
+    def _write_reg(self, r: int, value: int) -> None:
+        if r == FIFO_R_W:
+            if len(self.fifo) < FIFO_SIZE:
+                self.fifo.append(value)
+            return
+        if not REGISTERS.writable(r):
+            return
+        if r == PWR_MGMT_1 and value & 0x80:
+            self.reset()
+            return
+        if r == USER_CTRL:
+            if value & 0x04:
+                self.fifo.clear()
+            if value & 0x01:  # SIG_COND_RESET clears the sensor registers
+                self.regs[DATA_FIRST:GYRO_XOUT_H + 6] = bytes(GYRO_XOUT_H + 6 - DATA_FIRST)
+        if r == PWR_MGMT_1 and self.asleep and not value & 0x40:
+            self._next_t = self.now  # waking: sampling resumes now
+        self.regs[r] = REGISTERS.masked(r, value)
+
+    def read(self, n: int) -> bytes:
+        out = bytearray()
+        clear_all = self.regs[INT_PIN_CFG] & 0x10
+        for _ in range(n):
+            r = self.pointer
+            if r == FIFO_R_W:
+                if self.fifo:
+                    self._fifo_last = self.fifo.popleft()
+                out.append(self._fifo_last)  # empty: the last byte again
+                continue
+            if r == FIFO_COUNT_H:
+                self._fifo_count_latch = len(self.fifo)
+                out.append(self._fifo_count_latch >> 8)
+            elif r == FIFO_COUNT_L:
+                out.append(self._fifo_count_latch & 0xFF)
+            elif DATA_FIRST <= r <= DATA_LAST and self._snapshot:
+                out.append(self._snapshot[r - DATA_FIRST])
+            elif REGISTERS.specs.get(r) is not None and REGISTERS.specs[r].access != "w":
+                out.append(self.regs[r])
+            else:
+                out.append(0)
+            if r == INT_STATUS or clear_all:
+                self.regs[INT_STATUS] = 0
+            self.pointer = self._next(r)
+        return bytes(out)
