@@ -108,6 +108,15 @@ class _LowPass:
             self.pipe.popleft()
         return self.pipe[0]
 
+    def catch_up(self, x: tuple[float, float, float], bw_hz: float, span: float) -> None:
+        """Advances the filter over ``span`` seconds of the input held at ``x``, exactly, in one go
+        (the delay line is refilled by the samples that follow)."""
+        if self.y is None:
+            self.y = list(x)
+        a = 1.0 - math.exp(-2.0 * math.pi * bw_hz * span)
+        self.y = [yi + a * (xi - yi) for yi, xi in zip(self.y, x, strict=True)]
+        self.pipe.clear()
+
 
 @dataclass
 class MPU6050:
@@ -180,6 +189,11 @@ class MPU6050:
             skip = n - 64
             self._next_t += skip * period
             n = 64
+            if self.dlpf:
+                truth = self.source(self._next_t)
+                a_bw, _, g_bw, _ = DLPF[self.regs[CONFIG] & 0x07]
+                self._accel_f.catch_up(truth.accel, a_bw, skip * period)
+                self._gyro_f.catch_up(truth.gyro, g_bw, skip * period)
         for _ in range(n):
             self.now = self._next_t
             self._sample(period)
