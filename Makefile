@@ -40,6 +40,7 @@ build/bench/physics_bench: bench/physics_bench.c $(PLANT_SOURCES) | venv $(FMU)
 
 bench: venv $(FMU) build/bench/physics_bench
 	$(PY) bench/plant_rates.py
+	$(PY) bench/emulator_rates.py
 
 clean:
 	rm -rf build
