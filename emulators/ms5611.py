@@ -47,9 +47,9 @@ def with_crc(words: tuple[int, ...]) -> tuple[int, ...]:
     return tuple(w)
 
 
-def compensate(prom: tuple[int, ...], d1: int, d2: int) -> tuple[int, int]:
-    """Datasheet integer compensation with both second-order tiers: (TEMP in 0.01 °C, P in Pa).
-    Floor semantics (Python's // and >> on negative numbers), as Linux and Crazyflie do."""
+def _terms(prom: tuple[int, ...], d2: int) -> tuple[int, int, int]:
+    """TEMP, OFF and SENS for a D2, second-order terms applied (datasheet integer flow, floor
+    semantics as Linux and Crazyflie: Python's >> on negative numbers)."""
     c1, c2, c3, c4, c5, c6 = prom[1:7]
     dt = d2 - (c5 << 8)
     temp = 2000 + ((dt * c6) >> 23)
@@ -65,28 +65,17 @@ def compensate(prom: tuple[int, ...], d1: int, d2: int) -> tuple[int, int]:
         temp -= t2
         off -= off2
         sens -= sens2
-    p = (((d1 * sens) >> 21) - off) >> 15
-    return temp, p
+    return temp, off, sens
 
 
-def _dt_terms(prom: tuple[int, ...], d2: int) -> tuple[int, int]:
-    """OFF and SENS (second order included) for a D2."""
-    c1, c2, c3, c4, c5, c6 = prom[1:7]
-    dt = d2 - (c5 << 8)
-    temp = 2000 + ((dt * c6) >> 23)
-    off = (c2 << 16) + ((c4 * dt) >> 7)
-    sens = (c1 << 15) + ((c3 * dt) >> 8)
-    if temp < 2000:
-        off -= 5 * (temp - 2000) ** 2 >> 1
-        sens -= 5 * (temp - 2000) ** 2 >> 2
-        if temp < -1500:
-            off -= 7 * (temp + 1500) ** 2
-            sens -= 11 * (temp + 1500) ** 2 >> 1
-    return off, sens
+def compensate(prom: tuple[int, ...], d1: int, d2: int) -> tuple[int, int]:
+    """Datasheet compensation with both second-order tiers: (TEMP in 0.01 °C, P in Pa)."""
+    temp, off, sens = _terms(prom, d2)
+    return temp, (((d1 * sens) >> 21) - off) >> 15
 
 
 def _temp_of(prom: tuple[int, ...], d2: int) -> int:
-    return compensate(prom, 0, d2)[0]
+    return _terms(prom, d2)[0]
 
 
 @lru_cache(maxsize=4096)
@@ -119,7 +108,7 @@ def encode_temperature(prom: tuple[int, ...], temp_centi: int) -> int:
 
 def encode_pressure(prom: tuple[int, ...], d2: int, pressure_pa: int) -> int:
     """D1 in the middle of the window that decodes (with this D2) to exactly ``pressure_pa``."""
-    off, sens = _dt_terms(prom, d2)
+    _, off, sens = _terms(prom, d2)
     a = off + (pressure_pa << 15)
     d1_min = -((-a << 21) // sens)
     d1_max = (((a + 32768) << 21) - 1) // sens
@@ -133,7 +122,7 @@ def encode_float(prom: tuple[int, ...], pressure_pa: float, temp_c: float) -> tu
         d2 = round((c5 << 8) + (100.0 * temp_c - 2000.0) * (1 << 23) / c6)
     else:
         d2 = encode_temperature(prom, round(100.0 * temp_c))
-    off, sens = _dt_terms(prom, d2)
+    _, off, sens = _terms(prom, d2)
     d1 = round((off + pressure_pa * 32768.0) * (1 << 21) / sens)
     return d1, d2
 

@@ -28,7 +28,8 @@ def board_for(trace):
 def test_the_library_has_the_clients_of_specs_section_7():
     names = {p.stem for p in TRACES}
     assert {"i2c_tools", "mpu6050_raspberrypi", "adafruit_mpu6050", "crazyflie_cf1", "ardupilot_ms5611",
-            "multiwii_gy86", "linux_iio"} <= names
+            "multiwii_gy86", "linux_iio", "te_generic_ms5611", "micropython_ms5611", "ardupilot_hmc5843",
+            "ardupilot_invensense"} <= names
 
 
 @pytest.mark.parametrize("path", TRACES, ids=[p.stem for p in TRACES])
