@@ -67,8 +67,6 @@ class I2CBus:
     resolvers: list[Resolver] = field(default_factory=list)
     #: devices that keep sim time without a fixed address (reached through resolvers or another device)
     hidden: list[I2CDevice] = field(default_factory=list)
-    log: list[tuple[float, tuple[Msg, ...], tuple[bytes, ...] | str]] | None = None
-    clock_hz: float | None = None
 
     def attach(self, addr: int, device: I2CDevice) -> None:
         if addr in self.devices:
@@ -118,21 +116,7 @@ class I2CBus:
                     results.append(data)
                 else:
                     dev.write(msg.data)
-        except I2CNack:
-            if self.log is not None:
-                self.log.append((t, tuple(msgs), "nack"))
-            raise
         finally:
             if current is not None:
                 current.stop()
-        if self.log is not None:
-            self.log.append((t, tuple(msgs), tuple(results)))
         return results
-
-    def bus_time(self, msgs: Sequence[Msg]) -> float:
-        """Seconds the transfer occupies the wire at ``clock_hz`` (9 clocks a byte incl. ACK, plus
-        START/address per message and STOP); 0 when no clock is set."""
-        if not self.clock_hz:
-            return 0.0
-        clocks = sum(9 * (1 + (m.length if m.read else len(m.data))) + 1 for m in msgs) + 1
-        return clocks / self.clock_hz
