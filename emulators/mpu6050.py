@@ -97,11 +97,15 @@ class _LowPass:
         self.y: list[float] | None = None
         self.pipe: deque[list[float]] = deque()
 
-    def step(self, x: tuple[float, float, float], bw_hz: float, delay_s: float, dt: float) -> list[float]:
+    def _approach(self, x: tuple[float, float, float], bw_hz: float, span: float) -> None:
+        """Exact first-order response over ``span`` seconds to the input held at ``x``."""
         if self.y is None:
             self.y = list(x)
-        a = 1.0 - math.exp(-2.0 * math.pi * bw_hz * dt)
+        a = 1.0 - math.exp(-2.0 * math.pi * bw_hz * span)
         self.y = [yi + a * (xi - yi) for yi, xi in zip(self.y, x, strict=True)]
+
+    def step(self, x: tuple[float, float, float], bw_hz: float, delay_s: float, dt: float) -> list[float]:
+        self._approach(x, bw_hz, dt)
         depth = max(0, round(delay_s / dt)) if dt > 0 else 0
         self.pipe.append(list(self.y))
         while len(self.pipe) > depth + 1:
@@ -111,10 +115,7 @@ class _LowPass:
     def catch_up(self, x: tuple[float, float, float], bw_hz: float, span: float) -> None:
         """Advances the filter over ``span`` seconds of the input held at ``x``, exactly, in one go
         (the delay line is refilled by the samples that follow)."""
-        if self.y is None:
-            self.y = list(x)
-        a = 1.0 - math.exp(-2.0 * math.pi * bw_hz * span)
-        self.y = [yi + a * (xi - yi) for yi, xi in zip(self.y, x, strict=True)]
+        self._approach(x, bw_hz, span)
         self.pipe.clear()
 
 
@@ -232,36 +233,39 @@ class MPU6050:
         self.regs[INT_STATUS] |= 0x01  # DATA_RDY, set whatever INT_ENABLE says (specs §3.7)
         self.samples += 1
 
-    def _run_aux_master(self) -> None:
+    def _slaves(self) -> list[tuple[int, int, int, int, int, int]]:
+        """Enabled slaves 0..3 as (n, ADDR, REG, CTRL, first EXT_SENS_DATA register, length): read
+        slaves take their LEN bytes consecutively in slave order; write slaves take none. The aux
+        master fills this layout and the FIFO copies it, so both read it from here."""
+        out = []
         ext = EXT_SENS_DATA_00
-        status = 0
         for n in range(4):
             addr_reg, reg, ctrl = self.regs[I2C_SLV0_ADDR + 3 * n:I2C_SLV0_ADDR + 3 * n + 3]
             if not ctrl & 0x80:
                 continue
-            length = ctrl & 0x0F
+            length = min(ctrl & 0x0F, DATA_LAST + 1 - ext) if addr_reg & 0x80 else 0
+            out.append((n, addr_reg, reg, ctrl, ext, length))
+            ext += length
+        return out
+
+    def _run_aux_master(self) -> None:
+        status = 0
+        for n, addr_reg, reg, ctrl, ext, length in self._slaves():
             dev = self.aux.get(addr_reg & 0x7F)
             if dev is None:
                 status |= 1 << n  # I2C_SLVn_NACK
-                if addr_reg & 0x80:
-                    ext += length
                 continue
             dev.advance_to(self.now)
+            dev.start(False)
             if addr_reg & 0x80:  # read LEN bytes into EXT_SENS_DATA
-                dev.start(False)
                 if not ctrl & 0x20:
                     dev.write(bytes([reg]))
                 dev.start(True)
-                data = dev.read(length)
-                dev.stop()
-                end = min(ext + length, DATA_LAST + 1)
-                self.regs[ext:end] = data[:end - ext]
-                ext = end
+                self.regs[ext:ext + length] = dev.read(length)
             else:
-                dev.start(False)
-                dev.write(bytes([reg, self.regs[I2C_SLV0_DO + n]]) if not ctrl & 0x20
-                          else bytes([self.regs[I2C_SLV0_DO + n]]))
-                dev.stop()
+                do = self.regs[I2C_SLV0_DO + n]
+                dev.write(bytes([do]) if ctrl & 0x20 else bytes([reg, do]))
+            dev.stop()
         self.regs[I2C_MST_STATUS] = status
 
     def _push_fifo(self) -> None:
@@ -274,14 +278,9 @@ class MPU6050:
         for i, bit in enumerate((0x40, 0x20, 0x10)):
             if en & bit:
                 record += self.regs[GYRO_XOUT_H + 2 * i:GYRO_XOUT_H + 2 * i + 2]
-        # Slave data: each enabled slave's LEN bytes, in slave order, after the previous ones.
-        ext = EXT_SENS_DATA_00
-        for n in range(3):
-            ctrl = self.regs[I2C_SLV0_ADDR + 3 * n + 2]
-            length = ctrl & 0x0F if ctrl & 0x80 else 0
-            if en & (1 << n):
+        for n, _, _, _, ext, length in self._slaves():
+            if n < 3 and en & (1 << n):  # FIFO_EN has SLV0..SLV2 only
                 record += self.regs[ext:ext + length]
-            ext += length
         for byte in record:
             if len(self.fifo) >= FIFO_SIZE:
                 self.fifo.popleft()  # overflow: oldest out, newest kept

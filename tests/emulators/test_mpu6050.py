@@ -178,3 +178,18 @@ def test_self_test_response_matches_factory_trim():
     assert on_g[1] - off_g[1] == pytest.approx(-ft_g, abs=1)
     assert on_a[2] - off_a[2] == pytest.approx(ft_a, abs=1)
     assert 10 <= ST_GYRO_DPS <= 105 and 0.30 <= ST_ACCEL_G <= 0.95  # Crazyflie's limits
+
+
+def test_fifo_slave_data_sits_where_the_aux_master_put_it():
+    # SLV0 writes (takes no EXT_SENS_DATA bytes), SLV1 reads the HMC's 6 data bytes: the FIFO's slave
+    # part must be the bytes the master stored at EXT_SENS_DATA_00.
+    script, b = awake()
+    bus = b.bus
+    bus.transfer([write(M, 0x37, 0x02), write(0x1E, 0x02, 0x00)], 0.0)
+    bus.transfer([write(M, 0x6A, 0x20), write(M, 0x37, 0x00),
+                  write(M, 0x25, 0x1E), write(M, 0x26, 0x02), write(M, 0x63, 0x00), write(M, 0x27, 0x83),
+                  write(M, 0x28, 0x9E), write(M, 0x29, 0x03), write(M, 0x2A, 0x86)], 0.2)
+    bus.transfer([write(M, 0x23, 0x02), write(M, 0x6A, 0x24), write(M, 0x6A, 0x60)], 0.3)
+    ext = bus.transfer([write(M, 0x49), read(M, 6)], 0.3021)[0]
+    record = bus.transfer([write(M, 0x74), read(M, 6)], 0.3021)[0]
+    assert ext == bytes.fromhex("011101d80000") and record == ext
