@@ -120,3 +120,14 @@ def test_gy86_hides_the_magnetometer_until_bypass():
     bus.transfer([write(0x68, 0x6A, 0x20)], 0.0)  # aux master on: bypass no longer effective
     with pytest.raises(I2CNack):
         bus.transfer([write(A, 0x0A), read(A, 3)], 0.0)
+
+
+@pytest.mark.parametrize(("wraps", "after_status"), [(False, 0x48), (True, 0x01)])
+def test_pointer_after_status_register_is_an_option(wraps, after_status):
+    # Default 9 -> 10 (ID_A 'H'); with status_wraps_to_data, 9 -> 3 (X MSB: 0.25 G * 1090 = 0x0111).
+    script = Script()
+    b = board(script, topology="direct")
+    b.hmc.status_wraps_to_data = wraps
+    b.bus.transfer([write(A, 0x02, 0x00)], 0.0)
+    b.bus.transfer([write(A, 0x09), read(A, 1)], 1.0)
+    assert b.bus.transfer([read(A, 1)], 1.0)[0][0] == after_status

@@ -140,3 +140,28 @@ def test_out_of_range_truth_is_clamped_to_the_sensor_range():
     b.transfer([write(0x77, 0x58)], 0.02)
     d2 = adc(b, 0.03)
     assert datasheet_forward(d1, d2) == (8500, 1000)
+
+
+def test_max_timing_option_uses_the_datasheet_maximum():
+    b = I2CBus()
+    b.attach(0x77, MS5611(Truth(), timing="max"))
+    b.transfer([write(0x77, 0x48)], 0.0)
+    assert adc(b, 0.00823) == 0          # past the typical 8.22 ms, before the maximum 9.04 ms
+    b.transfer([write(0x77, 0x48)], 0.1)
+    assert adc(b, 0.1 + 0.00905) == encode(C, 101325, 25.0)[0]
+
+
+def test_osr_noise_option_varies_readings_repeatably():
+    def readings(seed):
+        b = I2CBus()
+        b.attach(0x77, MS5611(Truth(), osr_noise=True, seed=seed))
+        out = []
+        for k in range(20):
+            b.transfer([write(0x77, 0x40)], k * 0.01)  # OSR 256: 6.5 Pa RMS
+            out.append(adc(b, k * 0.01 + 0.001))
+        return out
+    first = readings(1)
+    assert len(set(first)) > 10 and first == readings(1) and first != readings(2)
+    d2 = encode(C, 101325, 25.0)[1]
+    pressures = [datasheet_forward(d1, d2)[1] for d1 in first]
+    assert all(abs(p - 101325) < 40 for p in pressures)  # about 6 sigma
