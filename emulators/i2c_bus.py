@@ -21,6 +21,13 @@ class I2CNack(Exception):
         self.addr = addr
 
 
+class I2CProtocolError(Exception):
+    """An SMBus block read whose count byte is 0 or above 32 (the kernel reports EPROTO)."""
+
+
+SMBUS_BLOCK_MAX = 32
+
+
 class I2CDevice(Protocol):
     """What the bus needs from a device; the emulators implement it."""
 
@@ -33,18 +40,22 @@ class I2CDevice(Protocol):
 
 @dataclass(frozen=True)
 class Msg:
-    """One message of a transfer: a write of ``data`` or a read of ``length`` bytes."""
+    """One message of a transfer: a write of ``data`` or a read of ``length`` bytes. A ``recv_len``
+    read is SMBus's block read (``I2C_M_RECV_LEN``): the first byte read is the count of the rest."""
 
     addr: int
     read: bool = False
     data: bytes = b""
     length: int = 0
+    recv_len: bool = False
 
     def __post_init__(self) -> None:
         if not 0 <= self.addr <= 0x7F:
             raise ValueError(f"I2C address 0x{self.addr:x} is not a 7-bit address")
         if self.read and (self.length < 0 or self.data):
             raise ValueError("a read message has a length and no data")
+        if self.recv_len and not self.read:
+            raise ValueError("only a read message can take its length from the first byte")
 
 
 def write(addr: int, *data: int) -> Msg:
@@ -94,8 +105,9 @@ class I2CBus:
     def transfer(self, msgs: Sequence[Msg], t: float) -> list[bytes]:
         """Runs one transfer at sim time ``t``; returns the bytes of each read message in order.
 
-        Raises I2CNack when a message's address is not acknowledged; messages before it have taken
-        effect (as on a real bus), and the device that was addressed sees its STOP.
+        Raises I2CNack when a message's address is not acknowledged, and I2CProtocolError when a
+        block read announces an impossible count; messages before it have taken effect (as on a real
+        bus), and the device that was addressed sees its STOP.
         """
         self.advance_to(t)
         results: list[bytes] = []
@@ -109,7 +121,12 @@ class I2CBus:
                     current.stop()
                 current = dev
                 dev.start(msg.read)
-                if msg.read:
+                if msg.recv_len:
+                    count = dev.read(1)
+                    if not 1 <= count[0] <= SMBUS_BLOCK_MAX:
+                        raise I2CProtocolError(f"block read from 0x{msg.addr:02x} announced {count[0]} bytes")
+                    results.append(count + dev.read(count[0]))
+                elif msg.read:
                     data = dev.read(msg.length)
                     if len(data) != msg.length:
                         raise AssertionError(f"device at 0x{msg.addr:02x} returned {len(data)} bytes")

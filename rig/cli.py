@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from rig import __version__
+from rig import __version__, exec_cmd
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -13,7 +13,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--version", action="version", version=f"rig {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("demo", help="fly the plant FMU: seed-000 roll-stand release and open-loop hovers")
+    exec_cmd.add_parser(sub)
     args = parser.parse_args(argv)
+    if args.command == "exec":
+        return exec_cmd.main(args, parser)
     if args.command == "demo":
         from rig import demo
 

@@ -5,7 +5,6 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 PYTHON=${PYTHON:-python3}
 VENV=${VENV:-.venv}
-DEBIAN_PACKAGES=(python3-venv)   # ensurepip for `python3 -m venv` on Debian
 
 as_root() { if [ "$(id -u)" = 0 ]; then "$@"; elif command -v sudo >/dev/null; then sudo "$@"; else
   echo "bootstrap: need root (or sudo) to run: $*" >&2; exit 1; fi; }
@@ -14,16 +13,25 @@ as_root() { if [ "$(id -u)" = 0 ]; then "$@"; elif command -v sudo >/dev/null; t
 import sys; sys.exit(sys.version_info < (3, 11))
 PY
 
-if [ ! -x "$VENV/bin/python" ]; then
-  if ! "$PYTHON" -c 'import ensurepip, venv' 2>/dev/null; then
-    if command -v apt-get >/dev/null; then
-      echo "bootstrap: installing Debian packages: ${DEBIAN_PACKAGES[*]}"
-      as_root apt-get update -qq
-      as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${DEBIAN_PACKAGES[@]}"
-    else
-      echo "bootstrap: $PYTHON cannot create virtualenvs and apt-get is not available" >&2; exit 1
-    fi
+# Debian packages, installed only when what they provide is missing:
+#   python3-venv  ensurepip for `python3 -m venv`
+#   i2c-tools     i2cdetect/i2cget/i2cset/i2ctransfer, the third-party clients `rig exec` is tested with
+MISSING=()
+if [ ! -x "$VENV/bin/python" ] && ! "$PYTHON" -c 'import ensurepip, venv' 2>/dev/null; then
+  MISSING+=(python3-venv)
+fi
+if ! PATH="$PATH:/usr/sbin:/sbin" command -v i2ctransfer >/dev/null; then MISSING+=(i2c-tools); fi
+if [ ${#MISSING[@]} -gt 0 ]; then
+  if command -v apt-get >/dev/null; then
+    echo "bootstrap: installing Debian packages: ${MISSING[*]}"
+    as_root apt-get update -qq
+    as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${MISSING[@]}"
+  else
+    echo "bootstrap: missing ${MISSING[*]} and apt-get is not available; install them by hand" >&2; exit 1
   fi
+fi
+
+if [ ! -x "$VENV/bin/python" ]; then
   rm -rf "$VENV"
   "$PYTHON" -m venv "$VENV"
 fi

@@ -1,0 +1,110 @@
+"""The session's side of the shim protocol (``rig/shim/protocol.h`` is the other; a test checks that the
+numbers agree). Parsing here never trusts its input: anything that does not fit raises ``Malformed``
+with a message that says what was wrong, and the session drops only that connection.
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+
+PROTOCOL_VERSION = 1
+MAX_PAYLOAD = 65536
+
+HEADER = struct.Struct("<IHHQ")  # len, type, status, t_ns
+MSG_HELLO, MSG_I2C, MSG_PWM, MSG_WAIT, MSG_NOTE = 1, 2, 3, 4, 5
+MSG_NAMES = {MSG_HELLO: "HELLO", MSG_I2C: "I2C", MSG_PWM: "PWM", MSG_WAIT: "WAIT", MSG_NOTE: "NOTE"}
+#: Requests get one reply; notices get none.
+REQUESTS = frozenset({MSG_HELLO, MSG_I2C, MSG_WAIT})
+
+I2C_HEAD = struct.Struct("<HH")        # bus, nmsgs
+I2C_MSG = struct.Struct("<HHHH")       # addr, flags, len, reserved
+I2C_M_RD, I2C_M_TEN, I2C_M_RECV_LEN = 0x0001, 0x0010, 0x0400
+I2C_RDWR_MAX_MSGS, I2C_MAX_LEN, SMBUS_BLOCK_MAX = 42, 8192, 32
+
+PWM_MSG = struct.Struct("<HHHHQ")      # chip, channel, attr, reserved, value
+PWM_EXPORT, PWM_UNEXPORT, PWM_PERIOD, PWM_DUTY, PWM_ENABLE, PWM_POLARITY = 1, 2, 3, 4, 5, 6
+PWM_ATTR_NAMES = {PWM_EXPORT: "export", PWM_UNEXPORT: "unexport", PWM_PERIOD: "period",
+                  PWM_DUTY: "duty_cycle", PWM_ENABLE: "enable", PWM_POLARITY: "polarity"}
+
+WAIT_MSG = struct.Struct("<QII")       # wake_ns, kind, zero
+WAIT_FOREVER = 2**64 - 1
+WAIT_SLEEP, WAIT_POLL = 1, 2
+WAKE_DEADLINE, WAKE_EVENT, WAKE_SLICE = 0, 1, 2
+
+SHM_MAGIC = 0x31304D4853474952        # "RIGSHM01"
+PWM_MAX = 16
+SHM_HEAD = struct.Struct("<QIIQQQQ")   # magic, version, npwm, sim_ns, quantum_ns, epoch_ns, mono_base_ns
+SHM_PWM = struct.Struct("<QQIIII")     # period_ns, duty_ns, exported, enabled, inversed, reserved
+SHM_SIZE = 4096
+SIM_NS_OFFSET = 16
+
+
+class Malformed(ValueError):
+    """Bytes on the socket that are not a message of this protocol."""
+
+
+@dataclass(frozen=True)
+class Header:
+    length: int
+    type: int
+    status: int
+    t_ns: int
+
+    @classmethod
+    def parse(cls, data: bytes | memoryview) -> Header:
+        length, mtype, status, t_ns = HEADER.unpack(data)
+        if mtype not in MSG_NAMES:
+            raise Malformed(f"unknown message type {mtype}")
+        if length > MAX_PAYLOAD:
+            raise Malformed(f"{MSG_NAMES[mtype]} payload of {length} bytes exceeds {MAX_PAYLOAD}")
+        return cls(length, mtype, status, t_ns)
+
+
+def reply(mtype: int, t_ns: int, payload: bytes = b"", status: int = 0) -> bytes:
+    return HEADER.pack(len(payload), mtype, status, t_ns) + payload
+
+
+@dataclass(frozen=True)
+class I2CMessage:
+    addr: int
+    flags: int
+    length: int
+    data: bytes  # the bytes of a write; empty for a read
+
+    @property
+    def read(self) -> bool:
+        return bool(self.flags & I2C_M_RD)
+
+
+def parse_i2c(payload: bytes) -> tuple[int, list[I2CMessage]]:
+    """A transfer request: (bus, messages). Structure is checked here; meaning (NACKs) by the bus."""
+    if len(payload) < I2C_HEAD.size:
+        raise Malformed(f"I2C request of {len(payload)} bytes is shorter than its head")
+    bus, n = I2C_HEAD.unpack_from(payload)
+    if not 1 <= n <= I2C_RDWR_MAX_MSGS:
+        raise Malformed(f"I2C request with {n} messages (1..{I2C_RDWR_MAX_MSGS} allowed)")
+    at = I2C_HEAD.size + n * I2C_MSG.size
+    if len(payload) < at:
+        raise Malformed(f"I2C request announces {n} messages but carries {len(payload)} bytes")
+    msgs: list[I2CMessage] = []
+    for i in range(n):
+        addr, flags, length, _ = I2C_MSG.unpack_from(payload, I2C_HEAD.size + i * I2C_MSG.size)
+        if length > I2C_MAX_LEN:
+            raise Malformed(f"I2C message {i} of {length} bytes exceeds {I2C_MAX_LEN}")
+        data = b""
+        if not flags & I2C_M_RD:
+            data = bytes(payload[at:at + length])
+            if len(data) != length:
+                raise Malformed(f"I2C write message {i} announces {length} bytes, {len(data)} present")
+            at += length
+        msgs.append(I2CMessage(addr, flags, length, data))
+    if at != len(payload):
+        raise Malformed(f"I2C request has {len(payload) - at} bytes after its last message")
+    return bus, msgs
+
+
+def parse_fixed(payload: bytes, shape: struct.Struct, what: str) -> tuple[int, ...]:
+    if len(payload) != shape.size:
+        raise Malformed(f"{what} payload of {len(payload)} bytes (expected {shape.size})")
+    return shape.unpack(payload)

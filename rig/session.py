@@ -1,0 +1,614 @@
+"""A session: one DUT process under device redirection, and the world it lives in.
+
+The session owns time. In lockstep the DUT's clock is a shared page the shim reads (and nudges by a
+quantum per read); the DUT waits by asking the session, which runs the world (plant, devices,
+scheduled events) up to the wake-up time and then answers. Nothing moves while the DUT computes, so
+a run is a function of the DUT, the seed and the scenario, and runs as fast as the CPU allows. In
+real time the session follows the wall clock and the shim leaves the clocks alone.
+
+The session is a single-threaded select loop over the shim connections, the ptys and the DUT's pidfd.
+It never trusts what arrives: a malformed message costs only the connection it came on, a DUT that
+crashes, hangs or never shows up ends the run with an error verdict, and watchdogs on sim time, wall
+time and wall time without progress bound every run.
+"""
+
+from __future__ import annotations
+
+import array
+import errno
+import fcntl
+import heapq
+import itertools
+import mmap
+import os
+import selectors
+import signal
+import socket
+import struct
+import subprocess
+import tempfile
+import termios
+import time
+import tty
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO
+
+from emulators.i2c_bus import I2CNack, I2CProtocolError, Msg
+from rig import protocol as P
+from rig.world import World
+
+NS = 1_000_000_000
+FOREVER_SLICE_NS = 10_000_000     # a wait with no deadline lets 10 ms pass, then the DUT looks again
+EPOCH_NS = 1_767_225_600 * NS     # CLOCK_REALTIME at sim time 0: 2026-01-01T00:00:00Z
+MONO_BASE_NS = 1_000 * NS         # CLOCK_MONOTONIC at sim time 0, as if the board had been up 1000 s
+KILL_GRACE_S = 2.0
+
+EXIT_WATCHDOG = 124               # as timeout(1)
+EXIT_RIG_ERROR = 125              # the run could not be judged: the DUT never came, left early, ...
+EXIT_NOT_EXECUTABLE, EXIT_NOT_FOUND = 126, 127
+
+
+@dataclass
+class SessionConfig:
+    command: list[str]
+    lockstep: bool = True
+    i2c_bus: int = 1
+    topology: str = "gy86"
+    serial: list[str] = field(default_factory=list)   # device paths the DUT opens, served by ptys
+    pwm_channels: int = 8
+    i2c_clock_hz: int = 0             # 0: transfers take no sim time; 100_000 or 400_000: bus time
+    quantum_ns: int = 1000            # sim time a clock read costs
+    duration: float | None = None     # sim seconds; then the DUT is stopped and the run is over
+    sim_timeout: float = 600.0
+    wall_timeout: float = 600.0
+    stall_timeout: float = 30.0       # lockstep: wall seconds with no request and no clock read
+    pin: bool | None = None           # DUT and session on one CPU core; None: in lockstep only
+    seed: int = 0
+    noise: bool = True
+    plant_params: dict[str, float] = field(default_factory=dict)
+    log_path: Path | None = None
+    allow_no_devices: bool = False
+    env: dict[str, str] | None = None
+    shim_path: Path | None = None
+
+
+@dataclass
+class Outcome:
+    """How a run ended. ``exit_code`` is what ``rig exec`` exits with (the DUT's own status when the
+    DUT ended the run itself)."""
+
+    verdict: str                      # "ok" | "failed" (the DUT said so) | "error" (the rig says so)
+    exit_code: int
+    error: str | None
+    dut_returncode: int | None
+    sim_time: float
+    plant_time: float
+    wall_time: float
+    transactions: int
+    waits: int
+    connections: int
+    notes: list[str]
+    malformed: list[str]
+    plant: dict[str, float]
+
+
+@dataclass
+class _Conn:
+    sock: socket.socket
+    index: int
+    buf: bytearray = field(default_factory=bytearray)
+    hello: bool = False
+    pid: int = 0
+
+
+@dataclass
+class _Pty:
+    path: str
+    master: int
+    slave: int
+    pending: bytearray = field(default_factory=bytearray)   # DUT output not yet stamped
+    received: bytearray = field(default_factory=bytearray)  # everything the DUT wrote
+
+    @property
+    def slave_name(self) -> str:
+        return os.ttyname(self.slave)
+
+
+class _Stop(Exception):
+    """The run is over (limit reached or watchdog); no further replies."""
+
+
+class Session:
+    def __init__(self, config: SessionConfig, world: World | None = None) -> None:
+        self.cfg = config
+        self.world = world or World.at_rest(seed=config.seed, topology=config.topology, noise=config.noise,
+                                            params=config.plant_params, pwm_channels=config.pwm_channels)
+        if len(self.world.pwm) > P.PWM_MAX:
+            raise ValueError(f"at most {P.PWM_MAX} PWM channels")
+        self._events: list[tuple[int, int, Callable[[Session], None]]] = []
+        self._seq = itertools.count()
+        self._ptys: dict[str, _Pty] = {}
+        self._event_output = False
+        self.transactions = self.waits = 0
+        self.notes: list[str] = []
+        self.malformed: list[str] = []
+        self._log: IO[str] | None = None
+        self._error: tuple[int, str] | None = None
+        self._ended_by_duration = False
+        self._conns: list[_Conn] = []
+        self._n_conns = 0
+        self._rt_t0 = 0.0
+
+    # ---- the API scenarios use ------------------------------------------------------------------
+
+    def at(self, t: float, fn: Callable[[Session], None]) -> None:
+        """Runs ``fn(session)`` at sim time ``t`` seconds (before any DUT request at or after it)."""
+        heapq.heappush(self._events, (round(t * NS), next(self._seq), fn))
+
+    def serial_write(self, path: str, data: bytes) -> None:
+        """Sends bytes to the DUT on a serial path; in lockstep they are readable by the DUT before
+        it runs again, and a DUT polling that port wakes at this instant."""
+        pty = self._ptys[path]
+        before = _pending_input(pty.slave)
+        view = memoryview(data)
+        while view:
+            k = os.write(pty.master, view)
+            view = view[k:]
+        if self.cfg.lockstep:
+            deadline = time.monotonic() + 1.0
+            while _pending_input(pty.slave) < before + len(data) and time.monotonic() < deadline:
+                time.sleep(0)  # the pty hands bytes over asynchronously; wait for them, not a fixed time
+        self._event_output = True
+        self._write_log(self.now_ns, f"tty {path} > {data.hex()}")
+
+    def serial_output(self, path: str) -> bytes:
+        """Everything the DUT has written to ``path`` so far."""
+        self._collect_serial(self.now_ns)
+        return bytes(self._ptys[path].received)
+
+    @property
+    def now_ns(self) -> int:
+        if self.cfg.lockstep:
+            return self._shm_now()
+        return int((time.perf_counter() - self._rt_t0) * NS)
+
+    # ---- running ------------------------------------------------------------------------------
+
+    def run(self) -> Outcome:
+        cfg = self.cfg
+        from rig.shim.build import ensure_shim
+
+        shim = cfg.shim_path or ensure_shim()
+        tmp = Path(tempfile.mkdtemp(prefix="rig-session-"))
+        old_affinity = os.sched_getaffinity(0)
+        proc: subprocess.Popen[bytes] | None = None
+        sel = selectors.DefaultSelector()
+        wall0 = time.perf_counter()
+        returncode: int | None = None
+        try:
+            self._open_shm(tmp / "shm")
+            listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+            listener.bind(str(tmp / "rig.sock"))
+            listener.listen(16)
+            listener.setblocking(False)
+            sel.register(listener, selectors.EVENT_READ, "listen")
+            for path in cfg.serial:
+                master, slave = os.openpty()
+                tty.setraw(slave)  # bytes pass as they are (SBUS is binary); the DUT may set its own mode
+                os.set_blocking(master, False)
+                self._ptys[path] = _Pty(path, master, slave)
+                sel.register(master, selectors.EVENT_READ, ("pty", path))
+            if cfg.log_path:
+                self._log = open(cfg.log_path, "w", encoding="ascii")
+            env = self._dut_env(shim, tmp)
+            if cfg.pin or (cfg.pin is None and cfg.lockstep):
+                os.sched_setaffinity(0, {max(old_affinity)})  # the child inherits it
+            self._rt_t0 = time.perf_counter()
+            try:
+                proc = subprocess.Popen(cfg.command, env=env, start_new_session=True)
+            except FileNotFoundError:
+                return self._early_outcome(EXIT_NOT_FOUND, f"command not found: {cfg.command[0]}", wall0)
+            except PermissionError:
+                return self._early_outcome(EXIT_NOT_EXECUTABLE, f"command not executable: {cfg.command[0]}",
+                                           wall0)
+            pidfd = os.pidfd_open(proc.pid)
+            sel.register(pidfd, selectors.EVENT_READ, "exit")
+            returncode = self._loop(sel, listener, proc, wall0)
+        finally:
+            if proc is not None:
+                _kill_group(proc, signal.SIGKILL)
+                if proc.returncode is None:
+                    proc.wait()
+            os.sched_setaffinity(0, old_affinity)
+            for key in list(sel.get_map().values()):
+                sel.unregister(key.fileobj)
+                if isinstance(key.fileobj, socket.socket):
+                    key.fileobj.close()
+                elif key.data == "exit":
+                    os.close(key.fd)
+            sel.close()
+            for pty in self._ptys.values():
+                os.close(pty.master)
+                os.close(pty.slave)
+            if self._log:
+                self._log.close()
+            for f in tmp.iterdir():
+                f.unlink()
+            tmp.rmdir()
+        return self._outcome(returncode, wall0)
+
+    def _dut_env(self, shim: Path, tmp: Path) -> dict[str, str]:
+        env = dict(self.cfg.env if self.cfg.env is not None else os.environ)
+        preload = env.get("LD_PRELOAD", "")
+        env.update({
+            "LD_PRELOAD": f"{shim} {preload}".strip(),
+            "RIG_SOCKET": str(tmp / "rig.sock"),
+            "RIG_SHM": str(tmp / "shm"),
+            "RIG_LOCKSTEP": "1" if self.cfg.lockstep else "0",
+            "RIG_I2C_BUSES": str(self.cfg.i2c_bus),
+            "RIG_PWM_CHIP": "0",
+            "RIG_SERIAL": ":".join(f"{p}={pty.slave_name}" for p, pty in self._ptys.items()),
+        })
+        return env
+
+    def _loop(self, sel: selectors.BaseSelector, listener: socket.socket, proc: subprocess.Popen[bytes],
+              wall0: float) -> int:
+        cfg = self.cfg
+        last_progress, last_sim = time.perf_counter(), self.now_ns
+        kill_at: float | None = None
+        exited = False
+        while not exited:
+            timeout = 0.1
+            if not cfg.lockstep:
+                timeout = min(timeout, self._realtime_tick())
+            for key, _ in sel.select(max(timeout, 0.0)):
+                if key.data == "listen":
+                    self._accept(listener, sel)
+                elif key.data == "exit":
+                    exited = True
+                elif isinstance(key.data, tuple):
+                    self._read_pty(self._ptys[key.data[1]])
+                else:
+                    if self._on_readable(key.data, sel):
+                        last_progress = time.perf_counter()
+            now_wall = time.perf_counter()
+            sim = self.now_ns
+            if sim != last_sim:
+                last_sim, last_progress = sim, now_wall
+            if kill_at is None and self._error is None and not self._ended_by_duration:
+                if now_wall - wall0 > cfg.wall_timeout:
+                    self._fail(EXIT_WATCHDOG, f"wall-time watchdog: still running after "
+                                              f"{cfg.wall_timeout:g} s of wall time (sim t={sim / NS:.3f} s)")
+                elif cfg.lockstep and now_wall - last_progress > cfg.stall_timeout:
+                    self._fail(EXIT_WATCHDOG, "the command stopped answering: no request and no clock "
+                                              f"read for {cfg.stall_timeout:g} s of wall time at sim "
+                                              f"t={sim / NS:.3f} s (spinning without reading a clock, "
+                                              "or blocked outside the emulated devices)")
+                elif not cfg.lockstep and cfg.duration is not None and sim > cfg.duration * NS:
+                    self._ended_by_duration = True
+                elif not cfg.lockstep and sim > cfg.sim_timeout * NS:
+                    self._fail(EXIT_WATCHDOG, f"sim-time watchdog: still running after {cfg.sim_timeout:g} s")
+            if kill_at is None and (self._error is not None or self._ended_by_duration):
+                _kill_group(proc, signal.SIGTERM)
+                kill_at = now_wall + KILL_GRACE_S
+            elif kill_at is not None and now_wall > kill_at:
+                _kill_group(proc, signal.SIGKILL)
+        returncode = proc.wait()
+        for conn in list(self._conns):  # notices the DUT sent before it went
+            self._on_readable(conn, sel)
+        self._collect_serial(self.now_ns)
+        return returncode
+
+    def _realtime_tick(self) -> float:
+        """Real time: run due events and keep the world at the wall clock; seconds to the next event."""
+        try:
+            self._advance(self.now_ns)
+        except _Stop:
+            return 0.1
+        if self._events:
+            return max(0.0, (self._events[0][0] - self.now_ns) / NS)
+        return 0.1
+
+    # ---- connections ----------------------------------------------------------------------------
+
+    def _accept(self, listener: socket.socket, sel: selectors.BaseSelector) -> None:
+        try:
+            sock, _ = listener.accept()
+        except BlockingIOError:
+            return
+        sock.setblocking(True)
+        self._n_conns += 1
+        conn = _Conn(sock, self._n_conns)
+        self._conns.append(conn)
+        sel.register(sock, selectors.EVENT_READ, conn)
+
+    def _drop(self, conn: _Conn, sel: selectors.BaseSelector) -> None:
+        if conn in self._conns:
+            self._conns.remove(conn)
+            sel.unregister(conn.sock)
+            conn.sock.close()
+
+    def _on_readable(self, conn: _Conn, sel: selectors.BaseSelector) -> bool:
+        """Reads what the connection has and handles every whole message; True if any arrived."""
+        try:
+            chunk = conn.sock.recv(1 << 18, socket.MSG_DONTWAIT)
+        except BlockingIOError:
+            return False
+        except OSError:
+            chunk = b""
+        if not chunk:
+            self._drop(conn, sel)
+            return False
+        conn.buf += chunk
+        buf = conn.buf
+        while len(buf) >= P.HEADER.size:
+            try:
+                hdr = P.Header.parse(buf[:P.HEADER.size])
+                if len(buf) < P.HEADER.size + hdr.length:
+                    break
+                payload = bytes(buf[P.HEADER.size:P.HEADER.size + hdr.length])
+                del buf[:P.HEADER.size + hdr.length]
+                self._handle(conn, hdr, payload)
+            except P.Malformed as e:
+                why = f"malformed message on connection {conn.index} (pid {conn.pid or '?'}): {e}; " \
+                      "connection closed, session continues"
+                self.malformed.append(why)
+                self._write_log(self.now_ns, f"c{conn.index} malformed: {e}")
+                self._drop(conn, sel)
+                break
+            except _Stop:
+                buf.clear()
+                break
+        return True
+
+    def _send(self, conn: _Conn, data: bytes) -> None:
+        try:
+            conn.sock.sendall(data)
+        except OSError:
+            pass  # the DUT is gone; its exit is handled by the loop
+
+    def _handle(self, conn: _Conn, hdr: P.Header, payload: bytes) -> None:
+        if self._error is not None or self._ended_by_duration:
+            if hdr.type in P.REQUESTS:
+                raise _Stop
+        if not conn.hello and hdr.type != P.MSG_HELLO:
+            raise P.Malformed(f"{P.MSG_NAMES[hdr.type]} before HELLO")
+        if hdr.type == P.MSG_HELLO:
+            version, pid = P.parse_fixed(payload, struct.Struct("<II"), "HELLO")
+            conn.hello, conn.pid = True, pid
+            status = 0 if version == P.PROTOCOL_VERSION else errno.EPROTO
+            if status:
+                self.notes.append(f"pid {pid}: shim protocol {version}, session speaks {P.PROTOCOL_VERSION}")
+            self._send(conn, P.reply(P.MSG_HELLO, self.now_ns, status=status))
+        elif hdr.type == P.MSG_I2C:
+            self._handle_i2c(conn, hdr, payload)
+        elif hdr.type == P.MSG_PWM:
+            self._handle_pwm(conn, hdr, payload)
+        elif hdr.type == P.MSG_WAIT:
+            self._handle_wait(conn, hdr, payload)
+        else:
+            text = payload.decode("utf-8", "replace")[:300]
+            if text not in self.notes:
+                self.notes.append(text)
+            self._write_log(self._request_time(hdr), f"c{conn.index} note: {text}")
+
+    def _request_time(self, hdr: P.Header) -> int:
+        if not self.cfg.lockstep:
+            return self.now_ns
+        return max(self._shm_now(), hdr.t_ns)
+
+    def _handle_i2c(self, conn: _Conn, hdr: P.Header, payload: bytes) -> None:
+        bus, msgs = P.parse_i2c(payload)
+        t = self._request_time(hdr)
+        self._advance(t)
+        status, results = 0, []
+        if bus != self.cfg.i2c_bus:
+            status = errno.ENODEV
+        else:
+            # a 10-bit or out-of-range address reaches nobody: address 0 (general call) never ACKs here
+            bus_msgs = [Msg(m.addr if m.addr <= 0x7F and not m.flags & P.I2C_M_TEN else 0, m.read, m.data,
+                            0 if m.flags & P.I2C_M_RECV_LEN else m.length, bool(m.flags & P.I2C_M_RECV_LEN))
+                        for m in msgs]
+            try:
+                results = self.world.transfer(bus_msgs, t)
+            except I2CNack:
+                status = errno.ENXIO
+            except I2CProtocolError:
+                status = errno.EPROTO
+        t_after = t + self._bus_time_ns(msgs, results)
+        if self.cfg.lockstep:
+            self._shm_set(t_after)
+        self.transactions += 1
+        if self._log:
+            self._write_log(t, f"c{conn.index} i2c-{bus} {_describe(msgs, results)} "
+                               f"{'ok' if not status else errno.errorcode[status]}")
+        self._send(conn, P.reply(P.MSG_I2C, t_after, b"".join(results), status))
+
+    def _bus_time_ns(self, msgs: list[P.I2CMessage], results: list[bytes]) -> int:
+        """START + address + ACK per message, 9 bits per data byte, one STOP: the wire time of a transfer."""
+        if not self.cfg.i2c_clock_hz:
+            return 0
+        reads = iter(results)
+        bits = 1
+        for m in msgs:
+            n = len(next(reads, b"")) if m.read else len(m.data)
+            bits += 10 + 9 * n
+        return bits * NS // self.cfg.i2c_clock_hz
+
+    def _handle_pwm(self, conn: _Conn, hdr: P.Header, payload: bytes) -> None:
+        chip, channel, attr, _, value = P.parse_fixed(payload, P.PWM_MSG, "PWM")
+        if chip != 0 or channel >= len(self.world.pwm) or attr not in P.PWM_ATTR_NAMES:
+            raise P.Malformed(f"PWM notice for chip {chip} channel {channel} attribute {attr}")
+        t = self._request_time(hdr)
+        self._advance(t)
+        ch = self.world.pwm[channel]
+        if attr == P.PWM_EXPORT:
+            ch.exported = True
+        elif attr == P.PWM_UNEXPORT:
+            self.world.pwm[channel] = type(ch)()
+        elif attr == P.PWM_PERIOD:
+            ch.period_ns = value
+        elif attr == P.PWM_DUTY:
+            ch.duty_ns = value
+        elif attr == P.PWM_ENABLE:
+            ch.enabled = bool(value)
+        else:
+            ch.inversed = bool(value)
+        self.world.apply_pwm(channel)
+        self._write_log(t, f"c{conn.index} pwm{channel} {P.PWM_ATTR_NAMES[attr]} {value}")
+
+    def _handle_wait(self, conn: _Conn, hdr: P.Header, payload: bytes) -> None:
+        wake, kind, _ = P.parse_fixed(payload, P.WAIT_MSG, "WAIT")
+        if kind not in (P.WAIT_SLEEP, P.WAIT_POLL):
+            raise P.Malformed(f"WAIT of unknown kind {kind}")
+        t = self._request_time(hdr)
+        self.waits += 1
+        if not self.cfg.lockstep:  # the shim does not virtualise time in real time; answer at once
+            self._send(conn, P.reply(P.MSG_WAIT, t, struct.pack("<I", P.WAKE_DEADLINE)))
+            return
+        target, reason = (t + FOREVER_SLICE_NS, P.WAKE_SLICE) if wake == P.WAIT_FOREVER else (max(wake, t),
+                                                                                            P.WAKE_DEADLINE)
+        woke = self._advance(target, stop_on_output=kind == P.WAIT_POLL)
+        if woke < target:
+            target, reason = woke, P.WAKE_EVENT
+        self._shm_set(target)
+        self._write_log(t, f"c{conn.index} wait {'forever' if wake == P.WAIT_FOREVER else _fmt(wake)} "
+                           f"-> {_fmt(target)}{' event' if reason == P.WAKE_EVENT else ''}")
+        self._send(conn, P.reply(P.MSG_WAIT, target, struct.pack("<I", reason)))
+
+    # ---- time and limits ------------------------------------------------------------------------
+
+    def _advance(self, t_ns: int, stop_on_output: bool = False) -> int:
+        """Runs scheduled events and the world up to ``t_ns``. Returns the time reached: earlier than
+        ``t_ns`` when ``stop_on_output`` and an event sent the DUT data. Raises _Stop at a limit."""
+        cfg = self.cfg
+        limit = cfg.duration if cfg.duration is not None else cfg.sim_timeout
+        if t_ns > limit * NS:
+            self._advance(int(limit * NS))
+            if cfg.duration is not None:
+                self._ended_by_duration = True
+            else:
+                self._fail(EXIT_WATCHDOG, f"sim-time watchdog: the command was still running after "
+                                          f"{cfg.sim_timeout:g} s of sim time")
+            raise _Stop
+        self._collect_serial(t_ns)
+        while self._events and self._events[0][0] <= t_ns:
+            te, _, fn = heapq.heappop(self._events)
+            te = max(te, self.world.time_ns)
+            self.world.advance_to(te)
+            self._event_output = False
+            fn(self)
+            if stop_on_output and self._event_output:
+                return te
+        self.world.advance_to(t_ns)
+        return t_ns
+
+    def _fail(self, code: int, message: str) -> None:
+        if self._error is None:
+            self._error = (code, message)
+
+    # ---- shared page ----------------------------------------------------------------------------
+
+    def _open_shm(self, path: Path) -> None:
+        with open(path, "wb") as f:
+            f.write(bytes(P.SHM_SIZE))
+        fd = os.open(path, os.O_RDWR)
+        try:
+            self._mm = mmap.mmap(fd, P.SHM_SIZE)
+        finally:
+            os.close(fd)
+        P.SHM_HEAD.pack_into(self._mm, 0, P.SHM_MAGIC, P.PROTOCOL_VERSION, len(self.world.pwm),
+                             self.world.time_ns, self.cfg.quantum_ns, EPOCH_NS, MONO_BASE_NS)
+        self._words = memoryview(self._mm).cast("Q")
+
+    def _shm_now(self) -> int:
+        return self._words[P.SIM_NS_OFFSET // 8]
+
+    def _shm_set(self, t_ns: int) -> None:
+        if t_ns > self._words[P.SIM_NS_OFFSET // 8]:
+            self._words[P.SIM_NS_OFFSET // 8] = t_ns
+
+    # ---- serial ---------------------------------------------------------------------------------
+
+    def _read_pty(self, pty: _Pty) -> None:
+        try:
+            pty.pending += os.read(pty.master, 65536)
+        except (BlockingIOError, OSError):
+            pass
+
+    def _collect_serial(self, t_ns: int) -> None:
+        """Stamps what the DUT wrote since the last request with this request's time: the DUT's own
+        writes carry no time, and the next request is the first instant the session can know of them."""
+        for pty in self._ptys.values():
+            self._read_pty(pty)
+            if pty.pending:
+                pty.received += pty.pending
+                self._write_log(t_ns, f"tty {pty.path} < {bytes(pty.pending).hex()}")
+                pty.pending.clear()
+
+    # ---- results --------------------------------------------------------------------------------
+
+    def _write_log(self, t_ns: int, text: str) -> None:
+        if self._log:
+            self._log.write(f"{_fmt(t_ns)} {text}\n")
+
+    def _early_outcome(self, code: int, message: str, wall0: float) -> Outcome:
+        self._fail(code, message)
+        return self._outcome(None, wall0)
+
+    def _outcome(self, returncode: int | None, wall0: float) -> Outcome:
+        sim = (max(self.world.time_ns, self._shm_now()) if self.cfg.lockstep else self.now_ns) / NS
+        verdict, error, code = "ok", None, 0
+        if self._error is not None:
+            verdict, (code, error) = "error", self._error
+        elif self._ended_by_duration:
+            pass
+        elif returncode is not None and returncode < 0:
+            sig = signal.Signals(-returncode).name
+            verdict, code = "error", 128 - returncode
+            error = f"the command was killed by {sig} at sim t={sim:.3f} s"
+        elif self._n_conns == 0 and not self.cfg.allow_no_devices:
+            verdict, code = "error", EXIT_RIG_ERROR
+            error = ("the command exited without touching the emulated devices (no I2C, PWM or wait reached "
+                     "the session: is it statically linked, setuid, or using other device paths?)")
+        elif self.cfg.duration is not None:
+            verdict, code = "error", EXIT_RIG_ERROR
+            error = (f"the command exited early, with status {returncode}, at sim t={sim:.3f} s of a "
+                     f"{self.cfg.duration:g} s run")
+        elif returncode:
+            verdict, code = "failed", returncode
+        return Outcome(verdict, code, error, returncode, sim, self.world.time_ns / NS,
+                       time.perf_counter() - wall0, self.transactions, self.waits, self._n_conns, self.notes,
+                       self.malformed, self.world.outputs())
+
+
+def _pending_input(fd: int) -> int:
+    buf = array.array("i", [0])
+    fcntl.ioctl(fd, termios.FIONREAD, buf)
+    return buf[0]
+
+
+def _kill_group(proc: subprocess.Popen[bytes], sig: signal.Signals) -> None:
+    try:
+        os.killpg(proc.pid, sig)
+    except (ProcessLookupError, PermissionError):
+        pass
+
+
+def _fmt(t_ns: int) -> str:
+    return f"{t_ns // NS}.{t_ns % NS:09d}"
+
+
+def _describe(msgs: list[P.I2CMessage], results: list[bytes]) -> str:
+    reads = iter(results)
+    parts = []
+    for m in msgs:
+        if m.read:
+            got = next(reads, None)
+            parts.append(f"R{m.addr:02x}[{'len' if m.flags & P.I2C_M_RECV_LEN else m.length}]"
+                         + (f"={got.hex()}" if got is not None else ""))
+        else:
+            parts.append(f"W{m.addr:02x}" + (f":{m.data.hex()}" if m.data else ""))
+    return " ".join(parts)

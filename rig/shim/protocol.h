@@ -1,0 +1,81 @@
+/*
+ * The wire protocol between the preloaded shim (rigshim.c, inside the DUT) and the session (Python,
+ * rig/protocol.py mirrors these numbers and a test checks that the two agree).
+ *
+ * Transport: one Unix stream socket connection per DUT process. Every message is a 16-byte header
+ * and `len` bytes of payload, little-endian. Requests that need an answer (HELLO, I2C, WAIT) get
+ * exactly one reply of the same type; notices (PWM, NOTE) get none, so they cost the DUT no round
+ * trip. Clock reads cost no message at all: the session publishes sim time in a shared page.
+ */
+#ifndef RIG_PROTOCOL_H
+#define RIG_PROTOCOL_H
+
+#include <stdint.h>
+
+#define RIG_PROTOCOL_VERSION 1u
+#define RIG_MAX_PAYLOAD 65536u
+
+struct rig_hdr {
+    uint32_t len;    /* payload bytes after the header */
+    uint16_t type;   /* RIG_MSG_* */
+    uint16_t status; /* replies: 0 or a positive errno */
+    uint64_t t_ns;   /* requests: the DUT's sim time; replies: sim time after the request */
+};
+
+enum {
+    RIG_MSG_HELLO = 1, /* payload: u32 version, u32 pid. Reply: status only */
+    RIG_MSG_I2C = 2,   /* payload: u16 bus, u16 nmsgs, nmsgs x rig_i2c_msg, then the write bytes.
+                          Reply: status; payload: the bytes of each read message in order (a
+                          RECV_LEN read gives its count byte, then count bytes) */
+    RIG_MSG_PWM = 3,   /* notice; payload: rig_pwm_msg */
+    RIG_MSG_WAIT = 4,  /* payload: u64 wake_ns (RIG_WAIT_FOREVER: until an event), u32 kind, u32 0.
+                          Reply: t_ns = the new time; payload u32 RIG_WAKE_* */
+    RIG_MSG_NOTE = 5,  /* notice; payload: text the session reports (an unsupported call, say) */
+};
+
+struct rig_i2c_msg {
+    uint16_t addr;
+    uint16_t flags; /* I2C_M_RD, I2C_M_RECV_LEN, I2C_M_TEN as in <linux/i2c.h> */
+    uint16_t len;
+    uint16_t reserved;
+};
+
+enum { RIG_PWM_EXPORT = 1, RIG_PWM_UNEXPORT, RIG_PWM_PERIOD, RIG_PWM_DUTY, RIG_PWM_ENABLE, RIG_PWM_POLARITY };
+
+struct rig_pwm_msg {
+    uint16_t chip;
+    uint16_t channel;
+    uint16_t attr; /* RIG_PWM_* */
+    uint16_t reserved;
+    uint64_t value; /* ns for period/duty; 0/1 for enable; 1 = inversed for polarity */
+};
+
+#define RIG_WAIT_FOREVER UINT64_MAX
+enum { RIG_WAIT_SLEEP = 1, RIG_WAIT_POLL = 2 };
+enum { RIG_WAKE_DEADLINE = 0, RIG_WAKE_EVENT = 1, RIG_WAKE_SLICE = 2 };
+
+/* The shared page (a file the session creates; the shim maps it). */
+#define RIG_SHM_MAGIC 0x31304d4853474952ull /* "RIGSHM01" */
+#define RIG_PWM_MAX 16
+
+struct rig_pwm_state {
+    uint64_t period_ns;
+    uint64_t duty_ns;
+    uint32_t exported;
+    uint32_t enabled;
+    uint32_t inversed;
+    uint32_t reserved;
+};
+
+struct rig_shm {
+    uint64_t magic;
+    uint32_t version;
+    uint32_t npwm;         /* channels of pwmchip0 */
+    uint64_t sim_ns;       /* lockstep: the one clock; the shim adds quantum_ns per clock read */
+    uint64_t quantum_ns;
+    uint64_t epoch_ns;     /* CLOCK_REALTIME at sim time 0 */
+    uint64_t mono_base_ns; /* CLOCK_MONOTONIC at sim time 0 */
+    struct rig_pwm_state pwm[RIG_PWM_MAX];
+};
+
+#endif

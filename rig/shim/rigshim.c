@@ -1,0 +1,1483 @@
+/*
+ * rigshim: preloaded into an unmodified DUT (LD_PRELOAD) by `rig exec`. It redirects
+ *   - /dev/i2c-N (the buses in RIG_I2C_BUSES) to the session's emulated bus,
+ *   - /sys/class/pwm/pwmchip0/... to PWM channels kept in the shared page (and reported to the session),
+ *   - chosen serial paths (RIG_SERIAL="/dev/ttyRC0=/dev/pts/5:...") to ptys the session owns,
+ *   - in lockstep (RIG_LOCKSTEP=1), the clocks and every wait to the session's virtual time.
+ * Everything else passes through to libc. Without RIG_SOCKET in the environment the shim does nothing.
+ *
+ * Why this shape: the kernel's i2c-dev, sysfs and clock behaviour is reproduced here, in the DUT's own
+ * process, so that only the bytes of a transfer and the wish to wait cross the socket. Clock reads and
+ * PWM writes never wait for the session (DESIGN.md section 6).
+ */
+#define _GNU_SOURCE
+#include <dlfcn.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <limits.h>
+#include <linux/i2c-dev.h>
+#include <linux/i2c.h>
+#include <poll.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/epoll.h>
+#include <sys/mman.h>
+#include <sys/select.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
+#include <sys/time.h>
+#include <sys/un.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "protocol.h"
+
+#define EXPORT __attribute__((visibility("default")))
+#define MAX_FD 65536
+#define MAX_SERIAL 8
+#define I2C_MAJOR 89
+#define MAX_XFER 8192 /* i2c-dev's limit for one message and for read()/write() */
+
+/* ---------------------------------------------------------------- real libc functions */
+
+#define REAL(name) real_##name
+#define DECLARE_REAL(ret, name, ...) static ret (*real_##name)(__VA_ARGS__)
+DECLARE_REAL(int, open, const char *, int, ...);
+DECLARE_REAL(int, open64, const char *, int, ...);
+DECLARE_REAL(int, openat, int, const char *, int, ...);
+DECLARE_REAL(int, openat64, int, const char *, int, ...);
+DECLARE_REAL(int, __open_2, const char *, int);
+DECLARE_REAL(int, __open64_2, const char *, int);
+DECLARE_REAL(int, __openat_2, int, const char *, int);
+DECLARE_REAL(int, __openat64_2, int, const char *, int);
+DECLARE_REAL(FILE *, fopen, const char *, const char *);
+DECLARE_REAL(FILE *, fopen64, const char *, const char *);
+DECLARE_REAL(int, close, int);
+DECLARE_REAL(ssize_t, read, int, void *, size_t);
+DECLARE_REAL(ssize_t, write, int, const void *, size_t);
+DECLARE_REAL(ssize_t, pread, int, void *, size_t, off_t);
+DECLARE_REAL(ssize_t, pwrite, int, const void *, size_t, off_t);
+DECLARE_REAL(ssize_t, pread64, int, void *, size_t, off_t);
+DECLARE_REAL(ssize_t, pwrite64, int, const void *, size_t, off_t);
+DECLARE_REAL(off_t, lseek, int, off_t, int);
+DECLARE_REAL(off_t, lseek64, int, off_t, int);
+DECLARE_REAL(int, ioctl, int, unsigned long, ...);
+DECLARE_REAL(int, dup, int);
+DECLARE_REAL(int, dup2, int, int);
+DECLARE_REAL(int, dup3, int, int, int);
+DECLARE_REAL(int, stat, const char *, struct stat *);
+DECLARE_REAL(int, stat64, const char *, struct stat64 *);
+DECLARE_REAL(int, lstat, const char *, struct stat *);
+DECLARE_REAL(int, lstat64, const char *, struct stat64 *);
+DECLARE_REAL(int, fstat, int, struct stat *);
+DECLARE_REAL(int, fstat64, int, struct stat64 *);
+DECLARE_REAL(int, fstatat, int, const char *, struct stat *, int);
+DECLARE_REAL(int, fstatat64, int, const char *, struct stat64 *, int);
+DECLARE_REAL(int, statx, int, const char *, int, unsigned int, struct statx *);
+DECLARE_REAL(int, access, const char *, int);
+DECLARE_REAL(int, faccessat, int, const char *, int, int);
+DECLARE_REAL(int, clock_gettime, clockid_t, struct timespec *);
+DECLARE_REAL(int, gettimeofday, struct timeval *, void *);
+DECLARE_REAL(time_t, time, time_t *);
+DECLARE_REAL(int, nanosleep, const struct timespec *, struct timespec *);
+DECLARE_REAL(int, clock_nanosleep, clockid_t, int, const struct timespec *, struct timespec *);
+DECLARE_REAL(int, usleep, useconds_t);
+DECLARE_REAL(unsigned int, sleep, unsigned int);
+DECLARE_REAL(int, poll, struct pollfd *, nfds_t, int);
+DECLARE_REAL(int, ppoll, struct pollfd *, nfds_t, const struct timespec *, const sigset_t *);
+DECLARE_REAL(int, select, int, fd_set *, fd_set *, fd_set *, struct timeval *);
+DECLARE_REAL(int, pselect, int, fd_set *, fd_set *, fd_set *, const struct timespec *, const sigset_t *);
+DECLARE_REAL(int, epoll_wait, int, struct epoll_event *, int, int);
+DECLARE_REAL(int, epoll_pwait, int, struct epoll_event *, int, int, const sigset_t *);
+
+static void *resolve(const char *name)
+{
+    void *p = dlsym(RTLD_NEXT, name);
+    if (!p) {
+        fprintf(stderr, "rigshim: libc has no %s\n", name);
+        abort();
+    }
+    return p;
+}
+#define LOAD(name) ({ if (!real_##name) real_##name = resolve(#name); real_##name; })
+
+/* ---------------------------------------------------------------- configuration */
+
+static int active;              /* RIG_SOCKET set: redirect */
+static int lockstep;            /* RIG_LOCKSTEP=1: virtual time */
+static char sock_path[108];
+static unsigned i2c_buses_mask; /* bit N: /dev/i2c-N is emulated (N < 32) */
+static int pwm_chip;
+static struct rig_shm *shm;
+static struct {
+    char from[128];
+    char to[128];
+} serial_map[MAX_SERIAL];
+static int n_serial;
+static pthread_mutex_t lock = PTHREAD_MUTEX_INITIALIZER;
+static int sock = -1;
+static pid_t sock_pid;
+
+static void parse_serial(const char *spec)
+{
+    while (spec && *spec && n_serial < MAX_SERIAL) {
+        const char *end = strchr(spec, ':');
+        size_t n = end ? (size_t)(end - spec) : strlen(spec);
+        const char *eq = memchr(spec, '=', n);
+        if (eq && (size_t)(eq - spec) < sizeof serial_map[0].from && n - (size_t)(eq - spec) - 1 < sizeof serial_map[0].to) {
+            memcpy(serial_map[n_serial].from, spec, (size_t)(eq - spec));
+            memcpy(serial_map[n_serial].to, eq + 1, n - (size_t)(eq - spec) - 1);
+            n_serial++;
+        }
+        spec = end ? end + 1 : NULL;
+    }
+}
+
+__attribute__((constructor)) static void shim_init(void)
+{
+    const char *s = getenv("RIG_SOCKET");
+    if (!s || !*s || strlen(s) >= sizeof sock_path)
+        return;
+    strcpy(sock_path, s);
+    const char *shm_path = getenv("RIG_SHM");
+    int fd = shm_path ? LOAD(open)(shm_path, O_RDWR | O_CLOEXEC) : -1;
+    if (fd < 0) {
+        fprintf(stderr, "rigshim: cannot open the shared page RIG_SHM=%s: %s\n", shm_path ? shm_path : "(unset)",
+                strerror(errno));
+        return;
+    }
+    void *p = mmap(NULL, sizeof(struct rig_shm), PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+    LOAD(close)(fd);
+    if (p == MAP_FAILED || ((struct rig_shm *)p)->magic != RIG_SHM_MAGIC) {
+        fprintf(stderr, "rigshim: RIG_SHM=%s is not a rig shared page\n", shm_path);
+        return;
+    }
+    shm = p;
+    const char *b = getenv("RIG_I2C_BUSES");
+    for (; b && *b; b++) {
+        char *end;
+        long n = strtol(b, &end, 10);
+        if (end != b && n >= 0 && n < 32)
+            i2c_buses_mask |= 1u << n;
+        b = *end ? end : end - 1;
+    }
+    const char *chip = getenv("RIG_PWM_CHIP");
+    pwm_chip = chip ? atoi(chip) : 0;
+    parse_serial(getenv("RIG_SERIAL"));
+    const char *ls = getenv("RIG_LOCKSTEP");
+    lockstep = ls && strcmp(ls, "1") == 0;
+    active = 1;
+}
+
+/* ---------------------------------------------------------------- the socket */
+
+static void die_session(const char *why)
+{
+    fprintf(stderr, "rigshim: lost the rig session (%s); stopping the program\n", why);
+    _exit(125);
+}
+
+static int send_all(const void *buf, size_t n)
+{
+    const char *p = buf;
+    while (n) {
+        ssize_t k = send(sock, p, n, MSG_NOSIGNAL);
+        if (k < 0 && errno == EINTR)
+            continue;
+        if (k <= 0)
+            return -1;
+        p += k;
+        n -= (size_t)k;
+    }
+    return 0;
+}
+
+static int recv_all(void *buf, size_t n)
+{
+    char *p = buf;
+    while (n) {
+        ssize_t k = recv(sock, p, n, 0);
+        if (k < 0 && errno == EINTR)
+            continue;
+        if (k <= 0)
+            return -1;
+        p += k;
+        n -= (size_t)k;
+    }
+    return 0;
+}
+
+static uint64_t now_peek(void) { return __atomic_load_n(&shm->sim_ns, __ATOMIC_SEQ_CST); }
+
+static void send_msg(uint16_t type, const void *payload, uint32_t len);
+
+/* Connects on first use and again after fork (a child gets its own connection). Caller holds lock. */
+static void ensure_connected(void)
+{
+    if (sock >= 0 && sock_pid == getpid())
+        return;
+    if (sock >= 0)
+        LOAD(close)(sock); /* the parent's connection, inherited by fork */
+    sock = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    struct sockaddr_un addr = {.sun_family = AF_UNIX};
+    strcpy(addr.sun_path, sock_path);
+    if (sock < 0 || connect(sock, (struct sockaddr *)&addr, sizeof addr) < 0)
+        die_session(strerror(errno));
+    sock_pid = getpid();
+    uint32_t hello[2] = {RIG_PROTOCOL_VERSION, (uint32_t)getpid()};
+    send_msg(RIG_MSG_HELLO, hello, sizeof hello);
+    struct rig_hdr h;
+    if (recv_all(&h, sizeof h) < 0 || h.type != RIG_MSG_HELLO || h.len != 0)
+        die_session("no HELLO reply");
+    if (h.status)
+        die_session("the session refused this shim's protocol version");
+}
+
+static void send_msg(uint16_t type, const void *payload, uint32_t len)
+{
+    struct rig_hdr h = {.len = len, .type = type, .status = 0, .t_ns = lockstep ? now_peek() : 0};
+    if (send_all(&h, sizeof h) < 0 || (len && send_all(payload, len) < 0))
+        die_session("send failed");
+}
+
+/* One request, one reply. The reply payload (at most cap bytes) lands in out. Caller holds lock. */
+static struct rig_hdr request(uint16_t type, const void *payload, uint32_t len, void *out, uint32_t cap)
+{
+    ensure_connected();
+    send_msg(type, payload, len);
+    struct rig_hdr h;
+    if (recv_all(&h, sizeof h) < 0)
+        die_session("no reply");
+    if (h.type != type || h.len > cap)
+        die_session("a reply that does not fit the request");
+    if (h.len && recv_all(out, h.len) < 0)
+        die_session("short reply");
+    return h;
+}
+
+static void notice(uint16_t type, const void *payload, uint32_t len)
+{
+    pthread_mutex_lock(&lock);
+    ensure_connected();
+    send_msg(type, payload, len);
+    pthread_mutex_unlock(&lock);
+}
+
+static void note(const char *fmt, ...)
+{
+    char text[256];
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vsnprintf(text, sizeof text, fmt, ap);
+    va_end(ap);
+    notice(RIG_MSG_NOTE, text, (uint32_t)(n < (int)sizeof text ? n : (int)sizeof text - 1));
+}
+
+/* ---------------------------------------------------------------- time */
+
+#define NS 1000000000ull
+
+static uint64_t ts_ns(const struct timespec *ts) { return (uint64_t)ts->tv_sec * NS + (uint64_t)ts->tv_nsec; }
+static void ns_ts(uint64_t ns, struct timespec *ts)
+{
+    ts->tv_sec = (time_t)(ns / NS);
+    ts->tv_nsec = (long)(ns % NS);
+}
+
+static int virtual_clock(clockid_t id) { return active && lockstep && shm && id >= 0; }
+
+/* Base of a clock at sim time 0, or -1 for clocks we leave alone. */
+static int64_t clock_base(clockid_t id)
+{
+    switch (id) {
+    case CLOCK_REALTIME:
+    case CLOCK_REALTIME_COARSE:
+    case CLOCK_TAI:
+    case CLOCK_REALTIME_ALARM:
+        return (int64_t)shm->epoch_ns;
+    case CLOCK_MONOTONIC:
+    case CLOCK_MONOTONIC_RAW:
+    case CLOCK_MONOTONIC_COARSE:
+    case CLOCK_BOOTTIME:
+    case CLOCK_BOOTTIME_ALARM:
+        return (int64_t)shm->mono_base_ns;
+    case CLOCK_PROCESS_CPUTIME_ID:
+    case CLOCK_THREAD_CPUTIME_ID:
+        return 0; /* a busy program's CPU time is its virtual time */
+    default:
+        return -1;
+    }
+}
+
+/* A clock read: the program ran a little, so time moves a quantum (busy loops still advance). */
+static uint64_t now_tick(void) { return __atomic_add_fetch(&shm->sim_ns, shm->quantum_ns, __ATOMIC_SEQ_CST); }
+
+/* Asks the session to run the world until wake_ns (or an event); returns why we woke. */
+static uint32_t wait_until(uint64_t wake_ns, uint32_t kind)
+{
+    struct {
+        uint64_t wake;
+        uint32_t kind, zero;
+    } req = {wake_ns, kind, 0};
+    uint32_t reason = RIG_WAKE_DEADLINE;
+    pthread_mutex_lock(&lock);
+    struct rig_hdr h = request(RIG_MSG_WAIT, &req, sizeof req, &reason, sizeof reason);
+    uint64_t cur = now_peek();
+    while (h.t_ns > cur && !__atomic_compare_exchange_n(&shm->sim_ns, &cur, h.t_ns, 0, __ATOMIC_SEQ_CST, __ATOMIC_SEQ_CST))
+        ;
+    pthread_mutex_unlock(&lock);
+    return reason;
+}
+
+static void sleep_until(uint64_t wake_ns)
+{
+    while (now_peek() < wake_ns)
+        wait_until(wake_ns, RIG_WAIT_SLEEP);
+}
+
+static int valid_ts(const struct timespec *ts) { return ts && ts->tv_sec >= 0 && ts->tv_nsec >= 0 && ts->tv_nsec < (long)NS; }
+
+EXPORT int clock_gettime(clockid_t id, struct timespec *ts)
+{
+    if (!virtual_clock(id) || clock_base(id) < 0)
+        return LOAD(clock_gettime)(id, ts);
+    ns_ts((uint64_t)clock_base(id) + now_tick(), ts);
+    return 0;
+}
+
+EXPORT int gettimeofday(struct timeval *tv, void *tz)
+{
+    if (!virtual_clock(CLOCK_REALTIME))
+        return LOAD(gettimeofday)(tv, tz);
+    uint64_t ns = shm->epoch_ns + now_tick();
+    tv->tv_sec = (time_t)(ns / NS);
+    tv->tv_usec = (suseconds_t)(ns % NS / 1000);
+    return 0;
+}
+
+EXPORT time_t time(time_t *out)
+{
+    if (!virtual_clock(CLOCK_REALTIME))
+        return LOAD(time)(out);
+    time_t t = (time_t)((shm->epoch_ns + now_tick()) / NS);
+    if (out)
+        *out = t;
+    return t;
+}
+
+EXPORT int clock_nanosleep(clockid_t id, int flags, const struct timespec *req, struct timespec *rem)
+{
+    if (!virtual_clock(id) || clock_base(id) < 0)
+        return LOAD(clock_nanosleep)(id, flags, req, rem);
+    if (id == CLOCK_THREAD_CPUTIME_ID)
+        return EINVAL; /* as Linux */
+    if (!valid_ts(req))
+        return EINVAL;
+    uint64_t wake;
+    if (flags & TIMER_ABSTIME) {
+        uint64_t abs = ts_ns(req), base = (uint64_t)clock_base(id);
+        wake = abs > base ? abs - base : 0;
+    } else {
+        wake = now_peek() + ts_ns(req);
+    }
+    sleep_until(wake);
+    if (rem && !(flags & TIMER_ABSTIME))
+        rem->tv_sec = rem->tv_nsec = 0;
+    return 0;
+}
+
+EXPORT int nanosleep(const struct timespec *req, struct timespec *rem)
+{
+    if (!virtual_clock(CLOCK_MONOTONIC))
+        return LOAD(nanosleep)(req, rem);
+    int err = clock_nanosleep(CLOCK_MONOTONIC, 0, req, rem);
+    if (err) {
+        errno = err;
+        return -1;
+    }
+    return 0;
+}
+
+EXPORT int usleep(useconds_t us)
+{
+    if (!virtual_clock(CLOCK_MONOTONIC))
+        return LOAD(usleep)(us);
+    sleep_until(now_peek() + (uint64_t)us * 1000u);
+    return 0;
+}
+
+EXPORT unsigned int sleep(unsigned int s)
+{
+    if (!virtual_clock(CLOCK_MONOTONIC))
+        return LOAD(sleep)(s);
+    sleep_until(now_peek() + (uint64_t)s * NS);
+    return 0;
+}
+
+/* The waits with timeouts: look (without waiting) for a ready descriptor; if none, let sim time run
+   to the deadline or the session's next event (data it writes to a pty), and look again. */
+static uint64_t deadline_ms(int timeout_ms) { return timeout_ms < 0 ? RIG_WAIT_FOREVER : now_peek() + (uint64_t)timeout_ms * 1000000u; }
+
+static int wait_done(uint64_t deadline)
+{
+    if (deadline != RIG_WAIT_FOREVER && now_peek() >= deadline)
+        return 1;
+    wait_until(deadline, RIG_WAIT_POLL);
+    return 0;
+}
+
+EXPORT int poll(struct pollfd *fds, nfds_t n, int timeout)
+{
+    if (!virtual_clock(CLOCK_MONOTONIC) || timeout == 0)
+        return LOAD(poll)(fds, n, timeout);
+    uint64_t deadline = deadline_ms(timeout);
+    for (;;) {
+        int r = LOAD(poll)(fds, n, 0);
+        if (r != 0 || wait_done(deadline))
+            return r;
+    }
+}
+
+EXPORT int __poll_chk(struct pollfd *fds, nfds_t n, int timeout, size_t fdslen)
+{
+    (void)fdslen;
+    return poll(fds, n, timeout);
+}
+
+EXPORT int ppoll(struct pollfd *fds, nfds_t n, const struct timespec *tmo, const sigset_t *mask)
+{
+    static const struct timespec zero = {0, 0};
+    if (!virtual_clock(CLOCK_MONOTONIC) || (tmo && tmo->tv_sec == 0 && tmo->tv_nsec == 0))
+        return LOAD(ppoll)(fds, n, tmo, mask);
+    if (tmo && !valid_ts(tmo)) {
+        errno = EINVAL;
+        return -1;
+    }
+    uint64_t deadline = tmo ? now_peek() + ts_ns(tmo) : RIG_WAIT_FOREVER;
+    for (;;) {
+        int r = LOAD(ppoll)(fds, n, &zero, mask);
+        if (r != 0 || wait_done(deadline))
+            return r;
+    }
+}
+
+static int select_virtual(int nfds, fd_set *r, fd_set *w, fd_set *e, uint64_t deadline, const sigset_t *mask, int use_pselect)
+{
+    fd_set r0, w0, e0;
+    if (r) r0 = *r;
+    if (w) w0 = *w;
+    if (e) e0 = *e;
+    for (;;) {
+        if (r) *r = r0;
+        if (w) *w = w0;
+        if (e) *e = e0;
+        int res;
+        if (use_pselect) {
+            struct timespec zero = {0, 0};
+            res = LOAD(pselect)(nfds, r, w, e, &zero, mask);
+        } else {
+            struct timeval zero = {0, 0};
+            res = LOAD(select)(nfds, r, w, e, &zero);
+        }
+        if (res != 0 || wait_done(deadline))
+            return res;
+    }
+}
+
+EXPORT int select(int nfds, fd_set *r, fd_set *w, fd_set *e, struct timeval *tmo)
+{
+    if (!virtual_clock(CLOCK_MONOTONIC) || (tmo && tmo->tv_sec == 0 && tmo->tv_usec == 0))
+        return LOAD(select)(nfds, r, w, e, tmo);
+    if (tmo && (tmo->tv_sec < 0 || tmo->tv_usec < 0)) {
+        errno = EINVAL;
+        return -1;
+    }
+    uint64_t deadline = tmo ? now_peek() + (uint64_t)tmo->tv_sec * NS + (uint64_t)tmo->tv_usec * 1000u : RIG_WAIT_FOREVER;
+    int res = select_virtual(nfds, r, w, e, deadline, NULL, 0);
+    if (tmo && res >= 0)
+        tmo->tv_sec = tmo->tv_usec = 0; /* Linux reports the time left; a woken select is close enough to 0 */
+    return res;
+}
+
+EXPORT int pselect(int nfds, fd_set *r, fd_set *w, fd_set *e, const struct timespec *tmo, const sigset_t *mask)
+{
+    if (!virtual_clock(CLOCK_MONOTONIC) || (tmo && tmo->tv_sec == 0 && tmo->tv_nsec == 0))
+        return LOAD(pselect)(nfds, r, w, e, tmo, mask);
+    if (tmo && !valid_ts(tmo)) {
+        errno = EINVAL;
+        return -1;
+    }
+    return select_virtual(nfds, r, w, e, tmo ? now_peek() + ts_ns(tmo) : RIG_WAIT_FOREVER, mask, 1);
+}
+
+EXPORT int epoll_wait(int epfd, struct epoll_event *ev, int max, int timeout)
+{
+    if (!virtual_clock(CLOCK_MONOTONIC) || timeout == 0)
+        return LOAD(epoll_wait)(epfd, ev, max, timeout);
+    uint64_t deadline = deadline_ms(timeout);
+    for (;;) {
+        int r = LOAD(epoll_wait)(epfd, ev, max, 0);
+        if (r != 0 || wait_done(deadline))
+            return r;
+    }
+}
+
+EXPORT int epoll_pwait(int epfd, struct epoll_event *ev, int max, int timeout, const sigset_t *mask)
+{
+    if (!virtual_clock(CLOCK_MONOTONIC) || timeout == 0)
+        return LOAD(epoll_pwait)(epfd, ev, max, timeout, mask);
+    uint64_t deadline = deadline_ms(timeout);
+    for (;;) {
+        int r = LOAD(epoll_pwait)(epfd, ev, max, 0, mask);
+        if (r != 0 || wait_done(deadline))
+            return r;
+    }
+}
+
+/* ---------------------------------------------------------------- paths */
+
+enum kind { K_NONE, K_I2C, K_PWM_ATTR, K_PWM_DIR, K_SERIAL };
+enum pwm_attr { A_EXPORT, A_UNEXPORT, A_NPWM, A_PERIOD, A_DUTY, A_ENABLE, A_POLARITY };
+
+struct target {
+    enum kind kind;
+    int bus;         /* K_I2C */
+    int channel;     /* K_PWM_*: -1 for the chip itself */
+    enum pwm_attr attr;
+    const char *to;  /* K_SERIAL: the pty */
+};
+
+static int parse_uint(const char *s, const char **end)
+{
+    if (*s < '0' || *s > '9')
+        return -1;
+    long v = 0;
+    while (*s >= '0' && *s <= '9' && v < 100000)
+        v = v * 10 + (*s++ - '0');
+    *end = s;
+    return (int)v;
+}
+
+static struct target classify(const char *path)
+{
+    struct target t = {.kind = K_NONE};
+    if (!active || !path)
+        return t;
+    const char *rest = "";
+    if (strncmp(path, "/dev/i2c-", 9) == 0) {
+        int n = parse_uint(path + 9, &rest);
+        if (n >= 0 && n < 32 && *rest == 0 && (i2c_buses_mask >> n & 1u)) {
+            t.kind = K_I2C;
+            t.bus = n;
+        }
+        return t;
+    }
+    for (int i = 0; i < n_serial; i++)
+        if (strcmp(path, serial_map[i].from) == 0) {
+            t.kind = K_SERIAL;
+            t.to = serial_map[i].to;
+            return t;
+        }
+    if (strcmp(path, "/sys/class/pwm") == 0 || strcmp(path, "/sys/class/pwm/") == 0) {
+        t.kind = K_PWM_DIR;
+        t.channel = -2;
+        return t;
+    }
+    if (strncmp(path, "/sys/class/pwm/pwmchip", 22) != 0)
+        return t;
+    int chip = parse_uint(path + 22, &rest);
+    if (chip != pwm_chip || !shm)
+        return t;
+    t.channel = -1;
+    if (*rest == 0 || strcmp(rest, "/") == 0) {
+        t.kind = K_PWM_DIR;
+        return t;
+    }
+    static const char *chip_attrs[] = {"/export", "/unexport", "/npwm"};
+    for (int a = 0; a < 3; a++)
+        if (strcmp(rest, chip_attrs[a]) == 0) {
+            t.kind = K_PWM_ATTR;
+            t.attr = (enum pwm_attr)a;
+            return t;
+        }
+    if (strncmp(rest, "/pwm", 4) != 0)
+        return t;
+    int ch = parse_uint(rest + 4, &rest);
+    if (ch < 0 || ch >= (int)shm->npwm || !shm->pwm[ch].exported)
+        return t; /* not exported: the file does not exist (ENOENT from the real call) */
+    t.channel = ch;
+    if (*rest == 0 || strcmp(rest, "/") == 0) {
+        t.kind = K_PWM_DIR;
+        return t;
+    }
+    static const char *ch_attrs[] = {"/period", "/duty_cycle", "/enable", "/polarity"};
+    for (int a = 0; a < 4; a++)
+        if (strcmp(rest, ch_attrs[a]) == 0) {
+            t.kind = K_PWM_ATTR;
+            t.attr = (enum pwm_attr)(A_PERIOD + a);
+            return t;
+        }
+    return t;
+}
+
+/* Only absolute paths are redirected (openat with a directory and a relative path passes through). */
+static struct target classify_abs(const char *path)
+{
+    return path && path[0] == '/' ? classify(path) : (struct target){.kind = K_NONE};
+}
+
+static int is_empty(const char *path) { return path && path[0] == 0; }
+
+/* A path the kernel would have that we only pretend: make it ENOENT-proof for stat/access. */
+static void fill_stat(const struct target *t, struct stat *st)
+{
+    memset(st, 0, sizeof *st);
+    st->st_uid = getuid();
+    st->st_gid = getgid();
+    st->st_nlink = 1;
+    st->st_blksize = 4096;
+    if (t->kind == K_I2C) {
+        st->st_mode = S_IFCHR | 0660;
+        st->st_rdev = makedev(I2C_MAJOR, t->bus);
+        st->st_dev = makedev(0, 5);
+        st->st_ino = 1000 + (ino_t)t->bus;
+    } else if (t->kind == K_PWM_DIR) {
+        st->st_mode = S_IFDIR | 0755;
+        st->st_nlink = 2;
+        st->st_ino = 2000 + (ino_t)(t->channel + 2);
+    } else {
+        int wo = t->attr == A_EXPORT || t->attr == A_UNEXPORT, ro = t->attr == A_NPWM;
+        st->st_mode = S_IFREG | (wo ? 0200 : ro ? 0444 : 0644);
+        st->st_size = 4096;
+        st->st_ino = 3000 + (ino_t)(t->channel + 1) * 8 + (ino_t)t->attr;
+    }
+}
+
+/* ---------------------------------------------------------------- fake descriptors */
+
+struct fake {
+    struct target t;
+    int addr;   /* I2C_SLAVE */
+    int tenbit;
+    off_t pos;  /* PWM attribute read position */
+};
+static struct fake *fakes[MAX_FD];
+
+static struct fake *fake_of(int fd) { return (active && fd >= 0 && fd < MAX_FD) ? fakes[fd] : NULL; }
+
+/* A fake descriptor is a real one onto /dev/null, so its number is unique and close/fcntl/poll work. */
+static int open_fake(const struct target *t, int flags)
+{
+    if (t->kind == K_PWM_DIR) {
+        errno = EISDIR;
+        return -1;
+    }
+    if (t->kind == K_PWM_ATTR) {
+        int acc = flags & O_ACCMODE;
+        int wo = t->attr == A_EXPORT || t->attr == A_UNEXPORT, ro = t->attr == A_NPWM;
+        if ((wo && acc != O_WRONLY && getuid() != 0) || (ro && acc != O_RDONLY)) {
+            errno = EACCES;
+            return -1;
+        }
+    }
+    int fd = LOAD(open)("/dev/null", O_RDWR | (flags & O_CLOEXEC));
+    if (fd < 0)
+        return -1;
+    if (fd >= MAX_FD) {
+        LOAD(close)(fd);
+        errno = EMFILE;
+        return -1;
+    }
+    struct fake *f = calloc(1, sizeof *f);
+    if (!f) {
+        LOAD(close)(fd);
+        errno = ENOMEM;
+        return -1;
+    }
+    f->t = *t;
+    f->addr = 0; /* i2c-dev's client starts at address 0, where nothing answers */
+    pthread_mutex_lock(&lock);
+    free(fakes[fd]);
+    fakes[fd] = f;
+    pthread_mutex_unlock(&lock);
+    return fd;
+}
+
+static void drop_fake(int fd)
+{
+    if (fd < 0 || fd >= MAX_FD || !fakes[fd])
+        return;
+    pthread_mutex_lock(&lock);
+    free(fakes[fd]);
+    fakes[fd] = NULL;
+    pthread_mutex_unlock(&lock);
+}
+
+static void copy_fake(int from, int to)
+{
+    struct fake *src = fake_of(from);
+    if (!src || to < 0 || to >= MAX_FD)
+        return;
+    struct fake *f = malloc(sizeof *f);
+    if (!f)
+        return;
+    *f = *src;
+    pthread_mutex_lock(&lock);
+    free(fakes[to]);
+    fakes[to] = f;
+    pthread_mutex_unlock(&lock);
+}
+
+/* ---------------------------------------------------------------- open and friends */
+
+#define OPEN_MODE(flags, mode)                                                                                         \
+    do {                                                                                                               \
+        if ((flags) & (O_CREAT | __O_TMPFILE)) {                                                                       \
+            va_list ap;                                                                                                \
+            va_start(ap, flags);                                                                                       \
+            mode = va_arg(ap, mode_t);                                                                                 \
+            va_end(ap);                                                                                                \
+        }                                                                                                              \
+    } while (0)
+
+static int redirect_open(const struct target *t, int flags, mode_t mode)
+{
+    if (t->kind == K_SERIAL)
+        return LOAD(open)(t->to, flags, mode);
+    return open_fake(t, flags);
+}
+
+EXPORT int open(const char *path, int flags, ...)
+{
+    mode_t mode = 0;
+    OPEN_MODE(flags, mode);
+    struct target t = classify(path);
+    return t.kind ? redirect_open(&t, flags, mode) : LOAD(open)(path, flags, mode);
+}
+
+EXPORT int open64(const char *path, int flags, ...)
+{
+    mode_t mode = 0;
+    OPEN_MODE(flags, mode);
+    struct target t = classify(path);
+    return t.kind ? redirect_open(&t, flags, mode) : LOAD(open64)(path, flags, mode);
+}
+
+EXPORT int openat(int dirfd, const char *path, int flags, ...)
+{
+    mode_t mode = 0;
+    OPEN_MODE(flags, mode);
+    struct target t = classify_abs(path);
+    return t.kind ? redirect_open(&t, flags, mode) : LOAD(openat)(dirfd, path, flags, mode);
+}
+
+EXPORT int openat64(int dirfd, const char *path, int flags, ...)
+{
+    mode_t mode = 0;
+    OPEN_MODE(flags, mode);
+    struct target t = classify_abs(path);
+    return t.kind ? redirect_open(&t, flags, mode) : LOAD(openat64)(dirfd, path, flags, mode);
+}
+
+EXPORT int __open_2(const char *path, int flags)
+{
+    struct target t = classify(path);
+    return t.kind ? redirect_open(&t, flags, 0) : LOAD(__open_2)(path, flags);
+}
+
+EXPORT int __open64_2(const char *path, int flags)
+{
+    struct target t = classify(path);
+    return t.kind ? redirect_open(&t, flags, 0) : LOAD(__open64_2)(path, flags);
+}
+
+EXPORT int __openat_2(int dirfd, const char *path, int flags)
+{
+    struct target t = classify_abs(path);
+    return t.kind ? redirect_open(&t, flags, 0) : LOAD(__openat_2)(dirfd, path, flags);
+}
+
+EXPORT int __openat64_2(int dirfd, const char *path, int flags)
+{
+    struct target t = classify_abs(path);
+    return t.kind ? redirect_open(&t, flags, 0) : LOAD(__openat64_2)(dirfd, path, flags);
+}
+
+static ssize_t fake_read(struct fake *f, void *buf, size_t n, off_t *pos);
+static ssize_t fake_write(struct fake *f, const void *buf, size_t n);
+
+/* stdio on a PWM attribute: glibc's fopen and fwrite use internal calls we cannot interpose, so the
+   FILE gets our read/write through fopencookie. */
+static ssize_t cookie_read(void *c, char *buf, size_t n)
+{
+    struct fake *f = fake_of((int)(intptr_t)c);
+    return f ? fake_read(f, buf, n, &f->pos) : -1;
+}
+static ssize_t cookie_write(void *c, const char *buf, size_t n)
+{
+    struct fake *f = fake_of((int)(intptr_t)c);
+    ssize_t r = f ? fake_write(f, buf, n) : -1;
+    return r < 0 ? 0 : r; /* stdio treats a short write as the error */
+}
+static int cookie_seek(void *c, off64_t *off, int whence)
+{
+    struct fake *f = fake_of((int)(intptr_t)c);
+    if (!f || whence != SEEK_SET || *off < 0)
+        return -1;
+    f->pos = *off;
+    return 0;
+}
+static int cookie_close(void *c) { return close((int)(intptr_t)c); }
+
+static FILE *redirect_fopen(const struct target *t, const char *mode, FILE *(*real)(const char *, const char *))
+{
+    if (t->kind == K_SERIAL)
+        return real(t->to, mode);
+    int flags = strchr(mode, '+') ? O_RDWR : mode[0] == 'r' ? O_RDONLY : O_WRONLY;
+    if (strchr(mode, 'e'))
+        flags |= O_CLOEXEC;
+    int fd = open_fake(t, flags);
+    if (fd < 0)
+        return NULL;
+    cookie_io_functions_t io = {cookie_read, cookie_write, cookie_seek, cookie_close};
+    FILE *fp = fopencookie((void *)(intptr_t)fd, mode, io);
+    if (!fp)
+        close(fd);
+    return fp;
+}
+
+EXPORT FILE *fopen(const char *path, const char *mode)
+{
+    struct target t = classify(path);
+    return t.kind && t.kind != K_I2C ? redirect_fopen(&t, mode, LOAD(fopen)) : LOAD(fopen)(path, mode);
+}
+
+EXPORT FILE *fopen64(const char *path, const char *mode)
+{
+    struct target t = classify(path);
+    return t.kind && t.kind != K_I2C ? redirect_fopen(&t, mode, LOAD(fopen64)) : LOAD(fopen64)(path, mode);
+}
+
+EXPORT int close(int fd)
+{
+    if (active && fd == sock && sock_pid == getpid())
+        return 0; /* a program closing every descriptor must not cut us off from the session */
+    drop_fake(fd);
+    return LOAD(close)(fd);
+}
+
+EXPORT int dup(int fd)
+{
+    int r = LOAD(dup)(fd);
+    if (r >= 0)
+        copy_fake(fd, r);
+    return r;
+}
+
+EXPORT int dup2(int fd, int to)
+{
+    int r = LOAD(dup2)(fd, to);
+    if (r >= 0 && fd != to) {
+        drop_fake(r);
+        copy_fake(fd, r);
+    }
+    return r;
+}
+
+EXPORT int dup3(int fd, int to, int flags)
+{
+    int r = LOAD(dup3)(fd, to, flags);
+    if (r >= 0) {
+        drop_fake(r);
+        copy_fake(fd, r);
+    }
+    return r;
+}
+
+/* ---------------------------------------------------------------- stat and access */
+
+static int stat_target(const char *path, struct stat *st, int (*real)(const char *, struct stat *))
+{
+    struct target t = classify(path);
+    if (t.kind == K_SERIAL)
+        return real(t.to, st);
+    if (t.kind) {
+        fill_stat(&t, st);
+        return 0;
+    }
+    return real(path, st);
+}
+
+/* struct stat64 is struct stat on the 64-bit targets we build for; the casts below rely on it. */
+_Static_assert(sizeof(struct stat) == sizeof(struct stat64), "struct stat64 differs from struct stat");
+typedef int (*stat_fn)(const char *, struct stat *);
+typedef int (*fstat_fn)(int, struct stat *);
+typedef int (*fstatat_fn)(int, const char *, struct stat *, int);
+
+EXPORT int stat(const char *path, struct stat *st) { return stat_target(path, st, LOAD(stat)); }
+EXPORT int stat64(const char *path, struct stat64 *st) { return stat_target(path, (struct stat *)st, (stat_fn)LOAD(stat64)); }
+EXPORT int lstat(const char *path, struct stat *st) { return stat_target(path, st, LOAD(lstat)); }
+EXPORT int lstat64(const char *path, struct stat64 *st) { return stat_target(path, (struct stat *)st, (stat_fn)LOAD(lstat64)); }
+
+static int fstat_fake(int fd, struct stat *st, int (*real)(int, struct stat *))
+{
+    struct fake *f = fake_of(fd);
+    if (f) {
+        fill_stat(&f->t, st);
+        return 0;
+    }
+    return real(fd, st);
+}
+
+EXPORT int fstat(int fd, struct stat *st) { return fstat_fake(fd, st, LOAD(fstat)); }
+EXPORT int fstat64(int fd, struct stat64 *st) { return fstat_fake(fd, (struct stat *)st, (fstat_fn)LOAD(fstat64)); }
+
+static int fstatat_target(int dirfd, const char *path, struct stat *st, int flags,
+                          int (*real)(int, const char *, struct stat *, int))
+{
+    if (is_empty(path) && (flags & AT_EMPTY_PATH))
+        return fake_of(dirfd) ? (fill_stat(&fake_of(dirfd)->t, st), 0) : real(dirfd, path, st, flags);
+    struct target t = classify_abs(path);
+    if (t.kind == K_SERIAL)
+        return real(dirfd, t.to, st, flags);
+    if (t.kind) {
+        fill_stat(&t, st);
+        return 0;
+    }
+    return real(dirfd, path, st, flags);
+}
+
+EXPORT int fstatat(int dirfd, const char *path, struct stat *st, int flags) { return fstatat_target(dirfd, path, st, flags, LOAD(fstatat)); }
+EXPORT int fstatat64(int dirfd, const char *path, struct stat64 *st, int flags)
+{
+    return fstatat_target(dirfd, path, (struct stat *)st, flags, (fstatat_fn)LOAD(fstatat64));
+}
+
+EXPORT int statx(int dirfd, const char *path, int flags, unsigned int mask, struct statx *sx)
+{
+    struct target t = classify_abs(path);
+    if (is_empty(path) && (flags & AT_EMPTY_PATH) && fake_of(dirfd))
+        t = fake_of(dirfd)->t;
+    if (t.kind == K_SERIAL)
+        return LOAD(statx)(dirfd, t.to, flags, mask, sx);
+    if (!t.kind)
+        return LOAD(statx)(dirfd, path, flags, mask, sx);
+    struct stat st;
+    fill_stat(&t, &st);
+    memset(sx, 0, sizeof *sx);
+    sx->stx_mask = STATX_BASIC_STATS;
+    sx->stx_mode = (uint16_t)st.st_mode;
+    sx->stx_nlink = (uint32_t)st.st_nlink;
+    sx->stx_uid = st.st_uid;
+    sx->stx_gid = st.st_gid;
+    sx->stx_ino = st.st_ino;
+    sx->stx_size = (uint64_t)st.st_size;
+    sx->stx_blksize = (uint32_t)st.st_blksize;
+    sx->stx_rdev_major = major(st.st_rdev);
+    sx->stx_rdev_minor = minor(st.st_rdev);
+    return 0;
+}
+
+static int access_target(const struct target *t, int amode)
+{
+    struct stat st;
+    fill_stat(t, &st);
+    if (((amode & X_OK) && !S_ISDIR(st.st_mode)) || ((amode & W_OK) && !(st.st_mode & 0200)) ||
+        ((amode & R_OK) && !(st.st_mode & 0444) && getuid() != 0)) {
+        errno = EACCES;
+        return -1;
+    }
+    return 0;
+}
+
+EXPORT int access(const char *path, int amode)
+{
+    struct target t = classify(path);
+    if (t.kind == K_SERIAL)
+        return LOAD(access)(t.to, amode);
+    return t.kind ? access_target(&t, amode) : LOAD(access)(path, amode);
+}
+
+EXPORT int faccessat(int dirfd, const char *path, int amode, int flags)
+{
+    struct target t = classify_abs(path);
+    if (t.kind == K_SERIAL)
+        return LOAD(faccessat)(dirfd, t.to, amode, flags);
+    return t.kind ? access_target(&t, amode) : LOAD(faccessat)(dirfd, path, amode, flags);
+}
+
+/* ---------------------------------------------------------------- I2C */
+
+static int errno_ret(int err)
+{
+    errno = err;
+    return -1;
+}
+
+/* One transfer: msgs in, the read bytes written back into the callers' buffers. Returns 0 or an errno. */
+static int i2c_transfer(struct fake *f, struct i2c_msg *msgs, unsigned n)
+{
+    static __thread unsigned char out[sizeof(struct rig_i2c_msg) * I2C_RDWR_IOCTL_MAX_MSGS + 4 + 8192 * 2];
+    static __thread unsigned char in[8192 * 2 + 64];
+    if (n == 0 || n > I2C_RDWR_IOCTL_MAX_MSGS)
+        return EINVAL;
+    size_t wlen = 0, rlen = 0;
+    for (unsigned i = 0; i < n; i++) {
+        if (msgs[i].len > MAX_XFER)
+            return EINVAL;
+        if (msgs[i].flags & I2C_M_RD)
+            rlen += (msgs[i].flags & I2C_M_RECV_LEN) ? 1 + I2C_SMBUS_BLOCK_MAX : msgs[i].len;
+        else
+            wlen += msgs[i].len;
+    }
+    if (wlen > 2 * MAX_XFER || rlen > 2 * MAX_XFER)
+        return EINVAL; /* more than the kernel would copy in one ioctl */
+    uint16_t *hdr = (uint16_t *)out;
+    hdr[0] = (uint16_t)f->t.bus;
+    hdr[1] = (uint16_t)n;
+    struct rig_i2c_msg *desc = (struct rig_i2c_msg *)(out + 4);
+    unsigned char *data = out + 4 + n * sizeof *desc;
+    for (unsigned i = 0; i < n; i++) {
+        desc[i] = (struct rig_i2c_msg){msgs[i].addr, msgs[i].flags, msgs[i].len, 0};
+        if (!(msgs[i].flags & I2C_M_RD) && msgs[i].len) {
+            memcpy(data, msgs[i].buf, msgs[i].len);
+            data += msgs[i].len;
+        }
+    }
+    pthread_mutex_lock(&lock);
+    struct rig_hdr h = request(RIG_MSG_I2C, out, (uint32_t)(data - out), in, sizeof in);
+    if (lockstep && h.t_ns > now_peek())
+        __atomic_store_n(&shm->sim_ns, h.t_ns, __ATOMIC_SEQ_CST); /* the bus time of the transfer */
+    pthread_mutex_unlock(&lock);
+    if (h.status)
+        return h.status;
+    size_t at = 0;
+    for (unsigned i = 0; i < n; i++) {
+        if (!(msgs[i].flags & I2C_M_RD))
+            continue;
+        size_t k = msgs[i].len;
+        if (msgs[i].flags & I2C_M_RECV_LEN)
+            k = at < h.len ? 1u + in[at] : 0;
+        if (at + k > h.len)
+            die_session("an I2C reply shorter than its request");
+        memcpy(msgs[i].buf, in + at, k);
+        at += k;
+    }
+    return 0;
+}
+
+static int i2c_rdwr(struct fake *f, struct i2c_rdwr_ioctl_data *arg)
+{
+    if (!arg || !arg->msgs)
+        return errno_ret(EFAULT);
+    if (arg->nmsgs > I2C_RDWR_IOCTL_MAX_MSGS)
+        return errno_ret(EINVAL);
+    for (unsigned i = 0; i < arg->nmsgs; i++) {
+        struct i2c_msg *m = &arg->msgs[i];
+        if (m->len && !m->buf)
+            return errno_ret(EFAULT);
+        if ((m->flags & I2C_M_RECV_LEN) &&
+            (!(m->flags & I2C_M_RD) || m->len < 1 || m->buf[0] < 1 || m->len < m->buf[0] + I2C_SMBUS_BLOCK_MAX))
+            return errno_ret(EINVAL); /* i2c-dev's own check */
+    }
+    int err = i2c_transfer(f, arg->msgs, arg->nmsgs);
+    return err ? errno_ret(err) : (int)arg->nmsgs;
+}
+
+/* SMBus over plain I2C messages, as the kernel's i2c_smbus_xfer_emulated does it. */
+static int i2c_smbus(struct fake *f, struct i2c_smbus_ioctl_data *a)
+{
+    if (!a)
+        return errno_ret(EFAULT);
+    uint32_t size = a->size;
+    int rd = a->read_write == I2C_SMBUS_READ;
+    if (a->read_write != I2C_SMBUS_READ && a->read_write != I2C_SMBUS_WRITE)
+        return errno_ret(EINVAL);
+    if (size > I2C_SMBUS_I2C_BLOCK_DATA)
+        return errno_ret(EINVAL);
+    union i2c_smbus_data *d = a->data;
+    if (!d && !(size == I2C_SMBUS_QUICK || (size == I2C_SMBUS_BYTE && !rd)))
+        return errno_ret(EINVAL);
+    if (size == I2C_SMBUS_I2C_BLOCK_BROKEN) {
+        size = I2C_SMBUS_I2C_BLOCK_DATA;
+        if (rd)
+            d->block[0] = I2C_SMBUS_BLOCK_MAX;
+    }
+    if (size == I2C_SMBUS_PROC_CALL || size == I2C_SMBUS_BLOCK_PROC_CALL)
+        rd = 1; /* write then read, whatever read_write says */
+    uint16_t addr = (uint16_t)f->addr, ten = f->tenbit ? I2C_M_TEN : 0;
+    unsigned char w[2 + I2C_SMBUS_BLOCK_MAX + 1], r[1 + I2C_SMBUS_BLOCK_MAX + 1];
+    struct i2c_msg m[2] = {{addr, ten, 1, w}, {addr, (uint16_t)(ten | I2C_M_RD), 0, r}};
+    unsigned n = 2;
+    w[0] = a->command;
+    unsigned blk = d ? d->block[0] : 0;
+    switch (size) {
+    case I2C_SMBUS_QUICK:
+        m[0].flags |= rd ? I2C_M_RD : 0;
+        m[0].len = 0;
+        n = 1;
+        break;
+    case I2C_SMBUS_BYTE:
+        if (rd) {
+            m[0] = m[1];
+            m[0].len = 1;
+        }
+        n = 1;
+        break;
+    case I2C_SMBUS_BYTE_DATA:
+        if (rd)
+            m[1].len = 1;
+        else {
+            w[1] = d->byte;
+            m[0].len = 2;
+            n = 1;
+        }
+        break;
+    case I2C_SMBUS_WORD_DATA:
+    case I2C_SMBUS_PROC_CALL:
+        if (size == I2C_SMBUS_PROC_CALL || !rd) {
+            w[1] = (unsigned char)(d->word & 0xff);
+            w[2] = (unsigned char)(d->word >> 8);
+            m[0].len = 3;
+        }
+        if (rd)
+            m[1].len = 2;
+        else
+            n = 1;
+        break;
+    case I2C_SMBUS_BLOCK_DATA:
+    case I2C_SMBUS_BLOCK_PROC_CALL:
+        if (size == I2C_SMBUS_BLOCK_PROC_CALL || !rd) {
+            if (blk < 1 || blk > I2C_SMBUS_BLOCK_MAX)
+                return errno_ret(EINVAL);
+            memcpy(w + 1, d->block, blk + 1);
+            m[0].len = (uint16_t)(blk + 2);
+        }
+        if (rd) {
+            m[1].flags |= I2C_M_RECV_LEN;
+            m[1].len = 1 + I2C_SMBUS_BLOCK_MAX;
+            r[0] = 1;
+        } else
+            n = 1;
+        break;
+    case I2C_SMBUS_I2C_BLOCK_DATA:
+        if (blk < 1 || blk > I2C_SMBUS_BLOCK_MAX)
+            return errno_ret(EINVAL);
+        if (rd)
+            m[1].len = (uint16_t)blk;
+        else {
+            memcpy(w + 1, d->block + 1, blk);
+            m[0].len = (uint16_t)(blk + 1);
+            n = 1;
+        }
+        break;
+    default:
+        return errno_ret(EINVAL);
+    }
+    int err = i2c_transfer(f, m, n);
+    if (err)
+        return errno_ret(err);
+    if (!rd || size == I2C_SMBUS_QUICK)
+        return 0;
+    switch (size) {
+    case I2C_SMBUS_BYTE:
+        d->byte = r[0];
+        break;
+    case I2C_SMBUS_BYTE_DATA:
+        d->byte = r[0];
+        break;
+    case I2C_SMBUS_WORD_DATA:
+    case I2C_SMBUS_PROC_CALL:
+        d->word = (uint16_t)(r[0] | r[1] << 8);
+        break;
+    case I2C_SMBUS_BLOCK_DATA:
+    case I2C_SMBUS_BLOCK_PROC_CALL:
+        memcpy(d->block, r, 1u + r[0]);
+        break;
+    case I2C_SMBUS_I2C_BLOCK_DATA:
+        memcpy(d->block + 1, r, blk);
+        break;
+    }
+    return 0;
+}
+
+static int i2c_ioctl(struct fake *f, unsigned long req, unsigned long arg)
+{
+    switch (req) {
+    case I2C_SLAVE:
+    case I2C_SLAVE_FORCE:
+        if (arg > 0x3ff || (!f->tenbit && arg > 0x7f))
+            return errno_ret(EINVAL);
+        f->addr = (int)arg;
+        return 0;
+    case I2C_TENBIT:
+        f->tenbit = arg != 0;
+        return 0;
+    case I2C_PEC:
+        if (arg) {
+            note("I2C_PEC: packet error checking is not emulated (I2C_FUNCS does not offer it)");
+            return errno_ret(EINVAL);
+        }
+        return 0;
+    case I2C_RETRIES:
+    case I2C_TIMEOUT:
+        return 0;
+    case I2C_FUNCS:
+        if (!arg)
+            return errno_ret(EFAULT);
+        *(unsigned long *)arg = I2C_FUNC_I2C | (I2C_FUNC_SMBUS_EMUL_ALL & ~(unsigned long)I2C_FUNC_SMBUS_PEC);
+        return 0;
+    case I2C_RDWR:
+        return i2c_rdwr(f, (struct i2c_rdwr_ioctl_data *)arg);
+    case I2C_SMBUS:
+        return i2c_smbus(f, (struct i2c_smbus_ioctl_data *)arg);
+    default:
+        note("ioctl 0x%lx on /dev/i2c-%d is not an i2c-dev request (ENOTTY)", req, f->t.bus);
+        return errno_ret(ENOTTY);
+    }
+}
+
+EXPORT int ioctl(int fd, unsigned long req, ...)
+{
+    va_list ap;
+    va_start(ap, req);
+    unsigned long arg = va_arg(ap, unsigned long);
+    va_end(ap);
+    struct fake *f = fake_of(fd);
+    if (f && f->t.kind == K_I2C)
+        return i2c_ioctl(f, req, arg);
+    if (f)
+        return errno_ret(ENOTTY);
+    return LOAD(ioctl)(fd, req, arg);
+}
+
+/* ---------------------------------------------------------------- PWM attributes */
+
+static int parse_u64(const char *buf, size_t n, uint64_t *out)
+{
+    char s[32];
+    if (n == 0 || n >= sizeof s)
+        return -1;
+    memcpy(s, buf, n);
+    s[n] = 0;
+    if (s[n - 1] == '\n')
+        s[--n] = 0; /* sysfs accepts one trailing newline, as echo writes */
+    if (n == 0 || s[0] == '-' || s[0] == '+' || s[0] == ' ')
+        return -1;
+    char *end;
+    errno = 0;
+    unsigned long long v = strtoull(s, &end, 0);
+    if (errno || *end)
+        return -1;
+    *out = v;
+    return 0;
+}
+
+static int streq_nl(const char *buf, size_t n, const char *word)
+{
+    size_t w = strlen(word);
+    return (n == w || (n == w + 1 && buf[w] == '\n')) && memcmp(buf, word, w) == 0;
+}
+
+static ssize_t fake_write(struct fake *f, const void *buf, size_t n)
+{
+    if (f->t.kind == K_I2C) {
+        size_t k = n > MAX_XFER ? MAX_XFER : n;
+        struct i2c_msg m = {(uint16_t)f->addr, (uint16_t)(f->tenbit ? I2C_M_TEN : 0), (uint16_t)k, (void *)buf};
+        int err = i2c_transfer(f, &m, 1);
+        return err ? errno_ret(err) : (ssize_t)k;
+    }
+    if (f->t.kind != K_PWM_ATTR)
+        return errno_ret(EBADF);
+    const char *s = buf;
+    uint64_t v = 0;
+    struct rig_pwm_msg msg = {.chip = (uint16_t)pwm_chip, .channel = (uint16_t)(f->t.channel < 0 ? 0 : f->t.channel)};
+    pthread_mutex_lock(&lock);
+    int err = 0;
+    struct rig_pwm_state *p = f->t.channel >= 0 ? &shm->pwm[f->t.channel] : NULL;
+    switch (f->t.attr) {
+    case A_EXPORT:
+    case A_UNEXPORT:
+        if (parse_u64(s, n, &v) < 0 || v >= shm->npwm) {
+            err = v >= shm->npwm ? ENODEV : EINVAL;
+            break;
+        }
+        p = &shm->pwm[v];
+        if (f->t.attr == A_EXPORT && p->exported)
+            err = EBUSY;
+        else if (f->t.attr == A_UNEXPORT && !p->exported)
+            err = ENODEV;
+        else if (f->t.attr == A_EXPORT)
+            p->exported = 1;
+        else
+            *p = (struct rig_pwm_state){0}; /* unexport turns the output off */
+        msg.channel = (uint16_t)v;
+        msg.attr = f->t.attr == A_EXPORT ? RIG_PWM_EXPORT : RIG_PWM_UNEXPORT;
+        break;
+    case A_NPWM:
+        err = EACCES;
+        break;
+    case A_PERIOD:
+    case A_DUTY:
+        if (!p->exported)
+            err = ENODEV;
+        else if (parse_u64(s, n, &v) < 0)
+            err = EINVAL;
+        else if (f->t.attr == A_PERIOD ? (v < p->duty_ns || (v == 0 && p->enabled)) : v > p->period_ns)
+            err = EINVAL; /* pwm_apply_state: duty above period, or an enabled zero period */
+        else if (f->t.attr == A_PERIOD)
+            p->period_ns = v;
+        else
+            p->duty_ns = v;
+        msg.attr = f->t.attr == A_PERIOD ? RIG_PWM_PERIOD : RIG_PWM_DUTY;
+        break;
+    case A_ENABLE:
+        if (!p->exported)
+            err = ENODEV;
+        else if (parse_u64(s, n, &v) < 0 || v > 1)
+            err = EINVAL;
+        else if (v == 1 && p->period_ns == 0)
+            err = EINVAL;
+        else
+            p->enabled = (uint32_t)v;
+        msg.attr = RIG_PWM_ENABLE;
+        break;
+    case A_POLARITY:
+        if (!p->exported)
+            err = ENODEV;
+        else if (streq_nl(s, n, "normal"))
+            v = 0;
+        else if (streq_nl(s, n, "inversed"))
+            v = 1;
+        else
+            err = EINVAL;
+        if (!err)
+            p->inversed = (uint32_t)v;
+        msg.attr = RIG_PWM_POLARITY;
+        break;
+    }
+    msg.value = v;
+    if (!err) {
+        ensure_connected();
+        send_msg(RIG_MSG_PWM, &msg, sizeof msg); /* a notice: the DUT never waits for it */
+    }
+    pthread_mutex_unlock(&lock);
+    return err ? errno_ret(err) : (ssize_t)n;
+}
+
+static ssize_t fake_read(struct fake *f, void *buf, size_t n, off_t *pos)
+{
+    if (f->t.kind == K_I2C) {
+        size_t k = n > MAX_XFER ? MAX_XFER : n;
+        struct i2c_msg m = {(uint16_t)f->addr, (uint16_t)(I2C_M_RD | (f->tenbit ? I2C_M_TEN : 0)), (uint16_t)k, buf};
+        int err = i2c_transfer(f, &m, 1);
+        return err ? errno_ret(err) : (ssize_t)k;
+    }
+    if (f->t.kind != K_PWM_ATTR)
+        return errno_ret(EBADF);
+    char text[32];
+    struct rig_pwm_state *p = f->t.channel >= 0 ? &shm->pwm[f->t.channel] : NULL;
+    switch (f->t.attr) {
+    case A_EXPORT:
+    case A_UNEXPORT:
+        return errno_ret(EIO);
+    case A_NPWM:
+        snprintf(text, sizeof text, "%u\n", shm->npwm);
+        break;
+    case A_PERIOD:
+        snprintf(text, sizeof text, "%llu\n", (unsigned long long)p->period_ns);
+        break;
+    case A_DUTY:
+        snprintf(text, sizeof text, "%llu\n", (unsigned long long)p->duty_ns);
+        break;
+    case A_ENABLE:
+        snprintf(text, sizeof text, "%u\n", p->enabled);
+        break;
+    case A_POLARITY:
+        snprintf(text, sizeof text, "%s\n", p->inversed ? "inversed" : "normal");
+        break;
+    }
+    size_t len = strlen(text);
+    if (*pos < 0 || (size_t)*pos >= len)
+        return 0;
+    size_t k = len - (size_t)*pos < n ? len - (size_t)*pos : n;
+    memcpy(buf, text + *pos, k);
+    *pos += (off_t)k;
+    return (ssize_t)k;
+}
+
+EXPORT ssize_t read(int fd, void *buf, size_t n)
+{
+    struct fake *f = fake_of(fd);
+    return f ? fake_read(f, buf, n, &f->pos) : LOAD(read)(fd, buf, n);
+}
+
+EXPORT ssize_t write(int fd, const void *buf, size_t n)
+{
+    struct fake *f = fake_of(fd);
+    return f ? fake_write(f, buf, n) : LOAD(write)(fd, buf, n);
+}
+
+EXPORT ssize_t pread(int fd, void *buf, size_t n, off_t off)
+{
+    struct fake *f = fake_of(fd);
+    if (!f)
+        return LOAD(pread)(fd, buf, n, off);
+    if (f->t.kind == K_I2C)
+        return errno_ret(ESPIPE);
+    return fake_read(f, buf, n, &off);
+}
+
+EXPORT ssize_t pread64(int fd, void *buf, size_t n, off_t off)
+{
+    struct fake *f = fake_of(fd);
+    if (!f)
+        return LOAD(pread64)(fd, buf, n, off);
+    if (f->t.kind == K_I2C)
+        return errno_ret(ESPIPE);
+    return fake_read(f, buf, n, &off);
+}
+
+EXPORT ssize_t pwrite(int fd, const void *buf, size_t n, off_t off)
+{
+    struct fake *f = fake_of(fd);
+    if (!f)
+        return LOAD(pwrite)(fd, buf, n, off);
+    return f->t.kind == K_I2C ? errno_ret(ESPIPE) : fake_write(f, buf, n);
+}
+
+EXPORT ssize_t pwrite64(int fd, const void *buf, size_t n, off_t off)
+{
+    struct fake *f = fake_of(fd);
+    if (!f)
+        return LOAD(pwrite64)(fd, buf, n, off);
+    return f->t.kind == K_I2C ? errno_ret(ESPIPE) : fake_write(f, buf, n);
+}
+
+static off_t fake_seek(struct fake *f, off_t off, int whence)
+{
+    if (f->t.kind == K_I2C)
+        return errno_ret(ESPIPE);
+    off_t base = whence == SEEK_SET ? 0 : whence == SEEK_CUR ? f->pos : -1;
+    if (base < 0 || base + off < 0)
+        return errno_ret(EINVAL);
+    f->pos = base + off;
+    return f->pos;
+}
+
+EXPORT off_t lseek(int fd, off_t off, int whence)
+{
+    struct fake *f = fake_of(fd);
+    return f ? fake_seek(f, off, whence) : LOAD(lseek)(fd, off, whence);
+}
+
+EXPORT off_t lseek64(int fd, off_t off, int whence)
+{
+    struct fake *f = fake_of(fd);
+    return f ? fake_seek(f, off, whence) : LOAD(lseek64)(fd, off, whence);
+}

@@ -1,0 +1,138 @@
+"""The simulated world a DUT lives in: the plant FMU, the sensor error models and the emulated board,
+advanced together in sim time.
+
+The plant steps on a fixed grid (1 ms by default) and keeps a short history of its outputs, so that a
+device catching up on samples it owes (the MPU-6050's DLPF after a long sleep) sees the truth of each
+sample instant, not only the newest one; sample instants between two plant steps see the step before
+(a causal zero-order hold). Motor commands enter as the PWM channels the DUT drives.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from emulators.hmc5883l import HMC5883L
+from emulators.i2c_bus import Msg
+from emulators.mpu6050 import MPU6050
+from emulators.ms5611 import MS5611
+from emulators.sensor_models import AxisErrors, BaroModel, ImuModel, MagModel
+from emulators.topology import Board, build_board
+from plant import Plant
+
+STEP_NS = 1_000_000
+HISTORY = 256            # plant steps kept for devices catching up (256 ms at 1 ms)
+MOTORS = 4
+G0 = 9.80665
+
+#: Datasheet noise: MPU-6050 accelerometer 400 µg/√Hz, gyroscope 0.005 °/s/√Hz; HMC5883L about 2 mG
+#: RMS at its default 15 Hz. The barometer is left exact so a reading can be checked to the pascal.
+DATASHEET_NOISE = {"accel": 400e-6 * G0, "gyro": math.radians(0.005), "mag": 0.002 / math.sqrt(7.5)}
+
+
+@dataclass
+class PwmChannel:
+    """One sysfs PWM channel as the DUT left it (the session's mirror of the shim's state)."""
+
+    exported: bool = False
+    period_ns: int = 0
+    duty_ns: int = 0
+    enabled: bool = False
+    inversed: bool = False
+
+    def pulse_us(self) -> float:
+        """The high time an ESC measures per period; 0 when no pulses come out."""
+        if not (self.exported and self.enabled and self.period_ns > 0):
+            return 0.0
+        high = self.period_ns - self.duty_ns if self.inversed else self.duty_ns
+        return min(max(high, 0), self.period_ns) / 1000.0
+
+
+class _Row(Mapping[str, float]):
+    """One plant output row seen as the mapping the sensor models read (no dict built per sample)."""
+
+    __slots__ = ("_index", "_row")
+
+    def __init__(self, index: dict[str, int], row: np.ndarray) -> None:
+        self._index, self._row = index, row
+
+    def __getitem__(self, name: str) -> float:
+        return float(self._row[self._index[name]])
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._index)
+
+    def __len__(self) -> int:
+        return len(self._index)
+
+
+@dataclass
+class World:
+    plant: Plant
+    board: Board
+    step_ns: int = STEP_NS
+    pwm: list[PwmChannel] = field(default_factory=lambda: [PwmChannel() for _ in range(8)])
+
+    def __post_init__(self) -> None:
+        self._k = round(self.plant.time * 1e9 / self.step_ns)
+        self._hist = np.empty((HISTORY, len(self.plant.y)))
+        self._hist[self._k % HISTORY] = self.plant.y
+        self._oldest = self._k
+        self._u_pwm = [self.plant.u_index[f"pwm{m + 1}_us"] for m in range(MOTORS)]
+
+    @classmethod
+    def at_rest(cls, seed: int = 0, topology: str = "gy86", noise: bool = True,
+                params: Mapping[str, float] | None = None, pwm_channels: int = 8) -> World:
+        """The default world of ``rig exec``: the vehicle resting on the ground, motors off, a GY-86."""
+        plant = Plant(params=params or {}, inputs={f"pwm{m + 1}_us": 0.0 for m in range(MOTORS)})
+        world = cls.__new__(cls)
+        nd = DATASHEET_NOISE if noise else {"accel": 0.0, "gyro": 0.0, "mag": 0.0}
+        imu = ImuModel(world.truth, accel=AxisErrors(noise_density=nd["accel"]),
+                       gyro=AxisErrors(noise_density=nd["gyro"]), seed=seed)
+        mag = MagModel(world.truth, errors=AxisErrors(noise_density=nd["mag"]), seed=seed + 1)
+        baro = BaroModel(world.truth, seed=seed + 2)
+        board = build_board(MPU6050(imu), HMC5883L(mag), MS5611(baro, seed=seed + 3), topology)
+        cls.__init__(world, plant, board, pwm=[PwmChannel() for _ in range(pwm_channels)])
+        return world
+
+    # ---- time ------------------------------------------------------------------------------
+
+    @property
+    def time_ns(self) -> int:
+        return self._k * self.step_ns
+
+    def advance_to(self, t_ns: int) -> None:
+        """Steps the plant over every whole step that ends at or before ``t_ns``."""
+        dt = self.step_ns * 1e-9
+        while (self._k + 1) * self.step_ns <= t_ns:
+            self.plant.step(dt)
+            self._k += 1
+            self._hist[self._k % HISTORY] = self.plant.y
+            self._oldest = max(self._oldest, self._k - HISTORY + 1)
+
+    def truth(self, t: float) -> Mapping[str, float]:
+        """Plant outputs at sim time ``t`` (seconds) as of the last step at or before it."""
+        k = min(max(math.floor(t * 1e9 / self.step_ns + 1e-9), self._oldest), self._k)
+        return _Row(self.plant.y_index, self._hist[k % HISTORY])
+
+    # ---- the DUT's side ----------------------------------------------------------------------
+
+    def transfer(self, msgs: Sequence[Msg], t_ns: int) -> list[bytes]:
+        """One I2C transfer at ``t_ns`` (raises I2CNack / I2CProtocolError as the bus does)."""
+        self.advance_to(t_ns)
+        return self.board.bus.transfer(msgs, t_ns * 1e-9)
+
+    def apply_pwm(self, channel: int) -> None:
+        """Channels 0..3 drive motors 1..4 (the capture device model comes between them later)."""
+        if channel < MOTORS:
+            self.plant.u[self._u_pwm[channel]] = self.pwm[channel].pulse_us()
+
+    def outputs(self) -> dict[str, float]:
+        return self.plant.outputs()
+
+    def close(self) -> None:
+        self.plant.close()
+

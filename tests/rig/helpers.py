@@ -1,0 +1,43 @@
+"""Runs ``rig exec`` as a user would (a subprocess of the real CLI) and reads its JSON summary."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+DUTS = Path(__file__).resolve().parent / "duts"
+PY = sys.executable
+
+
+@dataclass
+class Run:
+    returncode: int
+    stdout: str
+    stderr: str
+    summary: dict
+
+    def json_out(self) -> dict:
+        return json.loads(self.stdout.strip().splitlines()[-1])
+
+
+def rig_exec(tmp_path: Path, *command: str, options: tuple[str, ...] = (), stdin: str | None = None) -> Run:
+    summary = tmp_path / f"summary-{len(list(tmp_path.glob('summary-*')))}.json"
+    done = subprocess.run([PY, "-m", "rig.cli", "exec", "--summary", str(summary), *options, "--", *command],
+                          capture_output=True, text=True, input=stdin, timeout=300)
+    data = json.loads(summary.read_text()) if summary.exists() else {}
+    return Run(done.returncode, done.stdout, done.stderr, data)
+
+
+def tool(name: str) -> str:
+    """A Debian i2c-tools program (in /usr/sbin, which a user's PATH may lack)."""
+    found = shutil.which(name, path=os.environ.get("PATH", "") + ":/usr/sbin:/sbin")
+    if found is None:
+        pytest.fail(f"{name} is missing: the project's setup (tools/bootstrap.sh) installs i2c-tools")
+    return found
