@@ -72,6 +72,8 @@ class SessionConfig:
     allow_no_devices: bool = False
     env: dict[str, str] | None = None
     shim_path: Path | None = None
+    stdout: IO[str] | int | None = None   # the DUT's stdout/stderr (None: inherited)
+    stderr: IO[str] | int | None = None
 
 
 @dataclass
@@ -140,6 +142,7 @@ class Session:
         self._conns: list[_Conn] = []
         self._n_conns = 0
         self._rt_t0 = 0.0
+        self._running = False
 
     # ---- the API scenarios use ------------------------------------------------------------------
 
@@ -165,7 +168,8 @@ class Session:
 
     def serial_output(self, path: str) -> bytes:
         """Everything the DUT has written to ``path`` so far."""
-        self._collect_serial(self.now_ns)
+        if self._running:
+            self._collect_serial(self.now_ns)
         return bytes(self._ptys[path].received)
 
     @property
@@ -187,6 +191,7 @@ class Session:
         sel = selectors.DefaultSelector()
         wall0 = time.perf_counter()
         returncode: int | None = None
+        self._running = True
         try:
             self._open_shm(tmp / "shm")
             listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
@@ -207,7 +212,8 @@ class Session:
                 os.sched_setaffinity(0, {max(old_affinity)})  # the child inherits it
             self._rt_t0 = time.perf_counter()
             try:
-                proc = subprocess.Popen(cfg.command, env=env, start_new_session=True)
+                proc = subprocess.Popen(cfg.command, env=env, start_new_session=True, stdout=cfg.stdout,
+                                        stderr=cfg.stderr)
             except FileNotFoundError:
                 return self._early_outcome(EXIT_NOT_FOUND, f"command not found: {cfg.command[0]}", wall0)
             except PermissionError:
@@ -217,6 +223,7 @@ class Session:
             sel.register(pidfd, selectors.EVENT_READ, "exit")
             returncode = self._loop(sel, listener, proc, wall0)
         finally:
+            self._running = False
             if proc is not None:
                 _kill_group(proc, signal.SIGKILL)
                 if proc.returncode is None:
