@@ -9,9 +9,11 @@ CFLAGS_BENCH := -std=c11 -O2 -Wall -Wextra -Werror
 
 PLANT_SOURCES := $(wildcard plant/c/*.c plant/c/*.h plant/fmi2/*) plant/variables.py plant/build.py
 
-.PHONY: all venv fmu demo test test-slow lint bench clean
+SHIM   := build/librigshim.so
 
-all: fmu
+.PHONY: all venv fmu shim demo test test-slow lint bench clean
+
+all: fmu shim
 
 venv: $(VENV)/.installed
 $(VENV)/.installed: pyproject.toml tools/bootstrap.sh
@@ -22,25 +24,30 @@ fmu: $(FMU)
 $(FMU): $(PLANT_SOURCES) | venv
 	$(PY) -m plant.build
 
+shim: $(SHIM)
+$(SHIM): rig/shim/rigshim.c rig/shim/protocol.h rig/shim/build.py | venv
+	$(PY) -m rig.shim.build
+
 demo: venv $(FMU)
 	$(VENV)/bin/rig demo
 
 lint: venv
 	$(VENV)/bin/ruff check .
 
-test: venv $(FMU) lint
+test: venv $(FMU) $(SHIM) lint
 	$(PY) -m pytest -q -m "not slow"
 
-test-slow: venv $(FMU)
+test-slow: venv $(FMU) $(SHIM)
 	$(PY) -m pytest -q -m slow
 
 build/bench/physics_bench: bench/physics_bench.c $(PLANT_SOURCES) | venv $(FMU)
 	@mkdir -p build/bench
 	$(CC) $(CFLAGS_BENCH) -Ibuild/plant/gen -Iplant/c -o $@ bench/physics_bench.c plant/c/quadrotor_physics.c -lm
 
-bench: venv $(FMU) build/bench/physics_bench
+bench: venv $(FMU) $(SHIM) build/bench/physics_bench
 	$(PY) bench/plant_rates.py
 	$(PY) bench/emulator_rates.py
+	$(PY) bench/exec_rates.py
 
 clean:
 	rm -rf build

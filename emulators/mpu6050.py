@@ -195,13 +195,14 @@ class MPU6050:
                 a_bw, _, g_bw, _ = DLPF[self.regs[CONFIG] & 0x07]
                 self._accel_f.catch_up(truth.accel, a_bw, skip * period)
                 self._gyro_f.catch_up(truth.gyro, g_bw, skip * period)
-        for _ in range(n):
+        for i in range(n):
             self.now = self._next_t
-            self._sample(period)
+            # a sample that a later one overwrites before anyone can see it only feeds the filters
+            self._sample(period, encode=bool(keeps_all) or i == n - 1)
             self._next_t += period
         self.now = t
 
-    def _sample(self, dt: float) -> None:
+    def _sample(self, dt: float, encode: bool = True) -> None:
         truth = self.source(self.now)
         cfg = self.regs[CONFIG] & 0x07
         a_bw, a_delay, g_bw, g_delay = DLPF[cfg]
@@ -209,6 +210,10 @@ class MPU6050:
         if self.dlpf:
             accel = self._accel_f.step(accel, a_bw, a_delay, dt)
             gyro = self._gyro_f.step(gyro, g_bw, g_delay, dt)
+        if not encode:
+            self.regs[INT_STATUS] |= 0x01
+            self.samples += 1
+            return
         a_lsb, g_lsb = self.accel_scale(), self.gyro_scale()
         a_st, g_st = self.regs[ACCEL_CONFIG] >> 5, self.regs[GYRO_CONFIG] >> 5
         stby = self.regs[PWR_MGMT_2]
