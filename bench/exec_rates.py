@@ -33,9 +33,10 @@ def main() -> None:
         r = json.loads(out)
         print(f"  {label:30s} p50 {r['p50_us']:6.1f} us  p99 {r['p99_us']:6.1f} us  "
               f"{r['tx_per_s'] / 1e3:6.1f} k transactions/s")
-    for sim_s in (20.0,):
-        _, s = run(["--duration", str(sim_s)], [sys.executable, str(DUTS / "loop_400hz.py")])
-        print(f"  400 Hz read-and-sleep loop, {sim_s:g} s sim: {s['wall_time']:.2f} s wall, "
+    sim_s = 20.0
+    for config, label in ((3, "MPU at 1 kHz (DLPF 3)"), (0, "MPU at 8 kHz (CONFIG 0)")):
+        _, s = run(["--duration", str(sim_s)], [sys.executable, str(DUTS / "loop_400hz.py"), str(config)])
+        print(f"  400 Hz read-and-sleep loop, {label}, {sim_s:g} s sim: {s['wall_time']:.2f} s wall, "
               f"{s['sim_time'] / s['wall_time']:.1f} sim-s per wall-s ({s['transactions']} transactions)")
     _, s = run([], [sys.executable, "-c", "import time; time.sleep(10)", ])
     print(f"  time.sleep(10): {s['sim_time']:.3f} s sim in {s['wall_time']:.2f} s wall "

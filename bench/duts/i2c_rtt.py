@@ -35,4 +35,5 @@ with SMBus(1) as bus:
         rtts.append(now_ns() - t0)
     total = now_ns() - start
 rtts.sort()
-print(json.dumps({"p50_us": rtts[n // 2] / 1e3, "p99_us": rtts[n * 99 // 100] / 1e3, "tx_per_s": n / total * 1e9}))
+print(json.dumps({"p50_us": rtts[n // 2] / 1e3, "p99_us": rtts[n * 99 // 100] / 1e3,
+                  "tx_per_s": n / total * 1e9}))
