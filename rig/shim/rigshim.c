@@ -182,11 +182,12 @@ static void die_session(const char *why)
     _exit(125);
 }
 
-static int send_all(const void *buf, size_t n)
+/* The whole buffer or -1, across signals and short transfers, in either direction. */
+static int io_all(void *buf, size_t n, int sending)
 {
-    const char *p = buf;
+    char *p = buf;
     while (n) {
-        ssize_t k = send(sock, p, n, MSG_NOSIGNAL);
+        ssize_t k = sending ? send(sock, p, n, MSG_NOSIGNAL) : recv(sock, p, n, 0);
         if (k < 0 && errno == EINTR)
             continue;
         if (k <= 0)
@@ -197,20 +198,8 @@ static int send_all(const void *buf, size_t n)
     return 0;
 }
 
-static int recv_all(void *buf, size_t n)
-{
-    char *p = buf;
-    while (n) {
-        ssize_t k = recv(sock, p, n, 0);
-        if (k < 0 && errno == EINTR)
-            continue;
-        if (k <= 0)
-            return -1;
-        p += k;
-        n -= (size_t)k;
-    }
-    return 0;
-}
+static int send_all(const void *buf, size_t n) { return io_all((void *)buf, n, 1); }
+static int recv_all(void *buf, size_t n) { return io_all(buf, n, 0); }
 
 static uint64_t now_peek(void) { return __atomic_load_n(&shm->sim_ns, __ATOMIC_SEQ_CST); }
 
@@ -1423,24 +1412,21 @@ EXPORT ssize_t write(int fd, const void *buf, size_t n)
     return f ? fake_write(f, buf, n) : LOAD(write)(fd, buf, n);
 }
 
+static ssize_t fake_pread(struct fake *f, void *buf, size_t n, off_t off)
+{
+    return f->t.kind == K_I2C ? errno_ret(ESPIPE) : fake_read(f, buf, n, &off); /* i2c-dev has no offsets */
+}
+
 EXPORT ssize_t pread(int fd, void *buf, size_t n, off_t off)
 {
     struct fake *f = fake_of(fd);
-    if (!f)
-        return LOAD(pread)(fd, buf, n, off);
-    if (f->t.kind == K_I2C)
-        return errno_ret(ESPIPE);
-    return fake_read(f, buf, n, &off);
+    return f ? fake_pread(f, buf, n, off) : LOAD(pread)(fd, buf, n, off);
 }
 
 EXPORT ssize_t pread64(int fd, void *buf, size_t n, off_t off)
 {
     struct fake *f = fake_of(fd);
-    if (!f)
-        return LOAD(pread64)(fd, buf, n, off);
-    if (f->t.kind == K_I2C)
-        return errno_ret(ESPIPE);
-    return fake_read(f, buf, n, &off);
+    return f ? fake_pread(f, buf, n, off) : LOAD(pread64)(fd, buf, n, off);
 }
 
 EXPORT ssize_t pwrite(int fd, const void *buf, size_t n, off_t off)
