@@ -1,0 +1,70 @@
+/* Control: seed 000's position-form PID (eq. 8) used for the angle, rate, altitude and vertical
+   acceleration loops (eqs. 9-12), the limits (eqs. 13-14), the mixers (eq. 15 and X), the throttle
+   compensation (eq. 16), barometric altitude (eq. 6) and its fusion with vertical acceleration. */
+#include <math.h>
+
+#include "fc.h"
+
+double clampd(double v, double lo, double hi) { return v < lo ? lo : v > hi ? hi : v; }
+
+void pid_init(pid *p, double kp, double ki, double kd, double out_limit, double sum_limit)
+{
+    *p = (pid){.kp = kp, .ki = ki, .kd = kd, .out_limit = out_limit, .sum_limit = sum_limit};
+}
+
+void pid_reset(pid *p)
+{
+    p->sum = p->prev = 0;
+    p->started = 0;
+}
+
+double pid_step(pid *p, double e, double T)
+{
+    p->sum += e * T;
+    if (p->sum_limit > 0 && p->ki != 0) {
+        double lim = p->sum_limit / fabs(p->ki);
+        p->sum = clampd(p->sum, -lim, lim);
+    }
+    double d = p->started ? (e - p->prev) / T : 0.0; /* no derivative kick on the first step */
+    p->prev = e;
+    p->started = 1;
+    double u = p->kp * e + p->ki * p->sum + p->kd * d;
+    return p->out_limit > 0 ? clampd(u, -p->out_limit, p->out_limit) : u;
+}
+
+void mix(enum mixer_kind kind, double throttle, double roll, double pitch, double yaw, double out[4])
+{
+    if (kind == MIXER_PLUS) { /* eq. 15: 1 front, 2 left, 3 rear, 4 right; 1 and 3 counter-clockwise */
+        out[0] = throttle + pitch + yaw;
+        out[1] = throttle + roll - yaw;
+        out[2] = throttle - pitch + yaw;
+        out[3] = throttle - roll - yaw;
+    } else { /* X: 1 front-left, 2 rear-left, 3 rear-right, 4 front-right; 1 and 3 counter-clockwise */
+        out[0] = throttle + roll + pitch + yaw;
+        out[1] = throttle + roll - pitch - yaw;
+        out[2] = throttle - roll - pitch + yaw;
+        out[3] = throttle - roll + pitch - yaw;
+    }
+}
+
+double throttle_compensate(double value, double alpha, double beta) { return alpha * (value - beta); }
+
+double baro_altitude(double pressure, double start_pressure)
+{
+    return 44330.0 * (1.0 - pow(pressure / start_pressure, 0.1903));
+}
+
+void alt_filter_init(alt_filter *a, double k1, double k2) { *a = (alt_filter){.k1 = k1, .k2 = k2}; }
+
+void alt_filter_update(alt_filter *a, double baro_h, double acc_up, double T)
+{
+    if (!a->started) {
+        a->h = baro_h;
+        a->v = 0;
+        a->started = 1;
+        return;
+    }
+    double err = baro_h - a->h;
+    a->v += (acc_up + a->k2 * err) * T;
+    a->h += (a->v + a->k1 * err) * T;
+}
