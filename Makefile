@@ -11,9 +11,11 @@ PLANT_SOURCES := $(wildcard plant/c/*.c plant/c/*.h plant/fmi2/*) plant/variable
 
 SHIM   := build/librigshim.so
 
-.PHONY: all venv fmu shim demo test test-slow lint bench clean
+DUT_BIN := build/dut/fc
 
-all: fmu shim
+.PHONY: all venv fmu shim dut demo test test-slow lint bench clean
+
+all: fmu shim dut
 
 venv: $(VENV)/.installed
 $(VENV)/.installed: pyproject.toml tools/bootstrap.sh
@@ -28,13 +30,17 @@ shim: $(SHIM)
 $(SHIM): rig/shim/rigshim.c rig/shim/protocol.h rig/shim/build.py | venv
 	$(PY) -m rig.shim.build
 
+dut: $(DUT_BIN)
+$(DUT_BIN): $(wildcard dut/src/* dut/tests/* dut/Makefile) bench/fc_bench.c
+	$(MAKE) -s -C dut
+
 demo: venv $(FMU)
 	$(VENV)/bin/rig demo
 
 lint: venv
 	$(VENV)/bin/ruff check .
 
-test: venv $(FMU) $(SHIM) lint
+test: venv $(FMU) $(SHIM) $(DUT_BIN) lint
 	$(PY) -m pytest -q -m "not slow"
 
 test-slow: venv $(FMU) $(SHIM)
@@ -44,10 +50,11 @@ build/bench/physics_bench: bench/physics_bench.c $(PLANT_SOURCES) | venv $(FMU)
 	@mkdir -p build/bench
 	$(CC) $(CFLAGS_BENCH) -Ibuild/plant/gen -Iplant/c -o $@ bench/physics_bench.c plant/c/quadrotor_physics.c -lm
 
-bench: venv $(FMU) $(SHIM) build/bench/physics_bench
+bench: venv $(FMU) $(SHIM) $(DUT_BIN) build/bench/physics_bench
 	$(PY) bench/plant_rates.py
 	$(PY) bench/emulator_rates.py
 	$(PY) bench/exec_rates.py
+	build/dut/bench_fc
 
 clean:
 	rm -rf build

@@ -1,0 +1,31 @@
+#ifndef CONFIG_H
+#define CONFIG_H
+
+typedef struct {
+    char i2c_path[64];
+    int mpu_addr, hmc_addr, baro_addr;
+    char rc_path[64];        /* empty: no RC, stays disarmed */
+    char telemetry_path[64]; /* empty: no telemetry */
+    int pwm_chip;
+    int estimator;           /* 0 quaternion CF (seed 000), 1 Mahony DCM (seed 002), 2 EKF */
+    int mixer;               /* 0 '+', 1 X */
+    double rate_hz;          /* estimation and control */
+    double kp_est, ki_est;
+    double angle_kp, angle_ki, angle_kd;  /* eq. 9 */
+    double rate_kp, rate_ki, rate_kd;     /* eq. 10 */
+    double yaw_rate_kp, yaw_rate_ki;
+    double alt_kp, alt_ki, alt_kd;        /* eq. 11 */
+    double acc_kp, acc_ki, acc_kd;        /* eq. 12 */
+    double angle_limit, alt_limit;        /* eqs. 13-14 */
+    double hover_us;
+    double max_angle_deg, max_yaw_rate_dps;
+    double alpha[4], beta[4];             /* eq. 16 */
+    double acc_offset[3], acc_scale[3], mag_offset[3], mag_scale[3];
+    int telemetry_every;
+} fc_config;
+
+void config_defaults(fc_config *c);
+/* Reads "key = value" lines; returns 0, or -1 with a message naming the file, line and key. */
+int config_load(fc_config *c, const char *path, char *err, int errlen);
+
+#endif

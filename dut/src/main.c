@@ -1,0 +1,233 @@
+/* fc: the reference flight controller. Usage: fc [config-file]
+   Start-up: sensors (fail: message, exit 2, no motor output), gyro bias from 500 samples at rest,
+   motors armed at idle; then a loop at rate_hz on absolute deadlines: read sensors, estimate, read RC,
+   control, mix, write PWM, emit telemetry. */
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "config.h"
+#include "drivers.h"
+
+#define RC_TIMEOUT_S 0.5
+#define FAILSAFE_DESCENT_S 10.0
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+/* Sensor frame of a board lying flat (x forward, y left, z up) to body FRD. */
+static vec3 to_body(vec3 s) { return v3(s.x, -s.y, -s.z); }
+
+static vec3 calibrate(vec3 v, const double off[3], const double scale[3])
+{
+    return v3((v.x - off[0]) * scale[0], (v.y - off[1]) * scale[1], (v.z - off[2]) * scale[2]);
+}
+
+int main(int argc, char **argv)
+{
+    fc_config c;
+    char err[256];
+    config_defaults(&c);
+    if (argc > 2 || (argc == 2 && config_load(&c, argv[1], err, sizeof err) < 0)) {
+        fprintf(stderr, "fc: %s\n", argc > 2 ? "usage: fc [config-file]" : err);
+        return 2;
+    }
+    int bus = i2c_open(c.i2c_path);
+    if (bus < 0) {
+        fprintf(stderr, "fc: cannot open %s: %s\n", c.i2c_path, strerror(errno));
+        return 2;
+    }
+    ms5611_dev baro;
+    if (mpu_init(bus, c.mpu_addr, err, sizeof err) < 0 || hmc_init(bus, c.hmc_addr, err, sizeof err) < 0 ||
+        ms5611_init(bus, c.baro_addr, &baro, err, sizeof err) < 0) {
+        fprintf(stderr, "fc: %s; no motor output\n", err);
+        return 2;
+    }
+    FILE *tel = NULL;
+    if (c.telemetry_path[0] && !(tel = fopen(c.telemetry_path, "w"))) {
+        fprintf(stderr, "fc: cannot open telemetry %s: %s\n", c.telemetry_path, strerror(errno));
+        return 2;
+    }
+    int rc = -1;
+    if (c.rc_path[0] && (rc = open(c.rc_path, O_RDONLY | O_NONBLOCK | O_NOCTTY)) < 0) {
+        fprintf(stderr, "fc: cannot open RC input %s: %s\n", c.rc_path, strerror(errno));
+        return 2;
+    }
+    const double T = 1.0 / c.rate_hz;
+    struct timespec next;
+    clock_gettime(CLOCK_MONOTONIC, &next);
+    long step_ns = (long)(1e9 / c.rate_hz);
+
+    /* gyro bias: 500 samples at rest (seed 000) */
+    vec3 bias = v3(0, 0, 0), acc, gyro, mag = v3(0, 0, 0);
+    for (int i = 0; i < 500; i++) {
+        if (mpu_read(bus, c.mpu_addr, &acc, &gyro) < 0) {
+            fprintf(stderr, "fc: MPU-6050 read failed during calibration; no motor output\n");
+            return 2;
+        }
+        bias = v3_add(bias, v3_scale(to_body(gyro), 1.0 / 500));
+        struct timespec d = {0, 2000000};
+        nanosleep(&d, NULL);
+    }
+    if (pwm_setup(c.pwm_chip, 4, 2500000, err, sizeof err) < 0) {
+        fprintf(stderr, "fc: %s\n", err);
+        return 2;
+    }
+    quat_cf cf;
+    mahony_dcm mh;
+    ekf7 kf;
+    quat_cf_init(&cf, c.kp_est, c.ki_est);
+    mahony_init(&mh, c.kp_est, c.ki_est);
+    ekf_init(&kf);
+    pid angle[2], rate[3], alt_pid, acc_pid;
+    for (int i = 0; i < 2; i++) {
+        pid_init(&angle[i], c.angle_kp, c.angle_ki, c.angle_kd, 0, 0);
+        pid_init(&rate[i], c.rate_kp, c.rate_ki, c.rate_kd, c.angle_limit, c.angle_limit / 2);
+    }
+    pid_init(&rate[2], c.yaw_rate_kp, c.yaw_rate_ki, 0, c.angle_limit, c.angle_limit / 2);
+    pid_init(&alt_pid, c.alt_kp, c.alt_ki, c.alt_kd, 0, 0);
+    pid_init(&acc_pid, c.acc_kp, c.acc_ki, c.acc_kd, c.alt_limit, c.alt_limit / 2);
+    alt_filter altf;
+    alt_filter_init(&altf, 2.0, 1.0);
+    sbus_parser sp;
+    sbus_parser_init(&sp);
+    sbus_frame sticks;
+    memset(&sticks, 0, sizeof sticks);
+    double last_rc = -1e9, failsafe_since = -1, start_pressure = 0, alt_target = 0;
+    int armed = 0, had_rc = 0, reported_garbage = 0, alt_hold = 0;
+    unsigned long cycles = 0, overruns = 0;
+    double loop_max_us = 0;
+    euler att = {0, 0, 0};
+
+    for (;;) {
+        double t0 = now_s();
+        if (mpu_read(bus, c.mpu_addr, &acc, &gyro) < 0) {
+            fprintf(stderr, "fc: MPU-6050 read failed at t=%.3f; motors to idle and stop\n", t0);
+            break;
+        }
+        vec3 a = calibrate(to_body(acc), c.acc_offset, c.acc_scale);
+        vec3 w = v3_add(to_body(gyro), v3_scale(bias, -1));
+        if (cycles % 4 == 0) { /* the HMC5883L updates at 75 Hz */
+            vec3 m;
+            if (hmc_read(bus, c.hmc_addr, &m) == 0)
+                mag = calibrate(to_body(m), c.mag_offset, c.mag_scale);
+        }
+        if (c.estimator == 0) {
+            quat_cf_update(&cf, w, a, mag, T);
+            att = quat_to_euler(cf.q);
+        } else if (c.estimator == 1) {
+            mahony_update(&mh, w, a, mag, T);
+            att = dcm_to_euler(mh.R);
+        } else {
+            ekf_update(&kf, w, a, mag, T);
+            att = ekf_euler(&kf);
+        }
+        int32_t p_pa, t_c;
+        if (ms5611_poll(bus, c.baro_addr, &baro, t0, &p_pa, &t_c) == 1) {
+            if (start_pressure == 0)
+                start_pressure = p_pa;
+            /* vertical acceleration: specific force rotated to earth, plus gravity, up positive */
+            double cr = cos(att.roll), sr = sin(att.roll), cpi = cos(att.pitch), spi = sin(att.pitch);
+            double f_down = -spi * a.x + cpi * sr * a.y + cpi * cr * a.z;
+            alt_filter_update(&altf, baro_altitude(p_pa, start_pressure), -(f_down + FC_G0), 0.019); /* a pair per 19 ms */
+        }
+        /* RC */
+        if (rc >= 0) {
+            uint8_t buf[256];
+            ssize_t n;
+            sbus_frame f;
+            while ((n = read(rc, buf, sizeof buf)) > 0)
+                if (sbus_feed(&sp, buf, (size_t)n, &f) && !f.failsafe && !f.frame_lost) {
+                    sticks = f;
+                    last_rc = t0;
+                    had_rc = 1;
+                }
+            if (sp.errors > 0 && !reported_garbage && sp.frames == 0 && sp.errors > 2 * SBUS_FRAME) {
+                fprintf(stderr, "fc: RC input %s: %lu bytes that are not SBUS frames; staying disarmed\n", c.rc_path,
+                        sp.errors);
+                reported_garbage = 1;
+            }
+        }
+        int rc_ok = had_rc && t0 - last_rc < RC_TIMEOUT_S;
+        double thr = (sbus_to_unit(sticks.ch[2]) + 1) / 2; /* 0..1 */
+        if (rc_ok) {
+            failsafe_since = -1;
+            int arm_switch = sbus_to_unit(sticks.ch[4]) > 0.5;
+            if (!armed && arm_switch && thr < 0.05)
+                armed = 1;
+            if (!arm_switch)
+                armed = 0;
+            alt_hold = sbus_to_unit(sticks.ch[5]) > 0.5;
+        } else if (armed) {
+            if (failsafe_since < 0) {
+                failsafe_since = t0;
+                fprintf(stderr, "fc: RC lost at t=%.3f: failsafe (level, descend, disarm)\n", t0);
+                alt_target = altf.h;
+            }
+            alt_hold = 1;
+            alt_target -= 0.5 * T; /* descend at 0.5 m/s */
+            if (t0 - failsafe_since > FAILSAFE_DESCENT_S)
+                armed = 0;
+        }
+        double out[4] = {1000, 1000, 1000, 1000};
+        if (armed) {
+            double sp_roll = rc_ok ? sbus_to_unit(sticks.ch[0]) * c.max_angle_deg * M_PI / 180 : 0;
+            double sp_pitch = rc_ok ? sbus_to_unit(sticks.ch[1]) * c.max_angle_deg * M_PI / 180 : 0;
+            double sp_yaw_rate = rc_ok ? sbus_to_unit(sticks.ch[3]) * c.max_yaw_rate_dps * M_PI / 180 : 0;
+            double r_sp = pid_step(&angle[0], sp_roll - att.roll, T);   /* eq. 9 */
+            double p_sp = pid_step(&angle[1], sp_pitch - att.pitch, T);
+            double r_out = pid_step(&rate[0], r_sp - w.x, T);            /* eq. 10, limited (eq. 13) */
+            double p_out = pid_step(&rate[1], p_sp - w.y, T);
+            double y_out = pid_step(&rate[2], sp_yaw_rate - w.z, T);
+            double throttle;
+            if (alt_hold) { /* eqs. 11-12, limited (eq. 14), in percent of the throttle range */
+                double acc_sp = pid_step(&alt_pid, alt_target - altf.h, T);
+                double cr = cos(att.roll), sr = sin(att.roll), cpi = cos(att.pitch), spi = sin(att.pitch);
+                double acc_up = -(-spi * a.x + cpi * sr * a.y + cpi * cr * a.z + FC_G0);
+                throttle = c.hover_us - 1000 + 10 * pid_step(&acc_pid, acc_sp - acc_up, T);
+            } else {
+                throttle = thr * 1000;
+                alt_target = altf.h;
+            }
+            double m[4];
+            mix((enum mixer_kind)c.mixer, throttle, r_out, p_out, y_out, m);
+            for (int i = 0; i < 4; i++)
+                out[i] = clampd(1000 + throttle_compensate(m[i], c.alpha[i], c.beta[i]), 1000, 2000); /* eq. 16 */
+        } else {
+            for (int i = 0; i < 2; i++) { pid_reset(&angle[i]); pid_reset(&rate[i]); }
+            pid_reset(&rate[2]);
+            pid_reset(&alt_pid);
+            pid_reset(&acc_pid);
+        }
+        for (int i = 0; i < 4; i++)
+            pwm_write_us(c.pwm_chip, i, out[i]);
+        double loop_us = (now_s() - t0) * 1e6;
+        loop_max_us = fmax(loop_max_us, loop_us);
+        if (tel && ++cycles % (unsigned long)c.telemetry_every == 0) {
+            fprintf(tel, "T t=%.4f roll=%.3f pitch=%.3f yaw=%.3f alt=%.3f armed=%d rc=%d loop_us=%.0f max_us=%.0f "
+                    "overruns=%lu\n", t0, att.roll * 180 / M_PI, att.pitch * 180 / M_PI, att.yaw * 180 / M_PI,
+                    altf.h, armed, rc_ok, loop_us, loop_max_us, overruns);
+            fflush(tel);
+        } else if (!tel) {
+            cycles++;
+        }
+        next.tv_nsec += step_ns;
+        while (next.tv_nsec >= 1000000000L) { next.tv_nsec -= 1000000000L; next.tv_sec++; }
+        struct timespec cur;
+        clock_gettime(CLOCK_MONOTONIC, &cur);
+        if (cur.tv_sec > next.tv_sec || (cur.tv_sec == next.tv_sec && cur.tv_nsec > next.tv_nsec))
+            overruns++;
+        clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, NULL);
+    }
+    for (int i = 0; i < 4; i++)
+        pwm_write_us(c.pwm_chip, i, 1000);
+    return 3;
+}
