@@ -17,6 +17,7 @@ MSG_NAMES = {MSG_HELLO: "HELLO", MSG_I2C: "I2C", MSG_PWM: "PWM", MSG_WAIT: "WAIT
 #: Requests get one reply; notices get none.
 REQUESTS = frozenset({MSG_HELLO, MSG_I2C, MSG_WAIT})
 
+HELLO_MSG = struct.Struct("<II")       # version, pid
 I2C_HEAD = struct.Struct("<HH")        # bus, nmsgs
 I2C_MSG = struct.Struct("<HHHH")       # addr, flags, len, reserved
 I2C_M_RD, I2C_M_TEN, I2C_M_RECV_LEN = 0x0001, 0x0010, 0x0400

@@ -37,7 +37,7 @@ from typing import IO
 
 from emulators.i2c_bus import I2CNack, I2CProtocolError, Msg
 from rig import protocol as P
-from rig.world import World
+from rig.world import PwmChannel, World
 
 NS = 1_000_000_000
 FOREVER_SLICE_NS = 10_000_000     # a wait with no deadline lets 10 ms pass, then the DUT looks again
@@ -293,10 +293,6 @@ class Session:
                                               f"read for {cfg.stall_timeout:g} s of wall time at sim "
                                               f"t={sim / NS:.3f} s (spinning without reading a clock, "
                                               "or blocked outside the emulated devices)")
-                elif not cfg.lockstep and cfg.duration is not None and sim > cfg.duration * NS:
-                    self._ended_by_duration = True
-                elif not cfg.lockstep and sim > cfg.sim_timeout * NS:
-                    self._fail(EXIT_WATCHDOG, f"sim-time watchdog: still running after {cfg.sim_timeout:g} s")
             if kill_at is None and (self._error is not None or self._ended_by_duration):
                 _kill_group(proc, signal.SIGTERM)
                 kill_at = now_wall + KILL_GRACE_S
@@ -383,7 +379,7 @@ class Session:
         if not conn.hello and hdr.type != P.MSG_HELLO:
             raise P.Malformed(f"{P.MSG_NAMES[hdr.type]} before HELLO")
         if hdr.type == P.MSG_HELLO:
-            version, pid = P.parse_fixed(payload, struct.Struct("<II"), "HELLO")
+            version, pid = P.parse_fixed(payload, P.HELLO_MSG, "HELLO")
             conn.hello, conn.pid = True, pid
             status = 0 if version == P.PROTOCOL_VERSION else errno.EPROTO
             if status:
@@ -454,7 +450,7 @@ class Session:
         if attr == P.PWM_EXPORT:
             ch.exported = True
         elif attr == P.PWM_UNEXPORT:
-            self.world.pwm[channel] = type(ch)()
+            self.world.pwm[channel] = PwmChannel()
         elif attr == P.PWM_PERIOD:
             ch.period_ns = value
         elif attr == P.PWM_DUTY:

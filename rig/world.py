@@ -79,8 +79,8 @@ class World:
     def __post_init__(self) -> None:
         self._k = round(self.plant.time * 1e9 / self.step_ns)
         self._hist = np.empty((HISTORY, len(self.plant.y)))
+        self._k0 = self._k
         self._hist[self._k % HISTORY] = self.plant.y
-        self._oldest = self._k
         self._u_pwm = [self.plant.u_index[f"pwm{m + 1}_us"] for m in range(MOTORS)]
 
     @classmethod
@@ -88,14 +88,16 @@ class World:
                 params: Mapping[str, float] | None = None, pwm_channels: int = 8) -> World:
         """The default world of ``rig exec``: the vehicle resting on the ground, motors off, a GY-86."""
         plant = Plant(params=params or {}, inputs={f"pwm{m + 1}_us": 0.0 for m in range(MOTORS)})
-        world = cls.__new__(cls)
+        def truth(t: float) -> Mapping[str, float]:  # the models need the world that holds them
+            return world.truth(t)
+
         nd = DATASHEET_NOISE if noise else {"accel": 0.0, "gyro": 0.0, "mag": 0.0}
-        imu = ImuModel(world.truth, accel=AxisErrors(noise_density=nd["accel"]),
+        imu = ImuModel(truth, accel=AxisErrors(noise_density=nd["accel"]),
                        gyro=AxisErrors(noise_density=nd["gyro"]), seed=seed)
-        mag = MagModel(world.truth, errors=AxisErrors(noise_density=nd["mag"]), seed=seed + 1)
-        baro = BaroModel(world.truth, seed=seed + 2)
+        mag = MagModel(truth, errors=AxisErrors(noise_density=nd["mag"]), seed=seed + 1)
+        baro = BaroModel(truth, seed=seed + 2)
         board = build_board(MPU6050(imu), HMC5883L(mag), MS5611(baro, seed=seed + 3), topology)
-        cls.__init__(world, plant, board, pwm=[PwmChannel() for _ in range(pwm_channels)])
+        world = cls(plant, board, pwm=[PwmChannel() for _ in range(pwm_channels)])
         return world
 
     # ---- time ------------------------------------------------------------------------------
@@ -111,11 +113,11 @@ class World:
             self.plant.step(dt)
             self._k += 1
             self._hist[self._k % HISTORY] = self.plant.y
-            self._oldest = max(self._oldest, self._k - HISTORY + 1)
 
     def truth(self, t: float) -> Mapping[str, float]:
         """Plant outputs at sim time ``t`` (seconds) as of the last step at or before it."""
-        k = min(max(math.floor(t * 1e9 / self.step_ns + 1e-9), self._oldest), self._k)
+        oldest = max(self._k0, self._k - HISTORY + 1)
+        k = min(max(math.floor(t * 1e9 / self.step_ns + 1e-9), oldest), self._k)
         return _Row(self.plant.y_index, self._hist[k % HISTORY])
 
     # ---- the DUT's side ----------------------------------------------------------------------
