@@ -100,8 +100,10 @@ int config_load(fc_config *c, const char *path, char *err, int errlen)
         }
     }
     fclose(f);
-    if (c->rate_hz < 10 || c->rate_hz > 2000 || c->estimator < 0 || c->estimator > 2 || c->mixer < 0 || c->mixer > 1) {
-        snprintf(err, (size_t)errlen, "%s: rate_hz must be 10..2000, estimator 0..2, mixer 0..1", path);
+    if (c->rate_hz < 10 || c->rate_hz > 2000 || c->estimator < 0 || c->estimator > 2 || c->mixer < 0 || c->mixer > 1 ||
+        c->telemetry_every < 1) {
+        snprintf(err, (size_t)errlen, "%s: rate_hz must be 10..2000, estimator 0..2, mixer 0..1, telemetry_every >= 1",
+                 path);
         return -1;
     }
     return 0;

@@ -206,7 +206,7 @@ int pwm_setup(int chip, int channels, long period_ns, char *err, int errlen)
         }
         snprintf(path, sizeof path, "/sys/class/pwm/pwmchip%d/pwm%d/period", chip, ch);
         snprintf(v, sizeof v, "%ld", period_ns);
-        if ((r = put(path, v)) < 0 || pwm_write_us(chip, ch, 1000.0) < 0) {
+        if ((r = put(path, v)) < 0 || (r = pwm_write_us(chip, ch, 1000.0)) < 0) {
             snprintf(err, (size_t)errlen, "PWM: cannot set channel %d (%s)", ch, strerror(-r));
             return -1;
         }

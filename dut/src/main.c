@@ -101,7 +101,7 @@ int main(int argc, char **argv)
     sbus_parser_init(&sp);
     sbus_frame sticks;
     memset(&sticks, 0, sizeof sticks);
-    double last_rc = -1e9, failsafe_since = -1, start_pressure = 0, alt_target = 0;
+    double last_rc = -1e9, failsafe_since = -1, start_pressure = 0, alt_target = 0, last_baro = 0;
     int armed = 0, had_rc = 0, reported_garbage = 0, alt_hold = 0;
     unsigned long cycles = 0, overruns = 0;
     double loop_max_us = 0;
@@ -130,14 +130,16 @@ int main(int argc, char **argv)
             ekf_update(&kf, w, a, mag, T);
             att = ekf_euler(&kf);
         }
+        /* vertical acceleration: specific force rotated to earth, plus gravity, up positive */
+        double cr = cos(att.roll), sr = sin(att.roll), cpi = cos(att.pitch), spi = sin(att.pitch);
+        double acc_up = -(-spi * a.x + cpi * sr * a.y + cpi * cr * a.z + FC_G0);
         int32_t p_pa, t_c;
         if (ms5611_poll(bus, c.baro_addr, &baro, t0, &p_pa, &t_c) == 1) {
             if (start_pressure == 0)
                 start_pressure = p_pa;
-            /* vertical acceleration: specific force rotated to earth, plus gravity, up positive */
-            double cr = cos(att.roll), sr = sin(att.roll), cpi = cos(att.pitch), spi = sin(att.pitch);
-            double f_down = -spi * a.x + cpi * sr * a.y + cpi * cr * a.z;
-            alt_filter_update(&altf, baro_altitude(p_pa, start_pressure), -(f_down + FC_G0), 0.019); /* a pair per 19 ms */
+            double dt = last_baro > 0 ? t0 - last_baro : 0.0; /* the first pair only initialises */
+            last_baro = t0;
+            alt_filter_update(&altf, baro_altitude(p_pa, start_pressure), acc_up, dt);
         }
         /* RC */
         if (rc >= 0) {
@@ -190,8 +192,6 @@ int main(int argc, char **argv)
             double throttle;
             if (alt_hold) { /* eqs. 11-12, limited (eq. 14), in percent of the throttle range */
                 double acc_sp = pid_step(&alt_pid, alt_target - altf.h, T);
-                double cr = cos(att.roll), sr = sin(att.roll), cpi = cos(att.pitch), spi = sin(att.pitch);
-                double acc_up = -(-spi * a.x + cpi * sr * a.y + cpi * cr * a.z + FC_G0);
                 throttle = c.hover_us - 1000 + 10 * pid_step(&acc_pid, acc_sp - acc_up, T);
             } else {
                 throttle = thr * 1000;
@@ -211,14 +211,13 @@ int main(int argc, char **argv)
             pwm_write_us(c.pwm_chip, i, out[i]);
         double loop_us = (now_s() - t0) * 1e6;
         loop_max_us = fmax(loop_max_us, loop_us);
-        if (tel && ++cycles % (unsigned long)c.telemetry_every == 0) {
+        if (tel && cycles % (unsigned long)c.telemetry_every == 0) {
             fprintf(tel, "T t=%.4f roll=%.3f pitch=%.3f yaw=%.3f alt=%.3f armed=%d rc=%d loop_us=%.0f max_us=%.0f "
                     "overruns=%lu\n", t0, att.roll * 180 / M_PI, att.pitch * 180 / M_PI, att.yaw * 180 / M_PI,
                     altf.h, armed, rc_ok, loop_us, loop_max_us, overruns);
             fflush(tel);
-        } else if (!tel) {
-            cycles++;
         }
+        cycles++;
         next.tv_nsec += step_ns;
         while (next.tv_nsec >= 1000000000L) { next.tv_nsec -= 1000000000L; next.tv_sec++; }
         struct timespec cur;
