@@ -143,6 +143,7 @@ class Session:
         self._n_conns = 0
         self._rt_t0 = 0.0
         self._running = False
+        self._event_ns: int | None = None
 
     # ---- the API scenarios use ------------------------------------------------------------------
 
@@ -174,6 +175,9 @@ class Session:
 
     @property
     def now_ns(self) -> int:
+        """Sim time now; inside an event, the event's own time (the DUT's clock may still lag it)."""
+        if self._event_ns is not None:
+            return self._event_ns
         if self.cfg.lockstep:
             return self._shm_now()
         return int((time.perf_counter() - self._rt_t0) * NS)
@@ -502,7 +506,11 @@ class Session:
             te = max(te, self.world.time_ns)
             self.world.advance_to(te)
             self._event_output = False
-            fn(self)
+            self._event_ns = te
+            try:
+                fn(self)
+            finally:
+                self._event_ns = None
             if stop_on_output and self._event_output:
                 return te
         self.world.advance_to(t_ns)

@@ -39,11 +39,12 @@ void mix(enum mixer_kind kind, double throttle, double roll, double pitch, doubl
         out[1] = throttle + roll - yaw;
         out[2] = throttle - pitch + yaw;
         out[3] = throttle - roll - yaw;
-    } else { /* X: 1 front-left, 2 rear-left, 3 rear-right, 4 front-right; 1 and 3 counter-clockwise */
-        out[0] = throttle + roll + pitch + yaw;
-        out[1] = throttle + roll - pitch - yaw;
-        out[2] = throttle - roll - pitch + yaw;
-        out[3] = throttle - roll + pitch - yaw;
+    } else { /* X: the '+' layout turned 45 deg clockwise seen from above, as the plant's frame = 1:
+                1 front-right, 2 front-left, 3 rear-left, 4 rear-right; 1 and 3 counter-clockwise */
+        out[0] = throttle - roll + pitch + yaw;
+        out[1] = throttle + roll + pitch - yaw;
+        out[2] = throttle + roll - pitch + yaw;
+        out[3] = throttle - roll - pitch - yaw;
     }
 }
 

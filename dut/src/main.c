@@ -1,7 +1,10 @@
 /* fc: the reference flight controller. Usage: fc [config-file]
    Start-up: sensors (fail: message, exit 2, no motor output), gyro bias from 500 samples at rest,
-   motors armed at idle; then a loop at rate_hz on absolute deadlines: read sensors, estimate, read RC,
-   control, mix, write PWM, emit telemetry. */
+   motors at idle; then a loop at est_rate_hz on absolute deadlines: read sensors, estimate, read RC;
+   at ctrl_rate_hz (a phase accumulator picks the cycles) control, mix, write PWM; emit telemetry.
+   A gyro that repeats one sample for GYRO_STUCK_N cycles while armed is declared failed: without rate
+   feedback the loops would wind up, so the FC holds zero differential torque at descent throttle until
+   the gyro moves again (fault ride-through; defect negative control: gyro_fault_check = 0). */
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -15,6 +18,8 @@
 
 #define RC_TIMEOUT_S 0.5
 #define FAILSAFE_DESCENT_S 10.0
+#define GYRO_STUCK_N 10
+#include <stdlib.h>
 
 static double now_s(void)
 {
@@ -61,10 +66,11 @@ int main(int argc, char **argv)
         fprintf(stderr, "fc: cannot open RC input %s: %s\n", c.rc_path, strerror(errno));
         return 2;
     }
-    const double T = 1.0 / c.rate_hz;
+    const double T = 1.0 / c.est_rate_hz, Tc = 1.0 / c.ctrl_rate_hz;
+    const double t_start = now_s();
     struct timespec next;
     clock_gettime(CLOCK_MONOTONIC, &next);
-    long step_ns = (long)(1e9 / c.rate_hz);
+    long step_ns = (long)(1e9 / c.est_rate_hz);
 
     /* gyro bias: 500 samples at rest (seed 000) */
     vec3 bias = v3(0, 0, 0), acc, gyro, mag = v3(0, 0, 0);
@@ -102,7 +108,10 @@ int main(int argc, char **argv)
     sbus_frame sticks;
     memset(&sticks, 0, sizeof sticks);
     double last_rc = -1e9, failsafe_since = -1, start_pressure = 0, alt_target = 0, last_baro = 0;
-    int armed = 0, had_rc = 0, reported_garbage = 0, alt_hold = 0;
+    int armed = 0, had_rc = 0, reported_garbage = 0, alt_hold = 0, gyro_same = 0, gyro_fault = 0;
+    double ctrl_phase = 1.0; /* the first cycle controls */
+    vec3 last_gyro = v3(0, 0, 0);
+    double out[4] = {1000, 1000, 1000, 1000};
     unsigned long cycles = 0, overruns = 0;
     double loop_max_us = 0;
     euler att = {0, 0, 0};
@@ -113,6 +122,15 @@ int main(int argc, char **argv)
             fprintf(stderr, "fc: MPU-6050 read failed at t=%.3f; motors to idle and stop\n", t0);
             break;
         }
+        if (c.defect_crash_at > 0 && t0 - t_start >= c.defect_crash_at)
+            abort(); /* negative control: a firmware that crashes mid-flight */
+        gyro_same = (gyro.x == last_gyro.x && gyro.y == last_gyro.y && gyro.z == last_gyro.z) ? gyro_same + 1 : 0;
+        last_gyro = gyro;
+        int stuck = armed && c.gyro_fault_check && gyro_same >= GYRO_STUCK_N;
+        if (stuck != gyro_fault)
+            fprintf(stderr, "fc: gyro %s at t=%.3f\n", stuck ? "stuck: holding level torque, descending" : "recovered",
+                    t0);
+        gyro_fault = stuck;
         vec3 a = calibrate(to_body(acc), c.acc_offset, c.acc_scale);
         vec3 w = v3_add(to_body(gyro), v3_scale(bias, -1));
         if (cycles % 4 == 0) { /* the HMC5883L updates at 75 Hz */
@@ -163,7 +181,7 @@ int main(int argc, char **argv)
         if (rc_ok) {
             failsafe_since = -1;
             int arm_switch = sbus_to_unit(sticks.ch[4]) > 0.5;
-            if (!armed && arm_switch && thr < 0.05)
+            if (!armed && arm_switch && thr < 0.05 && !c.defect_never_arm)
                 armed = 1;
             if (!arm_switch)
                 armed = 0;
@@ -179,20 +197,29 @@ int main(int argc, char **argv)
             if (t0 - failsafe_since > FAILSAFE_DESCENT_S)
                 armed = 0;
         }
-        double out[4] = {1000, 1000, 1000, 1000};
-        if (armed) {
+        ctrl_phase += c.ctrl_rate_hz / c.est_rate_hz;
+        int control_now = ctrl_phase >= 1.0 - 1e-9;
+        if (control_now)
+            ctrl_phase -= 1.0;
+        if (control_now && armed && gyro_fault) {
+            for (int i = 0; i < 4; i++) /* zero differential torque, 5 % under hover: a slow descent */
+                out[i] = clampd(c.hover_us - 0.05 * (c.hover_us - 1000), 1000, 2000);
+            alt_target = altf.h;
+        } else if (control_now && armed) {
             double sp_roll = rc_ok ? sbus_to_unit(sticks.ch[0]) * c.max_angle_deg * M_PI / 180 : 0;
             double sp_pitch = rc_ok ? sbus_to_unit(sticks.ch[1]) * c.max_angle_deg * M_PI / 180 : 0;
             double sp_yaw_rate = rc_ok ? sbus_to_unit(sticks.ch[3]) * c.max_yaw_rate_dps * M_PI / 180 : 0;
-            double r_sp = pid_step(&angle[0], sp_roll - att.roll, T);   /* eq. 9 */
-            double p_sp = pid_step(&angle[1], sp_pitch - att.pitch, T);
-            double r_out = pid_step(&rate[0], r_sp - w.x, T);            /* eq. 10, limited (eq. 13) */
-            double p_out = pid_step(&rate[1], p_sp - w.y, T);
-            double y_out = pid_step(&rate[2], sp_yaw_rate - w.z, T);
+            double r_sp = pid_step(&angle[0], sp_roll - att.roll, Tc);   /* eq. 9 */
+            double p_sp = pid_step(&angle[1], sp_pitch - att.pitch, Tc);
+            double r_out = pid_step(&rate[0], r_sp - w.x, Tc);            /* eq. 10, limited (eq. 13) */
+            double p_out = pid_step(&rate[1], p_sp - w.y, Tc);
+            double y_out = pid_step(&rate[2], sp_yaw_rate - w.z, Tc);
+            if (c.defect_mixer_sign)
+                r_out = -r_out; /* negative control: a roll sign error */
             double throttle;
             if (alt_hold) { /* eqs. 11-12, limited (eq. 14), in percent of the throttle range */
-                double acc_sp = pid_step(&alt_pid, alt_target - altf.h, T);
-                throttle = c.hover_us - 1000 + 10 * pid_step(&acc_pid, acc_sp - acc_up, T);
+                double acc_sp = pid_step(&alt_pid, alt_target - altf.h, Tc) - c.alt_kv * altf.v;
+                throttle = c.hover_us - 1000 + 10 * pid_step(&acc_pid, acc_sp - acc_up, Tc);
             } else {
                 throttle = thr * 1000;
                 alt_target = altf.h;
@@ -201,20 +228,23 @@ int main(int argc, char **argv)
             mix((enum mixer_kind)c.mixer, throttle, r_out, p_out, y_out, m);
             for (int i = 0; i < 4; i++)
                 out[i] = clampd(1000 + throttle_compensate(m[i], c.alpha[i], c.beta[i]), 1000, 2000); /* eq. 16 */
-        } else {
+        } else if (!armed) {
+            for (int i = 0; i < 4; i++)
+                out[i] = 1000;
             for (int i = 0; i < 2; i++) { pid_reset(&angle[i]); pid_reset(&rate[i]); }
             pid_reset(&rate[2]);
             pid_reset(&alt_pid);
             pid_reset(&acc_pid);
         }
-        for (int i = 0; i < 4; i++)
-            pwm_write_us(c.pwm_chip, i, out[i]);
+        if (control_now)
+            for (int i = 0; i < 4; i++)
+                pwm_write_us(c.pwm_chip, i, out[i]);
         double loop_us = (now_s() - t0) * 1e6;
         loop_max_us = fmax(loop_max_us, loop_us);
         if (tel && cycles % (unsigned long)c.telemetry_every == 0) {
-            fprintf(tel, "T t=%.4f roll=%.3f pitch=%.3f yaw=%.3f alt=%.3f armed=%d rc=%d loop_us=%.0f max_us=%.0f "
+            fprintf(tel, "T t=%.4f roll=%.3f pitch=%.3f yaw=%.3f alt=%.3f armed=%d rc=%d gyro_fault=%d loop_us=%.0f max_us=%.0f "
                     "overruns=%lu\n", t0, att.roll * 180 / M_PI, att.pitch * 180 / M_PI, att.yaw * 180 / M_PI,
-                    altf.h, armed, rc_ok, loop_us, loop_max_us, overruns);
+                    altf.h, armed, rc_ok, gyro_fault, loop_us, loop_max_us, overruns);
             fflush(tel);
         }
         cycles++;

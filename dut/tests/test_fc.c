@@ -190,7 +190,7 @@ static void test_mixers(void)
     /* torques from geometry: thrust T_i at (x_i, y_i) pushes -z, torque = r x F = (-y T, x T, 0); a
        counter-clockwise rotor (seen from above) turns the body clockwise: +yaw in NED */
     const double plus[4][3] = {{1, 0, 1}, {0, -1, -1}, {-1, 0, 1}, {0, 1, -1}};
-    const double x[4][3] = {{1, -1, 1}, {-1, -1, -1}, {-1, 1, 1}, {1, 1, -1}};
+    const double x[4][3] = {{1, 1, 1}, {1, -1, -1}, {-1, -1, 1}, {-1, 1, -1}}; /* plant frame = 1 */
     const double (*geo[2])[3] = {plus, x};
     const char *names[2] = {"'+' mixer (eq. 15) turns commands into torques of the same sign",
                             "X mixer turns commands into torques of the same sign"};

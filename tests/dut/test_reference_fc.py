@@ -3,6 +3,7 @@ against the emulated board, including the bad inputs it must refuse without driv
 
 from __future__ import annotations
 
+import math
 import subprocess
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -10,7 +11,8 @@ from pathlib import Path
 import pytest
 
 from emulators.ms5611 import DEFAULT_PROM
-from rig.session import Outcome, Session, SessionConfig
+from rig.rc import StickEmulator
+from rig.session import MONO_BASE_NS, NS, Outcome, Session, SessionConfig
 from rig.world import World
 
 REPO = Path(__file__).resolve().parents[2]
@@ -78,7 +80,7 @@ def test_fc_at_rest_estimates_level_and_keeps_motors_idle(tmp_path: Path, fc: Pa
     ("mpu_addr = 0x77\n", "MPU-6050: wrong WHO_AM_I"),
     ("hmc_addr = 0x1f\n", "HMC5883L: no answer at 0x1f"),
     ("estimatr = 1\n", "unknown key 'estimatr'"),
-    ("rate_hz = fast\n", "rate_hz expects a number"),
+    ("est_rate_hz = fast\n", "est_rate_hz expects a number"),
     ("telemetry_every = 0\n", "telemetry_every >= 1"),
 ])
 def test_bad_sensors_and_config_are_refused_without_motor_output(tmp_path: Path, fc: Path, config: str,
@@ -110,3 +112,66 @@ def test_garbage_on_the_rc_port_is_reported_and_the_motors_stay_idle(tmp_path: P
     assert "not SBUS frames; staying disarmed" in err
     assert all(row["armed"] == 0 for row in telemetry(session, "/dev/ttyTEL0"))
     assert {line.split()[-1] for line in log.splitlines() if " duty_cycle " in line} == {"1000000"}
+
+
+RC_CONF = "rc_path = /dev/ttyRC0\ntelemetry_path = /dev/ttyTEL0\n"
+RC_PORTS = ("/dev/ttyRC0", "/dev/ttyTEL0")
+
+
+def fly_with_sticks(tmp_path: Path, fc: Path, plan: Sequence[tuple[float, dict[str, object]]],
+                    duration: float, every: float = 0.1) -> tuple[list[dict[str, float]], list[dict[str, float]], str]:
+    """Runs the FC with an SBUS stick emulator following ``plan`` (time, stick or link changes) and
+    samples the plant's truth every ``every`` s. Returns (truth rows, FC telemetry rows, stderr)."""
+    rc = StickEmulator("/dev/ttyRC0")
+    truth: list[dict[str, float]] = []
+
+    def change(what: dict[str, object]) -> Callable[[Session], None]:
+        def apply(_: Session) -> None:
+            for k, v in what.items():
+                setattr(rc if k == "link" else rc.sticks, k, v)
+        return apply
+
+    def sample(s: Session) -> None:
+        y = s.world.outputs()
+        truth.append({"t": s.now_ns / 1e9, "alt": -y["pd"], "vd": y["vd"], "roll": math.degrees(y["roll"]),
+                      "pitch": math.degrees(y["pitch"]), "on_ground": y["on_ground"],
+                      "pwm1": s.world.pwm[0].pulse_us()})
+        s.at(s.now_ns / 1e9 + every, sample)
+
+    events = [(0.0, rc.start), (0.0, sample)] + [(t, change(w)) for t, w in plan]
+    session, outcome, _, err = run_fc(tmp_path, fc, RC_CONF, serial=RC_PORTS, events=events,
+                                      duration=duration)
+    assert outcome.verdict == "ok", (outcome.error, err)
+    return truth, telemetry(session, "/dev/ttyTEL0"), err
+
+
+def at(rows: list[dict[str, float]], t: float) -> dict[str, float]:
+    return min(rows, key=lambda r: abs(r["t"] - t))
+
+
+def test_arm_fly_hold_altitude_then_rc_loss_levels_descends_and_disarms(tmp_path: Path, fc: Path) -> None:
+    plan = [(1.5, {"arm": True}), (2.0, {"throttle": 0.56}), (4.0, {"alt_hold": True}),
+            (8.0, {"link": "lost"})]
+    truth, tel, err = fly_with_sticks(tmp_path, fc, plan, duration=20.0)
+    t0 = MONO_BASE_NS / NS                                  # the FC's monotonic clock at sim time 0
+    armed_at = min(r["t"] - t0 for r in tel if r["armed"] == 1)
+    assert 1.5 <= armed_at < 1.6                           # the first frame with the switch up arms
+    assert at(truth, 1.9)["pwm1"] < 1050 and at(truth, 1.9)["on_ground"] == 1   # armed, throttle low
+    assert at(truth, 3.5)["on_ground"] == 0 and at(truth, 3.5)["alt"] > 0.5     # throttle up: airborne
+    held = [r for r in truth if 6.5 <= r["t"] <= 8.0]      # altitude hold: the climb is stopped and held
+    assert max(abs(r["vd"]) for r in held) < 1.5 and all(2.0 < r["alt"] < 6.0 for r in held)
+    assert "RC lost at" in err and "failsafe" in err
+    after = [r for r in truth if 8.0 <= r["t"] <= 18.0]
+    assert max(max(abs(r["roll"]), abs(r["pitch"])) for r in after) < 5.0            # level
+    assert at(truth, 13.0)["alt"] < at(truth, 8.0)["alt"] - 1.0                      # descending
+    assert max(r["vd"] for r in after) < 2.0                                          # not falling
+    disarmed_at = min(r["t"] - t0 for r in tel if r["t"] - t0 > 8 and r["armed"] == 0)
+    assert 18.0 <= disarmed_at <= 19.0                     # 0.5 s to declare the loss, 10 s of descent
+    assert at(truth, 19.5)["pwm1"] == 1000 and at(truth, 19.5)["on_ground"] == 1
+
+
+def test_the_arm_switch_with_throttle_up_does_not_arm(tmp_path: Path, fc: Path) -> None:
+    plan = [(1.2, {"throttle": 0.6}), (1.5, {"arm": True})]
+    truth, tel, _ = fly_with_sticks(tmp_path, fc, plan, duration=3.0)
+    assert all(r["armed"] == 0 for r in tel)
+    assert all(r["pwm1"] in (0.0, 1000.0) for r in truth)

@@ -1,0 +1,96 @@
+"""The RC stick emulator: what an SBUS receiver sends the flight controller.
+
+SBUS (Futaba, as every receiver library decodes it): 100 kbaud 8E2 inverted on the wire, which a pty
+does not model; the bytes are what matters here. A frame is 25 bytes: 0x0F, sixteen 11-bit channels
+packed LSB first, a flags byte (bit 0 ch17, bit 1 ch18, bit 2 frame lost, bit 3 failsafe), 0x00.
+Channel values run 172..1811 with 992 at centre (the range OpenTX/EdgeTX map to -100..+100 %).
+
+Sticks are given in units: roll, pitch, yaw in -1..1, throttle in 0..1, switches as bool. The channel
+order is AETR (roll, pitch, throttle, yaw), then the arm switch (ch5) and the altitude-hold switch
+(ch6), as the reference FC and most firmwares default.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Protocol
+
+FRAME_LEN = 25
+HEADER, FOOTER = 0x0F, 0x00
+FLAG_FRAME_LOST, FLAG_FAILSAFE = 0x04, 0x08
+RAW_MIN, RAW_CENTRE, RAW_MAX = 172, 992, 1811
+CHANNELS = 16
+PERIOD_S = 0.014   # SBUS "normal" mode; 7 ms in high-speed mode
+
+STICKS = ("roll", "pitch", "throttle", "yaw", "arm", "alt_hold")
+
+
+def unit_to_raw(x: float) -> int:
+    """-1..1 to the 11-bit channel value (clamped to what a transmitter sends)."""
+    return max(RAW_MIN, min(RAW_MAX, round(RAW_CENTRE + x * (RAW_MAX - RAW_CENTRE))))
+
+
+def encode(channels: list[int], frame_lost: bool = False, failsafe: bool = False) -> bytes:
+    if len(channels) != CHANNELS or any(not 0 <= c < 2048 for c in channels):
+        raise ValueError("SBUS needs 16 channels of 0..2047")
+    acc = 0
+    for i, c in enumerate(channels):
+        acc |= c << (11 * i)
+    flags = (FLAG_FRAME_LOST if frame_lost else 0) | (FLAG_FAILSAFE if failsafe else 0)
+    return bytes([HEADER]) + acc.to_bytes(22, "little") + bytes([flags, FOOTER])
+
+
+def decode(frame: bytes) -> tuple[list[int], int]:
+    """The channels and flags of one frame (for tests and captures); raises ValueError on a bad frame."""
+    if len(frame) != FRAME_LEN or frame[0] != HEADER or frame[-1] != FOOTER:
+        raise ValueError(f"not an SBUS frame: {frame.hex()}")
+    acc = int.from_bytes(frame[1:23], "little")
+    return [(acc >> (11 * i)) & 0x7FF for i in range(CHANNELS)], frame[23]
+
+
+@dataclass
+class Sticks:
+    roll: float = 0.0
+    pitch: float = 0.0
+    throttle: float = 0.0
+    yaw: float = 0.0
+    arm: bool = False
+    alt_hold: bool = False
+
+    def channels(self) -> list[int]:
+        ch = [RAW_CENTRE] * CHANNELS
+        ch[0], ch[1], ch[3] = unit_to_raw(self.roll), unit_to_raw(self.pitch), unit_to_raw(self.yaw)
+        ch[2] = unit_to_raw(2 * self.throttle - 1)
+        ch[4] = RAW_MAX if self.arm else RAW_MIN
+        ch[5] = RAW_MAX if self.alt_hold else RAW_MIN
+        return ch
+
+
+class _Scheduler(Protocol):
+    def at(self, t: float, fn: Callable[..., None]) -> None: ...
+    def serial_write(self, path: str, data: bytes) -> None: ...
+
+
+@dataclass
+class StickEmulator:
+    """Sends a frame every ``period`` seconds of sim time on ``path`` while ``link`` is up. Scenarios
+    change ``sticks`` (the next frame carries them) and ``link`` ("ok", "lost": no frames, as when the
+    receiver loses the transmitter and stops output, "failsafe": frames with the failsafe flag)."""
+
+    path: str
+    period: float = PERIOD_S
+    sticks: Sticks = field(default_factory=Sticks)
+    link: str = "ok"
+    frames_sent: int = 0
+
+    def start(self, session: _Scheduler, t: float = 0.0) -> None:
+        session.at(t, lambda s: self._tick(s, t))
+
+    def _tick(self, session: _Scheduler, t: float) -> None:
+        if self.link != "lost":
+            session.serial_write(self.path, encode(self.sticks.channels(), failsafe=self.link == "failsafe",
+                                                   frame_lost=self.link == "failsafe"))
+            self.frames_sent += 1
+        nxt = t + self.period
+        session.at(nxt, lambda s: self._tick(s, nxt))
