@@ -114,12 +114,13 @@ def test_garbage_on_the_rc_port_is_reported_and_the_motors_stay_idle(tmp_path: P
     assert {line.split()[-1] for line in log.splitlines() if " duty_cycle " in line} == {"1000000"}
 
 
+Rows = list[dict[str, float]]
 RC_CONF = "rc_path = /dev/ttyRC0\ntelemetry_path = /dev/ttyTEL0\n"
 RC_PORTS = ("/dev/ttyRC0", "/dev/ttyTEL0")
 
 
 def fly_with_sticks(tmp_path: Path, fc: Path, plan: Sequence[tuple[float, dict[str, object]]],
-                    duration: float, every: float = 0.1) -> tuple[list[dict[str, float]], list[dict[str, float]], str]:
+                    duration: float, every: float = 0.1) -> tuple[Rows, Rows, str]:
     """Runs the FC with an SBUS stick emulator following ``plan`` (time, stick or link changes) and
     samples the plant's truth every ``every`` s. Returns (truth rows, FC telemetry rows, stderr)."""
     rc = StickEmulator("/dev/ttyRC0")
