@@ -509,6 +509,9 @@ class Session:
             self._event_ns = te
             try:
                 fn(self)
+            except Exception as e:  # a scenario's event must not take the rig down; the run is void
+                self._fail(EXIT_RIG_ERROR, f"event at {_fmt(te)} failed: {type(e).__name__}: {e}")
+                raise _Stop from e
             finally:
                 self._event_ns = None
             if stop_on_output and self._event_output:

@@ -10,11 +10,12 @@ sample instant, not only the newest one; sample instants between two plant steps
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from emulators.faults import FaultSet, FaultyDevice
 from emulators.hmc5883l import HMC5883L
 from emulators.i2c_bus import Msg
 from emulators.mpu6050 import MPU6050
@@ -26,6 +27,7 @@ from plant import Plant
 STEP_NS = 1_000_000
 HISTORY = 256            # plant steps kept for devices catching up (256 ms at 1 ms)
 MOTORS = 4
+FAULT_TARGETS = ("accel", "gyro", "mag", "baro", "mpu", "hmc", "baro_bus")
 G0 = 9.80665
 
 #: Datasheet noise: MPU-6050 accelerometer 400 µg/√Hz, gyroscope 0.005 °/s/√Hz; HMC5883L about 2 mG
@@ -75,6 +77,7 @@ class World:
     board: Board
     step_ns: int = STEP_NS
     pwm: list[PwmChannel] = field(default_factory=lambda: [PwmChannel() for _ in range(8)])
+    direct_pwm: bool = True
 
     def __post_init__(self) -> None:
         self._k = round(self.plant.time * 1e9 / self.step_ns)
@@ -85,18 +88,32 @@ class World:
 
     @classmethod
     def at_rest(cls, seed: int = 0, topology: str = "gy86", noise: bool = True,
-                params: Mapping[str, float] | None = None, pwm_channels: int = 8) -> World:
-        """The default world of ``rig exec``: the vehicle resting on the ground, motors off, a GY-86."""
+                params: Mapping[str, float] | None = None, pwm_channels: int = 8,
+                faults: Mapping[str, FaultSet] | None = None,
+                mag_disturbance: Callable[[float], tuple[float, float, float]] | None = None) -> World:
+        """The default world of ``rig exec``: the vehicle resting on the ground, motors off, a GY-86.
+        ``faults`` by name: signal faults "accel", "gyro", "mag", "baro" act in the sensor models; bus
+        faults "mpu", "hmc", "baro_bus" wrap the device on the bus."""
+        faults = dict(faults or {})
+        unknown = set(faults) - set(FAULT_TARGETS)
+        if unknown:
+            raise ValueError(f"unknown fault target(s) {sorted(unknown)}; known: {', '.join(FAULT_TARGETS)}")
         plant = Plant(params=params or {}, inputs={f"pwm{m + 1}_us": 0.0 for m in range(MOTORS)})
         def truth(t: float) -> Mapping[str, float]:  # the models need the world that holds them
             return world.truth(t)
 
         nd = DATASHEET_NOISE if noise else {"accel": 0.0, "gyro": 0.0, "mag": 0.0}
         imu = ImuModel(truth, accel=AxisErrors(noise_density=nd["accel"]),
-                       gyro=AxisErrors(noise_density=nd["gyro"]), seed=seed)
-        mag = MagModel(truth, errors=AxisErrors(noise_density=nd["mag"]), seed=seed + 1)
-        baro = BaroModel(truth, seed=seed + 2)
-        board = build_board(MPU6050(imu), HMC5883L(mag), MS5611(baro, seed=seed + 3), topology)
+                       gyro=AxisErrors(noise_density=nd["gyro"]), seed=seed,
+                       accel_faults=faults.get("accel", FaultSet()), gyro_faults=faults.get("gyro", FaultSet()))
+        mag = MagModel(truth, errors=AxisErrors(noise_density=nd["mag"]), seed=seed + 1,
+                       faults=faults.get("mag", FaultSet()),
+                       disturbance=mag_disturbance or (lambda t: (0.0, 0.0, 0.0)))
+        baro = BaroModel(truth, seed=seed + 2, faults=faults.get("baro", FaultSet()))
+        devices = MPU6050(imu), HMC5883L(mag), MS5611(baro, seed=seed + 3)
+        wrap = {name: FaultyDevice(dev, faults[key]) for name, key, dev in
+                zip(("mpu", "hmc", "baro"), ("mpu", "hmc", "baro_bus"), devices, strict=True) if key in faults}
+        board = build_board(*devices, topology, wrap=wrap)  # type: ignore[arg-type]
         world = cls(plant, board, pwm=[PwmChannel() for _ in range(pwm_channels)])
         return world
 
@@ -128,8 +145,9 @@ class World:
         return self.board.bus.transfer(msgs, t_ns * 1e-9)
 
     def apply_pwm(self, channel: int) -> None:
-        """Channels 0..3 drive motors 1..4 (the capture device model comes between them later)."""
-        if channel < MOTORS:
+        """Channels 0..3 drive motors 1..4 at once, unless a capture link (rig/capture.py) stands
+        between them and sets ``direct_pwm`` False."""
+        if channel < MOTORS and self.direct_pwm:
             self.plant.u[self._u_pwm[channel]] = self.pwm[channel].pulse_us()
 
     def outputs(self) -> dict[str, float]:

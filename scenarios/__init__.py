@@ -1,1 +1,2 @@
-"""Scenario schema, metrics and criteria, and the scenario library (``*.toml``)."""
+"""Scenarios: the file format and its checker, the recorded signals, the metrics and criteria, the
+runner, and the scenario library (``scenarios/library/*.toml``)."""

@@ -36,6 +36,8 @@ static vec3 calibrate(vec3 v, const double off[3], const double scale[3])
     return v3((v.x - off[0]) * scale[0], (v.y - off[1]) * scale[1], (v.z - off[2]) * scale[2]);
 }
 
+static double i_limit(double out_limit, double ki) { return ki > 0 ? 0.25 * out_limit / ki : 0; }
+
 int main(int argc, char **argv)
 {
     fc_config c;
@@ -73,13 +75,14 @@ int main(int argc, char **argv)
     long step_ns = (long)(1e9 / c.est_rate_hz);
 
     /* gyro bias: 500 samples at rest (seed 000) */
-    vec3 bias = v3(0, 0, 0), acc, gyro, mag = v3(0, 0, 0);
+    vec3 bias = v3(0, 0, 0), acc, gyro, mag = v3(0, 0, 0), acc_mean = v3(0, 0, 0);
     for (int i = 0; i < 500; i++) {
         if (mpu_read(bus, c.mpu_addr, &acc, &gyro) < 0) {
             fprintf(stderr, "fc: MPU-6050 read failed during calibration; no motor output\n");
             return 2;
         }
         bias = v3_add(bias, v3_scale(to_body(gyro), 1.0 / 500));
+        acc_mean = v3_add(acc_mean, v3_scale(calibrate(to_body(acc), c.acc_offset, c.acc_scale), 1.0 / 500));
         struct timespec d = {0, 2000000};
         nanosleep(&d, NULL);
     }
@@ -93,12 +96,30 @@ int main(int argc, char **argv)
     quat_cf_init(&cf, c.kp_est, c.ki_est);
     mahony_init(&mh, c.kp_est, c.ki_est);
     ekf_init(&kf);
+    { /* initial alignment: the resting accelerometer and magnetometer, through the filters themselves
+         with a high gain, so a vehicle that starts tilted (the seed 000 roll stand) starts estimated */
+        vec3 m;
+        if (hmc_read(bus, c.hmc_addr, &m) == 0)
+            mag = calibrate(to_body(m), c.mag_offset, c.mag_scale);
+        cf.kp = mh.kp = 5.0;
+        cf.ki = mh.ki = 0.0;
+        for (int i = 0; i < 1000; i++) {
+            quat_cf_update(&cf, v3(0, 0, 0), acc_mean, mag, 0.004);
+            mahony_update(&mh, v3(0, 0, 0), acc_mean, mag, 0.004);
+            ekf_update(&kf, v3(0, 0, 0), acc_mean, mag, 0.004);
+        }
+        cf.kp = mh.kp = c.kp_est;
+        cf.ki = mh.ki = c.ki_est;
+        cf.integral = mh.integral = v3(0, 0, 0);
+    }
     pid angle[2], rate[3], alt_pid, acc_pid;
     for (int i = 0; i < 2; i++) {
-        pid_init(&angle[i], c.angle_kp, c.angle_ki, c.angle_kd, 0, 0);
-        pid_init(&rate[i], c.rate_kp, c.rate_ki, c.rate_kd, c.angle_limit, c.angle_limit / 2);
+        pid_init(&angle[i], c.angle_kp, c.angle_ki, c.angle_kd, 0, 0.1); /* anti-windup: I adds <= ki * 0.1 rad/s */
+        /* anti-windup: the integral term may supply at most a quarter of the output limit, so a large
+           manoeuvre (the roll stand's release) does not leave a slowly unwinding tail */
+        pid_init(&rate[i], c.rate_kp, c.rate_ki, c.rate_kd, c.angle_limit, i_limit(c.angle_limit, c.rate_ki));
     }
-    pid_init(&rate[2], c.yaw_rate_kp, c.yaw_rate_ki, 0, c.angle_limit, c.angle_limit / 2);
+    pid_init(&rate[2], c.yaw_rate_kp, c.yaw_rate_ki, 0, c.angle_limit, i_limit(c.angle_limit, c.yaw_rate_ki));
     pid_init(&alt_pid, c.alt_kp, c.alt_ki, c.alt_kd, 0, 0);
     pid_init(&acc_pid, c.acc_kp, c.acc_ki, c.acc_kd, c.alt_limit, c.alt_limit / 2);
     alt_filter altf;

@@ -1,0 +1,36 @@
+"""JUnit XML for CI: one testsuite per scenario run, one testcase per criterion; a run that ended in
+error is one errored testcase naming the reason (CI systems show it as broken, not as failed)."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from collections.abc import Sequence
+
+from reports.values import fmt_limits, fmt_value
+from scenarios.runner import RunResult
+
+
+def render(results: Sequence[RunResult]) -> str:
+    root = ET.Element("testsuites", name="rig")
+    for r in results:
+        failures = sum(m.outcome == "fail" for m in r.measurements)
+        suite = ET.SubElement(root, "testsuite", name=r.scenario.stem, tests=str(len(r.measurements) or 1),
+                              failures=str(failures if r.verdict != "error" else 0),
+                              errors=str(int(r.verdict == "error")),
+                              time=f"{float(r.metadata.get('wall_time') or 0.0):.3f}")
+        props = ET.SubElement(suite, "properties")
+        for k in ("seed", "scenario_sha256", "dut_command", "plant_fmu_sha256", "rig_version"):
+            ET.SubElement(props, "property", name=k, value=str(r.metadata.get(k)))
+        if r.verdict == "error":
+            case = ET.SubElement(suite, "testcase", classname=r.scenario.stem, name="run")
+            ET.SubElement(case, "error", message=r.error or "error").text = r.stderr[-4000:]
+            continue
+        for m in r.measurements:
+            case = ET.SubElement(suite, "testcase", classname=r.scenario.stem, name=m.name)
+            text = f"{m.metric} of {m.signal} = {fmt_value(m.value, m.units)}; limits {fmt_limits(m)}"
+            if m.outcome == "fail":
+                ET.SubElement(case, "failure", message=f"{text} ({m.reason})")
+            else:
+                ET.SubElement(case, "system-out").text = text
+    ET.indent(root)
+    return ET.tostring(root, encoding="unicode", xml_declaration=True) + "\n"

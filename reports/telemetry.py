@@ -1,0 +1,32 @@
+"""The recorded signals as CSV (RFC 4180): one column per signal, one row per 10 ms of sim time, a
+header of ``name[units]``. CSV is columnar enough for every plotting tool and spreadsheet and needs no
+library to read; NaN (a DUT value not yet reported) is written as an empty field."""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+
+import numpy as np
+
+from scenarios.signals import SIGNALS
+
+
+def render(signals: dict[str, np.ndarray]) -> str:
+    names = ["t"] + [n for n in SIGNALS if n in signals]
+    out = io.StringIO()
+    w = csv.writer(out, lineterminator="\n")
+    w.writerow(["t[s]"] + [f"{n}[{SIGNALS[n].units}]" for n in names[1:]])
+    cols = [signals[n] for n in names]
+    for row in zip(*cols, strict=True):
+        w.writerow(["" if math.isnan(v) else f"{v:.6g}" for v in row])
+    return out.getvalue()
+
+
+def read(text: str) -> dict[str, np.ndarray]:
+    """The inverse of render (for tests and users' scripts): name (without units) to column."""
+    rows = list(csv.reader(io.StringIO(text)))
+    names = [h.split("[")[0] for h in rows[0]]
+    data = np.array([[float(v) if v else math.nan for v in r] for r in rows[1:]], dtype=float)
+    return {n: data[:, k] for k, n in enumerate(names)}

@@ -1,0 +1,149 @@
+"""Metrics over a recorded signal, and criteria: a measurement with limits and an outcome (after
+OpenHTF's model). Every metric works on samples inside a window [start, end] of sim time; a metric that
+cannot be measured (a step never reached, a signal the DUT did not report) measures as NaN or infinity
+and fails its limit, never passes by default."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+Metric = Callable[[np.ndarray, np.ndarray, "Params"], float]
+
+
+@dataclass(frozen=True)
+class Params:
+    target: float | None
+    band: float | None
+    start: float
+
+
+@dataclass(frozen=True)
+class MetricDef:
+    fn: Metric
+    needs: tuple[str, ...]
+    units: str | None        # None: the signal's units
+    text: str
+
+
+def _err(x: np.ndarray, p: Params) -> np.ndarray:
+    return x - (p.target if p.target is not None else 0.0)
+
+
+def overshoot(t: np.ndarray, x: np.ndarray, p: Params) -> float:
+    """Percent of the step (from the value at the window start to the target) passed beyond it."""
+    step = p.target - x[0]  # type: ignore[operator]
+    if abs(step) < 1e-9:
+        return math.nan
+    beyond = np.max((x - p.target) * math.copysign(1.0, step))
+    return max(0.0, float(beyond)) / abs(step) * 100.0
+
+
+def rise_time(t: np.ndarray, x: np.ndarray, p: Params) -> float:
+    """10 % to 90 % of the step; infinity when 90 % is never reached."""
+    step = p.target - x[0]  # type: ignore[operator]
+    frac = (x - x[0]) / step if abs(step) > 1e-9 else np.zeros_like(x)
+    lo, hi = np.nonzero(frac >= 0.1)[0], np.nonzero(frac >= 0.9)[0]
+    if not len(hi):
+        return math.inf
+    return float(t[hi[0]] - t[lo[0]])
+
+
+def settling_time(t: np.ndarray, x: np.ndarray, p: Params) -> float:
+    """From the window start until the signal enters the band around the target for good;
+    infinity when it is outside the band at the end."""
+    out = np.nonzero(np.abs(x - p.target) > p.band)[0]  # type: ignore[operator]
+    if not len(out):
+        return 0.0
+    if out[-1] == len(x) - 1:
+        return math.inf
+    return float(t[out[-1] + 1] - p.start)
+
+
+def steady_state_error(t: np.ndarray, x: np.ndarray, p: Params) -> float:
+    """|mean error| over the window (put the window at the end of the response)."""
+    return abs(float(np.mean(_err(x, p))))
+
+
+def peak_error(t: np.ndarray, x: np.ndarray, p: Params) -> float:
+    return float(np.max(np.abs(_err(x, p))))
+
+
+def rms_error(t: np.ndarray, x: np.ndarray, p: Params) -> float:
+    return float(np.sqrt(np.mean(_err(x, p) ** 2)))
+
+
+def time_in_band(t: np.ndarray, x: np.ndarray, p: Params) -> float:
+    """Percent of the window's samples within the band around the target."""
+    return float(np.mean(np.abs(_err(x, p)) <= p.band)) * 100.0  # type: ignore[operator]
+
+
+def time_above(t: np.ndarray, x: np.ndarray, p: Params) -> float:
+    """Percent of the window's samples at or above the target (motor saturation: pwm_max >= 1950)."""
+    return float(np.mean(x >= p.target)) * 100.0  # type: ignore[operator]
+
+
+def maximum(t: np.ndarray, x: np.ndarray, p: Params) -> float:
+    return float(np.max(x))
+
+
+def minimum(t: np.ndarray, x: np.ndarray, p: Params) -> float:
+    return float(np.min(x))
+
+
+def final(t: np.ndarray, x: np.ndarray, p: Params) -> float:
+    return float(x[-1])
+
+
+
+
+METRICS: dict[str, MetricDef] = {
+    "overshoot": MetricDef(overshoot, ("target",), "%", "percent of the step beyond the target"),
+    "rise_time": MetricDef(rise_time, ("target",), "s", "10 % to 90 % of the step"),
+    "settling_time": MetricDef(settling_time, ("target", "band"), "s", "until inside the band for good"),
+    "steady_state_error": MetricDef(steady_state_error, ("target",), None, "|mean error| in the window"),
+    "peak_error": MetricDef(peak_error, (), None, "largest |signal - target| (target 0 if not given)"),
+    "rms_error": MetricDef(rms_error, (), None, "RMS of signal - target (target 0 if not given)"),
+    "time_in_band": MetricDef(time_in_band, ("band",), "%", "percent of samples within the band"),
+    "time_above": MetricDef(time_above, ("target",), "%", "percent of samples at or above the target"),
+    "max": MetricDef(maximum, (), None, "largest value"),
+    "min": MetricDef(minimum, (), None, "smallest value"),
+    "final": MetricDef(final, (), None, "value at the end of the window"),
+}
+
+
+@dataclass(frozen=True)
+class Measurement:
+    name: str
+    metric: str
+    signal: str
+    value: float
+    units: str
+    min: float | None
+    max: float | None
+    start: float
+    end: float
+    outcome: str       # "pass" | "fail"
+    reason: str = ""
+
+
+def measure(name: str, metric: str, signal: str, t: np.ndarray, x: np.ndarray, start: float, end: float,
+            target: float | None, band: float | None, lo: float | None, hi: float | None,
+            units: str) -> Measurement:
+    """Evaluates one criterion over the samples of ``x`` with ``start <= t <= end``."""
+    sel = (t >= start - 1e-9) & (t <= end + 1e-9)
+    xs, ts = x[sel], t[sel]
+    reason = ""
+    if not len(xs):
+        value, reason = math.nan, "no samples in the window"
+    elif np.isnan(xs).any():
+        value, reason = math.nan, f"{signal} was not reported for the whole window"
+    else:
+        value = METRICS[metric].fn(ts, xs, Params(target, band, start))
+    ok = math.isfinite(value) and (lo is None or value >= lo) and (hi is None or value <= hi)
+    if not ok and not reason:
+        reason = "not measurable" if math.isnan(value) else "outside the limits"
+    return Measurement(name, metric, signal, value, units, lo, hi, start, end, "pass" if ok else "fail", reason)

@@ -1,0 +1,278 @@
+"""Runs one scenario against a DUT in a session and judges it.
+
+Everything the scenario scripts happens as session events in sim time: the SBUS stick emulator's
+frames, timeline changes, wind (steady + first-order Gauss-Markov turbulence + 1-cosine gusts, updated
+every 10 ms), and the recorder, which samples every signal on a 100 Hz grid. Sensor faults live in the
+world's sensor models and bus wrappers, switched by sim time. After the run the DUT's telemetry lines
+(``T t=… roll=…``, the reference FC's format) are parsed, held onto the grid, and the criteria are
+measured. A DUT that crashes, exits early or hangs ends with verdict "error" and the reason.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import shlex
+import shutil
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from emulators.faults import Fault as DeviceFault
+from emulators.faults import FaultSet
+from rig import __version__
+from rig.capture import install_capture
+from rig.rc import StickEmulator
+from rig.session import MONO_BASE_NS, NS, Outcome, Session, SessionConfig
+from rig.world import World
+from scenarios.criteria import Measurement, measure
+from scenarios.schema import Event, Scenario
+from scenarios.signals import RECORD_PERIOD, SIGNALS
+
+REPO = Path(__file__).resolve().parents[1]
+REFERENCE_FC = REPO / "build" / "dut" / "fc"
+RC_PATH, TELEMETRY_PATH = "/dev/ttyRC0", "/dev/ttyTEL0"
+WIND_PERIOD = 0.01
+TELEMETRY_KEYS = {"roll": "est_roll", "pitch": "est_pitch", "yaw": "est_yaw", "alt": "est_alt", "armed": "armed"}
+
+
+@dataclass
+class RunResult:
+    scenario: Scenario
+    verdict: str                       # "pass" | "fail" | "error"
+    error: str | None
+    measurements: list[Measurement]
+    signals: dict[str, np.ndarray]
+    metadata: dict[str, object]
+    outcome: Outcome | None
+    stderr: str = ""
+    notes: list[str] = field(default_factory=list)
+
+
+def default_dut() -> list[str]:
+    return [str(REFERENCE_FC)]
+
+
+def _sha256(path: Path) -> str | None:
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
+def reference_config(scenario: Scenario) -> str:
+    lines = [f"rc_path = {RC_PATH}", f"telemetry_path = {TELEMETRY_PATH}", "telemetry_every = 5"]
+    lines += [f"{k} = {v}" for k, v in scenario.fc.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _fault_sets(scenario: Scenario, seed: int) -> dict[str, FaultSet]:
+    sets: dict[str, FaultSet] = {}
+    for i, f in enumerate(scenario.faults):
+        fs = sets.setdefault(f.target, FaultSet(seed=seed * 1000 + 17 + i))
+        fs.add(DeviceFault(f.kind, f.start, f.end, f.magnitude, f.period, f.duty))
+    return sets
+
+
+class _Wind:
+    """Steady wind + turbulence + gusts, written into the plant's wind inputs every WIND_PERIOD."""
+
+    def __init__(self, scenario: Scenario, seed: int) -> None:
+        self.sc = scenario
+        self.rng = np.random.default_rng(seed + 101)
+        self.turb = np.zeros(3)
+        self.a = math.exp(-WIND_PERIOD / scenario.turbulence_tau)
+        self.now = np.array(scenario.wind)
+
+    def active(self) -> bool:
+        return any(self.sc.wind) or self.sc.turbulence > 0 or bool(self.sc.gusts)
+
+    def tick(self, session: Session, t: float) -> None:
+        sc = self.sc
+        if sc.turbulence > 0:
+            self.turb = self.a * self.turb + sc.turbulence * math.sqrt(1 - self.a ** 2) * self.rng.normal(size=3)
+        w = np.array(sc.wind) + self.turb
+        for g in sc.gusts:
+            if g.start <= t <= g.start + g.duration:
+                w = w + np.array(g.peak) * 0.5 * (1 - math.cos(2 * math.pi * (t - g.start) / g.duration))
+        plant = session.world.plant
+        for k, name in enumerate(("wind_n", "wind_e", "wind_d")):
+            plant.u[plant.u_index[name]] = w[k]
+        self.now = w
+        nxt = t + WIND_PERIOD
+        session.at(nxt, lambda s: self.tick(s, nxt))
+
+
+class _Recorder:
+    """Samples the plant, the motor inputs, the sticks and the scenario state on the 100 Hz grid."""
+
+    def __init__(self, scenario: Scenario, rc: StickEmulator, wind: _Wind) -> None:
+        self.sc, self.rc, self.wind = scenario, rc, wind
+        self.rows: list[tuple[float, ...]] = []
+        self.k = 0
+
+    def tick(self, session: Session) -> None:
+        plant = session.world.plant
+        y, u, yi, ui = plant.y, plant.u, plant.y_index, plant.u_index
+        t = self.k * RECORD_PERIOD
+        st = self.rc.sticks
+        faulted = any(f.start <= t < f.end for f in self.sc.faults) or (
+            any(self.sc.mag_disturbance) and self.sc.mag_disturbance_start <= t < self.sc.mag_disturbance_end)
+        self.rows.append((
+            t, y[yi["roll"]], y[yi["pitch"]], y[yi["yaw"]], -y[yi["pd"]], -y[yi["vd"]],
+            math.hypot(y[yi["vn"]], y[yi["ve"]]), y[yi["p"]], y[yi["q"]], y[yi["r"]],
+            *(u[ui[f"pwm{m}_us"]] for m in range(1, 5)), float(plant.on_ground),
+            st.roll * self.sc.max_angle_deg, st.pitch * self.sc.max_angle_deg,
+            st.yaw * self.sc.max_yaw_rate_dps, st.throttle, float(self.rc.link == "ok"), float(faulted),
+            float(np.linalg.norm(self.wind.now))))
+        self.k += 1
+        session.at(self.k * RECORD_PERIOD, self.tick)
+
+    def signals(self) -> dict[str, np.ndarray]:
+        a = np.array(self.rows, dtype=float).reshape(-1, 22)
+        deg = 180 / math.pi
+        s = {"t": a[:, 0], "roll": a[:, 1] * deg, "pitch": a[:, 2] * deg, "yaw": a[:, 3] * deg, "alt": a[:, 4],
+             "climb": a[:, 5], "speed": a[:, 6], "p": a[:, 7] * deg, "q": a[:, 8] * deg, "r": a[:, 9] * deg}
+        for m in range(4):
+            s[f"pwm{m + 1}"] = a[:, 10 + m]
+        s["pwm_max"], s["pwm_min"] = a[:, 10:14].max(axis=1), a[:, 10:14].min(axis=1)
+        names = ("on_ground", "roll_sp", "pitch_sp", "yaw_rate_sp", "throttle", "rc_link", "fault", "wind")
+        for k, n in enumerate(names):
+            s[n] = a[:, 14 + k]
+        s["roll_track_error"], s["pitch_track_error"] = s["roll"] - s["roll_sp"], s["pitch"] - s["pitch_sp"]
+        s["tilt"] = np.maximum(np.abs(s["roll"]), np.abs(s["pitch"]))
+        return s
+
+
+def parse_telemetry(text: bytes) -> tuple[dict[str, np.ndarray], int]:
+    """The DUT's ``T t=… key=value …`` lines as columns (time in sim seconds). Lines that do not parse
+    are counted and skipped: the DUT's bytes are not trusted."""
+    cols: dict[str, list[float]] = {"t": [], **{k: [] for k in TELEMETRY_KEYS}}
+    bad = 0
+    for line in text.decode("ascii", "replace").splitlines():
+        if not line.startswith("T "):
+            bad += bool(line.strip())
+            continue
+        try:
+            kv = dict(item.split("=", 1) for item in line[2:].split())
+            row = {"t": float(kv["t"]) - MONO_BASE_NS / NS, **{k: float(kv[k]) for k in TELEMETRY_KEYS if k in kv}}
+        except (ValueError, KeyError):
+            bad += 1
+            continue
+        if not all(math.isfinite(v) for v in row.values()):
+            bad += 1
+            continue
+        for k in cols:
+            cols[k].append(row.get(k, math.nan))
+    return {k: np.array(v, dtype=float) for k, v in cols.items()}, bad
+
+
+def _hold(t_grid: np.ndarray, t_src: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Zero-order hold of (t_src, v) onto t_grid; NaN before the first sample."""
+    idx = np.searchsorted(t_src, t_grid + 1e-9, side="right") - 1
+    out = np.full(len(t_grid), math.nan)
+    ok = idx >= 0
+    out[ok] = v[idx[ok]]
+    return out
+
+
+def _wrap180(x: np.ndarray) -> np.ndarray:
+    return (x + 180.0) % 360.0 - 180.0
+
+
+def run(scenario: Scenario, dut: list[str] | None = None, seed: int = 0, work_dir: Path | None = None,
+        wall_timeout: float = 600.0, stall_timeout: float = 30.0, corrupt_every: int = 0) -> RunResult:
+    """Runs ``scenario``; the reference FC (configured from the scenario's [fc] table) when ``dut`` is
+    None. DUT stdout and stderr go to ``work_dir`` (a temporary folder when None)."""
+    work = Path(work_dir) if work_dir else Path(tempfile.mkdtemp(prefix="rig-run-"))
+    work.mkdir(parents=True, exist_ok=True)
+    notes: list[str] = []
+    if dut is None:
+        if not REFERENCE_FC.is_file():
+            raise FileNotFoundError(f"reference FC not built at {REFERENCE_FC}; run `make dut`")
+        conf = work / "fc.conf"
+        conf.write_text(reference_config(scenario))
+        command = [str(REFERENCE_FC), str(conf)]
+    else:
+        command = list(dut)
+        if scenario.fc:
+            notes.append("the scenario's [fc] table configures the reference FC only; ignored for this DUT")
+    exe = shutil.which(command[0])
+    metadata: dict[str, object] = {
+        "rig_version": __version__, "scenario": scenario.stem, "scenario_name": scenario.name,
+        "scenario_sha256": scenario.sha256, "seed": seed, "dut_command": shlex.join(command),
+        "dut_binary_sha256": _sha256(Path(exe)) if exe else None, "capture": scenario.capture.transport,
+        "duration": scenario.duration, "lockstep": True,
+    }
+    mag = scenario.mag_disturbance
+    world = World.at_rest(seed=seed, noise=scenario.noise, params=scenario.plant,
+                          faults=_fault_sets(scenario, seed),
+                          mag_disturbance=(lambda t: mag if scenario.mag_disturbance_start <= t
+                                           < scenario.mag_disturbance_end else (0.0, 0.0, 0.0)) if any(mag) else None)
+    metadata["plant_fmu_sha256"] = _sha256(world.plant.fmu_path)
+    baro = world.board.baro.source
+    baro.noise_pa, baro.drift_pa_per_s = scenario.baro_noise_pa, scenario.baro_drift_pa_per_s
+
+    stderr_path = work / "dut-stderr.txt"
+    with open(stderr_path, "w") as err, open(work / "dut-stdout.txt", "w") as out:
+        cfg = SessionConfig(command=command, serial=[RC_PATH, TELEMETRY_PATH], duration=scenario.duration,
+                            seed=seed, noise=scenario.noise, wall_timeout=wall_timeout,
+                            stall_timeout=stall_timeout, stdout=out, stderr=err)
+        session = Session(cfg, world)
+        capture = install_capture(session, scenario.capture, seed, corrupt_every)
+        rc = StickEmulator(RC_PATH)
+        rc.start(session)
+        wind = _Wind(scenario, seed)
+        if wind.active():
+            session.at(0.0, lambda s: wind.tick(s, 0.0))
+        rec = _Recorder(scenario, rc, wind)
+        session.at(0.0, rec.tick)
+        for ev in scenario.timeline:
+            session.at(ev.t, _apply_event(rc, ev))
+        try:
+            outcome = session.run()
+        finally:
+            if capture is not None:
+                capture.close()
+    signals = rec.signals()
+    tel, bad = parse_telemetry(session.serial_output(TELEMETRY_PATH))
+    if bad:
+        notes.append(f"{bad} telemetry line(s) from the DUT did not parse and were skipped")
+    for k, name in TELEMETRY_KEYS.items():
+        signals[name] = _hold(signals["t"], tel["t"], tel[k]) if len(tel["t"]) else np.full(len(signals["t"]),
+                                                                                          math.nan)
+    for ax in ("roll", "pitch", "alt"):
+        signals[f"{ax}_est_error"] = signals[f"est_{ax}"] - signals[ax]
+    signals["yaw_est_error"] = _wrap180(signals["est_yaw"] - signals["yaw"])
+    if capture is not None:
+        metadata["capture_stats"] = capture.stats()
+    metadata.update(sim_time=outcome.sim_time, wall_time=outcome.wall_time,
+                    realtime_factor=outcome.sim_time / outcome.wall_time if outcome.wall_time > 0 else None,
+                    dut_returncode=outcome.dut_returncode, bus_transactions=outcome.transactions)
+    measurements = [measure(c.name, c.metric, c.signal, signals["t"], signals[c.signal], c.start, c.end, c.target,
+                            c.band, c.min, c.max, c.units) for c in scenario.criteria]
+    error = None
+    if outcome.verdict != "ok":
+        error = outcome.error or f"the DUT ended the run itself (status {outcome.dut_returncode})"
+        verdict = "error"
+    else:
+        verdict = "pass" if all(m.outcome == "pass" for m in measurements) else "fail"
+    notes += outcome.notes
+    assert set(SIGNALS) <= set(signals), set(SIGNALS) - set(signals)
+    return RunResult(scenario, verdict, error, measurements, signals, metadata, outcome,
+                     stderr_path.read_text(errors="replace"), notes)
+
+
+def _apply_event(rc: StickEmulator, ev: Event) -> Callable[[Session], None]:
+    def apply(session: Session) -> None:
+        for k, v in ev.sticks.items():
+            setattr(rc.sticks, k, v)
+        if ev.link is not None:
+            rc.link = ev.link
+        plant = session.world.plant
+        for k, v in ev.inputs.items():
+            plant.u[plant.u_index[k]] = v
+    return apply

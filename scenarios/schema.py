@@ -1,0 +1,343 @@
+"""The scenario file format (TOML, DESIGN.md §7) and its validation.
+
+A scenario is checked completely before anything runs: every table and key is known, every value has
+the expected type and range, every signal and metric named by a criterion exists. A bad file raises
+ScenarioError naming the file, the key (dotted, with list indices) and what was expected, so a user
+reads one line and knows what to fix. The format, key by key, is in the README ("Scenario format").
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from emulators.faults import KINDS as FAULT_KINDS
+from plant.variables import VARIABLES
+from rig.rc import STICKS
+from rig.world import FAULT_TARGETS
+from scenarios.criteria import METRICS
+from scenarios.signals import SIGNALS
+
+PLANT_PARAMETERS = {v.name for v in VARIABLES if v.causality == "parameter"}
+PLANT_INPUTS = {v.name for v in VARIABLES if v.causality == "input"} - {f"pwm{m}_us" for m in range(1, 5)}
+LINK_STATES = ("ok", "lost", "failsafe")
+CAPTURES = ("direct", "can", "serial")
+
+
+class ScenarioError(ValueError):
+    """A scenario file that cannot run: ``file: key: message``."""
+
+    def __init__(self, file: str, key: str, message: str) -> None:
+        super().__init__(f"{file}: {key}: {message}" if key else f"{file}: {message}")
+        self.file, self.key = file, key
+
+
+@dataclass(frozen=True)
+class Fault:
+    target: str
+    kind: str
+    start: float
+    end: float
+    magnitude: float = 0.0
+    period: float = 0.1
+    duty: float = 0.5
+
+
+@dataclass(frozen=True)
+class Gust:
+    """A 1-cosine gust (the certification gust shape): wind rises from 0 to ``peak`` and back over
+    ``duration`` seconds from ``start``."""
+
+    start: float
+    duration: float
+    peak: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Event:
+    t: float
+    sticks: dict[str, float | bool] = field(default_factory=dict)
+    link: str | None = None
+    inputs: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class CriterionSpec:
+    name: str
+    metric: str
+    signal: str
+    start: float
+    end: float
+    target: float | None
+    band: float | None
+    min: float | None
+    max: float | None
+    units: str
+
+
+@dataclass(frozen=True)
+class Capture:
+    """The PWM capture device between the DUT's outputs and the plant."""
+
+    transport: str = "direct"
+    resolution_us: float = 1.0
+    rate_hz: float = 400.0
+    latency_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class Scenario:
+    path: Path
+    name: str
+    description: str
+    seed_paper: str
+    duration: float
+    plant: dict[str, float]
+    fc: dict[str, str]
+    noise: bool
+    baro_noise_pa: float
+    baro_drift_pa_per_s: float
+    wind: tuple[float, float, float]
+    turbulence: float
+    turbulence_tau: float
+    mag_disturbance: tuple[float, float, float]
+    mag_disturbance_start: float
+    mag_disturbance_end: float
+    gusts: tuple[Gust, ...]
+    faults: tuple[Fault, ...]
+    timeline: tuple[Event, ...]
+    criteria: tuple[CriterionSpec, ...]
+    capture: Capture
+    max_angle_deg: float
+    max_yaw_rate_dps: float
+    sha256: str
+
+    @property
+    def stem(self) -> str:
+        return self.path.stem
+
+
+# ---- the checker -----------------------------------------------------------------------------------
+
+class _Check:
+    """Walks one file's tables; every access records the key so unknown keys can be reported."""
+
+    def __init__(self, file: str) -> None:
+        self.file = file
+
+    def fail(self, key: str, message: str) -> ScenarioError:
+        return ScenarioError(self.file, key, message)
+
+    def table(self, data: Any, key: str, known: dict[str, str]) -> dict[str, Any]:
+        if not isinstance(data, dict):
+            raise self.fail(key, f"expected a table, got {_kind(data)}")
+        for k in data:
+            if k not in known:
+                raise self.fail(f"{key}.{k}" if key else k,
+                                f"unknown key; expected one of: {', '.join(sorted(known))}")
+        return data
+
+    def number(self, data: dict[str, Any], key: str, path: str, default: float | None = None,
+               low: float = -math.inf, high: float = math.inf, positive: bool = False) -> float:
+        full = f"{path}.{key}" if path else key
+        if key not in data:
+            if default is None:
+                raise self.fail(full, "missing; expected a number")
+            return default
+        v = data[key]
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            raise self.fail(full, f"expected a finite number, got {_kind(v)}")
+        if positive and not v > 0:
+            raise self.fail(full, f"expected a number > 0, got {v}")
+        if not low <= v <= high:
+            raise self.fail(full, f"expected a number in {low:g}..{high:g}, got {v}")
+        return float(v)
+
+    def optional(self, data: dict[str, Any], key: str, path: str) -> float | None:
+        return self.number(data, key, path) if key in data else None
+
+    def string(self, data: dict[str, Any], key: str, path: str, default: str | None = None,
+               choices: tuple[str, ...] | None = None) -> str:
+        full = f"{path}.{key}" if path else key
+        if key not in data:
+            if default is None:
+                raise self.fail(full, "missing; expected a string")
+            return default
+        v = data[key]
+        if not isinstance(v, str):
+            raise self.fail(full, f"expected a string, got {_kind(v)}")
+        if choices is not None and v not in choices:
+            raise self.fail(full, f"expected one of {', '.join(choices)}, got {v!r}")
+        return v
+
+    def boolean(self, data: dict[str, Any], key: str, path: str, default: bool) -> bool:
+        v = data.get(key, default)
+        if not isinstance(v, bool):
+            raise self.fail(f"{path}.{key}", f"expected true or false, got {_kind(v)}")
+        return v
+
+    def vector(self, data: dict[str, Any], key: str, path: str) -> tuple[float, float, float]:
+        v = data.get(key, [0.0, 0.0, 0.0])
+        if (not isinstance(v, list) or len(v) != 3
+                or any(isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x) for x in v)):
+            raise self.fail(f"{path}.{key}", f"expected 3 finite numbers [north, east, down], got {v!r}")
+        return (float(v[0]), float(v[1]), float(v[2]))
+
+    def array(self, data: dict[str, Any], key: str) -> list[Any]:
+        v = data.get(key, [])
+        if not isinstance(v, list):
+            raise self.fail(key, f"expected an array of tables ([[{key}]]), got {_kind(v)}")
+        return v
+
+
+def _kind(v: Any) -> str:
+    return {bool: "a boolean", int: "an integer", float: "a number", str: "a string", list: "an array",
+            dict: "a table"}.get(type(v), type(v).__name__)
+
+
+TOP = {"scenario": "", "vehicle": "", "fc": "", "sensors": "", "environment": "", "rc": "", "capture": "",
+       "timeline": "", "faults": "", "gusts": "", "criteria": ""}
+SCENARIO_KEYS = {"name": "", "description": "", "seed_paper": "", "duration": ""}
+SENSOR_KEYS = {"noise": "", "baro_noise_pa": "", "baro_drift_pa_per_s": ""}
+ENV_KEYS = {"wind": "", "turbulence": "", "turbulence_tau": "", "mag_disturbance": "",
+            "mag_disturbance_start": "", "mag_disturbance_end": ""}
+RC_KEYS = {"max_angle_deg": "", "max_yaw_rate_dps": ""}
+CAPTURE_KEYS = {"transport": "", "resolution_us": "", "rate_hz": "", "latency_s": ""}
+EVENT_KEYS = {"t": "", "sticks": "", "link": "", "inputs": ""}
+FAULT_KEYS = {"target": "", "kind": "", "start": "", "end": "", "magnitude": "", "period": "", "duty": ""}
+GUST_KEYS = {"start": "", "duration": "", "peak": ""}
+CRITERION_KEYS = {"name": "", "metric": "", "signal": "", "start": "", "end": "", "target": "", "band": "",
+                  "min": "", "max": ""}
+
+
+def load(path: str | Path) -> Scenario:
+    """Reads and checks one scenario file; raises ScenarioError (never a traceback for bad input)."""
+    path = Path(path)
+    file = str(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as e:
+        raise ScenarioError(file, "", f"cannot read: {e.strerror}") from None
+    try:
+        data = tomllib.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
+        raise ScenarioError(file, "", f"not valid TOML: {e}") from None
+    c = _Check(file)
+    c.table(data, "", TOP)
+    meta = c.table(data.get("scenario", {}), "scenario", SCENARIO_KEYS)
+    if "scenario" not in data:
+        raise c.fail("scenario", "missing; expected a [scenario] table with name and duration")
+    duration = c.number(meta, "duration", "scenario", positive=True, high=3600)
+
+    vehicle = c.table(data.get("vehicle", {}), "vehicle", {k: "" for k in PLANT_PARAMETERS})
+    plant = {k: c.number(vehicle, k, "vehicle") for k in vehicle}
+
+    fc_raw = c.table(data.get("fc", {}), "fc", _AnyKey())
+    fc = {}
+    for k, v in fc_raw.items():
+        if isinstance(v, bool) or not isinstance(v, int | float | str):
+            raise c.fail(f"fc.{k}", f"expected a number or a string (a reference-FC config value), got {_kind(v)}")
+        fc[k] = str(v)
+
+    sensors = c.table(data.get("sensors", {}), "sensors", SENSOR_KEYS)
+    env = c.table(data.get("environment", {}), "environment", ENV_KEYS)
+    rc = c.table(data.get("rc", {}), "rc", RC_KEYS)
+    cap = c.table(data.get("capture", {}), "capture", CAPTURE_KEYS)
+    capture = Capture(c.string(cap, "transport", "capture", "direct", CAPTURES),
+                      c.number(cap, "resolution_us", "capture", 1.0, positive=True, high=100),
+                      c.number(cap, "rate_hz", "capture", 400.0, positive=True, high=10_000),
+                      c.number(cap, "latency_s", "capture", 0.0, low=0, high=1))
+
+    timeline = []
+    for i, e in enumerate(c.array(data, "timeline")):
+        key = f"timeline[{i}]"
+        e = c.table(e, key, EVENT_KEYS)
+        t = c.number(e, "t", key, low=0, high=duration)
+        sticks = c.table(e.get("sticks", {}), f"{key}.sticks", {k: "" for k in STICKS})
+        st: dict[str, float | bool] = {}
+        for k in sticks:
+            if k in ("arm", "alt_hold"):
+                st[k] = c.boolean(sticks, k, f"{key}.sticks", False)
+            else:
+                st[k] = c.number(sticks, k, f"{key}.sticks", low=0 if k == "throttle" else -1, high=1)
+        link = c.string(e, "link", key, choices=LINK_STATES) if "link" in e else None
+        inputs_raw = c.table(e.get("inputs", {}), f"{key}.inputs", {k: "" for k in PLANT_INPUTS})
+        inputs = {k: c.number(inputs_raw, k, f"{key}.inputs") for k in inputs_raw}
+        timeline.append(Event(t, st, link, inputs))
+
+    faults = []
+    for i, f in enumerate(c.array(data, "faults")):
+        key = f"faults[{i}]"
+        f = c.table(f, key, FAULT_KEYS)
+        start = c.number(f, "start", key, low=0, high=duration)
+        end = c.number(f, "end", key, math.inf)
+        if not end > start:
+            raise c.fail(f"{key}.end", f"expected a time after start ({start:g} s), got {end:g}")
+        faults.append(Fault(c.string(f, "target", key, choices=FAULT_TARGETS),
+                            c.string(f, "kind", key, choices=FAULT_KINDS), start, end,
+                            c.number(f, "magnitude", key, 0.0), c.number(f, "period", key, 0.1, positive=True),
+                            c.number(f, "duty", key, 0.5, low=0, high=1)))
+
+    gusts = []
+    for i, g in enumerate(c.array(data, "gusts")):
+        key = f"gusts[{i}]"
+        g = c.table(g, key, GUST_KEYS)
+        gusts.append(Gust(c.number(g, "start", key, low=0, high=duration),
+                          c.number(g, "duration", key, positive=True), c.vector(g, "peak", key)))
+
+    criteria = []
+    for i, cr in enumerate(c.array(data, "criteria")):
+        key = f"criteria[{i}]"
+        cr = c.table(cr, key, CRITERION_KEYS)
+        metric = c.string(cr, "metric", key, choices=tuple(METRICS))
+        signal = c.string(cr, "signal", key, choices=tuple(SIGNALS))
+        m = METRICS[metric]
+        start = c.number(cr, "start", key, 0.0, low=0, high=duration)
+        end = c.number(cr, "end", key, duration, low=0, high=duration)
+        if not end > start:
+            raise c.fail(f"{key}.end", f"expected a time after start ({start:g} s), got {end:g}")
+        for need in m.needs:
+            if need not in cr:
+                raise c.fail(f"{key}.{need}", f"missing; metric {metric} needs {', '.join(m.needs)}")
+        lo, hi = c.optional(cr, "min", key), c.optional(cr, "max", key)
+        if lo is None and hi is None:
+            raise c.fail(key, "expected a limit: min, max or both")
+        band = c.optional(cr, "band", key)
+        if band is not None and band <= 0:
+            raise c.fail(f"{key}.band", f"expected a number > 0, got {band}")
+        criteria.append(CriterionSpec(c.string(cr, "name", key, f"{metric} of {signal}"), metric, signal, start,
+                                      end, c.optional(cr, "target", key), band, lo, hi,
+                                      m.units or SIGNALS[signal].units))
+    if not criteria:
+        raise c.fail("criteria", "missing; expected at least one [[criteria]] table")
+
+    return Scenario(
+        path=path, name=c.string(meta, "name", "scenario", path.stem),
+        description=c.string(meta, "description", "scenario", ""),
+        seed_paper=c.string(meta, "seed_paper", "scenario", ""), duration=duration, plant=plant, fc=fc,
+        noise=c.boolean(sensors, "noise", "sensors", True),
+        baro_noise_pa=c.number(sensors, "baro_noise_pa", "sensors", 0.0, low=0),
+        baro_drift_pa_per_s=c.number(sensors, "baro_drift_pa_per_s", "sensors", 0.0),
+        wind=c.vector(env, "wind", "environment"),
+        turbulence=c.number(env, "turbulence", "environment", 0.0, low=0, high=20),
+        turbulence_tau=c.number(env, "turbulence_tau", "environment", 1.0, positive=True),
+        mag_disturbance=c.vector(env, "mag_disturbance", "environment"),
+        mag_disturbance_start=c.number(env, "mag_disturbance_start", "environment", 0.0, low=0),
+        mag_disturbance_end=c.number(env, "mag_disturbance_end", "environment", math.inf),
+        gusts=tuple(gusts), faults=tuple(faults), timeline=tuple(sorted(timeline, key=lambda e: e.t)),
+        criteria=tuple(criteria), capture=capture,
+        max_angle_deg=c.number(rc, "max_angle_deg", "rc", 30.0, positive=True, high=90),
+        max_yaw_rate_dps=c.number(rc, "max_yaw_rate_dps", "rc", 90.0, positive=True),
+        sha256=hashlib.sha256(raw).hexdigest())
+
+
+class _AnyKey(dict[str, str]):
+    """Known-key table that accepts every key (the [fc] table is passed through to the DUT's config,
+    which checks its own keys)."""
+
+    def __contains__(self, key: object) -> bool:
+        return True
