@@ -34,8 +34,8 @@ dut: $(DUT_BIN)
 $(DUT_BIN): $(wildcard dut/src/* dut/tests/* dut/Makefile) bench/fc_bench.c
 	$(MAKE) -s -C dut
 
-demo: venv $(FMU)
-	$(VENV)/bin/rig demo
+demo: venv fmu shim dut
+	$(VENV)/bin/rig run --out build/reports
 
 lint: venv
 	$(VENV)/bin/ruff check .
@@ -55,6 +55,7 @@ bench: venv $(FMU) $(SHIM) $(DUT_BIN) build/bench/physics_bench
 	$(PY) bench/emulator_rates.py
 	$(PY) bench/exec_rates.py
 	build/dut/bench_fc
+	$(PY) bench/scenario_rates.py
 
 clean:
 	rm -rf build

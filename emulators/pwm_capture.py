@@ -60,9 +60,11 @@ class CaptureDevice:
 
 # ---- serial ------------------------------------------------------------------------------------------
 
+
 def encode_serial(seq: int, widths_us: list[float]) -> bytes:
-    payload = struct.pack(f"<BB{len(widths_us)}H", seq, len(widths_us),
-                          *(round(w / UNIT_US) for w in widths_us))
+    payload = struct.pack(
+        f"<BB{len(widths_us)}H", seq, len(widths_us), *(round(w / UNIT_US) for w in widths_us)
+    )
     return cobs.encode(payload + struct.pack(">H", crc16(payload))) + b"\x00"
 
 
@@ -98,12 +100,16 @@ class SerialDeframer:
 
 # ---- CAN ---------------------------------------------------------------------------------------------
 
+
 class CanCodec:
     """The DBC's two messages; the CRC covers what cantools leaves to the application."""
 
     def __init__(self, dbc: Path = DBC_PATH) -> None:
         self.db = cantools.database.load_file(str(dbc))
-        self.messages = [self.db.get_message_by_name("PWM_CAPTURE_12"), self.db.get_message_by_name("PWM_CAPTURE_34")]
+        self.messages = [
+            self.db.get_message_by_name("PWM_CAPTURE_12"),
+            self.db.get_message_by_name("PWM_CAPTURE_34"),
+        ]
         self.ids = {m.frame_id: k for k, m in enumerate(self.messages)}
 
     @staticmethod

@@ -14,10 +14,15 @@ def render(results: Sequence[RunResult]) -> str:
     root = ET.Element("testsuites", name="rig")
     for r in results:
         failures = sum(m.outcome == "fail" for m in r.measurements)
-        suite = ET.SubElement(root, "testsuite", name=r.scenario.stem, tests=str(len(r.measurements) or 1),
-                              failures=str(failures if r.verdict != "error" else 0),
-                              errors=str(int(r.verdict == "error")),
-                              time=f"{float(r.metadata.get('wall_time') or 0.0):.3f}")
+        suite = ET.SubElement(
+            root,
+            "testsuite",
+            name=r.scenario.stem,
+            tests=str(len(r.measurements) or 1),
+            failures=str(failures if r.verdict != "error" else 0),
+            errors=str(int(r.verdict == "error")),
+            time=f"{float(r.metadata.get('wall_time') or 0.0):.3f}",
+        )
         props = ET.SubElement(suite, "properties")
         for k in ("seed", "scenario_sha256", "dut_command", "plant_fmu_sha256", "rig_version"):
             ET.SubElement(props, "property", name=k, value=str(r.metadata.get(k)))

@@ -13,8 +13,13 @@ FORMAT = "rig-result/1"
 
 def to_dict(r: RunResult) -> dict[str, object]:
     return {
-        "format": FORMAT, "scenario": r.scenario.stem, "name": r.scenario.name, "verdict": r.verdict,
-        "error": r.error, "metadata": r.metadata, "notes": r.notes,
+        "format": FORMAT,
+        "scenario": r.scenario.stem,
+        "name": r.scenario.name,
+        "verdict": r.verdict,
+        "error": r.error,
+        "metadata": r.metadata,
+        "notes": r.notes,
         "measurements": [{**dataclasses.asdict(m), "value": json_number(m.value)} for m in r.measurements],
     }
 

@@ -24,8 +24,14 @@ from typing import TYPE_CHECKING
 import can
 import serial
 
-from emulators.pwm_capture import CanCodec, CaptureDevice, CaptureFrameError, SerialDeframer, decode_serial, \
-    encode_serial
+from emulators.pwm_capture import (
+    CanCodec,
+    CaptureDevice,
+    CaptureFrameError,
+    SerialDeframer,
+    decode_serial,
+    encode_serial,
+)
 
 if TYPE_CHECKING:
     from rig.session import Session
@@ -45,8 +51,9 @@ class CaptureStats:
 
 
 class CaptureLink:
-    def __init__(self, transport: str, resolution_us: float, rate_hz: float, latency_s: float,
-                 corrupt_every: int = 0) -> None:
+    def __init__(
+        self, transport: str, resolution_us: float, rate_hz: float, latency_s: float, corrupt_every: int = 0
+    ) -> None:
         self.device = CaptureDevice(resolution_us, rate_hz)
         self.period, self.latency = 1.0 / rate_hz, latency_s
         self.corrupt_every = corrupt_every
@@ -54,7 +61,7 @@ class CaptureLink:
         self.transport = transport
         self._last_seq: dict[int, int] = {}
         if transport == "can":
-            channel = f"rig-capture-{uuid.uuid4().hex}"   # private: parallel runs never hear each other
+            channel = f"rig-capture-{uuid.uuid4().hex}"  # private: parallel runs never hear each other
             self.codec = CanCodec()
             self.tx = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
             self.rx = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
@@ -62,7 +69,7 @@ class CaptureLink:
             self.master, slave = os.openpty()
             tty.setraw(slave)
             self.port = serial.Serial(os.ttyname(slave), timeout=0)
-            os.close(slave)                                # pyserial holds its own descriptor
+            os.close(slave)  # pyserial holds its own descriptor
             self.deframer = SerialDeframer()
         else:
             raise ValueError(f"unknown capture transport {transport!r}")
@@ -80,8 +87,9 @@ class CaptureLink:
     def tick(self, session: Session, t: float) -> None:
         widths = [session.world.pwm[m].pulse_us() for m in range(MOTORS)]
         seq, q = self.device.sample(widths)
-        self.st.max_quantisation_us = max(self.st.max_quantisation_us,
-                                          max(abs(a - b) for a, b in zip(q, widths, strict=True)))
+        self.st.max_quantisation_us = max(
+            self.st.max_quantisation_us, max(abs(a - b) for a, b in zip(q, widths, strict=True))
+        )
         if self.transport == "can":
             for fid, data in self.codec.encode(seq, q):
                 self.tx.send(can.Message(arbitration_id=fid, data=self._corrupt(data), is_extended_id=False))
@@ -89,7 +97,7 @@ class CaptureLink:
             data = self._corrupt(encode_serial(seq, q)[:-1]) + b"\x00"
             view = memoryview(data)
             while view:
-                view = view[os.write(self.master, view):]
+                view = view[os.write(self.master, view) :]
         self._receive(session, t, expect=2 if self.transport == "can" else len(data))
         nxt = t + self.period
         session.at(nxt, lambda s: self.tick(s, nxt))
@@ -141,9 +149,15 @@ class CaptureLink:
         self.st.applied += 1
 
     def stats(self) -> dict[str, object]:
-        return {"transport": self.transport, "frames_sent": self.st.sent, "frames_applied": self.st.applied,
-                "frames_rejected": self.st.rejected, "sequence_gaps": self.st.seq_gaps,
-                "max_quantisation_us": self.st.max_quantisation_us, "reject_reasons": self.st.reasons}
+        return {
+            "transport": self.transport,
+            "frames_sent": self.st.sent,
+            "frames_applied": self.st.applied,
+            "frames_rejected": self.st.rejected,
+            "sequence_gaps": self.st.seq_gaps,
+            "max_quantisation_us": self.st.max_quantisation_us,
+            "reject_reasons": self.st.reasons,
+        }
 
     def close(self) -> None:
         if self.transport == "can":
@@ -154,11 +168,15 @@ class CaptureLink:
             os.close(self.master)
 
 
-def install_capture(session: Session, capture: Capture, seed: int = 0, corrupt_every: int = 0) -> CaptureLink | None:
+def install_capture(
+    session: Session, capture: Capture, seed: int = 0, corrupt_every: int = 0
+) -> CaptureLink | None:
     """Puts a capture link between the DUT's PWM outputs and the plant; None for the direct path."""
     if capture.transport == "direct":
         return None
-    link = CaptureLink(capture.transport, capture.resolution_us, capture.rate_hz, capture.latency_s, corrupt_every)
+    link = CaptureLink(
+        capture.transport, capture.resolution_us, capture.rate_hz, capture.latency_s, corrupt_every
+    )
     session.world.direct_pwm = False
     session.at(0.0, lambda s: link.tick(s, 0.0))
     return link

@@ -21,7 +21,7 @@ HEADER, FOOTER = 0x0F, 0x00
 FLAG_FRAME_LOST, FLAG_FAILSAFE = 0x04, 0x08
 RAW_MIN, RAW_CENTRE, RAW_MAX = 172, 992, 1811
 CHANNELS = 16
-PERIOD_S = 0.014   # SBUS "normal" mode; 7 ms in high-speed mode
+PERIOD_S = 0.014  # SBUS "normal" mode; 7 ms in high-speed mode
 
 STICKS = ("roll", "pitch", "throttle", "yaw", "arm", "alt_hold")
 
@@ -89,8 +89,14 @@ class StickEmulator:
 
     def _tick(self, session: _Scheduler, t: float) -> None:
         if self.link != "lost":
-            session.serial_write(self.path, encode(self.sticks.channels(), failsafe=self.link == "failsafe",
-                                                   frame_lost=self.link == "failsafe"))
+            session.serial_write(
+                self.path,
+                encode(
+                    self.sticks.channels(),
+                    failsafe=self.link == "failsafe",
+                    frame_lost=self.link == "failsafe",
+                ),
+            )
             self.frames_sent += 1
         nxt = t + self.period
         session.at(nxt, lambda s: self._tick(s, nxt))

@@ -23,16 +23,31 @@ EXIT_FAILED, EXIT_USAGE, EXIT_ERROR = 1, 2, 3
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("run", help="run scenarios against a DUT and write reports", description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("scenarios", nargs="*", metavar="SCENARIO",
-                   help="scenario files or names from the library (default: the whole library)")
-    p.add_argument("--dut", help="the DUT command line (default: the reference FC, configured by the "
-                                 "scenario's [fc] table); it reads SBUS on /dev/ttyRC0 and may write "
-                                 "telemetry lines on /dev/ttyTEL0")
-    p.add_argument("--out", type=Path, default=Path("build/reports"), help="report folder (default %(default)s)")
+    p = sub.add_parser(
+        "run",
+        help="run scenarios against a DUT and write reports",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument(
+        "scenarios",
+        nargs="*",
+        metavar="SCENARIO",
+        help="scenario files or names from the library (default: the whole library)",
+    )
+    p.add_argument(
+        "--dut",
+        help="the DUT command line (default: the reference FC, configured by the "
+        "scenario's [fc] table); it reads SBUS on /dev/ttyRC0 and may write "
+        "telemetry lines on /dev/ttyTEL0",
+    )
+    p.add_argument(
+        "--out", type=Path, default=Path("build/reports"), help="report folder (default %(default)s)"
+    )
     p.add_argument("--seed", type=int, default=0, help="random seed for noise, turbulence and faults")
-    p.add_argument("--wall-timeout", type=float, default=600.0, help="wall seconds per run before it is ended")
+    p.add_argument(
+        "--wall-timeout", type=float, default=600.0, help="wall seconds per run before it is ended"
+    )
     v = sub.add_parser("validate", help="check scenario files without running them")
     v.add_argument("scenarios", nargs="+", metavar="SCENARIO")
     sub.add_parser("list", help="list the scenario library")
@@ -98,7 +113,12 @@ def cmd_run(args: argparse.Namespace) -> int:
     t_suite = time.perf_counter()
     for i, sc in enumerate(scenarios, 1):
         run_dir = out / sc.stem
-        print(f"[{i}/{len(scenarios)}] {sc.stem} ({sc.duration:g} s sim) ...", end="", file=sys.stderr, flush=True)
+        print(
+            f"[{i}/{len(scenarios)}] {sc.stem} ({sc.duration:g} s sim) ...",
+            end="",
+            file=sys.stderr,
+            flush=True,
+        )
         try:
             r = run(sc, dut=dut, seed=args.seed, work_dir=run_dir, wall_timeout=args.wall_timeout)
         except (FileNotFoundError, OSError, ValueError) as e:
@@ -112,14 +132,23 @@ def cmd_run(args: argparse.Namespace) -> int:
         (run_dir / "report.html").write_text(html_report.render(r))
         failed = [m.name for m in r.measurements if m.outcome == "fail"]
         rate = r.metadata.get("realtime_factor") or 0.0
-        detail = f" error: {r.error}" if r.verdict == "error" else (f" failed: {'; '.join(failed)}" if failed else "")
-        print(f" {r.verdict.upper()} ({float(r.metadata['wall_time']):.1f} s wall, {rate:.0f}x){detail}",
-              file=sys.stderr)
+        detail = (
+            f" error: {r.error}"
+            if r.verdict == "error"
+            else (f" failed: {'; '.join(failed)}" if failed else "")
+        )
+        print(
+            f" {r.verdict.upper()} ({float(r.metadata['wall_time']):.1f} s wall, {rate:.0f}x){detail}",
+            file=sys.stderr,
+        )
     (out / "junit.xml").write_text(junit.render(results))
     (out / "index.html").write_text(html_report.render_index(results, links))
     counts = {v: sum(r.verdict == v for r in results) for v in ("pass", "fail", "error")}
-    print(f"{counts['pass']} passed, {counts['fail']} failed, {counts['error']} errors in "
-          f"{time.perf_counter() - t_suite:.1f} s; reports in {out}/index.html", file=sys.stderr)
+    print(
+        f"{counts['pass']} passed, {counts['fail']} failed, {counts['error']} errors in "
+        f"{time.perf_counter() - t_suite:.1f} s; reports in {out}/index.html",
+        file=sys.stderr,
+    )
     if counts["error"]:
         return EXIT_ERROR
     return EXIT_FAILED if counts["fail"] else 0

@@ -25,7 +25,7 @@ from emulators.topology import Board, build_board
 from plant import Plant
 
 STEP_NS = 1_000_000
-HISTORY = 256            # plant steps kept for devices catching up (256 ms at 1 ms)
+HISTORY = 256  # plant steps kept for devices catching up (256 ms at 1 ms)
 MOTORS = 4
 FAULT_TARGETS = ("accel", "gyro", "mag", "baro", "mpu", "hmc", "baro_bus")
 G0 = 9.80665
@@ -87,10 +87,16 @@ class World:
         self._u_pwm = [self.plant.u_index[f"pwm{m + 1}_us"] for m in range(MOTORS)]
 
     @classmethod
-    def at_rest(cls, seed: int = 0, topology: str = "gy86", noise: bool = True,
-                params: Mapping[str, float] | None = None, pwm_channels: int = 8,
-                faults: Mapping[str, FaultSet] | None = None,
-                mag_disturbance: Callable[[float], tuple[float, float, float]] | None = None) -> World:
+    def at_rest(
+        cls,
+        seed: int = 0,
+        topology: str = "gy86",
+        noise: bool = True,
+        params: Mapping[str, float] | None = None,
+        pwm_channels: int = 8,
+        faults: Mapping[str, FaultSet] | None = None,
+        mag_disturbance: Callable[[float], tuple[float, float, float]] | None = None,
+    ) -> World:
         """The default world of ``rig exec``: the vehicle resting on the ground, motors off, a GY-86.
         ``faults`` by name: signal faults "accel", "gyro", "mag", "baro" act in the sensor models; bus
         faults "mpu", "hmc", "baro_bus" wrap the device on the bus."""
@@ -99,20 +105,35 @@ class World:
         if unknown:
             raise ValueError(f"unknown fault target(s) {sorted(unknown)}; known: {', '.join(FAULT_TARGETS)}")
         plant = Plant(params=params or {}, inputs={f"pwm{m + 1}_us": 0.0 for m in range(MOTORS)})
+
         def truth(t: float) -> Mapping[str, float]:  # the models need the world that holds them
             return world.truth(t)
 
         nd = DATASHEET_NOISE if noise else {"accel": 0.0, "gyro": 0.0, "mag": 0.0}
-        imu = ImuModel(truth, accel=AxisErrors(noise_density=nd["accel"]),
-                       gyro=AxisErrors(noise_density=nd["gyro"]), seed=seed,
-                       accel_faults=faults.get("accel", FaultSet()), gyro_faults=faults.get("gyro", FaultSet()))
-        mag = MagModel(truth, errors=AxisErrors(noise_density=nd["mag"]), seed=seed + 1,
-                       faults=faults.get("mag", FaultSet()),
-                       disturbance=mag_disturbance or (lambda t: (0.0, 0.0, 0.0)))
+        imu = ImuModel(
+            truth,
+            accel=AxisErrors(noise_density=nd["accel"]),
+            gyro=AxisErrors(noise_density=nd["gyro"]),
+            seed=seed,
+            accel_faults=faults.get("accel", FaultSet()),
+            gyro_faults=faults.get("gyro", FaultSet()),
+        )
+        mag = MagModel(
+            truth,
+            errors=AxisErrors(noise_density=nd["mag"]),
+            seed=seed + 1,
+            faults=faults.get("mag", FaultSet()),
+            disturbance=mag_disturbance or (lambda t: (0.0, 0.0, 0.0)),
+        )
         baro = BaroModel(truth, seed=seed + 2, faults=faults.get("baro", FaultSet()))
         devices = MPU6050(imu), HMC5883L(mag), MS5611(baro, seed=seed + 3)
-        wrap = {name: FaultyDevice(dev, faults[key]) for name, key, dev in
-                zip(("mpu", "hmc", "baro"), ("mpu", "hmc", "baro_bus"), devices, strict=True) if key in faults}
+        wrap = {
+            name: FaultyDevice(dev, faults[key])
+            for name, key, dev in zip(
+                ("mpu", "hmc", "baro"), ("mpu", "hmc", "baro_bus"), devices, strict=True
+            )
+            if key in faults
+        }
         board = build_board(*devices, topology, wrap=wrap)  # type: ignore[arg-type]
         world = cls(plant, board, pwm=[PwmChannel() for _ in range(pwm_channels)])
         return world
@@ -155,4 +176,3 @@ class World:
 
     def close(self) -> None:
         self.plant.close()
-

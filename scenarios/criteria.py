@@ -25,7 +25,7 @@ class Params:
 class MetricDef:
     fn: Metric
     needs: tuple[str, ...]
-    units: str | None        # None: the signal's units
+    units: str | None  # None: the signal's units
     text: str
 
 
@@ -98,8 +98,6 @@ def final(t: np.ndarray, x: np.ndarray, p: Params) -> float:
     return float(x[-1])
 
 
-
-
 METRICS: dict[str, MetricDef] = {
     "overshoot": MetricDef(overshoot, ("target",), "%", "percent of the step beyond the target"),
     "rise_time": MetricDef(rise_time, ("target",), "s", "10 % to 90 % of the step"),
@@ -126,16 +124,29 @@ class Measurement:
     max: float | None
     start: float
     end: float
-    outcome: str       # "pass" | "fail"
+    outcome: str  # "pass" | "fail"
     reason: str = ""
 
 
-def measure(name: str, metric: str, signal: str, t: np.ndarray, x: np.ndarray, start: float, end: float,
-            target: float | None, band: float | None, lo: float | None, hi: float | None,
-            units: str) -> Measurement:
+def measure(
+    name: str,
+    metric: str,
+    signal: str,
+    t: np.ndarray,
+    x: np.ndarray,
+    start: float,
+    end: float,
+    target: float | None,
+    band: float | None,
+    lo: float | None,
+    hi: float | None,
+    units: str,
+) -> Measurement:
     """Evaluates one criterion over the samples of ``x`` with ``start <= t <= end``."""
     sel = (t >= start - 1e-9) & (t <= end + 1e-9)
     xs, ts = x[sel], t[sel]
+    if metric == "final":  # only the last sample counts (a DUT value unreported early is fine)
+        xs, ts = xs[-1:], ts[-1:]
     reason = ""
     if not len(xs):
         value, reason = math.nan, "no samples in the window"
@@ -146,4 +157,6 @@ def measure(name: str, metric: str, signal: str, t: np.ndarray, x: np.ndarray, s
     ok = math.isfinite(value) and (lo is None or value >= lo) and (hi is None or value <= hi)
     if not ok and not reason:
         reason = "not measurable" if math.isnan(value) else "outside the limits"
-    return Measurement(name, metric, signal, value, units, lo, hi, start, end, "pass" if ok else "fail", reason)
+    return Measurement(
+        name, metric, signal, value, units, lo, hi, start, end, "pass" if ok else "fail", reason
+    )

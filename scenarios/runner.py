@@ -36,13 +36,19 @@ REPO = Path(__file__).resolve().parents[1]
 REFERENCE_FC = REPO / "build" / "dut" / "fc"
 RC_PATH, TELEMETRY_PATH = "/dev/ttyRC0", "/dev/ttyTEL0"
 WIND_PERIOD = 0.01
-TELEMETRY_KEYS = {"roll": "est_roll", "pitch": "est_pitch", "yaw": "est_yaw", "alt": "est_alt", "armed": "armed"}
+TELEMETRY_KEYS = {
+    "roll": "est_roll",
+    "pitch": "est_pitch",
+    "yaw": "est_yaw",
+    "alt": "est_alt",
+    "armed": "armed",
+}
 
 
 @dataclass
 class RunResult:
     scenario: Scenario
-    verdict: str                       # "pass" | "fail" | "error"
+    verdict: str  # "pass" | "fail" | "error"
     error: str | None
     measurements: list[Measurement]
     signals: dict[str, np.ndarray]
@@ -93,7 +99,9 @@ class _Wind:
     def tick(self, session: Session, t: float) -> None:
         sc = self.sc
         if sc.turbulence > 0:
-            self.turb = self.a * self.turb + sc.turbulence * math.sqrt(1 - self.a ** 2) * self.rng.normal(size=3)
+            self.turb = self.a * self.turb + sc.turbulence * math.sqrt(1 - self.a**2) * self.rng.normal(
+                size=3
+            )
         w = np.array(sc.wind) + self.turb
         for g in sc.gusts:
             if g.start <= t <= g.start + g.duration:
@@ -120,22 +128,49 @@ class _Recorder:
         t = self.k * RECORD_PERIOD
         st = self.rc.sticks
         faulted = any(f.start <= t < f.end for f in self.sc.faults) or (
-            any(self.sc.mag_disturbance) and self.sc.mag_disturbance_start <= t < self.sc.mag_disturbance_end)
-        self.rows.append((
-            t, y[yi["roll"]], y[yi["pitch"]], y[yi["yaw"]], -y[yi["pd"]], -y[yi["vd"]],
-            math.hypot(y[yi["vn"]], y[yi["ve"]]), y[yi["p"]], y[yi["q"]], y[yi["r"]],
-            *(u[ui[f"pwm{m}_us"]] for m in range(1, 5)), float(plant.on_ground),
-            st.roll * self.sc.max_angle_deg, st.pitch * self.sc.max_angle_deg,
-            st.yaw * self.sc.max_yaw_rate_dps, st.throttle, float(self.rc.link == "ok"), float(faulted),
-            float(np.linalg.norm(self.wind.now))))
+            any(self.sc.mag_disturbance) and self.sc.mag_disturbance_start <= t < self.sc.mag_disturbance_end
+        )
+        self.rows.append(
+            (
+                t,
+                y[yi["roll"]],
+                y[yi["pitch"]],
+                y[yi["yaw"]],
+                -y[yi["pd"]],
+                -y[yi["vd"]],
+                math.hypot(y[yi["vn"]], y[yi["ve"]]),
+                y[yi["p"]],
+                y[yi["q"]],
+                y[yi["r"]],
+                *(u[ui[f"pwm{m}_us"]] for m in range(1, 5)),
+                float(plant.on_ground),
+                st.roll * self.sc.max_angle_deg,
+                st.pitch * self.sc.max_angle_deg,
+                st.yaw * self.sc.max_yaw_rate_dps,
+                st.throttle,
+                float(self.rc.link == "ok"),
+                float(faulted),
+                float(np.linalg.norm(self.wind.now)),
+            )
+        )
         self.k += 1
         session.at(self.k * RECORD_PERIOD, self.tick)
 
     def signals(self) -> dict[str, np.ndarray]:
         a = np.array(self.rows, dtype=float).reshape(-1, 22)
         deg = 180 / math.pi
-        s = {"t": a[:, 0], "roll": a[:, 1] * deg, "pitch": a[:, 2] * deg, "yaw": a[:, 3] * deg, "alt": a[:, 4],
-             "climb": a[:, 5], "speed": a[:, 6], "p": a[:, 7] * deg, "q": a[:, 8] * deg, "r": a[:, 9] * deg}
+        s = {
+            "t": a[:, 0],
+            "roll": a[:, 1] * deg,
+            "pitch": a[:, 2] * deg,
+            "yaw": a[:, 3] * deg,
+            "alt": a[:, 4],
+            "climb": a[:, 5],
+            "speed": a[:, 6],
+            "p": a[:, 7] * deg,
+            "q": a[:, 8] * deg,
+            "r": a[:, 9] * deg,
+        }
         for m in range(4):
             s[f"pwm{m + 1}"] = a[:, 10 + m]
         s["pwm_max"], s["pwm_min"] = a[:, 10:14].max(axis=1), a[:, 10:14].min(axis=1)
@@ -158,7 +193,10 @@ def parse_telemetry(text: bytes) -> tuple[dict[str, np.ndarray], int]:
             continue
         try:
             kv = dict(item.split("=", 1) for item in line[2:].split())
-            row = {"t": float(kv["t"]) - MONO_BASE_NS / NS, **{k: float(kv[k]) for k in TELEMETRY_KEYS if k in kv}}
+            row = {
+                "t": float(kv["t"]) - MONO_BASE_NS / NS,
+                **{k: float(kv[k]) for k in TELEMETRY_KEYS if k in kv},
+            }
         except (ValueError, KeyError):
             bad += 1
             continue
@@ -183,8 +221,15 @@ def _wrap180(x: np.ndarray) -> np.ndarray:
     return (x + 180.0) % 360.0 - 180.0
 
 
-def run(scenario: Scenario, dut: list[str] | None = None, seed: int = 0, work_dir: Path | None = None,
-        wall_timeout: float = 600.0, stall_timeout: float = 30.0, corrupt_every: int = 0) -> RunResult:
+def run(
+    scenario: Scenario,
+    dut: list[str] | None = None,
+    seed: int = 0,
+    work_dir: Path | None = None,
+    wall_timeout: float = 600.0,
+    stall_timeout: float = 30.0,
+    corrupt_every: int = 0,
+) -> RunResult:
     """Runs ``scenario``; the reference FC (configured from the scenario's [fc] table) when ``dut`` is
     None. DUT stdout and stderr go to ``work_dir`` (a temporary folder when None)."""
     work = Path(work_dir) if work_dir else Path(tempfile.mkdtemp(prefix="rig-run-"))
@@ -202,25 +247,48 @@ def run(scenario: Scenario, dut: list[str] | None = None, seed: int = 0, work_di
             notes.append("the scenario's [fc] table configures the reference FC only; ignored for this DUT")
     exe = shutil.which(command[0])
     metadata: dict[str, object] = {
-        "rig_version": __version__, "scenario": scenario.stem, "scenario_name": scenario.name,
-        "scenario_sha256": scenario.sha256, "seed": seed, "dut_command": shlex.join(command),
-        "dut_binary_sha256": _sha256(Path(exe)) if exe else None, "capture": scenario.capture.transport,
-        "duration": scenario.duration, "lockstep": True,
+        "rig_version": __version__,
+        "scenario": scenario.stem,
+        "scenario_name": scenario.name,
+        "scenario_sha256": scenario.sha256,
+        "seed": seed,
+        "dut_command": shlex.join(command),
+        "dut_binary_sha256": _sha256(Path(exe)) if exe else None,
+        "capture": scenario.capture.transport,
+        "duration": scenario.duration,
+        "lockstep": True,
     }
     mag = scenario.mag_disturbance
-    world = World.at_rest(seed=seed, noise=scenario.noise, params=scenario.plant,
-                          faults=_fault_sets(scenario, seed),
-                          mag_disturbance=(lambda t: mag if scenario.mag_disturbance_start <= t
-                                           < scenario.mag_disturbance_end else (0.0, 0.0, 0.0)) if any(mag) else None)
+    world = World.at_rest(
+        seed=seed,
+        noise=scenario.noise,
+        params=scenario.plant,
+        faults=_fault_sets(scenario, seed),
+        mag_disturbance=(
+            lambda t: (
+                mag if scenario.mag_disturbance_start <= t < scenario.mag_disturbance_end else (0.0, 0.0, 0.0)
+            )
+        )
+        if any(mag)
+        else None,
+    )
     metadata["plant_fmu_sha256"] = _sha256(world.plant.fmu_path)
     baro = world.board.baro.source
     baro.noise_pa, baro.drift_pa_per_s = scenario.baro_noise_pa, scenario.baro_drift_pa_per_s
 
     stderr_path = work / "dut-stderr.txt"
     with open(stderr_path, "w") as err, open(work / "dut-stdout.txt", "w") as out:
-        cfg = SessionConfig(command=command, serial=[RC_PATH, TELEMETRY_PATH], duration=scenario.duration,
-                            seed=seed, noise=scenario.noise, wall_timeout=wall_timeout,
-                            stall_timeout=stall_timeout, stdout=out, stderr=err)
+        cfg = SessionConfig(
+            command=command,
+            serial=[RC_PATH, TELEMETRY_PATH],
+            duration=scenario.duration,
+            seed=seed,
+            noise=scenario.noise,
+            wall_timeout=wall_timeout,
+            stall_timeout=stall_timeout,
+            stdout=out,
+            stderr=err,
+        )
         session = Session(cfg, world)
         capture = install_capture(session, scenario.capture, seed, corrupt_every)
         rc = StickEmulator(RC_PATH)
@@ -242,18 +310,38 @@ def run(scenario: Scenario, dut: list[str] | None = None, seed: int = 0, work_di
     if bad:
         notes.append(f"{bad} telemetry line(s) from the DUT did not parse and were skipped")
     for k, name in TELEMETRY_KEYS.items():
-        signals[name] = _hold(signals["t"], tel["t"], tel[k]) if len(tel["t"]) else np.full(len(signals["t"]),
-                                                                                          math.nan)
+        signals[name] = (
+            _hold(signals["t"], tel["t"], tel[k]) if len(tel["t"]) else np.full(len(signals["t"]), math.nan)
+        )
     for ax in ("roll", "pitch", "alt"):
         signals[f"{ax}_est_error"] = signals[f"est_{ax}"] - signals[ax]
     signals["yaw_est_error"] = _wrap180(signals["est_yaw"] - signals["yaw"])
     if capture is not None:
         metadata["capture_stats"] = capture.stats()
-    metadata.update(sim_time=outcome.sim_time, wall_time=outcome.wall_time,
-                    realtime_factor=outcome.sim_time / outcome.wall_time if outcome.wall_time > 0 else None,
-                    dut_returncode=outcome.dut_returncode, bus_transactions=outcome.transactions)
-    measurements = [measure(c.name, c.metric, c.signal, signals["t"], signals[c.signal], c.start, c.end, c.target,
-                            c.band, c.min, c.max, c.units) for c in scenario.criteria]
+    metadata.update(
+        sim_time=outcome.sim_time,
+        wall_time=outcome.wall_time,
+        realtime_factor=outcome.sim_time / outcome.wall_time if outcome.wall_time > 0 else None,
+        dut_returncode=outcome.dut_returncode,
+        bus_transactions=outcome.transactions,
+    )
+    measurements = [
+        measure(
+            c.name,
+            c.metric,
+            c.signal,
+            signals["t"],
+            signals[c.signal],
+            c.start,
+            c.end,
+            c.target,
+            c.band,
+            c.min,
+            c.max,
+            c.units,
+        )
+        for c in scenario.criteria
+    ]
     error = None
     if outcome.verdict != "ok":
         error = outcome.error or f"the DUT ended the run itself (status {outcome.dut_returncode})"
@@ -262,8 +350,17 @@ def run(scenario: Scenario, dut: list[str] | None = None, seed: int = 0, work_di
         verdict = "pass" if all(m.outcome == "pass" for m in measurements) else "fail"
     notes += outcome.notes
     assert set(SIGNALS) <= set(signals), set(SIGNALS) - set(signals)
-    return RunResult(scenario, verdict, error, measurements, signals, metadata, outcome,
-                     stderr_path.read_text(errors="replace"), notes)
+    return RunResult(
+        scenario,
+        verdict,
+        error,
+        measurements,
+        signals,
+        metadata,
+        outcome,
+        stderr_path.read_text(errors="replace"),
+        notes,
+    )
 
 
 def _apply_event(rc: StickEmulator, ev: Event) -> Callable[[Session], None]:
@@ -275,4 +372,5 @@ def _apply_event(rc: StickEmulator, ev: Event) -> Callable[[Session], None]:
         plant = session.world.plant
         for k, v in ev.inputs.items():
             plant.u[plant.u_index[k]] = v
+
     return apply

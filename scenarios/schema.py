@@ -123,6 +123,7 @@ class Scenario:
 
 # ---- the checker -----------------------------------------------------------------------------------
 
+
 class _Check:
     """Walks one file's tables; every access records the key so unknown keys can be reported."""
 
@@ -137,12 +138,21 @@ class _Check:
             raise self.fail(key, f"expected a table, got {_kind(data)}")
         for k in data:
             if k not in known:
-                raise self.fail(f"{key}.{k}" if key else k,
-                                f"unknown key; expected one of: {', '.join(sorted(known))}")
+                raise self.fail(
+                    f"{key}.{k}" if key else k, f"unknown key; expected one of: {', '.join(sorted(known))}"
+                )
         return data
 
-    def number(self, data: dict[str, Any], key: str, path: str, default: float | None = None,
-               low: float = -math.inf, high: float = math.inf, positive: bool = False) -> float:
+    def number(
+        self,
+        data: dict[str, Any],
+        key: str,
+        path: str,
+        default: float | None = None,
+        low: float = -math.inf,
+        high: float = math.inf,
+        positive: bool = False,
+    ) -> float:
         full = f"{path}.{key}" if path else key
         if key not in data:
             if default is None:
@@ -160,8 +170,14 @@ class _Check:
     def optional(self, data: dict[str, Any], key: str, path: str) -> float | None:
         return self.number(data, key, path) if key in data else None
 
-    def string(self, data: dict[str, Any], key: str, path: str, default: str | None = None,
-               choices: tuple[str, ...] | None = None) -> str:
+    def string(
+        self,
+        data: dict[str, Any],
+        key: str,
+        path: str,
+        default: str | None = None,
+        choices: tuple[str, ...] | None = None,
+    ) -> str:
         full = f"{path}.{key}" if path else key
         if key not in data:
             if default is None:
@@ -182,8 +198,11 @@ class _Check:
 
     def vector(self, data: dict[str, Any], key: str, path: str) -> tuple[float, float, float]:
         v = data.get(key, [0.0, 0.0, 0.0])
-        if (not isinstance(v, list) or len(v) != 3
-                or any(isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x) for x in v)):
+        if (
+            not isinstance(v, list)
+            or len(v) != 3
+            or any(isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x) for x in v)
+        ):
             raise self.fail(f"{path}.{key}", f"expected 3 finite numbers [north, east, down], got {v!r}")
         return (float(v[0]), float(v[1]), float(v[2]))
 
@@ -195,23 +214,55 @@ class _Check:
 
 
 def _kind(v: Any) -> str:
-    return {bool: "a boolean", int: "an integer", float: "a number", str: "a string", list: "an array",
-            dict: "a table"}.get(type(v), type(v).__name__)
+    return {
+        bool: "a boolean",
+        int: "an integer",
+        float: "a number",
+        str: "a string",
+        list: "an array",
+        dict: "a table",
+    }.get(type(v), type(v).__name__)
 
 
-TOP = {"scenario": "", "vehicle": "", "fc": "", "sensors": "", "environment": "", "rc": "", "capture": "",
-       "timeline": "", "faults": "", "gusts": "", "criteria": ""}
+TOP = {
+    "scenario": "",
+    "vehicle": "",
+    "fc": "",
+    "sensors": "",
+    "environment": "",
+    "rc": "",
+    "capture": "",
+    "timeline": "",
+    "faults": "",
+    "gusts": "",
+    "criteria": "",
+}
 SCENARIO_KEYS = {"name": "", "description": "", "seed_paper": "", "duration": ""}
 SENSOR_KEYS = {"noise": "", "baro_noise_pa": "", "baro_drift_pa_per_s": ""}
-ENV_KEYS = {"wind": "", "turbulence": "", "turbulence_tau": "", "mag_disturbance": "",
-            "mag_disturbance_start": "", "mag_disturbance_end": ""}
+ENV_KEYS = {
+    "wind": "",
+    "turbulence": "",
+    "turbulence_tau": "",
+    "mag_disturbance": "",
+    "mag_disturbance_start": "",
+    "mag_disturbance_end": "",
+}
 RC_KEYS = {"max_angle_deg": "", "max_yaw_rate_dps": ""}
 CAPTURE_KEYS = {"transport": "", "resolution_us": "", "rate_hz": "", "latency_s": ""}
 EVENT_KEYS = {"t": "", "sticks": "", "link": "", "inputs": ""}
 FAULT_KEYS = {"target": "", "kind": "", "start": "", "end": "", "magnitude": "", "period": "", "duty": ""}
 GUST_KEYS = {"start": "", "duration": "", "peak": ""}
-CRITERION_KEYS = {"name": "", "metric": "", "signal": "", "start": "", "end": "", "target": "", "band": "",
-                  "min": "", "max": ""}
+CRITERION_KEYS = {
+    "name": "",
+    "metric": "",
+    "signal": "",
+    "start": "",
+    "end": "",
+    "target": "",
+    "band": "",
+    "min": "",
+    "max": "",
+}
 
 
 def load(path: str | Path) -> Scenario:
@@ -240,17 +291,21 @@ def load(path: str | Path) -> Scenario:
     fc = {}
     for k, v in fc_raw.items():
         if isinstance(v, bool) or not isinstance(v, int | float | str):
-            raise c.fail(f"fc.{k}", f"expected a number or a string (a reference-FC config value), got {_kind(v)}")
+            raise c.fail(
+                f"fc.{k}", f"expected a number or a string (a reference-FC config value), got {_kind(v)}"
+            )
         fc[k] = str(v)
 
     sensors = c.table(data.get("sensors", {}), "sensors", SENSOR_KEYS)
     env = c.table(data.get("environment", {}), "environment", ENV_KEYS)
     rc = c.table(data.get("rc", {}), "rc", RC_KEYS)
     cap = c.table(data.get("capture", {}), "capture", CAPTURE_KEYS)
-    capture = Capture(c.string(cap, "transport", "capture", "direct", CAPTURES),
-                      c.number(cap, "resolution_us", "capture", 1.0, positive=True, high=100),
-                      c.number(cap, "rate_hz", "capture", 400.0, positive=True, high=10_000),
-                      c.number(cap, "latency_s", "capture", 0.0, low=0, high=1))
+    capture = Capture(
+        c.string(cap, "transport", "capture", "direct", CAPTURES),
+        c.number(cap, "resolution_us", "capture", 1.0, positive=True, high=100),
+        c.number(cap, "rate_hz", "capture", 400.0, positive=True, high=10_000),
+        c.number(cap, "latency_s", "capture", 0.0, low=0, high=1),
+    )
 
     timeline = []
     for i, e in enumerate(c.array(data, "timeline")):
@@ -277,17 +332,29 @@ def load(path: str | Path) -> Scenario:
         end = c.number(f, "end", key, math.inf)
         if not end > start:
             raise c.fail(f"{key}.end", f"expected a time after start ({start:g} s), got {end:g}")
-        faults.append(Fault(c.string(f, "target", key, choices=FAULT_TARGETS),
-                            c.string(f, "kind", key, choices=FAULT_KINDS), start, end,
-                            c.number(f, "magnitude", key, 0.0), c.number(f, "period", key, 0.1, positive=True),
-                            c.number(f, "duty", key, 0.5, low=0, high=1)))
+        faults.append(
+            Fault(
+                c.string(f, "target", key, choices=FAULT_TARGETS),
+                c.string(f, "kind", key, choices=FAULT_KINDS),
+                start,
+                end,
+                c.number(f, "magnitude", key, 0.0),
+                c.number(f, "period", key, 0.1, positive=True),
+                c.number(f, "duty", key, 0.5, low=0, high=1),
+            )
+        )
 
     gusts = []
     for i, g in enumerate(c.array(data, "gusts")):
         key = f"gusts[{i}]"
         g = c.table(g, key, GUST_KEYS)
-        gusts.append(Gust(c.number(g, "start", key, low=0, high=duration),
-                          c.number(g, "duration", key, positive=True), c.vector(g, "peak", key)))
+        gusts.append(
+            Gust(
+                c.number(g, "start", key, low=0, high=duration),
+                c.number(g, "duration", key, positive=True),
+                c.vector(g, "peak", key),
+            )
+        )
 
     criteria = []
     for i, cr in enumerate(c.array(data, "criteria")):
@@ -309,16 +376,31 @@ def load(path: str | Path) -> Scenario:
         band = c.optional(cr, "band", key)
         if band is not None and band <= 0:
             raise c.fail(f"{key}.band", f"expected a number > 0, got {band}")
-        criteria.append(CriterionSpec(c.string(cr, "name", key, f"{metric} of {signal}"), metric, signal, start,
-                                      end, c.optional(cr, "target", key), band, lo, hi,
-                                      m.units or SIGNALS[signal].units))
+        criteria.append(
+            CriterionSpec(
+                c.string(cr, "name", key, f"{metric} of {signal}"),
+                metric,
+                signal,
+                start,
+                end,
+                c.optional(cr, "target", key),
+                band,
+                lo,
+                hi,
+                m.units or SIGNALS[signal].units,
+            )
+        )
     if not criteria:
         raise c.fail("criteria", "missing; expected at least one [[criteria]] table")
 
     return Scenario(
-        path=path, name=c.string(meta, "name", "scenario", path.stem),
+        path=path,
+        name=c.string(meta, "name", "scenario", path.stem),
         description=c.string(meta, "description", "scenario", ""),
-        seed_paper=c.string(meta, "seed_paper", "scenario", ""), duration=duration, plant=plant, fc=fc,
+        seed_paper=c.string(meta, "seed_paper", "scenario", ""),
+        duration=duration,
+        plant=plant,
+        fc=fc,
         noise=c.boolean(sensors, "noise", "sensors", True),
         baro_noise_pa=c.number(sensors, "baro_noise_pa", "sensors", 0.0, low=0),
         baro_drift_pa_per_s=c.number(sensors, "baro_drift_pa_per_s", "sensors", 0.0),
@@ -328,11 +410,15 @@ def load(path: str | Path) -> Scenario:
         mag_disturbance=c.vector(env, "mag_disturbance", "environment"),
         mag_disturbance_start=c.number(env, "mag_disturbance_start", "environment", 0.0, low=0),
         mag_disturbance_end=c.number(env, "mag_disturbance_end", "environment", math.inf),
-        gusts=tuple(gusts), faults=tuple(faults), timeline=tuple(sorted(timeline, key=lambda e: e.t)),
-        criteria=tuple(criteria), capture=capture,
+        gusts=tuple(gusts),
+        faults=tuple(faults),
+        timeline=tuple(sorted(timeline, key=lambda e: e.t)),
+        criteria=tuple(criteria),
+        capture=capture,
         max_angle_deg=c.number(rc, "max_angle_deg", "rc", 30.0, positive=True, high=90),
         max_yaw_rate_dps=c.number(rc, "max_yaw_rate_dps", "rc", 90.0, positive=True),
-        sha256=hashlib.sha256(raw).hexdigest())
+        sha256=hashlib.sha256(raw).hexdigest(),
+    )
 
 
 class _AnyKey(dict[str, str]):

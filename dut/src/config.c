@@ -14,7 +14,7 @@ static int profile_apply(fc_config *c, const char *name)
 {
     if (strcmp(name, "default") == 0) {
         c->angle_kp = 4.5; c->angle_ki = 0.35; c->angle_kd = 0;
-        c->rate_kp = 40; c->rate_ki = 8; c->rate_kd = 0.5;
+        c->rate_kp = 40; c->rate_ki = 40; c->rate_kd = 0.5;
     } else if (strcmp(name, "seed002") == 0) {
         c->angle_kp = 4.5; c->angle_ki = 0.35; c->angle_kd = 0;
         c->rate_kp = 140; c->rate_ki = 15; c->rate_kd = 2.5;
@@ -37,8 +37,8 @@ void config_defaults(fc_config *c)
     c->kp_est = 0.3;
     c->ki_est = 0.01;
     profile_apply(c, "default");
-    c->yaw_rate_kp = 60; c->yaw_rate_ki = 5;
-    c->alt_kp = 1.0; c->alt_ki = 0.1; c->alt_kd = 0.0; c->alt_kv = 2.0;
+    c->yaw_rate_kp = 300; c->yaw_rate_ki = 30;
+    c->alt_kp = 1.0; c->alt_ki = 0.1; c->alt_kd = 0.0; c->alt_kv = 2.0; c->baro_gate_m = 3.0;
     c->acc_kp = 2.0; c->acc_ki = 0.5; c->acc_kd = 0.0;
     c->angle_limit = 100; c->alt_limit = 10;
     c->hover_us = 1511;
@@ -58,7 +58,7 @@ static const struct key keys[] = {
     I(estimator), I(mixer), D(est_rate_hz, 1), D(ctrl_rate_hz, 1), I(defect_mixer_sign), I(defect_never_arm),
     I(gyro_fault_check), D(defect_crash_at, 1), D(kp_est, 1), D(ki_est, 1), D(angle_kp, 1), D(angle_ki, 1),
     D(angle_kd, 1), D(rate_kp, 1), D(rate_ki, 1), D(rate_kd, 1), D(yaw_rate_kp, 1), D(yaw_rate_ki, 1),
-    D(alt_kp, 1), D(alt_ki, 1), D(alt_kd, 1), D(alt_kv, 1), D(acc_kp, 1), D(acc_ki, 1), D(acc_kd, 1), D(angle_limit, 1),
+    D(alt_kp, 1), D(alt_ki, 1), D(alt_kd, 1), D(alt_kv, 1), D(baro_gate_m, 1), D(acc_kp, 1), D(acc_ki, 1), D(acc_kd, 1), D(angle_limit, 1),
     D(alt_limit, 1), D(hover_us, 1), D(max_angle_deg, 1), D(max_yaw_rate_dps, 1), D(alpha, 4), D(beta, 4),
     D(acc_offset, 3), D(acc_scale, 3), D(mag_offset, 3), D(mag_scale, 3), I(telemetry_every),
 };

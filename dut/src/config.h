@@ -21,6 +21,7 @@ typedef struct {
     double rate_kp, rate_ki, rate_kd;     /* eq. 10 */
     double yaw_rate_kp, yaw_rate_ki;
     double alt_kp, alt_ki, alt_kd;        /* eq. 11 */
+    double baro_gate_m;                   /* barometer innovation gate */
     double alt_kv;                        /* damping: m/s^2 per m/s of the fused climb rate */
     double acc_kp, acc_ki, acc_kd;        /* eq. 12 */
     double angle_limit, alt_limit;        /* eqs. 13-14 */

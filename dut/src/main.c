@@ -36,7 +36,7 @@ static vec3 calibrate(vec3 v, const double off[3], const double scale[3])
     return v3((v.x - off[0]) * scale[0], (v.y - off[1]) * scale[1], (v.z - off[2]) * scale[2]);
 }
 
-static double i_limit(double out_limit, double ki) { return ki > 0 ? 0.25 * out_limit / ki : 0; }
+static double i_limit(double out_limit, double ki) { return ki > 0 ? 0.5 * out_limit / ki : 0; }
 
 int main(int argc, char **argv)
 {
@@ -115,7 +115,7 @@ int main(int argc, char **argv)
     pid angle[2], rate[3], alt_pid, acc_pid;
     for (int i = 0; i < 2; i++) {
         pid_init(&angle[i], c.angle_kp, c.angle_ki, c.angle_kd, 0, 0.1); /* anti-windup: I adds <= ki * 0.1 rad/s */
-        /* anti-windup: the integral term may supply at most a quarter of the output limit, so a large
+        /* anti-windup: the integral term may supply at most half the output limit, so a large
            manoeuvre (the roll stand's release) does not leave a slowly unwinding tail */
         pid_init(&rate[i], c.rate_kp, c.rate_ki, c.rate_kd, c.angle_limit, i_limit(c.angle_limit, c.rate_ki));
     }
@@ -129,7 +129,7 @@ int main(int argc, char **argv)
     sbus_frame sticks;
     memset(&sticks, 0, sizeof sticks);
     double last_rc = -1e9, failsafe_since = -1, start_pressure = 0, alt_target = 0, last_baro = 0;
-    int armed = 0, had_rc = 0, reported_garbage = 0, alt_hold = 0, gyro_same = 0, gyro_fault = 0;
+    int baro_rejects = 0, armed = 0, had_rc = 0, reported_garbage = 0, alt_hold = 0, gyro_same = 0, gyro_fault = 0;
     double ctrl_phase = 1.0; /* the first cycle controls */
     vec3 last_gyro = v3(0, 0, 0);
     double out[4] = {1000, 1000, 1000, 1000};
@@ -178,7 +178,16 @@ int main(int argc, char **argv)
                 start_pressure = p_pa;
             double dt = last_baro > 0 ? t0 - last_baro : 0.0; /* the first pair only initialises */
             last_baro = t0;
-            alt_filter_update(&altf, baro_altitude(p_pa, start_pressure), acc_up, dt);
+            /* innovation gate: a barometer jump of more than baro_gate_m against the fused altitude is a
+               glitch, not a climb; after 25 rejections in a row (about 0.6 s) the reading is believed */
+            double bh = baro_altitude(p_pa, start_pressure);
+            if (altf.started && fabs(bh - altf.h) > c.baro_gate_m && baro_rejects < 25) {
+                baro_rejects++;
+                alt_filter_update(&altf, altf.h, acc_up, dt); /* coast on the accelerometer */
+            } else {
+                baro_rejects = 0;
+                alt_filter_update(&altf, bh, acc_up, dt);
+            }
         }
         /* RC */
         if (rc >= 0) {
