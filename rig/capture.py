@@ -168,9 +168,7 @@ class CaptureLink:
             os.close(self.master)
 
 
-def install_capture(
-    session: Session, capture: Capture, seed: int = 0, corrupt_every: int = 0
-) -> CaptureLink | None:
+def install_capture(session: Session, capture: Capture, corrupt_every: int = 0) -> CaptureLink | None:
     """Puts a capture link between the DUT's PWM outputs and the plant; None for the direct path."""
     if capture.transport == "direct":
         return None

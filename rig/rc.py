@@ -12,11 +12,12 @@ order is AETR (roll, pitch, throttle, yaw), then the arm switch (ch5) and the al
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import TYPE_CHECKING
 
-FRAME_LEN = 25
+if TYPE_CHECKING:
+    from rig.session import Session
+
 HEADER, FOOTER = 0x0F, 0x00
 FLAG_FRAME_LOST, FLAG_FAILSAFE = 0x04, 0x08
 RAW_MIN, RAW_CENTRE, RAW_MAX = 172, 992, 1811
@@ -41,14 +42,6 @@ def encode(channels: list[int], frame_lost: bool = False, failsafe: bool = False
     return bytes([HEADER]) + acc.to_bytes(22, "little") + bytes([flags, FOOTER])
 
 
-def decode(frame: bytes) -> tuple[list[int], int]:
-    """The channels and flags of one frame (for tests and captures); raises ValueError on a bad frame."""
-    if len(frame) != FRAME_LEN or frame[0] != HEADER or frame[-1] != FOOTER:
-        raise ValueError(f"not an SBUS frame: {frame.hex()}")
-    acc = int.from_bytes(frame[1:23], "little")
-    return [(acc >> (11 * i)) & 0x7FF for i in range(CHANNELS)], frame[23]
-
-
 @dataclass
 class Sticks:
     roll: float = 0.0
@@ -67,11 +60,6 @@ class Sticks:
         return ch
 
 
-class _Scheduler(Protocol):
-    def at(self, t: float, fn: Callable[..., None]) -> None: ...
-    def serial_write(self, path: str, data: bytes) -> None: ...
-
-
 @dataclass
 class StickEmulator:
     """Sends a frame every ``period`` seconds of sim time on ``path`` while ``link`` is up. Scenarios
@@ -82,12 +70,11 @@ class StickEmulator:
     period: float = PERIOD_S
     sticks: Sticks = field(default_factory=Sticks)
     link: str = "ok"
-    frames_sent: int = 0
 
-    def start(self, session: _Scheduler, t: float = 0.0) -> None:
+    def start(self, session: Session, t: float = 0.0) -> None:
         session.at(t, lambda s: self._tick(s, t))
 
-    def _tick(self, session: _Scheduler, t: float) -> None:
+    def _tick(self, session: Session, t: float) -> None:
         if self.link != "lost":
             session.serial_write(
                 self.path,
@@ -97,6 +84,5 @@ class StickEmulator:
                     frame_lost=self.link == "failsafe",
                 ),
             )
-            self.frames_sent += 1
         nxt = t + self.period
         session.at(nxt, lambda s: self._tick(s, nxt))

@@ -10,7 +10,6 @@ measured. A DUT that crashes, exits early or hangs ends with verdict "error" and
 
 from __future__ import annotations
 
-import hashlib
 import math
 import shlex
 import shutil
@@ -23,6 +22,7 @@ import numpy as np
 
 from emulators.faults import Fault as DeviceFault
 from emulators.faults import FaultSet
+from plant.build import sha256
 from rig import __version__
 from rig.capture import install_capture
 from rig.rc import StickEmulator
@@ -58,13 +58,9 @@ class RunResult:
     notes: list[str] = field(default_factory=list)
 
 
-def default_dut() -> list[str]:
-    return [str(REFERENCE_FC)]
-
-
 def _sha256(path: Path) -> str | None:
     try:
-        return hashlib.sha256(path.read_bytes()).hexdigest()
+        return sha256(path)
     except OSError:
         return None
 
@@ -117,8 +113,8 @@ class _Wind:
 class _Recorder:
     """Samples the plant, the motor inputs, the sticks and the scenario state on the 100 Hz grid."""
 
-    def __init__(self, scenario: Scenario, rc: StickEmulator, wind: _Wind) -> None:
-        self.sc, self.rc, self.wind = scenario, rc, wind
+    def __init__(self, scenario: Scenario, rc: StickEmulator, wind: _Wind, faults: list[DeviceFault]) -> None:
+        self.sc, self.rc, self.wind, self.faults = scenario, rc, wind, faults
         self.rows: list[tuple[float, ...]] = []
         self.k = 0
 
@@ -127,9 +123,7 @@ class _Recorder:
         y, u, yi, ui = plant.y, plant.u, plant.y_index, plant.u_index
         t = self.k * RECORD_PERIOD
         st = self.rc.sticks
-        faulted = any(f.start <= t < f.end for f in self.sc.faults) or (
-            any(self.sc.mag_disturbance) and self.sc.mag_disturbance_start <= t < self.sc.mag_disturbance_end
-        )
+        faulted = any(f.active(t) for f in self.faults) or any(self.sc.mag_disturbance_at(t))
         self.rows.append(
             (
                 t,
@@ -258,19 +252,13 @@ def run(
         "duration": scenario.duration,
         "lockstep": True,
     }
-    mag = scenario.mag_disturbance
+    fault_sets = _fault_sets(scenario, seed)
     world = World.at_rest(
         seed=seed,
         noise=scenario.noise,
         params=scenario.plant,
-        faults=_fault_sets(scenario, seed),
-        mag_disturbance=(
-            lambda t: (
-                mag if scenario.mag_disturbance_start <= t < scenario.mag_disturbance_end else (0.0, 0.0, 0.0)
-            )
-        )
-        if any(mag)
-        else None,
+        faults=fault_sets,
+        mag_disturbance=scenario.mag_disturbance_at if any(scenario.mag_disturbance) else None,
     )
     metadata["plant_fmu_sha256"] = _sha256(world.plant.fmu_path)
     baro = world.board.baro.source
@@ -290,13 +278,13 @@ def run(
             stderr=err,
         )
         session = Session(cfg, world)
-        capture = install_capture(session, scenario.capture, seed, corrupt_every)
+        capture = install_capture(session, scenario.capture, corrupt_every)
         rc = StickEmulator(RC_PATH)
         rc.start(session)
         wind = _Wind(scenario, seed)
         if wind.active():
             session.at(0.0, lambda s: wind.tick(s, 0.0))
-        rec = _Recorder(scenario, rc, wind)
+        rec = _Recorder(scenario, rc, wind, [f for fs in fault_sets.values() for f in fs.faults])
         session.at(0.0, rec.tick)
         for ev in scenario.timeline:
             session.at(ev.t, _apply_event(rc, ev))

@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import math
 import tomllib
+from collections.abc import Collection
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -116,6 +117,12 @@ class Scenario:
     max_yaw_rate_dps: float
     sha256: str
 
+    def mag_disturbance_at(self, t: float) -> tuple[float, float, float]:
+        """The scheduled disturbance field (body, gauss) at sim time ``t``."""
+        if self.mag_disturbance_start <= t < self.mag_disturbance_end:
+            return self.mag_disturbance
+        return (0.0, 0.0, 0.0)
+
     @property
     def stem(self) -> str:
         return self.path.stem
@@ -125,7 +132,7 @@ class Scenario:
 
 
 class _Check:
-    """Walks one file's tables; every access records the key so unknown keys can be reported."""
+    """Checks one file's tables and values; every error it raises names the file and the dotted key."""
 
     def __init__(self, file: str) -> None:
         self.file = file
@@ -133,11 +140,12 @@ class _Check:
     def fail(self, key: str, message: str) -> ScenarioError:
         return ScenarioError(self.file, key, message)
 
-    def table(self, data: Any, key: str, known: dict[str, str]) -> dict[str, Any]:
+    def table(self, data: Any, key: str, known: Collection[str] | None) -> dict[str, Any]:
+        """``data`` as a table whose keys are all ``known`` (None: any key, checked elsewhere)."""
         if not isinstance(data, dict):
             raise self.fail(key, f"expected a table, got {_kind(data)}")
         for k in data:
-            if k not in known:
+            if known is not None and k not in known:
                 raise self.fail(
                     f"{key}.{k}" if key else k, f"unknown key; expected one of: {', '.join(sorted(known))}"
                 )
@@ -225,44 +233,34 @@ def _kind(v: Any) -> str:
 
 
 TOP = {
-    "scenario": "",
-    "vehicle": "",
-    "fc": "",
-    "sensors": "",
-    "environment": "",
-    "rc": "",
-    "capture": "",
-    "timeline": "",
-    "faults": "",
-    "gusts": "",
-    "criteria": "",
+    "scenario",
+    "vehicle",
+    "fc",
+    "sensors",
+    "environment",
+    "rc",
+    "capture",
+    "timeline",
+    "faults",
+    "gusts",
+    "criteria",
 }
-SCENARIO_KEYS = {"name": "", "description": "", "seed_paper": "", "duration": ""}
-SENSOR_KEYS = {"noise": "", "baro_noise_pa": "", "baro_drift_pa_per_s": ""}
+SCENARIO_KEYS = {"name", "description", "seed_paper", "duration"}
+SENSOR_KEYS = {"noise", "baro_noise_pa", "baro_drift_pa_per_s"}
 ENV_KEYS = {
-    "wind": "",
-    "turbulence": "",
-    "turbulence_tau": "",
-    "mag_disturbance": "",
-    "mag_disturbance_start": "",
-    "mag_disturbance_end": "",
+    "wind",
+    "turbulence",
+    "turbulence_tau",
+    "mag_disturbance",
+    "mag_disturbance_start",
+    "mag_disturbance_end",
 }
-RC_KEYS = {"max_angle_deg": "", "max_yaw_rate_dps": ""}
-CAPTURE_KEYS = {"transport": "", "resolution_us": "", "rate_hz": "", "latency_s": ""}
-EVENT_KEYS = {"t": "", "sticks": "", "link": "", "inputs": ""}
-FAULT_KEYS = {"target": "", "kind": "", "start": "", "end": "", "magnitude": "", "period": "", "duty": ""}
-GUST_KEYS = {"start": "", "duration": "", "peak": ""}
-CRITERION_KEYS = {
-    "name": "",
-    "metric": "",
-    "signal": "",
-    "start": "",
-    "end": "",
-    "target": "",
-    "band": "",
-    "min": "",
-    "max": "",
-}
+RC_KEYS = {"max_angle_deg", "max_yaw_rate_dps"}
+CAPTURE_KEYS = {"transport", "resolution_us", "rate_hz", "latency_s"}
+EVENT_KEYS = {"t", "sticks", "link", "inputs"}
+FAULT_KEYS = {"target", "kind", "start", "end", "magnitude", "period", "duty"}
+GUST_KEYS = {"start", "duration", "peak"}
+CRITERION_KEYS = {"name", "metric", "signal", "start", "end", "target", "band", "min", "max"}
 
 
 def load(path: str | Path) -> Scenario:
@@ -284,10 +282,10 @@ def load(path: str | Path) -> Scenario:
         raise c.fail("scenario", "missing; expected a [scenario] table with name and duration")
     duration = c.number(meta, "duration", "scenario", positive=True, high=3600)
 
-    vehicle = c.table(data.get("vehicle", {}), "vehicle", {k: "" for k in PLANT_PARAMETERS})
+    vehicle = c.table(data.get("vehicle", {}), "vehicle", PLANT_PARAMETERS)
     plant = {k: c.number(vehicle, k, "vehicle") for k in vehicle}
 
-    fc_raw = c.table(data.get("fc", {}), "fc", _AnyKey())
+    fc_raw = c.table(data.get("fc", {}), "fc", None)  # the DUT's config checks its own keys
     fc = {}
     for k, v in fc_raw.items():
         if isinstance(v, bool) or not isinstance(v, int | float | str):
@@ -312,7 +310,7 @@ def load(path: str | Path) -> Scenario:
         key = f"timeline[{i}]"
         e = c.table(e, key, EVENT_KEYS)
         t = c.number(e, "t", key, low=0, high=duration)
-        sticks = c.table(e.get("sticks", {}), f"{key}.sticks", {k: "" for k in STICKS})
+        sticks = c.table(e.get("sticks", {}), f"{key}.sticks", STICKS)
         st: dict[str, float | bool] = {}
         for k in sticks:
             if k in ("arm", "alt_hold"):
@@ -320,7 +318,7 @@ def load(path: str | Path) -> Scenario:
             else:
                 st[k] = c.number(sticks, k, f"{key}.sticks", low=0 if k == "throttle" else -1, high=1)
         link = c.string(e, "link", key, choices=LINK_STATES) if "link" in e else None
-        inputs_raw = c.table(e.get("inputs", {}), f"{key}.inputs", {k: "" for k in PLANT_INPUTS})
+        inputs_raw = c.table(e.get("inputs", {}), f"{key}.inputs", PLANT_INPUTS)
         inputs = {k: c.number(inputs_raw, k, f"{key}.inputs") for k in inputs_raw}
         timeline.append(Event(t, st, link, inputs))
 
@@ -419,11 +417,3 @@ def load(path: str | Path) -> Scenario:
         max_yaw_rate_dps=c.number(rc, "max_yaw_rate_dps", "rc", 90.0, positive=True),
         sha256=hashlib.sha256(raw).hexdigest(),
     )
-
-
-class _AnyKey(dict[str, str]):
-    """Known-key table that accepts every key (the [fc] table is passed through to the DUT's config,
-    which checks its own keys)."""
-
-    def __contains__(self, key: object) -> bool:
-        return True
