@@ -9,6 +9,7 @@
 #include <fcntl.h>
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <time.h>
 #include <unistd.h>
@@ -19,7 +20,6 @@
 #define RC_TIMEOUT_S 0.5
 #define FAILSAFE_DESCENT_S 10.0
 #define GYRO_STUCK_N 10
-#include <stdlib.h>
 
 static double now_s(void)
 {
