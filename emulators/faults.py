@@ -49,8 +49,8 @@ class FaultSet:
     faults: list[Fault] = field(default_factory=list)
     seed: int = 0
     _rng: np.random.Generator = field(init=False)
-    _stuck: dict[int, np.ndarray] = field(default_factory=dict)
-    _history: deque[tuple[float, np.ndarray]] = field(default_factory=deque)
+    _stuck: dict[int, tuple[float, ...]] = field(default_factory=dict)
+    _history: deque[tuple[float, tuple[float, ...]]] = field(default_factory=deque)
 
     def __post_init__(self) -> None:
         self._rng = np.random.default_rng(self.seed)
@@ -77,32 +77,43 @@ class FaultSet:
 
     # ---- signal faults -----------------------------------------------------------------------
 
-    def apply(self, t: float, value: np.ndarray) -> np.ndarray:
-        """The measured value with every active signal fault applied (in schedule order)."""
-        if any(f.kind == "delay" for f in self.faults):
-            self._history.append((t, value.copy()))
-            horizon = max(f.magnitude for f in self.faults if f.kind == "delay")
-            while len(self._history) > 2 and self._history[1][0] <= t - horizon:
+    def apply(self, t: float, value: tuple[float, ...]) -> tuple[float, ...]:
+        """The measured value with every active signal fault applied (in schedule order). Plain
+        tuples: this runs for every sensor sample, and most of the time there is no fault at all."""
+        if not self.faults:
+            return value
+        if self._has_delay:
+            self._history.append((t, value))
+            while len(self._history) > 2 and self._history[1][0] <= t - self._delay_horizon:
                 self._history.popleft()
-        out = value.astype(float, copy=True)
+        out = value
         for i, f in enumerate(self.faults):
             if not f.active(t):
                 self._stuck.pop(i, None)
                 continue
             if f.kind == "stuck":
-                out = self._stuck.setdefault(i, out.copy()).copy()
+                out = self._stuck.setdefault(i, out)
             elif f.kind == "noise_burst":
-                out = out + self._rng.normal(0.0, f.magnitude, out.shape)
+                burst = self._rng.normal(0.0, f.magnitude, len(out)).tolist()
+                out = tuple(v + n for v, n in zip(out, burst, strict=True))
             elif f.kind == "bias_step":
-                out = out + f.magnitude
+                out = tuple(v + f.magnitude for v in out)
             elif f.kind == "drift":
-                out = out + f.magnitude * (t - f.start)
+                out = tuple(v + f.magnitude * (t - f.start) for v in out)
             elif f.kind == "scale_error":
-                out = out * f.magnitude
+                out = tuple(v * f.magnitude for v in out)
             elif f.kind == "delay":
                 past = [v for (tt, v) in self._history if tt <= t - f.magnitude]
-                out = past[-1].copy() if past else self._history[0][1].copy()
+                out = past[-1] if past else self._history[0][1]
         return out
+
+    @property
+    def _has_delay(self) -> bool:
+        return any(f.kind == "delay" for f in self.faults)
+
+    @property
+    def _delay_horizon(self) -> float:
+        return max(f.magnitude for f in self.faults if f.kind == "delay")
 
 
 @dataclass

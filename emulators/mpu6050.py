@@ -8,6 +8,7 @@ import math
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from emulators.i2c_bus import I2CDevice
 from emulators.registers import RegisterMap, RegisterSpec, clamp16, round_half_away
@@ -81,9 +82,9 @@ REGISTERS = RegisterMap("MPU-6050", [
 ])
 
 
-@dataclass
-class ImuTruth:
-    """Physical inputs in the sensor frame: specific force (m/s²), angular rate (rad/s), die °C."""
+class ImuTruth(NamedTuple):
+    """Physical inputs in the sensor frame: specific force (m/s²), angular rate (rad/s), die °C.
+    (A NamedTuple: one is built per sample, a thousand a second.)"""
 
     accel: tuple[float, float, float]
     gyro: tuple[float, float, float]
@@ -96,13 +97,18 @@ class _LowPass:
     def __init__(self) -> None:
         self.y: list[float] | None = None
         self.pipe: deque[list[float]] = deque()
+        self._gain: tuple[float, float, float] = (math.nan, math.nan, math.nan)  # (bw, span, a)
 
     def _approach(self, x: tuple[float, float, float], bw_hz: float, span: float) -> None:
         """Exact first-order response over ``span`` seconds to the input held at ``x``."""
         if self.y is None:
             self.y = list(x)
-        a = 1.0 - math.exp(-2.0 * math.pi * bw_hz * span)
-        self.y = [yi + a * (xi - yi) for yi, xi in zip(self.y, x, strict=True)]
+        bw, sp, a = self._gain
+        if bw != bw_hz or sp != span:  # the same every sample in steady sampling: computed once
+            a = 1.0 - math.exp(-2.0 * math.pi * bw_hz * span)
+            self._gain = (bw_hz, span, a)
+        y = self.y
+        self.y = [y[0] + a * (x[0] - y[0]), y[1] + a * (x[1] - y[1]), y[2] + a * (x[2] - y[2])]
 
     def step(self, x: tuple[float, float, float], bw_hz: float, delay_s: float, dt: float) -> list[float]:
         self._approach(x, bw_hz, dt)

@@ -6,7 +6,7 @@ Deterministic for a given seed. The devices call a model at their own sample ins
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,8 +31,36 @@ class AxisErrors:
     noise_density: float = 0.0         # units/sqrt(Hz)
     temp_coefficient: float = 0.0      # bias change per degC away from 25 degC
 
-    def matrix(self) -> np.ndarray:
-        return np.asarray(self.scale_misalignment, float) @ np.asarray(self.mounting, float)
+    def matrix(self) -> tuple[tuple[float, float, float], ...]:
+        """Scale/misalignment times mounting, as plain floats: a 3x3 product per sample is cheaper in
+        Python than a numpy call at these sizes, and a sample is taken a thousand times a second."""
+        s, m = self.scale_misalignment, self.mounting
+        return tuple(
+            tuple(float(sum(s[i][k] * m[k][j] for k in range(3))) for j in range(3)) for i in range(3)
+        )  # type: ignore[return-value]
+
+
+class Normals:
+    """Standard normal draws taken from the generator in blocks (one numpy call per thousand values, not
+    one per sample). The sequence is the generator's own, value by value, whatever the block size."""
+
+    BLOCK = 3072
+
+    def __init__(self, rng: np.random.Generator) -> None:
+        self._rng = rng
+        self._buf: list[float] = []
+        self._i = 0
+
+    def take(self, n: int) -> list[float]:
+        if self._i + n > len(self._buf):
+            self._buf = self._buf[self._i:] + self._rng.standard_normal(max(self.BLOCK, n)).tolist()
+            self._i = 0
+        out = self._buf[self._i:self._i + n]
+        self._i += n
+        return out
+
+
+Vec3 = tuple[float, float, float]
 
 
 @dataclass
@@ -40,31 +68,36 @@ class _Channel:
     errors: AxisErrors
     faults: FaultSet
     rng: np.random.Generator
-    m: np.ndarray = field(init=False)
-    walk: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    walk: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
     last_t: float | None = None
 
     def __post_init__(self) -> None:
         self.m = self.errors.matrix()
+        self.normals = Normals(self.rng)
 
-    def measure(self, t: float, truth_body: np.ndarray, temperature_c: float) -> np.ndarray:
+    def measure(self, t: float, truth_body: Vec3, temperature_c: float) -> Vec3:
         dt = 0.0 if self.last_t is None else max(0.0, t - self.last_t)
         self.last_t = t
         e = self.errors
+        walk = self.walk
         if e.bias_random_walk and dt > 0:
-            self.walk = self.walk + self.rng.normal(0.0, e.bias_random_walk * math.sqrt(dt), 3)
-        value = self.m @ truth_body + np.asarray(e.bias) + self.walk
-        value = value + e.temp_coefficient * (temperature_c - 25.0)
+            s = e.bias_random_walk * math.sqrt(dt)
+            walk = self.walk = [w + s * z for w, z in zip(walk, self.normals.take(3), strict=True)]
+        x, y, z = truth_body
+        temp = e.temp_coefficient * (temperature_c - 25.0)
+        value = [r[0] * x + r[1] * y + r[2] * z + b + w + temp
+                 for r, b, w in zip(self.m, e.bias, walk, strict=True)]
         if e.noise_density and dt > 0:
-            value = value + self.rng.normal(0.0, e.noise_density / math.sqrt(2.0 * dt), 3)
-        return self.faults.apply(t, value)
+            s = e.noise_density / math.sqrt(2.0 * dt)
+            value = [v + s * n for v, n in zip(value, self.normals.take(3), strict=True)]
+        return self.faults.apply(t, tuple(value))  # type: ignore[arg-type,return-value]
 
 
-TruthFn = Callable[[float], dict[str, float]]
+TruthFn = Callable[[float], Mapping[str, float]]
 
 
-def _vec(truth: dict[str, float], *names: str) -> np.ndarray:
-    return np.array([truth[n] for n in names], float)
+def _vec(truth: Mapping[str, float], a: str, b: str, c: str) -> Vec3:
+    return (truth[a], truth[b], truth[c])
 
 
 @dataclass
@@ -89,7 +122,7 @@ class ImuModel:
         temp = tr.get("temperature", 15.0) + self.die_offset_c
         a = self._a.measure(t, _vec(tr, "fx", "fy", "fz"), temp)
         g = self._g.measure(t, _vec(tr, "p", "q", "r"), temp)
-        return ImuTruth(tuple(a), tuple(g), temp)  # type: ignore[arg-type]
+        return ImuTruth(a, g, temp)
 
 
 @dataclass
@@ -108,8 +141,9 @@ class MagModel:
 
     def __call__(self, t: float) -> tuple[float, float, float]:
         tr = self.truth(t)
-        field_body = _vec(tr, "mag_x", "mag_y", "mag_z") + np.asarray(self.disturbance(t), float)
-        return tuple(self._c.measure(t, field_body, 25.0))  # type: ignore[return-value]
+        dx, dy, dz = self.disturbance(t)
+        field_body = (tr["mag_x"] + dx, tr["mag_y"] + dy, tr["mag_z"] + dz)
+        return self._c.measure(t, field_body, 25.0)
 
 
 @dataclass
@@ -132,5 +166,5 @@ class BaroModel:
         p = tr["pressure"] + self.offset_pa + self.drift_pa_per_s * t
         if self.noise_pa:
             p += self._rng.normal(0.0, self.noise_pa)
-        p = float(self.faults.apply(t, np.array([p]))[0])
+        p = self.faults.apply(t, (p,))[0]
         return BaroTruth(p, tr["temperature"])

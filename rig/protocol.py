@@ -6,7 +6,7 @@ with a message that says what was wrong, and the session drops only that connect
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass
+from typing import NamedTuple
 
 PROTOCOL_VERSION = 1
 MAX_PAYLOAD = 65536
@@ -45,8 +45,9 @@ class Malformed(ValueError):
     """Bytes on the socket that are not a message of this protocol."""
 
 
-@dataclass(frozen=True)
-class Header:
+class Header(NamedTuple):
+    """A NamedTuple, not a dataclass: one is built per message, and tuples build several times faster."""
+
     length: int
     type: int
     status: int
@@ -66,8 +67,7 @@ def reply(mtype: int, t_ns: int, payload: bytes = b"", status: int = 0) -> bytes
     return HEADER.pack(len(payload), mtype, status, t_ns) + payload
 
 
-@dataclass(frozen=True)
-class I2CMessage:
+class I2CMessage(NamedTuple):
     addr: int
     flags: int
     length: int

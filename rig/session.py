@@ -133,6 +133,7 @@ class Session:
         self._seq = itertools.count()
         self._ptys: dict[str, _Pty] = {}
         self._event_output = False
+        self._in_flight: dict[int, int] = {}  # pty slave fd -> bytes readable once delivered
         self.transactions = self.waits = 0
         self.notes: list[str] = []
         self.malformed: list[str] = []
@@ -155,17 +156,29 @@ class Session:
         """Sends bytes to the DUT on a serial path; in lockstep they are readable by the DUT before
         it runs again, and a DUT polling that port wakes at this instant."""
         pty = self._ptys[path]
-        before = _pending_input(pty.slave)
+        before = self._in_flight.get(pty.slave)
+        if before is None:
+            before = _pending_input(pty.slave)
         view = memoryview(data)
         while view:
             k = os.write(pty.master, view)
             view = view[k:]
-        if self.cfg.lockstep:
-            deadline = time.monotonic() + 1.0
-            while _pending_input(pty.slave) < before + len(data) and time.monotonic() < deadline:
-                time.sleep(0)  # the pty hands bytes over asynchronously; wait for them, not a fixed time
+        if self.cfg.lockstep:  # delivered before the DUT next runs (see _deliver_serial)
+            self._in_flight[pty.slave] = before + len(data)
         self._event_output = True
-        self._write_log(self.now_ns, f"tty {path} > {data.hex()}")
+        if self._log:  # (the message is not even formatted otherwise: this runs per request)
+            self._write_log(self.now_ns, f"tty {path} > {data.hex()}")
+
+    def _deliver_serial(self) -> None:
+        """Waits until the bytes written to the DUT's serial ports are readable on its side. The pty
+        hands them over asynchronously (a kernel worker), so this waits for the count, not a fixed
+        time; it runs just before the DUT is let run again, so the handover overlaps the session's
+        own work instead of stalling each write."""
+        deadline = time.monotonic() + 1.0
+        for slave, target in self._in_flight.items():
+            while _pending_input(slave) < target and time.monotonic() < deadline:
+                time.sleep(0)
+        self._in_flight.clear()
 
     def serial_output(self, path: str) -> bytes:
         """Everything the DUT has written to ``path`` so far."""
@@ -371,6 +384,8 @@ class Session:
         return True
 
     def _send(self, conn: _Conn, data: bytes) -> None:
+        if self._in_flight:
+            self._deliver_serial()
         try:
             conn.sock.sendall(data)
         except OSError:
@@ -464,7 +479,10 @@ class Session:
         else:
             ch.inversed = bool(value)
         self.world.apply_pwm(channel)
-        self._write_log(t, f"c{conn.index} pwm{channel} {P.PWM_ATTR_NAMES[attr]} {value}")
+        if self._in_flight:  # the DUT is running (a notice has no reply): hand over what events wrote
+            self._deliver_serial()
+        if self._log:  # (the message is not even formatted otherwise: this runs per request)
+            self._write_log(t, f"c{conn.index} pwm{channel} {P.PWM_ATTR_NAMES[attr]} {value}")
 
     def _handle_wait(self, conn: _Conn, hdr: P.Header, payload: bytes) -> None:
         wake, kind, _ = P.parse_fixed(payload, P.WAIT_MSG, "WAIT")
@@ -481,8 +499,9 @@ class Session:
         if woke < target:
             target, reason = woke, P.WAKE_EVENT
         self._shm_set(target)
-        self._write_log(t, f"c{conn.index} wait {'forever' if wake == P.WAIT_FOREVER else _fmt(wake)} "
-                           f"-> {_fmt(target)}{' event' if reason == P.WAKE_EVENT else ''}")
+        if self._log:
+            self._write_log(t, f"c{conn.index} wait {'forever' if wake == P.WAIT_FOREVER else _fmt(wake)} "
+                               f"-> {_fmt(target)}{' event' if reason == P.WAKE_EVENT else ''}")
         self._send(conn, P.reply(P.MSG_WAIT, target, struct.pack("<I", reason)))
 
     # ---- time and limits ------------------------------------------------------------------------
@@ -500,7 +519,7 @@ class Session:
                 self._fail(EXIT_WATCHDOG, f"sim-time watchdog: the command was still running after "
                                           f"{cfg.sim_timeout:g} s of sim time")
             raise _Stop
-        self._collect_serial(t_ns)
+        self._collect_serial(t_ns, read=False)
         while self._events and self._events[0][0] <= t_ns:
             te, _, fn = heapq.heappop(self._events)
             te = max(te, self.world.time_ns)
@@ -552,11 +571,14 @@ class Session:
         except (BlockingIOError, OSError):
             pass
 
-    def _collect_serial(self, t_ns: int) -> None:
+    def _collect_serial(self, t_ns: int, read: bool = True) -> None:
         """Stamps what the DUT wrote since the last request with this request's time: the DUT's own
-        writes carry no time, and the next request is the first instant the session can know of them."""
+        writes carry no time, and the next request is the first instant the session can know of them.
+        ``read=False`` stamps only what the loop has already read (the pty is in the selector), so a
+        request costs no extra read()."""
         for pty in self._ptys.values():
-            self._read_pty(pty)
+            if read:
+                self._read_pty(pty)
             if pty.pending:
                 pty.received += pty.pending
                 self._write_log(t_ns, f"tty {pty.path} < {bytes(pty.pending).hex()}")

@@ -13,8 +13,6 @@ import math
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from emulators.faults import FaultSet, FaultyDevice
 from emulators.hmc5883l import HMC5883L
 from emulators.i2c_bus import Msg
@@ -58,11 +56,11 @@ class _Row(Mapping[str, float]):
 
     __slots__ = ("_index", "_row")
 
-    def __init__(self, index: dict[str, int], row: np.ndarray) -> None:
+    def __init__(self, index: dict[str, int], row: list[float]) -> None:
         self._index, self._row = index, row
 
     def __getitem__(self, name: str) -> float:
-        return float(self._row[self._index[name]])
+        return self._row[self._index[name]]
 
     def __iter__(self) -> Iterator[str]:
         return iter(self._index)
@@ -81,9 +79,10 @@ class World:
 
     def __post_init__(self) -> None:
         self._k = round(self.plant.time * 1e9 / self.step_ns)
-        self._hist = np.empty((HISTORY, len(self.plant.y)))
+        # plain lists: the sensor models read single values, a thousand times a second
+        self._hist: list[list[float]] = [[] for _ in range(HISTORY)]
         self._k0 = self._k
-        self._hist[self._k % HISTORY] = self.plant.y
+        self._hist[self._k % HISTORY] = self.plant.y.tolist()
         self._u_pwm = [self.plant.u_index[f"pwm{m + 1}_us"] for m in range(MOTORS)]
 
     @classmethod
@@ -150,7 +149,7 @@ class World:
         while (self._k + 1) * self.step_ns <= t_ns:
             self.plant.step(dt)
             self._k += 1
-            self._hist[self._k % HISTORY] = self.plant.y
+            self._hist[self._k % HISTORY] = self.plant.y.tolist()
 
     def truth(self, t: float) -> Mapping[str, float]:
         """Plant outputs at sim time ``t`` (seconds) as of the last step at or before it."""

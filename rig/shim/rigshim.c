@@ -227,11 +227,28 @@ static void ensure_connected(void)
         die_session("the session refused this shim's protocol version");
 }
 
+/* Header and payload in one sendmsg: two sends would wake the session twice per message (once for a
+   header it cannot act on yet), which in lockstep costs as much as the work itself. */
 static void send_msg(uint16_t type, const void *payload, uint32_t len)
 {
     struct rig_hdr h = {.len = len, .type = type, .status = 0, .t_ns = lockstep ? now_peek() : 0};
-    if (send_all(&h, sizeof h) < 0 || (len && send_all(payload, len) < 0))
+    struct iovec iov[2] = {{.iov_base = &h, .iov_len = sizeof h}, {.iov_base = (void *)payload, .iov_len = len}};
+    struct msghdr m = {.msg_iov = iov, .msg_iovlen = len ? 2 : 1};
+    size_t total = sizeof h + len;
+    ssize_t k;
+    do
+        k = sendmsg(sock, &m, MSG_NOSIGNAL);
+    while (k < 0 && errno == EINTR);
+    if (k < 0)
         die_session("send failed");
+    if ((size_t)k < total) { /* a short write (a full socket buffer): the rest byte-exactly */
+        size_t done = (size_t)k;
+        if (done < sizeof h && send_all((const char *)&h + done, sizeof h - done) < 0)
+            die_session("send failed");
+        size_t off = done > sizeof h ? done - sizeof h : 0;
+        if (len > off && send_all((const char *)payload + off, len - off) < 0)
+            die_session("send failed");
+    }
 }
 
 /* One request, one reply. The reply payload (at most cap bytes) lands in out. Caller holds lock. */
