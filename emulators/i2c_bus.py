@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 
 class I2CNack(Exception):
@@ -38,24 +38,31 @@ class I2CDevice(Protocol):
     def stop(self) -> None: ...
 
 
-@dataclass(frozen=True)
-class Msg:
-    """One message of a transfer: a write of ``data`` or a read of ``length`` bytes. A ``recv_len``
-    read is SMBus's block read (``I2C_M_RECV_LEN``): the first byte read is the count of the rest."""
-
+class _MsgFields(NamedTuple):
     addr: int
     read: bool = False
     data: bytes = b""
     length: int = 0
     recv_len: bool = False
 
-    def __post_init__(self) -> None:
-        if not 0 <= self.addr <= 0x7F:
-            raise ValueError(f"I2C address 0x{self.addr:x} is not a 7-bit address")
-        if self.read and (self.length < 0 or self.data):
+
+class Msg(_MsgFields):
+    """One message of a transfer: a write of ``data`` or a read of ``length`` bytes. A ``recv_len``
+    read is SMBus's block read (``I2C_M_RECV_LEN``): the first byte read is the count of the rest.
+    (An immutable, checked NamedTuple rather than a frozen dataclass: the session builds one per
+    message the DUT sends, and a frozen dataclass costs several times more to build.)"""
+
+    __slots__ = ()
+
+    def __new__(cls, addr: int, read: bool = False, data: bytes = b"", length: int = 0,
+                recv_len: bool = False) -> Msg:
+        if not 0 <= addr <= 0x7F:
+            raise ValueError(f"I2C address 0x{addr:x} is not a 7-bit address")
+        if read and (length < 0 or data):
             raise ValueError("a read message has a length and no data")
-        if self.recv_len and not self.read:
+        if recv_len and not read:
             raise ValueError("only a read message can take its length from the first byte")
+        return super().__new__(cls, addr, read, data, length, recv_len)
 
 
 def write(addr: int, *data: int) -> Msg:

@@ -361,6 +361,11 @@ class Session:
         if not chunk:
             self._drop(conn, sel)
             return False
+        self._consume(conn, sel, chunk)
+        return True
+
+    def _consume(self, conn: _Conn, sel: selectors.BaseSelector, chunk: bytes) -> None:
+        """Handles every whole message in the connection's buffer after ``chunk``."""
         conn.buf += chunk
         buf = conn.buf
         while len(buf) >= P.HEADER.size:
@@ -381,7 +386,6 @@ class Session:
             except _Stop:
                 buf.clear()
                 break
-        return True
 
     def _send(self, conn: _Conn, data: bytes) -> None:
         if self._in_flight:

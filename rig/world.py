@@ -62,6 +62,10 @@ class _Row(Mapping[str, float]):
     def __getitem__(self, name: str) -> float:
         return self._row[self._index[name]]
 
+    def get(self, name: str, default: float | None = None) -> float | None:  # type: ignore[override]
+        i = self._index.get(name)
+        return default if i is None else self._row[i]
+
     def __iter__(self) -> Iterator[str]:
         return iter(self._index)
 
