@@ -98,6 +98,8 @@ class _LowPass:
         self.y: list[float] | None = None
         self.pipe: deque[list[float]] = deque()
         self._gain: tuple[float, float, float] = (math.nan, math.nan, math.nan)  # (bw, span, a)
+        self._depth_for: tuple[float, float] = (math.nan, math.nan)  # (delay, dt) of _depth
+        self._depth = 0
 
     def _approach(self, x: tuple[float, float, float], bw_hz: float, span: float) -> None:
         """Exact first-order response over ``span`` seconds to the input held at ``x``."""
@@ -112,11 +114,14 @@ class _LowPass:
 
     def step(self, x: tuple[float, float, float], bw_hz: float, delay_s: float, dt: float) -> list[float]:
         self._approach(x, bw_hz, dt)
-        depth = max(0, round(delay_s / dt)) if dt > 0 else 0
-        self.pipe.append(list(self.y))
-        while len(self.pipe) > depth + 1:
-            self.pipe.popleft()
-        return self.pipe[0]
+        if self._depth_for != (delay_s, dt):  # constant in steady sampling: computed once
+            self._depth_for = (delay_s, dt)
+            self._depth = max(0, round(delay_s / dt)) if dt > 0 else 0
+        pipe = self.pipe
+        pipe.append(self.y)  # (_approach makes a new list each time: no copy needed)
+        while len(pipe) > self._depth + 1:
+            pipe.popleft()
+        return pipe[0]
 
     def catch_up(self, x: tuple[float, float, float], bw_hz: float, span: float) -> None:
         """Advances the filter over ``span`` seconds of the input held at ``x``, exactly, in one go

@@ -103,10 +103,6 @@ class _Channel:
 TruthFn = Callable[[float], Mapping[str, float]]
 
 
-def _vec(truth: Mapping[str, float], a: str, b: str, c: str) -> Vec3:
-    return (truth[a], truth[b], truth[c])
-
-
 @dataclass
 class ImuModel:
     """Source for the MPU-6050: plant truth (fx fy fz, p q r, temperature) -> sensor-frame ImuTruth."""
@@ -127,8 +123,8 @@ class ImuModel:
     def __call__(self, t: float) -> ImuTruth:
         tr = self.truth(t)
         temp = tr.get("temperature", 15.0) + self.die_offset_c
-        a = self._a.measure(t, _vec(tr, "fx", "fy", "fz"), temp)
-        g = self._g.measure(t, _vec(tr, "p", "q", "r"), temp)
+        a = self._a.measure(t, (tr["fx"], tr["fy"], tr["fz"]), temp)
+        g = self._g.measure(t, (tr["p"], tr["q"], tr["r"]), temp)
         return ImuTruth(a, g, temp)
 
 

@@ -257,13 +257,15 @@ class Plant:
     def time(self, value: float) -> None:
         self._t.value = value
 
-    def step(self, dt: float) -> None:
-        """Writes ``u`` to the FMU, advances by ``dt`` seconds and refreshes ``y``."""
+    def step(self, dt: float, write_inputs: bool = True) -> None:
+        """Writes ``u`` to the FMU, advances by ``dt`` seconds and refreshes ``y``. A caller that
+        steps several times in a row with ``u`` untouched may skip the rewrite (``write_inputs``)."""
         c = self._component
         self._h.value = dt
-        status = self._raw_set_real(c, self._u_vr, self._n_u, self._u_buf)
-        if status > 1:
-            self._fail("fmi2SetReal", status)
+        if write_inputs:
+            status = self._raw_set_real(c, self._u_vr, self._n_u, self._u_buf)
+            if status > 1:
+                self._fail("fmi2SetReal", status)
         status = self._raw_do_step(c, self._t, self._h, self._no_rollback)
         if status > 1:
             self._fail("fmi2DoStep", status)
