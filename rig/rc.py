@@ -6,8 +6,8 @@ packed LSB first, a flags byte (bit 0 ch17, bit 1 ch18, bit 2 frame lost, bit 3 
 Channel values run 172..1811 with 992 at centre (the range OpenTX/EdgeTX map to -100..+100 %).
 
 Sticks are given in units: roll, pitch, yaw in -1..1, throttle in 0..1, switches as bool. The channel
-order is AETR (roll, pitch, throttle, yaw), then the arm switch (ch5) and the altitude-hold switch
-(ch6), as the reference FC and most firmwares default.
+order is AETR (roll, pitch, throttle, yaw), then the arm switch (ch5), the altitude-hold switch (ch6)
+and an altitude-setpoint knob (ch7, -1..1, centre = hold where engaged), as the reference FC reads them.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ RAW_MIN, RAW_CENTRE, RAW_MAX = 172, 992, 1811
 CHANNELS = 16
 PERIOD_S = 0.014  # SBUS "normal" mode; 7 ms in high-speed mode
 
-STICKS = ("roll", "pitch", "throttle", "yaw", "arm", "alt_hold")
+STICKS = ("roll", "pitch", "throttle", "yaw", "arm", "alt_hold", "alt_offset")
 
 
 def unit_to_raw(x: float) -> int:
@@ -50,6 +50,7 @@ class Sticks:
     yaw: float = 0.0
     arm: bool = False
     alt_hold: bool = False
+    alt_offset: float = 0.0
 
     def channels(self) -> list[int]:
         ch = [RAW_CENTRE] * CHANNELS
@@ -57,6 +58,7 @@ class Sticks:
         ch[2] = unit_to_raw(2 * self.throttle - 1)
         ch[4] = RAW_MAX if self.arm else RAW_MIN
         ch[5] = RAW_MAX if self.alt_hold else RAW_MIN
+        ch[6] = unit_to_raw(self.alt_offset)
         return ch
 
 

@@ -141,8 +141,11 @@ def measure(
     lo: float | None,
     hi: float | None,
     units: str,
+    baseline_at: float | None = None,
 ) -> Measurement:
-    """Evaluates one criterion over the samples of ``x`` with ``start <= t <= end``."""
+    """Evaluates one criterion over the samples of ``x`` with ``start <= t <= end``. With
+    ``baseline_at`` the target counts from the signal's value at that time (a step of 1 m from
+    wherever the vehicle was holding, when the DUT chose that altitude itself)."""
     sel = (t >= start - 1e-9) & (t <= end + 1e-9)
     xs, ts = x[sel], t[sel]
     if metric == "final":  # only the last sample counts (a DUT value unreported early is fine)
@@ -153,6 +156,8 @@ def measure(
     elif np.isnan(xs).any():
         value, reason = math.nan, f"{signal} was not reported for the whole window"
     else:
+        if baseline_at is not None and target is not None:
+            target = float(np.interp(baseline_at, t, x)) + target
         value = METRICS[metric].fn(ts, xs, Params(target, band, start))
     ok = math.isfinite(value) and (lo is None or value >= lo) and (hi is None or value <= hi)
     if not ok and not reason:

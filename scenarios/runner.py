@@ -329,6 +329,7 @@ def run(
             c.min,
             c.max,
             c.units,
+            c.baseline_at,
         )
         for c in scenario.criteria
     ]

@@ -78,6 +78,7 @@ class CriterionSpec:
     min: float | None
     max: float | None
     units: str
+    baseline_at: float | None = None  # target counts from the signal's value at this time
 
 
 @dataclass(frozen=True)
@@ -260,7 +261,7 @@ CAPTURE_KEYS = {"transport", "resolution_us", "rate_hz", "latency_s"}
 EVENT_KEYS = {"t", "sticks", "link", "inputs"}
 FAULT_KEYS = {"target", "kind", "start", "end", "magnitude", "period", "duty"}
 GUST_KEYS = {"start", "duration", "peak"}
-CRITERION_KEYS = {"name", "metric", "signal", "start", "end", "target", "band", "min", "max"}
+CRITERION_KEYS = {"name", "metric", "signal", "start", "end", "target", "band", "min", "max", "baseline_at"}
 
 
 def load(path: str | Path) -> Scenario:
@@ -371,6 +372,14 @@ def load(path: str | Path) -> Scenario:
         lo, hi = c.optional(cr, "min", key), c.optional(cr, "max", key)
         if lo is None and hi is None:
             raise c.fail(key, "expected a limit: min, max or both")
+        baseline_at = c.optional(cr, "baseline_at", key)
+        if baseline_at is not None:
+            if "target" not in cr:
+                raise c.fail(
+                    f"{key}.baseline_at", "needs a target (the step size from the value at that time)"
+                )
+            if not 0 <= baseline_at <= duration:
+                raise c.fail(f"{key}.baseline_at", f"expected a time in 0..{duration:g}, got {baseline_at:g}")
         band = c.optional(cr, "band", key)
         if band is not None and band <= 0:
             raise c.fail(f"{key}.band", f"expected a number > 0, got {band}")
@@ -386,6 +395,7 @@ def load(path: str | Path) -> Scenario:
                 lo,
                 hi,
                 m.units or SIGNALS[signal].units,
+                baseline_at,
             )
         )
     if not criteria:

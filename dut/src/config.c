@@ -38,7 +38,7 @@ void config_defaults(fc_config *c)
     c->ki_est = 0.01;
     profile_apply(c, "default");
     c->yaw_rate_kp = 300; c->yaw_rate_ki = 30;
-    c->alt_kp = 1.0; c->alt_ki = 0.1; c->alt_kd = 0.0; c->alt_kv = 2.0; c->baro_gate_m = 3.0;
+    c->alt_kp = 2.0; c->alt_ki = 0.03; c->alt_kd = 0.0; c->alt_kv = 3.0; c->baro_gate_m = 3.0; c->alt_sp_range_m = 5.0;
     c->acc_kp = 2.0; c->acc_ki = 0.5; c->acc_kd = 0.0;
     c->angle_limit = 100; c->alt_limit = 10;
     c->hover_us = 1511;
@@ -57,7 +57,7 @@ static const struct key keys[] = {
     S(i2c_path), I(mpu_addr), I(hmc_addr), I(baro_addr), S(rc_path), S(telemetry_path), I(pwm_chip),
     I(estimator), I(mixer), D(est_rate_hz, 1), D(ctrl_rate_hz, 1), I(defect_mixer_sign), I(defect_never_arm),
     I(gyro_fault_check), D(defect_crash_at, 1), D(kp_est, 1), D(ki_est, 1), D(angle_kp, 1), D(angle_ki, 1),
-    D(angle_kd, 1), D(rate_kp, 1), D(rate_ki, 1), D(rate_kd, 1), D(yaw_rate_kp, 1), D(yaw_rate_ki, 1),
+    D(angle_kd, 1), D(rate_kp, 1), D(rate_ki, 1), D(rate_kd, 1), D(yaw_rate_kp, 1), D(yaw_rate_ki, 1), D(alt_sp_range_m, 1),
     D(alt_kp, 1), D(alt_ki, 1), D(alt_kd, 1), D(alt_kv, 1), D(baro_gate_m, 1), D(acc_kp, 1), D(acc_ki, 1), D(acc_kd, 1), D(angle_limit, 1),
     D(alt_limit, 1), D(hover_us, 1), D(max_angle_deg, 1), D(max_yaw_rate_dps, 1), D(alpha, 4), D(beta, 4),
     D(acc_offset, 3), D(acc_scale, 3), D(mag_offset, 3), D(mag_scale, 3), I(telemetry_every),
@@ -129,8 +129,8 @@ int config_load(fc_config *c, const char *path, char *err, int errlen)
     }
     fclose(f);
     if (c->est_rate_hz < 10 || c->est_rate_hz > 2000 || c->ctrl_rate_hz < 10 || c->ctrl_rate_hz > c->est_rate_hz || c->estimator < 0 || c->estimator > 2 || c->mixer < 0 || c->mixer > 1 ||
-        c->telemetry_every < 1) {
-        snprintf(err, (size_t)errlen, "%s: est_rate_hz must be 10..2000, ctrl_rate_hz 10..est_rate_hz, estimator 0..2, mixer 0..1, telemetry_every >= 1",
+        c->telemetry_every < 1 || !(c->alt_sp_range_m >= 0 && c->alt_sp_range_m <= 100)) {
+        snprintf(err, (size_t)errlen, "%s: est_rate_hz must be 10..2000, ctrl_rate_hz 10..est_rate_hz, estimator 0..2, mixer 0..1, telemetry_every >= 1, alt_sp_range_m 0..100",
                  path);
         return -1;
     }

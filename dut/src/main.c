@@ -120,7 +120,9 @@ int main(int argc, char **argv)
         pid_init(&rate[i], c.rate_kp, c.rate_ki, c.rate_kd, c.angle_limit, i_limit(c.angle_limit, c.rate_ki));
     }
     pid_init(&rate[2], c.yaw_rate_kp, c.yaw_rate_ki, 0, c.angle_limit, i_limit(c.angle_limit, c.yaw_rate_ki));
-    pid_init(&alt_pid, c.alt_kp, c.alt_ki, c.alt_kd, 0, 0);
+    /* the altitude loop asks for at most 3 m/s^2, its integral for at most 0.5: engaging hold while
+       climbing fast must not wind up a slow oscillation */
+    pid_init(&alt_pid, c.alt_kp, c.alt_ki, c.alt_kd, 3.0, 0.5);
     pid_init(&acc_pid, c.acc_kp, c.acc_ki, c.acc_kd, c.alt_limit, c.alt_limit / 2);
     alt_filter altf;
     alt_filter_init(&altf, 2.0, 1.0);
@@ -128,7 +130,7 @@ int main(int argc, char **argv)
     sbus_parser_init(&sp);
     sbus_frame sticks;
     memset(&sticks, 0, sizeof sticks);
-    double last_rc = -1e9, failsafe_since = -1, start_pressure = 0, alt_target = 0, last_baro = 0;
+    double last_rc = -1e9, failsafe_since = -1, start_pressure = 0, alt_target = 0, alt_base = 0, last_baro = 0;
     int baro_rejects = 0, armed = 0, had_rc = 0, reported_garbage = 0, alt_hold = 0, gyro_same = 0, gyro_fault = 0;
     double ctrl_phase = 1.0; /* the first cycle controls */
     vec3 last_gyro = v3(0, 0, 0);
@@ -231,10 +233,15 @@ int main(int argc, char **argv)
         int control_now = ctrl_phase >= 1.0 - 1e-9;
         if (control_now)
             ctrl_phase -= 1.0;
+        /* alt hold setpoint: the altitude where hold engaged, moved by RC ch7 (centre: no offset) */
+        double alt_offset = rc_ok ? sbus_to_unit(sticks.ch[6]) * c.alt_sp_range_m : 0;
+        if (rc_ok && alt_hold)
+            alt_target = alt_base + alt_offset;
         if (control_now && armed && gyro_fault) {
             for (int i = 0; i < 4; i++) /* zero differential torque, 5 % under hover: a slow descent */
                 out[i] = clampd(c.hover_us - 0.05 * (c.hover_us - 1000), 1000, 2000);
             alt_target = altf.h;
+            alt_base = altf.h - alt_offset; /* after recovery, hold where the descent ended */
         } else if (control_now && armed) {
             double sp_roll = rc_ok ? sbus_to_unit(sticks.ch[0]) * c.max_angle_deg * M_PI / 180 : 0;
             double sp_pitch = rc_ok ? sbus_to_unit(sticks.ch[1]) * c.max_angle_deg * M_PI / 180 : 0;
@@ -253,6 +260,7 @@ int main(int argc, char **argv)
             } else {
                 throttle = thr * 1000;
                 alt_target = altf.h;
+                alt_base = altf.h - alt_offset; /* engaging hold keeps this altitude whatever ch7 says */
             }
             double m[4];
             mix((enum mixer_kind)c.mixer, throttle, r_out, p_out, y_out, m);

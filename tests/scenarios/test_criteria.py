@@ -53,3 +53,19 @@ def test_time_in_band_and_rms() -> None:
     x = np.sin(2 * math.pi * T)
     assert abs(m("rms_error", x) - 1 / math.sqrt(2)) < 1e-3
     assert abs(m("time_in_band", x, band=math.sin(math.pi / 4)) - 50.0) < 0.1
+
+
+def test_a_baseline_target_counts_from_the_signal_at_that_time() -> None:
+    """A 1-unit second-order step that starts from 2.5: target 1.0 from the baseline at t = 0 measures
+    it exactly as the same step from 0 with an absolute target, whatever window the metric uses."""
+    zeta = 0.4
+    x = 2.5 + second_order(zeta, 3.0, T)
+    expected = 100 * math.exp(-zeta * math.pi / math.sqrt(1 - zeta**2))
+    r = measure("c", "overshoot", "alt", T, x, 0.0, 20.0, 1.0, None, None, 1e9, "%", baseline_at=0.0)
+    assert abs(r.value - expected) < 0.05
+    late = measure(
+        "c", "steady_state_error", "alt", T, x, 15.0, 20.0, 1.0, None, None, 1e9, "m", baseline_at=0.0
+    )
+    assert late.value < 1e-4  # settled at 3.5 = 2.5 + 1
+    absolute = measure("c", "steady_state_error", "alt", T, x, 15.0, 20.0, 1.0, None, None, 1e9, "m")
+    assert abs(absolute.value - 2.5) < 1e-4

@@ -52,3 +52,19 @@ def test_a_dut_that_crashes_mid_run_ends_in_error(tmp_path: Path) -> None:
     assert r.verdict == "error"
     assert "SIGABRT" in (r.error or "") or "signal 6" in (r.error or "")
     assert 5.0 <= r.metadata["sim_time"] < 6.5
+
+
+def test_a_dut_that_ignores_the_altitude_setpoint_fails_the_altitude_step(tmp_path: Path) -> None:
+    r = run_with("step_altitude", tmp_path, alt_sp_range_m=0)
+    assert r.verdict == "fail"
+    assert {"rise_time of alt", "steady_state_error of alt"} <= failed(r)
+
+
+def test_a_half_size_altitude_step_fails_on_its_final_value(tmp_path: Path) -> None:
+    """The step is measured from where the vehicle held (relative target): 0.5 m instead of 1 m must
+    show as a steady-state error, not pass as "a step happened"."""
+    r = run_with("step_altitude", tmp_path, alt_sp_range_m=2.5)
+    assert r.verdict == "fail"
+    assert "steady_state_error of alt" in failed(r)
+    sse = next(m for m in r.measurements if m.name == "steady_state_error of alt")  # type: ignore[attr-defined]
+    assert 0.3 < sse.value < 0.7

@@ -61,6 +61,8 @@ def test_a_minimal_file_loads(tmp_path: Path) -> None:
             "capture.transport",
             "expected one of",
         ),
+        (("max = 5.0", "max = 5.0\nbaseline_at = 1.0"), "criteria[0].baseline_at", "needs a target"),
+        (("max = 5.0", "max = 5.0\ntarget = 1.0\nbaseline_at = 7.0"), "criteria[0].baseline_at", "in 0..5"),
     ],
 )
 def test_bad_files_name_the_file_the_key_and_what_was_expected(
