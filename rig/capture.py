@@ -52,7 +52,14 @@ class CaptureStats:
 
 class CaptureLink:
     def __init__(
-        self, transport: str, resolution_us: float, rate_hz: float, latency_s: float, corrupt_every: int = 0
+        self,
+        transport: str,
+        resolution_us: float,
+        rate_hz: float,
+        latency_s: float,
+        corrupt_every: int = 0,
+        can_interface: str = "virtual",
+        can_channel: str = "",
     ) -> None:
         self.device = CaptureDevice(resolution_us, rate_hz)
         self.period, self.latency = 1.0 / rate_hz, latency_s
@@ -61,10 +68,8 @@ class CaptureLink:
         self.transport = transport
         self._last_seq: dict[int, int] = {}
         if transport == "can":
-            channel = f"rig-capture-{uuid.uuid4().hex}"  # private: parallel runs never hear each other
             self.codec = CanCodec()
-            self.tx = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
-            self.rx = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
+            self.tx, self.rx = _open_can_pair(can_interface, can_channel)
         elif transport == "serial":
             self.master, slave = os.openpty()
             tty.setraw(slave)
@@ -168,12 +173,38 @@ class CaptureLink:
             os.close(self.master)
 
 
+def _open_can_pair(interface: str, channel: str) -> tuple[can.BusABC, can.BusABC]:
+    """The device's bus and the rig's bus on one channel. ``virtual`` gets a private channel when none
+    is named, so parallel runs never hear each other; any other python-can interface (``socketcan`` on a
+    bench) uses the channel given. An interface that cannot open is a clear ValueError, not a traceback
+    from deep inside python-can."""
+    if interface == "virtual" and not channel:
+        channel = f"rig-capture-{uuid.uuid4().hex}"
+    opened: list[can.BusABC] = []
+    try:
+        for _ in range(2):
+            opened.append(can.Bus(interface=interface, channel=channel, receive_own_messages=False))
+    except (can.CanError, OSError, ValueError, ImportError, NotImplementedError) as e:
+        for bus in opened:
+            bus.shutdown()
+        raise ValueError(
+            f"PWM capture: cannot open CAN interface {interface!r} channel {channel!r}: {e}"
+        ) from e
+    return opened[0], opened[1]
+
+
 def install_capture(session: Session, capture: Capture, corrupt_every: int = 0) -> CaptureLink | None:
     """Puts a capture link between the DUT's PWM outputs and the plant; None for the direct path."""
     if capture.transport == "direct":
         return None
     link = CaptureLink(
-        capture.transport, capture.resolution_us, capture.rate_hz, capture.latency_s, corrupt_every
+        capture.transport,
+        capture.resolution_us,
+        capture.rate_hz,
+        capture.latency_s,
+        corrupt_every,
+        capture.can_interface,
+        capture.can_channel,
     )
     session.world.direct_pwm = False
     session.at(0.0, lambda s: link.tick(s, 0.0))

@@ -11,6 +11,7 @@ scenario file, 3 a run ended in error (crash, hang, early exit of the DUT).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import shlex
 import sys
 import time
@@ -47,6 +48,12 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed for noise, turbulence and faults")
     p.add_argument(
         "--wall-timeout", type=float, default=600.0, help="wall seconds per run before it is ended"
+    )
+    p.add_argument(
+        "--can",
+        metavar="INTERFACE:CHANNEL",
+        help="python-can interface and channel for scenarios whose PWM capture goes over CAN "
+        "(e.g. socketcan:can0 on a bench; default: each scenario's [capture], virtual and private)",
     )
     v = sub.add_parser("validate", help="check scenario files without running them")
     v.add_argument("scenarios", nargs="+", metavar="SCENARIO")
@@ -108,6 +115,22 @@ def cmd_run(args: argparse.Namespace) -> int:
     if dut == []:
         print("rig run: --dut is empty", file=sys.stderr)
         return EXIT_USAGE
+    if args.can:
+        interface, sep, channel = args.can.partition(":")
+        if not (interface and sep and channel):
+            print(
+                f"rig run: --can: expected INTERFACE:CHANNEL (e.g. socketcan:can0), got {args.can!r}",
+                file=sys.stderr,
+            )
+            return EXIT_USAGE
+        scenarios = [
+            dataclasses.replace(
+                sc, capture=dataclasses.replace(sc.capture, can_interface=interface, can_channel=channel)
+            )
+            if sc.capture.transport == "can"
+            else sc
+            for sc in scenarios
+        ]
     out: Path = args.out
     results, links = [], []
     t_suite = time.perf_counter()

@@ -280,7 +280,11 @@ def run(
             stderr=err,
         )
         session = Session(cfg, world)
-        capture = install_capture(session, scenario.capture, corrupt_every)
+        try:
+            capture = install_capture(session, scenario.capture, corrupt_every)
+        except ValueError:
+            world.close()
+            raise
         rc = StickEmulator(RC_PATH)
         rc.start(session)
         wind = _Wind(scenario, seed)

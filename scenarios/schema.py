@@ -89,6 +89,10 @@ class Capture:
     resolution_us: float = 1.0
     rate_hz: float = 400.0
     latency_s: float = 0.0
+    #: python-can interface and channel of the ``can`` transport: ``virtual`` with a private channel
+    #: (CI), or e.g. ``socketcan`` / ``can0`` on a bench
+    can_interface: str = "virtual"
+    can_channel: str = ""
 
 
 @dataclass(frozen=True)
@@ -257,7 +261,7 @@ ENV_KEYS = {
     "mag_disturbance_end",
 }
 RC_KEYS = {"max_angle_deg", "max_yaw_rate_dps"}
-CAPTURE_KEYS = {"transport", "resolution_us", "rate_hz", "latency_s"}
+CAPTURE_KEYS = {"transport", "resolution_us", "rate_hz", "latency_s", "can_interface", "can_channel"}
 EVENT_KEYS = {"t", "sticks", "link", "inputs"}
 FAULT_KEYS = {"target", "kind", "start", "end", "magnitude", "period", "duty"}
 GUST_KEYS = {"start", "duration", "peak"}
@@ -304,7 +308,13 @@ def load(path: str | Path) -> Scenario:
         c.number(cap, "resolution_us", "capture", 1.0, positive=True, high=100),
         c.number(cap, "rate_hz", "capture", 400.0, positive=True, high=10_000),
         c.number(cap, "latency_s", "capture", 0.0, low=0, high=1),
+        c.string(cap, "can_interface", "capture", "virtual"),
+        c.string(cap, "can_channel", "capture", ""),
     )
+    if capture.can_interface != "virtual" and not capture.can_channel:
+        raise c.fail(
+            "capture.can_channel", f"missing; interface {capture.can_interface!r} needs a channel (e.g. can0)"
+        )
 
     timeline = []
     for i, e in enumerate(c.array(data, "timeline")):

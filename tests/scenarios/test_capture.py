@@ -5,6 +5,8 @@ capture resolution; corrupted frames are rejected and counted, never applied."""
 from __future__ import annotations
 
 import dataclasses
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -83,3 +85,50 @@ def test_corrupted_frames_are_rejected_and_counted(transport: str, tmp_path: Pat
     assert stats["frames_applied"] == stats["frames_sent"] - stats["frames_rejected"]
     assert stats["frames_sent"] >= frames_per_report * 400 * (sc.duration - 0.1)  # every report travelled
     assert r.verdict == "pass"  # a lost frame is survivable
+
+
+def test_a_named_can_channel_carries_the_frames(tmp_path: Path) -> None:
+    """The bench form of the CAN link (interface + channel), on python-can's virtual interface: the
+    frames travel on the channel given, and a listener on that channel hears the DBC's frame ids."""
+    import can
+
+    channel = f"rig-test-{tmp_path.name}"
+    listener = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
+    try:
+        cap = Capture("can", 1.0, 400.0, 0.0, can_interface="virtual", can_channel=channel)
+        sc = dataclasses.replace(load(LIB / "step_roll.toml"), duration=2.0, capture=cap, criteria=())
+        r = run(sc, work_dir=tmp_path)
+        heard = {m.arbitration_id for m in iter(lambda: listener.recv(timeout=0), None)}
+    finally:
+        listener.shutdown()
+    assert r.verdict in ("pass", "fail") and r.metadata["capture_stats"]["frames_applied"] > 0
+    assert heard == {0x210, 0x211}
+
+
+def test_a_can_interface_that_cannot_open_is_a_clear_usage_error(tmp_path: Path) -> None:
+    """SocketCAN with a channel this machine does not have (no can0 on CI): `rig run --can` names the
+    interface and channel and exits 2 before anything runs, with no traceback."""
+    sc = tmp_path / "can_step.toml"
+    sc.write_text((LIB / "step_roll.toml").read_text() + '\n[capture]\ntransport = "can"\n')
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "rig.cli",
+            "run",
+            str(sc),
+            "--out",
+            str(tmp_path / "out"),
+            "--can",
+            "socketcan:rignosuchcan0",
+        ],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 2, done.stderr
+    assert "cannot open CAN interface 'socketcan' channel 'rignosuchcan0'" in done.stderr
+    assert "Traceback" not in done.stderr
+    bad = subprocess.run(
+        [sys.executable, "-m", "rig.cli", "run", str(sc), "--can", "can0"], capture_output=True, text=True
+    )
+    assert bad.returncode == 2 and "expected INTERFACE:CHANNEL" in bad.stderr

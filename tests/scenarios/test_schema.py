@@ -61,6 +61,11 @@ def test_a_minimal_file_loads(tmp_path: Path) -> None:
             "capture.transport",
             "expected one of",
         ),
+        (
+            ("[[criteria]]", '[capture]\ntransport = "can"\ncan_interface = "socketcan"\n[[criteria]]'),
+            "capture.can_channel",
+            "needs a channel",
+        ),
         (("max = 5.0", "max = 5.0\nbaseline_at = 1.0"), "criteria[0].baseline_at", "needs a target"),
         (("max = 5.0", "max = 5.0\ntarget = 1.0\nbaseline_at = 7.0"), "criteria[0].baseline_at", "in 0..5"),
     ],
