@@ -50,6 +50,12 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "--wall-timeout", type=float, default=600.0, help="wall seconds per run before it is ended"
     )
     p.add_argument(
+        "--realtime",
+        action="store_true",
+        help="pace the runs by the wall clock (a bench) instead of lockstep virtual time; "
+        "how late scheduled events ran goes into result.json",
+    )
+    p.add_argument(
         "--can",
         metavar="INTERFACE:CHANNEL",
         help="python-can interface and channel for scenarios whose PWM capture goes over CAN "
@@ -143,7 +149,14 @@ def cmd_run(args: argparse.Namespace) -> int:
             flush=True,
         )
         try:
-            r = run(sc, dut=dut, seed=args.seed, work_dir=run_dir, wall_timeout=args.wall_timeout)
+            r = run(
+                sc,
+                dut=dut,
+                seed=args.seed,
+                work_dir=run_dir,
+                wall_timeout=args.wall_timeout,
+                realtime=args.realtime,
+            )
         except (FileNotFoundError, OSError, ValueError) as e:
             print(f" cannot run: {e}", file=sys.stderr)
             return EXIT_USAGE

@@ -178,9 +178,12 @@ class _Recorder:
         return s
 
 
-def parse_telemetry(text: bytes) -> tuple[dict[str, np.ndarray], int]:
-    """The DUT's ``T t=… key=value …`` lines as columns (time in sim seconds). Lines that do not parse
-    are counted and skipped: the DUT's bytes are not trusted."""
+def parse_telemetry(
+    text: bytes, clock_base_s: float = MONO_BASE_NS / NS
+) -> tuple[dict[str, np.ndarray], int]:
+    """The DUT's ``T t=… key=value …`` lines as columns (time in sim seconds: the DUT's monotonic clock
+    minus ``clock_base_s``, its reading at sim time 0). Lines that do not parse are counted and
+    skipped: the DUT's bytes are not trusted."""
     cols: dict[str, list[float]] = {"t": [], **{k: [] for k in TELEMETRY_KEYS}}
     bad = 0
     for line in text.decode("ascii", "replace").splitlines():
@@ -190,7 +193,7 @@ def parse_telemetry(text: bytes) -> tuple[dict[str, np.ndarray], int]:
         try:
             kv = dict(item.split("=", 1) for item in line[2:].split())
             row = {
-                "t": float(kv["t"]) - MONO_BASE_NS / NS,
+                "t": float(kv["t"]) - clock_base_s,
                 **{k: float(kv[k]) for k in TELEMETRY_KEYS if k in kv},
             }
         except (ValueError, KeyError):
@@ -225,9 +228,12 @@ def run(
     wall_timeout: float = 600.0,
     stall_timeout: float = 30.0,
     corrupt_every: int = 0,
+    realtime: bool = False,
 ) -> RunResult:
     """Runs ``scenario``; the reference FC (configured from the scenario's [fc] table) when ``dut`` is
-    None. DUT stdout and stderr go to ``work_dir`` (a temporary folder when None)."""
+    None. DUT stdout and stderr go to ``work_dir`` (a temporary folder when None). Lockstep virtual
+    time by default; ``realtime`` paces the run by the wall clock (a bench) and reports how late the
+    scheduled events ran."""
     work = Path(work_dir) if work_dir else Path(tempfile.mkdtemp(prefix="rig-run-"))
     work.mkdir(parents=True, exist_ok=True)
     notes: list[str] = []
@@ -252,7 +258,7 @@ def run(
         "dut_binary_sha256": _sha256(Path(exe)) if exe else None,
         "capture": scenario.capture.transport,
         "duration": scenario.duration,
-        "lockstep": True,
+        "lockstep": not realtime,
     }
     fault_sets = _fault_sets(scenario, seed)
     world = World.at_rest(
@@ -272,6 +278,7 @@ def run(
             command=command,
             serial=[RC_PATH, TELEMETRY_PATH],
             duration=scenario.duration,
+            lockstep=not realtime,
             seed=seed,
             noise=scenario.noise,
             wall_timeout=wall_timeout,
@@ -300,7 +307,7 @@ def run(
             if capture is not None:
                 capture.close()
     signals = rec.signals()
-    tel, bad = parse_telemetry(session.serial_output(TELEMETRY_PATH))
+    tel, bad = parse_telemetry(session.serial_output(TELEMETRY_PATH), session.dut_clock_base_s)
     if bad:
         notes.append(f"{bad} telemetry line(s) from the DUT did not parse and were skipped")
     for k, name in TELEMETRY_KEYS.items():
@@ -319,6 +326,18 @@ def run(
         dut_returncode=outcome.dut_returncode,
         bus_transactions=outcome.transactions,
     )
+    if realtime:
+        metadata["realtime_lateness"] = {
+            "events": outcome.events_run,
+            "late_over_1ms": outcome.events_late,
+            "max_s": outcome.max_lateness_s,
+            "p99_s": outcome.p99_lateness_s,
+        }
+        if outcome.events_late:
+            notes.append(
+                f"real time: {outcome.events_late} of {outcome.events_run} scheduled events ran over 1 ms "
+                f"late (worst {outcome.max_lateness_s * 1000:.1f} ms)"
+            )
     measurements = [
         measure(
             c.name,

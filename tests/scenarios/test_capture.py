@@ -132,3 +132,4 @@ def test_a_can_interface_that_cannot_open_is_a_clear_usage_error(tmp_path: Path)
         [sys.executable, "-m", "rig.cli", "run", str(sc), "--can", "can0"], capture_output=True, text=True
     )
     assert bad.returncode == 2 and "expected INTERFACE:CHANNEL" in bad.stderr
+
