@@ -96,8 +96,7 @@ class _Channel:
             s = e.noise_density / math.sqrt(2.0 * dt)
             n0, n1, n2 = self.normals.take(3)
             v0, v1, v2 = v0 + s * n0, v1 + s * n1, v2 + s * n2
-        value = (v0, v1, v2)
-        return self.faults.apply(t, value) if self.faults.faults else value  # type: ignore[return-value]
+        return self.faults.apply(t, (v0, v1, v2))  # type: ignore[return-value]
 
 
 TruthFn = Callable[[float], Mapping[str, float]]

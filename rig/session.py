@@ -376,11 +376,6 @@ class Session:
         if not chunk:
             self._drop(conn, sel)
             return False
-        self._consume(conn, sel, chunk)
-        return True
-
-    def _consume(self, conn: _Conn, sel: selectors.BaseSelector, chunk: bytes) -> None:
-        """Handles every whole message in the connection's buffer after ``chunk``."""
         conn.buf += chunk
         buf = conn.buf
         while len(buf) >= P.HEADER.size:
@@ -401,6 +396,7 @@ class Session:
             except _Stop:
                 buf.clear()
                 break
+        return True
 
     def _send(self, conn: _Conn, data: bytes) -> None:
         if self._in_flight:
@@ -542,7 +538,7 @@ class Session:
         while self._events and self._events[0][0] <= t_ns:
             te, _, fn = heapq.heappop(self._events)
             if not cfg.lockstep:
-                self._lateness_ns.append(max(0, int((time.perf_counter() - self._rt_t0) * NS) - te))
+                self._lateness_ns.append(max(0, self.now_ns - te))  # (wall-clock now: not in an event)
             te = max(te, self.world.time_ns)
             self.world.advance_to(te)
             self._event_output = False

@@ -27,7 +27,7 @@ from plant.build import sha256
 from rig import __version__
 from rig.capture import install_capture
 from rig.rc import StickEmulator
-from rig.session import MONO_BASE_NS, NS, Outcome, Session, SessionConfig
+from rig.session import Outcome, Session, SessionConfig
 from rig.world import World
 from scenarios.criteria import Measurement, measure
 from scenarios.schema import Event, Scenario
@@ -178,12 +178,10 @@ class _Recorder:
         return s
 
 
-def parse_telemetry(
-    text: bytes, clock_base_s: float = MONO_BASE_NS / NS
-) -> tuple[dict[str, np.ndarray], int]:
+def parse_telemetry(text: bytes, clock_base_s: float) -> tuple[dict[str, np.ndarray], int]:
     """The DUT's ``T t=… key=value …`` lines as columns (time in sim seconds: the DUT's monotonic clock
-    minus ``clock_base_s``, its reading at sim time 0). Lines that do not parse are counted and
-    skipped: the DUT's bytes are not trusted."""
+    minus ``clock_base_s``, its reading at sim time 0, ``Session.dut_clock_base_s``). Lines that do not
+    parse are counted and skipped: the DUT's bytes are not trusted."""
     cols: dict[str, list[float]] = {"t": [], **{k: [] for k in TELEMETRY_KEYS}}
     bad = 0
     for line in text.decode("ascii", "replace").splitlines():
