@@ -8,7 +8,7 @@ from __future__ import annotations
 import struct
 from typing import NamedTuple
 
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 2
 MAX_PAYLOAD = 65536
 
 HEADER = struct.Struct("<IHHQ")  # len, type, status, t_ns
@@ -30,7 +30,7 @@ PWM_ATTR_NAMES = {PWM_EXPORT: "export", PWM_UNEXPORT: "unexport", PWM_PERIOD: "p
 
 WAIT_MSG = struct.Struct("<QII")       # wake_ns, kind, zero
 WAIT_FOREVER = 2**64 - 1
-WAIT_SLEEP, WAIT_POLL = 1, 2
+WAIT_SLEEP, WAIT_POLL, WAIT_AHEAD = 1, 2, 3  # AHEAD: a notice, the shim moved the clock
 WAKE_DEADLINE, WAKE_EVENT, WAKE_SLICE = 0, 1, 2
 
 SHM_MAGIC = 0x31304D4853474952        # "RIGSHM01"

@@ -429,12 +429,17 @@ class Session:
             text = payload.decode("utf-8", "replace")[:300]
             if text not in self.notes:
                 self.notes.append(text)
-            self._write_log(self._request_time(hdr), f"c{conn.index} note: {text}")
+            self._write_log(self._notice_time(hdr), f"c{conn.index} note: {text}")
 
     def _request_time(self, hdr: P.Header) -> int:
         if not self.cfg.lockstep:
             return self.now_ns
         return max(self._shm_now(), hdr.t_ns)
+
+    def _notice_time(self, hdr: P.Header) -> int:
+        """A notice's own time: the DUT did not wait for it, and may have moved the shared clock on since
+        (after a WAIT AHEAD it runs ahead of what the session has read)."""
+        return hdr.t_ns if self.cfg.lockstep else self.now_ns
 
     def _handle_i2c(self, conn: _Conn, hdr: P.Header, payload: bytes) -> None:
         bus, msgs = P.parse_i2c(payload)
@@ -478,7 +483,7 @@ class Session:
         chip, channel, attr, _, value = P.parse_fixed(payload, P.PWM_MSG, "PWM")
         if chip != 0 or channel >= len(self.world.pwm) or attr not in P.PWM_ATTR_NAMES:
             raise P.Malformed(f"PWM notice for chip {chip} channel {channel} attribute {attr}")
-        t = self._request_time(hdr)
+        t = self._notice_time(hdr)
         self._advance(t)
         ch = self.world.pwm[channel]
         if attr == P.PWM_EXPORT:
@@ -501,10 +506,21 @@ class Session:
 
     def _handle_wait(self, conn: _Conn, hdr: P.Header, payload: bytes) -> None:
         wake, kind, _ = P.parse_fixed(payload, P.WAIT_MSG, "WAIT")
-        if kind not in (P.WAIT_SLEEP, P.WAIT_POLL):
+        if kind not in (P.WAIT_SLEEP, P.WAIT_POLL, P.WAIT_AHEAD):
             raise P.Malformed(f"WAIT of unknown kind {kind}")
-        t = self._request_time(hdr)
         self.waits += 1
+        if kind == P.WAIT_AHEAD:  # a notice: the shim has moved the clock already; catch the world up
+            if not self.cfg.lockstep or wake == P.WAIT_FOREVER:
+                raise P.Malformed("WAIT AHEAD outside lockstep or without a deadline")
+            t = self._notice_time(hdr)
+            target = max(wake, t)
+            self._advance(target)
+            if self._in_flight:  # the DUT is running: hand over what events wrote
+                self._deliver_serial()
+            if self._log:
+                self._write_log(t, f"c{conn.index} wait {_fmt(wake)} -> {_fmt(target)} ahead")
+            return
+        t = self._request_time(hdr)
         if not self.cfg.lockstep:  # the shim does not virtualise time in real time; answer at once
             self._send(conn, P.reply(P.MSG_WAIT, t, struct.pack("<I", P.WAKE_DEADLINE)))
             return

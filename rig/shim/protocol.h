@@ -12,7 +12,7 @@
 
 #include <stdint.h>
 
-#define RIG_PROTOCOL_VERSION 1u
+#define RIG_PROTOCOL_VERSION 2u
 #define RIG_MAX_PAYLOAD 65536u
 
 struct rig_hdr {
@@ -29,7 +29,8 @@ enum {
                           RECV_LEN read gives its count byte, then count bytes) */
     RIG_MSG_PWM = 3,   /* notice; payload: rig_pwm_msg */
     RIG_MSG_WAIT = 4,  /* payload: u64 wake_ns (RIG_WAIT_FOREVER: until an event), u32 kind, u32 0.
-                          Reply: t_ns = the new time; payload u32 RIG_WAKE_* */
+                          Reply: t_ns = the new time; payload u32 RIG_WAKE_*. Kind RIG_WAIT_AHEAD is
+                          a notice (no reply): the shim has already moved the clock to wake_ns */
     RIG_MSG_NOTE = 5,  /* notice; payload: text the session reports (an unsupported call, say) */
 };
 
@@ -51,7 +52,11 @@ struct rig_pwm_msg {
 };
 
 #define RIG_WAIT_FOREVER UINT64_MAX
-enum { RIG_WAIT_SLEEP = 1, RIG_WAIT_POLL = 2 };
+/* AHEAD: a sleep that nothing can cut short, so the shim moves the clock itself and tells the session
+   in a notice; the session runs the world to wake_ns before it reads the next message. The DUT's first
+   look at the outside world after it (a read, a poll, an ioctl outside i2c-dev) first asks for a
+   plain WAIT to now, so the session has run everything due (SBUS bytes are in the pty) by then. */
+enum { RIG_WAIT_SLEEP = 1, RIG_WAIT_POLL = 2, RIG_WAIT_AHEAD = 3 };
 enum { RIG_WAKE_DEADLINE = 0, RIG_WAKE_EVENT = 1, RIG_WAKE_SLICE = 2 };
 
 /* The shared page (a file the session creates; the shim maps it). */

@@ -120,6 +120,7 @@ static struct {
 } serial_map[MAX_SERIAL];
 static int n_serial;
 static pthread_mutex_t lock = PTHREAD_MUTEX_INITIALIZER;
+static int ahead; /* lockstep: a sleep moved the clock in a notice the session has not answered yet */
 static int sock = -1;
 static pid_t sock_pid;
 
@@ -263,6 +264,7 @@ static struct rig_hdr request(uint16_t type, const void *payload, uint32_t len, 
         die_session("a reply that does not fit the request");
     if (h.len && recv_all(out, h.len) < 0)
         die_session("short reply");
+    __atomic_store_n(&ahead, 0, __ATOMIC_RELEASE); /* the session has read everything before this */
     return h;
 }
 
@@ -340,10 +342,38 @@ static uint32_t wait_until(uint64_t wake_ns, uint32_t kind)
     return reason;
 }
 
+/* A sleep: nothing the session does can cut it short, so the outcome is known in advance. The first
+   sleep after a request moves the clock itself and tells the session in a notice (RIG_WAIT_AHEAD): no
+   round trip, which in a control loop (read sensors, write motors, sleep) is one of two per cycle.
+   A second sleep in a row waits for the session as before, so a DUT that only sleeps cannot run ahead
+   of it. Whatever the DUT looks at next syncs first (catch_up). */
 static void sleep_until(uint64_t wake_ns)
 {
+    if (now_peek() < wake_ns && !__atomic_load_n(&ahead, __ATOMIC_ACQUIRE)) {
+        struct {
+            uint64_t wake;
+            uint32_t kind, zero;
+        } req = {wake_ns, RIG_WAIT_AHEAD, 0};
+        pthread_mutex_lock(&lock);
+        ensure_connected();
+        send_msg(RIG_MSG_WAIT, &req, sizeof req); /* stamped with the time the sleep began */
+        uint64_t cur = now_peek();
+        while (wake_ns > cur && !__atomic_compare_exchange_n(&shm->sim_ns, &cur, wake_ns, 0, __ATOMIC_SEQ_CST, __ATOMIC_SEQ_CST))
+            ;
+        __atomic_store_n(&ahead, 1, __ATOMIC_RELEASE);
+        pthread_mutex_unlock(&lock);
+        return;
+    }
     while (now_peek() < wake_ns)
         wait_until(wake_ns, RIG_WAIT_SLEEP);
+}
+
+/* Before the DUT looks at anything outside the shim (a pty, a pipe, a file) after a sleep that went
+   ahead: a plain WAIT to now, so the session has run the events of that sleep (written their bytes). */
+static void catch_up(void)
+{
+    if (__atomic_load_n(&ahead, __ATOMIC_ACQUIRE) && virtual_clock(CLOCK_MONOTONIC))
+        wait_until(now_peek(), RIG_WAIT_SLEEP);
 }
 
 static int valid_ts(const struct timespec *ts) { return ts && ts->tv_sec >= 0 && ts->tv_nsec >= 0 && ts->tv_nsec < (long)NS; }
@@ -439,6 +469,7 @@ static int wait_done(uint64_t deadline)
 
 EXPORT int poll(struct pollfd *fds, nfds_t n, int timeout)
 {
+    catch_up();
     if (!virtual_clock(CLOCK_MONOTONIC) || timeout == 0)
         return LOAD(poll)(fds, n, timeout);
     uint64_t deadline = deadline_ms(timeout);
@@ -458,6 +489,7 @@ EXPORT int __poll_chk(struct pollfd *fds, nfds_t n, int timeout, size_t fdslen)
 EXPORT int ppoll(struct pollfd *fds, nfds_t n, const struct timespec *tmo, const sigset_t *mask)
 {
     static const struct timespec zero = {0, 0};
+    catch_up();
     if (!virtual_clock(CLOCK_MONOTONIC) || (tmo && tmo->tv_sec == 0 && tmo->tv_nsec == 0))
         return LOAD(ppoll)(fds, n, tmo, mask);
     if (tmo && !valid_ts(tmo)) {
@@ -497,6 +529,7 @@ static int select_virtual(int nfds, fd_set *r, fd_set *w, fd_set *e, uint64_t de
 
 EXPORT int select(int nfds, fd_set *r, fd_set *w, fd_set *e, struct timeval *tmo)
 {
+    catch_up();
     if (!virtual_clock(CLOCK_MONOTONIC) || (tmo && tmo->tv_sec == 0 && tmo->tv_usec == 0))
         return LOAD(select)(nfds, r, w, e, tmo);
     if (tmo && (tmo->tv_sec < 0 || tmo->tv_usec < 0)) {
@@ -512,6 +545,7 @@ EXPORT int select(int nfds, fd_set *r, fd_set *w, fd_set *e, struct timeval *tmo
 
 EXPORT int pselect(int nfds, fd_set *r, fd_set *w, fd_set *e, const struct timespec *tmo, const sigset_t *mask)
 {
+    catch_up();
     if (!virtual_clock(CLOCK_MONOTONIC) || (tmo && tmo->tv_sec == 0 && tmo->tv_nsec == 0))
         return LOAD(pselect)(nfds, r, w, e, tmo, mask);
     if (tmo && !valid_ts(tmo)) {
@@ -523,6 +557,7 @@ EXPORT int pselect(int nfds, fd_set *r, fd_set *w, fd_set *e, const struct times
 
 EXPORT int epoll_wait(int epfd, struct epoll_event *ev, int max, int timeout)
 {
+    catch_up();
     if (!virtual_clock(CLOCK_MONOTONIC) || timeout == 0)
         return LOAD(epoll_wait)(epfd, ev, max, timeout);
     uint64_t deadline = deadline_ms(timeout);
@@ -535,6 +570,7 @@ EXPORT int epoll_wait(int epfd, struct epoll_event *ev, int max, int timeout)
 
 EXPORT int epoll_pwait(int epfd, struct epoll_event *ev, int max, int timeout, const sigset_t *mask)
 {
+    catch_up();
     if (!virtual_clock(CLOCK_MONOTONIC) || timeout == 0)
         return LOAD(epoll_pwait)(epfd, ev, max, timeout, mask);
     uint64_t deadline = deadline_ms(timeout);
@@ -1259,6 +1295,7 @@ EXPORT int ioctl(int fd, unsigned long req, ...)
         return i2c_ioctl(f, req, arg);
     if (f)
         return errno_ret(ENOTTY);
+    catch_up(); /* FIONREAD on a pty looks at the outside world too */
     return LOAD(ioctl)(fd, req, arg);
 }
 
@@ -1420,7 +1457,10 @@ static ssize_t fake_read(struct fake *f, void *buf, size_t n, off_t *pos)
 EXPORT ssize_t read(int fd, void *buf, size_t n)
 {
     struct fake *f = fake_of(fd);
-    return f ? fake_read(f, buf, n, &f->pos) : LOAD(read)(fd, buf, n);
+    if (f)
+        return fake_read(f, buf, n, &f->pos);
+    catch_up();
+    return LOAD(read)(fd, buf, n);
 }
 
 EXPORT ssize_t write(int fd, const void *buf, size_t n)
@@ -1437,13 +1477,19 @@ static ssize_t fake_pread(struct fake *f, void *buf, size_t n, off_t off)
 EXPORT ssize_t pread(int fd, void *buf, size_t n, off_t off)
 {
     struct fake *f = fake_of(fd);
-    return f ? fake_pread(f, buf, n, off) : LOAD(pread)(fd, buf, n, off);
+    if (f)
+        return fake_pread(f, buf, n, off);
+    catch_up();
+    return LOAD(pread)(fd, buf, n, off);
 }
 
 EXPORT ssize_t pread64(int fd, void *buf, size_t n, off_t off)
 {
     struct fake *f = fake_of(fd);
-    return f ? fake_pread(f, buf, n, off) : LOAD(pread64)(fd, buf, n, off);
+    if (f)
+        return fake_pread(f, buf, n, off);
+    catch_up();
+    return LOAD(pread64)(fd, buf, n, off);
 }
 
 EXPORT ssize_t pwrite(int fd, const void *buf, size_t n, off_t off)

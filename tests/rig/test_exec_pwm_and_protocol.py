@@ -63,7 +63,7 @@ def test_protocol_numbers_agree_between_c_and_python() -> None:
     assert defines["RIG_PWM_MAX"] == P.PWM_MAX
     for name in ("MSG_HELLO", "MSG_I2C", "MSG_PWM", "MSG_WAIT", "MSG_NOTE", "PWM_EXPORT", "PWM_UNEXPORT",
                  "PWM_PERIOD", "PWM_DUTY", "PWM_ENABLE", "PWM_POLARITY", "WAIT_SLEEP", "WAIT_POLL",
-                 "WAKE_DEADLINE", "WAKE_EVENT", "WAKE_SLICE"):
+                 "WAIT_AHEAD", "WAKE_DEADLINE", "WAKE_EVENT", "WAKE_SLICE"):
         assert enums[f"RIG_{name}"] == getattr(P, name), name
     # struct layouts: field types in declaration order give the Python struct formats
     sizes = {"uint64_t": "Q", "uint32_t": "I", "uint16_t": "H"}

@@ -101,3 +101,21 @@ def test_a_polling_dut_wakes_when_the_session_writes_its_serial_port(tmp_path: P
     assert 0.5 * NS + QUANTUM <= got["woke_ns"] - MONO_BASE_NS <= 0.5 * NS + 10 * QUANTUM
     assert got["waited_ns"] < 0.5 * NS
     assert session.serial_output("/dev/ttyRC0") == b"pong"
+
+
+def test_bytes_written_during_a_sleep_are_there_when_it_ends(tmp_path: Path) -> None:
+    # The shim answers a sleep itself (WAIT AHEAD, no round trip) and the session runs the world to its
+    # end only when it reads that notice; the DUT's first look outside (select, read) syncs first.
+    out, log = tmp_path / "out.txt", tmp_path / "session.log"
+    with open(out, "w") as f:
+        cfg = SessionConfig(command=[PY, str(DUTS / "sleep_then_read.py")], serial=["/dev/ttyRC0"], stdout=f,
+                            log_path=log)
+        session = Session(cfg)
+        session.at(0.5, lambda s: s.serial_write("/dev/ttyRC0", b"sbus"))
+        outcome = session.run()
+    assert outcome.verdict == "ok", outcome.error
+    got = json.loads(out.read_text())
+    assert got == {"ready": True, "data": "sbus", "slept_ns": got["slept_ns"]}
+    assert 1.0 * NS <= got["slept_ns"] <= 1.0 * NS + 100 * QUANTUM  # the sleep lasted 1 s
+    waits = [line for line in log.read_text().splitlines() if " wait " in line]
+    assert any(line.endswith(" ahead") for line in waits)                      # it went ahead
