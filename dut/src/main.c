@@ -71,7 +71,6 @@ int main(int argc, char **argv)
     const double T = 1.0 / c.est_rate_hz, Tc = 1.0 / c.ctrl_rate_hz;
     const double t_start = now_s();
     struct timespec next;
-    clock_gettime(CLOCK_MONOTONIC, &next);
     long step_ns = (long)(1e9 / c.est_rate_hz);
 
     /* gyro bias: 500 samples at rest (seed 000) */
@@ -139,6 +138,9 @@ int main(int argc, char **argv)
     double loop_max_us = 0;
     euler att = {0, 0, 0};
 
+    /* the loop's deadlines start now: taken before the 1 s calibration, they made the first 250 cycles
+       run back to back (counted as overruns) to catch up */
+    clock_gettime(CLOCK_MONOTONIC, &next);
     for (;;) {
         double t0 = now_s();
         if (mpu_read(bus, c.mpu_addr, &acc, &gyro) < 0) {

@@ -3,6 +3,7 @@ against the emulated board, including the bad inputs it must refuse without driv
 
 from __future__ import annotations
 
+import itertools
 import math
 import subprocess
 from collections.abc import Callable, Sequence
@@ -73,6 +74,11 @@ def test_fc_at_rest_estimates_level_and_keeps_motors_idle(tmp_path: Path, fc: Pa
     assert last["armed"] == 0
     duties = {line.split()[-1] for line in log.splitlines() if " duty_cycle " in line}
     assert duties == {"1000000"}                                  # disarmed: idle on every motor
+    # lockstep: the loop's work takes a few clock quanta of its 4 ms, so no cycle overruns (the loop's
+    # deadlines once started before the 1 s calibration, and 250 cycles ran back to back to catch up)
+    assert last["overruns"] == 0
+    t = [r["t"] for r in rows]
+    assert min(b - a for a, b in itertools.pairwise(t)) == pytest.approx(0.02, abs=1e-6)  # every 5th cycle
 
 
 @pytest.mark.parametrize("config, message", [
