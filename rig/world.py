@@ -10,7 +10,7 @@ sample instant, not only the newest one; sample instants between two plant steps
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from emulators.faults import FaultSet, FaultyDevice
@@ -18,7 +18,7 @@ from emulators.hmc5883l import HMC5883L
 from emulators.i2c_bus import Msg
 from emulators.mpu6050 import MPU6050
 from emulators.ms5611 import MS5611
-from emulators.sensor_models import AxisErrors, BaroModel, ImuModel, MagModel
+from emulators.sensor_models import AxisErrors, BaroModel, ImuModel, MagModel, TruthRow
 from emulators.topology import Board, build_board
 from plant import Plant
 
@@ -49,28 +49,6 @@ class PwmChannel:
             return 0.0
         high = self.period_ns - self.duty_ns if self.inversed else self.duty_ns
         return min(max(high, 0), self.period_ns) / 1000.0
-
-
-class _Row(Mapping[str, float]):
-    """One plant output row seen as the mapping the sensor models read (no dict built per sample)."""
-
-    __slots__ = ("_index", "_row")
-
-    def __init__(self, index: dict[str, int], row: list[float]) -> None:
-        self._index, self._row = index, row
-
-    def __getitem__(self, name: str) -> float:
-        return self._row[self._index[name]]
-
-    def get(self, name: str, default: float | None = None) -> float | None:  # type: ignore[override]
-        i = self._index.get(name)
-        return default if i is None else self._row[i]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._index)
-
-    def __len__(self) -> int:
-        return len(self._index)
 
 
 @dataclass
@@ -161,7 +139,7 @@ class World:
         """Plant outputs at sim time ``t`` (seconds) as of the last step at or before it."""
         oldest = max(self._k0, self._k - HISTORY + 1)
         k = min(max(math.floor(t * 1e9 / self.step_ns + 1e-9), oldest), self._k)
-        return _Row(self.plant.y_index, self._hist[k % HISTORY])
+        return TruthRow(self.plant.y_index, self._hist[k % HISTORY])
 
     # ---- the DUT's side ----------------------------------------------------------------------
 

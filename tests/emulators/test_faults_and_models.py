@@ -12,7 +12,7 @@ from emulators.hmc5883l import HMC5883L
 from emulators.i2c_bus import I2CNack, read, write
 from emulators.mpu6050 import MPU6050
 from emulators.ms5611 import MS5611
-from emulators.sensor_models import AxisErrors, BaroModel, ImuModel, MagModel
+from emulators.sensor_models import AxisErrors, BaroModel, ImuModel, MagModel, TruthRow
 from emulators.topology import build_board
 from tests.emulators.boards import s16
 
@@ -164,3 +164,16 @@ def test_mounting_scale_bias_and_magnetic_disturbance():
     assert x0[0] == pytest.approx(1.02 * 0.25 + 0.05)
     assert x1[0] - x0[0] == pytest.approx(1.02 * 0.1)
     assert x0[2] == pytest.approx(-0.433)  # body down is sensor -z
+
+
+def test_the_imu_reads_a_plant_row_and_a_plain_mapping_alike() -> None:
+    # the world hands the models TruthRow views (read by position); tests and users hand plain dicts
+    names = ["extra", *REST]                        # a layout in which nothing sits where REST has it
+    row = TruthRow({n: i for i, n in enumerate(names)}, [99.0, *REST.values()])
+    errors = {"accel": AxisErrors(noise_density=0.01, bias=(0.1, 0.0, 0.0)),
+              "gyro": AxisErrors(noise_density=0.001, temp_coefficient=1e-3)}
+    by_row, by_name = (ImuModel(lambda t, tr=tr: tr, seed=3, **errors) for tr in (row, dict(REST)))
+    for k in range(5):
+        assert by_row(k * 1e-3) == by_name(k * 1e-3)
+    no_temp = ImuModel(lambda t: TruthRow({"fx": 0, "fy": 1, "fz": 2, "p": 3, "q": 4, "r": 5}, [0.0] * 6))
+    assert no_temp(0.0).temperature_c == 15.0 + no_temp.die_offset_c   # the default air temperature
