@@ -56,6 +56,7 @@ bench: venv $(FMU) $(SHIM) $(DUT_BIN) build/bench/physics_bench
 	$(PY) bench/exec_rates.py
 	build/dut/bench_fc
 	$(PY) bench/scenario_rates.py
+	$(PY) bench/cycle_cost.py
 
 clean:
 	rm -rf build

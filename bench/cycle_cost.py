@@ -1,0 +1,103 @@
+"""The session's cost of one reference-FC cycle, without a DUT process: the messages of a 250 Hz cycle
+(an MPU-6050 burst read, four PWM duty writes, a sleep that goes ahead) pushed through the session's
+message handling over a socketpair, with the MPU at 1 kHz behind its DLPF and the plant stepping 4 ms.
+
+Why: these VMs change speed by half from one minute to the next, so wall-clock A/B comparisons of a
+change need many interleaved runs. With ``--instructions`` the cost is counted in instructions under
+valgrind (two run lengths, subtracted, so start-up cancels): the same code gives the same count within
+about 1 %, whatever the machine is doing. Prints; asserts nothing.
+
+    python bench/cycle_cost.py                  # microseconds per cycle (wall clock, noisy)
+    python bench/cycle_cost.py --instructions   # instructions per cycle (needs valgrind)
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+import rig.protocol as P  # noqa: E402
+from rig.session import Session, SessionConfig, _Conn  # noqa: E402
+
+CYCLE_NS = 4_000_000
+
+
+def _msg(t_ns: int, payload: bytes, mtype: int) -> bytes:
+    return P.HEADER.pack(len(payload), mtype, 0, t_ns) + payload
+
+
+def _i2c(t_ns: int, parts: list[tuple[int, int, int, bytes]]) -> bytes:
+    descs = b"".join(P.I2C_MSG.pack(addr, flags, n, 0) for addr, flags, n, _ in parts)
+    return _msg(t_ns, P.I2C_HEAD.pack(1, len(parts)) + descs + b"".join(d for *_, d in parts), P.MSG_I2C)
+
+
+def _pwm(t_ns: int, channel: int, attr: int, value: int) -> bytes:
+    return _msg(t_ns, P.PWM_MSG.pack(0, channel, attr, 0, value), P.MSG_PWM)
+
+
+def _cycle(t_ns: int) -> bytes:
+    out = [_i2c(t_ns, [(0x68, 0, 1, b"\x3b"), (0x68, P.I2C_M_RD, 14, b"")])]
+    out += [_pwm(t_ns + 1000, ch, P.PWM_DUTY, 1_500_000) for ch in range(4)]
+    out.append(_msg(t_ns + 2000, P.WAIT_MSG.pack(t_ns + CYCLE_NS, P.WAIT_AHEAD, 0), P.MSG_WAIT))
+    return b"".join(out)
+
+
+def run_cycles(n: int) -> float:
+    """Runs ``n`` cycles; returns CPU seconds per cycle."""
+    session = Session(SessionConfig(command=["true"], duration=1e6))
+    session._open_shm(Path(tempfile.mkdtemp(prefix="rig-cycle-")) / "shm")
+    ours, dut = socket.socketpair()
+    conn = _Conn(ours, 1)
+    conn.hello = True
+    setup = [_i2c(0, [(0x68, 0, 2, bytes(rv))]) for rv in ((0x6B, 0x00), (0x1A, 0x03), (0x19, 0x00))]
+    for ch in range(4):  # the FC's MPU set-up (awake, DLPF 3, 1 kHz) and PWM channels
+        setup += [_pwm(0, ch, P.PWM_EXPORT, 0), _pwm(0, ch, P.PWM_PERIOD, 2_500_000),
+                  _pwm(0, ch, P.PWM_DUTY, 1_000_000), _pwm(0, ch, P.PWM_ENABLE, 1)]
+    dut.sendall(b"".join(setup))
+    session._on_readable(conn, None)  # type: ignore[arg-type]  # (the selector is not used here)
+    dut.recv(1 << 20)
+    t = 10_000_000
+    c0 = time.process_time()
+    for _ in range(n):
+        dut.sendall(_cycle(t))
+        session._on_readable(conn, None)  # type: ignore[arg-type]
+        dut.recv(65536)
+        t += CYCLE_NS
+    return (time.process_time() - c0) / n
+
+
+def _instructions(n: int) -> int:
+    env = {**os.environ, "PYTHONHASHSEED": "0", "RIG_CYCLES": str(n)}
+    cmd = ["setarch", "-R", "valgrind", "--tool=cachegrind", "--cache-sim=no",
+           "--cachegrind-out-file=/dev/null", sys.executable, __file__, "--child"]
+    done = subprocess.run(cmd, capture_output=True, text=True, env=env, check=True)
+    line = next(x for x in done.stderr.splitlines() if "I   refs:" in x or "I refs:" in x)
+    return int(line.split()[-1].replace(",", ""))
+
+
+def main() -> None:
+    if "--child" in sys.argv:
+        run_cycles(int(os.environ["RIG_CYCLES"]))
+    elif "--instructions" in sys.argv:
+        if not shutil.which("valgrind") or not shutil.which("setarch"):
+            sys.exit("--instructions needs valgrind and setarch (apt-get install valgrind util-linux)")
+        short, long = 300, 900
+        per = (_instructions(long) - _instructions(short)) / (long - short)
+        print(f"session cost of one FC cycle: {per / 1000:.0f} k instructions")
+    else:
+        runs = sorted(run_cycles(2500) * 1e6 for _ in range(3))
+        print(f"session cost of one FC cycle: {runs[1]:.0f} us CPU (median of 3; best {runs[0]:.0f}); "
+              f"{CYCLE_NS / 1e3 / runs[1]:.0f}x real time for this part alone")
+
+
+if __name__ == "__main__":
+    main()
