@@ -101,37 +101,24 @@ class _LowPass:
         self._depth_for: tuple[float, float] = (math.nan, math.nan)  # (delay, dt) of _depth
         self._depth = 0
 
-    def _gain_for(self, bw_hz: float, span: float) -> float:
-        """Exact first-order step over ``span`` seconds: y += a * (x - y); the same every sample in
-        steady sampling, so computed once."""
-        bw, sp, a = self._gain
-        if bw != bw_hz or sp != span:
-            a = 1.0 - math.exp(-2.0 * math.pi * bw_hz * span)
-            self._gain = (bw_hz, span, a)
-        return a
-
     def _approach(self, x: tuple[float, float, float], bw_hz: float, span: float) -> None:
         """Exact first-order response over ``span`` seconds to the input held at ``x``."""
         y = self.y if self.y is not None else x
-        a = self._gain_for(bw_hz, span)
+        bw, sp, a = self._gain
+        if bw != bw_hz or sp != span:  # the same every sample in steady sampling: computed once
+            a = 1.0 - math.exp(-2.0 * math.pi * bw_hz * span)
+            self._gain = (bw_hz, span, a)
         self.y = [y[0] + a * (x[0] - y[0]), y[1] + a * (x[1] - y[1]), y[2] + a * (x[2] - y[2])]
 
     def step(self, x: tuple[float, float, float], bw_hz: float, delay_s: float, dt: float) -> list[float]:
-        # (_approach inlined: this runs twice per sample, a thousand samples a second)
-        y = self.y if self.y is not None else x
-        bw, sp, a = self._gain
-        if bw != bw_hz or sp != dt:
-            a = self._gain_for(bw_hz, dt)
-        y = self.y = [y[0] + a * (x[0] - y[0]), y[1] + a * (x[1] - y[1]), y[2] + a * (x[2] - y[2])]
+        self._approach(x, bw_hz, dt)
         if self._depth_for != (delay_s, dt):  # constant in steady sampling: computed once
             self._depth_for = (delay_s, dt)
             self._depth = max(0, round(delay_s / dt)) if dt > 0 else 0
         pipe = self.pipe
-        pipe.append(y)  # (a new list each time: no copy needed)
-        if len(pipe) > self._depth + 1:
+        pipe.append(self.y)  # (_approach makes a new list each time: no copy needed)
+        while len(pipe) > self._depth + 1:
             pipe.popleft()
-            while len(pipe) > self._depth + 1:
-                pipe.popleft()
         return pipe[0]
 
     def catch_up(self, x: tuple[float, float, float], bw_hz: float, span: float) -> None:
@@ -217,23 +204,9 @@ class MPU6050:
                 a_bw, _, g_bw, _ = DLPF[self.regs[CONFIG] & 0x07]
                 self._accel_f.catch_up(truth.accel, a_bw, skip * period)
                 self._gyro_f.catch_up(truth.gyro, g_bw, skip * period)
-        if n > 1 and not keeps_all and self.dlpf:
-            # a sample that a later one overwrites before anyone can see it only feeds the filters
-            # (a loop of its own: it runs three times for every sample a 250 Hz reader sees)
-            source, af, gf = self.source, self._accel_f, self._gyro_f
-            a_bw, a_delay, g_bw, g_delay = DLPF[self.regs[CONFIG] & 0x07]
-            next_t = self._next_t
-            for _ in range(n - 1):
-                truth = source(next_t)
-                af.step(truth.accel, a_bw, a_delay, period)
-                gf.step(truth.gyro, g_bw, g_delay, period)
-                next_t += period
-            self._next_t = next_t
-            self.samples += n - 1
-            self.regs[INT_STATUS] |= 0x01
-            n = 1
         for i in range(n):
             self.now = self._next_t
+            # a sample that a later one overwrites before anyone can see it only feeds the filters
             self._sample(period, encode=bool(keeps_all) or i == n - 1)
             self._next_t += period
         self.now = t
