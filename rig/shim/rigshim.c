@@ -326,18 +326,27 @@ static int64_t clock_base(clockid_t id)
 static uint64_t now_tick(void) { return __atomic_add_fetch(&shm->sim_ns, shm->quantum_ns, __ATOMIC_SEQ_CST); }
 
 /* Asks the session to run the world until wake_ns (or an event); returns why we woke. */
+/* The WAIT payload: u64 wake_ns, u32 kind, u32 0. */
+struct wait_req {
+    uint64_t wake;
+    uint32_t kind, zero;
+};
+
+/* Moves the shared clock forward to t_ns (never back: another thread may have moved it further). */
+static void clock_advance_to(uint64_t t_ns)
+{
+    uint64_t cur = now_peek();
+    while (t_ns > cur && !__atomic_compare_exchange_n(&shm->sim_ns, &cur, t_ns, 0, __ATOMIC_SEQ_CST, __ATOMIC_SEQ_CST))
+        ;
+}
+
 static uint32_t wait_until(uint64_t wake_ns, uint32_t kind)
 {
-    struct {
-        uint64_t wake;
-        uint32_t kind, zero;
-    } req = {wake_ns, kind, 0};
+    struct wait_req req = {wake_ns, kind, 0};
     uint32_t reason = RIG_WAKE_DEADLINE;
     pthread_mutex_lock(&lock);
     struct rig_hdr h = request(RIG_MSG_WAIT, &req, sizeof req, &reason, sizeof reason);
-    uint64_t cur = now_peek();
-    while (h.t_ns > cur && !__atomic_compare_exchange_n(&shm->sim_ns, &cur, h.t_ns, 0, __ATOMIC_SEQ_CST, __ATOMIC_SEQ_CST))
-        ;
+    clock_advance_to(h.t_ns);
     pthread_mutex_unlock(&lock);
     return reason;
 }
@@ -350,16 +359,11 @@ static uint32_t wait_until(uint64_t wake_ns, uint32_t kind)
 static void sleep_until(uint64_t wake_ns)
 {
     if (now_peek() < wake_ns && !__atomic_load_n(&ahead, __ATOMIC_ACQUIRE)) {
-        struct {
-            uint64_t wake;
-            uint32_t kind, zero;
-        } req = {wake_ns, RIG_WAIT_AHEAD, 0};
+        struct wait_req req = {wake_ns, RIG_WAIT_AHEAD, 0};
         pthread_mutex_lock(&lock);
         ensure_connected();
         send_msg(RIG_MSG_WAIT, &req, sizeof req); /* stamped with the time the sleep began */
-        uint64_t cur = now_peek();
-        while (wake_ns > cur && !__atomic_compare_exchange_n(&shm->sim_ns, &cur, wake_ns, 0, __ATOMIC_SEQ_CST, __ATOMIC_SEQ_CST))
-            ;
+        clock_advance_to(wake_ns);
         __atomic_store_n(&ahead, 1, __ATOMIC_RELEASE);
         pthread_mutex_unlock(&lock);
         return;
@@ -1469,28 +1473,19 @@ EXPORT ssize_t write(int fd, const void *buf, size_t n)
     return f ? fake_write(f, buf, n) : LOAD(write)(fd, buf, n);
 }
 
-static ssize_t fake_pread(struct fake *f, void *buf, size_t n, off_t off)
-{
-    return f->t.kind == K_I2C ? errno_ret(ESPIPE) : fake_read(f, buf, n, &off); /* i2c-dev has no offsets */
-}
+typedef ssize_t (*pread_fn)(int, void *, size_t, off_t);
 
-EXPORT ssize_t pread(int fd, void *buf, size_t n, off_t off)
+static ssize_t pread_via(int fd, void *buf, size_t n, off_t off, pread_fn real)
 {
     struct fake *f = fake_of(fd);
-    if (f)
-        return fake_pread(f, buf, n, off);
+    if (f) /* i2c-dev has no offsets */
+        return f->t.kind == K_I2C ? errno_ret(ESPIPE) : fake_read(f, buf, n, &off);
     catch_up();
-    return LOAD(pread)(fd, buf, n, off);
+    return real(fd, buf, n, off);
 }
 
-EXPORT ssize_t pread64(int fd, void *buf, size_t n, off_t off)
-{
-    struct fake *f = fake_of(fd);
-    if (f)
-        return fake_pread(f, buf, n, off);
-    catch_up();
-    return LOAD(pread64)(fd, buf, n, off);
-}
+EXPORT ssize_t pread(int fd, void *buf, size_t n, off_t off) { return pread_via(fd, buf, n, off, LOAD(pread)); }
+EXPORT ssize_t pread64(int fd, void *buf, size_t n, off_t off) { return pread_via(fd, buf, n, off, LOAD(pread64)); }
 
 EXPORT ssize_t pwrite(int fd, const void *buf, size_t n, off_t off)
 {
