@@ -40,6 +40,7 @@ def test_i2c_dev_node_behaves_like_the_kernel(tmp_path: Path) -> None:
     assert out["read_before_slave"] == "ENXIO"
     assert out["plain_read"] == 0x68
     assert out["pec"] == "EINVAL"
+    assert out["pread"] == "ESPIPE"
     assert (out["quick_68"], out["quick_50"]) == ("ok", "ENXIO")
     assert out["word_6b"] == out["bytes_6b"][0] | out["bytes_6b"][1] << 8 == 0x0001
     assert out["after_word_write"] == [0x04, 0x03]         # LSB first, as SMBus words go

@@ -39,6 +39,7 @@ fcntl.ioctl(fd, I2C_SLAVE, 0x68)
 os.write(fd, bytes([0x75]))
 out["plain_read"] = os.read(fd, 1)[0]
 out["pec"] = err(lambda: fcntl.ioctl(fd, I2C_PEC, 1))
+out["pread"] = err(lambda: os.pread(fd, 1, 0))                           # i2c-dev has no offsets
 os.close(fd)
 
 with SMBus(1) as bus:
