@@ -105,8 +105,8 @@ TruthFn = Callable[[float], Mapping[str, float]]
 
 class TruthRow(Mapping[str, float]):
     """One plant output row (a list, laid out by ``index``) seen as a mapping, with no dict built per
-    sample. ``pick`` reads several values at C speed: the IMU reads seven per sample, a thousand samples
-    a second, and one Python-level ``__getitem__`` each cost as much as the rest of the model."""
+    sample. The IMU reads its seven values from ``row`` by position instead (``_Picker``): it does so a
+    thousand times a second, and a Python-level ``__getitem__`` per value cost more than the lookup."""
 
     __slots__ = ("index", "row")
 
