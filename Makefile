@@ -10,12 +10,13 @@ CFLAGS_BENCH := -std=c11 -O2 -Wall -Wextra -Werror
 PLANT_SOURCES := $(wildcard plant/c/*.c plant/c/*.h plant/fmi2/*) plant/variables.py plant/build.py
 
 SHIM   := build/librigshim.so
+NATIVE := build/libsampling.so
 
 DUT_BIN := build/dut/fc
 
-.PHONY: all venv fmu shim dut demo test test-slow lint bench clean
+.PHONY: all venv fmu shim native dut demo test test-slow lint bench clean
 
-all: fmu shim dut
+all: fmu shim native dut
 
 venv: $(VENV)/.installed
 $(VENV)/.installed: pyproject.toml tools/bootstrap.sh
@@ -30,27 +31,31 @@ shim: $(SHIM)
 $(SHIM): rig/shim/rigshim.c rig/shim/protocol.h rig/shim/build.py | venv
 	$(PY) -m rig.shim.build
 
+native: $(NATIVE)
+$(NATIVE): emulators/c/sampling.c emulators/native.py | venv
+	$(PY) -m emulators.native
+
 dut: $(DUT_BIN)
 $(DUT_BIN): $(wildcard dut/src/* dut/tests/* dut/Makefile) bench/fc_bench.c
 	$(MAKE) -s -C dut
 
-demo: venv fmu shim dut
+demo: venv fmu shim native dut
 	$(VENV)/bin/rig run --out build/reports
 
 lint: venv
 	$(VENV)/bin/ruff check .
 
-test: venv $(FMU) $(SHIM) $(DUT_BIN) lint
+test: venv $(FMU) $(SHIM) $(NATIVE) $(DUT_BIN) lint
 	$(PY) -m pytest -q -m "not slow"
 
-test-slow: venv $(FMU) $(SHIM)
+test-slow: venv $(FMU) $(SHIM) $(NATIVE)
 	$(PY) -m pytest -q -m slow
 
 build/bench/physics_bench: bench/physics_bench.c $(PLANT_SOURCES) | venv $(FMU)
 	@mkdir -p build/bench
 	$(CC) $(CFLAGS_BENCH) -Ibuild/plant/gen -Iplant/c -o $@ bench/physics_bench.c plant/c/quadrotor_physics.c -lm
 
-bench: venv $(FMU) $(SHIM) $(DUT_BIN) build/bench/physics_bench
+bench: venv $(FMU) $(SHIM) $(NATIVE) $(DUT_BIN) build/bench/physics_bench
 	$(PY) bench/plant_rates.py
 	$(PY) bench/emulator_rates.py
 	$(PY) bench/exec_rates.py

@@ -4,14 +4,18 @@ INT_STATUS, FIFO with latched count, bypass and aux master, self-test. Sim time 
 
 from __future__ import annotations
 
+import ctypes
 import math
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
+import numpy as np
+
+from emulators import native
 from emulators.i2c_bus import I2CDevice
-from emulators.registers import RegisterMap, RegisterSpec, clamp16, round_half_away
+from emulators.registers import RegisterMap, RegisterSpec
 
 ADDRESS = 0x68
 G0 = 9.80665
@@ -22,6 +26,7 @@ DLPF = ((260, 0.0, 256, 0.98e-3), (184, 2.0e-3, 188, 1.9e-3), (94, 3.0e-3, 98, 2
         (44, 4.9e-3, 42, 4.8e-3), (21, 8.5e-3, 20, 8.3e-3), (10, 13.8e-3, 10, 13.4e-3),
         (5, 19.0e-3, 5, 18.6e-3), (260, 0.0, 256, 0.98e-3))
 FIFO_SIZE = 1024
+BLOCK = native.BLOCK
 
 # Self-test: factory-trim codes and the matching actuation (specs §3.10). Gyro code 16 gives
 # FT = 25 * 1.046**15 deg/s (+X, -Y, +Z); accel code 12 gives FT = 0.34 * (0.92/0.34)**(11/30) g.
@@ -46,6 +51,7 @@ def _self_test_regs() -> tuple[int, int, int, int]:
 
 
 _ST = _self_test_regs()
+_ST_SIZE = (ctypes.c_double * 2)(ST_ACCEL_G, ST_GYRO_DPS)  # (for C)
 
 REGISTERS = RegisterMap("MPU-6050", [
     RegisterSpec(0x0C, "PRODUCT_ID", 0x00, "r"),
@@ -83,8 +89,7 @@ REGISTERS = RegisterMap("MPU-6050", [
 
 
 class ImuTruth(NamedTuple):
-    """Physical inputs in the sensor frame: specific force (m/s²), angular rate (rad/s), die °C.
-    (A NamedTuple: one is built per sample, a thousand a second.)"""
+    """Physical inputs in the sensor frame: specific force (m/s²), angular rate (rad/s), die °C."""
 
     accel: tuple[float, float, float]
     gyro: tuple[float, float, float]
@@ -92,45 +97,44 @@ class ImuTruth(NamedTuple):
 
 
 class _LowPass:
-    """First-order low-pass at the DLPF bandwidth plus a pure delay, stepped at the sample clock."""
+    """First-order low-pass at the DLPF bandwidth plus a pure delay, stepped at the sample clock over a
+    block of samples in place. The arithmetic is in C (emulators/c/sampling.c): it runs for every sample,
+    a thousand a second, whether or not anyone reads them."""
 
     def __init__(self) -> None:
-        self.y: list[float] | None = None
-        self.pipe: deque[list[float]] = deque()
+        self._lib = native.sampling()
+        self._mem, self._addr = native.state("rig_lowpass_size")  # zeroed: no output yet, empty delay
         self._gain: tuple[float, float, float] = (math.nan, math.nan, math.nan)  # (bw, span, a)
         self._depth_for: tuple[float, float] = (math.nan, math.nan)  # (delay, dt) of _depth
         self._depth = 0
 
-    def _approach(self, x: tuple[float, float, float], bw_hz: float, span: float) -> None:
-        """Exact first-order response over ``span`` seconds to the input held at ``x``."""
-        y = self.y if self.y is not None else x
+    def _a(self, bw_hz: float, span: float) -> float:
+        """The gain of the exact first-order response over ``span`` seconds."""
         bw, sp, a = self._gain
-        if bw != bw_hz or sp != span:  # the same every sample in steady sampling: computed once
+        if bw != bw_hz or sp != span:  # the same every block in steady sampling: computed once
             a = 1.0 - math.exp(-2.0 * math.pi * bw_hz * span)
             self._gain = (bw_hz, span, a)
-        self.y = [y[0] + a * (x[0] - y[0]), y[1] + a * (x[1] - y[1]), y[2] + a * (x[2] - y[2])]
+        return a
 
-    def step(self, x: tuple[float, float, float], bw_hz: float, delay_s: float, dt: float) -> list[float]:
-        self._approach(x, bw_hz, dt)
-        if self._depth_for != (delay_s, dt):  # constant in steady sampling: computed once
+    def run(self, xs: int, n: int, stride: int, bw_hz: float, delay_s: float, dt: float) -> None:
+        """Filters ``n`` samples of three float64 at address ``xs`` (``stride`` values apart) in place."""
+        if self._depth_for != (delay_s, dt):
             self._depth_for = (delay_s, dt)
             self._depth = max(0, round(delay_s / dt)) if dt > 0 else 0
-        pipe = self.pipe
-        pipe.append(self.y)  # (_approach makes a new list each time: no copy needed)
-        while len(pipe) > self._depth + 1:
-            pipe.popleft()
-        return pipe[0]
+            if self._depth > self._lib.rig_lowpass_max_depth():
+                raise ValueError(f"DLPF delay {delay_s} s is more samples of {dt} s than the filter keeps")
+        self._lib.rig_lowpass_run(self._addr, n, xs, stride, self._a(bw_hz, dt), self._depth)
 
-    def catch_up(self, x: tuple[float, float, float], bw_hz: float, span: float) -> None:
-        """Advances the filter over ``span`` seconds of the input held at ``x``, exactly, in one go
-        (the delay line is refilled by the samples that follow)."""
-        self._approach(x, bw_hz, span)
-        self.pipe.clear()
+    def catch_up(self, x: int, bw_hz: float, span: float) -> None:
+        """Advances the filter over ``span`` seconds of the input held at the three float64 at ``x``,
+        exactly, in one go (the delay line is refilled by the samples that follow)."""
+        self._lib.rig_lowpass_catch_up(self._addr, x, self._a(bw_hz, span))
 
 
 @dataclass
 class MPU6050:
-    """The device. ``source(t)`` gives ImuTruth in the sensor frame at sim time t. ``aux`` holds the
+    """The device. ``source(t)`` gives ImuTruth in the sensor frame at sim time t; a source with a
+    ``sample_block(times, out)`` (ImuModel) is asked for a block of samples at once. ``aux`` holds the
     devices on the auxiliary bus (the GY-86's HMC5883L), reached through bypass or the aux master."""
 
     source: Callable[[float], ImuTruth]
@@ -147,6 +151,15 @@ class MPU6050:
     _fifo_last: int = 0
     _accel_f: _LowPass = field(default_factory=_LowPass)
     _gyro_f: _LowPass = field(default_factory=_LowPass)
+    _block: np.ndarray = field(default_factory=lambda: np.zeros((BLOCK, 7)))  # samples being taken
+
+    def __post_init__(self) -> None:
+        self._block_addr = self._block.ctypes.data
+        self._encode_c = native.sampling().rig_mpu_encode
+        self._lsb, self._st = (ctypes.c_double * 2)(), (ctypes.c_int32 * 2)()
+        self._regs_seen: bytearray | None = None
+        self._data_view: ctypes.c_char | None = None
+        self._data_addr = 0
 
     # ---- configuration decoded ----------------------------------------------------------------
 
@@ -192,60 +205,65 @@ class MPU6050:
         if self._next_t < self.now:
             self._next_t = self.now
         n = math.floor((t - self._next_t) / period + 1e-9) + 1 if self._next_t <= t else 0
+        a_bw, a_delay, g_bw, g_delay = DLPF[self.regs[CONFIG] & 0x07]
         # With nothing that keeps every sample (FIFO, aux master), a long wait needs only its last
         # few samples: enough to refill the DLPF's delay line.
         keeps_all = self.regs[USER_CTRL] & 0x60
-        if n > 64 and not keeps_all:
-            skip = n - 64
+        if n > BLOCK and not keeps_all:
+            skip = n - BLOCK
             self._next_t += skip * period
-            n = 64
+            n = BLOCK
             if self.dlpf:
-                truth = self.source(self._next_t)
-                a_bw, _, g_bw, _ = DLPF[self.regs[CONFIG] & 0x07]
-                self._accel_f.catch_up(truth.accel, a_bw, skip * period)
-                self._gyro_f.catch_up(truth.gyro, g_bw, skip * period)
-        for i in range(n):
-            self.now = self._next_t
+                self._take((self._next_t,))
+                self._accel_f.catch_up(self._block_addr, a_bw, skip * period)
+                self._gyro_f.catch_up(self._block_addr + 24, g_bw, skip * period)
+        while n > 0:
+            m = min(n, BLOCK)
+            times = []
+            for _ in range(m):
+                times.append(self._next_t)
+                self._next_t += period
+            self._take(times)
+            if self.dlpf:
+                self._accel_f.run(self._block_addr, m, 7, a_bw, a_delay, period)
+                self._gyro_f.run(self._block_addr + 24, m, 7, g_bw, g_delay, period)
+            n -= m
             # a sample that a later one overwrites before anyone can see it only feeds the filters
-            self._sample(period, encode=bool(keeps_all) or i == n - 1)
-            self._next_t += period
+            for i in range(m) if keeps_all else (m - 1,) if n == 0 else ():
+                self.now = times[i]
+                self._encode(i)
+            self.regs[INT_STATUS] |= 0x01  # DATA_RDY, set whatever INT_ENABLE says (specs §3.7)
+            self.samples += m
         self.now = t
 
-    def _sample(self, dt: float, encode: bool = True) -> None:
-        truth = self.source(self.now)
-        cfg = self.regs[CONFIG] & 0x07
-        a_bw, a_delay, g_bw, g_delay = DLPF[cfg]
-        accel, gyro = truth.accel, truth.gyro
-        if self.dlpf:
-            accel = self._accel_f.step(accel, a_bw, a_delay, dt)
-            gyro = self._gyro_f.step(gyro, g_bw, g_delay, dt)
-        if not encode:
-            self.regs[INT_STATUS] |= 0x01
-            self.samples += 1
+    def _take(self, times: Sequence[float]) -> None:
+        """The source's samples at ``times`` into the first rows of the block (accel, gyro, °C)."""
+        take = getattr(self.source, "sample_block", None)
+        if take is not None:
+            take(times, self._block)
             return
-        a_lsb, g_lsb = self.accel_scale(), self.gyro_scale()
-        a_st, g_st = self.regs[ACCEL_CONFIG] >> 5, self.regs[GYRO_CONFIG] >> 5
-        stby = self.regs[PWR_MGMT_2]
-        live = self.regs
-        for i in range(3):
-            if not stby & (0x20 >> i):
-                st = ST_ACCEL_G * a_lsb if a_st & (0x4 >> i) else 0.0
-                raw = clamp16(round_half_away(accel[i] / G0 * a_lsb + st))
-                live[ACCEL_XOUT_H + 2 * i:ACCEL_XOUT_H + 2 * i + 2] = (raw & 0xFFFF).to_bytes(2, "big")
-            if not stby & (0x04 >> i):
-                sign = -1.0 if i == 1 else 1.0
-                st = sign * ST_GYRO_DPS * g_lsb if g_st & (0x4 >> i) else 0.0
-                raw = clamp16(round_half_away(math.degrees(gyro[i]) * g_lsb + st))
-                live[GYRO_XOUT_H + 2 * i:GYRO_XOUT_H + 2 * i + 2] = (raw & 0xFFFF).to_bytes(2, "big")
-        if not self.regs[PWR_MGMT_1] & 0x08:  # TEMP_DIS holds the last value
-            raw = clamp16(round_half_away((truth.temperature_c - 36.53) * 340.0))
-            live[TEMP_OUT_H:TEMP_OUT_H + 2] = (raw & 0xFFFF).to_bytes(2, "big")
-        if self.regs[USER_CTRL] & 0x20:
+        for i, t in enumerate(times):  # a plain function of time (tests, traces)
+            s = self.source(t)
+            self._block[i] = (*s.accel, *s.gyro, s.temperature_c)
+
+    def _encode(self, i: int) -> None:
+        """Sample ``i`` of the block into the data registers (in C: specs §2's rounding, the FS scale,
+        self-test actuation, standby and TEMP_DIS), then the aux master and the FIFO."""
+        regs = self.regs
+        if regs is not self._regs_seen:  # (a reset makes a new bytearray)
+            # the view keeps regs exported: resizing it would raise instead of moving the bytes
+            self._regs_seen, self._data_view = regs, ctypes.c_char.from_buffer(regs, ACCEL_XOUT_H)
+            self._data_addr = ctypes.addressof(self._data_view)
+        lsb, st = self._lsb, self._st
+        lsb[0] = ACCEL_LSB_PER_G[(regs[ACCEL_CONFIG] >> 3) & 3]
+        lsb[1] = GYRO_LSB_PER_DPS[(regs[GYRO_CONFIG] >> 3) & 3]
+        st[0], st[1] = regs[ACCEL_CONFIG] >> 5, regs[GYRO_CONFIG] >> 5
+        self._encode_c(self._block_addr + 56 * i, self._data_addr, lsb, st, regs[PWR_MGMT_2],
+                       regs[PWR_MGMT_1] & 0x08, _ST_SIZE, G0)
+        if regs[USER_CTRL] & 0x20:
             self._run_aux_master()
-        if self.regs[USER_CTRL] & 0x40:
+        if regs[USER_CTRL] & 0x40:
             self._push_fifo()
-        self.regs[INT_STATUS] |= 0x01  # DATA_RDY, set whatever INT_ENABLE says (specs §3.7)
-        self.samples += 1
 
     def _slaves(self) -> list[tuple[int, int, int, int, int, int]]:
         """Enabled slaves 0..3 as (n, ADDR, REG, CTRL, first EXT_SENS_DATA register, length): read

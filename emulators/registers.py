@@ -45,7 +45,3 @@ class RegisterMap:
 def round_half_away(x: float) -> int:
     """Quantisation rule of specs §2: round half away from zero."""
     return int(math.copysign(math.floor(abs(x) + 0.5), x))
-
-
-def clamp16(x: int) -> int:
-    return -32768 if x < -32768 else (32767 if x > 32767 else x)

@@ -5,13 +5,14 @@ Deterministic for a given seed. The devices call a model at their own sample ins
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable, Iterator, Mapping
+import ctypes
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from operator import itemgetter
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from emulators import native
 from emulators.faults import FaultSet
 from emulators.mpu6050 import ImuTruth
 from emulators.ms5611 import BaroTruth
@@ -33,71 +34,72 @@ class AxisErrors:
     temp_coefficient: float = 0.0      # bias change per degC away from 25 degC
 
     def matrix(self) -> tuple[tuple[float, float, float], ...]:
-        """Scale/misalignment times mounting, as plain floats: a 3x3 product per sample is cheaper in
-        Python than a numpy call at these sizes, and a sample is taken a thousand times a second."""
+        """Scale/misalignment times mounting: the one matrix each sample is multiplied by."""
         s, m = self.scale_misalignment, self.mounting
         return tuple(
             tuple(float(sum(s[i][k] * m[k][j] for k in range(3))) for j in range(3)) for i in range(3)
         )  # type: ignore[return-value]
 
 
+Vec3 = tuple[float, float, float]
+BLOCK = native.BLOCK
+
+
 class Normals:
-    """Standard normal draws taken from the generator in blocks (one numpy call per thousand values, not
-    one per sample). The sequence is the generator's own, value by value, whatever the block size."""
+    """Standard normal draws taken from the generator in blocks (one numpy call per thousands of values,
+    not one per sample). The sequence is the generator's own, value by value, whatever the block size."""
 
     BLOCK = 3072
 
     def __init__(self, rng: np.random.Generator) -> None:
         self._rng = rng
-        self._buf: list[float] = []
-        self._i = 0
+        self.buf = np.empty(0)
+        self.pos = 0  # the first unread value in ``buf``
+
+    def reserve(self, n: int) -> None:
+        """Makes sure ``buf`` holds at least ``n`` unread values from ``pos`` on."""
+        if self.pos + n > len(self.buf):
+            self.buf = np.concatenate([self.buf[self.pos:], self._rng.standard_normal(max(self.BLOCK, n))])
+            self.pos = 0
 
     def take(self, n: int) -> list[float]:
-        if self._i + n > len(self._buf):
-            self._buf = self._buf[self._i:] + self._rng.standard_normal(max(self.BLOCK, n)).tolist()
-            self._i = 0
-        out = self._buf[self._i:self._i + n]
-        self._i += n
+        self.reserve(n)
+        out = self.buf[self.pos:self.pos + n].tolist()
+        self.pos += n
         return out
 
 
-Vec3 = tuple[float, float, float]
-
-
-@dataclass
 class _Channel:
-    errors: AxisErrors
-    faults: FaultSet
-    rng: np.random.Generator
-    walk: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    last_t: float | None = None
+    """One triaxial sensor's errors and their state (the random walk, the last sample time), kept in C
+    (emulators/c/sampling.c, which has the arithmetic). The normals it draws come from its own
+    generator's Normals, whose unread part C reads in place."""
 
-    def __post_init__(self) -> None:
-        self.m = self.errors.matrix()
-        self.normals = Normals(self.rng)
+    def __init__(self, errors: AxisErrors, faults: FaultSet, rng: np.random.Generator) -> None:
+        self.errors, self.faults = errors, faults
+        self.normals = Normals(rng)
+        self._lib = native.sampling()
+        self._mem, self.addr = native.state("rig_channel_size")
+        m = [v for row in errors.matrix() for v in row]
+        self._lib.rig_channel_init(self.addr, (ctypes.c_double * 9)(*m), (ctypes.c_double * 3)(*errors.bias),
+                                   errors.bias_random_walk, errors.noise_density, errors.temp_coefficient)
+        self._t, self._in, self._out = ctypes.c_double(), (ctypes.c_double * 3)(), (ctypes.c_double * 3)()
 
-    def measure(self, t: float, truth_body: Vec3, temperature_c: float) -> Vec3:
-        # unrolled over the three axes: this runs twice per IMU sample, a thousand samples a second
-        dt = 0.0 if self.last_t is None else max(0.0, t - self.last_t)
-        self.last_t = t
-        e = self.errors
-        w0, w1, w2 = self.walk
-        if e.bias_random_walk and dt > 0:
-            s = e.bias_random_walk * math.sqrt(dt)
-            z0, z1, z2 = self.normals.take(3)
-            w0, w1, w2 = self.walk = [w0 + s * z0, w1 + s * z1, w2 + s * z2]
-        x, y, z = truth_body
-        b0, b1, b2 = e.bias
-        c = e.temp_coefficient * (temperature_c - 25.0)
-        r0, r1, r2 = self.m
-        v0 = r0[0] * x + r0[1] * y + r0[2] * z + b0 + w0 + c
-        v1 = r1[0] * x + r1[1] * y + r1[2] * z + b1 + w1 + c
-        v2 = r2[0] * x + r2[1] * y + r2[2] * z + b2 + w2 + c
-        if e.noise_density and dt > 0:
-            s = e.noise_density / math.sqrt(2.0 * dt)
-            n0, n1, n2 = self.normals.take(3)
-            v0, v1, v2 = v0 + s * n0, v1 + s * n1, v2 + s * n2
-        return self.faults.apply(t, (v0, v1, v2))  # type: ignore[return-value]
+    def refill(self, need: int) -> None:
+        """Gives C at least ``need`` unread normals (C has read up to where it says)."""
+        nm = self.normals
+        nm.pos = len(nm.buf) - self._lib.rig_channel_normals_left(self.addr)
+        nm.reserve(need)
+        self._lib.rig_channel_normals(self.addr, nm.buf.ctypes.data + 8 * nm.pos, len(nm.buf) - nm.pos)
+
+    def measure(self, t: float, truth: Vec3, temperature_c: float) -> Vec3:
+        """One sample, faults applied (the magnetometer's way: tens of samples a second)."""
+        self._t.value = t
+        self._in[:] = truth
+        temp = ctypes.c_double(temperature_c)
+        while self._lib.rig_channel_measure(self.addr, 1, ctypes.byref(self._t), self._in, ctypes.byref(temp),
+                                            self._out):
+            self.refill(6)
+        return self.faults.apply(t, tuple(self._out))  # type: ignore[return-value]
 
 
 TruthFn = Callable[[float], Mapping[str, float]]
@@ -105,8 +107,7 @@ TruthFn = Callable[[float], Mapping[str, float]]
 
 class TruthRow(Mapping[str, float]):
     """One plant output row (a list, laid out by ``index``) seen as a mapping, with no dict built per
-    sample. The IMU reads its seven values from ``row`` by position instead (``_Picker``): it does so a
-    thousand times a second, and a Python-level ``__getitem__`` per value cost more than the lookup."""
+    sample."""
 
     __slots__ = ("index", "row")
 
@@ -127,30 +128,49 @@ class TruthRow(Mapping[str, float]):
         return len(self.index)
 
 
-class _Picker:
-    """Reads ``names`` from a truth mapping as a tuple; from a TruthRow by position (resolved once per
-    layout), from any other mapping by name. A missing ``optional`` name reads as its default."""
+@runtime_checkable
+class TruthTable(Protocol):
+    """Plant truth as C reads it: a row of float64 per sample instant, the same column for a name in every
+    row. The world keeps its plant history this way; ``FunctionTable`` makes one of a truth function."""
 
-    def __init__(self, names: tuple[str, ...], optional: tuple[str, float]) -> None:
-        self.names, self.optional = names, optional
-        self._index: dict[str, int] | None = None
-        self._get: Callable[[list[float]], tuple[float, ...]] = itemgetter(0)
+    def column(self, name: str) -> int:
+        """The column of ``name`` (KeyError when there is none)."""
+        ...
 
-    def __call__(self, tr: Mapping[str, float]) -> tuple[float, ...]:
-        opt, default = self.optional
-        if type(tr) is TruthRow and opt in tr.index:
-            if tr.index is not self._index:
-                self._index = tr.index
-                self._get = itemgetter(*(tr.index[n] for n in (*self.names, opt)))
-            return self._get(tr.row)
-        return (*(tr[n] for n in self.names), tr.get(opt, default))
+    def row_addresses(self, times: Sequence[float]) -> list[int]:
+        """The address of the row for each sample instant (valid until the table next changes)."""
+        ...
+
+
+class FunctionTable:
+    """A truth function seen as a table: each row asked for is evaluated and written to scratch rows.
+    ``defaults`` stand in for names the function's mappings may lack."""
+
+    def __init__(self, fn: TruthFn, names: Sequence[str], defaults: Mapping[str, float]) -> None:
+        self.fn, self.names, self.defaults = fn, tuple(names), dict(defaults)
+        self._rows = np.zeros((BLOCK, len(self.names)))
+        self._addr, self._stride = self._rows.ctypes.data, self._rows.strides[0]
+
+    def column(self, name: str) -> int:
+        return self.names.index(name)
+
+    def row_addresses(self, times: Sequence[float]) -> list[int]:
+        for i, t in enumerate(times):
+            tr = self.fn(t)
+            self._rows[i] = [tr.get(n, self.defaults[n]) if n in self.defaults else tr[n] for n in self.names]
+        return [self._addr + i * self._stride for i in range(len(times))]
+
+
+IMU_TRUTH = ("fx", "fy", "fz", "p", "q", "r", "temperature")
+AIR_TEMPERATURE_C = 15.0  # when the truth has no temperature (a bare test function)
 
 
 @dataclass
 class ImuModel:
-    """Source for the MPU-6050: plant truth (fx fy fz, p q r, temperature) -> sensor-frame ImuTruth."""
+    """Source for the MPU-6050: plant truth (fx fy fz, p q r, temperature) -> sensor-frame samples.
+    ``truth`` is a truth function or, faster, a TruthTable (what the world hands it)."""
 
-    truth: TruthFn
+    truth: TruthFn | TruthTable
     accel: AxisErrors = field(default_factory=AxisErrors)
     gyro: AxisErrors = field(default_factory=AxisErrors)
     accel_faults: FaultSet = field(default_factory=FaultSet)
@@ -159,17 +179,44 @@ class ImuModel:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        self._pick = _Picker(("fx", "fy", "fz", "p", "q", "r"), ("temperature", 15.0))
         rng = np.random.default_rng(self.seed)
         self._a = _Channel(self.accel, self.accel_faults, np.random.default_rng(rng.integers(2**63)))
         self._g = _Channel(self.gyro, self.gyro_faults, np.random.default_rng(rng.integers(2**63)))
+        table = self.truth if isinstance(self.truth, TruthTable) else FunctionTable(
+            self.truth, IMU_TRUTH, {"temperature": AIR_TEMPERATURE_C})
+        self._table = table
+        self._cols = (ctypes.c_int32 * 7)(*(table.column(n) for n in IMU_TRUTH))
+        self._times, self._rows = (ctypes.c_double * BLOCK)(), (ctypes.c_void_p * BLOCK)()
+        self._measure = native.sampling().rig_imu_measure
+        self._out: np.ndarray | None = None
+        self._out_addr = 0
+        self._one = np.zeros((1, 7))
+
+    def sample_block(self, times: Sequence[float], out: np.ndarray) -> None:
+        """Takes the samples at ``times`` (at most BLOCK, in order) into ``out``'s first rows: accel xyz
+        (m/s²) and gyro xyz (rad/s) in the sensor frame, die temperature (°C). ``out``: float64, C order,
+        7 columns."""
+        n = len(times)
+        if out is not self._out:
+            if out.dtype != np.float64 or not out.flags.c_contiguous or out.ndim != 2 or out.shape[1] != 7:
+                raise ValueError("ImuModel.sample_block needs a C-ordered float64 array of 7 columns")
+            self._out, self._out_addr = out, out.ctypes.data
+        if not 0 <= n <= min(BLOCK, len(out)):
+            raise ValueError(f"ImuModel.sample_block takes 0..{min(BLOCK, len(out))} samples, not {n}")
+        self._times[:n] = times
+        self._rows[:n] = self._table.row_addresses(times)
+        while short := self._measure(self._a.addr, self._g.addr, n, self._times, self._rows, self._cols,
+                                     self.die_offset_c, self._out_addr):
+            (self._a if short == 1 else self._g).refill(6 * n)
+        for ch, col in ((self._a, 0), (self._g, 3)):
+            if ch.faults.faults:
+                for i, t in enumerate(times):
+                    out[i, col:col + 3] = ch.faults.apply(t, tuple(out[i, col:col + 3].tolist()))
 
     def __call__(self, t: float) -> ImuTruth:
-        fx, fy, fz, p, q, r, air_c = self._pick(self.truth(t))
-        temp = air_c + self.die_offset_c
-        a = self._a.measure(t, (fx, fy, fz), temp)
-        g = self._g.measure(t, (p, q, r), temp)
-        return ImuTruth(a, g, temp)
+        self.sample_block((t,), self._one)
+        ax, ay, az, gx, gy, gz, temp = self._one[0].tolist()
+        return ImuTruth((ax, ay, az), (gx, gy, gz), temp)
 
 
 @dataclass

@@ -13,6 +13,8 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from emulators.faults import FaultSet, FaultyDevice
 from emulators.hmc5883l import HMC5883L
 from emulators.i2c_bus import Msg
@@ -51,6 +53,25 @@ class PwmChannel:
         return min(max(high, 0), self.period_ns) / 1000.0
 
 
+class _WorldTruth:
+    """The truth the sensor models of a world read, for models made before their world is: a truth
+    function and a TruthTable (emulators/sensor_models.py) over the world's plant history."""
+
+    world: World
+
+    def __init__(self, plant: Plant) -> None:
+        self.plant = plant
+
+    def __call__(self, t: float) -> Mapping[str, float]:
+        return self.world.truth(t)
+
+    def column(self, name: str) -> int:
+        return self.plant.y_index[name]
+
+    def row_addresses(self, times: Sequence[float]) -> list[int]:
+        return self.world.row_addresses(times)
+
+
 @dataclass
 class World:
     plant: Plant
@@ -61,10 +82,11 @@ class World:
 
     def __post_init__(self) -> None:
         self._k = round(self.plant.time * 1e9 / self.step_ns)
-        # plain lists: the sensor models read single values, a thousand times a second
-        self._hist: list[list[float]] = [[] for _ in range(HISTORY)]
+        # a ring of output rows that C reads (the IMU's sampling chain): a TruthTable
+        self._hist = np.zeros((HISTORY, len(self.plant.y)))
+        self._hist_addr, self._row_bytes = self._hist.ctypes.data, self._hist.strides[0]
         self._k0 = self._k
-        self._hist[self._k % HISTORY] = self.plant.y.tolist()
+        self._hist[self._k % HISTORY] = self.plant.y
         self._u_pwm = [self.plant.u_index[f"pwm{m + 1}_us"] for m in range(MOTORS)]
 
     @classmethod
@@ -87,8 +109,7 @@ class World:
             raise ValueError(f"unknown fault target(s) {sorted(unknown)}; known: {', '.join(FAULT_TARGETS)}")
         plant = Plant(params=params or {}, inputs={f"pwm{m + 1}_us": 0.0 for m in range(MOTORS)})
 
-        def truth(t: float) -> Mapping[str, float]:  # the models need the world that holds them
-            return world.truth(t)
+        truth = _WorldTruth(plant)  # the models need the world that holds them
 
         nd = DATASHEET_NOISE if noise else {"accel": 0.0, "gyro": 0.0, "mag": 0.0}
         imu = ImuModel(
@@ -117,6 +138,7 @@ class World:
         }
         board = build_board(*devices, topology, wrap=wrap)  # type: ignore[arg-type]
         world = cls(plant, board, pwm=[PwmChannel() for _ in range(pwm_channels)])
+        truth.world = world
         return world
 
     # ---- time ------------------------------------------------------------------------------
@@ -133,13 +155,22 @@ class World:
             self.plant.step(dt, write_inputs=first)  # nothing touches u between these steps
             first = False
             self._k += 1
-            self._hist[self._k % HISTORY] = self.plant.y.tolist()
+            self._hist[self._k % HISTORY] = self.plant.y
+
+    def _slot(self, t: float) -> int:
+        """The history slot of the last step at or before sim time ``t`` (seconds; clamped to the
+        history kept)."""
+        oldest = max(self._k0, self._k - HISTORY + 1)
+        return min(max(math.floor(t * 1e9 / self.step_ns + 1e-9), oldest), self._k) % HISTORY
 
     def truth(self, t: float) -> Mapping[str, float]:
         """Plant outputs at sim time ``t`` (seconds) as of the last step at or before it."""
-        oldest = max(self._k0, self._k - HISTORY + 1)
-        k = min(max(math.floor(t * 1e9 / self.step_ns + 1e-9), oldest), self._k)
-        return TruthRow(self.plant.y_index, self._hist[k % HISTORY])
+        return TruthRow(self.plant.y_index, self._hist[self._slot(t)].tolist())
+
+    def row_addresses(self, times: Sequence[float]) -> list[int]:
+        """Where in memory the rows ``truth`` reads are: the same history, for C to read."""
+        base, size, slot = self._hist_addr, self._row_bytes, self._slot
+        return [base + slot(t) * size for t in times]
 
     # ---- the DUT's side ----------------------------------------------------------------------
 

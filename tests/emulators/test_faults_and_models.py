@@ -12,8 +12,9 @@ from emulators.hmc5883l import HMC5883L
 from emulators.i2c_bus import I2CNack, read, write
 from emulators.mpu6050 import MPU6050
 from emulators.ms5611 import MS5611
-from emulators.sensor_models import AxisErrors, BaroModel, ImuModel, MagModel, TruthRow
+from emulators.sensor_models import IMU_TRUTH, AxisErrors, BaroModel, ImuModel, MagModel, TruthRow
 from emulators.topology import build_board
+from rig.world import World
 from tests.emulators.boards import s16
 
 G0 = 9.80665
@@ -166,14 +167,58 @@ def test_mounting_scale_bias_and_magnetic_disturbance():
     assert x0[2] == pytest.approx(-0.433)  # body down is sensor -z
 
 
-def test_the_imu_reads_a_plant_row_and_a_plain_mapping_alike() -> None:
-    # the world hands the models TruthRow views (read by position); tests and users hand plain dicts
-    names = ["extra", *REST]                        # a layout in which nothing sits where REST has it
-    row = TruthRow({n: i for i, n in enumerate(names)}, [99.0, *REST.values()])
+def test_the_imu_reads_the_worlds_table_and_a_truth_function_alike() -> None:
+    # the world hands the IMU its plant history as a table that C reads by column; tests and users hand
+    # a function of time. The plant's output layout puts none of fx..r, temperature where IMU_TRUTH has them.
+    world = World.at_rest(seed=1)
+    world.plant.u[:] = 1500.0  # something moves: the rows differ from step to step
+    world.advance_to(50_000_000)
+    assert [world.plant.y_index[n] for n in IMU_TRUTH] != list(range(7))
     errors = {"accel": AxisErrors(noise_density=0.01, bias=(0.1, 0.0, 0.0)),
               "gyro": AxisErrors(noise_density=0.001, temp_coefficient=1e-3)}
-    by_row, by_name = (ImuModel(lambda t, tr=tr: tr, seed=3, **errors) for tr in (row, dict(REST)))
-    for k in range(5):
-        assert by_row(k * 1e-3) == by_name(k * 1e-3)
+    by_table = ImuModel(world.board.mpu.source.truth, seed=3, **errors)
+    by_function = ImuModel(world.truth, seed=3, **errors)
+    samples = [(by_table(t), by_function(t)) for t in np.arange(0.02, 0.05, 0.0007)]
+    assert all(a == b for a, b in samples) and samples[0][0] != samples[-1][0]
     no_temp = ImuModel(lambda t: TruthRow({"fx": 0, "fy": 1, "fz": 2, "p": 3, "q": 4, "r": 5}, [0.0] * 6))
     assert no_temp(0.0).temperature_c == 15.0 + no_temp.die_offset_c   # the default air temperature
+
+
+def test_the_error_model_is_the_formula_of_axis_errors() -> None:
+    """A second implementation, sample by sample, drawing from the same generator stream as the model:
+    v = S·Mount·truth + bias + walk + k·(T - 25) + noise, walk += rw·√dt·z, noise = nd/√(2 dt)·z."""
+    e = AxisErrors(mounting=((0, 1, 0), (1, 0, 0), (0, 0, -1)),
+                   scale_misalignment=((1.02, 0.003, 0), (0.001, 0.97, 0.002), (0, 0.004, 1.01)),
+                   bias=(0.3, -0.2, 0.1), bias_random_walk=0.05, noise_density=0.02, temp_coefficient=0.004)
+    def truth(t):
+        return {"fx": math.sin(7 * t), "fy": 0.5 - t, "fz": -G0, "p": 0.0, "q": 0.0, "r": 0.0,
+                "temperature": 20.0 + 30.0 * t}
+    model = ImuModel(truth, accel=e, seed=5)
+    z = np.random.default_rng(np.random.default_rng(5).integers(2**63)).standard_normal(6 * 1100)
+    mix = np.array(e.scale_misalignment) @ np.array(e.mounting)
+    walk, last, j = np.zeros(3), None, 0
+    times = np.cumsum([0.001 if k % 7 else 0.0042 for k in range(1100)])  # irregular, as after sleeps
+    for t in times:
+        tr = truth(t)
+        temp = tr["temperature"] + model.die_offset_c
+        dt = 0.0 if last is None else t - last
+        last = t
+        if dt > 0:
+            walk = walk + e.bias_random_walk * math.sqrt(dt) * z[j:j + 3]
+            j += 3
+        v = mix @ [tr["fx"], tr["fy"], tr["fz"]] + e.bias + walk + e.temp_coefficient * (temp - 25.0)
+        if dt > 0:
+            v = v + e.noise_density / math.sqrt(2 * dt) * z[j:j + 3]
+            j += 3
+        got = model(t)
+        assert got.accel == pytest.approx(v, rel=1e-12, abs=1e-12)
+        assert got.temperature_c == temp
+    assert j > 2 * 3072  # the model took its normals in several blocks: the stream runs on across them
+
+
+def test_sample_block_refuses_a_buffer_it_cannot_fill() -> None:
+    model = ImuModel(lambda t: REST)
+    with pytest.raises(ValueError, match="7 columns"):
+        model.sample_block([0.0], np.zeros((4, 6)))
+    with pytest.raises(ValueError, match="0..2 samples"):
+        model.sample_block([0.0, 0.001, 0.002], np.zeros((2, 7)))

@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from emulators.i2c_bus import read, write
-from emulators.mpu6050 import ACCEL_LSB_PER_G, GYRO_LSB_PER_DPS, ST_ACCEL_G, ST_GYRO_DPS
+from emulators.mpu6050 import ACCEL_LSB_PER_G, GYRO_LSB_PER_DPS, ST_ACCEL_G, ST_GYRO_DPS, ImuTruth
 from tests.emulators.boards import Script, board, s16
 
 M, G0 = 0x68, 9.80665
@@ -193,3 +193,47 @@ def test_fifo_slave_data_sits_where_the_aux_master_put_it():
     ext = bus.transfer([write(M, 0x49), read(M, 6)], 0.3021)[0]
     record = bus.transfer([write(M, 0x74), read(M, 6)], 0.3021)[0]
     assert ext == bytes.fromhex("011101d80000") and record == ext
+
+
+def test_standby_axes_and_temp_dis_hold_their_last_value():
+    # specs §3.6: TEMP_DIS=1 stops temperature sampling, a STBY_* axis holds its last value
+    script, b = awake()
+    script.accel, script.gyro, script.temperature = (1.0, 2.0, 3.0), (0.1, 0.2, 0.3), 30.0
+    acc0, temp0, gyro0 = burst(b.bus, 0.01)
+    b.bus.transfer([write(M, 0x6C, 0x20 | 0x01), write(M, 0x6B, 0x08)], 0.01)  # STBY_XA, STBY_ZG; TEMP_DIS
+    script.accel, script.gyro, script.temperature = (-1.0, -2.0, -3.0), (-0.1, -0.2, -0.3), 40.0
+    acc1, temp1, gyro1 = burst(b.bus, 0.02)
+    assert acc1[0] == acc0[0] and gyro1[2] == gyro0[2] and temp1 == temp0
+    assert acc1[1:] == [-a for a in acc0[1:]] and gyro1[:2] == [-g for g in gyro0[:2]]
+
+
+def test_a_non_finite_input_saturates_or_reads_zero_and_the_device_runs_on():
+    # a plant that blew up must not take the emulator down: +-inf saturates as a huge value does, NaN
+    # (no value at all) reads 0
+    script, b = awake()
+    script.accel, script.gyro = (math.inf, -math.inf, math.nan), (math.nan, 0.0, 0.0)
+    acc, _, gyro = burst(b.bus, 0.01)
+    assert acc == [32767, -32768, 0] and gyro[0] == 0
+    script.accel, script.gyro = (0.0, 0.0, G0), (0.0, 0.0, 0.0)
+    acc, _, _ = burst(b.bus, 0.02)
+    assert acc == [0, 0, 16384]
+
+
+def test_fifo_over_many_blocks_is_what_sample_by_sample_reading_gives():
+    # a long wait with the FIFO on keeps every sample, taken in blocks of at most 64: the bytes must be
+    # those of reading the device every millisecond, one sample at a time
+    class Moving(Script):
+        def imu(self, t):
+            return ImuTruth((math.sin(40 * t), 0.0, G0), (0.0, 0.0, 0.0), 25.0)
+
+    def fifo_bytes(reads_at):
+        _, b = awake(Moving(), dlpf=True)
+        b.bus.transfer([write(M, 0x1A, 0x03), write(M, 0x23, 0x08), write(M, 0x6A, 0x40)], 0.0)  # accel
+        for t in reads_at:
+            b.bus.transfer([write(M, 0x75), read(M, 1)], t)
+        count = b.bus.transfer([write(M, 0x72), read(M, 2)], 0.1695)[0]
+        return b.bus.transfer([write(M, 0x74), read(M, (count[0] << 8) | count[1])], 0.1695)[0]
+
+    one_wait = fifo_bytes([0.1695])                               # samples at 0..169 ms: 170
+    assert len(one_wait) == 170 * 6 and len(set(one_wait[i:i + 2] for i in range(0, 1020, 6))) > 100
+    assert one_wait == fifo_bytes([k * 0.001 for k in range(170)])

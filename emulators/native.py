@@ -1,0 +1,97 @@
+"""The rig's own small C libraries: compiled with the system's C compiler on first use (and again when a
+source is newer than the library), so a fresh clone needs no separate build step, and loaded with
+ctypes. ``python -m emulators.native`` (``make native``) builds them explicitly.
+
+Why ctypes and not a CPython extension: it needs no Python headers, and the libraries are plain C
+with a handful of entry points. The shim (rig/shim/build.py) is compiled by the same function.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import os
+import subprocess
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+SAMPLING_SOURCE = REPO_ROOT / "emulators" / "c" / "sampling.c"
+SAMPLING_LIB = REPO_ROOT / "build" / "libsampling.so"
+#: -ffp-contract=off: no fused multiply-adds, so the C arithmetic rounds as the Python it replaced did.
+BLOCK = 64  #: most samples one call takes: buffers for C are this many rows
+CFLAGS = ("-std=c11", "-O2", "-Wall", "-Wextra", "-Werror", "-fPIC", "-shared", "-fvisibility=hidden",
+          "-ffp-contract=off")
+
+
+class NativeBuildError(RuntimeError):
+    """The compiler failed or is missing; the message carries its output."""
+
+
+def compile_shared(sources: Sequence[Path], out: Path, what: str, libs: Sequence[str] = (),
+                   cc: str | None = None) -> Path:
+    """Compiles ``sources`` into the shared library ``out``, atomically: a process loading it at the
+    same moment never sees a half-written file."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_suffix(f".{os.getpid()}.tmp")
+    cmd = [cc or os.environ.get("CC", "gcc"), *CFLAGS, "-o", str(tmp), *map(str, sources), *libs]
+    try:
+        done = subprocess.run(cmd, capture_output=True, text=True)
+    except FileNotFoundError as e:
+        raise NativeBuildError(f"cannot build {what}: {e.filename} not found (install gcc)") from e
+    if done.returncode != 0:
+        tmp.unlink(missing_ok=True)
+        raise NativeBuildError(f"building {what} failed:\n{' '.join(cmd)}\n{done.stderr}")
+    tmp.replace(out)
+    return out
+
+
+def is_stale(out: Path, sources: Sequence[Path]) -> bool:
+    return not out.is_file() or out.stat().st_mtime < max(s.stat().st_mtime for s in sources)
+
+
+_P, _I32, _D = ctypes.c_void_p, ctypes.c_int32, ctypes.c_double
+_SIGNATURES: dict[str, tuple[object, list[object]]] = {
+    "rig_channel_size": (ctypes.c_size_t, []),
+    "rig_channel_init": (None, [_P, _P, _P, _D, _D, _D]),
+    "rig_channel_normals": (None, [_P, _P, _I32]),
+    "rig_channel_normals_left": (_I32, [_P]),
+    "rig_channel_measure": (_I32, [_P, _I32, _P, _P, _P, _P]),
+    "rig_imu_measure": (_I32, [_P, _P, _I32, _P, _P, _P, _D, _P]),
+    "rig_lowpass_size": (ctypes.c_size_t, []),
+    "rig_lowpass_max_depth": (_I32, []),
+    "rig_lowpass_reset": (None, [_P]),
+    "rig_lowpass_run": (None, [_P, _I32, _P, _I32, _D, _I32]),
+    "rig_lowpass_catch_up": (None, [_P, _P, _D]),
+    "rig_mpu_encode": (None, [_P, _P, _P, _P, _I32, _I32, _P, _D]),
+}
+
+
+def build_sampling() -> Path:
+    return compile_shared([SAMPLING_SOURCE], SAMPLING_LIB, "the sampling library", libs=["-lm"])
+
+
+@functools.cache
+def sampling() -> ctypes.CDLL:
+    """The IMU sampling chain (emulators/c/sampling.c), built if missing or stale."""
+    if is_stale(SAMPLING_LIB, [SAMPLING_SOURCE]):
+        build_sampling()
+    lib = ctypes.CDLL(str(SAMPLING_LIB))
+    for name, (restype, argtypes) in _SIGNATURES.items():
+        fn = getattr(lib, name)
+        fn.restype, fn.argtypes = restype, argtypes
+    return lib
+
+
+def state(size_fn: str) -> tuple[ctypes.Array[ctypes.c_char], int]:
+    """Zeroed memory for one opaque C state, and its address (keep the buffer alive while in use)."""
+    buf = ctypes.create_string_buffer(getattr(sampling(), size_fn)())
+    return buf, ctypes.addressof(buf)
+
+
+if __name__ == "__main__":
+    try:
+        print(build_sampling())
+    except NativeBuildError as e:
+        sys.exit(str(e))

@@ -1,0 +1,34 @@
+"""Building the rig's own C libraries: a missing compiler or a compile error is a clear message."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from emulators.native import SAMPLING_SOURCE, NativeBuildError, compile_shared, is_stale
+
+
+def test_a_missing_compiler_is_named(tmp_path) -> None:
+    with pytest.raises(NativeBuildError, match="no-such-cc not found \\(install gcc\\)"):
+        compile_shared([SAMPLING_SOURCE], tmp_path / "lib.so", "the test library", cc="no-such-cc")
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_compile_error_carries_the_compilers_words_and_leaves_nothing(tmp_path) -> None:
+    bad = tmp_path / "bad.c"
+    bad.write_text("int f(void) { return undeclared; }\n")
+    with pytest.raises(NativeBuildError, match="building the test library failed:(.|\n)*undeclared"):
+        compile_shared([bad], tmp_path / "lib.so", "the test library")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.c"]
+
+
+def test_a_library_is_stale_when_missing_or_older_than_a_source(tmp_path) -> None:
+    src, lib = tmp_path / "a.c", tmp_path / "a.so"
+    src.write_text("int f(void) { return 1; }\n")
+    assert is_stale(lib, [src])
+    compile_shared([src], lib, "the test library")
+    assert not is_stale(lib, [src])
+    t = lib.stat().st_mtime
+    os.utime(src, (t + 10, t + 10))
+    assert is_stale(lib, [src])
