@@ -361,8 +361,15 @@ class MPU6050:
         self.regs[r] = REGISTERS.masked(r, value)
 
     def read(self, n: int) -> bytes:
-        out = bytearray()
         clear_all = self.regs[INT_PIN_CFG] & 0x10
+        r = self.pointer
+        if self._snapshot and DATA_FIRST <= r and r + n <= DATA_LAST + 1:
+            # a burst inside the data registers (the flight controller's read, every cycle): one slice
+            if clear_all:
+                self.regs[INT_STATUS] = 0
+            self.pointer = r + n
+            return self._snapshot[r - DATA_FIRST:r - DATA_FIRST + n]
+        out = bytearray()
         for _ in range(n):
             r = self.pointer
             if r == FIFO_R_W:

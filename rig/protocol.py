@@ -54,8 +54,9 @@ class Header(NamedTuple):
     t_ns: int
 
     @classmethod
-    def parse(cls, data: bytes | memoryview) -> Header:
-        length, mtype, status, t_ns = HEADER.unpack(data)
+    def parse(cls, data: bytes | bytearray | memoryview, offset: int = 0) -> Header:
+        """The header at ``offset`` (``data`` holds at least HEADER.size bytes from there)."""
+        length, mtype, status, t_ns = HEADER.unpack_from(data, offset)
         if mtype not in MSG_NAMES:
             raise Malformed(f"unknown message type {mtype}")
         if length > MAX_PAYLOAD:

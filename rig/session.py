@@ -378,24 +378,27 @@ class Session:
             return False
         conn.buf += chunk
         buf = conn.buf
-        while len(buf) >= P.HEADER.size:
-            try:
-                hdr = P.Header.parse(buf[:P.HEADER.size])
-                if len(buf) < P.HEADER.size + hdr.length:
+        size, off, end = P.HEADER.size, 0, len(buf)
+        try:
+            while end - off >= size:  # every whole message; what they took is cut off the buffer once
+                hdr = P.Header.parse(buf, off)
+                stop = off + size + hdr.length
+                if end < stop:
                     break
-                payload = bytes(buf[P.HEADER.size:P.HEADER.size + hdr.length])
-                del buf[:P.HEADER.size + hdr.length]
+                payload = bytes(buf[off + size:stop])
+                off = stop
                 self._handle(conn, hdr, payload)
-            except P.Malformed as e:
-                why = f"malformed message on connection {conn.index} (pid {conn.pid or '?'}): {e}; " \
-                      "connection closed, session continues"
-                self.malformed.append(why)
-                self._write_log(self.now_ns, f"c{conn.index} malformed: {e}")
-                self._drop(conn, sel)
-                break
-            except _Stop:
-                buf.clear()
-                break
+        except P.Malformed as e:
+            why = f"malformed message on connection {conn.index} (pid {conn.pid or '?'}): {e}; " \
+                  "connection closed, session continues"
+            self.malformed.append(why)
+            self._write_log(self.now_ns, f"c{conn.index} malformed: {e}")
+            self._drop(conn, sel)
+            return True
+        except _Stop:
+            buf.clear()
+            return True
+        del buf[:off]
         return True
 
     def _send(self, conn: _Conn, data: bytes) -> None:

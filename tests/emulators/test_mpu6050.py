@@ -110,6 +110,11 @@ def test_int_status_sets_each_sample_and_clears_on_read():
     b.bus.transfer([write(M, 0x37, 0x10)], 0.01)  # INT_RD_CLEAR: any read clears
     b.bus.transfer([write(M, 0x75), read(M, 1)], 0.02)
     assert b.bus.transfer([write(M, 0x3A), read(M, 1)], 0.02)[0][0] == 0
+    burst(b.bus, 0.03)  # a data burst is a read too
+    assert b.bus.transfer([write(M, 0x3A), read(M, 1)], 0.03)[0][0] == 0
+    b.bus.transfer([write(M, 0x37, 0x00)], 0.03)
+    burst(b.bus, 0.04)  # without INT_RD_CLEAR it is not
+    assert b.bus.transfer([write(M, 0x3A), read(M, 1)], 0.04)[0][0] & 1
 
 
 def test_fifo_records_latched_count_overflow_and_empty_repeat():
