@@ -157,20 +157,20 @@ class World:
             self._k += 1
             self._hist[self._k % HISTORY] = self.plant.y
 
-    def _slot(self, t: float) -> int:
-        """The history slot of the last step at or before sim time ``t`` (seconds; clamped to the
+    def _slots(self, times: Sequence[float]) -> list[int]:
+        """The history slot of the last step at or before each sim time (seconds; clamped to the
         history kept)."""
-        oldest = max(self._k0, self._k - HISTORY + 1)
-        return min(max(math.floor(t * 1e9 / self.step_ns + 1e-9), oldest), self._k) % HISTORY
+        oldest, k, step = max(self._k0, self._k - HISTORY + 1), self._k, self.step_ns
+        return [min(max(math.floor(t * 1e9 / step + 1e-9), oldest), k) % HISTORY for t in times]
 
     def truth(self, t: float) -> Mapping[str, float]:
         """Plant outputs at sim time ``t`` (seconds) as of the last step at or before it."""
-        return TruthRow(self.plant.y_index, self._hist[self._slot(t)].tolist())
+        return TruthRow(self.plant.y_index, self._hist[self._slots((t,))[0]].tolist())
 
     def row_addresses(self, times: Sequence[float]) -> list[int]:
         """Where in memory the rows ``truth`` reads are: the same history, for C to read."""
-        base, size, slot = self._hist_addr, self._row_bytes, self._slot
-        return [base + slot(t) * size for t in times]
+        base, size = self._hist_addr, self._row_bytes
+        return [base + slot * size for slot in self._slots(times)]
 
     # ---- the DUT's side ----------------------------------------------------------------------
 
