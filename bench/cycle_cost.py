@@ -5,7 +5,7 @@ message handling over a socketpair, with the MPU at 1 kHz behind its DLPF and th
 Why: these VMs change speed by half from one minute to the next, so wall-clock A/B comparisons of a
 change need many interleaved runs. With ``--instructions`` the cost is counted in instructions under
 valgrind (two run lengths, subtracted, so start-up cancels; ASLR off, a fixed hash seed). The count does
-not follow the machine's speed, but it still varies by about ±4 % from run to run, so it is taken three
+not follow the machine's speed, but it still varies by 4-6 % from run to run, so it is taken three
 times and the median and range are printed. Prints; asserts nothing.
 
     python bench/cycle_cost.py                  # microseconds per cycle (wall clock, noisy)
