@@ -51,7 +51,7 @@ def _self_test_regs() -> tuple[int, int, int, int]:
 
 
 _ST = _self_test_regs()
-_ST_SIZE = (ctypes.c_double * 2)(ST_ACCEL_G, ST_GYRO_DPS)  # (for C)
+_ST_ACTUATION = (ctypes.c_double * 2)(ST_ACCEL_G, ST_GYRO_DPS)  # g and °/s, for C
 
 REGISTERS = RegisterMap("MPU-6050", [
     RegisterSpec(0x0C, "PRODUCT_ID", 0x00, "r"),
@@ -255,11 +255,10 @@ class MPU6050:
             self._regs_seen, self._data_view = regs, ctypes.c_char.from_buffer(regs, ACCEL_XOUT_H)
             self._data_addr = ctypes.addressof(self._data_view)
         lsb, st = self._lsb, self._st
-        lsb[0] = ACCEL_LSB_PER_G[(regs[ACCEL_CONFIG] >> 3) & 3]
-        lsb[1] = GYRO_LSB_PER_DPS[(regs[GYRO_CONFIG] >> 3) & 3]
+        lsb[0], lsb[1] = self.accel_scale(), self.gyro_scale()
         st[0], st[1] = regs[ACCEL_CONFIG] >> 5, regs[GYRO_CONFIG] >> 5
         self._encode_c(self._block_addr + 56 * i, self._data_addr, lsb, st, regs[PWR_MGMT_2],
-                       regs[PWR_MGMT_1] & 0x08, _ST_SIZE, G0)
+                       regs[PWR_MGMT_1] & 0x08, _ST_ACTUATION, G0)
         if regs[USER_CTRL] & 0x20:
             self._run_aux_master()
         if regs[USER_CTRL] & 0x40:

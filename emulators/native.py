@@ -19,8 +19,8 @@ from pathlib import Path
 REPO_ROOT = Path(__file__).resolve().parent.parent
 SAMPLING_SOURCE = REPO_ROOT / "emulators" / "c" / "sampling.c"
 SAMPLING_LIB = REPO_ROOT / "build" / "libsampling.so"
-#: -ffp-contract=off: no fused multiply-adds, so the C arithmetic rounds as the Python it replaced did.
 BLOCK = 64  #: most samples one call takes: buffers for C are this many rows
+#: -ffp-contract=off: no fused multiply-adds, so the C arithmetic rounds as the Python it replaced did.
 CFLAGS = ("-std=c11", "-O2", "-Wall", "-Wextra", "-Werror", "-fPIC", "-shared", "-fvisibility=hidden",
           "-ffp-contract=off")
 
@@ -61,7 +61,6 @@ _SIGNATURES: dict[str, tuple[object, list[object]]] = {
     "rig_imu_measure": (_I32, [_P, _P, _I32, _P, _P, _P, _D, _P]),
     "rig_lowpass_size": (ctypes.c_size_t, []),
     "rig_lowpass_max_depth": (_I32, []),
-    "rig_lowpass_reset": (None, [_P]),
     "rig_lowpass_run": (None, [_P, _I32, _P, _I32, _D, _I32]),
     "rig_lowpass_catch_up": (None, [_P, _P, _D]),
     "rig_mpu_encode": (None, [_P, _P, _P, _P, _I32, _I32, _P, _D]),

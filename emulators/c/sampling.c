@@ -1,5 +1,6 @@
 /* The numerics of the IMU's sampling chain, a block of samples per call: the sensor error model of
- * emulators/sensor_models.py (ImuModel) and the MPU-6050's DLPF of emulators/mpu6050.py (_LowPass).
+ * emulators/sensor_models.py (ImuModel), and the MPU-6050's DLPF (_LowPass) and data-register encoding
+ * of emulators/mpu6050.py.
  *
  * Why C: the MPU-6050 samples at 1 kHz whatever the flight controller reads, and per sample these few
  * dozen multiply-adds cost far more as Python bytecode than the rest of a lockstep cycle. The Python
@@ -8,7 +9,7 @@
  *
  * The arithmetic is written in the order the Python reference used (left-to-right sums) and built
  * with -ffp-contract=off, so a sample comes out the same to the last bit on any x86-64 or arm64.
- * States are opaque to Python: it allocates rig_*_size() bytes and calls rig_*_init / reset.
+ * States are opaque to Python: it allocates rig_*_size() zeroed bytes (a channel then rig_channel_init).
  */
 #include <math.h>
 #include <stddef.h>
@@ -140,8 +141,6 @@ typedef struct {
 EXPORT size_t rig_lowpass_size(void) { return sizeof(rig_lowpass); }
 
 EXPORT int32_t rig_lowpass_max_depth(void) { return PIPE - 2; }
-
-EXPORT void rig_lowpass_reset(rig_lowpass *f) { memset(f, 0, sizeof *f); }
 
 /* The exact first-order response to the input held at x over a span whose gain is a. */
 static void approach(rig_lowpass *f, const double x[3], double a)
