@@ -11,12 +11,16 @@ PLANT_SOURCES := $(wildcard plant/c/*.c plant/c/*.h plant/fmi2/*) plant/variable
 
 SHIM   := build/librigshim.so
 NATIVE := build/libsampling.so
+# the modules rig/compiled.py compiles with mypyc (its MODULES; a test checks that the lists agree)
+COMPILED := build/mypyc/manifest.json
+COMPILED_SOURCES := rig/protocol.py rig/session.py rig/world.py rig/rc.py emulators/registers.py \
+	emulators/mpu6050.py emulators/hmc5883l.py emulators/ms5611.py scenarios/runner.py
 
 DUT_BIN := build/dut/fc
 
-.PHONY: all venv fmu shim native dut demo test test-slow lint bench clean
+.PHONY: all venv fmu shim native compiled dut demo test test-slow lint bench clean
 
-all: fmu shim native dut
+all: fmu shim native compiled dut
 
 venv: $(VENV)/.installed
 $(VENV)/.installed: pyproject.toml tools/bootstrap.sh
@@ -35,27 +39,31 @@ native: $(NATIVE)
 $(NATIVE): emulators/c/sampling.c emulators/native.py | venv
 	$(PY) -m emulators.native
 
+compiled: $(COMPILED)
+$(COMPILED): $(COMPILED_SOURCES) rig/compiled.py rig/mypyc_build.py | venv
+	$(PY) -m rig.mypyc_build
+
 dut: $(DUT_BIN)
 $(DUT_BIN): $(wildcard dut/src/* dut/tests/* dut/Makefile) bench/fc_bench.c
 	$(MAKE) -s -C dut
 
-demo: venv fmu shim native dut
+demo: venv fmu shim native compiled dut
 	$(VENV)/bin/rig run --out build/reports
 
 lint: venv
 	$(VENV)/bin/ruff check .
 
-test: venv $(FMU) $(SHIM) $(NATIVE) $(DUT_BIN) lint
+test: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) lint
 	$(PY) -m pytest -q -m "not slow"
 
-test-slow: venv $(FMU) $(SHIM) $(NATIVE)
+test-slow: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED)
 	$(PY) -m pytest -q -m slow
 
 build/bench/physics_bench: bench/physics_bench.c $(PLANT_SOURCES) | venv $(FMU)
 	@mkdir -p build/bench
 	$(CC) $(CFLAGS_BENCH) -Ibuild/plant/gen -Iplant/c -o $@ bench/physics_bench.c plant/c/quadrotor_physics.c -lm
 
-bench: venv $(FMU) $(SHIM) $(NATIVE) $(DUT_BIN) build/bench/physics_bench
+bench: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) build/bench/physics_bench
 	$(PY) bench/plant_rates.py
 	$(PY) bench/emulator_rates.py
 	$(PY) bench/exec_rates.py

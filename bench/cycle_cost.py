@@ -27,6 +27,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 import rig.protocol as P  # noqa: E402
+from rig.compiled import status  # noqa: E402
 from rig.session import Session, SessionConfig, _Conn  # noqa: E402
 
 CYCLE_NS = 4_000_000
@@ -88,7 +89,9 @@ def _instructions(n: int) -> int:
 def main() -> None:
     if "--child" in sys.argv:
         run_cycles(int(os.environ["RIG_CYCLES"]))
-    elif "--instructions" in sys.argv:
+        return
+    print(status())
+    if "--instructions" in sys.argv:
         if not shutil.which("valgrind") or not shutil.which("setarch"):
             sys.exit("--instructions needs valgrind and setarch (apt-get install valgrind util-linux)")
         short, long = 300, 900

@@ -3,7 +3,8 @@ lockstep: the seed-000 roll recovery and a 30 s hover. Printed, never asserted (
 
 Each run is repeated; the best and the median are printed, next to the time of a fixed pure-Python
 loop measured just before. These VMs change speed by half from one minute to the next, and that
-calibration says which kind of minute a number came from."""
+calibration says which kind of minute a number came from. ``RIG_PURE_PYTHON=1`` measures the hot
+modules as plain Python instead of compiled (rig/compiled.py)."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from rig.compiled import status  # noqa: E402
 from scenarios.runner import run  # noqa: E402
 from scenarios.schema import load  # noqa: E402
 
@@ -32,6 +34,7 @@ def python_loop_ms() -> float:
 
 
 def main() -> None:
+    print(status())
     lib = REPO / "scenarios" / "library"
     hover = dataclasses.replace(load(lib / "hover_turbulence.toml"), duration=30.0)
     for label, sc in (

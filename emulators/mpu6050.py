@@ -312,7 +312,7 @@ class MPU6050:
         for n, _, _, _, ext, length in self._slaves():
             if n < 3 and en & (1 << n):  # FIFO_EN has SLV0..SLV2 only
                 record += self.regs[ext:ext + length]
-        for byte in record:
+        for byte in bytes(record):  # (a copy: mypyc cannot compile a loop over a bytearray)
             if len(self.fifo) >= FIFO_SIZE:
                 self.fifo.popleft()  # overflow: oldest out, newest kept
                 self.regs[INT_STATUS] |= 0x10

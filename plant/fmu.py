@@ -17,6 +17,7 @@ from collections.abc import Mapping
 from ctypes import POINTER, byref, c_double, c_int, c_size_t, c_uint, c_void_p
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from fmpy import extract, read_model_description
@@ -132,7 +133,7 @@ class Plant:
         self._bool_buf = (c_int * 1)()
 
     @staticmethod
-    def _proto(dll: ctypes.CDLL, name: str, *argtypes: object) -> ctypes._CFuncPtr:
+    def _proto(dll: ctypes.CDLL, name: str, *argtypes: Any) -> Any:  # (a ctypes function pointer)
         fn = dll[name]
         if argtypes:
             fn.argtypes = list(argtypes)

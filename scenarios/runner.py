@@ -22,8 +22,8 @@ import numpy as np
 
 from emulators.faults import Fault as DeviceFault
 from emulators.faults import FaultSet
-from emulators.sensor_models import Normals
-from plant.build import sha256
+from emulators.sensor_models import BaroModel, Normals
+from plant.build import REPO_ROOT, sha256
 from rig import __version__
 from rig.capture import install_capture
 from rig.rc import StickEmulator
@@ -33,8 +33,8 @@ from scenarios.criteria import Measurement, measure
 from scenarios.schema import Event, Scenario
 from scenarios.signals import RECORD_PERIOD, SIGNALS
 
-REPO = Path(__file__).resolve().parents[1]
-REFERENCE_FC = REPO / "build" / "dut" / "fc"
+# (the root from a module that is never compiled: this one may run from build/mypyc, rig/compiled.py)
+REFERENCE_FC = REPO_ROOT / "build" / "dut" / "fc"
 RC_PATH, TELEMETRY_PATH = "/dev/ttyRC0", "/dev/ttyTEL0"
 WIND_PERIOD = 0.01
 TELEMETRY_KEYS = {
@@ -86,7 +86,7 @@ class _Wind:
     def __init__(self, scenario: Scenario, seed: int) -> None:
         self.sc = scenario
         self.normals = Normals(np.random.default_rng(seed + 101))
-        self.turb = (0.0, 0.0, 0.0)
+        self.turb: tuple[float, ...] = (0.0, 0.0, 0.0)
         self.a = math.exp(-WIND_PERIOD / scenario.turbulence_tau)
         self.now = tuple(scenario.wind)
 
@@ -138,7 +138,7 @@ class _Recorder:
                 y[yi["p"]],
                 y[yi["q"]],
                 y[yi["r"]],
-                *(u[ui[f"pwm{m}_us"]] for m in range(1, 5)),
+                *[u[ui[f"pwm{m}_us"]] for m in range(1, 5)],
                 float(plant.on_ground),
                 st.roll * self.sc.max_angle_deg,
                 st.pitch * self.sc.max_angle_deg,
@@ -268,6 +268,7 @@ def run(
     )
     metadata["plant_fmu_sha256"] = _sha256(world.plant.fmu_path)
     baro = world.board.baro.source
+    assert isinstance(baro, BaroModel)  # (the device takes any truth function; a world's is the model)
     baro.noise_pa, baro.drift_pa_per_s = scenario.baro_noise_pa, scenario.baro_drift_pa_per_s
 
     stderr_path = work / "dut-stderr.txt"

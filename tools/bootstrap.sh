@@ -16,11 +16,16 @@ PY
 # Debian packages, installed only when what they provide is missing:
 #   python3-venv  ensurepip for `python3 -m venv`
 #   i2c-tools     i2cdetect/i2cget/i2cset/i2ctransfer, the third-party clients `rig exec` is tested with
+#   python3-dev   Python.h, for mypyc's build of the session's hot modules (rig/compiled.py)
 MISSING=()
 if [ ! -x "$VENV/bin/python" ] && ! "$PYTHON" -c 'import ensurepip, venv' 2>/dev/null; then
   MISSING+=(python3-venv)
 fi
 if ! PATH="$PATH:/usr/sbin:/sbin" command -v i2ctransfer >/dev/null; then MISSING+=(i2c-tools); fi
+if ! "$PYTHON" -c 'import os, sys, sysconfig
+sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")))'; then
+  MISSING+=(python3-dev)
+fi
 if [ ${#MISSING[@]} -gt 0 ]; then
   if command -v apt-get >/dev/null; then
     echo "bootstrap: installing Debian packages: ${MISSING[*]}"

@@ -1,0 +1,109 @@
+"""The session's hot modules compiled to C with mypyc, and the import hook that uses them only while
+they match their sources.
+
+Why: in lockstep the session's CPU is the rig's speed limit, and it is spread thin over small Python
+functions (message handling, the world's clock, the register files): no single part is worth moving to
+C by hand. mypyc compiles these modules, as written and type-annotated, into CPython extensions; the
+same source stays the reference and still runs as plain Python.
+
+Why an import hook and not extensions next to the sources: an extension beside ``session.py`` would be
+imported instead of it even after the source is edited, and the edit would silently do nothing. The
+compiled modules live in ``build/mypyc/`` with the sha256 of each source they came from; a module is
+loaded from there only while its source's hash matches, else the source runs and one line on stderr
+says so. ``RIG_PURE_PYTHON=1`` turns the compiled modules off (a second implementation to compare
+against, and plain tracebacks).
+
+Built by ``python -m rig.mypyc_build`` (``make compiled``; part of make all, demo, test and bench).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.abc
+import importlib.machinery
+import importlib.util
+import json
+import os
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from types import ModuleType
+
+REPO = Path(__file__).resolve().parents[1]
+OUT = REPO / "build" / "mypyc"
+MANIFEST = OUT / "manifest.json"
+GROUP = "rig_hot"  # mypyc's shared runtime library is the extension ``rig_hot__mypyc``
+
+#: What is compiled: the modules that run per DUT message or per scheduled event in lockstep.
+MODULES = ("rig.protocol", "rig.session", "rig.world", "rig.rc", "emulators.registers",
+           "emulators.mpu6050", "emulators.hmc5883l", "emulators.ms5611",
+           "scenarios.runner")
+
+
+def source_of(module: str) -> Path:
+    return REPO / Path(*module.split(".")).with_suffix(".py")
+
+
+def sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+class CompiledFinder(importlib.abc.MetaPathFinder):
+    """Finds the compiled extension of a listed module while its source is the one it was built from."""
+
+    def __init__(self, manifest: Path = MANIFEST) -> None:
+        self.dir = manifest.parent
+        try:
+            data = json.loads(manifest.read_text())
+            self.modules: dict[str, dict[str, str]] = dict(data["modules"])
+            self.runtime = str(data["runtime"])
+        except (OSError, ValueError, KeyError, TypeError):
+            self.modules, self.runtime = {}, ""
+        self.stale: list[str] = []
+
+    def find_spec(self, fullname: str, path: Sequence[str] | None = None,
+                  target: ModuleType | None = None) -> importlib.machinery.ModuleSpec | None:
+        if fullname == self.runtime:
+            return self._spec(fullname, self.dir / f"{fullname}{_SUFFIX}")
+        entry = self.modules.get(fullname)
+        if entry is None:
+            return None
+        try:
+            fresh = sha256(source_of(fullname)) == entry["sha256"]
+        except OSError:
+            fresh = False
+        if not fresh:
+            self.stale.append(fullname)
+            print(f"rig: the compiled {fullname} in {self.dir} is older than its source; running the "
+                  "source (slower). `make compiled` rebuilds it.", file=sys.stderr)
+            return None
+        return self._spec(fullname, self.dir / entry["file"])
+
+    @staticmethod
+    def _spec(name: str, path: Path) -> importlib.machinery.ModuleSpec | None:
+        if not path.is_file():
+            return None
+        loader = importlib.machinery.ExtensionFileLoader(name, str(path))
+        return importlib.util.spec_from_file_location(name, path, loader=loader)
+
+
+_SUFFIX = importlib.machinery.EXTENSION_SUFFIXES[0]
+
+
+def status() -> str:
+    """Which implementation of the hot modules this process runs, for benchmarks to print."""
+    loaded = [importlib.import_module(m) for m in MODULES]
+    compiled = [m.__name__ for m in loaded if Path(m.__file__ or "").is_relative_to(OUT)]
+    if len(compiled) == len(MODULES):
+        return "hot modules compiled (build/mypyc)"
+    why = "RIG_PURE_PYTHON=1" if os.environ.get("RIG_PURE_PYTHON") == "1" else "build/mypyc missing or stale"
+    return f"hot modules: {len(compiled)} of {len(MODULES)} compiled ({why})"
+
+
+def install() -> None:
+    """Puts the finder first on ``sys.meta_path`` (once), unless ``RIG_PURE_PYTHON=1``."""
+    if os.environ.get("RIG_PURE_PYTHON") == "1" or any(isinstance(f, CompiledFinder) for f in sys.meta_path):
+        return
+    if MANIFEST.exists():
+        sys.meta_path.insert(0, CompiledFinder())

@@ -1,0 +1,49 @@
+"""Builds the compiled hot modules (rig/compiled.py says what, why, and how they are used):
+``python -m rig.mypyc_build``, which ``make compiled`` runs."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from rig.compiled import _SUFFIX, GROUP, MANIFEST, MODULES, OUT, REPO, sha256, source_of
+
+
+def build() -> None:
+    """Compiles MODULES into build/mypyc and writes the manifest (the hashes of the sources used)."""
+    from mypyc.build import mypycify
+    from setuptools import Distribution
+
+    hashes = {m: sha256(source_of(m)) for m in MODULES}
+    shutil.rmtree(OUT, ignore_errors=True)
+    OUT.mkdir(parents=True)
+    with tempfile.TemporaryDirectory(prefix="rig-mypyc-") as tmp:
+        cwd = os.getcwd()
+        os.chdir(REPO)  # mypyc names modules by their paths relative to here
+        try:
+            # (modules it imports are read for their types, but their own type errors are not ours here)
+            args = ["--ignore-missing-imports", "--follow-imports=silent"]
+            exts = mypycify([*args, *(str(source_of(m).relative_to(REPO)) for m in MODULES)],
+                            group_name=GROUP, target_dir=str(Path(tmp) / "c"))
+            dist = Distribution({"name": "rig-hot", "ext_modules": exts})
+            dist.verbose = 0  # (no compiler command lines; errors still show)
+            cmd = dist.get_command_obj("build_ext")
+            cmd.build_lib, cmd.build_temp = str(OUT), str(Path(tmp) / "obj")  # type: ignore[attr-defined]
+            dist.run_command("build_ext")
+        finally:
+            os.chdir(cwd)
+    files = {m: str(Path(*m.split(".")).with_suffix(_SUFFIX).as_posix()) for m in MODULES}
+    for f in files.values():
+        if not (OUT / f).is_file():
+            raise SystemExit(f"rig.compiled: mypyc produced no {f}")
+    MANIFEST.write_text(json.dumps({"runtime": f"{GROUP}__mypyc",
+                                    "modules": {m: {"file": files[m], "sha256": hashes[m]} for m in MODULES}},
+                                   indent=1) + "\n")
+    print(f"rig.compiled: {', '.join(MODULES)} compiled into {OUT.relative_to(REPO)}")
+
+
+if __name__ == "__main__":
+    build()
