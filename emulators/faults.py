@@ -11,6 +11,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from emulators.i2c_bus import I2CDevice
+
 SIGNAL_KINDS = ("stuck", "noise_burst", "bias_step", "drift", "scale_error", "delay")
 BUS_KINDS = ("off", "intermittent", "garbage")
 KINDS = SIGNAL_KINDS + BUS_KINDS
@@ -120,7 +122,7 @@ class FaultSet:
 class FaultyDevice:
     """Wraps a bus device with its bus faults: the bus asks ``acks(t)`` before addressing it."""
 
-    device: object
+    device: I2CDevice
     faults: FaultSet
     now: float = 0.0
 
@@ -129,16 +131,16 @@ class FaultyDevice:
 
     def advance_to(self, t: float) -> None:
         self.now = max(self.now, t)
-        self.device.advance_to(t)  # type: ignore[attr-defined]
+        self.device.advance_to(t)
 
     def start(self, read: bool) -> None:
-        self.device.start(read)  # type: ignore[attr-defined]
+        self.device.start(read)
 
     def write(self, data: bytes) -> None:
-        self.device.write(data)  # type: ignore[attr-defined]
+        self.device.write(data)
 
     def read(self, n: int) -> bytes:
-        return self.faults.garble(self.now, self.device.read(n))  # type: ignore[attr-defined]
+        return self.faults.garble(self.now, self.device.read(n))
 
     def stop(self) -> None:
-        self.device.stop()  # type: ignore[attr-defined]
+        self.device.stop()

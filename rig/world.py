@@ -17,7 +17,7 @@ import numpy as np
 
 from emulators.faults import FaultSet, FaultyDevice
 from emulators.hmc5883l import HMC5883L
-from emulators.i2c_bus import Msg
+from emulators.i2c_bus import I2CDevice, Msg
 from emulators.mpu6050 import MPU6050
 from emulators.ms5611 import MS5611
 from emulators.sensor_models import AxisErrors, BaroModel, ImuModel, MagModel, TruthRow
@@ -128,15 +128,14 @@ class World:
             disturbance=mag_disturbance or (lambda t: (0.0, 0.0, 0.0)),
         )
         baro = BaroModel(truth, seed=seed + 2, faults=faults.get("baro", FaultSet()))
-        devices = MPU6050(imu), HMC5883L(mag), MS5611(baro, seed=seed + 3)
-        wrap = {
-            name: FaultyDevice(dev, faults[key])
-            for name, key, dev in zip(
-                ("mpu", "hmc", "baro"), ("mpu", "hmc", "baro_bus"), devices, strict=True
-            )
+        mpu, hmc, ms = MPU6050(imu), HMC5883L(mag), MS5611(baro, seed=seed + 3)
+        on_bus: dict[str, I2CDevice] = {"mpu": mpu, "hmc": hmc, "baro": ms}
+        wrap: dict[str, I2CDevice] = {
+            name: FaultyDevice(on_bus[name], faults[key])
+            for name, key in (("mpu", "mpu"), ("hmc", "hmc"), ("baro", "baro_bus"))
             if key in faults
         }
-        board = build_board(*devices, topology, wrap=wrap)  # type: ignore[arg-type]
+        board = build_board(mpu, hmc, ms, topology, wrap=wrap)
         world = cls(plant, board, pwm=[PwmChannel() for _ in range(pwm_channels)])
         truth.world = world
         return world
