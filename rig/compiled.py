@@ -8,9 +8,9 @@ same source stays the reference and still runs as plain Python.
 
 Why an import hook and not extensions next to the sources: an extension beside ``session.py`` would be
 imported instead of it even after the source is edited, and the edit would silently do nothing. The
-compiled modules live in ``build/mypyc/`` with the sha256 of each source they came from; a module is
-loaded from there only while its source's hash matches, else the source runs and one line on stderr
-says so. ``RIG_PURE_PYTHON=1`` turns the compiled modules off (a second implementation to compare
+compiled modules live in ``build/mypyc/`` with the sha256 of each source they came from; they are
+loaded from there only while every source's hash matches, else all run from source and one line on
+stderr says so. ``RIG_PURE_PYTHON=1`` turns the compiled modules off (a second implementation to compare
 against, and plain tracebacks).
 
 Built by ``python -m rig.mypyc_build`` (``make compiled``; part of make all, demo, test and bench).
@@ -50,35 +50,34 @@ def sha256(path: Path) -> str:
 
 
 class CompiledFinder(importlib.abc.MetaPathFinder):
-    """Finds the compiled extension of a listed module while its source is the one it was built from."""
+    """Finds the compiled extensions of the listed modules while every source is the one they were built
+    from. All or none: mypyc compiles the modules as one group whose classes call each other natively,
+    so a compiled world.py would go on using the compiled MPU6050 of an edited mpu6050.py."""
 
     def __init__(self, manifest: Path = MANIFEST) -> None:
         self.dir = manifest.parent
+        self.modules: dict[str, str] = {}  # module -> its extension, relative to dir
+        self.runtime = ""
+        self.stale: list[str] = []
         try:
             data = json.loads(manifest.read_text())
-            self.modules: dict[str, dict[str, str]] = dict(data["modules"])
-            self.runtime = str(data["runtime"])
-        except (OSError, ValueError, KeyError, TypeError):
-            self.modules, self.runtime = {}, ""
-        self.stale: list[str] = []
+            entries = {str(m): (str(e["file"]), str(e["sha256"])) for m, e in data["modules"].items()}
+            runtime = str(data["runtime"])
+        except (OSError, ValueError, KeyError, TypeError, AttributeError):
+            return  # no build, or not one of ours: everything runs from source
+        self.stale = [m for m, (_, digest) in entries.items() if not _built_from(m, digest)]
+        if self.stale:
+            print(f"rig: {', '.join(self.stale)} changed since {self.dir} was built; the hot modules run "
+                  "from their sources (slower) until `make compiled`", file=sys.stderr)
+            return
+        self.modules, self.runtime = {m: file for m, (file, _) in entries.items()}, runtime
 
     def find_spec(self, fullname: str, path: Sequence[str] | None = None,
                   target: ModuleType | None = None) -> importlib.machinery.ModuleSpec | None:
-        if fullname == self.runtime:
+        if fullname == self.runtime and self.runtime:
             return self._spec(fullname, self.dir / f"{fullname}{_SUFFIX}")
-        entry = self.modules.get(fullname)
-        if entry is None:
-            return None
-        try:
-            fresh = sha256(source_of(fullname)) == entry["sha256"]
-        except OSError:
-            fresh = False
-        if not fresh:
-            self.stale.append(fullname)
-            print(f"rig: the compiled {fullname} in {self.dir} is older than its source; running the "
-                  "source (slower). `make compiled` rebuilds it.", file=sys.stderr)
-            return None
-        return self._spec(fullname, self.dir / entry["file"])
+        file = self.modules.get(fullname)
+        return None if file is None else self._spec(fullname, self.dir / file)
 
     @staticmethod
     def _spec(name: str, path: Path) -> importlib.machinery.ModuleSpec | None:
@@ -86,6 +85,13 @@ class CompiledFinder(importlib.abc.MetaPathFinder):
             return None
         loader = importlib.machinery.ExtensionFileLoader(name, str(path))
         return importlib.util.spec_from_file_location(name, path, loader=loader)
+
+
+def _built_from(module: str, digest: str) -> bool:
+    try:
+        return sha256(source_of(module)) == digest
+    except OSError:
+        return False
 
 
 _SUFFIX = importlib.machinery.EXTENSION_SUFFIXES[0]

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from rig.compiled import MANIFEST, MODULES, OUT, REPO, CompiledFinder, source_of
+from rig.compiled import _SUFFIX, MANIFEST, MODULES, OUT, REPO, CompiledFinder, source_of
 
 SCENARIO = REPO / "scenarios" / "library" / "seed000_roll_stand.toml"
 
@@ -51,22 +51,43 @@ def test_the_hot_modules_run_compiled() -> None:
         assert Path(module.__file__ or "").is_relative_to(OUT), f"{name} runs from {module.__file__}"
 
 
-def test_a_module_whose_source_changed_runs_from_the_source(capsys: pytest.CaptureFixture[str]) -> None:
-    finder = CompiledFinder()
-    spec = finder.find_spec("rig.session")
-    assert spec is not None and Path(spec.origin or "").is_relative_to(OUT)
-    finder.modules["rig.session"]["sha256"] = hashlib.sha256(b"an older session.py").hexdigest()
-    assert finder.find_spec("rig.session") is None  # the path finder then loads rig/session.py
-    assert finder.stale == ["rig.session"]
-    assert "rig.session" in capsys.readouterr().err
-    assert finder.find_spec("rig.capture") is None   # not compiled at all: not ours to find
+def _build_copy(tmp_path: Path, change: dict[str, str] | None = None) -> Path:
+    """The real build seen through a manifest in tmp_path (its extensions linked), hashes changed as asked."""
+    data = json.loads(MANIFEST.read_text())
+    for module, entry in data["modules"].items():
+        entry["sha256"] = (change or {}).get(module, entry["sha256"])
+    for path in OUT.rglob(f"*{_SUFFIX}"):
+        link = tmp_path / path.relative_to(OUT)
+        link.parent.mkdir(parents=True, exist_ok=True)
+        link.symlink_to(path)
+    (tmp_path / "manifest.json").write_text(json.dumps(data))
+    return tmp_path / "manifest.json"
 
 
-def test_an_unreadable_manifest_means_no_compiled_modules(tmp_path: Path) -> None:
-    (tmp_path / "manifest.json").write_text("{not json")
-    assert CompiledFinder(tmp_path / "manifest.json").find_spec("rig.session") is None
-    (tmp_path / "manifest.json").write_text(json.dumps({"modules": {"rig.session": {"file": "x.so"}}}))
-    assert CompiledFinder(tmp_path / "manifest.json").find_spec("rig.session") is None
+def test_one_changed_source_sends_every_hot_module_back_to_source(tmp_path: Path,
+                                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """All or none: the compiled world calls the compiled MPU6050 natively, so an edited mpu6050.py must
+    not run beside a compiled world."""
+    fresh = CompiledFinder(_build_copy(tmp_path / "fresh"))
+    for name in MODULES:
+        spec = fresh.find_spec(name)
+        assert spec is not None and Path(spec.origin or "").is_relative_to(tmp_path / "fresh"), name
+    assert fresh.find_spec("rig.capture") is None   # not compiled at all: not this finder's to find
+    older = hashlib.sha256(b"an older mpu6050.py").hexdigest()
+    stale = CompiledFinder(_build_copy(tmp_path / "stale", {"emulators.mpu6050": older}))
+    assert stale.stale == ["emulators.mpu6050"]
+    assert [stale.find_spec(name) for name in (*MODULES, stale.runtime)] == [None] * (len(MODULES) + 1)
+    assert "emulators.mpu6050" in capsys.readouterr().err
+
+
+def test_a_broken_manifest_means_no_compiled_modules(tmp_path: Path) -> None:
+    manifest = tmp_path / "manifest.json"
+    for text in ("{not json", "[]", json.dumps({"modules": {"rig.session": {"file": "x.so"}}}),
+                 json.dumps({"runtime": "rig_hot__mypyc", "modules": {"rig.session": {"file": "x.so"}}}),
+                 json.dumps({"runtime": "rig_hot__mypyc", "modules": ["rig.session"]})):
+        manifest.write_text(text)
+        finder = CompiledFinder(manifest)
+        assert finder.find_spec("rig.session") is None and finder.find_spec("rig_hot__mypyc") is None, text
 
 
 def test_the_makefile_rebuilds_when_any_compiled_source_changes() -> None:
