@@ -13,6 +13,7 @@ from emulators.mpu6050 import MPU6050
 from emulators.ms5611 import MS5611
 from emulators.sensor_models import AxisErrors, BaroModel, ImuModel, MagModel
 from emulators.topology import build_board
+from rig.compiled import status
 
 TRUTH = {"fx": 0.1, "fy": -0.2, "fz": -9.80665, "p": 0.01, "q": -0.02, "r": 0.03, "temperature": 15.0,
          "mag_x": 0.25, "mag_y": 0.0, "mag_z": 0.433, "pressure": 101325.0}
@@ -57,7 +58,7 @@ def main() -> None:
     b2 = make_board()
     b2.bus.transfer([write(0x1E, 0x00, 0x18)], 0.0)
     update = rate(lambda k: b2.bus.advance_to(1.0 + k * 1e-3), n)
-    print("emulator rates (in-process, Python):")
+    print(f"emulator rates (in-process; {status()}):")
     for name, r in rates.items():
         print(f"  {name:28s} {r:10,.0f} transactions/s  {1e6 / r:7.1f} us each")
     print(f"  {'sample update, all three':28s} {update:10,.0f} updates/s      {1e6 / update:7.1f} us each "
