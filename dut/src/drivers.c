@@ -219,10 +219,29 @@ int pwm_setup(int chip, int channels, long period_ns, char *err, int errlen)
     return 0;
 }
 
+/* duty_cycle files, opened on first use and kept (fd + 1; 0: not open), as a driver does: the loop writes
+   four per cycle, and an open and a close around each write would cost as many syscalls again. */
+#define PWM_FDS 16
+static int duty_fd[PWM_FDS], duty_chip[PWM_FDS];
+
 int pwm_write_us(int chip, int channel, double us)
 {
-    char path[128], v[32];
-    snprintf(path, sizeof path, "/sys/class/pwm/pwmchip%d/pwm%d/duty_cycle", chip, channel);
-    snprintf(v, sizeof v, "%ld", (long)(clampd(us, 1000.0, 2000.0) * 1000.0));
-    return put(path, v);
+    char v[32];
+    int len = snprintf(v, sizeof v, "%ld", (long)(clampd(us, 1000.0, 2000.0) * 1000.0));
+    if (channel < 0 || channel >= PWM_FDS)
+        return -EINVAL;
+    if (duty_fd[channel] && duty_chip[channel] != chip) {
+        close(duty_fd[channel] - 1);
+        duty_fd[channel] = 0;
+    }
+    if (!duty_fd[channel]) {
+        char path[128];
+        snprintf(path, sizeof path, "/sys/class/pwm/pwmchip%d/pwm%d/duty_cycle", chip, channel);
+        int fd = open(path, O_WRONLY | O_CLOEXEC);
+        if (fd < 0)
+            return -errno;
+        duty_fd[channel] = fd + 1;
+        duty_chip[channel] = chip;
+    }
+    return pwrite(duty_fd[channel] - 1, v, (size_t)len, 0) < 0 ? -errno : 0;
 }
