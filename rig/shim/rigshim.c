@@ -139,6 +139,17 @@ static void parse_serial(const char *spec)
     }
 }
 
+/* This process's pid, kept: getpid() is a syscall (glibc no longer caches it), and every message asks.
+   A fork's child forgets it (pthread_atfork); vfork and posix_spawn children only exec. */
+static pid_t own_pid;
+static void forget_pid(void) { own_pid = 0; }
+static pid_t self_pid(void)
+{
+    if (!own_pid)
+        own_pid = getpid();
+    return own_pid;
+}
+
 __attribute__((constructor)) static void shim_init(void)
 {
     const char *s = getenv("RIG_SOCKET");
@@ -172,6 +183,7 @@ __attribute__((constructor)) static void shim_init(void)
     parse_serial(getenv("RIG_SERIAL"));
     const char *ls = getenv("RIG_LOCKSTEP");
     lockstep = ls && strcmp(ls, "1") == 0;
+    pthread_atfork(NULL, NULL, forget_pid);
     active = 1;
 }
 
@@ -209,7 +221,7 @@ static void send_msg(uint16_t type, const void *payload, uint32_t len);
 /* Connects on first use and again after fork (a child gets its own connection). Caller holds lock. */
 static void ensure_connected(void)
 {
-    if (sock >= 0 && sock_pid == getpid())
+    if (sock >= 0 && sock_pid == self_pid())
         return;
     if (sock >= 0)
         LOAD(close)(sock); /* the parent's connection, inherited by fork */
@@ -218,8 +230,8 @@ static void ensure_connected(void)
     strcpy(addr.sun_path, sock_path);
     if (sock < 0 || connect(sock, (struct sockaddr *)&addr, sizeof addr) < 0)
         die_session(strerror(errno));
-    sock_pid = getpid();
-    uint32_t hello[2] = {RIG_PROTOCOL_VERSION, (uint32_t)getpid()};
+    sock_pid = self_pid();
+    uint32_t hello[2] = {RIG_PROTOCOL_VERSION, (uint32_t)sock_pid};
     send_msg(RIG_MSG_HELLO, hello, sizeof hello);
     struct rig_hdr h;
     if (recv_all(&h, sizeof h) < 0 || h.type != RIG_MSG_HELLO || h.len != 0)
@@ -911,7 +923,7 @@ EXPORT FILE *fopen64(const char *path, const char *mode)
 
 EXPORT int close(int fd)
 {
-    if (active && fd == sock && sock_pid == getpid())
+    if (active && fd == sock && sock_pid == self_pid())
         return 0; /* a program closing every descriptor must not cut us off from the session */
     drop_fake(fd);
     return LOAD(close)(fd);

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from rig import protocol as P
 from rig.shim.build import SHIM_DIR
-from tests.rig.helpers import rig_exec
+from tests.rig.helpers import PY, rig_exec
 
 CHIP = "/sys/class/pwm/pwmchip0"
 
@@ -79,3 +79,23 @@ def test_protocol_numbers_agree_between_c_and_python() -> None:
     assert layout("rig_pwm_state") == P.SHM_PWM.format
     assert layout("rig_shm") == P.SHM_HEAD.format          # the head; the PWM array follows
     assert P.SHM_HEAD.size + P.PWM_MAX * P.SHM_PWM.size <= P.SHM_SIZE
+
+
+def test_a_forked_child_gets_a_connection_of_its_own(tmp_path: Path) -> None:
+    """The shim keeps its pid (getpid() is a syscall per message otherwise); a fork's child must forget
+    it, or it would talk on its parent's connection and the two would read each other's replies."""
+    script = """
+import os, time
+time.sleep(0.001)
+pid = os.fork()
+if pid == 0:
+    time.sleep(0.002)
+    time.sleep(0.002)
+    os._exit(0)
+os.waitpid(pid, 0)
+time.sleep(0.001)
+"""
+    run = rig_exec(tmp_path, PY, "-c", script)
+    assert run.returncode == 0, run.stderr
+    assert run.summary["connections"] == 2
+    assert run.summary["verdict"] == "ok"
