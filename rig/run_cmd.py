@@ -80,7 +80,7 @@ def resolve(names: list[str]) -> list[Path]:
 
 
 def cmd_list() -> int:
-    for p in sorted(LIBRARY.glob("*.toml")):
+    for p in resolve([]):  # the whole library
         try:
             sc = load(p)
             print(f"{p.stem:28} {sc.duration:6.1f} s  {sc.name}")
