@@ -10,11 +10,12 @@ CFLAGS_BENCH := -std=c11 -O2 -Wall -Wextra -Werror
 PLANT_SOURCES := $(wildcard plant/c/*.c plant/c/*.h plant/fmi2/*) plant/variables.py plant/build.py
 
 SHIM   := build/librigshim.so
-NATIVE := build/libsampling.so
+NATIVE := build/libsampling.so build/libplantsteps.so
 # the modules rig/compiled.py compiles with mypyc (its MODULES; a test checks that the lists agree)
 COMPILED := build/mypyc/manifest.json
 COMPILED_SOURCES := rig/protocol.py rig/session.py rig/world.py rig/rc.py emulators/registers.py \
-	emulators/mpu6050.py emulators/hmc5883l.py emulators/ms5611.py scenarios/runner.py
+	emulators/mpu6050.py emulators/hmc5883l.py emulators/ms5611.py emulators/i2c_bus.py \
+	scenarios/runner.py
 
 DUT_BIN := build/dut/fc
 
@@ -36,7 +37,7 @@ $(SHIM): rig/shim/rigshim.c rig/shim/protocol.h rig/shim/build.py | venv
 	$(PY) -m rig.shim.build
 
 native: $(NATIVE)
-$(NATIVE): emulators/c/sampling.c emulators/native.py | venv
+$(NATIVE) &: emulators/c/sampling.c emulators/c/plant_steps.c emulators/native.py | venv
 	$(PY) -m emulators.native
 
 compiled: $(COMPILED)

@@ -37,7 +37,7 @@ GROUP = "rig_hot"  # mypyc's shared runtime library is the extension ``rig_hot__
 
 #: What is compiled: the modules that run per DUT message or per scheduled event in lockstep.
 MODULES = ("rig.protocol", "rig.session", "rig.world", "rig.rc", "emulators.registers",
-           "emulators.mpu6050", "emulators.hmc5883l", "emulators.ms5611",
+           "emulators.mpu6050", "emulators.hmc5883l", "emulators.ms5611", "emulators.i2c_bus",
            "scenarios.runner")
 
 
