@@ -19,6 +19,8 @@ from pathlib import Path
 REPO_ROOT = Path(__file__).resolve().parent.parent
 SAMPLING_SOURCE = REPO_ROOT / "emulators" / "c" / "sampling.c"
 SAMPLING_LIB = REPO_ROOT / "build" / "libsampling.so"
+PLANT_STEPS_SOURCE = REPO_ROOT / "emulators" / "c" / "plant_steps.c"
+PLANT_STEPS_LIB = REPO_ROOT / "build" / "libplantsteps.so"
 BLOCK = 64  #: most samples one call takes: buffers for C are this many rows
 #: -ffp-contract=off: no fused multiply-adds, so the C arithmetic rounds as the Python it replaced did.
 CFLAGS = ("-std=c11", "-O2", "-Wall", "-Wextra", "-Werror", "-fPIC", "-shared", "-fvisibility=hidden",
@@ -52,7 +54,8 @@ def is_stale(out: Path, sources: Sequence[Path]) -> bool:
 
 
 _P, _I32, _D = ctypes.c_void_p, ctypes.c_int32, ctypes.c_double
-_SIGNATURES: dict[str, tuple[object, list[object]]] = {
+_Signatures = dict[str, tuple[object, list[object] | None]]
+_SAMPLING: _Signatures = {
     "rig_channel_size": (ctypes.c_size_t, []),
     "rig_channel_init": (None, [_P, _P, _P, _D, _D, _D]),
     "rig_channel_normals": (None, [_P, _P, _I32]),
@@ -65,22 +68,45 @@ _SIGNATURES: dict[str, tuple[object, list[object]]] = {
     "rig_lowpass_catch_up": (None, [_P, _P, _D]),
     "rig_mpu_encode": (None, [_P, _P, _P, _P, _I32, _I32, _P, _D]),
 }
+#: (no argtypes: called once per plant advance with prebuilt ctypes objects, which skips the
+#: per-argument conversion that argtypes would cost on every call)
+_PLANT_STEPS: _Signatures = {"rig_plant_steps": (ctypes.c_int32, None)}
+
+#: name -> (sources, library, what it is, entry points)
+LIBRARIES: dict[str, tuple[list[Path], Path, str, _Signatures]] = {
+    "sampling": ([SAMPLING_SOURCE], SAMPLING_LIB, "the sampling library", _SAMPLING),
+    "plant_steps": ([PLANT_STEPS_SOURCE], PLANT_STEPS_LIB, "the plant-stepping library", _PLANT_STEPS),
+}
 
 
-def build_sampling() -> Path:
-    return compile_shared([SAMPLING_SOURCE], SAMPLING_LIB, "the sampling library", libs=["-lm"])
+def build(name: str) -> Path:
+    sources, out, what, _ = LIBRARIES[name]
+    return compile_shared(sources, out, what, libs=["-lm"])
 
 
 @functools.cache
-def sampling() -> ctypes.CDLL:
-    """The IMU sampling chain (emulators/c/sampling.c), built if missing or stale."""
-    if is_stale(SAMPLING_LIB, [SAMPLING_SOURCE]):
-        build_sampling()
-    lib = ctypes.CDLL(str(SAMPLING_LIB))
-    for name, (restype, argtypes) in _SIGNATURES.items():
-        fn = getattr(lib, name)
-        fn.restype, fn.argtypes = restype, argtypes
+def library(name: str) -> ctypes.CDLL:
+    """One of the rig's C libraries, built if missing or stale, its entry points typed."""
+    sources, out, _, signatures = LIBRARIES[name]
+    if is_stale(out, sources):
+        build(name)
+    lib = ctypes.CDLL(str(out))
+    for fn_name, (restype, argtypes) in signatures.items():
+        fn = getattr(lib, fn_name)
+        fn.restype = restype
+        if argtypes is not None:
+            fn.argtypes = argtypes
     return lib
+
+
+def sampling() -> ctypes.CDLL:
+    """The IMU sampling chain (emulators/c/sampling.c)."""
+    return library("sampling")
+
+
+def plant_steps() -> ctypes.CDLL:
+    """Several plant steps in one call (emulators/c/plant_steps.c)."""
+    return library("plant_steps")
 
 
 def state(size_fn: str) -> tuple[ctypes.Array[ctypes.c_char], int]:
@@ -91,6 +117,7 @@ def state(size_fn: str) -> tuple[ctypes.Array[ctypes.c_char], int]:
 
 if __name__ == "__main__":
     try:
-        print(build_sampling())
+        for lib_name in LIBRARIES:
+            print(build(lib_name))
     except NativeBuildError as e:
         sys.exit(str(e))

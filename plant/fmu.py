@@ -14,7 +14,19 @@ import os
 import shutil
 import tempfile
 from collections.abc import Mapping
-from ctypes import POINTER, byref, c_double, c_int, c_size_t, c_uint, c_void_p
+from ctypes import (
+    POINTER,
+    Structure,
+    addressof,
+    byref,
+    c_double,
+    c_int,
+    c_int32,
+    c_int64,
+    c_size_t,
+    c_uint,
+    c_void_p,
+)
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -32,6 +44,8 @@ from fmpy.fmi2 import (
 from fmpy.fmi2 import calloc as _calloc
 from fmpy.fmi2 import free as _free
 
+from emulators import native
+
 REPO_ROOT = Path(__file__).resolve().parent.parent
 
 #: Where ``make fmu`` puts the plant; ``RIG_PLANT_FMU`` overrides it.
@@ -42,6 +56,19 @@ _STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pend
 
 class PlantError(RuntimeError):
     """The FMU refused a call or could not be loaded; the message says why."""
+
+
+class _Steps(Structure):
+    """``struct rig_plant_steps`` (emulators/c/plant_steps.c): what several steps in one call need."""
+
+    _fields_ = [("set_real", c_void_p), ("do_step", c_void_p), ("get_real", c_void_p),
+                ("component", c_void_p), ("u_vr", c_void_p), ("u", c_void_p), ("n_u", c_size_t),
+                ("y_vr", c_void_p), ("y", c_void_p), ("n_y", c_size_t), ("t", c_void_p),
+                ("ring", c_void_p), ("ring_rows", c_int64), ("failed_call", c_int32),
+                ("failed_status", c_int32)]
+
+
+_STEP_CALLS = {1: "fmi2SetReal", 2: "fmi2DoStep", 3: "fmi2GetReal"}
 
 
 @dataclass
@@ -131,6 +158,8 @@ class Plant:
         self.y_index = {n: i for i, n in enumerate(self.output_names)}
         self._on_ground_vr = (c_uint * 1)(self.variables["on_ground"].valueReference)
         self._bool_buf = (c_int * 1)()
+        self._steps: _Steps | None = None  # for step_many, made on first use
+        self._ring: np.ndarray | None = None
 
     @staticmethod
     def _proto(dll: ctypes.CDLL, name: str, *argtypes: Any) -> Any:  # (a ctypes function pointer)
@@ -274,6 +303,39 @@ class Plant:
         if status > 1:
             self._fail("fmi2GetReal", status)
         self._t.value += dt
+
+    def step_many(self, n: int, dt: float, write_inputs: bool = True, ring: np.ndarray | None = None,
+                  first_row: int = 0) -> None:
+        """``n`` steps of ``dt`` with ``u`` unchanged, in one call into C (emulators/c/plant_steps.c):
+        the same FMI calls as ``n`` calls of ``step``, so the same result, at about a quarter of the
+        cost. With ``ring`` (a C-contiguous float64 array of rows as long as ``y``, kept by the caller
+        and passed again every time), ``y`` after step i is also copied into row
+        ``(first_row + i) % len(ring)``."""
+        steps = self._steps
+        if steps is None:
+            steps = self._steps = self._make_steps()
+        if ring is not self._ring:
+            if ring is not None and (ring.dtype != np.float64 or not ring.flags.c_contiguous
+                                     or ring.ndim != 2 or ring.shape[1] != len(self.y)):
+                raise ValueError(f"a ring holds C-contiguous float64 rows of {len(self.y)} outputs")
+            self._ring = ring
+            steps.ring = ring.ctypes.data if ring is not None else None
+            steps.ring_rows = len(ring) if ring is not None else 0
+        done = self._steps_fn(self._steps_ref, n, c_double(dt), int(write_inputs), c_int64(first_row))
+        if done < n or steps.failed_call:
+            self._fail(_STEP_CALLS.get(steps.failed_call, "rig_plant_steps"), steps.failed_status)
+
+    def _make_steps(self) -> _Steps:
+        def address(fn: Any) -> int | None:
+            return ctypes.cast(fn, c_void_p).value
+
+        steps = _Steps(address(self._raw_set_real), address(self._raw_do_step), address(self._raw_get_real),
+                       self._component.value, addressof(self._u_vr), addressof(self._u_buf), len(self.u),
+                       addressof(self._y_vr), addressof(self._y_buf), len(self.y), addressof(self._t),
+                       None, 0, 0, 0)
+        self._steps_fn = native.plant_steps().rig_plant_steps
+        self._steps_ref = byref(steps)
+        return steps
 
     def run(self, duration: float, dt: float) -> None:
         """Steps with constant inputs for ``duration`` (a whole number of ``dt``)."""

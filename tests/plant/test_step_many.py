@@ -1,0 +1,63 @@
+"""``Plant.step_many``: several steps in one call into C (emulators/c/plant_steps.c) must be exactly
+``step`` called that many times (the second implementation it is checked against), and fail the way
+``step`` fails."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from plant import PlantError
+from tests.plant.helpers import DT, HOVER_PWM, flying
+
+WOBBLE = (HOVER_PWM + 40, HOVER_PWM - 30, HOVER_PWM + 10, HOVER_PWM)
+
+
+def test_many_steps_in_one_call_are_the_steps_one_by_one_bit_for_bit() -> None:
+    with flying(WOBBLE) as a, flying(WOBBLE) as b:
+        ring = np.full((7, len(a.y)), np.nan)
+        rows = []
+        for n, wind in ((4, 0.0), (1, 3.0), (10, -2.0), (0, 5.0)):  # 15 steps: the ring wraps twice
+            a.set_input("wind_n", wind)
+            b.set_input("wind_n", wind)
+            a.step_many(n, DT, ring=ring, first_row=len(rows) + 1)
+            for _ in range(n):
+                b.step(DT)
+                rows.append(b.y.copy())
+            assert np.array_equal(a.y, b.y) and a.time == b.time
+        assert a.time == pytest.approx(15 * DT)
+        assert a.get_value("wind_n") == -2.0  # no steps, nothing written
+        for k, row in enumerate(rows, start=1):  # the last write of each slot is the latest step there
+            if k > len(rows) - len(ring):
+                assert np.array_equal(ring[k % len(ring)], row)
+
+
+def test_inputs_are_written_once_unless_asked() -> None:
+    with flying(WOBBLE) as a, flying(WOBBLE) as b:
+        a.set_input("wind_n", 4.0)
+        a.step_many(3, DT, write_inputs=False)  # u changed, but the FMU was not told
+        b.run(3 * DT, DT)
+        assert np.array_equal(a.y, b.y)
+        assert a.get_value("wind_n") == 0.0
+
+
+def test_a_call_the_fmu_refuses_raises_with_the_fmus_words_and_moves_no_time() -> None:
+    with flying(WOBBLE) as a:
+        with pytest.raises(PlantError, match="fmi2DoStep returned Error: .*communication step"):
+            a.step_many(2, -DT)
+        assert a.time == 0.0
+        a.set_input("pwm3_us", math.nan)
+        with pytest.raises(PlantError, match="fmi2SetReal returned Error: .*pwm3_us"):
+            a.step_many(2, DT)
+        assert a.time == 0.0
+
+
+def test_a_ring_of_the_wrong_shape_is_refused() -> None:
+    with flying() as a:
+        for bad in (np.zeros((4, len(a.y) + 1)), np.zeros((4, len(a.y)), dtype=np.float32),
+                    np.zeros((len(a.y), 4)).T):
+            with pytest.raises(ValueError, match="C-contiguous float64 rows"):
+                a.step_many(1, DT, ring=bad)
+        assert a.time == 0.0
