@@ -4,9 +4,10 @@ message handling over a socketpair, with the MPU at 1 kHz behind its DLPF and th
 
 Why: these VMs change speed by half from one minute to the next, so wall-clock A/B comparisons of a
 change need many interleaved runs. With ``--instructions`` the cost is counted in instructions under
-valgrind (two run lengths, subtracted, so start-up cancels; ASLR off, a fixed hash seed). The count does
-not follow the machine's speed, but it still varies by 4-6 % from run to run, so it is taken three
-times and the median and range are printed. Prints; asserts nothing.
+valgrind (two run lengths, subtracted, so start-up cancels; ASLR off, a fixed hash seed, OpenBLAS on
+one thread: its idle worker spins for a time-dependent number of instructions, which made the count
+vary by 4-6 %). The count does not follow the machine's speed; it is taken three times and the median
+and range are printed. Prints; asserts nothing.
 
     python bench/cycle_cost.py                  # microseconds per cycle (wall clock, noisy)
     python bench/cycle_cost.py --instructions   # instructions per cycle (needs valgrind)
@@ -78,7 +79,7 @@ def run_cycles(n: int) -> float:
 
 
 def _instructions(n: int) -> int:
-    env = {**os.environ, "PYTHONHASHSEED": "0", "RIG_CYCLES": str(n)}
+    env = {**os.environ, "PYTHONHASHSEED": "0", "OPENBLAS_NUM_THREADS": "1", "RIG_CYCLES": str(n)}
     cmd = ["setarch", "-R", "valgrind", "--tool=cachegrind", "--cache-sim=no",
            "--cachegrind-out-file=/dev/null", sys.executable, __file__, "--child"]
     done = subprocess.run(cmd, capture_output=True, text=True, env=env, check=True)
