@@ -17,6 +17,7 @@ import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Final
 
 import numpy as np
 
@@ -34,9 +35,10 @@ from scenarios.schema import Event, Scenario
 from scenarios.signals import RECORD_PERIOD, SIGNALS
 
 # (the root from a module that is never compiled: this one may run from build/mypyc, rig/compiled.py)
-REFERENCE_FC = REPO_ROOT / "build" / "dut" / "fc"
-RC_PATH, TELEMETRY_PATH = "/dev/ttyRC0", "/dev/ttyTEL0"
-WIND_PERIOD = 0.01
+REFERENCE_FC: Final = REPO_ROOT / "build" / "dut" / "fc"
+RC_PATH: Final = "/dev/ttyRC0"
+TELEMETRY_PATH: Final = "/dev/ttyTEL0"
+WIND_PERIOD: Final = 0.01
 TELEMETRY_KEYS = {
     "roll": "est_roll",
     "pitch": "est_pitch",
@@ -119,26 +121,25 @@ class _Recorder:
         self.sc, self.rc, self.wind, self.faults = scenario, rc, wind, faults
         self.rows: list[tuple[float, ...]] = []
         self.k = 0
+        self._cols: list[int] = []
+        self._pwm_cols: list[int] = []
 
     def tick(self, session: Session) -> None:
         plant = session.world.plant
-        y, u, yi, ui = plant.y, plant.u, plant.y_index, plant.u_index
+        if not self._cols:  # the plant's layout, looked up once (this runs at 100 Hz)
+            yi, ui = plant.y_index, plant.u_index
+            self._cols = [yi[n] for n in ("roll", "pitch", "yaw", "pd", "vd", "vn", "ve", "p", "q", "r")]
+            self._pwm_cols = [ui[f"pwm{m}_us"] for m in range(1, 5)]
+        y = plant.y.tolist()  # (one call; indexing the array made a numpy scalar per value)
+        roll, pitch, yaw, pd, vd, vn, ve, p, q, r = [y[i] for i in self._cols]
+        u = plant.u.tolist()
         t = self.k * RECORD_PERIOD
         st = self.rc.sticks
         faulted = any(f.active(t) for f in self.faults) or any(self.sc.mag_disturbance_at(t))
         self.rows.append(
             (
-                t,
-                y[yi["roll"]],
-                y[yi["pitch"]],
-                y[yi["yaw"]],
-                -y[yi["pd"]],
-                -y[yi["vd"]],
-                math.hypot(y[yi["vn"]], y[yi["ve"]]),
-                y[yi["p"]],
-                y[yi["q"]],
-                y[yi["r"]],
-                *[u[ui[f"pwm{m}_us"]] for m in range(1, 5)],
+                t, roll, pitch, yaw, -pd, -vd, math.hypot(vn, ve), p, q, r,
+                *[u[i] for i in self._pwm_cols],
                 float(plant.on_ground),
                 st.roll * self.sc.max_angle_deg,
                 st.pitch * self.sc.max_angle_deg,
