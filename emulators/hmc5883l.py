@@ -5,17 +5,23 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Final
 
 from emulators.registers import RegisterMap, RegisterSpec, round_half_away
 
-ADDRESS = 0x1E
-GAINS = (1370, 1090, 820, 660, 440, 390, 330, 230)          # LSB/Ga by CRB.GN, specs §4.5
-RATES_HZ = (0.75, 1.5, 3.0, 7.5, 15.0, 30.0, 75.0, 75.0)    # CRA.DO (7 reserved: treated as 75 Hz)
-SINGLE_S = 6e-3            # single measurement duration (datasheet examples wait 6 ms)
-POWER_ON_S = 0.056         # power-on single measurement: data valid ~56 ms after power-up
-BIAS_GA = (1.16, 1.08, 1.16)   # bias-strap field in (X, Z, Y) register order, specs §4.9
-OVERFLOW = -4096
-CRA, CRB, MODE, DATA, STATUS, ID_A = 0x00, 0x01, 0x02, 0x03, 0x09, 0x0A
+ADDRESS: Final = 0x1E
+GAINS = (1370, 1090, 820, 660, 440, 390, 330, 230)  # LSB/Ga by CRB.GN, specs §4.5
+RATES_HZ = (0.75, 1.5, 3.0, 7.5, 15.0, 30.0, 75.0, 75.0)  # CRA.DO (7 reserved: treated as 75 Hz)
+SINGLE_S: Final = 6e-3  # single measurement duration (datasheet examples wait 6 ms)
+POWER_ON_S: Final = 0.056  # power-on single measurement: data valid ~56 ms after power-up
+BIAS_GA = (1.16, 1.08, 1.16)  # bias-strap field in (X, Z, Y) register order, specs §4.9
+OVERFLOW: Final = -4096
+CRA: Final = 0x00
+CRB: Final = 0x01
+MODE: Final = 0x02
+DATA: Final = 0x03
+STATUS: Final = 0x09
+ID_A: Final = 0x0A
 
 REGISTERS = RegisterMap("HMC5883L", [
     RegisterSpec(0x00, "CRA", 0x10, "rw", write_mask=0x7F),

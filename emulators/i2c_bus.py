@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Final, Protocol
 
 
 class I2CNack(Exception):
@@ -25,7 +25,7 @@ class I2CProtocolError(Exception):
     """An SMBus block read whose count byte is 0 or above 32 (the kernel reports EPROTO)."""
 
 
-SMBUS_BLOCK_MAX = 32
+SMBUS_BLOCK_MAX: Final = 32
 
 
 class I2CDevice(Protocol):

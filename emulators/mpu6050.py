@@ -9,7 +9,7 @@ import math
 from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Final, NamedTuple
 
 import numpy as np
 
@@ -17,30 +17,53 @@ from emulators import native
 from emulators.i2c_bus import I2CDevice
 from emulators.registers import RegisterMap, RegisterSpec
 
-ADDRESS = 0x68
-G0 = 9.80665
+ADDRESS: Final = 0x68
+G0: Final = 9.80665
 ACCEL_LSB_PER_G = (16384.0, 8192.0, 4096.0, 2048.0)
 GYRO_LSB_PER_DPS = (131.0, 65.5, 32.8, 16.4)
 #: DLPF_CFG -> (accel bandwidth Hz, accel delay s, gyro bandwidth Hz, gyro delay s), specs §3.5.
 DLPF = ((260, 0.0, 256, 0.98e-3), (184, 2.0e-3, 188, 1.9e-3), (94, 3.0e-3, 98, 2.8e-3),
-        (44, 4.9e-3, 42, 4.8e-3), (21, 8.5e-3, 20, 8.3e-3), (10, 13.8e-3, 10, 13.4e-3),
-        (5, 19.0e-3, 5, 18.6e-3), (260, 0.0, 256, 0.98e-3))
-FIFO_SIZE = 1024
+               (44, 4.9e-3, 42, 4.8e-3), (21, 8.5e-3, 20, 8.3e-3), (10, 13.8e-3, 10, 13.4e-3),
+               (5, 19.0e-3, 5, 18.6e-3), (260, 0.0, 256, 0.98e-3))
+FIFO_SIZE: Final = 1024
 BLOCK = native.BLOCK
 
 # Self-test: factory-trim codes and the matching actuation (specs §3.10). Gyro code 16 gives
 # FT = 25 * 1.046**15 deg/s (+X, -Y, +Z); accel code 12 gives FT = 0.34 * (0.92/0.34)**(11/30) g.
-ST_GYRO_CODE, ST_ACCEL_CODE = 16, 12
-ST_GYRO_DPS = 25.0 * 1.046 ** (ST_GYRO_CODE - 1)
-ST_ACCEL_G = 0.34 * (0.92 / 0.34) ** ((ST_ACCEL_CODE - 1) / 30)
+ST_GYRO_CODE: Final = 16
+ST_ACCEL_CODE: Final = 12
+ST_GYRO_DPS: Final = 25.0 * 1.046 ** (ST_GYRO_CODE - 1)
+ST_ACCEL_G: Final = 0.34 * (0.92 / 0.34) ** ((ST_ACCEL_CODE - 1) / 30)
 
-(SELF_TEST_X, SELF_TEST_A, SMPLRT_DIV, CONFIG, GYRO_CONFIG, ACCEL_CONFIG, FIFO_EN, I2C_MST_CTRL,
- I2C_MST_STATUS, INT_PIN_CFG, INT_ENABLE, INT_STATUS, ACCEL_XOUT_H, TEMP_OUT_H, GYRO_XOUT_H,
- EXT_SENS_DATA_00, SIGNAL_PATH_RESET, USER_CTRL, PWR_MGMT_1, PWR_MGMT_2, FIFO_COUNT_H, FIFO_COUNT_L,
- FIFO_R_W, WHO_AM_I) = (0x0D, 0x10, 0x19, 0x1A, 0x1B, 0x1C, 0x23, 0x24, 0x36, 0x37, 0x38, 0x3A, 0x3B,
-                        0x41, 0x43, 0x49, 0x68, 0x6A, 0x6B, 0x6C, 0x72, 0x73, 0x74, 0x75)
-I2C_SLV0_ADDR, I2C_SLV0_DO, I2C_MST_DELAY_CTRL = 0x25, 0x63, 0x67
-DATA_FIRST, DATA_LAST = ACCEL_XOUT_H, 0x60
+SELF_TEST_X: Final = 0x0D
+SELF_TEST_A: Final = 0x10
+SMPLRT_DIV: Final = 0x19
+CONFIG: Final = 0x1A
+GYRO_CONFIG: Final = 0x1B
+ACCEL_CONFIG: Final = 0x1C
+FIFO_EN: Final = 0x23
+I2C_MST_CTRL: Final = 0x24
+I2C_MST_STATUS: Final = 0x36
+INT_PIN_CFG: Final = 0x37
+INT_ENABLE: Final = 0x38
+INT_STATUS: Final = 0x3A
+ACCEL_XOUT_H: Final = 0x3B
+TEMP_OUT_H: Final = 0x41
+GYRO_XOUT_H: Final = 0x43
+EXT_SENS_DATA_00: Final = 0x49
+SIGNAL_PATH_RESET: Final = 0x68
+USER_CTRL: Final = 0x6A
+PWR_MGMT_1: Final = 0x6B
+PWR_MGMT_2: Final = 0x6C
+FIFO_COUNT_H: Final = 0x72
+FIFO_COUNT_L: Final = 0x73
+FIFO_R_W: Final = 0x74
+WHO_AM_I: Final = 0x75
+I2C_SLV0_ADDR: Final = 0x25
+I2C_SLV0_DO: Final = 0x63
+I2C_MST_DELAY_CTRL: Final = 0x67
+DATA_FIRST: Final = ACCEL_XOUT_H
+DATA_LAST: Final = 0x60
 
 
 def _self_test_regs() -> tuple[int, int, int, int]:

@@ -11,10 +11,11 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import Final
 
 import numpy as np
 
-ADDRESS = 0x77  # CSB low; 0x76 with CSB high
+ADDRESS: Final = 0x77  # CSB low; 0x76 with CSB high
 #: specs §5.4/§5.5 recommended default: datasheet coefficients, word 7 = 0x0103 (CRC 0x3, non-zero).
 DEFAULT_PROM = (0x0000, 40127, 36924, 23317, 23282, 33464, 28312, 0x0103)
 OSR = (256, 512, 1024, 2048, 4096)
@@ -24,7 +25,8 @@ CONVERSION_MAX = (0.60e-3, 1.17e-3, 2.28e-3, 4.54e-3, 9.04e-3)
 #: Pressure noise (RMS, Pa) per OSR index, specs §5.3.
 NOISE_PA = (6.5, 4.2, 2.7, 1.8, 1.2)
 
-CMD_RESET, CMD_ADC_READ = 0x1E, 0x00
+CMD_RESET: Final = 0x1E
+CMD_ADC_READ: Final = 0x00
 
 
 def crc4(words: tuple[int, ...] | list[int]) -> int:

@@ -6,12 +6,17 @@ with a message that says what was wrong, and the session drops only that connect
 from __future__ import annotations
 
 import struct
+from typing import Final
 
-PROTOCOL_VERSION = 2
-MAX_PAYLOAD = 65536
+PROTOCOL_VERSION: Final = 2
+MAX_PAYLOAD: Final = 65536
 
 HEADER = struct.Struct("<IHHQ")  # len, type, status, t_ns
-MSG_HELLO, MSG_I2C, MSG_PWM, MSG_WAIT, MSG_NOTE = 1, 2, 3, 4, 5
+MSG_HELLO: Final = 1
+MSG_I2C: Final = 2
+MSG_PWM: Final = 3
+MSG_WAIT: Final = 4
+MSG_NOTE: Final = 5
 MSG_NAMES = {MSG_HELLO: "HELLO", MSG_I2C: "I2C", MSG_PWM: "PWM", MSG_WAIT: "WAIT", MSG_NOTE: "NOTE"}
 #: Requests get one reply; notices get none.
 REQUESTS = frozenset({MSG_HELLO, MSG_I2C, MSG_WAIT})
@@ -19,25 +24,39 @@ REQUESTS = frozenset({MSG_HELLO, MSG_I2C, MSG_WAIT})
 HELLO_MSG = struct.Struct("<II")       # version, pid
 I2C_HEAD = struct.Struct("<HH")        # bus, nmsgs
 I2C_MSG = struct.Struct("<HHHH")       # addr, flags, len, reserved
-I2C_M_RD, I2C_M_TEN, I2C_M_RECV_LEN = 0x0001, 0x0010, 0x0400
-I2C_RDWR_MAX_MSGS, I2C_MAX_LEN, SMBUS_BLOCK_MAX = 42, 8192, 32
+I2C_M_RD: Final = 0x0001
+I2C_M_TEN: Final = 0x0010
+I2C_M_RECV_LEN: Final = 0x0400
+I2C_RDWR_MAX_MSGS: Final = 42
+I2C_MAX_LEN: Final = 8192
+SMBUS_BLOCK_MAX: Final = 32
 
 PWM_MSG = struct.Struct("<HHHHQ")      # chip, channel, attr, reserved, value
-PWM_EXPORT, PWM_UNEXPORT, PWM_PERIOD, PWM_DUTY, PWM_ENABLE, PWM_POLARITY = 1, 2, 3, 4, 5, 6
+PWM_EXPORT: Final = 1
+PWM_UNEXPORT: Final = 2
+PWM_PERIOD: Final = 3
+PWM_DUTY: Final = 4
+PWM_ENABLE: Final = 5
+PWM_POLARITY: Final = 6
 PWM_ATTR_NAMES = {PWM_EXPORT: "export", PWM_UNEXPORT: "unexport", PWM_PERIOD: "period",
                   PWM_DUTY: "duty_cycle", PWM_ENABLE: "enable", PWM_POLARITY: "polarity"}
 
 WAIT_MSG = struct.Struct("<QII")       # wake_ns, kind, zero
-WAIT_FOREVER = 2**64 - 1
-WAIT_SLEEP, WAIT_POLL, WAIT_AHEAD = 1, 2, 3  # AHEAD: a notice, the shim moved the clock
-WAKE_DEADLINE, WAKE_EVENT, WAKE_SLICE = 0, 1, 2
+WAIT_FOREVER: Final = 2**64 - 1
+WAIT_SLEEP: Final = 1
+WAIT_POLL: Final = 2
+WAIT_AHEAD: Final = 3  # AHEAD: a notice, the shim moved the clock
+WAKE_DEADLINE: Final = 0
+WAKE_EVENT: Final = 1
+WAKE_SLICE: Final = 2
 
-SHM_MAGIC = 0x31304D4853474952        # "RIGSHM01"
-PWM_MAX = 16
-SHM_HEAD = struct.Struct("<QIIQQQQ")   # magic, version, npwm, sim_ns, quantum_ns, epoch_ns, mono_base_ns
+SHM_MAGIC: Final = 0x31304D4853474952  # "RIGSHM01"
+PWM_MAX: Final = 16
+# magic, version, npwm, sim_ns, quantum_ns, epoch_ns, mono_base_ns
+SHM_HEAD = struct.Struct("<QIIQQQQ")
 SHM_PWM = struct.Struct("<QQIIII")     # period_ns, duty_ns, exported, enabled, inversed, reserved
-SHM_SIZE = 4096
-SIM_NS_OFFSET = 16
+SHM_SIZE: Final = 4096
+SIM_NS_OFFSET: Final = 16
 
 
 class Malformed(ValueError):

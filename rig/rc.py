@@ -13,16 +13,20 @@ and an altitude-setpoint knob (ch7, -1..1, centre = hold where engaged), as the 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Final
 
 if TYPE_CHECKING:
     from rig.session import Session
 
-HEADER, FOOTER = 0x0F, 0x00
-FLAG_FRAME_LOST, FLAG_FAILSAFE = 0x04, 0x08
-RAW_MIN, RAW_CENTRE, RAW_MAX = 172, 992, 1811
-CHANNELS = 16
-PERIOD_S = 0.014  # SBUS "normal" mode; 7 ms in high-speed mode
+HEADER: Final = 0x0F
+FOOTER: Final = 0x00
+FLAG_FRAME_LOST: Final = 0x04
+FLAG_FAILSAFE: Final = 0x08
+RAW_MIN: Final = 172
+RAW_CENTRE: Final = 992
+RAW_MAX: Final = 1811
+CHANNELS: Final = 16
+PERIOD_S: Final = 0.014  # SBUS "normal" mode; 7 ms in high-speed mode
 
 STICKS = ("roll", "pitch", "throttle", "yaw", "arm", "alt_hold", "alt_offset")
 

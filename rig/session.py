@@ -33,22 +33,23 @@ import tty
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO
+from typing import IO, Final
 
 from emulators.i2c_bus import I2CNack, I2CProtocolError, Msg
 from rig import protocol as P
 from rig.world import PwmChannel, World
 
-NS = 1_000_000_000
-FOREVER_SLICE_NS = 10_000_000     # a wait with no deadline lets 10 ms pass, then the DUT looks again
-EPOCH_NS = 1_767_225_600 * NS     # CLOCK_REALTIME at sim time 0: 2026-01-01T00:00:00Z
-MONO_BASE_NS = 1_000 * NS         # CLOCK_MONOTONIC at sim time 0, as if the board had been up 1000 s
-KILL_GRACE_S = 2.0
+NS: Final = 1_000_000_000
+FOREVER_SLICE_NS: Final = 10_000_000  # a wait with no deadline lets 10 ms pass, then the DUT looks again
+EPOCH_NS: Final = 1_767_225_600 * NS  # CLOCK_REALTIME at sim time 0: 2026-01-01T00:00:00Z
+MONO_BASE_NS: Final = 1_000 * NS  # CLOCK_MONOTONIC at sim time 0, as if the board had been up 1000 s
+KILL_GRACE_S: Final = 2.0
 
-EXIT_WATCHDOG = 124               # as timeout(1)
-EXIT_RIG_ERROR = 125              # the run could not be judged: the DUT never came, left early, ...
-EXIT_NOT_EXECUTABLE, EXIT_NOT_FOUND = 126, 127
-LATE_NS = 1_000_000  # real time: an event run more than 1 ms after its due time counts as late
+EXIT_WATCHDOG: Final = 124  # as timeout(1)
+EXIT_RIG_ERROR: Final = 125  # the run could not be judged: the DUT never came, left early, ...
+EXIT_NOT_EXECUTABLE: Final = 126
+EXIT_NOT_FOUND: Final = 127
+LATE_NS: Final = 1_000_000  # real time: an event run more than 1 ms after its due time counts as late
 
 
 @dataclass

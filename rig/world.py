@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Final
 
 import numpy as np
 
@@ -24,11 +25,11 @@ from emulators.sensor_models import AxisErrors, BaroModel, ImuModel, MagModel, T
 from emulators.topology import Board, build_board
 from plant import Plant
 
-STEP_NS = 1_000_000
-HISTORY = 256  # plant steps kept for devices catching up (256 ms at 1 ms)
-MOTORS = 4
+STEP_NS: Final = 1_000_000
+HISTORY: Final = 256  # plant steps kept for devices catching up (256 ms at 1 ms)
+MOTORS: Final = 4
 FAULT_TARGETS = ("accel", "gyro", "mag", "baro", "mpu", "hmc", "baro_bus")
-G0 = 9.80665
+G0: Final = 9.80665
 
 #: Datasheet noise: MPU-6050 accelerometer 400 µg/√Hz, gyroscope 0.005 °/s/√Hz; HMC5883L about 2 mG
 #: RMS at its default 15 Hz. The barometer is left exact so a reading can be checked to the pascal.
