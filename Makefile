@@ -10,7 +10,8 @@ CFLAGS_BENCH := -std=c11 -O2 -Wall -Wextra -Werror
 PLANT_SOURCES := $(wildcard plant/c/*.c plant/c/*.h plant/fmi2/*) plant/variables.py plant/build.py
 
 SHIM   := build/librigshim.so
-NATIVE := build/libsampling.so build/libplantsteps.so
+# the rig's C library: a CPython extension module, so its name carries the interpreter's suffix
+NATIVE := build/_rignative$(shell $(PYTHON) -c 'import importlib.machinery as m; print(m.EXTENSION_SUFFIXES[0])')
 # the modules rig/compiled.py compiles with mypyc (its MODULES; a test checks that the lists agree)
 COMPILED := build/mypyc/manifest.json
 COMPILED_SOURCES := rig/protocol.py rig/session.py rig/world.py rig/rc.py emulators/registers.py \
@@ -37,7 +38,7 @@ $(SHIM): rig/shim/rigshim.c rig/shim/protocol.h rig/shim/build.py | venv
 	$(PY) -m rig.shim.build
 
 native: $(NATIVE)
-$(NATIVE) &: emulators/c/sampling.c emulators/c/plant_steps.c emulators/native.py | venv
+$(NATIVE): emulators/c/fastcalls.c emulators/c/sampling.c emulators/c/plant_steps.c emulators/native.py | venv
 	$(PY) -m emulators.native
 
 compiled: $(COMPILED)

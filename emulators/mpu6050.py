@@ -75,6 +75,7 @@ def _self_test_regs() -> tuple[int, int, int, int]:
 
 _ST = _self_test_regs()
 _ST_ACTUATION = (ctypes.c_double * 2)(ST_ACCEL_G, ST_GYRO_DPS)  # g and °/s, for C
+_ST_ACTUATION_ADDR = ctypes.addressof(_ST_ACTUATION)
 
 REGISTERS = RegisterMap("MPU-6050", [
     RegisterSpec(0x0C, "PRODUCT_ID", 0x00, "r"),
@@ -126,6 +127,7 @@ class _LowPass:
 
     def __init__(self) -> None:
         self._lib = native.sampling()
+        self._run = native.fast().lowpass_run
         self._mem, self._addr = native.state("rig_lowpass_size")  # zeroed: no output yet, empty delay
         self._gain: tuple[float, float, float] = (math.nan, math.nan, math.nan)  # (bw, span, a)
         self._depth_for: tuple[float, float] = (math.nan, math.nan)  # (delay, dt) of _depth
@@ -146,7 +148,7 @@ class _LowPass:
             self._depth = max(0, round(delay_s / dt)) if dt > 0 else 0
             if self._depth > self._lib.rig_lowpass_max_depth():
                 raise ValueError(f"DLPF delay {delay_s} s is more samples of {dt} s than the filter keeps")
-        self._lib.rig_lowpass_run(self._addr, n, xs, stride, self._a(bw_hz, dt), self._depth)
+        self._run(self._addr, n, xs, stride, self._a(bw_hz, dt), self._depth)
 
     def catch_up(self, x: int, bw_hz: float, span: float) -> None:
         """Advances the filter over ``span`` seconds of the input held at the three float64 at ``x``,
@@ -178,8 +180,7 @@ class MPU6050:
 
     def __post_init__(self) -> None:
         self._block_addr = self._block.ctypes.data
-        self._encode_c = native.sampling().rig_mpu_encode
-        self._lsb, self._st = (ctypes.c_double * 2)(), (ctypes.c_int32 * 2)()
+        self._encode_c = native.fast().mpu_encode
         self._regs_seen: bytearray | None = None
         self._data_view: ctypes.c_char | None = None
         self._data_addr = 0
@@ -277,11 +278,9 @@ class MPU6050:
             # the view keeps regs exported: resizing it would raise instead of moving the bytes
             self._regs_seen, self._data_view = regs, ctypes.c_char.from_buffer(regs, ACCEL_XOUT_H)
             self._data_addr = ctypes.addressof(self._data_view)
-        lsb, st = self._lsb, self._st
-        lsb[0], lsb[1] = self.accel_scale(), self.gyro_scale()
-        st[0], st[1] = regs[ACCEL_CONFIG] >> 5, regs[GYRO_CONFIG] >> 5
-        self._encode_c(self._block_addr + 56 * i, self._data_addr, lsb, st, regs[PWR_MGMT_2],
-                       regs[PWR_MGMT_1] & 0x08, _ST_ACTUATION, G0)
+        self._encode_c(self._block_addr + 56 * i, self._data_addr, self.accel_scale(), self.gyro_scale(),
+                       regs[ACCEL_CONFIG] >> 5, regs[GYRO_CONFIG] >> 5, regs[PWR_MGMT_2],
+                       regs[PWR_MGMT_1] & 0x08, _ST_ACTUATION_ADDR, G0)
         if regs[USER_CTRL] & 0x20:
             self._run_aux_master()
         if regs[USER_CTRL] & 0x40:

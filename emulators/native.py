@@ -1,26 +1,35 @@
-"""The rig's own small C libraries: compiled with the system's C compiler on first use (and again when a
-source is newer than the library), so a fresh clone needs no separate build step, and loaded with
-ctypes. ``python -m emulators.native`` (``make native``) builds them explicitly.
+"""The rig's own C library: compiled with the system's C compiler on first use (and again when a source
+is newer than the library), so a fresh clone needs no separate build step. ``python -m
+emulators.native`` (``make native``) builds it explicitly.
 
-Why ctypes and not a CPython extension: it needs no Python headers, and the libraries are plain C
-with a handful of entry points. The shim (rig/shim/build.py) is compiled by the same function.
+It is one file, a CPython extension module (emulators/c/fastcalls.c, which includes sampling.c and
+plant_steps.c): the entry points that run every FC cycle are called as the module's functions
+(``fast()``), at a few hundred instructions a call where ctypes cost thousands; the set-up entry
+points (sizes, init) are called through ctypes on the same file (``sampling()``), which keeps their
+argument checking in Python. The Python headers it needs are the ones mypyc needs (python3-dev).
 """
 
 from __future__ import annotations
 
 import ctypes
 import functools
+import importlib.machinery
+import importlib.util
 import os
 import subprocess
 import sys
+import sysconfig
 from collections.abc import Sequence
 from pathlib import Path
+from types import ModuleType
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
-SAMPLING_SOURCE = REPO_ROOT / "emulators" / "c" / "sampling.c"
-SAMPLING_LIB = REPO_ROOT / "build" / "libsampling.so"
-PLANT_STEPS_SOURCE = REPO_ROOT / "emulators" / "c" / "plant_steps.c"
-PLANT_STEPS_LIB = REPO_ROOT / "build" / "libplantsteps.so"
+C_DIR = REPO_ROOT / "emulators" / "c"
+SAMPLING_SOURCE = C_DIR / "sampling.c"
+#: the module's source first: it includes the others (one translation unit)
+SOURCES = (C_DIR / "fastcalls.c", SAMPLING_SOURCE, C_DIR / "plant_steps.c")
+MODULE_NAME = "_rignative"
+LIB = REPO_ROOT / "build" / f"{MODULE_NAME}{importlib.machinery.EXTENSION_SUFFIXES[0]}"
 BLOCK = 64  #: most samples one call takes: buffers for C are this many rows
 #: -ffp-contract=off: no fused multiply-adds, so the C arithmetic rounds as the Python it replaced did.
 CFLAGS = ("-std=c11", "-O2", "-Wall", "-Wextra", "-Werror", "-fPIC", "-shared", "-fvisibility=hidden",
@@ -32,12 +41,12 @@ class NativeBuildError(RuntimeError):
 
 
 def compile_shared(sources: Sequence[Path], out: Path, what: str, libs: Sequence[str] = (),
-                   cc: str | None = None) -> Path:
+                   cc: str | None = None, flags: Sequence[str] = ()) -> Path:
     """Compiles ``sources`` into the shared library ``out``, atomically: a process loading it at the
     same moment never sees a half-written file."""
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_suffix(f".{os.getpid()}.tmp")
-    cmd = [cc or os.environ.get("CC", "gcc"), *CFLAGS, "-o", str(tmp), *map(str, sources), *libs]
+    cmd = [cc or os.environ.get("CC", "gcc"), *CFLAGS, *flags, "-o", str(tmp), *map(str, sources), *libs]
     try:
         done = subprocess.run(cmd, capture_output=True, text=True)
     except FileNotFoundError as e:
@@ -54,59 +63,50 @@ def is_stale(out: Path, sources: Sequence[Path]) -> bool:
 
 
 _P, _I32, _D = ctypes.c_void_p, ctypes.c_int32, ctypes.c_double
-_Signatures = dict[str, tuple[object, list[object] | None]]
-_SAMPLING: _Signatures = {
+#: the set-up entry points called through ctypes (the per-cycle ones are fast()'s)
+_SAMPLING: dict[str, tuple[object, list[object]]] = {
     "rig_channel_size": (ctypes.c_size_t, []),
     "rig_channel_init": (None, [_P, _P, _P, _D, _D, _D]),
     "rig_channel_normals": (None, [_P, _P, _I32]),
     "rig_channel_normals_left": (_I32, [_P]),
-    "rig_channel_measure": (_I32, [_P, _I32, _P, _P, _P, _P]),
-    "rig_imu_measure": (_I32, [_P, _P, _I32, _P, _P, _P, _D, _P]),
     "rig_lowpass_size": (ctypes.c_size_t, []),
     "rig_lowpass_max_depth": (_I32, []),
-    "rig_lowpass_run": (None, [_P, _I32, _P, _I32, _D, _I32]),
     "rig_lowpass_catch_up": (None, [_P, _P, _D]),
-    "rig_mpu_encode": (None, [_P, _P, _P, _P, _I32, _I32, _P, _D]),
-}
-#: (no argtypes: called once per plant advance with prebuilt ctypes objects, which skips the
-#: per-argument conversion that argtypes would cost on every call)
-_PLANT_STEPS: _Signatures = {"rig_plant_steps": (ctypes.c_int32, None)}
-
-#: name -> (sources, library, what it is, entry points)
-LIBRARIES: dict[str, tuple[list[Path], Path, str, _Signatures]] = {
-    "sampling": ([SAMPLING_SOURCE], SAMPLING_LIB, "the sampling library", _SAMPLING),
-    "plant_steps": ([PLANT_STEPS_SOURCE], PLANT_STEPS_LIB, "the plant-stepping library", _PLANT_STEPS),
 }
 
 
-def build(name: str) -> Path:
-    sources, out, what, _ = LIBRARIES[name]
-    return compile_shared(sources, out, what, libs=["-lm"])
+def build() -> Path:
+    include = sysconfig.get_paths()["include"]
+    if not (Path(include) / "Python.h").is_file():
+        raise NativeBuildError(f"cannot build the rig's C library: no Python.h in {include} "
+                               "(install python3-dev)")
+    return compile_shared(SOURCES[:1], LIB, "the rig's C library", libs=["-lm"], flags=[f"-I{include}"])
+
+
+def _ensure_built() -> Path:
+    if is_stale(LIB, SOURCES):
+        build()
+    return LIB
 
 
 @functools.cache
-def library(name: str) -> ctypes.CDLL:
-    """One of the rig's C libraries, built if missing or stale, its entry points typed."""
-    sources, out, _, signatures = LIBRARIES[name]
-    if is_stale(out, sources):
-        build(name)
-    lib = ctypes.CDLL(str(out))
-    for fn_name, (restype, argtypes) in signatures.items():
-        fn = getattr(lib, fn_name)
-        fn.restype = restype
-        if argtypes is not None:
-            fn.argtypes = argtypes
+def sampling() -> ctypes.CDLL:
+    """The library through ctypes, its set-up entry points typed (emulators/c/sampling.c)."""
+    lib = ctypes.CDLL(str(_ensure_built()))
+    for name, (restype, argtypes) in _SAMPLING.items():
+        fn = getattr(lib, name)
+        fn.restype, fn.argtypes = restype, argtypes
     return lib
 
 
-def sampling() -> ctypes.CDLL:
-    """The IMU sampling chain (emulators/c/sampling.c)."""
-    return library("sampling")
-
-
-def plant_steps() -> ctypes.CDLL:
-    """Several plant steps in one call (emulators/c/plant_steps.c)."""
-    return library("plant_steps")
+@functools.cache
+def fast() -> ModuleType:
+    """The library as a Python module: its per-cycle entry points (emulators/c/fastcalls.c)."""
+    spec = importlib.util.spec_from_file_location(MODULE_NAME, _ensure_built())
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def state(size_fn: str) -> tuple[ctypes.Array[ctypes.c_char], int]:
@@ -117,7 +117,6 @@ def state(size_fn: str) -> tuple[ctypes.Array[ctypes.c_char], int]:
 
 if __name__ == "__main__":
     try:
-        for lib_name in LIBRARIES:
-            print(build(lib_name))
+        print(build())
     except NativeBuildError as e:
         sys.exit(str(e))

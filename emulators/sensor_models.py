@@ -83,6 +83,9 @@ class _Channel:
         self._lib.rig_channel_init(self.addr, (ctypes.c_double * 9)(*m), (ctypes.c_double * 3)(*errors.bias),
                                    errors.bias_random_walk, errors.noise_density, errors.temp_coefficient)
         self._t, self._in, self._out = ctypes.c_double(), (ctypes.c_double * 3)(), (ctypes.c_double * 3)()
+        self._temp = ctypes.c_double()
+        self._addrs = tuple(ctypes.addressof(x) for x in (self._t, self._in, self._temp, self._out))
+        self._measure = native.fast().channel_measure
 
     def refill(self, need: int) -> None:
         """Gives C at least ``need`` unread normals (C has read up to where it says)."""
@@ -95,9 +98,9 @@ class _Channel:
         """One sample, faults applied (the magnetometer's way: tens of samples a second)."""
         self._t.value = t
         self._in[:] = truth
-        temp = ctypes.c_double(temperature_c)
-        while self._lib.rig_channel_measure(self.addr, 1, ctypes.byref(self._t), self._in, ctypes.byref(temp),
-                                            self._out):
+        self._temp.value = temperature_c
+        t_at, in_at, temp_at, out_at = self._addrs
+        while self._measure(self.addr, 1, t_at, in_at, temp_at, out_at):
             self.refill(6)
         return self.faults.apply(t, tuple(self._out))  # type: ignore[return-value]
 
@@ -187,7 +190,8 @@ class ImuModel:
         self._table = table
         self._cols = (ctypes.c_int32 * 7)(*(table.column(n) for n in IMU_TRUTH))
         self._times, self._rows = (ctypes.c_double * BLOCK)(), (ctypes.c_void_p * BLOCK)()
-        self._measure = native.sampling().rig_imu_measure
+        self._measure = native.fast().imu_measure
+        self._at = (ctypes.addressof(self._times), ctypes.addressof(self._rows), ctypes.addressof(self._cols))
         self._out: np.ndarray | None = None
         self._out_addr = 0
         self._one = np.zeros((1, 7))
@@ -205,7 +209,8 @@ class ImuModel:
             raise ValueError(f"ImuModel.sample_block takes 0..{min(BLOCK, len(out))} samples, not {n}")
         self._times[:n] = times
         self._rows[:n] = self._table.row_addresses(times)
-        while short := self._measure(self._a.addr, self._g.addr, n, self._times, self._rows, self._cols,
+        times_at, rows_at, cols_at = self._at
+        while short := self._measure(self._a.addr, self._g.addr, n, times_at, rows_at, cols_at,
                                      self.die_offset_c, self._out_addr):
             (self._a if short == 1 else self._g).refill(6 * n)
         for ch, col in ((self._a, 0), (self._g, 3)):

@@ -321,7 +321,7 @@ class Plant:
             self._ring = ring
             steps.ring = ring.ctypes.data if ring is not None else None
             steps.ring_rows = len(ring) if ring is not None else 0
-        done = self._steps_fn(self._steps_ref, n, c_double(dt), int(write_inputs), c_int64(first_row))
+        done = self._steps_fn(self._steps_at, n, dt, int(write_inputs), first_row)
         if done < n or steps.failed_call:
             self._fail(_STEP_CALLS.get(steps.failed_call, "rig_plant_steps"), steps.failed_status)
 
@@ -333,8 +333,8 @@ class Plant:
                        self._component.value, addressof(self._u_vr), addressof(self._u_buf), len(self.u),
                        addressof(self._y_vr), addressof(self._y_buf), len(self.y), addressof(self._t),
                        None, 0, 0, 0)
-        self._steps_fn = native.plant_steps().rig_plant_steps
-        self._steps_ref = byref(steps)
+        self._steps_fn = native.fast().plant_steps
+        self._steps_at = addressof(steps)
         return steps
 
     def run(self, duration: float, dt: float) -> None:

@@ -32,3 +32,25 @@ def test_a_library_is_stale_when_missing_or_older_than_a_source(tmp_path) -> Non
     t = lib.stat().st_mtime
     os.utime(src, (t + 10, t + 10))
     assert is_stale(lib, [src])
+
+
+def test_the_per_cycle_entry_points_refuse_wrong_arguments_with_a_clear_error() -> None:
+    from emulators.native import fast
+
+    m = fast()
+    with pytest.raises(TypeError, match="lowpass_run takes 6 arguments \\(2 given\\)"):
+        m.lowpass_run(1, 2)
+    with pytest.raises(TypeError, match="plant_steps takes 5 arguments \\(0 given\\)"):
+        m.plant_steps()
+    with pytest.raises(TypeError):  # a float where an address goes, before any C runs
+        m.channel_measure(0.5, 1, 0, 0, 0, 0)
+    with pytest.raises(TypeError):
+        m.imu_measure(0, 0, 1, 0, 0, 0, "warm", 0)
+
+
+def test_one_library_serves_both_ctypes_and_the_module() -> None:
+    from emulators.native import LIB, fast, sampling
+
+    assert fast().__file__ == str(LIB)
+    assert sampling()._name == str(LIB)
+    assert sampling().rig_lowpass_max_depth() > 0
