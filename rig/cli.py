@@ -3,12 +3,28 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from rig import __version__, exec_cmd, run_cmd
 
+EXIT_BROKEN_PIPE = 128 + 13  # as a shell reports a command ended by SIGPIPE
+
 
 def main(argv: list[str] | None = None) -> int:
+    """Runs one command. A reader that goes away early (``rig list | head``) ends it quietly, as it
+    ends other Unix commands, instead of with a BrokenPipeError traceback."""
+    try:
+        code = _dispatch(argv)
+        sys.stdout.flush()  # (here, not at exit, where the error could only be printed)
+        return code
+    except BrokenPipeError:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # the interpreter's own flush at exit finds nowhere to fail
+        return EXIT_BROKEN_PIPE
+
+
+def _dispatch(argv: list[str] | None) -> int:
     parser = argparse.ArgumentParser(prog="rig", description="Quadrotor hardware-in-the-loop test rig")
     parser.add_argument("--version", action="version", version=f"rig {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)

@@ -4,6 +4,7 @@ well formed and agree with each other, and a repeated run with the same seed is 
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -60,3 +61,16 @@ def test_a_repeated_run_with_the_same_seed_is_identical(tmp_path: Path) -> None:
     for k in a.signals:
         np.testing.assert_array_equal(a.signals[k], b.signals[k])
     assert not np.array_equal(a.signals["roll"], c.signals["roll"])  # the seed matters
+
+
+def test_a_reader_that_goes_away_ends_rig_list_quietly() -> None:
+    """``rig list | head``: a closed pipe ends the command with SIGPIPE's status, no traceback."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)  # the reader is gone before the first line: every write fails
+    try:
+        done = subprocess.run([sys.executable, "-m", "rig.cli", "list"], stdout=write_end,
+                              stderr=subprocess.PIPE, text=True, timeout=120)
+    finally:
+        os.close(write_end)
+    assert done.returncode == 141, done.stderr
+    assert done.stderr == ""
