@@ -29,7 +29,6 @@ I2C_M_TEN: Final = 0x0010
 I2C_M_RECV_LEN: Final = 0x0400
 I2C_RDWR_MAX_MSGS: Final = 42
 I2C_MAX_LEN: Final = 8192
-SMBUS_BLOCK_MAX: Final = 32
 
 PWM_MSG = struct.Struct("<HHHHQ")      # chip, channel, attr, reserved, value
 PWM_EXPORT: Final = 1
