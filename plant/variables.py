@@ -10,7 +10,9 @@ tests and outside tools address variables by name.
 from __future__ import annotations
 
 import hashlib
+import math
 import uuid
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Literal
 from xml.sax.saxutils import quoteattr
@@ -26,6 +28,37 @@ G0 = 9.80665
 
 
 @dataclass(frozen=True)
+class Range:
+    """The values a parameter may take: the FMU refuses others at initialisation (its own check is
+    generated from this), ``modelDescription.xml`` declares the closed bounds as min/max, and the
+    scenario checker refuses them before anything runs. Every parameter must also be finite."""
+
+    low: float = -math.inf
+    high: float = math.inf
+    low_open: bool = False   # low itself excluded (mass > 0)
+    high_open: bool = False
+    text: str = ""           # how the FMU says it ("must be " + text); generated when empty
+
+    def holds(self, v: float) -> bool:
+        return (math.isfinite(v) and (v > self.low if self.low_open else v >= self.low)
+                and (v < self.high if self.high_open else v <= self.high))
+
+    def says(self) -> str:
+        if self.text:
+            return self.text
+        if -math.inf < self.low and self.high < math.inf and not (self.low_open or self.high_open):
+            return f"{self.low:g}..{self.high:g}"
+        lo = f"{'>' if self.low_open else '>='} {self.low:g}" if self.low > -math.inf else ""
+        hi = f"{'<' if self.high_open else '<='} {self.high:g}" if self.high < math.inf else ""
+        return " and ".join(x for x in (lo, hi) if x) or "finite"
+
+
+FINITE = Range()
+POSITIVE = Range(0.0, low_open=True)
+NON_NEGATIVE = Range(0.0)
+
+
+@dataclass(frozen=True)
 class Variable:
     """One FMI scalar variable and the C struct field that holds it."""
 
@@ -36,11 +69,12 @@ class Variable:
     unit: str
     description: str
     field: str  # C field inside qr_inputs / qr_params / qr_outputs, e.g. "pwm_us[0]"
+    valid: Range = FINITE  # parameters: the values the FMU accepts
 
 
 def _v(name: str, causality: Causality, start: float, unit: str, description: str,
-       field: str | None = None, type: VarType = "Real") -> Variable:
-    return Variable(name, causality, type, start, unit, description, field or name)
+       field: str | None = None, type: VarType = "Real", valid: Range = FINITE) -> Variable:
+    return Variable(name, causality, type, start, unit, description, field or name, valid)
 
 
 def _four(stem: str, causality: Causality, start: float, unit: str, description: str,
@@ -50,9 +84,9 @@ def _four(stem: str, causality: Causality, start: float, unit: str, description:
 
 
 def _axes(names: tuple[str, str, str], causality: Causality, start: tuple[float, float, float],
-          unit: str, description: str, field: str) -> list[Variable]:
-    return [_v(n, causality, s, unit, f"{description} ({n.rsplit('_', 1)[-1]})", f"{field}[{k}]")
-            for k, (n, s) in enumerate(zip(names, start, strict=True))]
+          unit: str, description: str, field: str, valid: Range = FINITE) -> list[Variable]:
+    return [_v(n, causality, s, unit, f"{description} ({n.rsplit('_', 1)[-1]})", f"{field}[{k}]",
+               valid=valid) for k, (n, s) in enumerate(zip(names, start, strict=True))]
 
 
 _INPUTS: list[Variable] = [
@@ -69,20 +103,22 @@ _INPUTS: list[Variable] = [
 ]
 
 _PARAMETERS: list[Variable] = [
-    _v("mass", "parameter", 1.2, "kg", "vehicle mass (seed 001 Table 1)"),
-    _v("arm_length", "parameter", 0.2, "m", "rotor centre to centre of mass (seed 001 Table 1)"),
-    _v("k_thrust", "parameter", 3.13e-5, "N.s2", "thrust = k_thrust * omega^2 (seed 001 Table 1)"),
+    _v("mass", "parameter", 1.2, "kg", "vehicle mass (seed 001 Table 1)", valid=POSITIVE),
+    _v("arm_length", "parameter", 0.2, "m", "rotor centre to centre of mass (seed 001 Table 1)",
+       valid=POSITIVE),
+    _v("k_thrust", "parameter", 3.13e-5, "N.s2", "thrust = k_thrust * omega^2 (seed 001 Table 1)",
+       valid=NON_NEGATIVE),
     _v("k_torque", "parameter", 7.5e-7, "N.m.s2",
-       "reaction torque = k_torque * omega^2 (seed 001 Table 1)"),
-    _v("Ixx", "parameter", 2.353e-3, "kg.m2", "roll inertia (seed 001 Table 1)"),
-    _v("Iyy", "parameter", 2.353e-3, "kg.m2", "pitch inertia (seed 001 Table 1)"),
-    _v("Izz", "parameter", 5.262e-2, "kg.m2", "yaw inertia (seed 001 Table 1)"),
+       "reaction torque = k_torque * omega^2 (seed 001 Table 1)", valid=NON_NEGATIVE),
+    _v("Ixx", "parameter", 2.353e-3, "kg.m2", "roll inertia (seed 001 Table 1)", valid=POSITIVE),
+    _v("Iyy", "parameter", 2.353e-3, "kg.m2", "pitch inertia (seed 001 Table 1)", valid=POSITIVE),
+    _v("Izz", "parameter", 5.262e-2, "kg.m2", "yaw inertia (seed 001 Table 1)", valid=POSITIVE),
     _v("frame", "parameter", 0, "",
        "0 '+' frame (1 front, 2 left, 3 rear, 4 right); 1 X frame (the '+' layout turned 45 deg "
        "clockwise seen from above: 1 front-right, 2 front-left, 3 rear-left, 4 rear-right)",
-       type="Integer"),
-    _v("motor_tau", "parameter", 0.02, "s", "first-order motor time constant"),
-    _v("omega_max", "parameter", 600.0, "rad/s", "rotor speed at full throttle"),
+       type="Integer", valid=Range(0, 1, text="0 (+) or 1 (X)")),
+    _v("motor_tau", "parameter", 0.02, "s", "first-order motor time constant", valid=POSITIVE),
+    _v("omega_max", "parameter", 600.0, "rad/s", "rotor speed at full throttle", valid=POSITIVE),
     _v("esc_min_us", "parameter", 1000.0, "us", "pulse width for zero throttle"),
     _v("esc_max_us", "parameter", 2000.0, "us", "pulse width for full throttle"),
     *_four("esc_gain", "parameter", 1.0, "1",
@@ -91,12 +127,13 @@ _PARAMETERS: list[Variable] = [
            "ESC curve offset: omega_cmd = omega_max * clamp(gain * u + offset, 0, 1)",
            "esc_offset"),
     *_axes(("drag_n", "drag_e", "drag_d"), "parameter", (0.25, 0.25, 0.25), "N.s/m",
-           "linear drag on air-relative velocity, world axis", "drag"),
-    _v("gravity", "parameter", G0, "m/s2", "gravitational acceleration"),
+           "linear drag on air-relative velocity, world axis", "drag", valid=NON_NEGATIVE),
+    _v("gravity", "parameter", G0, "m/s2", "gravitational acceleration", valid=NON_NEGATIVE),
     _v("stand", "parameter", 0, "",
        "0 free flight, 1 roll gimbal, 2 pitch gimbal, 3 yaw gimbal, 4 attitude gimbal "
-       "(gimbals hold the position fixed)", type="Integer"),
-    _v("stand_damping", "parameter", 0.0, "N.m.s/rad", "viscous friction of the stand's bearings"),
+       "(gimbals hold the position fixed)", type="Integer", valid=Range(0, 4)),
+    _v("stand_damping", "parameter", 0.0, "N.m.s/rad", "viscous friction of the stand's bearings",
+       valid=NON_NEGATIVE),
     _v("roll0", "parameter", 0.0, "rad", "initial roll"),
     _v("pitch0", "parameter", 0.0, "rad", "initial pitch"),
     _v("yaw0", "parameter", 0.0, "rad", "initial yaw"),
@@ -106,9 +143,11 @@ _PARAMETERS: list[Variable] = [
        "initial down position (the ground is pd = 0; free flight needs pd0 <= 0)"),
     *_axes(("mag_n", "mag_e", "mag_d"), "parameter", (0.25, 0.0, 0.433), "G",
            "Earth magnetic field, world NED", "mag"),
-    _v("p_ground", "parameter", 101325.0, "Pa", "static pressure at pd = 0"),
-    _v("t_ground", "parameter", 15.0, "degC", "air temperature at pd = 0"),
-    _v("h_max_step", "parameter", 1e-3, "s", "longest internal RK4 sub-step"),
+    _v("p_ground", "parameter", 101325.0, "Pa", "static pressure at pd = 0", valid=POSITIVE),
+    _v("t_ground", "parameter", 15.0, "degC", "air temperature at pd = 0",
+       valid=Range(-273.15, low_open=True, text="above absolute zero (-273.15 degC)")),
+    _v("h_max_step", "parameter", 1e-3, "s", "longest internal RK4 sub-step",
+       valid=Range(0.0, 0.1, low_open=True)),
 ]
 
 _OUTPUTS: list[Variable] = [
@@ -136,6 +175,31 @@ VARIABLES: list[Variable] = [*_INPUTS, *_PARAMETERS, *_OUTPUTS]
 
 #: Value references: Reals, Integers and Booleans each count from their own base.
 _VR_BASE: dict[VarType, int] = {"Real": 0, "Integer": 1000, "Boolean": 2000}
+
+
+PARAMETERS: dict[str, Variable] = {v.name: v for v in VARIABLES if v.causality == "parameter"}
+
+
+def check_parameters(values: Mapping[str, float]) -> str | None:
+    """Why the FMU would refuse these parameter values at initialisation (its words), or None. The
+    names must be parameters; the others keep their start values. The same rules as the FMU's own
+    check (``qr_check_params``: the ranges above, generated into C, then two that relate parameters);
+    tests/plant/test_bad_input.py holds the two against each other."""
+    p = {name: v.start for name, v in PARAMETERS.items()} | dict(values)
+    for name, v in PARAMETERS.items():
+        if not v.valid.holds(p[name]):
+            return f"{name} must be {v.valid.says()}"
+        if v.type == "Integer" and p[name] != int(p[name]):
+            return f"{name} takes a whole number"
+    if not p["esc_max_us"] > p["esc_min_us"]:
+        return "esc_max_us must be > esc_min_us"
+    if p["stand"] == 0 and p["pd0"] > 0:
+        return "pd0 must be <= 0 in free flight (the ground is at pd = 0)"
+    return None
+
+
+def _c_number(x: float) -> str:
+    return "INFINITY" if x == math.inf else "-INFINITY" if x == -math.inf else repr(float(x))
 
 
 def value_references() -> dict[str, int]:
@@ -205,7 +269,14 @@ def c_header() -> str:
         out += [f'    X({refs[v.name]}, {v.field}, {_KIND[v.causality]}, {_fmt(v)}, "{v.name}") \\'
                 for v in rows]
         out.append("")
-    out += ["#endif", ""]
+    out.append("/* Parameter ranges (qr_check_params):")
+    out.append("   CHECK(field, low, low_open, high, high_open, message) */")
+    out.append("#define QR_PARAM_RANGES(CHECK) \\")
+    out += [f"    CHECK({v.field}, {_c_number(v.valid.low)}, {int(v.valid.low_open)}, "
+            f"{_c_number(v.valid.high)}, {int(v.valid.high_open)}, "
+            f'"{v.name} must be {v.valid.says()}") \\'
+            for v in PARAMETERS.values()]
+    out += ["", "#endif", ""]
     return "\n".join(out)
 
 
@@ -242,6 +313,11 @@ def model_description() -> str:
             attrs += ' variability="discrete"'
         attrs += f" description={quoteattr(v.description)}"
         type_attrs = f' unit="{v.unit}"' if v.unit and v.type == "Real" else ""
+        if v.causality == "parameter":  # the closed bounds (FMI's min and max include themselves)
+            if v.valid.low > -math.inf and not v.valid.low_open:
+                type_attrs += f' min="{v.valid.low:g}"'
+            if v.valid.high < math.inf and not v.valid.high_open:
+                type_attrs += f' max="{v.valid.high:g}"'
         if v.causality != "output":
             type_attrs += f' start="{_fmt(v)}"'
         lines.append(f"    <ScalarVariable {attrs}><{v.type}{type_attrs}/></ScalarVariable>")

@@ -30,35 +30,21 @@ typedef struct {
 
 static double clamp(double v, double lo, double hi) { return v < lo ? lo : (v > hi ? hi : v); }
 
+/* The ranges of plant/variables.py (one table: the scenario checker applies the same rules, and
+   modelDescription.xml declares the closed bounds), then the rules that relate two parameters. */
 const char *qr_check_params(const qr_params *p) {
-    if (!(p->mass > 0)) return "mass must be > 0";
-    if (!(p->arm_length > 0)) return "arm_length must be > 0";
-    if (!(p->k_thrust >= 0)) return "k_thrust must be >= 0";
-    if (!(p->k_torque >= 0)) return "k_torque must be >= 0";
-    if (!(p->Ixx > 0 && p->Iyy > 0 && p->Izz > 0)) return "Ixx, Iyy and Izz must be > 0";
-    if (p->frame != 0 && p->frame != 1) return "frame must be 0 (+) or 1 (X)";
-    if (!(p->motor_tau > 0)) return "motor_tau must be > 0";
-    if (!(p->omega_max > 0)) return "omega_max must be > 0";
-    if (!(p->esc_max_us > p->esc_min_us)) return "esc_max_us must be > esc_min_us";
-    for (int i = 0; i < 4; i++)
-        if (!isfinite(p->esc_gain[i]) || !isfinite(p->esc_offset[i]))
-            return "esc_gain1..4 and esc_offset1..4 must be finite";
-    for (int k = 0; k < 3; k++) {
-        if (!(p->drag[k] >= 0)) return "drag_n, drag_e and drag_d must be >= 0";
-        if (!isfinite(p->mag[k])) return "mag_n, mag_e and mag_d must be finite";
+#define QR_CHECK(field, low, low_open, high, high_open, message)                                  \
+    {                                                                                             \
+        double v_ = (double)p->field;                                                             \
+        if (!isfinite(v_) || ((low_open) ? !(v_ > (low)) : !(v_ >= (low))) ||                     \
+            ((high_open) ? !(v_ < (high)) : !(v_ <= (high))))                                     \
+            return message;                                                                       \
     }
-    if (!(p->gravity >= 0)) return "gravity must be >= 0";
-    if (p->stand < QR_STAND_FREE || p->stand > QR_STAND_ATTITUDE) return "stand must be 0..4";
-    if (!(p->stand_damping >= 0)) return "stand_damping must be >= 0";
-    if (!isfinite(p->roll0) || !isfinite(p->pitch0) || !isfinite(p->yaw0))
-        return "roll0, pitch0 and yaw0 must be finite";
-    if (!isfinite(p->pn0) || !isfinite(p->pe0) || !isfinite(p->pd0))
-        return "pn0, pe0 and pd0 must be finite";
+    QR_PARAM_RANGES(QR_CHECK)
+#undef QR_CHECK
+    if (!(p->esc_max_us > p->esc_min_us)) return "esc_max_us must be > esc_min_us";
     if (p->stand == QR_STAND_FREE && p->pd0 > 0)
         return "pd0 must be <= 0 in free flight (the ground is at pd = 0)";
-    if (!(p->p_ground > 0)) return "p_ground must be > 0";
-    if (!(p->t_ground > -KELVIN)) return "t_ground must be above absolute zero";
-    if (!(p->h_max_step > 0 && p->h_max_step <= 0.1)) return "h_max_step must be in (0, 0.1] s";
     return NULL;
 }
 
