@@ -85,6 +85,9 @@ def build(out_dir: Path = DEFAULT_OUT) -> Path:
     shutil.copy(PLANT_DIR / "fmi2" / "LICENSE.txt", licences / "fmi2-headers.txt")
     fmu_path = out_dir / f"{variables.MODEL_IDENTIFIER}.fmu"
     write_fmu(staging, fmu_path)
+    # the unzipped copies of earlier builds (plant/fmu.py keeps one per content) are stale now; a
+    # process still running one keeps its mapped library
+    shutil.rmtree(out_dir / ".unzipped", ignore_errors=True)
     return fmu_path
 
 

@@ -10,6 +10,7 @@ status is checked; an error raises ``PlantError`` with the FMU's own message.
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import os
 import shutil
 import tempfile
@@ -96,7 +97,8 @@ class Plant:
             raise PlantError(f"plant FMU not found at {self.fmu_path}; build it with `make fmu`")
         self.messages: list[str] = []
         self._states: list[PlantState] = []
-        self._unzip_dir = extract(str(self.fmu_path), unzipdir=tempfile.mkdtemp(prefix="plant-"))
+        self.fmu_sha256 = hashlib.sha256(self.fmu_path.read_bytes()).hexdigest()
+        self._unzip_dir, self._own_unzip_dir = _unzipped(self.fmu_path, self.fmu_sha256)
         try:
             self._load(instance_name)
             self._init(params or {}, inputs or {}, start_time)
@@ -372,12 +374,40 @@ class Plant:
             fmu.component = None
             fmu.freeLibrary()
         self._fmu = None
-        if getattr(self, "_unzip_dir", None):
+        if getattr(self, "_own_unzip_dir", False):
             shutil.rmtree(self._unzip_dir, ignore_errors=True)
-            self._unzip_dir = None
+            self._own_unzip_dir = False
 
     def __enter__(self) -> Plant:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+#: Where an FMU's files are unzipped, beside it: one folder per FMU content, shared by every Plant
+UNZIPPED = ".unzipped"
+
+
+def _unzipped(fmu: Path, digest: str) -> tuple[str, bool]:
+    """The FMU's files, unzipped once per content (``<fmu folder>/.unzipped/<sha256>``) and kept for the
+    next instance, instead of a fresh temporary folder per instance that a crash or a forgotten close
+    leaves behind (there were hundreds in /tmp). Parallel processes race safely: each unzips into a
+    folder of its own and renames it into place; the loser removes its copy. Beside a read-only FMU,
+    a temporary folder that ``close`` removes (the bool says so)."""
+    cache = fmu.parent / UNZIPPED / digest
+    if (cache / "modelDescription.xml").is_file():
+        return str(cache), False
+    try:
+        cache.parent.mkdir(exist_ok=True)
+        tmp = tempfile.mkdtemp(prefix=".unzipping-", dir=cache.parent)
+    except OSError:
+        return extract(str(fmu), unzipdir=tempfile.mkdtemp(prefix="plant-")), True
+    try:
+        extract(str(fmu), unzipdir=tmp)
+        os.rename(tmp, cache)
+    except OSError:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if not (cache / "modelDescription.xml").is_file():
+            raise
+    return str(cache), False
