@@ -151,36 +151,21 @@ int ms5611_init(int fd, int addr, ms5611_dev *d, char *err, int errlen)
     return 0;
 }
 
-int ms5611_poll(int fd, int addr, ms5611_dev *d, double now, int32_t *p, int32_t *t)
+static int target_xfer(void *ctx, const uint8_t *w, int wn, uint8_t *r, int rn)
 {
-    const double conv_s = 0.0095; /* OSR 4096: 9.04 ms max */
-    uint8_t cmd = d->phase ? 0x48 : 0x58;
-    if (d->started == 0) {
-        d->started = now > 0 ? now : 1e-9;
-        return i2c_xfer(fd, addr, &cmd, 1, NULL, 0) < 0 ? -1 : 0;
-    }
-    if (now - d->started < conv_s)
-        return 0;
-    uint8_t zero = 0x00, b[3];
-    if (i2c_xfer(fd, addr, &zero, 1, b, 3) < 0)
-        return -1;
-    uint32_t v = (uint32_t)b[0] << 16 | (uint32_t)b[1] << 8 | b[2];
-    int ready = 0;
-    if (d->phase) {
-        d->d1 = v;
-        if (d->have_d2) {
-            ms5611_compensate(d->prom, d->d1, d->d2, p, t);
-            ready = 1;
-        }
-    } else {
-        d->d2 = v;
-        d->have_d2 = 1;
-    }
-    d->phase ^= 1;
-    d->started = now;
-    cmd = d->phase ? 0x48 : 0x58;
-    return i2c_xfer(fd, addr, &cmd, 1, NULL, 0) < 0 ? -1 : ready;
+    i2c_target *t = ctx;
+    return i2c_xfer(t->fd, t->addr, w, wn, r, rn);
 }
+
+static double monotonic_s(void *ctx)
+{
+    (void)ctx;
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+ms5611_bus ms5611_on_i2c(i2c_target *target) { return (ms5611_bus){target_xfer, monotonic_s, target}; }
 
 static int put(const char *path, const char *value)
 {

@@ -15,16 +15,12 @@ int mpu_init(int fd, int addr, char *err, int errlen);
 int mpu_read(int fd, int addr, vec3 *acc_mps2, vec3 *gyro_rads); /* sensor frame */
 int hmc_init(int fd, int addr, char *err, int errlen);
 int hmc_read(int fd, int addr, vec3 *field_gauss);
-typedef struct {
-    uint16_t prom[8];
-    uint32_t d1, d2;
-    int phase;      /* 0: converting D2 (temperature), 1: converting D1 (pressure) */
-    double started; /* sim-clock second the conversion began */
-    int have_d2, have_both;
-} ms5611_dev;
 int ms5611_init(int fd, int addr, ms5611_dev *d, char *err, int errlen);
-/* Call each cycle with the current time; returns 1 when a new (P, T) pair is ready. */
-int ms5611_poll(int fd, int addr, ms5611_dev *d, double now, int32_t *p, int32_t *t);
+/* The MS5611 at addr on an open i2c-dev fd, for ms5611_poll (the struct must outlive the calls). */
+typedef struct {
+    int fd, addr;
+} i2c_target;
+ms5611_bus ms5611_on_i2c(i2c_target *target);
 
 int pwm_setup(int chip, int channels, long period_ns, char *err, int errlen);
 int pwm_write_us(int chip, int channel, double us);

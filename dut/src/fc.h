@@ -97,6 +97,28 @@ void alt_filter_update(alt_filter *a, double baro_h, double acc_up, double T);
 unsigned ms5611_crc4(const uint16_t prom[8]);
 /* integer compensation incl. second order; returns P in Pa, TEMP in 0.01 degC */
 void ms5611_compensate(const uint16_t prom[8], uint32_t d1, uint32_t d2, int32_t *p, int32_t *temp);
+/* The chip's pressure range (10..1200 mbar), in Pa: a compensated value outside it is not a reading */
+#define MS5611_P_MIN 1000
+#define MS5611_P_MAX 120000
+
+/* How the MS5611's conversion cycle reaches the chip: a combined write-then-read transfer (0 or
+   -errno) and a clock (seconds), both the caller's, so the cycle runs on a board and in a test. */
+typedef struct {
+    int (*xfer)(void *ctx, const uint8_t *w, int wn, uint8_t *r, int rn);
+    double (*clock)(void *ctx);
+    void *ctx;
+} ms5611_bus;
+typedef struct {
+    uint16_t prom[8];
+    uint32_t d1, d2;
+    int phase;          /* 0: converting D2 (temperature), 1: converting D1 (pressure) */
+    double started;     /* clock second the current conversion's command was sent; 0: none yet */
+    int have_d2;
+    unsigned not_ready; /* ADC reads that found the conversion unfinished (result 0) */
+} ms5611_dev;
+/* Call each cycle; returns 1 when a new (P [Pa], T [0.01 degC]) pair is ready, 0 when not, -1 on a bus
+   error. */
+int ms5611_poll(ms5611_dev *d, const ms5611_bus *bus, int32_t *p, int32_t *t);
 
 /* ---- SBUS ------------------------------------------------------------------------------------------ */
 #define SBUS_FRAME 25

@@ -53,6 +53,8 @@ int main(int argc, char **argv)
         return 2;
     }
     ms5611_dev baro;
+    i2c_target baro_at = {bus, c.baro_addr};
+    ms5611_bus baro_bus = ms5611_on_i2c(&baro_at);
     if (mpu_init(bus, c.mpu_addr, err, sizeof err) < 0 || hmc_init(bus, c.hmc_addr, err, sizeof err) < 0 ||
         ms5611_init(bus, c.baro_addr, &baro, err, sizeof err) < 0) {
         fprintf(stderr, "fc: %s; no motor output\n", err);
@@ -177,7 +179,7 @@ int main(int argc, char **argv)
         double cr = cos(att.roll), sr = sin(att.roll), cpi = cos(att.pitch), spi = sin(att.pitch);
         double acc_up = -(-spi * a.x + cpi * sr * a.y + cpi * cr * a.z + FC_G0);
         int32_t p_pa, t_c;
-        if (ms5611_poll(bus, c.baro_addr, &baro, t0, &p_pa, &t_c) == 1) {
+        if (ms5611_poll(&baro, &baro_bus, &p_pa, &t_c) == 1) {
             if (start_pressure == 0)
                 start_pressure = p_pa;
             double dt = last_baro > 0 ? t0 - last_baro : 0.0; /* the first pair only initialises */

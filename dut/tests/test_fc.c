@@ -228,6 +228,80 @@ static void test_ms5611(void)
           baro_altitude(pr, 101325.0), h);
 }
 
+/* A fake MS5611 behind the conversion cycle's bus: it answers an ADC read before the conversion has
+   had 9.04 ms with 0, as the datasheet says, and counts such reads; its clock is the test's, and a
+   command can take `cmd_delay` seconds to go out (a Linux loop preempted there). */
+struct fake_baro {
+    double now, cmd_delay, cmd_at;
+    int phase, zero_once, early_reads, reads;
+};
+
+static int fake_xfer(void *ctx, const uint8_t *w, int wn, uint8_t *r, int rn)
+{
+    struct fake_baro *f = ctx;
+    if (wn == 1 && (w[0] == 0x48 || w[0] == 0x58) && rn == 0) {
+        f->now += f->cmd_delay;
+        f->cmd_at = f->now;
+        f->phase = w[0] == 0x48;
+        return 0;
+    }
+    if (wn == 1 && w[0] == 0x00 && rn == 3) {
+        uint32_t v = f->phase ? 9085466 : 8569150; /* the datasheet example's D1 and D2 */
+        f->reads++;
+        if (f->now - f->cmd_at < 0.00904) {
+            f->early_reads++;
+            v = 0;
+        }
+        if (f->zero_once) {
+            f->zero_once = 0;
+            v = 0;
+        }
+        r[0] = (uint8_t)(v >> 16);
+        r[1] = (uint8_t)(v >> 8);
+        r[2] = (uint8_t)v;
+        return 0;
+    }
+    return -5;
+}
+
+static double fake_clock(void *ctx) { return ((struct fake_baro *)ctx)->now; }
+
+static void test_ms5611_cycle(void)
+{
+    uint16_t prom[8] = {0, 40127, 36924, 23317, 23282, 33464, 28312, 0x0103};
+    struct fake_baro f = {.now = 1.0};
+    ms5611_bus bus = {fake_xfer, fake_clock, &f};
+    ms5611_dev d = {0};
+    memcpy(d.prom, prom, sizeof prom);
+    /* a 250 Hz loop whose convert commands go out up to 5 ms after the loop read its clock */
+    unsigned seed = 7;
+    int readings = 0, wrong = 0;
+    for (int k = 0; k < 1000; k++) {
+        f.cmd_delay = (lcg_noise(&seed) + 1) * 0.0025;
+        int32_t p, t;
+        int r = ms5611_poll(&d, &bus, &p, &t);
+        readings += r == 1;
+        wrong += r == 1 && (p != 100009 || t != 2007);
+        f.now += 0.004;
+    }
+    check(f.early_reads == 0 && readings > 100 && !wrong,
+          "MS5611 cycle: a conversion is timed from its command, never read early, however late the command",
+          "%g early ADC reads, %g readings", f.early_reads, readings);
+    /* the chip says "not finished" (0): no reading comes of it, the same conversion starts again */
+    f.zero_once = 1;
+    int phase = d.phase, before = readings;
+    unsigned not_ready = d.not_ready;
+    int32_t p = 0, t = 0;
+    for (int k = 0; k < 4 && d.not_ready == not_ready; k++) {
+        int r = ms5611_poll(&d, &bus, &p, &t);
+        readings += r == 1;
+        f.now += 0.004;
+    }
+    check(d.not_ready == not_ready + 1 && d.phase == phase && readings == before,
+          "MS5611 cycle: an ADC result of 0 is not a reading; the conversion is repeated",
+          "not_ready %g, readings %g", d.not_ready - not_ready, readings - before);
+}
+
 static void test_sbus(void)
 {
     uint8_t f[SBUS_FRAME] = {0x0F, 0xFF, 0x07};
@@ -267,6 +341,7 @@ int main(void)
     test_pid();
     test_mixers();
     test_ms5611();
+    test_ms5611_cycle();
     test_sbus();
     return failures ? 1 : 0;
 }

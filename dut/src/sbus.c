@@ -1,45 +1,8 @@
-/* Bytes-to-numbers maths the drivers need: the MS5611's CRC-4 and compensation (datasheet and AN520,
-   integer exactly as published), and SBUS frames (25 bytes: 0x0F, 16 channels of 11 bits LSB first,
-   a flags byte, 0x00). */
+/* SBUS frames as the RC receiver sends them: 25 bytes, 0x0F, 16 channels of 11 bits LSB first, a flags
+   byte (bit 2 frame lost, bit 3 failsafe), 0x00; and a parser that finds frames in a byte stream. */
 #include <string.h>
 
 #include "fc.h"
-
-unsigned ms5611_crc4(const uint16_t prom[8])
-{
-    uint16_t w[8];
-    memcpy(w, prom, sizeof w);
-    w[7] &= 0xFF00; /* the CRC nibble itself is not covered */
-    unsigned rem = 0;
-    for (int cnt = 0; cnt < 16; cnt++) {
-        rem ^= (cnt & 1) ? (w[cnt >> 1] & 0x00FF) : (unsigned)(w[cnt >> 1] >> 8);
-        for (int bit = 0; bit < 8; bit++)
-            rem = (rem & 0x8000) ? ((rem << 1) ^ 0x3000) & 0xFFFF : (rem << 1) & 0xFFFF;
-    }
-    return (rem >> 12) & 0xF;
-}
-
-void ms5611_compensate(const uint16_t c[8], uint32_t d1, uint32_t d2, int32_t *p, int32_t *temp)
-{
-    int64_t dt = (int64_t)d2 - ((int64_t)c[5] << 8);
-    int64_t t = 2000 + dt * c[6] / (1 << 23);
-    int64_t off = ((int64_t)c[2] << 16) + ((int64_t)c[4] * dt) / (1 << 7);
-    int64_t sens = ((int64_t)c[1] << 15) + ((int64_t)c[3] * dt) / (1 << 8);
-    if (t < 2000) { /* second order, datasheet */
-        int64_t t2 = dt * dt / ((int64_t)1 << 31);
-        int64_t off2 = 5 * (t - 2000) * (t - 2000) / 2;
-        int64_t sens2 = 5 * (t - 2000) * (t - 2000) / 4;
-        if (t < -1500) {
-            off2 += 7 * (t + 1500) * (t + 1500);
-            sens2 += 11 * (t + 1500) * (t + 1500) / 2;
-        }
-        t -= t2;
-        off -= off2;
-        sens -= sens2;
-    }
-    *p = (int32_t)(((int64_t)d1 * sens / (1 << 21) - off) / (1 << 15));
-    *temp = (int32_t)t;
-}
 
 int sbus_decode(const uint8_t f[SBUS_FRAME], sbus_frame *out)
 {
