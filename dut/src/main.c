@@ -75,8 +75,11 @@ int main(int argc, char **argv)
     struct timespec next;
     long step_ns = (long)(1e9 / c.est_rate_hz);
 
-    /* gyro bias: 500 samples at rest (seed 000) */
-    vec3 bias = v3(0, 0, 0), acc, gyro, mag = v3(0, 0, 0), acc_mean = v3(0, 0, 0);
+    /* gyro bias: 500 samples at rest (seed 000); the field for the initial heading is averaged over the
+       same second (one sample in 7, about the HMC5883L's 75 Hz): a single noisy sample started the
+       heading a degree or two off, and the heading loop is slow to take that out */
+    vec3 bias = v3(0, 0, 0), acc, gyro, mag = v3(0, 0, 0), acc_mean = v3(0, 0, 0), mag_sum = v3(0, 0, 0);
+    int mag_n = 0;
     for (int i = 0; i < 500; i++) {
         if (mpu_read(bus, c.mpu_addr, &acc, &gyro) < 0) {
             fprintf(stderr, "fc: MPU-6050 read failed during calibration; no motor output\n");
@@ -84,6 +87,11 @@ int main(int argc, char **argv)
         }
         bias = v3_add(bias, v3_scale(to_body(gyro), 1.0 / 500));
         acc_mean = v3_add(acc_mean, v3_scale(calibrate(to_body(acc), c.acc_offset, c.acc_scale), 1.0 / 500));
+        vec3 m;
+        if (i % 7 == 0 && hmc_read(bus, c.hmc_addr, &m) == 0) {
+            mag_sum = v3_add(mag_sum, calibrate(to_body(m), c.mag_offset, c.mag_scale));
+            mag_n++;
+        }
         struct timespec d = {0, 2000000};
         nanosleep(&d, NULL);
     }
@@ -97,11 +105,10 @@ int main(int argc, char **argv)
     quat_cf_init(&cf, c.kp_est, c.ki_est);
     mahony_init(&mh, c.kp_est, c.ki_est);
     ekf_init(&kf);
-    { /* initial alignment: the resting accelerometer and magnetometer, through the filters themselves
+    { /* initial alignment: the resting accelerometer and magnetometer (means), through the filters themselves
          with a high gain, so a vehicle that starts tilted (the seed 000 roll stand) starts estimated */
-        vec3 m;
-        if (hmc_read(bus, c.hmc_addr, &m) == 0)
-            mag = calibrate(to_body(m), c.mag_offset, c.mag_scale);
+        if (mag_n > 0)
+            mag = v3_scale(mag_sum, 1.0 / mag_n);
         cf.kp = mh.kp = 5.0;
         cf.ki = mh.ki = 0.0;
         for (int i = 0; i < 1000; i++) {
