@@ -2,10 +2,14 @@
    errors that name the file, the line and the key: a typo must not fly with a default. */
 #include "config.h"
 
+#include <math.h>
+
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+#include "config_keys.h"
 
 /* Gain profiles: "default" is tuned on the rig's plant (seed 001 vehicle); "seed002" is the nested
    PI-PID of seed 002 (Table 2 outer PI 4.5/0.35, Table 3 inner PID 0.14/0.015/0.0025 in units of the
@@ -38,7 +42,7 @@ void config_defaults(fc_config *c)
     c->ki_est = 0.01;
     profile_apply(c, "default");
     c->yaw_rate_kp = 300; c->yaw_rate_ki = 30;
-    c->alt_kp = 2.0; c->alt_ki = 0.03; c->alt_kd = 0.0; c->alt_kv = 3.0; c->baro_gate_m = 3.0; c->alt_sp_range_m = 5.0;
+    c->alt_kp = 2.0; c->alt_ki = 0.03; c->alt_kd = 0.0; c->alt_kv = 3.0; c->alt_i_band_m = 0.3; c->baro_gate_m = 3.0; c->alt_sp_range_m = 5.0;
     c->acc_kp = 2.0; c->acc_ki = 0.5; c->acc_kd = 0.0;
     c->angle_limit = 100; c->alt_limit = 10;
     c->hover_us = 1511;
@@ -48,20 +52,16 @@ void config_defaults(fc_config *c)
     c->telemetry_every = 5;
 }
 
-struct key { const char *name; char kind; size_t off; int n; };
-#define D(name, n) {#name, 'd', offsetof(fc_config, name), n}
-#define I(name) {#name, 'i', offsetof(fc_config, name), 1}
-#define S(name) {#name, 's', offsetof(fc_config, name), 1}
+struct key { const char *name; char kind; size_t off; int n; double low, high; };
+#define ANY NAN /* no limit on this side */
+#define FC_KEY(name, kind, n, low, high) {#name, #kind[0], offsetof(fc_config, name), n, low, high},
+static const struct key keys[] = {FC_CONFIG_KEYS(FC_KEY)};
+#undef FC_KEY
 
-static const struct key keys[] = {
-    S(i2c_path), I(mpu_addr), I(hmc_addr), I(baro_addr), S(rc_path), S(telemetry_path), I(pwm_chip),
-    I(estimator), I(mixer), D(est_rate_hz, 1), D(ctrl_rate_hz, 1), I(defect_mixer_sign), I(defect_never_arm),
-    I(gyro_fault_check), D(defect_crash_at, 1), D(kp_est, 1), D(ki_est, 1), D(angle_kp, 1), D(angle_ki, 1),
-    D(angle_kd, 1), D(rate_kp, 1), D(rate_ki, 1), D(rate_kd, 1), D(yaw_rate_kp, 1), D(yaw_rate_ki, 1), D(alt_sp_range_m, 1),
-    D(alt_kp, 1), D(alt_ki, 1), D(alt_kd, 1), D(alt_kv, 1), D(baro_gate_m, 1), D(acc_kp, 1), D(acc_ki, 1), D(acc_kd, 1), D(angle_limit, 1),
-    D(alt_limit, 1), D(hover_us, 1), D(max_angle_deg, 1), D(max_yaw_rate_dps, 1), D(alpha, 4), D(beta, 4),
-    D(acc_offset, 3), D(acc_scale, 3), D(mag_offset, 3), D(mag_scale, 3), I(telemetry_every),
-};
+static int in_range(const struct key *k, double v)
+{
+    return (isnan(k->low) || v >= k->low) && (isnan(k->high) || v <= k->high);
+}
 
 int config_load(fc_config *c, const char *path, char *err, int errlen)
 {
@@ -86,7 +86,9 @@ int config_load(fc_config *c, const char *path, char *err, int errlen)
         if (strcmp(name, "profile") == 0) {
             char pname[64];
             if (sscanf(value, "%63s", pname) != 1 || profile_apply(c, pname) < 0) {
-                snprintf(err, (size_t)errlen, "%s:%d: profile expects default or seed002", path, no);
+#define PROFILE(p) " " #p
+                snprintf(err, (size_t)errlen, "%s:%d: profile expects one of:" FC_PROFILES(PROFILE), path, no);
+#undef PROFILE
                 fclose(f);
                 return -1;
             }
@@ -102,19 +104,21 @@ int config_load(fc_config *c, const char *path, char *err, int errlen)
             return -1;
         }
         char *p = value, *end;
-        int ok = 1;
-        if (k->kind == 's') {
+        int ok = 1, inside = 1;
+        if (k->kind == 'S') {
             size_t len = strcspn(value, " \t\r");
             ok = len > 0 && len < 64;
             if (ok) { memcpy((char *)c + k->off, value, len); ((char *)c + k->off)[len] = 0; }
-        } else if (k->kind == 'i') {
+        } else if (k->kind == 'I') {
             long v = strtol(p, &end, 0);
             ok = end != p && strspn(end, " \t\r") == strlen(end);
+            inside = in_range(k, (double)v);
             if (ok) *(int *)((char *)c + k->off) = (int)v;
         } else {
             for (int j = 0; j < k->n && ok; j++) {
                 double v = strtod(p, &end);
-                ok = end != p;
+                ok = end != p && isfinite(v);
+                inside = inside && in_range(k, v);
                 ((double *)((char *)c + k->off))[j] = v;
                 p = end + strspn(end, " ,\t");
             }
@@ -122,16 +126,25 @@ int config_load(fc_config *c, const char *path, char *err, int errlen)
         }
         if (!ok) {
             snprintf(err, (size_t)errlen, "%s:%d: %s expects %s", path, no, name,
-                     k->kind == 's' ? "a path" : k->kind == 'i' ? "an integer" : k->n > 1 ? "numbers" : "a number");
+                     k->kind == 'S' ? "a path" : k->kind == 'I' ? "an integer" : k->n > 1 ? "numbers" : "a number");
+            fclose(f);
+            return -1;
+        }
+        if (!inside) {
+            if (isnan(k->high))
+                snprintf(err, (size_t)errlen, "%s:%d: %s must be >= %g", path, no, name, k->low);
+            else if (isnan(k->low))
+                snprintf(err, (size_t)errlen, "%s:%d: %s must be <= %g", path, no, name, k->high);
+            else
+                snprintf(err, (size_t)errlen, "%s:%d: %s must be in %g..%g", path, no, name, k->low, k->high);
             fclose(f);
             return -1;
         }
     }
     fclose(f);
-    if (c->est_rate_hz < 10 || c->est_rate_hz > 2000 || c->ctrl_rate_hz < 10 || c->ctrl_rate_hz > c->est_rate_hz || c->estimator < 0 || c->estimator > 2 || c->mixer < 0 || c->mixer > 1 ||
-        c->telemetry_every < 1 || !(c->alt_sp_range_m >= 0 && c->alt_sp_range_m <= 100)) {
-        snprintf(err, (size_t)errlen, "%s: est_rate_hz must be 10..2000, ctrl_rate_hz 10..est_rate_hz, estimator 0..2, mixer 0..1, telemetry_every >= 1, alt_sp_range_m 0..100",
-                 path);
+    if (c->ctrl_rate_hz > c->est_rate_hz) {
+        snprintf(err, (size_t)errlen, "%s: ctrl_rate_hz (%g) must be at most est_rate_hz (%g)", path, c->ctrl_rate_hz,
+                 c->est_rate_hz);
         return -1;
     }
     return 0;

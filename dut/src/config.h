@@ -23,6 +23,7 @@ typedef struct {
     double alt_kp, alt_ki, alt_kd;        /* eq. 11 */
     double baro_gate_m;                   /* barometer innovation gate */
     double alt_kv;                        /* damping: m/s^2 per m/s of the fused climb rate */
+    double alt_i_band_m;                  /* the altitude integral runs only this close to the setpoint (0: always) */
     double alt_sp_range_m;                /* alt hold: RC ch7 at full deflection moves the setpoint this far */
     double acc_kp, acc_ki, acc_kd;        /* eq. 12 */
     double angle_limit, alt_limit;        /* eqs. 13-14 */

@@ -20,7 +20,8 @@ void pid_reset(pid *p)
 
 double pid_step(pid *p, double e, double T)
 {
-    p->sum += e * T;
+    if (!(p->i_band > 0) || fabs(e) <= p->i_band)
+        p->sum += e * T;
     if (p->sum_limit > 0 && p->ki != 0) {
         double lim = p->sum_limit / fabs(p->ki);
         p->sum = clampd(p->sum, -lim, lim);

@@ -72,6 +72,7 @@ typedef struct {
     int started;
     double out_limit;   /* |u| <= out_limit (0: none) */
     double sum_limit;   /* |ki sum| <= sum_limit (0: none), against wind-up */
+    double i_band;      /* > 0: integrate only while |e| <= i_band (conditional integration) */
 } pid;
 
 void pid_init(pid *p, double kp, double ki, double kd, double out_limit, double sum_limit);

@@ -131,6 +131,10 @@ int main(int argc, char **argv)
     /* the altitude loop asks for at most 3 m/s^2, its integral for at most 0.5: engaging hold while
        climbing fast must not wind up a slow oscillation */
     pid_init(&alt_pid, c.alt_kp, c.alt_ki, c.alt_kd, 3.0, 0.5);
+    /* and it integrates only within alt_i_band_m of the setpoint: hold engaged while climbing carries
+       the vehicle a metre past the setpoint, and integrating that excursion left a wound-up term
+       that took ten seconds to unwind (a slow creep, the 1 m step's steady-state error) */
+    alt_pid.i_band = c.alt_i_band_m;
     pid_init(&acc_pid, c.acc_kp, c.acc_ki, c.acc_kd, c.alt_limit, c.alt_limit / 2);
     alt_filter altf;
     alt_filter_init(&altf, 2.0, 1.0);

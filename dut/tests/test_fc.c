@@ -183,6 +183,15 @@ static void test_pid(void)
     pid_init(&p, 1000, 0, 0, 100, 0);
     check(pid_step(&p, 1, T) == 100 && pid_step(&p, -1, T) == -100, "angle output limited to +-100 (eq. 13)",
           "%g %g", 0, 0);
+    /* conditional integration (the altitude loop): errors outside the band leave the sum alone */
+    pid_init(&p, 0, 1, 0, 0, 0);
+    p.i_band = 0.3;
+    for (int t = 0; t < 100; t++)
+        pid_step(&p, 1.0, T); /* a metre off: nothing summed */
+    double outside = p.sum;
+    pid_step(&p, 0.2, T);
+    check(outside == 0 && fabs(p.sum - 0.2 * T) < 1e-15, "PID integrates only inside its band when it has one",
+          "sum %g after errors outside, %g after one inside", outside, p.sum);
 }
 
 static void test_mixers(void)

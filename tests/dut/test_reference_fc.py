@@ -87,7 +87,7 @@ def test_fc_at_rest_estimates_level_and_keeps_motors_idle(tmp_path: Path, fc: Pa
     ("hmc_addr = 0x1f\n", "HMC5883L: no answer at 0x1f"),
     ("estimatr = 1\n", "unknown key 'estimatr'"),
     ("est_rate_hz = fast\n", "est_rate_hz expects a number"),
-    ("telemetry_every = 0\n", "telemetry_every >= 1"),
+    ("telemetry_every = 0\n", "telemetry_every must be in 1..100000"),
 ])
 def test_bad_sensors_and_config_are_refused_without_motor_output(tmp_path: Path, fc: Path, config: str,
                                                                 message: str) -> None:
