@@ -29,15 +29,27 @@ class MetricDef:
     text: str
 
 
+class Unmeasurable(ValueError):
+    """A metric that has no value for this response; the message says why (it becomes the reason)."""
+
+
 def _err(x: np.ndarray, p: Params) -> np.ndarray:
     return x - (p.target if p.target is not None else 0.0)
 
 
+#: A step counts as reached once the response has covered this fraction of it (the rise time's 90 %)
+REACHED = 0.9
+
+
 def overshoot(t: np.ndarray, x: np.ndarray, p: Params) -> float:
-    """Percent of the step (from the value at the window start to the target) passed beyond it."""
+    """Percent of the step (from the value at the window start to the target) passed beyond it. A
+    step never reached has no overshoot to speak of: 0 % would pass a DUT that never moved."""
     step = p.target - x[0]  # type: ignore[operator]
     if abs(step) < 1e-9:
-        return math.nan
+        raise Unmeasurable("no step: the signal starts at the target")
+    covered = float(np.max((x - x[0]) / step))
+    if covered < REACHED:
+        raise Unmeasurable(f"the step was never reached (at most {covered * 100:.0f} % of it)")
     beyond = np.max((x - p.target) * math.copysign(1.0, step))
     return max(0.0, float(beyond)) / abs(step) * 100.0
 
@@ -113,6 +125,10 @@ METRICS: dict[str, MetricDef] = {
 }
 
 
+#: A measurement's outcome when its run ended in error: the value may exist, but nothing was judged
+NOT_JUDGED = "not judged"
+
+
 @dataclass(frozen=True)
 class Measurement:
     name: str
@@ -124,7 +140,7 @@ class Measurement:
     max: float | None
     start: float
     end: float
-    outcome: str  # "pass" | "fail"
+    outcome: str  # "pass" | "fail" | NOT_JUDGED
     reason: str = ""
 
 
@@ -158,7 +174,10 @@ def measure(
     else:
         if baseline_at is not None and target is not None:
             target = float(np.interp(baseline_at, t, x)) + target
-        value = METRICS[metric].fn(ts, xs, Params(target, band, start))
+        try:
+            value = METRICS[metric].fn(ts, xs, Params(target, band, start))
+        except Unmeasurable as e:
+            value, reason = math.nan, str(e)
     ok = math.isfinite(value) and (lo is None or value >= lo) and (hi is None or value <= hi)
     if not ok and not reason:
         reason = "not measurable" if math.isnan(value) else "outside the limits"

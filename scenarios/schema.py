@@ -8,6 +8,7 @@ reads one line and knows what to fix. The format, key by key, is in the README (
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import math
 import tomllib
@@ -17,9 +18,10 @@ from pathlib import Path
 from typing import Any
 
 from emulators.faults import KINDS as FAULT_KINDS
-from plant.variables import VARIABLES
+from plant.variables import VARIABLES, check_parameters
 from rig.rc import STICKS
 from rig.world import FAULT_TARGETS
+from scenarios import fc_keys
 from scenarios.criteria import METRICS
 from scenarios.signals import SIGNALS
 
@@ -151,8 +153,11 @@ class _Check:
             raise self.fail(key, f"expected a table, got {_kind(data)}")
         for k in data:
             if known is not None and k not in known:
+                near = difflib.get_close_matches(k, list(known), n=1)
+                hint = f"did you mean {near[0]!r}? " if near else ""
                 raise self.fail(
-                    f"{key}.{k}" if key else k, f"unknown key; expected one of: {', '.join(sorted(known))}"
+                    f"{key}.{k}" if key else k,
+                    f"unknown key; {hint}expected one of: {', '.join(sorted(known))}",
                 )
         return data
 
@@ -289,15 +294,20 @@ def load(path: str | Path) -> Scenario:
 
     vehicle = c.table(data.get("vehicle", {}), "vehicle", PLANT_PARAMETERS)
     plant = {k: c.number(vehicle, k, "vehicle") for k in vehicle}
+    refused = check_parameters(plant)  # the FMU's own rules, before it is asked
+    if refused:
+        raise c.fail(f"vehicle.{refused.split()[0]}", f"the plant refuses it: {refused}")
 
-    fc_raw = c.table(data.get("fc", {}), "fc", None)  # the DUT's config checks its own keys
+    # the reference FC's keys, from its own table: a typo must not fly with a default
+    fc_raw = c.table(data.get("fc", {}), "fc", [*fc_keys.keys(), "profile"])
     fc = {}
     for k, v in fc_raw.items():
-        if isinstance(v, bool) or not isinstance(v, int | float | str):
-            raise c.fail(
-                f"fc.{k}", f"expected a number or a string (a reference-FC config value), got {_kind(v)}"
-            )
-        fc[k] = str(v)
+        if k == "profile":
+            fc[k] = c.string(fc_raw, k, "fc", choices=fc_keys.profiles())
+            continue
+        fc[k], why = fc_keys.keys()[k].check(v)
+        if why:
+            raise c.fail(f"fc.{k}", why)
 
     sensors = c.table(data.get("sensors", {}), "sensors", SENSOR_KEYS)
     env = c.table(data.get("environment", {}), "environment", ENV_KEYS)

@@ -69,3 +69,17 @@ def test_a_baseline_target_counts_from_the_signal_at_that_time() -> None:
     assert late.value < 1e-4  # settled at 3.5 = 2.5 + 1
     absolute = measure("c", "steady_state_error", "alt", T, x, 15.0, 20.0, 1.0, None, None, 1e9, "m")
     assert abs(absolute.value - 2.5) < 1e-4
+
+
+def test_a_step_never_reached_has_no_overshoot() -> None:
+    """A DUT that never moved passed "overshoot <= 20 %" at 0 %: the step must be reached (90 % of it)
+    before its overshoot means anything."""
+    flat = np.zeros_like(T)
+    half = 10 * (1 - np.exp(-T)) * 0.5  # creeps to half the step
+    for x in (flat, half):
+        r = measure("c", "overshoot", "roll", T, x, 0.0, 20.0, 10.0, None, None, 20.0, "%")
+        assert math.isnan(r.value) and r.outcome == "fail"
+        assert "the step was never reached" in r.reason
+    rising = 10 * (1 - np.exp(-T))
+    reached = measure("c", "overshoot", "roll", T, rising, 0.0, 20.0, 10.0, None, None, 20.0, "%")
+    assert reached.value == 0.0 and reached.outcome == "pass"  # an overdamped response that got there

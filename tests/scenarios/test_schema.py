@@ -66,6 +66,18 @@ def test_a_minimal_file_loads(tmp_path: Path) -> None:
             "capture.can_channel",
             "needs a channel",
         ),
+        (("[[criteria]]", "[vehicle]\nmass = -1\n[[criteria]]"), "vehicle.mass",
+         "the plant refuses it: mass must be > 0"),
+        (("[[criteria]]", "[vehicle]\nstand = 9\n[[criteria]]"), "vehicle.stand", "stand must be 0..4"),
+        (("[[criteria]]", "[vehicle]\nstand = 1.5\n[[criteria]]"), "vehicle.stand", "takes a whole number"),
+        (("[[criteria]]", "[vehicle]\nesc_max_us = 900\n[[criteria]]"), "vehicle.esc_max_us",
+         "esc_max_us must be > esc_min_us"),
+        (("[[criteria]]", "[fc]\nestimater = 1\n[[criteria]]"), "fc.estimater",
+         "unknown key; did you mean 'estimator'?"),
+        (("[[criteria]]", "[fc]\nestimator = 3\n[[criteria]]"), "fc.estimator", "3 is outside 0..2"),
+        (("[[criteria]]", '[fc]\nestimator = "one"\n[[criteria]]'), "fc.estimator", "expected an integer"),
+        (("[[criteria]]", "[fc]\nalpha = [1, 1, 1]\n[[criteria]]"), "fc.alpha", "expected 4 numbers"),
+        (("[[criteria]]", '[fc]\nprofile = "fast"\n[[criteria]]'), "fc.profile", "one of default, seed002"),
         (("max = 5.0", "max = 5.0\nbaseline_at = 1.0"), "criteria[0].baseline_at", "needs a target"),
         (("max = 5.0", "max = 5.0\ntarget = 1.0\nbaseline_at = 7.0"), "criteria[0].baseline_at", "in 0..5"),
     ],
@@ -107,3 +119,39 @@ def test_rig_validate_reports_without_a_traceback(tmp_path: Path) -> None:
         text=True,
     )
     assert done.returncode == 2 and "Traceback" not in done.stderr
+
+
+def test_fc_values_reach_the_config_file_as_the_fc_reads_them(tmp_path: Path) -> None:
+    from scenarios.runner import reference_config
+
+    sc = load(write(tmp_path, GOOD.replace("[[criteria]]", '[fc]\nalpha = [1, 1.5, 1, 1]\nmpu_addr = "0x69"\n'
+                                                           'profile = "seed002"\n[[criteria]]')))
+    conf = reference_config(sc)
+    assert "alpha = 1.0, 1.5, 1.0, 1.0" in conf and "mpu_addr = 105" in conf and "profile = seed002" in conf
+
+
+def test_the_fc_key_table_is_the_one_the_fc_compiles(tmp_path: Path) -> None:
+    """scenarios/fc_keys.py reads dut/src/config_keys.h; the built FC takes every key it finds there at a
+    value inside the table's range, refuses one outside it, and refuses a key the table lacks."""
+    from scenarios import fc_keys
+    from scenarios.runner import REFERENCE_FC
+
+    keys = fc_keys.keys()
+    assert {"estimator", "alpha", "alt_i_band_m", "i2c_path"} <= set(keys) and len(keys) > 40
+    assert keys["alpha"].count == 4 and fc_keys.profiles() == ("default", "seed002")
+
+    def fc_says(line: str) -> str:
+        conf = tmp_path / "fc.conf"
+        conf.write_text(line + "\n")
+        done = subprocess.run([str(REFERENCE_FC), str(conf)], capture_output=True, text=True, timeout=30,
+                              env={"PATH": "/usr/bin:/bin"})
+        return done.stderr
+
+    for k in keys.values():
+        value = "/nowhere" if k.kind == "S" else ", ".join([str(int(max(k.low, 0)))] * k.count)
+        if k.name in ("ctrl_rate_hz", "est_rate_hz"):
+            value = "250"  # (their defaults: ctrl at most est is a rule between two keys)
+        said = fc_says(f"{k.name} = {value}")
+        assert "unknown key" not in said and "must be" not in said, (k.name, said)
+    assert "estimator must be in 0..2" in fc_says("estimator = 3")
+    assert "unknown key 'estimater'" in fc_says("estimater = 1")
