@@ -8,7 +8,7 @@ from __future__ import annotations
 import struct
 from typing import Final
 
-PROTOCOL_VERSION: Final = 2
+PROTOCOL_VERSION: Final = 3
 MAX_PAYLOAD: Final = 65536
 
 HEADER = struct.Struct("<IHHQ")  # len, type, status, t_ns
@@ -56,6 +56,7 @@ SHM_HEAD = struct.Struct("<QIIQQQQ")
 SHM_PWM = struct.Struct("<QQIIII")     # period_ns, duty_ns, exported, enabled, inversed, reserved
 SHM_SIZE: Final = 4096
 SIM_NS_OFFSET: Final = 16
+SHM_LIMIT_OFFSET: Final = 560  # limit_ns, after the PWM states
 
 
 class Malformed(ValueError):

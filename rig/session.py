@@ -592,6 +592,8 @@ class Session:
         P.SHM_HEAD.pack_into(self._mm, 0, P.SHM_MAGIC, P.PROTOCOL_VERSION, len(self.world.pwm),
                              self.world.time_ns, self.cfg.quantum_ns, EPOCH_NS, MONO_BASE_NS)
         self._words = memoryview(self._mm).cast("Q")
+        limit = self.cfg.duration if self.cfg.duration is not None else self.cfg.sim_timeout
+        self._words[P.SHM_LIMIT_OFFSET // 8] = round(limit * NS)
 
     def _shm_now(self) -> int:
         return self._words[P.SIM_NS_OFFSET // 8]

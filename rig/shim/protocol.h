@@ -12,7 +12,7 @@
 
 #include <stdint.h>
 
-#define RIG_PROTOCOL_VERSION 2u
+#define RIG_PROTOCOL_VERSION 3u
 #define RIG_MAX_PAYLOAD 65536u
 
 struct rig_hdr {
@@ -81,6 +81,9 @@ struct rig_shm {
     uint64_t epoch_ns;     /* CLOCK_REALTIME at sim time 0 */
     uint64_t mono_base_ns; /* CLOCK_MONOTONIC at sim time 0 */
     struct rig_pwm_state pwm[RIG_PWM_MAX];
+    uint64_t limit_ns;     /* lockstep: the run ends here (--duration or --sim-timeout); a clock read
+                              that reaches it asks the session, which ends the run */
 };
+#define RIG_SHM_LIMIT_OFFSET 560 /* offsetof(struct rig_shm, limit_ns), for the Python side */
 
 #endif

@@ -20,6 +20,7 @@
 #include <poll.h>
 #include <pthread.h>
 #include <stdarg.h>
+#include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -334,8 +335,22 @@ static int64_t clock_base(clockid_t id)
     }
 }
 
-/* A clock read: the program ran a little, so time moves a quantum (busy loops still advance). */
-static uint64_t now_tick(void) { return __atomic_add_fetch(&shm->sim_ns, shm->quantum_ns, __ATOMIC_SEQ_CST); }
+static uint32_t wait_until(uint64_t wake_ns, uint32_t kind);
+
+_Static_assert(offsetof(struct rig_shm, limit_ns) == RIG_SHM_LIMIT_OFFSET, "RIG_SHM_LIMIT_OFFSET is wrong");
+
+/* A clock read: the program ran a little, so time moves a quantum (busy loops still advance). Time
+   moved by clock reads counts like any other: the read that reaches the run's end asks the session,
+   which ends the run there (the request gets no answer), so a loop that only reads the clock cannot
+   run past --duration or --sim-timeout. */
+static uint64_t now_tick(void)
+{
+    uint64_t t = __atomic_add_fetch(&shm->sim_ns, shm->quantum_ns, __ATOMIC_SEQ_CST);
+    uint64_t limit = __atomic_load_n(&shm->limit_ns, __ATOMIC_RELAXED);
+    if (limit && t >= limit)
+        wait_until(t, RIG_WAIT_SLEEP);
+    return t;
+}
 
 /* Asks the session to run the world until wake_ns (or an event); returns why we woke. */
 /* The WAIT payload: u64 wake_ns, u32 kind, u32 0. */
