@@ -34,7 +34,7 @@ $(FMU): $(PLANT_SOURCES) | venv
 	$(PY) -m plant.build
 
 shim: $(SHIM)
-$(SHIM): rig/shim/rigshim.c rig/shim/protocol.h rig/shim/build.py | venv
+$(SHIM): rig/shim/rigshim.c rig/shim/protocol.h rig/shim/keeper.c rig/shim/build.py | venv
 	$(PY) -m rig.shim.build
 
 native: $(NATIVE)

@@ -32,8 +32,8 @@ MODULE_NAME = "_rignative"
 LIB = REPO_ROOT / "build" / f"{MODULE_NAME}{importlib.machinery.EXTENSION_SUFFIXES[0]}"
 BLOCK = 64  #: most samples one call takes: buffers for C are this many rows
 #: -ffp-contract=off: no fused multiply-adds, so the C arithmetic rounds as the Python it replaced did.
-CFLAGS = ("-std=c11", "-O2", "-Wall", "-Wextra", "-Werror", "-fPIC", "-shared", "-fvisibility=hidden",
-          "-ffp-contract=off")
+CFLAGS = ("-std=c11", "-O2", "-Wall", "-Wextra", "-Werror", "-ffp-contract=off")
+SHARED = ("-fPIC", "-shared", "-fvisibility=hidden")
 
 
 class NativeBuildError(RuntimeError):
@@ -44,6 +44,13 @@ def compile_shared(sources: Sequence[Path], out: Path, what: str, libs: Sequence
                    cc: str | None = None, flags: Sequence[str] = ()) -> Path:
     """Compiles ``sources`` into the shared library ``out``, atomically: a process loading it at the
     same moment never sees a half-written file."""
+    return compile_c(sources, out, what, libs, cc, (*SHARED, *flags))
+
+
+def compile_c(sources: Sequence[Path], out: Path, what: str, libs: Sequence[str] = (),
+              cc: str | None = None, flags: Sequence[str] = ()) -> Path:
+    """Compiles and links ``sources`` into ``out`` (a program unless ``flags`` say otherwise),
+    atomically."""
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_suffix(f".{os.getpid()}.tmp")
     cmd = [cc or os.environ.get("CC", "gcc"), *CFLAGS, *flags, "-o", str(tmp), *map(str, sources), *libs]

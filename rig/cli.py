@@ -33,7 +33,7 @@ def _dispatch(argv: list[str] | None) -> int:
     run_cmd.add_parsers(sub)
     args = parser.parse_args(argv)
     if args.command == "exec":
-        return exec_cmd.main(args, parser)
+        return exec_cmd.main(args)
     if args.command == "run":
         return run_cmd.cmd_run(args)
     if args.command == "validate":

@@ -11,12 +11,15 @@ command died of signal N).
 from __future__ import annotations
 
 import argparse
+import difflib
 import json
 import sys
 from dataclasses import asdict
 from pathlib import Path
 
 from emulators.topology import TOPOLOGIES
+from plant.variables import PARAMETERS, check_parameters
+from rig import interrupts
 from rig.session import Session, SessionConfig
 from rig.world import World
 
@@ -28,9 +31,27 @@ def _param(text: str) -> tuple[str, float]:
     try:
         if not sep or not name:
             raise ValueError
-        return name, float(value)
+        number = float(value)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected NAME=NUMBER, got {text!r}") from None
+    if name not in PARAMETERS:
+        near = difflib.get_close_matches(name, list(PARAMETERS), n=1)
+        hint = (f"; did you mean {near[0]!r}?" if near
+                else f"; the plant's parameters: {', '.join(PARAMETERS)}")
+        raise argparse.ArgumentTypeError(f"{name!r} is not a plant parameter{hint}")
+    return name, number
+
+
+def _writable(parser: argparse.ArgumentParser, option: str, path: Path | None) -> None:
+    """A file the run will write, tried before the run starts (a read-only place is bad usage, not a
+    traceback after the command has run)."""
+    if path is None:
+        return
+    try:
+        with open(path, "a"):
+            pass
+    except OSError as e:
+        parser.error(f"{option} {path}: {e.strerror}")
 
 
 def _positive(text: str) -> float:
@@ -74,9 +95,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--allow-no-devices", action="store_true",
                    help="a command that never touches the devices is not an error")
     p.add_argument("argv", nargs=argparse.REMAINDER, metavar="-- CMD ARGS", help="the command to run")
+    p.set_defaults(exec_parser=p)  # (usage errors found after parsing say "rig exec: error: ...")
 
 
-def main(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+def main(args: argparse.Namespace) -> int:
+    parser: argparse.ArgumentParser = args.exec_parser
     command = args.argv[1:] if args.argv[:1] == ["--"] else args.argv
     if not command:
         parser.error("rig exec needs a command after --")
@@ -86,6 +109,11 @@ def main(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         parser.error("--bus must be between 0 and 31")
     if args.quantum_ns < 0:
         parser.error("--quantum-ns must not be negative")
+    refused = check_parameters(dict(args.param))  # the FMU's own rules, before anything starts
+    if refused:
+        parser.error(f"--param: the plant refuses it: {refused}")
+    _writable(parser, "--log", args.log)
+    _writable(parser, "--summary", args.summary)
     cfg = SessionConfig(command=command, lockstep=not args.realtime, i2c_bus=args.bus,
                         topology=args.topology, serial=args.serial, pwm_channels=args.pwm_channels,
                         i2c_clock_hz=CLOCKS[args.i2c_clock],
@@ -93,13 +121,13 @@ def main(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
                         wall_timeout=args.wall_timeout, stall_timeout=args.stall_timeout, pin=args.pin,
                         seed=args.seed, noise=not args.no_noise, plant_params=dict(args.param),
                         log_path=args.log, allow_no_devices=args.allow_no_devices)
+    world = World.at_rest(seed=cfg.seed, topology=cfg.topology, noise=cfg.noise, params=cfg.plant_params,
+                          pwm_channels=cfg.pwm_channels)
     try:
-        world = World.at_rest(seed=cfg.seed, topology=cfg.topology, noise=cfg.noise, params=cfg.plant_params,
-                              pwm_channels=cfg.pwm_channels)
-    except Exception as e:  # a bad --param is the user's input: say so, no traceback
-        print(f"rig exec: error: cannot set up the plant: {e}", file=sys.stderr)
-        return 125
-    outcome = Session(cfg, world).run()
+        with interrupts.handled():
+            outcome = Session(cfg, world).run()
+    finally:
+        world.close()
     for note in outcome.notes:
         print(f"rig exec: note from the command's shim: {note}", file=sys.stderr)
     for why in outcome.malformed:

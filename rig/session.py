@@ -6,7 +6,8 @@ scheduled events) up to the wake-up time and then answers. Nothing moves while t
 a run is a function of the DUT, the seed and the scenario, and runs as fast as the CPU allows. In
 real time the session follows the wall clock and the shim leaves the clocks alone.
 
-The session is a single-threaded select loop over the shim connections, the ptys and the DUT's pidfd.
+The session is a single-threaded select loop over the shim connections, the ptys and the status pipe
+of the DUT's keeper (its parent process, which ends everything the DUT started).
 It never trusts what arrives: a malformed message costs only the connection it came on, a DUT that
 crashes, hangs or never shows up ends the run with an error verdict, and watchdogs on sim time, wall
 time and wall time without progress bound every run.
@@ -22,6 +23,7 @@ import itertools
 import mmap
 import os
 import selectors
+import shutil
 import signal
 import socket
 import struct
@@ -36,6 +38,7 @@ from pathlib import Path
 from typing import IO, Final
 
 from emulators.i2c_bus import I2CNack, I2CProtocolError, Msg
+from rig import interrupts
 from rig import protocol as P
 from rig.world import PwmChannel, World
 
@@ -50,6 +53,8 @@ EXIT_RIG_ERROR: Final = 125  # the run could not be judged: the DUT never came, 
 EXIT_NOT_EXECUTABLE: Final = 126
 EXIT_NOT_FOUND: Final = 127
 LATE_NS: Final = 1_000_000  # real time: an event run more than 1 ms after its due time counts as late
+#: What a serial port holds for a DUT that has not read it: the tty's read buffer (N_TTY_BUF_SIZE - 1)
+RX_BUFFER: Final = 4095
 
 
 @dataclass
@@ -84,6 +89,7 @@ class Outcome:
     DUT ended the run itself)."""
 
     verdict: str                      # "ok" | "failed" (the DUT said so) | "error" (the rig says so)
+    #                                   | "interrupted" (a signal stopped the rig: rig.interrupts)
     exit_code: int
     error: str | None
     dut_returncode: int | None
@@ -98,6 +104,7 @@ class Outcome:
     plant: dict[str, float]
     #: real time only: scheduled events run, how many ran over 1 ms late, the worst and the 99th
     #: percentile lateness (s). Measured and reported, never hidden (DESIGN.md §1)
+    pwm_writes: int = 0               # sysfs PWM writes the DUT made (export, period, duty, enable …)
     events_run: int = 0
     events_late: int = 0
     max_lateness_s: float = 0.0
@@ -120,6 +127,8 @@ class _Pty:
     slave: int
     pending: bytearray = field(default_factory=bytearray)   # DUT output not yet stamped
     received: bytearray = field(default_factory=bytearray)  # everything the DUT wrote
+    dropped: int = 0                  # bytes to the DUT that did not fit its receive buffer
+    first_drop_ns: int = 0
 
     @property
     def slave_name(self) -> str:
@@ -142,7 +151,7 @@ class Session:
         self._ptys: dict[str, _Pty] = {}
         self._event_output = False
         self._in_flight: dict[int, int] = {}  # pty slave fd -> bytes readable once delivered
-        self.transactions = self.waits = 0
+        self.transactions = self.waits = self.pwm_writes = 0
         self.notes: list[str] = []
         self.malformed: list[str] = []
         self._log: IO[str] | None = None
@@ -154,6 +163,7 @@ class Session:
         self._running = False
         self._event_ns: int | None = None
         self._lateness_ns: list[int] = []  # real time: wall clock minus due time, per event
+        self.interrupted: int | None = None  # the signal that stopped the rig mid-run (rig.interrupts)
 
     # ---- the API scenarios use ------------------------------------------------------------------
 
@@ -163,20 +173,36 @@ class Session:
 
     def serial_write(self, path: str, data: bytes) -> None:
         """Sends bytes to the DUT on a serial path; in lockstep they are readable by the DUT before
-        it runs again, and a DUT polling that port wakes at this instant."""
+        it runs again, and a DUT polling that port wakes at this instant. Like a UART, the line does
+        not wait for its reader: what does not fit the DUT's receive buffer (RX_BUFFER bytes unread)
+        is dropped and counted, and the run's notes say so."""
         pty = self._ptys[path]
         before = self._in_flight.get(pty.slave)
         if before is None:
             before = _pending_input(pty.slave)
+        room = max(0, RX_BUFFER - before)
+        if len(data) > room:
+            self._overflow(pty, len(data) - room)
+            data = data[:room]
         view = memoryview(data)
         while view:
-            k = os.write(pty.master, view)
+            try:
+                k = os.write(pty.master, view)
+            except BlockingIOError:  # (real time: the kernel's own buffers are full too)
+                self._overflow(pty, len(view))
+                data = data[:len(data) - len(view)]
+                break
             view = view[k:]
         if self.cfg.lockstep:  # delivered before the DUT next runs (see _deliver_serial)
             self._in_flight[pty.slave] = before + len(data)
         self._event_output = True
         if self._log:  # (the message is not even formatted otherwise: this runs per request)
             self._write_log(self.now_ns, f"tty {path} > {data.hex()}")
+
+    def _overflow(self, pty: _Pty, n: int) -> None:
+        if not pty.dropped:
+            pty.first_drop_ns = self.now_ns
+        pty.dropped += n
 
     def _deliver_serial(self) -> None:
         """Waits until the bytes written to the DUT's serial ports are readable on its side. The pty
@@ -215,12 +241,13 @@ class Session:
 
     def run(self) -> Outcome:
         cfg = self.cfg
-        from rig.shim.build import ensure_shim
+        from rig.shim.build import ensure_keeper, ensure_shim
 
         shim = cfg.shim_path or ensure_shim()
+        keeper_path = ensure_keeper()
         tmp = Path(tempfile.mkdtemp(prefix="rig-session-"))
         old_affinity = os.sched_getaffinity(0)
-        proc: subprocess.Popen[bytes] | None = None
+        keeper: _Keeper | None = None
         sel = selectors.DefaultSelector()
         wall0 = time.perf_counter()
         returncode: int | None = None
@@ -242,41 +269,27 @@ class Session:
                 self._log = open(cfg.log_path, "w", encoding="ascii")
             env = self._dut_env(shim, tmp)
             if cfg.pin or (cfg.pin is None and cfg.lockstep):
-                os.sched_setaffinity(0, {max(old_affinity)})  # the child inherits it
+                os.sched_setaffinity(0, {max(old_affinity)})  # the keeper and the DUT inherit it
             self._rt_t0 = time.perf_counter()
-            try:
-                proc = subprocess.Popen(cfg.command, env=env, start_new_session=True, stdout=cfg.stdout,
-                                        stderr=cfg.stderr)
-            except FileNotFoundError:
-                return self._early_outcome(EXIT_NOT_FOUND, f"command not found: {cfg.command[0]}", wall0)
-            except PermissionError:
-                return self._early_outcome(EXIT_NOT_EXECUTABLE, f"command not executable: {cfg.command[0]}",
-                                           wall0)
-            pidfd = os.pidfd_open(proc.pid)
-            sel.register(pidfd, selectors.EVENT_READ, "exit")
-            returncode = self._loop(sel, listener, proc, wall0)
+            keeper = _Keeper(keeper_path, cfg.command, env, cfg.stdout, cfg.stderr, KILL_GRACE_S)
+            sel.register(keeper.status, selectors.EVENT_READ, "keeper")
+            returncode = self._loop(sel, listener, keeper, wall0)
         finally:
             self._running = False
-            if proc is not None:
-                _kill_group(proc, signal.SIGKILL)
-                if proc.returncode is None:
-                    proc.wait()
+            if keeper is not None:
+                keeper.finish()  # the DUT and everything it started are gone when this returns
             os.sched_setaffinity(0, old_affinity)
             for key in list(sel.get_map().values()):
                 sel.unregister(key.fileobj)
                 if isinstance(key.fileobj, socket.socket):
                     key.fileobj.close()
-                elif key.data == "exit":
-                    os.close(key.fd)
             sel.close()
             for pty in self._ptys.values():
                 os.close(pty.master)
                 os.close(pty.slave)
             if self._log:
                 self._log.close()
-            for f in tmp.iterdir():
-                f.unlink()
-            tmp.rmdir()
+            shutil.rmtree(tmp, ignore_errors=True)
         return self._outcome(returncode, wall0)
 
     def _dut_env(self, shim: Path, tmp: Path) -> dict[str, str]:
@@ -293,21 +306,42 @@ class Session:
         })
         return env
 
-    def _loop(self, sel: selectors.BaseSelector, listener: socket.socket, proc: subprocess.Popen[bytes],
-              wall0: float) -> int:
+    def _loop(self, sel: selectors.BaseSelector, listener: socket.socket, keeper: _Keeper,
+              wall0: float) -> int | None:
+        """Serves the DUT until its main process has ended; returns its exit status (negative: the
+        signal that ended it), or None when it never started."""
+        try:
+            with interrupts.live():
+                self._serve(sel, listener, keeper, wall0)
+        except interrupts.Interrupted as e:  # stop the DUT (the keeper does), keep what was recorded
+            self.interrupted = e.signum
+            self._fail(e.exit_code, f"{e} at sim t={self.now_ns / NS:.3f} s")
+            keeper.finish()
+        if keeper.exec_errno is not None:
+            code = EXIT_NOT_FOUND if keeper.exec_errno == errno.ENOENT else EXIT_NOT_EXECUTABLE
+            what = ("not found" if code == EXIT_NOT_FOUND
+                    else f"not executable ({os.strerror(keeper.exec_errno)})")
+            self._error = (code, f"command {what}: {self.cfg.command[0]}")
+            return None
+        for conn in list(self._conns):  # notices the DUT sent before it went
+            self._on_readable(conn, sel)
+        self._collect_serial(self.now_ns)
+        return keeper.returncode
+
+    def _serve(self, sel: selectors.BaseSelector, listener: socket.socket, keeper: _Keeper,
+               wall0: float) -> None:
         cfg = self.cfg
         last_progress, last_sim = time.perf_counter(), self.now_ns
-        kill_at: float | None = None
-        exited = False
-        while not exited:
+        stopping = False
+        while not keeper.done:
             timeout = 0.1
             if not cfg.lockstep:
                 timeout = min(timeout, self._realtime_tick())
             for key, _ in sel.select(max(timeout, 0.0)):
                 if key.data == "listen":
                     self._accept(listener, sel)
-                elif key.data == "exit":
-                    exited = True
+                elif key.data == "keeper":
+                    keeper.read_status()
                 elif isinstance(key.data, tuple):
                     self._read_pty(self._ptys[key.data[1]])
                 else:
@@ -317,7 +351,7 @@ class Session:
             sim = self.now_ns
             if sim != last_sim:
                 last_sim, last_progress = sim, now_wall
-            if kill_at is None and self._error is None and not self._ended_by_duration:
+            if not stopping and self._error is None and not self._ended_by_duration:
                 if now_wall - wall0 > cfg.wall_timeout:
                     self._fail(EXIT_WATCHDOG, f"wall-time watchdog: still running after "
                                               f"{cfg.wall_timeout:g} s of wall time (sim t={sim / NS:.3f} s)")
@@ -326,16 +360,9 @@ class Session:
                                               f"read for {cfg.stall_timeout:g} s of wall time at sim "
                                               f"t={sim / NS:.3f} s (spinning without reading a clock, "
                                               "or blocked outside the emulated devices)")
-            if kill_at is None and (self._error is not None or self._ended_by_duration):
-                _kill_group(proc, signal.SIGTERM)
-                kill_at = now_wall + KILL_GRACE_S
-            elif kill_at is not None and now_wall > kill_at:
-                _kill_group(proc, signal.SIGKILL)
-        returncode = proc.wait()
-        for conn in list(self._conns):  # notices the DUT sent before it went
-            self._on_readable(conn, sel)
-        self._collect_serial(self.now_ns)
-        return returncode
+            if not stopping and (self._error is not None or self._ended_by_duration):
+                keeper.stop()  # SIGTERM to the DUT and all it started; SIGKILL after the grace
+                stopping = True
 
     def _realtime_tick(self) -> float:
         """Real time: run due events and keep the world at the wall clock; seconds to the next event."""
@@ -489,6 +516,7 @@ class Session:
             raise P.Malformed(f"PWM notice for chip {chip} channel {channel} attribute {attr}")
         t = self._notice_time(hdr)
         self._advance(t)
+        self.pwm_writes += 1
         ch = self.world.pwm[channel]
         if attr == P.PWM_EXPORT:
             ch.exported = True
@@ -629,15 +657,16 @@ class Session:
         if self._log:
             self._log.write(f"{_fmt(t_ns)} {text}\n")
 
-    def _early_outcome(self, code: int, message: str, wall0: float) -> Outcome:
-        self._fail(code, message)
-        return self._outcome(None, wall0)
-
     def _outcome(self, returncode: int | None, wall0: float) -> Outcome:
+        for pty in self._ptys.values():
+            if pty.dropped:
+                self.notes.append(f"{pty.path}: {pty.dropped} byte(s) to the DUT were dropped from sim "
+                                  f"t={pty.first_drop_ns / NS:.3f} s on: it did not read them, and its "
+                                  f"receive buffer ({RX_BUFFER} bytes) was full, as a UART's overflows")
         sim = (max(self.world.time_ns, self._shm_now()) if self.cfg.lockstep else self.now_ns) / NS
         verdict, error, code = "ok", None, 0
         if self._error is not None:
-            verdict, (code, error) = "error", self._error
+            verdict, (code, error) = "interrupted" if self.interrupted else "error", self._error
         elif self._ended_by_duration:
             pass
         elif returncode is not None and returncode < 0:
@@ -646,8 +675,12 @@ class Session:
             error = f"the command was killed by {sig} at sim t={sim:.3f} s"
         elif self._n_conns == 0 and not self.cfg.allow_no_devices:
             verdict, code = "error", EXIT_RIG_ERROR
-            error = ("the command exited without touching the emulated devices (no I2C, PWM or wait reached "
-                     "the session: is it statically linked, setuid, or using other device paths?)")
+            if returncode:  # it ran and gave up: its own words (stderr) say why, not a guess of ours
+                error = f"the command exited with status {returncode} before touching the emulated devices"
+            else:
+                error = ("the command exited without touching the emulated devices (no I2C, PWM or "
+                         "wait reached the session: is it statically linked, setuid, or using other "
+                         "device paths?)")
         elif self.cfg.duration is not None:
             verdict, code = "error", EXIT_RIG_ERROR
             error = (f"the command exited early, with status {returncode}, at sim t={sim:.3f} s of a "
@@ -657,7 +690,7 @@ class Session:
         late = sorted(self._lateness_ns) or [0]
         return Outcome(verdict, code, error, returncode, sim, self.world.time_ns / NS,
                        time.perf_counter() - wall0, self.transactions, self.waits, self._n_conns, self.notes,
-                       self.malformed, self.world.outputs(), len(self._lateness_ns),
+                       self.malformed, self.world.outputs(), self.pwm_writes, len(self._lateness_ns),
                        sum(x > LATE_NS for x in late), late[-1] / NS, late[int(0.99 * (len(late) - 1))] / NS)
 
 
@@ -667,11 +700,75 @@ def _pending_input(fd: int) -> int:
     return buf[0]
 
 
-def _kill_group(proc: subprocess.Popen[bytes], sig: signal.Signals) -> None:
-    try:
-        os.killpg(proc.pid, sig)
-    except (ProcessLookupError, PermissionError):
-        pass
+class _Keeper:
+    """The DUT's parent, ``build/rig-keeper`` (rig/shim/keeper.c): a subreaper that ends every process
+    the DUT started, however it detached, when the lifeline closes or the DUT exits; and ends them
+    even when this process dies (the lifeline closes with it). Its status pipe says when the DUT's
+    main process has ended, and how."""
+
+    def __init__(self, path: Path, command: list[str], env: dict[str, str], stdout: IO[str] | int | None,
+                 stderr: IO[str] | int | None, grace_s: float) -> None:
+        status_r, status_w = os.pipe()
+        life_r, self._life = os.pipe()
+        kenv = dict(env)
+        kenv["RIG_KEEPER_PRELOAD"] = kenv.pop("LD_PRELOAD", "")  # the keeper runs without the shim
+        try:
+            self.proc = subprocess.Popen([str(path), str(status_w), str(life_r), str(round(grace_s * 1000)),
+                                          "--", *command], env=kenv, pass_fds=(status_w, life_r),
+                                         start_new_session=True, stdout=stdout, stderr=stderr)
+        except BaseException:
+            for fd in (status_r, self._life):
+                os.close(fd)
+            raise
+        finally:
+            os.close(status_w)
+            os.close(life_r)
+        self.status = status_r
+        os.set_blocking(status_r, False)
+        self.grace_s = grace_s
+        self._buf = b""
+        self.done = False                 # the DUT's main process has ended (or never started)
+        self.returncode: int | None = None
+        self.exec_errno: int | None = None
+
+    def read_status(self) -> None:
+        try:
+            chunk = os.read(self.status, 256)
+        except BlockingIOError:
+            return
+        if not chunk:  # the keeper is gone: whatever it did not say, the DUT is over
+            self.done = True
+            return
+        self._buf += chunk
+        *lines, self._buf = self._buf.split(b"\n")
+        for line in lines:
+            what, _, value = line.decode("ascii", "replace").partition(" ")
+            if what == "exit":
+                self.returncode = os.waitstatus_to_exitcode(int(value))
+                self.done = True
+            elif what == "exec":
+                self.exec_errno = int(value)
+                self.done = True
+
+    def stop(self) -> None:
+        """Closes the lifeline: the keeper sends SIGTERM to the DUT's processes, SIGKILL after grace."""
+        if self._life >= 0:
+            os.close(self._life)
+            self._life = -1
+
+    def finish(self) -> None:
+        """Stops the DUT if it runs, waits until the keeper has ended everything, reads its last words."""
+        self.stop()
+        try:
+            self.proc.wait(timeout=self.grace_s + 5.0)
+        except subprocess.TimeoutExpired:  # (a keeper stuck is a bug of ours; do not hang on it)
+            self.proc.kill()
+            self.proc.wait()
+        while not self.done:
+            self.read_status()
+        if self.status >= 0:
+            os.close(self.status)
+            self.status = -1
 
 
 def _fmt(t_ns: int) -> str:

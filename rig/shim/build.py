@@ -1,7 +1,9 @@
-"""Builds ``build/librigshim.so``, the library ``rig exec`` preloads into the DUT.
+"""Builds ``build/librigshim.so``, the library ``rig exec`` preloads into the DUT, and
+``build/rig-keeper``, the DUT's parent process (``keeper.c``: it ends everything the DUT started).
 
-``rig exec`` calls ``ensure_shim()`` so a fresh clone needs no separate build step; ``make shim`` (and
-``python -m rig.shim.build``) build it explicitly. ``RIG_SHIM`` points at a prebuilt library instead.
+``rig exec`` calls ``ensure_shim()`` and ``ensure_keeper()`` so a fresh clone needs no separate build
+step; ``make shim`` (and ``python -m rig.shim.build``) build both explicitly. ``RIG_SHIM`` points at a
+prebuilt library instead.
 """
 
 from __future__ import annotations
@@ -10,16 +12,29 @@ import os
 import sys
 from pathlib import Path
 
-from emulators.native import NativeBuildError, compile_shared, is_stale
+from emulators.native import NativeBuildError, compile_c, compile_shared, is_stale
 
 SHIM_DIR = Path(__file__).resolve().parent
 REPO_ROOT = SHIM_DIR.parent.parent
 SOURCES = (SHIM_DIR / "rigshim.c", SHIM_DIR / "protocol.h")
 DEFAULT_OUT = REPO_ROOT / "build" / "librigshim.so"
+KEEPER_SOURCE = SHIM_DIR / "keeper.c"
+KEEPER = REPO_ROOT / "build" / "rig-keeper"
 
 
 def build(out: Path = DEFAULT_OUT, cc: str | None = None) -> Path:
     return compile_shared([SOURCES[0]], out, "the shim", libs=["-ldl", "-lpthread"], cc=cc)
+
+
+def build_keeper(out: Path = KEEPER, cc: str | None = None) -> Path:
+    return compile_c([KEEPER_SOURCE], out, "the DUT keeper", cc=cc)
+
+
+def ensure_keeper() -> Path:
+    """The keeper program, (re)built when stale."""
+    if is_stale(KEEPER, [KEEPER_SOURCE]):
+        build_keeper()
+    return KEEPER
 
 
 def ensure_shim() -> Path:
@@ -37,5 +52,6 @@ def ensure_shim() -> Path:
 if __name__ == "__main__":
     try:
         print(build())
+        print(build_keeper())
     except NativeBuildError as e:
         sys.exit(str(e))

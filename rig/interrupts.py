@@ -1,0 +1,76 @@
+"""SIGINT, SIGTERM and SIGHUP as an orderly stop of the rig.
+
+A user's Ctrl-C, a CI job's timeout (SIGTERM) or a closed terminal must not leave a DUT running, a
+temporary folder behind or a report half written. While ``handled()`` is in force (the CLI's commands),
+such a signal raises ``Interrupted`` only where a run can be cut at once, inside ``live()`` (a
+session's wait loop, which then stops the DUT and cleans up); anywhere else it waits until the next
+``check()`` (between two scenarios), so what is being written is finished first. Outside ``handled()``
+(the rig used as a library, tests) Python's own handling is untouched.
+"""
+
+from __future__ import annotations
+
+import signal
+from collections.abc import Iterator
+from contextlib import contextmanager
+from types import FrameType
+
+SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+_pending: int | None = None
+_live = False
+
+
+class Interrupted(Exception):
+    """The rig was asked to stop by a signal; ``exit_code`` is the shell's convention (128 + N)."""
+
+    def __init__(self, signum: int) -> None:
+        self.signum = signum
+        self.name = signal.Signals(signum).name
+        super().__init__(f"interrupted by {self.name}")
+
+    @property
+    def exit_code(self) -> int:
+        return 128 + self.signum
+
+
+def _handler(signum: int, frame: FrameType | None) -> None:
+    global _pending, _live
+    if _live:
+        _live = False  # once: a second signal must not cut the clean-up the first one started
+        raise Interrupted(signum)
+    if _pending is None:
+        _pending = signum
+
+
+@contextmanager
+def handled() -> Iterator[None]:
+    """Installs the handlers for the duration, then restores the previous ones."""
+    global _pending
+    old = {s: signal.signal(s, _handler) for s in SIGNALS}
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+        _pending = None
+
+
+@contextmanager
+def live() -> Iterator[None]:
+    """Inside, a signal raises Interrupted at once (one that came just before, too)."""
+    global _live
+    check()
+    _live = True
+    try:
+        yield
+    finally:
+        _live = False
+
+
+def check() -> None:
+    """Raises Interrupted for a signal that came while it had to wait."""
+    global _pending
+    if _pending is not None:
+        signum, _pending = _pending, None
+        raise Interrupted(signum)

@@ -1,0 +1,45 @@
+"""Waiting for other processes by their events, never by sleeping: a FIFO a DUT writes its pid into once
+it is up, and a pidfd that becomes readable when a process has ended. Each wait has a generous bound
+so that a regression fails the test instead of hanging it."""
+
+from __future__ import annotations
+
+import os
+import select
+from pathlib import Path
+
+BOUND_S = 60.0
+
+
+def pid_fifo(path: Path) -> Path:
+    """A FIFO for a DUT to write its pid into (tests/rig/duts/*: argv[1])."""
+    os.mkfifo(path)
+    return path
+
+
+def read_pid(fifo: Path, timeout: float = BOUND_S) -> int:
+    """The pid the DUT writes into ``fifo`` (a line). Opened for reading and writing, so that no writer
+    yet is not an end of file (Linux allows it on a FIFO)."""
+    fd = os.open(fifo, os.O_RDWR | os.O_NONBLOCK)
+    try:
+        data = b""
+        while not data.endswith(b"\n"):
+            ready, _, _ = select.select([fd], [], [], timeout)
+            assert ready, f"no pid came through {fifo} in {timeout:g} s"
+            data += os.read(fd, 64)
+        return int(data)
+    finally:
+        os.close(fd)
+
+
+def wait_gone(pid: int, timeout: float = BOUND_S) -> bool:
+    """True once the process has ended (at once if it already has), False if it is still there after
+    ``timeout`` seconds."""
+    try:
+        fd = os.pidfd_open(pid)
+    except ProcessLookupError:
+        return True
+    try:
+        return bool(select.select([fd], [], [], timeout)[0])
+    finally:
+        os.close(fd)
