@@ -15,7 +15,7 @@ from scenarios.runner import RunResult
 
 STYLE = """body{font-family:sans-serif;margin:2em;max-width:60em}table{border-collapse:collapse}
 td,th{border:1px solid #ccc;padding:3px 8px;text-align:left}.pass{background:#d9ead3}.fail{background:#f4cccc}
-.error{background:#fce5cd}code{font-size:90%}"""
+.error,.interrupted{background:#fce5cd}.not-judged{color:#666}code{font-size:90%}"""
 
 
 def _page(title: str, body: str) -> str:
@@ -42,7 +42,8 @@ def render(r: RunResult) -> str:
     )
     for m in r.measurements:
         parts.append(
-            f'<tr class="{m.outcome}"><td>{e(m.name)}</td><td>{e(m.metric)} of <code>{e(m.signal)}</code>'
+            f'<tr class="{m.outcome.replace(" ", "-")}"><td>{e(m.name)}</td>'
+            f"<td>{e(m.metric)} of <code>{e(m.signal)}</code>"
             f"</td><td>{e(fmt_value(m.value, m.units))}</td><td>{e(fmt_limits(m))}</td>"
             f"<td>{m.start:g} – {m.end:g}</td>"
             f"<td>{m.outcome}{': ' + e(m.reason) if m.reason else ''}</td></tr>"
@@ -81,12 +82,15 @@ def render(r: RunResult) -> str:
     return _page(r.scenario.name, "\n".join(parts))
 
 
-def render_index(results: Sequence[RunResult], links: Sequence[str]) -> str:
+def render_index(results: Sequence[RunResult], links: Sequence[str], not_run: Sequence[str] = ()) -> str:
+    """The suite's page: one row per run of this suite, and the scenarios an interruption left unrun."""
     e = html.escape
-    counts = {v: sum(r.verdict == v for r in results) for v in ("pass", "fail", "error")}
+    counts = {v: sum(r.verdict == v for r in results) for v in ("pass", "fail", "error", "interrupted")}
+    summary = f"{counts['pass']} passed, {counts['fail']} failed, {counts['error']} errors of {len(results)}"
+    if counts["interrupted"] or not_run:
+        summary += f"; interrupted, {len(not_run)} not run"
     rows = [
-        f"<h1>Scenario suite</h1><p>{counts['pass']} passed, {counts['fail']} failed, "
-        f"{counts['error']} errors of {len(results)}.</p><table><tr><th>scenario</th><th>verdict</th>"
+        f"<h1>Scenario suite</h1><p>{summary}.</p><table><tr><th>scenario</th><th>verdict</th>"
         "<th>criteria passed</th><th>sim s</th><th>wall s</th></tr>"
     ]
     for r, link in zip(results, links, strict=True):
@@ -94,8 +98,10 @@ def render_index(results: Sequence[RunResult], links: Sequence[str]) -> str:
         rows.append(
             f'<tr class="{r.verdict}"><td><a href="{e(link)}">{e(r.scenario.name)}</a></td>'
             f"<td>{r.verdict}</td><td>{ok}/{len(r.measurements)}</td>"
-            f"<td>{float(r.metadata.get('sim_time') or 0):.1f}</td>"
-            f"<td>{float(r.metadata.get('wall_time') or 0):.2f}</td></tr>"
+            f"<td>{float(r.metadata.get('sim_time') or 0):.1f}</td>"  # type: ignore[arg-type]
+            f"<td>{float(r.metadata.get('wall_time') or 0):.2f}</td></tr>"  # type: ignore[arg-type]
         )
+    for stem in not_run:
+        rows.append(f'<tr class="not-judged"><td>{e(stem)}</td><td>not run</td>' + "<td></td>" * 3 + "</tr>")
     rows.append("</table>")
     return _page("Scenario suite", "\n".join(rows))

@@ -19,14 +19,15 @@ def render(results: Sequence[RunResult]) -> str:
             "testsuite",
             name=r.scenario.stem,
             tests=str(len(r.measurements) or 1),
-            failures=str(failures if r.verdict != "error" else 0),
-            errors=str(int(r.verdict == "error")),
+            failures=str(failures if r.verdict not in ("error", "interrupted") else 0),
+            errors=str(int(r.verdict in ("error", "interrupted"))),
             time=f"{float(r.metadata.get('wall_time') or 0.0):.3f}",
         )
         props = ET.SubElement(suite, "properties")
-        for k in ("seed", "scenario_sha256", "dut_command", "plant_fmu_sha256", "rig_version"):
+        for k in ("seed", "scenario_sha256", "dut_command", "dut_firmware", "dut_firmware_sha256",
+                  "plant_fmu_sha256", "rig_version"):
             ET.SubElement(props, "property", name=k, value=str(r.metadata.get(k)))
-        if r.verdict == "error":
+        if r.verdict in ("error", "interrupted"):
             case = ET.SubElement(suite, "testcase", classname=r.scenario.stem, name="run")
             ET.SubElement(case, "error", message=r.error or "error").text = r.stderr[-4000:]
             continue

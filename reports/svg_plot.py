@@ -36,6 +36,14 @@ def plot(
     """``traces``: (label, values, dash) with dash "" or e.g. "4 3"; ``shade``: a 0/1 signal whose
     1-intervals are shaded (faults, RC loss)."""
     pw, ph = W - LEFT - RIGHT, H - TOP - BOTTOM
+    if not len(t):  # a run that ended before its first sample (a DUT that never started)
+        return (
+            f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" '
+            f'font-family="sans-serif" font-size="11"><title>{html.escape(title)}</title>'
+            f'<rect x="{LEFT}" y="{TOP}" width="{pw}" height="{ph}" fill="none" stroke="#888"/>'
+            f'<text x="{LEFT + pw / 2}" y="{TOP + ph / 2}" text-anchor="middle">{html.escape(title)}: '
+            "nothing was recorded</text></svg>"
+        )
     finite = [v[np.isfinite(v)] for _, v, _ in traces]
     vals = np.concatenate([f for f in finite if len(f)]) if any(len(f) for f in finite) else np.zeros(1)
     lo, hi = float(vals.min()), float(vals.max())

@@ -193,6 +193,13 @@ def _open_can_pair(interface: str, channel: str) -> tuple[can.BusABC, can.BusABC
     return opened[0], opened[1]
 
 
+def check_can(interface: str, channel: str) -> None:
+    """Opens and closes the capture's CAN pair once, so a bad interface is found before anything runs
+    (ValueError, as at run time)."""
+    for bus in _open_can_pair(interface, channel):
+        bus.shutdown()
+
+
 def install_capture(session: Session, capture: Capture, corrupt_every: int = 0) -> CaptureLink | None:
     """Puts a capture link between the DUT's PWM outputs and the plant; None for the direct path."""
     if capture.transport == "direct":

@@ -12,12 +12,18 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import fcntl
+import json
+import os
 import shlex
+import shutil
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
-from scenarios.schema import ScenarioError, load
+from rig import interrupts
+from scenarios.schema import Scenario, ScenarioError, load
 
 LIBRARY = Path(__file__).resolve().parents[1] / "scenarios" / "library"
 EXIT_FAILED, EXIT_USAGE, EXIT_ERROR = 1, 2, 3
@@ -101,90 +107,209 @@ def cmd_validate(names: list[str]) -> int:
     return EXIT_USAGE if bad else 0
 
 
-def cmd_run(args: argparse.Namespace) -> int:
-    from reports import html_report, junit, result_json, telemetry
-    from scenarios.runner import run
+class UsageError(Exception):
+    """Bad options or scenario files: said in one message, exit 2, nothing has run."""
 
-    try:
-        scenarios = [load(p) for p in resolve(args.scenarios)]
-    except ScenarioError as e:
-        print(f"rig run: {e}", file=sys.stderr)
-        return EXIT_USAGE
-    if not scenarios:
-        print("rig run: no scenarios", file=sys.stderr)
-        return EXIT_USAGE
-    try:
-        dut = shlex.split(args.dut) if args.dut else None
-    except ValueError as e:
-        print(f"rig run: --dut: {e}", file=sys.stderr)
-        return EXIT_USAGE
-    if dut == []:
-        print("rig run: --dut is empty", file=sys.stderr)
-        return EXIT_USAGE
+
+@dataclass
+class Plan:
+    """A suite with every option and scenario checked: what ``rig run`` will do."""
+
+    scenarios: list[Scenario]
+    dut: list[str] | None
+    out: Path
+
+
+def plan(args: argparse.Namespace) -> Plan:
+    """Checks everything a run depends on before anything runs (raises UsageError naming each
+    problem): every scenario file, the DUT command, the reference FC's build, every CAN interface the
+    suite would open, the output folder."""
+    from rig.capture import check_can
+    from scenarios.runner import REFERENCE_FC
+
+    problems: list[str] = []
+    scenarios: list[Scenario] = []
+    for p in resolve(args.scenarios):
+        if not p.exists() and p.parent == Path(".") and p.suffix != ".toml":
+            problems.append(f"{p}: no such file, and no library scenario of that name (see `rig list`)")
+            continue
+        try:
+            scenarios.append(load(p))
+        except ScenarioError as e:
+            problems.append(str(e))
+    if not scenarios and not problems:
+        problems.append("no scenarios")
+    stems: dict[str, Path] = {}
+    for sc in scenarios:
+        if sc.stem in stems:
+            problems.append(f"{stems[sc.stem]} and {sc.path} are both named {sc.stem!r}: their reports would "
+                            f"share {args.out / sc.stem}")
+        stems[sc.stem] = sc.path
+    dut: list[str] | None = None
+    if args.dut is not None:
+        try:
+            dut = shlex.split(args.dut)
+        except ValueError as e:
+            problems.append(f"--dut: {e}")
+        else:
+            if not dut or not dut[0]:
+                problems.append("--dut is empty")
+    elif not REFERENCE_FC.is_file():
+        problems.append(f"the reference FC is not built ({REFERENCE_FC}); run `make dut`")
     if args.can:
         interface, sep, channel = args.can.partition(":")
         if not (interface and sep and channel):
-            print(
-                f"rig run: --can: expected INTERFACE:CHANNEL (e.g. socketcan:can0), got {args.can!r}",
-                file=sys.stderr,
-            )
-            return EXIT_USAGE
-        scenarios = [
-            dataclasses.replace(
-                sc, capture=dataclasses.replace(sc.capture, can_interface=interface, can_channel=channel)
-            )
-            if sc.capture.transport == "can"
-            else sc
-            for sc in scenarios
-        ]
-    out: Path = args.out
-    results, links = [], []
+            problems.append(f"--can: expected INTERFACE:CHANNEL (e.g. socketcan:can0), got {args.can!r}")
+        else:
+            scenarios = [
+                dataclasses.replace(
+                    sc, capture=dataclasses.replace(sc.capture, can_interface=interface, can_channel=channel)
+                )
+                if sc.capture.transport == "can"
+                else sc
+                for sc in scenarios
+            ]
+            try:
+                check_can(interface, channel)  # even when no scenario uses CAN: a typo is still a typo
+            except ValueError as e:
+                problems.append(f"--can: {e}")
+    opened = {(args.can or ""), ""}
+    for sc in scenarios:
+        key = f"{sc.capture.can_interface}:{sc.capture.can_channel}"
+        if sc.capture.transport == "can" and sc.capture.can_interface != "virtual" and key not in opened:
+            opened.add(key)
+            try:
+                check_can(sc.capture.can_interface, sc.capture.can_channel)
+            except ValueError as e:
+                problems.append(f"{sc.path}: capture: {e}")
+    if args.out.exists() and not args.out.is_dir():
+        problems.append(f"--out {args.out} exists and is not a folder")
+    if problems:
+        raise UsageError("\n".join(problems))
+    return Plan(scenarios, dut, args.out)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    try:
+        suite = plan(args)
+        with interrupts.handled(), ReportFolder(suite.out) as folder:
+            return _run_suite(args, suite, folder)
+    except UsageError as e:
+        for line in str(e).splitlines():
+            print(f"rig run: {line}", file=sys.stderr)
+        return EXIT_USAGE
+
+
+def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> int:
+    from reports import html_report, junit, result_json, telemetry
+    from scenarios.runner import RunResult, not_run, run
+
+    results: list[RunResult] = []
+    stop: int | None = None  # the exit status a signal asked for
     t_suite = time.perf_counter()
-    for i, sc in enumerate(scenarios, 1):
-        run_dir = out / sc.stem
-        print(
-            f"[{i}/{len(scenarios)}] {sc.stem} ({sc.duration:g} s sim) ...",
-            end="",
-            file=sys.stderr,
-            flush=True,
-        )
+    n = len(suite.scenarios)
+    folder.begin([sc.stem for sc in suite.scenarios])
+    for i, sc in enumerate(suite.scenarios, 1):
         try:
-            r = run(
-                sc,
-                dut=dut,
-                seed=args.seed,
-                work_dir=run_dir,
-                wall_timeout=args.wall_timeout,
-                realtime=args.realtime,
-            )
-        except (FileNotFoundError, OSError, ValueError) as e:
-            print(f" cannot run: {e}", file=sys.stderr)
-            return EXIT_USAGE
+            interrupts.check()
+        except interrupts.Interrupted as e:
+            stop = e.exit_code
+            break
+        run_dir = folder.scenario_dir(sc.stem)
+        print(f"[{i}/{n}] {sc.stem} ({sc.duration:g} s sim) ...", end="", file=sys.stderr, flush=True)
+        try:
+            r = run(sc, dut=suite.dut, seed=args.seed, work_dir=run_dir, wall_timeout=args.wall_timeout,
+                    realtime=args.realtime)
+        except Exception as e:  # the rig could not fly it (not the DUT's doing): say so, go on
+            r = not_run(sc, args.seed, f"the rig could not run this scenario: {type(e).__name__}: {e}")
         results.append(r)
-        links.append(f"{sc.stem}/report.html")
         (run_dir / "junit.xml").write_text(junit.render([r]))
         (run_dir / "result.json").write_text(result_json.render(r))
         (run_dir / "telemetry.csv").write_text(telemetry.render(r.signals))
         (run_dir / "report.html").write_text(html_report.render(r))
         failed = [m.name for m in r.measurements if m.outcome == "fail"]
         rate = r.metadata.get("realtime_factor") or 0.0
-        detail = (
-            f" error: {r.error}"
-            if r.verdict == "error"
-            else (f" failed: {'; '.join(failed)}" if failed else "")
-        )
-        print(
-            f" {r.verdict.upper()} ({float(r.metadata['wall_time']):.1f} s wall, {rate:.0f}x){detail}",
-            file=sys.stderr,
-        )
-    (out / "junit.xml").write_text(junit.render(results))
-    (out / "index.html").write_text(html_report.render_index(results, links))
+        wall = float(r.metadata.get("wall_time") or 0.0)  # type: ignore[arg-type]
+        if r.verdict in ("error", "interrupted"):
+            detail = f" {r.verdict}: {r.error}"
+        else:
+            detail = f" failed: {'; '.join(failed)}" if failed else ""
+        print(f" {r.verdict.upper()} ({wall:.1f} s wall, {rate:.0f}x){detail}", file=sys.stderr)
+        if r.verdict == "interrupted" and r.outcome is not None:
+            stop = r.outcome.exit_code
+            break
+    left = [sc.stem for sc in suite.scenarios[len(results):]]
+    (suite.out / "junit.xml").write_text(junit.render(results))
+    (suite.out / "index.html").write_text(
+        html_report.render_index(results, [f"{r.scenario.stem}/report.html" for r in results], left)
+    )
     counts = {v: sum(r.verdict == v for r in results) for v in ("pass", "fail", "error")}
     print(
         f"{counts['pass']} passed, {counts['fail']} failed, {counts['error']} errors in "
-        f"{time.perf_counter() - t_suite:.1f} s; reports in {out}/index.html",
+        f"{time.perf_counter() - t_suite:.1f} s; reports in {suite.out}/index.html",
         file=sys.stderr,
     )
+    if stop is not None:
+        print(f"rig run: interrupted; {len(left)} scenario(s) not run", file=sys.stderr)
+        return stop
     if counts["error"]:
         return EXIT_ERROR
     return EXIT_FAILED if counts["fail"] else 0
+
+
+class ReportFolder:
+    """The ``--out`` folder, held by one ``rig run`` at a time (an advisory lock on ``.rig-run.lock``;
+    a second run into it is refused, naming the first), holding exactly one run's reports: the
+    scenario folders the previous run wrote (listed in ``.rig-run.json``) are removed when a new run
+    begins, and each scenario's folder is emptied before it flies, so no report of another run can
+    sit beside this one's index."""
+
+    LOCK, MANIFEST = ".rig-run.lock", ".rig-run.json"
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self._fd = -1
+
+    def __enter__(self) -> ReportFolder:
+        try:
+            self.path.mkdir(parents=True, exist_ok=True)
+            self._fd = os.open(self.path / self.LOCK, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        except OSError as e:
+            raise UsageError(f"--out {self.path}: {e.strerror}") from None
+        try:
+            fcntl.flock(self._fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(self._fd, 32, 0).decode("ascii", "replace").strip() or "?"
+            os.close(self._fd)
+            raise UsageError(f"--out {self.path} is in use by another rig run (pid {holder}); wait for it "
+                             "to finish or choose another folder") from None
+        os.ftruncate(self._fd, 0)
+        os.pwrite(self._fd, f"{os.getpid()}\n".encode(), 0)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        os.ftruncate(self._fd, 0)
+        os.close(self._fd)  # (closing releases the lock)
+
+    def begin(self, stems: list[str]) -> None:
+        """Removes the previous run's reports, then records this run's scenario folders."""
+        manifest = self.path / self.MANIFEST
+        try:
+            previous = json.loads(manifest.read_text())
+        except (OSError, ValueError):
+            previous = []
+        for name in previous if isinstance(previous, list) else []:
+            # only plain names this rig wrote: a manifest edited by hand cannot reach outside the folder
+            if isinstance(name, str) and name and "/" not in name and name not in (".", ".."):
+                shutil.rmtree(self.path / name, ignore_errors=True)
+        for name in ("index.html", "junit.xml"):
+            (self.path / name).unlink(missing_ok=True)
+        tmp = manifest.with_suffix(".tmp")
+        tmp.write_text(json.dumps(stems) + "\n")
+        tmp.replace(manifest)
+
+    def scenario_dir(self, stem: str) -> Path:
+        d = self.path / stem
+        shutil.rmtree(d, ignore_errors=True)
+        d.mkdir(parents=True)
+        return d

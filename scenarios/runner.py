@@ -10,9 +10,9 @@ measured. A DUT that crashes, exits early or hangs ends with verdict "error" and
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import shlex
-import shutil
 import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -24,13 +24,13 @@ import numpy as np
 from emulators.faults import Fault as DeviceFault
 from emulators.faults import FaultSet
 from emulators.sensor_models import BaroModel, Normals
-from plant.build import REPO_ROOT, sha256
-from rig import __version__
+from plant.build import REPO_ROOT
+from rig import __version__, firmware
 from rig.capture import install_capture
 from rig.rc import StickEmulator
 from rig.session import Outcome, Session, SessionConfig
 from rig.world import World
-from scenarios.criteria import Measurement, measure
+from scenarios.criteria import NOT_JUDGED, Measurement, measure
 from scenarios.schema import Event, Scenario
 from scenarios.signals import RECORD_PERIOD, SIGNALS
 
@@ -51,7 +51,7 @@ TELEMETRY_KEYS = {
 @dataclass
 class RunResult:
     scenario: Scenario
-    verdict: str  # "pass" | "fail" | "error"
+    verdict: str  # "pass" | "fail" | "error" | "interrupted" (a signal stopped the rig mid-run)
     error: str | None
     measurements: list[Measurement]
     signals: dict[str, np.ndarray]
@@ -59,13 +59,6 @@ class RunResult:
     outcome: Outcome | None
     stderr: str = ""
     notes: list[str] = field(default_factory=list)
-
-
-def _sha256(path: Path) -> str | None:
-    try:
-        return sha256(path)
-    except OSError:
-        return None
 
 
 def reference_config(scenario: Scenario) -> str:
@@ -179,31 +172,37 @@ class _Recorder:
         return s
 
 
-def parse_telemetry(text: bytes, clock_base_s: float) -> tuple[dict[str, np.ndarray], int]:
+def parse_telemetry(text: bytes, clock_base_s: float) -> tuple[dict[str, np.ndarray], int, dict[str, float]]:
     """The DUT's ``T t=… key=value …`` lines as columns (time in sim seconds: the DUT's monotonic clock
     minus ``clock_base_s``, its reading at sim time 0, ``Session.dut_clock_base_s``). Lines that do not
-    parse are counted and skipped: the DUT's bytes are not trusted."""
+    parse are counted and skipped: the DUT's bytes are not trusted. A value the DUT reports as NaN or
+    infinite is kept as NaN (the rest of its line stands); the third result gives, per key, the sim
+    time it was first non-finite."""
     cols: dict[str, list[float]] = {"t": [], **{k: [] for k in TELEMETRY_KEYS}}
     bad = 0
+    nonfinite: dict[str, float] = {}
     for line in text.decode("ascii", "replace").splitlines():
         if not line.startswith("T "):
             bad += bool(line.strip())
             continue
         try:
             kv = dict(item.split("=", 1) for item in line[2:].split())
-            row = {
-                "t": float(kv["t"]) - clock_base_s,
-                **{k: float(kv[k]) for k in TELEMETRY_KEYS if k in kv},
-            }
+            t = float(kv["t"]) - clock_base_s
+            row = {k: float(kv[k]) for k in TELEMETRY_KEYS if k in kv}
         except (ValueError, KeyError):
             bad += 1
             continue
-        if not all(math.isfinite(v) for v in row.values()):
+        if not math.isfinite(t):
             bad += 1
             continue
-        for k in cols:
-            cols[k].append(row.get(k, math.nan))
-    return {k: np.array(v, dtype=float) for k, v in cols.items()}, bad
+        cols["t"].append(t)
+        for k in TELEMETRY_KEYS:
+            v = row.get(k, math.nan)
+            if k in row and not math.isfinite(v):
+                nonfinite.setdefault(k, t)
+                v = math.nan
+            cols[k].append(v)
+    return {k: np.array(v, dtype=float) for k, v in cols.items()}, bad, nonfinite
 
 
 def _hold(t_grid: np.ndarray, t_src: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -230,10 +229,13 @@ def run(
     realtime: bool = False,
 ) -> RunResult:
     """Runs ``scenario``; the reference FC (configured from the scenario's [fc] table) when ``dut`` is
-    None. DUT stdout and stderr go to ``work_dir`` (a temporary folder when None). Lockstep virtual
-    time by default; ``realtime`` paces the run by the wall clock (a bench) and reports how late the
-    scheduled events ran."""
-    work = Path(work_dir) if work_dir else Path(tempfile.mkdtemp(prefix="rig-run-"))
+    None. The DUT's stdout, stderr and telemetry go to ``work_dir`` (with None, to a temporary folder
+    removed afterwards). Lockstep virtual time by default; ``realtime`` paces the run by the wall clock
+    (a bench) and reports how late the scheduled events ran."""
+    if work_dir is None:
+        with tempfile.TemporaryDirectory(prefix="rig-run-") as tmp:
+            return run(scenario, dut, seed, Path(tmp), wall_timeout, stall_timeout, corrupt_every, realtime)
+    work = Path(work_dir)
     work.mkdir(parents=True, exist_ok=True)
     notes: list[str] = []
     if dut is None:
@@ -246,7 +248,6 @@ def run(
         command = list(dut)
         if scenario.fc:
             notes.append("the scenario's [fc] table configures the reference FC only; ignored for this DUT")
-    exe = shutil.which(command[0])
     metadata: dict[str, object] = {
         "rig_version": __version__,
         "scenario": scenario.stem,
@@ -254,7 +255,7 @@ def run(
         "scenario_sha256": scenario.sha256,
         "seed": seed,
         "dut_command": shlex.join(command),
-        "dut_binary_sha256": _sha256(Path(exe)) if exe else None,
+        **firmware.identify(command),
         "capture": scenario.capture.transport,
         "duration": scenario.duration,
         "lockstep": not realtime,
@@ -267,49 +268,52 @@ def run(
         faults=fault_sets,
         mag_disturbance=scenario.mag_disturbance_at if any(scenario.mag_disturbance) else None,
     )
-    metadata["plant_fmu_sha256"] = _sha256(world.plant.fmu_path)
-    baro = world.board.baro.source
-    assert isinstance(baro, BaroModel)  # (the device takes any truth function; a world's is the model)
-    baro.noise_pa, baro.drift_pa_per_s = scenario.baro_noise_pa, scenario.baro_drift_pa_per_s
-
     stderr_path = work / "dut-stderr.txt"
-    with open(stderr_path, "w") as err, open(work / "dut-stdout.txt", "w") as out:
-        cfg = SessionConfig(
-            command=command,
-            serial=[RC_PATH, TELEMETRY_PATH],
-            duration=scenario.duration,
-            lockstep=not realtime,
-            seed=seed,
-            noise=scenario.noise,
-            wall_timeout=wall_timeout,
-            stall_timeout=stall_timeout,
-            stdout=out,
-            stderr=err,
-        )
-        session = Session(cfg, world)
-        try:
+    try:  # (the world holds the unzipped FMU: closing it removes the folder)
+        metadata["plant_fmu_sha256"] = world.plant.fmu_sha256
+        baro = world.board.baro.source
+        assert isinstance(baro, BaroModel)  # (the device takes any truth function; a world's is the model)
+        baro.noise_pa, baro.drift_pa_per_s = scenario.baro_noise_pa, scenario.baro_drift_pa_per_s
+        with open(stderr_path, "w") as err, open(work / "dut-stdout.txt", "w") as out:
+            cfg = SessionConfig(
+                command=command,
+                serial=[RC_PATH, TELEMETRY_PATH],
+                duration=scenario.duration,
+                lockstep=not realtime,
+                seed=seed,
+                noise=scenario.noise,
+                wall_timeout=wall_timeout,
+                stall_timeout=stall_timeout,
+                stdout=out,
+                stderr=err,
+            )
+            session = Session(cfg, world)
             capture = install_capture(session, scenario.capture, corrupt_every)
-        except ValueError:
-            world.close()
-            raise
-        rc = StickEmulator(RC_PATH)
-        rc.start(session)
-        wind = _Wind(scenario, seed)
-        if wind.active():
-            session.at(0.0, lambda s: wind.tick(s, 0.0))
-        rec = _Recorder(scenario, rc, wind, [f for fs in fault_sets.values() for f in fs.faults])
-        session.at(0.0, rec.tick)
-        for ev in scenario.timeline:
-            session.at(ev.t, _apply_event(rc, ev))
-        try:
-            outcome = session.run()
-        finally:
-            if capture is not None:
-                capture.close()
+            rc = StickEmulator(RC_PATH)
+            rc.start(session)
+            wind = _Wind(scenario, seed)
+            if wind.active():
+                session.at(0.0, lambda s: wind.tick(s, 0.0))
+            rec = _Recorder(scenario, rc, wind, [f for fs in fault_sets.values() for f in fs.faults])
+            session.at(0.0, rec.tick)
+            for ev in scenario.timeline:
+                session.at(ev.t, _apply_event(rc, ev))
+            try:
+                outcome = session.run()
+            finally:
+                if capture is not None:
+                    capture.close()
+    finally:
+        world.close()
     signals = rec.signals()
-    tel, bad = parse_telemetry(session.serial_output(TELEMETRY_PATH), session.dut_clock_base_s)
+    raw_telemetry = session.serial_output(TELEMETRY_PATH)
+    (work / "dut-telemetry.txt").write_bytes(raw_telemetry)  # the DUT's own words, kept as they came
+    tel, bad, nonfinite = parse_telemetry(raw_telemetry, session.dut_clock_base_s)
     if bad:
         notes.append(f"{bad} telemetry line(s) from the DUT did not parse and were skipped")
+    for key, since in nonfinite.items():
+        notes.append(f"the DUT reported {key} as not a number from sim t={since:.3f} s on (its telemetry, "
+                     "dut-telemetry.txt)")
     for k, name in TELEMETRY_KEYS.items():
         signals[name] = (
             _hold(signals["t"], tel["t"], tel[k]) if len(tel["t"]) else np.full(len(signals["t"]), math.nan)
@@ -356,25 +360,57 @@ def run(
         )
         for c in scenario.criteria
     ]
-    error = None
-    if outcome.verdict != "ok":
-        error = outcome.error or f"the DUT ended the run itself (status {outcome.dut_returncode})"
+    stderr = stderr_path.read_text(errors="replace")
+    error = _idle(outcome) if outcome.verdict == "ok" else None
+    if error:  # a DUT that never flew passes nothing, however still the vehicle stayed
         verdict = "error"
+        measurements = [dataclasses.replace(m, outcome=NOT_JUDGED, reason="the DUT did not fly the vehicle")
+                        for m in measurements]
+    elif outcome.verdict != "ok":
+        error = outcome.error or f"the DUT ended the run itself (status {outcome.dut_returncode})"
+        said = _last_words(stderr)
+        if outcome.dut_returncode is not None and said:
+            error += f"; the DUT said: {said}"
+        verdict = "interrupted" if outcome.verdict == "interrupted" else "error"
+        # a run that ended in error judged nothing: its measurements stay, none of them passed
+        measurements = [dataclasses.replace(m, outcome=NOT_JUDGED, reason="the run ended in error")
+                        for m in measurements]
     else:
         verdict = "pass" if all(m.outcome == "pass" for m in measurements) else "fail"
     notes += outcome.notes
     assert set(SIGNALS) <= set(signals), set(SIGNALS) - set(signals)
-    return RunResult(
-        scenario,
-        verdict,
-        error,
-        measurements,
-        signals,
-        metadata,
-        outcome,
-        stderr_path.read_text(errors="replace"),
-        notes,
-    )
+    return RunResult(scenario, verdict, error, measurements, signals, metadata, outcome, stderr, notes)
+
+
+def _idle(outcome: Outcome) -> str | None:
+    """Why a run that ended well still tested nothing, or None."""
+    if outcome.transactions == 0:
+        return ("the DUT never read a sensor (no I2C transfer reached the rig): nothing it did was a "
+                "flight under test")
+    if outcome.pwm_writes == 0:
+        return "the DUT never drove a motor (no sysfs PWM write reached the rig): nothing was flown"
+    return None
+
+
+def not_run(scenario: Scenario, seed: int, error: str) -> RunResult:
+    """The result of a scenario the rig could not fly at all (an error before the DUT started):
+    nothing recorded, nothing judged."""
+    empty = {name: np.zeros(0) for name in ("t", *SIGNALS)}
+    measurements = [
+        Measurement(c.name, c.metric, c.signal, math.nan, c.units, c.min, c.max, c.start, c.end, NOT_JUDGED,
+                    "the run did not take place")
+        for c in scenario.criteria
+    ]
+    metadata: dict[str, object] = {"rig_version": __version__, "scenario": scenario.stem,
+                                   "scenario_name": scenario.name, "scenario_sha256": scenario.sha256,
+                                   "seed": seed, "duration": scenario.duration}
+    return RunResult(scenario, "error", error, measurements, empty, metadata, None)
+
+
+def _last_words(stderr: str) -> str:
+    """The DUT's last line on stderr (its own reason for stopping, when it gave one), shortened."""
+    lines = [line.strip() for line in stderr.splitlines() if line.strip()]
+    return lines[-1][:300] if lines else ""
 
 
 def _apply_event(rc: StickEmulator, ev: Event) -> Callable[[Session], None]:

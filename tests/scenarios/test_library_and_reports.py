@@ -39,7 +39,7 @@ def test_rig_run_passes_the_library_and_writes_every_report(tmp_path: Path) -> N
             "rig_version",
             "plant_fmu_sha256",
             "dut_command",
-            "dut_binary_sha256",
+            "dut_firmware_sha256",
             "scenario_sha256",
             "seed",
         ):
