@@ -1,10 +1,11 @@
-"""``rig demo``: the main job until the scenario runner exists.
+"""``rig demo``: the plant FMU on its own, no DUT and no session, in a few seconds.
 
-It flies the plant FMU with no DUT: seed 000's roll-stand test (released at -70 deg, throttle
-1400 us), levelled by a minimal stand-in for the seed's double-loop PID (angle loop outside, rate
-loop inside, eq. 9-10 and the '+' mixer of eq. 15) until the reference flight controller lands; and
-an open-loop hover at the exact hover pulse width, then the same with a 1 % weaker ESC on motor 2,
-which an uncontrolled vehicle cannot survive. It prints a short summary.
+It flies seed 000's roll-stand test (released at -70 deg, throttle 1400 us), levelled by a minimal
+stand-in for the seed's double-loop PID (angle loop outside, rate loop inside, eq. 9-10 and the '+'
+mixer of eq. 15); an open-loop hover at the exact hover pulse width, which holds its altitude exactly;
+then the same with a 1 % weaker ESC on motor 2, which an uncontrolled vehicle cannot survive. It prints
+a short summary. The main job, the scenario library flown by the reference flight controller, is
+``rig run`` (``make demo``).
 """
 
 from __future__ import annotations
@@ -72,14 +73,22 @@ def main() -> int:
     hover = open_loop_hover()
     weak = open_loop_hover(weak_motor2=0.99)
     wall = time.perf_counter() - start
-    print("rig demo: plant FMU only (the scenario runner and the reference FC are still to come)")
+    print("rig demo: the plant FMU alone, no DUT (`rig run` flies the scenario library against the "
+          "reference FC)")
     print(f"  seed 000 roll stand, released at -70 deg, throttle 1400 us, stand-in PID:\n"
           f"    overshoot {stand['overshoot_deg']:+.1f} deg, inside +-2 deg after "
           f"{stand['settle_2deg_s']:.2f} s, roll after 5 s {stand['final_deg']:+.3f} deg")
     print(f"  open-loop hover at {hover_pwm():.2f} us from 10 m, 10 s:\n"
-          f"    altitude change {hover['altitude_change_m']:+.2e} m, roll {hover['roll_deg']:+.2e} deg")
+          f"    altitude change {_signed(hover['altitude_change_m'])} m, "
+          f"roll {_signed(hover['roll_deg'])} deg")
     print(f"  same with motor 2's ESC 1 pct weak:\n"
           f"    altitude change {weak['altitude_change_m']:+.1f} m, roll {weak['roll_deg']:+.1f} deg, "
           f"on ground: {bool(weak['on_ground'])}")
     print(f"  25 s of flight simulated in {wall:.2f} s wall ({25 / wall:.0f}x real time)")
     return 0
+
+
+def _signed(x: float) -> str:
+    """A small signed number; an exact zero as +0 (IEEE's -0.0 printed as "-0.00e+00" reads as a
+    drift that is not there)."""
+    return "+0" if x == 0 else f"{x:+.2e}"

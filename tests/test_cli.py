@@ -24,6 +24,8 @@ def test_demo_flies_the_roll_stand_and_the_hovers(fmu_path):
     hover = float(re.search(r"from 10 m, 10 s:\n\s+altitude change ([+-][\d.e+-]+) m", out).group(1))
     assert abs(hover) < 1e-6
     assert "on ground: True" in out  # the weak ESC brings the open-loop vehicle down
+    assert "still to come" not in out  # (the runner and the reference FC exist)
+    assert "-0.00e+00" not in out  # an exact zero reads as one
 
 
 def test_unknown_command_fails_with_usage():
