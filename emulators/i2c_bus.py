@@ -102,7 +102,10 @@ class I2CBus:
         with a bus fault (``acks(t)`` false) does not answer."""
         dev = self.devices.get(addr)
         if dev is None:
-            dev = next((d for d in (resolve(addr) for resolve in self.resolvers) if d is not None), None)
+            for resolve in self.resolvers:  # (a loop: mypyc turns a nested generator into a list)
+                dev = resolve(addr)
+                if dev is not None:
+                    break
         if dev is not None and t is not None and self._can_refuse(dev):
             if not dev.acks(t):  # type: ignore[attr-defined]
                 return None

@@ -25,7 +25,8 @@ import numpy as np
 import rig.session
 from scenarios.runner import run
 from scenarios.schema import load
-r = run(load(sys.argv[1]), work_dir=tempfile.mkdtemp(prefix="rig-flight-"))
+with tempfile.TemporaryDirectory(prefix="rig-flight-") as work:
+    r = run(load(sys.argv[1]), work_dir=work)
 h = hashlib.sha256(repr(r.measurements).encode())
 for name in sorted(r.signals):
     h.update(name.encode())
