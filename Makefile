@@ -10,8 +10,10 @@ CFLAGS_BENCH := -std=c11 -O2 -Wall -Wextra -Werror
 PLANT_SOURCES := $(wildcard plant/c/*.c plant/c/*.h plant/fmi2/*) plant/variables.py plant/build.py
 
 SHIM   := build/librigshim.so
-# the rig's C library: a CPython extension module, so its name carries the interpreter's suffix
-NATIVE := build/_rignative$(shell $(PYTHON) -c 'import importlib.machinery as m; print(m.EXTENSION_SUFFIXES[0])')
+# the C extension modules (the sensors' sampling chain; the plant's steps): their names carry the
+# interpreter's suffix
+EXT := $(shell $(PYTHON) -c 'import importlib.machinery as m; print(m.EXTENSION_SUFFIXES[0])')
+NATIVE := build/_rignative$(EXT) build/_plantsteps$(EXT)
 # the modules rig/compiled.py compiles with mypyc (its MODULES; a test checks that the lists agree)
 COMPILED := build/mypyc/manifest.json
 COMPILED_SOURCES := rig/protocol.py rig/session.py rig/world.py rig/rc.py emulators/registers.py \
@@ -38,8 +40,10 @@ $(SHIM): rig/shim/rigshim.c rig/shim/protocol.h rig/shim/keeper.c rig/shim/build
 	$(PY) -m rig.shim.build
 
 native: $(NATIVE)
-$(NATIVE): emulators/c/fastcalls.c emulators/c/sampling.c emulators/c/plant_steps.c emulators/native.py | venv
+build/_rignative$(EXT): emulators/c/fastcalls.c emulators/c/sampling.c emulators/native.py plant/native_build.py | venv
 	$(PY) -m emulators.native
+build/_plantsteps$(EXT): plant/c/steps_module.c plant/c/plant_steps.c plant/steps.py plant/native_build.py | venv
+	$(PY) -m plant.steps
 
 compiled: $(COMPILED)
 $(COMPILED): $(COMPILED_SOURCES) rig/compiled.py rig/mypyc_build.py | venv

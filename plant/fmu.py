@@ -45,8 +45,6 @@ from fmpy.fmi2 import (
 from fmpy.fmi2 import calloc as _calloc
 from fmpy.fmi2 import free as _free
 
-from emulators import native
-
 REPO_ROOT = Path(__file__).resolve().parent.parent
 
 #: Where ``make fmu`` puts the plant; ``RIG_PLANT_FMU`` overrides it.
@@ -60,7 +58,7 @@ class PlantError(RuntimeError):
 
 
 class _Steps(Structure):
-    """``struct rig_plant_steps`` (emulators/c/plant_steps.c): what several steps in one call need."""
+    """``struct rig_plant_steps`` (plant/c/plant_steps.c): what several steps in one call need."""
 
     _fields_ = [("set_real", c_void_p), ("do_step", c_void_p), ("get_real", c_void_p),
                 ("component", c_void_p), ("u_vr", c_void_p), ("u", c_void_p), ("n_u", c_size_t),
@@ -308,7 +306,7 @@ class Plant:
 
     def step_many(self, n: int, dt: float, write_inputs: bool = True, ring: np.ndarray | None = None,
                   first_row: int = 0) -> None:
-        """``n`` steps of ``dt`` with ``u`` unchanged, in one call into C (emulators/c/plant_steps.c):
+        """``n`` steps of ``dt`` with ``u`` unchanged, in one call into C (plant/c/plant_steps.c):
         the same FMI calls as ``n`` calls of ``step``, so the same result, at about a quarter of the
         cost. With ``ring`` (a C-contiguous float64 array of rows as long as ``y``, kept by the caller
         and passed again every time), ``y`` after step i is also copied into row
@@ -335,7 +333,9 @@ class Plant:
                        self._component.value, addressof(self._u_vr), addressof(self._u_buf), len(self.u),
                        addressof(self._y_vr), addressof(self._y_buf), len(self.y), addressof(self._t),
                        None, 0, 0, 0)
-        self._steps_fn = native.fast().plant_steps
+        from plant.steps import plant_steps  # (here: `python -m plant.steps` must not import itself first)
+
+        self._steps_fn = plant_steps()
         self._steps_at = addressof(steps)
         return steps
 

@@ -1,9 +1,9 @@
-/* The rig's C library as one CPython extension module, ``_rignative``: the sampling chain
- * (sampling.c) and the plant's stepping (plant_steps.c), built as this one translation unit.
+/* The emulators' C library as one CPython extension module, ``_rignative``: the sampling chain
+ * (sampling.c), built as this one translation unit (the plant's stepping is the plant's own module,
+ * plant/c/steps_module.c).
  *
  * Why: these entry points run several times per cycle of a flight controller (the IMU's block of
- * samples, its two low-pass filters, its data registers, the plant's steps, the magnetometer's
- * samples). Through ctypes each call cost 5-7 thousand instructions of argument conversion and libffi
+ * samples, its two low-pass filters, its data registers, the magnetometer's samples). Through ctypes each call cost 5-7 thousand instructions of argument conversion and libffi
  * set-up, around a few hundred of arithmetic: together about a third of the session's work per cycle.
  * Called as METH_FASTCALL functions they cost a few hundred. The set-up calls (sizes, init) stay on
  * ctypes (emulators/native.py loads this same file with ctypes.CDLL for those).
@@ -14,7 +14,6 @@
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
-#include "plant_steps.c"
 #include "sampling.c"
 
 static int args_ok(const char *name, Py_ssize_t nargs, Py_ssize_t want)
@@ -99,28 +98,11 @@ static PyObject *fc_channel_measure(PyObject *self, PyObject *const *a, Py_ssize
     return PyLong_FromLong(rig_channel_measure(c, n, t, truth, temperature, out));
 }
 
-/* plant_steps(steps, n, h, write_inputs, first_row) -> steps completed */
-static PyObject *fc_plant_steps(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
-{
-    (void)self;
-    if (!args_ok("plant_steps", nargs, 5))
-        return NULL;
-    struct rig_plant_steps *s = ptr(a[0]);
-    int32_t n = i32(a[1]);
-    double h = PyFloat_AsDouble(a[2]);
-    int32_t write_inputs = i32(a[3]);
-    int64_t first_row = PyLong_AsLongLong(a[4]);
-    if (PyErr_Occurred())
-        return NULL;
-    return PyLong_FromLong(rig_plant_steps(s, n, h, write_inputs, first_row));
-}
-
 static PyMethodDef methods[] = {
     {"imu_measure", (PyCFunction)(void (*)(void))fc_imu_measure, METH_FASTCALL, "rig_imu_measure"},
     {"lowpass_run", (PyCFunction)(void (*)(void))fc_lowpass_run, METH_FASTCALL, "rig_lowpass_run"},
     {"mpu_encode", (PyCFunction)(void (*)(void))fc_mpu_encode, METH_FASTCALL, "rig_mpu_encode"},
     {"channel_measure", (PyCFunction)(void (*)(void))fc_channel_measure, METH_FASTCALL, "rig_channel_measure"},
-    {"plant_steps", (PyCFunction)(void (*)(void))fc_plant_steps, METH_FASTCALL, "rig_plant_steps"},
     {NULL, NULL, 0, NULL},
 };
 

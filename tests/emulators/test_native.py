@@ -6,7 +6,8 @@ import os
 
 import pytest
 
-from emulators.native import SAMPLING_SOURCE, NativeBuildError, compile_shared, is_stale
+from emulators.native import SAMPLING_SOURCE
+from plant.native_build import NativeBuildError, compile_shared, is_stale
 
 
 def test_a_missing_compiler_is_named(tmp_path) -> None:
@@ -40,8 +41,6 @@ def test_the_per_cycle_entry_points_refuse_wrong_arguments_with_a_clear_error() 
     m = fast()
     with pytest.raises(TypeError, match="lowpass_run takes 6 arguments \\(2 given\\)"):
         m.lowpass_run(1, 2)
-    with pytest.raises(TypeError, match="plant_steps takes 5 arguments \\(0 given\\)"):
-        m.plant_steps()
     with pytest.raises(TypeError):  # a float where an address goes, before any C runs
         m.channel_measure(0.5, 1, 0, 0, 0, 0)
     with pytest.raises(TypeError):
@@ -54,3 +53,12 @@ def test_one_library_serves_both_ctypes_and_the_module() -> None:
     assert fast().__file__ == str(LIB)
     assert sampling()._name == str(LIB)
     assert sampling().rig_lowpass_max_depth() > 0
+
+
+def test_the_plant_steps_refuse_wrong_arguments_with_a_clear_error() -> None:
+    from plant.steps import plant_steps
+
+    with pytest.raises(TypeError, match="plant_steps takes 5 arguments \\(0 given\\)"):
+        plant_steps()()  # type: ignore[call-arg]
+    with pytest.raises(TypeError):
+        plant_steps()(0, 1, "a step", 1, 0)

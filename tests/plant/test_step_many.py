@@ -1,4 +1,4 @@
-"""``Plant.step_many``: several steps in one call into C (emulators/c/plant_steps.c) must be exactly
+"""``Plant.step_many``: several steps in one call into C (plant/c/plant_steps.c) must be exactly
 ``step`` called that many times (the second implementation it is checked against), and fail the way
 ``step`` fails."""
 

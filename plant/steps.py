@@ -1,0 +1,43 @@
+"""The plant's steps between two requests in one call into C (plant/c/plant_steps.c, as the extension
+module ``build/_plantsteps*.so``): built on first use, and again when a source is newer, so a fresh clone
+needs no separate step; ``python -m plant.steps`` (part of ``make native``) builds it explicitly."""
+
+from __future__ import annotations
+
+import functools
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+from plant.native_build import (
+    BUILD,
+    EXTENSION_SUFFIX,
+    NativeBuildError,
+    compile_extension,
+    is_stale,
+    load_extension,
+)
+
+C_DIR = Path(__file__).resolve().parent / "c"
+SOURCES = (C_DIR / "steps_module.c", C_DIR / "plant_steps.c")  # the module first: it includes the other
+MODULE_NAME = "_plantsteps"
+LIB = BUILD / f"{MODULE_NAME}{EXTENSION_SUFFIX}"
+
+
+def build() -> Path:
+    return compile_extension(SOURCES[:1], LIB, "the plant's stepping")
+
+
+@functools.cache
+def plant_steps() -> Callable[[int, int, float, int, int], int]:
+    """``plant_steps(steps_address, n, h, write_inputs, first_row) -> steps completed``."""
+    if is_stale(LIB, SOURCES):
+        build()
+    return load_extension(MODULE_NAME, LIB).plant_steps  # type: ignore[no-any-return]
+
+
+if __name__ == "__main__":
+    try:
+        print(build())
+    except NativeBuildError as e:
+        sys.exit(str(e))
