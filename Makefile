@@ -14,11 +14,9 @@ SHIM   := build/librigshim.so
 # interpreter's suffix
 EXT := $(shell $(PYTHON) -c 'import importlib.machinery as m; print(m.EXTENSION_SUFFIXES[0])')
 NATIVE := build/_rignative$(EXT) build/_plantsteps$(EXT)
-# the modules rig/compiled.py compiles with mypyc (its MODULES; a test checks that the lists agree)
+# the modules rig/compiled.py compiles with mypyc (its MODULES, read from there)
 COMPILED := build/mypyc/manifest.json
-COMPILED_SOURCES := rig/protocol.py rig/session.py rig/world.py rig/rc.py emulators/registers.py \
-	emulators/mpu6050.py emulators/hmc5883l.py emulators/ms5611.py emulators/i2c_bus.py \
-	scenarios/runner.py
+COMPILED_SOURCES := $(shell $(PYTHON) rig/compiled.py --sources)
 
 DUT_BIN := build/dut/fc
 

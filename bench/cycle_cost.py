@@ -27,8 +27,10 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from rig.compiled import install, status  # noqa: E402
+
+install()  # the compiled hot modules, before they are imported
 import rig.protocol as P  # noqa: E402
-from rig.compiled import status  # noqa: E402
 from rig.session import Session, SessionConfig, _Conn  # noqa: E402
 
 CYCLE_NS = 4_000_000

@@ -17,8 +17,10 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from rig.compiled import status  # noqa: E402
-from scenarios.runner import run  # noqa: E402
+from rig.compiled import install, status  # noqa: E402
+
+install()  # the compiled hot modules, before they are imported
+from rig.runner import run  # noqa: E402
 from scenarios.schema import load  # noqa: E402
 
 REPEATS = 3

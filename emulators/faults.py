@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -16,6 +17,11 @@ from emulators.i2c_bus import I2CDevice
 SIGNAL_KINDS = ("stuck", "noise_burst", "bias_step", "drift", "scale_error", "delay")
 BUS_KINDS = ("off", "intermittent", "garbage")
 KINDS = SIGNAL_KINDS + BUS_KINDS
+#: What a fault acts on: the sensor models' signals (accel, gyro, mag, baro) or a device on the bus
+#: (mpu, hmc, baro_bus: it stops answering, answers some of the time, or answers garbage)
+SIGNAL_TARGETS = ("accel", "gyro", "mag", "baro")
+BUS_TARGETS = ("mpu", "hmc", "baro_bus")
+TARGETS = SIGNAL_TARGETS + BUS_TARGETS
 
 
 @dataclass(frozen=True)
@@ -42,6 +48,27 @@ class Fault:
 
     def active(self, t: float) -> bool:
         return self.start <= t < self.end
+
+
+@dataclass(frozen=True)
+class TargetedFault:
+    """A fault and what it acts on: a scenario's ``[[faults]]`` entry."""
+
+    target: str
+    fault: Fault
+
+    def __post_init__(self) -> None:
+        if self.target not in TARGETS:
+            raise ValueError(f"unknown fault target {self.target!r}; known: {', '.join(TARGETS)}")
+
+
+def fault_sets(faults: Iterable[TargetedFault], seed: int) -> dict[str, FaultSet]:
+    """The faults grouped by target, each group a FaultSet with a seed of its own (derived from the
+    run's seed and the fault's position, so adding a fault elsewhere changes no other's randomness)."""
+    sets: dict[str, FaultSet] = {}
+    for i, f in enumerate(faults):
+        sets.setdefault(f.target, FaultSet(seed=seed * 1000 + 17 + i)).add(f.fault)
+    return sets
 
 
 @dataclass

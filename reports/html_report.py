@@ -11,7 +11,7 @@ import numpy as np
 
 from reports.svg_plot import plot
 from reports.values import fmt_limits, fmt_value
-from scenarios.runner import RunResult
+from scenarios.result import RunResult
 
 STYLE = """body{font-family:sans-serif;margin:2em;max-width:60em}table{border-collapse:collapse}
 td,th{border:1px solid #ccc;padding:3px 8px;text-align:left}.pass{background:#d9ead3}.fail{background:#f4cccc}

@@ -7,7 +7,7 @@ import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 
 from reports.values import fmt_limits, fmt_value
-from scenarios.runner import RunResult
+from scenarios.result import RunResult
 
 
 def render(results: Sequence[RunResult]) -> str:

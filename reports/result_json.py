@@ -6,7 +6,7 @@ import dataclasses
 import json
 
 from reports.values import json_number
-from scenarios.runner import RunResult
+from scenarios.result import RunResult
 
 FORMAT = "rig-result/1"
 

@@ -1,7 +1,7 @@
-"""The rig: sessions and their clock, DUT adapters, transports and the command line."""
+"""The rig: sessions and their clock, DUT adapters, transports, the scenario runner and the command line.
 
-from rig import compiled as _compiled
+The compiled hot modules (rig/compiled.py) are put in place by the entry points (the CLI, the tests'
+conftest, the benches) calling ``rig.compiled.install()``, never as a side effect of importing a package.
+"""
 
 __version__ = "0.1.0"
-
-_compiled.install()  # the session's hot modules from build/mypyc while they match their sources

@@ -6,7 +6,7 @@ import argparse
 import os
 import sys
 
-from rig import __version__, exec_cmd, run_cmd
+from rig import __version__, compiled
 
 EXIT_BROKEN_PIPE = 128 + 13  # as a shell reports a command ended by SIGPIPE
 
@@ -25,6 +25,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _dispatch(argv: list[str] | None) -> int:
+    compiled.install()  # the hot modules from build/mypyc, before the commands import them
+    from rig import exec_cmd, run_cmd
+
     parser = argparse.ArgumentParser(prog="rig", description="Quadrotor hardware-in-the-loop test rig")
     parser.add_argument("--version", action="version", version=f"rig {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)

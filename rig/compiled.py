@@ -14,6 +14,9 @@ stderr says so. ``RIG_PURE_PYTHON=1`` turns the compiled modules off (a second i
 against, and plain tracebacks).
 
 Built by ``python -m rig.mypyc_build`` (``make compiled``; part of make all, demo, test and bench).
+The entry points (rig/cli.py, tests/conftest.py, bench/) call ``install()`` before they import a hot
+module; importing a package installs nothing. This module imports only the standard library, so the
+Makefile reads the list from it (``python3 rig/compiled.py --sources``).
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ GROUP = "rig_hot"  # mypyc's shared runtime library is the extension ``rig_hot__
 #: What is compiled: the modules that run per DUT message or per scheduled event in lockstep.
 MODULES = ("rig.protocol", "rig.session", "rig.world", "rig.rc", "emulators.registers",
            "emulators.mpu6050", "emulators.hmc5883l", "emulators.ms5611", "emulators.i2c_bus",
-           "scenarios.runner")
+           "emulators.sbus", "rig.runner")
 
 
 def source_of(module: str) -> Path:
@@ -113,3 +116,8 @@ def install() -> None:
         return
     if MANIFEST.exists():
         sys.meta_path.insert(0, CompiledFinder())
+
+
+if __name__ == "__main__":  # the Makefile's list of sources (one place for it)
+    if sys.argv[1:] == ["--sources"]:
+        print(" ".join(str(source_of(m).relative_to(REPO)) for m in MODULES))

@@ -125,7 +125,7 @@ def plan(args: argparse.Namespace) -> Plan:
     problem): every scenario file, the DUT command, the reference FC's build, every CAN interface the
     suite would open, the output folder."""
     from rig.capture import check_can
-    from scenarios.runner import REFERENCE_FC
+    from rig.runner import REFERENCE_FC
 
     problems: list[str] = []
     scenarios: list[Scenario] = []
@@ -202,7 +202,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> int:
     from reports import html_report, junit, result_json, telemetry
-    from scenarios.runner import RunResult, not_run, run
+    from rig.runner import not_run, run
+    from scenarios.result import RunResult
 
     results: list[RunResult] = []
     stop: int | None = None  # the exit status a signal asked for
@@ -235,8 +236,8 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
         else:
             detail = f" failed: {'; '.join(failed)}" if failed else ""
         print(f" {r.verdict.upper()} ({wall:.1f} s wall, {rate:.0f}x){detail}", file=sys.stderr)
-        if r.verdict == "interrupted" and r.outcome is not None:
-            stop = r.outcome.exit_code
+        if r.verdict == "interrupted" and r.exit_code is not None:
+            stop = r.exit_code
             break
     left = [sc.stem for sc in suite.scenarios[len(results):]]
     (suite.out / "junit.xml").write_text(junit.render(results))

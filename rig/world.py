@@ -16,6 +16,7 @@ from typing import Final
 
 import numpy as np
 
+from emulators.faults import TARGETS as FAULT_TARGETS
 from emulators.faults import FaultSet, FaultyDevice
 from emulators.hmc5883l import HMC5883L
 from emulators.i2c_bus import I2CDevice, Msg
@@ -28,7 +29,6 @@ from plant import Plant
 STEP_NS: Final = 1_000_000
 HISTORY: Final = 256  # plant steps kept for devices catching up (256 ms at 1 ms)
 MOTORS: Final = 4
-FAULT_TARGETS = ("accel", "gyro", "mag", "baro", "mpu", "hmc", "baro_bus")
 G0: Final = 9.80665
 
 #: Datasheet noise: MPU-6050 accelerometer 400 µg/√Hz, gyroscope 0.005 °/s/√Hz; HMC5883L about 2 mG

@@ -1,6 +1,3 @@
-"""Scenarios: the file format and its checker, the recorded signals, the metrics and criteria, the
-runner, and the scenario library (``scenarios/library/*.toml``)."""
-
-from rig.compiled import install as _install_compiled
-
-_install_compiled()  # the hot modules from build/mypyc while they match their sources (rig/compiled.py)
+"""Scenarios, as data: the file format and its checker, the recorded signals, the metrics and criteria,
+what a run produced (``result.py``), and the scenario library (``scenarios/library/*.toml``). The runner
+that flies a scenario in a session is the rig's (rig/runner.py)."""

@@ -18,9 +18,10 @@ from pathlib import Path
 from typing import Any
 
 from emulators.faults import KINDS as FAULT_KINDS
+from emulators.faults import TARGETS as FAULT_TARGETS
+from emulators.faults import Fault, TargetedFault
+from emulators.sbus import STICKS
 from plant.variables import VARIABLES, check_parameters
-from rig.rc import STICKS
-from rig.world import FAULT_TARGETS
 from scenarios import fc_keys
 from scenarios.criteria import METRICS
 from scenarios.signals import SIGNALS
@@ -37,17 +38,6 @@ class ScenarioError(ValueError):
     def __init__(self, file: str, key: str, message: str) -> None:
         super().__init__(f"{file}: {key}: {message}" if key else f"{file}: {message}")
         self.file, self.key = file, key
-
-
-@dataclass(frozen=True)
-class Fault:
-    target: str
-    kind: str
-    start: float
-    end: float
-    magnitude: float = 0.0
-    period: float = 0.1
-    duty: float = 0.5
 
 
 @dataclass(frozen=True)
@@ -116,7 +106,7 @@ class Scenario:
     mag_disturbance_start: float
     mag_disturbance_end: float
     gusts: tuple[Gust, ...]
-    faults: tuple[Fault, ...]
+    faults: tuple[TargetedFault, ...]
     timeline: tuple[Event, ...]
     criteria: tuple[CriterionSpec, ...]
     capture: Capture
@@ -351,17 +341,15 @@ def load(path: str | Path) -> Scenario:
         end = c.number(f, "end", key, math.inf)
         if not end > start:
             raise c.fail(f"{key}.end", f"expected a time after start ({start:g} s), got {end:g}")
-        faults.append(
-            Fault(
-                c.string(f, "target", key, choices=FAULT_TARGETS),
-                c.string(f, "kind", key, choices=FAULT_KINDS),
-                start,
-                end,
-                c.number(f, "magnitude", key, 0.0),
-                c.number(f, "period", key, 0.1, positive=True),
-                c.number(f, "duty", key, 0.5, low=0, high=1),
-            )
-        )
+        target = c.string(f, "target", key, choices=FAULT_TARGETS)
+        kind = c.string(f, "kind", key, choices=FAULT_KINDS)
+        try:  # (the fault's own rules: a delay is not negative, …)
+            fault = Fault(kind, start, end, c.number(f, "magnitude", key, 0.0),
+                          c.number(f, "period", key, 0.1, positive=True),
+                          c.number(f, "duty", key, 0.5, low=0, high=1))
+        except ValueError as e:
+            raise c.fail(key, str(e)) from None
+        faults.append(TargetedFault(target, fault))
 
     gusts = []
     for i, g in enumerate(c.array(data, "gusts")):

@@ -7,7 +7,6 @@ import hashlib
 import importlib
 import json
 import os
-import re
 import subprocess
 import sys
 from pathlib import Path
@@ -22,8 +21,10 @@ SCENARIO = REPO / "scenarios" / "library" / "seed000_roll_stand.toml"
 FLIGHT = """
 import hashlib, sys, tempfile
 import numpy as np
+from rig import compiled
+compiled.install()
 import rig.session
-from scenarios.runner import run
+from rig.runner import run
 from scenarios.schema import load
 with tempfile.TemporaryDirectory(prefix="rig-flight-") as work:
     r = run(load(sys.argv[1]), work_dir=work)
@@ -92,10 +93,23 @@ def test_a_broken_manifest_means_no_compiled_modules(tmp_path: Path) -> None:
 
 
 def test_the_makefile_rebuilds_when_any_compiled_source_changes() -> None:
-    text = (REPO / "Makefile").read_text().replace("\\\n", " ")
-    listed = re.search(r"^COMPILED_SOURCES := (.*)$", text, re.M)
-    assert listed is not None
-    assert sorted(listed[1].split()) == sorted(str(source_of(m).relative_to(REPO)) for m in MODULES)
+    """The Makefile reads the list from rig/compiled.py (one place): what make sees is MODULES."""
+    done = subprocess.run(["make", "-s", "--no-print-directory", "--eval",
+                           "print-compiled-sources: ; @echo $(COMPILED_SOURCES)", "print-compiled-sources"],
+                          cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert sorted(done.stdout.split()) == sorted(str(source_of(m).relative_to(REPO)) for m in MODULES)
+
+
+def test_importing_the_packages_installs_no_import_hook() -> None:
+    """The hook is the entry points' to install (CLI, tests, benches), not a side effect of an import."""
+    code = ("import sys, plant, emulators, scenarios, reports, rig, rig.session, rig.world\n"
+            "from rig.compiled import CompiledFinder\n"
+            "print(any(isinstance(f, CompiledFinder) for f in sys.meta_path), rig.session.__file__)")
+    done = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    installed, session = done.stdout.split()
+    assert installed == "False" and session == str(source_of("rig.session"))
 
 
 def test_compiled_and_source_fly_the_same_flight_bit_for_bit() -> None:

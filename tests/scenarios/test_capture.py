@@ -20,7 +20,7 @@ from emulators.pwm_capture import (
     decode_serial,
     encode_serial,
 )
-from scenarios.runner import run
+from rig.runner import run
 from scenarios.schema import Capture, load
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"

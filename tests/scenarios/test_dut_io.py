@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.runner import parse_telemetry, run
+from rig.runner import parse_telemetry, run
 from scenarios.schema import load
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"

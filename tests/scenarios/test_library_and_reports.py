@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from reports.telemetry import read
-from scenarios.runner import run
+from rig.runner import run
 from scenarios.schema import load
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"

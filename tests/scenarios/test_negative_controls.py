@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from scenarios.runner import run
+from rig.runner import run
 from scenarios.schema import load
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"

@@ -15,27 +15,27 @@ import math
 import shlex
 import tempfile
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Final
 
 import numpy as np
 
-from emulators.faults import Fault as DeviceFault
-from emulators.faults import FaultSet
+from emulators.faults import Fault, fault_sets
 from emulators.sensor_models import BaroModel, Normals
-from plant.build import REPO_ROOT
+from plant.native_build import BUILD
 from rig import __version__, firmware
 from rig.capture import install_capture
 from rig.rc import StickEmulator
 from rig.session import Outcome, Session, SessionConfig
 from rig.world import World
 from scenarios.criteria import NOT_JUDGED, Measurement, measure
+from scenarios.result import RunResult
 from scenarios.schema import Event, Scenario
 from scenarios.signals import RECORD_PERIOD, SIGNALS
 
-# (the root from a module that is never compiled: this one may run from build/mypyc, rig/compiled.py)
-REFERENCE_FC: Final = REPO_ROOT / "build" / "dut" / "fc"
+# (the build folder from a module that is never compiled: this one may run from build/mypyc,
+# rig/compiled.py, where __file__ is not the source's)
+REFERENCE_FC: Final = BUILD / "dut" / "fc"
 RC_PATH: Final = "/dev/ttyRC0"
 TELEMETRY_PATH: Final = "/dev/ttyTEL0"
 WIND_PERIOD: Final = 0.01
@@ -48,31 +48,10 @@ TELEMETRY_KEYS = {
 }
 
 
-@dataclass
-class RunResult:
-    scenario: Scenario
-    verdict: str  # "pass" | "fail" | "error" | "interrupted" (a signal stopped the rig mid-run)
-    error: str | None
-    measurements: list[Measurement]
-    signals: dict[str, np.ndarray]
-    metadata: dict[str, object]
-    outcome: Outcome | None
-    stderr: str = ""
-    notes: list[str] = field(default_factory=list)
-
-
 def reference_config(scenario: Scenario) -> str:
     lines = [f"rc_path = {RC_PATH}", f"telemetry_path = {TELEMETRY_PATH}", "telemetry_every = 5"]
     lines += [f"{k} = {v}" for k, v in scenario.fc.items()]
     return "\n".join(lines) + "\n"
-
-
-def _fault_sets(scenario: Scenario, seed: int) -> dict[str, FaultSet]:
-    sets: dict[str, FaultSet] = {}
-    for i, f in enumerate(scenario.faults):
-        fs = sets.setdefault(f.target, FaultSet(seed=seed * 1000 + 17 + i))
-        fs.add(DeviceFault(f.kind, f.start, f.end, f.magnitude, f.period, f.duty))
-    return sets
 
 
 class _Wind:
@@ -110,7 +89,7 @@ class _Wind:
 class _Recorder:
     """Samples the plant, the motor inputs, the sticks and the scenario state on the 100 Hz grid."""
 
-    def __init__(self, scenario: Scenario, rc: StickEmulator, wind: _Wind, faults: list[DeviceFault]) -> None:
+    def __init__(self, scenario: Scenario, rc: StickEmulator, wind: _Wind, faults: list[Fault]) -> None:
         self.sc, self.rc, self.wind, self.faults = scenario, rc, wind, faults
         self.rows: list[tuple[float, ...]] = []
         self.k = 0
@@ -260,12 +239,12 @@ def run(
         "duration": scenario.duration,
         "lockstep": not realtime,
     }
-    fault_sets = _fault_sets(scenario, seed)
+    faults = fault_sets(scenario.faults, seed)
     world = World.at_rest(
         seed=seed,
         noise=scenario.noise,
         params=scenario.plant,
-        faults=fault_sets,
+        faults=faults,
         mag_disturbance=scenario.mag_disturbance_at if any(scenario.mag_disturbance) else None,
     )
     stderr_path = work / "dut-stderr.txt"
@@ -294,7 +273,7 @@ def run(
             wind = _Wind(scenario, seed)
             if wind.active():
                 session.at(0.0, lambda s: wind.tick(s, 0.0))
-            rec = _Recorder(scenario, rc, wind, [f for fs in fault_sets.values() for f in fs.faults])
+            rec = _Recorder(scenario, rc, wind, [f.fault for f in scenario.faults])
             session.at(0.0, rec.tick)
             for ev in scenario.timeline:
                 session.at(ev.t, _apply_event(rc, ev))
@@ -379,7 +358,8 @@ def run(
         verdict = "pass" if all(m.outcome == "pass" for m in measurements) else "fail"
     notes += outcome.notes
     assert set(SIGNALS) <= set(signals), set(SIGNALS) - set(signals)
-    return RunResult(scenario, verdict, error, measurements, signals, metadata, outcome, stderr, notes)
+    return RunResult(scenario, verdict, error, measurements, signals, metadata, outcome.exit_code, stderr,
+                     notes)
 
 
 def _idle(outcome: Outcome) -> str | None:
@@ -404,7 +384,7 @@ def not_run(scenario: Scenario, seed: int, error: str) -> RunResult:
     metadata: dict[str, object] = {"rig_version": __version__, "scenario": scenario.stem,
                                    "scenario_name": scenario.name, "scenario_sha256": scenario.sha256,
                                    "seed": seed, "duration": scenario.duration}
-    return RunResult(scenario, "error", error, measurements, empty, metadata, None)
+    return RunResult(scenario, "error", error, measurements, empty, metadata)
 
 
 def _last_words(stderr: str) -> str:

@@ -1,0 +1,39 @@
+"""One import direction (docs/design.md §2): plant <- emulators <- scenarios <- reports <- rig. A lower
+layer never imports a higher one, not even inside a function: every import of every module of the five
+packages is read from its source and checked."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+LAYERS = ("plant", "emulators", "scenarios", "reports", "rig")  # bottom to top
+
+
+def imports(path: Path) -> list[tuple[int, str]]:
+    """(line, imported module) for every import statement in the file, at any depth."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, a.name) for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            out.append((node.lineno, node.module))
+    return out
+
+
+def test_no_layer_imports_a_higher_one() -> None:
+    upward = []
+    for layer in LAYERS:
+        for path in sorted((REPO / layer).rglob("*.py")):
+            for line, module in imports(path):
+                top = module.split(".")[0]
+                if top in LAYERS and LAYERS.index(top) > LAYERS.index(layer):
+                    upward.append(f"{path.relative_to(REPO)}:{line} imports {module}")
+    assert not upward, "\n".join(upward)
+
+
+def test_the_check_sees_an_upward_arrow(tmp_path: Path) -> None:
+    bad = tmp_path / "m.py"
+    bad.write_text("def f():\n    from rig.session import Session\n    return Session\n")
+    assert imports(bad) == [(2, "rig.session")]
