@@ -32,6 +32,7 @@ from rig.compiled import install, status  # noqa: E402
 install()  # the compiled hot modules, before they are imported
 import rig.protocol as P  # noqa: E402
 from rig.session import Session, SessionConfig, _Conn  # noqa: E402
+from rig.world import World  # noqa: E402
 
 CYCLE_NS = 4_000_000
 
@@ -58,7 +59,7 @@ def _cycle(t_ns: int) -> bytes:
 
 def run_cycles(n: int) -> float:
     """Runs ``n`` cycles; returns CPU seconds per cycle."""
-    session = Session(SessionConfig(command=["true"], duration=1e6))
+    session = Session(SessionConfig(command=["true"], duration=1e6), World.at_rest())
     with tempfile.TemporaryDirectory(prefix="rig-cycle-") as tmp:
         session._open_shm(Path(tmp) / "shm")  # (mapped: the file may go at once)
     ours, dut = socket.socketpair()

@@ -77,10 +77,21 @@ def _v(name: str, causality: Causality, start: float, unit: str, description: st
     return Variable(name, causality, type, start, unit, description, field or name, valid)
 
 
+#: The rotors, numbered 1..MOTORS in the "+" order of docs/design.md §3 (1 front, 2 left, 3 rear,
+#: 4 right): each has an ESC input ``pwm{m}_us``, a health input ``motor_health{m}`` and outputs
+#: ``omega{m}`` and ``thrust{m}``. Everything that counts motors counts them from here.
+MOTORS = 4
+
+
+def pwm_input(motor: int) -> str:
+    """The ESC pulse-width input of motor ``motor`` (1..MOTORS)."""
+    return f"pwm{motor}_us"
+
+
 def _four(stem: str, causality: Causality, start: float, unit: str, description: str,
           field: str, suffix: str = "") -> list[Variable]:
     return [_v(f"{stem}{i}{suffix}", causality, start, unit, f"{description}, motor {i}",
-               f"{field}[{i - 1}]") for i in range(1, 5)]
+               f"{field}[{i - 1}]") for i in range(1, MOTORS + 1)]
 
 
 def _axes(names: tuple[str, str, str], causality: Causality, start: tuple[float, float, float],
@@ -178,6 +189,10 @@ _VR_BASE: dict[VarType, int] = {"Real": 0, "Integer": 1000, "Boolean": 2000}
 
 
 PARAMETERS: dict[str, Variable] = {v.name: v for v in VARIABLES if v.causality == "parameter"}
+PWM_INPUTS = tuple(pwm_input(m) for m in range(1, MOTORS + 1))
+#: The inputs a scenario sets (wind, external force and torque, motor health); the motors' pulse widths
+#: come from the DUT
+SCENARIO_INPUTS = tuple(v.name for v in VARIABLES if v.causality == "input" and v.name not in PWM_INPUTS)
 
 
 def check_parameters(values: Mapping[str, float]) -> str | None:

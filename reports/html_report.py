@@ -9,6 +9,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from plant.variables import MOTORS
 from reports.svg_plot import plot
 from reports.values import fmt_limits, fmt_value
 from scenarios.result import RunResult
@@ -67,7 +68,8 @@ def render(r: RunResult) -> str:
     parts.append(plot("yaw", t, [("yaw", s["yaw"], ""), ("yaw (DUT)", s["est_yaw"], "1 2")], "deg", shade))
     parts.append(plot("altitude", t, [("alt", s["alt"], ""), ("alt (DUT)", s["est_alt"], "1 2")], "m", shade))
     parts.append(
-        plot("motor commands", t, [(f"motor {m}", s[f"pwm{m}"], "") for m in range(1, 5)], "µs", shade)
+        plot("motor commands", t, [(f"motor {m}", s[f"pwm{m}"], "") for m in range(1, MOTORS + 1)], "µs",
+             shade)
     )
     parts.append("<h2>Run</h2><table>")
     for k, v in r.metadata.items():

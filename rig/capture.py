@@ -32,12 +32,12 @@ from emulators.pwm_capture import (
     decode_serial,
     encode_serial,
 )
+from plant.variables import MOTORS
 
 if TYPE_CHECKING:
     from rig.session import Session
     from scenarios.schema import Capture
 
-MOTORS = 4
 
 
 @dataclass
@@ -147,10 +147,9 @@ class CaptureLink:
             self.st.reasons.append(reason)
 
     def _apply(self, session: Session, first: int, widths: list[float]) -> None:
-        plant = session.world.plant
         for k, w in enumerate(widths):
             if first + k < MOTORS:
-                plant.u[plant.u_index[f"pwm{first + k + 1}_us"]] = w
+                session.world.set_motor(first + k, w)
         self.st.applied += 1
 
     def stats(self) -> dict[str, object]:

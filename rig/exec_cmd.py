@@ -114,15 +114,13 @@ def main(args: argparse.Namespace) -> int:
         parser.error(f"--param: the plant refuses it: {refused}")
     _writable(parser, "--log", args.log)
     _writable(parser, "--summary", args.summary)
-    cfg = SessionConfig(command=command, lockstep=not args.realtime, i2c_bus=args.bus,
-                        topology=args.topology, serial=args.serial, pwm_channels=args.pwm_channels,
-                        i2c_clock_hz=CLOCKS[args.i2c_clock],
-                        quantum_ns=args.quantum_ns, duration=args.duration, sim_timeout=args.sim_timeout,
-                        wall_timeout=args.wall_timeout, stall_timeout=args.stall_timeout, pin=args.pin,
-                        seed=args.seed, noise=not args.no_noise, plant_params=dict(args.param),
-                        log_path=args.log, allow_no_devices=args.allow_no_devices)
-    world = World.at_rest(seed=cfg.seed, topology=cfg.topology, noise=cfg.noise, params=cfg.plant_params,
-                          pwm_channels=cfg.pwm_channels)
+    cfg = SessionConfig(command=command, lockstep=not args.realtime, i2c_bus=args.bus, serial=args.serial,
+                        i2c_clock_hz=CLOCKS[args.i2c_clock], quantum_ns=args.quantum_ns,
+                        duration=args.duration, sim_timeout=args.sim_timeout, wall_timeout=args.wall_timeout,
+                        stall_timeout=args.stall_timeout, pin=args.pin, log_path=args.log,
+                        allow_no_devices=args.allow_no_devices)
+    world = World.at_rest(seed=args.seed, topology=args.topology, noise=not args.no_noise,
+                          params=dict(args.param), pwm_channels=args.pwm_channels)
     try:
         with interrupts.handled():
             outcome = Session(cfg, world).run()

@@ -21,8 +21,9 @@ from typing import Final
 import numpy as np
 
 from emulators.faults import Fault, fault_sets
-from emulators.sensor_models import BaroModel, Normals
+from emulators.sensor_models import Normals
 from plant.native_build import BUILD
+from plant.variables import MOTORS
 from rig import __version__, firmware
 from rig.capture import install_capture
 from rig.rc import StickEmulator
@@ -78,41 +79,41 @@ class _Wind:
             if g.start <= t <= g.start + g.duration:
                 shape = 0.5 * (1 - math.cos(2 * math.pi * (t - g.start) / g.duration))
                 w = [x + peak * shape for x, peak in zip(w, g.peak, strict=True)]
-        plant = session.world.plant
+        world = session.world
         for k, name in enumerate(("wind_n", "wind_e", "wind_d")):
-            plant.u[plant.u_index[name]] = w[k]
+            world.set_input(name, w[k])
         self.now = tuple(w)
         nxt = t + WIND_PERIOD
         session.at(nxt, lambda s: self.tick(s, nxt))
 
 
+#: The plant outputs the recorder reads, before the motors' pulse widths (World.probe)
+RECORDED = ("roll", "pitch", "yaw", "pd", "vd", "vn", "ve", "p", "q", "r")
+#: What each row holds after t, the outputs and the motors
+ROW_TAIL = ("on_ground", "roll_sp", "pitch_sp", "yaw_rate_sp", "throttle", "rc_link", "fault", "wind")
+
+
 class _Recorder:
     """Samples the plant, the motor inputs, the sticks and the scenario state on the 100 Hz grid."""
 
-    def __init__(self, scenario: Scenario, rc: StickEmulator, wind: _Wind, faults: list[Fault]) -> None:
-        self.sc, self.rc, self.wind, self.faults = scenario, rc, wind, faults
+    def __init__(self, scenario: Scenario, world: World, rc: StickEmulator, wind: _Wind,
+                 faults: list[Fault]) -> None:
+        self.sc, self.world, self.rc, self.wind, self.faults = scenario, world, rc, wind, faults
         self.rows: list[tuple[float, ...]] = []
         self.k = 0
-        self._cols: list[int] = []
-        self._pwm_cols: list[int] = []
+        self._probe = world.probe(RECORDED)
 
     def tick(self, session: Session) -> None:
-        plant = session.world.plant
-        if not self._cols:  # the plant's layout, looked up once (this runs at 100 Hz)
-            yi, ui = plant.y_index, plant.u_index
-            self._cols = [yi[n] for n in ("roll", "pitch", "yaw", "pd", "vd", "vn", "ve", "p", "q", "r")]
-            self._pwm_cols = [ui[f"pwm{m}_us"] for m in range(1, 5)]
-        y = plant.y.tolist()  # (one call; indexing the array made a numpy scalar per value)
-        roll, pitch, yaw, pd, vd, vn, ve, p, q, r = [y[i] for i in self._cols]
-        u = plant.u.tolist()
+        values = self._probe.read()
+        roll, pitch, yaw, pd, vd, vn, ve, p, q, r = values[:len(RECORDED)]
         t = self.k * RECORD_PERIOD
         st = self.rc.sticks
         faulted = any(f.active(t) for f in self.faults) or any(self.sc.mag_disturbance_at(t))
         self.rows.append(
             (
                 t, roll, pitch, yaw, -pd, -vd, math.hypot(vn, ve), p, q, r,
-                *[u[i] for i in self._pwm_cols],
-                float(plant.on_ground),
+                *values[len(RECORDED):],
+                float(self.world.on_ground),
                 st.roll * self.sc.max_angle_deg,
                 st.pitch * self.sc.max_angle_deg,
                 st.yaw * self.sc.max_yaw_rate_dps,
@@ -126,7 +127,9 @@ class _Recorder:
         session.at(self.k * RECORD_PERIOD, self.tick)
 
     def signals(self) -> dict[str, np.ndarray]:
-        a = np.array(self.rows, dtype=float).reshape(-1, 22)
+        first_motor = 10  # after t, roll, pitch, yaw, alt, climb, speed, p, q, r
+        tail = first_motor + MOTORS
+        a = np.array(self.rows, dtype=float).reshape(-1, tail + len(ROW_TAIL))
         deg = 180 / math.pi
         s = {
             "t": a[:, 0],
@@ -140,12 +143,12 @@ class _Recorder:
             "q": a[:, 8] * deg,
             "r": a[:, 9] * deg,
         }
-        for m in range(4):
-            s[f"pwm{m + 1}"] = a[:, 10 + m]
-        s["pwm_max"], s["pwm_min"] = a[:, 10:14].max(axis=1), a[:, 10:14].min(axis=1)
-        names = ("on_ground", "roll_sp", "pitch_sp", "yaw_rate_sp", "throttle", "rc_link", "fault", "wind")
-        for k, n in enumerate(names):
-            s[n] = a[:, 14 + k]
+        for m in range(MOTORS):
+            s[f"pwm{m + 1}"] = a[:, first_motor + m]
+        motors = a[:, first_motor:tail]
+        s["pwm_max"], s["pwm_min"] = motors.max(axis=1), motors.min(axis=1)
+        for k, n in enumerate(ROW_TAIL):
+            s[n] = a[:, tail + k]
         s["roll_track_error"], s["pitch_track_error"] = s["roll"] - s["roll_sp"], s["pitch"] - s["pitch_sp"]
         s["tilt"] = np.maximum(np.abs(s["roll"]), np.abs(s["pitch"]))
         return s
@@ -246,21 +249,18 @@ def run(
         params=scenario.plant,
         faults=faults,
         mag_disturbance=scenario.mag_disturbance_at if any(scenario.mag_disturbance) else None,
+        baro_noise_pa=scenario.baro_noise_pa,
+        baro_drift_pa_per_s=scenario.baro_drift_pa_per_s,
     )
     stderr_path = work / "dut-stderr.txt"
-    try:  # (the world holds the unzipped FMU: closing it removes the folder)
+    try:  # (the world holds the plant, whose instance close() frees)
         metadata["plant_fmu_sha256"] = world.plant.fmu_sha256
-        baro = world.board.baro.source
-        assert isinstance(baro, BaroModel)  # (the device takes any truth function; a world's is the model)
-        baro.noise_pa, baro.drift_pa_per_s = scenario.baro_noise_pa, scenario.baro_drift_pa_per_s
         with open(stderr_path, "w") as err, open(work / "dut-stdout.txt", "w") as out:
             cfg = SessionConfig(
                 command=command,
                 serial=[RC_PATH, TELEMETRY_PATH],
                 duration=scenario.duration,
                 lockstep=not realtime,
-                seed=seed,
-                noise=scenario.noise,
                 wall_timeout=wall_timeout,
                 stall_timeout=stall_timeout,
                 stdout=out,
@@ -273,7 +273,7 @@ def run(
             wind = _Wind(scenario, seed)
             if wind.active():
                 session.at(0.0, lambda s: wind.tick(s, 0.0))
-            rec = _Recorder(scenario, rc, wind, [f.fault for f in scenario.faults])
+            rec = _Recorder(scenario, world, rc, wind, [f.fault for f in scenario.faults])
             session.at(0.0, rec.tick)
             for ev in scenario.timeline:
                 session.at(ev.t, _apply_event(rc, ev))
@@ -399,8 +399,7 @@ def _apply_event(rc: StickEmulator, ev: Event) -> Callable[[Session], None]:
             setattr(rc.sticks, k, v)
         if ev.link is not None:
             rc.link = ev.link
-        plant = session.world.plant
         for k, v in ev.inputs.items():
-            plant.u[plant.u_index[k]] = v
+            session.world.set_input(k, v)
 
     return apply

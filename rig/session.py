@@ -62,9 +62,7 @@ class SessionConfig:
     command: list[str]
     lockstep: bool = True
     i2c_bus: int = 1
-    topology: str = "gy86"
     serial: list[str] = field(default_factory=list)   # device paths the DUT opens, served by ptys
-    pwm_channels: int = 8
     i2c_clock_hz: int = 0             # 0: transfers take no sim time; 100_000 or 400_000: bus time
     quantum_ns: int = 1000            # sim time a clock read costs
     duration: float | None = None     # sim seconds; then the DUT is stopped and the run is over
@@ -72,9 +70,6 @@ class SessionConfig:
     wall_timeout: float = 600.0
     stall_timeout: float = 30.0       # lockstep: wall seconds with no request and no clock read
     pin: bool | None = None           # DUT and session on one CPU core; None: in lockstep only
-    seed: int = 0
-    noise: bool = True
-    plant_params: dict[str, float] = field(default_factory=dict)
     log_path: Path | None = None
     allow_no_devices: bool = False
     env: dict[str, str] | None = None
@@ -140,10 +135,10 @@ class _Stop(Exception):
 
 
 class Session:
-    def __init__(self, config: SessionConfig, world: World | None = None) -> None:
+    def __init__(self, config: SessionConfig, world: World) -> None:
+        """``world`` is the DUT's world (plant, sensors, board: World.at_rest); the session steps it."""
         self.cfg = config
-        self.world = world or World.at_rest(seed=config.seed, topology=config.topology, noise=config.noise,
-                                            params=config.plant_params, pwm_channels=config.pwm_channels)
+        self.world = world
         if len(self.world.pwm) > P.PWM_MAX:
             raise ValueError(f"at most {P.PWM_MAX} PWM channels")
         self._events: list[tuple[int, int, Callable[[Session], None]]] = []

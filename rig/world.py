@@ -25,10 +25,10 @@ from emulators.ms5611 import MS5611
 from emulators.sensor_models import AxisErrors, BaroModel, ImuModel, MagModel, TruthRow
 from emulators.topology import Board, build_board
 from plant import Plant
+from plant.variables import MOTORS, PWM_INPUTS, SCENARIO_INPUTS
 
 STEP_NS: Final = 1_000_000
 HISTORY: Final = 256  # plant steps kept for devices catching up (256 ms at 1 ms)
-MOTORS: Final = 4
 G0: Final = 9.80665
 
 #: Datasheet noise: MPU-6050 accelerometer 400 µg/√Hz, gyroscope 0.005 °/s/√Hz; HMC5883L about 2 mG
@@ -73,6 +73,18 @@ class _WorldTruth:
         return self.world.row_addresses(times)
 
 
+class Probe:
+    """Some plant outputs and the motors' pulse widths, read together (the recorder's 100 Hz row): one
+    list conversion of each buffer per read, not a numpy scalar per value."""
+
+    def __init__(self, plant: Plant, outputs: list[int], motors: list[int]) -> None:
+        self._plant, self._y, self._u = plant, outputs, motors
+
+    def read(self) -> list[float]:
+        y, u = self._plant.y.tolist(), self._plant.u.tolist()
+        return [y[i] for i in self._y] + [u[i] for i in self._u]
+
+
 @dataclass
 class World:
     plant: Plant
@@ -88,7 +100,8 @@ class World:
         self._hist_addr, self._row_bytes = self._hist.ctypes.data, self._hist.strides[0]
         self._k0 = self._k
         self._hist[self._k % HISTORY] = self.plant.y
-        self._u_pwm = [self.plant.u_index[f"pwm{m + 1}_us"] for m in range(MOTORS)]
+        self._u_pwm = [self.plant.u_index[name] for name in PWM_INPUTS]
+        self._u_named = {name: self.plant.u_index[name] for name in SCENARIO_INPUTS}
 
     @classmethod
     def at_rest(
@@ -100,15 +113,18 @@ class World:
         pwm_channels: int = 8,
         faults: Mapping[str, FaultSet] | None = None,
         mag_disturbance: Callable[[float], tuple[float, float, float]] | None = None,
+        baro_noise_pa: float = 0.0,
+        baro_drift_pa_per_s: float = 0.0,
     ) -> World:
         """The default world of ``rig exec``: the vehicle resting on the ground, motors off, a GY-86.
         ``faults`` by name: signal faults "accel", "gyro", "mag", "baro" act in the sensor models; bus
-        faults "mpu", "hmc", "baro_bus" wrap the device on the bus."""
+        faults "mpu", "hmc", "baro_bus" wrap the device on the bus. The barometer's noise and drift
+        are its model's (the barometer is exact by default, so a reading can be checked to the pascal)."""
         faults = dict(faults or {})
         unknown = set(faults) - set(FAULT_TARGETS)
         if unknown:
             raise ValueError(f"unknown fault target(s) {sorted(unknown)}; known: {', '.join(FAULT_TARGETS)}")
-        plant = Plant(params=params or {}, inputs={f"pwm{m + 1}_us": 0.0 for m in range(MOTORS)})
+        plant = Plant(params=params or {}, inputs=dict.fromkeys(PWM_INPUTS, 0.0))
 
         truth = _WorldTruth(plant)  # the models need the world that holds them
 
@@ -128,7 +144,8 @@ class World:
             faults=faults.get("mag", FaultSet()),
             disturbance=mag_disturbance or (lambda t: (0.0, 0.0, 0.0)),
         )
-        baro = BaroModel(truth, seed=seed + 2, faults=faults.get("baro", FaultSet()))
+        baro = BaroModel(truth, seed=seed + 2, faults=faults.get("baro", FaultSet()), noise_pa=baro_noise_pa,
+                         drift_pa_per_s=baro_drift_pa_per_s)
         mpu, hmc, ms = MPU6050(imu), HMC5883L(mag), MS5611(baro, seed=seed + 3)
         on_bus: dict[str, I2CDevice] = {"mpu": mpu, "hmc": hmc, "baro": ms}
         wrap: dict[str, I2CDevice] = {
@@ -178,10 +195,32 @@ class World:
         return self.board.bus.transfer(msgs, t_ns * 1e-9)
 
     def apply_pwm(self, channel: int) -> None:
-        """Channels 0..3 drive motors 1..4 at once, unless a capture link (rig/capture.py) stands
-        between them and sets ``direct_pwm`` False."""
+        """Channels 0..MOTORS-1 drive motors 1..MOTORS at once, unless a capture link (rig/capture.py)
+        stands between them and sets ``direct_pwm`` False."""
         if channel < MOTORS and self.direct_pwm:
             self.plant.u[self._u_pwm[channel]] = self.pwm[channel].pulse_us()
+
+    # ---- the scenario's side: what the world accepts from outside, by name ---------------------
+
+    def set_motor(self, motor: int, pulse_us: float) -> None:
+        """The ESC pulse of motor ``motor`` (0-based, as the PWM channels) from a capture link."""
+        self.plant.u[self._u_pwm[motor]] = pulse_us
+
+    def set_input(self, name: str, value: float) -> None:
+        """One of the plant's scenario inputs by name (plant.variables.SCENARIO_INPUTS: wind, external
+        force and torque, motor health); it acts from the next plant step."""
+        index = self._u_named.get(name)
+        if index is None:
+            raise KeyError(f"{name!r} is not an input of the world; known: {', '.join(self._u_named)}")
+        self.plant.u[index] = value
+
+    def probe(self, outputs: Sequence[str]) -> Probe:
+        """Reads the named plant outputs and the motors' pulse widths (in that order) in one call."""
+        return Probe(self.plant, [self.plant.y_index[n] for n in outputs], self._u_pwm)
+
+    @property
+    def on_ground(self) -> bool:
+        return self.plant.on_ground
 
     def outputs(self) -> dict[str, float]:
         return self.plant.outputs()

@@ -21,13 +21,13 @@ from emulators.faults import KINDS as FAULT_KINDS
 from emulators.faults import TARGETS as FAULT_TARGETS
 from emulators.faults import Fault, TargetedFault
 from emulators.sbus import STICKS
-from plant.variables import VARIABLES, check_parameters
+from plant.variables import SCENARIO_INPUTS, VARIABLES, check_parameters
 from scenarios import fc_keys
 from scenarios.criteria import METRICS
 from scenarios.signals import SIGNALS
 
 PLANT_PARAMETERS = {v.name for v in VARIABLES if v.causality == "parameter"}
-PLANT_INPUTS = {v.name for v in VARIABLES if v.causality == "input"} - {f"pwm{m}_us" for m in range(1, 5)}
+PLANT_INPUTS = set(SCENARIO_INPUTS)
 LINK_STATES = ("ok", "lost", "failsafe")
 CAPTURES = ("direct", "can", "serial")
 

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from plant.variables import MOTORS
+
 RECORD_PERIOD = 0.01  # s: 100 Hz, fine enough for rise times of ~0.1 s
 
 
@@ -27,9 +29,10 @@ SIGNALS: dict[str, Signal] = {
     "p": Signal("deg/s", "true body roll rate"),
     "q": Signal("deg/s", "true body pitch rate"),
     "r": Signal("deg/s", "true body yaw rate"),
-    **{f"pwm{m}": Signal("us", f"pulse width applied to motor {m} (after capture)") for m in range(1, 5)},
-    "pwm_max": Signal("us", "largest of the four motor pulse widths"),
-    "pwm_min": Signal("us", "smallest of the four motor pulse widths"),
+    **{f"pwm{m}": Signal("us", f"pulse width applied to motor {m} (after capture)")
+       for m in range(1, MOTORS + 1)},
+    "pwm_max": Signal("us", "largest of the motors' pulse widths"),
+    "pwm_min": Signal("us", "smallest of the motors' pulse widths"),
     "on_ground": Signal("", "1 while the vehicle rests on the ground"),
     "roll_sp": Signal("deg", "roll stick as an angle (stick x rc.max_angle_deg)"),
     "pitch_sp": Signal("deg", "pitch stick as an angle"),

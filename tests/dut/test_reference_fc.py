@@ -53,7 +53,7 @@ def run_fc(tmp_path: Path, fc: Path, config: str, world_setup: Callable[[World],
     with open(err, "w") as ferr:
         cfg = SessionConfig(command=[str(fc), str(conf)], serial=list(serial), duration=duration,
                             log_path=log, stderr=ferr)
-        session = Session(cfg)
+        session = Session(cfg, World.at_rest())
         if world_setup:
             world_setup(session.world)
         for t, fn in events:

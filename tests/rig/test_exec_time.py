@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from rig.session import EPOCH_NS, MONO_BASE_NS, NS, Session, SessionConfig
+from rig.world import World
 from tests.rig.helpers import DUTS, PY, rig_exec
 
 QUANTUM = 1000  # ns per clock read (the default)
@@ -91,7 +92,7 @@ def test_a_polling_dut_wakes_when_the_session_writes_its_serial_port(tmp_path: P
     out = tmp_path / "out.txt"
     with open(out, "w") as f:
         cfg = SessionConfig(command=[PY, str(DUTS / "serial_echo.py")], serial=["/dev/ttyRC0"], stdout=f)
-        session = Session(cfg)
+        session = Session(cfg, World.at_rest())
         session.at(0.5, lambda s: s.serial_write("/dev/ttyRC0", b"hello"))
         outcome = session.run()
     assert outcome.verdict == "ok", outcome.error
@@ -110,7 +111,7 @@ def test_bytes_written_during_a_sleep_are_there_when_it_ends(tmp_path: Path) -> 
     with open(out, "w") as f:
         cfg = SessionConfig(command=[PY, str(DUTS / "sleep_then_read.py")], serial=["/dev/ttyRC0"], stdout=f,
                             log_path=log)
-        session = Session(cfg)
+        session = Session(cfg, World.at_rest())
         session.at(0.5, lambda s: s.serial_write("/dev/ttyRC0", b"sbus"))
         outcome = session.run()
     assert outcome.verdict == "ok", outcome.error

@@ -1,0 +1,35 @@
+"""The world takes what a scenario may change by name, and nothing else (issue 17: nothing outside the
+world reaches into the plant's input buffer)."""
+
+from __future__ import annotations
+
+import pytest
+
+from plant.variables import MOTORS, PWM_INPUTS, SCENARIO_INPUTS
+from rig.world import World
+
+
+def test_scenario_inputs_act_by_name_and_others_are_refused() -> None:
+    world = World.at_rest(params={"stand": 0, "pd0": -10.0}, noise=False)
+    try:
+        assert set(SCENARIO_INPUTS) >= {"wind_n", "f_ext_d", "tau_ext_z", "motor_health1"}
+        assert not set(SCENARIO_INPUTS) & set(PWM_INPUTS) and len(PWM_INPUTS) == MOTORS
+        world.set_input("f_ext_e", 2.4)  # 2 m/s^2 east on 1.2 kg, against 0.25 N.s/m of drag
+        world.advance_to(500_000_000)
+        assert 0.8 < world.outputs()["ve"] < 1.0
+        with pytest.raises(KeyError, match="'pwm1_us' is not an input of the world"):
+            world.set_input("pwm1_us", 1500.0)  # the DUT's (or a capture link's): set_motor
+        with pytest.raises(KeyError, match="'wind_x'"):
+            world.set_input("wind_x", 1.0)
+    finally:
+        world.close()
+
+
+def test_a_probe_reads_outputs_then_motors() -> None:
+    world = World.at_rest(noise=False)
+    try:
+        world.set_motor(2, 1234.0)
+        values = world.probe(["pd", "qw"]).read()
+        assert values == [0.0, 1.0, 0.0, 0.0, 1234.0, 0.0]
+    finally:
+        world.close()
