@@ -70,6 +70,8 @@ DECLARE_REAL(int, ioctl, int, unsigned long, ...);
 DECLARE_REAL(int, dup, int);
 DECLARE_REAL(int, dup2, int, int);
 DECLARE_REAL(int, dup3, int, int, int);
+DECLARE_REAL(int, fcntl, int, int, ...);
+DECLARE_REAL(int, fcntl64, int, int, ...);
 DECLARE_REAL(int, stat, const char *, struct stat *);
 DECLARE_REAL(int, stat64, const char *, struct stat64 *);
 DECLARE_REAL(int, lstat, const char *, struct stat *);
@@ -955,6 +957,37 @@ EXPORT int dup3(int fd, int to, int flags)
         copy_fake(fd, r);
     }
     return r;
+}
+
+/* fcntl's F_DUPFD and F_DUPFD_CLOEXEC are dups too: shells save a descriptor they redirect that way
+   (dash: fcntl(1, F_DUPFD_CLOEXEC, 10)) and dup2 it back afterwards. Programs built with 64-bit file
+   offsets call fcntl64. The argument is an int or a pointer: passed on as it came. */
+static int fcntl_via(int fd, int cmd, void *arg, int (*real)(int, int, ...))
+{
+    int r = real(fd, cmd, arg);
+    if (r >= 0 && (cmd == F_DUPFD || cmd == F_DUPFD_CLOEXEC)) {
+        drop_fake(r);
+        copy_fake(fd, r);
+    }
+    return r;
+}
+
+EXPORT int fcntl(int fd, int cmd, ...)
+{
+    va_list ap;
+    va_start(ap, cmd);
+    void *arg = va_arg(ap, void *);
+    va_end(ap);
+    return fcntl_via(fd, cmd, arg, LOAD(fcntl));
+}
+
+EXPORT int fcntl64(int fd, int cmd, ...)
+{
+    va_list ap;
+    va_start(ap, cmd);
+    void *arg = va_arg(ap, void *);
+    va_end(ap);
+    return fcntl_via(fd, cmd, arg, LOAD(fcntl64));
 }
 
 /* ---------------------------------------------------------------- stat and access */
