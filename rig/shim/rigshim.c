@@ -11,6 +11,7 @@
  * PWM writes never wait for the session (DESIGN.md section 6).
  */
 #define _GNU_SOURCE
+#include <dirent.h>
 #include <dlfcn.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -29,6 +30,7 @@
 #include <sys/select.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
+#include <sys/syscall.h>
 #include <sys/sysmacros.h>
 #include <sys/time.h>
 #include <sys/un.h>
@@ -110,6 +112,12 @@ static void *resolve(const char *name)
 
 /* ---------------------------------------------------------------- configuration */
 
+static int errno_ret(int err)
+{
+    errno = err;
+    return -1;
+}
+
 static int active;              /* RIG_SOCKET set: redirect */
 static int lockstep;            /* RIG_LOCKSTEP=1: virtual time */
 static char sock_path[108];
@@ -122,6 +130,7 @@ static struct {
 } serial_map[MAX_SERIAL];
 static int n_serial;
 static pthread_mutex_t lock = PTHREAD_MUTEX_INITIALIZER;
+static char fakes_dir[PATH_MAX]; /* RIG_FAKES: the session's folder of backing files (see open_fake) */
 static int ahead; /* lockstep: a sleep moved the clock in a notice the session has not answered yet */
 static int sock = -1;
 static pid_t sock_pid;
@@ -145,6 +154,7 @@ static void parse_serial(const char *spec)
    A fork's child forgets it (pthread_atfork); vfork and posix_spawn children only exec. */
 static pid_t own_pid;
 static void forget_pid(void) { own_pid = 0; }
+static void adopt_inherited_fakes(void);
 static pid_t self_pid(void)
 {
     if (!own_pid)
@@ -185,8 +195,12 @@ __attribute__((constructor)) static void shim_init(void)
     parse_serial(getenv("RIG_SERIAL"));
     const char *ls = getenv("RIG_LOCKSTEP");
     lockstep = ls && strcmp(ls, "1") == 0;
+    const char *fk = getenv("RIG_FAKES");
+    if (fk && fk[0] == '/' && strlen(fk) < sizeof fakes_dir - 64)
+        strcpy(fakes_dir, fk);
     pthread_atfork(NULL, NULL, forget_pid);
     active = 1;
+    adopt_inherited_fakes();
 }
 
 /* ---------------------------------------------------------------- the socket */
@@ -603,11 +617,14 @@ EXPORT int epoll_pwait(int epfd, struct epoll_event *ev, int max, int timeout, c
 
 enum kind { K_NONE, K_I2C, K_PWM_ATTR, K_PWM_DIR, K_SERIAL };
 enum pwm_attr { A_EXPORT, A_UNEXPORT, A_NPWM, A_PERIOD, A_DUTY, A_ENABLE, A_POLARITY };
+#define N_ATTRS (A_POLARITY + 1)
+static const char *const attr_names[N_ATTRS] = {"export", "unexport", "npwm", "period", "duty_cycle", "enable",
+                                                "polarity"};
 
 struct target {
     enum kind kind;
     int bus;         /* K_I2C */
-    int channel;     /* K_PWM_*: -1 for the chip itself */
+    int channel;     /* K_PWM_*: -1 for the chip itself, -2 for /sys/class/pwm */
     enum pwm_attr attr;
     const char *to;  /* K_SERIAL: the pty */
 };
@@ -623,7 +640,18 @@ static int parse_uint(const char *s, const char **end)
     return (int)v;
 }
 
-static struct target classify(const char *path)
+/* The attribute "/name" among from..to-1, or N_ATTRS. */
+static int attr_named(const char *rest, int from, int to)
+{
+    for (int a = from; rest[0] == '/' && a < to; a++)
+        if (strcmp(rest + 1, attr_names[a]) == 0)
+            return a;
+    return N_ATTRS;
+}
+
+/* What a path names. A pwmN path exists only while the channel is exported, unless any_channel (a
+   descriptor inherited across exec names its file even after an unexport, as an open file does). */
+static struct target classify_path(const char *path, int any_channel)
 {
     struct target t = {.kind = K_NONE};
     if (!active || !path)
@@ -658,31 +686,44 @@ static struct target classify(const char *path)
         t.kind = K_PWM_DIR;
         return t;
     }
-    static const char *chip_attrs[] = {"/export", "/unexport", "/npwm"};
-    for (int a = 0; a < 3; a++)
-        if (strcmp(rest, chip_attrs[a]) == 0) {
-            t.kind = K_PWM_ATTR;
-            t.attr = (enum pwm_attr)a;
-            return t;
-        }
+    int a = attr_named(rest, A_EXPORT, A_PERIOD);
+    if (a != N_ATTRS) {
+        t.kind = K_PWM_ATTR;
+        t.attr = (enum pwm_attr)a;
+        return t;
+    }
     if (strncmp(rest, "/pwm", 4) != 0)
         return t;
     int ch = parse_uint(rest + 4, &rest);
-    if (ch < 0 || ch >= (int)shm->npwm || !shm->pwm[ch].exported)
+    if (ch < 0 || ch >= (int)shm->npwm || (!any_channel && !shm->pwm[ch].exported))
         return t; /* not exported: the file does not exist (ENOENT from the real call) */
     t.channel = ch;
     if (*rest == 0 || strcmp(rest, "/") == 0) {
         t.kind = K_PWM_DIR;
         return t;
     }
-    static const char *ch_attrs[] = {"/period", "/duty_cycle", "/enable", "/polarity"};
-    for (int a = 0; a < 4; a++)
-        if (strcmp(rest, ch_attrs[a]) == 0) {
-            t.kind = K_PWM_ATTR;
-            t.attr = (enum pwm_attr)(A_PERIOD + a);
-            return t;
-        }
+    a = attr_named(rest, A_PERIOD, N_ATTRS);
+    if (a != N_ATTRS) {
+        t.kind = K_PWM_ATTR;
+        t.attr = (enum pwm_attr)a;
+    }
     return t;
+}
+
+static struct target classify(const char *path) { return classify_path(path, 0); }
+
+/* The path a target is known by (the kernel's name for the file). */
+static void target_path(const struct target *t, char *buf, size_t n)
+{
+    const char *sep = t->kind == K_PWM_ATTR ? "/" : "", *attr = t->kind == K_PWM_ATTR ? attr_names[t->attr] : "";
+    if (t->kind == K_I2C)
+        snprintf(buf, n, "/dev/i2c-%d", t->bus);
+    else if (t->channel == -2)
+        snprintf(buf, n, "/sys/class/pwm");
+    else if (t->channel == -1)
+        snprintf(buf, n, "/sys/class/pwm/pwmchip%d%s%s", pwm_chip, sep, attr);
+    else
+        snprintf(buf, n, "/sys/class/pwm/pwmchip%d/pwm%d%s%s", pwm_chip, t->channel, sep, attr);
 }
 
 /* Only absolute paths are redirected (openat with a directory and a relative path passes through). */
@@ -730,7 +771,41 @@ static struct fake *fakes[MAX_FD];
 
 static struct fake *fake_of(int fd) { return (active && fd >= 0 && fd < MAX_FD) ? fakes[fd] : NULL; }
 
-/* A fake descriptor is a real one onto /dev/null, so its number is unique and close/fcntl/poll work. */
+/* The table's one writer: fd is now f (NULL: not a fake). */
+static int set_fake(int fd, struct fake *f)
+{
+    pthread_mutex_lock(&lock);
+    free(fakes[fd]);
+    fakes[fd] = f;
+    pthread_mutex_unlock(&lock);
+    return 1;
+}
+
+/* A fake descriptor is a real one onto a file of its own in the session's folder (RIG_FAKES), named
+   after the target's path with ':' for '/': its number is unique, close, dup, fcntl and poll work on
+   it, and it says what it is across exec, where this table is lost: a shell opens the attribute and
+   dup2s it onto 1, then execs echo, whose shim finds the fake again from /proc/self/fd
+   (adopt_inherited_fakes). The file keeps the access mode asked for. The shim never writes to it:
+   bytes there came through a call it cannot see (a raw syscall, writev, dprintf), and the session
+   reports them. Without RIG_FAKES (an older session) the descriptor is onto /dev/null. */
+static void backing_name(const struct target *t, char *buf, size_t n)
+{
+    target_path(t, buf, n);
+    for (char *c = buf; *c; c++)
+        if (*c == '/')
+            *c = ':';
+}
+
+static int backing_open(const struct target *t, int flags)
+{
+    if (!fakes_dir[0])
+        return LOAD(open)("/dev/null", O_RDWR | (flags & O_CLOEXEC));
+    char path[PATH_MAX + 128], name[128];
+    backing_name(t, name, sizeof name);
+    snprintf(path, sizeof path, "%s/%s", fakes_dir, name);
+    return LOAD(open)(path, (flags & (O_ACCMODE | O_CLOEXEC | O_NONBLOCK)) | O_CREAT, 0600);
+}
+
 static int open_fake(const struct target *t, int flags)
 {
     if (t->kind == K_PWM_DIR) {
@@ -745,7 +820,7 @@ static int open_fake(const struct target *t, int flags)
             return -1;
         }
     }
-    int fd = LOAD(open)("/dev/null", O_RDWR | (flags & O_CLOEXEC));
+    int fd = backing_open(t, flags);
     if (fd < 0)
         return -1;
     if (fd >= MAX_FD) {
@@ -761,36 +836,71 @@ static int open_fake(const struct target *t, int flags)
     }
     f->t = *t;
     f->addr = 0; /* i2c-dev's client starts at address 0, where nothing answers */
-    pthread_mutex_lock(&lock);
-    free(fakes[fd]);
-    fakes[fd] = f;
-    pthread_mutex_unlock(&lock);
+    if (set_fake(fd, f)) {
+        /* Opening an emulated device is touching the devices, even when all that follows is a read or
+           a write the kernel refuses (neither sends anything): connect, so the session knows. */
+        pthread_mutex_lock(&lock);
+        ensure_connected();
+        pthread_mutex_unlock(&lock);
+    }
     return fd;
 }
 
 static void drop_fake(int fd)
 {
-    if (fd < 0 || fd >= MAX_FD || !fakes[fd])
-        return;
-    pthread_mutex_lock(&lock);
-    free(fakes[fd]);
-    fakes[fd] = NULL;
-    pthread_mutex_unlock(&lock);
+    if (fd >= 0 && fd < MAX_FD && fakes[fd])
+        set_fake(fd, NULL);
 }
 
+/* `to` is now a copy of `from` (dup and friends): a fake's copy is a fake, anything else's is not. */
 static void copy_fake(int from, int to)
 {
-    struct fake *src = fake_of(from);
-    if (!src || to < 0 || to >= MAX_FD)
+    if (to < 0 || to >= MAX_FD)
         return;
-    struct fake *f = malloc(sizeof *f);
-    if (!f)
+    struct fake *src = fake_of(from), *f = NULL;
+    if (src && (f = malloc(sizeof *f)))
+        *f = *src;
+    if (f || fakes[to])
+        set_fake(to, f);
+}
+
+/* At start-up (after exec): the descriptors onto files in RIG_FAKES are fakes this process inherited.
+   An I2C client's address and a read position start afresh (they live in the table, not the file). */
+static void adopt_inherited_fakes(void)
+{
+    if (!fakes_dir[0])
         return;
-    *f = *src;
-    pthread_mutex_lock(&lock);
-    free(fakes[to]);
-    fakes[to] = f;
-    pthread_mutex_unlock(&lock);
+    int dfd = LOAD(open)("/proc/self/fd", O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (dfd < 0)
+        return;
+    size_t plen = strlen(fakes_dir);
+    char buf[4096], link[PATH_MAX];
+    long n;
+    while ((n = syscall(SYS_getdents64, dfd, buf, sizeof buf)) > 0) {
+        for (long off = 0; off < n;) {
+            struct dirent64 *d = (struct dirent64 *)(buf + off);
+            off += d->d_reclen;
+            const char *end;
+            int fd = parse_uint(d->d_name, &end);
+            if (fd < 0 || *end || fd == dfd || fd >= MAX_FD)
+                continue;
+            ssize_t k = readlinkat(dfd, d->d_name, link, sizeof link - 1);
+            if (k <= (ssize_t)plen + 1 || memcmp(link, fakes_dir, plen) != 0 || link[plen] != '/')
+                continue;
+            link[k] = 0;
+            char *name = link + plen + 1;
+            for (char *c = name; *c; c++)
+                if (*c == ':')
+                    *c = '/';
+            struct target t = classify_path(name, 1);
+            struct fake *f = t.kind == K_I2C || t.kind == K_PWM_ATTR ? calloc(1, sizeof *f) : NULL;
+            if (f) {
+                f->t = t;
+                set_fake(fd, f);
+            }
+        }
+    }
+    LOAD(close)(dfd);
 }
 
 /* ---------------------------------------------------------------- open and friends */
@@ -942,20 +1052,16 @@ EXPORT int dup(int fd)
 EXPORT int dup2(int fd, int to)
 {
     int r = LOAD(dup2)(fd, to);
-    if (r >= 0 && fd != to) {
-        drop_fake(r);
+    if (r >= 0 && fd != to)
         copy_fake(fd, r);
-    }
     return r;
 }
 
 EXPORT int dup3(int fd, int to, int flags)
 {
     int r = LOAD(dup3)(fd, to, flags);
-    if (r >= 0) {
-        drop_fake(r);
+    if (r >= 0)
         copy_fake(fd, r);
-    }
     return r;
 }
 
@@ -965,10 +1071,8 @@ EXPORT int dup3(int fd, int to, int flags)
 static int fcntl_via(int fd, int cmd, void *arg, int (*real)(int, int, ...))
 {
     int r = real(fd, cmd, arg);
-    if (r >= 0 && (cmd == F_DUPFD || cmd == F_DUPFD_CLOEXEC)) {
-        drop_fake(r);
+    if (r >= 0 && (cmd == F_DUPFD || cmd == F_DUPFD_CLOEXEC))
         copy_fake(fd, r);
-    }
     return r;
 }
 
@@ -1103,12 +1207,6 @@ EXPORT int faccessat(int dirfd, const char *path, int amode, int flags)
 }
 
 /* ---------------------------------------------------------------- I2C */
-
-static int errno_ret(int err)
-{
-    errno = err;
-    return -1;
-}
 
 /* One transfer: msgs in, the read bytes written back into the callers' buffers. Returns 0 or an errno. */
 static int i2c_transfer(struct fake *f, struct i2c_msg *msgs, unsigned n)
