@@ -23,6 +23,7 @@
 #include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <stdio_ext.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/epoll.h>
@@ -36,6 +37,7 @@
 #include <sys/un.h>
 #include <time.h>
 #include <unistd.h>
+#include <wchar.h>
 
 #include "protocol.h"
 
@@ -151,9 +153,16 @@ static void parse_serial(const char *spec)
 }
 
 /* This process's pid, kept: getpid() is a syscall (glibc no longer caches it), and every message asks.
-   A fork's child forgets it (pthread_atfork); vfork and posix_spawn children only exec. */
+   Set at start-up and in a fork's child (pthread_atfork), so it is never 0 once the shim runs: a vfork
+   child (Python's subprocess, between vfork and exec) shares the parent's memory, own_pid included,
+   and tells itself apart by getpid() (see set_fake). posix_spawn children only exec. */
 static pid_t own_pid;
-static void forget_pid(void) { own_pid = 0; }
+static void reset_std_lock(void);
+static void after_fork_child(void)
+{
+    own_pid = getpid();
+    reset_std_lock();
+}
 static void adopt_inherited_fakes(void);
 static pid_t self_pid(void)
 {
@@ -198,7 +207,8 @@ __attribute__((constructor)) static void shim_init(void)
     const char *fk = getenv("RIG_FAKES");
     if (fk && fk[0] == '/' && strlen(fk) < sizeof fakes_dir - 64)
         strcpy(fakes_dir, fk);
-    pthread_atfork(NULL, NULL, forget_pid);
+    own_pid = getpid();
+    pthread_atfork(NULL, NULL, after_fork_child);
     active = 1;
     adopt_inherited_fakes();
 }
@@ -771,13 +781,23 @@ static struct fake *fakes[MAX_FD];
 
 static struct fake *fake_of(int fd) { return (active && fd >= 0 && fd < MAX_FD) ? fakes[fd] : NULL; }
 
-/* The table's one writer: fd is now f (NULL: not a fake). */
+static void std_sync(int fd);
+
+/* The table's one writer: fd is now f (NULL: not a fake). Then stdin/stdout/stderr follow (std_sync).
+   Not in a vfork child: the table and stdout it would change are its parent's, whose descriptors have
+   not changed (the child's dup2 onto 1 before exec would make the parent's fd 1 a fake). What the child
+   execs finds its fakes from /proc/self/fd. */
 static int set_fake(int fd, struct fake *f)
 {
+    if (getpid() != own_pid) {
+        free(f);
+        return 0;
+    }
     pthread_mutex_lock(&lock);
     free(fakes[fd]);
     fakes[fd] = f;
     pthread_mutex_unlock(&lock);
+    std_sync(fd);
     return 1;
 }
 
@@ -1092,6 +1112,132 @@ EXPORT int fcntl64(int fd, int cmd, ...)
     void *arg = va_arg(ap, void *);
     va_end(ap);
     return fcntl_via(fd, cmd, arg, LOAD(fcntl64));
+}
+
+static off_t fake_seek(struct fake *f, off_t off, int whence);
+
+/* ---------------------------------------------------------------- stdin, stdout, stderr on a fake */
+
+/* glibc's stdio writes a FILE's buffer with an internal write() no preload can redirect. So bash's
+   echo and printf (builtins printing on stdout after the shell dup2'd the attribute onto descriptor 1)
+   and coreutils' echo (exec'd with it) would write to the backing file and report success. While
+   descriptor 0, 1 or 2 is a fake, stdin/stdout/stderr is a cookie stream that goes through the shim
+   (whose errors reach the caller: bash says "echo: write error: No such device"); when it stops being
+   one, the program's own FILE is back. The swap keeps what a FILE would: pending output moves with
+   it (a FILE writes what it holds to whatever its descriptor is at flush time), so do the error and
+   end-of-file flags, and fileno() still answers 0, 1 or 2. A cookie is made once per descriptor and
+   kept (the program may still hold its pointer), and writes to the real descriptor when that is not a
+   fake. The program's fclose(stdout) closes the descriptor, as its own FILE would. */
+struct std_stream {
+    FILE *orig;   /* the program's FILE, while swapped */
+    FILE *cookie;
+    int swapped;
+};
+static struct std_stream stds[3];
+static pthread_mutex_t std_lock = PTHREAD_MUTEX_INITIALIZER;
+static void reset_std_lock(void) { pthread_mutex_init(&std_lock, NULL); }
+
+static FILE **std_var(int fd) { return fd == 0 ? &stdin : fd == 1 ? &stdout : &stderr; }
+
+static ssize_t std_read(void *c, char *buf, size_t n)
+{
+    int fd = (int)(intptr_t)c;
+    struct fake *f = fake_of(fd);
+    return f ? fake_read(f, buf, n, &f->pos) : LOAD(read)(fd, buf, n);
+}
+
+static ssize_t std_write(void *c, const char *buf, size_t n)
+{
+    int fd = (int)(intptr_t)c;
+    struct fake *f = fake_of(fd);
+    if (f) {
+        ssize_t r = fake_write(f, buf, n);
+        return r < 0 ? 0 : r; /* stdio takes a short write as the error; errno says which */
+    }
+    size_t done = 0;
+    while (done < n) {
+        ssize_t k = LOAD(write)(fd, buf + done, n - done);
+        if (k < 0 && errno == EINTR)
+            continue;
+        if (k <= 0)
+            break;
+        done += (size_t)k;
+    }
+    return (ssize_t)done;
+}
+
+static int std_seek(void *c, off64_t *off, int whence)
+{
+    int fd = (int)(intptr_t)c;
+    struct fake *f = fake_of(fd);
+    off_t r = f ? fake_seek(f, *off, whence) : LOAD(lseek)(fd, *off, whence);
+    if (r < 0)
+        return -1;
+    *off = r;
+    return 0;
+}
+
+static int std_close(void *c)
+{
+    int fd = (int)(intptr_t)c;
+    struct std_stream *s = &stds[fd];
+    if (*std_var(fd) == s->cookie)
+        *std_var(fd) = s->orig;
+    s->cookie = NULL; /* fclose frees it */
+    s->swapped = 0;
+    return close(fd);
+}
+
+static FILE *std_cookie(int fd, FILE *like)
+{
+    cookie_io_functions_t io = {std_read, std_write, std_seek, std_close};
+    FILE *fp = fopencookie((void *)(intptr_t)fd, fd == 0 ? "r" : "w", io);
+    if (!fp)
+        return NULL;
+    fp->_fileno = fd; /* glibc marks a cookie stream -2; any other number it leaves to fileno() */
+    if (fd == 2)
+        setvbuf(fp, NULL, _IONBF, 0);
+    else if (fd == 1 && __flbf(like))
+        setvbuf(fp, NULL, _IOLBF, BUFSIZ);
+    return fp;
+}
+
+static void move_stream(FILE *from, FILE *to)
+{
+    size_t k = __fpending(from);
+    if (k && fwide(from, 0) <= 0) {
+        fwrite(from->_IO_write_base, 1, k, to);
+        __fpurge(from);
+    }
+    int flags = from->_flags & (_IO_ERR_SEEN | _IO_EOF_SEEN);
+    to->_flags = (to->_flags & ~(_IO_ERR_SEEN | _IO_EOF_SEEN)) | flags;
+}
+
+static void std_sync(int fd)
+{
+    if (fd < 0 || fd > 2 || (fake_of(fd) != NULL) == stds[fd].swapped)
+        return;
+    struct std_stream *s = &stds[fd];
+    FILE **var = std_var(fd);
+    pthread_mutex_lock(&std_lock);
+    if (fake_of(fd) && !s->swapped) {
+        FILE *cur = *var; /* only the stream that is on this descriptor (a program may point stdout elsewhere) */
+        if (cur && cur != s->cookie && fileno(cur) == fd && (s->cookie || (s->cookie = std_cookie(fd, cur)))) {
+            move_stream(cur, s->cookie);
+            s->orig = cur;
+            *var = s->cookie;
+            s->swapped = 1;
+        }
+    } else if (!fake_of(fd) && s->swapped) {
+        s->swapped = 0;
+        if (*var == s->cookie) {
+            move_stream(s->cookie, s->orig);
+            *var = s->orig;
+        } else {
+            fflush(s->cookie);
+        }
+    }
+    pthread_mutex_unlock(&std_lock);
 }
 
 /* ---------------------------------------------------------------- stat and access */

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from tests.rig.helpers import PY, rig_exec
 
 CHIP = "/sys/class/pwm/pwmchip0"
@@ -14,6 +16,100 @@ CHIP = "/sys/class/pwm/pwmchip0"
 
 def pwm_events(log: Path) -> list[str]:
     return [line.split(" ", 2)[2] for line in log.read_text().splitlines() if " pwm" in line]
+
+
+def test_bash_builtin_echo_exports_a_channel(tmp_path: Path) -> None:
+    log = tmp_path / "log"
+    run = rig_exec(tmp_path, "bash", "-c", f"echo 0 > {CHIP}/export; echo rc=$?; ls -d {CHIP}/pwm0",
+                   options=("--log", str(log)))
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.split() == ["rc=0", f"{CHIP}/pwm0"]
+    assert pwm_events(log) == ["pwm0 export 0"]
+    assert run.summary["verdict"] == "ok"
+
+
+def test_bash_builtins_get_the_kernels_errors(tmp_path: Path) -> None:
+    script = f"""
+        echo 9 > {CHIP}/export; echo st=$?
+        echo 0 > {CHIP}/export; echo st=$?
+        echo 0 > {CHIP}/export; echo st=$?
+        printf abc > {CHIP}/pwm0/enable; echo st=$?
+        echo 1 > {CHIP}/pwm0/enable; echo st=$?
+        echo 8 > {CHIP}/npwm; echo st=$?
+    """
+    run = rig_exec(tmp_path, "bash", "-c", script)
+    assert run.stdout.split() == ["st=1", "st=0", "st=1", "st=1", "st=1", "st=1"]
+    errors = [line.split(": ", 3)[-1] for line in run.stderr.splitlines() if line.startswith("bash: ")]
+    assert errors == ["write error: No such device",            # channel 9 of 8
+                      "write error: Device or resource busy",   # exported twice
+                      "write error: Invalid argument",          # garbage
+                      "write error: Invalid argument",          # enable with a zero period
+                      "Permission denied"]                      # npwm is read-only: open fails
+    assert "echo: write error: No such device" in run.stderr
+    assert "printf: write error: Invalid argument" in run.stderr
+
+
+def test_echo_9_to_export_fails_with_status_1(tmp_path: Path) -> None:
+    run = rig_exec(tmp_path, "bash", "-c", f"echo 9 > {CHIP}/export")
+    assert run.returncode == 1
+    assert "No such device" in run.stderr
+
+
+def test_programs_started_by_bash_write_through_the_redirection(tmp_path: Path) -> None:
+    """/bin/echo and printf write through stdio, in a process exec'd after the redirection."""
+    script = f"""
+        /bin/echo 0 > {CHIP}/export; echo st=$?
+        /usr/bin/printf 2500000 > {CHIP}/pwm0/period; echo st=$?
+        /bin/echo 9 > {CHIP}/export; echo st=$?
+        /usr/bin/printf 3000000 > {CHIP}/pwm0/duty_cycle; echo st=$?
+        exec 3> {CHIP}/pwm0/duty_cycle
+        /bin/echo 1200000 >&3; echo st=$?
+        cat {CHIP}/pwm0/duty_cycle
+    """
+    log = tmp_path / "log"
+    run = rig_exec(tmp_path, "bash", "-c", script, options=("--log", str(log)))
+    assert run.stdout.split() == ["st=0", "st=0", "st=1", "st=1", "st=0", "1200000"]
+    assert "echo: write error: No such device" in run.stderr
+    assert "printf: write error: Invalid argument" in run.stderr
+    assert pwm_events(log) == ["pwm0 export 0", "pwm0 period 2500000", "pwm0 duty_cycle 1200000"]
+
+
+def test_bash_builtins_drive_a_motor(tmp_path: Path) -> None:
+    script = f"""
+        echo 0 > {CHIP}/export
+        printf 2500000 > {CHIP}/pwm0/period
+        echo 1500000 > {CHIP}/pwm0/duty_cycle
+        echo 1 > {CHIP}/pwm0/enable
+        read duty < {CHIP}/pwm0/duty_cycle; echo duty=$duty
+        sleep 1
+    """
+    log = tmp_path / "log"
+    run = rig_exec(tmp_path, "bash", "-c", script, options=("--log", str(log)))
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.split() == ["duty=1500000"]
+    assert pwm_events(log) == ["pwm0 export 0", "pwm0 period 2500000", "pwm0 duty_cycle 1500000",
+                               "pwm0 enable 1"]
+    # ESC: omega = (1500 us - 1000 us) / 1000 us * omega_max (600 rad/s), settled after 1 s (tau 20 ms)
+    assert run.summary["plant"]["omega1"] == pytest.approx(300.0, rel=1e-6)
+
+
+def test_python_subprocess_writes_to_an_attribute(tmp_path: Path) -> None:
+    """subprocess starts the child with vfork (3.11): the child's dup2 of the attribute onto its
+    stdout must not make the parent's stdout the attribute (they share memory until exec)."""
+    script = f"""
+import subprocess
+with open("{CHIP}/export", "w") as f:
+    ok = subprocess.run(["/bin/echo", "4"], stdout=f)
+    busy = subprocess.run(["/bin/echo", "4"], stdout=f, stderr=subprocess.PIPE, text=True)
+print("statuses", ok.returncode, busy.returncode)
+print("stderr", busy.stderr.strip())
+"""
+    log = tmp_path / "log"
+    run = rig_exec(tmp_path, PY, "-c", script, options=("--log", str(log)))
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.splitlines() == ["statuses 0 1",
+                                       "stderr /bin/echo: write error: Device or resource busy"]
+    assert pwm_events(log) == ["pwm4 export 4"]
 
 
 def test_a_descriptor_copied_with_fcntl_dupfd_stays_the_attribute(tmp_path: Path) -> None:
