@@ -76,6 +76,13 @@ DECLARE_REAL(int, dup2, int, int);
 DECLARE_REAL(int, dup3, int, int, int);
 DECLARE_REAL(int, fcntl, int, int, ...);
 DECLARE_REAL(int, fcntl64, int, int, ...);
+DECLARE_REAL(DIR *, opendir, const char *);
+DECLARE_REAL(DIR *, fdopendir, int);
+DECLARE_REAL(struct dirent *, readdir, DIR *);
+DECLARE_REAL(struct dirent64 *, readdir64, DIR *);
+DECLARE_REAL(int, closedir, DIR *);
+DECLARE_REAL(int, dirfd, DIR *);
+DECLARE_REAL(void, rewinddir, DIR *);
 DECLARE_REAL(int, stat, const char *, struct stat *);
 DECLARE_REAL(int, stat64, const char *, struct stat64 *);
 DECLARE_REAL(int, lstat, const char *, struct stat *);
@@ -634,7 +641,7 @@ static const char *const attr_names[N_ATTRS] = {"export", "unexport", "npwm", "p
 struct target {
     enum kind kind;
     int bus;         /* K_I2C */
-    int channel;     /* K_PWM_*: -1 for the chip itself, -2 for /sys/class/pwm */
+    int channel;     /* K_PWM_*: -1 for the chip itself, -2 for /sys/class/pwm, -3 for its .. */
     enum pwm_attr attr;
     const char *to;  /* K_SERIAL: the pty */
 };
@@ -681,6 +688,22 @@ static struct target classify_path(const char *path, int any_channel)
             t.to = serial_map[i].to;
             return t;
         }
+    size_t len = strlen(path);
+    int up = len > 16 && strcmp(path + len - 3, "/..") == 0, here = len > 15 && strcmp(path + len - 2, "/.") == 0;
+    if ((up || here) && strncmp(path, "/sys/class/pwm/", 15) == 0 && len < PATH_MAX) {
+        /* the "." and ".." a listing shows (ls -la): the directory, or the one it is listed in (for
+           /sys/class/pwm/.., a /sys/class that holds pwm alone: ls -l asks its extended attributes
+           by this path, which only the shim knows) */
+        char dir[PATH_MAX];
+        memcpy(dir, path, len - (up ? 3 : 2));
+        dir[len - (up ? 3 : 2)] = 0;
+        struct target d = classify_path(dir, any_channel);
+        if (d.kind != K_PWM_DIR || (up && d.channel == -3))
+            return t;
+        if (up)
+            d.channel = d.channel >= 0 ? -1 : d.channel - 1;
+        return d;
+    }
     if (strcmp(path, "/sys/class/pwm") == 0 || strcmp(path, "/sys/class/pwm/") == 0) {
         t.kind = K_PWM_DIR;
         t.channel = -2;
@@ -728,8 +751,8 @@ static void target_path(const struct target *t, char *buf, size_t n)
     const char *sep = t->kind == K_PWM_ATTR ? "/" : "", *attr = t->kind == K_PWM_ATTR ? attr_names[t->attr] : "";
     if (t->kind == K_I2C)
         snprintf(buf, n, "/dev/i2c-%d", t->bus);
-    else if (t->channel == -2)
-        snprintf(buf, n, "/sys/class/pwm");
+    else if (t->channel <= -2)
+        snprintf(buf, n, t->channel == -2 ? "/sys/class/pwm" : "/sys/class");
     else if (t->channel == -1)
         snprintf(buf, n, "/sys/class/pwm/pwmchip%d%s%s", pwm_chip, sep, attr);
     else
@@ -744,6 +767,15 @@ static struct target classify_abs(const char *path)
 
 static int is_empty(const char *path) { return path && path[0] == 0; }
 
+static ino_t target_ino(const struct target *t)
+{
+    if (t->kind == K_I2C)
+        return 1000 + (ino_t)t->bus;
+    if (t->kind == K_PWM_DIR)
+        return 2000 + (ino_t)(t->channel + 2); /* channel -2 is /sys/class/pwm, -3 its parent */
+    return 3000 + (ino_t)(t->channel + 1) * 8 + (ino_t)t->attr;
+}
+
 /* A path the kernel would have that we only pretend: make it ENOENT-proof for stat/access. */
 static void fill_stat(const struct target *t, struct stat *st)
 {
@@ -756,17 +788,15 @@ static void fill_stat(const struct target *t, struct stat *st)
         st->st_mode = S_IFCHR | 0660;
         st->st_rdev = makedev(I2C_MAJOR, t->bus);
         st->st_dev = makedev(0, 5);
-        st->st_ino = 1000 + (ino_t)t->bus;
     } else if (t->kind == K_PWM_DIR) {
         st->st_mode = S_IFDIR | 0755;
         st->st_nlink = 2;
-        st->st_ino = 2000 + (ino_t)(t->channel + 2);
     } else {
         int wo = t->attr == A_EXPORT || t->attr == A_UNEXPORT, ro = t->attr == A_NPWM;
         st->st_mode = S_IFREG | (wo ? 0200 : ro ? 0444 : 0644);
         st->st_size = 4096;
-        st->st_ino = 3000 + (ino_t)(t->channel + 1) * 8 + (ino_t)t->attr;
     }
+    st->st_ino = target_ino(t);
 }
 
 /* ---------------------------------------------------------------- fake descriptors */
@@ -828,12 +858,16 @@ static int backing_open(const struct target *t, int flags)
 
 static int open_fake(const struct target *t, int flags)
 {
-    if (t->kind == K_PWM_DIR) {
+    int acc = flags & O_ACCMODE;
+    if (t->kind == K_PWM_DIR && (acc != O_RDONLY || (flags & O_CREAT))) {
         errno = EISDIR;
         return -1;
     }
+    if (t->kind != K_PWM_DIR && (flags & O_DIRECTORY)) {
+        errno = ENOTDIR;
+        return -1;
+    }
     if (t->kind == K_PWM_ATTR) {
-        int acc = flags & O_ACCMODE;
         int wo = t->attr == A_EXPORT || t->attr == A_UNEXPORT, ro = t->attr == A_NPWM;
         if ((wo && acc != O_WRONLY && getuid() != 0) || (ro && acc != O_RDONLY)) {
             errno = EACCES;
@@ -913,7 +947,7 @@ static void adopt_inherited_fakes(void)
                 if (*c == ':')
                     *c = '/';
             struct target t = classify_path(name, 1);
-            struct fake *f = t.kind == K_I2C || t.kind == K_PWM_ATTR ? calloc(1, sizeof *f) : NULL;
+            struct fake *f = t.kind == K_I2C || t.kind == K_PWM_ATTR || t.kind == K_PWM_DIR ? calloc(1, sizeof *f) : NULL;
             if (f) {
                 f->t = t;
                 set_fake(fd, f);
@@ -1238,6 +1272,193 @@ static void std_sync(int fd)
         }
     }
     pthread_mutex_unlock(&std_lock);
+}
+
+/* ---------------------------------------------------------------- directories */
+
+/* The pwm class's directories, listed as the kernel lists them: /sys/class/pwm holds pwmchip0, the chip
+   export, npwm, unexport and pwmN for each exported channel, pwmN duty_cycle, enable, period and
+   polarity. Only what the shim emulates is listed, so every name listed can be opened and stat'ed (a
+   real chip also has device, power, subsystem and uevent, a channel capture, power and uevent).
+   glibc's readdir reads a descriptor with getdents64, which no preload can redirect, so opendir and
+   fdopendir on a fake give the shim's own stream; the calls taking a DIR tell one from a real DIR by
+   the list of those open. The chip's channels are read when the stream opens or rewinds. */
+struct fake_dir {
+    struct fake_dir *next;
+    int fd;
+    struct target t;
+    uint32_t exported; /* bit N: pwmN exported */
+    long at;           /* the next entry */
+    struct dirent64 ent;
+};
+_Static_assert(sizeof(struct dirent) == sizeof(struct dirent64), "struct dirent64 differs from struct dirent");
+static struct fake_dir *fake_dirs;
+static int n_fake_dirs;
+
+static struct fake_dir *fake_dir_of(DIR *d)
+{
+    if (!__atomic_load_n(&n_fake_dirs, __ATOMIC_ACQUIRE))
+        return NULL;
+    pthread_mutex_lock(&lock);
+    struct fake_dir *p = fake_dirs;
+    while (p && (DIR *)p != d)
+        p = p->next;
+    pthread_mutex_unlock(&lock);
+    return p;
+}
+
+static void dir_rewind(struct fake_dir *d)
+{
+    d->exported = 0;
+    for (unsigned i = 0; i < shm->npwm && i < 32; i++)
+        if (shm->pwm[i].exported)
+            d->exported |= 1u << i;
+    d->at = 0;
+}
+
+static DIR *dir_open(int fd, const struct target *t)
+{
+    struct fake_dir *d = calloc(1, sizeof *d);
+    if (!d) {
+        errno = ENOMEM;
+        return NULL;
+    }
+    d->fd = fd;
+    d->t = *t;
+    dir_rewind(d);
+    pthread_mutex_lock(&lock);
+    d->next = fake_dirs;
+    fake_dirs = d;
+    __atomic_add_fetch(&n_fake_dirs, 1, __ATOMIC_RELEASE);
+    pthread_mutex_unlock(&lock);
+    return (DIR *)d;
+}
+
+/* Entry i of the directory into e (0: past the end). */
+static int dir_entry(const struct fake_dir *d, long i, struct dirent64 *e)
+{
+    struct target c = d->t; /* what the entry names */
+    const char *name = NULL;
+    char buf[32];
+    if (i < 2) {
+        name = i ? ".." : ".";
+        if (i)
+            c.channel = c.channel >= 0 ? -1 : c.channel - 1;
+    } else if (d->t.channel <= -2) {
+        if (i > 2)
+            return 0;
+        c.channel = d->t.channel + 1;
+        snprintf(buf, sizeof buf, "pwmchip%d", pwm_chip);
+        name = c.channel == -1 ? buf : "pwm";
+    } else if (d->t.channel == -1 && i < 2 + A_PERIOD) {
+        c.kind = K_PWM_ATTR;
+        c.attr = (enum pwm_attr)(i - 2);
+        name = attr_names[c.attr];
+    } else if (d->t.channel == -1) {
+        long k = i - 2 - A_PERIOD;
+        for (c.channel = 0; c.channel < 32; c.channel++)
+            if ((d->exported >> c.channel & 1u) && k-- == 0)
+                break;
+        if (c.channel == 32)
+            return 0;
+        snprintf(buf, sizeof buf, "pwm%d", c.channel);
+        name = buf;
+    } else {
+        if (i >= 2 + N_ATTRS - A_PERIOD)
+            return 0;
+        c.kind = K_PWM_ATTR;
+        c.attr = (enum pwm_attr)(A_PERIOD + i - 2);
+        name = attr_names[c.attr];
+    }
+    e->d_ino = target_ino(&c);
+    e->d_off = i + 1;
+    e->d_reclen = sizeof *e;
+    e->d_type = c.kind == K_PWM_DIR ? DT_DIR : DT_REG;
+    snprintf(e->d_name, sizeof e->d_name, "%s", name);
+    return 1;
+}
+
+static struct dirent64 *dir_read(struct fake_dir *d)
+{
+    if (!dir_entry(d, d->at, &d->ent))
+        return NULL; /* the end: errno unchanged */
+    d->at++;
+    return &d->ent;
+}
+
+EXPORT DIR *opendir(const char *path)
+{
+    struct target t = classify(path);
+    if (t.kind == K_NONE || t.kind == K_SERIAL)
+        return LOAD(opendir)(path);
+    if (t.kind != K_PWM_DIR) {
+        errno = ENOTDIR;
+        return NULL;
+    }
+    int fd = open_fake(&t, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (fd < 0)
+        return NULL;
+    DIR *d = dir_open(fd, &t);
+    if (!d)
+        close(fd);
+    return d;
+}
+
+EXPORT DIR *fdopendir(int fd)
+{
+    struct fake *f = fake_of(fd);
+    if (!f)
+        return LOAD(fdopendir)(fd);
+    if (f->t.kind != K_PWM_DIR) {
+        errno = ENOTDIR;
+        return NULL;
+    }
+    return dir_open(fd, &f->t);
+}
+
+EXPORT struct dirent *readdir(DIR *dir)
+{
+    struct fake_dir *d = fake_dir_of(dir);
+    return d ? (struct dirent *)dir_read(d) : LOAD(readdir)(dir);
+}
+
+EXPORT struct dirent64 *readdir64(DIR *dir)
+{
+    struct fake_dir *d = fake_dir_of(dir);
+    return d ? dir_read(d) : LOAD(readdir64)(dir);
+}
+
+EXPORT int closedir(DIR *dir)
+{
+    struct fake_dir *d = fake_dir_of(dir);
+    if (!d)
+        return LOAD(closedir)(dir);
+    pthread_mutex_lock(&lock);
+    for (struct fake_dir **p = &fake_dirs; *p; p = &(*p)->next)
+        if (*p == d) {
+            *p = d->next;
+            break;
+        }
+    __atomic_sub_fetch(&n_fake_dirs, 1, __ATOMIC_RELEASE);
+    pthread_mutex_unlock(&lock);
+    int r = close(d->fd);
+    free(d);
+    return r;
+}
+
+EXPORT int dirfd(DIR *dir)
+{
+    struct fake_dir *d = fake_dir_of(dir);
+    return d ? d->fd : LOAD(dirfd)(dir);
+}
+
+EXPORT void rewinddir(DIR *dir)
+{
+    struct fake_dir *d = fake_dir_of(dir);
+    if (d)
+        dir_rewind(d);
+    else
+        LOAD(rewinddir)(dir);
 }
 
 /* ---------------------------------------------------------------- stat and access */
@@ -1714,6 +1935,8 @@ static ssize_t fake_read(struct fake *f, void *buf, size_t n, off_t *pos)
         int err = i2c_transfer(f, &m, 1);
         return err ? errno_ret(err) : (ssize_t)k;
     }
+    if (f->t.kind == K_PWM_DIR)
+        return errno_ret(EISDIR);
     if (f->t.kind != K_PWM_ATTR)
         return errno_ret(EBADF);
     char text[32];

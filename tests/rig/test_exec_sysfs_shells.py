@@ -93,6 +93,35 @@ def test_bash_builtins_drive_a_motor(tmp_path: Path) -> None:
     assert run.summary["plant"]["omega1"] == pytest.approx(300.0, rel=1e-6)
 
 
+def test_ls_lists_the_pwm_class_directories(tmp_path: Path) -> None:
+    script = f"""
+        ls {CHIP}/; echo --
+        echo 3 > {CHIP}/export; echo 0 > {CHIP}/export
+        ls {CHIP}; echo --
+        ls /sys/class/pwm/; echo --
+        ls {CHIP}/pwm3; echo --
+        echo 3 > {CHIP}/unexport
+        ls {CHIP}/pwm3 2>&1 || echo pwm3_gone
+    """
+    run = rig_exec(tmp_path, "bash", "-c", script)
+    assert run.stdout.split("--\n") == [
+        "export\nnpwm\nunexport\n",
+        "export\nnpwm\npwm0\npwm3\nunexport\n",
+        "pwmchip0\n",
+        "duty_cycle\nenable\nperiod\npolarity\n",
+        f"ls: cannot access '{CHIP}/pwm3': No such file or directory\npwm3_gone\n",
+    ]
+
+
+def test_ls_la_shows_dot_and_dot_dot(tmp_path: Path) -> None:
+    run = rig_exec(tmp_path, "bash", "-c", f"ls -la /sys/class/pwm; ls -la {CHIP}")
+    assert run.returncode == 0, run.stderr
+    lines = [line.split() for line in run.stdout.splitlines() if not line.startswith("total")]
+    assert [(mode[0], name[-1]) for mode, *name in lines] == [
+        ("d", "."), ("d", ".."), ("d", "pwmchip0"),
+        ("d", "."), ("d", ".."), ("-", "export"), ("-", "npwm"), ("-", "unexport")]
+
+
 def test_python_subprocess_writes_to_an_attribute(tmp_path: Path) -> None:
     """subprocess starts the child with vfork (3.11): the child's dup2 of the attribute onto its
     stdout must not make the parent's stdout the attribute (they share memory until exec)."""
@@ -110,6 +139,40 @@ print("stderr", busy.stderr.strip())
     assert run.stdout.splitlines() == ["statuses 0 1",
                                        "stderr /bin/echo: write error: Device or resource busy"]
     assert pwm_events(log) == ["pwm4 export 4"]
+
+
+def test_python_lists_the_pwm_class_directories(tmp_path: Path) -> None:
+    script = f"""
+import json, os
+out = {{}}
+with open("{CHIP}/export", "w") as f:
+    f.write("1")
+out["chip"] = sorted(os.listdir("{CHIP}"))
+out["kinds"] = sorted((e.name, e.is_dir(), e.is_file()) for e in os.scandir("{CHIP}"))
+out["class"] = os.listdir("/sys/class/pwm")
+fd = os.open("{CHIP}/pwm1", os.O_RDONLY | os.O_DIRECTORY)
+out["by_fd"] = sorted(os.listdir(fd))
+out["read_dir"] = "ok"
+try:
+    os.read(fd, 10)
+except IsADirectoryError:
+    out["read_dir"] = "EISDIR"
+try:
+    os.open("{CHIP}/npwm", os.O_RDONLY | os.O_DIRECTORY)
+except NotADirectoryError:
+    out["npwm_as_dir"] = "ENOTDIR"
+print(json.dumps(out))
+"""
+    run = rig_exec(tmp_path, PY, "-c", script)
+    assert run.returncode == 0, run.stderr
+    out = run.json_out()
+    assert out["chip"] == ["export", "npwm", "pwm1", "unexport"]
+    assert out["kinds"] == [["export", False, True], ["npwm", False, True], ["pwm1", True, False],
+                            ["unexport", False, True]]
+    assert out["class"] == ["pwmchip0"]
+    assert out["by_fd"] == ["duty_cycle", "enable", "period", "polarity"]
+    assert out["read_dir"] == "EISDIR"
+    assert out["npwm_as_dir"] == "ENOTDIR"
 
 
 def test_a_descriptor_copied_with_fcntl_dupfd_stays_the_attribute(tmp_path: Path) -> None:
