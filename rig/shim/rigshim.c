@@ -29,11 +29,13 @@
 #include <sys/epoll.h>
 #include <sys/mman.h>
 #include <sys/select.h>
+#include <sys/sendfile.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/syscall.h>
 #include <sys/sysmacros.h>
 #include <sys/time.h>
+#include <sys/uio.h>
 #include <sys/un.h>
 #include <time.h>
 #include <unistd.h>
@@ -83,6 +85,9 @@ DECLARE_REAL(struct dirent64 *, readdir64, DIR *);
 DECLARE_REAL(int, closedir, DIR *);
 DECLARE_REAL(int, dirfd, DIR *);
 DECLARE_REAL(void, rewinddir, DIR *);
+DECLARE_REAL(ssize_t, copy_file_range, int, off64_t *, int, off64_t *, size_t, unsigned int);
+DECLARE_REAL(ssize_t, sendfile, int, int, off_t *, size_t);
+DECLARE_REAL(ssize_t, sendfile64, int, int, off64_t *, size_t);
 DECLARE_REAL(int, stat, const char *, struct stat *);
 DECLARE_REAL(int, stat64, const char *, struct stat64 *);
 DECLARE_REAL(int, lstat, const char *, struct stat *);
@@ -1274,6 +1279,60 @@ static void std_sync(int fd)
     pthread_mutex_unlock(&std_lock);
 }
 
+/* ---------------------------------------------------------------- copies between descriptors */
+
+/* copy_file_range (coreutils cat and cp, when both ends look like regular files): sysfs and i2c-dev
+   share no file system with anything, so the kernel answers EXDEV and the caller falls back to read
+   and write, which the shim sees. (Into the backing file the bytes would be lost.) */
+EXPORT ssize_t copy_file_range(int in, off64_t *in_off, int out, off64_t *out_off, size_t len, unsigned int flags)
+{
+    if (fake_of(in) || fake_of(out))
+        return errno_ret(EXDEV);
+    return LOAD(copy_file_range)(in, in_off, out, out_off, len, flags);
+}
+
+/* sendfile (Python's shutil.copyfile) with a PWM attribute at either end: the kernel's copy, up to a
+   page per call, through the shim's read and write. i2c-dev cannot splice: EINVAL. */
+static ssize_t sendfile_fake(int out, int in, off64_t *off, size_t count)
+{
+    struct fake *fi = fake_of(in), *fo = fake_of(out);
+    if ((fi && fi->t.kind != K_PWM_ATTR) || (fo && fo->t.kind != K_PWM_ATTR))
+        return errno_ret(EINVAL);
+    char buf[4096];
+    size_t n = count < sizeof buf ? count : sizeof buf;
+    off_t at = off ? *off : fi ? fi->pos : LOAD(lseek)(in, 0, SEEK_CUR), next = at;
+    if (at < 0)
+        return -1;
+    ssize_t k = fi ? fake_read(fi, buf, n, &next) : LOAD(pread)(in, buf, n, at);
+    if (k <= 0)
+        return k;
+    ssize_t w = fo ? fake_write(fo, buf, (size_t)k) : write(out, buf, (size_t)k);
+    if (w <= 0)
+        return w;
+    at += w;
+    if (off)
+        *off = at;
+    else if (fi)
+        fi->pos = at;
+    else
+        LOAD(lseek)(in, at, SEEK_SET);
+    return w;
+}
+
+EXPORT ssize_t sendfile(int out, int in, off_t *off, size_t count)
+{
+    if (fake_of(in) || fake_of(out))
+        return sendfile_fake(out, in, (off64_t *)off, count);
+    return LOAD(sendfile)(out, in, off, count);
+}
+
+EXPORT ssize_t sendfile64(int out, int in, off64_t *off, size_t count)
+{
+    if (fake_of(in) || fake_of(out))
+        return sendfile_fake(out, in, off, count);
+    return LOAD(sendfile64)(out, in, off, count);
+}
+
 /* ---------------------------------------------------------------- directories */
 
 /* The pwm class's directories, listed as the kernel lists them: /sys/class/pwm holds pwmchip0, the chip
@@ -1477,6 +1536,7 @@ static int stat_target(const char *path, struct stat *st, int (*real)(const char
 
 /* struct stat64 is struct stat on the 64-bit targets we build for; the casts below rely on it. */
 _Static_assert(sizeof(struct stat) == sizeof(struct stat64), "struct stat64 differs from struct stat");
+_Static_assert(sizeof(off_t) == sizeof(off64_t), "off64_t differs from off_t");
 typedef int (*stat_fn)(const char *, struct stat *);
 typedef int (*fstat_fn)(int, struct stat *);
 typedef int (*fstatat_fn)(int, const char *, struct stat *, int);

@@ -93,6 +93,28 @@ def test_bash_builtins_drive_a_motor(tmp_path: Path) -> None:
     assert run.summary["plant"]["omega1"] == pytest.approx(300.0, rel=1e-6)
 
 
+def test_cat_and_sed_read_the_attributes(tmp_path: Path) -> None:
+    """cat copies with copy_file_range when both ends look like regular files; sed reads stdin
+    through stdio."""
+    out = tmp_path / "copy"
+    value = tmp_path / "value"
+    value.write_text("2000000\n")
+    script = f"""
+        cat {CHIP}/npwm
+        echo 0 > {CHIP}/export
+        echo 2500000 > {CHIP}/pwm0/period
+        cat {CHIP}/pwm0/period
+        cat {CHIP}/pwm0/period > {out}; cat {out}
+        cat {value} > {CHIP}/pwm0/duty_cycle; echo st=$?
+        sed -n p < {CHIP}/pwm0/duty_cycle
+    """
+    log = tmp_path / "log"
+    run = rig_exec(tmp_path, "bash", "-c", script, options=("--log", str(log)))
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.split() == ["8", "2500000", "2500000", "st=0", "2000000"]
+    assert pwm_events(log)[-1] == "pwm0 duty_cycle 2000000"
+
+
 def test_ls_lists_the_pwm_class_directories(tmp_path: Path) -> None:
     script = f"""
         ls {CHIP}/; echo --
@@ -139,6 +161,17 @@ print("stderr", busy.stderr.strip())
     assert run.stdout.splitlines() == ["statuses 0 1",
                                        "stderr /bin/echo: write error: Device or resource busy"]
     assert pwm_events(log) == ["pwm4 export 4"]
+
+
+def test_shutil_copyfile_writes_to_an_attribute(tmp_path: Path) -> None:
+    """shutil.copyfile copies with sendfile."""
+    value = tmp_path / "value"
+    value.write_text("5\n")
+    log = tmp_path / "log"
+    run = rig_exec(tmp_path, PY, "-c", f"import shutil; shutil.copyfile('{value}', '{CHIP}/export')",
+                   options=("--log", str(log)))
+    assert run.returncode == 0, run.stderr
+    assert pwm_events(log) == ["pwm5 export 5"]
 
 
 def test_python_lists_the_pwm_class_directories(tmp_path: Path) -> None:
