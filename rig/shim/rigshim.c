@@ -1633,9 +1633,88 @@ EXPORT int faccessat(int dirfd, const char *path, int amode, int flags)
     return t.kind ? access_target(&t, amode) : LOAD(faccessat)(dirfd, path, amode, flags);
 }
 
+/* ---------------------------------------------------------------- user memory */
+
+/* The kernel copies a caller's memory with copy_from_user/copy_to_user: a bad address is EFAULT, never
+   a crash. The shim does the same with process_vm_readv/process_vm_writev on its own pid (always
+   allowed on oneself), every piece of one transfer in one call, so a transfer costs a syscall or two
+   more, not one per buffer. Where those are not available (ENOSYS, or EPERM from a seccomp filter)
+   it says so once and copies with memcpy, rejecting only addresses no user mapping has. */
+static int uaccess_memcpy;
+static int user_range(const void *p, size_t n)
+{
+    uintptr_t a = (uintptr_t)p;
+    return n == 0 || (a >= 4096 && a + n > a && a + n <= (uintptr_t)1 << 47);
+}
+
+static size_t copy_by_memcpy(const struct iovec *local, size_t nl, const struct iovec *remote, size_t nr, int to_user)
+{
+    size_t li = 0, loff = 0;
+    for (size_t i = 0; i < nr; i++) {
+        if (!user_range(remote[i].iov_base, remote[i].iov_len))
+            return i;
+        for (size_t roff = 0; roff < remote[i].iov_len;) {
+            while (li < nl && loff == local[li].iov_len) {
+                li++;
+                loff = 0;
+            }
+            if (li == nl)
+                return i;
+            size_t k = remote[i].iov_len - roff < local[li].iov_len - loff ? remote[i].iov_len - roff
+                                                                          : local[li].iov_len - loff;
+            char *r = (char *)remote[i].iov_base + roff, *l = (char *)local[li].iov_base + loff;
+            memcpy(to_user ? r : l, to_user ? l : r, k);
+            roff += k;
+            loff += k;
+        }
+    }
+    return nr;
+}
+
+/* Copies the caller's pieces (remote) into the shim's (local, the same bytes in total) or, to_user,
+   back. Returns how many remote pieces, from the first, were copied whole: nr when all were. */
+static size_t user_copy(const struct iovec *local, size_t nl, const struct iovec *remote, size_t nr, int to_user)
+{
+    size_t total = 0;
+    for (size_t i = 0; i < nr; i++)
+        total += remote[i].iov_len;
+    if (total == 0)
+        return nr;
+    if (!__atomic_load_n(&uaccess_memcpy, __ATOMIC_RELAXED)) {
+        ssize_t k = to_user ? process_vm_writev(own_pid, local, nl, remote, nr, 0)
+                            : process_vm_readv(own_pid, local, nl, remote, nr, 0);
+        if (k >= 0 || (errno != ENOSYS && errno != EPERM)) {
+            size_t done = k < 0 ? 0 : (size_t)k, i = 0;
+            while (i < nr && remote[i].iov_len <= done)
+                done -= remote[i++].iov_len;
+            return i;
+        }
+        int err = errno;
+        __atomic_store_n(&uaccess_memcpy, 1, __ATOMIC_RELAXED);
+        note("process_vm_readv/writev refused (%s): the shim copies with memcpy, so a bad pointer handed to an "
+             "emulated device may crash the command where the kernel says EFAULT", strerror(err));
+    }
+    return copy_by_memcpy(local, nl, remote, nr, to_user);
+}
+
+/* One piece: 0 or EFAULT. */
+static int copy_in(void *dst, const void *user, size_t n)
+{
+    struct iovec l = {dst, n}, r = {(void *)user, n};
+    return user_copy(&l, 1, &r, 1, 0) == 1 ? 0 : EFAULT;
+}
+
+static int copy_out(void *user, const void *src, size_t n)
+{
+    struct iovec l = {(void *)src, n}, r = {user, n};
+    return user_copy(&l, 1, &r, 1, 1) == 1 ? 0 : EFAULT;
+}
+
 /* ---------------------------------------------------------------- I2C */
 
-/* One transfer: msgs in, the read bytes written back into the callers' buffers. Returns 0 or an errno. */
+/* One transfer of messages whose buffers are the shim's (copied from the caller, or to be copied back):
+   the read bytes land in them, and a RECV_LEN message's len becomes what it received (its count byte
+   and the count), as the bus driver sets it. Returns 0 or an errno. */
 static int i2c_transfer(struct fake *f, struct i2c_msg *msgs, unsigned n)
 {
     static __thread unsigned char out[sizeof(struct rig_i2c_msg) * I2C_RDWR_IOCTL_MAX_MSGS + 4 + 8192 * 2];
@@ -1678,7 +1757,7 @@ static int i2c_transfer(struct fake *f, struct i2c_msg *msgs, unsigned n)
             continue;
         size_t k = msgs[i].len;
         if (msgs[i].flags & I2C_M_RECV_LEN)
-            k = at < h.len ? 1u + in[at] : 0;
+            msgs[i].len = (uint16_t)(k = at < h.len ? 1u + in[at] : 0);
         if (at + k > h.len)
             die_session("an I2C reply shorter than its request");
         memcpy(msgs[i].buf, in + at, k);
@@ -1687,28 +1766,86 @@ static int i2c_transfer(struct fake *f, struct i2c_msg *msgs, unsigned n)
     return 0;
 }
 
-static int i2c_rdwr(struct fake *f, struct i2c_rdwr_ioctl_data *arg)
+/* I2C_RDWR as i2c-dev does it: the argument and the messages copied in, then for each message in order
+   its length checked (EINVAL above 8192), its buffer copied in (EFAULT; read buffers too, and a zero
+   length never faults) and a RECV_LEN message's first byte checked; the transfer; the read buffers
+   copied back (EFAULT if any fails, the others still copied). The messages' copies are one
+   process_vm_readv, the read buffers' one process_vm_writev. */
+#define RECV_SLOT (1 + I2C_SMBUS_BLOCK_MAX + 1) /* a RECV_LEN message's count byte and data, and a spare */
+static unsigned char junk[MAX_XFER]; /* where the bytes copied in only to check them go */
+
+static int i2c_rdwr(struct fake *f, unsigned long uarg)
 {
-    if (!arg || !arg->msgs)
+    struct i2c_rdwr_ioctl_data arg;
+    if (copy_in(&arg, (void *)uarg, sizeof arg))
         return errno_ret(EFAULT);
-    if (arg->nmsgs > I2C_RDWR_IOCTL_MAX_MSGS)
-        return errno_ret(EINVAL);
-    for (unsigned i = 0; i < arg->nmsgs; i++) {
-        struct i2c_msg *m = &arg->msgs[i];
-        if (m->len && !m->buf)
+    if (!arg.msgs || arg.nmsgs == 0 || arg.nmsgs > I2C_RDWR_IOCTL_MAX_MSGS)
+        return errno_ret(EINVAL); /* a NULL msgs is EINVAL since Linux 5.11 */
+    unsigned n = arg.nmsgs;
+    struct i2c_msg user[I2C_RDWR_IOCTL_MAX_MSGS], k[I2C_RDWR_IOCTL_MAX_MSGS];
+    if (copy_in(user, arg.msgs, n * sizeof *user))
+        return errno_ret(EFAULT);
+    unsigned too_long = 0; /* the first message above i2c-dev's limit: nothing from it on is copied */
+    size_t wlen = 0, rlen = 0;
+    while (too_long < n && user[too_long].len <= MAX_XFER) {
+        const struct i2c_msg *m = &user[too_long++];
+        if (!(m->flags & I2C_M_RD))
+            wlen += m->len;
+        else
+            rlen += (m->flags & I2C_M_RECV_LEN) ? RECV_SLOT : m->len;
+    }
+    if (wlen > 2 * MAX_XFER || rlen > 2 * MAX_XFER)
+        return errno_ret(EINVAL); /* more than one request to the session carries (the shim's limit) */
+    static __thread unsigned char kbuf[4 * MAX_XFER + I2C_RDWR_IOCTL_MAX_MSGS * RECV_SLOT];
+    struct iovec local[2 * I2C_RDWR_IOCTL_MAX_MSGS], remote[I2C_RDWR_IOCTL_MAX_MSGS];
+    size_t nl = 0, nr = 0, at = 0;
+    for (unsigned i = 0; i < too_long; i++) {
+        k[i] = user[i];
+        k[i].buf = kbuf + at;
+        int recv = (user[i].flags & (I2C_M_RD | I2C_M_RECV_LEN)) == (I2C_M_RD | I2C_M_RECV_LEN);
+        at += recv ? RECV_SLOT : user[i].len;
+        if (!user[i].len)
+            continue;
+        remote[nr++] = (struct iovec){user[i].buf, user[i].len};
+        local[nl++] = (struct iovec){k[i].buf, recv ? 1 : user[i].len};
+        if (recv && user[i].len > 1)
+            local[nl++] = (struct iovec){junk, user[i].len - 1u};
+    }
+    size_t copied = user_copy(local, nl, remote, nr, 0); /* messages with a buffer copied whole */
+    for (unsigned i = 0, with_buf = 0; i < n; i++) {
+        if (i == too_long)
+            return errno_ret(EINVAL);
+        if (user[i].len && with_buf++ == copied)
             return errno_ret(EFAULT);
-        if ((m->flags & I2C_M_RECV_LEN) &&
-            (!(m->flags & I2C_M_RD) || m->len < 1 || m->buf[0] < 1 || m->len < m->buf[0] + I2C_SMBUS_BLOCK_MAX))
+        if ((user[i].flags & I2C_M_RECV_LEN) &&
+            (!(user[i].flags & I2C_M_RD) || user[i].len < 1 || k[i].buf[0] < 1 ||
+             user[i].len < k[i].buf[0] + I2C_SMBUS_BLOCK_MAX))
             return errno_ret(EINVAL); /* i2c-dev's own check */
     }
-    int err = i2c_transfer(f, arg->msgs, arg->nmsgs);
-    return err ? errno_ret(err) : (int)arg->nmsgs;
+    int err = i2c_transfer(f, k, n);
+    if (err)
+        return errno_ret(err);
+    nr = 0;
+    for (unsigned i = 0; i < n; i++)
+        if ((k[i].flags & I2C_M_RD) && k[i].len) {
+            local[nr] = (struct iovec){k[i].buf, k[i].len};
+            remote[nr++] = (struct iovec){user[i].buf, k[i].len};
+        }
+    for (size_t i = 0; i < nr; i++) { /* every buffer is tried, as i2c-dev does */
+        i += user_copy(local + i, nr - i, remote + i, nr - i, 1);
+        if (i < nr)
+            err = EFAULT;
+    }
+    return err ? errno_ret(err) : (int)n;
 }
 
-/* SMBus over plain I2C messages, as the kernel's i2c_smbus_xfer_emulated does it. */
-static int i2c_smbus(struct fake *f, struct i2c_smbus_ioctl_data *a)
+/* SMBus over plain I2C messages, as the kernel's i2c_smbus_xfer_emulated does it, on a copy of the
+   caller's data: copied in when i2c-dev copies it (a write, a process call, an I2C block), copied back
+   (the whole size of its kind) after a read or a process call. */
+static int i2c_smbus(struct fake *f, unsigned long uarg)
 {
-    if (!a)
+    struct i2c_smbus_ioctl_data arg, *a = &arg;
+    if (copy_in(&arg, (void *)uarg, sizeof arg))
         return errno_ret(EFAULT);
     uint32_t size = a->size;
     int rd = a->read_write == I2C_SMBUS_READ;
@@ -1716,9 +1853,20 @@ static int i2c_smbus(struct fake *f, struct i2c_smbus_ioctl_data *a)
         return errno_ret(EINVAL);
     if (size > I2C_SMBUS_I2C_BLOCK_DATA)
         return errno_ret(EINVAL);
-    union i2c_smbus_data *d = a->data;
-    if (!d && !(size == I2C_SMBUS_QUICK || (size == I2C_SMBUS_BYTE && !rd)))
-        return errno_ret(EINVAL);
+    union i2c_smbus_data data = {0}, *d = NULL;
+    size_t datasize = size == I2C_SMBUS_BYTE || size == I2C_SMBUS_BYTE_DATA ? sizeof data.byte
+                      : size == I2C_SMBUS_WORD_DATA || size == I2C_SMBUS_PROC_CALL ? sizeof data.word
+                                                                                  : sizeof data.block;
+    int out = size == I2C_SMBUS_PROC_CALL || size == I2C_SMBUS_BLOCK_PROC_CALL || rd;
+    if (!(size == I2C_SMBUS_QUICK || (size == I2C_SMBUS_BYTE && !rd))) {
+        if (!a->data)
+            return errno_ret(EINVAL);
+        d = &data;
+        if ((size == I2C_SMBUS_PROC_CALL || size == I2C_SMBUS_BLOCK_PROC_CALL || size == I2C_SMBUS_I2C_BLOCK_DATA ||
+             !rd) &&
+            copy_in(d, a->data, datasize))
+            return errno_ret(EFAULT);
+    }
     if (size == I2C_SMBUS_I2C_BLOCK_BROKEN) {
         size = I2C_SMBUS_I2C_BLOCK_DATA;
         if (rd)
@@ -1798,7 +1946,7 @@ static int i2c_smbus(struct fake *f, struct i2c_smbus_ioctl_data *a)
     int err = i2c_transfer(f, m, n);
     if (err)
         return errno_ret(err);
-    if (!rd || size == I2C_SMBUS_QUICK)
+    if (!d || !out)
         return 0;
     switch (size) {
     case I2C_SMBUS_BYTE:
@@ -1819,7 +1967,7 @@ static int i2c_smbus(struct fake *f, struct i2c_smbus_ioctl_data *a)
         memcpy(d->block + 1, r, blk);
         break;
     }
-    return 0;
+    return copy_out(a->data, d, datasize) ? errno_ret(EFAULT) : 0;
 }
 
 static int i2c_ioctl(struct fake *f, unsigned long req, unsigned long arg)
@@ -1843,15 +1991,14 @@ static int i2c_ioctl(struct fake *f, unsigned long req, unsigned long arg)
     case I2C_RETRIES:
     case I2C_TIMEOUT:
         return 0;
-    case I2C_FUNCS:
-        if (!arg)
-            return errno_ret(EFAULT);
-        *(unsigned long *)arg = I2C_FUNC_I2C | (I2C_FUNC_SMBUS_EMUL_ALL & ~(unsigned long)I2C_FUNC_SMBUS_PEC);
-        return 0;
+    case I2C_FUNCS: {
+        unsigned long funcs = I2C_FUNC_I2C | (I2C_FUNC_SMBUS_EMUL_ALL & ~(unsigned long)I2C_FUNC_SMBUS_PEC);
+        return copy_out((void *)arg, &funcs, sizeof funcs) ? errno_ret(EFAULT) : 0;
+    }
     case I2C_RDWR:
-        return i2c_rdwr(f, (struct i2c_rdwr_ioctl_data *)arg);
+        return i2c_rdwr(f, arg);
     case I2C_SMBUS:
-        return i2c_smbus(f, (struct i2c_smbus_ioctl_data *)arg);
+        return i2c_smbus(f, arg);
     default:
         note("ioctl 0x%lx on /dev/i2c-%d is not an i2c-dev request (ENOTTY)", req, f->t.bus);
         return errno_ret(ENOTTY);
@@ -1901,17 +2048,27 @@ static int streq_nl(const char *buf, size_t n, const char *word)
     return (n == w || (n == w + 1 && buf[w] == '\n')) && memcmp(buf, word, w) == 0;
 }
 
+/* i2c-dev's read() and write() move at most 8192 bytes; sysfs takes at most a page per write, copied
+   in before the attribute looks at it. The caller's buffer is copied as the kernel copies it. */
+#define SYSFS_PAGE 4096
+static __thread unsigned char xfer_buf[SYSFS_PAGE > MAX_XFER ? SYSFS_PAGE : MAX_XFER];
+
 static ssize_t fake_write(struct fake *f, const void *buf, size_t n)
 {
     if (f->t.kind == K_I2C) {
         size_t k = n > MAX_XFER ? MAX_XFER : n;
-        struct i2c_msg m = {(uint16_t)f->addr, (uint16_t)(f->tenbit ? I2C_M_TEN : 0), (uint16_t)k, (void *)buf};
+        if (copy_in(xfer_buf, buf, k))
+            return errno_ret(EFAULT);
+        struct i2c_msg m = {(uint16_t)f->addr, (uint16_t)(f->tenbit ? I2C_M_TEN : 0), (uint16_t)k, xfer_buf};
         int err = i2c_transfer(f, &m, 1);
         return err ? errno_ret(err) : (ssize_t)k;
     }
     if (f->t.kind != K_PWM_ATTR)
         return errno_ret(EBADF);
-    const char *s = buf;
+    n = n > SYSFS_PAGE ? SYSFS_PAGE : n;
+    if (copy_in(xfer_buf, buf, n))
+        return errno_ret(EFAULT);
+    const char *s = (const char *)xfer_buf;
     uint64_t v = 0;
     struct rig_pwm_msg msg = {.chip = (uint16_t)pwm_chip, .channel = (uint16_t)(f->t.channel < 0 ? 0 : f->t.channel)};
     pthread_mutex_lock(&lock);
@@ -1991,8 +2148,11 @@ static ssize_t fake_read(struct fake *f, void *buf, size_t n, off_t *pos)
 {
     if (f->t.kind == K_I2C) {
         size_t k = n > MAX_XFER ? MAX_XFER : n;
-        struct i2c_msg m = {(uint16_t)f->addr, (uint16_t)(I2C_M_RD | (f->tenbit ? I2C_M_TEN : 0)), (uint16_t)k, buf};
+        struct i2c_msg m = {(uint16_t)f->addr, (uint16_t)(I2C_M_RD | (f->tenbit ? I2C_M_TEN : 0)), (uint16_t)k,
+                            xfer_buf};
         int err = i2c_transfer(f, &m, 1);
+        if (!err && copy_out(buf, xfer_buf, k))
+            err = EFAULT; /* after the transfer, as i2c-dev's copy_to_user */
         return err ? errno_ret(err) : (ssize_t)k;
     }
     if (f->t.kind == K_PWM_DIR)
@@ -2025,7 +2185,8 @@ static ssize_t fake_read(struct fake *f, void *buf, size_t n, off_t *pos)
     if (*pos < 0 || (size_t)*pos >= len)
         return 0;
     size_t k = len - (size_t)*pos < n ? len - (size_t)*pos : n;
-    memcpy(buf, text + *pos, k);
+    if (copy_out(buf, text + *pos, k))
+        return errno_ret(EFAULT);
     *pos += (off_t)k;
     return (ssize_t)k;
 }
