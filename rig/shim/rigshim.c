@@ -1639,8 +1639,43 @@ EXPORT int faccessat(int dirfd, const char *path, int amode, int flags)
    a crash. The shim does the same with process_vm_readv/process_vm_writev on its own pid (always
    allowed on oneself), every piece of one transfer in one call, so a transfer costs a syscall or two
    more, not one per buffer. Where those are not available (ENOSYS, or EPERM from a seccomp filter)
-   it says so once and copies with memcpy, rejecting only addresses no user mapping has. */
+   it says so once and copies with memcpy, rejecting only addresses no user mapping has.
+   Pieces that lie in the calling thread's live stack, between the shim's own frame and the stack's
+   top, are mapped and writable whatever they hold, so they are copied with memcpy and cost nothing:
+   a C driver's arguments, messages and buffers are usually there (the reference FC's all are, which
+   saves it 4600 syscalls per 2 s of flight). A frame outside the thread's stack (a signal handler on
+   an alternate stack, a coroutine's stack) takes the checked path. */
 static int uaccess_memcpy;
+static __thread uintptr_t stack_lo, stack_hi; /* this thread's stack, asked once (0, 0: unknown) */
+static __thread int stack_asked;
+
+static int on_live_stack(const struct iovec *remote, size_t nr)
+{
+    char here; /* in the shim's frame: the caller's live frames are all above it */
+    if (!stack_asked) {
+        stack_asked = 1;
+        pthread_attr_t attr;
+        void *addr;
+        size_t size;
+        if (pthread_getattr_np(pthread_self(), &attr) == 0) {
+            if (pthread_attr_getstack(&attr, &addr, &size) == 0) {
+                stack_lo = (uintptr_t)addr;
+                stack_hi = (uintptr_t)addr + size;
+            }
+            pthread_attr_destroy(&attr);
+        }
+    }
+    uintptr_t sp = (uintptr_t)&here;
+    if (sp < stack_lo || sp >= stack_hi)
+        return 0;
+    for (size_t i = 0; i < nr; i++) {
+        uintptr_t a = (uintptr_t)remote[i].iov_base;
+        if (remote[i].iov_len && (a < sp || a + remote[i].iov_len < a || a + remote[i].iov_len > stack_hi))
+            return 0;
+    }
+    return 1;
+}
+
 static int user_range(const void *p, size_t n)
 {
     uintptr_t a = (uintptr_t)p;
@@ -1680,6 +1715,8 @@ static size_t user_copy(const struct iovec *local, size_t nl, const struct iovec
         total += remote[i].iov_len;
     if (total == 0)
         return nr;
+    if (on_live_stack(remote, nr))
+        return copy_by_memcpy(local, nl, remote, nr, to_user);
     if (!__atomic_load_n(&uaccess_memcpy, __ATOMIC_RELAXED)) {
         ssize_t k = to_user ? process_vm_writev(own_pid, local, nl, remote, nr, 0)
                             : process_vm_readv(own_pid, local, nl, remote, nr, 0);

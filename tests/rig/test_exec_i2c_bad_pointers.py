@@ -37,14 +37,14 @@ def test_bad_pointers_are_efault_and_the_dut_lives_on(tmp_path: Path, bad_pointe
     assert run.returncode == 0, run.stderr
     out = dict(line.split(" ", 1) for line in run.stdout.splitlines())
     efault = ["funcs_garbage", "funcs_null", "funcs_readonly", "write_garbage", "write_prot_none",
-              "read_garbage", "read_readonly", "rdwr_arg_garbage", "rdwr_msgs_garbage",
-              "rdwr_msgs_prot_none", "rdwr_write_buf_garbage", "rdwr_read_buf_garbage",
-              "rdwr_read_buf_readonly", "rdwr_read_buf_prot_none", "smbus_arg_garbage",
-              "smbus_read_byte_data_garbage", "smbus_read_byte_data_readonly",
-              "smbus_write_byte_data_garbage", "smbus_read_word_prot_none", "smbus_i2c_block_garbage",
-              "smbus_block_write_garbage", "smbus_proc_call_garbage", "pwm_export_write_garbage",
-              "pwm_period_write_garbage", "pwm_period_pwrite_prot_none", "pwm_period_read_garbage",
-              "pwm_period_pread_readonly"]
+              "read_garbage", "read_readonly", "write_past_stack_top", "rdwr_arg_garbage",
+              "rdwr_msgs_garbage", "rdwr_msgs_prot_none", "rdwr_write_buf_garbage",
+              "rdwr_read_buf_garbage", "rdwr_read_buf_readonly", "rdwr_read_buf_prot_none",
+              "rdwr_write_buf_past_stack_top", "smbus_arg_garbage", "smbus_read_byte_data_garbage",
+              "smbus_read_byte_data_readonly", "smbus_write_byte_data_garbage",
+              "smbus_read_word_prot_none", "smbus_i2c_block_garbage", "smbus_block_write_garbage",
+              "smbus_proc_call_garbage", "pwm_export_write_garbage", "pwm_period_write_garbage",
+              "pwm_period_pwrite_prot_none", "pwm_period_read_garbage", "pwm_period_pread_readonly"]
     assert {name: out.get(name) for name in efault} == dict.fromkeys(efault, "EFAULT")
     assert out["rdwr_msgs_null"] == "EINVAL"           # i2c-dev since Linux 5.11
     assert out["rdwr_no_msgs"] == "EINVAL"

@@ -29,6 +29,21 @@ static void report(const char *name, long r)
     fflush(stdout);
 }
 
+/* The top of the main thread's stack ([stack] in /proc/self/maps): a buffer that starts below it and
+   ends above it starts in mapped memory and runs into none. */
+static char *stack_top(void)
+{
+    FILE *maps = fopen("/proc/self/maps", "r");
+    char line[256];
+    unsigned long lo = 0, hi = 0;
+    while (maps && fgets(line, sizeof line, maps))
+        if (strstr(line, "[stack]"))
+            sscanf(line, "%lx-%lx", &lo, &hi);
+    if (maps)
+        fclose(maps);
+    return (char *)hi;
+}
+
 static long rdwr(int fd, struct i2c_msg *m, unsigned n)
 {
     struct i2c_rdwr_ioctl_data d = {m, n};
@@ -59,6 +74,8 @@ int main(void)
     report("write_prot_none", write(fd, none, 4));
     report("read_garbage", read(fd, BAD, 4));
     report("read_readonly", read(fd, ro, 1));
+    char *top = stack_top();
+    report("write_past_stack_top", top ? write(fd, top - 4, 8) : -2);
 
     report("rdwr_arg_garbage", ioctl(fd, I2C_RDWR, (void *)0x1234));
     struct i2c_rdwr_ioctl_data d = {BAD, 2};
@@ -79,6 +96,9 @@ int main(void)
     report("rdwr_read_buf_readonly", rdwr(fd, m, 2));
     m[1].buf = (unsigned char *)none;
     report("rdwr_read_buf_prot_none", rdwr(fd, m, 2));
+    m[1].buf = &id;
+    struct i2c_msg past_top[2] = {{0x68, 0, 8, (unsigned char *)top - 4}, m[1]};
+    report("rdwr_write_buf_past_stack_top", rdwr(fd, past_top, 2));
     struct i2c_msg empty = {0x68, 0, 0, BAD};                /* nothing to copy: no fault */
     report("rdwr_empty_message_garbage_buf", rdwr(fd, &empty, 1));
 

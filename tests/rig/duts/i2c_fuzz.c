@@ -1,7 +1,7 @@
 /* A C DUT for `rig exec` that fuzzes the i2c-dev surface: `i2c_fuzz SEED CALLS`. A forked child makes
    CALLS random calls from the seed (ioctl requests, lengths, flags, message counts, sizes, read_write
    values and pointers: NULL, small garbage, random non-user addresses, a PROT_NONE page, a read-only
-   page, valid buffers; read and write with random lengths) and checks each one returns or fails with
+   page, valid buffers in static memory and on the stack; read and write with random lengths) and checks each one returns or fails with
    an errno i2c-dev gives; the parent waits for it, says how it ended, then reads WHO_AM_I. Prints
    "key value..." lines. The pointers are never user addresses by chance, so a seed replays exactly. */
 #define _GNU_SOURCE
@@ -24,7 +24,7 @@ static unsigned char big[BIG + 64];
 static struct i2c_msg msgs[64];
 static struct i2c_rdwr_ioctl_data rdwr_arg;
 static struct i2c_smbus_ioctl_data smbus_arg;
-static unsigned char *none, *ro;
+static unsigned char *none, *ro, *on_stack; /* on_stack: a valid buffer in fuzz()'s frame */
 static uint64_t state;
 static volatile long *progress; /* shared with the parent: the call being made */
 
@@ -55,6 +55,8 @@ static void *pointer(void)
         return none + pick(4096);
     case 4:
         return ro + pick(64);
+    case 5:
+        return on_stack + pick(64);
     default:
         return big + pick(64);
     }
@@ -153,6 +155,9 @@ static int who_am_i(int fd)
 
 static int fuzz(long calls)
 {
+    unsigned char stack_buf[BIG + 64];
+    memset(stack_buf, 0, sizeof stack_buf);
+    on_stack = stack_buf;
     int fd = open("/dev/i2c-1", O_RDWR);
     if (fd < 0) {
         perror("open /dev/i2c-1");
