@@ -248,6 +248,7 @@ class Session:
         returncode: int | None = None
         self._running = True
         try:
+            (tmp / "fakes").mkdir()
             self._open_shm(tmp / "shm")
             listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
             listener.bind(str(tmp / "rig.sock"))
@@ -284,6 +285,7 @@ class Session:
                 os.close(pty.slave)
             if self._log:
                 self._log.close()
+            self._report_bypassed_bytes(tmp / "fakes")
             shutil.rmtree(tmp, ignore_errors=True)
         return self._outcome(returncode, wall0)
 
@@ -298,8 +300,22 @@ class Session:
             "RIG_I2C_BUSES": str(self.cfg.i2c_bus),
             "RIG_PWM_CHIP": "0",
             "RIG_SERIAL": ":".join(f"{p}={pty.slave_name}" for p, pty in self._ptys.items()),
+            "RIG_FAKES": str((tmp / "fakes").resolve()),
         })
         return env
+
+    def _report_bypassed_bytes(self, fakes: Path) -> None:
+        """The shim backs each emulated descriptor with a file of its own in ``fakes`` (named after the
+        device path, ':' for '/'), which it never writes: bytes there came through a call it does not
+        redirect, and reached no device."""
+        if not fakes.is_dir():
+            return
+        for f in sorted(fakes.iterdir()):
+            size = f.stat().st_size
+            if size:
+                self.notes.append(f"{size} bytes written to {f.name.replace(':', '/')} reached no device: "
+                                  "the command wrote them with a call the shim does not redirect (a raw "
+                                  "syscall, writev, dprintf or a FILE from fdopen)")
 
     def _loop(self, sel: selectors.BaseSelector, listener: socket.socket, keeper: _Keeper,
               wall0: float) -> int | None:

@@ -11,6 +11,7 @@
  * PWM writes never wait for the session (DESIGN.md section 6).
  */
 #define _GNU_SOURCE
+#include <dirent.h>
 #include <dlfcn.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -23,18 +24,23 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <stdio_ext.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/epoll.h>
 #include <sys/mman.h>
 #include <sys/select.h>
+#include <sys/sendfile.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
+#include <sys/syscall.h>
 #include <sys/sysmacros.h>
 #include <sys/time.h>
+#include <sys/uio.h>
 #include <sys/un.h>
 #include <time.h>
 #include <unistd.h>
+#include <wchar.h>
 
 #include "protocol.h"
 
@@ -71,6 +77,18 @@ DECLARE_REAL(int, ioctl, int, unsigned long, ...);
 DECLARE_REAL(int, dup, int);
 DECLARE_REAL(int, dup2, int, int);
 DECLARE_REAL(int, dup3, int, int, int);
+DECLARE_REAL(int, fcntl, int, int, ...);
+DECLARE_REAL(int, fcntl64, int, int, ...);
+DECLARE_REAL(DIR *, opendir, const char *);
+DECLARE_REAL(DIR *, fdopendir, int);
+DECLARE_REAL(struct dirent *, readdir, DIR *);
+DECLARE_REAL(struct dirent64 *, readdir64, DIR *);
+DECLARE_REAL(int, closedir, DIR *);
+DECLARE_REAL(int, dirfd, DIR *);
+DECLARE_REAL(void, rewinddir, DIR *);
+DECLARE_REAL(ssize_t, copy_file_range, int, off64_t *, int, off64_t *, size_t, unsigned int);
+DECLARE_REAL(ssize_t, sendfile, int, int, off_t *, size_t);
+DECLARE_REAL(ssize_t, sendfile64, int, int, off64_t *, size_t);
 DECLARE_REAL(int, stat, const char *, struct stat *);
 DECLARE_REAL(int, stat64, const char *, struct stat64 *);
 DECLARE_REAL(int, lstat, const char *, struct stat *);
@@ -109,6 +127,12 @@ static void *resolve(const char *name)
 
 /* ---------------------------------------------------------------- configuration */
 
+static int errno_ret(int err)
+{
+    errno = err;
+    return -1;
+}
+
 static int active;              /* RIG_SOCKET set: redirect */
 static int lockstep;            /* RIG_LOCKSTEP=1: virtual time */
 static char sock_path[108];
@@ -121,6 +145,7 @@ static struct {
 } serial_map[MAX_SERIAL];
 static int n_serial;
 static pthread_mutex_t lock = PTHREAD_MUTEX_INITIALIZER;
+static char fakes_dir[PATH_MAX]; /* RIG_FAKES: the session's folder of backing files (see open_fake) */
 static int ahead; /* lockstep: a sleep moved the clock in a notice the session has not answered yet */
 static int sock = -1;
 static pid_t sock_pid;
@@ -141,9 +166,17 @@ static void parse_serial(const char *spec)
 }
 
 /* This process's pid, kept: getpid() is a syscall (glibc no longer caches it), and every message asks.
-   A fork's child forgets it (pthread_atfork); vfork and posix_spawn children only exec. */
+   Set at start-up and in a fork's child (pthread_atfork), so it is never 0 once the shim runs: a vfork
+   child (Python's subprocess, between vfork and exec) shares the parent's memory, own_pid included,
+   and tells itself apart by getpid() (see set_fake). posix_spawn children only exec. */
 static pid_t own_pid;
-static void forget_pid(void) { own_pid = 0; }
+static void reset_std_lock(void);
+static void after_fork_child(void)
+{
+    own_pid = getpid();
+    reset_std_lock();
+}
+static void adopt_inherited_fakes(void);
 static pid_t self_pid(void)
 {
     if (!own_pid)
@@ -184,8 +217,13 @@ __attribute__((constructor)) static void shim_init(void)
     parse_serial(getenv("RIG_SERIAL"));
     const char *ls = getenv("RIG_LOCKSTEP");
     lockstep = ls && strcmp(ls, "1") == 0;
-    pthread_atfork(NULL, NULL, forget_pid);
+    const char *fk = getenv("RIG_FAKES");
+    if (fk && fk[0] == '/' && strlen(fk) < sizeof fakes_dir - 64)
+        strcpy(fakes_dir, fk);
+    own_pid = getpid();
+    pthread_atfork(NULL, NULL, after_fork_child);
     active = 1;
+    adopt_inherited_fakes();
 }
 
 /* ---------------------------------------------------------------- the socket */
@@ -616,11 +654,14 @@ EXPORT int epoll_pwait(int epfd, struct epoll_event *ev, int max, int timeout, c
 
 enum kind { K_NONE, K_I2C, K_PWM_ATTR, K_PWM_DIR, K_SERIAL };
 enum pwm_attr { A_EXPORT, A_UNEXPORT, A_NPWM, A_PERIOD, A_DUTY, A_ENABLE, A_POLARITY };
+#define N_ATTRS (A_POLARITY + 1)
+static const char *const attr_names[N_ATTRS] = {"export", "unexport", "npwm", "period", "duty_cycle", "enable",
+                                                "polarity"};
 
 struct target {
     enum kind kind;
     int bus;         /* K_I2C */
-    int channel;     /* K_PWM_*: -1 for the chip itself */
+    int channel;     /* K_PWM_*: -1 for the chip itself, -2 for /sys/class/pwm, -3 for its .. */
     enum pwm_attr attr;
     const char *to;  /* K_SERIAL: the pty */
 };
@@ -636,7 +677,18 @@ static int parse_uint(const char *s, const char **end)
     return (int)v;
 }
 
-static struct target classify(const char *path)
+/* The attribute "/name" among from..to-1, or N_ATTRS. */
+static int attr_named(const char *rest, int from, int to)
+{
+    for (int a = from; rest[0] == '/' && a < to; a++)
+        if (strcmp(rest + 1, attr_names[a]) == 0)
+            return a;
+    return N_ATTRS;
+}
+
+/* What a path names. A pwmN path exists only while the channel is exported, unless any_channel (a
+   descriptor inherited across exec names its file even after an unexport, as an open file does). */
+static struct target classify_path(const char *path, int any_channel)
 {
     struct target t = {.kind = K_NONE};
     if (!active || !path)
@@ -656,6 +708,22 @@ static struct target classify(const char *path)
             t.to = serial_map[i].to;
             return t;
         }
+    size_t len = strlen(path);
+    int up = len > 16 && strcmp(path + len - 3, "/..") == 0, here = len > 15 && strcmp(path + len - 2, "/.") == 0;
+    if ((up || here) && strncmp(path, "/sys/class/pwm/", 15) == 0 && len < PATH_MAX) {
+        /* the "." and ".." a listing shows (ls -la): the directory, or the one it is listed in (for
+           /sys/class/pwm/.., a /sys/class that holds pwm alone: ls -l asks its extended attributes
+           by this path, which only the shim knows) */
+        char dir[PATH_MAX];
+        memcpy(dir, path, len - (up ? 3 : 2));
+        dir[len - (up ? 3 : 2)] = 0;
+        struct target d = classify_path(dir, any_channel);
+        if (d.kind != K_PWM_DIR || (up && d.channel == -3))
+            return t;
+        if (up)
+            d.channel = d.channel >= 0 ? -1 : d.channel - 1;
+        return d;
+    }
     if (strcmp(path, "/sys/class/pwm") == 0 || strcmp(path, "/sys/class/pwm/") == 0) {
         t.kind = K_PWM_DIR;
         t.channel = -2;
@@ -671,31 +739,44 @@ static struct target classify(const char *path)
         t.kind = K_PWM_DIR;
         return t;
     }
-    static const char *chip_attrs[] = {"/export", "/unexport", "/npwm"};
-    for (int a = 0; a < 3; a++)
-        if (strcmp(rest, chip_attrs[a]) == 0) {
-            t.kind = K_PWM_ATTR;
-            t.attr = (enum pwm_attr)a;
-            return t;
-        }
+    int a = attr_named(rest, A_EXPORT, A_PERIOD);
+    if (a != N_ATTRS) {
+        t.kind = K_PWM_ATTR;
+        t.attr = (enum pwm_attr)a;
+        return t;
+    }
     if (strncmp(rest, "/pwm", 4) != 0)
         return t;
     int ch = parse_uint(rest + 4, &rest);
-    if (ch < 0 || ch >= (int)shm->npwm || !shm->pwm[ch].exported)
+    if (ch < 0 || ch >= (int)shm->npwm || (!any_channel && !shm->pwm[ch].exported))
         return t; /* not exported: the file does not exist (ENOENT from the real call) */
     t.channel = ch;
     if (*rest == 0 || strcmp(rest, "/") == 0) {
         t.kind = K_PWM_DIR;
         return t;
     }
-    static const char *ch_attrs[] = {"/period", "/duty_cycle", "/enable", "/polarity"};
-    for (int a = 0; a < 4; a++)
-        if (strcmp(rest, ch_attrs[a]) == 0) {
-            t.kind = K_PWM_ATTR;
-            t.attr = (enum pwm_attr)(A_PERIOD + a);
-            return t;
-        }
+    a = attr_named(rest, A_PERIOD, N_ATTRS);
+    if (a != N_ATTRS) {
+        t.kind = K_PWM_ATTR;
+        t.attr = (enum pwm_attr)a;
+    }
     return t;
+}
+
+static struct target classify(const char *path) { return classify_path(path, 0); }
+
+/* The path a target is known by (the kernel's name for the file). */
+static void target_path(const struct target *t, char *buf, size_t n)
+{
+    const char *sep = t->kind == K_PWM_ATTR ? "/" : "", *attr = t->kind == K_PWM_ATTR ? attr_names[t->attr] : "";
+    if (t->kind == K_I2C)
+        snprintf(buf, n, "/dev/i2c-%d", t->bus);
+    else if (t->channel <= -2)
+        snprintf(buf, n, t->channel == -2 ? "/sys/class/pwm" : "/sys/class");
+    else if (t->channel == -1)
+        snprintf(buf, n, "/sys/class/pwm/pwmchip%d%s%s", pwm_chip, sep, attr);
+    else
+        snprintf(buf, n, "/sys/class/pwm/pwmchip%d/pwm%d%s%s", pwm_chip, t->channel, sep, attr);
 }
 
 /* Only absolute paths are redirected (openat with a directory and a relative path passes through). */
@@ -705,6 +786,15 @@ static struct target classify_abs(const char *path)
 }
 
 static int is_empty(const char *path) { return path && path[0] == 0; }
+
+static ino_t target_ino(const struct target *t)
+{
+    if (t->kind == K_I2C)
+        return 1000 + (ino_t)t->bus;
+    if (t->kind == K_PWM_DIR)
+        return 2000 + (ino_t)(t->channel + 2); /* channel -2 is /sys/class/pwm, -3 its parent */
+    return 3000 + (ino_t)(t->channel + 1) * 8 + (ino_t)t->attr;
+}
 
 /* A path the kernel would have that we only pretend: make it ENOENT-proof for stat/access. */
 static void fill_stat(const struct target *t, struct stat *st)
@@ -718,17 +808,15 @@ static void fill_stat(const struct target *t, struct stat *st)
         st->st_mode = S_IFCHR | 0660;
         st->st_rdev = makedev(I2C_MAJOR, t->bus);
         st->st_dev = makedev(0, 5);
-        st->st_ino = 1000 + (ino_t)t->bus;
     } else if (t->kind == K_PWM_DIR) {
         st->st_mode = S_IFDIR | 0755;
         st->st_nlink = 2;
-        st->st_ino = 2000 + (ino_t)(t->channel + 2);
     } else {
         int wo = t->attr == A_EXPORT || t->attr == A_UNEXPORT, ro = t->attr == A_NPWM;
         st->st_mode = S_IFREG | (wo ? 0200 : ro ? 0444 : 0644);
         st->st_size = 4096;
-        st->st_ino = 3000 + (ino_t)(t->channel + 1) * 8 + (ino_t)t->attr;
     }
+    st->st_ino = target_ino(t);
 }
 
 /* ---------------------------------------------------------------- fake descriptors */
@@ -743,22 +831,70 @@ static struct fake *fakes[MAX_FD];
 
 static struct fake *fake_of(int fd) { return (active && fd >= 0 && fd < MAX_FD) ? fakes[fd] : NULL; }
 
-/* A fake descriptor is a real one onto /dev/null, so its number is unique and close/fcntl/poll work. */
+static void std_sync(int fd);
+
+/* The table's one writer: fd is now f (NULL: not a fake). Then stdin/stdout/stderr follow (std_sync).
+   Not in a vfork child: the table and stdout it would change are its parent's, whose descriptors have
+   not changed (the child's dup2 onto 1 before exec would make the parent's fd 1 a fake). What the child
+   execs finds its fakes from /proc/self/fd. */
+static int set_fake(int fd, struct fake *f)
+{
+    if (getpid() != own_pid) {
+        free(f);
+        return 0;
+    }
+    pthread_mutex_lock(&lock);
+    free(fakes[fd]);
+    fakes[fd] = f;
+    pthread_mutex_unlock(&lock);
+    std_sync(fd);
+    return 1;
+}
+
+/* A fake descriptor is a real one onto a file of its own in the session's folder (RIG_FAKES), named
+   after the target's path with ':' for '/': its number is unique, close, dup, fcntl and poll work on
+   it, and it says what it is across exec, where this table is lost: a shell opens the attribute and
+   dup2s it onto 1, then execs echo, whose shim finds the fake again from /proc/self/fd
+   (adopt_inherited_fakes). The file keeps the access mode asked for. The shim never writes to it:
+   bytes there came through a call it cannot see (a raw syscall, writev, dprintf), and the session
+   reports them. Without RIG_FAKES (an older session) the descriptor is onto /dev/null. */
+static void backing_name(const struct target *t, char *buf, size_t n)
+{
+    target_path(t, buf, n);
+    for (char *c = buf; *c; c++)
+        if (*c == '/')
+            *c = ':';
+}
+
+static int backing_open(const struct target *t, int flags)
+{
+    if (!fakes_dir[0])
+        return LOAD(open)("/dev/null", O_RDWR | (flags & O_CLOEXEC));
+    char path[PATH_MAX + 128], name[128];
+    backing_name(t, name, sizeof name);
+    snprintf(path, sizeof path, "%s/%s", fakes_dir, name);
+    return LOAD(open)(path, (flags & (O_ACCMODE | O_CLOEXEC | O_NONBLOCK)) | O_CREAT, 0600);
+}
+
 static int open_fake(const struct target *t, int flags)
 {
-    if (t->kind == K_PWM_DIR) {
+    int acc = flags & O_ACCMODE;
+    if (t->kind == K_PWM_DIR && (acc != O_RDONLY || (flags & O_CREAT))) {
         errno = EISDIR;
         return -1;
     }
+    if (t->kind != K_PWM_DIR && (flags & O_DIRECTORY)) {
+        errno = ENOTDIR;
+        return -1;
+    }
     if (t->kind == K_PWM_ATTR) {
-        int acc = flags & O_ACCMODE;
         int wo = t->attr == A_EXPORT || t->attr == A_UNEXPORT, ro = t->attr == A_NPWM;
         if ((wo && acc != O_WRONLY && getuid() != 0) || (ro && acc != O_RDONLY)) {
             errno = EACCES;
             return -1;
         }
     }
-    int fd = LOAD(open)("/dev/null", O_RDWR | (flags & O_CLOEXEC));
+    int fd = backing_open(t, flags);
     if (fd < 0)
         return -1;
     if (fd >= MAX_FD) {
@@ -774,36 +910,71 @@ static int open_fake(const struct target *t, int flags)
     }
     f->t = *t;
     f->addr = 0; /* i2c-dev's client starts at address 0, where nothing answers */
-    pthread_mutex_lock(&lock);
-    free(fakes[fd]);
-    fakes[fd] = f;
-    pthread_mutex_unlock(&lock);
+    if (set_fake(fd, f)) {
+        /* Opening an emulated device is touching the devices, even when all that follows is a read or
+           a write the kernel refuses (neither sends anything): connect, so the session knows. */
+        pthread_mutex_lock(&lock);
+        ensure_connected();
+        pthread_mutex_unlock(&lock);
+    }
     return fd;
 }
 
 static void drop_fake(int fd)
 {
-    if (fd < 0 || fd >= MAX_FD || !fakes[fd])
-        return;
-    pthread_mutex_lock(&lock);
-    free(fakes[fd]);
-    fakes[fd] = NULL;
-    pthread_mutex_unlock(&lock);
+    if (fd >= 0 && fd < MAX_FD && fakes[fd])
+        set_fake(fd, NULL);
 }
 
+/* `to` is now a copy of `from` (dup and friends): a fake's copy is a fake, anything else's is not. */
 static void copy_fake(int from, int to)
 {
-    struct fake *src = fake_of(from);
-    if (!src || to < 0 || to >= MAX_FD)
+    if (to < 0 || to >= MAX_FD)
         return;
-    struct fake *f = malloc(sizeof *f);
-    if (!f)
+    struct fake *src = fake_of(from), *f = NULL;
+    if (src && (f = malloc(sizeof *f)))
+        *f = *src;
+    if (f || fakes[to])
+        set_fake(to, f);
+}
+
+/* At start-up (after exec): the descriptors onto files in RIG_FAKES are fakes this process inherited.
+   An I2C client's address and a read position start afresh (they live in the table, not the file). */
+static void adopt_inherited_fakes(void)
+{
+    if (!fakes_dir[0])
         return;
-    *f = *src;
-    pthread_mutex_lock(&lock);
-    free(fakes[to]);
-    fakes[to] = f;
-    pthread_mutex_unlock(&lock);
+    int dfd = LOAD(open)("/proc/self/fd", O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (dfd < 0)
+        return;
+    size_t plen = strlen(fakes_dir);
+    char buf[4096], link[PATH_MAX];
+    long n;
+    while ((n = syscall(SYS_getdents64, dfd, buf, sizeof buf)) > 0) {
+        for (long off = 0; off < n;) {
+            struct dirent64 *d = (struct dirent64 *)(buf + off);
+            off += d->d_reclen;
+            const char *end;
+            int fd = parse_uint(d->d_name, &end);
+            if (fd < 0 || *end || fd == dfd || fd >= MAX_FD)
+                continue;
+            ssize_t k = readlinkat(dfd, d->d_name, link, sizeof link - 1);
+            if (k <= (ssize_t)plen + 1 || memcmp(link, fakes_dir, plen) != 0 || link[plen] != '/')
+                continue;
+            link[k] = 0;
+            char *name = link + plen + 1;
+            for (char *c = name; *c; c++)
+                if (*c == ':')
+                    *c = '/';
+            struct target t = classify_path(name, 1);
+            struct fake *f = t.kind == K_I2C || t.kind == K_PWM_ATTR || t.kind == K_PWM_DIR ? calloc(1, sizeof *f) : NULL;
+            if (f) {
+                f->t = t;
+                set_fake(fd, f);
+            }
+        }
+    }
+    LOAD(close)(dfd);
 }
 
 /* ---------------------------------------------------------------- open and friends */
@@ -955,21 +1126,413 @@ EXPORT int dup(int fd)
 EXPORT int dup2(int fd, int to)
 {
     int r = LOAD(dup2)(fd, to);
-    if (r >= 0 && fd != to) {
-        drop_fake(r);
+    if (r >= 0 && fd != to)
         copy_fake(fd, r);
-    }
     return r;
 }
 
 EXPORT int dup3(int fd, int to, int flags)
 {
     int r = LOAD(dup3)(fd, to, flags);
-    if (r >= 0) {
-        drop_fake(r);
+    if (r >= 0)
         copy_fake(fd, r);
-    }
     return r;
+}
+
+/* fcntl's F_DUPFD and F_DUPFD_CLOEXEC are dups too: shells save a descriptor they redirect that way
+   (dash: fcntl(1, F_DUPFD_CLOEXEC, 10)) and dup2 it back afterwards. Programs built with 64-bit file
+   offsets call fcntl64. The argument is an int or a pointer: passed on as it came. */
+static int fcntl_via(int fd, int cmd, void *arg, int (*real)(int, int, ...))
+{
+    int r = real(fd, cmd, arg);
+    if (r >= 0 && (cmd == F_DUPFD || cmd == F_DUPFD_CLOEXEC))
+        copy_fake(fd, r);
+    return r;
+}
+
+EXPORT int fcntl(int fd, int cmd, ...)
+{
+    va_list ap;
+    va_start(ap, cmd);
+    void *arg = va_arg(ap, void *);
+    va_end(ap);
+    return fcntl_via(fd, cmd, arg, LOAD(fcntl));
+}
+
+EXPORT int fcntl64(int fd, int cmd, ...)
+{
+    va_list ap;
+    va_start(ap, cmd);
+    void *arg = va_arg(ap, void *);
+    va_end(ap);
+    return fcntl_via(fd, cmd, arg, LOAD(fcntl64));
+}
+
+static off_t fake_seek(struct fake *f, off_t off, int whence);
+
+/* ---------------------------------------------------------------- stdin, stdout, stderr on a fake */
+
+/* glibc's stdio writes a FILE's buffer with an internal write() no preload can redirect. So bash's
+   echo and printf (builtins printing on stdout after the shell dup2'd the attribute onto descriptor 1)
+   and coreutils' echo (exec'd with it) would write to the backing file and report success. While
+   descriptor 0, 1 or 2 is a fake, stdin/stdout/stderr is a cookie stream that goes through the shim
+   (whose errors reach the caller: bash says "echo: write error: No such device"); when it stops being
+   one, the program's own FILE is back. The swap keeps what a FILE would: pending output moves with
+   it (a FILE writes what it holds to whatever its descriptor is at flush time), so do the error and
+   end-of-file flags, and fileno() still answers 0, 1 or 2. A cookie is made once per descriptor and
+   kept (the program may still hold its pointer), and writes to the real descriptor when that is not a
+   fake. The program's fclose(stdout) closes the descriptor, as its own FILE would. */
+struct std_stream {
+    FILE *orig;   /* the program's FILE, while swapped */
+    FILE *cookie;
+    int swapped;
+};
+static struct std_stream stds[3];
+static pthread_mutex_t std_lock = PTHREAD_MUTEX_INITIALIZER;
+static void reset_std_lock(void) { pthread_mutex_init(&std_lock, NULL); }
+
+static FILE **std_var(int fd) { return fd == 0 ? &stdin : fd == 1 ? &stdout : &stderr; }
+
+static ssize_t std_read(void *c, char *buf, size_t n)
+{
+    int fd = (int)(intptr_t)c;
+    struct fake *f = fake_of(fd);
+    return f ? fake_read(f, buf, n, &f->pos) : LOAD(read)(fd, buf, n);
+}
+
+static ssize_t std_write(void *c, const char *buf, size_t n)
+{
+    int fd = (int)(intptr_t)c;
+    struct fake *f = fake_of(fd);
+    if (f) {
+        ssize_t r = fake_write(f, buf, n);
+        return r < 0 ? 0 : r; /* stdio takes a short write as the error; errno says which */
+    }
+    size_t done = 0;
+    while (done < n) {
+        ssize_t k = LOAD(write)(fd, buf + done, n - done);
+        if (k < 0 && errno == EINTR)
+            continue;
+        if (k <= 0)
+            break;
+        done += (size_t)k;
+    }
+    return (ssize_t)done;
+}
+
+static int std_seek(void *c, off64_t *off, int whence)
+{
+    int fd = (int)(intptr_t)c;
+    struct fake *f = fake_of(fd);
+    off_t r = f ? fake_seek(f, *off, whence) : LOAD(lseek)(fd, *off, whence);
+    if (r < 0)
+        return -1;
+    *off = r;
+    return 0;
+}
+
+static int std_close(void *c)
+{
+    int fd = (int)(intptr_t)c;
+    struct std_stream *s = &stds[fd];
+    if (*std_var(fd) == s->cookie)
+        *std_var(fd) = s->orig;
+    s->cookie = NULL; /* fclose frees it */
+    s->swapped = 0;
+    return close(fd);
+}
+
+static FILE *std_cookie(int fd, FILE *like)
+{
+    cookie_io_functions_t io = {std_read, std_write, std_seek, std_close};
+    FILE *fp = fopencookie((void *)(intptr_t)fd, fd == 0 ? "r" : "w", io);
+    if (!fp)
+        return NULL;
+    fp->_fileno = fd; /* glibc marks a cookie stream -2; any other number it leaves to fileno() */
+    if (fd == 2)
+        setvbuf(fp, NULL, _IONBF, 0);
+    else if (fd == 1 && __flbf(like))
+        setvbuf(fp, NULL, _IOLBF, BUFSIZ);
+    return fp;
+}
+
+static void move_stream(FILE *from, FILE *to)
+{
+    size_t k = __fpending(from);
+    if (k && fwide(from, 0) <= 0) {
+        fwrite(from->_IO_write_base, 1, k, to);
+        __fpurge(from);
+    }
+    int flags = from->_flags & (_IO_ERR_SEEN | _IO_EOF_SEEN);
+    to->_flags = (to->_flags & ~(_IO_ERR_SEEN | _IO_EOF_SEEN)) | flags;
+}
+
+static void std_sync(int fd)
+{
+    if (fd < 0 || fd > 2 || (fake_of(fd) != NULL) == stds[fd].swapped)
+        return;
+    struct std_stream *s = &stds[fd];
+    FILE **var = std_var(fd);
+    pthread_mutex_lock(&std_lock);
+    if (fake_of(fd) && !s->swapped) {
+        FILE *cur = *var; /* only the stream that is on this descriptor (a program may point stdout elsewhere) */
+        if (cur && cur != s->cookie && fileno(cur) == fd && (s->cookie || (s->cookie = std_cookie(fd, cur)))) {
+            move_stream(cur, s->cookie);
+            s->orig = cur;
+            *var = s->cookie;
+            s->swapped = 1;
+        }
+    } else if (!fake_of(fd) && s->swapped) {
+        s->swapped = 0;
+        if (*var == s->cookie) {
+            move_stream(s->cookie, s->orig);
+            *var = s->orig;
+        } else {
+            fflush(s->cookie);
+        }
+    }
+    pthread_mutex_unlock(&std_lock);
+}
+
+/* ---------------------------------------------------------------- copies between descriptors */
+
+/* copy_file_range (coreutils cat and cp, when both ends look like regular files): sysfs and i2c-dev
+   share no file system with anything, so the kernel answers EXDEV and the caller falls back to read
+   and write, which the shim sees. (Into the backing file the bytes would be lost.) */
+EXPORT ssize_t copy_file_range(int in, off64_t *in_off, int out, off64_t *out_off, size_t len, unsigned int flags)
+{
+    if (fake_of(in) || fake_of(out))
+        return errno_ret(EXDEV);
+    return LOAD(copy_file_range)(in, in_off, out, out_off, len, flags);
+}
+
+/* sendfile (Python's shutil.copyfile) with a PWM attribute at either end: the kernel's copy, up to a
+   page per call, through the shim's read and write. i2c-dev cannot splice: EINVAL. */
+static ssize_t sendfile_fake(int out, int in, off64_t *off, size_t count)
+{
+    struct fake *fi = fake_of(in), *fo = fake_of(out);
+    if ((fi && fi->t.kind != K_PWM_ATTR) || (fo && fo->t.kind != K_PWM_ATTR))
+        return errno_ret(EINVAL);
+    char buf[4096];
+    size_t n = count < sizeof buf ? count : sizeof buf;
+    off_t at = off ? *off : fi ? fi->pos : LOAD(lseek)(in, 0, SEEK_CUR), next = at;
+    if (at < 0)
+        return -1;
+    ssize_t k = fi ? fake_read(fi, buf, n, &next) : LOAD(pread)(in, buf, n, at);
+    if (k <= 0)
+        return k;
+    ssize_t w = fo ? fake_write(fo, buf, (size_t)k) : write(out, buf, (size_t)k);
+    if (w <= 0)
+        return w;
+    at += w;
+    if (off)
+        *off = at;
+    else if (fi)
+        fi->pos = at;
+    else
+        LOAD(lseek)(in, at, SEEK_SET);
+    return w;
+}
+
+EXPORT ssize_t sendfile(int out, int in, off_t *off, size_t count)
+{
+    if (fake_of(in) || fake_of(out))
+        return sendfile_fake(out, in, (off64_t *)off, count);
+    return LOAD(sendfile)(out, in, off, count);
+}
+
+EXPORT ssize_t sendfile64(int out, int in, off64_t *off, size_t count)
+{
+    if (fake_of(in) || fake_of(out))
+        return sendfile_fake(out, in, off, count);
+    return LOAD(sendfile64)(out, in, off, count);
+}
+
+/* ---------------------------------------------------------------- directories */
+
+/* The pwm class's directories, listed as the kernel lists them: /sys/class/pwm holds pwmchip0, the chip
+   export, npwm, unexport and pwmN for each exported channel, pwmN duty_cycle, enable, period and
+   polarity. Only what the shim emulates is listed, so every name listed can be opened and stat'ed (a
+   real chip also has device, power, subsystem and uevent, a channel capture, power and uevent).
+   glibc's readdir reads a descriptor with getdents64, which no preload can redirect, so opendir and
+   fdopendir on a fake give the shim's own stream; the calls taking a DIR tell one from a real DIR by
+   the list of those open. The chip's channels are read when the stream opens or rewinds. */
+struct fake_dir {
+    struct fake_dir *next;
+    int fd;
+    struct target t;
+    uint32_t exported; /* bit N: pwmN exported */
+    long at;           /* the next entry */
+    struct dirent64 ent;
+};
+_Static_assert(sizeof(struct dirent) == sizeof(struct dirent64), "struct dirent64 differs from struct dirent");
+static struct fake_dir *fake_dirs;
+static int n_fake_dirs;
+
+static struct fake_dir *fake_dir_of(DIR *d)
+{
+    if (!__atomic_load_n(&n_fake_dirs, __ATOMIC_ACQUIRE))
+        return NULL;
+    pthread_mutex_lock(&lock);
+    struct fake_dir *p = fake_dirs;
+    while (p && (DIR *)p != d)
+        p = p->next;
+    pthread_mutex_unlock(&lock);
+    return p;
+}
+
+static void dir_rewind(struct fake_dir *d)
+{
+    d->exported = 0;
+    for (unsigned i = 0; i < shm->npwm && i < 32; i++)
+        if (shm->pwm[i].exported)
+            d->exported |= 1u << i;
+    d->at = 0;
+}
+
+static DIR *dir_open(int fd, const struct target *t)
+{
+    struct fake_dir *d = calloc(1, sizeof *d);
+    if (!d) {
+        errno = ENOMEM;
+        return NULL;
+    }
+    d->fd = fd;
+    d->t = *t;
+    dir_rewind(d);
+    pthread_mutex_lock(&lock);
+    d->next = fake_dirs;
+    fake_dirs = d;
+    __atomic_add_fetch(&n_fake_dirs, 1, __ATOMIC_RELEASE);
+    pthread_mutex_unlock(&lock);
+    return (DIR *)d;
+}
+
+/* Entry i of the directory into e (0: past the end). */
+static int dir_entry(const struct fake_dir *d, long i, struct dirent64 *e)
+{
+    struct target c = d->t; /* what the entry names */
+    const char *name = NULL;
+    char buf[32];
+    if (i < 2) {
+        name = i ? ".." : ".";
+        if (i)
+            c.channel = c.channel >= 0 ? -1 : c.channel - 1;
+    } else if (d->t.channel <= -2) {
+        if (i > 2)
+            return 0;
+        c.channel = d->t.channel + 1;
+        snprintf(buf, sizeof buf, "pwmchip%d", pwm_chip);
+        name = c.channel == -1 ? buf : "pwm";
+    } else if (d->t.channel == -1 && i < 2 + A_PERIOD) {
+        c.kind = K_PWM_ATTR;
+        c.attr = (enum pwm_attr)(i - 2);
+        name = attr_names[c.attr];
+    } else if (d->t.channel == -1) {
+        long k = i - 2 - A_PERIOD;
+        for (c.channel = 0; c.channel < 32; c.channel++)
+            if ((d->exported >> c.channel & 1u) && k-- == 0)
+                break;
+        if (c.channel == 32)
+            return 0;
+        snprintf(buf, sizeof buf, "pwm%d", c.channel);
+        name = buf;
+    } else {
+        if (i >= 2 + N_ATTRS - A_PERIOD)
+            return 0;
+        c.kind = K_PWM_ATTR;
+        c.attr = (enum pwm_attr)(A_PERIOD + i - 2);
+        name = attr_names[c.attr];
+    }
+    e->d_ino = target_ino(&c);
+    e->d_off = i + 1;
+    e->d_reclen = sizeof *e;
+    e->d_type = c.kind == K_PWM_DIR ? DT_DIR : DT_REG;
+    snprintf(e->d_name, sizeof e->d_name, "%s", name);
+    return 1;
+}
+
+static struct dirent64 *dir_read(struct fake_dir *d)
+{
+    if (!dir_entry(d, d->at, &d->ent))
+        return NULL; /* the end: errno unchanged */
+    d->at++;
+    return &d->ent;
+}
+
+EXPORT DIR *opendir(const char *path)
+{
+    struct target t = classify(path);
+    if (t.kind == K_NONE || t.kind == K_SERIAL)
+        return LOAD(opendir)(path);
+    if (t.kind != K_PWM_DIR) {
+        errno = ENOTDIR;
+        return NULL;
+    }
+    int fd = open_fake(&t, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (fd < 0)
+        return NULL;
+    DIR *d = dir_open(fd, &t);
+    if (!d)
+        close(fd);
+    return d;
+}
+
+EXPORT DIR *fdopendir(int fd)
+{
+    struct fake *f = fake_of(fd);
+    if (!f)
+        return LOAD(fdopendir)(fd);
+    if (f->t.kind != K_PWM_DIR) {
+        errno = ENOTDIR;
+        return NULL;
+    }
+    return dir_open(fd, &f->t);
+}
+
+EXPORT struct dirent *readdir(DIR *dir)
+{
+    struct fake_dir *d = fake_dir_of(dir);
+    return d ? (struct dirent *)dir_read(d) : LOAD(readdir)(dir);
+}
+
+EXPORT struct dirent64 *readdir64(DIR *dir)
+{
+    struct fake_dir *d = fake_dir_of(dir);
+    return d ? dir_read(d) : LOAD(readdir64)(dir);
+}
+
+EXPORT int closedir(DIR *dir)
+{
+    struct fake_dir *d = fake_dir_of(dir);
+    if (!d)
+        return LOAD(closedir)(dir);
+    pthread_mutex_lock(&lock);
+    for (struct fake_dir **p = &fake_dirs; *p; p = &(*p)->next)
+        if (*p == d) {
+            *p = d->next;
+            break;
+        }
+    __atomic_sub_fetch(&n_fake_dirs, 1, __ATOMIC_RELEASE);
+    pthread_mutex_unlock(&lock);
+    int r = close(d->fd);
+    free(d);
+    return r;
+}
+
+EXPORT int dirfd(DIR *dir)
+{
+    struct fake_dir *d = fake_dir_of(dir);
+    return d ? d->fd : LOAD(dirfd)(dir);
+}
+
+EXPORT void rewinddir(DIR *dir)
+{
+    struct fake_dir *d = fake_dir_of(dir);
+    if (d)
+        dir_rewind(d);
+    else
+        LOAD(rewinddir)(dir);
 }
 
 /* ---------------------------------------------------------------- stat and access */
@@ -988,6 +1551,7 @@ static int stat_target(const char *path, struct stat *st, int (*real)(const char
 
 /* struct stat64 is struct stat on the 64-bit targets we build for; the casts below rely on it. */
 _Static_assert(sizeof(struct stat) == sizeof(struct stat64), "struct stat64 differs from struct stat");
+_Static_assert(sizeof(off_t) == sizeof(off64_t), "off64_t differs from off_t");
 typedef int (*stat_fn)(const char *, struct stat *);
 typedef int (*fstat_fn)(int, struct stat *);
 typedef int (*fstatat_fn)(int, const char *, struct stat *, int);
@@ -1084,15 +1648,125 @@ EXPORT int faccessat(int dirfd, const char *path, int amode, int flags)
     return t.kind ? access_target(&t, amode) : LOAD(faccessat)(dirfd, path, amode, flags);
 }
 
-/* ---------------------------------------------------------------- I2C */
+/* ---------------------------------------------------------------- user memory */
 
-static int errno_ret(int err)
+/* The kernel copies a caller's memory with copy_from_user/copy_to_user: a bad address is EFAULT, never
+   a crash. The shim does the same with process_vm_readv/process_vm_writev on its own pid (always
+   allowed on oneself), every piece of one transfer in one call, so a transfer costs a syscall or two
+   more, not one per buffer. Where those are not available (ENOSYS, or EPERM from a seccomp filter)
+   it says so once and copies with memcpy, rejecting only addresses no user mapping has.
+   Pieces that lie in the calling thread's live stack, between the shim's own frame and the stack's
+   top, are mapped and writable whatever they hold, so they are copied with memcpy and cost nothing:
+   a C driver's arguments, messages and buffers are usually there (the reference FC's all are, which
+   saves it 4600 syscalls per 2 s of flight). A frame outside the thread's stack (a signal handler on
+   an alternate stack, a coroutine's stack) takes the checked path. */
+static int uaccess_memcpy;
+static __thread uintptr_t stack_lo, stack_hi; /* this thread's stack, asked once (0, 0: unknown) */
+static __thread int stack_asked;
+
+static int on_live_stack(const struct iovec *remote, size_t nr)
 {
-    errno = err;
-    return -1;
+    char here; /* in the shim's frame: the caller's live frames are all above it */
+    if (!stack_asked) {
+        stack_asked = 1;
+        pthread_attr_t attr;
+        void *addr;
+        size_t size;
+        if (pthread_getattr_np(pthread_self(), &attr) == 0) {
+            if (pthread_attr_getstack(&attr, &addr, &size) == 0) {
+                stack_lo = (uintptr_t)addr;
+                stack_hi = (uintptr_t)addr + size;
+            }
+            pthread_attr_destroy(&attr);
+        }
+    }
+    uintptr_t sp = (uintptr_t)&here;
+    if (sp < stack_lo || sp >= stack_hi)
+        return 0;
+    for (size_t i = 0; i < nr; i++) {
+        uintptr_t a = (uintptr_t)remote[i].iov_base;
+        if (remote[i].iov_len && (a < sp || a + remote[i].iov_len < a || a + remote[i].iov_len > stack_hi))
+            return 0;
+    }
+    return 1;
 }
 
-/* One transfer: msgs in, the read bytes written back into the callers' buffers. Returns 0 or an errno. */
+static int user_range(const void *p, size_t n)
+{
+    uintptr_t a = (uintptr_t)p;
+    return n == 0 || (a >= 4096 && a + n > a && a + n <= (uintptr_t)1 << 47);
+}
+
+static size_t copy_by_memcpy(const struct iovec *local, size_t nl, const struct iovec *remote, size_t nr, int to_user)
+{
+    size_t li = 0, loff = 0;
+    for (size_t i = 0; i < nr; i++) {
+        if (!user_range(remote[i].iov_base, remote[i].iov_len))
+            return i;
+        for (size_t roff = 0; roff < remote[i].iov_len;) {
+            while (li < nl && loff == local[li].iov_len) {
+                li++;
+                loff = 0;
+            }
+            if (li == nl)
+                return i;
+            size_t k = remote[i].iov_len - roff < local[li].iov_len - loff ? remote[i].iov_len - roff
+                                                                          : local[li].iov_len - loff;
+            char *r = (char *)remote[i].iov_base + roff, *l = (char *)local[li].iov_base + loff;
+            memcpy(to_user ? r : l, to_user ? l : r, k);
+            roff += k;
+            loff += k;
+        }
+    }
+    return nr;
+}
+
+/* Copies the caller's pieces (remote) into the shim's (local, the same bytes in total) or, to_user,
+   back. Returns how many remote pieces, from the first, were copied whole: nr when all were. */
+static size_t user_copy(const struct iovec *local, size_t nl, const struct iovec *remote, size_t nr, int to_user)
+{
+    size_t total = 0;
+    for (size_t i = 0; i < nr; i++)
+        total += remote[i].iov_len;
+    if (total == 0)
+        return nr;
+    if (on_live_stack(remote, nr))
+        return copy_by_memcpy(local, nl, remote, nr, to_user);
+    if (!__atomic_load_n(&uaccess_memcpy, __ATOMIC_RELAXED)) {
+        ssize_t k = to_user ? process_vm_writev(own_pid, local, nl, remote, nr, 0)
+                            : process_vm_readv(own_pid, local, nl, remote, nr, 0);
+        if (k >= 0 || (errno != ENOSYS && errno != EPERM)) {
+            size_t done = k < 0 ? 0 : (size_t)k, i = 0;
+            while (i < nr && remote[i].iov_len <= done)
+                done -= remote[i++].iov_len;
+            return i;
+        }
+        int err = errno;
+        __atomic_store_n(&uaccess_memcpy, 1, __ATOMIC_RELAXED);
+        note("process_vm_readv/writev refused (%s): the shim copies with memcpy, so a bad pointer handed to an "
+             "emulated device may crash the command where the kernel says EFAULT", strerror(err));
+    }
+    return copy_by_memcpy(local, nl, remote, nr, to_user);
+}
+
+/* One piece: 0 or EFAULT. */
+static int copy_in(void *dst, const void *user, size_t n)
+{
+    struct iovec l = {dst, n}, r = {(void *)user, n};
+    return user_copy(&l, 1, &r, 1, 0) == 1 ? 0 : EFAULT;
+}
+
+static int copy_out(void *user, const void *src, size_t n)
+{
+    struct iovec l = {(void *)src, n}, r = {user, n};
+    return user_copy(&l, 1, &r, 1, 1) == 1 ? 0 : EFAULT;
+}
+
+/* ---------------------------------------------------------------- I2C */
+
+/* One transfer of messages whose buffers are the shim's (copied from the caller, or to be copied back):
+   the read bytes land in them, and a RECV_LEN message's len becomes what it received (its count byte
+   and the count), as the bus driver sets it. Returns 0 or an errno. */
 static int i2c_transfer(struct fake *f, struct i2c_msg *msgs, unsigned n)
 {
     static __thread unsigned char out[sizeof(struct rig_i2c_msg) * I2C_RDWR_IOCTL_MAX_MSGS + 4 + 8192 * 2];
@@ -1135,7 +1809,7 @@ static int i2c_transfer(struct fake *f, struct i2c_msg *msgs, unsigned n)
             continue;
         size_t k = msgs[i].len;
         if (msgs[i].flags & I2C_M_RECV_LEN)
-            k = at < h.len ? 1u + in[at] : 0;
+            msgs[i].len = (uint16_t)(k = at < h.len ? 1u + in[at] : 0);
         if (at + k > h.len)
             die_session("an I2C reply shorter than its request");
         memcpy(msgs[i].buf, in + at, k);
@@ -1144,28 +1818,86 @@ static int i2c_transfer(struct fake *f, struct i2c_msg *msgs, unsigned n)
     return 0;
 }
 
-static int i2c_rdwr(struct fake *f, struct i2c_rdwr_ioctl_data *arg)
+/* I2C_RDWR as i2c-dev does it: the argument and the messages copied in, then for each message in order
+   its length checked (EINVAL above 8192), its buffer copied in (EFAULT; read buffers too, and a zero
+   length never faults) and a RECV_LEN message's first byte checked; the transfer; the read buffers
+   copied back (EFAULT if any fails, the others still copied). The messages' copies are one
+   process_vm_readv, the read buffers' one process_vm_writev. */
+#define RECV_SLOT (1 + I2C_SMBUS_BLOCK_MAX + 1) /* a RECV_LEN message's count byte and data, and a spare */
+static unsigned char junk[MAX_XFER]; /* where the bytes copied in only to check them go */
+
+static int i2c_rdwr(struct fake *f, unsigned long uarg)
 {
-    if (!arg || !arg->msgs)
+    struct i2c_rdwr_ioctl_data arg;
+    if (copy_in(&arg, (void *)uarg, sizeof arg))
         return errno_ret(EFAULT);
-    if (arg->nmsgs > I2C_RDWR_IOCTL_MAX_MSGS)
-        return errno_ret(EINVAL);
-    for (unsigned i = 0; i < arg->nmsgs; i++) {
-        struct i2c_msg *m = &arg->msgs[i];
-        if (m->len && !m->buf)
+    if (!arg.msgs || arg.nmsgs == 0 || arg.nmsgs > I2C_RDWR_IOCTL_MAX_MSGS)
+        return errno_ret(EINVAL); /* a NULL msgs is EINVAL since Linux 5.11 */
+    unsigned n = arg.nmsgs;
+    struct i2c_msg user[I2C_RDWR_IOCTL_MAX_MSGS], k[I2C_RDWR_IOCTL_MAX_MSGS];
+    if (copy_in(user, arg.msgs, n * sizeof *user))
+        return errno_ret(EFAULT);
+    unsigned too_long = 0; /* the first message above i2c-dev's limit: nothing from it on is copied */
+    size_t wlen = 0, rlen = 0;
+    while (too_long < n && user[too_long].len <= MAX_XFER) {
+        const struct i2c_msg *m = &user[too_long++];
+        if (!(m->flags & I2C_M_RD))
+            wlen += m->len;
+        else
+            rlen += (m->flags & I2C_M_RECV_LEN) ? RECV_SLOT : m->len;
+    }
+    if (wlen > 2 * MAX_XFER || rlen > 2 * MAX_XFER)
+        return errno_ret(EINVAL); /* more than one request to the session carries (the shim's limit) */
+    static __thread unsigned char kbuf[4 * MAX_XFER + I2C_RDWR_IOCTL_MAX_MSGS * RECV_SLOT];
+    struct iovec local[2 * I2C_RDWR_IOCTL_MAX_MSGS], remote[I2C_RDWR_IOCTL_MAX_MSGS];
+    size_t nl = 0, nr = 0, at = 0;
+    for (unsigned i = 0; i < too_long; i++) {
+        k[i] = user[i];
+        k[i].buf = kbuf + at;
+        int recv = (user[i].flags & (I2C_M_RD | I2C_M_RECV_LEN)) == (I2C_M_RD | I2C_M_RECV_LEN);
+        at += recv ? RECV_SLOT : user[i].len;
+        if (!user[i].len)
+            continue;
+        remote[nr++] = (struct iovec){user[i].buf, user[i].len};
+        local[nl++] = (struct iovec){k[i].buf, recv ? 1 : user[i].len};
+        if (recv && user[i].len > 1)
+            local[nl++] = (struct iovec){junk, user[i].len - 1u};
+    }
+    size_t copied = user_copy(local, nl, remote, nr, 0); /* messages with a buffer copied whole */
+    for (unsigned i = 0, with_buf = 0; i < n; i++) {
+        if (i == too_long)
+            return errno_ret(EINVAL);
+        if (user[i].len && with_buf++ == copied)
             return errno_ret(EFAULT);
-        if ((m->flags & I2C_M_RECV_LEN) &&
-            (!(m->flags & I2C_M_RD) || m->len < 1 || m->buf[0] < 1 || m->len < m->buf[0] + I2C_SMBUS_BLOCK_MAX))
+        if ((user[i].flags & I2C_M_RECV_LEN) &&
+            (!(user[i].flags & I2C_M_RD) || user[i].len < 1 || k[i].buf[0] < 1 ||
+             user[i].len < k[i].buf[0] + I2C_SMBUS_BLOCK_MAX))
             return errno_ret(EINVAL); /* i2c-dev's own check */
     }
-    int err = i2c_transfer(f, arg->msgs, arg->nmsgs);
-    return err ? errno_ret(err) : (int)arg->nmsgs;
+    int err = i2c_transfer(f, k, n);
+    if (err)
+        return errno_ret(err);
+    nr = 0;
+    for (unsigned i = 0; i < n; i++)
+        if ((k[i].flags & I2C_M_RD) && k[i].len) {
+            local[nr] = (struct iovec){k[i].buf, k[i].len};
+            remote[nr++] = (struct iovec){user[i].buf, k[i].len};
+        }
+    for (size_t i = 0; i < nr; i++) { /* every buffer is tried, as i2c-dev does */
+        i += user_copy(local + i, nr - i, remote + i, nr - i, 1);
+        if (i < nr)
+            err = EFAULT;
+    }
+    return err ? errno_ret(err) : (int)n;
 }
 
-/* SMBus over plain I2C messages, as the kernel's i2c_smbus_xfer_emulated does it. */
-static int i2c_smbus(struct fake *f, struct i2c_smbus_ioctl_data *a)
+/* SMBus over plain I2C messages, as the kernel's i2c_smbus_xfer_emulated does it, on a copy of the
+   caller's data: copied in when i2c-dev copies it (a write, a process call, an I2C block), copied back
+   (the whole size of its kind) after a read or a process call. */
+static int i2c_smbus(struct fake *f, unsigned long uarg)
 {
-    if (!a)
+    struct i2c_smbus_ioctl_data arg, *a = &arg;
+    if (copy_in(&arg, (void *)uarg, sizeof arg))
         return errno_ret(EFAULT);
     uint32_t size = a->size;
     int rd = a->read_write == I2C_SMBUS_READ;
@@ -1173,9 +1905,20 @@ static int i2c_smbus(struct fake *f, struct i2c_smbus_ioctl_data *a)
         return errno_ret(EINVAL);
     if (size > I2C_SMBUS_I2C_BLOCK_DATA)
         return errno_ret(EINVAL);
-    union i2c_smbus_data *d = a->data;
-    if (!d && !(size == I2C_SMBUS_QUICK || (size == I2C_SMBUS_BYTE && !rd)))
-        return errno_ret(EINVAL);
+    union i2c_smbus_data data = {0}, *d = NULL;
+    size_t datasize = size == I2C_SMBUS_BYTE || size == I2C_SMBUS_BYTE_DATA ? sizeof data.byte
+                      : size == I2C_SMBUS_WORD_DATA || size == I2C_SMBUS_PROC_CALL ? sizeof data.word
+                                                                                  : sizeof data.block;
+    int out = size == I2C_SMBUS_PROC_CALL || size == I2C_SMBUS_BLOCK_PROC_CALL || rd;
+    if (!(size == I2C_SMBUS_QUICK || (size == I2C_SMBUS_BYTE && !rd))) {
+        if (!a->data)
+            return errno_ret(EINVAL);
+        d = &data;
+        if ((size == I2C_SMBUS_PROC_CALL || size == I2C_SMBUS_BLOCK_PROC_CALL || size == I2C_SMBUS_I2C_BLOCK_DATA ||
+             !rd) &&
+            copy_in(d, a->data, datasize))
+            return errno_ret(EFAULT);
+    }
     if (size == I2C_SMBUS_I2C_BLOCK_BROKEN) {
         size = I2C_SMBUS_I2C_BLOCK_DATA;
         if (rd)
@@ -1255,7 +1998,7 @@ static int i2c_smbus(struct fake *f, struct i2c_smbus_ioctl_data *a)
     int err = i2c_transfer(f, m, n);
     if (err)
         return errno_ret(err);
-    if (!rd || size == I2C_SMBUS_QUICK)
+    if (!d || !out)
         return 0;
     switch (size) {
     case I2C_SMBUS_BYTE:
@@ -1276,7 +2019,7 @@ static int i2c_smbus(struct fake *f, struct i2c_smbus_ioctl_data *a)
         memcpy(d->block + 1, r, blk);
         break;
     }
-    return 0;
+    return copy_out(a->data, d, datasize) ? errno_ret(EFAULT) : 0;
 }
 
 static int i2c_ioctl(struct fake *f, unsigned long req, unsigned long arg)
@@ -1300,15 +2043,14 @@ static int i2c_ioctl(struct fake *f, unsigned long req, unsigned long arg)
     case I2C_RETRIES:
     case I2C_TIMEOUT:
         return 0;
-    case I2C_FUNCS:
-        if (!arg)
-            return errno_ret(EFAULT);
-        *(unsigned long *)arg = I2C_FUNC_I2C | (I2C_FUNC_SMBUS_EMUL_ALL & ~(unsigned long)I2C_FUNC_SMBUS_PEC);
-        return 0;
+    case I2C_FUNCS: {
+        unsigned long funcs = I2C_FUNC_I2C | (I2C_FUNC_SMBUS_EMUL_ALL & ~(unsigned long)I2C_FUNC_SMBUS_PEC);
+        return copy_out((void *)arg, &funcs, sizeof funcs) ? errno_ret(EFAULT) : 0;
+    }
     case I2C_RDWR:
-        return i2c_rdwr(f, (struct i2c_rdwr_ioctl_data *)arg);
+        return i2c_rdwr(f, arg);
     case I2C_SMBUS:
-        return i2c_smbus(f, (struct i2c_smbus_ioctl_data *)arg);
+        return i2c_smbus(f, arg);
     default:
         note("ioctl 0x%lx on /dev/i2c-%d is not an i2c-dev request (ENOTTY)", req, f->t.bus);
         return errno_ret(ENOTTY);
@@ -1358,17 +2100,27 @@ static int streq_nl(const char *buf, size_t n, const char *word)
     return (n == w || (n == w + 1 && buf[w] == '\n')) && memcmp(buf, word, w) == 0;
 }
 
+/* i2c-dev's read() and write() move at most 8192 bytes; sysfs takes at most a page per write, copied
+   in before the attribute looks at it. The caller's buffer is copied as the kernel copies it. */
+#define SYSFS_PAGE 4096
+static __thread unsigned char xfer_buf[SYSFS_PAGE > MAX_XFER ? SYSFS_PAGE : MAX_XFER];
+
 static ssize_t fake_write(struct fake *f, const void *buf, size_t n)
 {
     if (f->t.kind == K_I2C) {
         size_t k = n > MAX_XFER ? MAX_XFER : n;
-        struct i2c_msg m = {(uint16_t)f->addr, (uint16_t)(f->tenbit ? I2C_M_TEN : 0), (uint16_t)k, (void *)buf};
+        if (copy_in(xfer_buf, buf, k))
+            return errno_ret(EFAULT);
+        struct i2c_msg m = {(uint16_t)f->addr, (uint16_t)(f->tenbit ? I2C_M_TEN : 0), (uint16_t)k, xfer_buf};
         int err = i2c_transfer(f, &m, 1);
         return err ? errno_ret(err) : (ssize_t)k;
     }
     if (f->t.kind != K_PWM_ATTR)
         return errno_ret(EBADF);
-    const char *s = buf;
+    n = n > SYSFS_PAGE ? SYSFS_PAGE : n;
+    if (copy_in(xfer_buf, buf, n))
+        return errno_ret(EFAULT);
+    const char *s = (const char *)xfer_buf;
     uint64_t v = 0;
     struct rig_pwm_msg msg = {.chip = (uint16_t)pwm_chip, .channel = (uint16_t)(f->t.channel < 0 ? 0 : f->t.channel)};
     pthread_mutex_lock(&lock);
@@ -1448,10 +2200,15 @@ static ssize_t fake_read(struct fake *f, void *buf, size_t n, off_t *pos)
 {
     if (f->t.kind == K_I2C) {
         size_t k = n > MAX_XFER ? MAX_XFER : n;
-        struct i2c_msg m = {(uint16_t)f->addr, (uint16_t)(I2C_M_RD | (f->tenbit ? I2C_M_TEN : 0)), (uint16_t)k, buf};
+        struct i2c_msg m = {(uint16_t)f->addr, (uint16_t)(I2C_M_RD | (f->tenbit ? I2C_M_TEN : 0)), (uint16_t)k,
+                            xfer_buf};
         int err = i2c_transfer(f, &m, 1);
+        if (!err && copy_out(buf, xfer_buf, k))
+            err = EFAULT; /* after the transfer, as i2c-dev's copy_to_user */
         return err ? errno_ret(err) : (ssize_t)k;
     }
+    if (f->t.kind == K_PWM_DIR)
+        return errno_ret(EISDIR);
     if (f->t.kind != K_PWM_ATTR)
         return errno_ret(EBADF);
     char text[32];
@@ -1480,7 +2237,8 @@ static ssize_t fake_read(struct fake *f, void *buf, size_t n, off_t *pos)
     if (*pos < 0 || (size_t)*pos >= len)
         return 0;
     size_t k = len - (size_t)*pos < n ? len - (size_t)*pos : n;
-    memcpy(buf, text + *pos, k);
+    if (copy_out(buf, text + *pos, k))
+        return errno_ret(EFAULT);
     *pos += (off_t)k;
     return (ssize_t)k;
 }
