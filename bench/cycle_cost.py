@@ -61,7 +61,7 @@ def run_cycles(n: int) -> float:
     """Runs ``n`` cycles; returns CPU seconds per cycle."""
     session = Session(SessionConfig(command=["true"], duration=1e6), World.at_rest())
     with tempfile.TemporaryDirectory(prefix="rig-cycle-") as tmp:
-        session._open_shm(Path(tmp) / "shm")  # (mapped: the file may go at once)
+        session.open_page(Path(tmp) / "shm")  # (mapped: the file may go at once)
     ours, dut = socket.socketpair()
     conn = _Conn(ours, 1)
     conn.hello = True

@@ -39,9 +39,9 @@ MANIFEST = OUT / "manifest.json"
 GROUP = "rig_hot"  # mypyc's shared runtime library is the extension ``rig_hot__mypyc``
 
 #: What is compiled: the modules that run per DUT message or per scheduled event in lockstep.
-MODULES = ("rig.protocol", "rig.session", "rig.world", "rig.rc", "emulators.registers",
-           "emulators.mpu6050", "emulators.hmc5883l", "emulators.ms5611", "emulators.i2c_bus",
-           "emulators.sbus", "rig.runner")
+MODULES = ("rig.protocol", "rig.session", "rig.handler", "rig.scheduler", "rig.world", "rig.rc",
+           "emulators.registers", "emulators.mpu6050", "emulators.hmc5883l", "emulators.ms5611",
+           "emulators.i2c_bus", "emulators.sbus", "rig.runner")
 
 
 def source_of(module: str) -> Path:

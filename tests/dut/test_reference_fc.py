@@ -13,7 +13,8 @@ import pytest
 
 from emulators.ms5611 import DEFAULT_PROM
 from rig.rc import StickEmulator
-from rig.session import MONO_BASE_NS, NS, Outcome, Session, SessionConfig
+from rig.scheduler import MONO_BASE_NS, NS
+from rig.session import Outcome, Session, SessionConfig
 from rig.world import World
 
 REPO = Path(__file__).resolve().parents[2]

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rig.session import EXIT_NOT_FOUND, EXIT_RIG_ERROR, EXIT_WATCHDOG
+from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG
+from rig.session import EXIT_NOT_FOUND
 from tests.rig.helpers import DUTS, PY, rig_exec
 
 TOUCH_BUS = "from smbus2 import SMBus; b = SMBus(1); b.read_byte_data(0x68, 0x75); "

@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from rig.session import EPOCH_NS, MONO_BASE_NS, NS, Session, SessionConfig
+from rig.scheduler import EPOCH_NS, MONO_BASE_NS, NS
+from rig.session import Session, SessionConfig
 from rig.world import World
 from tests.rig.helpers import DUTS, PY, rig_exec
 

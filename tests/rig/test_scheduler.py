@@ -1,0 +1,109 @@
+"""Sim time without a DUT (rig/scheduler.py): the order of events, the world moved with them, the run's
+limits, an event that fails, the verdict, and the clock page. Before the session was split it could be
+tested only by spawning a program."""
+
+from __future__ import annotations
+
+import signal
+from pathlib import Path
+
+import pytest
+
+from rig import protocol as P
+from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, SharedPage, Stop
+from rig.world import World
+
+
+class Host:
+    """What events are called with (the session, in a run)."""
+
+    def __init__(self) -> None:
+        self.seen: list[tuple[str, int]] = []
+
+
+@pytest.fixture
+def world():
+    w = World.at_rest(noise=False)
+    yield w
+    w.close()
+
+
+def test_events_run_in_time_order_and_the_world_reaches_each(world: World) -> None:
+    host = Host()
+    sched = Scheduler(world, host, duration=10.0, sim_timeout=600.0)
+    for name, t in (("c", 0.003), ("a", 0.001), ("b", 0.001), ("d", 0.0055)):
+        sched.at(t, lambda h, n=name: h.seen.append((n, world.time_ns)))
+    assert sched.advance(5_000_000) == 5_000_000
+    # ties in order of scheduling; the world's 1 ms grid at or before the event's time
+    assert host.seen == [("a", 1_000_000), ("b", 1_000_000), ("c", 3_000_000)]
+    assert world.time_ns == 5_000_000 and sched.next_event_ns() == 5_500_000
+
+
+def test_a_wait_for_output_wakes_at_the_event_that_wrote(world: World) -> None:
+    sched = Scheduler(world, Host(), duration=10.0, sim_timeout=600.0)
+
+    def writes(host: Host) -> None:
+        sched.event_output = True  # (the session's serial_write says so)
+
+    sched.at(0.002, lambda h: None)
+    sched.at(0.004, writes)
+    assert sched.advance(9_000_000, stop_on_output=True) == 4_000_000
+    assert world.time_ns == 4_000_000
+
+
+def test_the_duration_ends_the_run_well_and_the_timeout_as_a_watchdog(world: World) -> None:
+    sched = Scheduler(world, Host(), duration=0.5, sim_timeout=600.0)
+    with pytest.raises(Stop):
+        sched.advance(700_000_000)
+    assert sched.ended_by_duration and sched.over and sched.error is None
+    assert world.time_ns == 500_000_000  # the world stops at the end, not at the request
+    assert sched.verdict(-15, 0.5, True, False, False) == ("ok", 0, None)  # stopped by the rig: fine
+
+    w2 = World.at_rest(noise=False)
+    try:
+        timed = Scheduler(w2, Host(), duration=None, sim_timeout=0.2)
+        with pytest.raises(Stop):
+            timed.advance(300_000_000)
+        assert timed.error is not None and timed.error[0] == EXIT_WATCHDOG
+        assert "sim-time watchdog" in timed.error[1]
+    finally:
+        w2.close()
+
+
+def test_an_event_that_raises_voids_the_run_without_taking_the_rig_down(world: World) -> None:
+    sched = Scheduler(world, Host(), duration=10.0, sim_timeout=600.0)
+
+    def broken(host: Host) -> None:
+        raise ZeroDivisionError("division by zero")
+
+    sched.at(0.25, broken)
+    with pytest.raises(Stop):
+        sched.advance(1 * NS)
+    assert sched.error == (EXIT_RIG_ERROR,
+                           "event at 0.250000000 failed: ZeroDivisionError: division by zero")
+    assert sched.event_ns is None  # the session's "now" is the clock again
+
+
+@pytest.mark.parametrize(("returncode", "reached", "duration", "expected"), [
+    (0, True, None, ("ok", 0, None)),
+    (3, True, None, ("failed", 3, None)),
+    (-signal.SIGSEGV, True, None,
+     ("error", 128 + signal.SIGSEGV, "the command was killed by SIGSEGV at sim t=1.500 s")),
+    (0, True, 10.0,
+     ("error", EXIT_RIG_ERROR, "the command exited early, with status 0, at sim t=1.500 s of a 10 s run")),
+    (2, False, None,
+     ("error", EXIT_RIG_ERROR, "the command exited with status 2 before touching the emulated devices")),
+])
+def test_the_verdict(world: World, returncode: int, reached: bool, duration: float | None,
+                     expected: tuple[str, int, str | None]) -> None:
+    sched = Scheduler(world, Host(), duration=duration, sim_timeout=600.0)
+    assert sched.verdict(returncode, 1.5, reached, False, False) == expected
+
+
+def test_the_clock_page_moves_forward_only_and_carries_the_end(tmp_path: Path) -> None:
+    page = SharedPage(tmp_path / "shm", 8, 0, 1000, 7 * NS)
+    page.set(5_000)
+    page.set(4_000)  # the DUT may have read the clock on already: never back
+    assert page.now() == 5_000
+    raw = (tmp_path / "shm").read_bytes()
+    assert int.from_bytes(raw[P.SHM_LIMIT_OFFSET:P.SHM_LIMIT_OFFSET + 8], "little") == 7 * NS
