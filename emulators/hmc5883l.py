@@ -1,5 +1,5 @@
 """HMC5883L magnetometer: pointer rules, continuous/single/idle timing, RDY and LOCK, gain latency,
-−4096 on overflow, bias self-test (specs/sensors.md §4). Driven by bus messages and sim time only."""
+−4096 on overflow, bias self-test (docs/sensors.md §4). Driven by bus messages and sim time only."""
 
 from __future__ import annotations
 
@@ -10,11 +10,11 @@ from typing import Final
 from emulators.registers import RegisterMap, RegisterSpec, round_half_away
 
 ADDRESS: Final = 0x1E
-GAINS = (1370, 1090, 820, 660, 440, 390, 330, 230)  # LSB/Ga by CRB.GN, specs §4.5
+GAINS = (1370, 1090, 820, 660, 440, 390, 330, 230)  # LSB/Ga by CRB.GN, docs/sensors.md §4.5
 RATES_HZ = (0.75, 1.5, 3.0, 7.5, 15.0, 30.0, 75.0, 75.0)  # CRA.DO (7 reserved: treated as 75 Hz)
 SINGLE_S: Final = 6e-3  # single measurement duration (datasheet examples wait 6 ms)
 POWER_ON_S: Final = 0.056  # power-on single measurement: data valid ~56 ms after power-up
-BIAS_GA = (1.16, 1.08, 1.16)  # bias-strap field in (X, Z, Y) register order, specs §4.9
+BIAS_GA = (1.16, 1.08, 1.16)  # bias-strap field in (X, Z, Y) register order, docs/sensors.md §4.9
 OVERFLOW: Final = -4096
 CRA: Final = 0x00
 CRB: Final = 0x01
@@ -37,7 +37,7 @@ REGISTERS = RegisterMap("HMC5883L", [
 
 
 def next_pointer(r: int, status_wraps_to_data: bool = False) -> int:
-    """Pointer after accessing register r (specs §4.2): 8 -> 3, >= 12 -> 0, else r + 1."""
+    """Pointer after accessing register r (docs/sensors.md §4.2): 8 -> 3, >= 12 -> 0, else r + 1."""
     if r == 8 or (r == 9 and status_wraps_to_data):
         return 3
     if r >= 12:

@@ -1,4 +1,4 @@
-"""MPU-6050 accelerometer/gyro (specs/sensors.md §3): register map with reset values and exact
+"""MPU-6050 accelerometer/gyro (docs/sensors.md §3): register map with reset values and exact
 read-back, sleep and DEVICE_RESET, FS scaling, DLPF and sample-rate divider, coherent bursts,
 INT_STATUS, FIFO with latched count, bypass and aux master, self-test. Sim time only."""
 
@@ -21,14 +21,14 @@ ADDRESS: Final = 0x68
 G0: Final = 9.80665
 ACCEL_LSB_PER_G = (16384.0, 8192.0, 4096.0, 2048.0)
 GYRO_LSB_PER_DPS = (131.0, 65.5, 32.8, 16.4)
-#: DLPF_CFG -> (accel bandwidth Hz, accel delay s, gyro bandwidth Hz, gyro delay s), specs §3.5.
+#: DLPF_CFG -> (accel bandwidth Hz, accel delay s, gyro bandwidth Hz, gyro delay s), docs/sensors.md §3.5.
 DLPF = ((260, 0.0, 256, 0.98e-3), (184, 2.0e-3, 188, 1.9e-3), (94, 3.0e-3, 98, 2.8e-3),
                (44, 4.9e-3, 42, 4.8e-3), (21, 8.5e-3, 20, 8.3e-3), (10, 13.8e-3, 10, 13.4e-3),
                (5, 19.0e-3, 5, 18.6e-3), (260, 0.0, 256, 0.98e-3))
 FIFO_SIZE: Final = 1024
 BLOCK = native.BLOCK
 
-# Self-test: factory-trim codes and the matching actuation (specs §3.10). Gyro code 16 gives
+# Self-test: factory-trim codes and the matching actuation (docs/sensors.md §3.10). Gyro code 16 gives
 # FT = 25 * 1.046**15 deg/s (+X, -Y, +Z); accel code 12 gives FT = 0.34 * (0.92/0.34)**(11/30) g.
 ST_GYRO_CODE: Final = 16
 ST_ACCEL_CODE: Final = 12
@@ -256,7 +256,7 @@ class MPU6050:
             for i in range(m) if keeps_all else (m - 1,) if n == 0 else ():
                 self.now = times[i]
                 self._encode(i)
-            self.regs[INT_STATUS] |= 0x01  # DATA_RDY, set whatever INT_ENABLE says (specs §3.7)
+            self.regs[INT_STATUS] |= 0x01  # DATA_RDY, set whatever INT_ENABLE says (docs/sensors.md §3.7)
             self.samples += m
         self.now = t
 
@@ -271,8 +271,8 @@ class MPU6050:
             self._block[i] = (*s.accel, *s.gyro, s.temperature_c)
 
     def _encode(self, i: int) -> None:
-        """Sample ``i`` of the block into the data registers (in C: specs §2's rounding, the FS scale,
-        self-test actuation, standby and TEMP_DIS), then the aux master and the FIFO."""
+        """Sample ``i`` of the block into the data registers (in C: docs/sensors.md §2's rounding, the FS
+        scale, self-test actuation, standby and TEMP_DIS), then the aux master and the FIFO."""
         regs = self.regs
         if regs is not self._regs_seen:  # (a reset makes a new bytearray)
             # the view keeps regs exported: resizing it would raise instead of moving the bytes
@@ -360,7 +360,7 @@ class MPU6050:
 
     @staticmethod
     def _next(r: int) -> int:
-        return 0 if r >= WHO_AM_I else r + 1  # past WHO_AM_I: wrap to 0 (open point, specs §9)
+        return 0 if r >= WHO_AM_I else r + 1  # past WHO_AM_I: wrap to 0 (open point, docs/sensors.md §9)
 
     def _write_reg(self, r: int, value: int) -> None:
         if r == FIFO_R_W:

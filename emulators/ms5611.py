@@ -1,5 +1,5 @@
 """MS5611-01BA03 barometer: command state machine in sim time, PROM with CRC-4, and the exact inverse of
-the datasheet compensation (specs/sensors.md §5).
+the datasheet compensation (docs/sensors.md §5).
 
 The inverse is what makes the emulator honest: a client doing the datasheet's integer maths (floor
 semantics, second-order terms) decodes exactly the pascal and the 0.01 °C the plant asked for. The
@@ -16,13 +16,13 @@ from typing import Final
 import numpy as np
 
 ADDRESS: Final = 0x77  # CSB low; 0x76 with CSB high
-#: specs §5.4/§5.5 recommended default: datasheet coefficients, word 7 = 0x0103 (CRC 0x3, non-zero).
+#: docs/sensors.md §5.4/§5.5 recommended default: datasheet coefficients, word 7 = 0x0103 (CRC 0x3, non-zero).
 DEFAULT_PROM = (0x0000, 40127, 36924, 23317, 23282, 33464, 28312, 0x0103)
 OSR = (256, 512, 1024, 2048, 4096)
-#: Conversion times per OSR index (s): typical and maximum columns of specs §5.3.
+#: Conversion times per OSR index (s): typical and maximum columns of docs/sensors.md §5.3.
 CONVERSION_TYPICAL = (0.54e-3, 1.06e-3, 2.08e-3, 4.13e-3, 8.22e-3)
 CONVERSION_MAX = (0.60e-3, 1.17e-3, 2.28e-3, 4.54e-3, 9.04e-3)
-#: Pressure noise (RMS, Pa) per OSR index, specs §5.3.
+#: Pressure noise (RMS, Pa) per OSR index, docs/sensors.md §5.3.
 NOISE_PA = (6.5, 4.2, 2.7, 1.8, 1.2)
 
 CMD_RESET: Final = 0x1E
@@ -30,7 +30,7 @@ CMD_ADC_READ: Final = 0x00
 
 
 def crc4(words: tuple[int, ...] | list[int]) -> int:
-    """AN520 CRC-4 over the eight PROM words (word 7's low byte excluded), specs §5.5."""
+    """AN520 CRC-4 over the eight PROM words (word 7's low byte excluded), docs/sensors.md §5.5."""
     w = list(words)
     w[7] &= 0xFF00
     rem = 0
@@ -83,7 +83,7 @@ def _temp_of(prom: tuple[int, ...], d2: int) -> int:
 @lru_cache(maxsize=4096)
 def encode_temperature(prom: tuple[int, ...], temp_centi: int) -> int:
     """D2 in the middle of the bucket that decodes to ``temp_centi`` (0.01 °C); for the two values
-    inside −40…85 °C that no D2 reaches (specs §5.10), the nearest reachable one's bucket."""
+    inside −40…85 °C that no D2 reaches (docs/sensors.md §5.10), the nearest reachable one's bucket."""
     top = (1 << 24) - 2
 
     def first_at_least(target: int) -> int:

@@ -5,7 +5,7 @@ device is modelled here, so the frames it sends really travel (over a python-can
 rig's decoder is the one a bench uses. The model samples the DUT's outputs every 1/rate_hz seconds,
 quantises them to resolution_us (a timer tick) and stamps a sequence counter.
 
-Two frame formats (DESIGN.md §6):
+Two frame formats (docs/design.md §6):
 * CAN: two classic frames, PWM_CAPTURE_12 and PWM_CAPTURE_34, laid out in ``pwm_capture.dbc`` (read
   with cantools): pulse widths in 0.1 µs, an 8-bit sequence counter and a CRC-16/CCITT-FALSE over the
   identifier and data bytes 0..5, because a frame corrupted between the device and the rig's decoder

@@ -43,5 +43,5 @@ class RegisterMap:
 
 
 def round_half_away(x: float) -> int:
-    """Quantisation rule of specs §2: round half away from zero."""
+    """Quantisation rule of docs/sensors.md §2: round half away from zero."""
     return int(math.copysign(math.floor(abs(x) + 0.5), x))

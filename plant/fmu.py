@@ -83,7 +83,7 @@ class Plant:
     """One instance of the quadrotor FMU, initialised and ready to step.
 
     ``params`` and ``inputs`` set start values by variable name before initialisation (names as in
-    DESIGN.md §4). After construction the time is ``start_time`` and the outputs describe the initial
+    docs/design.md §4). After construction the time is ``start_time`` and the outputs describe the initial
     state.
     """
 

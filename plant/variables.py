@@ -1,4 +1,4 @@
-"""The one table of the plant FMU's variables (DESIGN.md §4).
+"""The one table of the plant FMU's variables (docs/design.md §4).
 
 Everything that names a variable is generated from this table: the C structs the physics works on and
 the value-reference switch of the FMI wrapper (``quadrotor_vars.h``), and ``modelDescription.xml``.
@@ -23,7 +23,7 @@ VarType = Literal["Real", "Integer", "Boolean"]
 MODEL_IDENTIFIER = "quadrotor"
 MODEL_NAME = "quadrotor"
 
-#: Standard gravity, also the default of the ``gravity`` parameter (specs/sensors.md §6).
+#: Standard gravity, also the default of the ``gravity`` parameter (docs/sensors.md §6).
 G0 = 9.80665
 
 

@@ -1,4 +1,4 @@
-"""The scenario file format (TOML, DESIGN.md §7) and its validation.
+"""The scenario file format (TOML, docs/design.md §7) and its validation.
 
 A scenario is checked completely before anything runs: every table and key is known, every value has
 the expected type and range, every signal and metric named by a criterion exists. A bad file raises

@@ -1,5 +1,5 @@
 """The signals a run records and criteria judge: what each is, in which units (degrees and
-microseconds at this edge, SI otherwise, DESIGN.md §3). The recorder samples every signal on one grid
+microseconds at this edge, SI otherwise, docs/design.md §3). The recorder samples every signal on one grid
 in sim time; DUT-reported values (est_*) are held from the DUT's last telemetry line and are NaN before
 the first one or when the DUT reports none."""
 

@@ -1,4 +1,4 @@
-/* Drivers: the sequences of specs/sensors.md section 7 for the MPU-6050, HMC5883L and MS5611, through
+/* Drivers: the sequences of docs/sensors.md section 7 for the MPU-6050, HMC5883L and MS5611, through
    the i2c-dev ioctls a real board uses, and motors through the Linux sysfs PWM class. */
 #include "drivers.h"
 

@@ -1,6 +1,6 @@
 /*
  * The reference flight controller: the seed papers as a Linux userspace program (libc + libm only).
- * Conventions as DESIGN.md section 3: body FRD, earth NED, quaternions scalar-first, Euler ZYX, SI.
+ * Conventions as docs/design.md section 3: body FRD, earth NED, quaternions scalar-first, Euler ZYX, SI.
  * Everything here is plain computation on structs, so tests link it without any device.
  */
 #ifndef FC_H

@@ -177,9 +177,9 @@ EXPORT void rig_lowpass_catch_up(rig_lowpass *f, const double x[3], double a)
     f->head = f->count = 0;
 }
 
-/* ---- the MPU-6050's data registers for one sample (specs §3.4, §3.10) ---- */
+/* ---- the MPU-6050's data registers for one sample (docs/sensors.md §3.4, §3.10) ---- */
 
-/* Quantisation rule of specs §2: round half away from zero, then saturate to int16 (NaN reads 0). */
+/* Quantisation rule of docs/sensors.md §2: round half away from zero, then saturate to int16 (NaN reads 0). */
 static int16_t quantise(double x)
 {
     double r = copysign(floor(fabs(x) + 0.5), x);

@@ -1,6 +1,6 @@
 /* Quadrotor rigid-body physics: no FMI here, so it can be tested, benchmarked and reused on its own.
  *
- * Conventions (DESIGN.md §3): world NED, body FRD, SI units, quaternions scalar first (w, x, y, z),
+ * Conventions (docs/design.md §3): world NED, body FRD, SI units, quaternions scalar first (w, x, y, z),
  * Euler ZYX. The structs qr_inputs, qr_params and qr_outputs are generated from plant/variables.py.
  */
 #ifndef QUADROTOR_PHYSICS_H

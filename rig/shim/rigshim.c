@@ -8,7 +8,7 @@
  *
  * Why this shape: the kernel's i2c-dev, sysfs and clock behaviour is reproduced here, in the DUT's own
  * process, so that only the bytes of a transfer and the wish to wait cross the socket. Clock reads and
- * PWM writes never wait for the session (DESIGN.md section 6).
+ * PWM writes never wait for the session (docs/design.md section 6).
  */
 #define _GNU_SOURCE
 #include <dirent.h>

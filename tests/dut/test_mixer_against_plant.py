@@ -1,6 +1,6 @@
 """The reference FC's mixers, loaded from the C library, against the plant FMU's rotor geometry: for
 each frame the plant can fly, a positive roll, pitch or yaw command must accelerate the real vehicle
-about that axis only, in the positive direction (DESIGN.md §3). The C test checks the mixers against
+about that axis only, in the positive direction (docs/design.md §3). The C test checks the mixers against
 its own copy of the geometry; this one checks them against the model the rig flies."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""HMC5883L against specs/sensors.md §4."""
+"""HMC5883L against docs/sensors.md §4."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""MPU-6050 against specs/sensors.md §3."""
+"""MPU-6050 against docs/sensors.md §3."""
 
 from __future__ import annotations
 
@@ -140,12 +140,12 @@ def test_aux_master_reads_the_magnetometer_into_ext_sens_data():
     script, b = awake()
     bus = b.bus
     bus.transfer([write(M, 0x37, 0x02), write(0x1E, 0x02, 0x00)], 0.0)  # HMC continuous via bypass
-    # MultiWii's GY-86 sequence (specs §7.8).
+    # MultiWii's GY-86 sequence (docs/sensors.md §7.8).
     bus.transfer([write(M, 0x6A, 0x20), write(M, 0x37, 0x00), write(M, 0x24, 0x0D),
                   write(M, 0x25, 0x9E), write(M, 0x26, 0x03), write(M, 0x27, 0x86)], 0.0)
     d = bus.transfer([write(M, 0x49), read(M, 6)], 0.5)[0]
     x, z, y = s16(d[0], d[1]), s16(d[2], d[3]), s16(d[4], d[5])
-    # 0.25 G * 1090 = 272.5: specs §2 rounds half away from zero (Python's round() would give 272).
+    # 0.25 G * 1090 = 272.5: docs/sensors.md §2 rounds half away from zero (Python's round() would give 272).
     assert (x, y, z) == (273, 0, round(0.433 * 1090))
 
 
@@ -177,7 +177,7 @@ def test_self_test_response_matches_factory_trim():
     codes = b.bus.transfer([write(M, 0x0D), read(M, 4)], 0.02)[0]
     xg = codes[0] & 0x1F
     xa = ((codes[0] >> 5) << 2) | ((codes[3] >> 4) & 3)
-    ft_g = 25 * 131 * 1.046 ** (xg - 1)                      # register-map formulas (specs §3.10)
+    ft_g = 25 * 131 * 1.046 ** (xg - 1)                      # register-map formulas (docs/sensors.md §3.10)
     ft_a = 4096 * 0.34 * (0.92 / 0.34) ** ((xa - 1) / 30)
     assert on_g[0] - off_g[0] == pytest.approx(ft_g, abs=1)
     assert on_g[1] - off_g[1] == pytest.approx(-ft_g, abs=1)
@@ -201,7 +201,7 @@ def test_fifo_slave_data_sits_where_the_aux_master_put_it():
 
 
 def test_standby_axes_and_temp_dis_hold_their_last_value():
-    # specs §3.6: TEMP_DIS=1 stops temperature sampling, a STBY_* axis holds its last value
+    # docs/sensors.md §3.6: TEMP_DIS=1 stops temperature sampling, a STBY_* axis holds its last value
     script, b = awake()
     script.accel, script.gyro, script.temperature = (1.0, 2.0, 3.0), (0.1, 0.2, 0.3), 30.0
     acc0, temp0, gyro0 = burst(b.bus, 0.01)

@@ -1,4 +1,4 @@
-"""MS5611 against datasheet truth (specs/sensors.md §5): worked example, CRC-4 vectors, the inverse
+"""MS5611 against datasheet truth (docs/sensors.md §5): worked example, CRC-4 vectors, the inverse
 table, exact round trips for any pressure and temperature, and the command state machine."""
 
 from __future__ import annotations
@@ -53,7 +53,7 @@ def test_inverse_table_of_specs_5_10(p, t, d2, d1):
     assert datasheet_forward(d1, d2) == (round(t * 100), p)
 
 
-UNREACHABLE = {-3932, -717}  # specs §5.10: no D2 decodes to these with the example PROM
+UNREACHABLE = {-3932, -717}  # docs/sensors.md §5.10: no D2 decodes to these with the example PROM
 
 
 @settings(max_examples=300, deadline=None)

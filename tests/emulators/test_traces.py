@@ -1,4 +1,4 @@
-"""Every client sequence of specs/sensors.md §7, stored as a trace file, replays against the emulators
+"""Every client sequence of docs/sensors.md §7, stored as a trace file, replays against the emulators
 with the bytes the real chips would give."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The FMU as DESIGN.md §4 names it: validates, loads, declares the contract, builds reproducibly."""
+"""The FMU as docs/design.md §4 names it: validates, loads, declares the contract, builds reproducibly."""
 
 from __future__ import annotations
 
@@ -20,12 +20,12 @@ PARAMETERS = ["mass", "arm_length", "k_thrust", "k_torque", "Ixx", "Iyy", "Izz",
               "omega_max", "esc_min_us", "esc_max_us", "drag_n", "drag_e", "drag_d", "gravity", "stand",
               "roll0", "pitch0", "yaw0", "pn0", "pe0", "pd0", "mag_n", "mag_e", "mag_d", "p_ground",
               "t_ground", "h_max_step"] + [f"esc_{k}{i}" for k in ("gain", "offset") for i in range(1, 5)]
-ADDITIONS = ["stand_damping"]  # beyond DESIGN.md's "at least" list, documented in the README
+ADDITIONS = ["stand_damping"]  # beyond docs/design.md's "at least" list, documented in the README
 OUTPUTS = ["pn", "pe", "pd", "vn", "ve", "vd", "qw", "qx", "qy", "qz", "roll", "pitch", "yaw", "p", "q",
            "r", "fx", "fy", "fz", "mag_x", "mag_y", "mag_z", "pressure", "temperature", "omega1",
            "omega2", "omega3", "omega4", "thrust1", "thrust2", "thrust3", "thrust4", "on_ground"]
 
-# DESIGN.md §4 start values and seed 001 Table 1.
+# docs/design.md §4 start values and seed 001 Table 1.
 DEFAULTS = {"pwm1_us": 1000, "pwm4_us": 1000, "motor_health1": 1, "wind_n": 0, "mass": 1.2,
             "arm_length": 0.2, "k_thrust": 3.13e-5, "k_torque": 7.5e-7, "Ixx": 2.353e-3,
             "Iyy": 2.353e-3, "Izz": 5.262e-2, "gravity": 9.80665, "p_ground": 101325, "stand": 0,

@@ -1,5 +1,5 @@
 """Plant physics against analytic truth: each test computes its expectation from textbook mechanics
-and the constants of seed 001 / DESIGN.md, never from the plant's own code."""
+and the constants of seed 001 / docs/design.md, never from the plant's own code."""
 
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ from tests.plant.helpers import (
 
 
 def test_hover_speed_is_the_design_value():
-    assert OMEGA_HOVER == pytest.approx(306.6, abs=0.05)  # DESIGN.md §3
+    assert OMEGA_HOVER == pytest.approx(306.6, abs=0.05)  # docs/design.md §3
 
 
 def test_hover_at_the_analytic_rotor_speed_holds_altitude():
@@ -178,7 +178,7 @@ def test_motor_reaches_63_percent_of_a_step_at_motor_tau(tau):
 @pytest.mark.parametrize(
     ("height", "pressure", "temperature"),
     [(0.0, 101325.0, 15.0), (100.0, 100129.4, 14.35), (500.0, 95460.8, 11.75),
-     (1000.0, 89874.6, 8.5), (2000.0, 79495.2, 2.0)],  # specs/sensors.md §6 check values
+     (1000.0, 89874.6, 8.5), (2000.0, 79495.2, 2.0)],  # docs/sensors.md §6 check values
 )
 def test_pressure_and_temperature_follow_isa(height, pressure, temperature):
     with Plant(params={"pd0": -height, "stand": 4}) as plant:
