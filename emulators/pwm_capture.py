@@ -28,6 +28,8 @@ import cantools
 from cobs import cobs
 
 DBC_PATH = Path(__file__).with_name("pwm_capture.dbc")
+#: The ways the frames travel, one per frame format above (rig/capture.py has a transport for each)
+TRANSPORTS = ("can", "serial")
 UNIT_US = 0.1
 CHANNELS = 4
 

@@ -10,16 +10,23 @@ The link runs as session events in sim time: every 1/rate_hz the device samples 
 and sends; the rig receives what arrived, rejects and counts bad frames, counts sequence gaps, and
 schedules the decoded widths ``latency_s`` later. ``corrupt_every`` (tests) flips one bit in every
 n-th frame after encoding, as a bad cable or bridge would.
+
+The transports share one interface, ``CaptureTransport``, and are found by name in ``TRANSPORTS`` (as
+python-can finds its interfaces): adding one is a class with a ``name``, registered with
+``@transport``, and its name in emulators.pwm_capture.TRANSPORTS (the scenario format's choices).
 """
 
 from __future__ import annotations
 
+import functools
 import os
 import time
 import tty
 import uuid
+from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ClassVar
 
 import can
 import serial
@@ -50,36 +57,133 @@ class CaptureStats:
     reasons: list[str] = field(default_factory=list)
 
 
+#: One decoded report: the first motor it covers (0-based), its sequence number, the widths (µs)
+Report = tuple[int, int, list[float]]
+
+
+class CaptureTransport(ABC):
+    """One way the capture device's frames travel to the rig: the device side sends a sample, the rig
+    side receives and decodes what has arrived. A transport never trusts what arrives: a frame that
+    fails its CRC or layout goes to ``reject`` with the reason, and is not applied."""
+
+    name: ClassVar[str]
+
+    @abstractmethod
+    def __init__(self, capture: Capture) -> None: ...
+
+    @abstractmethod
+    def send(self, seq: int, widths: list[float], corrupt: Callable[[bytes], bytes]) -> int:
+        """The device side: one sample as this transport's frames (``corrupt`` may flip a bit of each, as
+        a bad cable would); returns what ``receive`` should wait for (frames or bytes)."""
+
+    @abstractmethod
+    def receive(self, expect: int, reject: Callable[[str], None]) -> list[Report]:
+        """The rig side: the reports that arrived (waiting, up to a second, for ``expect``)."""
+
+    @abstractmethod
+    def close(self) -> None: ...
+
+
+#: The transports by the name a scenario's [capture] gives (emulators.pwm_capture.TRANSPORTS)
+TRANSPORTS: dict[str, type[CaptureTransport]] = {}
+
+
+def transport(cls: type[CaptureTransport]) -> type[CaptureTransport]:
+    """Registers a transport under its ``name`` (as python-can's interfaces are registered)."""
+    TRANSPORTS[cls.name] = cls
+    return cls
+
+
+@transport
+class CanTransport(CaptureTransport):
+    """Two python-can buses on one channel, the device's and the rig's (``virtual`` on a private channel
+    in CI; ``socketcan`` on a bench, where the device is real). Frames are the DBC's."""
+
+    name = "can"
+
+    def __init__(self, capture: Capture) -> None:
+        self.codec = CanCodec()
+        self.tx, self.rx = _open_can_pair(capture.can_interface, capture.can_channel)
+
+    def send(self, seq: int, widths: list[float], corrupt: Callable[[bytes], bytes]) -> int:
+        frames = self.codec.encode(seq, widths)
+        for fid, data in frames:
+            self.tx.send(can.Message(arbitration_id=fid, data=corrupt(data), is_extended_id=False))
+        return len(frames)
+
+    def receive(self, expect: int, reject: Callable[[str], None]) -> list[Report]:
+        reports: list[Report] = []
+        for _ in range(expect):
+            msg = self.rx.recv(timeout=1.0)
+            if msg is None:
+                break
+            try:
+                reports.append(self.codec.decode(msg.arbitration_id, bytes(msg.data)))
+            except CaptureFrameError as e:
+                reject(str(e))
+        return reports
+
+    def close(self) -> None:
+        self.tx.shutdown()
+        self.rx.shutdown()
+
+
+@transport
+class SerialTransport(CaptureTransport):
+    """A pty pair, read with pyserial on the rig's side (on a bench, the device's USB serial port).
+    Frames are COBS with a 0x00 delimiter and a CRC-16."""
+
+    name = "serial"
+
+    def __init__(self, capture: Capture) -> None:
+        self.master, slave = os.openpty()
+        tty.setraw(slave)
+        self.port = serial.Serial(os.ttyname(slave), timeout=0)
+        os.close(slave)  # pyserial holds its own descriptor
+        self.deframer = SerialDeframer()
+
+    def send(self, seq: int, widths: list[float], corrupt: Callable[[bytes], bytes]) -> int:
+        data = corrupt(encode_serial(seq, widths)[:-1]) + b"\x00"
+        view = memoryview(data)
+        while view:
+            view = view[os.write(self.master, view):]
+        return len(data)
+
+    def receive(self, expect: int, reject: Callable[[str], None]) -> list[Report]:
+        got = b""
+        deadline = time.monotonic() + 1.0
+        while len(got) < expect and time.monotonic() < deadline:  # a pty hands bytes over asynchronously
+            got += self.port.read(expect - len(got))
+        reports: list[Report] = []
+        for frame in self.deframer.feed(got):
+            try:
+                seq, widths = decode_serial(frame)
+                reports.append((0, seq, widths))
+            except CaptureFrameError as e:
+                reject(str(e))
+        return reports
+
+    def close(self) -> None:
+        self.port.close()
+        os.close(self.master)
+
+
 class CaptureLink:
-    def __init__(
-        self,
-        transport: str,
-        resolution_us: float,
-        rate_hz: float,
-        latency_s: float,
-        corrupt_every: int = 0,
-        can_interface: str = "virtual",
-        can_channel: str = "",
-    ) -> None:
-        self.device = CaptureDevice(resolution_us, rate_hz)
-        self.period, self.latency = 1.0 / rate_hz, latency_s
+    """The capture device model and the rig's decoder with a transport between them, run as session
+    events: every 1/rate_hz the device samples the DUT's PWM outputs and sends; the rig receives what
+    arrived, counts rejected frames and sequence gaps, and applies the widths after ``latency_s``."""
+
+    def __init__(self, capture: Capture, corrupt_every: int = 0) -> None:
+        kind = TRANSPORTS.get(capture.transport)
+        if kind is None:
+            known = ", ".join(TRANSPORTS)
+            raise ValueError(f"unknown capture transport {capture.transport!r}; known: {known}")
+        self.device = CaptureDevice(capture.resolution_us, capture.rate_hz)
+        self.period, self.latency = 1.0 / capture.rate_hz, capture.latency_s
         self.corrupt_every = corrupt_every
         self.st = CaptureStats()
-        self.transport = transport
+        self.transport = kind(capture)
         self._last_seq: dict[int, int] = {}
-        if transport == "can":
-            self.codec = CanCodec()
-            self.tx, self.rx = _open_can_pair(can_interface, can_channel)
-        elif transport == "serial":
-            self.master, slave = os.openpty()
-            tty.setraw(slave)
-            self.port = serial.Serial(os.ttyname(slave), timeout=0)
-            os.close(slave)  # pyserial holds its own descriptor
-            self.deframer = SerialDeframer()
-        else:
-            raise ValueError(f"unknown capture transport {transport!r}")
-
-    # ---- device side ------------------------------------------------------------------------------
 
     def _corrupt(self, data: bytes) -> bytes:
         self.st.sent += 1
@@ -95,51 +199,18 @@ class CaptureLink:
         self.st.max_quantisation_us = max(
             self.st.max_quantisation_us, max(abs(a - b) for a, b in zip(q, widths, strict=True))
         )
-        if self.transport == "can":
-            for fid, data in self.codec.encode(seq, q):
-                self.tx.send(can.Message(arbitration_id=fid, data=self._corrupt(data), is_extended_id=False))
-        else:
-            data = self._corrupt(encode_serial(seq, q)[:-1]) + b"\x00"
-            view = memoryview(data)
-            while view:
-                view = view[os.write(self.master, view) :]
-        self._receive(session, t, expect=2 if self.transport == "can" else len(data))
-        nxt = t + self.period
-        session.at(nxt, lambda s: self.tick(s, nxt))
-
-    # ---- rig side ---------------------------------------------------------------------------------
-
-    def _receive(self, session: Session, t: float, expect: int) -> None:
-        decoded: list[tuple[int, int, list[float]]] = []
-        if self.transport == "can":
-            for _ in range(expect):
-                msg = self.rx.recv(timeout=1.0)
-                if msg is None:
-                    break
-                try:
-                    decoded.append(self.codec.decode(msg.arbitration_id, bytes(msg.data)))
-                except CaptureFrameError as e:
-                    self._reject(str(e))
-        else:
-            got = b""
-            deadline = time.monotonic() + 1.0
-            while len(got) < expect and time.monotonic() < deadline:  # a pty hands bytes over asynchronously
-                got += self.port.read(expect - len(got))
-            for frame in self.deframer.feed(got):
-                try:
-                    seq, widths = decode_serial(frame)
-                    decoded.append((0, seq, widths))
-                except CaptureFrameError as e:
-                    self._reject(str(e))
-        for first, seq, widths in decoded:
+        expect = self.transport.send(seq, q, self._corrupt)
+        for first, seq, widths in self.transport.receive(expect, self._reject):
             last = self._last_seq.get(first)
             if last is not None and seq != (last + 1) % 256:
                 self.st.seq_gaps += 1
             self._last_seq[first] = seq
             if self.latency > 0:
-                session.at(t + self.latency, lambda s, f=first, w=widths: self._apply(s, f, w))
+                session.at(t + self.latency, functools.partial(self._apply, first=first, widths=widths))
             else:
                 self._apply(session, first, widths)
+        nxt = t + self.period
+        session.at(nxt, lambda s: self.tick(s, nxt))
 
     def _reject(self, reason: str) -> None:
         self.st.rejected += 1
@@ -154,7 +225,7 @@ class CaptureLink:
 
     def stats(self) -> dict[str, object]:
         return {
-            "transport": self.transport,
+            "transport": self.transport.name,
             "frames_sent": self.st.sent,
             "frames_applied": self.st.applied,
             "frames_rejected": self.st.rejected,
@@ -164,12 +235,7 @@ class CaptureLink:
         }
 
     def close(self) -> None:
-        if self.transport == "can":
-            self.tx.shutdown()
-            self.rx.shutdown()
-        else:
-            self.port.close()
-            os.close(self.master)
+        self.transport.close()
 
 
 def _open_can_pair(interface: str, channel: str) -> tuple[can.BusABC, can.BusABC]:
@@ -203,15 +269,7 @@ def install_capture(session: Session, capture: Capture, corrupt_every: int = 0) 
     """Puts a capture link between the DUT's PWM outputs and the plant; None for the direct path."""
     if capture.transport == "direct":
         return None
-    link = CaptureLink(
-        capture.transport,
-        capture.resolution_us,
-        capture.rate_hz,
-        capture.latency_s,
-        corrupt_every,
-        capture.can_interface,
-        capture.can_channel,
-    )
+    link = CaptureLink(capture, corrupt_every)
     session.world.direct_pwm = False
     session.at(0.0, lambda s: link.tick(s, 0.0))
     return link

@@ -20,6 +20,7 @@ from typing import Any
 from emulators.faults import KINDS as FAULT_KINDS
 from emulators.faults import TARGETS as FAULT_TARGETS
 from emulators.faults import Fault, TargetedFault
+from emulators.pwm_capture import TRANSPORTS as CAPTURE_TRANSPORTS
 from emulators.sbus import STICKS
 from plant.variables import SCENARIO_INPUTS, VARIABLES, check_parameters
 from scenarios import fc_keys
@@ -29,7 +30,7 @@ from scenarios.signals import SIGNALS
 PLANT_PARAMETERS = {v.name for v in VARIABLES if v.causality == "parameter"}
 PLANT_INPUTS = set(SCENARIO_INPUTS)
 LINK_STATES = ("ok", "lost", "failsafe")
-CAPTURES = ("direct", "can", "serial")
+CAPTURES = ("direct", *CAPTURE_TRANSPORTS)  # direct: the DUT's PWM drives the plant with no link
 
 
 class ScenarioError(ValueError):

@@ -133,3 +133,11 @@ def test_a_can_interface_that_cannot_open_is_a_clear_usage_error(tmp_path: Path)
     )
     assert bad.returncode == 2 and "expected INTERFACE:CHANNEL" in bad.stderr
 
+
+
+def test_every_transport_a_scenario_may_name_has_a_registered_class() -> None:
+    from emulators.pwm_capture import TRANSPORTS as NAMED
+    from rig.capture import TRANSPORTS, CaptureTransport
+
+    assert set(TRANSPORTS) == set(NAMED)
+    assert all(issubclass(cls, CaptureTransport) and cls.name == name for name, cls in TRANSPORTS.items())
