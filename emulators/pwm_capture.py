@@ -107,7 +107,9 @@ class CanCodec:
     """The DBC's two messages; the CRC covers what cantools leaves to the application."""
 
     def __init__(self, dbc: Path = DBC_PATH) -> None:
-        self.db = cantools.database.load_file(str(dbc))
+        db = cantools.database.load_file(str(dbc))
+        assert isinstance(db, cantools.database.can.Database)  # (a DBC file is a CAN database)
+        self.db = db
         self.messages = [
             self.db.get_message_by_name("PWM_CAPTURE_12"),
             self.db.get_message_by_name("PWM_CAPTURE_34"),
@@ -135,7 +137,9 @@ class CanCodec:
             raise CaptureFrameError(f"unknown CAN id {frame_id:#x}")
         if len(data) != 8:
             raise CaptureFrameError(f"CAN id {frame_id:#x}: {len(data)} data bytes, expected 8")
-        sig = self.messages[k].decode(bytes(data), scaling=True)
+        decoded = self.messages[k].decode(bytes(data), scaling=True, decode_choices=False)
+        assert isinstance(decoded, dict)
+        sig = {name: float(v) for name, v in decoded.items() if isinstance(v, int | float)}
         if self._crc(frame_id, data) != int(sig["CRC16"]):
             raise CaptureFrameError(f"CAN id {frame_id:#x}: CRC mismatch")
-        return 2 * k, int(sig["SEQ"]), [float(sig[f"PWM{2 * k + 1}"]), float(sig[f"PWM{2 * k + 2}"])]
+        return 2 * k, int(sig["SEQ"]), [sig[f"PWM{2 * k + 1}"], sig[f"PWM{2 * k + 2}"]]

@@ -36,9 +36,11 @@ class AxisErrors:
     def matrix(self) -> tuple[tuple[float, float, float], ...]:
         """Scale/misalignment times mounting: the one matrix each sample is multiplied by."""
         s, m = self.scale_misalignment, self.mounting
-        return tuple(
-            tuple(float(sum(s[i][k] * m[k][j] for k in range(3))) for j in range(3)) for i in range(3)
-        )  # type: ignore[return-value]
+        def row(i: int) -> tuple[float, float, float]:
+            a, b, c = (float(sum(s[i][k] * m[k][j] for k in range(3))) for j in range(3))
+            return (a, b, c)
+
+        return tuple(row(i) for i in range(3))
 
 
 Vec3 = tuple[float, float, float]
@@ -97,7 +99,7 @@ class _Channel:
     def measure(self, t: float, truth: Vec3, temperature_c: float) -> Vec3:
         """One sample, faults applied (the magnetometer's way: tens of samples a second)."""
         self._t.value = t
-        self._in[:] = truth
+        self._in[:] = list(truth)
         self._temp.value = temperature_c
         t_at, in_at, temp_at, out_at = self._addrs
         while self._measure(self.addr, 1, t_at, in_at, temp_at, out_at):
@@ -207,8 +209,9 @@ class ImuModel:
             self._out, self._out_addr = out, out.ctypes.data
         if not 0 <= n <= min(BLOCK, len(out)):
             raise ValueError(f"ImuModel.sample_block takes 0..{min(BLOCK, len(out))} samples, not {n}")
-        self._times[:n] = times
-        self._rows[:n] = self._table.row_addresses(times)
+        self._times[:n] = list(times)
+        rows: list[ctypes.c_void_p | int | None] = list(self._table.row_addresses(times))
+        self._rows[:n] = rows
         times_at, rows_at, cols_at = self._at
         while short := self._measure(self._a.addr, self._g.addr, n, times_at, rows_at, cols_at,
                                      self.die_offset_c, self._out_addr):

@@ -33,7 +33,8 @@ def plant_steps() -> Callable[[int, int, float, int, int], int]:
     """``plant_steps(steps_address, n, h, write_inputs, first_row) -> steps completed``."""
     if is_stale(LIB, SOURCES):
         build()
-    return load_extension(MODULE_NAME, LIB).plant_steps  # type: ignore[no-any-return]
+    steps: Callable[[int, int, float, int, int], int] = load_extension(MODULE_NAME, LIB).plant_steps
+    return steps
 
 
 if __name__ == "__main__":

@@ -100,8 +100,8 @@ def render_index(results: Sequence[RunResult], links: Sequence[str], not_run: Se
         rows.append(
             f'<tr class="{r.verdict}"><td><a href="{e(link)}">{e(r.scenario.name)}</a></td>'
             f"<td>{r.verdict}</td><td>{ok}/{len(r.measurements)}</td>"
-            f"<td>{float(r.metadata.get('sim_time') or 0):.1f}</td>"  # type: ignore[arg-type]
-            f"<td>{float(r.metadata.get('wall_time') or 0):.2f}</td></tr>"  # type: ignore[arg-type]
+            f"<td>{float(r.metadata.get('sim_time') or 0):.1f}</td>"
+            f"<td>{float(r.metadata.get('wall_time') or 0):.2f}</td></tr>"
         )
     for stem in not_run:
         rows.append(f'<tr class="not-judged"><td>{e(stem)}</td><td>not run</td>' + "<td></td>" * 3 + "</tr>")

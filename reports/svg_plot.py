@@ -66,7 +66,7 @@ def plot(
     if shade is not None and len(shade):
         edges = np.diff(np.concatenate([[0], (shade > 0.5).astype(int), [0]]))
         for a, b in zip(np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0], strict=True):
-            xa, xb = x(t[a]), x(t[min(b, len(t) - 1)])
+            xa, xb = x(t[a]), x(t[min(int(b), len(t) - 1)])
             out.append(
                 f'<rect x="{xa:.1f}" y="{TOP}" width="{max(xb - xa, 1):.1f}" height="{ph}" '
                 f'fill="#f4cccc"><title>{html.escape(shade_label)}</title></rect>'
@@ -85,10 +85,10 @@ def plot(
         f'text-anchor="middle">{html.escape(units)}</text>'
     )
     step = max(1, len(t) // 1500)
-    for k, (label, v, dash) in enumerate(traces):
+    for k, (label, values, dash) in enumerate(traces):
         colour = COLOURS[k % len(COLOURS)]
         pts, path = [], []
-        for ti, vi in zip(t[::step], v[::step], strict=True):
+        for ti, vi in zip(t[::step], values[::step], strict=True):
             if math.isfinite(vi):
                 pts.append(f"{x(ti):.1f},{y(vi):.1f}")
             elif pts:

@@ -29,9 +29,9 @@ def build() -> None:
             exts = mypycify([*args, *(str(source_of(m).relative_to(REPO)) for m in MODULES)],
                             group_name=GROUP, target_dir=str(Path(tmp) / "c"))
             dist = Distribution({"name": "rig-hot", "ext_modules": exts})
-            dist.verbose = 0  # (no compiler command lines; errors still show)
+            dist.verbose = False  # (no compiler command lines; errors still show)
             cmd = dist.get_command_obj("build_ext")
-            cmd.build_lib, cmd.build_temp = str(OUT), str(Path(tmp) / "obj")  # type: ignore[attr-defined]
+            cmd.build_lib, cmd.build_temp = str(OUT), str(Path(tmp) / "obj")
             dist.run_command("build_ext")
         finally:
             os.chdir(cwd)

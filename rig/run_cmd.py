@@ -230,7 +230,7 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
         (run_dir / "report.html").write_text(html_report.render(r))
         failed = [m.name for m in r.measurements if m.outcome == "fail"]
         rate = r.metadata.get("realtime_factor") or 0.0
-        wall = float(r.metadata.get("wall_time") or 0.0)  # type: ignore[arg-type]
+        wall = float(r.metadata.get("wall_time") or 0.0)
         if r.verdict in ("error", "interrupted"):
             detail = f" {r.verdict}: {r.error}"
         else:

@@ -44,7 +44,7 @@ REACHED = 0.9
 def overshoot(t: np.ndarray, x: np.ndarray, p: Params) -> float:
     """Percent of the step (from the value at the window start to the target) passed beyond it. A
     step never reached has no overshoot to speak of: 0 % would pass a DUT that never moved."""
-    step = p.target - x[0]  # type: ignore[operator]
+    step = p.target - x[0]
     if abs(step) < 1e-9:
         raise Unmeasurable("no step: the signal starts at the target")
     covered = float(np.max((x - x[0]) / step))
@@ -56,7 +56,7 @@ def overshoot(t: np.ndarray, x: np.ndarray, p: Params) -> float:
 
 def rise_time(t: np.ndarray, x: np.ndarray, p: Params) -> float:
     """10 % to 90 % of the step; infinity when 90 % is never reached."""
-    step = p.target - x[0]  # type: ignore[operator]
+    step = p.target - x[0]
     frac = (x - x[0]) / step if abs(step) > 1e-9 else np.zeros_like(x)
     lo, hi = np.nonzero(frac >= 0.1)[0], np.nonzero(frac >= 0.9)[0]
     if not len(hi):
@@ -67,7 +67,7 @@ def rise_time(t: np.ndarray, x: np.ndarray, p: Params) -> float:
 def settling_time(t: np.ndarray, x: np.ndarray, p: Params) -> float:
     """From the window start until the signal enters the band around the target for good;
     infinity when it is outside the band at the end."""
-    out = np.nonzero(np.abs(x - p.target) > p.band)[0]  # type: ignore[operator]
+    out = np.nonzero(np.abs(x - p.target) > p.band)[0]
     if not len(out):
         return 0.0
     if out[-1] == len(x) - 1:
@@ -90,12 +90,12 @@ def rms_error(t: np.ndarray, x: np.ndarray, p: Params) -> float:
 
 def time_in_band(t: np.ndarray, x: np.ndarray, p: Params) -> float:
     """Percent of the window's samples within the band around the target."""
-    return float(np.mean(np.abs(_err(x, p)) <= p.band)) * 100.0  # type: ignore[operator]
+    return float(np.mean(np.abs(_err(x, p)) <= p.band)) * 100.0
 
 
 def time_above(t: np.ndarray, x: np.ndarray, p: Params) -> float:
     """Percent of the window's samples at or above the target (motor saturation: pwm_max >= 1950)."""
-    return float(np.mean(x >= p.target)) * 100.0  # type: ignore[operator]
+    return float(np.mean(x >= p.target)) * 100.0
 
 
 def maximum(t: np.ndarray, x: np.ndarray, p: Params) -> float:

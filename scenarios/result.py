@@ -4,6 +4,7 @@ and the run's metadata. The runner (rig/runner.py) makes it; the reports (report
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -18,7 +19,7 @@ class RunResult:
     error: str | None
     measurements: list[Measurement]
     signals: dict[str, np.ndarray]
-    metadata: dict[str, object]
+    metadata: dict[str, Any]  # JSON-like: result.json's "metadata"
     exit_code: int | None = None  # the session's (rig exec's) exit status; 128 + N for signal N
     stderr: str = ""
     notes: list[str] = field(default_factory=list)

@@ -318,19 +318,19 @@ def load(path: str | Path) -> Scenario:
         )
 
     timeline = []
-    for i, e in enumerate(c.array(data, "timeline")):
+    for i, entry in enumerate(c.array(data, "timeline")):
         key = f"timeline[{i}]"
-        e = c.table(e, key, EVENT_KEYS)
-        t = c.number(e, "t", key, low=0, high=duration)
-        sticks = c.table(e.get("sticks", {}), f"{key}.sticks", STICKS)
+        ev = c.table(entry, key, EVENT_KEYS)
+        t = c.number(ev, "t", key, low=0, high=duration)
+        sticks = c.table(ev.get("sticks", {}), f"{key}.sticks", STICKS)
         st: dict[str, float | bool] = {}
         for k in sticks:
             if k in ("arm", "alt_hold"):
                 st[k] = c.boolean(sticks, k, f"{key}.sticks", False)
             else:
                 st[k] = c.number(sticks, k, f"{key}.sticks", low=0 if k == "throttle" else -1, high=1)
-        link = c.string(e, "link", key, choices=LINK_STATES) if "link" in e else None
-        inputs_raw = c.table(e.get("inputs", {}), f"{key}.inputs", PLANT_INPUTS)
+        link = c.string(ev, "link", key, choices=LINK_STATES) if "link" in ev else None
+        inputs_raw = c.table(ev.get("inputs", {}), f"{key}.inputs", PLANT_INPUTS)
         inputs = {k: c.number(inputs_raw, k, f"{key}.inputs") for k in inputs_raw}
         timeline.append(Event(t, st, link, inputs))
 
@@ -348,8 +348,8 @@ def load(path: str | Path) -> Scenario:
             fault = Fault(kind, start, end, c.number(f, "magnitude", key, 0.0),
                           c.number(f, "period", key, 0.1, positive=True),
                           c.number(f, "duty", key, 0.5, low=0, high=1))
-        except ValueError as e:
-            raise c.fail(key, str(e)) from None
+        except ValueError as err:
+            raise c.fail(key, str(err)) from None
         faults.append(TargetedFault(target, fault))
 
     gusts = []

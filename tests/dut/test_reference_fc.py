@@ -111,7 +111,10 @@ def test_a_prom_with_a_bad_crc_is_refused(tmp_path: Path, fc: Path) -> None:
 
 def test_garbage_on_the_rc_port_is_reported_and_the_motors_stay_idle(tmp_path: Path, fc: Path) -> None:
     junk = bytes((i * 37 + 11) % 256 for i in range(200)).replace(b"\x0f", b"\x10")
-    events = [(1.5 + 0.1 * k, lambda s: s.serial_write("/dev/ttyRC0", junk)) for k in range(10)]
+    def garbage(s: Session) -> None:
+        s.serial_write("/dev/ttyRC0", junk)
+
+    events = [(1.5 + 0.1 * k, garbage) for k in range(10)]
     conf = "rc_path = /dev/ttyRC0\ntelemetry_path = /dev/ttyTEL0\n"
     session, outcome, log, err = run_fc(tmp_path, fc, conf, serial=("/dev/ttyRC0", "/dev/ttyTEL0"),
                                         events=events)
@@ -146,7 +149,8 @@ def fly_with_sticks(tmp_path: Path, fc: Path, plan: Sequence[tuple[float, dict[s
                       "pwm1": s.world.pwm[0].pulse_us()})
         s.at(s.now_ns / 1e9 + every, sample)
 
-    events = [(0.0, rc.start), (0.0, sample)] + [(t, change(w)) for t, w in plan]
+    events: list[tuple[float, Callable[[Session], None]]] = [(0.0, rc.start), (0.0, sample)]
+    events += [(t, change(w)) for t, w in plan]
     session, outcome, _, err = run_fc(tmp_path, fc, RC_CONF, serial=RC_PORTS, events=events,
                                       duration=duration)
     assert outcome.verdict == "ok", (outcome.error, err)
@@ -158,8 +162,8 @@ def at(rows: list[dict[str, float]], t: float) -> dict[str, float]:
 
 
 def test_arm_fly_hold_altitude_then_rc_loss_levels_descends_and_disarms(tmp_path: Path, fc: Path) -> None:
-    plan = [(1.5, {"arm": True}), (2.0, {"throttle": 0.56}), (4.0, {"alt_hold": True}),
-            (8.0, {"link": "lost"})]
+    plan: list[tuple[float, dict[str, object]]] = [(1.5, {"arm": True}), (2.0, {"throttle": 0.56}),
+                                                   (4.0, {"alt_hold": True}), (8.0, {"link": "lost"})]
     truth, tel, err = fly_with_sticks(tmp_path, fc, plan, duration=20.0)
     t0 = MONO_BASE_NS / NS                                  # the FC's monotonic clock at sim time 0
     armed_at = min(r["t"] - t0 for r in tel if r["armed"] == 1)
@@ -179,7 +183,7 @@ def test_arm_fly_hold_altitude_then_rc_loss_levels_descends_and_disarms(tmp_path
 
 
 def test_the_arm_switch_with_throttle_up_does_not_arm(tmp_path: Path, fc: Path) -> None:
-    plan = [(1.2, {"throttle": 0.6}), (1.5, {"arm": True})]
+    plan: list[tuple[float, dict[str, object]]] = [(1.2, {"throttle": 0.6}), (1.5, {"arm": True})]
     truth, tel, _ = fly_with_sticks(tmp_path, fc, plan, duration=3.0)
     assert all(r["armed"] == 0 for r in tel)
     assert all(r["pwm1"] in (0.0, 1000.0) for r in truth)

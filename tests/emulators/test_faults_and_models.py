@@ -174,10 +174,12 @@ def test_the_imu_reads_the_worlds_table_and_a_truth_function_alike() -> None:
     world.plant.u[:] = 1500.0  # something moves: the rows differ from step to step
     world.advance_to(50_000_000)
     assert [world.plant.y_index[n] for n in IMU_TRUTH] != list(range(7))
-    errors = {"accel": AxisErrors(noise_density=0.01, bias=(0.1, 0.0, 0.0)),
-              "gyro": AxisErrors(noise_density=0.001, temp_coefficient=1e-3)}
-    by_table = ImuModel(world.board.mpu.source.truth, seed=3, **errors)
-    by_function = ImuModel(world.truth, seed=3, **errors)
+    accel = AxisErrors(noise_density=0.01, bias=(0.1, 0.0, 0.0))
+    gyro = AxisErrors(noise_density=0.001, temp_coefficient=1e-3)
+    source = world.board.mpu.source
+    assert isinstance(source, ImuModel)
+    by_table = ImuModel(source.truth, seed=3, accel=accel, gyro=gyro)
+    by_function = ImuModel(world.truth, seed=3, accel=accel, gyro=gyro)
     samples = [(by_table(t), by_function(t)) for t in np.arange(0.02, 0.05, 0.0007)]
     assert all(a == b for a, b in samples) and samples[0][0] != samples[-1][0]
     no_temp = ImuModel(lambda t: TruthRow({"fx": 0, "fy": 1, "fz": 2, "p": 3, "q": 4, "r": 5}, [0.0] * 6))

@@ -61,4 +61,4 @@ def test_the_plant_steps_refuse_wrong_arguments_with_a_clear_error() -> None:
     with pytest.raises(TypeError, match="plant_steps takes 5 arguments \\(0 given\\)"):
         plant_steps()()  # type: ignore[call-arg]
     with pytest.raises(TypeError):
-        plant_steps()(0, 1, "a step", 1, 0)
+        plant_steps()(0, 1, "a step", 1, 0)  # type: ignore[arg-type]

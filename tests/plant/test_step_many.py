@@ -18,7 +18,7 @@ WOBBLE = (HOVER_PWM + 40, HOVER_PWM - 30, HOVER_PWM + 10, HOVER_PWM)
 def test_many_steps_in_one_call_are_the_steps_one_by_one_bit_for_bit() -> None:
     with flying(WOBBLE) as a, flying(WOBBLE) as b:
         ring = np.full((7, len(a.y)), np.nan)
-        rows = []
+        rows: list[np.ndarray] = []
         for n, wind in ((4, 0.0), (1, 3.0), (10, -2.0), (0, 5.0)):  # 15 steps: the ring wraps twice
             a.set_input("wind_n", wind)
             b.set_input("wind_n", wind)

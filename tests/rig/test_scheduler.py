@@ -5,6 +5,7 @@ tested only by spawning a program."""
 from __future__ import annotations
 
 import signal
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -31,8 +32,11 @@ def world():
 def test_events_run_in_time_order_and_the_world_reaches_each(world: World) -> None:
     host = Host()
     sched = Scheduler(world, host, duration=10.0, sim_timeout=600.0)
+    def note(name: str) -> Callable[[Host], None]:
+        return lambda h: h.seen.append((name, world.time_ns))
+
     for name, t in (("c", 0.003), ("a", 0.001), ("b", 0.001), ("d", 0.0055)):
-        sched.at(t, lambda h, n=name: h.seen.append((n, world.time_ns)))
+        sched.at(t, note(name))
     assert sched.advance(5_000_000) == 5_000_000
     # ties in order of scheduling; the world's 1 ms grid at or before the event's time
     assert host.seen == [("a", 1_000_000), ("b", 1_000_000), ("c", 3_000_000)]

@@ -7,19 +7,20 @@ import dataclasses
 from pathlib import Path
 
 from rig.runner import run
+from scenarios.result import RunResult
 from scenarios.schema import load
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
 
 
-def run_with(name: str, tmp_path: Path, **fc: object) -> object:
+def run_with(name: str, tmp_path: Path, **fc: object) -> RunResult:
     sc = load(LIB / f"{name}.toml")
     sc = dataclasses.replace(sc, fc={**sc.fc, **{k: str(v) for k, v in fc.items()}})
     return run(sc, work_dir=tmp_path)
 
 
-def failed(r: object) -> set[str]:
-    return {m.name for m in r.measurements if m.outcome == "fail"}  # type: ignore[attr-defined]
+def failed(r: RunResult) -> set[str]:
+    return {m.name for m in r.measurements if m.outcome == "fail"}
 
 
 def test_the_healthy_reference_fc_passes_the_scenarios_used_below(tmp_path: Path) -> None:
@@ -66,5 +67,5 @@ def test_a_half_size_altitude_step_fails_on_its_final_value(tmp_path: Path) -> N
     r = run_with("step_altitude", tmp_path, alt_sp_range_m=2.5)
     assert r.verdict == "fail"
     assert "steady_state_error of alt" in failed(r)
-    sse = next(m for m in r.measurements if m.name == "steady_state_error of alt")  # type: ignore[attr-defined]
+    sse = next(m for m in r.measurements if m.name == "steady_state_error of alt")
     assert 0.3 < sse.value < 0.7
