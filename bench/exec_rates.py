@@ -10,7 +10,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-DUTS = Path(__file__).resolve().parent / "duts"
+DUTS = Path(__file__).resolve().parent / "exec_programs"  # what the benches run under rig exec
 RIG = [sys.executable, "-m", "rig.cli", "exec"]
 
 

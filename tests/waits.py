@@ -12,7 +12,7 @@ BOUND_S = 60.0
 
 
 def pid_fifo(path: Path) -> Path:
-    """A FIFO for a DUT to write its pid into (tests/rig/duts/*: argv[1])."""
+    """A FIFO for a DUT to write its pid into (tests/rig/device_clients/*: argv[1])."""
     os.mkfifo(path)
     return path
 

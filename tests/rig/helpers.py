@@ -12,7 +12,8 @@ from pathlib import Path
 
 import pytest
 
-DUTS = Path(__file__).resolve().parent / "duts"
+#: programs that use the emulated devices as a DUT would, run under `rig exec` by the tests
+DUTS = Path(__file__).resolve().parent / "device_clients"
 PY = sys.executable
 
 

@@ -14,7 +14,8 @@ from rig.runner import parse_telemetry, run
 from scenarios.schema import load
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
-DUTS = Path(__file__).resolve().parent / "duts"
+#: stand-in firmware, each with the misbehaviour a test needs
+DUTS = Path(__file__).resolve().parent / "misbehaving_firmware"
 
 
 def test_a_dut_that_never_reads_its_rc_port_does_not_stall_the_run(tmp_path: Path) -> None:

@@ -18,7 +18,8 @@ from rig.run_cmd import ReportFolder
 from tests.waits import pid_fifo, read_pid, wait_gone
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
-DUTS = Path(__file__).resolve().parent / "duts"
+#: stand-in firmware, each with the misbehaviour a test needs
+DUTS = Path(__file__).resolve().parent / "misbehaving_firmware"
 PY = sys.executable
 
 SHORT = """[scenario]

@@ -53,7 +53,7 @@ def ms5611_pressure(bus):
 
 
 with SMBus(1) as bus:
-    out = {"who_am_i": bus.read_byte_data(MPU, 0x75)}
+    out: dict[str, object] = {"who_am_i": bus.read_byte_data(MPU, 0x75)}
     bus.write_byte_data(MPU, 0x6B, 0x00)            # wake
     time.sleep(0.05)
     b = bus.read_i2c_block_data(MPU, 0x3B, 14)

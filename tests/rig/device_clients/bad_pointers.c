@@ -46,13 +46,13 @@ static char *stack_top(void)
 
 static long rdwr(int fd, struct i2c_msg *m, unsigned n)
 {
-    struct i2c_rdwr_ioctl_data d = {m, n};
+    struct i2c_rdwr_ioctl_data d = { m, n };
     return ioctl(fd, I2C_RDWR, &d);
 }
 
 static long smbus(int fd, int rw, int cmd, int size, void *data)
 {
-    struct i2c_smbus_ioctl_data a = {(unsigned char)rw, (unsigned char)cmd, (unsigned)size, data};
+    struct i2c_smbus_ioctl_data a = { (unsigned char)rw, (unsigned char)cmd, (unsigned)size, data };
     return ioctl(fd, I2C_SMBUS, &a);
 }
 
@@ -78,14 +78,14 @@ int main(void)
     report("write_past_stack_top", top ? write(fd, top - 4, 8) : -2);
 
     report("rdwr_arg_garbage", ioctl(fd, I2C_RDWR, (void *)0x1234));
-    struct i2c_rdwr_ioctl_data d = {BAD, 2};
+    struct i2c_rdwr_ioctl_data d = { BAD, 2 };
     report("rdwr_msgs_garbage", ioctl(fd, I2C_RDWR, &d));
     d.msgs = (struct i2c_msg *)(none + 4096 - sizeof(struct i2c_msg));
     report("rdwr_msgs_prot_none", ioctl(fd, I2C_RDWR, &d));
-    struct i2c_msg m[2] = {{0x68, 0, 1, &reg}, {0x68, I2C_M_RD, 1, &id}};
-    d = (struct i2c_rdwr_ioctl_data){NULL, 1};
-    report("rdwr_msgs_null", ioctl(fd, I2C_RDWR, &d));      /* i2c-dev since 5.11: EINVAL */
-    d = (struct i2c_rdwr_ioctl_data){m, 0};
+    struct i2c_msg m[2] = { { 0x68, 0, 1, &reg }, { 0x68, I2C_M_RD, 1, &id } };
+    d = (struct i2c_rdwr_ioctl_data){ NULL, 1 };
+    report("rdwr_msgs_null", ioctl(fd, I2C_RDWR, &d)); /* i2c-dev since 5.11: EINVAL */
+    d = (struct i2c_rdwr_ioctl_data){ m, 0 };
     report("rdwr_no_msgs", ioctl(fd, I2C_RDWR, &d));
     m[0].buf = BAD;
     report("rdwr_write_buf_garbage", rdwr(fd, m, 2));
@@ -97,9 +97,9 @@ int main(void)
     m[1].buf = (unsigned char *)none;
     report("rdwr_read_buf_prot_none", rdwr(fd, m, 2));
     m[1].buf = &id;
-    struct i2c_msg past_top[2] = {{0x68, 0, 8, (unsigned char *)top - 4}, m[1]};
+    struct i2c_msg past_top[2] = { { 0x68, 0, 8, (unsigned char *)top - 4 }, m[1] };
     report("rdwr_write_buf_past_stack_top", rdwr(fd, past_top, 2));
-    struct i2c_msg empty = {0x68, 0, 0, BAD};                /* nothing to copy: no fault */
+    struct i2c_msg empty = { 0x68, 0, 0, BAD }; /* nothing to copy: no fault */
     report("rdwr_empty_message_garbage_buf", rdwr(fd, &empty, 1));
 
     report("smbus_arg_garbage", ioctl(fd, I2C_SMBUS, (void *)0x1234));
@@ -128,7 +128,7 @@ int main(void)
     m[1].buf = &id;
     report("who_am_i_rdwr", rdwr(fd, m, 2));
     printf("who_am_i 0x%02x\n", id);
-    union i2c_smbus_data data = {0};
+    union i2c_smbus_data data = { 0 };
     report("who_am_i_smbus", smbus(fd, I2C_SMBUS_READ, 0x75, I2C_SMBUS_BYTE_DATA, &data));
     printf("who_am_i_smbus_value 0x%02x\n", data.byte);
     return 0;

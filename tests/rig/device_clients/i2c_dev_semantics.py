@@ -22,7 +22,7 @@ def err(fn):
     return "ok"
 
 
-out = {}
+out: dict[str, object] = {}
 st = os.stat("/dev/i2c-1")
 out["stat"] = [stat.S_ISCHR(st.st_mode), os.major(st.st_rdev), os.minor(st.st_rdev)]
 out["access"] = os.access("/dev/i2c-1", os.R_OK | os.W_OK)
@@ -63,6 +63,6 @@ with SMBus(1) as bus:
     out["slv0_addr_reg"] = bus.read_i2c_block_data(0x68, 0x25, 2)
     w, r = i2c_msg.write(0x68, [0x75]), i2c_msg.read(0x68, 1)
     bus.i2c_rdwr(w, r)
-    out["rdwr"] = list(r)
+    out["rdwr"] = list(bytes(r))
     out["rdwr_nack"] = err(lambda: bus.i2c_rdwr(i2c_msg.write(0x68, [0x75]), i2c_msg.read(0x51, 1)))
 print(json.dumps(out))

@@ -78,7 +78,7 @@ static unsigned length(void)
 
 static unsigned address(void)
 {
-    static const unsigned known[] = {0x68, 0x77, 0x1e, 0x00, 0x7f};
+    static const unsigned known[] = { 0x68, 0x77, 0x1e, 0x00, 0x7f };
     return pick(3) ? known[pick(5)] : pick(0x500);
 }
 
@@ -91,7 +91,7 @@ static void fill(void *p, size_t n)
 
 static long one_call(int fd, int *which)
 {
-    static const unsigned long unknown[] = {0x0700, 0x0709, 0x5401, 0xdeadbeef};
+    static const unsigned long unknown[] = { 0x0700, 0x0709, 0x5401, 0xdeadbeef };
     switch (*which = (int)pick(12)) {
     case 0:
         return ioctl(fd, pick(2) ? I2C_SLAVE : I2C_SLAVE_FORCE, (unsigned long)address());
@@ -146,8 +146,8 @@ static long one_call(int fd, int *which)
 static int who_am_i(int fd)
 {
     unsigned char reg = 0x75, id = 0;
-    struct i2c_msg m[2] = {{0x68, 0, 1, &reg}, {0x68, I2C_M_RD, 1, &id}};
-    struct i2c_rdwr_ioctl_data d = {m, 2};
+    struct i2c_msg m[2] = { { 0x68, 0, 1, &reg }, { 0x68, I2C_M_RD, 1, &id } };
+    struct i2c_rdwr_ioctl_data d = { m, 2 };
     if (ioctl(fd, I2C_TENBIT, 0) < 0 || ioctl(fd, I2C_RDWR, &d) != 2)
         return -1;
     return id;
