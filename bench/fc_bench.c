@@ -30,16 +30,20 @@ int main(void)
     mahony_init(&mh, 0.3, 0.01);
     ekf_init(&kf);
     double t0 = now();
-    for (int k = 0; k < N; k++) quat_cf_update(&cf, gyro[k], acc[k], mag[k], 0.004);
+    for (int k = 0; k < N; k++)
+        quat_cf_update(&cf, gyro[k], acc[k], mag[k], 0.004);
     double t_cf = (now() - t0) / N;
     t0 = now();
-    for (int k = 0; k < N; k++) mahony_update(&mh, gyro[k], acc[k], mag[k], 0.004);
+    for (int k = 0; k < N; k++)
+        mahony_update(&mh, gyro[k], acc[k], mag[k], 0.004);
     double t_mh = (now() - t0) / N;
     t0 = now();
-    for (int k = 0; k < N / 10; k++) ekf_update(&kf, gyro[k], acc[k], mag[k], 0.004);
+    for (int k = 0; k < N / 10; k++)
+        ekf_update(&kf, gyro[k], acc[k], mag[k], 0.004);
     double t_kf = (now() - t0) / (N / 10);
     pid pids[5];
-    for (int i = 0; i < 5; i++) pid_init(&pids[i], 1, 0.1, 0.01, 100, 50);
+    for (int i = 0; i < 5; i++)
+        pid_init(&pids[i], 1, 0.1, 0.01, 100, 50);
     double out[4], sink = 0;
     t0 = now();
     for (int k = 0; k < N; k++) {
@@ -47,7 +51,8 @@ int main(void)
         double p = pid_step(&pids[3], pid_step(&pids[2], -0.1 - acc[k].y * 0.01, 0.004) - gyro[k].y, 0.004);
         double y = pid_step(&pids[4], -gyro[k].z, 0.004);
         mix(MIXER_PLUS, 500, r, p, y, out);
-        for (int i = 0; i < 4; i++) sink += throttle_compensate(out[i], 1.02, 3);
+        for (int i = 0; i < 4; i++)
+            sink += throttle_compensate(out[i], 1.02, 3);
     }
     double t_ctl = (now() - t0) / N;
     printf("reference FC, per update (%d updates):\n", N);

@@ -7,16 +7,18 @@
 
 #include "quadrotor_physics.h"
 
-static double now(void) {
+static double now(void)
+{
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-int main(int argc, char **argv) {
+int main(int argc, char **argv)
+{
     long n = argc > 1 ? atol(argv[1]) : 1000000;
-    qr_params par = {0};
-    qr_inputs in = {0};
+    qr_params par = { 0 };
+    qr_inputs in = { 0 };
 #define PARAM_INPUT(m, f) m.f
 #define X(vr, field, KIND, start, nm) X_##KIND(field, start)
 #define X_PARAM(field, start) par.field = start;
@@ -26,7 +28,8 @@ int main(int argc, char **argv) {
     QR_INTEGER_VARIABLES(X)
 #undef X
     par.pd0 = -100.0;
-    for (int i = 0; i < 4; i++) in.pwm_us[i] = 1511.0 + (i == 1 ? 3.0 : 0.0);
+    for (int i = 0; i < 4; i++)
+        in.pwm_us[i] = 1511.0 + (i == 1 ? 3.0 : 0.0);
     qr_state s;
     qr_outputs out;
     qr_init_state(&par, &in, &s);

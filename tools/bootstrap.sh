@@ -17,6 +17,7 @@ PY
 #   python3-venv  ensurepip for `python3 -m venv`
 #   i2c-tools     i2cdetect/i2cget/i2cset/i2ctransfer, the third-party clients `rig exec` is tested with
 #   python3-dev   Python.h, for mypyc's build of the session's hot modules (rig/compiled.py)
+#   clang-format  the C style check of `make lint` (.clang-format)
 MISSING=()
 if [ ! -x "$VENV/bin/python" ] && ! "$PYTHON" -c 'import ensurepip, venv' 2>/dev/null; then
   MISSING+=(python3-venv)
@@ -26,6 +27,7 @@ if ! "$PYTHON" -c 'import os, sys, sysconfig
 sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")))'; then
   MISSING+=(python3-dev)
 fi
+if ! command -v clang-format >/dev/null; then MISSING+=(clang-format); fi
 if [ ${#MISSING[@]} -gt 0 ]; then
   if command -v apt-get >/dev/null; then
     echo "bootstrap: installing Debian packages: ${MISSING[*]}"

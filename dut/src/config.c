@@ -17,11 +17,19 @@
 static int profile_apply(fc_config *c, const char *name)
 {
     if (strcmp(name, "default") == 0) {
-        c->angle_kp = 4.5; c->angle_ki = 0.35; c->angle_kd = 0;
-        c->rate_kp = 40; c->rate_ki = 40; c->rate_kd = 0.5;
+        c->angle_kp = 4.5;
+        c->angle_ki = 0.35;
+        c->angle_kd = 0;
+        c->rate_kp = 40;
+        c->rate_ki = 40;
+        c->rate_kd = 0.5;
     } else if (strcmp(name, "seed002") == 0) {
-        c->angle_kp = 4.5; c->angle_ki = 0.35; c->angle_kd = 0;
-        c->rate_kp = 140; c->rate_ki = 15; c->rate_kd = 2.5;
+        c->angle_kp = 4.5;
+        c->angle_ki = 0.35;
+        c->angle_kd = 0;
+        c->rate_kp = 140;
+        c->rate_ki = 15;
+        c->rate_kd = 2.5;
     } else {
         return -1;
     }
@@ -41,21 +49,44 @@ void config_defaults(fc_config *c)
     c->kp_est = 0.3;
     c->ki_est = 0.01;
     profile_apply(c, "default");
-    c->yaw_rate_kp = 300; c->yaw_rate_ki = 30;
-    c->alt_kp = 2.0; c->alt_ki = 0.03; c->alt_kd = 0.0; c->alt_kv = 3.0; c->alt_i_band_m = 0.3; c->baro_gate_m = 3.0; c->alt_sp_range_m = 5.0;
-    c->acc_kp = 2.0; c->acc_ki = 0.5; c->acc_kd = 0.0;
-    c->angle_limit = 100; c->alt_limit = 10;
+    c->yaw_rate_kp = 300;
+    c->yaw_rate_ki = 30;
+    c->alt_kp = 2.0;
+    c->alt_ki = 0.03;
+    c->alt_kd = 0.0;
+    c->alt_kv = 3.0;
+    c->alt_i_band_m = 0.3;
+    c->baro_gate_m = 3.0;
+    c->alt_sp_range_m = 5.0;
+    c->acc_kp = 2.0;
+    c->acc_ki = 0.5;
+    c->acc_kd = 0.0;
+    c->angle_limit = 100;
+    c->alt_limit = 10;
     c->hover_us = 1511;
-    c->max_angle_deg = 30; c->max_yaw_rate_dps = 90;
-    for (int i = 0; i < 4; i++) { c->alpha[i] = 1; c->beta[i] = 0; }
-    for (int i = 0; i < 3; i++) { c->acc_scale[i] = 1; c->mag_scale[i] = 1; }
+    c->max_angle_deg = 30;
+    c->max_yaw_rate_dps = 90;
+    for (int i = 0; i < 4; i++) {
+        c->alpha[i] = 1;
+        c->beta[i] = 0;
+    }
+    for (int i = 0; i < 3; i++) {
+        c->acc_scale[i] = 1;
+        c->mag_scale[i] = 1;
+    }
     c->telemetry_every = 5;
 }
 
-struct key { const char *name; char kind; size_t off; int n; double low, high; };
+struct key {
+    const char *name;
+    char kind;
+    size_t off;
+    int n;
+    double low, high;
+};
 #define ANY NAN /* no limit on this side */
-#define FC_KEY(name, kind, n, low, high) {#name, #kind[0], offsetof(fc_config, name), n, low, high},
-static const struct key keys[] = {FC_CONFIG_KEYS(FC_KEY)};
+#define FC_KEY(name, kind, n, low, high) { #name, #kind[0], offsetof(fc_config, name), n, low, high },
+static const struct key keys[] = { FC_CONFIG_KEYS(FC_KEY) };
 #undef FC_KEY
 
 static int in_range(const struct key *k, double v)
@@ -108,12 +139,16 @@ int config_load(fc_config *c, const char *path, char *err, int errlen)
         if (k->kind == 'S') {
             size_t len = strcspn(value, " \t\r");
             ok = len > 0 && len < 64;
-            if (ok) { memcpy((char *)c + k->off, value, len); ((char *)c + k->off)[len] = 0; }
+            if (ok) {
+                memcpy((char *)c + k->off, value, len);
+                ((char *)c + k->off)[len] = 0;
+            }
         } else if (k->kind == 'I') {
             long v = strtol(p, &end, 0);
             ok = end != p && strspn(end, " \t\r") == strlen(end);
             inside = in_range(k, (double)v);
-            if (ok) *(int *)((char *)c + k->off) = (int)v;
+            if (ok)
+                *(int *)((char *)c + k->off) = (int)v;
         } else {
             for (int j = 0; j < k->n && ok; j++) {
                 double v = strtod(p, &end);
@@ -126,7 +161,10 @@ int config_load(fc_config *c, const char *path, char *err, int errlen)
         }
         if (!ok) {
             snprintf(err, (size_t)errlen, "%s:%d: %s expects %s", path, no, name,
-                     k->kind == 'S' ? "a path" : k->kind == 'I' ? "an integer" : k->n > 1 ? "numbers" : "a number");
+                     k->kind == 'S'   ? "a path"
+                     : k->kind == 'I' ? "an integer"
+                     : k->n > 1       ? "numbers"
+                                      : "a number");
             fclose(f);
             return -1;
         }

@@ -9,7 +9,7 @@ double clampd(double v, double lo, double hi) { return v < lo ? lo : v > hi ? hi
 
 void pid_init(pid *p, double kp, double ki, double kd, double out_limit, double sum_limit)
 {
-    *p = (pid){.kp = kp, .ki = ki, .kd = kd, .out_limit = out_limit, .sum_limit = sum_limit};
+    *p = (pid){ .kp = kp, .ki = ki, .kd = kd, .out_limit = out_limit, .sum_limit = sum_limit };
 }
 
 void pid_reset(pid *p)
@@ -56,7 +56,7 @@ double baro_altitude(double pressure, double start_pressure)
     return 44330.0 * (1.0 - pow(pressure / start_pressure, 0.1903));
 }
 
-void alt_filter_init(alt_filter *a, double k1, double k2) { *a = (alt_filter){.k1 = k1, .k2 = k2}; }
+void alt_filter_init(alt_filter *a, double k1, double k2) { *a = (alt_filter){ .k1 = k1, .k2 = k2 }; }
 
 void alt_filter_update(alt_filter *a, double baro_h, double acc_up, double T)
 {

@@ -20,16 +20,16 @@ int i2c_xfer(int fd, int addr, const uint8_t *w, int wn, uint8_t *r, int rn)
     struct i2c_msg m[2];
     int n = 0;
     if (wn > 0)
-        m[n++] = (struct i2c_msg){(uint16_t)addr, 0, (uint16_t)wn, (uint8_t *)w};
+        m[n++] = (struct i2c_msg){ (uint16_t)addr, 0, (uint16_t)wn, (uint8_t *)w };
     if (rn > 0)
-        m[n++] = (struct i2c_msg){(uint16_t)addr, I2C_M_RD, (uint16_t)rn, r};
-    struct i2c_rdwr_ioctl_data d = {m, (uint32_t)n};
+        m[n++] = (struct i2c_msg){ (uint16_t)addr, I2C_M_RD, (uint16_t)rn, r };
+    struct i2c_rdwr_ioctl_data d = { m, (uint32_t)n };
     return ioctl(fd, I2C_RDWR, &d) < 0 ? -errno : 0;
 }
 
 static int wreg(int fd, int addr, uint8_t reg, uint8_t v)
 {
-    uint8_t b[2] = {reg, v};
+    uint8_t b[2] = { reg, v };
     return i2c_xfer(fd, addr, b, 2, NULL, 0);
 }
 
@@ -37,12 +37,12 @@ static int rregs(int fd, int addr, uint8_t reg, uint8_t *out, int n) { return i2
 
 static void pause_ms(int ms)
 {
-    struct timespec ts = {0, ms * 1000000L};
+    struct timespec ts = { 0, ms * 1000000L };
     nanosleep(&ts, NULL);
 }
 
-#define ACC_LSB_PER_G 8192.0   /* +-4 g */
-#define GYRO_LSB_PER_DPS 16.4  /* +-2000 dps */
+#define ACC_LSB_PER_G 8192.0  /* +-4 g */
+#define GYRO_LSB_PER_DPS 16.4 /* +-2000 dps */
 
 int mpu_init(int fd, int addr, char *err, int errlen)
 {
@@ -57,14 +57,14 @@ int mpu_init(int fd, int addr, char *err, int errlen)
         return -1;
     }
     static const uint8_t seq[][2] = {
-        {0x6B, 0x80},             /* DEVICE_RESET */
-        {0x6B, 0x01},             /* wake, PLL on gyro X */
-        {0x19, 0x00},             /* SMPLRT_DIV: 1 kHz with the DLPF */
-        {0x1A, 0x03},             /* CONFIG: DLPF 44/42 Hz */
-        {0x1B, 0x18},             /* GYRO_CONFIG: +-2000 dps */
-        {0x1C, 0x08},             /* ACCEL_CONFIG: +-4 g */
-        {0x6A, 0x00},             /* USER_CTRL: aux master off */
-        {0x37, 0x02},             /* INT_PIN_CFG: bypass, so the GY-86's HMC5883L is on the main bus */
+        { 0x6B, 0x80 }, /* DEVICE_RESET */
+        { 0x6B, 0x01 }, /* wake, PLL on gyro X */
+        { 0x19, 0x00 }, /* SMPLRT_DIV: 1 kHz with the DLPF */
+        { 0x1A, 0x03 }, /* CONFIG: DLPF 44/42 Hz */
+        { 0x1B, 0x18 }, /* GYRO_CONFIG: +-2000 dps */
+        { 0x1C, 0x08 }, /* ACCEL_CONFIG: +-4 g */
+        { 0x6A, 0x00 }, /* USER_CTRL: aux master off */
+        { 0x37, 0x02 }, /* INT_PIN_CFG: bypass, so the GY-86's HMC5883L is on the main bus */
     };
     for (size_t i = 0; i < sizeof seq / sizeof seq[0]; i++) {
         if ((r = wreg(fd, addr, seq[i][0], seq[i][1])) < 0) {
@@ -93,7 +93,7 @@ int mpu_read(int fd, int addr, vec3 *acc, vec3 *gyro)
 
 int hmc_init(int fd, int addr, char *err, int errlen)
 {
-    uint8_t id[3] = {0};
+    uint8_t id[3] = { 0 };
     int r = rregs(fd, addr, 0x0A, id, 3);
     if (r < 0) {
         snprintf(err, (size_t)errlen, "HMC5883L: no answer at 0x%02x (%s)", addr, strerror(-r));
@@ -165,7 +165,7 @@ static double monotonic_s(void *ctx)
     return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
 }
 
-ms5611_bus ms5611_on_i2c(i2c_target *target) { return (ms5611_bus){target_xfer, monotonic_s, target}; }
+ms5611_bus ms5611_on_i2c(i2c_target *target) { return (ms5611_bus){ target_xfer, monotonic_s, target }; }
 
 static int put(const char *path, const char *value)
 {

@@ -6,7 +6,7 @@
 
 #include "fc.h"
 
-vec3 v3(double x, double y, double z) { return (vec3){x, y, z}; }
+vec3 v3(double x, double y, double z) { return (vec3){ x, y, z }; }
 vec3 v3_add(vec3 a, vec3 b) { return v3(a.x + b.x, a.y + b.y, a.z + b.z); }
 vec3 v3_scale(vec3 a, double k) { return v3(a.x * k, a.y * k, a.z * k); }
 vec3 v3_cross(vec3 a, vec3 b) { return v3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x); }
@@ -28,9 +28,15 @@ static void quat_normalise(double q[4])
 static void quat_to_dcm(const double q[4], double R[3][3])
 {
     double w = q[0], x = q[1], y = q[2], z = q[3];
-    R[0][0] = 1 - 2 * (y * y + z * z); R[0][1] = 2 * (x * y - w * z);     R[0][2] = 2 * (x * z + w * y);
-    R[1][0] = 2 * (x * y + w * z);     R[1][1] = 1 - 2 * (x * x + z * z); R[1][2] = 2 * (y * z - w * x);
-    R[2][0] = 2 * (x * z - w * y);     R[2][1] = 2 * (y * z + w * x);     R[2][2] = 1 - 2 * (x * x + y * y);
+    R[0][0] = 1 - 2 * (y * y + z * z);
+    R[0][1] = 2 * (x * y - w * z);
+    R[0][2] = 2 * (x * z + w * y);
+    R[1][0] = 2 * (x * y + w * z);
+    R[1][1] = 1 - 2 * (x * x + z * z);
+    R[1][2] = 2 * (y * z - w * x);
+    R[2][0] = 2 * (x * z - w * y);
+    R[2][1] = 2 * (y * z + w * x);
+    R[2][2] = 1 - 2 * (x * x + y * y);
 }
 
 static vec3 mat_vec(const double R[3][3], vec3 v)
@@ -49,8 +55,8 @@ euler quat_to_euler(const double q[4])
 {
     double w = q[0], x = q[1], y = q[2], z = q[3];
     double s = clampd(2 * (w * y - x * z), -1.0, 1.0);
-    return (euler){atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)), asin(s),
-                   atan2(2 * (x * y + w * z), 1 - 2 * (y * y + z * z))};
+    return (euler){ atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)), asin(s),
+                    atan2(2 * (x * y + w * z), 1 - 2 * (y * y + z * z)) };
 }
 
 void euler_to_quat(euler e, double q[4])
@@ -104,10 +110,10 @@ void quat_cf_update(quat_cf *f, vec3 gyro, vec3 accel, vec3 mag, double T)
     quat_to_dcm(f->q, R);
     vec3 e = v3(0, 0, 0);
     if (v3_norm(accel) > 0)
-        e = v3_add(e, v3_cross(v3_unit(accel), predicted_up(R)));               /* eq. 1, accel part */
+        e = v3_add(e, v3_cross(v3_unit(accel), predicted_up(R))); /* eq. 1, accel part */
     if (v3_norm(mag) > 0) {
         vec3 m = v3_unit(mag);
-        e = v3_add(e, v3_cross(m, predicted_field(R, m)));                      /* eq. 1, mag part */
+        e = v3_add(e, v3_cross(m, predicted_field(R, m))); /* eq. 1, mag part */
     }
     f->integral = v3_add(f->integral, v3_scale(e, T));
     vec3 w = v3_add(gyro, v3_add(v3_scale(e, f->kp), v3_scale(f->integral, f->ki))); /* eq. 2 */
@@ -133,7 +139,7 @@ void mahony_set_euler(mahony_dcm *f, euler e)
 
 euler dcm_to_euler(const double R[3][3])
 {
-    return (euler){atan2(R[2][1], R[2][2]), asin(clampd(-R[2][0], -1.0, 1.0)), atan2(R[1][0], R[0][0])};
+    return (euler){ atan2(R[2][1], R[2][2]), asin(clampd(-R[2][0], -1.0, 1.0)), atan2(R[1][0], R[0][0]) };
 }
 
 /* Section 2.3.1: share the rows' dot product as error between r_x and r_y, rebuild r_z from them, and
@@ -144,7 +150,7 @@ void dcm_orthonormalise(double R[3][3])
     double err = v3_dot(rx, ry);
     vec3 rx2 = v3_add(rx, v3_scale(ry, -err / 2)), ry2 = v3_add(ry, v3_scale(rx, -err / 2));
     vec3 rz2 = v3_cross(rx2, ry2);
-    vec3 rows[3] = {rx2, ry2, rz2};
+    vec3 rows[3] = { rx2, ry2, rz2 };
     for (int i = 0; i < 3; i++) {
         vec3 r = v3_scale(rows[i], 0.5 * (3.0 - v3_dot(rows[i], rows[i])));
         R[i][0] = r.x;
@@ -157,18 +163,18 @@ void mahony_update(mahony_dcm *f, vec3 gyro, vec3 accel, vec3 mag, double T)
 {
     vec3 e = v3(0, 0, 0);
     if (v3_norm(accel) > 0)
-        e = v3_add(e, v3_cross(v3_unit(accel), predicted_up(f->R)));           /* zeta = a x d */
+        e = v3_add(e, v3_cross(v3_unit(accel), predicted_up(f->R))); /* zeta = a x d */
     if (v3_norm(mag) > 0) {
         /* yaw only: the measured field in earth axes, projected on the horizontal plane, against north */
         vec3 me = mat_vec(f->R, v3_unit(mag));
         vec3 mh = v3_unit(v3(me.x, me.y, 0.0));
         vec3 eps_earth = v3_cross(mh, v3(1, 0, 0));
-        e = v3_add(e, mat_t_vec(f->R, eps_earth));                              /* epsilon in body axes */
+        e = v3_add(e, mat_t_vec(f->R, eps_earth)); /* epsilon in body axes */
     }
     f->integral = v3_add(f->integral, v3_scale(e, T));
     vec3 w = v3_add(gyro, v3_add(v3_scale(e, f->kp), v3_scale(f->integral, f->ki)));
-    double a = w.x * T, b = w.y * T, c = w.z * T;       /* R = R (I + [w T]x) */
-    double Om[3][3] = {{1, -c, b}, {c, 1, -a}, {-b, a, 1}}, N[3][3];
+    double a = w.x * T, b = w.y * T, c = w.z * T; /* R = R (I + [w T]x) */
+    double Om[3][3] = { { 1, -c, b }, { c, 1, -a }, { -b, a, 1 } }, N[3][3];
     for (int i = 0; i < 3; i++)
         for (int j = 0; j < 3; j++)
             N[i][j] = f->R[i][0] * Om[0][j] + f->R[i][1] * Om[1][j] + f->R[i][2] * Om[2][j];
@@ -186,7 +192,7 @@ void ekf_init(ekf7 *f)
         f->P[i][i] = 0.1;
     for (int i = 4; i < 7; i++)
         f->P[i][i] = 1e-4;
-    f->q_gyro = 1e-6;   /* per second, on the quaternion */
+    f->q_gyro = 1e-6; /* per second, on the quaternion */
     f->q_bias = 1e-10;
     f->r_acc = 1e-2;
     f->r_mag = 1e-2;
@@ -198,12 +204,16 @@ euler ekf_euler(const ekf7 *f) { return quat_to_euler(f->x); }
 static void ekf_measure(const double x[7], vec3 m_body, double z[6])
 {
     double R[3][3];
-    double q[4] = {x[0], x[1], x[2], x[3]};
+    double q[4] = { x[0], x[1], x[2], x[3] };
     quat_normalise(q);
     quat_to_dcm(q, R);
     vec3 up = predicted_up(R), fld = v3_unit(predicted_field(R, m_body));
-    z[0] = up.x; z[1] = up.y; z[2] = up.z;
-    z[3] = fld.x; z[4] = fld.y; z[5] = fld.z;
+    z[0] = up.x;
+    z[1] = up.y;
+    z[2] = up.z;
+    z[3] = fld.x;
+    z[4] = fld.y;
+    z[5] = fld.z;
 }
 
 /* Solves S X = B for X (n <= 6, m columns) by Gauss-Jordan with partial pivoting; 0 if singular. */
@@ -216,14 +226,24 @@ static int solve(int n, double S[6][6], int m, double B[6][7])
                 p = r;
         if (fabs(S[p][c]) < 1e-300)
             return 0;
-        for (int k = 0; k < n; k++) { double t = S[c][k]; S[c][k] = S[p][k]; S[p][k] = t; }
-        for (int k = 0; k < m; k++) { double t = B[c][k]; B[c][k] = B[p][k]; B[p][k] = t; }
+        for (int k = 0; k < n; k++) {
+            double t = S[c][k];
+            S[c][k] = S[p][k];
+            S[p][k] = t;
+        }
+        for (int k = 0; k < m; k++) {
+            double t = B[c][k];
+            B[c][k] = B[p][k];
+            B[p][k] = t;
+        }
         for (int r = 0; r < n; r++) {
             if (r == c)
                 continue;
             double k = S[r][c] / S[c][c];
-            for (int j = 0; j < n; j++) S[r][j] -= k * S[c][j];
-            for (int j = 0; j < m; j++) B[r][j] -= k * B[c][j];
+            for (int j = 0; j < n; j++)
+                S[r][j] -= k * S[c][j];
+            for (int j = 0; j < m; j++)
+                B[r][j] -= k * B[c][j];
         }
     }
     for (int r = 0; r < n; r++)
@@ -237,11 +257,11 @@ void ekf_update(ekf7 *f, vec3 gyro, vec3 accel, vec3 mag, double T)
     double *x = f->x;
     /* predict: q' = (I + Omega(w - b) T / 2) q, b' = b */
     vec3 w = v3(gyro.x - x[4], gyro.y - x[5], gyro.z - x[6]);
-    double F[7][7] = {{0}};
+    double F[7][7] = { { 0 } };
     double hx = w.x * T / 2, hy = w.y * T / 2, hz = w.z * T / 2;
-    double Phi[4][4] = {{1, -hx, -hy, -hz}, {hx, 1, hz, -hy}, {hy, -hz, 1, hx}, {hz, hy, -hx, 1}};
+    double Phi[4][4] = { { 1, -hx, -hy, -hz }, { hx, 1, hz, -hy }, { hy, -hz, 1, hx }, { hz, hy, -hx, 1 } };
     double q0 = x[0], q1 = x[1], q2 = x[2], q3 = x[3];
-    double Xi[4][3] = {{-q1, -q2, -q3}, {q0, -q3, q2}, {q3, q0, -q1}, {-q2, q1, q0}};
+    double Xi[4][3] = { { -q1, -q2, -q3 }, { q0, -q3, q2 }, { q3, q0, -q1 }, { -q2, q1, q0 } };
     for (int i = 0; i < 4; i++) {
         for (int j = 0; j < 4; j++)
             F[i][j] = Phi[i][j];
@@ -255,7 +275,7 @@ void ekf_update(ekf7 *f, vec3 gyro, vec3 accel, vec3 mag, double T)
         xq[i] = Phi[i][0] * q0 + Phi[i][1] * q1 + Phi[i][2] * q2 + Phi[i][3] * q3;
     memcpy(x, xq, sizeof xq);
     quat_normalise(x);
-    double FP[7][7] = {{0}}, P2[7][7] = {{0}};
+    double FP[7][7] = { { 0 } }, P2[7][7] = { { 0 } };
     for (int i = 0; i < 7; i++)
         for (int j = 0; j < 7; j++)
             for (int k = 0; k < 7; k++)
@@ -272,7 +292,7 @@ void ekf_update(ekf7 *f, vec3 gyro, vec3 accel, vec3 mag, double T)
         return;
     /* update with the accel and mag directions; H by central differences (the model is small) */
     vec3 a = v3_unit(accel), m = v3_unit(mag);
-    double z[6] = {a.x, a.y, a.z, m.x, m.y, m.z}, h[6], H[6][7];
+    double z[6] = { a.x, a.y, a.z, m.x, m.y, m.z }, h[6], H[6][7];
     ekf_measure(x, m, h);
     for (int j = 0; j < 7; j++) {
         double xp[7], xm[7], hp[6], hm[6];
@@ -285,7 +305,7 @@ void ekf_update(ekf7 *f, vec3 gyro, vec3 accel, vec3 mag, double T)
         for (int i = 0; i < 6; i++)
             H[i][j] = (hp[i] - hm[i]) / 2e-6;
     }
-    double PHt[7][6] = {{0}}, S[6][6] = {{0}}, B[6][7];
+    double PHt[7][6] = { { 0 } }, S[6][6] = { { 0 } }, B[6][7];
     for (int i = 0; i < 7; i++)
         for (int j = 0; j < 6; j++)
             for (int k = 0; k < 7; k++)
@@ -306,7 +326,7 @@ void ekf_update(ekf7 *f, vec3 gyro, vec3 accel, vec3 mag, double T)
         for (int j = 0; j < 6; j++)
             x[i] += B[j][i] * (z[j] - h[j]);
     quat_normalise(x);
-    double KH[7][7] = {{0}}, P3[7][7] = {{0}};
+    double KH[7][7] = { { 0 } }, P3[7][7] = { { 0 } };
     for (int i = 0; i < 7; i++)
         for (int j = 0; j < 7; j++)
             for (int k = 0; k < 6; k++)

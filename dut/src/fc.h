@@ -11,7 +11,9 @@
 
 #define FC_G0 9.80665
 
-typedef struct { double x, y, z; } vec3;
+typedef struct {
+    double x, y, z;
+} vec3;
 
 vec3 v3(double x, double y, double z);
 vec3 v3_add(vec3 a, vec3 b);
@@ -21,12 +23,14 @@ double v3_dot(vec3 a, vec3 b);
 double v3_norm(vec3 a);
 vec3 v3_unit(vec3 a); /* zero stays zero */
 
-typedef struct { double roll, pitch, yaw; } euler;
+typedef struct {
+    double roll, pitch, yaw;
+} euler;
 
 /* ---- seed 000: quaternion complementary filter (eqs. 1-5) -------------------------------------- */
 typedef struct {
-    double q[4];        /* body -> earth */
-    vec3 integral;      /* sum of e(t) T */
+    double q[4];   /* body -> earth */
+    vec3 integral; /* sum of e(t) T */
     double kp, ki;
 } quat_cf;
 
@@ -36,12 +40,12 @@ void quat_cf_set_euler(quat_cf *f, euler e);
    A zero accel or mag vector skips that correction. */
 void quat_cf_update(quat_cf *f, vec3 gyro, vec3 accel, vec3 mag, double T);
 void picard2(double q[4], vec3 w, double T); /* eq. 3-4, then normalised */
-euler quat_to_euler(const double q[4]);       /* eq. 5 */
+euler quat_to_euler(const double q[4]);      /* eq. 5 */
 void euler_to_quat(euler e, double q[4]);
 
 /* ---- seed 002: Mahony filter on the DCM ----------------------------------------------------------- */
 typedef struct {
-    double R[3][3];     /* body -> earth; rows are r_x, r_y, r_z of eq. 11 */
+    double R[3][3]; /* body -> earth; rows are r_x, r_y, r_z of eq. 11 */
     vec3 integral;
     double kp, ki;
 } mahony_dcm;
@@ -67,12 +71,12 @@ euler ekf_euler(const ekf7 *f);
 /* ---- control (seed 000 eqs. 8-16) ------------------------------------------------------------------ */
 typedef struct {
     double kp, ki, kd;
-    double sum;         /* sum of e(j) T */
-    double prev;        /* e(t-1) */
+    double sum;  /* sum of e(j) T */
+    double prev; /* e(t-1) */
     int started;
-    double out_limit;   /* |u| <= out_limit (0: none) */
-    double sum_limit;   /* |ki sum| <= sum_limit (0: none), against wind-up */
-    double i_band;      /* > 0: integrate only while |e| <= i_band (conditional integration) */
+    double out_limit; /* |u| <= out_limit (0: none) */
+    double sum_limit; /* |ki sum| <= sum_limit (0: none), against wind-up */
+    double i_band;    /* > 0: integrate only while |e| <= i_band (conditional integration) */
 } pid;
 
 void pid_init(pid *p, double kp, double ki, double kd, double out_limit, double sum_limit);
@@ -81,15 +85,19 @@ void pid_reset(pid *p);
 double clampd(double v, double lo, double hi);
 
 enum mixer_kind { MIXER_PLUS = 0, MIXER_X = 1 };
-/* eq. 15 ("+": motor 1 front, 2 left, 3 rear, 4 right) and the X layout (1 front-right, 2 rear-right...
-   see mixer.c); outputs are throttle units (us above idle). */
+/* eq. 15 ("+": motor 1 front, 2 left, 3 rear, 4 right) and the X layout of the plant's frame = 1 (1
+   front-right, 2 front-left, 3 rear-left, 4 rear-right; control.c); outputs are throttle units (us above
+   idle). */
 void mix(enum mixer_kind kind, double throttle, double roll, double pitch, double yaw, double out[4]);
 double throttle_compensate(double value, double alpha, double beta); /* eq. 16 */
 
 double baro_altitude(double pressure, double start_pressure); /* eq. 6 */
 
 /* Altitude from the barometer fused with vertical acceleration (a second-order complementary filter). */
-typedef struct { double h, v, k1, k2; int started; } alt_filter;
+typedef struct {
+    double h, v, k1, k2;
+    int started;
+} alt_filter;
 void alt_filter_init(alt_filter *a, double k1, double k2);
 /* acc_up: vertical acceleration (m/s^2, up positive, gravity removed) */
 void alt_filter_update(alt_filter *a, double baro_h, double acc_up, double T);
@@ -112,8 +120,8 @@ typedef struct {
 typedef struct {
     uint16_t prom[8];
     uint32_t d1, d2;
-    int phase;          /* 0: converting D2 (temperature), 1: converting D1 (pressure) */
-    double started;     /* clock second the current conversion's command was sent; 0: none yet */
+    int phase;      /* 0: converting D2 (temperature), 1: converting D1 (pressure) */
+    double started; /* clock second the current conversion's command was sent; 0: none yet */
     int have_d2;
     unsigned not_ready; /* ADC reads that found the conversion unfinished (result 0) */
 } ms5611_dev;

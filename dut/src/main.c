@@ -53,7 +53,7 @@ int main(int argc, char **argv)
         return 2;
     }
     ms5611_dev baro;
-    i2c_target baro_at = {bus, c.baro_addr};
+    i2c_target baro_at = { bus, c.baro_addr };
     ms5611_bus baro_bus = ms5611_on_i2c(&baro_at);
     if (mpu_init(bus, c.mpu_addr, err, sizeof err) < 0 || hmc_init(bus, c.hmc_addr, err, sizeof err) < 0 ||
         ms5611_init(bus, c.baro_addr, &baro, err, sizeof err) < 0) {
@@ -92,7 +92,7 @@ int main(int argc, char **argv)
             mag_sum = v3_add(mag_sum, calibrate(to_body(m), c.mag_offset, c.mag_scale));
             mag_n++;
         }
-        struct timespec d = {0, 2000000};
+        struct timespec d = { 0, 2000000 };
         nanosleep(&d, NULL);
     }
     if (pwm_setup(c.pwm_chip, 4, 2500000, err, sizeof err) < 0) {
@@ -146,10 +146,10 @@ int main(int argc, char **argv)
     int baro_rejects = 0, armed = 0, had_rc = 0, reported_garbage = 0, alt_hold = 0, gyro_same = 0, gyro_fault = 0;
     double ctrl_phase = 1.0; /* the first cycle controls */
     vec3 last_gyro = v3(0, 0, 0);
-    double out[4] = {1000, 1000, 1000, 1000};
+    double out[4] = { 1000, 1000, 1000, 1000 };
     unsigned long cycles = 0, overruns = 0;
     double loop_max_us = 0;
-    euler att = {0, 0, 0};
+    euler att = { 0, 0, 0 };
 
     /* the loop's deadlines start now: taken before the 1 s calibration, they made the first 250 cycles
        run back to back (counted as overruns) to catch up */
@@ -261,9 +261,9 @@ int main(int argc, char **argv)
             double sp_roll = rc_ok ? sbus_to_unit(sticks.ch[0]) * c.max_angle_deg * M_PI / 180 : 0;
             double sp_pitch = rc_ok ? sbus_to_unit(sticks.ch[1]) * c.max_angle_deg * M_PI / 180 : 0;
             double sp_yaw_rate = rc_ok ? sbus_to_unit(sticks.ch[3]) * c.max_yaw_rate_dps * M_PI / 180 : 0;
-            double r_sp = pid_step(&angle[0], sp_roll - att.roll, Tc);   /* eq. 9 */
+            double r_sp = pid_step(&angle[0], sp_roll - att.roll, Tc); /* eq. 9 */
             double p_sp = pid_step(&angle[1], sp_pitch - att.pitch, Tc);
-            double r_out = pid_step(&rate[0], r_sp - w.x, Tc);            /* eq. 10, limited (eq. 13) */
+            double r_out = pid_step(&rate[0], r_sp - w.x, Tc); /* eq. 10, limited (eq. 13) */
             double p_out = pid_step(&rate[1], p_sp - w.y, Tc);
             double y_out = pid_step(&rate[2], sp_yaw_rate - w.z, Tc);
             if (c.defect_mixer_sign)
@@ -284,7 +284,10 @@ int main(int argc, char **argv)
         } else if (!armed) {
             for (int i = 0; i < 4; i++)
                 out[i] = 1000;
-            for (int i = 0; i < 2; i++) { pid_reset(&angle[i]); pid_reset(&rate[i]); }
+            for (int i = 0; i < 2; i++) {
+                pid_reset(&angle[i]);
+                pid_reset(&rate[i]);
+            }
             pid_reset(&rate[2]);
             pid_reset(&alt_pid);
             pid_reset(&acc_pid);
@@ -295,14 +298,20 @@ int main(int argc, char **argv)
         double loop_us = (now_s() - t0) * 1e6;
         loop_max_us = fmax(loop_max_us, loop_us);
         if (tel && cycles % (unsigned long)c.telemetry_every == 0) {
-            fprintf(tel, "T t=%.4f roll=%.3f pitch=%.3f yaw=%.3f alt=%.3f armed=%d rc=%d gyro_fault=%d loop_us=%.0f max_us=%.0f "
-                    "overruns=%lu\n", t0, att.roll * 180 / M_PI, att.pitch * 180 / M_PI, att.yaw * 180 / M_PI,
-                    altf.h, armed, rc_ok, gyro_fault, loop_us, loop_max_us, overruns);
+            fprintf(
+                tel,
+                "T t=%.4f roll=%.3f pitch=%.3f yaw=%.3f alt=%.3f armed=%d rc=%d gyro_fault=%d loop_us=%.0f max_us=%.0f "
+                "overruns=%lu\n",
+                t0, att.roll * 180 / M_PI, att.pitch * 180 / M_PI, att.yaw * 180 / M_PI, altf.h, armed, rc_ok,
+                gyro_fault, loop_us, loop_max_us, overruns);
             fflush(tel);
         }
         cycles++;
         next.tv_nsec += step_ns;
-        while (next.tv_nsec >= 1000000000L) { next.tv_nsec -= 1000000000L; next.tv_sec++; }
+        while (next.tv_nsec >= 1000000000L) {
+            next.tv_nsec -= 1000000000L;
+            next.tv_sec++;
+        }
         struct timespec cur;
         clock_gettime(CLOCK_MONOTONIC, &cur);
         if (cur.tv_sec > next.tv_sec || (cur.tv_sec == next.tv_sec && cur.tv_nsec > next.tv_nsec))

@@ -41,7 +41,7 @@ static void test_picard(void)
 {
     vec3 w = v3(0.3, -0.2, 0.5);
     double T = 0.004, q[4], q1[4], q0[4];
-    euler_to_quat((euler){10 * DEG, -5 * DEG, 30 * DEG}, q0);
+    euler_to_quat((euler){ 10 * DEG, -5 * DEG, 30 * DEG }, q0);
     memcpy(q, q0, sizeof q);
     memcpy(q1, q0, sizeof q);
     int n = 2500;
@@ -54,10 +54,11 @@ static void test_picard(void)
         p[2] = q1[2] + b * q1[0] - c * q1[1] + a * q1[3];
         p[3] = q1[3] + c * q1[0] + b * q1[1] - a * q1[2];
         double nn = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
-        for (int i = 0; i < 4; i++) q1[i] = p[i] / nn;
+        for (int i = 0; i < 4; i++)
+            q1[i] = p[i] / nn;
     }
     /* exact: q(t) = q0 * exp(w t / 2), a constant body rate is a fixed-axis rotation */
-    double th = v3_norm(w) * n * T, s = sin(th / 2) / v3_norm(w), dq[4] = {cos(th / 2), w.x * s, w.y * s, w.z * s};
+    double th = v3_norm(w) * n * T, s = sin(th / 2) / v3_norm(w), dq[4] = { cos(th / 2), w.x * s, w.y * s, w.z * s };
     double exact[4];
     quat_mul(q0, dq, exact);
     double err2 = angle_between(q, exact), err1 = angle_between(q1, exact);
@@ -66,15 +67,15 @@ static void test_picard(void)
     check(err2 < err1, "picard2 beats the normalised first-order update", "%g vs %g", err2, err1);
 }
 
-static const vec3 M_EARTH = {0.25, 0.0, 0.433};
+static const vec3 M_EARTH = { 0.25, 0.0, 0.433 };
 
 static void truth_at(euler e, vec3 *acc, vec3 *mag)
 {
     mahony_dcm t;
     mahony_init(&t, 0, 0);
     mahony_set_euler(&t, e);
-    double (*R)[3] = t.R; /* body -> earth */
-    vec3 g = v3(0, 0, -FC_G0);  /* specific force at rest, earth axes: -g along down */
+    double(*R)[3] = t.R;       /* body -> earth */
+    vec3 g = v3(0, 0, -FC_G0); /* specific force at rest, earth axes: -g along down */
     *acc = v3(R[0][0] * g.x + R[1][0] * g.y + R[2][0] * g.z, R[0][1] * g.x + R[1][1] * g.y + R[2][1] * g.z,
               R[0][2] * g.x + R[1][2] * g.y + R[2][2] * g.z);
     vec3 m = M_EARTH;
@@ -90,7 +91,7 @@ static double euler_err(euler a, euler b)
 
 static void test_convergence(void)
 {
-    euler truth = {0, 0, 40 * DEG}, start = {30 * DEG, -30 * DEG, 70 * DEG};
+    euler truth = { 0, 0, 40 * DEG }, start = { 30 * DEG, -30 * DEG, 70 * DEG };
     vec3 acc, mag, bias = v3(0.5 * DEG, -0.4 * DEG, 0.3 * DEG);
     truth_at(truth, &acc, &mag);
     quat_cf cf;
@@ -109,8 +110,8 @@ static void test_convergence(void)
     double e_cf = euler_err(quat_to_euler(cf.q), truth), e_mh = euler_err(dcm_to_euler(mh.R), truth);
     check(e_cf < 0.01 * DEG, "seed-000 filter converges from 30 deg and holds a gyro bias out",
           "error after 500 s %g deg%g", e_cf / DEG, 0);
-    check(e_mh < 0.01 * DEG, "Mahony DCM converges from 30 deg and holds a gyro bias out",
-          "error after 500 s %g deg%g", e_mh / DEG, 0);
+    check(e_mh < 0.01 * DEG, "Mahony DCM converges from 30 deg and holds a gyro bias out", "error after 500 s %g deg%g",
+          e_mh / DEG, 0);
     vec3 lc = v3_scale(cf.integral, 0.01), lm = v3_scale(mh.integral, 0.01);
     check(v3_norm(v3_add(lc, bias)) < 1e-3 * DEG && v3_norm(v3_add(lm, bias)) < 1e-3 * DEG,
           "both integral terms learn the gyro bias exactly", "%g %g", v3_norm(v3_add(lc, bias)),
@@ -142,7 +143,7 @@ static void test_ekf_vs_mahony(void)
     unsigned seed = 1;
     for (int k = 0; k < 60 * 250; k++) {
         double t = k * T;
-        euler e = {20 * DEG * sin(0.5 * t), 15 * DEG * sin(0.3 * t + 1), 30 * DEG * sin(0.2 * t)};
+        euler e = { 20 * DEG * sin(0.5 * t), 15 * DEG * sin(0.3 * t + 1), 30 * DEG * sin(0.2 * t) };
         double dr = 20 * DEG * 0.5 * cos(0.5 * t), dp = 15 * DEG * 0.3 * cos(0.3 * t + 1),
                dy = 30 * DEG * 0.2 * cos(0.2 * t);
         vec3 w = v3(dr - dy * sin(e.pitch), dp * cos(e.roll) + dy * cos(e.pitch) * sin(e.roll),
@@ -181,8 +182,8 @@ static void test_pid(void)
     }
     check(worst < 1e-12, "PID is seed 000 eq. 8 step by step", "worst difference %g%g", worst, 0);
     pid_init(&p, 1000, 0, 0, 100, 0);
-    check(pid_step(&p, 1, T) == 100 && pid_step(&p, -1, T) == -100, "angle output limited to +-100 (eq. 13)",
-          "%g %g", 0, 0);
+    check(pid_step(&p, 1, T) == 100 && pid_step(&p, -1, T) == -100, "angle output limited to +-100 (eq. 13)", "%g %g",
+          0, 0);
     /* conditional integration (the altitude loop): errors outside the band leave the sum alone */
     pid_init(&p, 0, 1, 0, 0, 0);
     p.i_band = 0.3;
@@ -198,15 +199,15 @@ static void test_mixers(void)
 {
     /* torques from geometry: thrust T_i at (x_i, y_i) pushes -z, torque = r x F = (-y T, x T, 0); a
        counter-clockwise rotor (seen from above) turns the body clockwise: +yaw in NED */
-    const double plus[4][3] = {{1, 0, 1}, {0, -1, -1}, {-1, 0, 1}, {0, 1, -1}};
-    const double x[4][3] = {{1, 1, 1}, {1, -1, -1}, {-1, -1, 1}, {-1, 1, -1}}; /* plant frame = 1 */
-    const double (*geo[2])[3] = {plus, x};
-    const char *names[2] = {"'+' mixer (eq. 15) turns commands into torques of the same sign",
-                            "X mixer turns commands into torques of the same sign"};
+    const double plus[4][3] = { { 1, 0, 1 }, { 0, -1, -1 }, { -1, 0, 1 }, { 0, 1, -1 } };
+    const double x[4][3] = { { 1, 1, 1 }, { 1, -1, -1 }, { -1, -1, 1 }, { -1, 1, -1 } }; /* plant frame = 1 */
+    const double(*geo[2])[3] = { plus, x };
+    const char *names[2] = { "'+' mixer (eq. 15) turns commands into torques of the same sign",
+                             "X mixer turns commands into torques of the same sign" };
     for (int kind = 0; kind < 2; kind++) {
         int ok = 1;
         for (int axis = 0; axis < 3; axis++) {
-            double out[4], tau[3] = {0};
+            double out[4], tau[3] = { 0 };
             mix((enum mixer_kind)kind, 500, axis == 0, axis == 1, axis == 2, out);
             for (int m = 0; m < 4; m++) {
                 double d = out[m] - 500;
@@ -219,14 +220,14 @@ static void test_mixers(void)
         }
         check(ok, names[kind], "%g%g", 0, 0);
     }
-    check(throttle_compensate(1500, 1.1, 1000) == 550.0, "throttle compensation is alpha (x - beta) (eq. 16)",
-          "%g%g", throttle_compensate(1500, 1.1, 1000), 0);
+    check(throttle_compensate(1500, 1.1, 1000) == 550.0, "throttle compensation is alpha (x - beta) (eq. 16)", "%g%g",
+          throttle_compensate(1500, 1.1, 1000), 0);
 }
 
 static void test_ms5611(void)
 {
-    uint16_t an520[8] = {0x3132, 0x3334, 0x3536, 0x3738, 0x3940, 0x4142, 0x4344, 0x4500};
-    uint16_t prom[8] = {0, 40127, 36924, 23317, 23282, 33464, 28312, 0x0103};
+    uint16_t an520[8] = { 0x3132, 0x3334, 0x3536, 0x3738, 0x3940, 0x4142, 0x4344, 0x4500 };
+    uint16_t prom[8] = { 0, 40127, 36924, 23317, 23282, 33464, 28312, 0x0103 };
     check(ms5611_crc4(an520) == 0xB, "CRC-4 of the AN520 example is 0xB", "got %g%g", ms5611_crc4(an520), 0);
     check(ms5611_crc4(prom) == 3, "CRC-4 of the datasheet PROM with 0x0103 is 3", "got %g%g", ms5611_crc4(prom), 0);
     int32_t p, t;
@@ -277,10 +278,10 @@ static double fake_clock(void *ctx) { return ((struct fake_baro *)ctx)->now; }
 
 static void test_ms5611_cycle(void)
 {
-    uint16_t prom[8] = {0, 40127, 36924, 23317, 23282, 33464, 28312, 0x0103};
-    struct fake_baro f = {.now = 1.0};
-    ms5611_bus bus = {fake_xfer, fake_clock, &f};
-    ms5611_dev d = {0};
+    uint16_t prom[8] = { 0, 40127, 36924, 23317, 23282, 33464, 28312, 0x0103 };
+    struct fake_baro f = { .now = 1.0 };
+    ms5611_bus bus = { fake_xfer, fake_clock, &f };
+    ms5611_dev d = { 0 };
     memcpy(d.prom, prom, sizeof prom);
     /* a 250 Hz loop whose convert commands go out up to 5 ms after the loop read its clock */
     unsigned seed = 7;
@@ -307,31 +308,31 @@ static void test_ms5611_cycle(void)
         f.now += 0.004;
     }
     check(d.not_ready == not_ready + 1 && d.phase == phase && readings == before,
-          "MS5611 cycle: an ADC result of 0 is not a reading; the conversion is repeated",
-          "not_ready %g, readings %g", d.not_ready - not_ready, readings - before);
+          "MS5611 cycle: an ADC result of 0 is not a reading; the conversion is repeated", "not_ready %g, readings %g",
+          d.not_ready - not_ready, readings - before);
 }
 
 static void test_sbus(void)
 {
-    uint8_t f[SBUS_FRAME] = {0x0F, 0xFF, 0x07};
+    uint8_t f[SBUS_FRAME] = { 0x0F, 0xFF, 0x07 };
     f[23] = 0x0C;
     sbus_frame d;
     int r = sbus_decode(f, &d);
     check(r == 0 && d.ch[0] == 0x7FF && d.ch[1] == 0 && d.failsafe && d.frame_lost,
-          "SBUS: channel 1 is the first 11 bits, LSB first; flags 0x0C are failsafe and frame lost",
-          "ch0 %g, ch1 %g", d.ch[0], d.ch[1]);
-    sbus_frame in = {.failsafe = 0, .frame_lost = 1};
+          "SBUS: channel 1 is the first 11 bits, LSB first; flags 0x0C are failsafe and frame lost", "ch0 %g, ch1 %g",
+          d.ch[0], d.ch[1]);
+    sbus_frame in = { .failsafe = 0, .frame_lost = 1 };
     unsigned seed = 3;
     for (int i = 0; i < 16; i++)
         in.ch[i] = (uint16_t)((lcg_noise(&seed) + 1) * 1000);
     sbus_encode(&in, f);
     sbus_decode(f, &d);
-    check(memcmp(d.ch, in.ch, sizeof d.ch) == 0 && d.frame_lost && !d.failsafe, "SBUS encode/decode round trip",
-          "%g%g", 0, 0);
-    uint8_t stream[3 * SBUS_FRAME + 7] = {0x55, 0x0F, 0x01, 0xAA};
-    memcpy(stream + 4, f, SBUS_FRAME);                       /* garbage, then a frame */
-    memcpy(stream + 4 + SBUS_FRAME, f, SBUS_FRAME - 3);      /* a frame cut short */
-    memcpy(stream + 4 + 2 * SBUS_FRAME - 3, f, SBUS_FRAME);  /* and a good one */
+    check(memcmp(d.ch, in.ch, sizeof d.ch) == 0 && d.frame_lost && !d.failsafe, "SBUS encode/decode round trip", "%g%g",
+          0, 0);
+    uint8_t stream[3 * SBUS_FRAME + 7] = { 0x55, 0x0F, 0x01, 0xAA };
+    memcpy(stream + 4, f, SBUS_FRAME);                      /* garbage, then a frame */
+    memcpy(stream + 4 + SBUS_FRAME, f, SBUS_FRAME - 3);     /* a frame cut short */
+    memcpy(stream + 4 + 2 * SBUS_FRAME - 3, f, SBUS_FRAME); /* and a good one */
     sbus_parser ps;
     sbus_parser_init(&ps);
     sbus_frame got;

@@ -72,8 +72,8 @@ static PyObject *fc_mpu_encode(PyObject *self, PyObject *const *a, Py_ssize_t na
         return NULL;
     const double *row = ptr(a[0]);
     uint8_t *regs = ptr(a[1]);
-    double lsb[2] = {PyFloat_AsDouble(a[2]), PyFloat_AsDouble(a[3])};
-    int32_t self_test[2] = {i32(a[4]), i32(a[5])};
+    double lsb[2] = { PyFloat_AsDouble(a[2]), PyFloat_AsDouble(a[3]) };
+    int32_t self_test[2] = { i32(a[4]), i32(a[5]) };
     int32_t standby = i32(a[6]), temp_disabled = i32(a[7]);
     const double *st = ptr(a[8]);
     double g0 = PyFloat_AsDouble(a[9]);
@@ -99,16 +99,23 @@ static PyObject *fc_channel_measure(PyObject *self, PyObject *const *a, Py_ssize
 }
 
 static PyMethodDef methods[] = {
-    {"imu_measure", (PyCFunction)(void (*)(void))fc_imu_measure, METH_FASTCALL, "rig_imu_measure"},
-    {"lowpass_run", (PyCFunction)(void (*)(void))fc_lowpass_run, METH_FASTCALL, "rig_lowpass_run"},
-    {"mpu_encode", (PyCFunction)(void (*)(void))fc_mpu_encode, METH_FASTCALL, "rig_mpu_encode"},
-    {"channel_measure", (PyCFunction)(void (*)(void))fc_channel_measure, METH_FASTCALL, "rig_channel_measure"},
-    {NULL, NULL, 0, NULL},
+    { "imu_measure", (PyCFunction)(void (*)(void))fc_imu_measure, METH_FASTCALL, "rig_imu_measure" },
+    { "lowpass_run", (PyCFunction)(void (*)(void))fc_lowpass_run, METH_FASTCALL, "rig_lowpass_run" },
+    { "mpu_encode", (PyCFunction)(void (*)(void))fc_mpu_encode, METH_FASTCALL, "rig_mpu_encode" },
+    { "channel_measure", (PyCFunction)(void (*)(void))fc_channel_measure, METH_FASTCALL, "rig_channel_measure" },
+    { NULL, NULL, 0, NULL },
 };
 
 static struct PyModuleDef module = {
-    PyModuleDef_HEAD_INIT, "_rignative", "The rig's C library: its per-cycle entry points.", -1, methods,
-    NULL, NULL, NULL, NULL,
+    PyModuleDef_HEAD_INIT,
+    "_rignative",
+    "The rig's C library: its per-cycle entry points.",
+    -1,
+    methods,
+    NULL,
+    NULL,
+    NULL,
+    NULL,
 };
 
 PyMODINIT_FUNC PyInit__rignative(void) { return PyModule_Create(&module); }

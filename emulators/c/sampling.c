@@ -22,16 +22,16 @@
  * temperature coefficient (sensor_models.AxisErrors), with the state it carries between samples ---- */
 
 typedef struct {
-    double m[9];                /* row-major 3x3 */
+    double m[9]; /* row-major 3x3 */
     double bias[3];
-    double random_walk;         /* units/s/sqrt(Hz) */
-    double noise_density;       /* units/sqrt(Hz) */
-    double temp_coefficient;    /* per degC away from 25 degC */
+    double random_walk;      /* units/s/sqrt(Hz) */
+    double noise_density;    /* units/sqrt(Hz) */
+    double temp_coefficient; /* per degC away from 25 degC */
     double walk[3];
     double last_t;
     int32_t has_last;
     int32_t normals_len, normals_pos;
-    const double *normals;      /* standard normal draws, owned by the Python side */
+    const double *normals; /* standard normal draws, owned by the Python side */
 } rig_channel;
 
 EXPORT size_t rig_channel_size(void) { return sizeof(rig_channel); }
@@ -107,8 +107,7 @@ EXPORT int32_t rig_channel_measure(rig_channel *c, int32_t n, const double *t, c
  * Returns 0, or 1 (accel) / 2 (gyro) when that channel has too few normals left: nothing is changed
  * then, and the caller refills and calls again. */
 EXPORT int32_t rig_imu_measure(rig_channel *accel, rig_channel *gyro, int32_t n, const double *t,
-                               const double *const *rows, const int32_t cols[7], double die_offset,
-                               double *out)
+                               const double *const *rows, const int32_t cols[7], double die_offset, double *out)
 {
     if (rig_channel_normals_left(accel) < n * draws_per_sample(accel))
         return 1;
@@ -118,8 +117,8 @@ EXPORT int32_t rig_imu_measure(rig_channel *accel, rig_channel *gyro, int32_t n,
         const double *row = rows[i];
         double *o = out + 7 * i;
         double temperature = row[cols[6]] + die_offset;
-        double f[3] = {row[cols[0]], row[cols[1]], row[cols[2]]};
-        double w[3] = {row[cols[3]], row[cols[4]], row[cols[5]]};
+        double f[3] = { row[cols[0]], row[cols[1]], row[cols[2]] };
+        double w[3] = { row[cols[3]], row[cols[4]], row[cols[5]] };
         measure_one(accel, t[i], f, temperature, o);
         measure_one(gyro, t[i], w, temperature, o + 3);
         o[6] = temperature;
@@ -129,7 +128,7 @@ EXPORT int32_t rig_imu_measure(rig_channel *accel, rig_channel *gyro, int32_t n,
 
 /* ---- the DLPF: a first-order low-pass plus a pure delay of whole samples (mpu6050._LowPass) ---- */
 
-#define PIPE 64  /* delayed outputs kept: the longest delay, 19 ms at 1 kHz, is 19 samples */
+#define PIPE 64 /* delayed outputs kept: the longest delay, 19 ms at 1 kHz, is 19 samples */
 
 typedef struct {
     double y[3];

@@ -30,8 +30,8 @@ struct rig_plant_steps {
     const unsigned int *y_vr;
     double *y;
     size_t n_y;
-    double *t;          /* the plant's time (s): the communication point of the next step */
-    double *ring;       /* a history of output rows (n_y doubles each), or NULL */
+    double *t;    /* the plant's time (s): the communication point of the next step */
+    double *ring; /* a history of output rows (n_y doubles each), or NULL */
     int64_t ring_rows;
     int32_t failed_call;   /* after a failure: 1 fmi2SetReal, 2 fmi2DoStep, 3 fmi2GetReal */
     int32_t failed_status; /* ... and the status it returned */
@@ -41,8 +41,8 @@ struct rig_plant_steps {
  * after each into ``y`` and, when there is a ring, copied into row (first_row + i) % ring_rows for
  * step i. Returns the steps completed; fewer than ``n`` when a call returned Discard or worse (the
  * call and its status are left in the struct). Warnings (status 1) pass, as fmu.py lets them. */
-EXPORT int32_t rig_plant_steps(struct rig_plant_steps *s, int32_t n, double h, int32_t write_inputs,
-                               int64_t first_row) {
+EXPORT int32_t rig_plant_steps(struct rig_plant_steps *s, int32_t n, double h, int32_t write_inputs, int64_t first_row)
+{
     s->failed_call = s->failed_status = 0;
     if (write_inputs && n > 0) {
         int st = s->set_real(s->component, s->u_vr, s->n_u, s->u);

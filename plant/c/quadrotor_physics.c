@@ -14,8 +14,8 @@
  * every arm 45 degrees clockwise seen from above (a parameter set, not a second code path). Rotors 1
  * and 3 spin counter-clockwise seen from above, so their reaction torque on the body is nose-right
  * (+z in FRD); rotors 2 and 4 the opposite. */
-static const double ARM_ANGLE[4] = {0.0, -QR_PI / 2, QR_PI, QR_PI / 2};
-static const double SPIN_SIGN[4] = {1.0, -1.0, 1.0, -1.0};
+static const double ARM_ANGLE[4] = { 0.0, -QR_PI / 2, QR_PI, QR_PI / 2 };
+static const double SPIN_SIGN[4] = { 1.0, -1.0, 1.0, -1.0 };
 
 typedef struct {
     const qr_params *par;
@@ -23,8 +23,8 @@ typedef struct {
     double omega_cmd[4];
     double arm_x[4], arm_y[4];
     double health[4];
-    int mode;          /* QR_STAND_* or -1 for "resting on the ground" */
-    double axis[3];    /* single-axis stands: rotation axis in body axes */
+    int mode;       /* QR_STAND_* or -1 for "resting on the ground" */
+    double axis[3]; /* single-axis stands: rotation axis in body axes */
     double axis_inertia;
 } ctx_t;
 
@@ -32,17 +32,19 @@ static double clamp(double v, double lo, double hi) { return v < lo ? lo : (v > 
 
 /* The ranges of plant/variables.py (one table: the scenario checker applies the same rules, and
    modelDescription.xml declares the closed bounds), then the rules that relate two parameters. */
-const char *qr_check_params(const qr_params *p) {
-#define QR_CHECK(field, low, low_open, high, high_open, message)                                  \
-    {                                                                                             \
-        double v_ = (double)p->field;                                                             \
-        if (!isfinite(v_) || ((low_open) ? !(v_ > (low)) : !(v_ >= (low))) ||                     \
-            ((high_open) ? !(v_ < (high)) : !(v_ <= (high))))                                     \
-            return message;                                                                       \
+const char *qr_check_params(const qr_params *p)
+{
+#define QR_CHECK(field, low, low_open, high, high_open, message)              \
+    {                                                                         \
+        double v_ = (double)p->field;                                         \
+        if (!isfinite(v_) || ((low_open) ? !(v_ > (low)) : !(v_ >= (low))) || \
+            ((high_open) ? !(v_ < (high)) : !(v_ <= (high))))                 \
+            return message;                                                   \
     }
     QR_PARAM_RANGES(QR_CHECK)
 #undef QR_CHECK
-    if (!(p->esc_max_us > p->esc_min_us)) return "esc_max_us must be > esc_min_us";
+    if (!(p->esc_max_us > p->esc_min_us))
+        return "esc_max_us must be > esc_min_us";
     if (p->stand == QR_STAND_FREE && p->pd0 > 0)
         return "pd0 must be <= 0 in free flight (the ground is at pd = 0)";
     return NULL;
@@ -50,7 +52,8 @@ const char *qr_check_params(const qr_params *p) {
 
 /* --- small vector helpers ------------------------------------------------------------------- */
 
-static void quat_from_euler(double roll, double pitch, double yaw, double q[4]) {
+static void quat_from_euler(double roll, double pitch, double yaw, double q[4])
+{
     double cr = cos(roll / 2), sr = sin(roll / 2), cp = cos(pitch / 2), sp = sin(pitch / 2);
     double cy = cos(yaw / 2), sy = sin(yaw / 2);
     q[0] = cr * cp * cy + sr * sp * sy;
@@ -59,44 +62,63 @@ static void quat_from_euler(double roll, double pitch, double yaw, double q[4]) 
     q[3] = cr * cp * sy - sr * sp * cy;
 }
 
-static void quat_mul(const double a[4], const double b[4], double out[4]) {
+static void quat_mul(const double a[4], const double b[4], double out[4])
+{
     double w = a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3];
     double x = a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2];
     double y = a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1];
     double z = a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0];
-    out[0] = w; out[1] = x; out[2] = y; out[3] = z;
+    out[0] = w;
+    out[1] = x;
+    out[2] = y;
+    out[3] = z;
 }
 
 /* Rotation matrix body -> world from a unit quaternion. */
-static void quat_to_dcm(const double q[4], double R[3][3]) {
+static void quat_to_dcm(const double q[4], double R[3][3])
+{
     double w = q[0], x = q[1], y = q[2], z = q[3];
-    R[0][0] = 1 - 2 * (y * y + z * z); R[0][1] = 2 * (x * y - w * z); R[0][2] = 2 * (x * z + w * y);
-    R[1][0] = 2 * (x * y + w * z); R[1][1] = 1 - 2 * (x * x + z * z); R[1][2] = 2 * (y * z - w * x);
-    R[2][0] = 2 * (x * z - w * y); R[2][1] = 2 * (y * z + w * x); R[2][2] = 1 - 2 * (x * x + y * y);
+    R[0][0] = 1 - 2 * (y * y + z * z);
+    R[0][1] = 2 * (x * y - w * z);
+    R[0][2] = 2 * (x * z + w * y);
+    R[1][0] = 2 * (x * y + w * z);
+    R[1][1] = 1 - 2 * (x * x + z * z);
+    R[1][2] = 2 * (y * z - w * x);
+    R[2][0] = 2 * (x * z - w * y);
+    R[2][1] = 2 * (y * z + w * x);
+    R[2][2] = 1 - 2 * (x * x + y * y);
 }
 
-static void mat_vec(double R[3][3], const double v[3], double out[3]) {
-    for (int i = 0; i < 3; i++) out[i] = R[i][0] * v[0] + R[i][1] * v[1] + R[i][2] * v[2];
+static void mat_vec(double R[3][3], const double v[3], double out[3])
+{
+    for (int i = 0; i < 3; i++)
+        out[i] = R[i][0] * v[0] + R[i][1] * v[1] + R[i][2] * v[2];
 }
 
-static void mat_t_vec(double R[3][3], const double v[3], double out[3]) {
-    for (int i = 0; i < 3; i++) out[i] = R[0][i] * v[0] + R[1][i] * v[1] + R[2][i] * v[2];
+static void mat_t_vec(double R[3][3], const double v[3], double out[3])
+{
+    for (int i = 0; i < 3; i++)
+        out[i] = R[0][i] * v[0] + R[1][i] * v[1] + R[2][i] * v[2];
 }
 
-static void quat_normalize(double *q) {
+static void quat_normalize(double *q)
+{
     double n = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-    for (int i = 0; i < 4; i++) q[i] /= n;
+    for (int i = 0; i < 4; i++)
+        q[i] /= n;
 }
 
 /* --- model ---------------------------------------------------------------------------------- */
 
-double qr_esc_omega_cmd(const qr_params *p, int i, double pwm_us) {
+double qr_esc_omega_cmd(const qr_params *p, int i, double pwm_us)
+{
     double pw = isfinite(pwm_us) ? clamp(pwm_us, p->esc_min_us, p->esc_max_us) : p->esc_min_us;
     double u = (pw - p->esc_min_us) / (p->esc_max_us - p->esc_min_us);
     return p->omega_max * clamp(p->esc_gain[i] * u + p->esc_offset[i], 0.0, 1.0);
 }
 
-double qr_isa_pressure(const qr_params *p, double h) {
+double qr_isa_pressure(const qr_params *p, double h)
+{
     double t0 = p->t_ground + KELVIN;
     return p->p_ground * pow(1.0 - ISA_LAPSE * h / t0, ISA_EXPONENT);
 }
@@ -104,7 +126,8 @@ double qr_isa_pressure(const qr_params *p, double h) {
 double qr_isa_temperature(const qr_params *p, double h) { return p->t_ground - ISA_LAPSE * h; }
 
 /* Body-axis force (thrust only) and torque (thrust moments, reaction torques, external torque). */
-static void rotor_loads(const ctx_t *c, const double *y, double force_b[3], double torque_b[3]) {
+static void rotor_loads(const ctx_t *c, const double *y, double force_b[3], double torque_b[3])
+{
     const qr_params *p = c->par;
     force_b[0] = force_b[1] = force_b[2] = 0;
     torque_b[0] = c->in->tau_ext[0];
@@ -121,8 +144,8 @@ static void rotor_loads(const ctx_t *c, const double *y, double force_b[3], doub
 }
 
 /* World-frame acceleration of the free body (gravity, thrust, drag, external force). */
-static void free_accel(const ctx_t *c, const double *y, double R[3][3], const double force_b[3],
-                       double acc[3]) {
+static void free_accel(const ctx_t *c, const double *y, double R[3][3], const double force_b[3], double acc[3])
+{
     const qr_params *p = c->par;
     double f_w[3];
     mat_vec(R, force_b, f_w);
@@ -133,10 +156,12 @@ static void free_accel(const ctx_t *c, const double *y, double R[3][3], const do
     acc[2] += p->gravity;
 }
 
-static void derivatives(const ctx_t *c, const double *y, double *dy) {
+static void derivatives(const ctx_t *c, const double *y, double *dy)
+{
     const qr_params *p = c->par;
     memset(dy, 0, sizeof(double) * QR_NSTATE);
-    for (int i = 0; i < 4; i++) dy[QR_OMEGA + i] = (c->omega_cmd[i] - y[QR_OMEGA + i]) / p->motor_tau;
+    for (int i = 0; i < 4; i++)
+        dy[QR_OMEGA + i] = (c->omega_cmd[i] - y[QR_OMEGA + i]) / p->motor_tau;
 
     double force_b[3], torque_b[3];
     rotor_loads(c, y, force_b, torque_b);
@@ -149,7 +174,8 @@ static void derivatives(const ctx_t *c, const double *y, double *dy) {
         dy[QR_GIMBAL + 1] = (tau - p->stand_damping * y[QR_GIMBAL + 1]) / c->axis_inertia;
         return;
     }
-    if (c->mode < 0) return; /* resting on the ground: only the rotors move */
+    if (c->mode < 0)
+        return; /* resting on the ground: only the rotors move */
 
     const double *q = y + QR_QW;
     const double *w = y + QR_P;
@@ -160,14 +186,15 @@ static void derivatives(const ctx_t *c, const double *y, double *dy) {
     dy[QR_QW + 3] = 0.5 * (q[0] * w[2] + q[1] * w[1] - q[2] * w[0]);
 
     /* Euler's equations: I dw/dt = tau - w x (I w). */
-    double I[3] = {p->Ixx, p->Iyy, p->Izz};
-    double Iw[3] = {I[0] * w[0], I[1] * w[1], I[2] * w[2]};
-    double gyro[3] = {w[1] * Iw[2] - w[2] * Iw[1], w[2] * Iw[0] - w[0] * Iw[2],
-                      w[0] * Iw[1] - w[1] * Iw[0]};
+    double I[3] = { p->Ixx, p->Iyy, p->Izz };
+    double Iw[3] = { I[0] * w[0], I[1] * w[1], I[2] * w[2] };
+    double gyro[3] = { w[1] * Iw[2] - w[2] * Iw[1], w[2] * Iw[0] - w[0] * Iw[2], w[0] * Iw[1] - w[1] * Iw[0] };
     double damp = c->mode == QR_STAND_ATTITUDE ? p->stand_damping : 0.0;
-    for (int k = 0; k < 3; k++) dy[QR_P + k] = (torque_b[k] - gyro[k] - damp * w[k]) / I[k];
+    for (int k = 0; k < 3; k++)
+        dy[QR_P + k] = (torque_b[k] - gyro[k] - damp * w[k]) / I[k];
 
-    if (c->mode == QR_STAND_ATTITUDE) return; /* position held by the gimbal */
+    if (c->mode == QR_STAND_ATTITUDE)
+        return; /* position held by the gimbal */
 
     double R[3][3], acc[3];
     quat_to_dcm(q, R);
@@ -179,7 +206,8 @@ static void derivatives(const ctx_t *c, const double *y, double *dy) {
 }
 
 /* Downward (positive) net force on a vehicle at rest on the ground with its current rotor speeds. */
-static double resting_down_force(const ctx_t *c, const double *y) {
+static double resting_down_force(const ctx_t *c, const double *y)
+{
     double force_b[3], torque_b[3], R[3][3], acc[3];
     double still[QR_NSTATE];
     memcpy(still, y, sizeof still);
@@ -190,7 +218,8 @@ static double resting_down_force(const ctx_t *c, const double *y) {
     return acc[2];
 }
 
-static void make_ctx(const qr_params *p, const qr_inputs *in, ctx_t *c) {
+static void make_ctx(const qr_params *p, const qr_inputs *in, ctx_t *c)
+{
     c->par = p;
     c->in = in;
     for (int i = 0; i < 4; i++) {
@@ -198,8 +227,7 @@ static void make_ctx(const qr_params *p, const qr_inputs *in, ctx_t *c) {
         c->arm_x[i] = p->arm_length * cos(a);
         c->arm_y[i] = p->arm_length * sin(a);
         c->omega_cmd[i] = qr_esc_omega_cmd(p, i, in->pwm_us[i]);
-        c->health[i] = isfinite(in->motor_health[i]) && in->motor_health[i] > 0 ? in->motor_health[i]
-                                                                                 : 0.0;
+        c->health[i] = isfinite(in->motor_health[i]) && in->motor_health[i] > 0 ? in->motor_health[i] : 0.0;
     }
     c->mode = p->stand;
     /* Axis of a single-axis stand in body axes (constant, since the other two angles are held):
@@ -215,23 +243,28 @@ static void make_ctx(const qr_params *p, const qr_inputs *in, ctx_t *c) {
         double q0[4], R[3][3];
         quat_from_euler(p->roll0, p->pitch0, p->yaw0, q0);
         quat_to_dcm(q0, R);
-        for (int k = 0; k < 3; k++) c->axis[k] = R[2][k];
+        for (int k = 0; k < 3; k++)
+            c->axis[k] = R[2][k];
     }
-    c->axis_inertia = c->axis[0] * c->axis[0] * p->Ixx + c->axis[1] * c->axis[1] * p->Iyy +
-                      c->axis[2] * c->axis[2] * p->Izz;
+    c->axis_inertia =
+        c->axis[0] * c->axis[0] * p->Ixx + c->axis[1] * c->axis[1] * p->Iyy + c->axis[2] * c->axis[2] * p->Izz;
 }
 
 /* Single-axis stands: attitude = initial attitude turned by the gimbal angle about the axis. */
-static void apply_gimbal(const qr_params *p, const ctx_t *c, double *y) {
+static void apply_gimbal(const qr_params *p, const ctx_t *c, double *y)
+{
     double q0[4], dq[4], a = y[QR_GIMBAL];
     quat_from_euler(p->roll0, p->pitch0, p->yaw0, q0);
     dq[0] = cos(a / 2);
-    for (int k = 0; k < 3; k++) dq[1 + k] = c->axis[k] * sin(a / 2);
+    for (int k = 0; k < 3; k++)
+        dq[1 + k] = c->axis[k] * sin(a / 2);
     quat_mul(q0, dq, y + QR_QW);
-    for (int k = 0; k < 3; k++) y[QR_P + k] = c->axis[k] * y[QR_GIMBAL + 1];
+    for (int k = 0; k < 3; k++)
+        y[QR_P + k] = c->axis[k] * y[QR_GIMBAL + 1];
 }
 
-void qr_init_state(const qr_params *p, const qr_inputs *in, qr_state *s) {
+void qr_init_state(const qr_params *p, const qr_inputs *in, qr_state *s)
+{
     ctx_t c;
     make_ctx(p, in, &c);
     memset(s, 0, sizeof *s);
@@ -239,33 +272,42 @@ void qr_init_state(const qr_params *p, const qr_inputs *in, qr_state *s) {
     s->y[QR_PN + 1] = p->pe0;
     s->y[QR_PN + 2] = p->pd0;
     quat_from_euler(p->roll0, p->pitch0, p->yaw0, s->y + QR_QW);
-    for (int i = 0; i < 4; i++) s->y[QR_OMEGA + i] = c.omega_cmd[i];
+    for (int i = 0; i < 4; i++)
+        s->y[QR_OMEGA + i] = c.omega_cmd[i];
     s->on_ground = p->stand == QR_STAND_FREE && p->pd0 >= 0;
 }
 
-static void rk4(const ctx_t *c, double *y, double h) {
+static void rk4(const ctx_t *c, double *y, double h)
+{
     double k1[QR_NSTATE], k2[QR_NSTATE], k3[QR_NSTATE], k4[QR_NSTATE], t[QR_NSTATE];
     derivatives(c, y, k1);
-    for (int i = 0; i < QR_NSTATE; i++) t[i] = y[i] + 0.5 * h * k1[i];
+    for (int i = 0; i < QR_NSTATE; i++)
+        t[i] = y[i] + 0.5 * h * k1[i];
     derivatives(c, t, k2);
-    for (int i = 0; i < QR_NSTATE; i++) t[i] = y[i] + 0.5 * h * k2[i];
+    for (int i = 0; i < QR_NSTATE; i++)
+        t[i] = y[i] + 0.5 * h * k2[i];
     derivatives(c, t, k3);
-    for (int i = 0; i < QR_NSTATE; i++) t[i] = y[i] + h * k3[i];
+    for (int i = 0; i < QR_NSTATE; i++)
+        t[i] = y[i] + h * k3[i];
     derivatives(c, t, k4);
-    for (int i = 0; i < QR_NSTATE; i++) y[i] += h / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
+    for (int i = 0; i < QR_NSTATE; i++)
+        y[i] += h / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
 }
 
-int qr_advance(const qr_params *p, const qr_inputs *in, qr_state *s, double dt) {
+int qr_advance(const qr_params *p, const qr_inputs *in, qr_state *s, double dt)
+{
     ctx_t c;
     make_ctx(p, in, &c);
     qr_state next = *s;
     long n = (long)ceil(dt / p->h_max_step - 1e-9);
-    if (n < 1) n = 1;
+    if (n < 1)
+        n = 1;
     double h = dt / (double)n;
     for (long k = 0; k < n; k++) {
         if (p->stand == QR_STAND_FREE) {
             /* Leave the ground only when the net force points up. */
-            if (next.on_ground && resting_down_force(&c, next.y) < 0) next.on_ground = 0;
+            if (next.on_ground && resting_down_force(&c, next.y) < 0)
+                next.on_ground = 0;
             c.mode = next.on_ground ? -1 : QR_STAND_FREE;
         }
         rk4(&c, next.y, h);
@@ -277,17 +319,20 @@ int qr_advance(const qr_params *p, const qr_inputs *in, qr_state *s, double dt) 
             /* Touch-down: a perfectly inelastic, high-friction contact. The vehicle stops where it
              * is, keeps its attitude, and rests until thrust lifts it. */
             next.y[QR_PN + 2] = 0;
-            for (int k = 0; k < 3; k++) next.y[QR_VN + k] = next.y[QR_P + k] = 0;
+            for (int k = 0; k < 3; k++)
+                next.y[QR_VN + k] = next.y[QR_P + k] = 0;
             next.on_ground = 1;
         }
     }
     for (int i = 0; i < QR_NSTATE; i++)
-        if (!isfinite(next.y[i])) return -1;
+        if (!isfinite(next.y[i]))
+            return -1;
     *s = next;
     return 0;
 }
 
-void qr_outputs_from(const qr_params *p, const qr_inputs *in, const qr_state *s, qr_outputs *o) {
+void qr_outputs_from(const qr_params *p, const qr_inputs *in, const qr_state *s, qr_outputs *o)
+{
     ctx_t c;
     make_ctx(p, in, &c);
     const double *y = s->y;
@@ -299,13 +344,14 @@ void qr_outputs_from(const qr_params *p, const qr_inputs *in, const qr_state *s,
         o->vel[k] = y[QR_VN + k];
         o->rate[k] = y[QR_P + k];
     }
-    for (int k = 0; k < 4; k++) o->q[k] = q[k];
+    for (int k = 0; k < 4; k++)
+        o->q[k] = q[k];
     o->roll = atan2(2 * (q[0] * q[1] + q[2] * q[3]), 1 - 2 * (q[1] * q[1] + q[2] * q[2]));
     o->pitch = asin(clamp(2 * (q[0] * q[2] - q[3] * q[1]), -1.0, 1.0));
     o->yaw = atan2(2 * (q[0] * q[3] + q[1] * q[2]), 1 - 2 * (q[2] * q[2] + q[3] * q[3]));
 
     /* Specific force = R^T (a - g). Held vehicles (stands, resting) do not accelerate. */
-    double acc[3] = {0, 0, 0};
+    double acc[3] = { 0, 0, 0 };
     if (p->stand == QR_STAND_FREE && !s->on_ground) {
         double force_b[3], torque_b[3];
         rotor_loads(&c, y, force_b, torque_b);

@@ -19,12 +19,11 @@ enum {
     QR_NSTATE = 19
 };
 
-enum { QR_STAND_FREE = 0, QR_STAND_ROLL = 1, QR_STAND_PITCH = 2, QR_STAND_YAW = 3,
-       QR_STAND_ATTITUDE = 4 };
+enum { QR_STAND_FREE = 0, QR_STAND_ROLL = 1, QR_STAND_PITCH = 2, QR_STAND_YAW = 3, QR_STAND_ATTITUDE = 4 };
 
 typedef struct {
     double y[QR_NSTATE];
-    int on_ground;      /* resting on the ground: held still until thrust lifts it */
+    int on_ground; /* resting on the ground: held still until thrust lifts it */
 } qr_state;
 
 /* Checks parameters that would make the physics meaningless. Returns NULL when they are usable,
@@ -45,8 +44,7 @@ double qr_esc_omega_cmd(const qr_params *par, int motor, double pwm_us);
 int qr_advance(const qr_params *par, const qr_inputs *in, qr_state *s, double dt);
 
 /* Fills every output from the state. */
-void qr_outputs_from(const qr_params *par, const qr_inputs *in, const qr_state *s,
-                     qr_outputs *out);
+void qr_outputs_from(const qr_params *par, const qr_inputs *in, const qr_state *s, qr_outputs *out);
 
 /* ISA troposphere referenced to the ground: pressure (Pa) and temperature (degC) at height h (m)
  * above pd = 0. */

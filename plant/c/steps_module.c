@@ -29,8 +29,8 @@ static PyObject *plant_steps(PyObject *self, PyObject *const *a, Py_ssize_t narg
 }
 
 static PyMethodDef methods[] = {
-    {"plant_steps", (PyCFunction)(void (*)(void))plant_steps, METH_FASTCALL, "rig_plant_steps"},
-    {NULL, NULL, 0, NULL},
+    { "plant_steps", (PyCFunction)(void (*)(void))plant_steps, METH_FASTCALL, "rig_plant_steps" },
+    { NULL, NULL, 0, NULL },
 };
 
 static struct PyModuleDef module = {
