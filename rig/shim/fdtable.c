@@ -47,7 +47,7 @@ static int set_fake(int fd, struct fake *f)
    reports them. Without RIG_FAKES (an older session) the descriptor is onto /dev/null. */
 static void backing_name(const struct target *t, char *buf, size_t n)
 {
-    target_path(t, buf, n);
+    kinds[t->kind].name(t, buf, n);
     for (char *c = buf; *c; c++)
         if (*c == '/')
             *c = ':';
@@ -63,24 +63,10 @@ static int backing_open(const struct target *t, int flags)
     return LOAD(open)(path, (flags & (O_ACCMODE | O_CLOEXEC | O_NONBLOCK)) | O_CREAT, 0600);
 }
 
+/* A new fake descriptor onto t, once its kind has accepted the flags (the kind's open, or dispatch.c's
+   generic answer). */
 static int open_fake(const struct target *t, int flags)
 {
-    int acc = flags & O_ACCMODE;
-    if (t->kind == K_PWM_DIR && (acc != O_RDONLY || (flags & O_CREAT))) {
-        errno = EISDIR;
-        return -1;
-    }
-    if (t->kind != K_PWM_DIR && (flags & O_DIRECTORY)) {
-        errno = ENOTDIR;
-        return -1;
-    }
-    if (t->kind == K_PWM_ATTR) {
-        int wo = t->attr == A_EXPORT || t->attr == A_UNEXPORT, ro = t->attr == A_NPWM;
-        if ((wo && acc != O_WRONLY && getuid() != 0) || (ro && acc != O_RDONLY)) {
-            errno = EACCES;
-            return -1;
-        }
-    }
     int fd = backing_open(t, flags);
     if (fd < 0)
         return -1;
@@ -154,7 +140,7 @@ static void adopt_inherited_fakes(void)
                 if (*c == ':')
                     *c = '/';
             struct target t = classify_path(name, 1);
-            struct fake *f = t.kind == K_I2C || t.kind == K_PWM_ATTR || t.kind == K_PWM_DIR ? calloc(1, sizeof *f) : NULL;
+            struct fake *f = t.kind && kinds[t.kind].name ? calloc(1, sizeof *f) : NULL; /* a kind with fakes */
             if (f) {
                 f->t = t;
                 set_fake(fd, f);

@@ -1,9 +1,59 @@
 /*
- * i2c-dev on an emulated bus: a transfer of messages is one request to the session; I2C_RDWR and
- * I2C_SMBUS copy the caller's memory as i2c-dev does and turn SMBus into messages as the kernel's
- * emulation does; the other i2c-dev ioctls. Part of rigshim.c (one translation unit): see its top
- * comment.
+ * The device kind K_I2C: i2c-dev on the emulated buses (/dev/i2c-N for N in RIG_I2C_BUSES). A transfer
+ * of messages is one request to the session; I2C_RDWR and I2C_SMBUS copy the caller's memory as
+ * i2c-dev does and turn SMBus into messages as the kernel's emulation does; the other i2c-dev ioctls;
+ * read and write as one message. Its row in kinds[] (rigshim.c) names the operations. Part of
+ * rigshim.c (one translation unit): see its top comment.
  */
+
+#define I2C_MAJOR 89
+
+static unsigned i2c_buses_mask; /* bit N: /dev/i2c-N is emulated (N < 32) */
+
+static void i2c_init(void)
+{
+    const char *b = getenv("RIG_I2C_BUSES");
+    for (; b && *b; b++) {
+        char *end;
+        long n = strtol(b, &end, 10);
+        if (end != b && n >= 0 && n < 32)
+            i2c_buses_mask |= 1u << n;
+        b = *end ? end : end - 1;
+    }
+}
+
+/* /dev/i2c-* is i2c-dev's to decide, emulated or not. */
+static int i2c_claim(const char *path, int inherited, struct target *t)
+{
+    (void)inherited;
+    if (strncmp(path, "/dev/i2c-", 9) != 0)
+        return 0;
+    const char *rest = "";
+    int n = parse_uint(path + 9, &rest);
+    if (n >= 0 && n < 32 && *rest == 0 && (i2c_buses_mask >> n & 1u)) {
+        t->kind = K_I2C;
+        t->bus = n;
+    }
+    return 1;
+}
+
+static void i2c_name(const struct target *t, char *buf, size_t n) { snprintf(buf, n, "/dev/i2c-%d", t->bus); }
+
+static void i2c_fill_stat(const struct target *t, struct stat *st)
+{
+    stat_common(st, 1000 + (ino_t)t->bus);
+    st->st_mode = S_IFCHR | 0660;
+    st->st_rdev = makedev(I2C_MAJOR, t->bus);
+    st->st_dev = makedev(0, 5);
+}
+
+/* fopen on an emulated bus is not redirected: libc opens the path itself, as the shim has always left
+   it (the generic answer would be a cookie stream over i2c_read and i2c_write). */
+static FILE *i2c_fopen(const char *path, const struct target *t, const char *mode, fopen_fn real)
+{
+    (void)t;
+    return real(path, mode);
+}
 
 /* One transfer of messages whose buffers are the shim's (copied from the caller, or to be copied back):
    the read bytes land in them, and a RECV_LEN message's len becomes what it received (its count byte
@@ -296,4 +346,46 @@ static int i2c_ioctl(struct fake *f, unsigned long req, unsigned long arg)
         note("ioctl 0x%lx on /dev/i2c-%d is not an i2c-dev request (ENOTTY)", req, f->t.bus);
         return errno_ret(ENOTTY);
     }
+}
+
+/* read() and write(): one message of at most 8192 bytes to or from the client's address. */
+static ssize_t i2c_write(struct fake *f, const void *buf, size_t n)
+{
+    size_t k = n > MAX_XFER ? MAX_XFER : n;
+    if (copy_in(xfer_buf, buf, k))
+        return errno_ret(EFAULT);
+    struct i2c_msg m = {(uint16_t)f->addr, (uint16_t)(f->tenbit ? I2C_M_TEN : 0), (uint16_t)k, xfer_buf};
+    int err = i2c_transfer(f, &m, 1);
+    return err ? errno_ret(err) : (ssize_t)k;
+}
+
+static ssize_t i2c_read(struct fake *f, void *buf, size_t n, off_t *pos)
+{
+    (void)pos;
+    size_t k = n > MAX_XFER ? MAX_XFER : n;
+    struct i2c_msg m = {(uint16_t)f->addr, (uint16_t)(I2C_M_RD | (f->tenbit ? I2C_M_TEN : 0)), (uint16_t)k,
+                        xfer_buf};
+    int err = i2c_transfer(f, &m, 1);
+    if (!err && copy_out(buf, xfer_buf, k))
+        err = EFAULT; /* after the transfer, as i2c-dev's copy_to_user */
+    return err ? errno_ret(err) : (ssize_t)k;
+}
+
+/* i2c-dev has no offsets: pread, pwrite and lseek are ESPIPE. */
+static ssize_t i2c_pread(struct fake *f, void *buf, size_t n, off_t off)
+{
+    (void)f, (void)buf, (void)n, (void)off;
+    return errno_ret(ESPIPE);
+}
+
+static ssize_t i2c_pwrite(struct fake *f, const void *buf, size_t n, off_t off)
+{
+    (void)f, (void)buf, (void)n, (void)off;
+    return errno_ret(ESPIPE);
+}
+
+static off_t i2c_seek(struct fake *f, off_t off, int whence)
+{
+    (void)f, (void)off, (void)whence;
+    return errno_ret(ESPIPE);
 }

@@ -1,23 +1,72 @@
 /*
- * What a path names: classify turns a path into a target (an emulated bus, a PWM attribute or
- * directory, a serial path redirected to a pty, or nothing of ours), and a target has the kernel's
- * name for it and what stat shows for it. Part of rigshim.c (one translation unit): see its top
+ * What a path names, and the shape of a device kind. classify turns a path into a target (a device of
+ * one of the kinds, or nothing of ours) by asking each kind in turn; a kind's operations (struct
+ * kind_ops) are what every interposer calls for a path or a descriptor of that kind, so the
+ * interposers (dispatch.c) never test kinds. Part of rigshim.c (one translation unit): see its top
  * comment.
  */
 
-enum kind { K_NONE, K_I2C, K_PWM_ATTR, K_PWM_DIR, K_SERIAL };
-enum pwm_attr { A_EXPORT, A_UNEXPORT, A_NPWM, A_PERIOD, A_DUTY, A_ENABLE, A_POLARITY };
-#define N_ATTRS (A_POLARITY + 1)
-static const char *const attr_names[N_ATTRS] = {"export", "unexport", "npwm", "period", "duty_cycle", "enable",
-                                                "polarity"};
-
+/* What a path names: its kind and, for the kind, which of its files (the fields a kind does not use
+   stay 0). */
 struct target {
     enum kind kind;
-    int bus;         /* K_I2C */
-    int channel;     /* K_PWM_*: -1 for the chip itself, -2 for /sys/class/pwm, -3 for its .. */
-    enum pwm_attr attr;
-    const char *to;  /* K_SERIAL: the pty */
+    int bus;         /* I2C: the bus */
+    int channel;     /* PWM: the channel, -1 for the chip itself, -2 for /sys/class/pwm, -3 for its .. */
+    int attr;        /* PWM attributes: which (enum pwm_attr) */
+    const char *to;  /* serial: the pty */
 };
+
+struct fake; /* a fake descriptor (fdtable.c) */
+
+typedef int (*stat_fn)(const char *, struct stat *);
+typedef int (*fstat_fn)(int, struct stat *);
+typedef int (*fstatat_fn)(int, const char *, struct stat *, int);
+typedef FILE *(*fopen_fn)(const char *, const char *);
+
+/* A device kind's operations, one row of kinds[] (rigshim.c). An operation left NULL gets the generic
+   answer, the one for a device file the shim emulates behind a fake descriptor (dispatch.c); the
+   comment after each says what that is. */
+struct kind_ops {
+    /* claim classifies a path: 1 when the path is the kind's to decide (t->kind left K_NONE when it
+       names nothing emulated), 0 to let the next kind look; inherited: see classify_path. NULL when
+       another row of the same file claims for this kind too. init reads the kind's configuration from
+       the environment at start-up. */
+    int (*claim)(const char *path, int inherited, struct target *t);
+    void (*init)(void);
+    /* For a kind with fake descriptors: name writes the kernel's path of a target (its backing file is
+       named after it), fill_stat what stat shows. NULL name: the kind makes no fake descriptors. */
+    void (*name)(const struct target *t, char *buf, size_t n);
+    void (*fill_stat)(const struct target *t, struct stat *st);
+
+    /* calls on a path */
+    int (*open)(const struct target *t, int flags, mode_t mode);     /* a fake; O_DIRECTORY: ENOTDIR */
+    FILE *(*fopen)(const char *path, const struct target *t, const char *mode, fopen_fn real);
+                                                                     /* a stream through the fake */
+    DIR *(*opendir)(const char *path, const struct target *t);       /* dir_entry's stream, or ENOTDIR */
+    int (*stat)(const struct target *t, struct stat *st, stat_fn real); /* stat, lstat: fill_stat */
+    int (*fstatat)(int dirfd, const struct target *t, struct stat *st, int flags, fstatat_fn real);
+                                                                     /* fill_stat */
+    int (*statx)(int dirfd, const struct target *t, int flags, unsigned int mask, struct statx *sx);
+                                                                     /* fill_stat's fields */
+    int (*access)(const struct target *t, int amode);                /* by fill_stat's mode */
+    int (*faccessat)(int dirfd, const struct target *t, int amode, int flags); /* as access */
+
+    /* calls on a fake descriptor */
+    ssize_t (*read)(struct fake *f, void *buf, size_t n, off_t *pos);        /* EBADF */
+    ssize_t (*write)(struct fake *f, const void *buf, size_t n);             /* EBADF */
+    ssize_t (*pread)(struct fake *f, void *buf, size_t n, off_t off);        /* read at off */
+    ssize_t (*pwrite)(struct fake *f, const void *buf, size_t n, off_t off); /* write, off unused */
+    off_t (*seek)(struct fake *f, off_t off, int whence);                    /* moves the read position */
+    int (*ioctl)(struct fake *f, unsigned long req, unsigned long arg);      /* ENOTTY */
+    int sendfile; /* 1: sendfile copies to and from it through read and write (0: EINVAL, as i2c-dev) */
+
+    /* A directory's listing: the state it starts from, taken when a stream opens or rewinds, and its
+       entry i in that state (0: past the end). NULL dir_entry: not a directory. */
+    uint32_t (*dir_start)(const struct target *dir);
+    int (*dir_entry)(const struct target *dir, uint32_t start, long i, struct dirent64 *e);
+};
+
+static const struct kind_ops kinds[N_KINDS]; /* the rows: rigshim.c, after the kinds' files */
 
 static int parse_uint(const char *s, const char **end)
 {
@@ -30,107 +79,21 @@ static int parse_uint(const char *s, const char **end)
     return (int)v;
 }
 
-/* The attribute "/name" among from..to-1, or N_ATTRS. */
-static int attr_named(const char *rest, int from, int to)
-{
-    for (int a = from; rest[0] == '/' && a < to; a++)
-        if (strcmp(rest + 1, attr_names[a]) == 0)
-            return a;
-    return N_ATTRS;
-}
-
-/* What a path names. A pwmN path exists only while the channel is exported, unless any_channel (a
-   descriptor inherited across exec names its file even after an unexport, as an open file does). */
-static struct target classify_path(const char *path, int any_channel)
+/* What a path names: the first kind that claims it decides, in the order of enum kind. inherited: a
+   descriptor inherited across exec names this path, and its file exists even if a path alone would
+   not (a pwmN the program has unexported since, as an open file outlives its name). */
+static struct target classify_path(const char *path, int inherited)
 {
     struct target t = {.kind = K_NONE};
     if (!active || !path)
         return t;
-    const char *rest = "";
-    if (strncmp(path, "/dev/i2c-", 9) == 0) {
-        int n = parse_uint(path + 9, &rest);
-        if (n >= 0 && n < 32 && *rest == 0 && (i2c_buses_mask >> n & 1u)) {
-            t.kind = K_I2C;
-            t.bus = n;
-        }
-        return t;
-    }
-    for (int i = 0; i < n_serial; i++)
-        if (strcmp(path, serial_map[i].from) == 0) {
-            t.kind = K_SERIAL;
-            t.to = serial_map[i].to;
-            return t;
-        }
-    size_t len = strlen(path);
-    int up = len > 16 && strcmp(path + len - 3, "/..") == 0, here = len > 15 && strcmp(path + len - 2, "/.") == 0;
-    if ((up || here) && strncmp(path, "/sys/class/pwm/", 15) == 0 && len < PATH_MAX) {
-        /* the "." and ".." a listing shows (ls -la): the directory, or the one it is listed in (for
-           /sys/class/pwm/.., a /sys/class that holds pwm alone: ls -l asks its extended attributes
-           by this path, which only the shim knows) */
-        char dir[PATH_MAX];
-        memcpy(dir, path, len - (up ? 3 : 2));
-        dir[len - (up ? 3 : 2)] = 0;
-        struct target d = classify_path(dir, any_channel);
-        if (d.kind != K_PWM_DIR || (up && d.channel == -3))
-            return t;
-        if (up)
-            d.channel = d.channel >= 0 ? -1 : d.channel - 1;
-        return d;
-    }
-    if (strcmp(path, "/sys/class/pwm") == 0 || strcmp(path, "/sys/class/pwm/") == 0) {
-        t.kind = K_PWM_DIR;
-        t.channel = -2;
-        return t;
-    }
-    if (strncmp(path, "/sys/class/pwm/pwmchip", 22) != 0)
-        return t;
-    int chip = parse_uint(path + 22, &rest);
-    if (chip != pwm_chip || !shm)
-        return t;
-    t.channel = -1;
-    if (*rest == 0 || strcmp(rest, "/") == 0) {
-        t.kind = K_PWM_DIR;
-        return t;
-    }
-    int a = attr_named(rest, A_EXPORT, A_PERIOD);
-    if (a != N_ATTRS) {
-        t.kind = K_PWM_ATTR;
-        t.attr = (enum pwm_attr)a;
-        return t;
-    }
-    if (strncmp(rest, "/pwm", 4) != 0)
-        return t;
-    int ch = parse_uint(rest + 4, &rest);
-    if (ch < 0 || ch >= (int)shm->npwm || (!any_channel && !shm->pwm[ch].exported))
-        return t; /* not exported: the file does not exist (ENOENT from the real call) */
-    t.channel = ch;
-    if (*rest == 0 || strcmp(rest, "/") == 0) {
-        t.kind = K_PWM_DIR;
-        return t;
-    }
-    a = attr_named(rest, A_PERIOD, N_ATTRS);
-    if (a != N_ATTRS) {
-        t.kind = K_PWM_ATTR;
-        t.attr = (enum pwm_attr)a;
-    }
+    for (int k = K_NONE + 1; k < N_KINDS; k++)
+        if (kinds[k].claim && kinds[k].claim(path, inherited, &t))
+            break;
     return t;
 }
 
 static struct target classify(const char *path) { return classify_path(path, 0); }
-
-/* The path a target is known by (the kernel's name for the file). */
-static void target_path(const struct target *t, char *buf, size_t n)
-{
-    const char *sep = t->kind == K_PWM_ATTR ? "/" : "", *attr = t->kind == K_PWM_ATTR ? attr_names[t->attr] : "";
-    if (t->kind == K_I2C)
-        snprintf(buf, n, "/dev/i2c-%d", t->bus);
-    else if (t->channel <= -2)
-        snprintf(buf, n, t->channel == -2 ? "/sys/class/pwm" : "/sys/class");
-    else if (t->channel == -1)
-        snprintf(buf, n, "/sys/class/pwm/pwmchip%d%s%s", pwm_chip, sep, attr);
-    else
-        snprintf(buf, n, "/sys/class/pwm/pwmchip%d/pwm%d%s%s", pwm_chip, t->channel, sep, attr);
-}
 
 /* Only absolute paths are redirected (openat with a directory and a relative path passes through). */
 static struct target classify_abs(const char *path)
@@ -140,34 +103,14 @@ static struct target classify_abs(const char *path)
 
 static int is_empty(const char *path) { return path && path[0] == 0; }
 
-static ino_t target_ino(const struct target *t)
-{
-    if (t->kind == K_I2C)
-        return 1000 + (ino_t)t->bus;
-    if (t->kind == K_PWM_DIR)
-        return 2000 + (ino_t)(t->channel + 2); /* channel -2 is /sys/class/pwm, -3 its parent */
-    return 3000 + (ino_t)(t->channel + 1) * 8 + (ino_t)t->attr;
-}
-
-/* A path the kernel would have that we only pretend: make it ENOENT-proof for stat/access. */
-static void fill_stat(const struct target *t, struct stat *st)
+/* What stat shows of every file the shim pretends (a path the kernel would have: ENOENT-proof for stat
+   and access); the kind's fill_stat adds the type, the mode and the rest. */
+static void stat_common(struct stat *st, ino_t ino)
 {
     memset(st, 0, sizeof *st);
     st->st_uid = getuid();
     st->st_gid = getgid();
     st->st_nlink = 1;
     st->st_blksize = 4096;
-    if (t->kind == K_I2C) {
-        st->st_mode = S_IFCHR | 0660;
-        st->st_rdev = makedev(I2C_MAJOR, t->bus);
-        st->st_dev = makedev(0, 5);
-    } else if (t->kind == K_PWM_DIR) {
-        st->st_mode = S_IFDIR | 0755;
-        st->st_nlink = 2;
-    } else {
-        int wo = t->attr == A_EXPORT || t->attr == A_UNEXPORT, ro = t->attr == A_NPWM;
-        st->st_mode = S_IFREG | (wo ? 0200 : ro ? 0444 : 0644);
-        st->st_size = 4096;
-    }
-    st->st_ino = target_ino(t);
+    st->st_ino = ino;
 }

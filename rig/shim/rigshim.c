@@ -17,13 +17,31 @@
  *   link.c       the socket to the session: connect, send, request, notice, note
  *   vtime.c      virtual time: the clocks, the sleeps, the poll family's timeouts
  *   usermem.c    the caller's memory copied as the kernel copies it (EFAULT, never a crash)
- *   paths.c      what a path names (a target) and what stat shows for it
+ *   paths.c      what a path names (classify: a target), the shape of a device kind (struct kind_ops)
  *   fdtable.c    fake descriptors: the table, backing files, adoption after exec, close/dup/fcntl, stdio
  *   fakedir.c    directory streams on fake directories (readdir, closedir, ...)
- *   i2cdev.c     i2c-dev: transfers, I2C_RDWR, SMBus, its ioctls
- *   sysfs_pwm.c  the sysfs PWM class's attributes
+ *   i2cdev.c     the kind K_I2C: i2c-dev (transfers, I2C_RDWR, SMBus, its ioctls, read/write)
+ *   serial.c     the kind K_SERIAL: serial paths that are the session's ptys
+ *   sysfs_pwm.c  the kinds K_PWM_ATTR and K_PWM_DIR: the sysfs PWM class's attributes and directories
+ *   kinds[]      (here) the table of the kinds' operations, one row per kind
  *   dispatch.c   the interposed calls on paths and descriptors that may be a device's
  * and ends with the start-up (the constructor), which reads the environment the session set.
+ *
+ * The device kinds: everything that differs between devices sits in the kind's file and is reached
+ * through its row in kinds[] (struct kind_ops, paths.c): which paths are its, what stat shows, open,
+ * fopen, opendir, read, write, pread, pwrite, lseek, ioctl, ... An operation a row leaves NULL gets the
+ * generic answer for a device file the shim emulates behind a fake descriptor (dispatch.c), so the
+ * interposers dispatch through the table and never test a kind.
+ *
+ * Adding a device kind (SPI, GPIO) is one file and one table row: a file (say spidev.c) with the
+ * kind's claim (the paths that are its), init (its configuration from the environment), name and
+ * fill_stat, and the calls it answers otherwise than the generic answer (for spidev: read, write,
+ * ioctl, and ESPIPE for pread, pwrite and lseek as i2cdev.c does); then, here, its #include among the
+ * kinds, a constant in enum kind (its place is its turn to look at a path) and its row in kinds[].
+ * dispatch.c, fdtable.c and fakedir.c serve every kind unchanged. A target names the file with bus,
+ * channel and attr; state kept per open descriptor (i2c-dev's client address) is a field of struct
+ * fake. A device that needs the session (a transfer) also needs its message in protocol.h and its
+ * handling in rig/protocol.py and rig/handler.py.
  */
 #define _GNU_SOURCE
 #include <dirent.h>
@@ -61,38 +79,14 @@
 
 #define EXPORT __attribute__((visibility("default")))
 #define MAX_FD 65536
-#define MAX_SERIAL 8
-#define I2C_MAJOR 89
 #define MAX_XFER 8192 /* i2c-dev's limit for one message and for read()/write() */
 
 /* ---------------------------------------------------------------- what every part shares */
 
 static int active;              /* RIG_SOCKET set: redirect */
 static int lockstep;            /* RIG_LOCKSTEP=1: virtual time */
-static unsigned i2c_buses_mask; /* bit N: /dev/i2c-N is emulated (N < 32) */
-static int pwm_chip;
 static struct rig_shm *shm;
-static struct {
-    char from[128];
-    char to[128];
-} serial_map[MAX_SERIAL];
-static int n_serial;
 static pthread_mutex_t lock = PTHREAD_MUTEX_INITIALIZER;
-
-static void parse_serial(const char *spec)
-{
-    while (spec && *spec && n_serial < MAX_SERIAL) {
-        const char *end = strchr(spec, ':');
-        size_t n = end ? (size_t)(end - spec) : strlen(spec);
-        const char *eq = memchr(spec, '=', n);
-        if (eq && (size_t)(eq - spec) < sizeof serial_map[0].from && n - (size_t)(eq - spec) - 1 < sizeof serial_map[0].to) {
-            memcpy(serial_map[n_serial].from, spec, (size_t)(eq - spec));
-            memcpy(serial_map[n_serial].to, eq + 1, n - (size_t)(eq - spec) - 1);
-            n_serial++;
-        }
-        spec = end ? end + 1 : NULL;
-    }
-}
 
 /* This process's pid, kept: getpid() is a syscall (glibc no longer caches it), and every message asks.
    Set at start-up and in a fork's child (pthread_atfork), so it is never 0 once the shim runs: a vfork
@@ -112,11 +106,70 @@ static pid_t self_pid(void)
 #include "link.c"
 #include "vtime.c"
 #include "usermem.c"
+
+/* The device kinds, in the order they look at a path (the first to claim it decides): each is a file
+   included below and a row in kinds[]. */
+enum kind { K_NONE, K_I2C, K_SERIAL, K_PWM_ATTR, K_PWM_DIR, N_KINDS };
+
 #include "paths.c"
 #include "fdtable.c"
 #include "fakedir.c"
+
+/* the kinds */
 #include "i2cdev.c"
+#include "serial.c"
 #include "sysfs_pwm.c"
+
+/* ---------------------------------------------------------------- the kinds' operations */
+
+/* One row per kind: its operations (struct kind_ops, paths.c); what a row leaves out is the generic
+   answer (dispatch.c). */
+static const struct kind_ops kinds[N_KINDS] = {
+    [K_I2C] = {
+        .claim = i2c_claim,
+        .init = i2c_init,
+        .name = i2c_name,
+        .fill_stat = i2c_fill_stat,
+        .fopen = i2c_fopen,
+        .read = i2c_read,
+        .write = i2c_write,
+        .pread = i2c_pread,
+        .pwrite = i2c_pwrite,
+        .seek = i2c_seek,
+        .ioctl = i2c_ioctl,
+    },
+    [K_SERIAL] = {
+        .claim = serial_claim,
+        .init = serial_init,
+        .open = serial_open,
+        .fopen = serial_fopen,
+        .opendir = serial_opendir,
+        .stat = serial_stat,
+        .fstatat = serial_fstatat,
+        .statx = serial_statx,
+        .access = serial_access,
+        .faccessat = serial_faccessat,
+    },
+    [K_PWM_ATTR] = {
+        .claim = pwm_claim, /* for K_PWM_DIR too */
+        .init = pwm_init,
+        .name = pwm_attr_name,
+        .fill_stat = pwm_attr_fill_stat,
+        .open = pwm_attr_open,
+        .read = pwm_attr_read,
+        .write = pwm_attr_write,
+        .sendfile = 1,
+    },
+    [K_PWM_DIR] = {
+        .name = pwm_dir_name,
+        .fill_stat = pwm_dir_fill_stat,
+        .open = pwm_dir_open,
+        .read = pwm_dir_read,
+        .dir_start = pwm_dir_start,
+        .dir_entry = pwm_dir_entry,
+    },
+};
+
 #include "dispatch.c"
 
 /* ---------------------------------------------------------------- start-up */
@@ -147,17 +200,9 @@ __attribute__((constructor)) static void shim_init(void)
         return;
     }
     shm = p;
-    const char *b = getenv("RIG_I2C_BUSES");
-    for (; b && *b; b++) {
-        char *end;
-        long n = strtol(b, &end, 10);
-        if (end != b && n >= 0 && n < 32)
-            i2c_buses_mask |= 1u << n;
-        b = *end ? end : end - 1;
-    }
-    const char *chip = getenv("RIG_PWM_CHIP");
-    pwm_chip = chip ? atoi(chip) : 0;
-    parse_serial(getenv("RIG_SERIAL"));
+    for (int k = K_NONE + 1; k < N_KINDS; k++)
+        if (kinds[k].init)
+            kinds[k].init();
     const char *ls = getenv("RIG_LOCKSTEP");
     lockstep = ls && strcmp(ls, "1") == 0;
     const char *fk = getenv("RIG_FAKES");
