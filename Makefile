@@ -34,7 +34,8 @@ $(FMU): $(PLANT_SOURCES) | venv
 	$(PY) -m plant.build
 
 shim: $(SHIM)
-$(SHIM): rig/shim/rigshim.c rig/shim/protocol.h rig/shim/keeper.c rig/shim/build.py | venv
+# rigshim.c includes the shim's other .c files (one translation unit); keeper.c is the keeper's
+$(SHIM): $(wildcard rig/shim/*.c rig/shim/*.h) rig/shim/build.py | venv
 	$(PY) -m rig.shim.build
 
 native: $(NATIVE)

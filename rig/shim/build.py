@@ -16,9 +16,12 @@ from plant.native_build import NativeBuildError, compile_c, compile_shared, is_s
 
 SHIM_DIR = Path(__file__).resolve().parent
 REPO_ROOT = SHIM_DIR.parent.parent
-SOURCES = (SHIM_DIR / "rigshim.c", SHIM_DIR / "protocol.h")
-DEFAULT_OUT = REPO_ROOT / "build" / "librigshim.so"
 KEEPER_SOURCE = SHIM_DIR / "keeper.c"
+#: The shim's sources, the one file compiled first: rigshim.c includes every other .c here but the
+#: keeper's (one translation unit), and protocol.h. All of them decide whether the library is stale.
+SOURCES = (SHIM_DIR / "rigshim.c",
+           *sorted(p for p in SHIM_DIR.glob("*.[ch]") if p.name not in ("rigshim.c", KEEPER_SOURCE.name)))
+DEFAULT_OUT = REPO_ROOT / "build" / "librigshim.so"
 KEEPER = REPO_ROOT / "build" / "rig-keeper"
 
 

@@ -1,0 +1,84 @@
+/*
+ * The real libc functions behind the ones the shim interposes, found with dlsym(RTLD_NEXT) on first
+ * use (LOAD), and errno_ret, the -1-and-errno answer every interposer gives. Part of rigshim.c (one
+ * translation unit): see its top comment.
+ */
+
+#define REAL(name) real_##name
+#define DECLARE_REAL(ret, name, ...) static ret (*real_##name)(__VA_ARGS__)
+DECLARE_REAL(int, open, const char *, int, ...);
+DECLARE_REAL(int, open64, const char *, int, ...);
+DECLARE_REAL(int, openat, int, const char *, int, ...);
+DECLARE_REAL(int, openat64, int, const char *, int, ...);
+DECLARE_REAL(int, __open_2, const char *, int);
+DECLARE_REAL(int, __open64_2, const char *, int);
+DECLARE_REAL(int, __openat_2, int, const char *, int);
+DECLARE_REAL(int, __openat64_2, int, const char *, int);
+DECLARE_REAL(FILE *, fopen, const char *, const char *);
+DECLARE_REAL(FILE *, fopen64, const char *, const char *);
+DECLARE_REAL(int, close, int);
+DECLARE_REAL(ssize_t, read, int, void *, size_t);
+DECLARE_REAL(ssize_t, write, int, const void *, size_t);
+DECLARE_REAL(ssize_t, pread, int, void *, size_t, off_t);
+DECLARE_REAL(ssize_t, pwrite, int, const void *, size_t, off_t);
+DECLARE_REAL(ssize_t, pread64, int, void *, size_t, off_t);
+DECLARE_REAL(ssize_t, pwrite64, int, const void *, size_t, off_t);
+DECLARE_REAL(off_t, lseek, int, off_t, int);
+DECLARE_REAL(off_t, lseek64, int, off_t, int);
+DECLARE_REAL(int, ioctl, int, unsigned long, ...);
+DECLARE_REAL(int, dup, int);
+DECLARE_REAL(int, dup2, int, int);
+DECLARE_REAL(int, dup3, int, int, int);
+DECLARE_REAL(int, fcntl, int, int, ...);
+DECLARE_REAL(int, fcntl64, int, int, ...);
+DECLARE_REAL(DIR *, opendir, const char *);
+DECLARE_REAL(DIR *, fdopendir, int);
+DECLARE_REAL(struct dirent *, readdir, DIR *);
+DECLARE_REAL(struct dirent64 *, readdir64, DIR *);
+DECLARE_REAL(int, closedir, DIR *);
+DECLARE_REAL(int, dirfd, DIR *);
+DECLARE_REAL(void, rewinddir, DIR *);
+DECLARE_REAL(ssize_t, copy_file_range, int, off64_t *, int, off64_t *, size_t, unsigned int);
+DECLARE_REAL(ssize_t, sendfile, int, int, off_t *, size_t);
+DECLARE_REAL(ssize_t, sendfile64, int, int, off64_t *, size_t);
+DECLARE_REAL(int, stat, const char *, struct stat *);
+DECLARE_REAL(int, stat64, const char *, struct stat64 *);
+DECLARE_REAL(int, lstat, const char *, struct stat *);
+DECLARE_REAL(int, lstat64, const char *, struct stat64 *);
+DECLARE_REAL(int, fstat, int, struct stat *);
+DECLARE_REAL(int, fstat64, int, struct stat64 *);
+DECLARE_REAL(int, fstatat, int, const char *, struct stat *, int);
+DECLARE_REAL(int, fstatat64, int, const char *, struct stat64 *, int);
+DECLARE_REAL(int, statx, int, const char *, int, unsigned int, struct statx *);
+DECLARE_REAL(int, access, const char *, int);
+DECLARE_REAL(int, faccessat, int, const char *, int, int);
+DECLARE_REAL(int, clock_gettime, clockid_t, struct timespec *);
+DECLARE_REAL(int, gettimeofday, struct timeval *, void *);
+DECLARE_REAL(time_t, time, time_t *);
+DECLARE_REAL(int, nanosleep, const struct timespec *, struct timespec *);
+DECLARE_REAL(int, clock_nanosleep, clockid_t, int, const struct timespec *, struct timespec *);
+DECLARE_REAL(int, usleep, useconds_t);
+DECLARE_REAL(unsigned int, sleep, unsigned int);
+DECLARE_REAL(int, poll, struct pollfd *, nfds_t, int);
+DECLARE_REAL(int, ppoll, struct pollfd *, nfds_t, const struct timespec *, const sigset_t *);
+DECLARE_REAL(int, select, int, fd_set *, fd_set *, fd_set *, struct timeval *);
+DECLARE_REAL(int, pselect, int, fd_set *, fd_set *, fd_set *, const struct timespec *, const sigset_t *);
+DECLARE_REAL(int, epoll_wait, int, struct epoll_event *, int, int);
+DECLARE_REAL(int, epoll_pwait, int, struct epoll_event *, int, int, const sigset_t *);
+
+static void *resolve(const char *name)
+{
+    void *p = dlsym(RTLD_NEXT, name);
+    if (!p) {
+        fprintf(stderr, "rigshim: libc has no %s\n", name);
+        abort();
+    }
+    return p;
+}
+#define LOAD(name) ({ if (!real_##name) real_##name = resolve(#name); real_##name; })
+
+static int errno_ret(int err)
+{
+    errno = err;
+    return -1;
+}
