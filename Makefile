@@ -57,7 +57,7 @@ demo: venv fmu shim native compiled dut
 
 # our C, in one style (.clang-format); the FMI headers are vendored as they came
 C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/tests/*.c emulators/c/*.c plant/c/*.[ch] \
-	bridge/*/*.[ch] bench/*.c tests/rig/device_clients/*.c))
+	rig/shim/*.[ch] bridge/*/*.[ch] bench/*.c tests/rig/device_clients/*.c))
 
 lint: venv
 	$(VENV)/bin/ruff check .

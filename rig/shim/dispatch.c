@@ -170,14 +170,14 @@ EXPORT ssize_t sendfile64(int out, int in, off64_t *off, size_t count)
 
 /* ---------------------------------------------------------------- open and fopen */
 
-#define OPEN_MODE(flags, mode)                                                                                         \
-    do {                                                                                                               \
-        if ((flags) & (O_CREAT | __O_TMPFILE)) {                                                                       \
-            va_list ap;                                                                                                \
-            va_start(ap, flags);                                                                                       \
-            mode = va_arg(ap, mode_t);                                                                                 \
-            va_end(ap);                                                                                                \
-        }                                                                                                              \
+#define OPEN_MODE(flags, mode)                   \
+    do {                                         \
+        if ((flags) & (O_CREAT | __O_TMPFILE)) { \
+            va_list ap;                          \
+            va_start(ap, flags);                 \
+            mode = va_arg(ap, mode_t);           \
+            va_end(ap);                          \
+        }                                        \
     } while (0)
 
 /* open: the kind's, else a fake descriptor (ENOTDIR with O_DIRECTORY: a device file is no directory). */
@@ -258,7 +258,7 @@ static FILE *kind_fopen(const char *path, const struct target *t, const char *mo
     int fd = kind_open(t, flags, 0);
     if (fd < 0)
         return NULL;
-    cookie_io_functions_t io = {cookie_read, cookie_write, cookie_seek, cookie_close};
+    cookie_io_functions_t io = { cookie_read, cookie_write, cookie_seek, cookie_close };
     FILE *fp = fopencookie((void *)(intptr_t)fd, mode, io);
     if (!fp)
         close(fd);
@@ -334,9 +334,15 @@ _Static_assert(sizeof(struct stat) == sizeof(struct stat64), "struct stat64 diff
 _Static_assert(sizeof(off_t) == sizeof(off64_t), "off64_t differs from off_t");
 
 EXPORT int stat(const char *path, struct stat *st) { return stat_target(path, st, LOAD(stat)); }
-EXPORT int stat64(const char *path, struct stat64 *st) { return stat_target(path, (struct stat *)st, (stat_fn)LOAD(stat64)); }
+EXPORT int stat64(const char *path, struct stat64 *st)
+{
+    return stat_target(path, (struct stat *)st, (stat_fn)LOAD(stat64));
+}
 EXPORT int lstat(const char *path, struct stat *st) { return stat_target(path, st, LOAD(lstat)); }
-EXPORT int lstat64(const char *path, struct stat64 *st) { return stat_target(path, (struct stat *)st, (stat_fn)LOAD(lstat64)); }
+EXPORT int lstat64(const char *path, struct stat64 *st)
+{
+    return stat_target(path, (struct stat *)st, (stat_fn)LOAD(lstat64));
+}
 
 static int fstat_fake(int fd, struct stat *st, fstat_fn real)
 {
@@ -367,7 +373,10 @@ static int fstatat_target(int dirfd, const char *path, struct stat *st, int flag
     return 0;
 }
 
-EXPORT int fstatat(int dirfd, const char *path, struct stat *st, int flags) { return fstatat_target(dirfd, path, st, flags, LOAD(fstatat)); }
+EXPORT int fstatat(int dirfd, const char *path, struct stat *st, int flags)
+{
+    return fstatat_target(dirfd, path, st, flags, LOAD(fstatat));
+}
 EXPORT int fstatat64(int dirfd, const char *path, struct stat64 *st, int flags)
 {
     return fstatat_target(dirfd, path, (struct stat *)st, flags, (fstatat_fn)LOAD(fstatat64));

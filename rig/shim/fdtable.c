@@ -10,9 +10,9 @@ static char fakes_dir[PATH_MAX]; /* RIG_FAKES: the session's folder of backing f
 
 struct fake {
     struct target t;
-    int addr;   /* I2C_SLAVE */
+    int addr; /* I2C_SLAVE */
     int tenbit;
-    off_t pos;  /* PWM attribute read position */
+    off_t pos; /* PWM attribute read position */
 };
 static struct fake *fakes[MAX_FD];
 
@@ -252,7 +252,7 @@ static off_t fake_seek(struct fake *f, off_t off, int whence);
    kept (the program may still hold its pointer), and writes to the real descriptor when that is not a
    fake. The program's fclose(stdout) closes the descriptor, as its own FILE would. */
 struct std_stream {
-    FILE *orig;   /* the program's FILE, while swapped */
+    FILE *orig; /* the program's FILE, while swapped */
     FILE *cookie;
     int swapped;
 };
@@ -313,7 +313,7 @@ static int std_close(void *c)
 
 static FILE *std_cookie(int fd, FILE *like)
 {
-    cookie_io_functions_t io = {std_read, std_write, std_seek, std_close};
+    cookie_io_functions_t io = { std_read, std_write, std_seek, std_close };
     FILE *fp = fopencookie((void *)(intptr_t)fd, fd == 0 ? "r" : "w", io);
     if (!fp)
         return NULL;

@@ -81,7 +81,7 @@ static int i2c_transfer(struct fake *f, struct i2c_msg *msgs, unsigned n)
     struct rig_i2c_msg *desc = (struct rig_i2c_msg *)(out + 4);
     unsigned char *data = out + 4 + n * sizeof *desc;
     for (unsigned i = 0; i < n; i++) {
-        desc[i] = (struct rig_i2c_msg){msgs[i].addr, msgs[i].flags, msgs[i].len, 0};
+        desc[i] = (struct rig_i2c_msg){ msgs[i].addr, msgs[i].flags, msgs[i].len, 0 };
         if (!(msgs[i].flags & I2C_M_RD) && msgs[i].len) {
             memcpy(data, msgs[i].buf, msgs[i].len);
             data += msgs[i].len;
@@ -115,7 +115,7 @@ static int i2c_transfer(struct fake *f, struct i2c_msg *msgs, unsigned n)
    copied back (EFAULT if any fails, the others still copied). The messages' copies are one
    process_vm_readv, the read buffers' one process_vm_writev. */
 #define RECV_SLOT (1 + I2C_SMBUS_BLOCK_MAX + 1) /* a RECV_LEN message's count byte and data, and a spare */
-static unsigned char junk[MAX_XFER]; /* where the bytes copied in only to check them go */
+static unsigned char junk[MAX_XFER];            /* where the bytes copied in only to check them go */
 
 static int i2c_rdwr(struct fake *f, unsigned long uarg)
 {
@@ -149,10 +149,10 @@ static int i2c_rdwr(struct fake *f, unsigned long uarg)
         at += recv ? RECV_SLOT : user[i].len;
         if (!user[i].len)
             continue;
-        remote[nr++] = (struct iovec){user[i].buf, user[i].len};
-        local[nl++] = (struct iovec){k[i].buf, recv ? 1 : user[i].len};
+        remote[nr++] = (struct iovec){ user[i].buf, user[i].len };
+        local[nl++] = (struct iovec){ k[i].buf, recv ? 1 : user[i].len };
         if (recv && user[i].len > 1)
-            local[nl++] = (struct iovec){junk, user[i].len - 1u};
+            local[nl++] = (struct iovec){ junk, user[i].len - 1u };
     }
     size_t copied = user_copy(local, nl, remote, nr, 0); /* messages with a buffer copied whole */
     for (unsigned i = 0, with_buf = 0; i < n; i++) {
@@ -160,9 +160,8 @@ static int i2c_rdwr(struct fake *f, unsigned long uarg)
             return errno_ret(EINVAL);
         if (user[i].len && with_buf++ == copied)
             return errno_ret(EFAULT);
-        if ((user[i].flags & I2C_M_RECV_LEN) &&
-            (!(user[i].flags & I2C_M_RD) || user[i].len < 1 || k[i].buf[0] < 1 ||
-             user[i].len < k[i].buf[0] + I2C_SMBUS_BLOCK_MAX))
+        if ((user[i].flags & I2C_M_RECV_LEN) && (!(user[i].flags & I2C_M_RD) || user[i].len < 1 || k[i].buf[0] < 1 ||
+                                                 user[i].len < k[i].buf[0] + I2C_SMBUS_BLOCK_MAX))
             return errno_ret(EINVAL); /* i2c-dev's own check */
     }
     int err = i2c_transfer(f, k, n);
@@ -171,8 +170,8 @@ static int i2c_rdwr(struct fake *f, unsigned long uarg)
     nr = 0;
     for (unsigned i = 0; i < n; i++)
         if ((k[i].flags & I2C_M_RD) && k[i].len) {
-            local[nr] = (struct iovec){k[i].buf, k[i].len};
-            remote[nr++] = (struct iovec){user[i].buf, k[i].len};
+            local[nr] = (struct iovec){ k[i].buf, k[i].len };
+            remote[nr++] = (struct iovec){ user[i].buf, k[i].len };
         }
     for (size_t i = 0; i < nr; i++) { /* every buffer is tried, as i2c-dev does */
         i += user_copy(local + i, nr - i, remote + i, nr - i, 1);
@@ -196,10 +195,10 @@ static int i2c_smbus(struct fake *f, unsigned long uarg)
         return errno_ret(EINVAL);
     if (size > I2C_SMBUS_I2C_BLOCK_DATA)
         return errno_ret(EINVAL);
-    union i2c_smbus_data data = {0}, *d = NULL;
-    size_t datasize = size == I2C_SMBUS_BYTE || size == I2C_SMBUS_BYTE_DATA ? sizeof data.byte
+    union i2c_smbus_data data = { 0 }, *d = NULL;
+    size_t datasize = size == I2C_SMBUS_BYTE || size == I2C_SMBUS_BYTE_DATA        ? sizeof data.byte
                       : size == I2C_SMBUS_WORD_DATA || size == I2C_SMBUS_PROC_CALL ? sizeof data.word
-                                                                                  : sizeof data.block;
+                                                                                   : sizeof data.block;
     int out = size == I2C_SMBUS_PROC_CALL || size == I2C_SMBUS_BLOCK_PROC_CALL || rd;
     if (!(size == I2C_SMBUS_QUICK || (size == I2C_SMBUS_BYTE && !rd))) {
         if (!a->data)
@@ -219,7 +218,7 @@ static int i2c_smbus(struct fake *f, unsigned long uarg)
         rd = 1; /* write then read, whatever read_write says */
     uint16_t addr = (uint16_t)f->addr, ten = f->tenbit ? I2C_M_TEN : 0;
     unsigned char w[2 + I2C_SMBUS_BLOCK_MAX + 1], r[1 + I2C_SMBUS_BLOCK_MAX + 1];
-    struct i2c_msg m[2] = {{addr, ten, 1, w}, {addr, (uint16_t)(ten | I2C_M_RD), 0, r}};
+    struct i2c_msg m[2] = { { addr, ten, 1, w }, { addr, (uint16_t)(ten | I2C_M_RD), 0, r } };
     unsigned n = 2;
     w[0] = a->command;
     unsigned blk = d ? d->block[0] : 0;
@@ -354,7 +353,7 @@ static ssize_t i2c_write(struct fake *f, const void *buf, size_t n)
     size_t k = n > MAX_XFER ? MAX_XFER : n;
     if (copy_in(xfer_buf, buf, k))
         return errno_ret(EFAULT);
-    struct i2c_msg m = {(uint16_t)f->addr, (uint16_t)(f->tenbit ? I2C_M_TEN : 0), (uint16_t)k, xfer_buf};
+    struct i2c_msg m = { (uint16_t)f->addr, (uint16_t)(f->tenbit ? I2C_M_TEN : 0), (uint16_t)k, xfer_buf };
     int err = i2c_transfer(f, &m, 1);
     return err ? errno_ret(err) : (ssize_t)k;
 }
@@ -363,8 +362,7 @@ static ssize_t i2c_read(struct fake *f, void *buf, size_t n, off_t *pos)
 {
     (void)pos;
     size_t k = n > MAX_XFER ? MAX_XFER : n;
-    struct i2c_msg m = {(uint16_t)f->addr, (uint16_t)(I2C_M_RD | (f->tenbit ? I2C_M_TEN : 0)), (uint16_t)k,
-                        xfer_buf};
+    struct i2c_msg m = { (uint16_t)f->addr, (uint16_t)(I2C_M_RD | (f->tenbit ? I2C_M_TEN : 0)), (uint16_t)k, xfer_buf };
     int err = i2c_transfer(f, &m, 1);
     if (!err && copy_out(buf, xfer_buf, k))
         err = EFAULT; /* after the transfer, as i2c-dev's copy_to_user */

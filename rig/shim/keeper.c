@@ -200,7 +200,7 @@ int main(int argc, char **argv)
         }
         if (killed)
             signal_subtree(SIGKILL); /* anything forked since the last round, too */
-        struct pollfd fds[2] = {{sfd, POLLIN, 0}, {lifeline, POLLIN, 0}};
+        struct pollfd fds[2] = { { sfd, POLLIN, 0 }, { lifeline, POLLIN, 0 } };
         int timeout = -1;
         if (stopping && !killed)
             timeout = (int)(kill_at - now_ms() > 0 ? kill_at - now_ms() : 0);

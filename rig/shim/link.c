@@ -47,12 +47,12 @@ static void ensure_connected(void)
     if (sock >= 0)
         LOAD(close)(sock); /* the parent's connection, inherited by fork */
     sock = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
-    struct sockaddr_un addr = {.sun_family = AF_UNIX};
+    struct sockaddr_un addr = { .sun_family = AF_UNIX };
     strcpy(addr.sun_path, sock_path);
     if (sock < 0 || connect(sock, (struct sockaddr *)&addr, sizeof addr) < 0)
         die_session(strerror(errno));
     sock_pid = self_pid();
-    uint32_t hello[2] = {RIG_PROTOCOL_VERSION, (uint32_t)sock_pid};
+    uint32_t hello[2] = { RIG_PROTOCOL_VERSION, (uint32_t)sock_pid };
     send_msg(RIG_MSG_HELLO, hello, sizeof hello);
     struct rig_hdr h;
     if (recv_all(&h, sizeof h) < 0 || h.type != RIG_MSG_HELLO || h.len != 0)
@@ -65,9 +65,9 @@ static void ensure_connected(void)
    header it cannot act on yet), which in lockstep costs as much as the work itself. */
 static void send_msg(uint16_t type, const void *payload, uint32_t len)
 {
-    struct rig_hdr h = {.len = len, .type = type, .status = 0, .t_ns = lockstep ? now_peek() : 0};
-    struct iovec iov[2] = {{.iov_base = &h, .iov_len = sizeof h}, {.iov_base = (void *)payload, .iov_len = len}};
-    struct msghdr m = {.msg_iov = iov, .msg_iovlen = len ? 2 : 1};
+    struct rig_hdr h = { .len = len, .type = type, .status = 0, .t_ns = lockstep ? now_peek() : 0 };
+    struct iovec iov[2] = { { .iov_base = &h, .iov_len = sizeof h }, { .iov_base = (void *)payload, .iov_len = len } };
+    struct msghdr m = { .msg_iov = iov, .msg_iovlen = len ? 2 : 1 };
     size_t total = sizeof h + len;
     ssize_t k;
     do

@@ -10,10 +10,10 @@
    stay 0). */
 struct target {
     enum kind kind;
-    int bus;         /* I2C: the bus */
-    int channel;     /* PWM: the channel, -1 for the chip itself, -2 for /sys/class/pwm, -3 for its .. */
-    int attr;        /* PWM attributes: which (enum pwm_attr) */
-    const char *to;  /* serial: the pty */
+    int bus;        /* I2C: the bus */
+    int channel;    /* PWM: the channel, -1 for the chip itself, -2 for /sys/class/pwm, -3 for its .. */
+    int attr;       /* PWM attributes: which (enum pwm_attr) */
+    const char *to; /* serial: the pty */
 };
 
 struct fake; /* a fake descriptor (fdtable.c) */
@@ -39,16 +39,16 @@ struct kind_ops {
     void (*fill_stat)(const struct target *t, struct stat *st);
 
     /* calls on a path */
-    int (*open)(const struct target *t, int flags, mode_t mode);     /* a fake; O_DIRECTORY: ENOTDIR */
+    int (*open)(const struct target *t, int flags, mode_t mode); /* a fake; O_DIRECTORY: ENOTDIR */
     FILE *(*fopen)(const char *path, const struct target *t, const char *mode, fopen_fn real);
-                                                                     /* a stream through the fake */
-    DIR *(*opendir)(const char *path, const struct target *t);       /* dir_entry's stream, or ENOTDIR */
+    /* a stream through the fake */
+    DIR *(*opendir)(const char *path, const struct target *t);          /* dir_entry's stream, or ENOTDIR */
     int (*stat)(const struct target *t, struct stat *st, stat_fn real); /* stat, lstat: fill_stat */
     int (*fstatat)(int dirfd, const struct target *t, struct stat *st, int flags, fstatat_fn real);
-                                                                     /* fill_stat */
+    /* fill_stat */
     int (*statx)(int dirfd, const struct target *t, int flags, unsigned int mask, struct statx *sx);
-                                                                     /* fill_stat's fields */
-    int (*access)(const struct target *t, int amode);                /* by fill_stat's mode */
+    /* fill_stat's fields */
+    int (*access)(const struct target *t, int amode);                          /* by fill_stat's mode */
     int (*faccessat)(int dirfd, const struct target *t, int amode, int flags); /* as access */
 
     /* calls on a fake descriptor */
@@ -84,7 +84,7 @@ static int parse_uint(const char *s, const char **end)
    not (a pwmN the program has unexported since, as an open file outlives its name). */
 static struct target classify_path(const char *path, int inherited)
 {
-    struct target t = {.kind = K_NONE};
+    struct target t = { .kind = K_NONE };
     if (!active || !path)
         return t;
     for (int k = K_NONE + 1; k < N_KINDS; k++)
@@ -98,7 +98,7 @@ static struct target classify(const char *path) { return classify_path(path, 0);
 /* Only absolute paths are redirected (openat with a directory and a relative path passes through). */
 static struct target classify_abs(const char *path)
 {
-    return path && path[0] == '/' ? classify(path) : (struct target){.kind = K_NONE};
+    return path && path[0] == '/' ? classify(path) : (struct target){ .kind = K_NONE };
 }
 
 static int is_empty(const char *path) { return path && path[0] == 0; }

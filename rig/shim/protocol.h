@@ -75,13 +75,13 @@ struct rig_pwm_state {
 struct rig_shm {
     uint64_t magic;
     uint32_t version;
-    uint32_t npwm;         /* channels of pwmchip0 */
-    uint64_t sim_ns;       /* lockstep: the one clock; the shim adds quantum_ns per clock read */
+    uint32_t npwm;   /* channels of pwmchip0 */
+    uint64_t sim_ns; /* lockstep: the one clock; the shim adds quantum_ns per clock read */
     uint64_t quantum_ns;
     uint64_t epoch_ns;     /* CLOCK_REALTIME at sim time 0 */
     uint64_t mono_base_ns; /* CLOCK_MONOTONIC at sim time 0 */
     struct rig_pwm_state pwm[RIG_PWM_MAX];
-    uint64_t limit_ns;     /* lockstep: the run ends here (--duration or --sim-timeout); a clock read
+    uint64_t limit_ns; /* lockstep: the run ends here (--duration or --sim-timeout); a clock read
                               that reaches it asks the session, which ends the run */
 };
 #define RIG_SHM_LIMIT_OFFSET 560 /* offsetof(struct rig_shm, limit_ns), for the Python side */

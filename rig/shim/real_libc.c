@@ -75,7 +75,12 @@ static void *resolve(const char *name)
     }
     return p;
 }
-#define LOAD(name) ({ if (!real_##name) real_##name = resolve(#name); real_##name; })
+#define LOAD(name)                        \
+    ({                                    \
+        if (!real_##name)                 \
+            real_##name = resolve(#name); \
+        real_##name;                      \
+    })
 
 static int errno_ret(int err)
 {

@@ -83,8 +83,8 @@
 
 /* ---------------------------------------------------------------- what every part shares */
 
-static int active;              /* RIG_SOCKET set: redirect */
-static int lockstep;            /* RIG_LOCKSTEP=1: virtual time */
+static int active;   /* RIG_SOCKET set: redirect */
+static int lockstep; /* RIG_LOCKSTEP=1: virtual time */
 static struct rig_shm *shm;
 static pthread_mutex_t lock = PTHREAD_MUTEX_INITIALIZER;
 
@@ -102,18 +102,23 @@ static pid_t self_pid(void)
 
 /* ---------------------------------------------------------------- the parts, in order */
 
+/* the parts in the order they need each other (not sorted) */
+// clang-format off
 #include "real_libc.c"
 #include "link.c"
 #include "vtime.c"
 #include "usermem.c"
+// clang-format on
 
 /* The device kinds, in the order they look at a path (the first to claim it decides): each is a file
    included below and a row in kinds[]. */
 enum kind { K_NONE, K_I2C, K_SERIAL, K_PWM_ATTR, K_PWM_DIR, N_KINDS };
 
+// clang-format off
 #include "paths.c"
 #include "fdtable.c"
 #include "fakedir.c"
+// clang-format on
 
 /* the kinds */
 #include "i2cdev.c"

@@ -20,7 +20,8 @@ static void parse_serial(const char *spec)
         const char *end = strchr(spec, ':');
         size_t n = end ? (size_t)(end - spec) : strlen(spec);
         const char *eq = memchr(spec, '=', n);
-        if (eq && (size_t)(eq - spec) < sizeof serial_map[0].from && n - (size_t)(eq - spec) - 1 < sizeof serial_map[0].to) {
+        if (eq && (size_t)(eq - spec) < sizeof serial_map[0].from &&
+            n - (size_t)(eq - spec) - 1 < sizeof serial_map[0].to) {
             memcpy(serial_map[n_serial].from, spec, (size_t)(eq - spec));
             memcpy(serial_map[n_serial].to, eq + 1, n - (size_t)(eq - spec) - 1);
             n_serial++;

@@ -10,8 +10,8 @@ static int pwm_chip;
 
 enum pwm_attr { A_EXPORT, A_UNEXPORT, A_NPWM, A_PERIOD, A_DUTY, A_ENABLE, A_POLARITY };
 #define N_ATTRS (A_POLARITY + 1)
-static const char *const attr_names[N_ATTRS] = {"export", "unexport", "npwm", "period", "duty_cycle", "enable",
-                                                "polarity"};
+static const char *const attr_names[N_ATTRS] = { "export",     "unexport", "npwm",    "period",
+                                                 "duty_cycle", "enable",   "polarity" };
 
 static void pwm_init(void)
 {
@@ -190,7 +190,7 @@ static ssize_t pwm_attr_write(struct fake *f, const void *buf, size_t n)
         return errno_ret(EFAULT);
     const char *s = (const char *)xfer_buf;
     uint64_t v = 0;
-    struct rig_pwm_msg msg = {.chip = (uint16_t)pwm_chip, .channel = (uint16_t)(f->t.channel < 0 ? 0 : f->t.channel)};
+    struct rig_pwm_msg msg = { .chip = (uint16_t)pwm_chip, .channel = (uint16_t)(f->t.channel < 0 ? 0 : f->t.channel) };
     pthread_mutex_lock(&lock);
     int err = 0;
     struct rig_pwm_state *p = f->t.channel >= 0 ? &shm->pwm[f->t.channel] : NULL;
@@ -209,7 +209,7 @@ static ssize_t pwm_attr_write(struct fake *f, const void *buf, size_t n)
         else if (f->t.attr == A_EXPORT)
             p->exported = 1;
         else
-            *p = (struct rig_pwm_state){0}; /* unexport turns the output off */
+            *p = (struct rig_pwm_state){ 0 }; /* unexport turns the output off */
         msg.channel = (uint16_t)v;
         msg.attr = f->t.attr == A_EXPORT ? RIG_PWM_EXPORT : RIG_PWM_UNEXPORT;
         break;

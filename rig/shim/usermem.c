@@ -65,7 +65,7 @@ static size_t copy_by_memcpy(const struct iovec *local, size_t nl, const struct 
             if (li == nl)
                 return i;
             size_t k = remote[i].iov_len - roff < local[li].iov_len - loff ? remote[i].iov_len - roff
-                                                                          : local[li].iov_len - loff;
+                                                                           : local[li].iov_len - loff;
             char *r = (char *)remote[i].iov_base + roff, *l = (char *)local[li].iov_base + loff;
             memcpy(to_user ? r : l, to_user ? l : r, k);
             roff += k;
@@ -98,7 +98,8 @@ static size_t user_copy(const struct iovec *local, size_t nl, const struct iovec
         int err = errno;
         __atomic_store_n(&uaccess_memcpy, 1, __ATOMIC_RELAXED);
         note("process_vm_readv/writev refused (%s): the shim copies with memcpy, so a bad pointer handed to an "
-             "emulated device may crash the command where the kernel says EFAULT", strerror(err));
+             "emulated device may crash the command where the kernel says EFAULT",
+             strerror(err));
     }
     return copy_by_memcpy(local, nl, remote, nr, to_user);
 }
@@ -106,13 +107,13 @@ static size_t user_copy(const struct iovec *local, size_t nl, const struct iovec
 /* One piece: 0 or EFAULT. */
 static int copy_in(void *dst, const void *user, size_t n)
 {
-    struct iovec l = {dst, n}, r = {(void *)user, n};
+    struct iovec l = { dst, n }, r = { (void *)user, n };
     return user_copy(&l, 1, &r, 1, 0) == 1 ? 0 : EFAULT;
 }
 
 static int copy_out(void *user, const void *src, size_t n)
 {
-    struct iovec l = {(void *)src, n}, r = {user, n};
+    struct iovec l = { (void *)src, n }, r = { user, n };
     return user_copy(&l, 1, &r, 1, 1) == 1 ? 0 : EFAULT;
 }
 

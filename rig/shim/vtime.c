@@ -73,7 +73,7 @@ static void clock_advance_to(uint64_t t_ns)
 
 static uint32_t wait_until(uint64_t wake_ns, uint32_t kind)
 {
-    struct wait_req req = {wake_ns, kind, 0};
+    struct wait_req req = { wake_ns, kind, 0 };
     uint32_t reason = RIG_WAKE_DEADLINE;
     pthread_mutex_lock(&lock);
     struct rig_hdr h = request(RIG_MSG_WAIT, &req, sizeof req, &reason, sizeof reason);
@@ -90,7 +90,7 @@ static uint32_t wait_until(uint64_t wake_ns, uint32_t kind)
 static void sleep_until(uint64_t wake_ns)
 {
     if (now_peek() < wake_ns && !__atomic_load_n(&ahead, __ATOMIC_ACQUIRE)) {
-        struct wait_req req = {wake_ns, RIG_WAIT_AHEAD, 0};
+        struct wait_req req = { wake_ns, RIG_WAIT_AHEAD, 0 };
         pthread_mutex_lock(&lock);
         ensure_connected();
         send_msg(RIG_MSG_WAIT, &req, sizeof req); /* stamped with the time the sleep began */
@@ -111,7 +111,10 @@ static void catch_up(void)
         wait_until(now_peek(), RIG_WAIT_SLEEP);
 }
 
-static int valid_ts(const struct timespec *ts) { return ts && ts->tv_sec >= 0 && ts->tv_nsec >= 0 && ts->tv_nsec < (long)NS; }
+static int valid_ts(const struct timespec *ts)
+{
+    return ts && ts->tv_sec >= 0 && ts->tv_nsec >= 0 && ts->tv_nsec < (long)NS;
+}
 
 EXPORT int clock_gettime(clockid_t id, struct timespec *ts)
 {
@@ -192,7 +195,10 @@ EXPORT unsigned int sleep(unsigned int s)
 
 /* The waits with timeouts: look (without waiting) for a ready descriptor; if none, let sim time run
    to the deadline or the session's next event (data it writes to a pty), and look again. */
-static uint64_t deadline_ms(int timeout_ms) { return timeout_ms < 0 ? RIG_WAIT_FOREVER : now_peek() + (uint64_t)timeout_ms * 1000000u; }
+static uint64_t deadline_ms(int timeout_ms)
+{
+    return timeout_ms < 0 ? RIG_WAIT_FOREVER : now_peek() + (uint64_t)timeout_ms * 1000000u;
+}
 
 static int wait_done(uint64_t deadline)
 {
@@ -223,7 +229,7 @@ EXPORT int __poll_chk(struct pollfd *fds, nfds_t n, int timeout, size_t fdslen)
 
 EXPORT int ppoll(struct pollfd *fds, nfds_t n, const struct timespec *tmo, const sigset_t *mask)
 {
-    static const struct timespec zero = {0, 0};
+    static const struct timespec zero = { 0, 0 };
     catch_up();
     if (!virtual_clock(CLOCK_MONOTONIC) || (tmo && tmo->tv_sec == 0 && tmo->tv_nsec == 0))
         return LOAD(ppoll)(fds, n, tmo, mask);
@@ -239,22 +245,29 @@ EXPORT int ppoll(struct pollfd *fds, nfds_t n, const struct timespec *tmo, const
     }
 }
 
-static int select_virtual(int nfds, fd_set *r, fd_set *w, fd_set *e, uint64_t deadline, const sigset_t *mask, int use_pselect)
+static int select_virtual(int nfds, fd_set *r, fd_set *w, fd_set *e, uint64_t deadline, const sigset_t *mask,
+                          int use_pselect)
 {
     fd_set r0, w0, e0;
-    if (r) r0 = *r;
-    if (w) w0 = *w;
-    if (e) e0 = *e;
+    if (r)
+        r0 = *r;
+    if (w)
+        w0 = *w;
+    if (e)
+        e0 = *e;
     for (;;) {
-        if (r) *r = r0;
-        if (w) *w = w0;
-        if (e) *e = e0;
+        if (r)
+            *r = r0;
+        if (w)
+            *w = w0;
+        if (e)
+            *e = e0;
         int res;
         if (use_pselect) {
-            struct timespec zero = {0, 0};
+            struct timespec zero = { 0, 0 };
             res = LOAD(pselect)(nfds, r, w, e, &zero, mask);
         } else {
-            struct timeval zero = {0, 0};
+            struct timeval zero = { 0, 0 };
             res = LOAD(select)(nfds, r, w, e, &zero);
         }
         if (res != 0 || wait_done(deadline))
@@ -271,7 +284,8 @@ EXPORT int select(int nfds, fd_set *r, fd_set *w, fd_set *e, struct timeval *tmo
         errno = EINVAL;
         return -1;
     }
-    uint64_t deadline = tmo ? now_peek() + (uint64_t)tmo->tv_sec * NS + (uint64_t)tmo->tv_usec * 1000u : RIG_WAIT_FOREVER;
+    uint64_t deadline =
+        tmo ? now_peek() + (uint64_t)tmo->tv_sec * NS + (uint64_t)tmo->tv_usec * 1000u : RIG_WAIT_FOREVER;
     int res = select_virtual(nfds, r, w, e, deadline, NULL, 0);
     if (tmo && res >= 0)
         tmo->tv_sec = tmo->tv_usec = 0; /* Linux reports the time left; a woken select is close enough to 0 */
