@@ -43,6 +43,18 @@ def encode(channels: list[int], frame_lost: bool = False, failsafe: bool = False
     return bytes([HEADER]) + acc.to_bytes(22, "little") + bytes([flags, FOOTER])
 
 
+FRAME_BYTES: Final = 25
+
+
+def decode(frame: bytes) -> tuple[list[int], int]:
+    """A frame's 16 channels and its flags byte; ValueError for bytes that are not one frame (a bridge
+    re-encodes what the host decoded, so the two must be exact inverses)."""
+    if len(frame) != FRAME_BYTES or frame[0] != HEADER or frame[-1] != FOOTER:
+        raise ValueError(f"not an SBUS frame: {frame.hex()}")
+    acc = int.from_bytes(frame[1:23], "little")
+    return [(acc >> (11 * i)) & 0x7FF for i in range(CHANNELS)], frame[23]
+
+
 @dataclass
 class Sticks:
     roll: float = 0.0
