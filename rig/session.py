@@ -288,19 +288,8 @@ class Session:
         return self._outcome(returncode, wall0)
 
     def _dut_env(self, shim: Path, tmp: Path) -> dict[str, str]:
-        env = dict(self.cfg.env if self.cfg.env is not None else os.environ)
-        preload = env.get("LD_PRELOAD", "")
-        env.update({
-            "LD_PRELOAD": f"{shim} {preload}".strip(),
-            "RIG_SOCKET": str(tmp / "rig.sock"),
-            "RIG_SHM": str(tmp / "shm"),
-            "RIG_LOCKSTEP": "1" if self.cfg.lockstep else "0",
-            "RIG_I2C_BUSES": str(self.cfg.i2c_bus),
-            "RIG_PWM_CHIP": "0",
-            "RIG_SERIAL": ":".join(f"{p}={pty.slave_name}" for p, pty in self._ptys.items()),
-            "RIG_FAKES": str((tmp / "fakes").resolve()),
-        })
-        return env
+        return dut_env(self.cfg.env, shim, tmp / "rig.sock", tmp / "shm", self.cfg.lockstep, self.cfg.i2c_bus,
+                       {p: pty.slave_name for p, pty in self._ptys.items()}, tmp / "fakes")
 
     def _report_bypassed_bytes(self, fakes: Path) -> None:
         """The shim backs each emulated descriptor with a file of its own in ``fakes`` (named after the
@@ -513,6 +502,25 @@ class Session:
         return Outcome(verdict, code, error, returncode, sim, self.world.time_ns / NS,
                        time.perf_counter() - wall0, counts[0], counts[1], self._n_conns, notes,
                        self.malformed, self.world.outputs(), counts[2], events, late, worst, p99)
+
+
+def dut_env(base: dict[str, str] | None, shim: Path, socket_path: Path | str, shm: Path | str, lockstep: bool,
+            i2c_bus: int, serial: dict[str, str], fakes: Path) -> dict[str, str]:
+    """The DUT's environment: the shim preloaded and told where its session (or a virtual bridge's
+    board side) listens, the clock page, the emulated bus, and which pty serves each serial path."""
+    env = dict(base if base is not None else os.environ)
+    preload = env.get("LD_PRELOAD", "")
+    env.update({
+        "LD_PRELOAD": f"{shim} {preload}".strip(),
+        "RIG_SOCKET": str(socket_path),
+        "RIG_SHM": str(shm),
+        "RIG_LOCKSTEP": "1" if lockstep else "0",
+        "RIG_I2C_BUSES": str(i2c_bus),
+        "RIG_PWM_CHIP": "0",
+        "RIG_SERIAL": ":".join(f"{path}={tty}" for path, tty in serial.items()),
+        "RIG_FAKES": str(fakes.resolve()),
+    })
+    return env
 
 
 def _pending_input(fd: int) -> int:
