@@ -20,6 +20,7 @@ from pathlib import Path
 from emulators.topology import TOPOLOGIES
 from plant.variables import PARAMETERS, check_parameters
 from rig import interrupts
+from rig.bridge.session import BenchConfig, BenchSession
 from rig.session import Session, SessionConfig
 from rig.world import World
 
@@ -68,6 +69,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("exec", help="run a command with the emulated devices attached (lockstep by default)",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--realtime", action="store_true", help="follow the wall clock instead of virtual time")
+    p.add_argument("--bridge", metavar="PORT|virtual",
+                   help="the devices are a bridge's (real time): 'virtual' runs build/vbridge and the "
+                        "command against it (behind a real bridge's port is a board, not a command)")
     p.add_argument("--bus", type=int, default=1, metavar="N",
                    help="emulated bus number (/dev/i2c-N; default 1)")
     p.add_argument("--topology", choices=TOPOLOGIES, default="gy86")
@@ -121,9 +125,18 @@ def main(args: argparse.Namespace) -> int:
                         allow_no_devices=args.allow_no_devices)
     world = World.at_rest(seed=args.seed, topology=args.topology, noise=not args.no_noise,
                           params=dict(args.param), pwm_channels=args.pwm_channels)
+    if args.bridge is not None and args.bridge != "virtual":
+        parser.error("a command runs against the virtual bridge only (--bridge virtual); behind a real "
+                     "bridge the board is the DUT: use rig run --bridge PORT")
     try:
         with interrupts.handled():
-            outcome = Session(cfg, world).run()
+            if args.bridge is not None:
+                bench = BenchConfig(bridge=args.bridge, command=command, serial=args.serial,
+                                    i2c_bus=args.bus, topology=args.topology, duration=args.duration,
+                                    sim_timeout=args.sim_timeout, wall_timeout=args.wall_timeout)
+                outcome = BenchSession(bench, world).run()
+            else:
+                outcome = Session(cfg, world).run()
     finally:
         world.close()
     for note in outcome.notes:
