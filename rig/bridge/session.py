@@ -91,6 +91,7 @@ class BenchSession:
         self.notes: list[str] = []
         self.on_reg_write = on_reg_write
         self.port: BridgePort | None = None
+        self.vbridge: VirtualBridge | None = None  # with --bridge virtual, while the run lasts
         self._ptys: dict[str, _Pty] = {}
         self._t0_ns = 0  # host monotonic ns at sim time 0
         self._sync_id = 0
@@ -157,7 +158,7 @@ class BenchSession:
             with interrupts.live():
                 try:
                     if cfg.bridge == "virtual":
-                        vbridge = VirtualBridge()
+                        vbridge = self.vbridge = VirtualBridge()
                     elif cfg.command is not None:
                         raise BridgeError("a command runs against the virtual bridge only (--bridge "
                                           "virtual); on a bench the board is the DUT")
