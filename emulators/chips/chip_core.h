@@ -28,6 +28,11 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+/* what a build may put before every entry point (the rig's library exports them for ctypes) */
+#ifndef CHIP_API
+#define CHIP_API
+#endif
+
 #define CHIP_ADDR_MPU 0x68
 #define CHIP_ADDR_HMC 0x1E
 #define CHIP_ADDR_BARO 0x77
@@ -120,6 +125,7 @@ typedef struct {
     uint8_t anchor_mpu;
     uint8_t osr;
     uint8_t t_thirds;
+    uint8_t hmc_start; /* HMC: what the anchor was: CHIP_HMC_START_POWER_ON, _CONTINUOUS or _SINGLE */
     uint32_t count;
     uint32_t anchor;
     uint32_t epoch;
@@ -128,6 +134,12 @@ typedef struct {
     uint64_t anchor_ns;
     uint64_t target_ns;
 } chip_need;
+
+/* need.hmc_start: the first measurement after an anchor is due POWER_ON_S after power-on, two periods
+ * after a continuous-mode start, SINGLE_S after a single-measurement start; then one period apart */
+#define CHIP_HMC_START_POWER_ON 0
+#define CHIP_HMC_START_CONTINUOUS 1
+#define CHIP_HMC_START_SINGLE 2
 
 typedef struct {
     uint8_t kind;
@@ -164,6 +176,7 @@ typedef struct {
     bool has_next;
     uint64_t now_thirds, next_thirds, anchor_thirds; /* times in thirds of a ns: the rates are exact */
     bool anchor_mpu;
+    uint8_t start_kind;
     uint32_t anchor, index; /* restarts so far; the next measurement's index since the anchor */
     uint16_t gain_effective;
     uint8_t bitmap;
@@ -204,41 +217,41 @@ typedef struct {
 } chip_board;
 
 /* ---- set-up ---- */
-void chip_board_init(chip_board *b, uint8_t topology); /* power-on state at time 0, demand off */
-void chip_board_demand(chip_board *b, bool on);
-void chip_ms5611_prom(chip_board *b, const uint16_t words[8]);
-void chip_ms5611_max_timing(chip_board *b, bool on); /* the datasheet's maximum conversion times */
-void chip_hmc_status_wraps(chip_board *b, bool on);  /* pointer after STATUS (0x09) goes to 0x03 */
-bool chip_bus_fault_add(chip_board *b, uint8_t chip, uint8_t kind, uint64_t start_ns, uint64_t end_ns,
-                        uint64_t period_ns, uint64_t duty_ns); /* false when the chip has no room */
-void chip_bus_fault_seed(chip_board *b, uint8_t chip, uint64_t seed);
-void chip_bus_fault_clear(chip_board *b, uint8_t chip);
+CHIP_API void chip_board_init(chip_board *b, uint8_t topology); /* power-on state at time 0, demand off */
+CHIP_API void chip_board_demand(chip_board *b, bool on);
+CHIP_API void chip_ms5611_prom(chip_board *b, const uint16_t words[8]);
+CHIP_API void chip_ms5611_max_timing(chip_board *b, bool on); /* the datasheet's maximum conversion times */
+CHIP_API void chip_hmc_status_wraps(chip_board *b, bool on);  /* pointer after STATUS (0x09) goes to 0x03 */
+CHIP_API bool chip_bus_fault_add(chip_board *b, uint8_t chip, uint8_t kind, uint64_t start_ns, uint64_t end_ns,
+                                 uint64_t period_ns, uint64_t duty_ns); /* false when the chip has no room */
+CHIP_API void chip_bus_fault_seed(chip_board *b, uint8_t chip, uint64_t seed);
+CHIP_API void chip_bus_fault_clear(chip_board *b, uint8_t chip);
 
 /* ---- samples ---- (false: the queue is full, nothing pushed) */
-bool chip_push_imu(chip_board *b, uint64_t valid_ns, const double v[7]);
-bool chip_push_mag(chip_board *b, uint64_t valid_ns, const double field[3]);
-bool chip_push_baro(chip_board *b, uint64_t valid_ns, uint32_t d1, uint32_t d2);
+CHIP_API bool chip_push_imu(chip_board *b, uint64_t valid_ns, const double v[7]);
+CHIP_API bool chip_push_mag(chip_board *b, uint64_t valid_ns, const double field[3]);
+CHIP_API bool chip_push_baro(chip_board *b, uint64_t valid_ns, uint32_t d1, uint32_t d2);
 
 /* ---- time ---- Runs every chip up to now_ns (sample instants, aux master, FIFO, measurements,
  * conversions); an earlier time does nothing. Returns need.chip == CHIP_NONE when done; in demand
  * mode it may stop before an instant it lacks a sample for and return what it needs. */
-chip_need chip_advance(chip_board *b, uint64_t now_ns);
+CHIP_API chip_need chip_advance(chip_board *b, uint64_t now_ns);
 
 /* ---- bus: byte-level events ---- chip_start advances to t_ns, stops the chip addressed before if
  * another one is, and returns whether addr acknowledged. Bytes go to the chip of the last
  * acknowledged START; chip_stop ends the transfer. */
-bool chip_start(chip_board *b, uint64_t t_ns, uint8_t addr, bool read);
-void chip_write_byte(chip_board *b, uint8_t byte);
-uint8_t chip_read_byte(chip_board *b);
-void chip_stop(chip_board *b);
+CHIP_API bool chip_start(chip_board *b, uint64_t t_ns, uint8_t addr, bool read);
+CHIP_API void chip_write_byte(chip_board *b, uint8_t byte);
+CHIP_API uint8_t chip_read_byte(chip_board *b);
+CHIP_API void chip_stop(chip_board *b);
 
 /* ---- bus: one Linux I2C transfer at t_ns ---- CHIP_OK, CHIP_NACK / CHIP_PROTOCOL (message index in
  * *failed), or CHIP_NEED (demand mode; nothing done, *need filled). */
-int chip_transfer(chip_board *b, uint64_t t_ns, chip_msg *msgs, uint32_t n, chip_need *need, uint32_t *failed);
+CHIP_API int chip_transfer(chip_board *b, uint64_t t_ns, chip_msg *msgs, uint32_t n, chip_need *need, uint32_t *failed);
 
 /* ---- looking in ---- */
-uint8_t chip_peek(const chip_board *b, uint8_t chip, uint8_t reg); /* a register as stored, no side effect */
-bool chip_mpu_bypass(const chip_board *b);                         /* 0x1E reachable on the main bus (GY-86) */
-uint32_t chip_count(const chip_board *b, uint8_t counter);
+CHIP_API uint8_t chip_peek(const chip_board *b, uint8_t chip, uint8_t reg); /* a register as stored, no side effect */
+CHIP_API bool chip_mpu_bypass(const chip_board *b);                         /* 0x1E reachable on the main bus (GY-86) */
+CHIP_API uint32_t chip_count(const chip_board *b, uint8_t counter);
 
 #endif
