@@ -183,9 +183,8 @@ void chip_stop(chip_board *b)
     b->current = CHIP_NONE;
 }
 
-bool chip_start(chip_board *b, uint64_t t_ns, uint8_t addr, bool read)
+static bool start(chip_board *b, uint64_t t_ns, uint8_t addr, bool read)
 {
-    (void)chip_advance(b, t_ns);
     uint8_t chip = resolve(b, addr);
     if (chip != CHIP_NONE && !acks(b, chip, t_ns))
         chip = CHIP_NONE;
@@ -204,6 +203,15 @@ bool chip_start(chip_board *b, uint64_t t_ns, uint8_t addr, bool read)
     else
         baro_start(&b->baro, read);
     return true;
+}
+
+/* Time moves only when a START comes later than the last one: a transfer's repeated STARTs, and one
+ * after chip_advance at the same time, do not sample again (the Python bus advances once a transfer). */
+bool chip_start(chip_board *b, uint64_t t_ns, uint8_t addr, bool read)
+{
+    if (t_ns > b->now_ns)
+        (void)chip_advance(b, t_ns);
+    return start(b, t_ns, addr, read);
 }
 
 void chip_write_byte(chip_board *b, uint8_t byte)
@@ -245,7 +253,7 @@ int chip_transfer(chip_board *b, uint64_t t_ns, chip_msg *msgs, uint32_t n, chip
     for (uint32_t i = 0; i < n; i++) {
         chip_msg *msg = &msgs[i];
         bool read = msg->flags & CHIP_MSG_READ;
-        if (!chip_start(b, t_ns, msg->addr, read)) {
+        if (!start(b, t_ns, msg->addr, read)) {
             if (failed)
                 *failed = i;
             return CHIP_NACK;

@@ -237,7 +237,8 @@ CHIP_API bool chip_push_baro(chip_board *b, uint64_t valid_ns, uint32_t d1, uint
  * mode it may stop before an instant it lacks a sample for and return what it needs. */
 CHIP_API chip_need chip_advance(chip_board *b, uint64_t now_ns);
 
-/* ---- bus: byte-level events ---- chip_start advances to t_ns, stops the chip addressed before if
+/* ---- bus: byte-level events ---- chip_start advances to t_ns when that is later than the last time
+ * (a repeated START at the same time does not sample again), stops the chip addressed before if
  * another one is, and returns whether addr acknowledged. Bytes go to the chip of the last
  * acknowledged START; chip_stop ends the transfer. */
 CHIP_API bool chip_start(chip_board *b, uint64_t t_ns, uint8_t addr, bool read);
