@@ -20,7 +20,7 @@ COMPILED_SOURCES := $(shell $(PYTHON) rig/compiled.py --sources)
 
 DUT_BIN := build/dut/fc
 
-.PHONY: all venv fmu shim native compiled dut demo test test-slow lint bench clean
+.PHONY: all venv fmu shim native chips compiled dut demo test test-slow lint bench clean
 
 all: fmu shim native compiled dut
 
@@ -39,8 +39,13 @@ $(SHIM): $(wildcard rig/shim/*.c rig/shim/*.h) rig/shim/build.py | venv
 	$(PY) -m rig.shim.build
 
 native: $(NATIVE)
-build/_rignative$(EXT): emulators/c/fastcalls.c emulators/c/sampling.c emulators/native.py plant/native_build.py | venv
+# the chip core is compiled into the same library, with its register tables generated from the Python
+# ones (emulators/chips/gen.py): any of them changing rebuilds it
+CHIP_FILES := $(wildcard emulators/chips/*.c emulators/chips/*.h) emulators/chips/gen.py emulators/registers.py \
+	emulators/mpu6050.py emulators/hmc5883l.py emulators/ms5611.py
+build/_rignative$(EXT): emulators/c/fastcalls.c emulators/c/sampling.c $(CHIP_FILES) emulators/native.py plant/native_build.py | venv
 	$(PY) -m emulators.native
+chips: build/_rignative$(EXT)
 build/_plantsteps$(EXT): plant/c/steps_module.c plant/c/plant_steps.c plant/steps.py plant/native_build.py | venv
 	$(PY) -m plant.steps
 
@@ -56,7 +61,7 @@ demo: venv fmu shim native compiled dut
 	$(VENV)/bin/rig run --out build/reports
 
 # our C, in one style (.clang-format); the FMI headers are vendored as they came
-C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/tests/*.c emulators/c/*.c plant/c/*.[ch] \
+C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/tests/*.c emulators/c/*.c emulators/chips/*.[ch] plant/c/*.[ch] \
 	rig/shim/*.[ch] bridge/*/*.[ch] bench/*.c tests/rig/device_clients/*.c))
 
 lint: venv

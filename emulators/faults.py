@@ -24,6 +24,18 @@ BUS_TARGETS = ("mpu", "hmc", "baro_bus")
 TARGETS = SIGNAL_TARGETS + BUS_TARGETS
 
 
+_MASK64 = (1 << 64) - 1
+
+
+def splitmix64(state: int) -> tuple[int, int]:
+    """One step of splitmix64: (the new state, the output)."""
+    state = (state + 0x9E3779B97F4A7C15) & _MASK64
+    z = state
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & _MASK64
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _MASK64
+    return state, z ^ (z >> 31)
+
+
 @dataclass(frozen=True)
 class Fault:
     """``magnitude`` means: noise_burst sigma, bias_step offset, drift rate per second, scale_error
@@ -78,11 +90,13 @@ class FaultSet:
     faults: list[Fault] = field(default_factory=list)
     seed: int = 0
     _rng: np.random.Generator = field(init=False)
+    _garbage: int = field(default=0, init=False)  # splitmix64 state of the garbage bytes
     _stuck: dict[int, tuple[float, ...]] = field(default_factory=dict)
     _history: deque[tuple[float, tuple[float, ...]]] = field(default_factory=deque)
 
     def __post_init__(self) -> None:
         self._rng = np.random.default_rng(self.seed)
+        self._garbage = self.seed & _MASK64
 
     def add(self, fault: Fault) -> None:
         self.faults.append(fault)
@@ -100,8 +114,14 @@ class FaultSet:
         return True
 
     def garble(self, t: float, data: bytes) -> bytes:
+        """Random bytes in place of ``data`` while a garbage fault is on: splitmix64 seeded with the
+        set's seed, one draw per byte (its top 8 bits), the stream the chip core draws too."""
         if any(f.kind == "garbage" and f.active(t) for f in self.faults):
-            return bytes(self._rng.integers(0, 256, len(data), dtype=np.uint8))
+            out = bytearray()
+            for _ in range(len(data)):
+                self._garbage, z = splitmix64(self._garbage)
+                out.append(z >> 56)
+            return bytes(out)
         return data
 
     # ---- signal faults -----------------------------------------------------------------------

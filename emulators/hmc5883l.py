@@ -7,7 +7,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Final
 
-from emulators.registers import RegisterMap, RegisterSpec, round_half_away
+from emulators.registers import SAME_INSTANT, RegisterMap, RegisterSpec, round_half_away
 
 ADDRESS: Final = 0x1E
 GAINS = (1370, 1090, 820, 660, 440, 390, 330, 230)  # LSB/Ga by CRB.GN, docs/sensors.md §4.5
@@ -80,7 +80,7 @@ class HMC5883L:
     def advance_to(self, t: float) -> None:
         if t < self.now:
             return
-        while self._next_t is not None and self._next_t <= t:
+        while self._next_t is not None and self._next_t <= t + SAME_INSTANT:
             self.now = self._next_t
             self._measure()
             if self.mode == 0:

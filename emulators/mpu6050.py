@@ -14,6 +14,8 @@ from typing import Final, NamedTuple
 import numpy as np
 
 from emulators import native
+from emulators.dlpf import DLPF
+from emulators.dlpf import LowPass as _LowPass
 from emulators.i2c_bus import I2CDevice
 from emulators.registers import RegisterMap, RegisterSpec
 
@@ -21,10 +23,6 @@ ADDRESS: Final = 0x68
 G0: Final = 9.80665
 ACCEL_LSB_PER_G = (16384.0, 8192.0, 4096.0, 2048.0)
 GYRO_LSB_PER_DPS = (131.0, 65.5, 32.8, 16.4)
-#: DLPF_CFG -> (accel bandwidth Hz, accel delay s, gyro bandwidth Hz, gyro delay s), docs/sensors.md §3.5.
-DLPF = ((260, 0.0, 256, 0.98e-3), (184, 2.0e-3, 188, 1.9e-3), (94, 3.0e-3, 98, 2.8e-3),
-               (44, 4.9e-3, 42, 4.8e-3), (21, 8.5e-3, 20, 8.3e-3), (10, 13.8e-3, 10, 13.4e-3),
-               (5, 19.0e-3, 5, 18.6e-3), (260, 0.0, 256, 0.98e-3))
 FIFO_SIZE: Final = 1024
 BLOCK = native.BLOCK
 
@@ -118,42 +116,6 @@ class ImuTruth(NamedTuple):
     accel: tuple[float, float, float]
     gyro: tuple[float, float, float]
     temperature_c: float = 25.0
-
-
-class _LowPass:
-    """First-order low-pass at the DLPF bandwidth plus a pure delay, stepped at the sample clock over a
-    block of samples in place. The arithmetic is in C (emulators/c/sampling.c): it runs for every sample,
-    a thousand a second, whether or not anyone reads them."""
-
-    def __init__(self) -> None:
-        self._lib = native.sampling()
-        self._run = native.fast().lowpass_run
-        self._mem, self._addr = native.state("rig_lowpass_size")  # zeroed: no output yet, empty delay
-        self._gain: tuple[float, float, float] = (math.nan, math.nan, math.nan)  # (bw, span, a)
-        self._depth_for: tuple[float, float] = (math.nan, math.nan)  # (delay, dt) of _depth
-        self._depth = 0
-
-    def _a(self, bw_hz: float, span: float) -> float:
-        """The gain of the exact first-order response over ``span`` seconds."""
-        bw, sp, a = self._gain
-        if bw != bw_hz or sp != span:  # the same every block in steady sampling: computed once
-            a = 1.0 - math.exp(-2.0 * math.pi * bw_hz * span)
-            self._gain = (bw_hz, span, a)
-        return a
-
-    def run(self, xs: int, n: int, stride: int, bw_hz: float, delay_s: float, dt: float) -> None:
-        """Filters ``n`` samples of three float64 at address ``xs`` (``stride`` values apart) in place."""
-        if self._depth_for != (delay_s, dt):
-            self._depth_for = (delay_s, dt)
-            self._depth = max(0, round(delay_s / dt)) if dt > 0 else 0
-            if self._depth > self._lib.rig_lowpass_max_depth():
-                raise ValueError(f"DLPF delay {delay_s} s is more samples of {dt} s than the filter keeps")
-        self._run(self._addr, n, xs, stride, self._a(bw_hz, dt), self._depth)
-
-    def catch_up(self, x: int, bw_hz: float, span: float) -> None:
-        """Advances the filter over ``span`` seconds of the input held at the three float64 at ``x``,
-        exactly, in one go (the delay line is refilled by the samples that follow)."""
-        self._lib.rig_lowpass_catch_up(self._addr, x, self._a(bw_hz, span))
 
 
 @dataclass
@@ -386,7 +348,7 @@ class MPU6050:
         r = self.pointer
         if self._snapshot and DATA_FIRST <= r and r + n <= DATA_LAST + 1:
             # a burst inside the data registers (the flight controller's read, every cycle): one slice
-            if clear_all:
+            if clear_all and n:  # (a zero-length read clocks no byte: nothing is read)
                 self.regs[INT_STATUS] = 0
             self.pointer = r + n
             return self._snapshot[r - DATA_FIRST:r - DATA_FIRST + n]

@@ -15,6 +15,8 @@ from typing import Final
 
 import numpy as np
 
+from emulators.registers import SAME_INSTANT
+
 ADDRESS: Final = 0x77  # CSB low; 0x76 with CSB high
 #: docs/sensors.md §5.4/§5.5 recommended default: datasheet coefficients, word 7 = 0x0103 (CRC 0x3, non-zero).
 DEFAULT_PROM = (0x0000, 40127, 36924, 23317, 23282, 33464, 28312, 0x0103)
@@ -179,7 +181,7 @@ class MS5611:
         if t < self.now:
             return
         self.now = t
-        if self._state == "converting" and t >= self._t_done:
+        if self._state == "converting" and t >= self._t_done - SAME_INSTANT:
             self._finish()
 
     def _finish(self) -> None:

@@ -28,9 +28,15 @@ from plant.native_build import (
 )
 
 C_DIR = Path(__file__).resolve().parent / "c"
+CHIPS_DIR = Path(__file__).resolve().parent / "chips"
 SAMPLING_SOURCE = C_DIR / "sampling.c"
-#: the module's source first: it includes the others (one translation unit)
-SOURCES = (C_DIR / "fastcalls.c", SAMPLING_SOURCE)
+#: the chip core (emulators/chips/chip_core.h), compiled into the same library
+CHIP_SOURCES = tuple(CHIPS_DIR / f for f in ("board.c", "mpu6050.c", "hmc5883l.c", "ms5611.c"))
+CHIP_HEADERS = (CHIPS_DIR / "chip_core.h", CHIPS_DIR / "chip_internal.h")
+#: the module's source first: it includes sampling.c (one translation unit); the chip core's files follow
+SOURCES = (C_DIR / "fastcalls.c", SAMPLING_SOURCE, *CHIP_SOURCES, *CHIP_HEADERS)
+#: the chip core's entry points are exported (ctypes reaches its set-up calls)
+CHIP_FLAGS = ("-DCHIP_API=__attribute__((visibility(\"default\")))", f"-I{CHIPS_DIR}")
 MODULE_NAME = "_rignative"
 LIB = BUILD / f"{MODULE_NAME}{EXTENSION_SUFFIX}"
 BLOCK = 64  #: most samples one call takes: buffers for C are this many rows
@@ -49,12 +55,43 @@ _SAMPLING: dict[str, tuple[object, list[object]]] = {
 }
 
 
+#: the chip core's set-up entry points (emulators/chips/chip_core.h), called through ctypes
+_CHIPS: dict[str, tuple[object, list[object]]] = {
+    "rig_chip_board_size": (ctypes.c_size_t, []),
+    "chip_board_init": (None, [_P, ctypes.c_uint8]),
+    "chip_board_demand": (None, [_P, ctypes.c_bool]),
+    "chip_ms5611_prom": (None, [_P, _P]),
+    "chip_ms5611_max_timing": (None, [_P, ctypes.c_bool]),
+    "chip_hmc_status_wraps": (None, [_P, ctypes.c_bool]),
+    "chip_bus_fault_add": (ctypes.c_bool, [_P, ctypes.c_uint8, ctypes.c_uint8, *[ctypes.c_uint64] * 4]),
+    "chip_bus_fault_seed": (None, [_P, ctypes.c_uint8, ctypes.c_uint64]),
+    "chip_bus_fault_clear": (None, [_P, ctypes.c_uint8]),
+    "chip_peek": (ctypes.c_uint8, [_P, ctypes.c_uint8, ctypes.c_uint8]),
+    "chip_mpu_bypass": (ctypes.c_bool, [_P]),
+    "chip_count": (ctypes.c_uint32, [_P, ctypes.c_uint8]),
+    "chip_start": (ctypes.c_bool, [_P, ctypes.c_uint64, ctypes.c_uint8, ctypes.c_bool]),
+    "chip_write_byte": (None, [_P, ctypes.c_uint8]),
+    "chip_read_byte": (ctypes.c_uint8, [_P]),
+    "chip_stop": (None, [_P]),
+}
+
+
 def build() -> Path:
-    return compile_extension(SOURCES[:1], LIB, "the emulators' C library", libs=["-lm"])
+    from emulators.chips import gen  # the chip core's generated register tables (build/gen/)
+
+    header = gen.write()
+    return compile_extension((SOURCES[0], *CHIP_SOURCES), LIB, "the emulators' C library", libs=["-lm"],
+                             flags=(*CHIP_FLAGS, f"-I{header.parent}"))
+
+
+def _sources() -> tuple[Path, ...]:
+    from emulators.chips import gen
+
+    return (*SOURCES, *gen.SOURCES)
 
 
 def _ensure_built() -> Path:
-    if is_stale(LIB, SOURCES):
+    if is_stale(LIB, _sources()):
         build()
     return LIB
 
@@ -64,6 +101,17 @@ def sampling() -> ctypes.CDLL:
     """The library through ctypes, its set-up entry points typed (emulators/c/sampling.c)."""
     lib = ctypes.CDLL(str(_ensure_built()))
     for name, (restype, argtypes) in _SAMPLING.items():
+        fn = getattr(lib, name)
+        fn.restype, fn.argtypes = restype, argtypes
+    return lib
+
+
+@functools.cache
+def chips() -> ctypes.CDLL:
+    """The chip core's set-up and byte-level entry points through ctypes (the per-transfer ones are
+    fast()'s: chip_transfer, chip_advance, chip_push_*)."""
+    lib = ctypes.CDLL(str(_ensure_built()))
+    for name, (restype, argtypes) in _CHIPS.items():
         fn = getattr(lib, name)
         fn.restype, fn.argtypes = restype, argtypes
     return lib

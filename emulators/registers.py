@@ -6,6 +6,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+#: Sim times (seconds) closer than this are the same instant. The chips' clocks are running sums of
+#: floats, the chip core's whole nanoseconds (emulators/chips/): an HMC5883L result due 6 ms after an
+#: MPU-6050 sample and the MPU's sixth sample after it are the same instant, though the two float sums
+#: can differ in the last bit.
+SAME_INSTANT = 1e-12
+
 
 @dataclass(frozen=True)
 class RegisterSpec:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import ctypes
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol, runtime_checkable
+from typing import Protocol
 
 import numpy as np
 
@@ -133,7 +133,6 @@ class TruthRow(Mapping[str, float]):
         return len(self.index)
 
 
-@runtime_checkable
 class TruthTable(Protocol):
     """Plant truth as C reads it: a row of float64 per sample instant, the same column for a name in every
     row. The world keeps its plant history this way; ``FunctionTable`` makes one of a truth function."""
@@ -187,8 +186,10 @@ class ImuModel:
         rng = np.random.default_rng(self.seed)
         self._a = _Channel(self.accel, self.accel_faults, np.random.default_rng(rng.integers(2**63)))
         self._g = _Channel(self.gyro, self.gyro_faults, np.random.default_rng(rng.integers(2**63)))
-        table = self.truth if isinstance(self.truth, TruthTable) else FunctionTable(
-            self.truth, IMU_TRUTH, {"temperature": AIR_TEMPERATURE_C})
+        # (a table is told by its methods: mypyc cannot compile a runtime-checkable Protocol)
+        truth = self.truth
+        table: TruthTable = truth if hasattr(truth, "row_addresses") else FunctionTable(  # type: ignore[assignment]
+            truth, IMU_TRUTH, {"temperature": AIR_TEMPERATURE_C})
         self._table = table
         self._cols = (ctypes.c_int32 * 7)(*(table.column(n) for n in IMU_TRUTH))
         self._times, self._rows = (ctypes.c_double * BLOCK)(), (ctypes.c_void_p * BLOCK)()

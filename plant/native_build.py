@@ -59,12 +59,13 @@ def is_stale(out: Path, sources: Sequence[Path]) -> bool:
     return not out.is_file() or out.stat().st_mtime < max(s.stat().st_mtime for s in sources)
 
 
-def compile_extension(sources: Sequence[Path], out: Path, what: str, libs: Sequence[str] = ()) -> Path:
-    """A CPython extension module (its init function exported, everything else hidden)."""
+def compile_extension(sources: Sequence[Path], out: Path, what: str, libs: Sequence[str] = (),
+                      flags: Sequence[str] = ()) -> Path:
+    """A CPython extension module (its init function exported, everything else hidden unless marked)."""
     include = sysconfig.get_paths()["include"]
     if not (Path(include) / "Python.h").is_file():
         raise NativeBuildError(f"cannot build {what}: no Python.h in {include} (install python3-dev)")
-    return compile_shared(sources, out, what, libs=libs, flags=[f"-I{include}"])
+    return compile_shared(sources, out, what, libs=libs, flags=[f"-I{include}", *flags])
 
 
 def load_extension(name: str, path: Path) -> ModuleType:

@@ -16,14 +16,11 @@ from typing import Final
 
 import numpy as np
 
+from emulators.chips.board import ChipBoard, build_chip_board
 from emulators.faults import TARGETS as FAULT_TARGETS
-from emulators.faults import FaultSet, FaultyDevice
-from emulators.hmc5883l import HMC5883L
-from emulators.i2c_bus import I2CDevice, Msg
-from emulators.mpu6050 import MPU6050
-from emulators.ms5611 import MS5611
+from emulators.faults import FaultSet
+from emulators.i2c_bus import Msg
 from emulators.sensor_models import AxisErrors, BaroModel, ImuModel, MagModel, TruthRow
-from emulators.topology import Board, build_board
 from plant import Plant
 from plant.variables import MOTORS, PWM_INPUTS, SCENARIO_INPUTS
 
@@ -88,7 +85,7 @@ class Probe:
 @dataclass
 class World:
     plant: Plant
-    board: Board
+    board: ChipBoard
     step_ns: int = STEP_NS
     pwm: list[PwmChannel] = field(default_factory=lambda: [PwmChannel() for _ in range(8)])
     direct_pwm: bool = True
@@ -118,7 +115,7 @@ class World:
     ) -> World:
         """The default world of ``rig exec``: the vehicle resting on the ground, motors off, a GY-86.
         ``faults`` by name: signal faults "accel", "gyro", "mag", "baro" act in the sensor models; bus
-        faults "mpu", "hmc", "baro_bus" wrap the device on the bus. The barometer's noise and drift
+        faults "mpu", "hmc", "baro_bus" act on the chip on the bus. The barometer's noise and drift
         are its model's (the barometer is exact by default, so a reading can be checked to the pascal)."""
         faults = dict(faults or {})
         unknown = set(faults) - set(FAULT_TARGETS)
@@ -146,14 +143,9 @@ class World:
         )
         baro = BaroModel(truth, seed=seed + 2, faults=faults.get("baro", FaultSet()), noise_pa=baro_noise_pa,
                          drift_pa_per_s=baro_drift_pa_per_s)
-        mpu, hmc, ms = MPU6050(imu), HMC5883L(mag), MS5611(baro, seed=seed + 3)
-        on_bus: dict[str, I2CDevice] = {"mpu": mpu, "hmc": hmc, "baro": ms}
-        wrap: dict[str, I2CDevice] = {
-            name: FaultyDevice(on_bus[name], faults[key])
-            for name, key in (("mpu", "mpu"), ("hmc", "hmc"), ("baro", "baro_bus"))
-            if key in faults
-        }
-        board = build_board(mpu, hmc, ms, topology, wrap=wrap)
+        # the chips are the chip core in C (emulators/chips/), fed by these models
+        bus_faults: dict[str, FaultSet] = {k: faults[k] for k in ("mpu", "hmc", "baro_bus") if k in faults}
+        board = build_chip_board(imu, mag, baro, topology, faults=bus_faults, baro_seed=seed + 3)
         world = cls(plant, board, pwm=[PwmChannel() for _ in range(pwm_channels)])
         truth.world = world
         return world
@@ -192,7 +184,7 @@ class World:
     def transfer(self, msgs: Sequence[Msg], t_ns: int) -> list[bytes]:
         """One I2C transfer at ``t_ns`` (raises I2CNack / I2CProtocolError as the bus does)."""
         self.advance_to(t_ns)
-        return self.board.bus.transfer(msgs, t_ns * 1e-9)
+        return self.board.bus.transfer_ns(msgs, t_ns)
 
     def apply_pwm(self, channel: int) -> None:
         """Channels 0..MOTORS-1 drive motors 1..MOTORS at once, unless a capture link (rig/capture.py)

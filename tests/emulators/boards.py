@@ -1,11 +1,22 @@
-"""Small helpers: devices fed by constant or scripted truth, and byte helpers."""
+"""Small helpers: devices fed by constant or scripted truth, and byte helpers. Boards are made of the
+Python chips or of the chip core, as ``IMPL`` says (tests/emulators/conftest.py runs each test with
+both)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from emulators.chips.board import build_chip_board
+from emulators.faults import FaultSet, FaultyDevice
 from emulators.hmc5883l import HMC5883L
+from emulators.i2c_bus import I2CDevice
 from emulators.mpu6050 import MPU6050, ImuTruth
 from emulators.ms5611 import MS5611, BaroTruth
-from emulators.topology import Board, build_board
+from emulators.topology import build_board
+
+IMPLS = ("python", "core")
+IMPL = "python"
 
 
 class Script:
@@ -28,9 +39,24 @@ class Script:
         return BaroTruth(self.pressure, self.temperature)
 
 
-def board(script: Script, topology: str = "gy86", dlpf: bool = False) -> Board:
-    return build_board(MPU6050(script.imu, dlpf=dlpf), HMC5883L(script.mag), MS5611(script.baro),
-                       topology)
+def make_board(imu: Callable[[float], ImuTruth], mag: Callable[[float], tuple[float, float, float]],
+               baro: Callable[[float], BaroTruth], topology: str = "gy86", dlpf: bool = True,
+               bus_faults: Mapping[str, FaultSet] | None = None, impl: str | None = None,
+               **baro_options: Any) -> Any:
+    """A board of the Python chips or of the chip core (``impl``, default IMPL) with these sources;
+    ``bus_faults`` by device ("mpu", "hmc", "baro"); ``baro_options`` are MS5611's."""
+    if (impl or IMPL) == "core":
+        seed = baro_options.pop("seed", 0)
+        return build_chip_board(imu, mag, baro, topology, dlpf=dlpf, faults=bus_faults, baro_seed=seed,
+                                **baro_options)
+    mpu, hmc, ms = MPU6050(imu, dlpf=dlpf), HMC5883L(mag), MS5611(baro, **baro_options)
+    devices: dict[str, I2CDevice] = {"mpu": mpu, "hmc": hmc, "baro": ms}
+    wrap: dict[str, I2CDevice] = {k: FaultyDevice(devices[k], fs) for k, fs in (bus_faults or {}).items()}
+    return build_board(mpu, hmc, ms, topology, wrap=wrap)
+
+
+def board(script: Script, topology: str = "gy86", dlpf: bool = False) -> Any:
+    return make_board(script.imu, script.mag, script.baro, topology, dlpf)
 
 
 def s16(hi: int, lo: int) -> int:

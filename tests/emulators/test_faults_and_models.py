@@ -7,15 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from emulators.faults import Fault, FaultSet, FaultyDevice
-from emulators.hmc5883l import HMC5883L
+from emulators.faults import Fault, FaultSet
 from emulators.i2c_bus import I2CNack, read, write
-from emulators.mpu6050 import MPU6050
-from emulators.ms5611 import MS5611
 from emulators.sensor_models import IMU_TRUTH, AxisErrors, BaroModel, ImuModel, MagModel, TruthRow
-from emulators.topology import build_board
 from rig.world import World
-from tests.emulators.boards import s16
+from tests.emulators.boards import make_board, s16
 
 G0 = 9.80665
 REST = {"fx": 0.0, "fy": 0.0, "fz": -G0, "p": 0.0, "q": 0.0, "r": 0.2, "temperature": 15.0,
@@ -24,11 +20,8 @@ REST = {"fx": 0.0, "fy": 0.0, "fz": -G0, "p": 0.0, "q": 0.0, "r": 0.2, "temperat
 
 def rig(gyro_faults=(), bus_faults=(), device="mpu", seed=0):
     imu = ImuModel(lambda t: REST, gyro_faults=FaultSet(list(gyro_faults), seed=seed), seed=seed)
-    mpu, hmc = MPU6050(imu, dlpf=False), HMC5883L(MagModel(lambda t: REST))
-    baro = MS5611(BaroModel(lambda t: REST))
-    devices = {"mpu": mpu, "hmc": hmc, "baro": baro}
-    wrap = {device: FaultyDevice(devices[device], FaultSet(list(bus_faults), seed=seed))}
-    b = build_board(mpu, hmc, baro, "direct", wrap=wrap)
+    b = make_board(imu, MagModel(lambda t: REST), BaroModel(lambda t: REST), "direct", dlpf=False,
+                   bus_faults={device: FaultSet(list(bus_faults), seed=seed)})
     b.bus.transfer([write(0x68, 0x6B, 0x00), write(0x68, 0x1B, 0x08)], 0.0)  # wake, 500 dps
     b.bus.transfer([write(0x1E, 0x02, 0x00)], 0.0)
     return b
@@ -71,8 +64,7 @@ def test_signal_faults_change_the_reading_only_inside_their_window(fault, check)
 def test_stuck_holds_the_value_from_its_start():
     imu_truth = dict(REST)
     imu = ImuModel(lambda t: {**imu_truth, "r": t}, gyro_faults=FaultSet([Fault("stuck", 0.3, 0.6)]))
-    mpu = MPU6050(imu, dlpf=False)
-    b = build_board(mpu, HMC5883L(lambda t: (0, 0, 0)), MS5611(BaroModel(lambda t: REST)), "direct")
+    b = make_board(imu, lambda t: (0, 0, 0), BaroModel(lambda t: REST), "direct", dlpf=False)
     b.bus.transfer([write(0x68, 0x6B, 0x00), write(0x68, 0x1B, 0x08)], 0.0)
     first = gyro_z(b.bus, 0.31)
     assert gyro_z(b.bus, 0.5) == first
@@ -81,8 +73,7 @@ def test_stuck_holds_the_value_from_its_start():
 
 def test_delay_fault_returns_the_past():
     imu = ImuModel(lambda t: {**REST, "r": t}, gyro_faults=FaultSet([Fault("delay", 0.3, 0.9, 0.2)]))
-    mpu = MPU6050(imu, dlpf=False)
-    b = build_board(mpu, HMC5883L(lambda t: (0, 0, 0)), MS5611(BaroModel(lambda t: REST)), "direct")
+    b = make_board(imu, lambda t: (0, 0, 0), BaroModel(lambda t: REST), "direct", dlpf=False)
     b.bus.transfer([write(0x68, 0x6B, 0x00), write(0x68, 0x1B, 0x08)], 0.0)
     for k in range(1, 80):
         gyro_z(b.bus, k * 0.01)

@@ -9,6 +9,8 @@ from hypothesis import strategies as st
 
 from emulators.i2c_bus import I2CBus, read, write
 from emulators.ms5611 import DEFAULT_PROM, MS5611, BaroTruth, crc4, encode
+from tests.emulators import boards
+from tests.emulators.boards import Script, make_board
 
 C = DEFAULT_PROM
 
@@ -92,11 +94,18 @@ class Truth:
         return BaroTruth(self.pressure, self.temperature)
 
 
+def baro_bus(truth, **options):
+    """A bus with the barometer on it: the Python MS5611 alone, or the chip core's board."""
+    if boards.IMPL == "core":
+        return make_board(Script().imu, Script().mag, truth, "direct", **options).bus
+    b = I2CBus()
+    b.attach(0x77, MS5611(truth, **options))
+    return b
+
+
 @pytest.fixture
 def bus():
-    b = I2CBus()
-    b.attach(0x77, MS5611(Truth()))
-    return b
+    return baro_bus(Truth())
 
 
 def adc(bus, t):
@@ -132,9 +141,7 @@ def test_quick_write_and_two_byte_reset_are_harmless(bus):
 
 
 def test_out_of_range_truth_is_clamped_to_the_sensor_range():
-    dev = MS5611(lambda t: BaroTruth(500.0, 120.0))
-    b = I2CBus()
-    b.attach(0x77, dev)
+    b = baro_bus(lambda t: BaroTruth(500.0, 120.0))
     b.transfer([write(0x77, 0x48)], 0.0)
     d1 = adc(b, 0.01)
     b.transfer([write(0x77, 0x58)], 0.02)
@@ -143,8 +150,7 @@ def test_out_of_range_truth_is_clamped_to_the_sensor_range():
 
 
 def test_max_timing_option_uses_the_datasheet_maximum():
-    b = I2CBus()
-    b.attach(0x77, MS5611(Truth(), timing="max"))
+    b = baro_bus(Truth(), timing="max")
     b.transfer([write(0x77, 0x48)], 0.0)
     assert adc(b, 0.00823) == 0          # past the typical 8.22 ms, before the maximum 9.04 ms
     b.transfer([write(0x77, 0x48)], 0.1)
@@ -153,8 +159,7 @@ def test_max_timing_option_uses_the_datasheet_maximum():
 
 def test_osr_noise_option_varies_readings_repeatably():
     def readings(seed):
-        b = I2CBus()
-        b.attach(0x77, MS5611(Truth(), osr_noise=True, seed=seed))
+        b = baro_bus(Truth(), osr_noise=True, seed=seed)
         out = []
         for k in range(20):
             b.transfer([write(0x77, 0x40)], k * 0.01)  # OSR 256: 6.5 Pa RMS

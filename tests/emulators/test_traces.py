@@ -7,22 +7,21 @@ import json
 
 import pytest
 
-from emulators.hmc5883l import HMC5883L
-from emulators.mpu6050 import MPU6050, ImuTruth
-from emulators.ms5611 import MS5611, BaroTruth
-from emulators.topology import build_board
+from emulators.mpu6050 import ImuTruth
+from emulators.ms5611 import BaroTruth
 from emulators.trace import TRACE_DIR, TraceError, load, parse_msg, replay
+from tests.emulators.boards import make_board
 
 TRACES = sorted(TRACE_DIR.glob("*.json"))
 
 
 def board_for(trace):
     tr = trace["truth"]
-    return build_board(
-        MPU6050(lambda t: ImuTruth(tuple(tr["accel"]), tuple(tr["gyro"]), tr["temperature"]), dlpf=False),
-        HMC5883L(lambda t: tuple(tr["field"])),
-        MS5611(lambda t: BaroTruth(tr["pressure"], tr["temperature"])),
-        trace["topology"])
+    return make_board(
+        lambda t: ImuTruth(tuple(tr["accel"]), tuple(tr["gyro"]), tr["temperature"]),
+        lambda t: tuple(tr["field"]),
+        lambda t: BaroTruth(tr["pressure"], tr["temperature"]),
+        trace["topology"], dlpf=False)
 
 
 def test_the_library_has_the_clients_of_specs_section_7():

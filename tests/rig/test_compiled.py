@@ -68,18 +68,18 @@ def _build_copy(tmp_path: Path, change: dict[str, str] | None = None) -> Path:
 
 def test_one_changed_source_sends_every_hot_module_back_to_source(tmp_path: Path,
                                                                   capsys: pytest.CaptureFixture[str]) -> None:
-    """All or none: the compiled world calls the compiled MPU6050 natively, so an edited mpu6050.py must
+    """All or none: the compiled world calls the compiled chip board natively, so an edited board.py must
     not run beside a compiled world."""
     fresh = CompiledFinder(_build_copy(tmp_path / "fresh"))
     for name in MODULES:
         spec = fresh.find_spec(name)
         assert spec is not None and Path(spec.origin or "").is_relative_to(tmp_path / "fresh"), name
     assert fresh.find_spec("rig.capture") is None   # not compiled at all: not this finder's to find
-    older = hashlib.sha256(b"an older mpu6050.py").hexdigest()
-    stale = CompiledFinder(_build_copy(tmp_path / "stale", {"emulators.mpu6050": older}))
-    assert stale.stale == ["emulators.mpu6050"]
+    older = hashlib.sha256(b"an older board.py").hexdigest()
+    stale = CompiledFinder(_build_copy(tmp_path / "stale", {"emulators.chips.board": older}))
+    assert stale.stale == ["emulators.chips.board"]
     assert [stale.find_spec(name) for name in (*MODULES, stale.runtime)] == [None] * (len(MODULES) + 1)
-    assert "emulators.mpu6050" in capsys.readouterr().err
+    assert "emulators.chips.board" in capsys.readouterr().err
 
 
 def test_a_broken_manifest_means_no_compiled_modules(tmp_path: Path) -> None:

@@ -1,0 +1,320 @@
+/* MPU-6050: register map with reset values and exact read-back, sleep and DEVICE_RESET, FS scaling,
+ * sample clock (DLPF_CFG and SMPLRT_DIV), coherent bursts, INT_STATUS, FIFO with latched count,
+ * bypass and aux master, self-test (emulators/mpu6050.py, docs/sensors.md §3). The DLPF itself is the
+ * host's: its samples arrive filtered; the core encodes them at its sample instants. */
+#include <math.h>
+
+#include "chip_internal.h"
+
+void mpu_reset(chip_mpu *m)
+{
+    memcpy(m->regs, CHIP_MPU_RESET, sizeof m->regs);
+    m->fifo_head = m->fifo_len = m->fifo_count_latch = 0;
+    m->fifo_last = 0;
+    m->has_snapshot = false;
+}
+
+static bool asleep(const chip_mpu *m) { return m->regs[MPU_PWR_MGMT_1] & 0x40; }
+
+bool mpu_bypass(const chip_mpu *m) { return (m->regs[MPU_INT_PIN_CFG] & 0x02) && !(m->regs[MPU_USER_CTRL] & 0x20); }
+
+static uint64_t period_ns(const chip_mpu *m)
+{
+    uint8_t cfg = m->regs[MPU_CONFIG] & 0x07;
+    uint64_t base = (cfg == 0 || cfg == 7) ? 125000u : 1000000u; /* 8 kHz or 1 kHz gyro rate */
+    return base * (1u + m->regs[MPU_SMPLRT_DIV]);
+}
+
+/* ---- the data registers for one sample (docs/sensors.md §3.4, §3.10) ---- */
+
+static int16_t quantise(double x) /* round half away from zero, saturate to int16; NaN reads 0 */
+{
+    double r = copysign(floor(fabs(x) + 0.5), x);
+    if (!(r == r))
+        return 0;
+    return r < -32768.0 ? INT16_MIN : r > 32767.0 ? INT16_MAX : (int16_t)r;
+}
+
+static void put16(uint8_t *p, int16_t v)
+{
+    p[0] = (uint8_t)((uint16_t)v >> 8);
+    p[1] = (uint8_t)((uint16_t)v & 0xFF);
+}
+
+static void encode(chip_mpu *m, const double row[7])
+{
+    const double rad_to_deg = 180.0 / 3.141592653589793;
+    uint8_t *regs = m->regs + CHIP_MPU_DATA_FIRST;
+    double lsb_a = CHIP_MPU_ACCEL_LSB[(m->regs[MPU_ACCEL_CONFIG] >> 3) & 3];
+    double lsb_g = CHIP_MPU_GYRO_LSB[(m->regs[MPU_GYRO_CONFIG] >> 3) & 3];
+    uint8_t st_a = m->regs[MPU_ACCEL_CONFIG] >> 5, st_g = m->regs[MPU_GYRO_CONFIG] >> 5;
+    uint8_t standby = m->regs[MPU_PWR_MGMT_2];
+    for (int i = 0; i < 3; i++) {
+        if (!(standby & (0x20 >> i))) {
+            double s = st_a & (0x4 >> i) ? CHIP_MPU_ST_ACCEL_G * lsb_a : 0.0;
+            put16(regs + 2 * i, quantise(row[i] / CHIP_G0 * lsb_a + s));
+        }
+        if (!(standby & (0x04 >> i))) {
+            double sign = i == 1 ? -1.0 : 1.0;
+            double s = st_g & (0x4 >> i) ? sign * CHIP_MPU_ST_GYRO_DPS * lsb_g : 0.0;
+            put16(regs + 8 + 2 * i, quantise(row[3 + i] * rad_to_deg * lsb_g + s));
+        }
+    }
+    if (!(m->regs[MPU_PWR_MGMT_1] & 0x08))
+        put16(regs + 6, quantise((row[6] - 36.53) * 340.0));
+}
+
+/* ---- aux master and FIFO ---- */
+
+typedef struct {
+    uint8_t n, addr, reg, ctrl, ext, len;
+} slave;
+
+/* enabled slaves 0..3: read slaves take their LEN bytes of EXT_SENS_DATA consecutively in slave
+ * order, write slaves none (the aux master fills this layout and the FIFO copies it) */
+static int slaves(const chip_mpu *m, slave out[4])
+{
+    int k = 0;
+    uint8_t ext = MPU_EXT_SENS_DATA_00;
+    for (uint8_t n = 0; n < 4; n++) {
+        const uint8_t *s = m->regs + MPU_I2C_SLV0_ADDR + 3 * n;
+        if (!(s[2] & 0x80))
+            continue;
+        uint8_t len = 0;
+        if (s[0] & 0x80) {
+            uint8_t room = (uint8_t)(CHIP_MPU_DATA_LAST + 1 - ext);
+            len = (s[2] & 0x0F) < room ? (s[2] & 0x0F) : room;
+        }
+        out[k++] = (slave){ n, s[0], s[1], s[2], ext, len };
+        ext = (uint8_t)(ext + len);
+    }
+    return k;
+}
+
+static void aux_master(chip_board *b, uint64_t t_ns)
+{
+    chip_mpu *m = &b->mpu;
+    slave s[4];
+    int k = slaves(m, s);
+    uint8_t status = 0;
+    for (int i = 0; i < k; i++) {
+        if (b->topology != CHIP_TOPOLOGY_GY86 || (s[i].addr & 0x7F) != CHIP_ADDR_HMC) {
+            status |= (uint8_t)(1 << s[i].n); /* I2C_SLVn_NACK */
+            continue;
+        }
+        chip_hmc *h = &b->hmc;
+        bool garbage = chip_fault_active(b, CHIP_HMC, CHIP_FAULT_GARBAGE, t_ns);
+        hmc_start(h, false);
+        if (s[i].addr & 0x80) { /* read LEN bytes into EXT_SENS_DATA */
+            if (!(s[i].ctrl & 0x20))
+                hmc_write(h, s[i].reg, true);
+            hmc_start(h, true);
+            for (uint8_t j = 0; j < s[i].len; j++) {
+                uint8_t v = hmc_read(h);
+                m->regs[s[i].ext + j] = garbage ? (uint8_t)(chip_splitmix64(&b->faults[CHIP_HMC].rng) >> 56) : v;
+            }
+        } else {
+            uint8_t d = m->regs[MPU_I2C_SLV0_DO + s[i].n];
+            if (s[i].ctrl & 0x20) {
+                hmc_write(h, d, true);
+            } else {
+                hmc_write(h, s[i].reg, true);
+                hmc_write(h, d, true);
+            }
+        }
+    }
+    m->regs[MPU_I2C_MST_STATUS] = status;
+}
+
+static void fifo_put(chip_mpu *m, uint8_t byte)
+{
+    if (m->fifo_len >= CHIP_FIFO_SIZE) { /* overflow: oldest out, newest kept */
+        m->fifo_head = (uint16_t)((m->fifo_head + 1) % CHIP_FIFO_SIZE);
+        m->fifo_len--;
+        m->regs[MPU_INT_STATUS] |= 0x10;
+    }
+    m->fifo[(m->fifo_head + m->fifo_len) % CHIP_FIFO_SIZE] = byte;
+    m->fifo_len++;
+}
+
+static void fifo_record(chip_mpu *m)
+{
+    uint8_t en = m->regs[MPU_FIFO_EN];
+    const uint8_t *r = m->regs;
+    if (en & 0x08)
+        for (int i = 0; i < 6; i++)
+            fifo_put(m, r[CHIP_MPU_DATA_FIRST + i]);
+    if (en & 0x80)
+        for (int i = 0; i < 2; i++)
+            fifo_put(m, r[MPU_TEMP_OUT_H + i]);
+    for (int a = 0; a < 3; a++)
+        if (en & (0x40 >> a))
+            for (int i = 0; i < 2; i++)
+                fifo_put(m, r[MPU_GYRO_XOUT_H + 2 * a + i]);
+    slave s[4];
+    int k = slaves(m, s);
+    for (int i = 0; i < k; i++)
+        if (s[i].n < 3 && (en & (1 << s[i].n))) /* FIFO_EN has SLV0..SLV2 only */
+            for (uint8_t j = 0; j < s[i].len; j++)
+                fifo_put(m, r[s[i].ext + j]);
+}
+
+/* ---- time ---- */
+
+static void fill_need(chip_need *need, const chip_mpu *m, bool keeps_all, uint32_t count, uint64_t t_ns,
+                      uint64_t period, uint64_t target)
+{
+    memset(need, 0, sizeof *need);
+    need->chip = CHIP_MPU;
+    need->keeps_all = keeps_all;
+    need->count = count;
+    need->anchor = m->anchor;
+    need->epoch = m->epoch;
+    need->t_ns = t_ns;
+    need->period_ns = period;
+    need->anchor_ns = m->anchor_ns;
+    need->target_ns = target;
+}
+
+bool mpu_advance(chip_board *b, uint64_t now_ns, chip_need *need)
+{
+    chip_mpu *m = &b->mpu;
+    if (now_ns < m->now_ns)
+        return false;
+    if (asleep(m)) {
+        m->now_ns = m->next_ns = now_ns;
+        return false;
+    }
+    uint64_t p = period_ns(m);
+    if (m->next_ns < m->now_ns)
+        m->next_ns = m->now_ns;
+    if (m->next_ns > now_ns) {
+        m->now_ns = now_ns;
+        return false;
+    }
+    uint64_t n = (now_ns - m->next_ns) / p + 1;
+    bool keeps_all = m->regs[MPU_USER_CTRL] & 0x60;
+    if (!keeps_all) { /* only the last instant is ever seen: only it is encoded */
+        uint64_t last = m->next_ns + (n - 1) * p;
+        if (!chip_take_imu(m, last)) {
+            if (b->demand) {
+                fill_need(need, m, false, (uint32_t)n, m->next_ns, p, now_ns);
+                return true;
+            }
+            b->counts[CHIP_COUNT_MPU_UNDERRUNS]++;
+        }
+        encode(m, m->last.v);
+        m->regs[MPU_INT_STATUS] |= 0x01; /* DATA_RDY, whatever INT_ENABLE says */
+        b->counts[CHIP_COUNT_MPU_SAMPLES] += (uint32_t)n;
+        m->next_ns = last + p;
+    } else {
+        while (m->next_ns <= now_ns) {
+            uint64_t t = m->next_ns;
+            bool aux = m->regs[MPU_USER_CTRL] & 0x20;
+            if (aux && hmc_advance(b, 3 * t, need)) /* the magnetometer up to this instant first */
+                return true;
+            if (!chip_take_imu(m, t)) {
+                if (b->demand) {
+                    fill_need(need, m, true, (uint32_t)((now_ns - t) / p + 1), t, p, now_ns);
+                    return true;
+                }
+                b->counts[CHIP_COUNT_MPU_UNDERRUNS]++;
+            }
+            encode(m, m->last.v);
+            if (aux)
+                aux_master(b, t);
+            if (m->regs[MPU_USER_CTRL] & 0x40)
+                fifo_record(m);
+            m->regs[MPU_INT_STATUS] |= 0x01;
+            b->counts[CHIP_COUNT_MPU_SAMPLES]++;
+            m->next_ns = t + p;
+        }
+    }
+    m->now_ns = now_ns;
+    return false;
+}
+
+/* ---- bus ---- */
+
+void mpu_start(chip_mpu *m, bool read)
+{
+    m->first_byte = !read;
+    if (read) { /* coherent bursts: the whole read is served from one sampling instant */
+        memcpy(m->snapshot, m->regs + CHIP_MPU_DATA_FIRST, sizeof m->snapshot);
+        m->has_snapshot = true;
+    }
+}
+
+void mpu_stop(chip_mpu *m) { m->has_snapshot = false; }
+
+static uint8_t next_reg(uint8_t r) { return r >= MPU_WHO_AM_I ? 0 : (uint8_t)(r + 1); }
+
+static void write_reg(chip_board *b, uint8_t r, uint8_t value)
+{
+    chip_mpu *m = &b->mpu;
+    if (r == MPU_FIFO_R_W) {
+        if (m->fifo_len < CHIP_FIFO_SIZE)
+            fifo_put(m, value);
+        return;
+    }
+    if (!CHIP_MPU_WRITABLE[r])
+        return;
+    if (r == MPU_PWR_MGMT_1 && (value & 0x80)) { /* DEVICE_RESET */
+        mpu_reset(m);
+        m->epoch++;
+        b->counts[CHIP_COUNT_MPU_RESETS]++;
+        return;
+    }
+    if (r == MPU_USER_CTRL) {
+        if (value & 0x04)
+            m->fifo_head = m->fifo_len = 0;
+        if (value & 0x01) /* SIG_COND_RESET clears the sensor registers */
+            memset(m->regs + CHIP_MPU_DATA_FIRST, 0, MPU_GYRO_XOUT_H + 6 - CHIP_MPU_DATA_FIRST);
+    }
+    if (r == MPU_PWR_MGMT_1 && asleep(m) && !(value & 0x40)) { /* waking: sampling resumes now */
+        m->next_ns = m->anchor_ns = m->now_ns;
+        m->anchor++;
+    }
+    m->regs[r] = value & CHIP_MPU_STORE_MASK[r];
+}
+
+void mpu_write(chip_board *b, uint8_t byte)
+{
+    chip_mpu *m = &b->mpu;
+    if (m->first_byte) {
+        m->pointer = byte & 0x7F;
+        m->first_byte = false;
+        return;
+    }
+    write_reg(b, m->pointer, byte);
+    if (m->pointer != MPU_FIFO_R_W)
+        m->pointer = next_reg(m->pointer);
+}
+
+uint8_t mpu_read(chip_mpu *m)
+{
+    bool clear_all = m->regs[MPU_INT_PIN_CFG] & 0x10;
+    uint8_t r = m->pointer, out;
+    if (r == MPU_FIFO_R_W) {
+        if (m->fifo_len) {
+            m->fifo_last = m->fifo[m->fifo_head];
+            m->fifo_head = (uint16_t)((m->fifo_head + 1) % CHIP_FIFO_SIZE);
+            m->fifo_len--;
+        }
+        return m->fifo_last; /* empty: the last byte again */
+    }
+    if (r == MPU_FIFO_COUNT_H) {
+        m->fifo_count_latch = m->fifo_len;
+        out = (uint8_t)(m->fifo_count_latch >> 8);
+    } else if (r == MPU_FIFO_COUNT_L) {
+        out = (uint8_t)(m->fifo_count_latch & 0xFF);
+    } else if (r >= CHIP_MPU_DATA_FIRST && r <= CHIP_MPU_DATA_LAST && m->has_snapshot) {
+        out = m->snapshot[r - CHIP_MPU_DATA_FIRST];
+    } else {
+        out = CHIP_MPU_READABLE[r] ? m->regs[r] : 0;
+    }
+    if (r == MPU_INT_STATUS || clear_all)
+        m->regs[MPU_INT_STATUS] = 0;
+    m->pointer = next_reg(r);
+    return out;
+}
