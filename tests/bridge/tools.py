@@ -32,3 +32,16 @@ def link_tool() -> Path:
 def bridge_tool() -> Path:
     return build_tool("bridge_tool", [REPO / "bridge" / "tests" / "bridge_tool.c", *sorted(CORE.glob("*.c")),
                                       *sorted(CHIPS.glob("*.c"))])
+
+
+def vbridge() -> Path:
+    """build/vbridge, as `make vbridge` builds it (rebuilt here when a source is newer)."""
+    out = BUILD / "vbridge"
+    sources = [REPO / "bridge" / "posix" / "vbridge.c", *sorted(CORE.glob("*.c")), *sorted(CHIPS.glob("*.c"))]
+    header = gen.write()
+    if is_stale(out, [*sources, *CORE.glob("*.h"), *CHIPS.glob("*.h"), REPO / "rig" / "shim" / "protocol.h",
+                      *TABLE, header]):
+        includes = [header.parent, CHIPS, CORE, REPO / "rig" / "shim"]
+        compile_c(sources, out, "the virtual bridge", libs=["-lm"],
+                  flags=["-std=c99", *(f"-I{i}" for i in includes)])
+    return out
