@@ -16,6 +16,9 @@ struct bridge_cfg bridge_defaults(void)
     return c;
 }
 
+/* the chip core's underrun counters, in STATUS's order (IMU, mag, baro) */
+static const uint8_t UNDERRUNS[3] = { CHIP_COUNT_MPU_UNDERRUNS, CHIP_COUNT_HMC_UNDERRUNS, CHIP_COUNT_BARO_UNDERRUNS };
+
 static uint64_t now_us(struct bridge *b) { return b->hal.now_us(b->hal.ctx); }
 
 void bridge_send(struct bridge *b, struct bridge_msg *msg)
@@ -54,7 +57,6 @@ static void configure(struct bridge *b, uint8_t topology, uint8_t mpu, uint8_t h
     b->trace = trace;
     chip_board_init(&b->board, topology ? CHIP_TOPOLOGY_DIRECT : CHIP_TOPOLOGY_GY86);
     memset(b->n.underrun_base, 0, sizeof b->n.underrun_base);
-    memset(b->n.nack_base, 0, sizeof b->n.nack_base);
     sbus_out_init(&b->sbus, sbus_ms * 1000u);
     b->hal.i2c_addr_enable(b->hal.ctx, mpu, 1);
     b->hal.i2c_addr_enable(b->hal.ctx, baro, 1);
@@ -70,7 +72,7 @@ void bridge_init(struct bridge *b, const struct bridge_hal *hal, const struct br
     b->cfg = *cfg;
     link_rx_init(&b->rx, 0);
     pwm_capture_init(&b->cap, &cfg->capture);
-    configure(b, CHIP_TOPOLOGY_GY86, CHIP_MPU_ADDR, CHIP_HMC_ADDR, CHIP_BARO_ADDR, 14, PWM_CAPTURE_CHANNELS, 0);
+    configure(b, CHIP_TOPOLOGY_GY86, CHIP_ADDR_MPU, CHIP_ADDR_HMC, CHIP_ADDR_BARO, 14, PWM_CAPTURE_CHANNELS, 0);
     uint64_t t = now_us(b);
     b->last_rx_us = t;
     b->next_status_us = t;
@@ -83,15 +85,15 @@ void bridge_init(struct bridge *b, const struct bridge_hal *hal, const struct br
 static int core_addr(const struct bridge *b, uint8_t addr, uint8_t *out)
 {
     if (addr == b->mpu_addr) {
-        *out = CHIP_MPU_ADDR;
+        *out = CHIP_ADDR_MPU;
         return CHIP_MPU;
     }
     if (addr == b->hmc_addr) {
-        *out = CHIP_HMC_ADDR;
+        *out = CHIP_ADDR_HMC;
         return CHIP_HMC;
     }
     if (addr == b->baro_addr) {
-        *out = CHIP_BARO_ADDR;
+        *out = CHIP_ADDR_BARO;
         return CHIP_BARO;
     }
     *out = 0; /* the general call: the chips never acknowledge it */
@@ -125,7 +127,9 @@ int bridge_i2c_start(struct bridge *b, uint64_t t_ns, uint8_t addr, int read)
     trace_flush(b); /* a repeated START ends the message before it */
     uint8_t a;
     int chip = core_addr(b, addr, &a);
-    int ack = chip_start(&b->board, t_ns, a, read);
+    int ack = chip_start(&b->board, t_ns, a, read != 0);
+    if (!ack && chip >= 0)
+        b->n.i2c_errors++; /* one of our chips did not answer: a bus fault, or 0x1E out of bypass */
     b->cur_chip = ack ? chip : -1;
     b->cur_addr = addr;
     b->cur_read = (uint8_t)(read != 0);
@@ -137,9 +141,10 @@ int bridge_i2c_start(struct bridge *b, uint64_t t_ns, uint8_t addr, int read)
 
 int bridge_i2c_write(struct bridge *b, uint64_t t_ns, uint8_t byte)
 {
-    int ack = chip_write_byte(&b->board, t_ns, byte);
-    if (!ack || b->cur_chip < 0)
-        return ack;
+    if (b->cur_chip < 0)
+        return 0; /* nobody was addressed: nobody acknowledges */
+    chip_write_byte(&b->board, byte);
+    int ack = 1;
     unsigned i = b->cur_bytes;
     trace_byte(b, byte);
     struct bridge_msg m;
@@ -164,7 +169,8 @@ int bridge_i2c_write(struct bridge *b, uint64_t t_ns, uint8_t byte)
 
 uint8_t bridge_i2c_read(struct bridge *b, uint64_t t_ns)
 {
-    uint8_t v = chip_read_byte(&b->board, t_ns);
+    (void)t_ns; /* (the chip core moves time only at a START) */
+    uint8_t v = chip_read_byte(&b->board);
     if (b->cur_chip >= 0)
         trace_byte(b, v);
     return v;
@@ -173,7 +179,8 @@ uint8_t bridge_i2c_read(struct bridge *b, uint64_t t_ns)
 void bridge_i2c_stop(struct bridge *b, uint64_t t_ns)
 {
     trace_flush(b);
-    chip_stop(&b->board, t_ns);
+    (void)t_ns;
+    chip_stop(&b->board);
     b->cur_chip = -1;
     set_hmc_enabled(b); /* the bypass may have changed */
 }
@@ -214,10 +221,9 @@ static void hello(struct bridge *b, const struct bridge_hello *h)
         b->rx.last_seq = seq;
         b->n.late_samples = b->n.refused = b->n.sbus_dropped = 0;
         b->cap.glitches = 0;
-        for (int c = 0; c < CHIP_N; c++) {
-            b->n.underrun_base[c] = chip_count(&b->board, (enum chip_id)c, CHIP_COUNT_UNDERRUNS);
-            b->n.nack_base[c] = chip_count(&b->board, (enum chip_id)c, CHIP_COUNT_NACKS);
-        }
+        b->n.i2c_errors = 0;
+        for (int c = 0; c < 3; c++)
+            b->n.underrun_base[c] = chip_count(&b->board, UNDERRUNS[c]);
     }
     bridge_send(b, &m);
 }
@@ -250,16 +256,19 @@ static int fault(struct bridge *b, const struct bridge_fault *f)
                                                            : -1;
     if (chip < 0 || kind < 0 || f->end_us <= f->start_us || f->end_us > UINT64_MAX / 1000u)
         return -1;
-    uint64_t period_ns = 0;
+    uint64_t period_ns = 0, duty_ns = 0;
     if (kind == CHIP_FAULT_INTERMITTENT) {
         if (!(f->period_s > 0.0f && f->period_s < 1000.0f && f->duty >= 0.0f && f->duty <= 1.0f))
             return -1;
         period_ns = (uint64_t)((double)f->period_s * 1e9);
+        duty_ns = (uint64_t)((double)f->duty * (double)period_ns);
         if (!period_ns)
             return -1;
     }
-    return chip_bus_fault_add(&b->board, (enum chip_id)chip, (enum chip_fault_kind)kind, f->start_us * 1000u,
-                              f->end_us * 1000u, period_ns, f->duty);
+    return chip_bus_fault_add(&b->board, (uint8_t)chip, (uint8_t)kind, f->start_us * 1000u, f->end_us * 1000u,
+                              period_ns, duty_ns)
+               ? 0
+               : -1;
 }
 
 /* One good frame from the host, received at t_us: 0 acted on, -1 refused (nothing applied). */
@@ -279,24 +288,23 @@ static int dispatch(struct bridge *b, const struct bridge_msg *msg, uint64_t t_u
         if (!finite3(s->accel) || !finite3(s->gyro) || !isfinite(s->temp_c) || s->valid_us > UINT64_MAX / 1000u)
             return -1;
         late(b, s->valid_us, t_us);
-        return chip_push_imu(&b->board, s->valid_us * 1000u, s->accel, s->gyro, s->temp_c);
+        double v[7] = { s->accel[0], s->accel[1], s->accel[2], s->gyro[0], s->gyro[1], s->gyro[2], s->temp_c };
+        return chip_push_imu(&b->board, s->valid_us * 1000u, v) ? 0 : -1;
     }
     case BRIDGE_MAG_SAMPLE: {
         const struct bridge_mag_sample *s = &msg->u.mag_sample;
         if (!finite3(s->field) || s->valid_us > UINT64_MAX / 1000u)
             return -1;
         late(b, s->valid_us, t_us);
-        return chip_push_mag(&b->board, s->valid_us * 1000u, s->field);
+        double field[3] = { s->field[0], s->field[1], s->field[2] };
+        return chip_push_mag(&b->board, s->valid_us * 1000u, field) ? 0 : -1;
     }
     case BRIDGE_BARO_SAMPLE: {
         const struct bridge_baro_sample *s = &msg->u.baro_sample;
-        for (int i = 0; i < 5; i++)
-            if (s->d1[i] > 0xFFFFFFu || s->d2[i] > 0xFFFFFFu) /* 24-bit ADC words */
-                return -1;
-        if (s->valid_us > UINT64_MAX / 1000u)
+        if (s->d1 > 0xFFFFFFu || s->d2 > 0xFFFFFFu || s->valid_us > UINT64_MAX / 1000u) /* 24-bit ADC words */
             return -1;
         late(b, s->valid_us, t_us);
-        return chip_push_baro(&b->board, s->valid_us * 1000u, s->d1, s->d2);
+        return chip_push_baro(&b->board, s->valid_us * 1000u, s->d1, s->d2) ? 0 : -1;
     }
     case BRIDGE_SBUS: {
         const struct bridge_sbus *s = &msg->u.sbus;
@@ -350,13 +358,10 @@ void bridge_status(struct bridge *b, struct bridge_status *s)
 {
     memset(s, 0, sizeof *s);
     s->t_us = now_us(b);
-    uint32_t nacks = 0;
-    for (int c = 0; c < CHIP_N; c++) {
-        s->underruns[c] = chip_count(&b->board, (enum chip_id)c, CHIP_COUNT_UNDERRUNS) - b->n.underrun_base[c];
-        nacks += chip_count(&b->board, (enum chip_id)c, CHIP_COUNT_NACKS) - b->n.nack_base[c];
-    }
+    for (int c = 0; c < 3; c++)
+        s->underruns[c] = chip_count(&b->board, UNDERRUNS[c]) - b->n.underrun_base[c];
     s->late_samples = b->n.late_samples;
-    s->i2c_errors = nacks;
+    s->i2c_errors = b->n.i2c_errors;
     s->frames_ok = b->rx.ok;
     s->frames_bad = b->rx.bad;
     s->seq_gaps = b->rx.seq_gaps;

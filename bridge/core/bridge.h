@@ -43,14 +43,14 @@ struct bridge_cfg {
 };
 
 struct bridge_counters {
-    uint32_t late_samples, refused, sbus_dropped;
-    uint32_t underrun_base[CHIP_N], nack_base[CHIP_N]; /* the chip core's counts at the last HELLO */
+    uint32_t late_samples, refused, sbus_dropped, i2c_errors;
+    uint32_t underrun_base[3]; /* the chip core's underrun counts at the last HELLO */
 };
 
 struct bridge {
     struct bridge_hal hal;
     struct bridge_cfg cfg;
-    struct chip_board board;
+    chip_board board;
     struct link_rx rx;
     struct pwm_capture cap;
     struct sbus_out sbus;
@@ -64,7 +64,7 @@ struct bridge {
     uint64_t next_status_us, next_pulses_us;
     uint32_t pulses_sent;
     /* the transaction under way */
-    int cur_chip; /* -1: none of ours */
+    int cur_chip; /* CHIP_MPU, _HMC, _BARO; -1: none of ours */
     uint8_t cur_addr, cur_read, ptr;
     unsigned cur_bytes;
     uint8_t trace_data[16];

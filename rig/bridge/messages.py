@@ -74,10 +74,11 @@ MESSAGES: tuple[Message, ...] = (
                                          _f("field", "f32", 3, doc="gauss, sensor frame")),
             "the HMC5883L's field"),
     Message("BARO_SAMPLE", 0x12, "down", (_f("valid_us", "u64"),
-                                          _f("d1", "u32", 5, doc="raw pressure word per OSR 256..4096"),
-                                          _f("d2", "u32", 5, doc="raw temperature word per OSR")),
-            "the MS5611's conversion results, encoded on the host with the chip's PROM (one word per OSR, "
-            "each with its own noise): the bridge only picks the word of the conversion the board started"),
+                                          _f("d1", "u32", doc="raw pressure word (24 bits)"),
+                                          _f("d2", "u32", doc="raw temperature word (24 bits)")),
+            "the MS5611's conversion results, encoded on the host with the chip's PROM (the host follows "
+            "the board's commands, REG_WRITE, for the OSR's noise): a conversion ending at or after the "
+            "valid time gives the word of its kind"),
     Message("SBUS", 0x13, "down", (_f("channels", "u16", 16, doc="11-bit values"),
                                    _f("flags", "u8", doc="bit 2 frame lost, bit 3 failsafe")),
             "sticks: the bridge sends them to the board as SBUS frames at the configured period"),
