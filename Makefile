@@ -20,9 +20,16 @@ COMPILED_SOURCES := $(shell $(PYTHON) rig/compiled.py --sources)
 
 DUT_BIN := build/dut/fc
 
-.PHONY: all venv fmu shim native chips compiled dut demo test test-slow lint bench clean
+# the virtual bridge (docs/design.md §8): the bridge core as a Linux process. BRIDGE_CHIPS is the chip
+# core it links: still a stand-in (bridge/standin) with the chip core's API; the switch to emulators/chips
+# is the next step
+VBRIDGE := build/vbridge
+BRIDGE_CHIPS := bridge/standin
+BRIDGE_CFLAGS := -std=c99 -O2 -Wall -Wextra -Werror -Ibuild/gen -I$(BRIDGE_CHIPS) -Ibridge/core -Irig/shim
 
-all: fmu shim native compiled dut
+.PHONY: all venv fmu shim native chips compiled dut vbridge demo test test-slow lint bench clean
+
+all: fmu shim native compiled dut vbridge
 
 venv: $(VENV)/.installed
 $(VENV)/.installed: pyproject.toml tools/bootstrap.sh
@@ -57,6 +64,12 @@ dut: $(DUT_BIN)
 $(DUT_BIN): $(wildcard dut/src/* dut/tests/* dut/Makefile) bench/fc_bench.c
 	$(MAKE) -s -C dut
 
+vbridge: $(VBRIDGE)
+$(VBRIDGE): $(wildcard bridge/core/*.[ch] bridge/posix/*.c $(BRIDGE_CHIPS)/*.[ch]) rig/shim/protocol.h \
+		rig/bridge/messages.py rig/bridge/gen.py | venv
+	$(PY) -m rig.bridge.gen >/dev/null
+	$(CC) $(BRIDGE_CFLAGS) -o $@ bridge/posix/vbridge.c bridge/core/*.c $(BRIDGE_CHIPS)/*.c -lm
+
 demo: venv fmu shim native compiled dut
 	$(VENV)/bin/rig run --out build/reports
 
@@ -69,7 +82,7 @@ lint: venv
 	$(VENV)/bin/mypy
 	clang-format --dry-run --Werror $(C_SOURCES)
 
-test: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) lint
+test: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) $(VBRIDGE) lint
 	$(PY) -m pytest -q -m "not slow"
 
 test-slow: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED)

@@ -4,7 +4,7 @@
 printer of decoded messages (JSON lines) that the tests compare with the host's decoder.
 
 ``python -m rig.bridge.gen [OUT]`` writes it; the bridge's builds (build/vbridge, the firmware, the
-core's tests) call it first. It depends on nothing but the table.
+core's tests) call it first. It depends on nothing but the table (and the fault vocabulary it indexes).
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from emulators.faults import BUS_KINDS, BUS_TARGETS, KINDS, TARGETS
 from rig.bridge.messages import HOST_SILENT_US, MAX_FRAME, MESSAGES, PROTOCOL_VERSION, TYPES, Field, Message
 
 OUT = Path(__file__).resolve().parents[2] / "build" / "gen" / "bridge_messages.h"
@@ -81,6 +82,9 @@ def header() -> str:
         f"#define BRIDGE_PROTOCOL_VERSION {PROTOCOL_VERSION}",
         f"#define BRIDGE_HOST_SILENT_US {HOST_SILENT_US}",
         f"#define BRIDGE_MAX_FRAME {MAX_FRAME}", "",
+        "/* FAULT's target and kind: indices in emulators.faults.TARGETS and KINDS (the bus ones) */",
+        *[f"#define BRIDGE_FAULT_TARGET_{t.upper()} {TARGETS.index(t)}" for t in BUS_TARGETS],
+        *[f"#define BRIDGE_FAULT_KIND_{k.upper()} {KINDS.index(k)}" for k in BUS_KINDS], "",
         "/* the link carries binary32 floats (C99 has no _Static_assert: a negative array size fails) */",
         "typedef char bridge_float_is_binary32[sizeof(float) == 4 ? 1 : -1];", "",
         "enum bridge_msg_id {",

@@ -14,25 +14,14 @@ from pathlib import Path
 
 import pytest
 
-from plant.native_build import BUILD, compile_c, is_stale
-from rig.bridge import gen
 from rig.bridge.link import Receiver, crc16, encode
 from rig.bridge.messages import MESSAGES, Direction, Message
-
-REPO = Path(__file__).resolve().parents[2]
-TOOL = BUILD / "bridge" / "link_tool"
-SOURCES = [REPO / "bridge" / "tests" / "link_tool.c", REPO / "bridge" / "core" / "link.c",
-           REPO / "bridge" / "core" / "link.h", REPO / "rig" / "bridge" / "messages.py",
-           REPO / "rig" / "bridge" / "gen.py"]
+from tests.bridge.tools import link_tool
 
 
 @pytest.fixture(scope="module")
 def tool() -> Path:
-    header = gen.write()
-    if is_stale(TOOL, SOURCES) or is_stale(TOOL, [header]):
-        compile_c(SOURCES[:2], TOOL, "the link test tool",
-                  flags=["-std=c99", "-pedantic", f"-I{header.parent}"])
-    return TOOL
+    return link_tool()
 
 
 def c_side(tool: Path, mode: str, direction: str, wire: bytes) -> list[str]:

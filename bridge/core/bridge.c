@@ -1,0 +1,411 @@
+/* The bridge core: see bridge.h. */
+#include "bridge.h"
+
+#include <math.h>
+#include <string.h>
+
+struct bridge_cfg bridge_defaults(void)
+{
+    struct bridge_cfg c;
+    memset(&c, 0, sizeof c);
+    memcpy(c.id, "bridge", 6);
+    c.clock_hz = 170000000u;
+    c.status_period_us = 200000u;
+    c.pulses_period_us = 2000u;
+    c.capture = pwm_capture_defaults();
+    return c;
+}
+
+/* the chip core's underrun counters, in STATUS's order (IMU, mag, baro) */
+static const uint8_t UNDERRUNS[3] = { CHIP_COUNT_MPU_UNDERRUNS, CHIP_COUNT_HMC_UNDERRUNS, CHIP_COUNT_BARO_UNDERRUNS };
+
+static uint64_t now_us(struct bridge *b) { return b->hal.now_us(b->hal.ctx); }
+
+void bridge_send(struct bridge *b, struct bridge_msg *msg)
+{
+    uint8_t wire[LINK_WIRE_MAX];
+    msg->seq = b->tx_seq++;
+    size_t n = link_frame(msg, wire);
+    if (n)
+        b->hal.link_tx(b->hal.ctx, wire, n);
+}
+
+static void set_hmc_enabled(struct bridge *b)
+{
+    int on = b->topology == CHIP_TOPOLOGY_DIRECT || chip_mpu_bypass(&b->board);
+    if (on != b->hmc_enabled) {
+        b->hmc_enabled = on;
+        b->hal.i2c_addr_enable(b->hal.ctx, b->hmc_addr, on);
+    }
+}
+
+/* CONFIG's values (or the defaults at start): the chips reset to power-on */
+static void configure(struct bridge *b, uint8_t topology, uint8_t mpu, uint8_t hmc, uint8_t baro, uint8_t sbus_ms,
+                      uint8_t channels, uint8_t trace)
+{
+    if (b->mpu_addr)
+        b->hal.i2c_addr_enable(b->hal.ctx, b->mpu_addr, 0);
+    if (b->baro_addr)
+        b->hal.i2c_addr_enable(b->hal.ctx, b->baro_addr, 0);
+    if (b->hmc_enabled)
+        b->hal.i2c_addr_enable(b->hal.ctx, b->hmc_addr, 0);
+    b->topology = topology;
+    b->mpu_addr = mpu;
+    b->hmc_addr = hmc;
+    b->baro_addr = baro;
+    b->capture_channels = channels;
+    b->trace = trace;
+    chip_board_init(&b->board, topology ? CHIP_TOPOLOGY_DIRECT : CHIP_TOPOLOGY_GY86);
+    memset(b->n.underrun_base, 0, sizeof b->n.underrun_base);
+    sbus_out_init(&b->sbus, sbus_ms * 1000u);
+    b->hal.i2c_addr_enable(b->hal.ctx, mpu, 1);
+    b->hal.i2c_addr_enable(b->hal.ctx, baro, 1);
+    b->hmc_enabled = 0;
+    set_hmc_enabled(b);
+    b->cur_chip = -1;
+}
+
+void bridge_init(struct bridge *b, const struct bridge_hal *hal, const struct bridge_cfg *cfg)
+{
+    memset(b, 0, sizeof *b);
+    b->hal = *hal;
+    b->cfg = *cfg;
+    link_rx_init(&b->rx, 0);
+    pwm_capture_init(&b->cap, &cfg->capture);
+    configure(b, CHIP_TOPOLOGY_GY86, CHIP_ADDR_MPU, CHIP_ADDR_HMC, CHIP_ADDR_BARO, 14, PWM_CAPTURE_CHANNELS, 0);
+    uint64_t t = now_us(b);
+    b->last_rx_us = t;
+    b->next_status_us = t;
+    b->next_pulses_us = t;
+}
+
+/* ---------------------------------------------------------------- the board's bus */
+
+/* the chip core's address for the board's, and the chip (-1: none of ours) */
+static int core_addr(const struct bridge *b, uint8_t addr, uint8_t *out)
+{
+    if (addr == b->mpu_addr) {
+        *out = CHIP_ADDR_MPU;
+        return CHIP_MPU;
+    }
+    if (addr == b->hmc_addr) {
+        *out = CHIP_ADDR_HMC;
+        return CHIP_HMC;
+    }
+    if (addr == b->baro_addr) {
+        *out = CHIP_ADDR_BARO;
+        return CHIP_BARO;
+    }
+    *out = 0; /* the general call: the chips never acknowledge it */
+    return -1;
+}
+
+static void trace_flush(struct bridge *b)
+{
+    if (!b->trace || b->cur_chip < 0)
+        return;
+    struct bridge_msg m;
+    memset(&m, 0, sizeof m);
+    m.id = BRIDGE_TRACE;
+    m.u.trace.t_us = b->trace_t_ns / 1000u;
+    m.u.trace.addr = b->cur_addr;
+    m.u.trace.read = b->cur_read;
+    m.u.trace.len = b->cur_bytes > 255 ? 255 : (uint8_t)b->cur_bytes;
+    memcpy(m.u.trace.data, b->trace_data, b->trace_len);
+    bridge_send(b, &m);
+}
+
+static void trace_byte(struct bridge *b, uint8_t v)
+{
+    if (b->trace_len < sizeof b->trace_data)
+        b->trace_data[b->trace_len++] = v;
+    b->cur_bytes++;
+}
+
+int bridge_i2c_start(struct bridge *b, uint64_t t_ns, uint8_t addr, int read)
+{
+    trace_flush(b); /* a repeated START ends the message before it */
+    uint8_t a;
+    int chip = core_addr(b, addr, &a);
+    int ack = chip_start(&b->board, t_ns, a, read != 0);
+    if (!ack && chip >= 0)
+        b->n.i2c_errors++; /* one of our chips did not answer: a bus fault, or 0x1E out of bypass */
+    b->cur_chip = ack ? chip : -1;
+    b->cur_addr = addr;
+    b->cur_read = (uint8_t)(read != 0);
+    b->cur_bytes = 0;
+    b->trace_len = 0;
+    b->trace_t_ns = t_ns;
+    return ack;
+}
+
+int bridge_i2c_write(struct bridge *b, uint64_t t_ns, uint8_t byte)
+{
+    if (b->cur_chip < 0)
+        return 0; /* nobody was addressed: nobody acknowledges */
+    chip_write_byte(&b->board, byte);
+    int ack = 1;
+    unsigned i = b->cur_bytes;
+    trace_byte(b, byte);
+    struct bridge_msg m;
+    memset(&m, 0, sizeof m);
+    m.id = BRIDGE_REG_WRITE;
+    m.u.reg_write.t_us = t_ns / 1000u;
+    m.u.reg_write.addr = b->cur_addr;
+    if (b->cur_chip == CHIP_BARO) {
+        if (i > 0)
+            return ack; /* the MS5611 ignores what follows its command */
+        m.u.reg_write.reg = byte;
+    } else if (i == 0) {
+        b->ptr = byte; /* the register pointer */
+        return ack;
+    } else {
+        m.u.reg_write.reg = (uint8_t)(b->ptr + i - 1);
+        m.u.reg_write.value = byte;
+    }
+    bridge_send(b, &m);
+    return ack;
+}
+
+uint8_t bridge_i2c_read(struct bridge *b, uint64_t t_ns)
+{
+    (void)t_ns; /* (the chip core moves time only at a START) */
+    uint8_t v = chip_read_byte(&b->board);
+    if (b->cur_chip >= 0)
+        trace_byte(b, v);
+    return v;
+}
+
+void bridge_i2c_stop(struct bridge *b, uint64_t t_ns)
+{
+    trace_flush(b);
+    (void)t_ns;
+    chip_stop(&b->board);
+    b->cur_chip = -1;
+    set_hmc_enabled(b); /* the bypass may have changed */
+}
+
+/* ---------------------------------------------------------------- capture */
+
+void bridge_capture_edge(struct bridge *b, unsigned channel, int level, uint32_t count, uint64_t t_us)
+{
+    if (channel >= b->capture_channels) {
+        b->cap.glitches++;
+        return;
+    }
+    pwm_capture_edge(&b->cap, channel, level, count, t_us);
+}
+
+/* ---------------------------------------------------------------- the host's messages */
+
+static int finite3(const float *v) { return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]); }
+
+static void hello(struct bridge *b, const struct bridge_hello *h)
+{
+    struct bridge_msg m;
+    memset(&m, 0, sizeof m);
+    m.id = BRIDGE_HELLO_REPLY;
+    m.u.hello_reply.version = BRIDGE_PROTOCOL_VERSION;
+    m.u.hello_reply.nonce = h->nonce;
+    m.u.hello_reply.core_version = BRIDGE_CORE_VERSION;
+    memcpy(m.u.hello_reply.bridge_id, b->cfg.id, sizeof m.u.hello_reply.bridge_id);
+    memcpy(m.u.hello_reply.firmware_sha256, b->cfg.fw_sha, sizeof m.u.hello_reply.firmware_sha256);
+    m.u.hello_reply.clock_hz = b->cfg.clock_hz;
+    b->agreed = h->version == BRIDGE_PROTOCOL_VERSION;
+    if (b->agreed) { /* the link's counters start again (this frame counts as the first) */
+        uint8_t seq = b->rx.last_seq;
+        int up = b->rx.up;
+        link_rx_init(&b->rx, up);
+        b->rx.ok = 1;
+        b->rx.have_seq = 1;
+        b->rx.last_seq = seq;
+        b->n.late_samples = b->n.refused = b->n.sbus_dropped = 0;
+        b->cap.glitches = 0;
+        b->n.i2c_errors = 0;
+        for (int c = 0; c < 3; c++)
+            b->n.underrun_base[c] = chip_count(&b->board, UNDERRUNS[c]);
+    }
+    bridge_send(b, &m);
+}
+
+static int config(struct bridge *b, const struct bridge_config *c)
+{
+    if (c->topology > 1 || (c->mpu_addr != 0x68 && c->mpu_addr != 0x69) || c->hmc_addr != 0x1E ||
+        (c->baro_addr != 0x76 && c->baro_addr != 0x77) || c->capture_channels > PWM_CAPTURE_CHANNELS || c->trace > 1 ||
+        c->sbus_period_ms > 100)
+        return -1;
+    configure(b, c->topology, c->mpu_addr, c->hmc_addr, c->baro_addr, c->sbus_period_ms, c->capture_channels, c->trace);
+    return 0;
+}
+
+static void late(struct bridge *b, uint64_t valid_us, uint64_t t_us)
+{
+    if (valid_us < t_us)
+        b->n.late_samples++;
+}
+
+static int fault(struct bridge *b, const struct bridge_fault *f)
+{
+    int chip = f->target == BRIDGE_FAULT_TARGET_MPU        ? CHIP_MPU
+               : f->target == BRIDGE_FAULT_TARGET_HMC      ? CHIP_HMC
+               : f->target == BRIDGE_FAULT_TARGET_BARO_BUS ? CHIP_BARO
+                                                           : -1;
+    int kind = f->kind == BRIDGE_FAULT_KIND_OFF            ? CHIP_FAULT_OFF
+               : f->kind == BRIDGE_FAULT_KIND_INTERMITTENT ? CHIP_FAULT_INTERMITTENT
+               : f->kind == BRIDGE_FAULT_KIND_GARBAGE      ? CHIP_FAULT_GARBAGE
+                                                           : -1;
+    if (chip < 0 || kind < 0 || f->end_us <= f->start_us || f->end_us > UINT64_MAX / 1000u)
+        return -1;
+    uint64_t period_ns = 0, duty_ns = 0;
+    if (kind == CHIP_FAULT_INTERMITTENT) {
+        if (!(f->period_s > 0.0f && f->period_s < 1000.0f && f->duty >= 0.0f && f->duty <= 1.0f))
+            return -1;
+        period_ns = (uint64_t)((double)f->period_s * 1e9);
+        duty_ns = (uint64_t)((double)f->duty * (double)period_ns);
+        if (!period_ns)
+            return -1;
+    }
+    return chip_bus_fault_add(&b->board, (uint8_t)chip, (uint8_t)kind, f->start_us * 1000u, f->end_us * 1000u,
+                              period_ns, duty_ns)
+               ? 0
+               : -1;
+}
+
+/* One good frame from the host, received at t_us: 0 acted on, -1 refused (nothing applied). */
+static int dispatch(struct bridge *b, const struct bridge_msg *msg, uint64_t t_us)
+{
+    if (msg->id == BRIDGE_HELLO) {
+        hello(b, &msg->u.hello);
+        return 0;
+    }
+    if (!b->agreed)
+        return -1;
+    switch (msg->id) {
+    case BRIDGE_CONFIG:
+        return config(b, &msg->u.config);
+    case BRIDGE_IMU_SAMPLE: {
+        const struct bridge_imu_sample *s = &msg->u.imu_sample;
+        if (!finite3(s->accel) || !finite3(s->gyro) || !isfinite(s->temp_c) || s->valid_us > UINT64_MAX / 1000u)
+            return -1;
+        late(b, s->valid_us, t_us);
+        double v[7] = { s->accel[0], s->accel[1], s->accel[2], s->gyro[0], s->gyro[1], s->gyro[2], s->temp_c };
+        return chip_push_imu(&b->board, s->valid_us * 1000u, v) ? 0 : -1;
+    }
+    case BRIDGE_MAG_SAMPLE: {
+        const struct bridge_mag_sample *s = &msg->u.mag_sample;
+        if (!finite3(s->field) || s->valid_us > UINT64_MAX / 1000u)
+            return -1;
+        late(b, s->valid_us, t_us);
+        double field[3] = { s->field[0], s->field[1], s->field[2] };
+        return chip_push_mag(&b->board, s->valid_us * 1000u, field) ? 0 : -1;
+    }
+    case BRIDGE_BARO_SAMPLE: {
+        const struct bridge_baro_sample *s = &msg->u.baro_sample;
+        if (s->d1 > 0xFFFFFFu || s->d2 > 0xFFFFFFu || s->valid_us > UINT64_MAX / 1000u) /* 24-bit ADC words */
+            return -1;
+        late(b, s->valid_us, t_us);
+        return chip_push_baro(&b->board, s->valid_us * 1000u, s->d1, s->d2) ? 0 : -1;
+    }
+    case BRIDGE_SBUS: {
+        const struct bridge_sbus *s = &msg->u.sbus;
+        for (int i = 0; i < SBUS_CHANNELS; i++)
+            if (s->channels[i] > 0x7FF)
+                return -1;
+        if (s->flags & ~0x0F)
+            return -1;
+        sbus_out_set(&b->sbus, s->channels, s->flags, t_us);
+        return 0;
+    }
+    case BRIDGE_TIME_SYNC: {
+        struct bridge_msg m;
+        memset(&m, 0, sizeof m);
+        m.id = BRIDGE_TIME_SYNC_REPLY;
+        m.u.time_sync_reply.id = msg->u.time_sync.id;
+        m.u.time_sync_reply.rx_us = t_us;
+        m.u.time_sync_reply.tx_us = now_us(b);
+        bridge_send(b, &m);
+        return 0;
+    }
+    case BRIDGE_FAULT:
+        return fault(b, &msg->u.fault);
+    case BRIDGE_HEARTBEAT:
+        return 0;
+    default:
+        return -1; /* (the link decodes only down messages) */
+    }
+}
+
+void bridge_link_rx(struct bridge *b, const uint8_t *bytes, size_t n)
+{
+    uint64_t t = now_us(b);
+    struct bridge_msg msg;
+    for (size_t i = 0; i < n; i++) {
+        if (!link_rx_byte(&b->rx, bytes[i], &msg))
+            continue;
+        b->last_rx_us = t;
+        if (b->host_silent) {
+            b->host_silent = 0;
+            b->next_status_us = t; /* say it at once */
+        }
+        if (dispatch(b, &msg, t) < 0)
+            b->n.refused++;
+    }
+}
+
+/* ---------------------------------------------------------------- periodic work */
+
+void bridge_status(struct bridge *b, struct bridge_status *s)
+{
+    memset(s, 0, sizeof *s);
+    s->t_us = now_us(b);
+    for (int c = 0; c < 3; c++)
+        s->underruns[c] = chip_count(&b->board, UNDERRUNS[c]) - b->n.underrun_base[c];
+    s->late_samples = b->n.late_samples;
+    s->i2c_errors = b->n.i2c_errors;
+    s->frames_ok = b->rx.ok;
+    s->frames_bad = b->rx.bad;
+    s->seq_gaps = b->rx.seq_gaps;
+    s->refused = b->n.refused;
+    s->pulse_glitches = b->cap.glitches;
+    s->sbus_dropped = b->n.sbus_dropped;
+    s->host_silent = (uint8_t)b->host_silent;
+}
+
+void bridge_poll(struct bridge *b)
+{
+    uint64_t t = now_us(b);
+    chip_advance(&b->board, t * 1000u);
+    set_hmc_enabled(b);
+    uint64_t silent_for = t > b->last_rx_us ? t - b->last_rx_us : 0;
+    int silent = silent_for > BRIDGE_HOST_SILENT_US;
+    if (silent && !b->host_silent) {
+        b->host_silent = 1;
+        b->next_status_us = t; /* say it at once */
+    }
+    uint8_t frame[SBUS_FRAME];
+    if (sbus_out_poll(&b->sbus, t, silent ? silent_for : 0, frame)) {
+        size_t took = b->hal.sbus_tx(b->hal.ctx, frame, SBUS_FRAME);
+        if (took < SBUS_FRAME)
+            b->n.sbus_dropped += (uint32_t)(SBUS_FRAME - took);
+    }
+    struct bridge_msg m;
+    int fresh = b->cap.pulses != b->pulses_sent;
+    if (b->capture_channels && t >= b->next_pulses_us && (fresh || t - b->next_pulses_us >= BRIDGE_PULSES_EVERY_US)) {
+        memset(&m, 0, sizeof m);
+        m.id = BRIDGE_PULSES;
+        m.u.pulses.t_us = b->cap.last_edge_us;
+        pwm_capture_widths(&b->cap, t, m.u.pulses.width_tenth_us);
+        for (unsigned i = b->capture_channels; i < PWM_CAPTURE_CHANNELS; i++)
+            m.u.pulses.width_tenth_us[i] = 0;
+        bridge_send(b, &m);
+        b->pulses_sent = b->cap.pulses;
+        b->next_pulses_us = t + b->cfg.pulses_period_us;
+    }
+    if (t >= b->next_status_us) {
+        memset(&m, 0, sizeof m);
+        m.id = BRIDGE_STATUS;
+        bridge_status(b, &m.u.status);
+        bridge_send(b, &m);
+        b->next_status_us = t + b->cfg.status_period_us;
+    }
+}

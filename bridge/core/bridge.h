@@ -1,0 +1,92 @@
+/* The bridge core (docs/design.md §8): one chip board (the chip core), the link to the host, the ESC
+   pulse capture and SBUS out, behind the HAL of hal.h. Portable C99: no heap, no OS, no MCU headers.
+
+   Down (host -> bridge), each message acted on only once a HELLO of the bridge's protocol version was
+   agreed (before that, and after a HELLO of another version, everything but HELLO is refused and
+   counted): HELLO (HELLO_REPLY, the link counters start again), CONFIG (topology, addresses, SBUS
+   period, capture channels, tracing; the chips reset), IMU/MAG/BARO samples (queued in the chip core
+   with their valid time; one that arrives after its valid time is counted late), SBUS (channels and
+   flags), TIME_SYNC (TIME_SYNC_REPLY with the times the probe arrived and the reply left), FAULT (a bus
+   fault of the chip core), HEARTBEAT. A message whose values are out of range is refused and counted:
+   nothing of it is applied. A frame that fails the link's checks is counted there (link.h).
+
+   Up: REG_WRITE per register byte the board wrote (acknowledged), PULSES when new pulses came (at most
+   every pulses_period_us, and every 100 ms anyway), STATUS every status_period_us and when the host
+   falls silent or comes back, TRACE per transaction when CONFIG asks for it.
+
+   Host silence: no good frame for BRIDGE_HOST_SILENT_US sets host_silent (STATUS says so at once); the
+   chips hold their last samples and count an underrun at every sample instant without a new one, the
+   board's transactions are answered as ever, SBUS frames carry frame-lost (and failsafe after
+   SBUS_FAILSAFE_US). The next good frame clears it. */
+#ifndef BRIDGE_BRIDGE_H
+#define BRIDGE_BRIDGE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "chip_core.h"
+#include "hal.h"
+#include "link.h"
+#include "pwm_capture.h"
+#include "sbus_out.h"
+
+#define BRIDGE_CORE_VERSION 1
+#define BRIDGE_PULSES_EVERY_US 100000u
+
+struct bridge_cfg {
+    char id[16]; /* the bridge's name in HELLO_REPLY */
+    uint8_t fw_sha[8];
+    uint32_t clock_hz;
+    uint32_t status_period_us; /* 200000 */
+    uint32_t pulses_period_us; /* 2000 */
+    struct pwm_capture_cfg capture;
+};
+
+struct bridge_counters {
+    uint32_t late_samples, refused, sbus_dropped, i2c_errors;
+    uint32_t underrun_base[3]; /* the chip core's underrun counts at the last HELLO */
+};
+
+struct bridge {
+    struct bridge_hal hal;
+    struct bridge_cfg cfg;
+    chip_board board;
+    struct link_rx rx;
+    struct pwm_capture cap;
+    struct sbus_out sbus;
+    struct bridge_counters n;
+    int agreed; /* a HELLO of our version came */
+    uint8_t topology, mpu_addr, hmc_addr, baro_addr, capture_channels, trace;
+    uint8_t tx_seq;
+    int hmc_enabled;
+    uint64_t last_rx_us;
+    int host_silent;
+    uint64_t next_status_us, next_pulses_us;
+    uint32_t pulses_sent;
+    /* the transaction under way */
+    int cur_chip; /* CHIP_MPU, _HMC, _BARO; -1: none of ours */
+    uint8_t cur_addr, cur_read, ptr;
+    unsigned cur_bytes;
+    uint8_t trace_data[16];
+    uint8_t trace_len;
+    uint64_t trace_t_ns;
+};
+
+struct bridge_cfg bridge_defaults(void);
+void bridge_init(struct bridge *b, const struct bridge_hal *hal, const struct bridge_cfg *cfg);
+
+/* the port's calls (hal.h) */
+int bridge_i2c_start(struct bridge *b, uint64_t t_ns, uint8_t addr, int read);
+int bridge_i2c_write(struct bridge *b, uint64_t t_ns, uint8_t byte);
+uint8_t bridge_i2c_read(struct bridge *b, uint64_t t_ns);
+void bridge_i2c_stop(struct bridge *b, uint64_t t_ns);
+void bridge_capture_edge(struct bridge *b, unsigned channel, int level, uint32_t count, uint64_t t_us);
+void bridge_link_rx(struct bridge *b, const uint8_t *bytes, size_t n);
+void bridge_poll(struct bridge *b);
+
+/* what STATUS reports now */
+void bridge_status(struct bridge *b, struct bridge_status *out);
+/* one message up (id and fields set; the sequence byte is the bridge's) */
+void bridge_send(struct bridge *b, struct bridge_msg *msg);
+
+#endif

@@ -1,0 +1,43 @@
+/* The bridge's hardware abstraction (docs/design.md §8): what a port (the STM32G431 firmware, the
+   Linux process build/vbridge, the core's test tool) gives the core, and, listed below, what the port
+   calls in the core. The core is portable C99: no heap, no OS, no MCU headers; it never blocks and
+   never calls the port from anything but the calls the port made into it.
+
+   The port gives (struct bridge_hal, function pointers with one context pointer, so a test can run
+   several bridges in one process):
+     now_us          the free-running microsecond clock (64 bits: it never wraps in practice)
+     i2c_addr_enable the target address `addr` answers (on = 1) or not; the core turns 0x1E on only
+                     while the emulated MPU-6050 has its bypass on (topology GY-86)
+     link_tx         bytes to the host (a whole frame per call); the port queues what it can and drops
+                     the rest (the host counts the gap in the sequence numbers); never blocks
+     sbus_tx         one 25-byte SBUS frame for the board's RC input (100000 baud, 8E2, inverted on an
+                     MCU); returns the bytes taken: fewer are dropped and counted by the core
+     can_tx          optional (NULL: no CAN): one classic CAN frame, returns 0 when queued
+
+   The port calls (bridge.h):
+     bridge_i2c_start / bridge_i2c_write / bridge_i2c_read / bridge_i2c_stop
+                     the I2C target events of the board's bus, stamped with their time in ns: a START
+                     (or repeated START) with the address and direction (returns 1 to ACK), each byte the
+                     board writes (returns 1 to ACK), each byte it reads, the STOP
+     bridge_capture_edge
+                     an edge on an ESC input: channel, level after the edge, the capture timer's count
+                     (it wraps: 16 or 32 bits, as configured) and the time in us
+     bridge_link_rx  bytes from the host, in any chunking
+     bridge_poll     often (every 100 us or so, and after each I2C transaction): sample instants,
+                     SBUS frames due, PULSES and STATUS up, the host-silent rule */
+#ifndef BRIDGE_HAL_H
+#define BRIDGE_HAL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+struct bridge_hal {
+    void *ctx;
+    uint64_t (*now_us)(void *ctx);
+    void (*i2c_addr_enable)(void *ctx, uint8_t addr, int on);
+    void (*link_tx)(void *ctx, const uint8_t *bytes, size_t n);
+    size_t (*sbus_tx)(void *ctx, const uint8_t *frame, size_t n);
+    int (*can_tx)(void *ctx, uint32_t id, const uint8_t *data, uint8_t len); /* NULL: no CAN */
+};
+
+#endif

@@ -1,0 +1,191 @@
+/* A test harness for the bridge core (not part of any bridge): a HAL whose clock the script sets, and
+   a script on stdin, one command a line; what the core does comes out on stdout, one line each.
+   tests/bridge/test_core.py drives it. Commands:
+     t US                          the clock
+     rx HEX                        bytes from the host
+     poll                          bridge_poll
+     start TNS ADDR READ | wr TNS BYTE | rd TNS | stop TNS      I2C target events (ADDR, BYTE hex)
+     xfer TNS ADDR WHEX NREAD      a transfer as a 400 kHz master makes it: START, address, the written
+                                   bytes, a repeated START and NREAD reads (if any), STOP, each event at
+                                   its bit time: "xfer ok HEX" or "xfer nack"
+     edge CH LEVEL COUNT TUS       bridge_capture_edge
+     status                        the STATUS values as one line
+     sbus_limit N                  the SBUS UART takes at most N bytes a frame from now on
+     pwm_init BITS HZ MINW MAXW MINPER STALE | pwm_edge CH LEVEL COUNT TUS | pwm_widths TUS
+                                   a pwm_capture of its own: "pulse 0|1", "widths a b c d",
+                                   and "pwm PULSES GLITCHES" after each
+     sbus_encode C0 .. C15 FLAGS   "frame HEX"
+   Out, from the HAL: "up HEX" (a frame to the host), "sbus HEX" (what the UART took), "addr AA 0|1". */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../core/bridge.h"
+
+static uint64_t clock_us;
+static size_t sbus_limit = SBUS_FRAME;
+
+static void hex(const char *tag, const uint8_t *p, size_t n)
+{
+    printf("%s ", tag);
+    for (size_t i = 0; i < n; i++)
+        printf("%02x", p[i]);
+    printf("\n");
+}
+
+static uint64_t hal_now(void *ctx)
+{
+    (void)ctx;
+    return clock_us;
+}
+
+static void hal_addr(void *ctx, uint8_t addr, int on)
+{
+    (void)ctx;
+    printf("addr %02x %d\n", addr, on);
+}
+
+static void hal_link(void *ctx, const uint8_t *p, size_t n)
+{
+    (void)ctx;
+    hex("up", p, n);
+}
+
+static size_t hal_sbus(void *ctx, const uint8_t *p, size_t n)
+{
+    (void)ctx;
+    size_t k = n < sbus_limit ? n : sbus_limit;
+    hex("sbus", p, k);
+    return k;
+}
+
+static size_t unhex(const char *s, uint8_t *out, size_t cap)
+{
+    size_t n = 0;
+    while (s[0] && s[1] && n < cap) {
+        char two[3] = { s[0], s[1], 0 };
+        out[n++] = (uint8_t)strtoul(two, NULL, 16);
+        s += 2;
+    }
+    return n;
+}
+
+#define BIT_NS 2500u /* 400 kHz */
+
+static void xfer(struct bridge *b, uint64_t t, uint8_t addr, const uint8_t *w, size_t nw, unsigned nr)
+{
+    uint8_t got[64];
+    int ok = 1;
+    t += BIT_NS; /* START */
+    if (nw || !nr) {
+        ok = bridge_i2c_start(b, t, addr, 0);
+        t += 9 * BIT_NS;
+        for (size_t i = 0; ok && i < nw; i++, t += 9 * BIT_NS)
+            ok = bridge_i2c_write(b, t, w[i]);
+    }
+    if (ok && nr) {
+        ok = bridge_i2c_start(b, t, addr, 1);
+        t += 10 * BIT_NS;
+        for (unsigned i = 0; ok && i < nr && i < sizeof got; i++, t += 9 * BIT_NS)
+            got[i] = bridge_i2c_read(b, t);
+    }
+    bridge_i2c_stop(b, t);
+    if (ok)
+        hex("xfer ok", got, nr);
+    else
+        printf("xfer nack\n");
+}
+
+int main(void)
+{
+    static char line[1 << 20];
+    static uint8_t bytes[1 << 19];
+    struct bridge_hal hal = { NULL, hal_now, hal_addr, hal_link, hal_sbus, NULL };
+    struct bridge_cfg cfg = bridge_defaults();
+    memcpy(cfg.id, "bridge_tool", 11);
+    static struct bridge b;
+    bridge_init(&b, &hal, &cfg);
+    struct pwm_capture pc;
+    struct pwm_capture_cfg pcfg = pwm_capture_defaults();
+    pwm_capture_init(&pc, &pcfg);
+    while (fgets(line, sizeof line, stdin)) {
+        char cmd[32] = "";
+        unsigned long long a = 0, c = 0, d = 0, e = 0, f = 0, g = 0;
+        char s1[1 << 10];
+        int off = 0;
+        if (sscanf(line, "%31s%n", cmd, &off) != 1)
+            continue;
+        const char *rest = line + off;
+        if (!strcmp(cmd, "t")) {
+            sscanf(rest, "%llu", &a);
+            clock_us = a;
+        } else if (!strcmp(cmd, "rx")) {
+            while (*rest == ' ')
+                rest++;
+            size_t n = unhex(rest, bytes, sizeof bytes);
+            bridge_link_rx(&b, bytes, n);
+        } else if (!strcmp(cmd, "poll")) {
+            bridge_poll(&b);
+        } else if (!strcmp(cmd, "start")) {
+            sscanf(rest, "%llu %llx %llu", &a, &c, &d);
+            printf("ack %d\n", bridge_i2c_start(&b, a, (uint8_t)c, (int)d));
+        } else if (!strcmp(cmd, "wr")) {
+            sscanf(rest, "%llu %llx", &a, &c);
+            printf("ack %d\n", bridge_i2c_write(&b, a, (uint8_t)c));
+        } else if (!strcmp(cmd, "rd")) {
+            sscanf(rest, "%llu", &a);
+            printf("rd %02x\n", bridge_i2c_read(&b, a));
+        } else if (!strcmp(cmd, "stop")) {
+            sscanf(rest, "%llu", &a);
+            bridge_i2c_stop(&b, a);
+        } else if (!strcmp(cmd, "xfer")) {
+            s1[0] = 0;
+            sscanf(rest, "%llu %llx %1023s %llu", &a, &c, s1, &d);
+            size_t nw = strcmp(s1, "-") ? unhex(s1, bytes, 64) : 0;
+            xfer(&b, a, (uint8_t)c, bytes, nw, (unsigned)d);
+        } else if (!strcmp(cmd, "edge")) {
+            sscanf(rest, "%llu %llu %llu %llu", &a, &c, &d, &e);
+            bridge_capture_edge(&b, (unsigned)a, (int)c, (uint32_t)d, e);
+        } else if (!strcmp(cmd, "status")) {
+            struct bridge_status st;
+            bridge_status(&b, &st);
+            printf("status underruns %lu %lu %lu late %lu i2c_errors %lu ok %lu bad %lu gaps %lu refused %lu "
+                   "glitches %lu sbus_dropped %lu silent %u agreed %d\n",
+                   (unsigned long)st.underruns[0], (unsigned long)st.underruns[1], (unsigned long)st.underruns[2],
+                   (unsigned long)st.late_samples, (unsigned long)st.i2c_errors, (unsigned long)st.frames_ok,
+                   (unsigned long)st.frames_bad, (unsigned long)st.seq_gaps, (unsigned long)st.refused,
+                   (unsigned long)st.pulse_glitches, (unsigned long)st.sbus_dropped, (unsigned)st.host_silent,
+                   b.agreed);
+        } else if (!strcmp(cmd, "sbus_limit")) {
+            sscanf(rest, "%llu", &a);
+            sbus_limit = (size_t)a;
+        } else if (!strcmp(cmd, "pwm_init")) {
+            sscanf(rest, "%llu %llu %llu %llu %llu %llu", &a, &c, &d, &e, &f, &g);
+            struct pwm_capture_cfg k = { (uint8_t)a, (uint32_t)c, (uint32_t)d, (uint32_t)e, (uint32_t)f, (uint32_t)g };
+            pwm_capture_init(&pc, &k);
+        } else if (!strcmp(cmd, "pwm_edge")) {
+            sscanf(rest, "%llu %llu %llu %llu", &a, &c, &d, &e);
+            printf("pulse %d\n", pwm_capture_edge(&pc, (unsigned)a, (int)c, (uint32_t)d, e));
+            printf("pwm %lu %lu\n", (unsigned long)pc.pulses, (unsigned long)pc.glitches);
+        } else if (!strcmp(cmd, "pwm_widths")) {
+            sscanf(rest, "%llu", &a);
+            uint16_t w[PWM_CAPTURE_CHANNELS];
+            pwm_capture_widths(&pc, a, w);
+            printf("widths %u %u %u %u\n", w[0], w[1], w[2], w[3]);
+        } else if (!strcmp(cmd, "sbus_encode")) {
+            uint16_t ch[SBUS_CHANNELS];
+            const char *p = rest;
+            char *end;
+            for (int i = 0; i < SBUS_CHANNELS; i++, p = end)
+                ch[i] = (uint16_t)strtoul(p, &end, 10);
+            uint8_t frame[SBUS_FRAME];
+            sbus_encode(ch, (uint8_t)strtoul(p, NULL, 10), frame);
+            hex("frame", frame, SBUS_FRAME);
+        } else {
+            fprintf(stderr, "bridge_tool: unknown command %s\n", cmd);
+            return 2;
+        }
+        fflush(stdout);
+    }
+    return 0;
+}

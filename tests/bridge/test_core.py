@@ -1,0 +1,441 @@
+"""The bridge core (bridge/core: bridge.c, pwm_capture.c, sbus_out.c) through its test harness
+(bridge/tests/bridge_tool.c: a HAL whose clock the script sets): ESC pulse capture with counter wrap and
+glitches, SBUS frames byte for byte against emulators/sbus.py, every down message's dispatch, the
+version rule, host silence, register images that never tear a burst, and fuzzed frames that are
+rejected, counted and never acted on."""
+
+from __future__ import annotations
+
+import random
+import struct
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from emulators import sbus
+from rig.bridge.link import Decoded, Receiver, encode
+from rig.bridge.messages import HOST_SILENT_US, MESSAGES, PROTOCOL_VERSION
+from tests.bridge.tools import bridge_tool
+
+G = 9.80665
+
+
+@pytest.fixture(scope="module")
+def tool() -> Path:
+    return bridge_tool()
+
+
+@dataclass
+class Run:
+    lines: list[str]
+
+    def up(self) -> list[Decoded]:
+        rx = Receiver("up")
+        out = [m for line in self.lines if line.startswith("up ") for m in rx.feed(bytes.fromhex(line[3:]))]
+        assert rx.bad == 0
+        return out
+
+    def named(self, name: str) -> list[dict[str, object]]:
+        return [m.values for m in self.up() if m.name == name]
+
+    def tagged(self, tag: str) -> list[str]:
+        return [line[len(tag) + 1:] for line in self.lines if line.startswith(tag + " ")]
+
+    def status(self) -> dict[str, int]:
+        """The last `status` line as numbers."""
+        words = self.tagged("status")[-1].split()
+        out = {"underruns": 0}
+        out.update({"imu_underruns": int(words[1]), "mag_underruns": int(words[2]),
+                    "baro_underruns": int(words[3])})
+        it = iter(words[4:])
+        out.update({k: int(v) for k, v in zip(it, it, strict=True)})
+        return out
+
+
+def run(tool: Path, script: list[str]) -> Run:
+    done = subprocess.run([str(tool)], input="\n".join(script) + "\n", capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    return Run(done.stdout.splitlines())
+
+
+class Script:
+    """Host frames and board transactions, in order, with the clock."""
+
+    def __init__(self) -> None:
+        self.lines: list[str] = []
+        self.seq = 0
+
+    def t(self, us: int) -> Script:
+        self.lines.append(f"t {us}")
+        return self
+
+    def send(self, name: str, **values: object) -> Script:
+        self.lines.append("rx " + encode(name, self.seq, **values).hex())
+        self.seq += 1
+        return self
+
+    def raw(self, wire: bytes) -> Script:
+        self.lines.append("rx " + wire.hex())
+        return self
+
+    def hello(self, version: int = PROTOCOL_VERSION) -> Script:
+        return self.send("HELLO", version=version, nonce=0xC0FFEE)
+
+    def xfer(self, t_ns: int, addr: int, write: bytes, nread: int) -> Script:
+        self.lines.append(f"xfer {t_ns} {addr:x} {write.hex() or '-'} {nread}")
+        return self
+
+    def cmd(self, *lines: str) -> Script:
+        self.lines += lines
+        return self
+
+
+def accel_bytes(accel: tuple[float, float, float], temp_c: float, gyro: tuple[float, float, float]) -> bytes:
+    """ACCEL_XOUT_H..GYRO_ZOUT_L at ±2 g and ±250 °/s (the power-on ranges)."""
+    a = [round(x / G * 16384) for x in accel]
+    g = [round(x * 57.29578 * 131) for x in gyro]
+    return struct.pack(">7h", *a, round((temp_c - 36.53) * 340), *g)
+
+
+WAKE = bytes([0x6B, 0x00])
+SAMPLE = {"accel": [0.5, -0.25, -G], "gyro": [0.1, -0.2, 0.05], "temp_c": 30.0}
+
+
+# ---------------------------------------------------------------- pulse capture
+
+
+def pwm(tool: Path, init: str, edges: list[tuple[int, int, int, int]],
+        widths_at: int) -> tuple[list[int], list[int]]:
+    r = run(tool, [f"pwm_init {init}", *[f"pwm_edge {c} {lv} {n} {t}" for c, lv, n, t in edges],
+                   f"pwm_widths {widths_at}"])
+    pulses = [int(x) for x in r.tagged("pulse")]
+    return pulses, [int(x) for x in r.tagged("widths")[-1].split()]
+
+
+def test_pulse_widths_in_tenths_of_a_microsecond(tool: Path) -> None:
+    # 10 MHz counter: 1500.3 us is 15003 ticks; four channels, each its own width
+    edges = []
+    for ch, w in enumerate((15003, 10000, 20000, 12345)):
+        edges += [(ch, 1, 1000, 100), (ch, 0, 1000 + w, 100 + w // 10)]
+    pulses, widths = pwm(tool, "32 10000000 500 2500 1000 100000", edges, 3000)
+    assert pulses == [0, 1] * 4 and widths == [15003, 10000, 20000, 12345]
+
+
+@pytest.mark.parametrize("bits", [16, 32])
+def test_a_counter_that_wraps_inside_a_pulse_still_gives_its_width(tool: Path, bits: int) -> None:
+    top = (1 << bits) - 1
+    rise = top - 4999  # 5000 ticks to the wrap (at 0), 10000 after it
+    edges = [(0, 1, rise, 1000), (0, 0, 10000, 2500)]
+    pulses, widths = pwm(tool, f"{bits} 10000000 500 2500 1000 100000", edges, 2600)
+    assert pulses == [0, 1] and widths[0] == 15000
+
+
+def test_glitches_are_filtered_and_counted(tool: Path) -> None:
+    init = "32 1000000 500 2500 1000 100000"  # 1 MHz: ticks are microseconds
+    edges = [
+        (0, 1, 0, 0), (0, 0, 1500, 1500),             # good: 1500 us
+        (0, 1, 3000, 3000), (0, 0, 3300, 3300),       # too short (300 us): glitch
+        (0, 1, 5000, 5000), (0, 0, 6000, 6000),       # good: 1000 us, 5000 us after the last good start
+        (0, 1, 6500, 6500), (0, 1, 7000, 7000),       # a rise while high (a fall was lost): glitch
+        (0, 0, 7400, 7400),                           # its width counts from the second rise: 400, glitch
+        (0, 0, 7600, 7600),                           # a fall with no rise: glitch
+        (0, 1, 9000, 9000), (0, 0, 12000, 12000),     # too long (3000 us): glitch
+        (0, 1, 13000, 13000), (0, 0, 13600, 13600),   # good: 600 us
+        (0, 1, 13800, 13800), (0, 0, 15000, 15000),   # 800 us after the last good start: glitch
+    ]
+    r = run(tool, [f"pwm_init {init}", *[f"pwm_edge {c} {lv} {n} {t}" for c, lv, n, t in edges],
+                   "pwm_widths 15100", "pwm_widths 200000"])
+    assert [int(x) for x in r.tagged("pulse")] == [0, 1, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0]
+    assert r.tagged("pwm")[-1] == "3 6"  # 3 good pulses, 6 glitches
+    assert r.tagged("widths") == ["6000 0 0 0", "0 0 0 0"]  # the last good one; stale 100 ms later
+
+
+# ---------------------------------------------------------------- SBUS
+
+
+def test_sbus_frames_agree_byte_for_byte_with_the_python_encoder(tool: Path) -> None:
+    rng = random.Random(5)
+    cases = [([rng.randrange(2048) for _ in range(16)], rng.choice([0, 4, 8, 12])) for _ in range(200)]
+    cases += [([0] * 16, 0), ([2047] * 16, 12), (sbus.Sticks(throttle=0.5, arm=True).channels(), 0)]
+    r = run(tool, [f"sbus_encode {' '.join(map(str, ch))} {fl}" for ch, fl in cases])
+    want = [sbus.encode(ch, bool(fl & 4), bool(fl & 8)).hex() for ch, fl in cases]
+    assert r.tagged("frame") == want
+
+
+def test_sbus_goes_out_at_its_period_and_a_full_uart_drops_counted_bytes(tool: Path) -> None:
+    ch = sbus.Sticks(roll=0.3, throttle=0.6, arm=True).channels()
+    s = Script().t(1000).hello().send("CONFIG", topology=0, mpu_addr=0x68, hmc_addr=0x1E, baro_addr=0x77,
+                                      sbus_period_ms=7, capture_channels=4)
+    s.send("SBUS", channels=ch, flags=0)
+    for t in range(1000, 1000 + 7000 * 5, 1000):  # polled every ms for 35 ms: frames at 0, 7, .. 28 ms
+        s.t(t).cmd("poll")
+    s.cmd("sbus_limit 20").t(36000).cmd("poll", "status")
+    r = run(tool, s.lines)
+    frames = r.tagged("sbus")
+    assert frames[:5] == [sbus.encode(ch).hex()] * 5 and frames[5] == sbus.encode(ch).hex()[:40]
+    assert r.status()["sbus_dropped"] == 5
+
+
+def test_sbus_frames_say_frame_lost_then_failsafe_while_the_host_is_silent(tool: Path) -> None:
+    ch = sbus.Sticks(throttle=0.5).channels()
+    s = Script().t(0).hello().send("SBUS", channels=ch, flags=0).cmd("poll")
+    s.t(HOST_SILENT_US + 14_000).cmd("poll").t(1_000_000 + 28_000).cmd("poll")
+    s.t(1_000_000 + 42_000).send("HEARTBEAT").cmd("poll")
+    r = run(tool, s.lines)
+    assert r.tagged("sbus") == [sbus.encode(ch).hex(), sbus.encode(ch, frame_lost=True).hex(),
+                                sbus.encode(ch, frame_lost=True, failsafe=True).hex(), sbus.encode(ch).hex()]
+
+
+# ---------------------------------------------------------------- dispatch
+
+
+def test_hello_is_answered_and_another_version_is_refused_with_nothing_applied(tool: Path) -> None:
+    s = Script().t(10).hello(version=PROTOCOL_VERSION + 1)
+    s.send("IMU_SAMPLE", valid_us=0, **SAMPLE).xfer(20_000, 0x68, WAKE, 0).t(30).cmd("poll", "status")
+    s.xfer(3_000_000, 0x68, b"\x3b", 14)  # the sample was not applied: zeros
+    s.t(40).hello().send("IMU_SAMPLE", valid_us=3000, **SAMPLE).cmd("status")
+    s.xfer(4_000_000, 0x68, b"\x3b", 14)
+    r = run(tool, s.lines)
+    replies = r.named("HELLO_REPLY")
+    assert [m["version"] for m in replies] == [PROTOCOL_VERSION, PROTOCOL_VERSION]
+    name = replies[0]["bridge_id"]
+    assert isinstance(name, list) and bytes(name).rstrip(b"\0") == b"bridge_tool"
+    assert replies[0]["nonce"] == 0xC0FFEE
+    first, second = r.tagged("status")
+    assert "refused 1 " in first and "agreed 0" in first  # the sample, refused
+    assert "refused 0 " in second and "agreed 1" in second and "ok 2 " in second  # counters start again
+    applied = accel_bytes((0.5, -0.25, -G), 30.0, (0.1, -0.2, 0.05)).hex()
+    assert r.tagged("xfer ok")[1:] == [bytes(14).hex(), applied]
+
+
+def test_imu_samples_become_register_bytes_at_their_valid_time(tool: Path) -> None:
+    s = Script().t(0).hello().xfer(1000, 0x68, WAKE, 0)
+    s.send("IMU_SAMPLE", valid_us=1000, **SAMPLE)
+    s.send("IMU_SAMPLE", valid_us=2000, accel=[1.0, 2.0, 3.0], gyro=[0, 0, 0], temp_c=25.0)
+    s.xfer(1_500_000, 0x68, b"\x3b", 14).xfer(2_500_000, 0x68, b"\x3b", 14).xfer(2_600_000, 0x68, b"\x75", 1)
+    r = run(tool, s.lines)
+    assert r.tagged("xfer ok") == ["", accel_bytes((0.5, -0.25, -G), 30.0, (0.1, -0.2, 0.05)).hex(),
+                                   accel_bytes((1.0, 2.0, 3.0), 25.0, (0, 0, 0)).hex(), "68"]
+
+
+def test_a_burst_read_never_mixes_two_samples(tool: Path) -> None:
+    """Sample B becomes valid in the middle of a 14-byte burst: the burst reads A whole, the next B."""
+    s = Script().t(0).hello().xfer(1000, 0x68, WAKE, 0)
+    s.send("IMU_SAMPLE", valid_us=1000, accel=[1, 1, 1], gyro=[0, 0, 0], temp_c=20)
+    s.send("IMU_SAMPLE", valid_us=2000, accel=[-3, -3, -3], gyro=[1, 1, 1], temp_c=40)
+    # the read starts at 1.9975 ms: its 14 bytes at 400 kHz take 0.32 ms, across 2.0 ms
+    s.xfer(1_950_000, 0x68, b"\x3b", 14).xfer(2_400_000, 0x68, b"\x3b", 14)
+    r = run(tool, s.lines)
+    a = accel_bytes((1, 1, 1), 20, (0, 0, 0)).hex()
+    b = accel_bytes((-3, -3, -3), 40, (1, 1, 1)).hex()
+    assert r.tagged("xfer ok")[1:] == [a, b]
+
+
+def test_register_writes_go_up_so_the_host_follows_the_configuration(tool: Path) -> None:
+    s = Script().t(0).hello()
+    s.xfer(1000, 0x68, bytes([0x1A, 0x03, 0x18, 0x08]), 0)  # CONFIG=3, GYRO_CONFIG=0x18, ACCEL_CONFIG=8
+    s.xfer(2_000_000, 0x77, bytes([0x48]), 0)  # MS5611: convert D1 at OSR 4096
+    s.xfer(3_000_000, 0x42, bytes([0x01, 0x02]), 0)  # nobody there: nothing goes up
+    r = run(tool, s.lines)
+    writes = [(m["addr"], m["reg"], m["value"]) for m in r.named("REG_WRITE")]
+    assert writes == [(0x68, 0x1A, 0x03), (0x68, 0x1B, 0x18), (0x68, 0x1C, 0x08), (0x77, 0x48, 0)]
+    assert r.lines.count("xfer nack") == 1
+
+
+def test_bypass_enables_the_magnetometer_and_its_samples_are_read(tool: Path) -> None:
+    s = Script().t(0).hello().xfer(1000, 0x1E, b"\x0a", 3)  # behind the MPU: absent
+    s.xfer(2000, 0x68, bytes([0x6B, 0x00]), 0).xfer(100_000, 0x68, bytes([0x37, 0x02]), 0)
+    s.send("MAG_SAMPLE", valid_us=0, field=[0.3, -0.1, 0.4]).t(200).cmd("poll")
+    s.xfer(300_000, 0x1E, b"\x0a", 3).xfer(400_000, 0x1E, b"\x03", 6)
+    r = run(tool, s.lines)
+    assert r.lines.count("xfer nack") == 1 and "addr 1e 1" in r.lines
+    x, y, z = (round(v * 1090) for v in (0.3, -0.1, 0.4))  # CRB default: gain 1090 LSB/G
+    assert r.tagged("xfer ok")[-2:] == ["483433", struct.pack(">3h", x, z, y).hex()]
+
+
+def test_barometer_words_are_given_by_the_conversion_the_board_started(tool: Path) -> None:
+    s = Script().t(0).hello().send("BARO_SAMPLE", valid_us=0, d1=0x812345, d2=0x7A0B0C)
+    s.xfer(1_000_000, 0x77, b"\x48", 0).xfer(20_000_000, 0x77, b"\x00", 3)  # D1 at OSR 4096
+    s.xfer(21_000_000, 0x77, b"\x52", 0).xfer(40_000_000, 0x77, b"\x00", 3)  # D2 at OSR 512
+    s.xfer(41_000_000, 0x77, b"\xa2", 0).xfer(42_000_000, 0x77, b"", 2)  # PROM word 1
+    r = run(tool, s.lines)
+    assert r.tagged("xfer ok")[1::2] == ["812345", "7a0b0c", f"{40127:04x}"]
+
+
+def test_time_sync_is_answered_with_the_bridge_times(tool: Path) -> None:
+    r = run(tool, Script().t(5).hello().t(123_456).send("TIME_SYNC", id=77, host_ns=999).lines)
+    assert r.named("TIME_SYNC_REPLY") == [{"id": 77, "rx_us": 123_456, "tx_us": 123_456}]
+
+
+def test_a_bus_fault_nacks_its_chip_in_its_window_and_counts(tool: Path) -> None:
+    s = Script().t(0).hello()
+    s.send("FAULT", target=4, kind=6, start_us=1000, end_us=2000)  # mpu off 1..2 ms
+    s.send("FAULT", target=0, kind=6, start_us=1000, end_us=2000)  # accel: a signal fault, not the bridge's
+    s.send("FAULT", target=4, kind=7, start_us=2000, end_us=1000)  # ends before it starts
+    for t in (500, 1500, 1900, 2500):
+        s.xfer(t * 1000, 0x68, b"\x75", 1)
+    s.cmd("status")
+    r = run(tool, s.lines)
+    assert r.tagged("xfer ok") == ["68", "68"] and r.lines.count("xfer nack") == 2
+    st = r.status()
+    assert st["i2c_errors"] == 2 and st["refused"] == 2
+
+
+def test_out_of_range_values_are_refused_whole(tool: Path) -> None:
+    s = Script().t(0).hello()
+    s.send("CONFIG", topology=2, mpu_addr=0x68, hmc_addr=0x1E, baro_addr=0x77, sbus_period_ms=14)
+    s.send("IMU_SAMPLE", valid_us=0, accel=[float("nan"), 0, 0], gyro=[0, 0, 0], temp_c=20)
+    s.send("SBUS", channels=[2048] + [992] * 15).send("SBUS", channels=[992] * 16, flags=0x10)
+    s.send("BARO_SAMPLE", valid_us=0, d1=1 << 24).cmd("poll", "status")
+    s.xfer(1000, 0x68, WAKE, 0).xfer(2_000_000, 0x68, b"\x3b", 6)
+    r = run(tool, s.lines)
+    assert r.status()["refused"] == 5 and r.tagged("sbus") == []
+    assert r.tagged("xfer ok")[-1] == bytes(6).hex()
+    assert not any(line.startswith("addr") for line in r.lines[3:])  # CONFIG did not reset the addresses
+
+
+def test_config_direct_topology_puts_the_magnetometer_on_the_bus(tool: Path) -> None:
+    s = Script().t(0).hello().send("CONFIG", topology=1, mpu_addr=0x69, hmc_addr=0x1E, baro_addr=0x76,
+                                   sbus_period_ms=14, capture_channels=4)
+    s.xfer(1000, 0x1E, b"\x0a", 3).xfer(2_000_000, 0x69, b"\x75", 1).xfer(3_000_000, 0x68, b"\x75", 1)
+    r = run(tool, s.lines)
+    assert {"addr 69 1", "addr 76 1", "addr 1e 1"} <= set(r.lines)
+    assert r.tagged("xfer ok") == ["483433", "68"] and r.lines.count("xfer nack") == 1
+
+
+def test_late_samples_are_counted(tool: Path) -> None:
+    s = Script().t(5000).hello().send("IMU_SAMPLE", valid_us=4000, **SAMPLE)
+    s.send("IMU_SAMPLE", valid_us=6000, **SAMPLE).send("MAG_SAMPLE", valid_us=10, field=[0, 0, 0])
+    s.cmd("status")
+    assert run(tool, s.lines).status()["late"] == 2
+
+
+def test_a_silent_host_is_flagged_the_samples_held_and_the_board_answered(tool: Path) -> None:
+    s = Script().t(0).hello().xfer(0, 0x68, bytes([0x1A, 0x01]), 0).xfer(0, 0x68, WAKE, 0)  # DLPF 1: 1 kHz
+    for k in range(50):  # 50 ms of 1 kHz samples, streamed 2 ms ahead
+        s.t(max(0, 1000 * k - 2000)).send("IMU_SAMPLE", valid_us=1000 * k, accel=[0, 0, -G], gyro=[0, 0, 0],
+                                          temp_c=25 + k * 0.1).cmd("poll")
+    s.t(49_000).send("HEARTBEAT").cmd("poll", "status")
+    s.t(49_000 + HOST_SILENT_US - 1000).cmd("poll", "status")
+    s.t(49_000 + HOST_SILENT_US + 1000).cmd("poll", "status").xfer(150_000_000, 0x68, b"\x3b", 14)
+    s.t(200_000).send("HEARTBEAT").cmd("poll", "status")
+    r = run(tool, s.lines)
+    st = r.tagged("status")
+    assert [" silent 1 " in x for x in st] == [False, False, True, False]
+    # the sample instants run at 1 kHz from the first sample (the chip core sets their phase): every
+    # instant after the last sample's (49 ms) held it and counted an underrun: 50 .. 148 ms, .. 150, .. 200
+    held = [int(x.split()[1]) for x in st]
+    assert held[0] == 0 and held[1] in (98, 99) and held[2] - held[1] == 2 and held[3] - held[2] == 50
+    assert r.tagged("xfer ok")[-1] == accel_bytes((0, 0, -G), 25 + 49 * 0.1, (0, 0, 0)).hex()
+    statuses = r.named("STATUS")
+    assert any(m["host_silent"] == 1 for m in statuses) and statuses[-1]["host_silent"] == 0
+
+
+def test_pulses_go_up_with_their_widths(tool: Path) -> None:
+    s = Script().t(0).hello().cmd("poll")
+    for k in range(3):  # 400 Hz, 10 MHz counter: channel widths 1100, 1200, 1300, 1400 us
+        t0 = 2500 * k + 10
+        for ch in range(4):
+            t1 = t0 + 1100 + 100 * ch
+            s.cmd(f"edge {ch} 1 {t0 * 10} {t0}", f"edge {ch} 0 {t1 * 10} {t1}")
+        s.t(t0 + 2000).cmd("poll")
+    r = run(tool, s.lines)
+    pulses = r.named("PULSES")
+    assert pulses[-1]["width_tenth_us"] == [11000, 12000, 13000, 14000]
+    assert pulses[-1]["t_us"] == 5010 + 1400
+
+
+# ---------------------------------------------------------------- fuzz
+
+
+def plausible(name: str, rng: random.Random) -> dict[str, object]:
+    """Values a host might send, now and then out of range."""
+    if name == "HELLO":
+        version = PROTOCOL_VERSION if rng.random() < 0.9 else rng.randrange(65536)
+        return {"version": version, "nonce": rng.randrange(9)}
+    if name == "CONFIG":
+        return {"topology": rng.choice([0, 0, 1, 2]), "mpu_addr": rng.choice([0x68, 0x69]), "hmc_addr": 0x1E,
+                "baro_addr": rng.choice([0x77, 0x76, 0x10]), "sbus_period_ms": rng.choice([7, 14, 200]),
+                "capture_channels": rng.randrange(6), "trace": rng.randrange(2)}
+    if name == "IMU_SAMPLE":
+        return {"valid_us": rng.randrange(0, 400_000), "accel": [rng.uniform(-20, 20) for _ in range(3)],
+                "gyro": [rng.uniform(-5, 5) for _ in range(3)], "temp_c": rng.uniform(0, 40)}
+    if name == "MAG_SAMPLE":
+        return {"valid_us": rng.randrange(0, 400_000), "field": [rng.uniform(-1, 1) for _ in range(3)]}
+    if name == "BARO_SAMPLE":
+        return {"valid_us": rng.randrange(400_000), "d1": rng.randrange(1 << 24),
+                "d2": rng.randrange(1 << 25)}
+    if name == "SBUS":
+        return {"channels": [rng.randrange(2100) for _ in range(16)], "flags": rng.choice([0, 4, 8, 16])}
+    if name == "TIME_SYNC":
+        return {"id": rng.randrange(1 << 32), "host_ns": rng.randrange(1 << 40)}
+    if name == "FAULT":
+        start = rng.randrange(400_000)
+        return {"target": rng.randrange(8), "kind": rng.randrange(10), "start_us": start,
+                "end_us": start + rng.randrange(-1000, 50_000), "period_s": rng.uniform(-0.01, 0.02),
+                "duty": rng.uniform(-0.2, 1.2)}
+    return {}
+
+
+def observable(r: Run) -> list[object]:
+    """What the board and the host see, less the link's own counters (which differ: one run saw the bad
+    frames)."""
+    out: list[object] = []
+    for line in r.lines:
+        if line.startswith(("up ", "status ")):
+            continue
+        out.append(line)
+    for m in r.up():
+        v = dict(m.values)
+        if m.name == "STATUS":
+            for k in ("frames_ok", "frames_bad", "seq_gaps"):
+                v.pop(k)
+        out.append((m.name, v))
+    return out
+
+
+def test_fuzzed_frames_are_rejected_counted_and_nothing_of_them_is_applied(tool: Path) -> None:
+    """The same session twice: once as a bad cable delivers it (bits flipped, bytes lost, frames cut,
+    noise), once with only the frames the host's decoder accepts from that wire, sent clean. Everything
+    the board and the host observe (bytes read, SBUS, address changes, replies, STATUS but for the link
+    counters) is the same: no damaged frame was acted on, and the bridge counted the damage."""
+    from tests.bridge.test_link import mutate
+
+    rng = random.Random(18)
+    down = [m.name for m in MESSAGES if m.direction == "down"]
+    dirty = Script().t(0).hello()
+    clean = Script().t(0).hello()
+    host = Receiver("down")
+    host.feed(encode("HELLO", 0, version=PROTOCOL_VERSION, nonce=0xC0FFEE))
+    seq = 1
+    for step in range(150):
+        t = 1000 + step * 2500
+        frames = []
+        for _ in range(rng.randrange(1, 8)):
+            name = rng.choice(down if step < 100 else [n for n in down if n != "HELLO"])
+            frames.append(encode(name, seq, **plausible(name, rng)))
+            seq += 1
+        wire = mutate(frames, rng) if rng.random() < 0.7 else b"".join(frames)
+        if rng.random() < 0.1:
+            wire += rng.randbytes(rng.randrange(1, 200))
+        dirty.t(t).raw(wire)
+        accepted = host.feed(wire)
+        clean.t(t)
+        for m in accepted:
+            clean.raw(encode(m.name, m.seq, **m.values))
+        board = [f"xfer {t * 1000 + 100_000} 68 3b 14", f"xfer {t * 1000 + 500_000} 77 00 3",
+                 f"xfer {t * 1000 + 900_000} 1e 03 6", "poll"]
+        dirty.cmd(*board)
+        clean.cmd(*board)
+    dirty.cmd("status")
+    clean.cmd("status")
+    a, b = run(tool, dirty.lines), run(tool, clean.lines)
+    assert observable(a) == observable(b)
+    sa, sb = a.status(), b.status()
+    # (an agreed HELLO starts the bridge's counts again: the last 50 steps have none)
+    assert sa["bad"] > 10 and sb["bad"] == 0 and host.bad > 50
+    assert sa["ok"] == sb["ok"] and sa["refused"] == sb["refused"] > 10
+    assert len(a.named("TIME_SYNC_REPLY")) > 5 and len(a.tagged("sbus")) > 5
