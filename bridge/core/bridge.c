@@ -130,6 +130,8 @@ int bridge_i2c_start(struct bridge *b, uint64_t t_ns, uint8_t addr, int read)
     int ack = chip_start(&b->board, t_ns, a, read != 0);
     if (!ack && chip >= 0)
         b->n.i2c_errors++; /* one of our chips did not answer: a bus fault, or 0x1E out of bypass */
+    if (ack)
+        b->n.i2c_acked++;
     b->cur_chip = ack ? chip : -1;
     b->cur_addr = addr;
     b->cur_read = (uint8_t)(read != 0);
@@ -221,7 +223,7 @@ static void hello(struct bridge *b, const struct bridge_hello *h)
         b->rx.last_seq = seq;
         b->n.late_samples = b->n.refused = b->n.sbus_dropped = 0;
         b->cap.glitches = 0;
-        b->n.i2c_errors = 0;
+        b->n.i2c_errors = b->n.i2c_acked = 0;
         for (int c = 0; c < 3; c++)
             b->n.underrun_base[c] = chip_count(&b->board, UNDERRUNS[c]);
     }
@@ -362,6 +364,7 @@ void bridge_status(struct bridge *b, struct bridge_status *s)
         s->underruns[c] = chip_count(&b->board, UNDERRUNS[c]) - b->n.underrun_base[c];
     s->late_samples = b->n.late_samples;
     s->i2c_errors = b->n.i2c_errors;
+    s->i2c_acked = b->n.i2c_acked;
     s->frames_ok = b->rx.ok;
     s->frames_bad = b->rx.bad;
     s->seq_gaps = b->rx.seq_gaps;

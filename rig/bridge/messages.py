@@ -106,7 +106,10 @@ MESSAGES: tuple[Message, ...] = (
                                    _f("width_tenth_us", "u16", 4, doc="0.1 us; 0: no pulse")),
             "the ESC pulse widths the bridge captured"),
     Message("STATUS", 0x92, "up", (_f("t_us", "u64"), _f("underruns", "u32", 3, doc="IMU, mag, baro"),
-                                   _f("late_samples", "u32"), _f("i2c_errors", "u32"), _f("frames_ok", "u32"),
+                                   _f("late_samples", "u32"), _f("i2c_errors", "u32"),
+                                   _f("i2c_acked", "u32", doc="STARTs our chips acknowledged: the board "
+                                      "used them"),
+                                   _f("frames_ok", "u32"),
                                    _f("frames_bad", "u32"), _f("seq_gaps", "u32"),
                                    _f("refused", "u32", doc="good frames not acted on: version not agreed, "
                                       "a value out of range, a message the bridge cannot act on"),

@@ -311,12 +311,19 @@ class BenchSession:
             self.figures.status = dict(v)
 
     def _final_status(self) -> None:
-        """The bridge's last counters (it sends STATUS a few times a second)."""
-        if self.port is None:
+        """The bridge's counters as of the run's end: the first STATUS stamped after it (the bridge
+        sends one every 200 ms), waited for at most half a second."""
+        port = self.port
+        if port is None or not self.clock.ready:
             return
+        end_us = self.clock.to_bridge_us(time.monotonic_ns())
+        deadline = time.monotonic() + 0.5
         try:
-            for m in self.port.poll(0.0):
-                self._on_message(m)
+            while time.monotonic() < deadline:
+                for m in port.poll(max(0.0, deadline - time.monotonic())):
+                    self._on_message(m)
+                    if m.name == "STATUS" and int(m.values["t_us"]) >= end_us:  # type: ignore[call-overload]
+                        return
         except BridgeError:
             pass
 
@@ -336,7 +343,8 @@ class BenchSession:
 
     def _outcome(self, returncode: int | None, wall0: float, keeper: _Keeper | None) -> Outcome:
         sim = self.world.time_ns / NS
-        reached = self.figures.reg_writes > 0 or self.figures.pulses > 0
+        reached = (self.figures.reg_writes > 0 or self.figures.pulses > 0
+                   or bool(self.figures.status.get("i2c_acked")))
         verdict, code, error = self.sched.verdict(returncode, sim, reached, keeper is None,
                                                   self.interrupted is not None)
         if keeper is not None and keeper.exec_errno is not None:

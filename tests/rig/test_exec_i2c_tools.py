@@ -1,12 +1,19 @@
-"""``rig exec`` with Debian's i2c-tools: unmodified third-party binaries against the emulated GY-86."""
+"""``rig exec`` with Debian's i2c-tools: unmodified third-party binaries against the emulated GY-86, in
+the session (lockstep) and through the virtual bridge (the chip core behind a link, in real time), with
+the same answers."""
 
 from __future__ import annotations
 
 import re
 from pathlib import Path
 
+import pytest
+
 from emulators.ms5611 import DEFAULT_PROM
 from tests.rig.helpers import rig_exec, tool
+
+#: where the devices are: the session's own, or the virtual bridge's
+MODES = pytest.mark.parametrize("mode", [(), ("--bridge", "virtual")], ids=["session", "vbridge"])
 
 
 def detected(table: str) -> set[int]:
@@ -23,11 +30,13 @@ def detected(table: str) -> set[int]:
     return found
 
 
-def test_i2cdetect_sees_mpu_and_baro_and_the_hmc_only_in_bypass(tmp_path: Path) -> None:
+@MODES
+def test_i2cdetect_sees_mpu_and_baro_and_the_hmc_only_in_bypass(tmp_path: Path, mode: tuple[str, ...]
+                                                                 ) -> None:
     detect, iset = tool("i2cdetect"), tool("i2cset")
     script = (f"{detect} -y 1; echo ==; {iset} -y 1 0x68 0x37 0x02; {detect} -y 1; echo ==; "
               f"{iset} -y 1 0x68 0x37 0x00; {detect} -y 1")
-    run = rig_exec(tmp_path, "sh", "-c", script)
+    run = rig_exec(tmp_path, "sh", "-c", script, options=mode)
     assert run.returncode == 0, run.stderr
     before, bypass, after = run.stdout.split("==\n")
     assert detected(before) == {0x68, 0x77}
@@ -35,15 +44,17 @@ def test_i2cdetect_sees_mpu_and_baro_and_the_hmc_only_in_bypass(tmp_path: Path) 
     assert detected(after) == {0x68, 0x77}
 
 
-def test_i2cget_reads_who_am_i(tmp_path: Path) -> None:
-    run = rig_exec(tmp_path, tool("i2cget"), "-y", "1", "0x68", "0x75")
+@MODES
+def test_i2cget_reads_who_am_i(tmp_path: Path, mode: tuple[str, ...]) -> None:
+    run = rig_exec(tmp_path, tool("i2cget"), "-y", "1", "0x68", "0x75", options=mode)
     assert (run.returncode, run.stdout.strip()) == (0, "0x68"), run.stderr
 
 
-def test_i2ctransfer_reads_the_ms5611_prom_and_its_crc4_checks(tmp_path: Path) -> None:
+@MODES
+def test_i2ctransfer_reads_the_ms5611_prom_and_its_crc4_checks(tmp_path: Path, mode: tuple[str, ...]) -> None:
     xfer = tool("i2ctransfer")
     reads = " ".join(f"w1@0x77 0x{0xA0 + 2 * i:02x} r2" for i in range(8))
-    run = rig_exec(tmp_path, "sh", "-c", f"{xfer} -y 1 w1@0x77 0x1e && {xfer} -y 1 {reads}")
+    run = rig_exec(tmp_path, "sh", "-c", f"{xfer} -y 1 w1@0x77 0x1e && {xfer} -y 1 {reads}", options=mode)
     assert run.returncode == 0, run.stderr
     data = [int(x, 16) for x in run.stdout.split()]
     words = [data[2 * i] << 8 | data[2 * i + 1] for i in range(8)]
