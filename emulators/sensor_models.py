@@ -37,7 +37,7 @@ class AxisErrors:
         """Scale/misalignment times mounting: the one matrix each sample is multiplied by."""
         s, m = self.scale_misalignment, self.mounting
         def row(i: int) -> tuple[float, float, float]:
-            a, b, c = (float(sum(s[i][k] * m[k][j] for k in range(3))) for j in range(3))
+            a, b, c = [float(sum([s[i][k] * m[k][j] for k in range(3)])) for j in range(3)]
             return (a, b, c)
 
         return tuple(row(i) for i in range(3))
@@ -191,7 +191,7 @@ class ImuModel:
         table: TruthTable = truth if hasattr(truth, "row_addresses") else FunctionTable(  # type: ignore[assignment]
             truth, IMU_TRUTH, {"temperature": AIR_TEMPERATURE_C})
         self._table = table
-        self._cols = (ctypes.c_int32 * 7)(*(table.column(n) for n in IMU_TRUTH))
+        self._cols = (ctypes.c_int32 * 7)(*[table.column(n) for n in IMU_TRUTH])
         self._times, self._rows = (ctypes.c_double * BLOCK)(), (ctypes.c_void_p * BLOCK)()
         self._measure = native.fast().imu_measure
         self._at = (ctypes.addressof(self._times), ctypes.addressof(self._rows), ctypes.addressof(self._cols))

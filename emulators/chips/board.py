@@ -244,7 +244,7 @@ class _MpuView:
 
     @property
     def regs(self) -> bytes:
-        return bytes(self._board.peek(CHIP_MPU, r) for r in range(128))
+        return bytes([self._board.peek(CHIP_MPU, r) for r in range(128)])
 
     def sample_rate(self) -> float:
         return mpu_sample_rate(self._board.peek(CHIP_MPU, CONFIG), self._board.peek(CHIP_MPU, SMPLRT_DIV))
