@@ -20,7 +20,7 @@ COMPILED_SOURCES := $(shell $(PYTHON) rig/compiled.py --sources)
 
 DUT_BIN := build/dut/fc
 
-.PHONY: all venv fmu shim native compiled dut demo test test-slow lint bench clean
+.PHONY: all venv fmu shim native compiled dut demo test test-slow lint bench clean docs-images
 
 all: fmu shim native compiled dut
 
@@ -54,6 +54,12 @@ $(DUT_BIN): $(wildcard dut/src/* dut/tests/* dut/Makefile) bench/fc_bench.c
 
 demo: venv fmu shim native compiled dut
 	$(VENV)/bin/rig run --out build/reports
+
+# docs/acceptance-report-page.png: page 3 (the first scenario's section) of a two-scenario acceptance PDF
+docs-images: venv fmu shim native compiled dut
+	rm -rf build/docs-report
+	$(VENV)/bin/rig run rc_loss_failsafe fault_gyro_stuck --out build/docs-report --pdf --operator "A. Tester"
+	pdftoppm -f 3 -l 3 -r 80 -png -singlefile build/docs-report/acceptance.pdf docs/acceptance-report-page
 
 # our C, in one style (.clang-format); the FMI headers are vendored as they came
 C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/tests/*.c emulators/c/*.c plant/c/*.[ch] \
