@@ -27,7 +27,7 @@ VBRIDGE := build/vbridge
 BRIDGE_CHIPS := bridge/standin
 BRIDGE_CFLAGS := -std=c99 -O2 -Wall -Wextra -Werror -Ibuild/gen -I$(BRIDGE_CHIPS) -Ibridge/core -Irig/shim
 
-.PHONY: all venv fmu shim native chips compiled dut vbridge demo test test-slow lint bench clean
+.PHONY: all venv fmu shim native chips compiled dut vbridge demo test test-slow lint bench clean docs-images
 
 all: fmu shim native compiled dut vbridge
 
@@ -72,6 +72,12 @@ $(VBRIDGE): $(wildcard bridge/core/*.[ch] bridge/posix/*.c $(BRIDGE_CHIPS)/*.[ch
 
 demo: venv fmu shim native compiled dut
 	$(VENV)/bin/rig run --out build/reports
+
+# docs/acceptance-report-page.png: page 3 (the first scenario's section) of a two-scenario acceptance PDF
+docs-images: venv fmu shim native compiled dut
+	rm -rf build/docs-report
+	$(VENV)/bin/rig run rc_loss_failsafe fault_gyro_stuck --out build/docs-report --pdf --operator "A. Tester"
+	pdftoppm -f 3 -l 3 -r 80 -png -singlefile build/docs-report/acceptance.pdf docs/acceptance-report-page
 
 # our C, in one style (.clang-format); the FMI headers are vendored as they came
 C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/tests/*.c emulators/c/*.c emulators/chips/*.[ch] plant/c/*.[ch] \

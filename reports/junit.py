@@ -6,7 +6,7 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 
-from reports.values import fmt_limits, fmt_value
+from reports.values import fmt_limits, fmt_margin, fmt_value, mode_text
 from scenarios.result import RunResult
 
 
@@ -22,18 +22,27 @@ def render(results: Sequence[RunResult]) -> str:
             failures=str(failures if r.verdict not in ("error", "interrupted") else 0),
             errors=str(int(r.verdict in ("error", "interrupted"))),
             time=f"{float(r.metadata.get('wall_time') or 0.0):.3f}",
+            # (JUnit's schema: the local form without a zone; the rig's times are UTC)
+            timestamp=str(r.metadata.get("started") or "").removesuffix("+00:00"),
+            hostname=str(r.metadata.get("host") or ""),
         )
         props = ET.SubElement(suite, "properties")
-        for k in ("seed", "scenario_sha256", "dut_command", "dut_firmware", "dut_firmware_sha256",
+        for k in ("seed", "scenario_file", "scenario_sha256", "started", "host", "dut_command",
+                  "dut_firmware", "dut_firmware_sha256", "dut_program", "dut_program_sha256",
                   "plant_fmu_sha256", "rig_version"):
             ET.SubElement(props, "property", name=k, value=str(r.metadata.get(k)))
+        ET.SubElement(props, "property", name="mode", value=mode_text(r.metadata))
         if r.verdict in ("error", "interrupted"):
             case = ET.SubElement(suite, "testcase", classname=r.scenario.stem, name="run")
             ET.SubElement(case, "error", message=r.error or "error").text = r.stderr[-4000:]
             continue
         for m in r.measurements:
             case = ET.SubElement(suite, "testcase", classname=r.scenario.stem, name=m.name)
-            text = f"{m.metric} of {m.signal} = {fmt_value(m.value, m.units)}; limits {fmt_limits(m)}"
+            text = (f"{m.metric} of {m.signal} = {fmt_value(m.value, m.units)}; limits {fmt_limits(m)}; "
+                    f"margin {fmt_margin(m)}")
+            if m.marginal:
+                props = ET.SubElement(case, "properties")
+                ET.SubElement(props, "property", name="marginal", value="true")
             if m.outcome == "fail":
                 ET.SubElement(case, "failure", message=f"{text} ({m.reason})")
             else:

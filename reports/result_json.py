@@ -16,7 +16,10 @@ def to_dict(r: RunResult) -> dict[str, object]:
         "format": FORMAT,
         "scenario": r.scenario.stem,
         "name": r.scenario.name,
+        "description": r.scenario.description,
         "verdict": r.verdict,
+        # passes within MARGINAL_PCT of a limit (each measurement says so too, with its margin)
+        "marginal": [m.name for m in r.measurements if m.marginal],
         "error": r.error,
         "metadata": r.metadata,
         "notes": r.notes,

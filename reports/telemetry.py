@@ -29,4 +29,5 @@ def read(text: str) -> dict[str, np.ndarray]:
     rows = list(csv.reader(io.StringIO(text)))
     names = [h.split("[")[0] for h in rows[0]]
     data = np.array([[float(v) if v else math.nan for v in r] for r in rows[1:]], dtype=float)
+    data = data.reshape(-1, len(names))  # (no rows: a run that recorded nothing)
     return {n: data[:, k] for k, n in enumerate(names)}

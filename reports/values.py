@@ -1,10 +1,15 @@
-"""How a measurement and its limits read, the same in every report."""
+"""How a measurement, its limits and margin, and the run's metadata read, the same in every report."""
 
 from __future__ import annotations
 
 import math
+import re
+import signal
+from collections.abc import Callable, Mapping
+from typing import Any
 
-from scenarios.criteria import Measurement
+from scenarios.criteria import MARGINAL_PCT, Measurement
+from scenarios.signals import SIGNALS
 
 
 def fmt_value(v: float, units: str) -> str:
@@ -23,6 +28,156 @@ def fmt_limits(m: Measurement) -> str:
     return (f">= {lo}" if lo else f"<= {hi}") + (f" {m.units}" if m.units else "")
 
 
+def fmt_margin(m: Measurement) -> str:
+    """The margin in % of the nearer limit, "marginal" when a pass is within MARGINAL_PCT of it."""
+    if m.margin is None:
+        return "n/a"
+    text = f"{m.margin:.1f} %"
+    return f"{text} (marginal)" if m.marginal else text
+
+
+def fmt_target(m: Measurement) -> str:
+    """What the metric measured against: the target and the band around it, when it has them."""
+    units = SIGNALS[m.signal].units if m.signal in SIGNALS else ""  # (the signal's, not the metric's: %, s)
+    parts = []
+    if m.target is not None:
+        parts.append(f"target {m.target:.4g} {units}".rstrip())
+    if m.band is not None:
+        parts.append(f"band ±{m.band:g} {units}".rstrip())
+    return ", ".join(parts)
+
+
+def outcome_text(m: Measurement) -> str:
+    """pass, marginal pass, fail or not judged: the word every report uses for this measurement."""
+    return "marginal pass" if m.outcome == "pass" and m.marginal else m.outcome
+
+
+def outcome_class(m: Measurement) -> str:
+    return "marginal" if m.outcome == "pass" and m.marginal else m.outcome.replace(" ", "-")
+
+
 def json_number(v: float) -> float | str:
     """JSON has no NaN or infinity: they are written as strings a reader cannot mistake for numbers."""
     return v if math.isfinite(v) else ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf"))
+
+
+# ---- the run's metadata ---------------------------------------------------------------------------
+
+
+def mode_text(meta: Mapping[str, Any]) -> str:
+    """lockstep, real time or bridge (with the bridge's identity when the metadata has one)."""
+    mode = meta.get("mode") or ("lockstep" if meta.get("lockstep", True) else "real time")
+    bridge = meta.get("bridge")
+    if bridge:
+        ident = bridge if isinstance(bridge, str) else ", ".join(f"{k} {v}" for k, v in dict(bridge).items())
+        return f"{mode} (bench bridge: {ident})"
+    return str(mode)
+
+
+def returncode_text(code: object, verdict: str) -> str:
+    """The DUT's exit status in words: -15 at the end of a judged run is the rig's normal stop."""
+    if not isinstance(code, int):
+        return "none (the DUT did not run to an exit the rig saw)"
+    if code >= 0:
+        return f"{code} (the DUT exited by itself)"
+    try:
+        name = signal.Signals(-code).name
+    except ValueError:
+        name = f"signal {-code}"
+    if code == -signal.SIGTERM and verdict in ("pass", "fail"):
+        return f"{code} ({name}: the rig stopped the DUT at the end of the scenario, its normal stop)"
+    if code == -signal.SIGKILL:
+        return f"{code} ({name}: the DUT was killed, having not stopped on SIGTERM)"
+    return f"{code} (the DUT was ended by {name})"
+
+
+def _s(v: object, digits: int = 3) -> str:
+    return f"{float(v):.{digits}f} s" if isinstance(v, int | float) else "—"
+
+
+def _dict(v: object) -> str:
+    if not isinstance(v, dict):
+        return str(v)
+    return ", ".join(f"{k} {val:.4g}" if isinstance(val, float) else f"{k} {val}" for k, val in v.items())
+
+
+def _lateness(v: object) -> str:
+    if not isinstance(v, dict):
+        return str(v)
+    return (
+        f"{v.get('late_over_1ms')} of {v.get('events')} scheduled events over 1 ms late; worst "
+        f"{float(v.get('max_s') or 0) * 1000:.2f} ms, p99 {float(v.get('p99_s') or 0) * 1000:.2f} ms"
+    )
+
+
+#: key -> (label, formatter of the value); the order is the order of the run table
+META: dict[str, tuple[str, Callable[[object], str]]] = {
+    "started": ("started (UTC)", str),
+    "host": ("host", str),
+    "mode": ("mode", str),  # (replaced by mode_text, which reads the bridge too)
+    "rig_version": ("rig version", str),
+    "plant_fmu_sha256": ("plant FMU SHA-256", str),
+    "scenario_file": ("scenario file", str),
+    "scenario_sha256": ("scenario SHA-256", str),
+    "seed": ("random seed", str),
+    "dut_command": ("DUT command", str),
+    "dut_firmware": ("firmware", str),
+    "dut_firmware_sha256": ("firmware SHA-256", lambda v: str(v) if v else "not hashed"),
+    "dut_program": ("program", str),
+    "dut_program_sha256": ("program SHA-256", lambda v: str(v) if v else "not hashed"),
+    "dut_launcher": ("launcher", str),
+    "capture": ("PWM capture", str),
+    "duration": ("scenario duration", lambda v: _s(v, 1)),
+    "sim_time": ("sim time flown", lambda v: _s(v, 3)),
+    "wall_time": ("wall time", lambda v: _s(v, 2)),
+    "realtime_factor": (
+        "real-time factor",
+        lambda v: f"{float(v):.1f}×" if isinstance(v, int | float) else "—",
+    ),
+    "dut_clock_base_s": (
+        "DUT clock at sim time 0",
+        lambda v: (
+            f"{float(v):.3f} s (CLOCK_MONOTONIC; the DUT's t={float(v):.3f} is sim 0 s)"
+            if isinstance(v, int | float)
+            else "—"
+        ),
+    ),
+    "bus_transactions": ("I2C transfers", lambda v: f"{v:,}" if isinstance(v, int) else str(v)),
+    "capture_stats": ("capture statistics", _dict),
+    "realtime_lateness": ("real-time lateness", _lateness),
+}
+#: keys shown elsewhere or folded into another row
+HIDDEN = {"scenario", "scenario_name", "lockstep", "fc_config", "dut_returncode", "bridge"}
+
+
+def meta_rows(meta: Mapping[str, Any], verdict: str) -> list[tuple[str, str]]:
+    """The run's metadata as (label, text) rows with units and words, not Python's reprs."""
+    rows: list[tuple[str, str]] = []
+    for key, (label, fmt) in META.items():
+        if key == "mode":
+            rows.append((label, mode_text(meta)))
+        elif key in meta and meta[key] is not None:
+            rows.append((label, fmt(meta[key])))
+        if key == "realtime_factor" and "dut_returncode" in meta:
+            rows.append(("DUT exit status", returncode_text(meta["dut_returncode"], verdict)))
+    rows += [(k, _dict(v)) for k, v in meta.items() if k not in META and k not in HIDDEN]
+    return rows
+
+
+_DUT_TIME = re.compile(r"\bt=(\d+(?:\.\d+)?)")
+
+
+def sim_times_in(text: str, clock_base_s: float | None) -> str:
+    """The DUT's own ``t=…`` stamps (its monotonic clock) with the sim time beside each, so a line
+    of its stderr can be found on the plots, whose time axis is sim time from 0."""
+    if clock_base_s is None:
+        return text
+
+    def add(m: re.Match[str]) -> str:
+        sim = float(m.group(1)) - clock_base_s
+        return f"{m.group(0)} [sim {sim:.3f} s]" if sim > -1.0 else m.group(0)
+
+    return _DUT_TIME.sub(add, text)
+
+
+__all__ = ["MARGINAL_PCT", "fmt_limits", "fmt_margin", "fmt_target", "fmt_value", "json_number", "meta_rows"]

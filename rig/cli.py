@@ -26,7 +26,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _dispatch(argv: list[str] | None) -> int:
     compiled.install()  # the hot modules from build/mypyc, before the commands import them
-    from rig import exec_cmd, run_cmd
+    from rig import exec_cmd, report_cmd, run_cmd
 
     parser = argparse.ArgumentParser(prog="rig", description="Quadrotor hardware-in-the-loop test rig")
     parser.add_argument("--version", action="version", version=f"rig {__version__}")
@@ -34,11 +34,14 @@ def _dispatch(argv: list[str] | None) -> int:
     sub.add_parser("demo", help="fly the plant FMU: seed-000 roll-stand release and open-loop hovers")
     exec_cmd.add_parser(sub)
     run_cmd.add_parsers(sub)
+    report_cmd.add_parser(sub)
     args = parser.parse_args(argv)
     if args.command == "exec":
         return exec_cmd.main(args)
     if args.command == "run":
         return run_cmd.cmd_run(args)
+    if args.command == "report":
+        return report_cmd.main(args)
     if args.command == "validate":
         return run_cmd.cmd_validate(args.scenarios)
     if args.command == "list":

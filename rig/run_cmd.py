@@ -19,11 +19,16 @@ import shlex
 import shutil
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rig import interrupts
 from scenarios.schema import Scenario, ScenarioError, load
+
+if TYPE_CHECKING:
+    from scenarios.result import RunResult
 
 LIBRARY = Path(__file__).resolve().parents[1] / "scenarios" / "library"
 EXIT_FAILED, EXIT_USAGE, EXIT_ERROR = 1, 2, 3
@@ -67,9 +72,30 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         help="python-can interface and channel for scenarios whose PWM capture goes over CAN "
         "(e.g. socketcan:can0 on a bench; default: each scenario's [capture], virtual and private)",
     )
+    add_pdf_options(p)
     v = sub.add_parser("validate", help="check scenario files without running them")
     v.add_argument("scenarios", nargs="+", metavar="SCENARIO")
     sub.add_parser("list", help="list the scenario library")
+
+
+def add_pdf_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--pdf",
+        action="store_true",
+        help="also write the acceptance report, OUT/acceptance.pdf (and its source, acceptance.html), with "
+        "Debian's headless chromium",
+    )
+    p.add_argument("--operator", default="", help="the operator's name on the acceptance report's cover")
+
+
+def write_acceptance(out: Path, results: Sequence[RunResult], not_run: Sequence[str], operator: str) -> Path:
+    """OUT/acceptance.html and, printed from it, OUT/acceptance.pdf; returns the PDF's path."""
+    from reports import acceptance, pdf
+
+    src, dst = out / "acceptance.html", out / "acceptance.pdf"
+    src.write_text(acceptance.render(results, not_run, operator))
+    pdf.html_to_pdf(src, dst)
+    return dst
 
 
 def resolve(names: list[str]) -> list[Path]:
@@ -184,6 +210,12 @@ def plan(args: argparse.Namespace) -> Plan:
                 problems.append(f"{sc.path}: capture: {e}")
     if args.out.exists() and not args.out.is_dir():
         problems.append(f"--out {args.out} exists and is not a folder")
+    if args.pdf:
+        from reports.pdf import chromium
+
+        if chromium() is None:
+            problems.append("--pdf: no chromium on PATH to print the PDF with (Debian: apt-get install "
+                            "chromium)")
     if problems:
         raise UsageError("\n".join(problems))
     return Plan(scenarios, dut, args.out)
@@ -203,7 +235,6 @@ def cmd_run(args: argparse.Namespace) -> int:
 def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> int:
     from reports import html_report, junit, result_json, telemetry
     from rig.runner import not_run, run
-    from scenarios.result import RunResult
 
     results: list[RunResult] = []
     stop: int | None = None  # the exit status a signal asked for
@@ -222,7 +253,8 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
             r = run(sc, dut=suite.dut, seed=args.seed, work_dir=run_dir, wall_timeout=args.wall_timeout,
                     realtime=args.realtime)
         except Exception as e:  # the rig could not fly it (not the DUT's doing): say so, go on
-            r = not_run(sc, args.seed, f"the rig could not run this scenario: {type(e).__name__}: {e}")
+            r = not_run(sc, args.seed, f"the rig could not run this scenario: {type(e).__name__}: {e}",
+                        args.realtime)
         results.append(r)
         (run_dir / "junit.xml").write_text(junit.render([r]))
         (run_dir / "result.json").write_text(result_json.render(r))
@@ -241,8 +273,22 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
             break
     left = [sc.stem for sc in suite.scenarios[len(results):]]
     (suite.out / "junit.xml").write_text(junit.render(results))
+    links = [("junit.xml", "JUnit XML for CI")]
+    pdf_error = None
+    if args.pdf and results:
+        from reports.pdf import PdfError
+
+        t_pdf = time.perf_counter()
+        try:
+            pdf = write_acceptance(suite.out, results, left, args.operator)
+            links.insert(0, ("acceptance.pdf", "the acceptance report (PDF)"))
+            print(f"acceptance report: {pdf} ({pdf.stat().st_size // 1024} KiB, "
+                  f"{time.perf_counter() - t_pdf:.1f} s)", file=sys.stderr)
+        except PdfError as e:
+            pdf_error = str(e)
+            print(f"rig run: error: the acceptance PDF: {e}", file=sys.stderr)
     (suite.out / "index.html").write_text(
-        html_report.render_index(results, [f"{r.scenario.stem}/report.html" for r in results], left)
+        html_report.render_index(results, [f"{r.scenario.stem}/report.html" for r in results], left, links)
     )
     counts = {v: sum(r.verdict == v for r in results) for v in ("pass", "fail", "error")}
     print(
@@ -253,7 +299,7 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
     if stop is not None:
         print(f"rig run: interrupted; {len(left)} scenario(s) not run", file=sys.stderr)
         return stop
-    if counts["error"]:
+    if counts["error"] or pdf_error:
         return EXIT_ERROR
     return EXIT_FAILED if counts["fail"] else 0
 
@@ -303,7 +349,7 @@ class ReportFolder:
             # only plain names this rig wrote: a manifest edited by hand cannot reach outside the folder
             if isinstance(name, str) and name and "/" not in name and name not in (".", ".."):
                 shutil.rmtree(self.path / name, ignore_errors=True)
-        for name in ("index.html", "junit.xml"):
+        for name in ("index.html", "junit.xml", "acceptance.html", "acceptance.pdf"):
             (self.path / name).unlink(missing_ok=True)
         tmp = manifest.with_suffix(".tmp")
         tmp.write_text(json.dumps(stems) + "\n")

@@ -11,8 +11,11 @@ measured. A DUT that crashes, exits early or hangs ends with verdict "error" and
 from __future__ import annotations
 
 import dataclasses
+import datetime
 import math
+import os
 import shlex
+import socket
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -47,6 +50,24 @@ TELEMETRY_KEYS = {
     "alt": "est_alt",
     "armed": "armed",
 }
+
+
+def absolute_command(command: list[str], cwd: Path) -> list[str]:
+    """The command as the report records it: the program and every operand naming an existing file
+    given by a relative path, made absolute (``./fc fc.conf`` says nothing once the folder is gone)."""
+    out = []
+    for k, a in enumerate(command):
+        p = Path(a)
+        named = (k == 0 and "/" in a) or (cwd / p).exists()
+        if a and not a.startswith("-") and not p.is_absolute() and named:
+            a = os.path.normpath(cwd / p)
+        out.append(a)
+    return out
+
+
+def mode(realtime: bool) -> str:
+    """result.json's ``mode``: how the DUT met the rig (a bench bridge adds "bridge")."""
+    return "real time" if realtime else "lockstep"
 
 
 def reference_config(scenario: Scenario) -> str:
@@ -231,15 +252,14 @@ def run(
         if scenario.fc:
             notes.append("the scenario's [fc] table configures the reference FC only; ignored for this DUT")
     metadata: dict[str, object] = {
-        "rig_version": __version__,
-        "scenario": scenario.stem,
-        "scenario_name": scenario.name,
-        "scenario_sha256": scenario.sha256,
-        "seed": seed,
-        "dut_command": shlex.join(command),
+        **identity(scenario, seed),
+        "dut_command": shlex.join(absolute_command(command, Path.cwd())),
         **firmware.identify(command),
+        "fc_config": dict(line.split(" = ", 1) for line in reference_config(scenario).splitlines())
+        if dut is None else None,
         "capture": scenario.capture.transport,
         "duration": scenario.duration,
+        "mode": mode(realtime),
         "lockstep": not realtime,
     }
     faults = fault_sets(scenario.faults, seed)
@@ -307,6 +327,7 @@ def run(
         wall_time=outcome.wall_time,
         realtime_factor=outcome.sim_time / outcome.wall_time if outcome.wall_time > 0 else None,
         dut_returncode=outcome.dut_returncode,
+        dut_clock_base_s=session.dut_clock_base_s,
         bus_transactions=outcome.transactions,
     )
     if realtime:
@@ -336,6 +357,7 @@ def run(
             c.max,
             c.units,
             c.baseline_at,
+            c.marginal,
         )
         for c in scenario.criteria
     ]
@@ -343,8 +365,8 @@ def run(
     error = _idle(outcome) if outcome.verdict == "ok" else None
     if error:  # a DUT that never flew passes nothing, however still the vehicle stayed
         verdict = "error"
-        measurements = [dataclasses.replace(m, outcome=NOT_JUDGED, reason="the DUT did not fly the vehicle")
-                        for m in measurements]
+        measurements = [dataclasses.replace(m, outcome=NOT_JUDGED, reason="the DUT did not fly the vehicle",
+                                            marginal=False) for m in measurements]
     elif outcome.verdict != "ok":
         error = outcome.error or f"the DUT ended the run itself (status {outcome.dut_returncode})"
         said = _last_words(stderr)
@@ -352,14 +374,28 @@ def run(
             error += f"; the DUT said: {said}"
         verdict = "interrupted" if outcome.verdict == "interrupted" else "error"
         # a run that ended in error judged nothing: its measurements stay, none of them passed
-        measurements = [dataclasses.replace(m, outcome=NOT_JUDGED, reason="the run ended in error")
-                        for m in measurements]
+        measurements = [dataclasses.replace(m, outcome=NOT_JUDGED, reason="the run ended in error",
+                                            marginal=False) for m in measurements]
     else:
         verdict = "pass" if all(m.outcome == "pass" for m in measurements) else "fail"
     notes += outcome.notes
     assert set(SIGNALS) <= set(signals), set(SIGNALS) - set(signals)
     return RunResult(scenario, verdict, error, measurements, signals, metadata, outcome.exit_code, stderr,
                      notes)
+
+
+def identity(scenario: Scenario, seed: int) -> dict[str, object]:
+    """What every result.json says about where and when it was made, errored or not."""
+    return {
+        "rig_version": __version__,
+        "scenario": scenario.stem,
+        "scenario_name": scenario.name,
+        "scenario_file": str(scenario.path.resolve()),
+        "scenario_sha256": scenario.sha256,
+        "seed": seed,
+        "started": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "host": socket.gethostname(),
+    }
 
 
 def _idle(outcome: Outcome) -> str | None:
@@ -372,7 +408,7 @@ def _idle(outcome: Outcome) -> str | None:
     return None
 
 
-def not_run(scenario: Scenario, seed: int, error: str) -> RunResult:
+def not_run(scenario: Scenario, seed: int, error: str, realtime: bool = False) -> RunResult:
     """The result of a scenario the rig could not fly at all (an error before the DUT started):
     nothing recorded, nothing judged."""
     empty = {name: np.zeros(0) for name in ("t", *SIGNALS)}
@@ -381,9 +417,8 @@ def not_run(scenario: Scenario, seed: int, error: str) -> RunResult:
                     "the run did not take place")
         for c in scenario.criteria
     ]
-    metadata: dict[str, object] = {"rig_version": __version__, "scenario": scenario.stem,
-                                   "scenario_name": scenario.name, "scenario_sha256": scenario.sha256,
-                                   "seed": seed, "duration": scenario.duration}
+    metadata: dict[str, object] = {**identity(scenario, seed), "duration": scenario.duration,
+                                   "mode": mode(realtime)}
     return RunResult(scenario, "error", error, measurements, empty, metadata)
 
 

@@ -128,6 +128,29 @@ METRICS: dict[str, MetricDef] = {
 #: A measurement's outcome when its run ended in error: the value may exist, but nothing was judged
 NOT_JUDGED = "not judged"
 
+#: A pass closer than this to a limit (in % of the limit) is marginal, after OpenHTF's marginal limits
+MARGINAL_PCT = 10.0
+
+#: Signals that are states (0 or 1): their max, min or final is a yes or no, which has no margin
+STATES = frozenset({"on_ground", "rc_link", "fault", "armed"})
+
+
+def margin_pct(value: float, lo: float | None, hi: float | None) -> float | None:
+    """How far ``value`` lies inside its limits, in % of the nearer limit (negative: outside). A
+    limit of 0 has no percentage: with two limits the band's width stands in for it, with one the
+    margin is None, as it is for a value that is not finite."""
+    if not math.isfinite(value):
+        return None
+    found: list[float] = []
+    width = hi - lo if lo is not None and hi is not None else None
+    for limit, inside in ((lo, None if lo is None else value - lo), (hi, None if hi is None else hi - value)):
+        if limit is None or inside is None:
+            continue
+        scale = abs(limit) if limit != 0 else width
+        if scale:
+            found.append(inside / scale * 100.0)
+    return min(found) if found else None
+
 
 @dataclass(frozen=True)
 class Measurement:
@@ -142,6 +165,10 @@ class Measurement:
     end: float
     outcome: str  # "pass" | "fail" | NOT_JUDGED
     reason: str = ""
+    target: float | None = None  # the target the metric used (after baseline_at), if it has one
+    band: float | None = None
+    margin: float | None = None  # % of the nearer limit inside it (margin_pct); None: no margin
+    marginal: bool = False  # a pass within MARGINAL_PCT of a limit
 
 
 def measure(
@@ -158,10 +185,12 @@ def measure(
     hi: float | None,
     units: str,
     baseline_at: float | None = None,
+    marginal_pct: float = MARGINAL_PCT,
 ) -> Measurement:
     """Evaluates one criterion over the samples of ``x`` with ``start <= t <= end``. With
     ``baseline_at`` the target counts from the signal's value at that time (a step of 1 m from
-    wherever the vehicle was holding, when the DUT chose that altitude itself)."""
+    wherever the vehicle was holding, when the DUT chose that altitude itself). A pass less than
+    ``marginal_pct`` inside a limit (margin_pct) is marginal."""
     sel = (t >= start - 1e-9) & (t <= end + 1e-9)
     xs, ts = x[sel], t[sel]
     if metric == "final":  # only the last sample counts (a DUT value unreported early is fine)
@@ -178,9 +207,14 @@ def measure(
             value = METRICS[metric].fn(ts, xs, Params(target, band, start))
         except Unmeasurable as e:
             value, reason = math.nan, str(e)
-    ok = math.isfinite(value) and (lo is None or value >= lo) and (hi is None or value <= hi)
+    ok = bool(math.isfinite(value) and (lo is None or value >= lo) and (hi is None or value <= hi))
     if not ok and not reason:
         reason = "not measurable" if math.isnan(value) else "outside the limits"
+    margin = None if signal in STATES and metric in ("max", "min", "final") else margin_pct(value, lo, hi)
+    marginal = bool(ok and margin is not None and margin < marginal_pct)
+    if marginal:
+        reason = f"marginal: {margin:.1f} % inside the limit (under {marginal_pct:g} %)"
     return Measurement(
-        name, metric, signal, value, units, lo, hi, start, end, "pass" if ok else "fail", reason
+        name, metric, signal, value, units, lo, hi, start, end, "pass" if ok else "fail", reason,
+        target, band, margin, marginal,
     )

@@ -4,7 +4,8 @@ and the run's metadata. The runner (rig/runner.py) makes it; the reports (report
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from pathlib import Path
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -12,9 +13,41 @@ from scenarios.criteria import Measurement
 from scenarios.schema import Scenario
 
 
+class ScenarioInfo(Protocol):
+    """What a report needs of a scenario: a loaded Scenario, or a ScenarioRecord read back from a
+    result.json whose scenario file may be gone."""
+
+    @property
+    def path(self) -> Path: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def description(self) -> str: ...
+    @property
+    def sha256(self) -> str: ...
+    @property
+    def stem(self) -> str: ...
+
+
+@dataclass(frozen=True)
+class ScenarioRecord:
+    path: Path
+    name: str
+    description: str
+    sha256: str
+
+    @property
+    def stem(self) -> str:
+        return self.path.stem
+
+
+_: type[ScenarioInfo] = Scenario  # (both kinds are ScenarioInfo: mypy checks it here)
+__: type[ScenarioInfo] = ScenarioRecord
+
+
 @dataclass
 class RunResult:
-    scenario: Scenario
+    scenario: ScenarioInfo
     verdict: str  # "pass" | "fail" | "error" | "interrupted" (a signal stopped the rig mid-run)
     error: str | None
     measurements: list[Measurement]

@@ -24,7 +24,7 @@ from emulators.pwm_capture import TRANSPORTS as CAPTURE_TRANSPORTS
 from emulators.sbus import STICKS
 from plant.variables import SCENARIO_INPUTS, VARIABLES, check_parameters
 from scenarios import fc_keys
-from scenarios.criteria import METRICS
+from scenarios.criteria import MARGINAL_PCT, METRICS
 from scenarios.signals import SIGNALS
 
 PLANT_PARAMETERS = {v.name for v in VARIABLES if v.causality == "parameter"}
@@ -72,6 +72,7 @@ class CriterionSpec:
     max: float | None
     units: str
     baseline_at: float | None = None  # target counts from the signal's value at this time
+    marginal: float = MARGINAL_PCT  # a pass closer than this (% of the limit) to a limit is marginal
 
 
 @dataclass(frozen=True)
@@ -261,7 +262,8 @@ CAPTURE_KEYS = {"transport", "resolution_us", "rate_hz", "latency_s", "can_inter
 EVENT_KEYS = {"t", "sticks", "link", "inputs"}
 FAULT_KEYS = {"target", "kind", "start", "end", "magnitude", "period", "duty"}
 GUST_KEYS = {"start", "duration", "peak"}
-CRITERION_KEYS = {"name", "metric", "signal", "start", "end", "target", "band", "min", "max", "baseline_at"}
+CRITERION_KEYS = {"name", "metric", "signal", "start", "end", "target", "band", "min", "max", "baseline_at",
+                  "marginal"}
 
 
 def load(path: str | Path) -> Scenario:
@@ -392,6 +394,9 @@ def load(path: str | Path) -> Scenario:
         band = c.optional(cr, "band", key)
         if band is not None and band <= 0:
             raise c.fail(f"{key}.band", f"expected a number > 0, got {band}")
+        marginal = c.optional(cr, "marginal", key)
+        if marginal is not None and not 0 <= marginal < 100:
+            raise c.fail(f"{key}.marginal", f"expected a percentage in 0..100, got {marginal:g}")
         criteria.append(
             CriterionSpec(
                 c.string(cr, "name", key, f"{metric} of {signal}"),
@@ -405,6 +410,7 @@ def load(path: str | Path) -> Scenario:
                 hi,
                 m.units or SIGNALS[signal].units,
                 baseline_at,
+                MARGINAL_PCT if marginal is None else marginal,
             )
         )
     if not criteria:

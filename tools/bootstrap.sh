@@ -18,6 +18,10 @@ PY
 #   i2c-tools     i2cdetect/i2cget/i2cset/i2ctransfer, the third-party clients `rig exec` is tested with
 #   python3-dev   Python.h, for mypyc's build of the session's hot modules (rig/compiled.py)
 #   clang-format  the C style check of `make lint` (.clang-format)
+#   chromium      renders the acceptance PDF (`rig run --pdf`, `rig report --pdf`) from its HTML, and
+#                 drives the screenshot test of report.html (Playwright with executable_path; Playwright
+#                 never downloads a browser of its own)
+#   poppler-utils pdftotext and pdftoppm: the tests read the PDF's text; the docs' page image
 MISSING=()
 if [ ! -x "$VENV/bin/python" ] && ! "$PYTHON" -c 'import ensurepip, venv' 2>/dev/null; then
   MISSING+=(python3-venv)
@@ -28,6 +32,8 @@ sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Pyth
   MISSING+=(python3-dev)
 fi
 if ! command -v clang-format >/dev/null; then MISSING+=(clang-format); fi
+if ! command -v chromium >/dev/null; then MISSING+=(chromium); fi
+if ! command -v pdftotext >/dev/null || ! command -v pdftoppm >/dev/null; then MISSING+=(poppler-utils); fi
 if [ ${#MISSING[@]} -gt 0 ]; then
   if command -v apt-get >/dev/null; then
     echo "bootstrap: installing Debian packages: ${MISSING[*]}"

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -195,3 +196,23 @@ def test_an_interpreted_dut_is_identified_by_its_script(tmp_path: Path) -> None:
     assert meta["dut_firmware_sha256"] == hashlib.sha256(script.read_bytes()).hexdigest()
     assert str(script) in meta["dut_firmware"]
     assert meta["dut_program_sha256"] != meta["dut_firmware_sha256"]  # the interpreter is recorded apart
+
+
+def test_an_errored_run_shows_no_pass_row_in_any_report(tmp_path: Path) -> None:
+    """A DUT that never flies: every criterion "not judged", and no report (report.html, index.html,
+    junit.xml, the acceptance PDF as pdftotext reads it) shows a passed row or an overall pass."""
+    out = tmp_path / "out"
+    done = rig_run(scenario(tmp_path, "a"), "--dut", "true", "--out", out, "--pdf")
+    assert done.returncode == 3, done.stderr
+    report = (out / "a" / "report.html").read_text()
+    assert 'class="pass"' not in report and 'class="marginal"' not in report
+    assert '<tr class="not-judged">' in report
+    index = (out / "index.html").read_text()
+    assert '<tr class="error">' in index and '<tr class="pass">' not in index
+    assert "<testcase" in (out / "junit.xml").read_text() and "<error" in (out / "junit.xml").read_text()
+    text = subprocess.run(["pdftotext", "-layout", str(out / "acceptance.pdf"), "-"], capture_output=True,
+                          text=True, check=True).stdout
+    words = " ".join(text.split())
+    assert "Overall verdict: ERROR" in words and "Verdict: ERROR" in words
+    assert "not judged" in words and "without touching the emulated devices" in words
+    assert not re.search(r"\bpass\b", text, re.I), [ln for ln in text.splitlines() if "pass" in ln.lower()]
