@@ -145,7 +145,7 @@ def render(
         sec.append("<h3>Criteria</h3>" + criteria_table(r.measurements))
         sec.append(
             "<h3>Flight</h3><p class=small>Sim time from 0. Dashed: setpoints; dotted: the DUT's own "
-            f"estimates.{marks_caption(r)}</p>"
+            f"estimates; a motor's lane starts at its first pulse.{marks_caption(r)}</p>"
         )
         sec += [f'<figure class="plot">{svg}</figure>' for _, svg in static_plots(r)]
         if r.notes:

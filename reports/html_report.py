@@ -100,7 +100,7 @@ def static_plots(r: RunResult) -> list[tuple[plotspec.Plot, str]]:
             plot(
                 p.title,
                 s["t"],
-                [(tr.label, s[tr.signal], tr.dash) for tr in p.traces],
+                [(tr.label, plotspec.values(s, tr), tr.dash) for tr in p.traces],
                 p.units,
                 marks,
                 p.lanes,
@@ -167,10 +167,10 @@ def chart_data(r: RunResult) -> dict[str, Any]:
     s = r.signals
     ps = plotspec.plots(s)
     step = max(1, len(s["t"]) // 4000)
-    names = sorted({tr.signal for p in ps for tr in p.traces})
+    drawn = {tr.signal: tr for p in ps for tr in p.traces}
     return {
         "t": _column(s["t"], step),
-        "signals": {n: _column(s[n], step) for n in names},
+        "signals": {n: _column(plotspec.values(s, tr), step) for n, tr in sorted(drawn.items())},
         "plots": [
             {
                 "key": p.key,
@@ -248,7 +248,8 @@ def render(r: RunResult) -> str:
     parts.append("<h2>Criteria</h2>" + criteria_table(r.measurements))
     parts.append(
         "<h2>Flight</h2><p class=small>Time is sim time from 0. Dashed: setpoints; dotted: what the "
-        f"DUT reported.{e(marks_caption(r))} Drag across a chart to zoom, double-click to zoom out.</p>"
+        f"DUT reported; a motor's lane starts at its first pulse.{e(marks_caption(r))} Drag across a "
+        "chart to zoom, double-click to zoom out.</p>"
     )
     for p, svg in static_plots(r):
         parts.append(f'<figure class="plot" id="plot-{p.key}"><div class="svg">{svg}</div></figure>')

@@ -16,6 +16,7 @@ class Trace:
     label: str
     signal: str
     dash: str = ""  # SVG stroke-dasharray: "" solid, "4 3" dashed (setpoints), "1 2" dotted (the DUT's)
+    zero_is_gap: bool = False  # a pulse width of 0 is no pulse (the channel not enabled yet): not drawn
 
 
 @dataclass(frozen=True)
@@ -56,10 +57,16 @@ PLOTS = (
         "motors",
         "motor commands",
         "µs",
-        tuple(Trace(f"motor {m}", f"pwm{m}") for m in range(1, MOTORS + 1)),
+        tuple(Trace(f"motor {m}", f"pwm{m}", zero_is_gap=True) for m in range(1, MOTORS + 1)),
         lanes=True,
     ),
 )
+
+
+def values(signals: dict[str, np.ndarray], trace: Trace) -> np.ndarray:
+    """What the plot draws of the trace's signal (NaN: nothing drawn there)."""
+    v = signals[trace.signal]
+    return np.where(v <= 0, np.nan, v) if trace.zero_is_gap else v
 
 
 def recorded(signals: dict[str, np.ndarray], trace: Trace) -> bool:

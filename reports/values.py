@@ -64,14 +64,34 @@ def json_number(v: float) -> float | str:
 # ---- the run's metadata ---------------------------------------------------------------------------
 
 
+#: what names a bench bridge, as the bridge session's link figures give it (rig/bridge/session.py)
+BRIDGE_IDENTITY = {
+    "bridge_id": "id",
+    "protocol": "protocol",
+    "core_version": "core",
+    "firmware_sha256_8": "firmware",
+}
+
+
 def mode_text(meta: Mapping[str, Any]) -> str:
-    """lockstep, real time or bridge (with the bridge's identity when the metadata has one)."""
+    """lockstep, real time or bridge with the bridge's identity: its port, name, protocol, core version
+    and firmware hash, read from ``bridge`` (a port, or the bridge session's figures) or beside it."""
     mode = meta.get("mode") or ("lockstep" if meta.get("lockstep", True) else "real time")
     bridge = meta.get("bridge")
-    if bridge:
-        ident = bridge if isinstance(bridge, str) else ", ".join(f"{k} {v}" for k, v in dict(bridge).items())
-        return f"{mode} (bench bridge: {ident})"
-    return str(mode)
+    src: Mapping[str, Any] = bridge if isinstance(bridge, Mapping) else meta
+    port = (
+        bridge
+        if isinstance(bridge, str)
+        else src.get("bridge")
+        if isinstance(src.get("bridge"), str)
+        else None
+    )
+    ident = [f"{label} {src[k]}" for k, label in BRIDGE_IDENTITY.items() if src.get(k) not in (None, "")]
+    if port:
+        ident.insert(0, f"port {port}")
+    if not ident and mode != "bridge":
+        return str(mode)
+    return f"bridge (bench: {', '.join(ident)})" if ident else "bridge"
 
 
 def returncode_text(code: object, verdict: str) -> str:

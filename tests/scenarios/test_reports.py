@@ -154,9 +154,20 @@ def test_the_metadata_reads_in_words() -> None:
     )
     assert returncode_text(0, "pass").startswith("0 (the DUT exited by itself")
     assert mode_text({"mode": "lockstep"}) == "lockstep" and mode_text({"lockstep": False}) == "real time"
-    assert mode_text({"mode": "bridge", "bridge": {"board": "nucleo-f446", "serial": "0042"}}) == (
-        "bridge (bench bridge: board nucleo-f446, serial 0042)"
-    )
+    # the bench bridge, as its session's link figures name it, nested or beside the mode
+    figures = {
+        "bridge": "/dev/ttyACM0",
+        "bridge_id": "vbridge",
+        "protocol": 1,
+        "core_version": "0.3",
+        "firmware_sha256_8": "1a2b3c4d",
+        "samples_sent": 4000,
+        "link": {"bytes": 9},
+    }
+    want = "bridge (bench: port /dev/ttyACM0, id vbridge, protocol 1, core 0.3, firmware 1a2b3c4d)"
+    assert mode_text({"mode": "bridge", "bridge": figures}) == want
+    assert mode_text({"mode": "bridge", **figures}) == want
+    assert mode_text({"mode": "bridge"}) == "bridge"
     assert sim_times_in("fc: RC lost at t=1006.495: failsafe", 1000.0) == (
         "fc: RC lost at t=1006.495 [sim 6.495 s]: failsafe"
     )
@@ -194,3 +205,16 @@ def test_the_docs_show_a_page_of_the_acceptance_pdf() -> None:
     assert (
         "docs/acceptance-report-page.png" in (Path(__file__).resolve().parents[2] / "README.md").read_text()
     )
+
+
+def test_a_plot_keeps_every_peak_of_a_long_trace() -> None:
+    """The SVG draws about one point per pixel column (a long run's PDF stays small) and never drops
+    a bucket's extremes: a one-sample spike survives, and so does a gap."""
+    from reports.svg_plot import BUCKETS, extremes
+
+    v = np.sin(np.arange(6000) * 0.01)
+    v[4321], v[100:130] = 9.0, math.nan
+    keep = extremes(v)
+    assert len(keep) <= 3 * BUCKETS and 4321 in keep and np.nanmax(v[keep]) == 9.0
+    assert np.isnan(v[keep]).any() and np.all(np.diff(keep) > 0)
+    assert np.array_equal(extremes(v[:500]), np.arange(500))  # short: every sample
