@@ -71,7 +71,7 @@ $(VBRIDGE): $(wildcard bridge/core/*.[ch] bridge/posix/*.c $(BRIDGE_CHIPS)/*.[ch
 	$(CC) $(BRIDGE_CFLAGS) -o $@ bridge/posix/vbridge.c bridge/core/*.c $(BRIDGE_CHIPS)/*.c -lm
 
 demo: venv fmu shim native compiled dut
-	$(VENV)/bin/rig run --out build/reports
+	$(VENV)/bin/rig run --out build/reports --pdf
 
 # docs/acceptance-report-page.png: page 3 (the first scenario's section) of a two-scenario acceptance PDF
 docs-images: venv fmu shim native compiled dut

@@ -27,6 +27,10 @@ FLAGS = (
 )
 
 
+#: the longest TMPDIR under which Chromium's socket path still fits (a longer one: /tmp instead)
+MAX_BASE = 48
+
+
 class PdfError(RuntimeError):
     pass
 
@@ -50,18 +54,28 @@ def html_to_pdf(html_file: Path, pdf_file: Path, timeout: float = 180.0) -> None
     if exe is None:
         raise PdfError("no chromium on PATH (Debian: apt-get install chromium)")
     pdf_file.unlink(missing_ok=True)
-    with tempfile.TemporaryDirectory(prefix="rig-chromium-") as profile:
+    # Chromium puts its singleton socket in $TMPDIR/org.chromium.Chromium.XXXXXX/: under a long TMPDIR
+    # that path passes the 107 bytes a socket's path may have and Chromium aborts. So it gets a short
+    # private TMPDIR of its own (its profile inside), removed afterwards with whatever it left there.
+    base = tempfile.gettempdir()
+    base = base if len(base) <= MAX_BASE else "/tmp"
+    with tempfile.TemporaryDirectory(prefix="rig-chromium-", dir=base) as work:
         cmd = [
             exe,
             *FLAGS,
-            f"--user-data-dir={profile}",
+            f"--user-data-dir={work}/profile",
             "--no-pdf-header-footer",
             f"--print-to-pdf={pdf_file.resolve()}",
             html_file.resolve().as_uri(),
         ]
         try:
             done = subprocess.run(
-                cmd, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL
+                cmd,
+                capture_output=True,
+                text=True,
+                timeout=timeout,
+                stdin=subprocess.DEVNULL,
+                env={**os.environ, "TMPDIR": work},
             )
         except subprocess.TimeoutExpired:
             raise PdfError(f"chromium did not finish the PDF in {timeout:g} s") from None

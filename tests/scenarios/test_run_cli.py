@@ -56,6 +56,11 @@ def private_tmp(tmp_path: Path) -> dict[str, str]:
     return {**os.environ, "TMPDIR": str(tmp)}
 
 
+def pdf_text(pdf: Path) -> str:
+    return subprocess.run(["pdftotext", "-layout", str(pdf), "-"], capture_output=True, text=True,
+                          check=True).stdout
+
+
 def read_result(out: Path, stem: str) -> dict:
     return json.loads((out / stem / "result.json").read_text())
 
@@ -139,6 +144,14 @@ def test_a_bad_file_among_good_ones_stops_the_suite_before_it_starts(tmp_path: P
     assert not (out / "step_roll").exists()
 
 
+def test_pdf_without_a_chromium_is_refused_before_anything_runs(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    done = rig_run(scenario(tmp_path, "a"), "--out", out, "--pdf",
+                   env={**os.environ, "RIG_CHROMIUM": "no-such-chromium"})
+    assert done.returncode == 2 and "--pdf: no chromium on PATH" in done.stderr
+    assert not (out / "a").exists()
+
+
 def test_a_second_run_into_a_busy_folder_is_refused_naming_the_first(tmp_path: Path) -> None:
     out = tmp_path / "out"
     with ReportFolder(out):  # another rig run holds it
@@ -170,7 +183,7 @@ def test_a_signal_stops_the_run_writes_the_reports_and_leaves_nothing(tmp_path: 
     out = tmp_path / "out"
     env = private_tmp(tmp_path)
     proc = subprocess.Popen([PY, "-m", "rig.cli", "run", str(scenario(tmp_path, "a")),
-                             str(scenario(tmp_path, "b")), "--dut", dut, "--out", str(out)],
+                             str(scenario(tmp_path, "b")), "--dut", dut, "--out", str(out), "--pdf"],
                             stderr=subprocess.PIPE, text=True, env=env)
     pid = read_pid(fifo)  # the DUT is up: the rig is in its run
     proc.send_signal(sig)
@@ -182,6 +195,8 @@ def test_a_signal_stops_the_run_writes_the_reports_and_leaves_nothing(tmp_path: 
     assert (out / "a" / "report.html").is_file() and (out / "junit.xml").is_file()
     index = (out / "index.html").read_text()
     assert "not run" in index and ">b<" in index  # the scenario the signal kept from running
+    words = " ".join(pdf_text(out / "acceptance.pdf").split())  # the PDF of what finished, printed
+    assert "Overall verdict: INTERRUPTED" in words and "b NOT RUN" in words
     assert wait_gone(pid, timeout=0)  # the DUT is gone
     assert list((tmp_path / "tmp").iterdir()) == []  # no session folder, socket or shared page left
 
@@ -210,8 +225,7 @@ def test_an_errored_run_shows_no_pass_row_in_any_report(tmp_path: Path) -> None:
     index = (out / "index.html").read_text()
     assert '<tr class="error">' in index and '<tr class="pass">' not in index
     assert "<testcase" in (out / "junit.xml").read_text() and "<error" in (out / "junit.xml").read_text()
-    text = subprocess.run(["pdftotext", "-layout", str(out / "acceptance.pdf"), "-"], capture_output=True,
-                          text=True, check=True).stdout
+    text = pdf_text(out / "acceptance.pdf")
     words = " ".join(text.split())
     assert "Overall verdict: ERROR" in words and "Verdict: ERROR" in words
     assert "not judged" in words and "without touching the emulated devices" in words
