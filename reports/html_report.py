@@ -209,10 +209,12 @@ var groups=p.lanes?p.traces.map(function(t){return [t];}):[p.traces];
 groups.forEach(function(g,i){
 var last=i===groups.length-1;
 var el=document.createElement('div');el.className=p.lanes?'uplot-lane':'';box.appendChild(el);
-var opts={width:w,height:p.lanes?(last?150:120):260,
-title:p.lanes?(i===0?p.title+' ['+p.units+']: ':'')+g[0].label:p.title+' ['+p.units+']',
+var opts={width:w,height:p.lanes?(i===0?40:0)+(last?60:0)+110:260,
+title:p.lanes?(i===0?p.title+' ['+p.units+']':undefined):p.title+' ['+p.units+']',
 cursor:{sync:{key:'rig'}},scales:{x:{time:false}},legend:{show:!p.lanes},
-axes:[{label:last?'t [s] (sim time)':''},{label:p.units}],
+padding:[null,16,null,null],
+axes:[p.lanes&&!last?{show:false}:{label:'t [s] (sim time)'},
+{label:p.lanes?g[0].label+' ['+p.units+']':p.units}],
 series:[{label:'t [s]'}].concat(g.map(function(t){return {label:t.label,stroke:t.colour,width:1.3,
 dash:t.dash.length?t.dash:undefined,spanGaps:false};})),
 hooks:{drawClear:[shade]}};
