@@ -116,15 +116,31 @@ def test_a_marginal_pass_is_marked_in_every_report(tmp_path: Path) -> None:
     assert '<tr class="marginal">' in page and "marginal pass" in page and "8.0 % (marginal)" in page
     assert "(1 marginal)" in page
     assert "1 marginal criteria" in html_report.render_index([r], ["a/report.html"])
+    # on paper, beside a failed run: the marginal pass, the plain pass and the failure, in order
+    failed = a_run([criterion([5.2], 5.0)])
     src, out = tmp_path / "a.html", tmp_path / "a.pdf"
-    src.write_text(acceptance.render([r]))
+    src.write_text(acceptance.render([r, failed]))
     pdf.html_to_pdf(src, out)
     text = subprocess.run(
         ["pdftotext", "-layout", str(out), "-"], capture_output=True, text=True, check=True
     ).stdout
-    assert re.search(r"8\.0 % \(marginal\)\s+marginal pass", text) and "Overall verdict: PASS" in " ".join(
-        text.split()
-    )
+    assert re.search(r"8\.0 % \(marginal\)\s+marginal pass", text) and re.search(r"-4\.0 %\s+fail", text)
+    assert re.findall(r"%(?: \(marginal\))?\s+(marginal pass|pass|fail)\b", text) == [
+        "marginal pass",
+        "pass",
+        "fail",
+    ]
+    words = " ".join(text.split())
+    assert "Overall verdict: FAIL" in words and "1 of 2 scenarios passed, 1 failed" in words
+
+
+def test_the_dut_command_is_recorded_with_absolute_paths(tmp_path: Path) -> None:
+    from rig.runner import absolute_command
+
+    (tmp_path / "fw").write_text("")
+    (tmp_path / "fc.conf").write_text("")
+    cmd = absolute_command(["./fw", "fc.conf", "-c", "x=1", "python3", "/abs/fc"], tmp_path)
+    assert cmd == [str(tmp_path / "fw"), str(tmp_path / "fc.conf"), "-c", "x=1", "python3", "/abs/fc"]
 
 
 def test_plots_name_only_what_they_show() -> None:
