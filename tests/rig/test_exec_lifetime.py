@@ -45,8 +45,11 @@ def test_a_dut_that_ignores_sigterm_ends_however_rig_exec_is_stopped(tmp_path: P
     SIGTERM and never talks to the session, is gone all the same (the keeper's SIGKILL after the
     grace; with rig exec killed, the keeper sees its lifeline close)."""
     fifo = pid_fifo(tmp_path / "pid")
+    tmp = tmp_path / "tmp"  # (a rig killed outright cannot remove its session folder: keep it here)
+    tmp.mkdir()
     proc = subprocess.Popen([PY, "-m", "rig.cli", "exec", "--", PY, str(DUTS / "stubborn_spinner.py"),
-                             str(fifo)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                             str(fifo)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "TMPDIR": str(tmp)})
     pid = read_pid(fifo)
     proc.send_signal(how)
     stderr = proc.communicate(timeout=60)[1]
