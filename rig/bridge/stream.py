@@ -11,7 +11,7 @@ map. The sample for ``c`` must be the DLPF's output at ``c``: a first-order low-
 ``delay`` earlier (``depth`` = delay / period samples). The host takes the input at the event's time,
 ``c − lead`` samples, and filters it with a delay line ``lead`` samples shorter, so the output for ``c``
 is the filtered input of ``c − depth`` samples: the lockstep value, with nothing predicted, whenever
-depth ≥ lead (DLPF_CFG ≥ 1 at Δ = 2 ms, 1 kHz). Below that (DLPF_CFG 0 or 7) the output is
+depth ≥ lead (DLPF_CFG ≥ 2 at Δ = 3 ms, 1 kHz). Below that (DLPF_CFG 0, 1 or 7) the output is
 extrapolated linearly over the missing samples, and the run's notes say so. The chip faster than
 MAX_IMU_HZ (8 kHz without the DLPF) gets every n-th instant: the others hold (counted as underruns).
 
