@@ -69,11 +69,12 @@ def bench_run(scenario: str, hogs: int) -> None:
     assert isinstance(b, dict)
     st, lat = b["bridge_status"], meta["realtime_lateness"]
     assert isinstance(lat, dict)
-    minutes = float(meta["sim_time"]) / 60  # type: ignore[arg-type]
-    imu, mag, baro = st["underruns"]
+    minutes = float(meta["sim_time"]) / 60
+    imu, mag, baro = (u / minutes for u in st["underruns"])
+    late, sent = st["late_samples"] / minutes, b["samples_sent"] / minutes
     print(f"  {scenario}, {hogs} busy process(es) beside it: verdict {r.verdict}; IMU underruns "
-          f"{imu / minutes:.0f}/min (mag {mag / minutes:.0f}, baro {baro / minutes:.0f}); samples late at the "
-          f"bridge {st['late_samples'] / minutes:.0f}/min of {b['samples_sent'] / minutes:.0f}/min; host loop "
+          f"{imu:.0f}/min (mag {mag:.0f}, baro {baro:.0f}); samples late at the "
+          f"bridge {late:.0f}/min of {sent:.0f}/min; host loop "
           f"lateness p99 {lat['p99_s'] * 1e3:.2f} ms, worst {lat['max_s'] * 1e3:.1f} ms, "
           f"{lat['late_over_1ms']} of {lat['events']} events over 1 ms; time sync drift "
           f"{b['time_sync']['drift_ppm']:.1f} ppm, rtt p50 {b['time_sync']['rtt_p50_us']:.0f} us")
