@@ -44,7 +44,7 @@ struct bridge_cfg {
 
 struct bridge_counters {
     uint32_t late_samples, refused, sbus_dropped, i2c_errors, i2c_acked;
-        uint32_t can_dropped; /* capture frames the port could not queue */
+    uint32_t can_dropped;      /* capture frames the port could not queue */
     uint32_t underrun_base[3]; /* the chip core's underrun counts at the last HELLO */
 };
 
