@@ -40,8 +40,10 @@ from rig.runner import run  # noqa: E402
 from scenarios.schema import Scenario, load  # noqa: E402
 from scenarios.signals import RECORD_PERIOD  # noqa: E402
 
-SHOW = ("seed000_roll_stand", "step_roll", "hover_turbulence", "rc_loss_failsafe", "fault_gyro_stuck",
-        "fault_mag_nack")
+#: (fault_gyro_stuck is not here: its tilt during the fault sits on a cliff — lockstep through the same
+#: capture path holds 2.2-2.5 deg up to 4 ms of latency, 3.3 at 6 ms and flips the vehicle at 8 ms — so
+#: the bench test compares what the FC does instead: when it declares the gyro stuck and recovered)
+SHOW = ("seed000_roll_stand", "step_roll", "hover_turbulence", "rc_loss_failsafe", "fault_mag_nack")
 SEEDS = 10
 K = 4.0
 PULSES_HZ = 500.0
