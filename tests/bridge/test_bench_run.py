@@ -79,7 +79,7 @@ def test_each_measurement_agrees_with_lockstep_within_its_derived_tolerance(runs
 def fc_says(runs: dict[str, Any], kind: str, name: str) -> dict[str, float]:
     """The sim times at which the FC said each of its words on stderr ("gyro stuck ... at t=…")."""
     base = result(runs, kind, name)["metadata"]["dut_clock_base_s"]
-    said = {}
+    said: dict[str, float] = {}
     for line in (runs["dir"] / kind / name / "dut-stderr.txt").read_text().splitlines():
         m = re.match(r"fc: gyro (stuck|recovered).* at t=([0-9.]+)$", line)
         if m:
