@@ -15,6 +15,9 @@
                                    a pwm_capture of its own: "pulse 0|1", "widths a b c d",
                                    and "pwm PULSES GLITCHES" after each
      sbus_encode C0 .. C15 FLAGS   "frame HEX"
+     capture_frames SEQ W1 W2 W3 W4
+                                   a capture device's reports of these widths (0.1 us): "can ID HEX"
+                                   twice, then "serial HEX"
    Out, from the HAL: "up HEX" (a frame to the host), "sbus HEX" (what the UART took), "addr AA 0|1".
    `bridge_tool SCRIPT OUT` reads the script from the file SCRIPT and writes to the file OUT instead: so
    it runs on a Cortex-M4 under QEMU with semihosting (tests/bridge/tools.py), where the files are the
@@ -192,6 +195,16 @@ int main(int argc, char **argv)
             uint8_t frame[SBUS_FRAME];
             sbus_encode(ch, (uint8_t)strtoul(p, NULL, 10), frame);
             hex("frame", frame, SBUS_FRAME);
+        } else if (!strcmp(cmd, "capture_frames")) {
+            sscanf(rest, "%llu %llu %llu %llu %llu", &a, &c, &d, &e, &f);
+            uint16_t w[PWM_CAPTURE_CHANNELS] = { (uint16_t)c, (uint16_t)d, (uint16_t)e, (uint16_t)f };
+            uint8_t data[PWM_SERIAL_MAX];
+            for (unsigned k = 0; k < 2; k++) {
+                uint32_t id = pwm_capture_can_frame(k, w, (uint8_t)a, data);
+                printf("can %03lx", (unsigned long)id);
+                hex("", data, 8);
+            }
+            hex("serial", data, pwm_capture_serial_frame(w, PWM_CAPTURE_CHANNELS, (uint8_t)a, data));
         } else {
             fprintf(stderr, "bridge_tool: unknown command %s\n", cmd);
             return 2;

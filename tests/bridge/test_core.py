@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import pytest
 
-from emulators import sbus
+from emulators import pwm_capture, sbus
 from rig.bridge.link import Decoded, Receiver, encode
 from rig.bridge.messages import HOST_SILENT_US, MESSAGES, PROTOCOL_VERSION
 from tests.bridge.tools import Tool, bridge_tools
@@ -439,3 +439,24 @@ def test_fuzzed_frames_are_rejected_counted_and_nothing_of_them_is_applied(tool:
     assert sa["bad"] > 10 and sb["bad"] == 0 and host.bad > 50
     assert sa["ok"] == sb["ok"] and sa["refused"] == sb["refused"] > 10
     assert len(a.named("TIME_SYNC_REPLY")) > 5 and len(a.tagged("sbus")) > 5
+
+
+# ---------------------------------------------------------------- capture-only reports
+
+
+def test_capture_reports_agree_byte_for_byte_with_the_python_codecs(tool: Tool) -> None:
+    """The firmware's capture-only mode sends the DBC's CAN frames and the serial capture frames: the
+    C encoders (pwm_capture.c) against emulators/pwm_capture.py's, which the rig decodes with."""
+    codec = pwm_capture.CanCodec()
+    rng = random.Random(19)
+    cases = [(rng.randrange(256), [rng.randrange(65536) for _ in range(4)]) for _ in range(100)]
+    cases += [(0, [0, 0, 0, 0]), (255, [65535] * 4), (7, [10000, 15003, 20000, 12345])]
+    r = run(tool, [f"capture_frames {seq} {' '.join(map(str, w))}" for seq, w in cases])
+    can = [tuple(line.split()) for line in r.tagged("can")]
+    want_can = [(f"{fid:03x}", data.hex()) for seq, w in cases
+                for fid, data in codec.encode(seq, [x * pwm_capture.UNIT_US for x in w])]
+    assert can == want_can
+    assert r.tagged("serial") == [pwm_capture.encode_serial(seq, [x * pwm_capture.UNIT_US for x in w]).hex()
+                                  for seq, w in cases]
+    # and the rig's decoders read them back
+    assert codec.decode(0x211, bytes.fromhex(can[-1][1])) == (2, 7, [2000.0, 1234.5])
