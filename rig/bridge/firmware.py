@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from emulators.chips import gen as chips_gen
+from plant.native_build import NativeBuildError, compile_c
 from rig.bridge import gen
 
 REPO = Path(__file__).resolve().parents[2]
@@ -28,10 +29,11 @@ SOURCES_DIRS = (REPO / "bridge" / "stm32g4", REPO / "bridge" / "core", REPO / "e
 LINKER_SCRIPT = REPO / "bridge" / "stm32g4" / "stm32g431.ld"
 CC = "arm-none-eabi-gcc"
 OBJCOPY = "arm-none-eabi-objcopy"
-#: the STM32G431's core (tests/bridge/tools.py runs the core's tests with the same flags under QEMU)
+#: the STM32G431's core: a Cortex-M4 with the single-precision FPU, hard-float ABI (tests/bridge/tools.py
+#: runs the core's tests with the same flags under QEMU)
 M4_FLAGS = ("-mcpu=cortex-m4", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv4-sp-d16")
-CFLAGS = ("-std=c99", "-Os", "-g", "-Wall", "-Wextra", "-Werror", "-ffp-contract=off", "-ffunction-sections",
-          "-fdata-sections")
+#: after compile_c's own (-Wall -Wextra -Werror -ffp-contract=off): size first, unused code dropped
+CFLAGS = ("-std=c99", "-Os", "-g", "-ffunction-sections", "-fdata-sections")
 
 #: RM0440 §2.2.2 and the datasheet: the G431KB/CB's flash and SRAM (SRAM1 + SRAM2 + CCM SRAM)
 FLASH_BASE, FLASH_SIZE = 0x0800_0000, 128 * 1024
@@ -76,20 +78,16 @@ def build(out: Path = OUT) -> Path:
     deps = [*sources(), LINKER_SCRIPT, *headers, Path(__file__)]
     if elf.is_file() and elf.stat().st_mtime >= max(p.stat().st_mtime for p in deps):
         return elf
-    out.mkdir(parents=True, exist_ok=True)
-    c_files = [str(p) for p in sources() if p.suffix == ".c"]
+    c_files = [p for p in sources() if p.suffix == ".c"]
     includes = [f"-I{d}" for d in (headers[0].parent, *SOURCES_DIRS)]
+    flags = [*M4_FLAGS, *CFLAGS, f"-DFIRMWARE_SHA=0x{firmware_hash().hex()}ull", *includes, "-nostartfiles",
+             "--specs=nano.specs", "--specs=nosys.specs", "-Wl,--gc-sections",
+             f"-Wl,-Map={out / 'bridge.map'}", f"-T{LINKER_SCRIPT}"]
     tmp = elf.with_suffix(".tmp.elf")
-    cmd = [CC, *M4_FLAGS, *CFLAGS, f"-DFIRMWARE_SHA=0x{firmware_hash().hex()}ull", *includes,
-           "-nostartfiles", "--specs=nano.specs", "--specs=nosys.specs", "-Wl,--gc-sections",
-           f"-Wl,-Map={out / 'bridge.map'}", f"-T{LINKER_SCRIPT}", "-o", str(tmp), *c_files, "-lm"]
     try:
-        done = subprocess.run(cmd, capture_output=True, text=True)
-    except FileNotFoundError as e:
-        raise FirmwareError(f"{e.filename} not found: tools/bootstrap.sh installs gcc-arm-none-eabi") from e
-    if done.returncode != 0:
-        tmp.unlink(missing_ok=True)
-        raise FirmwareError(f"building the firmware failed:\n{' '.join(cmd)}\n{done.stderr}")
+        compile_c(c_files, tmp, "the bridge firmware", libs=["-lm"], cc=CC, flags=flags)
+    except NativeBuildError as e:
+        raise FirmwareError(f"{e} (tools/bootstrap.sh installs gcc-arm-none-eabi)") from e
     subprocess.run([OBJCOPY, "-O", "binary", str(tmp), str(out / "bridge.bin")], check=True)
     tmp.replace(elf)
     return elf
@@ -175,6 +173,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"firmware {elf.relative_to(REPO) if elf.is_relative_to(REPO) else elf}:")
         for line in b.lines():
             print("  " + line)
+        if not args.check:
+            print(f"  hash  {firmware_hash().hex()} (HELLO_REPLY's firmware_sha256: "
+                  "rig bridge probe shows it)")
         b.check()
     except FirmwareError as e:
         print(f"firmware: {e}", file=sys.stderr)

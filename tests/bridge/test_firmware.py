@@ -69,3 +69,24 @@ def test_a_file_that_is_not_an_arm_elf_is_refused(tmp_path: Path) -> None:
         x86 = tmp_path / "x86.elf"  # a 32-bit little-endian ELF header of an x86 program (EM_386)
         x86.write_bytes(b"\x7fELF\x01\x01\x01" + bytes(11) + (3).to_bytes(2, "little") + bytes(40))
         fw.sections(x86)
+
+
+def symbols(elf: Path) -> dict[str, int]:
+    out = subprocess.run(["arm-none-eabi-nm", str(elf)], capture_output=True, text=True, check=True).stdout
+    return {w[2]: int(w[0], 16) for w in (line.split() for line in out.splitlines()) if len(w) == 3}
+
+
+#: the STM32G4's interrupt positions (RM0440, NVIC chapter, vector table), written down here apart from
+#: bridge/stm32g4/regs.h
+IRQS = {"dma1_ch2_irq": 12, "tim2_irq": 28, "i2c1_ev_irq": 31, "i2c1_er_irq": 32, "usart1_irq": 37,
+        "i2c3_ev_irq": 92, "i2c3_er_irq": 93}
+
+
+def test_each_interrupt_the_firmware_handles_sits_at_its_place(elf: Path) -> None:
+    v, sym = fw.vectors(elf, 16 + 102), symbols(elf)
+    assert v[1] == sym["reset_handler"] | 1
+    for name, irq in IRQS.items():
+        assert v[16 + irq] == sym[name] | 1, name
+    default = sym["default_handler"] | 1
+    assert v[3] == default  # HardFault: spins until the watchdog resets the MCU
+    assert sum(1 for h in v[16:] if h) == len(IRQS)  # nothing else is enabled, nothing else has a handler

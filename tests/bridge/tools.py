@@ -13,6 +13,8 @@ from pathlib import Path
 from emulators.chips import gen as chips_gen
 from plant.native_build import BUILD, compile_c, is_stale
 from rig.bridge import gen
+from rig.bridge.firmware import CC as ARM_CC
+from rig.bridge.firmware import M4_FLAGS
 
 REPO = Path(__file__).resolve().parents[2]
 CORE = REPO / "bridge" / "core"
@@ -22,9 +24,6 @@ TABLE = [REPO / "rig" / "bridge" / "messages.py", REPO / "rig" / "bridge" / "gen
 #: the real chip core (emulators/chips), which the firmware links and the Cortex-M4 runs are built with
 CHIP_CORE = REPO / "emulators" / "chips"
 QEMU_DIR = REPO / "bridge" / "qemu"
-#: the STM32G431's core: a Cortex-M4 with the single-precision FPU, hard-float ABI (bridge/stm32g4 too)
-M4_FLAGS = ["-mcpu=cortex-m4", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv4-sp-d16"]
-ARM_CC = "arm-none-eabi-gcc"
 QEMU = "qemu-system-arm"
 #: a run under QEMU that takes longer than this is killed (the tests' own take well under a second)
 QEMU_TIMEOUT_S = 60.0
