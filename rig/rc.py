@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 from emulators.sbus import PERIOD_S, Sticks, encode
 
 if TYPE_CHECKING:
-    from rig.session import Session
+    from rig.host import Host
 
 
 @dataclass
@@ -23,11 +23,13 @@ class StickEmulator:
     sticks: Sticks = field(default_factory=Sticks)
     link: str = "ok"
 
-    def start(self, session: Session, t: float = 0.0) -> None:
+    def start(self, session: Host, t: float = 0.0) -> None:
         session.at(t, lambda s: self._tick(s, t))
 
-    def _tick(self, session: Session, t: float) -> None:
-        if self.link != "lost":
+    def _tick(self, session: Host, t: float) -> None:
+        if self.link == "lost":
+            session.serial_silence(self.path)
+        else:
             session.serial_write(
                 self.path,
                 encode(

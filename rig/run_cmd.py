@@ -67,6 +67,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "how late scheduled events ran goes into result.json",
     )
     p.add_argument(
+        "--bridge",
+        metavar="PORT|virtual",
+        help="run in real time through a bench bridge: PORT is the serial port of a bridge wired to a "
+        "real board (the board is the DUT); 'virtual' runs build/vbridge with the DUT command (default "
+        "the reference FC) behind it. The link's figures go into result.json (docs/bench.md)",
+    )
+    p.add_argument(
         "--can",
         metavar="INTERFACE:CHANNEL",
         help="python-can interface and channel for scenarios whose PWM capture goes over CAN "
@@ -180,6 +187,13 @@ def plan(args: argparse.Namespace) -> Plan:
         else:
             if not dut or not dut[0]:
                 problems.append("--dut is empty")
+        if args.bridge not in (None, "virtual"):
+            problems.append("--dut with --bridge PORT: behind a bridge's port the DUT is the board wired "
+                            "to it; a command runs only behind --bridge virtual")
+    elif args.bridge not in (None, "virtual"):
+        if not os.path.exists(args.bridge):
+            problems.append(f"--bridge {args.bridge}: no such port (a bridge's serial port, e.g. "
+                            "/dev/ttyACM0, or 'virtual')")
     elif not REFERENCE_FC.is_file():
         problems.append(f"the reference FC is not built ({REFERENCE_FC}); run `make dut`")
     if args.can:
@@ -251,10 +265,10 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
         print(f"[{i}/{n}] {sc.stem} ({sc.duration:g} s sim) ...", end="", file=sys.stderr, flush=True)
         try:
             r = run(sc, dut=suite.dut, seed=args.seed, work_dir=run_dir, wall_timeout=args.wall_timeout,
-                    realtime=args.realtime)
+                    realtime=args.realtime, bridge=args.bridge)
         except Exception as e:  # the rig could not fly it (not the DUT's doing): say so, go on
             r = not_run(sc, args.seed, f"the rig could not run this scenario: {type(e).__name__}: {e}",
-                        args.realtime)
+                        args.realtime, args.bridge)
         results.append(r)
         (run_dir / "junit.xml").write_text(junit.render([r]))
         (run_dir / "result.json").write_text(result_json.render(r))

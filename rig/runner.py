@@ -28,7 +28,9 @@ from emulators.sensor_models import Normals
 from plant.native_build import BUILD
 from plant.variables import MOTORS
 from rig import __version__, firmware
+from rig.bridge.session import BenchConfig, BenchSession
 from rig.capture import install_capture
+from rig.host import Host
 from rig.rc import StickEmulator
 from rig.session import Outcome, Session, SessionConfig
 from rig.world import World
@@ -65,9 +67,10 @@ def absolute_command(command: list[str], cwd: Path) -> list[str]:
     return out
 
 
-def mode(realtime: bool) -> str:
-    """result.json's ``mode``: how the DUT met the rig (a bench bridge adds "bridge")."""
-    return "real time" if realtime else "lockstep"
+def mode(realtime: bool, bridge: str | None = None) -> str:
+    """result.json's ``mode``: how the DUT met the rig: in lockstep, in real time, or behind a bench
+    bridge (real time too)."""
+    return "bridge" if bridge is not None else "real time" if realtime else "lockstep"
 
 
 def reference_config(scenario: Scenario) -> str:
@@ -89,7 +92,7 @@ class _Wind:
     def active(self) -> bool:
         return any(self.sc.wind) or self.sc.turbulence > 0 or bool(self.sc.gusts)
 
-    def tick(self, session: Session, t: float) -> None:
+    def tick(self, session: Host, t: float) -> None:
         # plain floats: three values a hundred times a second are cheaper than numpy calls
         sc = self.sc
         if sc.turbulence > 0:
@@ -124,7 +127,7 @@ class _Recorder:
         self.k = 0
         self._probe = world.probe(RECORDED)
 
-    def tick(self, session: Session) -> None:
+    def tick(self, session: Host) -> None:
         values = self._probe.read()
         roll, pitch, yaw, pd, vd, vn, ve, p, q, r = values[:len(RECORDED)]
         t = self.k * RECORD_PERIOD
@@ -230,18 +233,28 @@ def run(
     stall_timeout: float = 30.0,
     corrupt_every: int = 0,
     realtime: bool = False,
+    bridge: str | None = None,
 ) -> RunResult:
     """Runs ``scenario``; the reference FC (configured from the scenario's [fc] table) when ``dut`` is
     None. The DUT's stdout, stderr and telemetry go to ``work_dir`` (with None, to a temporary folder
     removed afterwards). Lockstep virtual time by default; ``realtime`` paces the run by the wall clock
-    (a bench) and reports how late the scheduled events ran."""
+    (a bench) and reports how late the scheduled events ran. ``bridge`` ("virtual" or a bridge's serial
+    port) runs it in real time through a bench bridge (rig/bridge/session.py): the sensors are the
+    bridge's, the motors its captured pulses; behind a port the DUT is the board wired to it."""
     if work_dir is None:
         with tempfile.TemporaryDirectory(prefix="rig-run-") as tmp:
-            return run(scenario, dut, seed, Path(tmp), wall_timeout, stall_timeout, corrupt_every, realtime)
+            return run(scenario, dut, seed, Path(tmp), wall_timeout, stall_timeout, corrupt_every, realtime,
+                       bridge)
+    realtime = realtime or bridge is not None
+    board = bridge is not None and bridge != "virtual"  # a real board: nothing for the rig to start
     work = Path(work_dir)
     work.mkdir(parents=True, exist_ok=True)
     notes: list[str] = []
-    if dut is None:
+    if board:
+        if dut is not None:
+            raise ValueError("behind a bridge's port the DUT is the board wired to it: no DUT command")
+        command = []
+    elif dut is None:
         if not REFERENCE_FC.is_file():
             raise FileNotFoundError(f"reference FC not built at {REFERENCE_FC}; run `make dut`")
         conf = work / "fc.conf"
@@ -253,13 +266,14 @@ def run(
             notes.append("the scenario's [fc] table configures the reference FC only; ignored for this DUT")
     metadata: dict[str, object] = {
         **identity(scenario, seed),
-        "dut_command": shlex.join(absolute_command(command, Path.cwd())),
-        **firmware.identify(command),
+        "dut_command": shlex.join(absolute_command(command, Path.cwd())) if command
+        else f"the board behind the bridge at {bridge}",
+        **(firmware.identify(command) if command else {}),
         "fc_config": dict(line.split(" = ", 1) for line in reference_config(scenario).splitlines())
-        if dut is None else None,
-        "capture": scenario.capture.transport,
+        if dut is None and not board else None,
+        "capture": "bridge" if bridge is not None else scenario.capture.transport,
         "duration": scenario.duration,
-        "mode": mode(realtime),
+        "mode": mode(realtime, bridge),
         "lockstep": not realtime,
     }
     faults = fault_sets(scenario.faults, seed)
@@ -286,8 +300,16 @@ def run(
                 stdout=out,
                 stderr=err,
             )
-            session = Session(cfg, world)
-            capture = install_capture(session, scenario.capture, corrupt_every)
+            session: Session | BenchSession
+            if bridge is not None:  # the bridge captures the pulses itself
+                session = BenchSession(BenchConfig(
+                    bridge=bridge, command=None if board else command, rc_path=RC_PATH,
+                    serial=[] if board else [TELEMETRY_PATH], duration=scenario.duration,
+                    wall_timeout=wall_timeout, stdout=out, stderr=err, faults=faults), world)
+                capture = None
+            else:
+                session = Session(cfg, world)
+                capture = install_capture(session, scenario.capture, corrupt_every)
             rc = StickEmulator(RC_PATH)
             rc.start(session)
             wind = _Wind(scenario, seed)
@@ -330,6 +352,8 @@ def run(
         dut_clock_base_s=session.dut_clock_base_s,
         bus_transactions=outcome.transactions,
     )
+    if isinstance(session, BenchSession):
+        metadata["bridge"] = session.link_figures()
     if realtime:
         metadata["realtime_lateness"] = {
             "events": outcome.events_run,
@@ -408,7 +432,8 @@ def _idle(outcome: Outcome) -> str | None:
     return None
 
 
-def not_run(scenario: Scenario, seed: int, error: str, realtime: bool = False) -> RunResult:
+def not_run(scenario: Scenario, seed: int, error: str, realtime: bool = False,
+            bridge: str | None = None) -> RunResult:
     """The result of a scenario the rig could not fly at all (an error before the DUT started):
     nothing recorded, nothing judged."""
     empty = {name: np.zeros(0) for name in ("t", *SIGNALS)}
@@ -418,7 +443,9 @@ def not_run(scenario: Scenario, seed: int, error: str, realtime: bool = False) -
         for c in scenario.criteria
     ]
     metadata: dict[str, object] = {**identity(scenario, seed), "duration": scenario.duration,
-                                   "mode": mode(realtime)}
+                                   "mode": mode(realtime, bridge)}
+    if bridge is not None:
+        metadata["bridge"] = bridge
     return RunResult(scenario, "error", error, measurements, empty, metadata)
 
 
@@ -428,8 +455,8 @@ def _last_words(stderr: str) -> str:
     return lines[-1][:300] if lines else ""
 
 
-def _apply_event(rc: StickEmulator, ev: Event) -> Callable[[Session], None]:
-    def apply(session: Session) -> None:
+def _apply_event(rc: StickEmulator, ev: Event) -> Callable[[Host], None]:
+    def apply(session: Host) -> None:
         for k, v in ev.sticks.items():
             setattr(rc.sticks, k, v)
         if ev.link is not None:

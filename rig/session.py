@@ -158,6 +158,10 @@ class Session:
         """Runs ``fn(session)`` at sim time ``t`` seconds (before any DUT request at or after it)."""
         self.sched.at(t, fn)
 
+    def serial_silence(self, path: str) -> None:
+        """The device behind ``path`` sends nothing for now (a lost RC link): on a pty that is no bytes,
+        nothing to do (a bench bridge has to be told, rig/bridge/session.py)."""
+
     def serial_write(self, path: str, data: bytes) -> None:
         """Sends bytes to the DUT on a serial path; in lockstep they are readable by the DUT before
         it runs again, and a DUT polling that port wakes at this instant. Like a UART, the line does

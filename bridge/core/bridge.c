@@ -291,7 +291,8 @@ static int dispatch(struct bridge *b, const struct bridge_msg *msg, uint64_t t_u
             return -1;
         late(b, s->valid_us, t_us);
         double v[7] = { s->accel[0], s->accel[1], s->accel[2], s->gyro[0], s->gyro[1], s->gyro[2], s->temp_c };
-        return chip_push_imu(&b->board, s->valid_us * 1000u, v) ? 0 : -1;
+        chip_push_imu(&b->board, s->valid_us * 1000u, v); /* (full: the oldest made room) */
+        return 0;
     }
     case BRIDGE_MAG_SAMPLE: {
         const struct bridge_mag_sample *s = &msg->u.mag_sample;
@@ -299,21 +300,23 @@ static int dispatch(struct bridge *b, const struct bridge_msg *msg, uint64_t t_u
             return -1;
         late(b, s->valid_us, t_us);
         double field[3] = { s->field[0], s->field[1], s->field[2] };
-        return chip_push_mag(&b->board, s->valid_us * 1000u, field) ? 0 : -1;
+        chip_push_mag(&b->board, s->valid_us * 1000u, field);
+        return 0;
     }
     case BRIDGE_BARO_SAMPLE: {
         const struct bridge_baro_sample *s = &msg->u.baro_sample;
         if (s->d1 > 0xFFFFFFu || s->d2 > 0xFFFFFFu || s->valid_us > UINT64_MAX / 1000u) /* 24-bit ADC words */
             return -1;
         late(b, s->valid_us, t_us);
-        return chip_push_baro(&b->board, s->valid_us * 1000u, s->d1, s->d2) ? 0 : -1;
+        chip_push_baro(&b->board, s->valid_us * 1000u, s->d1, s->d2);
+        return 0;
     }
     case BRIDGE_SBUS: {
         const struct bridge_sbus *s = &msg->u.sbus;
         for (int i = 0; i < SBUS_CHANNELS; i++)
             if (s->channels[i] > 0x7FF)
                 return -1;
-        if (s->flags & ~0x0F)
+        if (s->flags & ~(0x0F | SBUS_OUT_OFF))
             return -1;
         sbus_out_set(&b->sbus, s->channels, s->flags, t_us);
         return 0;

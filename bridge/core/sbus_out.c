@@ -26,6 +26,10 @@ void sbus_out_init(struct sbus_out *s, uint32_t period_us)
 
 void sbus_out_set(struct sbus_out *s, const uint16_t ch[SBUS_CHANNELS], uint8_t flags, uint64_t now_us)
 {
+    if (flags & SBUS_OUT_OFF) {
+        s->have = 0; /* silent until channels come again */
+        return;
+    }
     memcpy(s->ch, ch, sizeof s->ch);
     s->flags = flags;
     if (!s->have)

@@ -14,6 +14,7 @@
 #define SBUS_FLAG_FRAME_LOST 0x04
 #define SBUS_FLAG_FAILSAFE 0x08
 #define SBUS_FAILSAFE_US 1000000u
+#define SBUS_OUT_OFF 0x80 /* the host's flag, never sent: no frames at all (a receiver that stopped output) */
 
 struct sbus_out {
     uint32_t period_us; /* 0: no SBUS */

@@ -31,6 +31,15 @@ static double now_s(void)
 /* Sensor frame of a board lying flat (x forward, y left, z up) to body FRD. */
 static vec3 to_body(vec3 s) { return v3(s.x, -s.y, -s.z); }
 
+static void ts_add(struct timespec *t, long ns)
+{
+    t->tv_nsec += ns;
+    while (t->tv_nsec >= 1000000000L) {
+        t->tv_nsec -= 1000000000L;
+        t->tv_sec++;
+    }
+}
+
 static vec3 calibrate(vec3 v, const double off[3], const double scale[3])
 {
     return v3((v.x - off[0]) * scale[0], (v.y - off[1]) * scale[1], (v.z - off[2]) * scale[2]);
@@ -80,6 +89,10 @@ int main(int argc, char **argv)
        heading a degree or two off, and the heading loop is slow to take that out */
     vec3 bias = v3(0, 0, 0), acc, gyro, mag = v3(0, 0, 0), acc_mean = v3(0, 0, 0), mag_sum = v3(0, 0, 0);
     int mag_n = 0;
+    /* on absolute deadlines 2 ms apart: the second lasts a second however long the bus takes (on a bench
+       each read costs real time; a relative sleep after it made calibration last 1.3 s there) */
+    struct timespec cal;
+    clock_gettime(CLOCK_MONOTONIC, &cal);
     for (int i = 0; i < 500; i++) {
         if (mpu_read(bus, c.mpu_addr, &acc, &gyro) < 0) {
             fprintf(stderr, "fc: MPU-6050 read failed during calibration; no motor output\n");
@@ -92,8 +105,8 @@ int main(int argc, char **argv)
             mag_sum = v3_add(mag_sum, calibrate(to_body(m), c.mag_offset, c.mag_scale));
             mag_n++;
         }
-        struct timespec d = { 0, 2000000 };
-        nanosleep(&d, NULL);
+        ts_add(&cal, 2000000L);
+        clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &cal, NULL);
     }
     if (pwm_setup(c.pwm_chip, 4, 2500000, err, sizeof err) < 0) {
         fprintf(stderr, "fc: %s\n", err);
@@ -307,11 +320,7 @@ int main(int argc, char **argv)
             fflush(tel);
         }
         cycles++;
-        next.tv_nsec += step_ns;
-        while (next.tv_nsec >= 1000000000L) {
-            next.tv_nsec -= 1000000000L;
-            next.tv_sec++;
-        }
+        ts_add(&next, step_ns);
         struct timespec cur;
         clock_gettime(CLOCK_MONOTONIC, &cur);
         if (cur.tv_sec > next.tv_sec || (cur.tv_sec == next.tv_sec && cur.tv_nsec > next.tv_nsec))

@@ -120,33 +120,45 @@ bool chip_take_baro(chip_baro *s, uint64_t t_ns)
 
 bool chip_push_imu(chip_board *b, uint64_t valid_ns, const double v[7])
 {
+    bool dropped = false;
     chip_mpu *m = &b->mpu;
-    if (m->q_len >= CHIP_IMU_QUEUE)
-        return false;
+    if (m->q_len >= CHIP_IMU_QUEUE) { /* full: the oldest goes (a newer one would supersede it anyway) */
+        m->q_head = (uint16_t)((m->q_head + 1) % CHIP_IMU_QUEUE);
+        m->q_len--;
+        dropped = true;
+    }
     chip_imu_sample *s = &m->queue[(m->q_head + m->q_len++) % CHIP_IMU_QUEUE];
     s->valid_ns = valid_ns;
     memcpy(s->v, v, sizeof s->v);
-    return true;
+    return !dropped;
 }
 
 bool chip_push_mag(chip_board *b, uint64_t valid_ns, const double field[3])
 {
+    bool dropped = false;
     chip_hmc *h = &b->hmc;
-    if (h->q_len >= CHIP_MAG_QUEUE)
-        return false;
+    if (h->q_len >= CHIP_MAG_QUEUE) { /* full: the oldest goes (a newer one would supersede it anyway) */
+        h->q_head = (uint16_t)((h->q_head + 1) % CHIP_MAG_QUEUE);
+        h->q_len--;
+        dropped = true;
+    }
     chip_mag_sample *s = &h->queue[(h->q_head + h->q_len++) % CHIP_MAG_QUEUE];
     s->valid_ns = valid_ns;
     memcpy(s->field, field, sizeof s->field);
-    return true;
+    return !dropped;
 }
 
 bool chip_push_baro(chip_board *b, uint64_t valid_ns, uint32_t d1, uint32_t d2)
 {
+    bool dropped = false;
     chip_baro *s = &b->baro;
-    if (s->q_len >= CHIP_BARO_QUEUE)
-        return false;
+    if (s->q_len >= CHIP_BARO_QUEUE) { /* full: the oldest goes (a newer one would supersede it anyway) */
+        s->q_head = (uint16_t)((s->q_head + 1) % CHIP_BARO_QUEUE);
+        s->q_len--;
+        dropped = true;
+    }
     s->queue[(s->q_head + s->q_len++) % CHIP_BARO_QUEUE] = (chip_baro_sample){ valid_ns, d1, d2 };
-    return true;
+    return !dropped;
 }
 
 /* ---- time ---- */

@@ -59,6 +59,18 @@ def mpu_sample_rate(config: int, smplrt_div: int) -> float:
     return gyro_rate / (1 + smplrt_div)
 
 
+def take_samples(source: Callable[[float], ImuTruth], times: Sequence[float], out: np.ndarray) -> None:
+    """The IMU source's samples at ``times`` into ``out``'s first rows (7 columns: accel, gyro, die
+    temperature): in one call for an ImuModel, one by one for a plain function of time (tests, traces)."""
+    take = getattr(source, "sample_block", None)
+    if take is not None:
+        take(times, out)
+        return
+    for i, t in enumerate(times):
+        s = source(t)
+        out[i] = (*s.accel, *s.gyro, s.temperature_c)
+
+
 class ImuFeed:
     """The MPU-6050's samples: ``source`` (an ImuModel, or any function of time giving ImuTruth) at the
     chip's sample instants, through the DLPF when ``dlpf``. Only the samples the chip encodes are
@@ -85,13 +97,7 @@ class ImuFeed:
         return t_ns * 1e-9
 
     def _take(self, times: Sequence[float]) -> None:
-        take = getattr(self.source, "sample_block", None)
-        if take is not None:
-            take(times, self._block)
-            return
-        for i, t in enumerate(times):  # a plain function of time (tests, traces)
-            s = self.source(t)
-            self._block[i] = (*s.accel, *s.gyro, s.temperature_c)
+        take_samples(self.source, times, self._block)
 
     def serve(self, board: ChipBoard, need: Need) -> None:
         keeps_all, count, anchor, epoch = need[1], need[6], need[7], need[8]
@@ -175,15 +181,20 @@ class BaroFeed:
         self._rng = np.random.default_rng(seed)
         self._push = native.fast().chip_push_baro
 
-    def serve(self, board: ChipBoard, need: Need) -> None:
-        osr = need[3]
-        table = ms5611.CONVERSION_MAX if self.timing == "max" else ms5611.CONVERSION_TYPICAL
-        truth = self.source(need[11] * 1e-9 + table[osr])
+    def words(self, t: float, osr: int) -> tuple[int, int]:
+        """D1 and D2 of a conversion at this OSR index that completes at sim time ``t`` (seconds). A
+        bench session (rig/bridge/stream.py) streams these too."""
+        truth = self.source(t)
         p = min(max(truth.pressure_pa, 1000.0), 120000.0)
         temp = min(max(truth.temperature_c, -40.0), 85.0)
         if self.osr_noise:
             p = min(max(p + self._rng.normal(0.0, ms5611.NOISE_PA[osr]), 1000.0), 120000.0)
-        d1, d2 = ms5611.encode(self.prom, p, temp, self.encoding)
+        return ms5611.encode(self.prom, p, temp, self.encoding)
+
+    def serve(self, board: ChipBoard, need: Need) -> None:
+        osr = need[3]
+        table = ms5611.CONVERSION_MAX if self.timing == "max" else ms5611.CONVERSION_TYPICAL
+        d1, d2 = self.words(need[11] * 1e-9 + table[osr], osr)
         self._push(board.addr, need[9], d1, d2)
 
 

@@ -227,7 +227,9 @@ CHIP_API bool chip_bus_fault_add(chip_board *b, uint8_t chip, uint8_t kind, uint
 CHIP_API void chip_bus_fault_seed(chip_board *b, uint8_t chip, uint64_t seed);
 CHIP_API void chip_bus_fault_clear(chip_board *b, uint8_t chip);
 
-/* ---- samples ---- (false: the queue is full, nothing pushed) */
+/* ---- samples ---- always queued; false: the queue was full and its oldest sample was dropped to make
+ * room (a streaming host that runs ahead while a chip takes none, asleep or idle, loses nothing: a chip
+ * reads only the newest sample valid at its instant) */
 CHIP_API bool chip_push_imu(chip_board *b, uint64_t valid_ns, const double v[7]);
 CHIP_API bool chip_push_mag(chip_board *b, uint64_t valid_ns, const double field[3]);
 CHIP_API bool chip_push_baro(chip_board *b, uint64_t valid_ns, uint32_t d1, uint32_t d2);

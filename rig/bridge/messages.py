@@ -80,7 +80,8 @@ MESSAGES: tuple[Message, ...] = (
             "the board's commands, REG_WRITE, for the OSR's noise): a conversion ending at or after the "
             "valid time gives the word of its kind"),
     Message("SBUS", 0x13, "down", (_f("channels", "u16", 16, doc="11-bit values"),
-                                   _f("flags", "u8", doc="bit 2 frame lost, bit 3 failsafe")),
+                                   _f("flags", "u8", doc="bit 2 frame lost, bit 3 failsafe; bit 7 "
+                                      "(SBUS_OUT_OFF): no frames at all until the next SBUS")),
             "sticks: the bridge sends them to the board as SBUS frames at the configured period"),
     Message("TIME_SYNC", 0x20, "down", (_f("id", "u32"), _f("host_ns", "u64", doc="host clock at sending")),
             "a time-sync probe; the bridge answers TIME_SYNC_REPLY"),

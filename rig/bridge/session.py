@@ -17,20 +17,23 @@ and there is no process to start: the run lasts its duration.
 
 from __future__ import annotations
 
+import math
 import os
 import selectors
 import shutil
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Final
 
 from emulators import sbus
+from emulators.faults import BUS_TARGETS, KINDS, TARGETS, FaultSet
 from plant.variables import MOTORS
 from rig import interrupts
 from rig.bridge.port import BridgeError, BridgePort, bridge_id
+from rig.bridge.stream import SampleStream
 from rig.bridge.timesync import ClockMap, Exchange
 from rig.bridge.vbridge import Endpoints, VirtualBridge
 from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, Stop
@@ -38,6 +41,8 @@ from rig.session import KILL_GRACE_S, Outcome, _Keeper, _Pty, dut_env
 from rig.world import World
 
 SYNC_PERIOD_S: Final = 0.1
+SBUS_OUT_OFF: Final = 0x80  # SBUS flags: the bridge sends no frames (messages.py)
+FAULT_NEVER_US: Final = 1 << 53  # a fault with no end (the bridge takes ends up to 2^64 ns)
 SYNC_START: Final = 8  # exchanges before the run starts: the clock map has a line by then
 TOPOLOGY_CODES: Final = {"gy86": 0, "direct": 1}
 
@@ -54,6 +59,7 @@ class BenchConfig:
     sim_timeout: float = 600.0
     wall_timeout: float = 600.0
     lead_s: float = 0.002             # Δ: samples are streamed this far ahead of their valid time
+    faults: Mapping[str, FaultSet] = field(default_factory=dict)  # bus faults go to the bridge
     sbus_period_ms: int = 14
     env: dict[str, str] | None = None
     shim_path: Path | None = None
@@ -72,6 +78,7 @@ class BridgeFigures:
     status: dict[str, object] = field(default_factory=dict)
     reg_writes: int = 0
     pulses: int = 0
+    pulses_driven: int = 0  # reports in which a motor had a pulse
     samples_sent: int = 0
     samples_late: int = 0  # streamed after their valid time had passed on the bridge
 
@@ -81,7 +88,7 @@ class BenchSession:
     ``now_ns``, ``dut_clock_base_s``), as rig/session.py's Session offers it."""
 
     def __init__(self, config: BenchConfig, world: World,
-                 on_reg_write: Callable[[int, int, int], None] | None = None) -> None:
+                 on_reg_write: Callable[[int, int, int, int], None] | None = None) -> None:
         self.cfg = config
         self.world = world
         world.direct_pwm = False  # the motors follow the bridge's captured pulses
@@ -97,6 +104,8 @@ class BenchSession:
         self._sync_id = 0
         self._probes: dict[int, int] = {}
         self.interrupted: int | None = None
+        self.stream = SampleStream(self)
+        self._rc_silent = False
 
     # ---- the API scenarios use -----------------------------------------------------------------
 
@@ -120,10 +129,17 @@ class BenchSession:
         """The RC port's SBUS frames go to the bridge, which sends them on its UART; other ports are
         served here, as a session serves them."""
         if path == self.cfg.rc_path:
+            self._rc_silent = False
             channels, flags = sbus.decode(data)
             self._send("SBUS", channels=channels, flags=flags)
             return
         os.write(self._ptys[path].master, data)
+
+    def serial_silence(self, path: str) -> None:
+        """The RC receiver stopped its output (a lost link): the bridge sends no frames until the next."""
+        if path == self.cfg.rc_path and not self._rc_silent:
+            self._rc_silent = True
+            self._send("SBUS", channels=[0] * sbus.CHANNELS, flags=SBUS_OUT_OFF)
 
     def serial_output(self, path: str) -> bytes:
         pty = self._ptys.get(path)
@@ -135,6 +151,10 @@ class BenchSession:
     def to_bridge_us(self, sim_ns: int) -> int:
         """The bridge's clock at this sim instant (what a sample valid then is stamped with)."""
         return round(self.clock.to_bridge_us(self._t0_ns + sim_ns))
+
+    def to_sim_ns(self, bridge_us: float) -> int:
+        """The sim instant at which the bridge's clock reads ``bridge_us``."""
+        return round(self.clock.to_host_ns(bridge_us)) - self._t0_ns
 
     def send_sample(self, name: str, valid_sim_ns: int, **values: object) -> None:
         """A sensor sample valid from sim time ``valid_sim_ns``; counted late when that instant has
@@ -171,6 +191,8 @@ class BenchSession:
                         self._ptys[path] = _Pty(path, master, slave)
                         sel.register(master, selectors.EVENT_READ, ("pty", path))
                     self._t0_ns = time.monotonic_ns()
+                    self._send_faults()
+                    self.stream.start()
                     if cfg.command is not None and vbridge is not None:
                         from rig.shim.build import ensure_keeper, ensure_shim
 
@@ -301,14 +323,29 @@ class BenchSession:
                                         time.monotonic_ns()))
         elif m.name == "PULSES":
             self.figures.pulses += 1
+            self.figures.pulses_driven += any(v["width_tenth_us"][:MOTORS])  # type: ignore[index]
             for motor, w in enumerate(v["width_tenth_us"][:MOTORS]):  # type: ignore[index]
                 self.world.set_motor(motor, w / 10.0)
         elif m.name == "REG_WRITE":
             self.figures.reg_writes += 1
+            write = (int(v["t_us"]), int(v["addr"]), int(v["reg"]), int(v["value"]))  # type: ignore[call-overload]
+            self.stream.on_reg_write(*write)
             if self.on_reg_write is not None:
-                self.on_reg_write(int(v["addr"]), int(v["reg"]), int(v["value"]))  # type: ignore[call-overload]
+                self.on_reg_write(*write)
         elif m.name == "STATUS":
             self.figures.status = dict(v)
+
+    def _send_faults(self) -> None:
+        """The scenario's bus faults (a chip that does not answer, answers now and then, or answers
+        garbage), scheduled on the bridge's clock; signal faults act in the host's sensor models."""
+        for target, fs in self.cfg.faults.items():
+            if target not in BUS_TARGETS:
+                continue
+            for f in fs.faults:
+                end = FAULT_NEVER_US if math.isinf(f.end) else self.to_bridge_us(round(f.end * NS))
+                self._send("FAULT", target=TARGETS.index(target), kind=KINDS.index(f.kind),
+                           start_us=self.to_bridge_us(round(f.start * NS)), end_us=end,
+                           magnitude=f.magnitude, period_s=f.period, duty=f.duty)
 
     def _final_status(self) -> None:
         """The bridge's counters as of the run's end: the first STATUS stamped after it (the bridge
@@ -350,8 +387,11 @@ class BenchSession:
         if keeper is not None and keeper.exec_errno is not None:
             verdict, code, error = "error", 127, f"command not found or not executable: {self.cfg.command}"
         events, late, worst, p99 = self.sched.lateness()
-        return Outcome(verdict, code, error, returncode, sim, sim, time.perf_counter() - wall0, 0, 0,
-                       0, self.notes, [], self.world.outputs(), self.figures.pulses, events, late, worst, p99)
+        acked = self.figures.status.get("i2c_acked", 0)  # the board's transfers are the bridge's to count
+        transfers = int(acked) if isinstance(acked, int) else 0
+        return Outcome(verdict, code, error, returncode, sim, sim, time.perf_counter() - wall0, transfers, 0,
+                       0, self.notes + self.stream.figures.notes, [], self.world.outputs(),
+                       self.figures.pulses_driven, events, late, worst, p99)
 
     def link_figures(self) -> dict[str, object]:
         """For result.json: the bridge's identity and the link's figures."""
@@ -360,6 +400,9 @@ class BenchSession:
             "bridge": self.cfg.bridge, "bridge_id": f.bridge_id, "protocol": f.protocol,
             "core_version": f.core_version, "firmware_sha256_8": f.firmware_sha256,
             "lead_s": self.cfg.lead_s, "samples_sent": f.samples_sent, "samples_late": f.samples_late,
+            "samples": {"imu": self.stream.figures.imu, "mag": self.stream.figures.mag,
+                        "baro": self.stream.figures.baro,
+                        "imu_extrapolated": self.stream.figures.imu_extrapolated},
             "reg_writes": f.reg_writes, "pulse_reports": f.pulses, "bridge_status": f.status,
             "time_sync": self.clock.figures(), "link": self.port.figures() if self.port else {},
         }

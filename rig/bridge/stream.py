@@ -1,0 +1,244 @@
+"""What a bench session streams to the bridge: the three chips' samples, made by the same sensor models
+and DLPF as in lockstep (emulators/chips/board.py), each stamped with the bridge time from which it
+holds (docs/design.md §8 "Time", docs/bench.md "The lead").
+
+**IMU.** The host follows the emulated MPU-6050's sample clock from the board's register writes
+(``MpuClock``: it wakes at the PWR_MGMT_1 write that clears SLEEP, a rate written takes effect after
+the next instant of the old rate, DEVICE_RESET puts it back to sleep: the chip core's own rules) and
+sends one sample per instant ``c``, ``lead`` samples ahead of it (lead = ⌈Δ / period⌉), valid from
+``c − MARGIN_US`` so that the chip at ``c`` reads exactly that sample whatever the jitter of the time
+map. The sample for ``c`` must be the DLPF's output at ``c``: a first-order low-pass of the input
+``delay`` earlier (``depth`` = delay / period samples). The host takes the input at the event's time,
+``c − lead`` samples, and filters it with a delay line ``lead`` samples shorter, so the output for ``c``
+is the filtered input of ``c − depth`` samples: the lockstep value, with nothing predicted, whenever
+depth ≥ lead (DLPF_CFG ≥ 1 at Δ = 2 ms, 1 kHz). Below that (DLPF_CFG 0 or 7) the output is
+extrapolated linearly over the missing samples, and the run's notes say so. The chip faster than
+MAX_IMU_HZ (8 kHz without the DLPF) gets every n-th instant: the others hold (counted as underruns).
+
+**Magnetometer and barometer.** Their samples are streamed on the host's grid, MAG_PERIOD_S and
+BARO_PERIOD_S apart, valid Δ after the instant their values were taken (their readings lag by Δ; the
+field and the pressure change far slower than that). A chip that measures only now and then (the
+HMC5883L idle, the MS5611 between commands) finds the newest: the bridge's queues keep the newest when
+full.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Final
+
+import numpy as np
+
+from emulators import ms5611
+from emulators.chips.board import BaroFeed, take_samples
+from emulators.dlpf import DLPF, LowPass
+from emulators.mpu6050 import CONFIG, SMPLRT_DIV
+
+if TYPE_CHECKING:
+    from rig.bridge.session import BenchSession
+
+PWR_MGMT_1: Final = 0x6B
+MPU_ADDR: Final = 0x68
+BARO_ADDR: Final = 0x77
+MARGIN_US: Final = 100       # a sample is valid this long before the instant it is for
+MAX_IMU_HZ: Final = 1000.0   # the most IMU samples a second the host streams
+ASLEEP_PERIOD_S: Final = 0.01  # while the MPU sleeps: a fresh sample this often, for the instant it wakes
+MAG_PERIOD_S: Final = 0.005
+BARO_PERIOD_S: Final = 0.002
+NS: Final = 1_000_000_000
+
+
+def mpu_period_us(config: int, smplrt_div: int) -> int:
+    """The MPU-6050's sample period in µs: an 8 kHz gyro rate without the DLPF (DLPF_CFG 0 or 7), else
+    1 kHz, divided by 1 + SMPLRT_DIV (emulators/chips/mpu6050.c, period_ns)."""
+    base = 125 if config & 0x07 in (0, 7) else 1000
+    return base * (1 + smplrt_div)
+
+
+@dataclass
+class MpuClock:
+    """The emulated MPU-6050's sample instants on the bridge's clock (µs), followed from the board's
+    register writes as the chip core sets them."""
+
+    asleep: bool = True
+    config: int = 0
+    smplrt_div: int = 0
+    anchor_us: int = 0  # an instant of the current schedule (the wake, or the first of a new rate)
+
+    @property
+    def period_us(self) -> int:
+        return mpu_period_us(self.config, self.smplrt_div)
+
+    def write(self, t_us: int, reg: int, value: int) -> None:
+        """The board wrote ``value`` to ``reg`` at bridge time ``t_us`` (a REG_WRITE)."""
+        if reg == PWR_MGMT_1:
+            if value & 0x80:  # DEVICE_RESET: the power-on registers, asleep
+                self.asleep, self.config, self.smplrt_div = True, 0, 0
+                return
+            if self.asleep and not value & 0x40:  # waking: sampling starts at the write
+                self.anchor_us = t_us
+            self.asleep = bool(value & 0x40)
+        elif reg in (CONFIG, SMPLRT_DIV):
+            if not self.asleep:  # the instants up to the write keep the old rate; the next one too
+                self.anchor_us = self.next_after(t_us)
+            if reg == CONFIG:
+                self.config = value
+            else:
+                self.smplrt_div = value
+
+    def next_after(self, t_us: int) -> int:
+        """The first instant after ``t_us`` (the sleeping chip has none: asked only while awake)."""
+        if t_us < self.anchor_us:
+            return self.anchor_us
+        p = self.period_us
+        return self.anchor_us + ((t_us - self.anchor_us) // p + 1) * p
+
+
+@dataclass
+class StreamFigures:
+    imu: int = 0
+    mag: int = 0
+    baro: int = 0
+    imu_extrapolated: int = 0  # samples whose DLPF output was extrapolated (delay shorter than Δ)
+    notes: list[str] = field(default_factory=list)
+
+
+class SampleStream:
+    """Streams the world's sensor samples to a BenchSession's bridge; ``start`` schedules it, the
+    session calls ``on_reg_write`` for every REG_WRITE the bridge reports."""
+
+    def __init__(self, session: BenchSession) -> None:
+        self.session = session
+        board = session.world.board
+        self.imu_source = board.mpu.source
+        self.mag_source = board.hmc.source
+        self.baro: BaroFeed = board.baro.feed
+        self.lead_s = session.cfg.lead_s
+        self.clock = MpuClock()
+        self.figures = StreamFigures()
+        self._block = np.zeros((1, 7))
+        self._accel_f, self._gyro_f = LowPass(), LowPass()
+        self._prev: list[float] | None = None  # the last filtered output (extrapolation's slope)
+        self._next_c = 0       # the next instant the IMU chain serves (bridge µs); 0: asleep
+        self._imu_epoch = 0    # bumped when the clock is re-anchored: events of an old chain stop
+        self._osr = len(ms5611.OSR) - 1  # the MS5611's last OSR commanded (its noise, when modelled)
+        self._extrapolating: int | None = None
+
+    # ---- the board's writes ---------------------------------------------------------------------
+
+    def on_reg_write(self, t_us: int, addr: int, reg: int, value: int) -> None:
+        if addr == BARO_ADDR and 0x40 <= reg <= 0x58:
+            self._osr = min((reg & 0x0F) // 2, len(ms5611.OSR) - 1)
+            return
+        if addr != MPU_ADDR or reg not in (PWR_MGMT_1, CONFIG, SMPLRT_DIV):
+            return
+        was_asleep, anchor, period = self.clock.asleep, self.clock.anchor_us, self.clock.period_us
+        self.clock.write(t_us, reg, value)
+        c = self.clock
+        if reg == PWR_MGMT_1 and value & 0x80:  # DEVICE_RESET: the DLPF starts again (as ImuFeed's)
+            self._accel_f, self._gyro_f, self._prev = LowPass(), LowPass(), None
+        if c.asleep:
+            if not was_asleep:
+                self._restart_imu(None)
+        elif was_asleep or (c.anchor_us, c.period_us) != (anchor, period):
+            # the chip's schedule changed: serve it from its first instant (past ones are sent at once)
+            self._restart_imu(c.anchor_us)
+
+    # ---- scheduling -----------------------------------------------------------------------------
+
+    def start(self) -> None:
+        s = self.session
+        s.at(0.0, self._mag_tick)
+        s.at(0.0, self._baro_tick)
+        self._restart_imu(None)
+
+    def _restart_imu(self, first_instant_us: int | None) -> None:
+        self._imu_epoch += 1
+        epoch = self._imu_epoch
+        s = self.session
+        if first_instant_us is None:  # asleep: keep a fresh sample queued for the instant it wakes
+            s.at(max(s.now_ns, 0) / NS, lambda sess: self._asleep_tick(epoch))
+            return
+        self._next_c = first_instant_us
+        s.at(max(self._event_ns(first_instant_us), s.now_ns, 0) / NS, lambda sess: self._imu_tick(epoch))
+
+    def _step_us(self) -> int:
+        """The instants the host serves: every one, or every n-th above MAX_IMU_HZ."""
+        p = self.clock.period_us
+        return p * max(1, math.ceil(1e6 / MAX_IMU_HZ / p - 1e-9))
+
+    def _lead(self) -> int:
+        """Δ in samples of the served period (at least one)."""
+        return max(1, math.ceil(self.lead_s * 1e6 / self._step_us() - 1e-9))
+
+    def _event_ns(self, instant_us: int) -> int:
+        """The sim time at which the sample for this instant is made and sent."""
+        return self.session.to_sim_ns(instant_us) - self._lead() * self._step_us() * 1000
+
+    # ---- the IMU ------------------------------------------------------------------------------
+
+    def _asleep_tick(self, epoch: int) -> None:
+        if epoch != self._imu_epoch:
+            return
+        s = self.session
+        t_ns = s.now_ns
+        take_samples(self.imu_source, (t_ns / NS,), self._block)
+        s.send_sample("IMU_SAMPLE", t_ns + round(self.lead_s * NS), **self._values(self._block[0].tolist()))
+        self.figures.imu += 1
+        s.at(t_ns / NS + ASLEEP_PERIOD_S, lambda sess: self._asleep_tick(epoch))
+
+    def _imu_tick(self, epoch: int) -> None:
+        if epoch != self._imu_epoch:
+            return
+        s = self.session
+        c_us = self._next_c
+        step_us = self._step_us()
+        period = step_us * 1e-6
+        lead = self._lead()
+        cfg = self.clock.config & 0x07
+        a_bw, a_delay, g_bw, g_delay = DLPF[cfg]
+        take_samples(self.imu_source, (s.now_ns / NS,), self._block)
+        addr = self._block.ctypes.data
+        a_depth, g_depth = round(a_delay / period), round(g_delay / period)
+        self._accel_f.run(addr, 1, 7, a_bw, max(0, a_depth - lead) * period, period)
+        self._gyro_f.run(addr + 24, 1, 7, g_bw, max(0, g_depth - lead) * period, period)
+        v = self._block[0].tolist()
+        prev, self._prev = self._prev, v[:6]
+        short = (lead - a_depth, lead - g_depth)
+        if max(short) > 0:  # the delay does not cover Δ: extrapolate the filtered output
+            self.figures.imu_extrapolated += 1
+            if self._extrapolating != cfg:
+                self._extrapolating = cfg
+                self.figures.notes.append(
+                    f"bridge: DLPF_CFG={cfg} delays the gyro {g_delay * 1e3:.2f} ms, less than the lead Δ "
+                    f"{self.lead_s * 1e3:.1f} ms: IMU samples were extrapolated over "
+                    f"{max(short)} sample(s) of {step_us} µs (lockstep has no such error)")
+            if prev is not None:
+                for i in range(6):
+                    k = short[0] if i < 3 else short[1]
+                    if k > 0:
+                        v[i] += k * (v[i] - prev[i])
+        s.send_sample("IMU_SAMPLE", s.to_sim_ns(c_us - MARGIN_US), **self._values(v))
+        self.figures.imu += 1
+        self._next_c = c_us + step_us
+        s.at(max(self._event_ns(self._next_c), s.now_ns) / NS, lambda sess: self._imu_tick(epoch))
+
+    @staticmethod
+    def _values(v: list[float]) -> dict[str, object]:
+        return {"accel": v[0:3], "gyro": v[3:6], "temp_c": v[6]}
+
+    # ---- magnetometer and barometer -----------------------------------------------------------
+
+    def _mag_tick(self, s: BenchSession) -> None:
+        t_ns = s.now_ns
+        s.send_sample("MAG_SAMPLE", t_ns + round(self.lead_s * NS), field=list(self.mag_source(t_ns / NS)))
+        self.figures.mag += 1
+        s.at(t_ns / NS + MAG_PERIOD_S, self._mag_tick)
+
+    def _baro_tick(self, s: BenchSession) -> None:
+        t_ns = s.now_ns
+        d1, d2 = self.baro.words(t_ns / NS, self._osr)
+        s.send_sample("BARO_SAMPLE", t_ns + round(self.lead_s * NS), d1=d1, d2=d2)
+        self.figures.baro += 1
+        s.at(t_ns / NS + BARO_PERIOD_S, self._baro_tick)

@@ -1,0 +1,144 @@
+"""`rig run --bridge virtual`: the reference FC flies the whole bench path in real time (the host's
+session streaming samples over the link's pty to build/vbridge, the chip core there answering the
+FC's I2C, its PWM captured by the bridge as pulse widths, its sticks sent as SBUS by the bridge), and
+each measurement agrees with the lockstep run of the same scenario and seed within the tolerance
+tools/derive_bench_tolerance.py derives (docs/bench.md): the capture path's timing, measured in
+lockstep, plus 4·√2 σ of the measurement over lockstep seeds, plus the recorder's grid for times.
+
+Faults through the bridge (a NACKing magnetometer, a stuck gyro) act as in lockstep. A bridge that dies
+or stops answering ends the run as an error within a second of sim time (real time here: the same)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from rig.bridge.session import BenchConfig, BenchSession
+from rig.runner import REFERENCE_FC, reference_config
+from rig.world import World
+from scenarios.schema import load
+from tests.bridge.tools import REPO, vbridge
+
+SHOW = ["seed000_roll_stand", "step_roll", "hover_turbulence", "rc_loss_failsafe"]
+FAULTS = ["fault_gyro_stuck", "fault_mag_nack"]
+TOLERANCE = json.loads((Path(__file__).parent / "bench_tolerance.json").read_text())
+
+
+def rig_run(*args: str | Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "rig.cli", "run", *map(str, args)], capture_output=True,
+                          text=True, timeout=600)
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """The Show's scenarios and the fault scenarios, through the virtual bridge and in lockstep (seed 0)."""
+    vbridge()  # built when a source is newer
+    tmp = tmp_path_factory.mktemp("bench")
+    bench = rig_run("--bridge", "virtual", *SHOW, *FAULTS, "--out", tmp / "bench")
+    lock = rig_run(*SHOW, *FAULTS, "--out", tmp / "lockstep")
+    return {"bench": bench, "lockstep": lock, "dir": tmp}
+
+
+def result(runs: dict[str, Any], kind: str, name: str) -> dict[str, Any]:
+    return json.loads((runs["dir"] / kind / name / "result.json").read_text())
+
+
+def test_the_show_and_the_faults_pass_through_the_virtual_bridge(runs: dict[str, Any]) -> None:
+    assert runs["lockstep"].returncode == 0, runs["lockstep"].stderr
+    assert runs["bench"].returncode == 0, runs["bench"].stderr
+    for name in SHOW + FAULTS:
+        r = result(runs, "bench", name)
+        assert r["verdict"] == "pass", (name, r["error"], r["measurements"])
+        assert r["metadata"]["mode"] == "bridge"
+
+
+@pytest.mark.parametrize("name", SHOW + FAULTS)
+def test_each_measurement_agrees_with_lockstep_within_its_derived_tolerance(runs: dict[str, Any],
+                                                                             name: str) -> None:
+    bench, lock = result(runs, "bench", name), result(runs, "lockstep", name)
+    table = TOLERANCE["scenarios"][name]
+    assert [m["name"] for m in bench["measurements"]] == list(table)
+    for mb, ml in zip(bench["measurements"], lock["measurements"], strict=True):
+        row = table[mb["name"]]
+        # the tolerance was derived from this lockstep value: a lockstep run that moved more than the
+        # tolerance itself means the derivation is stale (rerun tools/derive_bench_tolerance.py)
+        assert abs(ml["value"] - row["lockstep"]) <= row["tolerance"], (mb["name"], ml["value"], row)
+        assert abs(mb["value"] - ml["value"]) <= row["tolerance"], (name, mb["name"], mb["value"],
+                                                                   ml["value"], row["tolerance"])
+
+
+def test_result_json_carries_the_bridge_and_the_links_figures(runs: dict[str, Any]) -> None:
+    meta = result(runs, "bench", "step_roll")["metadata"]
+    b = meta["bridge"]
+    assert (b["bridge"], b["bridge_id"], b["protocol"]) == ("virtual", "vbridge", 1)
+    assert b["lead_s"] == pytest.approx(0.002)
+    status = b["bridge_status"]
+    assert len(status["underruns"]) == 3 and status["frames_bad"] == 0 and status["refused"] == 0
+    # the FC's 250 Hz loop reads the MPU-6050 (a pointer write and a read: two STARTs) for about 8.9 s
+    assert status["i2c_acked"] > 2 * 250 * 8
+    assert b["link"]["frames_bad"] == 0 and b["link"]["seq_gaps"] == 0
+    # the bridge saw every frame the host sent but the last few in flight at the end
+    assert 0 <= b["link"]["frames_sent"] - status["frames_ok"] < 50
+    s = b["samples"]
+    assert s["imu"] >= 9_000 and s["mag"] >= 1_900 and s["baro"] >= 4_900  # 1 kHz, 200 Hz, 500 Hz
+    assert b["time_sync"]["exchanges"] >= 90  # 10 Hz over 10 s
+    assert abs(b["time_sync"]["drift_ppm"]) < 1000  # one machine, one clock: no drift to speak of
+    assert meta["realtime_lateness"]["events"] > 10_000
+    assert meta["bus_transactions"] == status["i2c_acked"]
+
+
+def test_the_index_and_the_report_name_the_bridge(runs: dict[str, Any]) -> None:
+    html = (runs["dir"] / "bench" / "step_roll" / "report.html").read_text()
+    assert "bridge (bench: port virtual, id vbridge" in html
+
+
+def _session(name: str, tmp: Path) -> tuple[BenchSession, World]:
+    sc = load(REPO / "scenarios" / "library" / f"{name}.toml")
+    conf = tmp / "fc.conf"
+    conf.write_text(reference_config(sc))
+    world = World.at_rest(seed=0)
+    cfg = BenchConfig(bridge="virtual", command=[str(REFERENCE_FC), str(conf)], serial=["/dev/ttyTEL0"],
+                      duration=6.0, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return BenchSession(cfg, world), world
+
+
+@pytest.mark.parametrize("how", [signal.SIGKILL, signal.SIGSTOP])
+def test_a_bridge_that_dies_or_stops_answering_ends_the_run_as_an_error_within_a_second(
+        tmp_path: Path, how: signal.Signals) -> None:
+    vbridge()
+    session, world = _session("hover_turbulence", tmp_path)
+    victim: list[int] = []
+
+    def hit(s: BenchSession) -> None:
+        assert s.vbridge is not None
+        victim.append(s.vbridge.proc.pid)
+        os.kill(s.vbridge.proc.pid, how)
+
+    session.at(2.0, hit)
+    try:
+        outcome = session.run()  # (a stopped bridge is killed like any other: SIGKILL needs no SIGCONT)
+    finally:
+        world.close()
+    assert outcome.verdict == "error"
+    assert outcome.error is not None and "bridge" in outcome.error
+    assert 2.0 <= outcome.sim_time < 3.0, outcome.sim_time  # sim time is the wall clock's here
+    assert not math.isnan(outcome.sim_time)
+    with pytest.raises(ProcessLookupError):  # nothing left behind
+        os.kill(victim[0], 0)
+
+
+def test_bad_bridge_options_are_refused_before_anything_runs(tmp_path: Path) -> None:
+    r = rig_run("--bridge", tmp_path / "no-such-port", "step_roll", "--out", tmp_path / "out")
+    assert r.returncode == 2
+    assert "no such port" in r.stderr
+    r = rig_run("--bridge", "/dev/null", "--dut", "true", "step_roll", "--out", tmp_path / "out")
+    assert r.returncode == 2
+    assert "the DUT is the board" in r.stderr
