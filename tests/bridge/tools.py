@@ -79,17 +79,23 @@ class Tool:
     m4: Path | None = None
     m4_twin: Path | None = None
 
-    def run(self, script: str) -> str:
-        out = _run_host(self.host, script)
+    def run(self, script: str, args: tuple[str, ...] = ()) -> str:
+        """The tool's output for this script on its standard input."""
+        return self.run_bytes(script.encode(), args).decode()
+
+    def run_bytes(self, stdin: bytes, args: tuple[str, ...] = ()) -> bytes:
+        """The same for any bytes in; ``args`` go first on the command line (on the M4, before the
+        input and output files)."""
+        out = _run_host(self.host, stdin, args)
         if self.m4 is None or self.m4_twin is None:
             return out
-        twin = out if self.m4_twin == self.host else _run_host(self.m4_twin, script)
+        twin = out if self.m4_twin == self.host else _run_host(self.m4_twin, stdin, args)
         with tempfile.TemporaryDirectory(prefix="bridge-m4-") as tmp:
-            src, dst = Path(tmp) / "script", Path(tmp) / "out"
-            src.write_text(script)
-            done = run_m4(self.m4, [str(src), str(dst)])
+            src, dst = Path(tmp) / "in", Path(tmp) / "out"
+            src.write_bytes(stdin)
+            done = run_m4(self.m4, [*args, str(src), str(dst)])
             assert done.returncode == 0, f"{self.m4.name} under QEMU: status {done.returncode}\n{done.stderr}"
-            got = dst.read_text()
+            got = dst.read_bytes()
         if got != twin:
             a, b = twin.splitlines(), got.splitlines()
             i = next((k for k, (x, y) in enumerate(zip(a, b, strict=False)) if x != y), min(len(a), len(b)))
@@ -98,14 +104,19 @@ class Tool:
         return got if self.m4_twin == self.host else out
 
 
-def _run_host(tool: Path, script: str) -> str:
-    done = subprocess.run([str(tool)], input=script, capture_output=True, text=True, timeout=120)
-    assert done.returncode == 0, done.stderr
+def _run_host(tool: Path, stdin: bytes, args: tuple[str, ...]) -> bytes:
+    done = subprocess.run([str(tool), *args], input=stdin, capture_output=True, timeout=120)
+    assert done.returncode == 0, done.stderr.decode(errors="replace")
     return done.stdout
 
 
-def link_tool() -> Path:
-    return build_tool("link_tool", [REPO / "bridge" / "tests" / "link_tool.c", CORE / "link.c"])
+def link_tool(m4: bool = False) -> Path:
+    return build_tool("link_tool", [REPO / "bridge" / "tests" / "link_tool.c", CORE / "link.c"], m4=m4)
+
+
+def link_tools(kind: str) -> Tool:
+    """link_tool on the host ("host"), or on the host and the Cortex-M4 ("cortex-m4"), byte for byte."""
+    return Tool(link_tool()) if kind == "host" else Tool(link_tool(), link_tool(m4=True), link_tool())
 
 
 def bridge_tool(chips: Path = CHIPS, m4: bool = False) -> Path:
