@@ -140,7 +140,9 @@
 #define TIM_CCMR_IN_TI(ch, filter) ((1u | ((filter) << 4)) << (8u * ((ch)&1u)))
 #define TIM_CCER_BOTH_EDGES(ch) ((BIT(0) | BIT(1) | BIT(3)) << (4u * (ch)))
 
-/* ---- I2C (RM0440 chapter "Inter-integrated circuit (I2C) interface", register map) */
+/* ---- I2C (RM0440 §41 "Inter-integrated circuit (I2C) interface", §41.7 registers; §41.4.7: in
+   transmission TXDR is copied to the shift register after the ACK pulse, so TXIS asks for the next
+   byte while the current one is on the wire) */
 #define I2C1_BASE 0x40005400u
 #define I2C3_BASE 0x40007800u
 #define I2C_CR1(i) REG((i) + 0x00u)
@@ -184,7 +186,7 @@
 /* TIMEOUTR: TIMEOUTA (12 bits) with TIDLE = 0 detects SCL low for (TIMEOUTA+1) * 2048 I2CCLK periods */
 #define I2C_TIMEOUTR_TIMOUTEN BIT(15)
 
-/* ---- USART (RM0440 chapter "Universal synchronous/asynchronous receiver transmitter (USART/UART)",
+/* ---- USART (RM0440 §37 "Universal synchronous/asynchronous receiver transmitter (USART/UART)",
    register map) */
 #define USART1_BASE 0x40013800u
 #define USART2_BASE 0x40004400u
