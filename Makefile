@@ -104,13 +104,14 @@ build/bench/physics_bench: bench/physics_bench.c $(PLANT_SOURCES) | venv $(FMU)
 	@mkdir -p build/bench
 	$(CC) $(CFLAGS_BENCH) -Ibuild/plant/gen -Iplant/c -o $@ bench/physics_bench.c plant/c/quadrotor_physics.c -lm
 
-bench: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) build/bench/physics_bench
+bench: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) $(VBRIDGE) build/bench/physics_bench
 	$(PY) bench/plant_rates.py
 	$(PY) bench/emulator_rates.py
 	$(PY) bench/exec_rates.py
 	build/dut/bench_fc
 	$(PY) bench/scenario_rates.py
 	$(PY) bench/cycle_cost.py
+	$(PY) bench/bridge_rates.py
 
 clean:
 	rm -rf build

@@ -77,7 +77,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "--can",
         metavar="INTERFACE:CHANNEL",
         help="python-can interface and channel for scenarios whose PWM capture goes over CAN "
-        "(e.g. socketcan:can0 on a bench; default: each scenario's [capture], virtual and private)",
+        "(e.g. socketcan:can0 on a bench; default: each scenario's [capture], virtual and private); with "
+        "--bridge, where the motors' pulse widths come from instead of the bridge's link: a CAN capture "
+        "device (socketcan:can0, slcan:/dev/ttyACM1), or slcan:vbridge, the virtual bridge's own frames",
     )
     add_pdf_options(p)
     v = sub.add_parser("validate", help="check scenario files without running them")
@@ -196,7 +198,10 @@ def plan(args: argparse.Namespace) -> Plan:
                             "/dev/ttyACM0, or 'virtual')")
     elif not REFERENCE_FC.is_file():
         problems.append(f"the reference FC is not built ({REFERENCE_FC}); run `make dut`")
-    if args.can:
+    if args.can and args.bridge is not None:  # the motors from a CAN capture device, opened by the run
+        if args.can.partition(":")[2] == "vbridge" and args.bridge != "virtual":
+            problems.append("--can ...:vbridge is the virtual bridge's CAN: use it with --bridge virtual")
+    elif args.can:
         interface, sep, channel = args.can.partition(":")
         if not (interface and sep and channel):
             problems.append(f"--can: expected INTERFACE:CHANNEL (e.g. socketcan:can0), got {args.can!r}")
@@ -265,7 +270,7 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
         print(f"[{i}/{n}] {sc.stem} ({sc.duration:g} s sim) ...", end="", file=sys.stderr, flush=True)
         try:
             r = run(sc, dut=suite.dut, seed=args.seed, work_dir=run_dir, wall_timeout=args.wall_timeout,
-                    realtime=args.realtime, bridge=args.bridge)
+                    realtime=args.realtime, bridge=args.bridge, can=args.can if args.bridge else None)
         except Exception as e:  # the rig could not fly it (not the DUT's doing): say so, go on
             r = not_run(sc, args.seed, f"the rig could not run this scenario: {type(e).__name__}: {e}",
                         args.realtime, args.bridge)

@@ -234,6 +234,7 @@ def run(
     corrupt_every: int = 0,
     realtime: bool = False,
     bridge: str | None = None,
+    can: str | None = None,
 ) -> RunResult:
     """Runs ``scenario``; the reference FC (configured from the scenario's [fc] table) when ``dut`` is
     None. The DUT's stdout, stderr and telemetry go to ``work_dir`` (with None, to a temporary folder
@@ -244,7 +245,7 @@ def run(
     if work_dir is None:
         with tempfile.TemporaryDirectory(prefix="rig-run-") as tmp:
             return run(scenario, dut, seed, Path(tmp), wall_timeout, stall_timeout, corrupt_every, realtime,
-                       bridge)
+                       bridge, can)
     realtime = realtime or bridge is not None
     board = bridge is not None and bridge != "virtual"  # a real board: nothing for the rig to start
     work = Path(work_dir)
@@ -271,7 +272,7 @@ def run(
         **(firmware.identify(command) if command else {}),
         "fc_config": dict(line.split(" = ", 1) for line in reference_config(scenario).splitlines())
         if dut is None and not board else None,
-        "capture": "bridge" if bridge is not None else scenario.capture.transport,
+        "capture": scenario.capture.transport if bridge is None else f"can ({can})" if can else "bridge",
         "duration": scenario.duration,
         "mode": mode(realtime, bridge),
         "lockstep": not realtime,
@@ -305,7 +306,7 @@ def run(
                 session = BenchSession(BenchConfig(
                     bridge=bridge, command=None if board else command, rc_path=RC_PATH,
                     serial=[] if board else [TELEMETRY_PATH], duration=scenario.duration,
-                    wall_timeout=wall_timeout, stdout=out, stderr=err, faults=faults), world)
+                    wall_timeout=wall_timeout, stdout=out, stderr=err, faults=faults, can=can), world)
                 capture = None
             else:
                 session = Session(cfg, world)

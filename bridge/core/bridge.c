@@ -377,6 +377,28 @@ void bridge_status(struct bridge *b, struct bridge_status *s)
     s->host_silent = (uint8_t)b->host_silent;
 }
 
+/* The widths as the DBC's capture frames, when the port has CAN (a capture device's job: the host may
+   read the motors from a CAN bus instead of the link). A frame the port cannot queue is counted. */
+static void can_capture(struct bridge *b, const uint16_t tenth_us[PWM_CAPTURE_CHANNELS])
+{
+    if (!b->hal.can_tx)
+        return;
+    for (unsigned k = 0; k < BRIDGE_CAN_CAPTURE_FRAMES; k++) {
+        const struct bridge_can_capture *f = &BRIDGE_CAN_CAPTURE[k];
+        uint8_t data[8] = { 0 }, covered[2 + 8];
+        bridge_put_bits(data, f->pwm_start[0], 16, tenth_us[2 * k]);
+        bridge_put_bits(data, f->pwm_start[1], 16, tenth_us[2 * k + 1]);
+        bridge_put_bits(data, f->seq_start, f->seq_len, b->can_seq);
+        covered[0] = (uint8_t)(f->id >> 8);
+        covered[1] = (uint8_t)f->id;
+        memcpy(covered + 2, data, f->crc_start / 8u);
+        bridge_put_bits(data, f->crc_start, 16, link_crc16(covered, 2u + f->crc_start / 8u));
+        if (b->hal.can_tx(b->hal.ctx, f->id, data, 8) != 0)
+            b->n.can_dropped++;
+    }
+    b->can_seq++;
+}
+
 void bridge_poll(struct bridge *b)
 {
     uint64_t t = now_us(b);
@@ -404,6 +426,7 @@ void bridge_poll(struct bridge *b)
         for (unsigned i = b->capture_channels; i < PWM_CAPTURE_CHANNELS; i++)
             m.u.pulses.width_tenth_us[i] = 0;
         bridge_send(b, &m);
+        can_capture(b, m.u.pulses.width_tenth_us);
         b->pulses_sent = b->cap.pulses;
         b->next_pulses_us = t + b->cfg.pulses_period_us;
     }

@@ -44,6 +44,7 @@ struct bridge_cfg {
 
 struct bridge_counters {
     uint32_t late_samples, refused, sbus_dropped, i2c_errors, i2c_acked;
+    uint32_t can_dropped;      /* capture frames the port could not queue */
     uint32_t underrun_base[3]; /* the chip core's underrun counts at the last HELLO */
 };
 
@@ -63,6 +64,7 @@ struct bridge {
     int host_silent;
     uint64_t next_status_us, next_pulses_us;
     uint32_t pulses_sent;
+    uint8_t can_seq; /* the CAN capture frames' sequence byte */
     /* the transaction under way */
     int cur_chip; /* CHIP_MPU, _HMC, _BARO; -1: none of ours */
     uint8_t cur_addr, cur_read, ptr;

@@ -71,6 +71,8 @@ static struct {
     struct bridge b;
     int link; /* the host link's pty master */
     int rc, rc_slave;
+    int can; /* the CAN bus as an slcan adapter's pty (master) */
+    uint64_t can_drain_ns;
     int listener;
     int host_seen; /* the host opened the link once */
     unsigned bus, npwm;
@@ -131,6 +133,30 @@ static size_t hal_sbus(void *ctx, const uint8_t *p, size_t n)
     (void)ctx;
     ssize_t k = write(v.rc, p, n);
     return k > 0 ? (size_t)k : 0;
+}
+
+/* One capture frame as an slcan adapter hands it to its host: "tIIILDD..\r" (python-can's slcan reads
+   it). A full pty drops the frame (the core counts it; the host sees a gap in the sequence byte). */
+static int hal_can(void *ctx, uint32_t id, const uint8_t *data, uint8_t len)
+{
+    (void)ctx;
+    char line[32];
+    int n = snprintf(line, sizeof line, "t%03X%u", (unsigned)(id & 0x7FFu), (unsigned)(len & 0x0Fu));
+    for (uint8_t i = 0; i < len && i < 8; i++)
+        n += snprintf(line + n, sizeof line - (size_t)n, "%02X", data[i]);
+    line[n++] = '\r';
+    return write(v.can, line, (size_t)n) == n ? 0 : -1;
+}
+
+/* What the adapter's host says (python-can's "O", "C", "S6"...) is read and let go: nothing to act on. */
+static void drain_can(uint64_t now)
+{
+    if (now < v.can_drain_ns)
+        return;
+    v.can_drain_ns = now + 10000000u;
+    char buf[256];
+    while (read(v.can, buf, sizeof buf) > 0) {
+    }
 }
 
 /* ---------------------------------------------------------------- the board's I2C */
@@ -598,18 +624,19 @@ int main(int argc, char **argv)
     snprintf(sock_path, sizeof sock_path, "%s/board.sock", dir);
     snprintf(shm_path, sizeof shm_path, "%s/shm", dir);
     snprintf(fakes_path, sizeof fakes_path, "%s/fakes", dir);
-    char link_name[64], rc_name[64];
+    char link_name[64], rc_name[64], can_name[64];
     if (mkdir(fakes_path, 0700) < 0 || make_shm() < 0)
         return fail("the shared page");
     if ((v.listener = make_listener()) < 0)
         return fail("the board socket");
-    if ((v.link = open_pty(link_name, sizeof link_name, 0)) < 0 || (v.rc = open_pty(rc_name, sizeof rc_name, 1)) < 0)
+    if ((v.link = open_pty(link_name, sizeof link_name, 0)) < 0 || (v.rc = open_pty(rc_name, sizeof rc_name, 1)) < 0 ||
+        (v.can = open_pty(can_name, sizeof can_name, 0)) < 0)
         return fail("a pty");
 
-    struct bridge_hal hal = { NULL, hal_now, hal_addr, hal_link, hal_sbus, NULL };
+    struct bridge_hal hal = { NULL, hal_now, hal_addr, hal_link, hal_sbus, hal_can };
     bridge_init(&v.b, &hal, &cfg);
-    printf("vbridge link=%s board=%s shm=%s rc=%s fakes=%s pid=%d\n", link_name, sock_path, shm_path, rc_name,
-           fakes_path, (int)getpid());
+    printf("vbridge link=%s board=%s shm=%s rc=%s can=%s fakes=%s pid=%d\n", link_name, sock_path, shm_path, rc_name,
+           can_name, fakes_path, (int)getpid());
     fflush(stdout);
 
     struct pollfd pf[MAX_CONNS + 2];
@@ -619,6 +646,7 @@ int main(int argc, char **argv)
         pwm_edges(now);
         send_due_replies(now);
         bridge_poll(&v.b);
+        drain_can(now);
         int n = 0;
         pf[n++] = (struct pollfd){ v.listener, POLLIN, 0 };
         /* the link: watched once the host has it open (a pty with no slave open reports a hang-up) */

@@ -11,8 +11,10 @@ map. The sample for ``c`` must be the DLPF's output at ``c``: a first-order low-
 ``delay`` earlier (``depth`` = delay / period samples). The host takes the input at the event's time,
 ``c − lead`` samples, and filters it with a delay line ``lead`` samples shorter, so the output for ``c``
 is the filtered input of ``c − depth`` samples: the lockstep value, with nothing predicted, whenever
-depth ≥ lead (DLPF_CFG ≥ 1 at Δ = 2 ms, 1 kHz). Below that (DLPF_CFG 0 or 7) the output is
-extrapolated linearly over the missing samples, and the run's notes say so. The chip faster than
+depth ≥ lead (DLPF_CFG ≥ 2 at Δ = 3 ms, 1 kHz). Below that (DLPF_CFG 0, 1 or 7) the input is taken
+at its own instant, past the world's newest step: its truth is held there (a zeroth-order
+extrapolation: a linear one multiplied the sensor noise by up to five at these lags), its noise and
+faults are its instant's; the run's notes say so. The chip faster than
 MAX_IMU_HZ (8 kHz without the DLPF) gets every n-th instant: the others hold (counted as underruns).
 
 **Magnetometer and barometer.** Their samples are streamed on the host's grid, MAG_PERIOD_S and
@@ -100,7 +102,7 @@ class StreamFigures:
     imu: int = 0
     mag: int = 0
     baro: int = 0
-    imu_extrapolated: int = 0  # samples whose DLPF output was extrapolated (delay shorter than Δ)
+    imu_extrapolated: int = 0  # samples whose truth was held past the world's newest step (delay < Δ)
     notes: list[str] = field(default_factory=list)
 
 
@@ -119,7 +121,6 @@ class SampleStream:
         self.figures = StreamFigures()
         self._block = np.zeros((1, 7))
         self._accel_f, self._gyro_f = LowPass(), LowPass()
-        self._prev: list[float] | None = None  # the last filtered output (extrapolation's slope)
         self._next_c = 0       # the next instant the IMU chain serves (bridge µs); 0: asleep
         self._imu_epoch = 0    # bumped when the clock is re-anchored: events of an old chain stop
         self._osr = len(ms5611.OSR) - 1  # the MS5611's last OSR commanded (its noise, when modelled)
@@ -137,7 +138,7 @@ class SampleStream:
         self.clock.write(t_us, reg, value)
         c = self.clock
         if reg == PWR_MGMT_1 and value & 0x80:  # DEVICE_RESET: the DLPF starts again (as ImuFeed's)
-            self._accel_f, self._gyro_f, self._prev = LowPass(), LowPass(), None
+            self._accel_f, self._gyro_f = LowPass(), LowPass()
         if c.asleep:
             if not was_asleep:
                 self._restart_imu(None)
@@ -198,27 +199,23 @@ class SampleStream:
         lead = self._lead()
         cfg = self.clock.config & 0x07
         a_bw, a_delay, g_bw, g_delay = DLPF[cfg]
-        take_samples(self.imu_source, (s.now_ns / NS,), self._block)
-        addr = self._block.ctypes.data
         a_depth, g_depth = round(a_delay / period), round(g_delay / period)
+        short = max(lead - a_depth, lead - g_depth, 0)  # samples the DLPF's delay does not cover
+        # the input's instant; past the world's newest step its truth is held (world.truth clamps), while
+        # its noise and faults are those of their own instant
+        take_samples(self.imu_source, (s.now_ns / NS + short * period,), self._block)
+        addr = self._block.ctypes.data
         self._accel_f.run(addr, 1, 7, a_bw, max(0, a_depth - lead) * period, period)
         self._gyro_f.run(addr + 24, 1, 7, g_bw, max(0, g_depth - lead) * period, period)
         v = self._block[0].tolist()
-        prev, self._prev = self._prev, v[:6]
-        short = (lead - a_depth, lead - g_depth)
-        if max(short) > 0:  # the delay does not cover Δ: extrapolate the filtered output
+        if short:
             self.figures.imu_extrapolated += 1
             if self._extrapolating != cfg:
                 self._extrapolating = cfg
                 self.figures.notes.append(
                     f"bridge: DLPF_CFG={cfg} delays the gyro {g_delay * 1e3:.2f} ms, less than the lead Δ "
-                    f"{self.lead_s * 1e3:.1f} ms: IMU samples were extrapolated over "
-                    f"{max(short)} sample(s) of {step_us} µs (lockstep has no such error)")
-            if prev is not None:
-                for i in range(6):
-                    k = short[0] if i < 3 else short[1]
-                    if k > 0:
-                        v[i] += k * (v[i] - prev[i])
+                    f"{self.lead_s * 1e3:.1f} ms: the IMU's truth was held over up to {short} sample(s) of "
+                    f"{step_us} µs (a lag lockstep does not have)")
         s.send_sample("IMU_SAMPLE", s.to_sim_ns(c_us - MARGIN_US), **self._values(v))
         self.figures.imu += 1
         self._next_c = c_us + step_us

@@ -1,9 +1,11 @@
 """The virtual bridge (bridge/posix, built to build/vbridge) as the host starts it: `--bridge virtual`.
 
 It is the bridge core as a Linux process. At start it prints one line naming its endpoints:
-``vbridge link=PTY board=SOCKET shm=FILE rc=PTY``: the pty the host's link opens (as it would a real
-bridge's serial port), and the board side a Linux-process DUT is started against (the redirection
-socket and page its shim connects to, and the pty its RC port reads SBUS from). It ends when its link
+``vbridge link=PTY board=SOCKET shm=FILE rc=PTY can=PTY``: the pty the host's link opens (as it would a
+real bridge's serial port), the board side a Linux-process DUT is started against (the redirection
+socket and page its shim connects to, and the pty its RC port reads SBUS from), and the CAN bus its
+capture frames go out on, as a USB-CAN adapter speaking slcan presents it (python-can's ``slcan``
+interface opens it). It ends when its link
 hangs up, so it cannot outlive the rig; ``stop`` ends it sooner.
 """
 
@@ -31,6 +33,7 @@ class Endpoints:
     board: str
     shm: str
     rc: str
+    can: str = ""  # optional: a bridge with no CAN names none
 
 
 def parse_endpoints(line: str) -> Endpoints:
@@ -42,7 +45,7 @@ def parse_endpoints(line: str) -> Endpoints:
     missing = [k for k in KEYS if not fields.get(k)]
     if missing:
         raise BridgeError(f"the virtual bridge did not name its {', '.join(missing)}: {line.strip()!r}")
-    return Endpoints(*(fields[k] for k in KEYS))
+    return Endpoints(fields["link"], fields["board"], fields["shm"], fields["rc"], fields.get("can", ""))
 
 
 class VirtualBridge:

@@ -32,7 +32,7 @@ I2C_TOOLS = "/usr/sbin"
 
 
 def endpoints(line: str) -> dict[str, str]:
-    """`vbridge link=… board=… shm=… rc=… fakes=… pid=…` as a dict."""
+    """`vbridge link=… board=… shm=… rc=… can=… fakes=… pid=…` as a dict."""
     head, *pairs = line.split()
     assert head == "vbridge"
     return dict(p.split("=", 1) for p in pairs)
@@ -161,7 +161,8 @@ def read_burst(vb: VBridge) -> list[int]:
 def test_the_endpoints_line_and_a_clean_end_on_hangup() -> None:
     proc, ends = start_vbridge()
     try:
-        assert set(ends) == {"link", "board", "shm", "rc", "fakes", "pid"} and int(ends["pid"]) == proc.pid
+        assert set(ends) == {"link", "board", "shm", "rc", "can", "fakes", "pid"}
+        assert int(ends["pid"]) == proc.pid
         assert Path(ends["board"]).is_socket() and Path(ends["link"]).exists() and Path(ends["rc"]).exists()
         host = Host(ends["link"])
         host.send("HELLO", version=PROTOCOL_VERSION, nonce=7)

@@ -78,11 +78,14 @@ def an520_crc4(prom: list[int]) -> int:
     return n_rem ^ 0x00
 
 
-def test_i2cset_wakes_the_mpu(tmp_path: Path) -> None:
+@MODES
+def test_i2cset_wakes_the_mpu(tmp_path: Path, mode: tuple[str, ...]) -> None:
+    """Through the virtual bridge the +1 g read after the wake is a sample the host streamed: it followed
+    the wake from the board's register write."""
     get, iset = tool("i2cget"), tool("i2cset")
     run = rig_exec(tmp_path, "sh", "-c",
                    f"{get} -y 1 0x68 0x6b; sleep 0.1; {get} -y 1 0x68 0x3f; {iset} -y 1 0x68 0x6b 0x00; "
-                   f"{get} -y 1 0x68 0x6b; sleep 0.1; {get} -y 1 0x68 0x3f")
+                   f"{get} -y 1 0x68 0x6b; sleep 0.1; {get} -y 1 0x68 0x3f", options=mode)
     assert run.returncode == 0, run.stderr
     pwr_before, accel_z_hi_asleep, pwr_after, accel_z_hi_awake = (int(x, 16) for x in run.stdout.split())
     assert pwr_before == 0x40               # reset value: SLEEP set
@@ -91,9 +94,11 @@ def test_i2cset_wakes_the_mpu(tmp_path: Path) -> None:
     assert 0x3C <= accel_z_hi_awake <= 0x43  # ACCEL_ZOUT_H near 0x40: +1 g at 16384 LSB/g
 
 
-def test_exit_status_passes_through_and_a_nack_is_an_i2c_tools_error(tmp_path: Path) -> None:
-    run = rig_exec(tmp_path, tool("i2cget"), "-y", "1", "0x50", "0x00")
+@MODES
+def test_exit_status_passes_through_and_a_nack_is_an_i2c_tools_error(tmp_path: Path,
+                                                                    mode: tuple[str, ...]) -> None:
+    run = rig_exec(tmp_path, tool("i2cget"), "-y", "1", "0x50", "0x00", options=mode)
     assert run.returncode == 2                       # i2cget's own status for a failed read
     assert "Read failed" in run.stderr
-    run = rig_exec(tmp_path, "sh", "-c", f"{tool('i2cget')} -y 1 0x68 0x75 >/dev/null; exit 7")
+    run = rig_exec(tmp_path, "sh", "-c", f"{tool('i2cget')} -y 1 0x68 0x75 >/dev/null; exit 7", options=mode)
     assert run.returncode == 7 and run.summary["verdict"] == "failed"

@@ -11,9 +11,12 @@ import pytest
 from tests.rig.helpers import DUTS, PY, rig_exec
 
 
+@pytest.mark.parametrize("mode", [(), ("--bridge", "virtual")], ids=["session", "vbridge"])
 @pytest.mark.parametrize("site", [{}, {"p_ground": 95461.3, "t_ground": 31.5}], ids=["isa", "warm-high"])
-def test_smbus2_reads_rest_truth_hmc_id_and_pressure(tmp_path: Path, site: dict[str, float]) -> None:
-    params = tuple(x for k, v in site.items() for x in ("--param", f"{k}={v}"))
+def test_smbus2_reads_rest_truth_hmc_id_and_pressure(tmp_path: Path, site: dict[str, float],
+                                                     mode: tuple[str, ...]) -> None:
+    """Through the virtual bridge the same bytes come from samples the host streamed to the chip core."""
+    params = mode + tuple(x for k, v in site.items() for x in ("--param", f"{k}={v}"))
     run = rig_exec(tmp_path, PY, str(DUTS / "smbus_probe.py"), options=params)
     assert run.returncode == 0, run.stderr
     out = run.json_out()

@@ -1,0 +1,98 @@
+"""The motors of a bench run read from a CAN capture device instead of the bridge's link (docs/bench.md
+"Capture over CAN"): the DBC's PWM_CAPTURE frames (emulators/pwm_capture.dbc), decoded and checked
+by the same CanCodec the lockstep capture uses.
+
+On a bench the interface is SocketCAN (``socketcan:can0``) or a USB adapter speaking slcan
+(``slcan:/dev/ttyACM1``). With ``--bridge virtual`` the channel ``vbridge`` names the virtual bridge's
+own CAN pty, where the bridge core's capture frames come out as an slcan adapter would hand them over:
+python-can's real ``slcan`` interface reads them, since these machines have no vcan.
+
+Nothing that arrives is trusted: a line the interface cannot parse, an unknown id, a bad length or CRC
+is counted and dropped; a gap in a frame's sequence byte is counted.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import can
+
+from emulators.pwm_capture import CanCodec, CaptureFrameError
+from plant.variables import MOTORS
+from rig.bridge.port import BridgeError
+from rig.world import World
+
+#: the channel that means "the virtual bridge's CAN pty"
+VBRIDGE_CHANNEL = "vbridge"
+MAX_FRAMES_PER_POLL = 256  # a poll never spends longer than this on a flood
+
+
+@dataclass
+class CanFigures:
+    frames: int = 0
+    applied: int = 0
+    rejected: int = 0
+    seq_gaps: int = 0
+    reasons: list[str] = field(default_factory=list)
+
+    def as_dict(self, interface: str, channel: str) -> dict[str, object]:
+        return {"interface": interface, "channel": channel, "frames": self.frames, "applied": self.applied,
+                "rejected": self.rejected, "seq_gaps": self.seq_gaps, "reject_reasons": self.reasons}
+
+
+def parse(spec: str) -> tuple[str, str]:
+    """``INTERFACE:CHANNEL`` (``socketcan:can0``, ``slcan:/dev/ttyACM1``, ``slcan:vbridge``)."""
+    interface, sep, channel = spec.partition(":")
+    if not (interface and sep and channel):
+        raise ValueError(f"expected INTERFACE:CHANNEL (e.g. socketcan:can0 or slcan:vbridge), got {spec!r}")
+    return interface, channel
+
+
+class CanPulses:
+    """A python-can bus the capture frames arrive on; ``poll`` applies what came to the world's motors."""
+
+    def __init__(self, interface: str, channel: str) -> None:
+        self.interface, self.channel = interface, channel
+        self.codec = CanCodec()
+        self.figures = CanFigures()
+        self._last_seq: dict[int, int] = {}
+        # (slcan waits 2 s after opening by default, for adapters that reset on open; a pty needs none)
+        try:
+            if interface == "slcan":
+                self.bus = can.Bus(interface=interface, channel=channel, sleep_after_open=0.0)
+            else:
+                self.bus = can.Bus(interface=interface, channel=channel)
+        except (can.CanError, OSError, ValueError, ImportError, NotImplementedError) as e:
+            raise BridgeError(f"capture over CAN: cannot open {interface!r} channel {channel!r}: {e}") from e
+
+    def poll(self, world: World) -> None:
+        for _ in range(MAX_FRAMES_PER_POLL):
+            try:
+                msg = self.bus.recv(timeout=0.0)
+            except (ValueError, IndexError, can.CanError) as e:  # a line the interface could not parse
+                self._reject(f"unreadable frame: {type(e).__name__}: {e}")
+                continue
+            if msg is None:
+                return
+            self.figures.frames += 1
+            try:
+                first, seq, widths = self.codec.decode(msg.arbitration_id, bytes(msg.data))
+            except CaptureFrameError as e:
+                self._reject(str(e))
+                continue
+            last = self._last_seq.get(first)
+            if last is not None and seq != (last + 1) % 256:
+                self.figures.seq_gaps += 1
+            self._last_seq[first] = seq
+            for k, w in enumerate(widths):
+                if first + k < MOTORS:
+                    world.set_motor(first + k, w)
+            self.figures.applied += 1
+
+    def _reject(self, reason: str) -> None:
+        self.figures.rejected += 1
+        if len(self.figures.reasons) < 10:
+            self.figures.reasons.append(reason)
+
+    def close(self) -> None:
+        self.bus.shutdown()

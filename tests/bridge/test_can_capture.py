@@ -1,0 +1,88 @@
+"""The bench's CAN capture reader (rig/bridge/can_capture.py) on python-can's real slcan interface over a
+real pty, fed what a capture device and a bad cable send: good frames move the motors, every bad one
+(an unparsable line, an unknown id, a short frame, a wrong CRC) is counted and moves nothing, a lost
+frame shows as a sequence gap. The frames are the DBC's, made by the lockstep capture's codec."""
+
+from __future__ import annotations
+
+import os
+import time
+import tty
+from collections.abc import Iterator
+
+import pytest
+
+from emulators.pwm_capture import CanCodec
+from rig.bridge.can_capture import CanPulses, parse
+from rig.bridge.port import BridgeError
+from rig.world import World
+from tests.waits import BOUND_S
+
+
+def slcan(fid: int, data: bytes) -> bytes:
+    return f"t{fid:03X}{len(data)}{data.hex().upper()}\r".encode()
+
+
+@pytest.fixture
+def wire() -> Iterator[tuple[int, str]]:
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    name = os.ttyname(slave)
+    os.close(slave)
+    yield master, name
+    os.close(master)
+
+
+@pytest.fixture
+def world() -> Iterator[World]:
+    w = World.at_rest(seed=0)
+    w.direct_pwm = False
+    yield w
+    w.close()
+
+
+def motors(world: World) -> list[float]:
+    return [world.plant.u[world.plant.u_index[f"pwm{m}_us"]] for m in range(1, 5)]
+
+
+def pump(cap: CanPulses, world: World, applied: int, rejected: int) -> None:
+    """Polls until so many frames were applied and rejected (a pty hands bytes over asynchronously)."""
+    deadline = time.monotonic() + BOUND_S
+    while (cap.figures.applied, cap.figures.rejected) < (applied, rejected) and time.monotonic() < deadline:
+        cap.poll(world)
+
+
+def test_good_frames_move_the_motors_and_bad_ones_are_counted_and_ignored(wire: tuple[int, str],
+                                                                          world: World) -> None:
+    master, name = wire
+    codec = CanCodec()
+    cap = CanPulses("slcan", name)
+    try:
+        good = codec.encode(7, [1100.0, 1200.0, 1300.0, 1400.0])
+        os.write(master, b"".join(slcan(fid, data) for fid, data in good))
+        pump(cap, world, 2, 0)
+        assert motors(world) == pytest.approx([1100.0, 1200.0, 1300.0, 1400.0])
+        fid, data = codec.encode(8, [1900.0, 1900.0, 1900.0, 1900.0])[0]
+        bad_crc = bytes(data[:6]) + bytes([data[6] ^ 0x01, data[7]])
+        os.write(master, slcan(fid, bad_crc) + slcan(0x123, bytes(data)) + slcan(fid, bytes(data[:5]))
+                 + b"tZZZ8\r" + b"t21\r")
+        pump(cap, world, 2, 5)
+        assert motors(world) == pytest.approx([1100.0, 1200.0, 1300.0, 1400.0])  # nothing applied
+        assert cap.figures.applied == 2
+        assert cap.figures.rejected == 5, cap.figures.reasons
+        assert any("CRC" in r for r in cap.figures.reasons)
+        assert any("unknown CAN id" in r for r in cap.figures.reasons)
+        # seq 8 never arrived whole: the next report (9) is a gap for both frames
+        os.write(master, b"".join(slcan(f, d) for f, d in codec.encode(9, [1500.0] * 4)))
+        pump(cap, world, 4, 5)
+        assert motors(world) == pytest.approx([1500.0] * 4)
+        assert cap.figures.seq_gaps == 2
+    finally:
+        cap.close()
+
+
+def test_a_capture_interface_that_cannot_open_is_a_clear_error(tmp_path: pytest.TempPathFactory) -> None:
+    with pytest.raises(BridgeError, match="cannot open 'slcan' channel"):
+        CanPulses("slcan", "/nonexistent/ttyCAN")
+    with pytest.raises(ValueError, match="INTERFACE:CHANNEL"):
+        parse("can0")
