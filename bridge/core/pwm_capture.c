@@ -3,8 +3,6 @@
 
 #include <string.h>
 
-#include "link.h"
-
 struct pwm_capture_cfg pwm_capture_defaults(void)
 {
     struct pwm_capture_cfg c = { 32, 10000000u, 500, 2500, 1000, 100000 };
@@ -65,36 +63,4 @@ void pwm_capture_widths(const struct pwm_capture *pc, uint64_t now_us, uint16_t 
         int fresh = c->have_pulse && now_us - c->good_us <= pc->cfg.stale_us;
         out[i] = fresh ? c->width_tenth_us : 0;
     }
-}
-
-uint32_t pwm_capture_can_frame(unsigned k, const uint16_t widths[PWM_CAPTURE_CHANNELS], uint8_t seq, uint8_t data[8])
-{
-    uint32_t id = k ? PWM_CAN_ID_34 : PWM_CAN_ID_12;
-    uint16_t a = widths[2 * (k & 1u)], b = widths[2 * (k & 1u) + 1];
-    uint8_t crc_in[8] = { (uint8_t)(id >> 8), (uint8_t)id,       (uint8_t)a, (uint8_t)(a >> 8),
-                          (uint8_t)b,         (uint8_t)(b >> 8), seq,        0 };
-    uint16_t crc = link_crc16(crc_in, sizeof crc_in);
-    memcpy(data, crc_in + 2, 6);
-    data[6] = (uint8_t)crc;
-    data[7] = (uint8_t)(crc >> 8);
-    return id;
-}
-
-size_t pwm_capture_serial_frame(const uint16_t *widths, unsigned n, uint8_t seq, uint8_t out[PWM_SERIAL_MAX])
-{
-    uint8_t raw[2 + 2 * 16 + 2];
-    if (n > 16)
-        n = 16;
-    raw[0] = seq;
-    raw[1] = (uint8_t)n;
-    for (unsigned i = 0; i < n; i++) {
-        raw[2 + 2 * i] = (uint8_t)widths[i];
-        raw[3 + 2 * i] = (uint8_t)(widths[i] >> 8);
-    }
-    uint16_t crc = link_crc16(raw, 2 + 2 * n);
-    raw[2 + 2 * n] = (uint8_t)(crc >> 8);
-    raw[3 + 2 * n] = (uint8_t)crc;
-    size_t len = link_cobs_encode(raw, 4 + 2 * n, out);
-    out[len] = 0;
-    return len + 1;
 }

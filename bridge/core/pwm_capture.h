@@ -9,7 +9,6 @@
 #ifndef BRIDGE_PWM_CAPTURE_H
 #define BRIDGE_PWM_CAPTURE_H
 
-#include <stddef.h>
 #include <stdint.h>
 
 #define PWM_CAPTURE_CHANNELS 4
@@ -49,17 +48,5 @@ void pwm_capture_init(struct pwm_capture *pc, const struct pwm_capture_cfg *cfg)
 int pwm_capture_edge(struct pwm_capture *pc, unsigned channel, int level, uint32_t count, uint64_t t_us);
 /* The channels' widths now, in 0.1 us (0: no good pulse within stale_us). */
 void pwm_capture_widths(const struct pwm_capture *pc, uint64_t now_us, uint16_t out[PWM_CAPTURE_CHANNELS]);
-
-/* A capture device's reports (docs/design.md §6; the firmware's capture-only mode), as the host decodes
-   them (emulators/pwm_capture.py). CAN: the DBC's (emulators/pwm_capture.dbc) two 8-byte frames, k = 0
-   for PWM_CAPTURE_12 (motors 1, 2), 1 for PWM_CAPTURE_34: widths in 0.1 us little endian, SEQ, 0, then
-   CRC-16/CCITT-FALSE over the 11-bit identifier (big endian) and bytes 0..5, little endian; returns the
-   identifier. Serial: COBS(seq, n, n widths little endian, CRC-16 big endian) and a 0x00, n <= 16;
-   returns its length (at most PWM_SERIAL_MAX). */
-#define PWM_CAN_ID_12 0x210u
-#define PWM_CAN_ID_34 0x211u
-#define PWM_SERIAL_MAX 42
-uint32_t pwm_capture_can_frame(unsigned k, const uint16_t widths[PWM_CAPTURE_CHANNELS], uint8_t seq, uint8_t data[8]);
-size_t pwm_capture_serial_frame(const uint16_t *widths, unsigned n, uint8_t seq, uint8_t out[PWM_SERIAL_MAX]);
 
 #endif

@@ -23,9 +23,10 @@
    loop; the host's bytes arrive by circular DMA and are fed in small chunks; frames up go out by DMA
    from a ring that drops a frame that does not fit (the host sees the gap in the sequence).
 
-   Capture-only mode (PB0 low at reset): no I2C targets, no SBUS; the four ESC pulses go out every
-   2.5 ms as the DBC's two CAN frames and as the serial capture frame on USART2 (docs/design.md §6), for
-   users with their own sensor set-up. */
+   Capture-only mode (PB0 low at reset): the same core with no I2C target and no SBUS, for users with
+   their own sensor set-up: the four ESC pulses go out as the DBC's two CAN frames with each PULSES (at
+   most every 2 ms; the core's can_capture) and as PULSES on the host link. Its name is "g431 capture"
+   ("stm32g431" in bridge mode; " wdt" after either when the watchdog reset it). */
 #include <string.h>
 
 #include "bridge.h"
@@ -40,7 +41,6 @@
 #define I2C_PRIO 0x00u
 #define TIM2_PRIO 0x10u
 #define OTHER_PRIO 0x20u
-#define CAPTURE_PERIOD_US 2500u
 
 static struct bridge br;
 static int capture_only;
@@ -269,6 +269,8 @@ void usart1_irq(void)
 static size_t hal_sbus_tx(void *ctx, const uint8_t *frame, size_t n)
 {
     (void)ctx;
+    if (capture_only) /* no SBUS in this mode: nothing to count as dropped */
+        return n;
     if (sbus_pos < sbus_len) /* the last frame is still going out */
         return 0;
     if (n > SBUS_FRAME)
@@ -327,6 +329,8 @@ static void can_init(void)
     FDCAN_RXGFC = FDCAN_RXGFC_REJECT_ALL; /* it only sends */
     FDCAN_TXBC = 0;                       /* Tx FIFO */
     FDCAN_CCCR &= ~FDCAN_CCCR_INIT;
+    while (FDCAN_CCCR & FDCAN_CCCR_INIT) {
+    }
 }
 
 /* ---------------------------------------------------------------- I2C targets: I2C1 and I2C3 */
@@ -403,6 +407,8 @@ void i2c3_er_irq(void) { i2c_error(&i2c3); }
 static void hal_i2c_addr_enable(void *ctx, uint8_t addr, int on)
 {
     (void)ctx;
+    if (capture_only)
+        return;
     volatile uint32_t *oar = addr == 0x68 || addr == 0x69   ? &I2C_OAR1(I2C1_BASE)
                              : addr == 0x76 || addr == 0x77 ? &I2C_OAR2(I2C1_BASE)
                                                             : &I2C_OAR1(I2C3_BASE);
@@ -430,44 +436,14 @@ static void i2c_init(void)
 
 /* ---------------------------------------------------------------- main */
 
-static void feed_edges(struct pwm_capture *cap)
+static void feed_edges(void)
 {
     while (edge_tail != edge_head) {
         struct edge e = edges[edge_tail % EDGES];
         edge_tail = edge_tail + 1;
-        if (cap) {
-            pwm_capture_edge(cap, e.ch, e.level, e.count, e.t_us);
-        } else {
-            uint32_t p = irq_save();
-            bridge_capture_edge(&br, e.ch, e.level, e.count, e.t_us);
-            irq_restore(p);
-        }
-    }
-}
-
-static void capture_only_loop(void)
-{
-    static struct pwm_capture cap;
-    struct pwm_capture_cfg cfg = pwm_capture_defaults();
-    pwm_capture_init(&cap, &cfg);
-    uint64_t next = hal_now_us(NULL);
-    uint8_t seq = 0;
-    for (;;) {
-        watchdog_feed();
-        feed_edges(&cap);
-        uint64_t t = hal_now_us(NULL);
-        if (t < next)
-            continue;
-        next += CAPTURE_PERIOD_US;
-        uint16_t w[PWM_CAPTURE_CHANNELS];
-        uint8_t frame[PWM_SERIAL_MAX];
-        pwm_capture_widths(&cap, t, w);
-        for (unsigned k = 0; k < 2; k++) {
-            uint32_t id = pwm_capture_can_frame(k, w, seq, frame);
-            hal_can_tx(NULL, id, frame, 8);
-        }
-        link_send(frame, pwm_capture_serial_frame(w, PWM_CAPTURE_CHANNELS, seq, frame));
-        seq++;
+        uint32_t p = irq_save();
+        bridge_capture_edge(&br, e.ch, e.level, e.count, e.t_us);
+        irq_restore(p);
     }
 }
 
@@ -485,28 +461,31 @@ int main(void)
     capture_init();
     link_init();
     can_init();
-    if (capture_only)
-        capture_only_loop();
 
     struct bridge_hal hal = { NULL, hal_now_us, hal_i2c_addr_enable, hal_link_tx, hal_sbus_tx, hal_can_tx };
     struct bridge_cfg cfg = bridge_defaults();
     memset(cfg.id, 0, sizeof cfg.id);
-    memcpy(cfg.id, watchdog_reset ? "stm32g431 wdt" : "stm32g431", watchdog_reset ? 13 : 9);
+    const char *name = capture_only ? (watchdog_reset ? "g431 capture wdt" : "g431 capture")
+                                    : (watchdog_reset ? "stm32g431 wdt" : "stm32g431");
+    size_t len = strlen(name);
+    memcpy(cfg.id, name, len < sizeof cfg.id ? len : sizeof cfg.id); /* NUL-padded when shorter */
     for (unsigned i = 0; i < 8; i++)
         cfg.fw_sha[i] = (uint8_t)((unsigned long long)FIRMWARE_SHA >> (56 - 8 * i));
     cfg.clock_hz = CLOCK_HZ;
     cfg.capture.counter_bits = 32;
     cfg.capture.tick_hz = TICK_HZ;
-    sbus_init();
     uint32_t p = irq_save();
-    bridge_init(&br, &hal, &cfg); /* sets the I2C addresses: the peripherals must be up first */
-    i2c_init();
+    if (!capture_only) {
+        sbus_init();
+        i2c_init(); /* (no address enabled yet: nothing to answer until bridge_init sets them) */
+    }
+    bridge_init(&br, &hal, &cfg); /* sets the I2C addresses: the peripherals are clocked by now */
     irq_restore(p);
 
     uint64_t next_poll = 0;
     for (;;) {
         watchdog_feed();
-        feed_edges(NULL);
+        feed_edges();
         uint8_t chunk[32];
         size_t n = link_rx_take(chunk, sizeof chunk);
         if (n) {

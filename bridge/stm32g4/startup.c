@@ -24,6 +24,7 @@ void dma1_ch2_irq(void) WEAK_ALIAS;
 
 void reset_handler(void)
 {
+    SCB_VTOR = FLASH_BASE;   /* our table, also when a bootloader jumped here (stm32flash -g) */
     SCB_CPACR |= 0xFu << 20; /* CP10, CP11: the FPU (the code is built for the hard-float ABI) */
     __asm volatile("dsb\n isb" ::: "memory");
     const uint32_t *src = &__data_load;

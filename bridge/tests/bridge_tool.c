@@ -15,10 +15,8 @@
                                    a pwm_capture of its own: "pulse 0|1", "widths a b c d",
                                    and "pwm PULSES GLITCHES" after each
      sbus_encode C0 .. C15 FLAGS   "frame HEX"
-     capture_frames SEQ W1 W2 W3 W4
-                                   a capture device's reports of these widths (0.1 us): "can ID HEX"
-                                   twice, then "serial HEX"
-   Out, from the HAL: "up HEX" (a frame to the host), "sbus HEX" (what the UART took), "addr AA 0|1".
+   Out, from the HAL: "up HEX" (a frame to the host), "sbus HEX" (what the UART took), "addr AA 0|1",
+   "can III HEX" (a CAN frame: identifier, data).
    `bridge_tool SCRIPT OUT` reads the script from the file SCRIPT and writes to the file OUT instead: so
    it runs on a Cortex-M4 under QEMU with semihosting (tests/bridge/tools.py), where the files are the
    host's. */
@@ -63,6 +61,14 @@ static size_t hal_sbus(void *ctx, const uint8_t *p, size_t n)
     size_t k = n < sbus_limit ? n : sbus_limit;
     hex("sbus", p, k);
     return k;
+}
+
+static int hal_can(void *ctx, uint32_t id, const uint8_t *data, uint8_t len)
+{
+    (void)ctx;
+    printf("can %03lx", (unsigned long)id);
+    hex("", data, len);
+    return 0;
 }
 
 static size_t unhex(const char *s, uint8_t *out, size_t cap)
@@ -114,7 +120,7 @@ int main(int argc, char **argv)
     }
     static char line[1 << 20];
     static uint8_t bytes[1 << 19];
-    struct bridge_hal hal = { NULL, hal_now, hal_addr, hal_link, hal_sbus, NULL };
+    struct bridge_hal hal = { NULL, hal_now, hal_addr, hal_link, hal_sbus, hal_can };
     struct bridge_cfg cfg = bridge_defaults();
     memcpy(cfg.id, "bridge_tool", 11);
     static struct bridge b;
@@ -195,16 +201,6 @@ int main(int argc, char **argv)
             uint8_t frame[SBUS_FRAME];
             sbus_encode(ch, (uint8_t)strtoul(p, NULL, 10), frame);
             hex("frame", frame, SBUS_FRAME);
-        } else if (!strcmp(cmd, "capture_frames")) {
-            sscanf(rest, "%llu %llu %llu %llu %llu", &a, &c, &d, &e, &f);
-            uint16_t w[PWM_CAPTURE_CHANNELS] = { (uint16_t)c, (uint16_t)d, (uint16_t)e, (uint16_t)f };
-            uint8_t data[PWM_SERIAL_MAX];
-            for (unsigned k = 0; k < 2; k++) {
-                uint32_t id = pwm_capture_can_frame(k, w, (uint8_t)a, data);
-                printf("can %03lx", (unsigned long)id);
-                hex("", data, 8);
-            }
-            hex("serial", data, pwm_capture_serial_frame(w, PWM_CAPTURE_CHANNELS, (uint8_t)a, data));
         } else {
             fprintf(stderr, "bridge_tool: unknown command %s\n", cmd);
             return 2;

@@ -40,7 +40,6 @@ FLASH_BASE, FLASH_SIZE = 0x0800_0000, 128 * 1024
 SRAM_BASE, SRAM_SIZE = 0x2000_0000, 32 * 1024
 
 SHF_ALLOC = 0x2
-SHT_NOBITS = 8
 
 
 class FirmwareError(RuntimeError):
@@ -115,6 +114,23 @@ def sections(elf: Path) -> list[Section]:
     return [Section(name(r[0]), r[1], r[2], r[3], r[4], r[5]) for r in raw]
 
 
+def load_extents(elf: Path) -> list[tuple[int, int]]:
+    """(physical address, bytes in the file) of each loaded segment: where a flasher writes what
+    (.data's initial values sit in flash after the code, at their load address)."""
+    data = elf.read_bytes()
+    sections(elf)  # (checks it is a 32-bit little-endian ARM ELF)
+    phoff, = struct.unpack_from("<I", data, 28)
+    phentsize, phnum = struct.unpack_from("<HH", data, 42)
+    if phoff + phnum * phentsize > len(data):
+        raise FirmwareError(f"{elf}: program headers out of the file")
+    out = []
+    for i in range(phnum):
+        p_type, _, _, paddr, filesz = struct.unpack_from("<5I", data, phoff + i * phentsize)
+        if p_type == 1 and filesz:  # PT_LOAD
+            out.append((paddr, filesz))
+    return out
+
+
 def entry(elf: Path) -> int:
     return int(struct.unpack_from("<I", elf.read_bytes(), 24)[0])
 
@@ -150,16 +166,13 @@ class Budget:
 
 
 def budget(elf: Path, flash_size: int = FLASH_SIZE, ram_size: int = SRAM_SIZE) -> Budget:
-    """Flash: every loaded section (code, constants, the vector table, .data's initial values). RAM:
-    every allocated section in SRAM (.data, .bss, the stack the linker script reserves)."""
-    flash = ram = 0
-    for s in sections(elf):
-        if not s.flags & SHF_ALLOC:
-            continue
-        if s.type != SHT_NOBITS:
-            flash += s.size
-        if SRAM_BASE <= s.addr < SRAM_BASE + 0x1000_0000:
-            ram += s.size
+    """Flash: from 0x08000000 to the end of the last byte loaded there (code, constants, the vector
+    table, .data's initial values, and the alignment gaps between them: the .bin's length). RAM: every
+    allocated section in SRAM (.data, .bss, the stack the linker script reserves)."""
+    ends = [a + n for a, n in load_extents(elf) if FLASH_BASE <= a < FLASH_BASE + 0x1000_0000]
+    flash = max(ends) - FLASH_BASE if ends else 0
+    ram = sum(s.size for s in sections(elf)
+              if s.flags & SHF_ALLOC and SRAM_BASE <= s.addr < SRAM_BASE + 0x1000_0000)
     return Budget(flash, ram, flash_size, ram_size)
 
 
