@@ -422,6 +422,10 @@ static void hal_i2c_addr_enable(void *ctx, uint8_t addr, int on)
 static void i2c_init(void)
 {
     RCC_APB1ENR1 |= RCC_APB1ENR1_I2C1EN | RCC_APB1ENR1_I2C3EN;
+    RCC_APB2ENR |= RCC_APB2ENR_SYSCFGEN;
+    (void)RCC_APB2ENR;
+    /* Fast-mode Plus drive on the target pins: SDA must pull strong pull-ups down at 1 MHz */
+    SYSCFG_CFGR1 |= SYSCFG_CFGR1_I2C1_FMP | SYSCFG_CFGR1_I2C3_FMP;
     pin_af(GPIOA_BASE, 15, 4, 1, 1);
     pin_af(GPIOB_BASE, 7, 4, 1, 1);
     pin_af(GPIOA_BASE, 8, 2, 1, 1);

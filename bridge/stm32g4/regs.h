@@ -91,6 +91,12 @@
 #define RCC_CSR_RMVF BIT(23)
 #define RCC_CSR_IWDGRSTF BIT(29)
 
+/* ---- SYSCFG (RM0440 §10 "System configuration controller", SYSCFG_CFGR1): Fast-mode Plus drive
+   (20 mA sink) on the pins of I2C1 and I2C3 */
+#define SYSCFG_CFGR1 REG(0x40010004u)
+#define SYSCFG_CFGR1_I2C1_FMP BIT(20)
+#define SYSCFG_CFGR1_I2C3_FMP BIT(22)
+
 /* ---- GPIO (RM0440 chapter "General-purpose I/Os (GPIO)", register map) */
 #define GPIOA_BASE 0x48000000u
 #define GPIOB_BASE 0x48000400u
