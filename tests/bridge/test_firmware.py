@@ -90,3 +90,11 @@ def test_each_interrupt_the_firmware_handles_sits_at_its_place(elf: Path) -> Non
     default = sym["default_handler"] | 1
     assert v[3] == default  # HardFault: spins until the watchdog resets the MCU
     assert sum(1 for h in v[16:] if h) == len(IRQS)  # nothing else is enabled, nothing else has a handler
+
+
+def test_the_firmware_has_no_heap_and_no_stdio(elf: Path) -> None:
+    """The core is written for no heap and no OS (bridge/core/hal.h): nothing of malloc or printf may be
+    linked in (newlib's would pull in a heap through _sbrk and kilobytes of formatting)."""
+    names = set(symbols(elf))
+    assert not names & {"malloc", "_malloc_r", "free", "_sbrk", "printf", "_printf_r", "_vfprintf_r", "puts"}
+    assert {"reset_handler", "main", "bridge_poll", "chip_advance"} <= names  # (the symbols are read)
