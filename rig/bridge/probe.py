@@ -17,6 +17,7 @@ import sys
 import time
 from dataclasses import asdict, dataclass, field
 
+from rig.bridge.firmware import firmware_hash
 from rig.bridge.port import BridgeError, BridgePort, bridge_id
 from rig.bridge.timesync import ClockMap, Exchange
 from rig.bridge.vbridge import VirtualBridge
@@ -39,11 +40,21 @@ class Probe:
     clock: dict[str, float | int] = field(default_factory=dict)
     status: dict[str, object] = field(default_factory=dict)
     host: dict[str, object] = field(default_factory=dict)
+    #: what this checkout's firmware sources hash to (rig/bridge/firmware.py), "" when it cannot tell
+    checkout_sha256: str = ""
+
+    def _which_firmware(self) -> str:
+        if not self.checkout_sha256:
+            return ""
+        if self.firmware_sha256 == self.checkout_sha256:
+            return " (this checkout's)"
+        return f" (not this checkout's {self.checkout_sha256})"
 
     def lines(self) -> list[str]:
         c, s, h = self.clock, self.status, self.host
         out = [f"bridge   {self.bridge_id} on {self.port}",
-               f"protocol {self.protocol}, core {self.core_version}, firmware {self.firmware_sha256}",
+               f"protocol {self.protocol}, core {self.core_version}, firmware {self.firmware_sha256}"
+               + self._which_firmware(),
                f"clock    {self.clock_hz / 1e6:g} MHz core; bridge time {c.get('bridge_us', 0):.0f} us, "
                f"drift {c.get('drift_ppm', 0.0):+.1f} ppm over {c.get('exchanges', 0)} exchanges, "
                f"round trip p50 {c.get('rtt_p50_us', 0.0):.0f} us, max {c.get('rtt_max_us', 0.0):.0f} us"]
@@ -54,9 +65,10 @@ class Probe:
                        f"{s['pulse_glitches']}, SBUS dropped {s['sbus_dropped']}, underruns {s['underruns']}")
         else:
             out.append("bridge's link  no STATUS came")
-        out.append(f"host's link    frames sent {h['frames_sent']}, received {h['frames_received']}, "
-                   f"bad {h['frames_bad']}, seq gaps {h['seq_gaps']}, bytes down {h['bytes_down']}, "
-                   f"up {h['bytes_up']}")
+        if h:
+            out.append(f"host's link    frames sent {h['frames_sent']}, received {h['frames_received']}, "
+                       f"bad {h['frames_bad']}, seq gaps {h['seq_gaps']}, bytes down {h['bytes_down']}, "
+                       f"up {h['bytes_up']}")
         return out
 
 
@@ -70,6 +82,7 @@ def probe_port(path: str, syncs: int = SYNCS, status_timeout_s: float = STATUS_T
                   int(reply.values["core_version"]),  # type: ignore[call-overload]
                   bytes(reply.values["firmware_sha256"]).hex(),  # type: ignore[call-overload]
                   int(reply.values["clock_hz"]))  # type: ignore[call-overload]
+        p.checkout_sha256 = _checkout_hash()
         clock = ClockMap()
         for k in range(syncs):
             if k:
@@ -99,6 +112,15 @@ def probe_port(path: str, syncs: int = SYNCS, status_timeout_s: float = STATUS_T
         return p
     finally:
         port.close()
+
+
+def _checkout_hash() -> str:
+    """The firmware hash this checkout's sources give, when its generated headers are there (a
+    `make firmware` or `make test` wrote them); "" otherwise: the probe writes nothing."""
+    try:
+        return firmware_hash().hex()
+    except OSError:
+        return ""
 
 
 def _pause(port: BridgePort, seconds: float) -> None:
