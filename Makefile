@@ -111,6 +111,7 @@ bench: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) $(VBRIDGE) build/ben
 	build/dut/bench_fc
 	$(PY) bench/scenario_rates.py
 	$(PY) bench/cycle_cost.py
+	$(PY) bench/bridge_m4_cost.py
 	$(PY) bench/bridge_rates.py
 
 clean:

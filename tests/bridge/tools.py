@@ -55,15 +55,17 @@ def build_tool(name: str, sources: list[Path], chips: Path = CHIPS, m4: bool = F
     return out
 
 
-def run_m4(elf: Path, args: list[str], timeout: float = QEMU_TIMEOUT_S) -> subprocess.CompletedProcess[str]:
+def run_m4(elf: Path, args: list[str], timeout: float = QEMU_TIMEOUT_S,
+           qemu_args: tuple[str, ...] = ()) -> subprocess.CompletedProcess[str]:
     """Runs ``elf`` on QEMU's mps2-an386 (a Cortex-M4F) with semihosting: ``args`` are its argv[1:], its
     files are the host's, its exit status is QEMU's. No display, monitor or serial port; a run past
-    ``timeout`` is killed (subprocess.run kills and reaps it), so no QEMU outlives the call."""
+    ``timeout`` is killed (subprocess.run kills and reaps it), so no QEMU outlives the call.
+    ``qemu_args`` go to QEMU (bench/bridge_m4_cost.py: -icount)."""
     def esc(arg: str) -> str:
         return arg.replace(",", ",,")  # QEMU's option syntax
     semi = ",".join(["enable=on", "target=native", f"arg={esc(elf.name)}", *(f"arg={esc(a)}" for a in args)])
     cmd = [QEMU, "-M", "mps2-an386", "-nographic", "-monitor", "none", "-serial", "none",
-           "-semihosting-config", semi, "-kernel", str(elf)]
+           "-semihosting-config", semi, *qemu_args, "-kernel", str(elf)]
     return subprocess.run(cmd, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=timeout)
 
 
