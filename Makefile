@@ -27,7 +27,7 @@ VBRIDGE := build/vbridge
 BRIDGE_CHIPS := bridge/standin
 BRIDGE_CFLAGS := -std=c99 -O2 -Wall -Wextra -Werror -Ibuild/gen -I$(BRIDGE_CHIPS) -Ibridge/core -Irig/shim
 
-.PHONY: all venv fmu shim native chips compiled dut vbridge demo test test-slow lint bench clean docs-images
+.PHONY: all venv fmu shim native chips compiled dut vbridge firmware demo test test-slow lint bench clean docs-images
 
 all: fmu shim native compiled dut vbridge
 
@@ -70,6 +70,12 @@ $(VBRIDGE): $(wildcard bridge/core/*.[ch] bridge/posix/*.c $(BRIDGE_CHIPS)/*.[ch
 	$(PY) -m rig.bridge.gen >/dev/null
 	$(CC) $(BRIDGE_CFLAGS) -o $@ bridge/posix/vbridge.c bridge/core/*.c $(BRIDGE_CHIPS)/*.c -lm
 
+# the bridge firmware for the STM32G431 (docs/bridge-firmware.md): build/firmware/bridge.elf, .bin, .map
+# with Debian's arm-none-eabi-gcc; prints flash and RAM used against 128 KB / 32 KB and fails when over
+# (rig/bridge/firmware.py rebuilds only when a source is newer)
+firmware: venv
+	$(PY) -m rig.bridge.firmware
+
 demo: venv fmu shim native compiled dut
 	$(VENV)/bin/rig run --out build/reports --pdf
 
@@ -88,7 +94,7 @@ lint: venv
 	$(VENV)/bin/mypy
 	clang-format --dry-run --Werror $(C_SOURCES)
 
-test: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) $(VBRIDGE) lint
+test: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) $(VBRIDGE) firmware lint
 	$(PY) -m pytest -q -m "not slow"
 
 test-slow: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED)
@@ -105,6 +111,7 @@ bench: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) $(VBRIDGE) build/ben
 	build/dut/bench_fc
 	$(PY) bench/scenario_rates.py
 	$(PY) bench/cycle_cost.py
+	$(PY) bench/bridge_m4_cost.py
 	$(PY) bench/bridge_rates.py
 
 clean:

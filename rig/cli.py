@@ -35,6 +35,9 @@ def _dispatch(argv: list[str] | None) -> int:
     exec_cmd.add_parser(sub)
     run_cmd.add_parsers(sub)
     report_cmd.add_parser(sub)
+    from rig.bridge import probe
+
+    probe.add_parser(sub)
     args = parser.parse_args(argv)
     if args.command == "exec":
         return exec_cmd.main(args)
@@ -42,6 +45,8 @@ def _dispatch(argv: list[str] | None) -> int:
         return run_cmd.cmd_run(args)
     if args.command == "report":
         return report_cmd.main(args)
+    if args.command == "bridge":
+        return probe.main(args)
     if args.command == "validate":
         return run_cmd.cmd_validate(args.scenarios)
     if args.command == "list":

@@ -22,6 +22,12 @@ PY
 #                 drives the screenshot test of report.html (Playwright with executable_path; Playwright
 #                 never downloads a browser of its own)
 #   poppler-utils pdftotext and pdftoppm: the tests read the PDF's text; the docs' page image
+#   gcc-arm-none-eabi, libnewlib-arm-none-eabi
+#                 the bridge firmware for the STM32G431 (`make firmware`) and the bridge core's tests
+#                 cross-built for a Cortex-M4 (newlib's C library and its semihosting rdimon specs)
+#   qemu-system-arm
+#                 runs those tests on an emulated Cortex-M4 (mps2-an386) in `make test`: what the host
+#                 and the MCU compute must agree byte for byte
 MISSING=()
 if [ ! -x "$VENV/bin/python" ] && ! "$PYTHON" -c 'import ensurepip, venv' 2>/dev/null; then
   MISSING+=(python3-venv)
@@ -34,6 +40,9 @@ fi
 if ! command -v clang-format >/dev/null; then MISSING+=(clang-format); fi
 if ! command -v chromium >/dev/null; then MISSING+=(chromium); fi
 if ! command -v pdftotext >/dev/null || ! command -v pdftoppm >/dev/null; then MISSING+=(poppler-utils); fi
+if ! command -v arm-none-eabi-gcc >/dev/null; then MISSING+=(gcc-arm-none-eabi); fi
+if [ ! -e /usr/lib/arm-none-eabi/newlib/thumb/v7e-m+fp/hard/librdimon.a ]; then MISSING+=(libnewlib-arm-none-eabi); fi
+if ! command -v qemu-system-arm >/dev/null; then MISSING+=(qemu-system-arm); fi
 if [ ${#MISSING[@]} -gt 0 ]; then
   if command -v apt-get >/dev/null; then
     echo "bootstrap: installing Debian packages: ${MISSING[*]}"

@@ -15,7 +15,11 @@
                                    a pwm_capture of its own: "pulse 0|1", "widths a b c d",
                                    and "pwm PULSES GLITCHES" after each
      sbus_encode C0 .. C15 FLAGS   "frame HEX"
-   Out, from the HAL: "up HEX" (a frame to the host), "sbus HEX" (what the UART took), "addr AA 0|1". */
+   Out, from the HAL: "up HEX" (a frame to the host), "sbus HEX" (what the UART took), "addr AA 0|1",
+   "can III HEX" (a CAN frame: identifier, data).
+   `bridge_tool SCRIPT OUT` reads the script from the file SCRIPT and writes to the file OUT instead: so
+   it runs on a Cortex-M4 under QEMU with semihosting (tests/bridge/tools.py), where the files are the
+   host's. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -59,6 +63,14 @@ static size_t hal_sbus(void *ctx, const uint8_t *p, size_t n)
     return k;
 }
 
+static int hal_can(void *ctx, uint32_t id, const uint8_t *data, uint8_t len)
+{
+    (void)ctx;
+    printf("can %03lx", (unsigned long)id);
+    hex("", data, len);
+    return 0;
+}
+
 static size_t unhex(const char *s, uint8_t *out, size_t cap)
 {
     size_t n = 0;
@@ -96,11 +108,19 @@ static void xfer(struct bridge *b, uint64_t t, uint8_t addr, const uint8_t *w, s
         printf("xfer nack\n");
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (argc == 3 && (!freopen(argv[1], "r", stdin) || !freopen(argv[2], "w", stdout))) {
+        fprintf(stderr, "bridge_tool: cannot open %s or %s\n", argv[1], argv[2]);
+        return 2;
+    }
+    if (argc != 1 && argc != 3) {
+        fprintf(stderr, "usage: bridge_tool [SCRIPT OUT]\n");
+        return 2;
+    }
     static char line[1 << 20];
     static uint8_t bytes[1 << 19];
-    struct bridge_hal hal = { NULL, hal_now, hal_addr, hal_link, hal_sbus, NULL };
+    struct bridge_hal hal = { NULL, hal_now, hal_addr, hal_link, hal_sbus, hal_can };
     struct bridge_cfg cfg = bridge_defaults();
     memcpy(cfg.id, "bridge_tool", 11);
     static struct bridge b;

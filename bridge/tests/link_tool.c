@@ -3,6 +3,8 @@
    good message as a JSON line, then re-encoding it with link_frame to stdout-err... Usage:
      link_tool decode down|up     messages as JSON lines, then a line of counters
      link_tool reframe down|up    each good message framed again by the bridge's encoder, as hex lines
+     link_tool MODE DIR IN OUT     the same reading the file IN, writing the file OUT (on a Cortex-M4
+                                   under QEMU with semihosting, tests/bridge/tools.py)
    tests/bridge/test_link.py drives it against the host's codec. */
 #define BRIDGE_MESSAGES_PRINT
 #include <stdio.h>
@@ -12,8 +14,12 @@
 
 int main(int argc, char **argv)
 {
-    if (argc != 3 || (strcmp(argv[2], "down") && strcmp(argv[2], "up"))) {
-        fprintf(stderr, "usage: link_tool decode|reframe down|up\n");
+    if ((argc != 3 && argc != 5) || (strcmp(argv[2], "down") && strcmp(argv[2], "up"))) {
+        fprintf(stderr, "usage: link_tool decode|reframe down|up [IN OUT]\n");
+        return 2;
+    }
+    if (argc == 5 && (!freopen(argv[3], "rb", stdin) || !freopen(argv[4], "w", stdout))) {
+        fprintf(stderr, "link_tool: cannot open %s or %s\n", argv[3], argv[4]);
         return 2;
     }
     int reframe = strcmp(argv[1], "reframe") == 0;

@@ -2,29 +2,32 @@
 (bridge/tests/bridge_tool.c: a HAL whose clock the script sets): ESC pulse capture with counter wrap and
 glitches, SBUS frames byte for byte against emulators/sbus.py, every down message's dispatch, the
 version rule, host silence, register images that never tear a burst, and fuzzed frames that are
-rejected, counted and never acted on."""
+rejected, counted and never acted on.
+
+Every test runs twice: on the host, and on a Cortex-M4 (the STM32G431's core, cross-built with
+arm-none-eabi-gcc for the hard-float ABI) under QEMU's mps2-an386 with semihosting, where each script's
+output must also equal the host build's byte for byte (word size, alignment, float and endianness
+cannot differ silently)."""
 
 from __future__ import annotations
 
 import random
 import struct
-import subprocess
 from dataclasses import dataclass
-from pathlib import Path
 
 import pytest
 
-from emulators import sbus
+from emulators import pwm_capture, sbus
 from rig.bridge.link import Decoded, Receiver, encode
 from rig.bridge.messages import HOST_SILENT_US, MESSAGES, PROTOCOL_VERSION
-from tests.bridge.tools import bridge_tool
+from tests.bridge.tools import Tool, bridge_tools
 
 G = 9.80665
 
 
-@pytest.fixture(scope="module")
-def tool() -> Path:
-    return bridge_tool()
+@pytest.fixture(scope="module", params=["host", "cortex-m4"])
+def tool(request: pytest.FixtureRequest) -> Tool:
+    return bridge_tools(request.param)
 
 
 @dataclass
@@ -54,11 +57,8 @@ class Run:
         return out
 
 
-def run(tool: Path, script: list[str]) -> Run:
-    done = subprocess.run([str(tool)], input="\n".join(script) + "\n", capture_output=True, text=True,
-                          timeout=120)
-    assert done.returncode == 0, done.stderr
-    return Run(done.stdout.splitlines())
+def run(tool: Tool, script: list[str]) -> Run:
+    return Run(tool.run("\n".join(script) + "\n").splitlines())
 
 
 class Script:
@@ -107,7 +107,7 @@ SAMPLE = {"accel": [0.5, -0.25, -G], "gyro": [0.1, -0.2, 0.05], "temp_c": 30.0}
 # ---------------------------------------------------------------- pulse capture
 
 
-def pwm(tool: Path, init: str, edges: list[tuple[int, int, int, int]],
+def pwm(tool: Tool, init: str, edges: list[tuple[int, int, int, int]],
         widths_at: int) -> tuple[list[int], list[int]]:
     r = run(tool, [f"pwm_init {init}", *[f"pwm_edge {c} {lv} {n} {t}" for c, lv, n, t in edges],
                    f"pwm_widths {widths_at}"])
@@ -115,7 +115,7 @@ def pwm(tool: Path, init: str, edges: list[tuple[int, int, int, int]],
     return pulses, [int(x) for x in r.tagged("widths")[-1].split()]
 
 
-def test_pulse_widths_in_tenths_of_a_microsecond(tool: Path) -> None:
+def test_pulse_widths_in_tenths_of_a_microsecond(tool: Tool) -> None:
     # 10 MHz counter: 1500.3 us is 15003 ticks; four channels, each its own width
     edges = []
     for ch, w in enumerate((15003, 10000, 20000, 12345)):
@@ -125,7 +125,7 @@ def test_pulse_widths_in_tenths_of_a_microsecond(tool: Path) -> None:
 
 
 @pytest.mark.parametrize("bits", [16, 32])
-def test_a_counter_that_wraps_inside_a_pulse_still_gives_its_width(tool: Path, bits: int) -> None:
+def test_a_counter_that_wraps_inside_a_pulse_still_gives_its_width(tool: Tool, bits: int) -> None:
     top = (1 << bits) - 1
     rise = top - 4999  # 5000 ticks to the wrap (at 0), 10000 after it
     edges = [(0, 1, rise, 1000), (0, 0, 10000, 2500)]
@@ -133,7 +133,7 @@ def test_a_counter_that_wraps_inside_a_pulse_still_gives_its_width(tool: Path, b
     assert pulses == [0, 1] and widths[0] == 15000
 
 
-def test_glitches_are_filtered_and_counted(tool: Path) -> None:
+def test_glitches_are_filtered_and_counted(tool: Tool) -> None:
     init = "32 1000000 500 2500 1000 100000"  # 1 MHz: ticks are microseconds
     edges = [
         (0, 1, 0, 0), (0, 0, 1500, 1500),             # good: 1500 us
@@ -156,7 +156,7 @@ def test_glitches_are_filtered_and_counted(tool: Path) -> None:
 # ---------------------------------------------------------------- SBUS
 
 
-def test_sbus_frames_agree_byte_for_byte_with_the_python_encoder(tool: Path) -> None:
+def test_sbus_frames_agree_byte_for_byte_with_the_python_encoder(tool: Tool) -> None:
     rng = random.Random(5)
     cases = [([rng.randrange(2048) for _ in range(16)], rng.choice([0, 4, 8, 12])) for _ in range(200)]
     cases += [([0] * 16, 0), ([2047] * 16, 12), (sbus.Sticks(throttle=0.5, arm=True).channels(), 0)]
@@ -165,7 +165,7 @@ def test_sbus_frames_agree_byte_for_byte_with_the_python_encoder(tool: Path) -> 
     assert r.tagged("frame") == want
 
 
-def test_sbus_goes_out_at_its_period_and_a_full_uart_drops_counted_bytes(tool: Path) -> None:
+def test_sbus_goes_out_at_its_period_and_a_full_uart_drops_counted_bytes(tool: Tool) -> None:
     ch = sbus.Sticks(roll=0.3, throttle=0.6, arm=True).channels()
     s = Script().t(1000).hello().send("CONFIG", topology=0, mpu_addr=0x68, hmc_addr=0x1E, baro_addr=0x77,
                                       sbus_period_ms=7, capture_channels=4)
@@ -179,7 +179,7 @@ def test_sbus_goes_out_at_its_period_and_a_full_uart_drops_counted_bytes(tool: P
     assert r.status()["sbus_dropped"] == 5
 
 
-def test_sbus_frames_say_frame_lost_then_failsafe_while_the_host_is_silent(tool: Path) -> None:
+def test_sbus_frames_say_frame_lost_then_failsafe_while_the_host_is_silent(tool: Tool) -> None:
     ch = sbus.Sticks(throttle=0.5).channels()
     s = Script().t(0).hello().send("SBUS", channels=ch, flags=0).cmd("poll")
     s.t(HOST_SILENT_US + 14_000).cmd("poll").t(1_000_000 + 28_000).cmd("poll")
@@ -192,7 +192,7 @@ def test_sbus_frames_say_frame_lost_then_failsafe_while_the_host_is_silent(tool:
 # ---------------------------------------------------------------- dispatch
 
 
-def test_hello_is_answered_and_another_version_is_refused_with_nothing_applied(tool: Path) -> None:
+def test_hello_is_answered_and_another_version_is_refused_with_nothing_applied(tool: Tool) -> None:
     s = Script().t(10).hello(version=PROTOCOL_VERSION + 1)
     s.send("IMU_SAMPLE", valid_us=0, **SAMPLE).xfer(20_000, 0x68, WAKE, 0).t(30).cmd("poll", "status")
     s.xfer(3_000_000, 0x68, b"\x3b", 14)  # the sample was not applied: zeros
@@ -211,7 +211,7 @@ def test_hello_is_answered_and_another_version_is_refused_with_nothing_applied(t
     assert r.tagged("xfer ok")[1:] == [bytes(14).hex(), applied]
 
 
-def test_imu_samples_become_register_bytes_at_their_valid_time(tool: Path) -> None:
+def test_imu_samples_become_register_bytes_at_their_valid_time(tool: Tool) -> None:
     s = Script().t(0).hello().xfer(1000, 0x68, WAKE, 0)
     s.send("IMU_SAMPLE", valid_us=1000, **SAMPLE)
     s.send("IMU_SAMPLE", valid_us=2000, accel=[1.0, 2.0, 3.0], gyro=[0, 0, 0], temp_c=25.0)
@@ -221,7 +221,7 @@ def test_imu_samples_become_register_bytes_at_their_valid_time(tool: Path) -> No
                                    accel_bytes((1.0, 2.0, 3.0), 25.0, (0, 0, 0)).hex(), "68"]
 
 
-def test_a_burst_read_never_mixes_two_samples(tool: Path) -> None:
+def test_a_burst_read_never_mixes_two_samples(tool: Tool) -> None:
     """Sample B becomes valid in the middle of a 14-byte burst: the burst reads A whole, the next B."""
     s = Script().t(0).hello().xfer(1000, 0x68, WAKE, 0)
     s.send("IMU_SAMPLE", valid_us=1000, accel=[1, 1, 1], gyro=[0, 0, 0], temp_c=20)
@@ -234,7 +234,7 @@ def test_a_burst_read_never_mixes_two_samples(tool: Path) -> None:
     assert r.tagged("xfer ok")[1:] == [a, b]
 
 
-def test_register_writes_go_up_so_the_host_follows_the_configuration(tool: Path) -> None:
+def test_register_writes_go_up_so_the_host_follows_the_configuration(tool: Tool) -> None:
     s = Script().t(0).hello()
     s.xfer(1000, 0x68, bytes([0x1A, 0x03, 0x18, 0x08]), 0)  # CONFIG=3, GYRO_CONFIG=0x18, ACCEL_CONFIG=8
     s.xfer(2_000_000, 0x77, bytes([0x48]), 0)  # MS5611: convert D1 at OSR 4096
@@ -245,7 +245,7 @@ def test_register_writes_go_up_so_the_host_follows_the_configuration(tool: Path)
     assert r.lines.count("xfer nack") == 1
 
 
-def test_bypass_enables_the_magnetometer_and_its_samples_are_read(tool: Path) -> None:
+def test_bypass_enables_the_magnetometer_and_its_samples_are_read(tool: Tool) -> None:
     s = Script().t(0).hello().xfer(1000, 0x1E, b"\x0a", 3)  # behind the MPU: absent
     s.xfer(2000, 0x68, bytes([0x6B, 0x00]), 0).xfer(100_000, 0x68, bytes([0x37, 0x02]), 0)
     s.send("MAG_SAMPLE", valid_us=0, field=[0.3, -0.1, 0.4]).t(200).cmd("poll")
@@ -256,7 +256,7 @@ def test_bypass_enables_the_magnetometer_and_its_samples_are_read(tool: Path) ->
     assert r.tagged("xfer ok")[-2:] == ["483433", struct.pack(">3h", x, z, y).hex()]
 
 
-def test_barometer_words_are_given_by_the_conversion_the_board_started(tool: Path) -> None:
+def test_barometer_words_are_given_by_the_conversion_the_board_started(tool: Tool) -> None:
     s = Script().t(0).hello().send("BARO_SAMPLE", valid_us=0, d1=0x812345, d2=0x7A0B0C)
     s.xfer(1_000_000, 0x77, b"\x48", 0).xfer(20_000_000, 0x77, b"\x00", 3)  # D1 at OSR 4096
     s.xfer(21_000_000, 0x77, b"\x52", 0).xfer(40_000_000, 0x77, b"\x00", 3)  # D2 at OSR 512
@@ -265,12 +265,12 @@ def test_barometer_words_are_given_by_the_conversion_the_board_started(tool: Pat
     assert r.tagged("xfer ok")[1::2] == ["812345", "7a0b0c", f"{40127:04x}"]
 
 
-def test_time_sync_is_answered_with_the_bridge_times(tool: Path) -> None:
+def test_time_sync_is_answered_with_the_bridge_times(tool: Tool) -> None:
     r = run(tool, Script().t(5).hello().t(123_456).send("TIME_SYNC", id=77, host_ns=999).lines)
     assert r.named("TIME_SYNC_REPLY") == [{"id": 77, "rx_us": 123_456, "tx_us": 123_456}]
 
 
-def test_a_bus_fault_nacks_its_chip_in_its_window_and_counts(tool: Path) -> None:
+def test_a_bus_fault_nacks_its_chip_in_its_window_and_counts(tool: Tool) -> None:
     s = Script().t(0).hello()
     s.send("FAULT", target=4, kind=6, start_us=1000, end_us=2000)  # mpu off 1..2 ms
     s.send("FAULT", target=0, kind=6, start_us=1000, end_us=2000)  # accel: a signal fault, not the bridge's
@@ -284,7 +284,7 @@ def test_a_bus_fault_nacks_its_chip_in_its_window_and_counts(tool: Path) -> None
     assert st["i2c_errors"] == 2 and st["refused"] == 2
 
 
-def test_out_of_range_values_are_refused_whole(tool: Path) -> None:
+def test_out_of_range_values_are_refused_whole(tool: Tool) -> None:
     s = Script().t(0).hello()
     s.send("CONFIG", topology=2, mpu_addr=0x68, hmc_addr=0x1E, baro_addr=0x77, sbus_period_ms=14)
     s.send("IMU_SAMPLE", valid_us=0, accel=[float("nan"), 0, 0], gyro=[0, 0, 0], temp_c=20)
@@ -297,7 +297,7 @@ def test_out_of_range_values_are_refused_whole(tool: Path) -> None:
     assert not any(line.startswith("addr") for line in r.lines[3:])  # CONFIG did not reset the addresses
 
 
-def test_config_direct_topology_puts_the_magnetometer_on_the_bus(tool: Path) -> None:
+def test_config_direct_topology_puts_the_magnetometer_on_the_bus(tool: Tool) -> None:
     s = Script().t(0).hello().send("CONFIG", topology=1, mpu_addr=0x69, hmc_addr=0x1E, baro_addr=0x76,
                                    sbus_period_ms=14, capture_channels=4)
     s.xfer(1000, 0x1E, b"\x0a", 3).xfer(2_000_000, 0x69, b"\x75", 1).xfer(3_000_000, 0x68, b"\x75", 1)
@@ -306,14 +306,14 @@ def test_config_direct_topology_puts_the_magnetometer_on_the_bus(tool: Path) -> 
     assert r.tagged("xfer ok") == ["483433", "68"] and r.lines.count("xfer nack") == 1
 
 
-def test_late_samples_are_counted(tool: Path) -> None:
+def test_late_samples_are_counted(tool: Tool) -> None:
     s = Script().t(5000).hello().send("IMU_SAMPLE", valid_us=4000, **SAMPLE)
     s.send("IMU_SAMPLE", valid_us=6000, **SAMPLE).send("MAG_SAMPLE", valid_us=10, field=[0, 0, 0])
     s.cmd("status")
     assert run(tool, s.lines).status()["late"] == 2
 
 
-def test_a_silent_host_is_flagged_the_samples_held_and_the_board_answered(tool: Path) -> None:
+def test_a_silent_host_is_flagged_the_samples_held_and_the_board_answered(tool: Tool) -> None:
     s = Script().t(0).hello().xfer(0, 0x68, bytes([0x1A, 0x01]), 0).xfer(0, 0x68, WAKE, 0)  # DLPF 1: 1 kHz
     for k in range(50):  # 50 ms of 1 kHz samples, streamed 2 ms ahead
         s.t(max(0, 1000 * k - 2000)).send("IMU_SAMPLE", valid_us=1000 * k, accel=[0, 0, -G], gyro=[0, 0, 0],
@@ -334,7 +334,7 @@ def test_a_silent_host_is_flagged_the_samples_held_and_the_board_answered(tool: 
     assert any(m["host_silent"] == 1 for m in statuses) and statuses[-1]["host_silent"] == 0
 
 
-def test_pulses_go_up_with_their_widths(tool: Path) -> None:
+def test_pulses_go_up_with_their_widths(tool: Tool) -> None:
     s = Script().t(0).hello().cmd("poll")
     for k in range(3):  # 400 Hz, 10 MHz counter: channel widths 1100, 1200, 1300, 1400 us
         t0 = 2500 * k + 10
@@ -397,7 +397,7 @@ def observable(r: Run) -> list[object]:
     return out
 
 
-def test_fuzzed_frames_are_rejected_counted_and_nothing_of_them_is_applied(tool: Path) -> None:
+def test_fuzzed_frames_are_rejected_counted_and_nothing_of_them_is_applied(tool: Tool) -> None:
     """The same session twice: once as a bad cable delivers it (bits flipped, bytes lost, frames cut,
     noise), once with only the frames the host's decoder accepts from that wire, sent clean. Everything
     the board and the host observe (bytes read, SBUS, address changes, replies, STATUS but for the link
@@ -439,3 +439,30 @@ def test_fuzzed_frames_are_rejected_counted_and_nothing_of_them_is_applied(tool:
     assert sa["bad"] > 10 and sb["bad"] == 0 and host.bad > 50
     assert sa["ok"] == sb["ok"] and sa["refused"] == sb["refused"] > 10
     assert len(a.named("TIME_SYNC_REPLY")) > 5 and len(a.tagged("sbus")) > 5
+
+
+
+# ---------------------------------------------------------------- CAN capture frames
+
+
+def test_can_capture_frames_agree_byte_for_byte_with_the_dbc_codec(tool: Tool) -> None:
+    """With a CAN port the core sends the DBC's two capture frames with each PULSES (the firmware's
+    capture-only mode is only that): each equal to what emulators/pwm_capture.py's CanCodec encodes from
+    the same widths and the frame's sequence, which counts up one per pair."""
+    rng = random.Random(19)
+    s = Script().t(0).hello().cmd("poll")
+    for k in range(40):  # 400 Hz, 10 MHz counter, widths 1000..2000 us to the 0.1 us
+        t0 = 2500 * k + 10
+        for ch in range(4):
+            w = rng.randrange(10000, 20001)
+            s.cmd(f"edge {ch} 1 {t0 * 10} {t0}", f"edge {ch} 0 {t0 * 10 + w} {t0 + w // 10}")
+        s.t(t0 + 2300).cmd("poll")
+    r = run(tool, s.lines)
+    pulses = [list(m["width_tenth_us"]) for m in r.named("PULSES")]  # type: ignore[call-overload]
+    can = [tuple(line.split()) for line in r.tagged("can")]
+    codec = pwm_capture.CanCodec()
+    assert len(can) == 2 * len(pulses) and len(pulses) > 30
+    want = [(f"{fid:03x}", data.hex()) for seq, w in enumerate(pulses)
+            for fid, data in codec.encode(seq % 256, [x * pwm_capture.UNIT_US for x in w])]
+    assert can == want
+    assert codec.decode(0x211, bytes.fromhex(can[-1][1]))[1] == (len(pulses) - 1) % 256

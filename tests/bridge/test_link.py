@@ -2,32 +2,29 @@
 host's codec (rig/bridge/link.py) and the bridge's (bridge/core/link.c, with the header generated from
 the same table). Every message of the table round-trips through both with the same values and the same
 bytes; streams of random and mutated frames are rejected and counted, identically, and nothing that was
-not sent is ever decoded."""
+not sent is ever decoded. Every test runs on the host and on a Cortex-M4 under QEMU (the STM32G431's
+core), whose output must equal the host build's byte for byte (tests/bridge/tools.py)."""
 
 from __future__ import annotations
 
 import json
 import random
 import struct
-import subprocess
-from pathlib import Path
 
 import pytest
 
 from rig.bridge.link import Receiver, crc16, encode
 from rig.bridge.messages import MESSAGES, Direction, Message
-from tests.bridge.tools import link_tool
+from tests.bridge.tools import Tool, link_tools
 
 
-@pytest.fixture(scope="module")
-def tool() -> Path:
-    return link_tool()
+@pytest.fixture(scope="module", params=["host", "cortex-m4"])
+def tool(request: pytest.FixtureRequest) -> Tool:
+    return link_tools(request.param)
 
 
-def c_side(tool: Path, mode: str, direction: str, wire: bytes) -> list[str]:
-    done = subprocess.run([str(tool), mode, direction], input=wire, capture_output=True, timeout=60)
-    assert done.returncode == 0, done.stderr
-    return done.stdout.decode().splitlines()
+def c_side(tool: Tool, mode: str, direction: str, wire: bytes) -> list[str]:
+    return tool.run_bytes(wire, (mode, direction)).decode().splitlines()
 
 
 def f32(x: float) -> float:
@@ -60,7 +57,7 @@ def test_the_crc_is_ccitt_false() -> None:
 
 
 @pytest.mark.parametrize("direction", ["down", "up"])
-def test_every_message_means_the_same_on_both_sides(tool: Path, direction: Direction) -> None:
+def test_every_message_means_the_same_on_both_sides(tool: Tool, direction: Direction) -> None:
     rng = random.Random(20261123)
     sent = []
     wire = b""
@@ -102,7 +99,7 @@ def mutate(frames: list[bytes], rng: random.Random) -> bytes:
 
 
 @pytest.mark.parametrize("direction", ["down", "up"])
-def test_random_and_mutated_frames_are_rejected_counted_and_never_applied(tool: Path,
+def test_random_and_mutated_frames_are_rejected_counted_and_never_applied(tool: Tool,
                                                                          direction: Direction) -> None:
     rng = random.Random(7)
     frames, sent = [], set()
@@ -123,7 +120,7 @@ def test_random_and_mutated_frames_are_rejected_counted_and_never_applied(tool: 
     assert stats["ok"] == host.ok and stats["seq_gaps"] == host.seq_gaps
 
 
-def test_a_frame_going_the_wrong_way_is_refused(tool: Path) -> None:
+def test_a_frame_going_the_wrong_way_is_refused(tool: Tool) -> None:
     wire = encode("PULSES", 0, t_us=1, width_tenth_us=[15000, 15000, 15000, 15000])  # an up message
     *lines, counters = c_side(tool, "decode", "down", wire)
     assert lines == [] and json.loads(counters)["bad_direction"] == 1

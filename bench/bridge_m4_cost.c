@@ -1,0 +1,147 @@
+/* What the bridge core costs on a Cortex-M4, in instructions (not a test): run by
+   bench/bridge_m4_cost.py under QEMU's mps2-an386 with -icount shift=0, where SysTick, clocked from
+   the emulated 25 MHz, advances once per 40 instructions executed. The core and the real chip core
+   (emulators/chips) serve a board reading its MPU-6050 as a flight controller does at 1 kHz: each
+   millisecond the host's IMU sample arrives (bridge_link_rx), the port polls (bridge_poll), and the
+   board reads ACCEL_XOUT_H..GYRO_ZOUT_L in one 14-byte burst with a repeated START, every event of it
+   timed. Prints one line per kind of call: "NAME calls N mean_insns M max_insns X". */
+#include <stdio.h>
+#include <string.h>
+
+#include "bridge.h"
+
+#define SYST_CSR (*(volatile uint32_t *)0xE000E010u)
+#define SYST_RVR (*(volatile uint32_t *)0xE000E014u)
+#define SYST_CVR (*(volatile uint32_t *)0xE000E018u)
+#define INSNS_PER_TICK 40u
+
+static uint64_t clock_us;
+static uint64_t hal_now(void *ctx)
+{
+    (void)ctx;
+    return clock_us;
+}
+static void hal_addr(void *ctx, uint8_t addr, int on)
+{
+    (void)ctx;
+    (void)addr;
+    (void)on;
+}
+static void hal_link(void *ctx, const uint8_t *p, size_t n)
+{
+    (void)ctx;
+    (void)p;
+    (void)n;
+}
+static size_t hal_sbus(void *ctx, const uint8_t *p, size_t n)
+{
+    (void)ctx;
+    (void)p;
+    return n;
+}
+
+struct cost {
+    const char *name;
+    uint32_t calls;
+    uint64_t sum;
+    uint32_t max;
+};
+
+enum { START_W, WRITE, START_R, READ, STOP, LINK_RX, POLL, KINDS };
+static struct cost costs[KINDS] = { { "i2c_start_write", 0, 0, 0 },
+                                    { "i2c_write", 0, 0, 0 },
+                                    { "i2c_start_read", 0, 0, 0 },
+                                    { "i2c_read", 0, 0, 0 },
+                                    { "i2c_stop", 0, 0, 0 },
+                                    { "link_rx_imu_sample", 0, 0, 0 },
+                                    { "poll", 0, 0, 0 } };
+
+static uint32_t t0;
+static void begin(void) { t0 = SYST_CVR; }
+static void end(int kind)
+{
+    uint32_t insns = ((t0 - SYST_CVR) & 0xFFFFFFu) * INSNS_PER_TICK;
+    struct cost *c = &costs[kind];
+    c->calls++;
+    c->sum += insns;
+    if (insns > c->max)
+        c->max = insns;
+}
+
+static void send(struct bridge *b, struct bridge_msg *m, int measure)
+{
+    uint8_t wire[LINK_WIRE_MAX];
+    static uint8_t seq;
+    m->seq = seq++;
+    size_t n = link_frame(m, wire);
+    if (measure)
+        begin();
+    bridge_link_rx(b, wire, n);
+    if (measure)
+        end(LINK_RX);
+}
+
+#define BIT_NS 2500u /* 400 kHz */
+
+int main(void)
+{
+    static struct bridge b;
+    struct bridge_hal hal = { NULL, hal_now, hal_addr, hal_link, hal_sbus, NULL };
+    struct bridge_cfg cfg = bridge_defaults();
+    bridge_init(&b, &hal, &cfg);
+    SYST_RVR = 0xFFFFFFu;
+    SYST_CVR = 0;
+    SYST_CSR = 5; /* on, the processor clock, no interrupt */
+
+    struct bridge_msg m;
+    memset(&m, 0, sizeof m);
+    m.id = BRIDGE_HELLO;
+    m.u.hello.version = BRIDGE_PROTOCOL_VERSION;
+    send(&b, &m, 0);
+    const uint8_t setup[][2] = { { 0x6B, 0x00 }, { 0x1A, 0x01 } }; /* wake; DLPF 1: 1 kHz samples */
+    for (unsigned i = 0; i < 2; i++) {
+        bridge_i2c_start(&b, 1000u * i, 0x68, 0);
+        bridge_i2c_write(&b, 1000u * i + 25000u, setup[i][0]);
+        bridge_i2c_write(&b, 1000u * i + 50000u, setup[i][1]);
+        bridge_i2c_stop(&b, 1000u * i + 75000u);
+    }
+    for (unsigned k = 0; k < 2000; k++) {
+        clock_us = 1000u * k;
+        memset(&m, 0, sizeof m);
+        m.id = BRIDGE_IMU_SAMPLE;
+        m.u.imu_sample.valid_us = clock_us + 2000u;
+        m.u.imu_sample.accel[0] = 0.1f * (float)(k % 7);
+        m.u.imu_sample.accel[2] = -9.8f;
+        m.u.imu_sample.gyro[1] = 0.01f * (float)(k % 5);
+        m.u.imu_sample.temp_c = 25.0f;
+        send(&b, &m, 1);
+        begin();
+        bridge_poll(&b);
+        end(POLL);
+        uint64_t t = clock_us * 1000u + 500000u;
+        begin();
+        bridge_i2c_start(&b, t, 0x68, 0);
+        end(START_W);
+        t += 9 * BIT_NS;
+        begin();
+        bridge_i2c_write(&b, t, 0x3B);
+        end(WRITE);
+        t += 10 * BIT_NS;
+        begin();
+        bridge_i2c_start(&b, t, 0x68, 1);
+        end(START_R);
+        for (unsigned i = 0; i < 14; i++) {
+            t += 9 * BIT_NS;
+            begin();
+            (void)bridge_i2c_read(&b, t);
+            end(READ);
+        }
+        begin();
+        bridge_i2c_stop(&b, t);
+        end(STOP);
+    }
+    for (unsigned i = 0; i < KINDS; i++)
+        printf("%s calls %lu mean_insns %lu max_insns %lu\n", costs[i].name, (unsigned long)costs[i].calls,
+               (unsigned long)(costs[i].sum / costs[i].calls), (unsigned long)costs[i].max);
+    return 0;
+}
