@@ -176,6 +176,25 @@ static void fill_need(chip_need *need, const chip_mpu *m, bool keeps_all, uint32
     need->target_ns = target;
 }
 
+/* Bridge mode, only the last of n instants first, first + p, .. encoded: takes every sample valid by
+ * then (the newest is held) and returns how many of the instants had no new one (docs/design.md §8:
+ * an underrun at every sample instant without a new sample). A sample is new at the first instant at
+ * or after its valid time. */
+static uint64_t take_counting(chip_mpu *m, uint64_t first, uint64_t p, uint64_t n)
+{
+    uint64_t last = first + (n - 1) * p, fresh = 0, prev = 0;
+    while (m->q_len && m->queue[m->q_head].valid_ns <= last) {
+        uint64_t v = m->queue[m->q_head].valid_ns;
+        uint64_t k = v <= first ? 0 : (v - first + p - 1) / p;
+        if (fresh == 0 || k > prev) {
+            fresh++;
+            prev = k;
+        }
+        chip_take_imu(m, v);
+    }
+    return n - fresh;
+}
+
 bool mpu_advance(chip_board *b, uint64_t now_ns, chip_need *need)
 {
     chip_mpu *m = &b->mpu;
@@ -196,12 +215,11 @@ bool mpu_advance(chip_board *b, uint64_t now_ns, chip_need *need)
     bool keeps_all = m->regs[MPU_USER_CTRL] & 0x60;
     if (!keeps_all) { /* only the last instant is ever seen: only it is encoded */
         uint64_t last = m->next_ns + (n - 1) * p;
-        if (!chip_take_imu(m, last)) {
-            if (b->demand) {
-                fill_need(need, m, false, (uint32_t)n, m->next_ns, p, now_ns);
-                return true;
-            }
-            b->counts[CHIP_COUNT_MPU_UNDERRUNS]++;
+        if (!b->demand) {
+            b->counts[CHIP_COUNT_MPU_UNDERRUNS] += (uint32_t)take_counting(m, m->next_ns, p, n);
+        } else if (!chip_take_imu(m, last)) {
+            fill_need(need, m, false, (uint32_t)n, m->next_ns, p, now_ns);
+            return true;
         }
         encode(m, m->last.v);
         m->regs[MPU_INT_STATUS] |= 0x01; /* DATA_RDY, whatever INT_ENABLE says */
