@@ -72,8 +72,6 @@ def _self_test_regs() -> tuple[int, int, int, int]:
 
 
 _ST = _self_test_regs()
-_ST_ACTUATION = (ctypes.c_double * 2)(ST_ACCEL_G, ST_GYRO_DPS)  # g and °/s, for C
-_ST_ACTUATION_ADDR = ctypes.addressof(_ST_ACTUATION)
 
 REGISTERS = RegisterMap("MPU-6050", [
     RegisterSpec(0x0C, "PRODUCT_ID", 0x00, "r"),
@@ -144,8 +142,8 @@ class MPU6050:
         self._block_addr = self._block.ctypes.data
         self._encode_c = native.fast().mpu_encode
         self._regs_seen: bytearray | None = None
-        self._data_view: ctypes.c_char | None = None
-        self._data_addr = 0
+        self._regs_view: ctypes.c_char | None = None
+        self._regs_addr = 0
 
     # ---- configuration decoded ----------------------------------------------------------------
 
@@ -233,16 +231,15 @@ class MPU6050:
             self._block[i] = (*s.accel, *s.gyro, s.temperature_c)
 
     def _encode(self, i: int) -> None:
-        """Sample ``i`` of the block into the data registers (in C: docs/sensors.md §2's rounding, the FS
-        scale, self-test actuation, standby and TEMP_DIS), then the aux master and the FIFO."""
+        """Sample ``i`` of the block into the data registers by the chip core's encoder (chip_mpu_encode:
+        docs/sensors.md §2's rounding, the FS scale, self-test actuation, standby and TEMP_DIS, read from
+        the registers), then the aux master and the FIFO."""
         regs = self.regs
         if regs is not self._regs_seen:  # (a reset makes a new bytearray)
             # the view keeps regs exported: resizing it would raise instead of moving the bytes
-            self._regs_seen, self._data_view = regs, ctypes.c_char.from_buffer(regs, ACCEL_XOUT_H)
-            self._data_addr = ctypes.addressof(self._data_view)
-        self._encode_c(self._block_addr + 56 * i, self._data_addr, self.accel_scale(), self.gyro_scale(),
-                       regs[ACCEL_CONFIG] >> 5, regs[GYRO_CONFIG] >> 5, regs[PWR_MGMT_2],
-                       regs[PWR_MGMT_1] & 0x08, _ST_ACTUATION_ADDR, G0)
+            self._regs_seen, self._regs_view = regs, ctypes.c_char.from_buffer(regs)
+            self._regs_addr = ctypes.addressof(self._regs_view)
+        self._encode_c(self._block_addr + 56 * i, self._regs_addr)
         if regs[USER_CTRL] & 0x20:
             self._run_aux_master()
         if regs[USER_CTRL] & 0x40:
