@@ -20,12 +20,13 @@ COMPILED_SOURCES := $(shell $(PYTHON) rig/compiled.py --sources)
 
 DUT_BIN := build/dut/fc
 
-# the virtual bridge (docs/design.md §8): the bridge core as a Linux process. BRIDGE_CHIPS is the chip
-# core it links: still a stand-in (bridge/standin) with the chip core's API; the switch to emulators/chips
-# is the next step
+# the virtual bridge (docs/design.md §8): the bridge core as a Linux process, linking the one chip core
+# (BRIDGE_CHIPS, the lockstep session's; its register tables generated into build/gen). Strict C99, as
+# on an MCU; no fused multiply-adds, so its encoding rounds as the session's does
 VBRIDGE := build/vbridge
-BRIDGE_CHIPS := bridge/standin
-BRIDGE_CFLAGS := -std=c99 -O2 -Wall -Wextra -Werror -Ibuild/gen -I$(BRIDGE_CHIPS) -Ibridge/core -Irig/shim
+BRIDGE_CHIPS := emulators/chips
+BRIDGE_CFLAGS := -std=c99 -pedantic -O2 -Wall -Wextra -Werror -ffp-contract=off -Ibuild/gen -I$(BRIDGE_CHIPS) \
+	-Ibridge/core -Irig/shim
 
 .PHONY: all venv fmu shim native chips compiled dut vbridge firmware demo test test-slow lint bench clean docs-images
 
@@ -65,9 +66,10 @@ $(DUT_BIN): $(wildcard dut/src/* dut/tests/* dut/Makefile) bench/fc_bench.c
 	$(MAKE) -s -C dut
 
 vbridge: $(VBRIDGE)
-$(VBRIDGE): $(wildcard bridge/core/*.[ch] bridge/posix/*.c $(BRIDGE_CHIPS)/*.[ch]) rig/shim/protocol.h \
+$(VBRIDGE): $(wildcard bridge/core/*.[ch] bridge/posix/*.c) $(CHIP_FILES) rig/shim/protocol.h \
 		rig/bridge/messages.py rig/bridge/gen.py | venv
 	$(PY) -m rig.bridge.gen >/dev/null
+	$(PY) -m emulators.chips.gen >/dev/null
 	$(CC) $(BRIDGE_CFLAGS) -o $@ bridge/posix/vbridge.c bridge/core/*.c $(BRIDGE_CHIPS)/*.c -lm
 
 # the bridge firmware for the STM32G431 (docs/bridge-firmware.md): build/firmware/bridge.elf, .bin, .map

@@ -1,13 +1,21 @@
-"""The MPU-6050's digital low-pass filter (DLPF_CFG, docs/sensors.md §3.5) as the host runs it: a first-order
-low-pass at the configured bandwidth plus a pure delay, stepped at the sample clock. The Python MPU6050
-(the reference) and the chip core's host-side producer (emulators/chips/board.py) both use it: the
-filter is physics, the register behaviour is the chip's."""
+"""The MPU-6050's samples as the host makes them: the source's samples at the chip's sample instants
+through the digital low-pass filter (DLPF_CFG, docs/sensors.md §3.5), a first-order low-pass at the
+configured bandwidth plus a pure delay, stepped at the sample clock (``ImuSampler``, over ``LowPass``).
+The Python MPU6050 (the reference) and the chip core's host-side producer (emulators/chips/board.py)
+both take their samples from an ImuSampler: the error model and the filter are physics, the register
+behaviour is the chip's."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
+from typing import Protocol
+
+import numpy as np
 
 from emulators import native
+
+BLOCK = native.BLOCK
 
 #: DLPF_CFG -> (accel bandwidth Hz, accel delay s, gyro bandwidth Hz, gyro delay s), docs/sensors.md §3.5.
 DLPF = ((260, 0.0, 256, 0.98e-3), (184, 2.0e-3, 188, 1.9e-3), (94, 3.0e-3, 98, 2.8e-3),
@@ -49,3 +57,85 @@ class LowPass:
         """Advances the filter over ``span`` seconds of the input held at the three float64 at ``x``,
         exactly, in one go (the delay line is refilled by the samples that follow)."""
         self._lib.rig_lowpass_catch_up(self._addr, x, self._a(bw_hz, span))
+
+
+def sample_rate(config: int, smplrt_div: int) -> float:
+    """The MPU-6050's sample rate (Hz) for CONFIG and SMPLRT_DIV: the gyro rate (8 kHz at DLPF_CFG 0 and
+    7, else 1 kHz) over 1 + SMPLRT_DIV."""
+    cfg = config & 0x07
+    gyro_rate = 8000.0 if cfg in (0, 7) else 1000.0
+    return gyro_rate / (1 + smplrt_div)
+
+
+class ImuSample(Protocol):
+    """What an IMU source gives for one instant (emulators.mpu6050.ImuTruth)."""
+
+    @property
+    def accel(self) -> tuple[float, float, float]: ...
+
+    @property
+    def gyro(self) -> tuple[float, float, float]: ...
+
+    @property
+    def temperature_c(self) -> float: ...
+
+
+class ImuSampler:
+    """``source`` (an ImuModel, whose ``sample_block`` takes a block at once, or any function of time
+    giving an ImuSample) at the sample instants, through the DLPF when ``dlpf``: a block of up to BLOCK
+    samples at a time into the rows of ``block`` (accel xyz, gyro xyz, die °C). The instants are a
+    running sum of the period from ``next_t``, the float time of the next one."""
+
+    def __init__(self, source: Callable[[float], ImuSample], dlpf: bool = True) -> None:
+        self.source, self.dlpf = source, dlpf
+        self.block = np.zeros((BLOCK, 7))
+        self.block_addr: int = self.block.ctypes.data
+        self.next_t = 0.0
+        self._accel_f, self._gyro_f = LowPass(), LowPass()
+
+    def reset_filters(self) -> None:
+        """DEVICE_RESET / power-on: the filters start again."""
+        self._accel_f, self._gyro_f = LowPass(), LowPass()
+
+    def take(self, n: int, period: float, cfg: int, keeps_all: bool) -> tuple[int, list[float]]:
+        """Samples the next of ``n`` due instants, ``period`` apart, at DLPF_CFG ``cfg``: at most a block,
+        into ``block``'s first rows. Returns how many of the n instants that used up and the block's float
+        times. With nothing that keeps every sample (``keeps_all`` false: no FIFO, no aux master) a wait of
+        more than BLOCK instants needs only its last BLOCK, enough to refill the DLPF's delay line: the
+        filters move over the rest in one exact step with the input held at the first skipped sample
+        (LowPass.catch_up)."""
+        a_bw, a_delay, g_bw, g_delay = DLPF[cfg & 0x07]
+        skip = 0
+        if n > BLOCK and not keeps_all:
+            skip = n - BLOCK
+            self.next_t += skip * period
+            n = BLOCK
+            if self.dlpf:
+                self._take((self.next_t,))
+                self._accel_f.catch_up(self.block_addr, a_bw, skip * period)
+                self._gyro_f.catch_up(self.block_addr + 24, g_bw, skip * period)
+        m = min(n, BLOCK)
+        times = []
+        for _ in range(m):
+            times.append(self.next_t)
+            self.next_t += period
+        self._take(times)
+        if self.dlpf:
+            self._accel_f.run(self.block_addr, m, 7, a_bw, a_delay, period)
+            self._gyro_f.run(self.block_addr + 24, m, 7, g_bw, g_delay, period)
+        return skip + m, times
+
+    def _take(self, times: Sequence[float]) -> None:
+        take_samples(self.source, times, self.block)
+
+
+def take_samples(source: Callable[[float], ImuSample], times: Sequence[float], out: np.ndarray) -> None:
+    """The IMU source's samples at ``times`` into ``out``'s first rows (7 columns: accel, gyro, die
+    temperature): in one call for an ImuModel, one by one for a plain function of time (tests, traces)."""
+    take = getattr(source, "sample_block", None)
+    if take is not None:
+        take(times, out)
+        return
+    for i, t in enumerate(times):
+        s = source(t)
+        out[i] = (*s.accel, *s.gyro, s.temperature_c)

@@ -7,15 +7,12 @@ from __future__ import annotations
 import ctypes
 import math
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Final, NamedTuple
 
-import numpy as np
-
 from emulators import native
-from emulators.dlpf import DLPF
-from emulators.dlpf import LowPass as _LowPass
+from emulators.dlpf import ImuSampler, sample_rate
 from emulators.i2c_bus import I2CDevice
 from emulators.registers import RegisterMap, RegisterSpec
 
@@ -24,7 +21,6 @@ G0: Final = 9.80665
 ACCEL_LSB_PER_G = (16384.0, 8192.0, 4096.0, 2048.0)
 GYRO_LSB_PER_DPS = (131.0, 65.5, 32.8, 16.4)
 FIFO_SIZE: Final = 1024
-BLOCK = native.BLOCK
 
 # Self-test: factory-trim codes and the matching actuation (docs/sensors.md §3.10). Gyro code 16 gives
 # FT = 25 * 1.046**15 deg/s (+X, -Y, +Z); accel code 12 gives FT = 0.34 * (0.92/0.34)**(11/30) g.
@@ -72,8 +68,6 @@ def _self_test_regs() -> tuple[int, int, int, int]:
 
 
 _ST = _self_test_regs()
-_ST_ACTUATION = (ctypes.c_double * 2)(ST_ACCEL_G, ST_GYRO_DPS)  # g and °/s, for C
-_ST_ACTUATION_ADDR = ctypes.addressof(_ST_ACTUATION)
 
 REGISTERS = RegisterMap("MPU-6050", [
     RegisterSpec(0x0C, "PRODUCT_ID", 0x00, "r"),
@@ -132,20 +126,16 @@ class MPU6050:
     pointer: int = 0
     fifo: deque[int] = field(default_factory=deque)
     samples: int = 0
-    _next_t: float = 0.0
     _snapshot: bytes = b""
     _fifo_count_latch: int = 0
     _fifo_last: int = 0
-    _accel_f: _LowPass = field(default_factory=_LowPass)
-    _gyro_f: _LowPass = field(default_factory=_LowPass)
-    _block: np.ndarray = field(default_factory=lambda: np.zeros((BLOCK, 7)))  # samples being taken
 
     def __post_init__(self) -> None:
-        self._block_addr = self._block.ctypes.data
+        self._sampler = ImuSampler(self.source, self.dlpf)  # the samples being taken, through the DLPF
         self._encode_c = native.fast().mpu_encode
         self._regs_seen: bytearray | None = None
-        self._data_view: ctypes.c_char | None = None
-        self._data_addr = 0
+        self._regs_view: ctypes.c_char | None = None
+        self._regs_addr = 0
 
     # ---- configuration decoded ----------------------------------------------------------------
 
@@ -159,9 +149,7 @@ class MPU6050:
         return bool(self.regs[INT_PIN_CFG] & 0x02) and not self.regs[USER_CTRL] & 0x20
 
     def sample_rate(self) -> float:
-        cfg = self.regs[CONFIG] & 0x07
-        gyro_rate = 8000.0 if cfg in (0, 7) else 1000.0
-        return gyro_rate / (1 + self.regs[SMPLRT_DIV])
+        return sample_rate(self.regs[CONFIG], self.regs[SMPLRT_DIV])
 
     def accel_scale(self) -> float:
         return ACCEL_LSB_PER_G[(self.regs[ACCEL_CONFIG] >> 3) & 3]
@@ -176,44 +164,27 @@ class MPU6050:
         self.regs = REGISTERS.reset_bytes()
         self.fifo.clear()
         self._snapshot, self._fifo_count_latch, self._fifo_last = b"", 0, 0
-        self._accel_f, self._gyro_f = _LowPass(), _LowPass()
+        self._sampler.reset_filters()
 
     # ---- time ------------------------------------------------------------------------------
 
     def advance_to(self, t: float) -> None:
         if t < self.now:
             return
+        sampler = self._sampler
         if self.asleep:
             self.now = t
-            self._next_t = t
+            sampler.next_t = t
             return
         period = 1.0 / self.sample_rate()
-        if self._next_t < self.now:
-            self._next_t = self.now
-        n = math.floor((t - self._next_t) / period + 1e-9) + 1 if self._next_t <= t else 0
-        a_bw, a_delay, g_bw, g_delay = DLPF[self.regs[CONFIG] & 0x07]
-        # With nothing that keeps every sample (FIFO, aux master), a long wait needs only its last
-        # few samples: enough to refill the DLPF's delay line.
-        keeps_all = self.regs[USER_CTRL] & 0x60
-        if n > BLOCK and not keeps_all:
-            skip = n - BLOCK
-            self._next_t += skip * period
-            n = BLOCK
-            if self.dlpf:
-                self._take((self._next_t,))
-                self._accel_f.catch_up(self._block_addr, a_bw, skip * period)
-                self._gyro_f.catch_up(self._block_addr + 24, g_bw, skip * period)
+        if sampler.next_t < self.now:
+            sampler.next_t = self.now
+        n = math.floor((t - sampler.next_t) / period + 1e-9) + 1 if sampler.next_t <= t else 0
+        keeps_all = bool(self.regs[USER_CTRL] & 0x60)  # the FIFO or the aux master sees every sample
         while n > 0:
-            m = min(n, BLOCK)
-            times = []
-            for _ in range(m):
-                times.append(self._next_t)
-                self._next_t += period
-            self._take(times)
-            if self.dlpf:
-                self._accel_f.run(self._block_addr, m, 7, a_bw, a_delay, period)
-                self._gyro_f.run(self._block_addr + 24, m, 7, g_bw, g_delay, period)
-            n -= m
+            used, times = sampler.take(n, period, self.regs[CONFIG], keeps_all)
+            n -= used
+            m = len(times)
             # a sample that a later one overwrites before anyone can see it only feeds the filters
             for i in range(m) if keeps_all else (m - 1,) if n == 0 else ():
                 self.now = times[i]
@@ -222,27 +193,16 @@ class MPU6050:
             self.samples += m
         self.now = t
 
-    def _take(self, times: Sequence[float]) -> None:
-        """The source's samples at ``times`` into the first rows of the block (accel, gyro, °C)."""
-        take = getattr(self.source, "sample_block", None)
-        if take is not None:
-            take(times, self._block)
-            return
-        for i, t in enumerate(times):  # a plain function of time (tests, traces)
-            s = self.source(t)
-            self._block[i] = (*s.accel, *s.gyro, s.temperature_c)
-
     def _encode(self, i: int) -> None:
-        """Sample ``i`` of the block into the data registers (in C: docs/sensors.md §2's rounding, the FS
-        scale, self-test actuation, standby and TEMP_DIS), then the aux master and the FIFO."""
+        """Sample ``i`` of the block into the data registers by the chip core's encoder (chip_mpu_encode:
+        docs/sensors.md §2's rounding, the FS scale, self-test actuation, standby and TEMP_DIS, read from
+        the registers), then the aux master and the FIFO."""
         regs = self.regs
         if regs is not self._regs_seen:  # (a reset makes a new bytearray)
             # the view keeps regs exported: resizing it would raise instead of moving the bytes
-            self._regs_seen, self._data_view = regs, ctypes.c_char.from_buffer(regs, ACCEL_XOUT_H)
-            self._data_addr = ctypes.addressof(self._data_view)
-        self._encode_c(self._block_addr + 56 * i, self._data_addr, self.accel_scale(), self.gyro_scale(),
-                       regs[ACCEL_CONFIG] >> 5, regs[GYRO_CONFIG] >> 5, regs[PWR_MGMT_2],
-                       regs[PWR_MGMT_1] & 0x08, _ST_ACTUATION_ADDR, G0)
+            self._regs_seen, self._regs_view = regs, ctypes.c_char.from_buffer(regs)
+            self._regs_addr = ctypes.addressof(self._regs_view)
+        self._encode_c(self._sampler.block_addr + 56 * i, self._regs_addr)
         if regs[USER_CTRL] & 0x20:
             self._run_aux_master()
         if regs[USER_CTRL] & 0x40:
@@ -340,7 +300,7 @@ class MPU6050:
             if value & 0x01:  # SIG_COND_RESET clears the sensor registers
                 self.regs[DATA_FIRST:GYRO_XOUT_H + 6] = bytes(GYRO_XOUT_H + 6 - DATA_FIRST)
         if r == PWR_MGMT_1 and self.asleep and not value & 0x40:
-            self._next_t = self.now  # waking: sampling resumes now
+            self._sampler.next_t = self.now  # waking: sampling resumes now
         self.regs[r] = REGISTERS.masked(r, value)
 
     def read(self, n: int) -> bytes:

@@ -68,23 +68,17 @@ static PyObject *fc_lowpass_run(PyObject *self, PyObject *const *a, Py_ssize_t n
     Py_RETURN_NONE;
 }
 
-/* mpu_encode(row, regs, accel_lsb, gyro_lsb, accel_self_test, gyro_self_test, standby, temp_disabled,
- *            st, g0): rig_mpu_encode with its two pairs passed as values */
+/* mpu_encode(row, regs): chip_mpu_encode, the chip core's encoder (regs: the MPU register image) */
 static PyObject *fc_mpu_encode(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
 {
     (void)self;
-    if (!args_ok("mpu_encode", nargs, 10))
+    if (!args_ok("mpu_encode", nargs, 2))
         return NULL;
     const double *row = ptr(a[0]);
     uint8_t *regs = ptr(a[1]);
-    double lsb[2] = { PyFloat_AsDouble(a[2]), PyFloat_AsDouble(a[3]) };
-    int32_t self_test[2] = { i32(a[4]), i32(a[5]) };
-    int32_t standby = i32(a[6]), temp_disabled = i32(a[7]);
-    const double *st = ptr(a[8]);
-    double g0 = PyFloat_AsDouble(a[9]);
     if (PyErr_Occurred())
         return NULL;
-    rig_mpu_encode(row, regs, lsb, self_test, standby, temp_disabled, st, g0);
+    chip_mpu_encode(regs, row);
     Py_RETURN_NONE;
 }
 
@@ -306,7 +300,7 @@ static PyObject *fc_chip_push_baro(PyObject *self, PyObject *const *a, Py_ssize_
 static PyMethodDef methods[] = {
     { "imu_measure", (PyCFunction)(void (*)(void))fc_imu_measure, METH_FASTCALL, "rig_imu_measure" },
     { "lowpass_run", (PyCFunction)(void (*)(void))fc_lowpass_run, METH_FASTCALL, "rig_lowpass_run" },
-    { "mpu_encode", (PyCFunction)(void (*)(void))fc_mpu_encode, METH_FASTCALL, "rig_mpu_encode" },
+    { "mpu_encode", (PyCFunction)(void (*)(void))fc_mpu_encode, METH_FASTCALL, "chip_mpu_encode" },
     { "channel_measure", (PyCFunction)(void (*)(void))fc_channel_measure, METH_FASTCALL, "rig_channel_measure" },
     { "chip_transfer", (PyCFunction)(void (*)(void))fc_chip_transfer, METH_FASTCALL, "chip_transfer" },
     { "chip_advance", (PyCFunction)(void (*)(void))fc_chip_advance, METH_FASTCALL, "chip_advance" },

@@ -1,6 +1,6 @@
 /* The numerics of the IMU's sampling chain, a block of samples per call: the sensor error model of
- * emulators/sensor_models.py (ImuModel), and the MPU-6050's DLPF (_LowPass) and data-register encoding
- * of emulators/mpu6050.py.
+ * emulators/sensor_models.py (ImuModel) and the MPU-6050's DLPF (_LowPass). Its data registers are the
+ * chip core's encoder's (chip_mpu_encode, emulators/chips/mpu6050.c).
  *
  * Why C: the MPU-6050 samples at 1 kHz whatever the flight controller reads, and per sample these few
  * dozen multiply-adds cost far more as Python bytecode than the rest of a lockstep cycle. The Python
@@ -174,44 +174,4 @@ EXPORT void rig_lowpass_catch_up(rig_lowpass *f, const double x[3], double a)
 {
     approach(f, x, a);
     f->head = f->count = 0;
-}
-
-/* ---- the MPU-6050's data registers for one sample (docs/sensors.md §3.4, §3.10) ---- */
-
-/* Quantisation rule of docs/sensors.md §2: round half away from zero, then saturate to int16 (NaN reads 0). */
-static int16_t quantise(double x)
-{
-    double r = copysign(floor(fabs(x) + 0.5), x);
-    if (!(r == r))
-        return 0;
-    return r < -32768.0 ? INT16_MIN : r > 32767.0 ? INT16_MAX : (int16_t)r;
-}
-
-static void put16(uint8_t *p, int16_t v)
-{
-    p[0] = (uint8_t)((uint16_t)v >> 8);
-    p[1] = (uint8_t)((uint16_t)v & 0xFF);
-}
-
-/* row: accel xyz (m/s²), gyro xyz (rad/s), die temperature (°C); regs: the 14 bytes from ACCEL_XOUT_H.
- * lsb: accel LSB/g, gyro LSB/(°/s); self_test: ACCEL_CONFIG >> 5 and GYRO_CONFIG >> 5 (bit 2 is X);
- * standby: PWR_MGMT_2 (an axis in standby, and the temperature when temp_disabled, keeps its bytes);
- * st: the self-test actuation in g and in °/s (Y's gyro actuation is negative), g0 the g in m/s². */
-EXPORT void rig_mpu_encode(const double row[7], uint8_t regs[14], const double lsb[2], const int32_t self_test[2],
-                           int32_t standby, int32_t temp_disabled, const double st[2], double g0)
-{
-    const double rad_to_deg = 180.0 / 3.141592653589793;
-    for (int i = 0; i < 3; i++) {
-        if (!(standby & (0x20 >> i))) {
-            double s = self_test[0] & (0x4 >> i) ? st[0] * lsb[0] : 0.0;
-            put16(regs + 2 * i, quantise(row[i] / g0 * lsb[0] + s));
-        }
-        if (!(standby & (0x04 >> i))) {
-            double sign = i == 1 ? -1.0 : 1.0;
-            double s = self_test[1] & (0x4 >> i) ? sign * st[1] * lsb[1] : 0.0;
-            put16(regs + 8 + 2 * i, quantise(row[3 + i] * rad_to_deg * lsb[1] + s));
-        }
-    }
-    if (!temp_disabled)
-        put16(regs + 6, quantise((row[6] - 36.53) * 340.0));
 }

@@ -4,11 +4,11 @@
 The core runs in demand mode: when a chip reaches a sample instant it has no sample for, the transfer
 stops before it and says what it needs; the producer here makes exactly that sample, pushes it, and
 the transfer runs again. The producers are the physics side of the split (docs/design.md §8):
-``ImuFeed`` (the ImuModel or any IMU source, then the DLPF of emulators/dlpf.py, with the same
-block and catch-up logic the Python MPU6050 has), ``MagFeed`` (the MagModel at the measurement
-instant) and ``BaroFeed`` (clamping, optional OSR noise, then ms5611.encode: the core gets the raw
-D1/D2). They call the models at the same float times the Python chips' clocks give (running sums of
-the period from the same anchors), so a lockstep flight is bit-identical to one with the Python chips.
+``ImuFeed`` (the ImuModel or any IMU source, then the DLPF: the ImuSampler of emulators/dlpf.py,
+the Python MPU6050's too), ``MagFeed`` (the MagModel at the measurement instant) and ``BaroFeed``
+(clamping, optional OSR noise, then ms5611.encode: the core gets the raw D1/D2). They call the models
+at the same float times the Python chips' clocks give (running sums of the period from the same
+anchors), so a lockstep flight is bit-identical to one with the Python chips.
 
 ``ChipBoard`` keeps the interface the rig used with the Python board: ``bus.transfer`` raising
 I2CNack / I2CProtocolError, ``mpu.bypass``, ``baro.prom``, the topology.
@@ -24,7 +24,7 @@ from typing import Any, Final
 import numpy as np
 
 from emulators import hmc5883l, ms5611, native
-from emulators.dlpf import DLPF, LowPass
+from emulators.dlpf import ImuSampler, sample_rate
 from emulators.faults import FaultSet
 from emulators.i2c_bus import I2CNack, I2CProtocolError, Msg
 from emulators.mpu6050 import CONFIG, SMPLRT_DIV, ImuTruth
@@ -52,36 +52,15 @@ _NEVER: Final = (1 << 64) - 1
 Need = tuple[int, int, int, int, int, int, int, int, int, int, int, int, int]
 
 
-def mpu_sample_rate(config: int, smplrt_div: int) -> float:
-    """The MPU-6050's sample rate (Hz), as MPU6050.sample_rate computes it."""
-    cfg = config & 0x07
-    gyro_rate = 8000.0 if cfg in (0, 7) else 1000.0
-    return gyro_rate / (1 + smplrt_div)
-
-
-def take_samples(source: Callable[[float], ImuTruth], times: Sequence[float], out: np.ndarray) -> None:
-    """The IMU source's samples at ``times`` into ``out``'s first rows (7 columns: accel, gyro, die
-    temperature): in one call for an ImuModel, one by one for a plain function of time (tests, traces)."""
-    take = getattr(source, "sample_block", None)
-    if take is not None:
-        take(times, out)
-        return
-    for i, t in enumerate(times):
-        s = source(t)
-        out[i] = (*s.accel, *s.gyro, s.temperature_c)
-
-
 class ImuFeed:
     """The MPU-6050's samples: ``source`` (an ImuModel, or any function of time giving ImuTruth) at the
-    chip's sample instants, through the DLPF when ``dlpf``. Only the samples the chip encodes are
-    pushed: the last instant's, or every instant's while the FIFO or the aux master keeps them all."""
+    chip's sample instants, through the DLPF when ``dlpf`` (an ImuSampler, as the Python MPU6050 takes
+    its samples). Only the samples the chip encodes are pushed: the last instant's, or every instant's
+    while the FIFO or the aux master keeps them all."""
 
     def __init__(self, source: Callable[[float], ImuTruth], dlpf: bool = True) -> None:
         self.source, self.dlpf = source, dlpf
-        self._accel_f, self._gyro_f = LowPass(), LowPass()
-        self._block = np.zeros((BLOCK, 7))
-        self._block_addr = self._block.ctypes.data
-        self._next_t = 0.0
+        self._sampler = ImuSampler(source, dlpf)
         self._anchor = 0
         self._epoch = 0
         self._push = native.fast().chip_push_imu
@@ -96,45 +75,26 @@ class ImuFeed:
                 return times[k]
         return t_ns * 1e-9
 
-    def _take(self, times: Sequence[float]) -> None:
-        take_samples(self.source, times, self._block)
-
     def serve(self, board: ChipBoard, need: Need) -> None:
         keeps_all, count, anchor, epoch = need[1], need[6], need[7], need[8]
         t_ns, period_ns, anchor_ns = need[9], need[10], need[11]
+        sampler = self._sampler
         if epoch != self._epoch:  # DEVICE_RESET: the filters start again
             self._epoch = epoch
-            self._accel_f, self._gyro_f = LowPass(), LowPass()
+            sampler.reset_filters()
         if anchor != self._anchor:  # woken: the sample clock restarts there
             self._anchor = anchor
-            self._next_t = anchor_ns * 1e-9
+            sampler.next_t = anchor_ns * 1e-9
         cfg = board.peek(CHIP_MPU, CONFIG)
-        period = 1.0 / mpu_sample_rate(cfg, board.peek(CHIP_MPU, SMPLRT_DIV))
-        a_bw, a_delay, g_bw, g_delay = DLPF[cfg & 0x07]
-        n = count
-        if n > BLOCK and not keeps_all:
-            skip = n - BLOCK
-            self._next_t += skip * period
-            n = BLOCK
-            if self.dlpf:
-                self._take((self._next_t,))
-                self._accel_f.catch_up(self._block_addr, a_bw, skip * period)
-                self._gyro_f.catch_up(self._block_addr + 24, g_bw, skip * period)
-        m = min(n, BLOCK)
-        times = []
-        for _ in range(m):
-            times.append(self._next_t)
-            self._next_t += period
-        self._take(times)
-        if self.dlpf:
-            self._accel_f.run(self._block_addr, m, 7, a_bw, a_delay, period)
-            self._gyro_f.run(self._block_addr + 24, m, 7, g_bw, g_delay, period)
+        period = 1.0 / sample_rate(cfg, board.peek(CHIP_MPU, SMPLRT_DIV))
+        _, times = sampler.take(count, period, cfg, bool(keeps_all))
+        m = len(times)
         if keeps_all:
-            self._push(board.addr, t_ns, period_ns, m, self._block_addr, 7)
+            self._push(board.addr, t_ns, period_ns, m, sampler.block_addr, 7)
             self._recent.append((t_ns, period_ns, times))
             del self._recent[:-4]
         else:
-            self._push(board.addr, t_ns + (count - 1) * period_ns, 0, 1, self._block_addr + 56 * (m - 1), 7)
+            self._push(board.addr, t_ns + (count - 1) * period_ns, 0, 1, sampler.block_addr + 56 * (m - 1), 7)
 
 
 class MagFeed:
@@ -258,7 +218,7 @@ class _MpuView:
         return bytes([self._board.peek(CHIP_MPU, r) for r in range(128)])
 
     def sample_rate(self) -> float:
-        return mpu_sample_rate(self._board.peek(CHIP_MPU, CONFIG), self._board.peek(CHIP_MPU, SMPLRT_DIV))
+        return sample_rate(self._board.peek(CHIP_MPU, CONFIG), self._board.peek(CHIP_MPU, SMPLRT_DIV))
 
 
 class _HmcView:

@@ -252,6 +252,13 @@ CHIP_API void chip_stop(chip_board *b);
  * *failed), or CHIP_NEED (demand mode; nothing done, *need filled). */
 CHIP_API int chip_transfer(chip_board *b, uint64_t t_ns, chip_msg *msgs, uint32_t n, chip_need *need, uint32_t *failed);
 
+/* ---- the MPU-6050's encoder ---- The data registers ACCEL_XOUT_H..GYRO_ZOUT_L (regs[0x3B..0x48]) for
+ * one sample row (accel xyz m/s², gyro xyz rad/s, die °C, sensor frame) under the configuration in
+ * regs (ACCEL_CONFIG and GYRO_CONFIG: full scale and self-test; PWR_MGMT_2: an axis in standby keeps its
+ * bytes; PWR_MGMT_1.TEMP_DIS: so does the temperature). regs is an MPU register image up to PWR_MGMT_2
+ * (0x6C) at least. The chips encode every sample with it; the Python chip (emulators/mpu6050.py) too. */
+CHIP_API void chip_mpu_encode(uint8_t *regs, const double row[7]);
+
 /* ---- looking in ---- */
 CHIP_API uint8_t chip_peek(const chip_board *b, uint8_t chip, uint8_t reg); /* a register as stored, no side effect */
 CHIP_API bool chip_mpu_bypass(const chip_board *b);                         /* 0x1E reachable on the main bus (GY-86) */

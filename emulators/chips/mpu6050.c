@@ -27,7 +27,8 @@ static uint64_t period_ns(const chip_mpu *m)
 
 /* ---- the data registers for one sample (docs/sensors.md §3.4, §3.10) ---- */
 
-static int16_t quantise(double x) /* round half away from zero, saturate to int16; NaN reads 0 */
+/* the rounding rule of docs/sensors.md §2: round half away from zero, saturate to int16; NaN reads 0 */
+static int16_t quantise(double x)
 {
     double r = copysign(floor(fabs(x) + 0.5), x);
     if (!(r == r))
@@ -41,27 +42,27 @@ static void put16(uint8_t *p, int16_t v)
     p[1] = (uint8_t)((uint16_t)v & 0xFF);
 }
 
-static void encode(chip_mpu *m, const double row[7])
+void chip_mpu_encode(uint8_t *regs, const double row[7])
 {
     const double rad_to_deg = 180.0 / 3.141592653589793;
-    uint8_t *regs = m->regs + CHIP_MPU_DATA_FIRST;
-    double lsb_a = CHIP_MPU_ACCEL_LSB[(m->regs[MPU_ACCEL_CONFIG] >> 3) & 3];
-    double lsb_g = CHIP_MPU_GYRO_LSB[(m->regs[MPU_GYRO_CONFIG] >> 3) & 3];
-    uint8_t st_a = m->regs[MPU_ACCEL_CONFIG] >> 5, st_g = m->regs[MPU_GYRO_CONFIG] >> 5;
-    uint8_t standby = m->regs[MPU_PWR_MGMT_2];
+    uint8_t *data = regs + CHIP_MPU_DATA_FIRST;
+    double lsb_a = CHIP_MPU_ACCEL_LSB[(regs[MPU_ACCEL_CONFIG] >> 3) & 3];
+    double lsb_g = CHIP_MPU_GYRO_LSB[(regs[MPU_GYRO_CONFIG] >> 3) & 3];
+    uint8_t st_a = regs[MPU_ACCEL_CONFIG] >> 5, st_g = regs[MPU_GYRO_CONFIG] >> 5;
+    uint8_t standby = regs[MPU_PWR_MGMT_2];
     for (int i = 0; i < 3; i++) {
         if (!(standby & (0x20 >> i))) {
             double s = st_a & (0x4 >> i) ? CHIP_MPU_ST_ACCEL_G * lsb_a : 0.0;
-            put16(regs + 2 * i, quantise(row[i] / CHIP_G0 * lsb_a + s));
+            put16(data + 2 * i, quantise(row[i] / CHIP_G0 * lsb_a + s));
         }
         if (!(standby & (0x04 >> i))) {
             double sign = i == 1 ? -1.0 : 1.0;
             double s = st_g & (0x4 >> i) ? sign * CHIP_MPU_ST_GYRO_DPS * lsb_g : 0.0;
-            put16(regs + 8 + 2 * i, quantise(row[3 + i] * rad_to_deg * lsb_g + s));
+            put16(data + 8 + 2 * i, quantise(row[3 + i] * rad_to_deg * lsb_g + s));
         }
     }
-    if (!(m->regs[MPU_PWR_MGMT_1] & 0x08))
-        put16(regs + 6, quantise((row[6] - 36.53) * 340.0));
+    if (!(regs[MPU_PWR_MGMT_1] & 0x08))
+        put16(data + 6, quantise((row[6] - 36.53) * 340.0));
 }
 
 /* ---- aux master and FIFO ---- */
@@ -176,6 +177,25 @@ static void fill_need(chip_need *need, const chip_mpu *m, bool keeps_all, uint32
     need->target_ns = target;
 }
 
+/* Bridge mode, only the last of n instants first, first + p, .. encoded: takes every sample valid by
+ * then (the newest is held) and returns how many of the instants had no new one (docs/design.md §8:
+ * an underrun at every sample instant without a new sample). A sample is new at the first instant at
+ * or after its valid time. */
+static uint64_t take_counting(chip_mpu *m, uint64_t first, uint64_t p, uint64_t n)
+{
+    uint64_t last = first + (n - 1) * p, fresh = 0, prev = 0;
+    while (m->q_len && m->queue[m->q_head].valid_ns <= last) {
+        uint64_t v = m->queue[m->q_head].valid_ns;
+        uint64_t k = v <= first ? 0 : (v - first + p - 1) / p;
+        if (fresh == 0 || k > prev) {
+            fresh++;
+            prev = k;
+        }
+        chip_take_imu(m, v);
+    }
+    return n - fresh;
+}
+
 bool mpu_advance(chip_board *b, uint64_t now_ns, chip_need *need)
 {
     chip_mpu *m = &b->mpu;
@@ -196,14 +216,13 @@ bool mpu_advance(chip_board *b, uint64_t now_ns, chip_need *need)
     bool keeps_all = m->regs[MPU_USER_CTRL] & 0x60;
     if (!keeps_all) { /* only the last instant is ever seen: only it is encoded */
         uint64_t last = m->next_ns + (n - 1) * p;
-        if (!chip_take_imu(m, last)) {
-            if (b->demand) {
-                fill_need(need, m, false, (uint32_t)n, m->next_ns, p, now_ns);
-                return true;
-            }
-            b->counts[CHIP_COUNT_MPU_UNDERRUNS]++;
+        if (!b->demand) {
+            b->counts[CHIP_COUNT_MPU_UNDERRUNS] += (uint32_t)take_counting(m, m->next_ns, p, n);
+        } else if (!chip_take_imu(m, last)) {
+            fill_need(need, m, false, (uint32_t)n, m->next_ns, p, now_ns);
+            return true;
         }
-        encode(m, m->last.v);
+        chip_mpu_encode(m->regs, m->last.v);
         m->regs[MPU_INT_STATUS] |= 0x01; /* DATA_RDY, whatever INT_ENABLE says */
         b->counts[CHIP_COUNT_MPU_SAMPLES] += (uint32_t)n;
         m->next_ns = last + p;
@@ -220,7 +239,7 @@ bool mpu_advance(chip_board *b, uint64_t now_ns, chip_need *need)
                 }
                 b->counts[CHIP_COUNT_MPU_UNDERRUNS]++;
             }
-            encode(m, m->last.v);
+            chip_mpu_encode(m->regs, m->last.v);
             if (aux)
                 aux_master(b, t);
             if (m->regs[MPU_USER_CTRL] & 0x40)

@@ -33,8 +33,8 @@ from typing import TYPE_CHECKING, Final
 import numpy as np
 
 from emulators import ms5611
-from emulators.chips.board import BaroFeed, take_samples
-from emulators.dlpf import DLPF, LowPass
+from emulators.chips.board import BaroFeed
+from emulators.dlpf import DLPF, LowPass, take_samples
 from emulators.mpu6050 import CONFIG, SMPLRT_DIV
 
 if TYPE_CHECKING:

@@ -18,11 +18,13 @@ from rig.bridge.firmware import M4_FLAGS
 
 REPO = Path(__file__).resolve().parents[2]
 CORE = REPO / "bridge" / "core"
-#: the chip core the bridge links: a stand-in until branch chip-core is merged (bridge/standin/)
-CHIPS = REPO / "bridge" / "standin"
+#: the chip core the bridge links: the one the lockstep session runs, and the firmware (emulators/chips)
+CHIPS = REPO / "emulators" / "chips"
+CHIP_CORE = CHIPS
 TABLE = [REPO / "rig" / "bridge" / "messages.py", REPO / "rig" / "bridge" / "gen.py"]
-#: the real chip core (emulators/chips), which the firmware links and the Cortex-M4 runs are built with
-CHIP_CORE = REPO / "emulators" / "chips"
+#: as the Makefile's BRIDGE_CFLAGS: strict C99, no fused multiply-adds (the M4 has them in single
+#: precision: the same bytes on both need the same arithmetic)
+FLAGS = ["-std=c99", "-pedantic", "-ffp-contract=off"]
 QEMU_DIR = REPO / "bridge" / "qemu"
 QEMU = "qemu-system-arm"
 #: a run under QEMU that takes longer than this is killed (the tests' own take well under a second)
@@ -32,8 +34,7 @@ QEMU_TIMEOUT_S = 60.0
 def _headers(chips: Path) -> list[Path]:
     """The generated headers (rewritten when their tables changed) and the include folders."""
     header = gen.write()
-    if chips == CHIP_CORE:
-        chips_gen.write()
+    chips_gen.write()
     return [header.parent, chips, CORE]
 
 
@@ -43,11 +44,12 @@ def build_tool(name: str, sources: list[Path], chips: Path = CHIPS, m4: bool = F
     out = BUILD / "bridge" / (f"{name}-m4.elf" if m4 else name)
     if m4:
         sources = [QEMU_DIR / "startup.c", *sources]
-    deps = [*sources, *CORE.glob("*.h"), *chips.glob("*.h"), *TABLE, *includes[0].glob("*.h")]
+    deps = [*sources, *CORE.glob("*.h"), *chips.glob("*.h"), *TABLE, *chips_gen.SOURCES,
+            *includes[0].glob("*.h")]
     if m4:
         deps.append(QEMU_DIR / "mps2_an386.ld")
     if is_stale(out, deps):
-        flags = ["-std=c99", "-pedantic", *(f"-I{i}" for i in includes)]
+        flags = [*FLAGS, *(f"-I{i}" for i in includes)]
         if m4:
             flags += [*M4_FLAGS, "--specs=rdimon.specs", f"-T{QEMU_DIR / 'mps2_an386.ld'}"]
         compile_c(sources, out, f"the bridge's {name}" + (" for the Cortex-M4" if m4 else ""), libs=["-lm"],
@@ -74,8 +76,7 @@ class Tool:
     """bridge_tool on the host (``host``), and, when ``m4`` is given, the Cortex-M4 build ``m4`` under
     QEMU with ``m4_twin``, the host build of the same sources: a script's output must be the same byte
     for byte on those two. The output returned is the M4's when ``m4_twin`` is ``host`` (the tests'
-    assertions then read what the M4 computed); until the chip-core switch makes CHIPS the real chip core,
-    ``host`` links the stand-in and the assertions read its output."""
+    assertions then read what the M4 computed)."""
 
     host: Path
     m4: Path | None = None
@@ -140,10 +141,9 @@ def vbridge() -> Path:
     """build/vbridge, as `make vbridge` builds it (rebuilt here when a source is newer)."""
     out = BUILD / "vbridge"
     sources = [REPO / "bridge" / "posix" / "vbridge.c", *sorted(CORE.glob("*.c")), *sorted(CHIPS.glob("*.c"))]
-    header = gen.write()
+    includes = [*_headers(CHIPS), REPO / "rig" / "shim"]
     if is_stale(out, [*sources, *CORE.glob("*.h"), *CHIPS.glob("*.h"), REPO / "rig" / "shim" / "protocol.h",
-                      *TABLE, header]):
-        includes = [header.parent, CHIPS, CORE, REPO / "rig" / "shim"]
+                      *TABLE, *chips_gen.SOURCES, *includes[0].glob("*.h")]):
         compile_c(sources, out, "the virtual bridge", libs=["-lm"],
-                  flags=["-std=c99", *(f"-I{i}" for i in includes)])
+                  flags=[*FLAGS, *(f"-I{i}" for i in includes)])
     return out

@@ -232,7 +232,9 @@ def test_a_bridge_mode_board_holds_the_last_sample_and_counts_underruns() -> Non
     assert z(500_000) == b"\x40\x00"      # the sample valid at 0
     assert z(1_500_000) == b"\xc0\x00"    # the one valid from 1 ms
     assert board.count("mpu_underruns") == 0
-    assert z(5_500_000) == b"\xc0\x00"    # nothing new: held, one underrun (only the last instant is seen)
-    assert board.count("mpu_underruns") == 1
+    assert z(5_500_000) == b"\xc0\x00"    # nothing new: held, an underrun at each instant (2, 3, 4, 5 ms)
+    assert board.count("mpu_underruns") == 4
+    push(a, 6_000_000, 1_000_000, 2, rows.ctypes.data, 7)  # valid from 6 and 7 ms; none for 8 and 9 ms
+    assert z(9_500_000) == b"\xc0\x00" and board.count("mpu_underruns") == 6
     assert board.peek(CHIP_MPU, 0x75) == 0x68 and board.peek(CHIP_HMC, 0x0A) == 0x48
     assert board.peek(CHIP_BARO, 0) == 0
