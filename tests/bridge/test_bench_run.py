@@ -61,7 +61,7 @@ def test_the_show_and_the_faults_pass_through_the_virtual_bridge(runs: dict[str,
         assert r["metadata"]["mode"] == "bridge"
 
 
-@pytest.mark.parametrize("name", [*SHOW, "fault_mag_nack"])
+@pytest.mark.parametrize("name", SHOW)
 def test_each_measurement_agrees_with_lockstep_within_its_derived_tolerance(runs: dict[str, Any],
                                                                              name: str) -> None:
     bench, lock = result(runs, "bench", name), result(runs, "lockstep", name)
