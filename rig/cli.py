@@ -38,6 +38,9 @@ def _dispatch(argv: list[str] | None) -> int:
     from rig.bridge import probe
 
     probe.add_parser(sub)
+    from rig.service import serve_cmd
+
+    serve_cmd.add_parser(sub)
     args = parser.parse_args(argv)
     if args.command == "exec":
         return exec_cmd.main(args)
@@ -47,6 +50,8 @@ def _dispatch(argv: list[str] | None) -> int:
         return report_cmd.main(args)
     if args.command == "bridge":
         return probe.main(args)
+    if args.command == "serve":
+        return serve_cmd.main(args)
     if args.command == "validate":
         return run_cmd.cmd_validate(args.scenarios)
     if args.command == "list":

@@ -1,0 +1,1 @@
+"""``rig serve``: the rig as a service (docs/service.md): an HTTP API over a persistent queue of runs."""

@@ -1,0 +1,177 @@
+"""The service's persistent state: one SQLite file in WAL mode (readers never wait for the writer), its
+schema versioned by ``PRAGMA user_version`` and brought up to date by the migrations below, in order.
+
+A run is a row: what was asked (scenarios, seed, DUT, mode, priority), where it stands (status,
+progress, the worker's process), and what came of it (exit code, error, per-scenario verdicts and
+measurements). The queue is the rows with status ``queued``, ordered by priority (higher first), then
+age; claiming one is a single write transaction (BEGIN IMMEDIATE), so two workers, in one process or
+two, never take the same run.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, Final
+
+#: migration k brings the schema from version k to k + 1
+MIGRATIONS: Final = (
+    """CREATE TABLE runs (
+        id INTEGER PRIMARY KEY,
+        created REAL NOT NULL,
+        status TEXT NOT NULL,
+        priority INTEGER NOT NULL,
+        mode TEXT NOT NULL,
+        seed INTEGER NOT NULL,
+        scenarios TEXT NOT NULL,
+        dut TEXT NOT NULL,
+        started REAL,
+        finished REAL,
+        exit_code INTEGER,
+        error TEXT,
+        progress REAL NOT NULL DEFAULT 0,
+        results TEXT NOT NULL DEFAULT '[]',
+        pid INTEGER
+    );
+    CREATE INDEX runs_queue ON runs (status, mode, priority, created);""",
+)
+SCHEMA_VERSION: Final = len(MIGRATIONS)
+TERMINAL: Final = ("passed", "failed", "error", "cancelled", "interrupted")
+STATUSES: Final = ("queued", "running", *TERMINAL)
+JSON_COLUMNS: Final = ("scenarios", "dut", "results")
+
+
+class Db:
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self._lock = threading.Lock()
+        self._conn = sqlite3.connect(path, isolation_level=None, check_same_thread=False, timeout=30)
+        self._conn.row_factory = sqlite3.Row
+        self._conn.execute("PRAGMA journal_mode=WAL")
+        self._migrate()
+
+    def _migrate(self) -> None:
+        with self.transaction() as c:
+            version = c.execute("PRAGMA user_version").fetchone()[0]
+            if version > SCHEMA_VERSION:
+                raise RuntimeError(f"{self.path}: schema version {version} is newer than this rig's "
+                                   f"({SCHEMA_VERSION}); use a newer rig or another --data folder")
+            for k in range(version, SCHEMA_VERSION):
+                for statement in MIGRATIONS[k].split(";"):
+                    if statement.strip():
+                        c.execute(statement)
+                c.execute(f"PRAGMA user_version = {k + 1}")
+
+    @contextmanager
+    def transaction(self) -> Iterator[sqlite3.Connection]:
+        """One write transaction, taken at once (BEGIN IMMEDIATE: no other writer meanwhile)."""
+        with self._lock:
+            self._conn.execute("BEGIN IMMEDIATE")
+            try:
+                yield self._conn
+            except BaseException:
+                self._conn.execute("ROLLBACK")
+                raise
+            self._conn.execute("COMMIT")
+
+    def close(self) -> None:
+        with self._lock:
+            self._conn.close()
+
+    # ---- runs ---------------------------------------------------------------------------------
+
+    def submit(self, scenarios: list[str], seed: int, dut: dict[str, str], mode: str, priority: int) -> int:
+        with self.transaction() as c:
+            cur = c.execute("INSERT INTO runs (created, status, priority, mode, seed, scenarios, dut) "
+                            "VALUES (?, 'queued', ?, ?, ?, ?, ?)",
+                            (time.time(), priority, mode, seed, json.dumps(scenarios), json.dumps(dut)))
+            assert cur.lastrowid is not None
+            return cur.lastrowid
+
+    def claim(self, mode: str) -> dict[str, Any] | None:
+        """The next queued run of this resource, now running (None: nothing queued)."""
+        with self.transaction() as c:
+            row = c.execute("SELECT id FROM runs WHERE status = 'queued' AND mode = ? "
+                            "ORDER BY priority DESC, created, id LIMIT 1", (mode,)).fetchone()
+            if row is None:
+                return None
+            c.execute("UPDATE runs SET status = 'running', started = ? WHERE id = ?",
+                      (time.time(), row["id"]))
+        return self.get(row["id"])
+
+    def update(self, run_id: int, **fields: Any) -> None:
+        for k in JSON_COLUMNS:
+            if k in fields:
+                fields[k] = json.dumps(fields[k])
+        sets = ", ".join(f"{k} = ?" for k in fields)
+        with self.transaction() as c:
+            c.execute(f"UPDATE runs SET {sets} WHERE id = ?", (*fields.values(), run_id))
+
+    def finish(self, run_id: int, status: str, **fields: Any) -> None:
+        """Ends a running run; one cancelled meanwhile keeps that status, and gets the rest."""
+        if not self.update_if(run_id, "running", status=status, finished=time.time(), **fields):
+            self.update(run_id, finished=time.time(), **fields)
+
+    def update_if(self, run_id: int, current: str, **fields: Any) -> bool:
+        for k in JSON_COLUMNS:
+            if k in fields:
+                fields[k] = json.dumps(fields[k])
+        sets = ", ".join(f"{k} = ?" for k in fields)
+        with self.transaction() as c:
+            cur = c.execute(f"UPDATE runs SET {sets} WHERE id = ? AND status = ?", (*fields.values(), run_id,
+                                                                                     current))
+            return cur.rowcount == 1
+
+    def get(self, run_id: int) -> dict[str, Any] | None:
+        with self._lock:
+            row = self._conn.execute("SELECT * FROM runs WHERE id = ?", (run_id,)).fetchone()
+            if row is None:
+                return None
+            run = _decode(row)
+            if run["status"] == "queued":
+                run["position"] = self._conn.execute(
+                    "SELECT COUNT(*) FROM runs WHERE status = 'queued' AND mode = ? AND "
+                    "(priority > ? OR (priority = ? AND (created < ? OR (created = ? AND id < ?))))",
+                    (run["mode"], run["priority"], run["priority"], run["created"], run["created"],
+                     run["id"])).fetchone()[0] + 1
+            else:
+                run["position"] = None
+            return run
+
+    def list(self, status: str | None = None, scenario: str | None = None, since: float | None = None,
+             limit: int = 50, offset: int = 0) -> list[dict[str, Any]]:
+        where: list[str] = []
+        args: list[object] = []
+        if status is not None:
+            where.append("status = ?")
+            args.append(status)
+        if since is not None:
+            where.append("created >= ?")
+            args.append(since)
+        if scenario is not None:  # a name among the JSON list, matched whole
+            where.append("EXISTS (SELECT 1 FROM json_each(runs.scenarios) WHERE json_each.value = ?)")
+            args.append(scenario)
+        sql = "SELECT * FROM runs" + (" WHERE " + " AND ".join(where) if where else "")
+        sql += " ORDER BY id DESC LIMIT ? OFFSET ?"
+        with self._lock:
+            return [_decode(r) for r in self._conn.execute(sql, (*args, limit, offset)).fetchall()]
+
+    def interrupt_running(self) -> int:
+        """At start: runs left running by a service that died are interrupted (their processes went
+        with it). Returns how many."""
+        with self.transaction() as c:
+            return c.execute("UPDATE runs SET status = 'interrupted', finished = ?, pid = NULL, "
+                             "error = 'the service stopped while this run was running' "
+                             "WHERE status = 'running'", (time.time(),)).rowcount
+
+
+def _decode(row: sqlite3.Row) -> dict[str, Any]:
+    run = dict(row)
+    for k in JSON_COLUMNS:
+        run[k] = json.loads(run[k])
+    return run

@@ -1,0 +1,149 @@
+"""The service's workers: one thread per resource slot (the bench, one; lockstep slots, one per core),
+each claiming the next queued run of its resource from the database and running it as ``rig run`` in a
+process of its own, with its reports in the run's artifact folder.
+
+The child runs in a session of its own (so cancelling ends it and everything it started, as SIGTERM
+ends ``rig run``: the DUT stopped, the reports of what finished written) and is tied to the service by
+PR_SET_PDEATHSIG: a service that dies, however, takes its runs with it, and the next start marks them
+interrupted (Db.interrupt_running).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import os
+import shlex
+import signal
+import subprocess
+import sys
+import threading
+from pathlib import Path
+from typing import Any, Final
+
+from rig.service.db import Db
+
+PR_SET_PDEATHSIG: Final = 1
+POLL_S: Final = 0.2
+KILL_GRACE_S: Final = 5.0
+#: rig run's exit status -> the run's status (anything else: error)
+STATUS_BY_EXIT: Final = {0: "passed", 1: "failed", 130: "interrupted", 143: "interrupted"}
+
+
+def _die_with_parent() -> None:  # (runs in the child between fork and exec)
+    ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+
+
+def command(run: dict[str, Any], out: Path) -> list[str]:
+    """``rig run`` for this run (the API checked every part before it was queued)."""
+    cmd = [sys.executable, "-m", "rig.cli", "run", *run["scenarios"], "--seed", str(run["seed"]),
+           "--out", str(out)]
+    if run["mode"] == "bridge":
+        cmd += ["--bridge", "virtual"]
+    if run["dut"].get("command"):
+        cmd += ["--dut", run["dut"]["command"]]
+    return cmd
+
+
+def results(out: Path, scenarios: list[str]) -> list[dict[str, Any]]:
+    """Each scenario's verdict and measurements, from the result.json rig run wrote (absent: not run)."""
+    found: list[dict[str, Any]] = []
+    for name in scenarios:
+        path = out / Path(name).stem / "result.json"
+        try:
+            r = json.loads(path.read_text())
+        except (OSError, ValueError):
+            found.append({"scenario": Path(name).stem, "verdict": "not run", "measurements": []})
+            continue
+        found.append({"scenario": r["scenario"], "verdict": r["verdict"], "error": r.get("error"),
+                      "measurements": [{k: m.get(k) for k in ("name", "value", "units", "min", "max",
+                                                                "outcome", "marginal")}
+                                       for m in r["measurements"]]})
+    return found
+
+
+class Workers:
+    def __init__(self, db: Db, artifacts: Path, lockstep_slots: int) -> None:
+        self.db, self.artifacts = db, artifacts
+        self._wake = threading.Condition()
+        self._stop = False
+        self._procs: dict[int, subprocess.Popen[bytes]] = {}
+        self._threads = [threading.Thread(target=self._loop, args=(mode,), daemon=True, name=f"{mode}-{k}")
+                         for mode, n in (("lockstep", lockstep_slots), ("bridge", 1)) for k in range(n)]
+
+    def start(self) -> None:
+        for t in self._threads:
+            t.start()
+
+    def wake(self) -> None:
+        with self._wake:
+            self._wake.notify_all()
+
+    def stop(self) -> None:
+        """The service is stopping: the runs under way end (interrupted, as at a restart)."""
+        self._stop = True
+        for proc in list(self._procs.values()):
+            _end(proc)
+        self.wake()
+        for t in self._threads:
+            t.join(timeout=KILL_GRACE_S + 1)
+
+    def cancel(self, run_id: int) -> None:
+        proc = self._procs.get(run_id)
+        if proc is not None:
+            _end(proc)
+
+    def _loop(self, mode: str) -> None:
+        while not self._stop:
+            run = self.db.claim(mode)
+            if run is None:
+                with self._wake:
+                    self._wake.wait(timeout=1.0)
+                continue
+            self._run(run)
+
+    def _run(self, run: dict[str, Any]) -> None:
+        out = self.artifacts / str(run["id"])
+        out.mkdir(parents=True, exist_ok=True)
+        cmd = command(run, out)
+        with open(out / "rig-run.log", "wb") as log:
+            try:
+                proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                        start_new_session=True, preexec_fn=_die_with_parent)
+            except OSError as e:
+                self.db.finish(run["id"], "error", error=f"could not start rig run: {e}")
+                return
+            self._procs[run["id"]] = proc
+            self.db.update(run["id"], pid=proc.pid)
+            total = len(run["scenarios"])
+            while True:
+                try:
+                    code = proc.wait(timeout=POLL_S)
+                    break
+                except subprocess.TimeoutExpired:
+                    done = sum((out / Path(s).stem / "result.json").is_file() for s in run["scenarios"])
+                    self.db.update(run["id"], progress=round(100.0 * done / total, 1))
+            self._procs.pop(run["id"], None)
+        status = STATUS_BY_EXIT.get(code, "error")
+        error = None if status in ("passed", "failed") else f"rig run exited with status {code}: " \
+            f"{_last_line(out / 'rig-run.log')}"
+        if self._stop:
+            status, error = "interrupted", "the service stopped while this run was running"
+        self.db.finish(run["id"], status, exit_code=code, error=error, progress=100.0, pid=None,
+                       results=results(out, run["scenarios"]))
+
+
+def _end(proc: subprocess.Popen[bytes]) -> None:
+    """SIGTERM to the run's session (rig run stops its DUT and writes its reports), SIGKILL after a grace."""
+    try:
+        os.killpg(proc.pid, signal.SIGTERM)
+        proc.wait(timeout=KILL_GRACE_S)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+
+
+def _last_line(log: Path) -> str:
+    lines = [x for x in log.read_text(errors="replace").splitlines() if x.strip()]
+    return shlex.quote(lines[-1][:300]) if lines else "(no output)"

@@ -1,0 +1,183 @@
+"""`rig serve` as its clients meet it: a real uvicorn on 127.0.0.1 (started as `rig serve`, waited for by
+the line it prints once it listens), spoken to over HTTP with the standard library's client. Runs
+submitted are run by `rig run` and their verdicts and measurements equal a plain `rig run` of the same
+seed; a restart loses nothing (the running run interrupted, its DUT gone; the queued one still there);
+a token is required when set; a bad scenario is refused in the validator's words."""
+
+from __future__ import annotations
+
+import json
+import os
+import select
+import signal
+import socket
+import subprocess
+import sys
+import urllib.error
+import urllib.request
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tests.waits import BOUND_S, pid_fifo, read_pid, wait_gone
+
+SPINNER = Path(__file__).resolve().parents[1] / "rig" / "device_clients" / "stubborn_spinner.py"
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@dataclass
+class Service:
+    proc: subprocess.Popen[str]
+    url: str
+    token: str | None = None
+
+    def call(self, method: str, path: str, body: object = None, token: str | None = None) -> tuple[int, Any]:
+        data = None if body is None else json.dumps(body).encode()
+        req = urllib.request.Request(self.url + path, data=data, method=method)
+        req.add_header("content-type", "application/json")
+        if token or self.token:
+            req.add_header("authorization", f"Bearer {token or self.token}")
+        try:
+            with urllib.request.urlopen(req, timeout=BOUND_S + 5) as r:
+                return r.status, json.loads(r.read())
+        except urllib.error.HTTPError as e:
+            return e.code, json.loads(e.read())
+
+    def follow(self, run_id: int) -> dict[str, Any]:
+        """The run once it has ended (the API's long poll: no sleeping here)."""
+        for _ in range(100):
+            status, run = self.call("GET", f"/api/runs/{run_id}?wait=30")
+            assert status == 200, run
+            if run["status"] in ("passed", "failed", "error", "cancelled", "interrupted"):
+                return run
+        raise AssertionError(f"run {run_id} did not end: {run}")
+
+    def until(self, run_id: int, status: str) -> dict[str, Any]:
+        for _ in range(100):
+            code, run = self.call("GET", f"/api/runs/{run_id}?wait=30")
+            if run["status"] == status:
+                return run
+        raise AssertionError(f"run {run_id} never became {status}: {run}")
+
+
+def start(data: Path, *extra: str, token: str | None = None) -> Service:
+    port = free_port()
+    args = [sys.executable, "-m", "rig.cli", "serve", "--port", str(port), "--data", str(data), *extra]
+    if token:
+        args += ["--token", token]
+    proc = subprocess.Popen(args, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
+    assert proc.stderr is not None
+    seen = ""
+    while "listening on" not in seen:
+        ready, _, _ = select.select([proc.stderr], [], [], BOUND_S)
+        line = proc.stderr.readline() if ready else ""
+        assert line, f"rig serve did not start: {seen}"
+        seen += line
+    return Service(proc, f"http://127.0.0.1:{port}", token)
+
+
+def stop(svc: Service, sig: int = signal.SIGTERM) -> None:
+    svc.proc.send_signal(sig)
+    svc.proc.wait(timeout=BOUND_S)
+
+
+@pytest.fixture
+def service(tmp_path: Path) -> Iterator[Service]:
+    svc = start(tmp_path / "data", "--slots", "2")
+    yield svc
+    stop(svc)
+
+
+def test_submitted_runs_equal_a_plain_rig_run_of_the_same_seed(service: Service, tmp_path: Path) -> None:
+    status, body = service.call("POST", "/api/runs", {"scenarios": ["seed000_roll_stand", "step_roll"],
+                                                      "seed": 3})
+    assert status == 201
+    run = service.follow(body["id"])
+    assert run["status"] == "passed" and run["progress"] == 100.0 and run["exit_code"] == 0
+    plain = subprocess.run([sys.executable, "-m", "rig.cli", "run", "seed000_roll_stand", "step_roll",
+                            "--seed", "3", "--out", str(tmp_path / "plain")], capture_output=True, text=True)
+    assert plain.returncode == 0, plain.stderr
+    for r in run["results"]:
+        expected = json.loads((tmp_path / "plain" / r["scenario"] / "result.json").read_text())
+        assert r["verdict"] == expected["verdict"] == "pass"
+        assert [(m["name"], m["value"]) for m in r["measurements"]] == \
+            [(m["name"], m["value"]) for m in expected["measurements"]]  # lockstep: the very same values
+    listed = service.call("GET", "/api/runs?status=passed&scenario=step_roll")[1]
+    assert [r["id"] for r in listed] == [body["id"]]
+    assert service.call("GET", "/api/runs?scenario=hover_turbulence")[1] == []
+    assert service.call("GET", "/openapi.json")[1]["info"]["title"] == "quadrotor HIL rig"
+
+
+def test_bad_requests_are_refused_in_the_validators_words(service: Service) -> None:
+    bad = ["step_roll", "no_such", "../../etc/passwd"]
+    status, body = service.call("POST", "/api/runs", {"scenarios": bad})
+    assert status == 422
+    problems = body["detail"]["problems"]
+    assert len(problems) == 2 and all("no library scenario of that name" in p for p in problems)
+    status, body = service.call("POST", "/api/runs", {"scenarios": ["step_roll"],
+                                                      "dut": {"command": "'open"}})
+    assert status == 422 and "No closing quotation" in json.dumps(body)
+    assert service.call("POST", "/api/runs", {"scenarios": []})[0] == 422
+    assert service.call("POST", "/api/runs", {"scenarios": ["step_roll"], "mode": "warp"})[0] == 422
+    assert service.call("GET", "/api/runs/999")[0] == 404
+    assert service.call("GET", "/api/runs?status=sleeping")[0] == 422
+    assert service.call("GET", "/api/runs")[1] == []  # nothing was queued
+
+
+def test_a_cancelled_run_stops_its_dut(service: Service, tmp_path: Path) -> None:
+    fifo = pid_fifo(tmp_path / "pid")
+    _, body = service.call("POST", "/api/runs", {"scenarios": ["step_roll"],
+                                                 "dut": {"command": f"{sys.executable} {SPINNER} {fifo}"}})
+    dut = read_pid(fifo)
+    assert service.until(body["id"], "running")["pid"] is not None
+    status, run = service.call("DELETE", f"/api/runs/{body['id']}")
+    assert status == 200 and run["status"] == "cancelled"
+    assert wait_gone(dut)
+    assert service.follow(body["id"])["status"] == "cancelled"
+    assert service.call("DELETE", f"/api/runs/{body['id']}")[0] == 409
+
+
+def test_a_restart_interrupts_the_running_run_and_keeps_the_queued_one(tmp_path: Path) -> None:
+    svc = start(tmp_path / "data", "--slots", "1")
+    fifo = pid_fifo(tmp_path / "pid")
+    try:
+        _, first = svc.call("POST", "/api/runs", {"scenarios": ["step_roll"],
+                                                  "dut": {"command": f"{sys.executable} {SPINNER} {fifo}"}})
+        dut = read_pid(fifo)
+        _, second = svc.call("POST", "/api/runs", {"scenarios": ["step_roll"], "priority": 5})
+        queued = svc.call("GET", f"/api/runs/{second['id']}")[1]
+        assert queued["status"] == "queued" and queued["position"] == 1
+    finally:
+        stop(svc, signal.SIGKILL)  # the service dies outright
+    assert wait_gone(dut)  # its run's rig run, and that run's DUT, went with it
+    svc = start(tmp_path / "data", "--slots", "1")
+    try:
+        assert svc.call("GET", f"/api/runs/{first['id']}")[1]["status"] == "interrupted"
+        assert svc.follow(second["id"])["status"] == "passed"  # still queued, then run
+    finally:
+        stop(svc)
+
+
+def test_a_token_is_required_when_set_and_beyond_loopback(tmp_path: Path) -> None:
+    svc = start(tmp_path / "data", token="s3cret")
+    try:
+        svc.token = None
+        assert svc.call("GET", "/api/health")[0] == 401
+        assert svc.call("GET", "/api/health", token="wrong")[0] == 401
+        status, body = svc.call("GET", "/api/health", token="s3cret")
+        assert status == 200 and body["status"] == "ok"
+    finally:
+        stop(svc)
+    refused = subprocess.run([sys.executable, "-m", "rig.cli", "serve", "--host", "0.0.0.0", "--port", "1",
+                              "--data", str(tmp_path / "x")], capture_output=True, text=True,
+                             env={k: v for k, v in os.environ.items() if k != "RIG_TOKEN"}, timeout=BOUND_S)
+    assert refused.returncode == 2 and "--token" in refused.stderr
+    assert not (tmp_path / "x").exists()  # refused before anything was made
