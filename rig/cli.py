@@ -38,9 +38,10 @@ def _dispatch(argv: list[str] | None) -> int:
     from rig.bridge import probe
 
     probe.add_parser(sub)
-    from rig.service import serve_cmd
+    from rig.service import client, serve_cmd
 
     serve_cmd.add_parser(sub)
+    client.add_parsers(sub)
     args = parser.parse_args(argv)
     if args.command == "exec":
         return exec_cmd.main(args)
@@ -52,6 +53,10 @@ def _dispatch(argv: list[str] | None) -> int:
         return probe.main(args)
     if args.command == "serve":
         return serve_cmd.main(args)
+    if args.command == "submit":
+        return client.cmd_submit(args)
+    if args.command == "status":
+        return client.cmd_status(args)
     if args.command == "validate":
         return run_cmd.cmd_validate(args.scenarios)
     if args.command == "list":

@@ -181,3 +181,25 @@ def test_a_token_is_required_when_set_and_beyond_loopback(tmp_path: Path) -> Non
                              env={k: v for k, v in os.environ.items() if k != "RIG_TOKEN"}, timeout=BOUND_S)
     assert refused.returncode == 2 and "--token" in refused.stderr
     assert not (tmp_path / "x").exists()  # refused before anything was made
+
+
+def rig(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "rig.cli", *args], capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_rig_submit_waits_and_exits_with_rig_runs_codes(service: Service) -> None:
+    done = rig("submit", "--server", service.url, "step_roll", "--seed", "1", "--wait")
+    assert done.returncode == 0, done.stderr
+    run_id = int(done.stdout.split()[0])
+    assert "passed 100 %" in done.stderr and "step_roll pass" in done.stderr
+    status = rig("status", "--server", service.url, str(run_id))
+    assert status.returncode == 0 and f"run {run_id}: passed" in status.stdout
+    # a DUT that exits at once: the run is an error, and so is submit's exit status (3, as rig run's)
+    done = rig("submit", "--server", service.url, "step_roll", "--dut", "true", "--wait")
+    assert done.returncode == 3, done.stderr
+    bad = rig("submit", "--server", service.url, "no_such_scenario")
+    assert bad.returncode == 2 and "no library scenario of that name" in bad.stderr
+    assert rig("status", "--server", service.url, "999").returncode == 2
+    gone = rig("status", "--server", f"http://127.0.0.1:{free_port()}")
+    assert gone.returncode == 4 and "cannot reach" in gone.stderr

@@ -1,0 +1,115 @@
+"""``rig submit`` and ``rig status``: the command line as a client of ``rig serve`` (docs/service.md).
+
+``rig submit --server URL [SCENARIO…] [--seed N] [--dut CMD] [--bridge virtual] [--priority P]
+[--wait]`` queues a run and prints its id; with ``--wait`` it follows the run (one line per change of
+status or progress, on stderr) and exits as ``rig run`` would: 0 passed, 1 failed, 3 error, 130
+interrupted or cancelled. ``rig status --server URL [ID]`` prints one run, or the latest ones. The token
+comes from ``--token`` or ``$RIG_TOKEN``. Only the standard library speaks HTTP here.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import urllib.error
+import urllib.request
+from typing import Any
+
+EXIT_BY_STATUS = {"passed": 0, "failed": 1, "error": 3, "interrupted": 130, "cancelled": 130}
+EXIT_USAGE, EXIT_UNREACHABLE = 2, 4
+
+
+class ClientError(Exception):
+    """What went wrong, and the HTTP status when the service answered (None: it could not be reached)."""
+
+    def __init__(self, message: str, status: int | None = None) -> None:
+        super().__init__(message)
+        self.status = status
+
+    @property
+    def exit_code(self) -> int:
+        """2 for a request the service refused (bad usage), 4 when it could not answer."""
+        return EXIT_USAGE if self.status is not None and 400 <= self.status < 500 else EXIT_UNREACHABLE
+
+
+def call(server: str, method: str, path: str, token: str | None, body: object = None,
+         timeout: float = 90.0) -> Any:
+    req = urllib.request.Request(server.rstrip("/") + path, method=method,
+                                 data=None if body is None else json.dumps(body).encode())
+    req.add_header("content-type", "application/json")
+    if token:
+        req.add_header("authorization", f"Bearer {token}")
+    try:
+        with urllib.request.urlopen(req, timeout=timeout) as r:
+            return json.loads(r.read())
+    except urllib.error.HTTPError as e:
+        try:
+            detail = json.loads(e.read()).get("detail")
+        except ValueError:
+            detail = e.reason
+        problems = detail.get("problems") if isinstance(detail, dict) else None
+        raise ClientError("\n".join(problems) if problems else f"HTTP {e.code}: {detail}", e.code) from e
+    except (urllib.error.URLError, OSError, ValueError) as e:
+        raise ClientError(f"cannot reach {server}: {e}") from e
+
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:
+    s = sub.add_parser("submit", help="queue a run on a rig service (rig serve) and print its id")
+    s.add_argument("--server", required=True, metavar="URL", help="e.g. http://127.0.0.1:8300")
+    s.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="library scenario names")
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--dut", help="the DUT command line (default: the reference FC)")
+    s.add_argument("--bridge", choices=["virtual"], help="run on the service's bench (the virtual bridge)")
+    s.add_argument("--priority", type=int, default=0, help="higher runs first (-100..100)")
+    s.add_argument("--wait", action="store_true", help="follow the run and exit with rig run's codes")
+    s.add_argument("--token", default=os.environ.get("RIG_TOKEN"))
+    t = sub.add_parser("status", help="a run on a rig service, or the latest runs")
+    t.add_argument("--server", required=True, metavar="URL")
+    t.add_argument("id", nargs="?", type=int)
+    t.add_argument("--token", default=os.environ.get("RIG_TOKEN"))
+
+
+def line(run: dict[str, Any]) -> str:
+    where = f" (position {run['position']})" if run.get("position") else ""
+    verdicts = ", ".join(f"{r['scenario']} {r['verdict']}" for r in run.get("results") or [])
+    return (f"run {run['id']}: {run['status']}{where} {run['progress']:.0f} %"
+            + (f" — {verdicts}" if verdicts else "") + (f" — {run['error']}" if run.get("error") else ""))
+
+
+def cmd_submit(args: argparse.Namespace) -> int:
+    body: dict[str, Any] = {"scenarios": args.scenarios, "seed": args.seed, "priority": args.priority,
+                            "mode": "bridge" if args.bridge else "lockstep"}
+    if args.dut:
+        body["dut"] = {"command": args.dut}
+    try:
+        run_id = call(args.server, "POST", "/api/runs", args.token, body)["id"]
+        print(run_id, flush=True)
+        if not args.wait:
+            return 0
+        seen = ""
+        while True:
+            run = call(args.server, "GET", f"/api/runs/{run_id}?wait=30", args.token)
+            if line(run) != seen:
+                seen = line(run)
+                print(seen, file=sys.stderr, flush=True)
+            if run["status"] in EXIT_BY_STATUS:
+                return EXIT_BY_STATUS[run["status"]]
+    except ClientError as e:
+        for problem in str(e).splitlines():
+            print(f"rig submit: {problem}", file=sys.stderr)
+        return e.exit_code
+
+
+def cmd_status(args: argparse.Namespace) -> int:
+    try:
+        if args.id is not None:
+            print(line(call(args.server, "GET", f"/api/runs/{args.id}", args.token)))
+        else:
+            for run in call(args.server, "GET", "/api/runs?limit=20", args.token):
+                print(line(run))
+    except ClientError as e:
+        print(f"rig status: {e}", file=sys.stderr)
+        return e.exit_code
+    return 0
