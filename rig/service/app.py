@@ -9,12 +9,15 @@ With a token every request must carry it (``Authorization: Bearer TOKEN``).
 from __future__ import annotations
 
 import hmac
+import json
 import shlex
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Literal
 
 from fastapi import Depends, FastAPI, HTTPException, Query, Request
+from fastapi.responses import FileResponse, StreamingResponse
 from pydantic import BaseModel, Field
 
 from rig import __version__
@@ -52,7 +55,7 @@ def check_scenarios(names: list[str]) -> list[str]:
     return problems
 
 
-def create_app(db: Db, workers: Workers, token: str | None) -> FastAPI:
+def create_app(db: Db, workers: Workers, token: str | None, artifacts: Path | None = None) -> FastAPI:
     """The API over ``db``, its runs executed by ``workers``."""
 
     def authorised(request: Request) -> None:
@@ -125,6 +128,53 @@ def create_app(db: Db, workers: Workers, token: str | None) -> FastAPI:
             if (found["status"], found["progress"]) != seen:
                 break
         return found
+
+    def _folder(run_id: int) -> Path:
+        if db.get(run_id) is None or artifacts is None:
+            raise HTTPException(404, f"no run {run_id}")
+        return (artifacts / str(run_id)).resolve()
+
+    @app.get("/api/runs/{run_id}/artifacts")
+    def artifact_list(run_id: int) -> list[str]:
+        """The run's files: the suite's junit.xml and index.html, each scenario's result.json,
+        telemetry.csv, report.html, junit.xml and the DUT's output."""
+        folder = _folder(run_id)
+        if not folder.is_dir():
+            return []
+        return sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file()
+                      and not p.is_symlink() and not p.name.startswith("."))
+
+    @app.get("/api/runs/{run_id}/artifacts/{name:path}")
+    def artifact(run_id: int, name: str) -> FileResponse:
+        folder = _folder(run_id)
+        path = (folder / name).resolve()
+        # only a file inside the run's own folder, reached by no link and no hidden name
+        if (not path.is_relative_to(folder) or not path.is_file() or (folder / name).is_symlink()
+                or any(part.startswith(".") for part in Path(name).parts)):
+            raise HTTPException(404, f"run {run_id} has no artifact {name!r}")
+        return FileResponse(path)
+
+    @app.get("/api/runs/{run_id}/events")
+    def events(run_id: int) -> StreamingResponse:
+        """Server-sent events: the run as JSON each time its status or progress changes, until it ends."""
+        if db.get(run_id) is None:
+            raise HTTPException(404, f"no run {run_id}")
+
+        def stream() -> Iterator[str]:
+            seen: tuple[object, object] | None = None
+            while True:
+                found = db.get(run_id)
+                if found is None:
+                    return
+                now = (found["status"], found["progress"])
+                if now != seen:
+                    seen = now
+                    yield f"event: run\ndata: {json.dumps(found)}\n\n"
+                if found["status"] in TERMINAL:
+                    return
+                time.sleep(WAIT_POLL_S)
+
+        return StreamingResponse(stream(), media_type="text/event-stream")
 
     @app.delete("/api/runs/{run_id}")
     def cancel(run_id: int) -> dict[str, Any]:

@@ -58,8 +58,8 @@ def main(args: argparse.Namespace) -> int:
               file=sys.stderr)
     workers = Workers(db, args.data / "runs", args.slots)
     workers.start()
-    config = uvicorn.Config(create_app(db, workers, args.token), host=args.host, port=args.port,
-                            log_level="warning")
+    app = create_app(db, workers, args.token, args.data / "runs")
+    config = uvicorn.Config(app, host=args.host, port=args.port, log_level="warning")
     server = uvicorn.Server(config)
 
     def announce() -> None:  # the line a test or a supervisor waits for, once the socket listens

@@ -203,3 +203,24 @@ def test_rig_submit_waits_and_exits_with_rig_runs_codes(service: Service) -> Non
     assert rig("status", "--server", service.url, "999").returncode == 2
     gone = rig("status", "--server", f"http://127.0.0.1:{free_port()}")
     assert gone.returncode == 4 and "cannot reach" in gone.stderr
+
+
+def test_a_runs_artifacts_and_events_are_served_and_nothing_else(service: Service) -> None:
+    _, body = service.call("POST", "/api/runs", {"scenarios": ["step_roll"]})
+    run_id = body["id"]
+    with urllib.request.urlopen(f"{service.url}/api/runs/{run_id}/events", timeout=BOUND_S) as r:
+        lines = r.read().decode().splitlines()
+    events = [json.loads(x[len("data: "):]) for x in lines if x.startswith("data: ")]
+    assert events[-1]["status"] == "passed" and events[-1]["progress"] == 100.0  # it ends with the run
+    assert len({(e["status"], e["progress"]) for e in events}) == len(events)  # one event per change
+    _, names = service.call("GET", f"/api/runs/{run_id}/artifacts")
+    assert {"junit.xml", "index.html", "step_roll/result.json", "step_roll/report.html",
+            "step_roll/telemetry.csv"} <= set(names)
+    with urllib.request.urlopen(f"{service.url}/api/runs/{run_id}/artifacts/step_roll/result.json") as r:
+        served = json.loads(r.read())
+    run = service.call("GET", f"/api/runs/{run_id}")[1]
+    assert [m["value"] for m in served["measurements"]] == \
+        [m["value"] for m in run["results"][0]["measurements"]]
+    for bad in ("../../rig.sqlite", "..%2F..%2Frig.sqlite", "/etc/passwd", ".rig-run.json", "nothing.txt"):
+        assert service.call("GET", f"/api/runs/{run_id}/artifacts/{bad}")[0] == 404, bad
+    assert service.call("GET", "/api/runs/999/artifacts")[0] == 404
