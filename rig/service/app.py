@@ -22,9 +22,11 @@ from pydantic import BaseModel, Field
 
 from rig import __version__
 from rig.service.db import SCHEMA_VERSION, STATUSES, TERMINAL, Db
+from rig.service.store import MAX_SCENARIO, Store, UploadError
 from rig.service.worker import Workers
 
 MAX_SCENARIOS = 100
+VERDICTS = {"pass": "passed", "fail": "failed", "error": "error"}
 WAIT_POLL_S = 0.1
 
 
@@ -36,27 +38,37 @@ class RunRequest(BaseModel):
     priority: int = Field(default=0, ge=-100, le=100)
 
 
-def check_scenarios(names: list[str]) -> list[str]:
-    """Library names (the service runs only what its library holds): each loaded by the validator;
-    the problems, in its words."""
-    from rig.run_cmd import LIBRARY
+def check_run(req: RunRequest, store: Store) -> list[str]:
+    """Every problem of a run request, in words (the validator's for the scenarios)."""
     from scenarios.schema import ScenarioError, load
 
     problems = []
-    for name in names:
-        path = LIBRARY / f"{Path(name).stem}.toml"
-        if not name or "/" in name or name.startswith(".") or not path.is_file():
-            problems.append(f"{name!r}: no library scenario of that name (GET /api/scenarios lists them)")
+    for name in req.scenarios:
+        path = store.scenario(name)
+        if path is None:
+            problems.append(f"{name!r}: no library scenario of that name, and none uploaded "
+                            "(GET /api/scenarios lists them)")
             continue
         try:
             load(path)
         except ScenarioError as e:
             problems.append(str(e))
+    kinds = set(req.dut)
+    if kinds - {"command", "firmware"} or len(kinds) > 1:
+        problems.append("dut: {\"command\": \"...\"} or {\"firmware\": SHA256} (POST /api/firmware first)")
+    elif "firmware" in kinds and store.firmware(req.dut["firmware"]) is None:
+        problems.append(f"dut.firmware: no uploaded firmware {req.dut['firmware']!r} (POST /api/firmware)")
+    elif "command" in kinds:
+        try:
+            if not shlex.split(req.dut["command"]):
+                problems.append("dut.command is empty")
+        except ValueError as e:
+            problems.append(f"dut.command: {e}")
     return problems
 
 
-def create_app(db: Db, workers: Workers, token: str | None, artifacts: Path | None = None) -> FastAPI:
-    """The API over ``db``, its runs executed by ``workers``."""
+def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifacts: Path) -> FastAPI:
+    """The API over ``db``, its runs executed by ``workers``, uploads in ``store``."""
 
     def authorised(request: Request) -> None:
         if token is None:
@@ -74,44 +86,71 @@ def create_app(db: Db, workers: Workers, token: str | None, artifacts: Path | No
 
     @app.get("/api/scenarios")
     def scenarios() -> list[dict[str, Any]]:
+        """The library's scenarios, then the uploaded ones."""
         from rig.run_cmd import resolve
         from scenarios.schema import ScenarioError, load
 
         out = []
-        for p in resolve([]):
-            try:
-                sc = load(p)
-                out.append({"name": p.stem, "title": sc.name, "duration": sc.duration})
-            except ScenarioError as e:
-                out.append({"name": p.stem, "error": str(e)})
+        for origin, paths in (("library", resolve([])), ("uploaded", store.uploaded_scenarios())):
+            for p in paths:
+                try:
+                    sc = load(p)
+                    out.append({"name": p.stem, "origin": origin, "title": sc.name, "duration": sc.duration})
+                except ScenarioError as e:
+                    out.append({"name": p.stem, "origin": origin, "error": str(e)})
         return out
+
+    @app.post("/api/scenarios", status_code=201)
+    async def upload_scenario(request: Request, name: str = Query()) -> dict[str, Any]:
+        """A scenario file (TOML, the request's body), checked by the validator ``rig validate`` uses
+        (its words returned as they are, 422) and stored as NAME."""
+        body = b""
+        async for chunk in request.stream():
+            body += chunk
+            if len(body) > MAX_SCENARIO:
+                raise HTTPException(413, f"a scenario over {MAX_SCENARIO} bytes")
+        try:
+            store.put_scenario(name, body)
+        except UploadError as e:
+            raise HTTPException(e.status, str(e)) from e
+        return {"name": name}
+
+    @app.post("/api/firmware", status_code=201)
+    async def upload_firmware(request: Request) -> dict[str, Any]:
+        """A DUT program (the request's body), stored once under its SHA-256."""
+        try:
+            sha, size = await store.put_firmware(request.stream())
+        except UploadError as e:
+            raise HTTPException(e.status, str(e)) from e
+        return {"sha256": sha, "size": size}
+
+    @app.get("/api/firmware")
+    def firmware() -> list[dict[str, object]]:
+        return store.firmware_list()
 
     @app.post("/api/runs", status_code=201)
     def submit(req: RunRequest) -> dict[str, Any]:
-        problems = check_scenarios(req.scenarios)
-        if set(req.dut) - {"command"}:
-            problems.append("dut: {'command': '...'} (firmware uploads come with a later version of the "
-                            "service)")
-        command = req.dut.get("command")
-        if command is not None:
-            try:
-                if not shlex.split(command):
-                    problems.append("dut.command is empty")
-            except ValueError as e:
-                problems.append(f"dut.command: {e}")
+        problems = check_run(req, store)
         if problems:
             raise HTTPException(422, {"problems": problems})
-        run_id = db.submit([Path(s).stem for s in req.scenarios], req.seed, req.dut, req.mode, req.priority)
+        run_id = db.submit(req.scenarios, req.seed, req.dut, req.mode, req.priority)
         workers.wake()
         return {"id": run_id}
 
     @app.get("/api/runs")
-    def runs(status: str | None = Query(default=None), scenario: str | None = None,
-             since: float | None = None, limit: int = Query(default=50, ge=1, le=500),
+    def runs(status: str | None = Query(default=None), verdict: str | None = None,
+             scenario: str | None = None, firmware: str | None = None, since: float | None = None,
+             limit: int = Query(default=50, ge=1, le=500),
              offset: int = Query(default=0, ge=0)) -> list[dict[str, Any]]:
+        """The runs, newest first. ``verdict`` (pass, fail, error) names a run's outcome as rig run's
+        verdicts do; ``firmware`` is an uploaded firmware's SHA-256."""
         if status is not None and status not in STATUSES:
             raise HTTPException(422, f"status is one of {', '.join(STATUSES)}")
-        return db.list(status, scenario, since, limit, offset)
+        if verdict is not None:
+            if verdict not in VERDICTS or (status is not None and status != VERDICTS[verdict]):
+                raise HTTPException(422, f"verdict is one of {', '.join(VERDICTS)} (and agrees with status)")
+            status = VERDICTS[verdict]
+        return db.list(status, scenario, since, limit, offset, firmware)
 
     @app.get("/api/runs/{run_id}")
     def run(run_id: int, wait: float = Query(default=0.0, ge=0.0, le=60.0)) -> dict[str, Any]:
@@ -130,7 +169,7 @@ def create_app(db: Db, workers: Workers, token: str | None, artifacts: Path | No
         return found
 
     def _folder(run_id: int) -> Path:
-        if db.get(run_id) is None or artifacts is None:
+        if db.get(run_id) is None:
             raise HTTPException(404, f"no run {run_id}")
         return (artifacts / str(run_id)).resolve()
 

@@ -144,7 +144,7 @@ class Db:
             return run
 
     def list(self, status: str | None = None, scenario: str | None = None, since: float | None = None,
-             limit: int = 50, offset: int = 0) -> list[dict[str, Any]]:
+             limit: int = 50, offset: int = 0, firmware: str | None = None) -> list[dict[str, Any]]:
         where: list[str] = []
         args: list[object] = []
         if status is not None:
@@ -156,6 +156,9 @@ class Db:
         if scenario is not None:  # a name among the JSON list, matched whole
             where.append("EXISTS (SELECT 1 FROM json_each(runs.scenarios) WHERE json_each.value = ?)")
             args.append(scenario)
+        if firmware is not None:
+            where.append("json_extract(dut, '$.firmware') = ?")
+            args.append(firmware)
         sql = "SELECT * FROM runs" + (" WHERE " + " AND ".join(where) if where else "")
         sql += " ORDER BY id DESC LIMIT ? OFFSET ?"
         with self._lock:

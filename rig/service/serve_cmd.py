@@ -48,6 +48,7 @@ def main(args: argparse.Namespace) -> int:
 
     from rig.service.app import create_app
     from rig.service.db import Db
+    from rig.service.store import Store
     from rig.service.worker import Workers
 
     args.data.mkdir(parents=True, exist_ok=True)
@@ -56,9 +57,10 @@ def main(args: argparse.Namespace) -> int:
     if interrupted:
         print(f"rig serve: {interrupted} run(s) were running when the service last stopped: interrupted",
               file=sys.stderr)
-    workers = Workers(db, args.data / "runs", args.slots)
+    store = Store(args.data)
+    workers = Workers(db, args.data / "runs", store, args.slots)
     workers.start()
-    app = create_app(db, workers, args.token, args.data / "runs")
+    app = create_app(db, workers, args.token, store, args.data / "runs")
     config = uvicorn.Config(app, host=args.host, port=args.port, log_level="warning")
     server = uvicorn.Server(config)
 

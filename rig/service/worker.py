@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any, Final
 
 from rig.service.db import Db
+from rig.service.store import Store
 
 PR_SET_PDEATHSIG: Final = 1
 POLL_S: Final = 0.2
@@ -34,14 +35,23 @@ def _die_with_parent() -> None:  # (runs in the child between fork and exec)
     ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
 
 
-def command(run: dict[str, Any], out: Path) -> list[str]:
-    """``rig run`` for this run (the API checked every part before it was queued)."""
-    cmd = [sys.executable, "-m", "rig.cli", "run", *run["scenarios"], "--seed", str(run["seed"]),
+def command(run: dict[str, Any], out: Path, store: Store) -> list[str]:
+    """``rig run`` for this run (the API checked every part before it was queued; what an upload that
+    went missing since cannot give is refused here, as an error of the run)."""
+    paths = [store.scenario(name) for name in run["scenarios"]]
+    if None in paths:
+        raise LookupError(f"a scenario of this run is no longer there: {run['scenarios']}")
+    cmd = [sys.executable, "-m", "rig.cli", "run", *map(str, paths), "--seed", str(run["seed"]),
            "--out", str(out)]
     if run["mode"] == "bridge":
         cmd += ["--bridge", "virtual"]
     if run["dut"].get("command"):
         cmd += ["--dut", run["dut"]["command"]]
+    elif run["dut"].get("firmware"):
+        program = store.firmware(run["dut"]["firmware"])
+        if program is None:
+            raise LookupError(f"the firmware {run['dut']['firmware']} is no longer there")
+        cmd += ["--dut", shlex.quote(str(program))]
     return cmd
 
 
@@ -63,8 +73,8 @@ def results(out: Path, scenarios: list[str]) -> list[dict[str, Any]]:
 
 
 class Workers:
-    def __init__(self, db: Db, artifacts: Path, lockstep_slots: int) -> None:
-        self.db, self.artifacts = db, artifacts
+    def __init__(self, db: Db, artifacts: Path, store: Store, lockstep_slots: int) -> None:
+        self.db, self.artifacts, self.store = db, artifacts, store
         self._wake = threading.Condition()
         self._stop = False
         self._procs: dict[int, subprocess.Popen[bytes]] = {}
@@ -105,7 +115,11 @@ class Workers:
     def _run(self, run: dict[str, Any]) -> None:
         out = self.artifacts / str(run["id"])
         out.mkdir(parents=True, exist_ok=True)
-        cmd = command(run, out)
+        try:
+            cmd = command(run, out, self.store)
+        except LookupError as e:
+            self.db.finish(run["id"], "error", error=str(e))
+            return
         with open(out / "rig-run.log", "wb") as log:
             try:
                 proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,

@@ -224,3 +224,45 @@ def test_a_runs_artifacts_and_events_are_served_and_nothing_else(service: Servic
     for bad in ("../../rig.sqlite", "..%2F..%2Frig.sqlite", "/etc/passwd", ".rig-run.json", "nothing.txt"):
         assert service.call("GET", f"/api/runs/{run_id}/artifacts/{bad}")[0] == 404, bad
     assert service.call("GET", "/api/runs/999/artifacts")[0] == 404
+
+
+def post_bytes(svc: Service, path: str, data: bytes) -> tuple[int, Any]:
+    req = urllib.request.Request(svc.url + path, data=data, method="POST")
+    req.add_header("content-type", "application/octet-stream")
+    try:
+        with urllib.request.urlopen(req, timeout=BOUND_S) as r:
+            return r.status, json.loads(r.read())
+    except urllib.error.HTTPError as e:
+        return e.code, json.loads(e.read())
+
+
+def test_uploads_are_checked_stored_once_and_run(service: Service, tmp_path: Path) -> None:
+    import hashlib
+
+    program = b"#!/bin/sh\necho 'a firmware that will not fly' >&2\nexit 3\n"
+    status, fw = post_bytes(service, "/api/firmware", program)
+    assert status == 201 and fw == {"sha256": hashlib.sha256(program).hexdigest(), "size": len(program)}
+    assert post_bytes(service, "/api/firmware", program)[1] == fw  # stored once
+    assert post_bytes(service, "/api/firmware", b"")[0] == 422
+    assert [f["sha256"] for f in service.call("GET", "/api/firmware")[1]] == [fw["sha256"]]
+    # a scenario: the validator's words for a bad one, a library name refused, a good one run
+    text = (Path(__file__).resolve().parents[2] / "scenarios" / "library" / "step_roll.toml").read_text()
+    assert post_bytes(service, "/api/scenarios?name=my_roll", text.encode())[0] == 201
+    status, body = post_bytes(service, "/api/scenarios?name=broken", b"[scenario]\nduration = -1\n")
+    assert status == 422 and "broken.toml" in body["detail"] and "duration" in body["detail"]
+    assert post_bytes(service, "/api/scenarios?name=step_roll", text.encode())[0] == 409
+    assert post_bytes(service, "/api/scenarios?name=../x", text.encode())[0] == 422
+    assert post_bytes(service, "/api/scenarios?name=huge", b"#" * (300 << 10))[0] == 413
+    listed = {s["name"]: s["origin"] for s in service.call("GET", "/api/scenarios")[1]}
+    assert listed["my_roll"] == "uploaded" and listed["step_roll"] == "library" and "broken" not in listed
+    _, good = service.call("POST", "/api/runs", {"scenarios": ["my_roll"]})
+    _, bad = service.call("POST", "/api/runs", {"scenarios": ["my_roll"], "dut": {"firmware": fw["sha256"]}})
+    assert service.follow(good["id"])["status"] == "passed"
+    run = service.follow(bad["id"])
+    assert run["status"] == "error" and run["results"][0]["verdict"] == "error"
+    served = service.call("GET", f"/api/runs/{bad['id']}/artifacts/my_roll/result.json")[1]
+    assert served["metadata"]["dut_program_sha256"] == fw["sha256"]  # the uploaded program ran
+    assert [r["id"] for r in service.call("GET", f"/api/runs?firmware={fw['sha256']}")[1]] == [bad["id"]]
+    assert [r["id"] for r in service.call("GET", "/api/runs?verdict=pass")[1]] == [good["id"]]
+    unknown = {"scenarios": ["my_roll"], "dut": {"firmware": "0" * 64}}
+    assert service.call("POST", "/api/runs", unknown)[0] == 422
