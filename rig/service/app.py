@@ -227,4 +227,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         workers.cancel(run_id)  # (a running one: its rig run is stopped, its DUT with it)
         return db.get(run_id) or {}
 
+    from rig.service import page
+
+    page.register(app, db, workers, store)
     return app

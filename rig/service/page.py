@@ -1,0 +1,103 @@
+"""The service's web page, rendered on the server (Jinja2, templates/) with htmx for the parts that
+change (the history's filters, the form that starts a run) and uPlot for a run's telemetry, both
+vendored and served from here: no build step, no CDN.
+
+Pages: ``/`` the queue, a form that starts a run and the history with filters; ``/runs/ID`` a run: its
+status, each scenario's criteria, and its attitude plot (drag to zoom, values under the cursor).
+"""
+
+from __future__ import annotations
+
+import datetime
+import math
+import urllib.parse
+from pathlib import Path
+from typing import Any
+
+from fastapi import FastAPI, HTTPException, Request, Response
+from fastapi.responses import HTMLResponse
+from fastapi.staticfiles import StaticFiles
+from fastapi.templating import Jinja2Templates
+from pydantic import ValidationError
+
+from rig import __version__
+from rig.service.db import STATUSES, Db
+from rig.service.store import MAX_SCENARIO, Store
+from rig.service.worker import Workers
+
+HERE = Path(__file__).resolve().parent
+UPLOT = HERE.parents[1] / "reports" / "vendor" / "uplot"  # the reports' copy: vendored once
+
+
+def _utc(t: float) -> str:
+    return datetime.datetime.fromtimestamp(t, datetime.UTC).strftime("%Y-%m-%d %H:%M:%S")
+
+
+def _num(v: object) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return f"{v:.4g}" if math.isfinite(v) else str(v)
+    return str(v)
+
+
+def register(app: FastAPI, db: Db, workers: Workers, store: Store) -> None:
+    from rig.service.app import RunRequest, check_run
+
+    templates = Jinja2Templates(directory=str(HERE / "templates"))
+    templates.env.filters.update(utc=_utc, num=_num)
+    app.mount("/static/htmx", StaticFiles(directory=HERE / "static" / "htmx"), name="htmx")
+    app.mount("/static/uplot", StaticFiles(directory=UPLOT), name="uplot")
+
+    def scenario_names() -> list[dict[str, str]]:
+        from rig.run_cmd import resolve
+
+        return [{"name": p.stem} for p in [*resolve([]), *store.uploaded_scenarios()]]
+
+    def page(request: Request, name: str, **context: Any) -> HTMLResponse:
+        return templates.TemplateResponse(request, name, {"version": __version__, **context})
+
+    @app.get("/", response_class=HTMLResponse, include_in_schema=False)
+    def index(request: Request) -> HTMLResponse:
+        queue = [r for status in ("running", "queued") for r in db.list(status=status, limit=100)]
+        return page(request, "index.html", queue=queue, runs=db.list(limit=50), scenarios=scenario_names(),
+                    statuses=STATUSES)
+
+    @app.get("/ui/runs", response_class=HTMLResponse, include_in_schema=False)
+    def runs_table(request: Request, status: str = "", scenario: str = "") -> HTMLResponse:
+        runs = db.list(status=status if status in STATUSES else None, scenario=scenario or None, limit=50)
+        return page(request, "runs_table.html", runs=runs)
+
+    @app.post("/ui/runs", response_class=HTMLResponse, include_in_schema=False)
+    async def start(request: Request) -> Response:
+        body = await request.body()
+        if len(body) > MAX_SCENARIO:
+            raise HTTPException(413, "form too large")
+        form = urllib.parse.parse_qs(body.decode("utf-8", "replace"))
+        try:
+            req = RunRequest(scenarios=form.get("scenarios", []), seed=int(form.get("seed", ["0"])[0] or 0),
+                             priority=int(form.get("priority", ["0"])[0] or 0),
+                             mode=form.get("mode", ["lockstep"])[0])  # type: ignore[arg-type]
+        except (ValidationError, ValueError) as e:
+            return HTMLResponse(f"<p class=error>not started: {_escape(str(e))}</p>", status_code=422)
+        problems = check_run(req, store)
+        if problems:
+            return HTMLResponse("<p class=error>not started: " + "; ".join(map(_escape, problems)) + "</p>",
+                                status_code=422)
+        run_id = db.submit(req.scenarios, req.seed, req.dut, req.mode, req.priority)
+        workers.wake()
+        return HTMLResponse(f'<p>queued <a href="/runs/{run_id}">run {run_id}</a></p>',
+                            headers={"HX-Trigger": "refresh"})
+
+    @app.get("/runs/{run_id}", response_class=HTMLResponse, include_in_schema=False)
+    def run_page(request: Request, run_id: int) -> HTMLResponse:
+        run = db.get(run_id)
+        if run is None:
+            raise HTTPException(404, f"no run {run_id}")
+        return page(request, "run.html", run=run)
+
+
+def _escape(text: str) -> str:
+    import html
+
+    return html.escape(text)

@@ -1,0 +1,72 @@
+"""`rig serve`'s page in a real browser: Debian's chromium driven by Playwright (executable_path, never a
+downloaded browser), against a real uvicorn on 127.0.0.1. A run appears in the history, a filter
+narrows the list, the form starts a run, and a run's page plots its telemetry with the right series
+beside its criteria."""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from tests.scenarios.test_library_and_reports import CHROMIUM_FLAGS
+from tests.service.test_api import Service, start, stop
+
+HTMX = Path(__file__).resolve().parents[2] / "rig" / "service" / "static" / "htmx" / "htmx.min.js"
+
+
+@pytest.fixture
+def service(tmp_path: Path) -> Iterator[Service]:
+    svc = start(tmp_path / "data", "--slots", "2")
+    yield svc
+    stop(svc)
+
+
+def test_the_vendored_htmx_is_the_pinned_one() -> None:
+    pinned = (HTMX.parent / "README.md").read_text()
+    assert hashlib.sha256(HTMX.read_bytes()).hexdigest() in pinned and "2.0.4" in pinned
+
+
+def test_the_page_lists_filters_starts_and_plots_runs(service: Service, tmp_path: Path) -> None:
+    from playwright.sync_api import expect, sync_playwright
+
+    _, body = service.call("POST", "/api/runs", {"scenarios": ["step_roll"]})
+    first = service.follow(body["id"])
+    assert first["status"] == "passed"
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_FLAGS)
+        page = browser.new_page(viewport={"width": 1100, "height": 1300})
+        errors: list[str] = []
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(service.url + "/")
+        history = page.locator("#history tr.run")
+        expect(history).to_have_count(1)
+        expect(history.first).to_contain_text("step_roll")
+        expect(history.first).to_contain_text("passed")
+        # a filter narrows the list (htmx swaps the table)
+        page.select_option("#filters select[name=status]", "failed")
+        expect(page.locator("#history")).to_contain_text("no runs")
+        page.select_option("#filters select[name=status]", "passed")
+        expect(history).to_have_count(1)
+        # the form starts a run
+        page.select_option("#start select[name=scenarios]", ["seed000_roll_stand"])
+        page.click("#start button")
+        expect(page.locator("#started")).to_contain_text("queued run")
+        started = int(page.locator("#started a").inner_text().split()[-1])
+        assert service.follow(started)["status"] == "passed"
+        assert service.call("GET", f"/api/runs/{started}")[1]["scenarios"] == ["seed000_roll_stand"]
+        # a run's page: its criteria and its plot with the attitude's series
+        page.goto(f"{service.url}/runs/{first['id']}")
+        expect(page.locator("#status")).to_have_text("passed")
+        expect(page.locator("table.criteria")).to_contain_text("overshoot of roll")
+        plot = page.locator("div.plot[data-series]")
+        expect(plot).to_have_count(1)
+        assert plot.get_attribute("data-series") == "roll,roll_sp,pitch,pitch_sp,est_roll"
+        assert page.locator("div.plot canvas").count() >= 1
+        assert page.locator("div.plot .u-legend").inner_text().count("roll") >= 3
+        page.screenshot(path=str(tmp_path / "run-page.png"), full_page=True)
+        assert (tmp_path / "run-page.png").stat().st_size > 10_000
+        assert not errors, errors
+        browser.close()
