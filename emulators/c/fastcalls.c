@@ -297,6 +297,22 @@ static PyObject *fc_chip_push_baro(PyObject *self, PyObject *const *a, Py_ssize_
     return PyBool_FromLong(chip_push_baro(b, t, (uint32_t)d1, (uint32_t)d2));
 }
 
+/* chip_peek(board, chip, reg) -> the register as stored (no side effect; 0 outside a chip's map): the IMU
+ * producer reads CONFIG and SMPLRT_DIV for every block it serves */
+static PyObject *fc_chip_peek(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
+{
+    (void)self;
+    if (!args_ok("chip_peek", nargs, 3))
+        return NULL;
+    const chip_board *b = ptr(a[0]);
+    long chip = PyLong_AsLong(a[1]), reg = PyLong_AsLong(a[2]);
+    if (PyErr_Occurred())
+        return NULL;
+    if (chip < 0 || chip > 0xFF || reg < 0 || reg > 0xFF)
+        return PyErr_Format(PyExc_ValueError, "chip_peek: no chip %ld register %ld", chip, reg);
+    return PyLong_FromLong(chip_peek(b, (uint8_t)chip, (uint8_t)reg));
+}
+
 static PyMethodDef methods[] = {
     { "imu_measure", (PyCFunction)(void (*)(void))fc_imu_measure, METH_FASTCALL, "rig_imu_measure" },
     { "lowpass_run", (PyCFunction)(void (*)(void))fc_lowpass_run, METH_FASTCALL, "rig_lowpass_run" },
@@ -304,6 +320,7 @@ static PyMethodDef methods[] = {
     { "channel_measure", (PyCFunction)(void (*)(void))fc_channel_measure, METH_FASTCALL, "rig_channel_measure" },
     { "chip_transfer", (PyCFunction)(void (*)(void))fc_chip_transfer, METH_FASTCALL, "chip_transfer" },
     { "chip_advance", (PyCFunction)(void (*)(void))fc_chip_advance, METH_FASTCALL, "chip_advance" },
+    { "chip_peek", (PyCFunction)(void (*)(void))fc_chip_peek, METH_FASTCALL, "chip_peek" },
     { "chip_push_imu", (PyCFunction)(void (*)(void))fc_chip_push_imu, METH_FASTCALL, "chip_push_imu" },
     { "chip_push_mag", (PyCFunction)(void (*)(void))fc_chip_push_mag, METH_FASTCALL, "chip_push_mag" },
     { "chip_push_baro", (PyCFunction)(void (*)(void))fc_chip_push_baro, METH_FASTCALL, "chip_push_baro" },
