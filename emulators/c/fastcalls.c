@@ -32,22 +32,47 @@ static int args_ok(const char *name, Py_ssize_t nargs, Py_ssize_t want)
 static void *ptr(PyObject *o) { return PyLong_AsVoidPtr(o); }
 static int32_t i32(PyObject *o) { return (int32_t)PyLong_AsLong(o); }
 
-/* imu_measure(accel, gyro, n, times, rows, cols, die_offset, out) -> 0, or 1/2: that channel needs normals */
+/* imu_measure(accel, gyro, times, rows, cols, die_offset, out) -> 0, or 1/2: that channel needs normals.
+ * times: the sample instants (floats, at most IMU_BLOCK_MAX), rows: the address of each one's truth row (ints) */
+#define IMU_BLOCK_MAX 64 /* emulators.native.BLOCK */
 static PyObject *fc_imu_measure(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
 {
     (void)self;
-    if (!args_ok("imu_measure", nargs, 8))
+    if (!args_ok("imu_measure", nargs, 7))
         return NULL;
     rig_channel *accel = ptr(a[0]), *gyro = ptr(a[1]);
-    int32_t n = i32(a[2]);
-    const double *t = ptr(a[3]);
-    const double *const *rows = ptr(a[4]);
-    const int32_t *cols = ptr(a[5]);
-    double die_offset = PyFloat_AsDouble(a[6]);
-    double *out = ptr(a[7]);
+    const int32_t *cols = ptr(a[4]);
+    double die_offset = PyFloat_AsDouble(a[5]);
+    double *out = ptr(a[6]);
     if (PyErr_Occurred())
         return NULL;
-    return PyLong_FromLong(rig_imu_measure(accel, gyro, n, t, rows, cols, die_offset, out));
+    PyObject *ts = PySequence_Fast(a[2], "imu_measure takes a sequence of times");
+    if (!ts)
+        return NULL;
+    PyObject *rs = PySequence_Fast(a[3], "imu_measure takes a sequence of row addresses");
+    if (!rs) {
+        Py_DECREF(ts);
+        return NULL;
+    }
+    PyObject *result = NULL;
+    Py_ssize_t n = PySequence_Fast_GET_SIZE(ts);
+    double t[IMU_BLOCK_MAX];
+    const double *rows[IMU_BLOCK_MAX];
+    if (n > IMU_BLOCK_MAX || PySequence_Fast_GET_SIZE(rs) != n) {
+        PyErr_Format(PyExc_ValueError, "imu_measure takes as many rows as times, at most %d", IMU_BLOCK_MAX);
+        goto done;
+    }
+    for (Py_ssize_t i = 0; i < n; i++) {
+        t[i] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(ts, i));
+        rows[i] = ptr(PySequence_Fast_GET_ITEM(rs, i));
+        if (PyErr_Occurred())
+            goto done;
+    }
+    result = PyLong_FromLong(rig_imu_measure(accel, gyro, (int32_t)n, t, rows, cols, die_offset, out));
+done:
+    Py_DECREF(ts);
+    Py_DECREF(rs);
+    return result;
 }
 
 /* lowpass_run(state, n, xs, stride, a, depth) */
