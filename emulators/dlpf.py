@@ -9,18 +9,19 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from typing import Protocol
+from typing import Final, Protocol
 
 import numpy as np
 
 from emulators import native
 
-BLOCK = native.BLOCK
+BLOCK: Final = native.BLOCK
 
 #: DLPF_CFG -> (accel bandwidth Hz, accel delay s, gyro bandwidth Hz, gyro delay s), docs/sensors.md §3.5.
-DLPF = ((260, 0.0, 256, 0.98e-3), (184, 2.0e-3, 188, 1.9e-3), (94, 3.0e-3, 98, 2.8e-3),
-        (44, 4.9e-3, 42, 4.8e-3), (21, 8.5e-3, 20, 8.3e-3), (10, 13.8e-3, 10, 13.4e-3),
-        (5, 19.0e-3, 5, 18.6e-3), (260, 0.0, 256, 0.98e-3))
+#: (Typed as a tuple of any length: compiled, a fixed-length one is boxed anew at every index.)
+DLPF: Final[tuple[tuple[int, float, int, float], ...]] = (
+    (260, 0.0, 256, 0.98e-3), (184, 2.0e-3, 188, 1.9e-3), (94, 3.0e-3, 98, 2.8e-3), (44, 4.9e-3, 42, 4.8e-3),
+    (21, 8.5e-3, 20, 8.3e-3), (10, 13.8e-3, 10, 13.4e-3), (5, 19.0e-3, 5, 18.6e-3), (260, 0.0, 256, 0.98e-3))
 
 
 class LowPass:
@@ -32,22 +33,23 @@ class LowPass:
         self._lib = native.sampling()
         self._run = native.fast().lowpass_run
         self._mem, self._addr = native.state("rig_lowpass_size")  # zeroed: no output yet, empty delay
-        self._gain: tuple[float, float, float] = (math.nan, math.nan, math.nan)  # (bw, span, a)
-        self._depth_for: tuple[float, float] = (math.nan, math.nan)  # (delay, dt) of _depth
+        # the last gain (for bw, span) and delay depth (for delay, dt), as plain floats: the same every
+        # block in steady sampling, so computed once (NaN: none yet)
+        self._gain_bw, self._gain_span, self._gain = math.nan, math.nan, math.nan
+        self._depth_delay, self._depth_dt = math.nan, math.nan
         self._depth = 0
 
     def _a(self, bw_hz: float, span: float) -> float:
         """The gain of the exact first-order response over ``span`` seconds."""
-        bw, sp, a = self._gain
-        if bw != bw_hz or sp != span:  # the same every block in steady sampling: computed once
-            a = 1.0 - math.exp(-2.0 * math.pi * bw_hz * span)
-            self._gain = (bw_hz, span, a)
-        return a
+        if self._gain_bw != bw_hz or self._gain_span != span:
+            self._gain_bw, self._gain_span = bw_hz, span
+            self._gain = 1.0 - math.exp(-2.0 * math.pi * bw_hz * span)
+        return self._gain
 
     def run(self, xs: int, n: int, stride: int, bw_hz: float, delay_s: float, dt: float) -> None:
         """Filters ``n`` samples of three float64 at address ``xs`` (``stride`` values apart) in place."""
-        if self._depth_for != (delay_s, dt):
-            self._depth_for = (delay_s, dt)
+        if self._depth_delay != delay_s or self._depth_dt != dt:
+            self._depth_delay, self._depth_dt = delay_s, dt
             self._depth = max(0, round(delay_s / dt)) if dt > 0 else 0
             if self._depth > self._lib.rig_lowpass_max_depth():
                 raise ValueError(f"DLPF delay {delay_s} s is more samples of {dt} s than the filter keeps")

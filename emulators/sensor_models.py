@@ -192,9 +192,8 @@ class ImuModel:
             truth, IMU_TRUTH, {"temperature": AIR_TEMPERATURE_C})
         self._table = table
         self._cols = (ctypes.c_int32 * 7)(*[table.column(n) for n in IMU_TRUTH])
-        self._times, self._rows = (ctypes.c_double * BLOCK)(), (ctypes.c_void_p * BLOCK)()
-        self._measure = native.fast().imu_measure
-        self._at = (ctypes.addressof(self._times), ctypes.addressof(self._rows), ctypes.addressof(self._cols))
+        self._cols_addr = ctypes.addressof(self._cols)
+        self._measure = native.fast().imu_measure  # (the times and row addresses as Python sequences)
         self._out: np.ndarray | None = None
         self._out_addr = 0
         self._one = np.zeros((1, 7))
@@ -210,11 +209,8 @@ class ImuModel:
             self._out, self._out_addr = out, out.ctypes.data
         if not 0 <= n <= min(BLOCK, len(out)):
             raise ValueError(f"ImuModel.sample_block takes 0..{min(BLOCK, len(out))} samples, not {n}")
-        self._times[:n] = list(times)
-        rows: list[ctypes.c_void_p | int | None] = list(self._table.row_addresses(times))
-        self._rows[:n] = rows
-        times_at, rows_at, cols_at = self._at
-        while short := self._measure(self._a.addr, self._g.addr, n, times_at, rows_at, cols_at,
+        rows = self._table.row_addresses(times)
+        while short := self._measure(self._a.addr, self._g.addr, times, rows, self._cols_addr,
                                      self.die_offset_c, self._out_addr):
             (self._a if short == 1 else self._g).refill(6 * n)
         for ch, col in ((self._a, 0), (self._g, 3)):

@@ -32,22 +32,47 @@ static int args_ok(const char *name, Py_ssize_t nargs, Py_ssize_t want)
 static void *ptr(PyObject *o) { return PyLong_AsVoidPtr(o); }
 static int32_t i32(PyObject *o) { return (int32_t)PyLong_AsLong(o); }
 
-/* imu_measure(accel, gyro, n, times, rows, cols, die_offset, out) -> 0, or 1/2: that channel needs normals */
+/* imu_measure(accel, gyro, times, rows, cols, die_offset, out) -> 0, or 1/2: that channel needs normals.
+ * times: the sample instants (floats, at most IMU_BLOCK_MAX), rows: the address of each one's truth row (ints) */
+#define IMU_BLOCK_MAX 64 /* emulators.native.BLOCK */
 static PyObject *fc_imu_measure(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
 {
     (void)self;
-    if (!args_ok("imu_measure", nargs, 8))
+    if (!args_ok("imu_measure", nargs, 7))
         return NULL;
     rig_channel *accel = ptr(a[0]), *gyro = ptr(a[1]);
-    int32_t n = i32(a[2]);
-    const double *t = ptr(a[3]);
-    const double *const *rows = ptr(a[4]);
-    const int32_t *cols = ptr(a[5]);
-    double die_offset = PyFloat_AsDouble(a[6]);
-    double *out = ptr(a[7]);
+    const int32_t *cols = ptr(a[4]);
+    double die_offset = PyFloat_AsDouble(a[5]);
+    double *out = ptr(a[6]);
     if (PyErr_Occurred())
         return NULL;
-    return PyLong_FromLong(rig_imu_measure(accel, gyro, n, t, rows, cols, die_offset, out));
+    PyObject *ts = PySequence_Fast(a[2], "imu_measure takes a sequence of times");
+    if (!ts)
+        return NULL;
+    PyObject *rs = PySequence_Fast(a[3], "imu_measure takes a sequence of row addresses");
+    if (!rs) {
+        Py_DECREF(ts);
+        return NULL;
+    }
+    PyObject *result = NULL;
+    Py_ssize_t n = PySequence_Fast_GET_SIZE(ts);
+    double t[IMU_BLOCK_MAX];
+    const double *rows[IMU_BLOCK_MAX];
+    if (n > IMU_BLOCK_MAX || PySequence_Fast_GET_SIZE(rs) != n) {
+        PyErr_Format(PyExc_ValueError, "imu_measure takes as many rows as times, at most %d", IMU_BLOCK_MAX);
+        goto done;
+    }
+    for (Py_ssize_t i = 0; i < n; i++) {
+        t[i] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(ts, i));
+        rows[i] = ptr(PySequence_Fast_GET_ITEM(rs, i));
+        if (PyErr_Occurred())
+            goto done;
+    }
+    result = PyLong_FromLong(rig_imu_measure(accel, gyro, (int32_t)n, t, rows, cols, die_offset, out));
+done:
+    Py_DECREF(ts);
+    Py_DECREF(rs);
+    return result;
 }
 
 /* lowpass_run(state, n, xs, stride, a, depth) */
@@ -103,11 +128,24 @@ EXPORT size_t rig_chip_board_size(void) { return sizeof(chip_board); }
 
 static uint64_t u64(PyObject *o) { return (uint64_t)PyLong_AsUnsignedLongLong(o); }
 
+/* the need as a tuple of 13 ints (board.py's Need), built directly: no format string parsed per need */
 static PyObject *need_tuple(const chip_need *n)
 {
-    return Py_BuildValue("(iiiiiiIIIKKKK)", n->chip, n->keeps_all, n->anchor_mpu, n->osr, n->t_thirds, n->hmc_start,
-                         n->count, n->anchor, n->epoch, (unsigned long long)n->t_ns, (unsigned long long)n->period_ns,
-                         (unsigned long long)n->anchor_ns, (unsigned long long)n->target_ns);
+    unsigned long long v[13] = { n->chip,      n->keeps_all, n->anchor_mpu, n->osr,   n->t_thirds,
+                                 n->hmc_start, n->count,     n->anchor,     n->epoch, n->t_ns,
+                                 n->period_ns, n->anchor_ns, n->target_ns };
+    PyObject *t = PyTuple_New(13);
+    if (!t)
+        return NULL;
+    for (Py_ssize_t i = 0; i < 13; i++) {
+        PyObject *x = PyLong_FromUnsignedLongLong(v[i]);
+        if (!x) {
+            Py_DECREF(t);
+            return NULL;
+        }
+        PyTuple_SET_ITEM(t, i, x);
+    }
+    return t;
 }
 
 #define MAX_MSGS 42 /* I2C_RDWR_IOCTL_MAX_MSGS */
@@ -297,6 +335,22 @@ static PyObject *fc_chip_push_baro(PyObject *self, PyObject *const *a, Py_ssize_
     return PyBool_FromLong(chip_push_baro(b, t, (uint32_t)d1, (uint32_t)d2));
 }
 
+/* chip_peek(board, chip, reg) -> the register as stored (no side effect; 0 outside a chip's map): the IMU
+ * producer reads CONFIG and SMPLRT_DIV for every block it serves */
+static PyObject *fc_chip_peek(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
+{
+    (void)self;
+    if (!args_ok("chip_peek", nargs, 3))
+        return NULL;
+    const chip_board *b = ptr(a[0]);
+    long chip = PyLong_AsLong(a[1]), reg = PyLong_AsLong(a[2]);
+    if (PyErr_Occurred())
+        return NULL;
+    if (chip < 0 || chip > 0xFF || reg < 0 || reg > 0xFF)
+        return PyErr_Format(PyExc_ValueError, "chip_peek: no chip %ld register %ld", chip, reg);
+    return PyLong_FromLong(chip_peek(b, (uint8_t)chip, (uint8_t)reg));
+}
+
 static PyMethodDef methods[] = {
     { "imu_measure", (PyCFunction)(void (*)(void))fc_imu_measure, METH_FASTCALL, "rig_imu_measure" },
     { "lowpass_run", (PyCFunction)(void (*)(void))fc_lowpass_run, METH_FASTCALL, "rig_lowpass_run" },
@@ -304,6 +358,7 @@ static PyMethodDef methods[] = {
     { "channel_measure", (PyCFunction)(void (*)(void))fc_channel_measure, METH_FASTCALL, "rig_channel_measure" },
     { "chip_transfer", (PyCFunction)(void (*)(void))fc_chip_transfer, METH_FASTCALL, "chip_transfer" },
     { "chip_advance", (PyCFunction)(void (*)(void))fc_chip_advance, METH_FASTCALL, "chip_advance" },
+    { "chip_peek", (PyCFunction)(void (*)(void))fc_chip_peek, METH_FASTCALL, "chip_peek" },
     { "chip_push_imu", (PyCFunction)(void (*)(void))fc_chip_push_imu, METH_FASTCALL, "chip_push_imu" },
     { "chip_push_mag", (PyCFunction)(void (*)(void))fc_chip_push_mag, METH_FASTCALL, "chip_push_mag" },
     { "chip_push_baro", (PyCFunction)(void (*)(void))fc_chip_push_baro, METH_FASTCALL, "chip_push_baro" },

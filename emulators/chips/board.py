@@ -64,6 +64,7 @@ class ImuFeed:
         self._anchor = 0
         self._epoch = 0
         self._push = native.fast().chip_push_imu
+        self._cfg, self._div, self._period = -1, -1, 0.0  # the registers the sample period is for
         #: the float times of recent instants every one of which was encoded: (first_ns, period_ns, times)
         self._recent: list[tuple[int, int, list[float]]] = []
 
@@ -85,8 +86,11 @@ class ImuFeed:
         if anchor != self._anchor:  # woken: the sample clock restarts there
             self._anchor = anchor
             sampler.next_t = anchor_ns * 1e-9
-        cfg = board.peek(CHIP_MPU, CONFIG)
-        period = 1.0 / sample_rate(cfg, board.peek(CHIP_MPU, SMPLRT_DIV))
+        cfg, div = board.peek(CHIP_MPU, CONFIG), board.peek(CHIP_MPU, SMPLRT_DIV)
+        if cfg != self._cfg or div != self._div:  # the same every block in steady sampling
+            self._cfg, self._div = cfg, div
+            self._period = 1.0 / sample_rate(cfg, div)
+        period = self._period
         _, times = sampler.take(count, period, cfg, bool(keeps_all))
         m = len(times)
         if keeps_all:
@@ -171,6 +175,7 @@ class ChipBus:
         address is not acknowledged and I2CProtocolError when a block read announces an impossible
         count (the messages before it have taken effect)."""
         board = self.board
+        self.advance_ns(t_ns)  # the needs served ahead: the transfer then runs once
         while True:
             status, value = self._transfer(board.addr, t_ns, msgs)
             if status == CHIP_OK:
@@ -276,7 +281,7 @@ class ChipBoard:
         self.baro.prom = baro.prom
         self.lib.chip_ms5611_max_timing(self.addr, baro.timing == "max")
         self.bus = ChipBus(self)
-        self._peek = self.lib.chip_peek
+        self._peek = native.fast().chip_peek  # (every block the IMU producer serves)
 
     def serve(self, need: Any) -> None:
         """Makes and pushes the sample the core needs (demand mode)."""

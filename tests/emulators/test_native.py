@@ -36,7 +36,7 @@ def test_a_library_is_stale_when_missing_or_older_than_a_source(tmp_path) -> Non
 
 
 def test_the_per_cycle_entry_points_refuse_wrong_arguments_with_a_clear_error() -> None:
-    from emulators.native import fast
+    from emulators.native import BLOCK, fast
 
     m = fast()
     with pytest.raises(TypeError, match="lowpass_run takes 6 arguments \\(2 given\\)"):
@@ -44,7 +44,13 @@ def test_the_per_cycle_entry_points_refuse_wrong_arguments_with_a_clear_error() 
     with pytest.raises(TypeError):  # a float where an address goes, before any C runs
         m.channel_measure(0.5, 1, 0, 0, 0, 0)
     with pytest.raises(TypeError):
-        m.imu_measure(0, 0, 1, 0, 0, 0, "warm", 0)
+        m.imu_measure(0, 0, [], [], 0, "warm", 0)
+    with pytest.raises(ValueError, match="as many rows as times"):  # refused before any C runs
+        m.imu_measure(0, 0, [0.0, 0.001], [0], 0, 10.0, 0)
+    with pytest.raises(ValueError, match=f"at most {BLOCK}"):  # the C side's limit is the Python side's
+        m.imu_measure(0, 0, [0.0] * (BLOCK + 1), [0] * (BLOCK + 1), 0, 10.0, 0)
+    with pytest.raises(TypeError):  # a time that is not a number
+        m.imu_measure(0, 0, ["noon"], [0], 0, 10.0, 0)
 
 
 def test_one_library_serves_both_ctypes_and_the_module() -> None:
