@@ -81,11 +81,13 @@ firmware: venv
 demo: venv fmu shim native compiled dut
 	$(VENV)/bin/rig run --out build/reports --pdf
 
-# docs/acceptance-report-page.png: page 3 (the first scenario's section) of a two-scenario acceptance PDF
+# docs/acceptance-report-page.png: page 3 (the first scenario's section) of a two-scenario acceptance PDF;
+# docs/service-run-page.png: rig serve's page of a run
 docs-images: venv fmu shim native compiled dut
 	rm -rf build/docs-report
 	$(VENV)/bin/rig run rc_loss_failsafe fault_gyro_stuck --out build/docs-report --pdf --operator "A. Tester"
 	pdftoppm -f 3 -l 3 -r 80 -png -singlefile build/docs-report/acceptance.pdf docs/acceptance-report-page
+	$(PY) tools/service_screenshot.py
 
 # our C, in one style (.clang-format); the FMI headers are vendored as they came
 C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/tests/*.c emulators/c/*.c emulators/chips/*.[ch] plant/c/*.[ch] \
