@@ -89,12 +89,54 @@ def register(app: FastAPI, db: Db, workers: Workers, store: Store) -> None:
         return HTMLResponse(f'<p>queued <a href="/runs/{run_id}">run {run_id}</a></p>',
                             headers={"HX-Trigger": "refresh"})
 
+    @app.get("/compare", response_class=HTMLResponse, include_in_schema=False)
+    def compare(request: Request, a: int, b: int, scenario: str) -> HTMLResponse:
+        """Two runs of one scenario overlaid: their criteria side by side, their attitudes on one plot."""
+        ra, rb = db.get(a), db.get(b)
+        if ra is None or rb is None:
+            raise HTTPException(404, "no such run")
+        ma, mb = _measured(ra, scenario), _measured(rb, scenario)
+        if ma is None or mb is None:
+            raise HTTPException(404, f"both runs must have run {scenario!r}")
+        rows = [(name, value, mb.get(name)) for name, value in ma.items()]
+        return page(request, "compare.html", a=ra, b=rb, scenario=scenario, rows=rows)
+
+    @app.get("/trend", response_class=HTMLResponse, include_in_schema=False)
+    def trend_page(request: Request, scenario: str, measurement: str) -> HTMLResponse:
+        return page(request, "trend.html", scenario=scenario, measurement=measurement,
+                    points=trend(db, scenario, measurement))
+
+    @app.get("/api/trend")
+    def trend_api(scenario: str, measurement: str) -> list[dict[str, Any]]:
+        """A measurement of a scenario over the finished runs, oldest first, with the firmware each ran."""
+        return trend(db, scenario, measurement)
+
     @app.get("/runs/{run_id}", response_class=HTMLResponse, include_in_schema=False)
     def run_page(request: Request, run_id: int) -> HTMLResponse:
         run = db.get(run_id)
         if run is None:
             raise HTTPException(404, f"no run {run_id}")
         return page(request, "run.html", run=run)
+
+
+def _measured(run: dict[str, Any], scenario: str) -> dict[str, Any] | None:
+    for r in run["results"]:
+        if r["scenario"] == scenario:
+            return {m["name"]: m["value"] for m in r["measurements"]}
+    return None
+
+
+def trend(db: Db, scenario: str, measurement: str, limit: int = 500) -> list[dict[str, Any]]:
+    points = []
+    for run in reversed(db.list(scenario=scenario, limit=limit)):
+        for r in run["results"]:
+            for m in r["measurements"] if r["scenario"] == scenario else []:
+                if m["name"] == measurement and isinstance(m["value"], int | float):
+                    dut = run["dut"]
+                    points.append({"run": run["id"], "created": run["created"], "value": m["value"],
+                                   "outcome": m["outcome"],
+                                   "firmware": dut.get("firmware") or dut.get("command") or "reference FC"})
+    return points
 
 
 def _escape(text: str) -> str:

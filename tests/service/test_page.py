@@ -70,3 +70,36 @@ def test_the_page_lists_filters_starts_and_plots_runs(service: Service, tmp_path
         assert (tmp_path / "run-page.png").stat().st_size > 10_000
         assert not errors, errors
         browser.close()
+
+
+def test_two_runs_overlaid_and_a_measurements_trend(service: Service) -> None:
+    from playwright.sync_api import expect, sync_playwright
+
+    ids = []
+    for seed in (0, 1):
+        _, body = service.call("POST", "/api/runs", {"scenarios": ["step_roll"], "seed": seed})
+        assert service.follow(body["id"])["status"] == "passed"
+        ids.append(body["id"])
+    a, b = ids
+    values = [service.call("GET", f"/api/runs/{i}")[1]["results"][0]["measurements"][0]["value"]
+              for i in ids]
+    _, points = service.call("GET", "/api/trend?scenario=step_roll&measurement=overshoot%20of%20roll")
+    assert [(p["run"], p["value"], p["firmware"]) for p in points] == \
+        [(a, values[0], "reference FC"), (b, values[1], "reference FC")]
+    assert values[0] != values[1]  # two seeds: two flights
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_FLAGS)
+        page = browser.new_page(viewport={"width": 1100, "height": 1000})
+        errors: list[str] = []
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(f"{service.url}/compare?a={a}&b={b}&scenario=step_roll")
+        overlay = page.locator("#overlay[data-series]")
+        expect(overlay).to_have_count(1)
+        assert overlay.get_attribute("data-series") == f"run {a} roll,run {a} pitch,run {b} roll,run {b} pitch"
+        expect(page.locator("table.criteria")).to_contain_text("overshoot of roll")
+        page.goto(f"{service.url}/trend?scenario=step_roll&measurement=overshoot%20of%20roll")
+        expect(page.locator("tr.point")).to_have_count(2)
+        expect(page.locator("#trend[data-points='2'] canvas").first).to_be_visible()
+        assert not errors, errors
+        browser.close()
+    assert service.call("GET", f"/compare?a={a}&b=999&scenario=step_roll")[0] == 404
