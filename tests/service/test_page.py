@@ -95,7 +95,8 @@ def test_two_runs_overlaid_and_a_measurements_trend(service: Service) -> None:
         page.goto(f"{service.url}/compare?a={a}&b={b}&scenario=step_roll")
         overlay = page.locator("#overlay[data-series]")
         expect(overlay).to_have_count(1)
-        assert overlay.get_attribute("data-series") == f"run {a} roll,run {a} pitch,run {b} roll,run {b} pitch"
+        named = f"run {a} roll,run {a} pitch,run {b} roll,run {b} pitch"
+        assert overlay.get_attribute("data-series") == named
         expect(page.locator("table.criteria")).to_contain_text("overshoot of roll")
         page.goto(f"{service.url}/trend?scenario=step_roll&measurement=overshoot%20of%20roll")
         expect(page.locator("tr.point")).to_have_count(2)
