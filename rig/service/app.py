@@ -82,7 +82,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
 
     @app.get("/api/health")
     def health() -> dict[str, Any]:
-        return {"status": "ok", "version": __version__, "schema": SCHEMA_VERSION}
+        return {"status": "ok", "version": __version__, "schema": SCHEMA_VERSION, "bench": db.lease("bench")}
 
     @app.get("/api/scenarios")
     def scenarios() -> list[dict[str, Any]]:

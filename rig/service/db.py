@@ -39,6 +39,13 @@ MIGRATIONS: Final = (
         pid INTEGER
     );
     CREATE INDEX runs_queue ON runs (status, mode, priority, created);""",
+    # the bench is leased: its holder renews the lease while it runs there; a holder that died stops
+    # renewing and the lease expires, so another worker (in this service or another) can take it
+    """CREATE TABLE leases (
+        resource TEXT PRIMARY KEY,
+        holder TEXT NOT NULL,
+        expires REAL NOT NULL
+    );""",
 )
 SCHEMA_VERSION: Final = len(MIGRATIONS)
 TERMINAL: Final = ("passed", "failed", "error", "cancelled", "interrupted")
@@ -163,6 +170,31 @@ class Db:
         sql += " ORDER BY id DESC LIMIT ? OFFSET ?"
         with self._lock:
             return [_decode(r) for r in self._conn.execute(sql, (*args, limit, offset)).fetchall()]
+
+    # ---- leases -------------------------------------------------------------------------------
+
+    def acquire(self, resource: str, holder: str, ttl: float) -> bool:
+        """Takes (or renews) ``resource`` for ``holder`` until ``ttl`` seconds from now, unless another
+        holder's lease is still running."""
+        now = time.time()
+        with self.transaction() as c:
+            row = c.execute("SELECT holder, expires FROM leases WHERE resource = ?", (resource,)).fetchone()
+            if row is not None and row["holder"] != holder and row["expires"] > now:
+                return False
+            c.execute("INSERT INTO leases (resource, holder, expires) VALUES (?, ?, ?) "
+                      "ON CONFLICT (resource) DO UPDATE SET holder = excluded.holder, "
+                      "expires = excluded.expires",
+                      (resource, holder, now + ttl))
+            return True
+
+    def release(self, resource: str, holder: str) -> None:
+        with self.transaction() as c:
+            c.execute("DELETE FROM leases WHERE resource = ? AND holder = ?", (resource, holder))
+
+    def lease(self, resource: str) -> dict[str, Any] | None:
+        with self._lock:
+            row = self._conn.execute("SELECT * FROM leases WHERE resource = ?", (resource,)).fetchone()
+        return dict(row) if row is not None and row["expires"] > time.time() else None
 
     def interrupt_running(self) -> int:
         """At start: runs left running by a service that died are interrupted (their processes went

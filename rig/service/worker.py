@@ -15,9 +15,11 @@ import json
 import os
 import shlex
 import signal
+import socket
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 from typing import Any, Final
 
@@ -25,6 +27,9 @@ from rig.service.db import Db
 from rig.service.store import Store
 
 PR_SET_PDEATHSIG: Final = 1
+BENCH: Final = "bench"
+LEASE_TTL_S: Final = 5.0  # the bench's lease lasts this long unless renewed (every HEARTBEAT_S)
+HEARTBEAT_S: Final = 1.0
 POLL_S: Final = 0.2
 KILL_GRACE_S: Final = 5.0
 #: rig run's exit status -> the run's status (anything else: error)
@@ -104,15 +109,24 @@ class Workers:
             _end(proc)
 
     def _loop(self, mode: str) -> None:
+        holder = f"{socket.gethostname()}:{os.getpid()}:{threading.current_thread().name}"
         while not self._stop:
-            run = self.db.claim(mode)
+            leased = mode == "bridge"
+            if leased and not self.db.acquire(BENCH, holder, LEASE_TTL_S):
+                run = None  # another holder has the bench
+            else:
+                run = self.db.claim(mode)
             if run is None:
+                if leased:
+                    self.db.release(BENCH, holder)
                 with self._wake:
                     self._wake.wait(timeout=1.0)
                 continue
-            self._run(run)
+            self._run(run, (holder if leased else None))
+            if leased:
+                self.db.release(BENCH, holder)
 
-    def _run(self, run: dict[str, Any]) -> None:
+    def _run(self, run: dict[str, Any], lease_holder: str | None = None) -> None:
         out = self.artifacts / str(run["id"])
         out.mkdir(parents=True, exist_ok=True)
         try:
@@ -130,6 +144,7 @@ class Workers:
             self._procs[run["id"]] = proc
             self.db.update(run["id"], pid=proc.pid)
             total = len(run["scenarios"])
+            beat = time.monotonic()
             while True:
                 try:
                     code = proc.wait(timeout=POLL_S)
@@ -137,6 +152,9 @@ class Workers:
                 except subprocess.TimeoutExpired:
                     done = sum((out / Path(s).stem / "result.json").is_file() for s in run["scenarios"])
                     self.db.update(run["id"], progress=round(100.0 * done / total, 1))
+                    if lease_holder is not None and time.monotonic() - beat >= HEARTBEAT_S:
+                        beat = time.monotonic()  # the bench's heartbeat
+                        self.db.acquire(BENCH, lease_holder, LEASE_TTL_S)
             self._procs.pop(run["id"], None)
         status = STATUS_BY_EXIT.get(code, "error")
         error = None if status in ("passed", "failed") else f"rig run exited with status {code}: " \

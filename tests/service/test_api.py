@@ -266,3 +266,48 @@ def test_uploads_are_checked_stored_once_and_run(service: Service, tmp_path: Pat
     assert [r["id"] for r in service.call("GET", "/api/runs?verdict=pass")[1]] == [good["id"]]
     unknown = {"scenarios": ["my_roll"], "dut": {"firmware": "0" * 64}}
     assert service.call("POST", "/api/runs", unknown)[0] == 422
+
+
+SHORT = """[scenario]
+name = "a short bench check"
+duration = 2.5
+[[timeline]]
+t = 1.2
+sticks = { arm = true, throttle = 0.0 }
+[[criteria]]
+name = "level"
+metric = "max"
+signal = "tilt"
+max = 5.0
+"""
+
+
+def test_the_bench_is_leased_and_a_dead_holders_lease_expires(service: Service, tmp_path: Path) -> None:
+    """Another holder (a second service on the same data, say) has the bench: a bridge run waits in the
+    queue; released, it runs through the virtual bridge. A holder that stopped renewing (dead) does not
+    keep the bench."""
+    from rig.service.db import Db
+
+    req = urllib.request.Request(service.url + "/api/scenarios?name=short_bench", data=SHORT.encode(),
+                                 method="POST")
+    with urllib.request.urlopen(req, timeout=BOUND_S) as r:
+        assert r.status == 201
+    other = Db(tmp_path / "data" / "rig.sqlite")
+    try:
+        assert other.acquire("bench", "another-service", ttl=3600)
+        assert service.call("GET", "/api/health")[1]["bench"]["holder"] == "another-service"
+        _, body = service.call("POST", "/api/runs", {"scenarios": ["short_bench"], "mode": "bridge"})
+        waited = service.call("GET", f"/api/runs/{body['id']}?wait=2")[1]
+        assert waited["status"] == "queued" and waited["position"] == 1  # it cannot start
+        other.release("bench", "another-service")
+        service.call("GET", "/api/runs")  # (nothing to wake: the worker looks again within a second)
+        run = service.follow(body["id"])
+        assert run["status"] == "passed", run
+        assert json.loads(urllib.request.urlopen(
+            f"{service.url}/api/runs/{body['id']}/artifacts/short_bench/result.json").read()
+        )["metadata"]["mode"] == "bridge"
+        assert other.acquire("bench", "a-dead-service", ttl=-1)  # its lease ran out
+        _, body = service.call("POST", "/api/runs", {"scenarios": ["short_bench"], "mode": "bridge"})
+        assert service.follow(body["id"])["status"] == "passed"
+    finally:
+        other.close()
