@@ -24,7 +24,14 @@ import pytest
 
 from tests.waits import BOUND_S, pid_fifo, read_pid, wait_gone
 
-SPINNER = Path(__file__).resolve().parents[1] / "rig" / "device_clients" / "stubborn_spinner.py"
+BLOCKED = Path(__file__).resolve().parent / "blocked_dut.py"
+
+
+def blocked_dut(tmp_path: Path) -> tuple[str, Path]:
+    """A DUT command that runs until stopped, and the FIFO its pid comes through."""
+    fifo = pid_fifo(tmp_path / "pid")
+    os.mkfifo(tmp_path / "never")
+    return f"{sys.executable} {BLOCKED} {fifo} {tmp_path / 'never'}", fifo
 
 
 def free_port() -> int:
@@ -61,10 +68,13 @@ class Service:
         raise AssertionError(f"run {run_id} did not end: {run}")
 
     def until(self, run_id: int, status: str) -> dict[str, Any]:
+        """The run once it has this status (asked at once, then through the long poll)."""
+        wait = 0
         for _ in range(100):
-            code, run = self.call("GET", f"/api/runs/{run_id}?wait=30")
+            _, run = self.call("GET", f"/api/runs/{run_id}?wait={wait}")
             if run["status"] == status:
                 return run
+            wait = 30
         raise AssertionError(f"run {run_id} never became {status}: {run}")
 
 
@@ -133,9 +143,8 @@ def test_bad_requests_are_refused_in_the_validators_words(service: Service) -> N
 
 
 def test_a_cancelled_run_stops_its_dut(service: Service, tmp_path: Path) -> None:
-    fifo = pid_fifo(tmp_path / "pid")
-    _, body = service.call("POST", "/api/runs", {"scenarios": ["step_roll"],
-                                                 "dut": {"command": f"{sys.executable} {SPINNER} {fifo}"}})
+    command, fifo = blocked_dut(tmp_path)
+    _, body = service.call("POST", "/api/runs", {"scenarios": ["step_roll"], "dut": {"command": command}})
     dut = read_pid(fifo)
     assert service.until(body["id"], "running")["pid"] is not None
     status, run = service.call("DELETE", f"/api/runs/{body['id']}")
@@ -147,10 +156,9 @@ def test_a_cancelled_run_stops_its_dut(service: Service, tmp_path: Path) -> None
 
 def test_a_restart_interrupts_the_running_run_and_keeps_the_queued_one(tmp_path: Path) -> None:
     svc = start(tmp_path / "data", "--slots", "1")
-    fifo = pid_fifo(tmp_path / "pid")
+    command, fifo = blocked_dut(tmp_path)
     try:
-        _, first = svc.call("POST", "/api/runs", {"scenarios": ["step_roll"],
-                                                  "dut": {"command": f"{sys.executable} {SPINNER} {fifo}"}})
+        _, first = svc.call("POST", "/api/runs", {"scenarios": ["step_roll"], "dut": {"command": command}})
         dut = read_pid(fifo)
         _, second = svc.call("POST", "/api/runs", {"scenarios": ["step_roll"], "priority": 5})
         queued = svc.call("GET", f"/api/runs/{second['id']}")[1]
