@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 import select
+import shutil
 import signal
 import subprocess
 import tempfile
@@ -90,7 +91,8 @@ class VirtualBridge:
         return self.proc.poll() is None
 
     def stop(self) -> None:
-        """SIGTERM, then SIGKILL if it has not ended within two seconds; its pipes closed."""
+        """SIGTERM, then SIGKILL if it has not ended within two seconds; its pipes closed; and its
+        folder removed if it could not remove it itself (killed outright, it runs no clean-up)."""
         if self.proc.poll() is None:
             os.killpg(self.proc.pid, signal.SIGTERM)
             try:
@@ -101,3 +103,7 @@ class VirtualBridge:
         if self.proc.stdout is not None:
             self.proc.stdout.close()
         self._err.close()
+        if hasattr(self, "endpoints"):
+            folder = Path(self.endpoints.board).parent  # vbridge.XXXXXX, which holds its socket and page
+            if folder.name.startswith("vbridge.") and folder.is_dir():
+                shutil.rmtree(folder, ignore_errors=True)

@@ -173,6 +173,7 @@ def test_a_bridge_that_dies_or_stops_answering_ends_the_run_as_an_error_within_a
     assert not math.isnan(outcome.sim_time)
     with pytest.raises(ProcessLookupError):  # nothing left behind
         os.kill(victim[0], 0)
+    assert session.vbridge is not None and not Path(session.vbridge.endpoints.board).parent.exists()
 
 
 def test_bad_bridge_options_are_refused_before_anything_runs(tmp_path: Path) -> None:
