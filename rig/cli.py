@@ -38,6 +38,9 @@ def _dispatch(argv: list[str] | None) -> int:
     from rig.bridge import probe
 
     probe.add_parser(sub)
+    from rig import power_cmd
+
+    power_cmd.add_parser(sub)
     from rig.service import client, serve_cmd
 
     serve_cmd.add_parser(sub)
@@ -51,6 +54,8 @@ def _dispatch(argv: list[str] | None) -> int:
         return report_cmd.main(args)
     if args.command == "bridge":
         return probe.main(args)
+    if args.command == "power":
+        return power_cmd.main(args)
     if args.command == "serve":
         return serve_cmd.main(args)
     if args.command == "submit":
