@@ -217,14 +217,11 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
 
     @app.delete("/api/runs/{run_id}")
     def cancel(run_id: int) -> dict[str, Any]:
-        found = db.get(run_id)
-        if found is None:
+        if db.get(run_id) is None:
             raise HTTPException(404, f"no run {run_id}")
-        if found["status"] in TERMINAL:
-            raise HTTPException(409, f"run {run_id} is already {found['status']}")
-        if not db.update_if(run_id, found["status"], status="cancelled"):
-            raise HTTPException(409, f"run {run_id} changed meanwhile; ask again")
-        workers.cancel(run_id)  # (a running one: its rig run is stopped, its DUT with it)
+        refused = workers.abort(run_id)
+        if refused is not None:
+            raise HTTPException(409, refused)
         return db.get(run_id) or {}
 
     from rig.service import page

@@ -46,6 +46,8 @@ MIGRATIONS: Final = (
         holder TEXT NOT NULL,
         expires REAL NOT NULL
     );""",
+    # who asked for the run: "api" (HTTP, the page, rig submit) or "plc" (the test cell's Modbus TCP)
+    "ALTER TABLE runs ADD COLUMN origin TEXT NOT NULL DEFAULT 'api'",
 )
 SCHEMA_VERSION: Final = len(MIGRATIONS)
 TERMINAL: Final = ("passed", "failed", "error", "cancelled", "interrupted")
@@ -92,11 +94,13 @@ class Db:
 
     # ---- runs ---------------------------------------------------------------------------------
 
-    def submit(self, scenarios: list[str], seed: int, dut: dict[str, str], mode: str, priority: int) -> int:
+    def submit(self, scenarios: list[str], seed: int, dut: dict[str, str], mode: str, priority: int,
+               origin: str = "api") -> int:
         with self.transaction() as c:
-            cur = c.execute("INSERT INTO runs (created, status, priority, mode, seed, scenarios, dut) "
-                            "VALUES (?, 'queued', ?, ?, ?, ?, ?)",
-                            (time.time(), priority, mode, seed, json.dumps(scenarios), json.dumps(dut)))
+            cur = c.execute("INSERT INTO runs (created, status, priority, mode, seed, scenarios, dut, "
+                            "origin) VALUES (?, 'queued', ?, ?, ?, ?, ?, ?)",
+                            (time.time(), priority, mode, seed, json.dumps(scenarios), json.dumps(dut),
+                             origin))
             assert cur.lastrowid is not None
             return cur.lastrowid
 
@@ -151,9 +155,13 @@ class Db:
             return run
 
     def list(self, status: str | None = None, scenario: str | None = None, since: float | None = None,
-             limit: int = 50, offset: int = 0, firmware: str | None = None) -> list[dict[str, Any]]:
+             limit: int = 50, offset: int = 0, firmware: str | None = None,
+             origin: str | None = None) -> list[dict[str, Any]]:
         where: list[str] = []
         args: list[object] = []
+        if origin is not None:
+            where.append("origin = ?")
+            args.append(origin)
         if status is not None:
             where.append("status = ?")
             args.append(status)

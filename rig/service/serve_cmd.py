@@ -25,6 +25,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="every request must carry it (Authorization: Bearer TOKEN); default $RIG_TOKEN")
     p.add_argument("--slots", type=int, default=os.cpu_count() or 1,
                    help="lockstep runs at once (default: one per core, %(default)s)")
+    p.add_argument("--modbus", type=int, metavar="PORT",
+                   help="also serve the test cell's PLC over Modbus TCP on PORT (docs/plc.md), on --host")
+    p.add_argument("--modbus-measure", action="append", default=[], metavar="NAME",
+                   help="a measurement the PLC reads as FLOAT32 from register 10 on, two registers each "
+                        "(repeat; at most 16)")
+    p.add_argument("--modbus-bench", action="store_true",
+                   help="the PLC's runs go to the bench (mode bridge) instead of a lockstep slot")
+    p.add_argument("--modbus-open", action="store_true",
+                   help="allow Modbus TCP beyond loopback: Modbus has no authentication, so anyone who "
+                        "reaches the port can start and abort runs (firewall it to the PLC)")
 
 
 def _loopback(host: str) -> bool:
@@ -44,6 +54,22 @@ def main(args: argparse.Namespace) -> int:
     if not 1 <= args.slots <= 256 or not 0 <= args.port <= 65535:
         print("rig serve: --slots is 1..256 and --port 0..65535", file=sys.stderr)
         return 2
+    if args.modbus is not None:
+        from rig.service.plc import MAX_MEASUREMENTS
+
+        if not 1 <= args.modbus <= 65535 or args.modbus == args.port:
+            print("rig serve: --modbus is a port 1..65535, not the HTTP one", file=sys.stderr)
+            return 2
+        if len(args.modbus_measure) > MAX_MEASUREMENTS:
+            print(f"rig serve: at most {MAX_MEASUREMENTS} --modbus-measure", file=sys.stderr)
+            return 2
+        if not _loopback(args.host) and not args.modbus_open:
+            print(f"rig serve: Modbus TCP has no authentication; on {args.host} anyone could start runs: "
+                  "give --modbus-open (and firewall the port to the PLC)", file=sys.stderr)
+            return 2
+    elif args.modbus_measure or args.modbus_bench:
+        print("rig serve: --modbus-measure and --modbus-bench go with --modbus PORT", file=sys.stderr)
+        return 2
     import uvicorn
 
     from rig.service.app import create_app
@@ -59,6 +85,21 @@ def main(args: argparse.Namespace) -> int:
               file=sys.stderr)
     store = Store(args.data)
     workers = Workers(db, args.data / "runs", store, args.slots)
+    plc_server = None
+    if args.modbus is not None:
+        from rig.service.plc import Plc, PlcServer, library_names
+
+        plc = Plc(db, workers, library_names(), args.modbus_measure,
+                  "bridge" if args.modbus_bench else "lockstep")
+        plc_server = PlcServer(plc, args.host, args.modbus)
+        try:
+            plc_server.start()
+        except RuntimeError as e:
+            print(f"rig serve: {e}", file=sys.stderr)
+            db.close()
+            return 1
+        print(f"rig serve: the PLC's Modbus TCP on {args.host}:{args.modbus}, unit 1 (docs/plc.md)",
+              file=sys.stderr, flush=True)
     workers.start()
     app = create_app(db, workers, args.token, store, args.data / "runs")
     config = uvicorn.Config(app, host=args.host, port=args.port, log_level="warning")
@@ -75,6 +116,8 @@ def main(args: argparse.Namespace) -> int:
     try:
         server.run()
     finally:
+        if plc_server is not None:
+            plc_server.stop()
         workers.stop()
         db.close()
     return 0

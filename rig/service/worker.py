@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 from typing import Any, Final
 
-from rig.service.db import Db
+from rig.service.db import TERMINAL, Db
 from rig.service.store import Store
 
 PR_SET_PDEATHSIG: Final = 1
@@ -107,6 +107,19 @@ class Workers:
         proc = self._procs.get(run_id)
         if proc is not None:
             _end(proc)
+
+    def abort(self, run_id: int) -> str | None:
+        """Cancels a queued or running run (a running one: its rig run is stopped, its DUT with it).
+        None when done; otherwise why not, in words."""
+        found = self.db.get(run_id)
+        if found is None:
+            return f"no run {run_id}"
+        if found["status"] in TERMINAL:
+            return f"run {run_id} is already {found['status']}"
+        if not self.db.update_if(run_id, found["status"], status="cancelled"):
+            return f"run {run_id} changed meanwhile; ask again"
+        self.cancel(run_id)
+        return None
 
     def _loop(self, mode: str) -> None:
         holder = f"{socket.gethostname()}:{os.getpid()}:{threading.current_thread().name}"
