@@ -13,11 +13,11 @@ from rig.power.supply import (
     DEFAULT_TIMEOUT_S,
     PsuError,
     open_supply,
-    parse_spec,
     power_cycle,
     power_off,
     power_on,
 )
+from scenarios.bench import parse_psu
 
 EXIT_USAGE, EXIT_PSU = 2, 3
 
@@ -48,9 +48,9 @@ def main(args: argparse.Namespace) -> int:
         print("rig power: which supply? --psu MAKE:PORT[@BAUD] (or $RIG_PSU)", file=sys.stderr)
         return EXIT_USAGE
     try:
-        spec = parse_spec(args.psu)
+        spec = parse_psu(args.psu)
     except ValueError as e:
-        print(f"rig power: {e}", file=sys.stderr)
+        print(f"rig power: --psu {e}", file=sys.stderr)
         return EXIT_USAGE
     if not (0 < args.timeout <= 10 and 0 <= args.off_s <= 60 and 0 < args.settle_s <= 60):
         print("rig power: --timeout is 0..10 s, --off-s 0..60 s, --settle-s 0..60 s", file=sys.stderr)

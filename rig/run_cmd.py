@@ -81,6 +81,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "--bridge, where the motors' pulse widths come from instead of the bridge's link: a CAN capture "
         "device (socketcan:can0, slcan:/dev/ttyACM1), or slcan:vbridge, the virtual bridge's own frames",
     )
+    p.add_argument(
+        "--psu",
+        metavar="MAKE:PORT[@BAUD]",
+        help="with --bridge: the bench supply (riden:/dev/ttyUSB0, korad:/dev/ttyACM0) power-cycles the "
+        "board before each run and its volts and amps go into the telemetry; overrides each scenario's "
+        "[bench] psu (docs/power.md)",
+    )
     add_pdf_options(p)
     v = sub.add_parser("validate", help="check scenario files without running them")
     v.add_argument("scenarios", nargs="+", metavar="SCENARIO")
@@ -227,6 +234,17 @@ def plan(args: argparse.Namespace) -> Plan:
                 check_can(sc.capture.can_interface, sc.capture.can_channel)
             except ValueError as e:
                 problems.append(f"{sc.path}: capture: {e}")
+    if args.psu is not None:
+        from scenarios.bench import parse_psu
+
+        if args.bridge is None:
+            problems.append("--psu powers a board behind a bridge: it goes with --bridge")
+        try:
+            parse_psu(args.psu)
+        except ValueError as e:
+            problems.append(f"--psu {e}")
+        scenarios = [dataclasses.replace(sc, bench=dataclasses.replace(sc.bench, psu=args.psu))
+                     for sc in scenarios]
     if args.out.exists() and not args.out.is_dir():
         problems.append(f"--out {args.out} exists and is not a folder")
     if args.pdf:

@@ -28,16 +28,20 @@ from emulators.sensor_models import Normals
 from plant.native_build import BUILD
 from plant.variables import MOTORS
 from rig import __version__, firmware
+from rig.bridge.port import BridgeError
 from rig.bridge.session import BenchConfig, BenchSession
 from rig.capture import install_capture
 from rig.host import Host
+from rig.power.bench_run import PsuRun
+from rig.power.supply import PsuError
 from rig.rc import StickEmulator
+from rig.scheduler import EXIT_RIG_ERROR
 from rig.session import Outcome, Session, SessionConfig
 from rig.world import World
 from scenarios.criteria import NOT_JUDGED, Measurement, measure
 from scenarios.result import RunResult
 from scenarios.schema import Event, Scenario
-from scenarios.signals import RECORD_PERIOD, SIGNALS
+from scenarios.signals import BENCH_SIGNALS, RECORD_PERIOD, SIGNALS
 
 # (the build folder from a module that is never compiled: this one may run from build/mypyc,
 # rig/compiled.py, where __file__ is not the source's)
@@ -52,6 +56,9 @@ TELEMETRY_KEYS = {
     "alt": "est_alt",
     "armed": "armed",
 }
+
+
+PSU_SAMPLE_S: Final = 0.1  # the bench supply's readings join the run's record at 10 Hz
 
 
 def absolute_command(command: list[str], cwd: Path) -> list[str]:
@@ -287,6 +294,11 @@ def run(
         baro_noise_pa=scenario.baro_noise_pa,
         baro_drift_pa_per_s=scenario.baro_drift_pa_per_s,
     )
+    psu: PsuRun | None = None
+    if bridge is not None and scenario.bench.psu is not None:
+        psu = PsuRun(scenario.bench)
+    elif scenario.bench.psu is not None:
+        notes.append("the scenario's [bench] supply powers a board behind a bridge only: not used here")
     stderr_path = work / "dut-stderr.txt"
     try:  # (the world holds the plant, whose instance close() frees)
         metadata["plant_fmu_sha256"] = world.plant.fmu_sha256
@@ -303,10 +315,15 @@ def run(
             )
             session: Session | BenchSession
             if bridge is not None:  # the bridge captures the pulses itself
+                if psu is not None:
+                    _psu_prepare(psu)
                 session = BenchSession(BenchConfig(
                     bridge=bridge, command=None if board else command, rc_path=RC_PATH,
                     serial=[] if board else [TELEMETRY_PATH], duration=scenario.duration,
-                    wall_timeout=wall_timeout, stdout=out, stderr=err, faults=faults, can=can), world)
+                    wall_timeout=wall_timeout, stdout=out, stderr=err, faults=faults, can=can,
+                    power_on=None if psu is None else _psu_switch_on(psu)), world)
+                if psu is not None:
+                    session.at(0.0, _psu_sampler(psu, session))
                 capture = None
             else:
                 session = Session(cfg, world)
@@ -327,6 +344,8 @@ def run(
                     capture.close()
     finally:
         world.close()
+        if psu is not None:
+            psu.close()
     signals = rec.signals()
     raw_telemetry = session.serial_output(TELEMETRY_PATH)
     (work / "dut-telemetry.txt").write_bytes(raw_telemetry)  # the DUT's own words, kept as they came
@@ -355,6 +374,9 @@ def run(
     )
     if isinstance(session, BenchSession):
         metadata["bridge"] = session.link_figures()
+    if psu is not None:
+        metadata["bench_power"] = psu.figures()
+        signals.update(psu.signals(signals["t"]))
     if realtime:
         metadata["realtime_lateness"] = {
             "events": outcome.events_run,
@@ -367,6 +389,8 @@ def run(
                 f"real time: {outcome.events_late} of {outcome.events_run} scheduled events ran over 1 ms "
                 f"late (worst {outcome.max_lateness_s * 1000:.1f} ms)"
             )
+    for name in BENCH_SIGNALS:  # a criterion on the supply's signals, in a run without one: NaN, not judged
+        signals.setdefault(name, np.full(len(signals["t"]), math.nan))
     measurements = [
         measure(
             c.name,
@@ -404,7 +428,7 @@ def run(
     else:
         verdict = "pass" if all(m.outcome == "pass" for m in measurements) else "fail"
     notes += outcome.notes
-    assert set(SIGNALS) <= set(signals), set(SIGNALS) - set(signals)
+    assert set(SIGNALS) - set(BENCH_SIGNALS) <= set(signals), set(SIGNALS) - set(signals)
     return RunResult(scenario, verdict, error, measurements, signals, metadata, outcome.exit_code, stderr,
                      notes)
 
@@ -466,3 +490,37 @@ def _apply_event(rc: StickEmulator, ev: Event) -> Callable[[Host], None]:
             session.world.set_input(k, v)
 
     return apply
+
+
+def _psu_prepare(psu: PsuRun) -> None:
+    """The supply opened, set and switched off before the link starts (a RuntimeError, which the
+    suite reports as a run the rig could not fly, when it does not answer)."""
+    try:
+        psu.prepare()
+    except PsuError as e:
+        raise RuntimeError(f"bench supply: {e}") from None
+
+
+def _psu_switch_on(psu: PsuRun) -> Callable[[], None]:
+    def switch_on() -> None:
+        try:
+            psu.switch_on()
+        except PsuError as e:
+            raise BridgeError(f"bench supply: {e}") from None
+
+    return switch_on
+
+
+def _psu_sampler(psu: PsuRun, session: BenchSession) -> Callable[[Host], None]:
+    """A session event every PSU_SAMPLE_S: the supply's latest reading into the run's record; an
+    over-current or a supply gone silent ends the run as an error."""
+
+    def sample(host: Host) -> None:
+        t = host.now_ns / 1e9
+        problem = psu.sample(t)
+        if problem is not None:
+            session.sched.fail(EXIT_RIG_ERROR, f"{problem} at sim t={t:.3f} s")
+            return
+        host.at(t + PSU_SAMPLE_S, sample)
+
+    return sample

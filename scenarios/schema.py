@@ -24,6 +24,7 @@ from emulators.pwm_capture import TRANSPORTS as CAPTURE_TRANSPORTS
 from emulators.sbus import STICKS
 from plant.variables import SCENARIO_INPUTS, VARIABLES, check_parameters
 from scenarios import fc_keys
+from scenarios.bench import BenchPower, parse_psu
 from scenarios.criteria import MARGINAL_PCT, METRICS
 from scenarios.signals import SIGNALS
 
@@ -112,6 +113,7 @@ class Scenario:
     timeline: tuple[Event, ...]
     criteria: tuple[CriterionSpec, ...]
     capture: Capture
+    bench: BenchPower
     max_angle_deg: float
     max_yaw_rate_dps: float
     sha256: str
@@ -242,6 +244,7 @@ TOP = {
     "environment",
     "rc",
     "capture",
+    "bench",
     "timeline",
     "faults",
     "gusts",
@@ -258,6 +261,7 @@ ENV_KEYS = {
     "mag_disturbance_end",
 }
 RC_KEYS = {"max_angle_deg", "max_yaw_rate_dps"}
+BENCH_KEYS = {"psu", "volts", "current_limit", "max_current", "off_s", "settle_s"}
 CAPTURE_KEYS = {"transport", "resolution_us", "rate_hz", "latency_s", "can_interface", "can_channel"}
 EVENT_KEYS = {"t", "sticks", "link", "inputs"}
 FAULT_KEYS = {"target", "kind", "start", "end", "magnitude", "period", "duty"}
@@ -318,6 +322,26 @@ def load(path: str | Path) -> Scenario:
         raise c.fail(
             "capture.can_channel", f"missing; interface {capture.can_interface!r} needs a channel (e.g. can0)"
         )
+
+    b = c.table(data.get("bench", {}), "bench", BENCH_KEYS)
+    psu = c.string(b, "psu", "bench", "") or None
+    if psu is not None:
+        try:
+            parse_psu(psu)
+        except ValueError as e:
+            raise c.fail("bench.psu", str(e)) from None
+    bench = BenchPower(
+        psu,
+        c.optional(b, "volts", "bench"),
+        c.optional(b, "current_limit", "bench"),
+        c.optional(b, "max_current", "bench"),
+        c.number(b, "off_s", "bench", 1.0, low=0, high=60),
+        c.number(b, "settle_s", "bench", 3.0, positive=True, high=60),
+    )
+    for key in ("volts", "current_limit", "max_current"):
+        value = getattr(bench, key)
+        if value is not None and not 0 < value <= 100:
+            raise c.fail(f"bench.{key}", f"expected a number in 0..100 (exclusive of 0), got {value}")
 
     timeline = []
     for i, entry in enumerate(c.array(data, "timeline")):
@@ -438,6 +462,7 @@ def load(path: str | Path) -> Scenario:
         timeline=tuple(sorted(timeline, key=lambda e: e.t)),
         criteria=tuple(criteria),
         capture=capture,
+        bench=bench,
         max_angle_deg=c.number(rc, "max_angle_deg", "rc", 30.0, positive=True, high=90),
         max_yaw_rate_dps=c.number(rc, "max_yaw_rate_dps", "rc", 90.0, positive=True),
         sha256=hashlib.sha256(raw).hexdigest(),

@@ -52,4 +52,8 @@ SIGNALS: dict[str, Signal] = {
     "pitch_est_error": Signal("deg", "est_pitch - pitch"),
     "yaw_est_error": Signal("deg", "est_yaw - yaw, wrapped to -180..180"),
     "alt_est_error": Signal("m", "est_alt - alt"),
+    "psu_volts": Signal("V", "the bench supply's output voltage (a bench run with a supply only)"),
+    "psu_amps": Signal("A", "the current the board draws from the bench supply (likewise)"),
 }
+#: recorded only when the run has what they measure (telemetry.csv leaves them out otherwise)
+BENCH_SIGNALS = ("psu_volts", "psu_amps")

@@ -65,6 +65,9 @@ class BenchConfig:
     faults: Mapping[str, FaultSet] = field(default_factory=dict)  # bus faults go to the bridge
     can: str | None = None            # INTERFACE:CHANNEL: the motors from a CAN capture device instead
     sbus_period_ms: int = 14
+    #: called once the bridge is configured, before sim time 0: a bench supply switches the board on
+    #: here, so it boots into chips that answer (raises BridgeError to end the run)
+    power_on: Callable[[], None] | None = None
     env: dict[str, str] | None = None
     shim_path: Path | None = None
     stdout: IO[str] | int | None = None   # the DUT's (None: inherited)
@@ -199,6 +202,8 @@ class BenchSession:
                     if cfg.can is not None:
                         self.can = self._open_can(cfg.can, vbridge)
                     self._start_link()
+                    if cfg.power_on is not None:
+                        cfg.power_on()
                     sel.register(self.port.fileno(), selectors.EVENT_READ, "bridge")
                     for path in cfg.serial:
                         master, slave = os.openpty()

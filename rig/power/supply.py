@@ -1,6 +1,7 @@
 """The supply-driver interface, and the one place a ``--psu`` spec becomes a driver.
 
-A spec is ``MAKE:PORT[@BAUD]`` (``riden:/dev/ttyUSB0``, ``korad:/dev/ttyACM0@9600``). Every driver
+A spec is ``MAKE:PORT[@BAUD]`` (``riden:/dev/ttyUSB0``, ``korad:/dev/ttyACM0@9600``; its syntax is the
+scenario format's, scenarios/bench.py, as a scenario's ``[bench] psu`` says it too). Every driver
 answers in volts and amps, and turns anything wrong on its wire (silence, a bad checksum, an answer
 that does not parse, a model it does not know) into a :class:`PsuError` that names the supply and says
 what was expected, within the driver's timeout: a supply that does not answer must never hang a run.
@@ -11,6 +12,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from typing import Protocol
+
+from scenarios.bench import PsuSpec, parse_psu
 
 #: after "off", the output is left off this long by default, so the board's capacitors drain
 DEFAULT_OFF_S = 1.0
@@ -59,40 +62,10 @@ class Supply(Protocol):
     def close(self) -> None: ...
 
 
-@dataclass(frozen=True)
-class PsuSpec:
-    make: str
-    port: str
-    baud: int | None
-
-    def __str__(self) -> str:
-        return f"{self.make}:{self.port}" + (f"@{self.baud}" if self.baud else "")
-
-
-MAKES = ("riden", "korad")
-
-
-def parse_spec(spec: str) -> PsuSpec:
-    """``MAKE:PORT[@BAUD]`` checked, with the reason when it is not one."""
-    make, sep, rest = spec.partition(":")
-    if not sep or make not in MAKES or not rest:
-        raise ValueError(f"--psu {spec!r}: expected MAKE:PORT[@BAUD] with MAKE one of {', '.join(MAKES)} "
-                         "(e.g. riden:/dev/ttyUSB0@115200)")
-    port, at, baud_text = rest.rpartition("@") if "@" in rest else (rest, "", "")
-    baud = None
-    if at:
-        if not baud_text.isdigit() or not 1200 <= int(baud_text) <= 4_000_000:
-            raise ValueError(f"--psu {spec!r}: the baud rate after @ is a number, 1200..4000000")
-        baud = int(baud_text)
-    if not port:
-        raise ValueError(f"--psu {spec!r}: no port")
-    return PsuSpec(make, port, baud)
-
-
 def open_supply(spec: str | PsuSpec, timeout: float = DEFAULT_TIMEOUT_S) -> Supply:
     """The driver for ``spec``, connected and identified (PsuError when the supply does not answer as
     its make should)."""
-    s = parse_spec(spec) if isinstance(spec, str) else spec
+    s = parse_psu(spec) if isinstance(spec, str) else spec
     if s.make == "riden":
         from rig.power.riden import RidenSupply
 

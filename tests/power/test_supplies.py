@@ -5,11 +5,13 @@ garbles its numbers gives a PsuError naming it within its timeout (the rig keeps
 from __future__ import annotations
 
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
 from rig.power.riden import MODELS, RidenSupply, model_of
-from rig.power.supply import PsuError, parse_spec, power_cycle
+from rig.power.supply import PsuError, power_cycle
+from scenarios.bench import parse_psu
 from tests.power.sim_supplies import SimKorad, SimRiden, crc16_modbus
 
 
@@ -33,12 +35,12 @@ def test_crc16_modbus_matches_the_specifications_example() -> None:
 
 
 def test_spec_parsing() -> None:
-    s = parse_spec("riden:/dev/ttyUSB0@115200")
+    s = parse_psu("riden:/dev/ttyUSB0@115200")
     assert (s.make, s.port, s.baud) == ("riden", "/dev/ttyUSB0", 115200)
-    assert parse_spec("korad:/dev/ttyACM0").baud is None
+    assert parse_psu("korad:/dev/ttyACM0").baud is None
     for bad in ("riden", "owon:/dev/x", "riden:", "riden:/dev/x@fast", "riden:/dev/x@12"):
-        with pytest.raises(ValueError, match="--psu"):
-            parse_spec(bad)
+        with pytest.raises(ValueError, match="MAKE:PORT|baud rate"):
+            parse_psu(bad)
 
 
 def test_models_by_their_id_register() -> None:
@@ -133,3 +135,21 @@ def test_korad_silent_is_a_clear_error(korad: SimKorad) -> None:
 def test_no_such_port_is_a_clear_error() -> None:
     with pytest.raises(PsuError, match="cannot open"):
         RidenSupply("/dev/nonexistent-psu")
+
+
+def test_a_scenarios_bench_table_is_checked(tmp_path: Path) -> None:
+    from scenarios.schema import ScenarioError, load
+
+    base = ('[scenario]\nname = "x"\nduration = 1.0\n'
+            '[[criteria]]\nname = "c"\nmetric = "max"\nsignal = "roll"\nmax = 1\n[bench]\n')
+    for body, words in (('psu = "owon:/dev/x"', "bench.psu.*MAKE one of riden, korad"),
+                        ("max_current = -1", "bench.max_current"), ("off_s = 100", "bench.off_s"),
+                        ("volts_set = 3", "bench.volts_set.*unknown key")):
+        f = tmp_path / "s.toml"
+        f.write_text(base + body + "\n")
+        with pytest.raises(ScenarioError, match=words):
+            load(f)
+    f.write_text(base + 'psu = "korad:/dev/ttyACM0@9600"\nvolts = 5\nmax_current = 1.5\n')
+    bench = load(f).bench
+    assert (bench.psu, bench.volts, bench.max_current) == ("korad:/dev/ttyACM0@9600", 5.0, 1.5)
+    assert bench.off_s == 1.0
