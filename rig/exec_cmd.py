@@ -20,6 +20,7 @@ from pathlib import Path
 from emulators.topology import TOPOLOGIES
 from plant.variables import PARAMETERS, check_parameters
 from rig import interrupts
+from rig.bridge.esc import ESC_PROTOCOLS
 from rig.bridge.session import BenchConfig, BenchSession
 from rig.session import Session, SessionConfig
 from rig.world import World
@@ -75,6 +76,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--bus", type=int, default=1, metavar="N",
                    help="emulated bus number (/dev/i2c-N; default 1)")
     p.add_argument("--topology", choices=TOPOLOGIES, default="gy86")
+    p.add_argument("--esc", choices=tuple(ESC_PROTOCOLS), default="pwm",
+                   help="with --bridge: the ESC protocol the bridge captures (default pwm; oneshot125)")
     p.add_argument("--serial", action="append", default=[], metavar="PATH",
                    help="a serial device path the command opens, served by a pty (repeatable)")
     p.add_argument("--pwm-channels", type=int, default=8, metavar="N", help="channels of pwmchip0 (1..16)")
@@ -133,7 +136,8 @@ def main(args: argparse.Namespace) -> int:
             if args.bridge is not None:
                 bench = BenchConfig(bridge=args.bridge, command=command, serial=args.serial,
                                     i2c_bus=args.bus, topology=args.topology, duration=args.duration,
-                                    sim_timeout=args.sim_timeout, wall_timeout=args.wall_timeout)
+                                    sim_timeout=args.sim_timeout, wall_timeout=args.wall_timeout,
+                                    esc=args.esc)
                 outcome = BenchSession(bench, world).run()
             else:
                 outcome = Session(cfg, world).run()

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rig import interrupts
+from rig.bridge.esc import ESC_PROTOCOLS
 from scenarios.schema import Scenario, ScenarioError, load
 
 if TYPE_CHECKING:
@@ -87,6 +88,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         help="with --bridge: the bench supply (riden:/dev/ttyUSB0, korad:/dev/ttyACM0) power-cycles the "
         "board before each run and its volts and amps go into the telemetry; overrides each scenario's "
         "[bench] psu (docs/power.md)",
+    )
+    p.add_argument(
+        "--esc",
+        choices=tuple(ESC_PROTOCOLS),
+        default="pwm",
+        help="with --bridge: the board's ESC protocol, which sets the capture's pulse limits and how a "
+        "pulse becomes a motor command (default pwm: 1000..2000 us; oneshot125: 125..250 us)",
     )
     add_pdf_options(p)
     v = sub.add_parser("validate", help="check scenario files without running them")
@@ -234,6 +242,8 @@ def plan(args: argparse.Namespace) -> Plan:
                 check_can(sc.capture.can_interface, sc.capture.can_channel)
             except ValueError as e:
                 problems.append(f"{sc.path}: capture: {e}")
+    if args.esc != "pwm" and args.bridge is None:
+        problems.append(f"--esc {args.esc} is what a bridge captures: it goes with --bridge")
     if args.psu is not None:
         from scenarios.bench import parse_psu
 
@@ -288,7 +298,8 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
         print(f"[{i}/{n}] {sc.stem} ({sc.duration:g} s sim) ...", end="", file=sys.stderr, flush=True)
         try:
             r = run(sc, dut=suite.dut, seed=args.seed, work_dir=run_dir, wall_timeout=args.wall_timeout,
-                    realtime=args.realtime, bridge=args.bridge, can=args.can if args.bridge else None)
+                    realtime=args.realtime, bridge=args.bridge, can=args.can if args.bridge else None,
+                    esc=args.esc)
         except Exception as e:  # the rig could not fly it (not the DUT's doing): say so, go on
             r = not_run(sc, args.seed, f"the rig could not run this scenario: {type(e).__name__}: {e}",
                         args.realtime, args.bridge)

@@ -242,13 +242,15 @@ def run(
     realtime: bool = False,
     bridge: str | None = None,
     can: str | None = None,
+    esc: str = "pwm",
 ) -> RunResult:
     """Runs ``scenario``; the reference FC (configured from the scenario's [fc] table) when ``dut`` is
     None. The DUT's stdout, stderr and telemetry go to ``work_dir`` (with None, to a temporary folder
     removed afterwards). Lockstep virtual time by default; ``realtime`` paces the run by the wall clock
     (a bench) and reports how late the scheduled events ran. ``bridge`` ("virtual" or a bridge's serial
     port) runs it in real time through a bench bridge (rig/bridge/session.py): the sensors are the
-    bridge's, the motors its captured pulses; behind a port the DUT is the board wired to it."""
+    bridge's, the motors its captured pulses (``esc``: their protocol, rig/bridge/esc.py); behind a port
+    the DUT is the board wired to it."""
     if work_dir is None:
         with tempfile.TemporaryDirectory(prefix="rig-run-") as tmp:
             return run(scenario, dut, seed, Path(tmp), wall_timeout, stall_timeout, corrupt_every, realtime,
@@ -320,7 +322,7 @@ def run(
                 session = BenchSession(BenchConfig(
                     bridge=bridge, command=None if board else command, rc_path=RC_PATH,
                     serial=[] if board else [TELEMETRY_PATH], duration=scenario.duration,
-                    wall_timeout=wall_timeout, stdout=out, stderr=err, faults=faults, can=can,
+                    wall_timeout=wall_timeout, stdout=out, stderr=err, faults=faults, can=can, esc=esc,
                     power_on=None if psu is None else _psu_switch_on(psu)), world)
                 if psu is not None:
                     session.at(0.0, _psu_sampler(psu, session))

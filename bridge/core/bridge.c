@@ -30,12 +30,28 @@ void bridge_send(struct bridge *b, struct bridge_msg *msg)
         b->hal.link_tx(b->hal.ctx, wire, n);
 }
 
-static void set_hmc_enabled(struct bridge *b)
+static uint8_t chip_addr(const struct bridge *b, int chip)
 {
-    int on = b->topology == CHIP_TOPOLOGY_DIRECT || chip_mpu_bypass(&b->board);
-    if (on != b->hmc_enabled) {
-        b->hmc_enabled = on;
-        b->hal.i2c_addr_enable(b->hal.ctx, b->hmc_addr, on);
+    return chip == CHIP_MPU ? b->mpu_addr : chip == CHIP_HMC ? b->hmc_addr : b->baro_addr;
+}
+
+/* The port's target answers a chip's address only while the chip would: 0x1E while the MPU's bypass is
+   on (GY-86), none while a bus fault keeps the chip silent. A target peripheral acknowledges its
+   address before the core is asked, so a fault that only the core knew of would be ACKed; at the
+   poll's pace (about 100 us) the hardware NACKs it as the real chip does (the core still refuses
+   the bytes of a START that comes closer to a window's edge than that). */
+static const uint8_t ADDRESS_ORDER[3] = { CHIP_MPU, CHIP_BARO, CHIP_HMC }; /* the HMC's last: it follows the MPU */
+
+static void set_addresses(struct bridge *b, uint64_t t_ns)
+{
+    for (int i = 0; i < 3; i++) {
+        int chip = ADDRESS_ORDER[i];
+        int on = chip_answers(&b->board, (uint8_t)chip, t_ns) &&
+                 (chip != CHIP_HMC || b->topology == CHIP_TOPOLOGY_DIRECT || chip_mpu_bypass(&b->board));
+        if (on != b->enabled[chip]) {
+            b->enabled[chip] = (uint8_t)on;
+            b->hal.i2c_addr_enable(b->hal.ctx, chip_addr(b, chip), on);
+        }
     }
 }
 
@@ -43,12 +59,10 @@ static void set_hmc_enabled(struct bridge *b)
 static void configure(struct bridge *b, uint8_t topology, uint8_t mpu, uint8_t hmc, uint8_t baro, uint8_t sbus_ms,
                       uint8_t channels, uint8_t trace)
 {
-    if (b->mpu_addr)
-        b->hal.i2c_addr_enable(b->hal.ctx, b->mpu_addr, 0);
-    if (b->baro_addr)
-        b->hal.i2c_addr_enable(b->hal.ctx, b->baro_addr, 0);
-    if (b->hmc_enabled)
-        b->hal.i2c_addr_enable(b->hal.ctx, b->hmc_addr, 0);
+    for (int i = 0; i < 3; i++)
+        if (b->enabled[ADDRESS_ORDER[i]])
+            b->hal.i2c_addr_enable(b->hal.ctx, chip_addr(b, ADDRESS_ORDER[i]), 0);
+    memset(b->enabled, 0, sizeof b->enabled);
     b->topology = topology;
     b->mpu_addr = mpu;
     b->hmc_addr = hmc;
@@ -58,10 +72,7 @@ static void configure(struct bridge *b, uint8_t topology, uint8_t mpu, uint8_t h
     chip_board_init(&b->board, topology ? CHIP_TOPOLOGY_DIRECT : CHIP_TOPOLOGY_GY86);
     memset(b->n.underrun_base, 0, sizeof b->n.underrun_base);
     sbus_out_init(&b->sbus, sbus_ms * 1000u);
-    b->hal.i2c_addr_enable(b->hal.ctx, mpu, 1);
-    b->hal.i2c_addr_enable(b->hal.ctx, baro, 1);
-    b->hmc_enabled = 0;
-    set_hmc_enabled(b);
+    set_addresses(b, now_us(b) * 1000u);
     b->cur_chip = -1;
 }
 
@@ -178,13 +189,23 @@ uint8_t bridge_i2c_read(struct bridge *b, uint64_t t_ns)
     return v;
 }
 
+void bridge_i2c_unread(struct bridge *b)
+{
+    if (b->cur_chip < 0 || !b->cur_read || !b->cur_bytes)
+        return;
+    chip_unread_byte(&b->board);
+    if (b->trace_len == b->cur_bytes)
+        b->trace_len--;
+    b->cur_bytes--;
+}
+
 void bridge_i2c_stop(struct bridge *b, uint64_t t_ns)
 {
     trace_flush(b);
     (void)t_ns;
     chip_stop(&b->board);
     b->cur_chip = -1;
-    set_hmc_enabled(b); /* the bypass may have changed */
+    set_addresses(b, t_ns); /* the bypass may have changed */
 }
 
 /* ---------------------------------------------------------------- capture */
@@ -236,6 +257,18 @@ static int config(struct bridge *b, const struct bridge_config *c)
         (c->baro_addr != 0x76 && c->baro_addr != 0x77) || c->capture_channels > PWM_CAPTURE_CHANNELS || c->trace > 1 ||
         c->sbus_period_ms > 100)
         return -1;
+    struct pwm_capture_cfg cap = b->cap.cfg, limits = pwm_capture_defaults(); /* the port's timer stays */
+    if (c->pulse_min_us || c->pulse_max_us || c->period_min_us) { /* the ESC protocol's (OneShot125: 125..250 us) */
+        if (!c->pulse_min_us || c->pulse_min_us >= c->pulse_max_us || !c->period_min_us)
+            return -1;
+        limits.min_width_us = c->pulse_min_us;
+        limits.max_width_us = c->pulse_max_us;
+        limits.min_period_us = c->period_min_us;
+    }
+    cap.min_width_us = limits.min_width_us;
+    cap.max_width_us = limits.max_width_us;
+    cap.min_period_us = limits.min_period_us;
+    pwm_capture_init(&b->cap, &cap);
     configure(b, c->topology, c->mpu_addr, c->hmc_addr, c->baro_addr, c->sbus_period_ms, c->capture_channels, c->trace);
     return 0;
 }
@@ -403,7 +436,7 @@ void bridge_poll(struct bridge *b)
 {
     uint64_t t = now_us(b);
     chip_advance(&b->board, t * 1000u);
-    set_hmc_enabled(b);
+    set_addresses(b, t * 1000u);
     uint64_t silent_for = t > b->last_rx_us ? t - b->last_rx_us : 0;
     int silent = silent_for > BRIDGE_HOST_SILENT_US;
     if (silent && !b->host_silent) {

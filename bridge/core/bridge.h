@@ -59,7 +59,7 @@ struct bridge {
     int agreed; /* a HELLO of our version came */
     uint8_t topology, mpu_addr, hmc_addr, baro_addr, capture_channels, trace;
     uint8_t tx_seq;
-    int hmc_enabled;
+    uint8_t enabled[4]; /* by chip (CHIP_MPU..CHIP_BARO): its address is on in the port's target */
     uint64_t last_rx_us;
     int host_silent;
     uint64_t next_status_us, next_pulses_us;
@@ -81,6 +81,9 @@ void bridge_init(struct bridge *b, const struct bridge_hal *hal, const struct br
 int bridge_i2c_start(struct bridge *b, uint64_t t_ns, uint8_t addr, int read);
 int bridge_i2c_write(struct bridge *b, uint64_t t_ns, uint8_t byte);
 uint8_t bridge_i2c_read(struct bridge *b, uint64_t t_ns);
+/* the last byte bridge_i2c_read gave was never sent (the master NACKed the one before): the chip is
+   as if it had not been read (a FIFO keeps the byte, a register pointer stays) */
+void bridge_i2c_unread(struct bridge *b);
 void bridge_i2c_stop(struct bridge *b, uint64_t t_ns);
 void bridge_capture_edge(struct bridge *b, unsigned channel, int level, uint32_t count, uint64_t t_us);
 void bridge_link_rx(struct bridge *b, const uint8_t *bytes, size_t n);

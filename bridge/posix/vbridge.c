@@ -219,6 +219,8 @@ static int i2c_status(uint8_t *in, size_t len, uint8_t *out, size_t *out_len, ui
         }
         for (unsigned k = 0; k < count; k++, t += 9 * BIT_NS)
             out[o++] = bridge_i2c_read(&v.b, t);
+        (void)bridge_i2c_read(&v.b, t); /* as the STM32 target: one byte ahead, given back at the NACK */
+        bridge_i2c_unread(&v.b);
     }
     bridge_i2c_stop(&v.b, t);
     t += BIT_NS;

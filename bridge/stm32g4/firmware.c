@@ -354,6 +354,16 @@ static void i2c_event(struct i2c_port *port)
         if (!port->nack && !bridge_i2c_write(&br, t, byte))
             port->nack = 1;
     }
+    if (isr & I2C_ISR_NACKF) { /* the master's NACK after its last byte (before a STOP or a repeated START) */
+        /* TXDR took the next byte as the last one went out (RM0440 §41.4.7): it was never sent, so the
+           chip gets it back (a FIFO byte stays in the FIFO); a byte asked for too late is not read */
+        if (!(I2C_ISR(base) & I2C_ISR_TXE))
+            bridge_i2c_unread(&br);
+        else if (I2C_ISR(base) & I2C_ISR_TXIS)
+            I2C_TXDR(base) = 0xFFu;
+        I2C_ISR(base) = I2C_ISR_TXE;
+        I2C_ICR(base) = I2C_ICR_NACKCF;
+    }
     if (isr & I2C_ISR_STOPF) {
         I2C_ICR(base) = I2C_ICR_STOPCF;
         bridge_i2c_stop(&br, t);
@@ -365,10 +375,8 @@ static void i2c_event(struct i2c_port *port)
         port->nack = !bridge_i2c_start(&br, t, (uint8_t)I2C_ISR_ADDCODE(isr), read);
         I2C_ICR(base) = I2C_ICR_ADDRCF;
     }
-    if (I2C_ISR(base) & I2C_ISR_TXIS)
+    if (!(isr & I2C_ISR_NACKF) && (I2C_ISR(base) & I2C_ISR_TXIS))
         I2C_TXDR(base) = port->nack ? 0xFFu : bridge_i2c_read(&br, t);
-    if (isr & I2C_ISR_NACKF) /* the master's NACK after its last byte */
-        I2C_ICR(base) = I2C_ICR_NACKCF;
 }
 
 static void i2c_setup(uint32_t base)

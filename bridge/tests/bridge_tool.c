@@ -100,6 +100,10 @@ static void xfer(struct bridge *b, uint64_t t, uint8_t addr, const uint8_t *w, s
         t += 10 * BIT_NS;
         for (unsigned i = 0; ok && i < nr && i < sizeof got; i++, t += 9 * BIT_NS)
             got[i] = bridge_i2c_read(b, t);
+        if (ok && nr) { /* as the STM32 target does: one byte loaded ahead, given back at the NACK */
+            (void)bridge_i2c_read(b, t);
+            bridge_i2c_unread(b);
+        }
     }
     bridge_i2c_stop(b, t);
     if (ok)
@@ -155,6 +159,8 @@ int main(int argc, char **argv)
         } else if (!strcmp(cmd, "rd")) {
             sscanf(rest, "%llu", &a);
             printf("rd %02x\n", bridge_i2c_read(&b, a));
+        } else if (!strcmp(cmd, "unread")) {
+            bridge_i2c_unread(&b);
         } else if (!strcmp(cmd, "stop")) {
             sscanf(rest, "%llu", &a);
             bridge_i2c_stop(&b, a);

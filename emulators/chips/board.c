@@ -65,8 +65,10 @@ bool chip_fault_active(const chip_board *b, uint8_t chip, uint8_t kind, uint64_t
 }
 
 /* emulators/faults.py FaultSet.acks: off, or inside the duty part of an intermittent fault's period */
-static bool acks(const chip_board *b, uint8_t chip, uint64_t t_ns)
+bool chip_answers(const chip_board *b, uint8_t chip, uint64_t t_ns)
 {
+    if (chip < CHIP_MPU || chip > CHIP_BARO)
+        return false;
     const chip_faults *f = &b->faults[chip];
     for (uint8_t i = 0; i < f->n; i++) {
         const chip_fault *x = &f->faults[i];
@@ -198,7 +200,8 @@ void chip_stop(chip_board *b)
 static bool start(chip_board *b, uint64_t t_ns, uint8_t addr, bool read)
 {
     uint8_t chip = resolve(b, addr);
-    if (chip != CHIP_NONE && !acks(b, chip, t_ns))
+    b->undo.chip = CHIP_NONE;
+    if (chip != CHIP_NONE && !chip_answers(b, chip, t_ns))
         chip = CHIP_NONE;
     if (chip == CHIP_NONE) {
         b->counts[CHIP_COUNT_NACKS]++;
@@ -236,9 +239,67 @@ void chip_write_byte(chip_board *b, uint8_t byte)
         baro_write(&b->baro, byte);
 }
 
+static void remember(chip_board *b, uint8_t chip)
+{
+    chip_read_undo *u = &b->undo;
+    u->chip = chip;
+    u->rng = b->faults[chip].rng;
+    if (chip == CHIP_MPU) {
+        const chip_mpu *m = &b->mpu;
+        u->pointer = m->pointer;
+        u->mpu_int_status = m->regs[MPU_INT_STATUS];
+        u->mpu_fifo_last = m->fifo_last;
+        u->mpu_fifo_popped = m->pointer == MPU_FIFO_R_W && m->fifo_len > 0;
+        u->mpu_fifo_count_latch = m->fifo_count_latch;
+    } else if (chip == CHIP_HMC) {
+        const chip_hmc *h = &b->hmc;
+        u->pointer = h->pointer;
+        u->hmc_status = h->regs[HMC_STATUS];
+        memcpy(u->hmc_data, h->regs + HMC_DATA, 6);
+        u->hmc_bitmap = h->bitmap;
+        u->hmc_has_held = h->has_held;
+        memcpy(u->hmc_held, h->held, 6);
+    } else {
+        u->baro_resp_pos = b->baro.resp_pos;
+    }
+}
+
+void chip_unread_byte(chip_board *b)
+{
+    chip_read_undo *u = &b->undo;
+    if (u->chip == CHIP_NONE || u->chip != b->current)
+        return;
+    b->faults[u->chip].rng = u->rng;
+    if (u->chip == CHIP_MPU) {
+        chip_mpu *m = &b->mpu;
+        m->pointer = u->pointer;
+        m->regs[MPU_INT_STATUS] = u->mpu_int_status;
+        m->fifo_last = u->mpu_fifo_last;
+        m->fifo_count_latch = u->mpu_fifo_count_latch;
+        if (u->mpu_fifo_popped) { /* the byte is still in the ring: step the head back over it */
+            m->fifo_head = (uint16_t)((m->fifo_head + CHIP_FIFO_SIZE - 1) % CHIP_FIFO_SIZE);
+            m->fifo_len++;
+        }
+    } else if (u->chip == CHIP_HMC) {
+        chip_hmc *h = &b->hmc;
+        h->pointer = u->pointer;
+        h->regs[HMC_STATUS] = u->hmc_status;
+        memcpy(h->regs + HMC_DATA, u->hmc_data, 6);
+        h->bitmap = u->hmc_bitmap;
+        h->has_held = u->hmc_has_held;
+        memcpy(h->held, u->hmc_held, 6);
+    } else {
+        b->baro.resp_pos = u->baro_resp_pos;
+    }
+    u->chip = CHIP_NONE; /* one byte back, not two */
+}
+
 uint8_t chip_read_byte(chip_board *b)
 {
     uint8_t chip = b->current, v;
+    b->undo.chip = CHIP_NONE;
+    if (chip != CHIP_NONE)
+        remember(b, chip);
     if (chip == CHIP_MPU)
         v = mpu_read(&b->mpu);
     else if (chip == CHIP_HMC)

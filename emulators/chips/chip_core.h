@@ -204,6 +204,21 @@ typedef struct {
     uint16_t q_head, q_len;
 } chip_baro;
 
+/* What the last chip_read_byte changed, so chip_unread_byte can give that byte back: an I2C target
+ * peripheral that loads the next byte while the master still clocks the one before (the STM32's
+ * TXDR) takes one byte more than a master that NACKs reads. Everything a read can change is here. */
+typedef struct {
+    uint8_t chip; /* CHIP_NONE: nothing to give back */
+    uint64_t rng; /* the garbage fault's generator */
+    uint8_t pointer;
+    uint8_t mpu_int_status, mpu_fifo_last;
+    bool mpu_fifo_popped;
+    uint16_t mpu_fifo_count_latch;
+    uint8_t hmc_status, hmc_data[6], hmc_bitmap, hmc_held[6];
+    bool hmc_has_held;
+    uint8_t baro_resp_pos;
+} chip_read_undo;
+
 typedef struct {
     uint8_t topology;
     bool demand;
@@ -214,6 +229,7 @@ typedef struct {
     chip_baro baro;
     chip_faults faults[4]; /* by chip (index 0 unused) */
     uint32_t counts[CHIP_COUNT_N];
+    chip_read_undo undo;
 } chip_board;
 
 /* ---- set-up ---- */
@@ -226,6 +242,9 @@ CHIP_API bool chip_bus_fault_add(chip_board *b, uint8_t chip, uint8_t kind, uint
                                  uint64_t period_ns, uint64_t duty_ns); /* false when the chip has no room */
 CHIP_API void chip_bus_fault_seed(chip_board *b, uint8_t chip, uint64_t seed);
 CHIP_API void chip_bus_fault_clear(chip_board *b, uint8_t chip);
+/* no bus fault keeps the chip silent at t_ns (off, or the silent part of an intermittent period): a
+ * bridge's target hardware stops acknowledging its address while it is */
+CHIP_API bool chip_answers(const chip_board *b, uint8_t chip, uint64_t t_ns);
 
 /* ---- samples ---- always queued; false: the queue was full and its oldest sample was dropped to make
  * room (a streaming host that runs ahead while a chip takes none, asleep or idle, loses nothing: a chip
@@ -246,6 +265,7 @@ CHIP_API chip_need chip_advance(chip_board *b, uint64_t now_ns);
 CHIP_API bool chip_start(chip_board *b, uint64_t t_ns, uint8_t addr, bool read);
 CHIP_API void chip_write_byte(chip_board *b, uint8_t byte);
 CHIP_API uint8_t chip_read_byte(chip_board *b);
+CHIP_API void chip_unread_byte(chip_board *b); /* the last byte read was never sent: as if not read */
 CHIP_API void chip_stop(chip_board *b);
 
 /* ---- bus: one Linux I2C transfer at t_ns ---- CHIP_OK, CHIP_NACK / CHIP_PROTOCOL (message index in

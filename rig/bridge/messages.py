@@ -17,7 +17,8 @@ import struct
 from dataclasses import dataclass
 from typing import Literal
 
-PROTOCOL_VERSION = 1
+#: 2: CONFIG carries the ESC pulse limits (OneShot125)
+PROTOCOL_VERSION = 2
 
 Direction = Literal["down", "up"]
 #: field type -> (struct code, C type)
@@ -63,7 +64,11 @@ MESSAGES: tuple[Message, ...] = (
                                      _f("mpu_addr", "u8"), _f("hmc_addr", "u8"), _f("baro_addr", "u8"),
                                      _f("sbus_period_ms", "u8", doc="14 normal, 7 high speed; 0: no SBUS"),
                                      _f("capture_channels", "u8", doc="ESC inputs to capture (0: none)"),
-                                     _f("trace", "u8", doc="1: a TRACE up per I2C transaction")),
+                                     _f("trace", "u8", doc="1: a TRACE up per I2C transaction"),
+                                     _f("pulse_min_us", "u16", doc="a shorter pulse: a glitch (0: 500)"),
+                                     _f("pulse_max_us", "u16", doc="a longer one is a glitch (0: 2500)"),
+                                     _f("period_min_us", "u16",
+                                        doc="pulses starting closer than this are glitches (0: 1000)")),
             "what the bridge emulates and captures; the chips reset to their power-on state"),
     Message("IMU_SAMPLE", 0x10, "down", (_f("valid_us", "u64", doc="bridge time from which it holds"),
                                          _f("accel", "f32", 3, doc="m/s^2, sensor frame, after the DLPF"),

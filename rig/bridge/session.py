@@ -34,6 +34,7 @@ from emulators.faults import BUS_TARGETS, KINDS, TARGETS, FaultSet
 from plant.variables import MOTORS
 from rig import interrupts
 from rig.bridge.can_capture import VBRIDGE_CHANNEL, CanPulses, parse
+from rig.bridge.esc import esc_protocol
 from rig.bridge.port import BridgeError, BridgePort, bridge_id
 from rig.bridge.stream import SampleStream
 from rig.bridge.timesync import ClockMap, Exchange
@@ -65,6 +66,7 @@ class BenchConfig:
     faults: Mapping[str, FaultSet] = field(default_factory=dict)  # bus faults go to the bridge
     can: str | None = None            # INTERFACE:CHANNEL: the motors from a CAN capture device instead
     sbus_period_ms: int = 14
+    esc: str = "pwm"                  # the board's ESC protocol (rig.bridge.esc): capture limits, scaling
     #: called once the bridge is configured, before sim time 0: a bench supply switches the board on
     #: here, so it boots into chips that answer (raises BridgeError to end the run)
     power_on: Callable[[], None] | None = None
@@ -97,6 +99,7 @@ class BenchSession:
     def __init__(self, config: BenchConfig, world: World,
                  on_reg_write: Callable[[int, int, int, int], None] | None = None) -> None:
         self.cfg = config
+        self.esc = esc_protocol(config.esc)  # (an unknown name: ValueError before anything starts)
         self.world = world
         world.direct_pwm = False  # the motors follow the bridge's captured pulses
         self.sched = Scheduler(world, self, config.duration, config.sim_timeout, self._wall_ns)
@@ -284,7 +287,9 @@ class BenchSession:
         self.figures.core_version = int(reply.values["core_version"])  # type: ignore[call-overload]
         self.figures.firmware_sha256 = fw.hex()
         port.send("CONFIG", topology=TOPOLOGY_CODES[self.cfg.topology], mpu_addr=0x68, hmc_addr=0x1E,
-                  baro_addr=0x77, sbus_period_ms=self.cfg.sbus_period_ms, capture_channels=MOTORS)
+                  baro_addr=0x77, sbus_period_ms=self.cfg.sbus_period_ms, capture_channels=MOTORS,
+                  pulse_min_us=self.esc.pulse_min_us, pulse_max_us=self.esc.pulse_max_us,
+                  period_min_us=self.esc.period_min_us)
         deadline = time.monotonic() + 2.0
         while self.clock.exchanges < SYNC_START:
             if time.monotonic() > deadline:
@@ -373,7 +378,7 @@ class BenchSession:
             self.figures.pulses_driven += any(v["width_tenth_us"][:MOTORS])  # type: ignore[index]
             if self.can is None:  # (with a CAN capture device the motors follow its frames)
                 for motor, w in enumerate(v["width_tenth_us"][:MOTORS]):  # type: ignore[index]
-                    self.world.set_motor(motor, w / 10.0)
+                    self.world.set_motor(motor, self.esc.motor_us(w))
         elif m.name == "REG_WRITE":
             self.figures.reg_writes += 1
             write = (int(v["t_us"]), int(v["addr"]), int(v["reg"]), int(v["value"]))  # type: ignore[call-overload]

@@ -22,6 +22,7 @@ from typing import Any
 
 import pytest
 
+from rig.bridge.messages import PROTOCOL_VERSION
 from rig.bridge.session import BenchConfig, BenchSession
 from rig.runner import REFERENCE_FC, reference_config
 from rig.world import World
@@ -118,7 +119,7 @@ def test_a_nacking_magnetometer_nacks_on_the_bridge(runs: dict[str, Any]) -> Non
 def test_result_json_carries_the_bridge_and_the_links_figures(runs: dict[str, Any]) -> None:
     meta = result(runs, "bench", "step_roll")["metadata"]
     b = meta["bridge"]
-    assert (b["bridge"], b["bridge_id"], b["protocol"]) == ("virtual", "vbridge", 1)
+    assert (b["bridge"], b["bridge_id"], b["protocol"]) == ("virtual", "vbridge", PROTOCOL_VERSION)
     assert b["lead_s"] == pytest.approx(0.003)
     status = b["bridge_status"]
     assert len(status["underruns"]) == 3 and status["frames_bad"] == 0 and status["refused"] == 0

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import pytest
 
 from emulators import pwm_capture, sbus
+from rig.bridge.esc import ESC_PROTOCOLS
 from rig.bridge.link import Decoded, Receiver, encode
 from rig.bridge.messages import HOST_SILENT_US, MESSAGES, PROTOCOL_VERSION
 from tests.bridge.tools import Tool, bridge_tools
@@ -287,6 +288,37 @@ def test_a_bus_fault_nacks_its_chip_in_its_window_and_counts(tool: Tool) -> None
     assert st["i2c_errors"] == 2 and st["refused"] == 2
 
 
+def test_a_fifo_burst_read_one_byte_ahead_gives_that_byte_back(tool: Tool) -> None:
+    """The tool reads like the STM32's target: one byte more than the master takes, given back at its
+    NACK (bridge_i2c_unread). Six FIFO bytes read as 5 + 1 are the sample's accelerometer, in order,
+    and FIFO_COUNT goes down by exactly six."""
+    s = Script().t(0).hello().xfer(1000, 0x68, WAKE, 0).send("IMU_SAMPLE", valid_us=0, **SAMPLE)
+    s.xfer(2000, 0x68, bytes([0x1A, 0x01]), 0)  # DLPF 1: 1 kHz samples
+    s.xfer(3000, 0x68, bytes([0x6A, 0x40]), 0).xfer(4000, 0x68, bytes([0x23, 0x08]), 0)  # FIFO on: accel
+    s.xfer(10_500_000, 0x68, b"\x72", 2).xfer(10_600_000, 0x68, b"\x74", 5)
+    s.xfer(10_700_000, 0x68, b"\x74", 1).xfer(10_800_000, 0x68, b"\x72", 2)
+    r = run(tool, s.lines)
+    before, five, one, after = (bytes.fromhex(x) for x in r.tagged("xfer ok")[-4:])
+    assert int.from_bytes(before, "big") >= 12 and int.from_bytes(before, "big") % 6 == 0
+    assert int.from_bytes(after, "big") == int.from_bytes(before, "big") - 6
+    assert five + one == accel_bytes(tuple(SAMPLE["accel"]), 30.0, (0, 0, 0))[:6]  # type: ignore[arg-type]
+
+
+def test_a_bus_fault_turns_the_targets_address_off_for_its_window(tool: Tool) -> None:
+    """The STM32's target ACKs its own addresses in hardware: the core turns a silent chip's address
+    off at the poll (and on again after), so the board sees a NACK as from the real chip."""
+    s = Script().t(0).hello().cmd("poll")
+    s.send("FAULT", target=4, kind=6, start_us=1000, end_us=2000)  # mpu off 1..2 ms
+    # the barometer silent for the first 20 us of each 50 us, from 3 to 3.1 ms
+    s.send("FAULT", target=6, kind=7, start_us=3000, end_us=3100, period_s=50e-6, duty=0.4)
+    s.t(1500).cmd("poll").t(2500).cmd("poll")
+    s.t(3010).cmd("poll").t(3030).cmd("poll").t(3500).cmd("poll")
+    r = run(tool, s.lines)
+    addr = [line for line in r.lines if line.startswith("addr")]
+    assert addr == ["addr 68 1", "addr 77 1",  # at start
+                    "addr 68 0", "addr 68 1", "addr 77 0", "addr 77 1"]
+
+
 def test_out_of_range_values_are_refused_whole(tool: Tool) -> None:
     s = Script().t(0).hello()
     s.send("CONFIG", topology=2, mpu_addr=0x68, hmc_addr=0x1E, baro_addr=0x77, sbus_period_ms=14)
@@ -349,6 +381,35 @@ def test_pulses_go_up_with_their_widths(tool: Tool) -> None:
     pulses = r.named("PULSES")
     assert pulses[-1]["width_tenth_us"] == [11000, 12000, 13000, 14000]
     assert pulses[-1]["t_us"] == 5010 + 1400
+
+
+def oneshot_pulses(limits: dict[str, int]) -> list[str]:
+    """Three OneShot125 rounds at 2 kHz (125..245 us on the four inputs) after CONFIG with ``limits``."""
+    s = Script().t(0).hello().send("CONFIG", topology=0, mpu_addr=0x68, hmc_addr=0x1E, baro_addr=0x77,
+                                   sbus_period_ms=14, capture_channels=4, **limits).cmd("poll")
+    for k in range(3):
+        t0 = 500 * k + 10
+        for ch in range(4):
+            t1 = t0 + 125 + 40 * ch
+            s.cmd(f"edge {ch} 1 {t0 * 10} {t0}", f"edge {ch} 0 {t1 * 10 + 3} {t1}")
+        s.t(t0 + 400).cmd("poll")
+    return s.lines + ["status"]
+
+
+def test_oneshot125_pulses_are_captured_once_config_gives_their_limits(tool: Tool) -> None:
+    esc = ESC_PROTOCOLS["oneshot125"]
+    oneshot = {"pulse_min_us": esc.pulse_min_us, "pulse_max_us": esc.pulse_max_us,
+               "period_min_us": esc.period_min_us}
+    r = run(tool, oneshot_pulses(oneshot))
+    assert r.named("PULSES")[-1]["width_tenth_us"] == [1253, 1653, 2053, 2453]
+    assert r.status()["refused"] == 0 and r.status()["glitches"] == 0
+    r = run(tool, oneshot_pulses({}))  # the defaults (standard PWM, 500..2500 us): each one a glitch
+    assert all(p["width_tenth_us"] == [0, 0, 0, 0] for p in r.named("PULSES"))
+    assert r.status()["glitches"] == 12
+    for bad in ({"pulse_min_us": 300, "pulse_max_us": 200, "period_min_us": 1000},
+                {"pulse_min_us": 0, "pulse_max_us": 200, "period_min_us": 1000},
+                {"pulse_min_us": 100, "pulse_max_us": 200, "period_min_us": 0}):
+        assert run(tool, oneshot_pulses(bad)).status()["refused"] == 1, bad
 
 
 # ---------------------------------------------------------------- fuzz

@@ -73,8 +73,17 @@ def three_boards(seed: int, topology: str, plan: dict[str, list[Fault]]) -> list
     return out
 
 
+def read_ahead(lib, a: int, n: int) -> bytes:
+    """n bytes as the STM32's target reads them: one more, taken while the master clocks the last, is
+    given back when the master NACKs (chip_unread_byte); the state must be as if it was never read."""
+    got = bytes(lib.chip_read_byte(a) for _ in range(n + 1))
+    lib.chip_unread_byte(a)
+    return got[:n]
+
+
 def byte_transfer(board: ChipBoard, msgs: list[Msg], t_ns: int) -> list[bytes]:
-    """The transfer as a bridge's I2C target sees it: START, bytes, STOP (demand served first)."""
+    """The transfer as a bridge's I2C target sees it: START, bytes, STOP (demand served first), each
+    read one byte ahead and the extra byte given back."""
     board.bus.advance_ns(t_ns)
     lib, a = board.lib, board.addr
     out = []
@@ -86,9 +95,9 @@ def byte_transfer(board: ChipBoard, msgs: list[Msg], t_ns: int) -> list[bytes]:
             if not 1 <= count <= 32:
                 lib.chip_stop(a)
                 raise I2CProtocolError("count")
-            out.append(bytes([count, *(lib.chip_read_byte(a) for _ in range(count))]))
+            out.append(bytes([count]) + read_ahead(lib, a, count))
         elif m.read:
-            out.append(bytes(lib.chip_read_byte(a) for _ in range(m.length)))
+            out.append(read_ahead(lib, a, m.length))
         else:
             for byte in m.data:
                 lib.chip_write_byte(a, byte)
