@@ -243,7 +243,9 @@ class Session:
         keeper_path = ensure_keeper()
         tmp = Path(tempfile.mkdtemp(prefix="rig-session-"))
         old_affinity = os.sched_getaffinity(0)
-        keeper: _Keeper | None = None
+        # (a list, not an Optional: compiled by mypyc, a local narrowed to _Keeper in the try is checked
+        # as one in the finally, and an error before it was set became a TypeError that hid the error)
+        keepers: list[_Keeper] = []
         sel = selectors.DefaultSelector()
         wall0 = time.perf_counter()
         returncode: int | None = None
@@ -270,12 +272,13 @@ class Session:
                 os.sched_setaffinity(0, {max(old_affinity)})  # the keeper and the DUT inherit it
             self._rt_t0 = time.perf_counter()
             keeper = _Keeper(keeper_path, cfg.command, env, cfg.stdout, cfg.stderr, KILL_GRACE_S)
+            keepers.append(keeper)
             sel.register(keeper.status, selectors.EVENT_READ, "keeper")
             returncode = self._loop(sel, listener, keeper, wall0)
         finally:
             self._running = False
-            if keeper is not None:
-                keeper.finish()  # the DUT and everything it started are gone when this returns
+            for k in keepers:
+                k.finish()  # the DUT and everything it started are gone when this returns
             os.sched_setaffinity(0, old_affinity)
             for key in list(sel.get_map().values()):
                 sel.unregister(key.fileobj)
