@@ -117,6 +117,7 @@ bench: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) $(VBRIDGE) build/ben
 	$(PY) bench/cycle_cost.py
 	$(PY) bench/bridge_m4_cost.py
 	$(PY) bench/bridge_rates.py
+	$(PY) bench/sweep_rates.py
 
 clean:
 	rm -rf build

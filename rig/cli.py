@@ -38,9 +38,10 @@ def _dispatch(argv: list[str] | None) -> int:
     from rig.bridge import probe
 
     probe.add_parser(sub)
-    from rig import power_cmd
+    from rig import power_cmd, sweep_cmd
 
     power_cmd.add_parser(sub)
+    sweep_cmd.add_parser(sub)
     from rig.service import client, serve_cmd
 
     serve_cmd.add_parser(sub)
@@ -56,6 +57,8 @@ def _dispatch(argv: list[str] | None) -> int:
         return probe.main(args)
     if args.command == "power":
         return power_cmd.main(args)
+    if args.command == "sweep":
+        return sweep_cmd.main(args)
     if args.command == "serve":
         return serve_cmd.main(args)
     if args.command == "submit":

@@ -56,6 +56,14 @@ def handled() -> Iterator[None]:
         _pending = None
 
 
+def install() -> None:
+    """Installs the handlers for the rest of the process: a sweep's pool worker (rig/sweep/work.py),
+    where a signal stops the run under way (or the next one) and never the worker in the middle of
+    writing a report."""
+    for s in SIGNALS:
+        signal.signal(s, _handler)
+
+
 @contextmanager
 def live() -> Iterator[None]:
     """Inside, a signal raises Interrupted at once (one that came just before, too)."""

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import difflib
 import hashlib
+import json
 import math
 import tomllib
 from collections.abc import Collection
@@ -282,6 +283,15 @@ def load(path: str | Path) -> Scenario:
         data = tomllib.loads(raw.decode("utf-8"))
     except (UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
         raise ScenarioError(file, "", f"not valid TOML: {e}") from None
+    return check(data, path, hashlib.sha256(raw).hexdigest())
+
+
+def check(data: dict[str, Any], path: Path, sha256: str | None = None) -> Scenario:
+    """Checks a scenario's parsed tables (a file's, or a sweep's variant of one: scenarios/sweep.py);
+    ``sha256`` identifies its content (default: of the tables, canonically encoded)."""
+    file = str(path)
+    if sha256 is None:
+        sha256 = hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()
     c = _Check(file)
     c.table(data, "", TOP)
     meta = c.table(data.get("scenario", {}), "scenario", SCENARIO_KEYS)
@@ -465,5 +475,5 @@ def load(path: str | Path) -> Scenario:
         bench=bench,
         max_angle_deg=c.number(rc, "max_angle_deg", "rc", 30.0, positive=True, high=90),
         max_yaw_rate_dps=c.number(rc, "max_yaw_rate_dps", "rc", 90.0, positive=True),
-        sha256=hashlib.sha256(raw).hexdigest(),
+        sha256=sha256,
     )

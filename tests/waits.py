@@ -43,3 +43,31 @@ def wait_gone(pid: int, timeout: float = BOUND_S) -> bool:
         return bool(select.select([fd], [], [], timeout)[0])
     finally:
         os.close(fd)
+
+
+IN_CREATE, IN_MOVED_TO = 0x100, 0x80
+
+
+def wait_file(paths: list[Path], timeout: float = BOUND_S) -> Path | None:
+    """The first of ``paths`` to exist (they may be created, or renamed into place, after the call), by
+    inotify on their folders, which must exist; None after ``timeout`` seconds."""
+    import ctypes
+    import time
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    fd = libc.inotify_init1(os.O_NONBLOCK | os.O_CLOEXEC)
+    assert fd >= 0, f"inotify_init1: errno {ctypes.get_errno()}"
+    try:
+        for folder in {p.parent for p in paths}:
+            assert libc.inotify_add_watch(fd, bytes(folder), IN_CREATE | IN_MOVED_TO) >= 0, folder
+        deadline = time.monotonic() + timeout
+        while True:
+            for p in paths:  # (after the watches: a file made before them is seen here)
+                if p.exists():
+                    return p
+            left = deadline - time.monotonic()
+            if left <= 0 or not select.select([fd], [], [], left)[0]:
+                return None
+            os.read(fd, 65536)
+    finally:
+        os.close(fd)

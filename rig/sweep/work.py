@@ -1,0 +1,164 @@
+"""One variant, flown inside a worker (a local pool's process or a Dask worker's thread): it takes a
+core of its own (a lock file per core and host: Dask's workers are not numbered), checks the varied
+scenario, flies it, writes the run's artifacts under the sweep's folder, and returns a small row (only
+that travels back through the engine). The row is also written next to the artifacts, last and
+atomically: a run that finished is never flown again, even when the sweep that asked for it died."""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import math
+import os
+import socket
+import tempfile
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from rig import compiled
+
+#: a row's file in its run's folder (runs/<id>/)
+ROW = "row.json"
+SLOTS = ".slots"
+
+
+@dataclass(frozen=True)
+class Task:
+    """What a worker needs (picklable, small): the variant's tables and where to write."""
+
+    id: str
+    index: int
+    values: dict[str, Any]
+    seed: int
+    data: dict[str, Any]
+    scenario_path: str
+    out: str
+    dut: list[str] | None = None
+    wall_timeout: float = 600.0
+    #: the local pool's: a folder of the sweep's own for the runs' temporary files, so a worker killed
+    #: mid-run leaves nothing behind once the sweep removes it (None: the system's, as on a cluster)
+    tmp: str | None = None
+
+
+@contextmanager
+def core_slot(folder: Path) -> Iterator[int]:
+    """Holds one core of this host for the calling thread (and the DUT it starts): the first free one
+    of the thread's allowed cores, else waits for one. The lock is flock on folder/HOST-CPU.lock, so
+    it is released when the holder dies, however it dies."""
+    folder.mkdir(parents=True, exist_ok=True)
+    allowed = sorted(os.sched_getaffinity(0))
+    host = socket.gethostname()
+    fd = -1
+    cpu = allowed[0]
+    for blocking in (False, True):
+        # (the blocking pass waits on a core picked by pid and thread, so waiters spread out)
+        order = allowed if not blocking else [allowed[(os.getpid() + _thread_number()) % len(allowed)]]
+        for cpu in order:
+            fd = os.open(folder / f"{host}-{cpu}.lock", os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | (0 if blocking else fcntl.LOCK_NB))
+                break
+            except BlockingIOError:
+                os.close(fd)
+                fd = -1
+        if fd >= 0:
+            break
+    try:
+        os.sched_setaffinity(0, {cpu})
+        yield cpu
+    finally:
+        os.sched_setaffinity(0, allowed)
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        os.close(fd)
+
+
+def _thread_number() -> int:
+    return threading.get_ident() % 9973
+
+
+def run_dir(out: Path, run_id: str) -> Path:
+    return out / "runs" / run_id
+
+
+def read_row(out: Path, run_id: str) -> dict[str, Any] | None:
+    """The row a finished run left, or None (not run, or a file that is not one of ours)."""
+    try:
+        row = json.loads((run_dir(out, run_id) / ROW).read_text())
+    except (OSError, ValueError):
+        return None
+    return row if isinstance(row, dict) and row.get("id") == run_id else None
+
+
+def _number(v: float) -> float | None:
+    return v if math.isfinite(v) else None
+
+
+def fly(task: Task) -> dict[str, Any]:
+    """Runs one variant; never raises for the run's own problems (they are its row's error)."""
+    # this is a worker's entry point (a forkserver process, a Dask worker): the session's hot modules
+    # from build/mypyc must be found before anything below imports them, as the CLI does at its start
+    compiled.install()
+    from pathlib import Path as P
+
+    from reports import html_report, result_json
+    from rig import interrupts
+    from rig.runner import not_run, run
+    from scenarios.schema import ScenarioError, check
+
+    out = P(task.out)
+    if task.tmp is not None:
+        tempfile.tempdir = task.tmp  # (a pool process flies one run at a time)
+    folder = run_dir(out, task.id)
+    folder.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    row: dict[str, Any] = {
+        "id": task.id,
+        "index": task.index,
+        "values": task.values,
+        "seed": task.seed,
+        "host": socket.gethostname(),
+        "pid": os.getpid(),
+    }
+    try:
+        scenario = check(task.data, P(task.scenario_path))
+    except ScenarioError as e:  # (the sweep checked every variant: only a changed rig gets here)
+        row.update(verdict="error", error=str(e), measurements={}, outcomes={}, wall_s=0.0, cpu=-1)
+        _write_row(folder, row)
+        return row
+    # a local pool's process runs its task on its main thread: there a Ctrl-C stops the run cleanly
+    # (and one that comes while a report is written, the next run); a Dask worker's task thread cannot
+    # take signals: its worker handles them
+    if threading.current_thread() is threading.main_thread():
+        interrupts.install()
+    with core_slot(out / SLOTS) as cpu:
+        try:
+            r = run(scenario, dut=task.dut, seed=task.seed, work_dir=folder, wall_timeout=task.wall_timeout)
+        except Exception as e:  # the rig could not fly it: an error row, the sweep goes on
+            r = not_run(scenario, task.seed, f"the rig could not run this variant: {type(e).__name__}: {e}")
+    row.update(
+        verdict=r.verdict,
+        error=r.error,
+        cpu=cpu,
+        wall_s=round(time.perf_counter() - t0, 3),
+        measurements={m.name: _number(m.value) for m in r.measurements},
+        outcomes={m.name: m.outcome for m in r.measurements},
+        limits={m.name: [m.min, m.max] for m in r.measurements},
+        units={m.name: m.units for m in r.measurements},
+    )
+    if r.verdict == "interrupted":
+        return row  # not kept: a resumed sweep flies it again
+    (folder / "result.json").write_text(result_json.render(r))
+    (folder / "report.html").write_text(html_report.render(r))
+    _write_row(folder, row)
+    return row
+
+
+def _write_row(folder: Path, row: dict[str, Any]) -> None:
+    tmp = folder / f".{ROW}.{os.getpid()}"
+    tmp.write_text(json.dumps(row, default=str))
+    os.replace(tmp, folder / ROW)
