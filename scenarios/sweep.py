@@ -25,6 +25,7 @@ import math
 import random
 import re
 import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -217,9 +218,11 @@ def _draw(v: Vary, rng: random.Random) -> Any:
     return rng.choice(v.values)
 
 
-def load_sweep(path: str | Path, library: Path) -> Sweep:
+def load_sweep(path: str | Path, library: Path, resolve: Callable[[str], Path | None] | None = None) -> Sweep:
     """Reads a spec, expands its variants and checks each one; SweepError names the first problem
-    (a variant's is the scenario checker's message with the values that made it)."""
+    (a variant's is the scenario checker's message with the values that made it). ``resolve`` finds
+    a scenario by name instead of ``library`` (the service's: the library and the uploads), and then
+    a file path is not accepted (a spec from a request names no file)."""
     path = Path(path)
     try:
         raw = path.read_bytes()
@@ -242,9 +245,15 @@ def load_sweep(path: str | Path, library: Path) -> Sweep:
     name = s.get("scenario")
     if not isinstance(name, str) or not name:
         raise SweepError("sweep.scenario", "missing; expected a library name or a scenario file")
-    scenario_path = (path.parent / name) if name.endswith(".toml") else library / f"{name}.toml"
-    if not scenario_path.is_file():
-        raise SweepError("sweep.scenario", f"no scenario {name!r} (not a file, nor in {library})")
+    if resolve is not None:
+        found = resolve(name)
+        if found is None:
+            raise SweepError("sweep.scenario", f"no scenario named {name!r} (the library or an upload)")
+        scenario_path = found
+    else:
+        scenario_path = (path.parent / name) if name.endswith(".toml") else library / f"{name}.toml"
+        if not scenario_path.is_file():
+            raise SweepError("sweep.scenario", f"no scenario {name!r} (not a file, nor in {library})")
     mode = s.get("mode", "grid")
     if mode not in MODES:
         raise SweepError("sweep.mode", f"expected one of {', '.join(MODES)}, got {mode!r}")

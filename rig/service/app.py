@@ -38,12 +38,13 @@ class RunRequest(BaseModel):
     priority: int = Field(default=0, ge=-100, le=100)
 
 
-def check_run(req: RunRequest, store: Store) -> list[str]:
-    """Every problem of a run request, in words (the validator's for the scenarios)."""
+def check_run(req: RunRequest, store: Store, scenarios: bool = True) -> list[str]:
+    """Every problem of a run request, in words (the validator's for the scenarios; ``scenarios``
+    False: only the DUT, for a sweep)."""
     from scenarios.schema import ScenarioError, load
 
     problems = []
-    for name in req.scenarios:
+    for name in req.scenarios if scenarios else []:
         path = store.scenario(name)
         if path is None:
             problems.append(f"{name!r}: no library scenario of that name, and none uploaded "
@@ -136,6 +137,42 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         run_id = db.submit(req.scenarios, req.seed, req.dut, req.mode, req.priority)
         workers.wake()
         return {"id": run_id}
+
+    @app.post("/api/sweeps", status_code=201)
+    async def submit_sweep(request: Request, priority: int = Query(default=0, ge=-100, le=100),
+                           dut: str | None = Query(default=None, description="a DUT command line"),
+                           ) -> dict[str, Any]:
+        """A sweep spec (TOML, the request's body; docs/sweeps.md) whose scenario is a library or an
+        uploaded one, every variant checked before it is queued (422 with the checker's words). It
+        runs as one job of a lockstep slot (``rig sweep --jobs 1``); GET /api/runs/ID follows it and
+        its artifacts hold summary.html, runs.parquet and junit.xml."""
+        from rig.run_cmd import LIBRARY
+        from scenarios.sweep import SweepError, load_sweep
+
+        body = b""
+        async for chunk in request.stream():
+            body += chunk
+            if len(body) > MAX_SCENARIO:
+                raise HTTPException(413, f"a sweep spec over {MAX_SCENARIO} bytes")
+        problems = check_run(RunRequest(scenarios=["-"], dut={"command": dut} if dut is not None else {}),
+                             store, scenarios=False)
+        if problems:
+            raise HTTPException(422, {"problems": problems})
+        try:
+            path = store.put_sweep(body)
+            sweep = load_sweep(path, LIBRARY, store.scenario)
+        except UploadError as e:
+            raise HTTPException(e.status, str(e)) from e
+        except SweepError as e:
+            raise HTTPException(422, {"problems": [str(e).replace(str(path), "the spec")]}) from e
+        run_id = db.submit([str(path)], 0, {"command": dut} if dut is not None else {}, "sweep", priority)
+        workers.wake()
+        return {"id": run_id, "runs": len(sweep.variants), "scenario": sweep.scenario_path.stem}
+
+    @app.get("/api/sweeps")
+    def sweeps(limit: int = Query(default=50, ge=1, le=500)) -> list[dict[str, Any]]:
+        """The sweeps, newest first (each a run of mode ``sweep``)."""
+        return db.list(limit=limit, mode="sweep")
 
     @app.get("/api/runs")
     def runs(status: str | None = Query(default=None), verdict: str | None = None,

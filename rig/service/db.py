@@ -104,11 +104,13 @@ class Db:
             assert cur.lastrowid is not None
             return cur.lastrowid
 
-    def claim(self, mode: str) -> dict[str, Any] | None:
-        """The next queued run of this resource, now running (None: nothing queued)."""
+    def claim(self, *modes: str) -> dict[str, Any] | None:
+        """The next queued run of these modes (a resource's: a lockstep slot takes lockstep runs and
+        sweeps), now running (None: nothing queued)."""
+        marks = ", ".join("?" * len(modes))
         with self.transaction() as c:
-            row = c.execute("SELECT id FROM runs WHERE status = 'queued' AND mode = ? "
-                            "ORDER BY priority DESC, created, id LIMIT 1", (mode,)).fetchone()
+            row = c.execute(f"SELECT id FROM runs WHERE status = 'queued' AND mode IN ({marks}) "
+                            "ORDER BY priority DESC, created, id LIMIT 1", modes).fetchone()
             if row is None:
                 return None
             c.execute("UPDATE runs SET status = 'running', started = ? WHERE id = ?",
@@ -156,9 +158,12 @@ class Db:
 
     def list(self, status: str | None = None, scenario: str | None = None, since: float | None = None,
              limit: int = 50, offset: int = 0, firmware: str | None = None,
-             origin: str | None = None) -> list[dict[str, Any]]:
+             origin: str | None = None, mode: str | None = None) -> list[dict[str, Any]]:
         where: list[str] = []
         args: list[object] = []
+        if mode is not None:
+            where.append("mode = ?")
+            args.append(mode)
         if origin is not None:
             where.append("origin = ?")
             args.append(origin)

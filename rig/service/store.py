@@ -28,6 +28,7 @@ class UploadError(ValueError):
 class Store:
     def __init__(self, data: Path) -> None:
         self.firmware_dir, self.scenario_dir = data / "firmware", data / "scenarios"
+        self.sweep_dir = data / "sweeps"
         self.firmware_dir.mkdir(parents=True, exist_ok=True)
         self.scenario_dir.mkdir(parents=True, exist_ok=True)
 
@@ -108,6 +109,19 @@ class Store:
             if path.is_file():
                 return path
         return None
+
+    def put_sweep(self, text: bytes) -> Path:
+        """A sweep spec from a request, stored once under its SHA-256 (it is checked by the caller)."""
+        if len(text) > MAX_SCENARIO:
+            raise UploadError(f"a sweep spec over {MAX_SCENARIO} bytes", 413)
+        self.sweep_dir.mkdir(exist_ok=True)
+        path = self.sweep_dir / f"{hashlib.sha256(text).hexdigest()}.toml"
+        if not path.exists():
+            fd, tmp = tempfile.mkstemp(dir=self.sweep_dir, prefix=".upload-", suffix=".toml")
+            with os.fdopen(fd, "wb") as f:
+                f.write(text)
+            os.replace(tmp, path)
+        return path
 
     def uploaded_scenarios(self) -> list[Path]:
         return sorted(p for p in self.scenario_dir.glob("*.toml") if NAME.fullmatch(p.stem))

@@ -43,6 +43,12 @@ def _die_with_parent() -> None:  # (runs in the child between fork and exec)
 def command(run: dict[str, Any], out: Path, store: Store) -> list[str]:
     """``rig run`` for this run (the API checked every part before it was queued; what an upload that
     went missing since cannot give is refused here, as an error of the run)."""
+    if run["mode"] == "sweep":  # one lockstep slot: the sweep's runs one at a time, on its core
+        cmd = [sys.executable, "-m", "rig.cli", "sweep", run["scenarios"][0], "--out", str(out),
+               "--jobs", "1"]
+        if run["dut"].get("command"):
+            cmd += ["--dut", run["dut"]["command"]]
+        return cmd
     paths = [store.scenario(name) for name in run["scenarios"]]
     if None in paths:
         raise LookupError(f"a scenario of this run is no longer there: {run['scenarios']}")
@@ -58,6 +64,29 @@ def command(run: dict[str, Any], out: Path, store: Store) -> list[str]:
             raise LookupError(f"the firmware {run['dut']['firmware']} is no longer there")
         cmd += ["--dut", shlex.quote(str(program))]
     return cmd
+
+
+def sweep_results(out: Path, spec: str) -> list[dict[str, Any]]:
+    """A sweep's outcome as one result: its scenario, the overall verdict and the counts, from the rows
+    its runs left (rig/sweep/work.py)."""
+    rows = [json.loads(p.read_text()) for p in sorted((out / "runs").glob("*/row.json"))]
+    counts = {v: sum(r.get("verdict") == v for r in rows) for v in ("pass", "fail", "error")}
+    verdict = "error" if counts["error"] else "fail" if counts["fail"] else "pass" if rows else "not run"
+    return [{"scenario": Path(spec).stem, "verdict": verdict, "measurements": [], "sweep": counts}]
+
+
+def count_runs(spec: str, store: Store) -> int:
+    from rig.run_cmd import LIBRARY
+    from scenarios.sweep import SweepError, load_sweep
+
+    try:
+        return len(load_sweep(spec, LIBRARY, store.scenario).variants)
+    except SweepError as e:
+        raise LookupError(f"the sweep spec no longer checks: {e}") from None
+
+
+def sweep_progress(out: Path, total: int) -> float:
+    return round(100.0 * len(list((out / "runs").glob("*/row.json"))) / max(total, 1), 1)
 
 
 def results(out: Path, scenarios: list[str]) -> list[dict[str, Any]]:
@@ -128,7 +157,7 @@ class Workers:
             if leased and not self.db.acquire(BENCH, holder, LEASE_TTL_S):
                 run = None  # another holder has the bench
             else:
-                run = self.db.claim(mode)
+                run = self.db.claim(*((mode, "sweep") if mode == "lockstep" else (mode,)))
             if run is None:
                 if leased:
                     self.db.release(BENCH, holder)
@@ -142,8 +171,11 @@ class Workers:
     def _run(self, run: dict[str, Any], lease_holder: str | None = None) -> None:
         out = self.artifacts / str(run["id"])
         out.mkdir(parents=True, exist_ok=True)
+        sweep = run["mode"] == "sweep"
         try:
             cmd = command(run, out, self.store)
+            if sweep:  # (checked when it was queued; a library scenario changed since: an error here)
+                run["total"] = count_runs(run["scenarios"][0], self.store)
         except LookupError as e:
             self.db.finish(run["id"], "error", error=str(e))
             return
@@ -156,13 +188,16 @@ class Workers:
                 return
             self._procs[run["id"]] = proc
             self.db.update(run["id"], pid=proc.pid)
-            total = len(run["scenarios"])
+            total = run["total"] if sweep else len(run["scenarios"])
             beat = time.monotonic()
             while True:
                 try:
                     code = proc.wait(timeout=POLL_S)
                     break
                 except subprocess.TimeoutExpired:
+                    if sweep:
+                        self.db.update(run["id"], progress=sweep_progress(out, total))
+                        continue
                     done = sum((out / Path(s).stem / "result.json").is_file() for s in run["scenarios"])
                     self.db.update(run["id"], progress=round(100.0 * done / total, 1))
                     if lease_holder is not None and time.monotonic() - beat >= HEARTBEAT_S:
@@ -170,12 +205,14 @@ class Workers:
                         self.db.acquire(BENCH, lease_holder, LEASE_TTL_S)
             self._procs.pop(run["id"], None)
         status = STATUS_BY_EXIT.get(code, "error")
-        error = None if status in ("passed", "failed") else f"rig run exited with status {code}: " \
+        what = "rig sweep" if sweep else "rig run"
+        error = None if status in ("passed", "failed") else f"{what} exited with status {code}: " \
             f"{_last_line(out / 'rig-run.log')}"
         if self._stop:
             status, error = "interrupted", "the service stopped while this run was running"
+        found = sweep_results(out, run["scenarios"][0]) if sweep else results(out, run["scenarios"])
         self.db.finish(run["id"], status, exit_code=code, error=error, progress=100.0, pid=None,
-                       results=results(out, run["scenarios"]))
+                       results=found)
 
 
 def _end(proc: subprocess.Popen[bytes]) -> None:

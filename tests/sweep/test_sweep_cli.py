@@ -183,11 +183,14 @@ def cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[bytes]]
         with Client(address, timeout=60) as c:
             c.wait_for_workers(2, timeout=60)
         yield address, procs
-    finally:
-        for p in procs:
+    finally:  # the workers first (a worker whose scheduler is gone waits for it before it stops)
+        for p in reversed(procs):
             p.terminate()
-        for p in procs:
-            p.wait(timeout=60)
+            try:
+                p.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait(timeout=30)
 
 
 def test_a_dask_cluster_gives_the_same_table_with_a_worker_killed_mid_sweep(
@@ -281,3 +284,6 @@ def test_an_engine_that_is_not_there_is_a_clear_error(tmp_path: Path) -> None:
         port = s.getsockname()[1]
     r = sweep(spec, "--out", tmp_path / "out", "--engine", f"tcp://127.0.0.1:{port}")
     assert r.returncode == 3 and "no Dask scheduler at" in r.stderr and "Traceback" not in r.stderr
+    # the same through the environment, as Dask's own tools take it
+    r = sweep(spec, "--out", tmp_path / "out", env={**os.environ, "DASK_SCHEDULER_ADDRESS": f"tcp://127.0.0.1:{port}"})
+    assert r.returncode == 3 and f"no Dask scheduler at tcp://127.0.0.1:{port}" in r.stderr
