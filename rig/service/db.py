@@ -161,15 +161,10 @@ class Db:
              origin: str | None = None, mode: str | None = None) -> list[dict[str, Any]]:
         where: list[str] = []
         args: list[object] = []
-        if mode is not None:
-            where.append("mode = ?")
-            args.append(mode)
-        if origin is not None:
-            where.append("origin = ?")
-            args.append(origin)
-        if status is not None:
-            where.append("status = ?")
-            args.append(status)
+        for column, value in (("mode", mode), ("origin", origin), ("status", status)):
+            if value is not None:  # (the column names are these literals, never a request's)
+                where.append(f"{column} = ?")
+                args.append(value)
         if since is not None:
             where.append("created >= ?")
             args.append(since)

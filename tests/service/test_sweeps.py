@@ -16,7 +16,7 @@ from typing import Any
 import pytest
 
 from rig.sweep import store
-from tests.service.test_api import Service, start, stop
+from tests.service.test_api import Service, post_bytes, start, stop
 from tests.waits import BOUND_S
 
 SPEC = """
@@ -37,16 +37,6 @@ def service(tmp_path: Path) -> Iterator[Service]:
     stop(svc)
 
 
-def post(svc: Service, path: str, body: bytes) -> tuple[int, Any]:
-    req = urllib.request.Request(svc.url + path, data=body, method="POST")
-    req.add_header("content-type", "application/toml")
-    try:
-        with urllib.request.urlopen(req, timeout=BOUND_S) as r:
-            return r.status, json.loads(r.read())
-    except urllib.error.HTTPError as e:
-        return e.code, json.loads(e.read())
-
-
 def get(svc: Service, path: str) -> tuple[int, bytes]:
     try:
         with urllib.request.urlopen(svc.url + path, timeout=BOUND_S) as r:
@@ -56,7 +46,7 @@ def get(svc: Service, path: str) -> tuple[int, bytes]:
 
 
 def test_a_sweep_runs_as_a_job_and_equals_rig_sweep(service: Service, tmp_path: Path) -> None:
-    status, body = post(service, "/api/sweeps", SPEC.encode())
+    status, body = post_bytes(service, "/api/sweeps", SPEC.encode())
     assert status == 201 and body["runs"] == 4 and body["scenario"] == "step_roll", body
     run = service.follow(body["id"])
     assert run["status"] == "passed" and run["mode"] == "sweep" and run["progress"] == 100.0, run
@@ -89,6 +79,6 @@ def test_a_sweep_runs_as_a_job_and_equals_rig_sweep(service: Service, tmp_path: 
     (b"[sweep\n", "not valid TOML"),
 ])
 def test_a_bad_spec_is_refused_before_it_is_queued(service: Service, spec: bytes, words: str) -> None:
-    status, body = post(service, "/api/sweeps", spec)
+    status, body = post_bytes(service, "/api/sweeps", spec)
     assert status == 422 and words in json.dumps(body), body
     assert service.call("GET", "/api/sweeps")[1] == []

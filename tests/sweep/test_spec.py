@@ -10,6 +10,7 @@ import pytest
 
 from rig.run_cmd import LIBRARY
 from scenarios.sweep import SweepError, load_sweep, parse_key, set_key
+from tests.sweep import SHOW
 
 
 def spec(tmp_path: Path, text: str) -> Path:
@@ -18,19 +19,6 @@ def spec(tmp_path: Path, text: str) -> Path:
     return p
 
 
-GRID = """
-[sweep]
-scenario = "hover_turbulence"
-seeds = 4
-
-[[sweep.vary]]
-key = "vehicle.mass"
-values = [1.1, 1.3]
-
-[[sweep.vary]]
-key = "environment.wind[0]"
-values = [0.0, 2.0, 4.0]
-"""
 
 
 def test_key_paths_and_setting_them() -> None:
@@ -54,7 +42,7 @@ def test_key_paths_and_setting_them() -> None:
 
 
 def test_a_grid_is_every_combination_times_every_seed(tmp_path: Path) -> None:
-    sw = load_sweep(spec(tmp_path, GRID), LIBRARY)
+    sw = load_sweep(spec(tmp_path, SHOW), LIBRARY)
     assert len(sw.variants) == 2 * 3 * 4 and sw.columns == ["vehicle.mass", "environment.wind[0]"]
     combos = {(v.values["vehicle.mass"], v.values["environment.wind[0]"], v.seed) for v in sw.variants}
     assert len(combos) == 24 and len({v.id for v in sw.variants}) == 24
@@ -62,7 +50,7 @@ def test_a_grid_is_every_combination_times_every_seed(tmp_path: Path) -> None:
     assert v.data["vehicle"]["mass"] == 1.3 and v.data["environment"]["wind"] == [4.0, 0.5, 0.0]
     assert sw.scenario.plant.get("mass") is None  # the nominal scenario is untouched
     # the same spec again: the same ids (what a resumed sweep finds its runs by)
-    assert [v.id for v in load_sweep(spec(tmp_path, GRID), LIBRARY).variants] == [v.id for v in sw.variants]
+    assert [v.id for v in load_sweep(spec(tmp_path, SHOW), LIBRARY).variants] == [v.id for v in sw.variants]
 
 
 def test_random_draws_follow_their_distributions_and_their_own_seed(tmp_path: Path) -> None:

@@ -22,21 +22,9 @@ from rig.run_cmd import LIBRARY
 from rig.sweep import store
 from rig.sweep.work import ROW, run_dir
 from scenarios.sweep import load_sweep
+from tests.sweep import SHOW
 from tests.waits import wait_file
 
-SHOW = """
-[sweep]
-scenario = "hover_turbulence"
-seeds = 4
-
-[[sweep.vary]]
-key = "vehicle.mass"
-values = [1.1, 1.3]
-
-[[sweep.vary]]
-key = "environment.wind[0]"
-values = [0.0, 2.0, 4.0]
-"""
 TIMEOUT_S = 300
 
 
