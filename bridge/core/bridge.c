@@ -189,6 +189,8 @@ uint8_t bridge_i2c_read(struct bridge *b, uint64_t t_ns)
     return v;
 }
 
+void bridge_idle(struct bridge *b) { chip_prepare(&b->board); }
+
 void bridge_i2c_unread(struct bridge *b)
 {
     if (b->cur_chip < 0 || !b->cur_read || !b->cur_bytes)

@@ -84,6 +84,9 @@ uint8_t bridge_i2c_read(struct bridge *b, uint64_t t_ns);
 /* the last byte bridge_i2c_read gave was never sent (the master NACKed the one before): the chip is
    as if it had not been read (a FIFO keeps the byte, a register pointer stays) */
 void bridge_i2c_unread(struct bridge *b);
+/* from the port's main loop, often, with interrupts enabled: encodes the queued samples ahead, so the
+   I2C interrupt at a sample instant copies them instead of encoding (chip_prepare) */
+void bridge_idle(struct bridge *b);
 void bridge_i2c_stop(struct bridge *b, uint64_t t_ns);
 void bridge_capture_edge(struct bridge *b, unsigned channel, int level, uint32_t count, uint64_t t_us);
 void bridge_link_rx(struct bridge *b, const uint8_t *bytes, size_t n);

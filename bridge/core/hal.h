@@ -24,7 +24,9 @@
                      (it wraps: 16 or 32 bits, as configured) and the time in us
      bridge_link_rx  bytes from the host, in any chunking
      bridge_poll     often (every 100 us or so, and after each I2C transaction): sample instants,
-                     SBUS frames due, PULSES and STATUS up, the host-silent rule */
+                     SBUS frames due, PULSES and STATUS up, the host-silent rule
+     bridge_idle     as often as it can, with interrupts enabled (the only call that may be
+                     interrupted by the I2C events): the samples encoded ahead of their instants */
 #ifndef BRIDGE_HAL_H
 #define BRIDGE_HAL_H
 

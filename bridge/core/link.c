@@ -1,13 +1,17 @@
 /* The link's framing on the bridge: see link.h. */
 #include "link.h"
 
+/* CRC-16/CCITT-FALSE four bits at a time: a 16-entry table (each nibble's remainder under 0x1021)
+   costs a quarter of the bit loop's instructions, which ran with interrupts masked for each frame */
+static const uint16_t CRC_NIBBLE[16] = { 0x0000, 0x1021, 0x2042, 0x3063, 0x4084, 0x50A5, 0x60C6, 0x70E7,
+                                         0x8108, 0x9129, 0xA14A, 0xB16B, 0xC18C, 0xD1AD, 0xE1CE, 0xF1EF };
+
 uint16_t link_crc16(const uint8_t *p, size_t n)
 {
     uint16_t crc = 0xFFFF;
     for (size_t i = 0; i < n; i++) {
-        crc ^= (uint16_t)(p[i] << 8);
-        for (int b = 0; b < 8; b++)
-            crc = (uint16_t)(crc & 0x8000 ? (crc << 1) ^ 0x1021 : crc << 1);
+        crc = (uint16_t)((crc << 4) ^ CRC_NIBBLE[((crc >> 12) ^ (p[i] >> 4)) & 0xF]);
+        crc = (uint16_t)((crc << 4) ^ CRC_NIBBLE[((crc >> 12) ^ (p[i] & 0xF)) & 0xF]);
     }
     return crc;
 }

@@ -648,6 +648,7 @@ int main(int argc, char **argv)
         pwm_edges(now);
         send_due_replies(now);
         bridge_poll(&v.b);
+        bridge_idle(&v.b); /* as the firmware's main loop: the next samples encoded ahead */
         drain_can(now);
         int n = 0;
         pf[n++] = (struct pollfd){ v.listener, POLLIN, 0 };

@@ -505,6 +505,7 @@ int main(void)
             bridge_link_rx(&br, chunk, n);
             irq_restore(p);
         }
+        bridge_idle(&br); /* interrupts on: the next samples' register bytes, ready before their instant */
         uint64_t t = hal_now_us(NULL);
         if (t >= next_poll) {
             next_poll = t + 100u;

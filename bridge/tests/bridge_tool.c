@@ -148,8 +148,11 @@ int main(int argc, char **argv)
                 rest++;
             size_t n = unhex(rest, bytes, sizeof bytes);
             bridge_link_rx(&b, bytes, n);
+            bridge_idle(&b); /* as the firmware's main loop after a chunk: its samples encoded ahead */
         } else if (!strcmp(cmd, "poll")) {
             bridge_poll(&b);
+        } else if (!strcmp(cmd, "idle")) {
+            bridge_idle(&b);
         } else if (!strcmp(cmd, "start")) {
             sscanf(rest, "%llu %llx %llu", &a, &c, &d);
             printf("ack %d\n", bridge_i2c_start(&b, a, (uint8_t)c, (int)d));

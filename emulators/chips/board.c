@@ -132,6 +132,7 @@ bool chip_push_imu(chip_board *b, uint64_t valid_ns, const double v[7])
     chip_imu_sample *s = &m->queue[(m->q_head + m->q_len++) % CHIP_IMU_QUEUE];
     s->valid_ns = valid_ns;
     memcpy(s->v, v, sizeof s->v);
+    s->enc_ok = 0;
     return !dropped;
 }
 
@@ -176,6 +177,8 @@ chip_need chip_advance(chip_board *b, uint64_t now_ns)
     b->now_ns = now_ns;
     return need;
 }
+
+void chip_prepare(chip_board *b) { mpu_prepare(&b->mpu); }
 
 /* ---- bus: byte-level events ---- */
 

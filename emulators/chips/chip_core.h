@@ -97,6 +97,11 @@ typedef struct {
 typedef struct {
     uint64_t valid_ns;
     double v[7]; /* accel xyz (m/s²), gyro xyz (rad/s), die temperature (°C) */
+    /* ACCEL_XOUT_H..GYRO_ZOUT_L encoded ahead by chip_prepare (enc_ok) under GYRO_CONFIG/ACCEL_CONFIG
+     * = enc_cfg: at its instant the sample is then a copy, not the encoder's double arithmetic */
+    uint8_t enc[14];
+    uint8_t enc_cfg[2];
+    uint8_t enc_ok;
 } chip_imu_sample;
 
 typedef struct {
@@ -257,6 +262,13 @@ CHIP_API bool chip_push_baro(chip_board *b, uint64_t valid_ns, uint32_t d1, uint
  * conversions); an earlier time does nothing. Returns need.chip == CHIP_NONE when done; in demand
  * mode it may stop before an instant it lacks a sample for and return what it needs. */
 CHIP_API chip_need chip_advance(chip_board *b, uint64_t now_ns);
+
+/* ---- ahead of time ---- Encodes the queued IMU samples under the MPU's present configuration, so
+ * that chip_advance (in a bridge: inside the I2C interrupt) copies 14 bytes instead of encoding: a
+ * port calls it from its main loop with interrupts enabled. It may be interrupted anywhere by
+ * chip_start/chip_advance (a sample taken meanwhile is encoded there, as without it); a configuration
+ * changed since, or an axis in standby, is encoded at the instant too. Optional: the bytes are the same. */
+CHIP_API void chip_prepare(chip_board *b);
 
 /* ---- bus: byte-level events ---- chip_start advances to t_ns when that is later than the last time
  * (a repeated START at the same time does not sample again), stops the chip addressed before if

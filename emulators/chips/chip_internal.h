@@ -45,6 +45,7 @@ bool chip_fault_active(const chip_board *b, uint8_t chip, uint8_t kind, uint64_t
 
 void mpu_reset(chip_mpu *m);
 bool mpu_advance(chip_board *b, uint64_t now_ns, chip_need *need);
+void mpu_prepare(chip_mpu *m);
 void mpu_start(chip_mpu *m, bool read);
 void mpu_write(chip_board *b, uint8_t byte);
 uint8_t mpu_read(chip_mpu *m);

@@ -196,6 +196,46 @@ static uint64_t take_counting(chip_mpu *m, uint64_t first, uint64_t p, uint64_t 
     return n - fresh;
 }
 
+/* The encoder needs only the two range registers when no axis is in standby and the temperature is on
+ * (then it writes all 14 bytes): only then is a sample encoded ahead. */
+static bool encodable_ahead(const uint8_t *regs) { return regs[MPU_PWR_MGMT_2] == 0 && !(regs[MPU_PWR_MGMT_1] & 0x08); }
+
+void mpu_prepare(chip_mpu *m)
+{
+    uint8_t img[MPU_PWR_MGMT_2 + 1];
+    memset(img, 0, sizeof img);
+    img[MPU_GYRO_CONFIG] = m->regs[MPU_GYRO_CONFIG]; /* (read once: an interrupt may change them) */
+    img[MPU_ACCEL_CONFIG] = m->regs[MPU_ACCEL_CONFIG];
+    for (uint16_t k = 0; k < m->q_len; k++) {
+        /* volatile: the interrupt that may take this sample meanwhile sees enc_ok set only after the
+         * bytes it vouches for (the stores stay in program order) */
+        volatile chip_imu_sample *s = &m->queue[(m->q_head + k) % CHIP_IMU_QUEUE];
+        if (s->enc_ok && s->enc_cfg[0] == img[MPU_GYRO_CONFIG] && s->enc_cfg[1] == img[MPU_ACCEL_CONFIG])
+            continue;
+        s->enc_ok = 0;
+        double row[7];
+        for (int i = 0; i < 7; i++)
+            row[i] = s->v[i];
+        chip_mpu_encode(img, row);
+        for (int i = 0; i < 14; i++)
+            s->enc[i] = img[CHIP_MPU_DATA_FIRST + i];
+        s->enc_cfg[0] = img[MPU_GYRO_CONFIG];
+        s->enc_cfg[1] = img[MPU_ACCEL_CONFIG];
+        s->enc_ok = 1;
+    }
+}
+
+/* the last sample into the data registers: its bytes encoded ahead when they still hold */
+static void encode_last(chip_mpu *m)
+{
+    const chip_imu_sample *s = &m->last;
+    if (s->enc_ok && encodable_ahead(m->regs) && s->enc_cfg[0] == m->regs[MPU_GYRO_CONFIG] &&
+        s->enc_cfg[1] == m->regs[MPU_ACCEL_CONFIG])
+        memcpy(m->regs + CHIP_MPU_DATA_FIRST, s->enc, sizeof s->enc);
+    else
+        chip_mpu_encode(m->regs, s->v);
+}
+
 bool mpu_advance(chip_board *b, uint64_t now_ns, chip_need *need)
 {
     chip_mpu *m = &b->mpu;
@@ -222,7 +262,7 @@ bool mpu_advance(chip_board *b, uint64_t now_ns, chip_need *need)
             fill_need(need, m, false, (uint32_t)n, m->next_ns, p, now_ns);
             return true;
         }
-        chip_mpu_encode(m->regs, m->last.v);
+        encode_last(m);
         m->regs[MPU_INT_STATUS] |= 0x01; /* DATA_RDY, whatever INT_ENABLE says */
         b->counts[CHIP_COUNT_MPU_SAMPLES] += (uint32_t)n;
         m->next_ns = last + p;
@@ -239,7 +279,7 @@ bool mpu_advance(chip_board *b, uint64_t now_ns, chip_need *need)
                 }
                 b->counts[CHIP_COUNT_MPU_UNDERRUNS]++;
             }
-            chip_mpu_encode(m->regs, m->last.v);
+            encode_last(m);
             if (aux)
                 aux_master(b, t);
             if (m->regs[MPU_USER_CTRL] & 0x40)

@@ -224,6 +224,20 @@ def test_imu_samples_become_register_bytes_at_their_valid_time(tool: Tool) -> No
                                    accel_bytes((1.0, 2.0, 3.0), 25.0, (0, 0, 0)).hex(), "68"]
 
 
+def test_a_sample_encoded_ahead_is_encoded_again_when_the_range_changed(tool: Tool) -> None:
+    """The tool encodes each sample ahead as it arrives (bridge_idle, as the firmware's main loop), under
+    the ranges of that moment; the board then sets ±8 g and ±1000 °/s before the sample's instant, and
+    the bytes it reads are the new ranges' (the copy made ahead is not used)."""
+    s = Script().t(0).hello().xfer(1000, 0x68, WAKE, 0).xfer(2000, 0x68, bytes([0x1A, 0x01]), 0)
+    s.send("IMU_SAMPLE", valid_us=5000, **SAMPLE)  # encoded ahead at ±2 g, ±250 °/s
+    s.xfer(3_000_000, 0x68, bytes([0x1B, 0x10, 0x10]), 0)  # GYRO_CONFIG ±1000 °/s, ACCEL_CONFIG ±8 g
+    s.xfer(6_000_000, 0x68, b"\x3b", 14)
+    r = run(tool, s.lines)
+    a = [round(x / G * 4096) for x in SAMPLE["accel"]]  # type: ignore[attr-defined]
+    g = [round(x * 57.29578 * 32.8) for x in SAMPLE["gyro"]]  # type: ignore[attr-defined]
+    assert r.tagged("xfer ok")[-1] == struct.pack(">7h", *a, round((30.0 - 36.53) * 340), *g).hex()
+
+
 def test_a_burst_read_never_mixes_two_samples(tool: Tool) -> None:
     """Sample B becomes valid in the middle of a 14-byte burst: the burst reads A whole, the next B."""
     s = Script().t(0).hello().xfer(1000, 0x68, WAKE, 0)
