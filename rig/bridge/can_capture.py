@@ -65,7 +65,9 @@ class CanPulses:
         except (can.CanError, OSError, ValueError, ImportError, NotImplementedError) as e:
             raise BridgeError(f"capture over CAN: cannot open {interface!r} channel {channel!r}: {e}") from e
 
-    def poll(self, world: World) -> None:
+    def poll(self, world: World, to_pwm_us: float = 1.0) -> None:
+        """Applies the frames that came; ``to_pwm_us``: the ESC protocol's scale into the plant's PWM
+        microseconds (rig/bridge/esc.py; OneShot125: 8)."""
         for _ in range(MAX_FRAMES_PER_POLL):
             try:
                 msg = self.bus.recv(timeout=0.0)
@@ -86,7 +88,7 @@ class CanPulses:
             self._last_seq[first] = seq
             for k, w in enumerate(widths):
                 if first + k < MOTORS:
-                    world.set_motor(first + k, w)
+                    world.set_motor(first + k, w * to_pwm_us)
             self.figures.applied += 1
 
     def _reject(self, reason: str) -> None:

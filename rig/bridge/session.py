@@ -333,7 +333,7 @@ class BenchSession:
                     self._read_pty(self._ptys[key.data[1]])
             if not self.sched.over:
                 if self.can is not None:
-                    self.can.poll(self.world)
+                    self.can.poll(self.world, self.esc.to_pwm_us)
                 try:
                     for m in port.poll(0.0):
                         self._on_message(m)

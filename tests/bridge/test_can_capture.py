@@ -14,6 +14,7 @@ import pytest
 
 from emulators.pwm_capture import CanCodec
 from rig.bridge.can_capture import CanPulses, parse
+from rig.bridge.esc import ESC_PROTOCOLS
 from rig.bridge.port import BridgeError
 from rig.world import World
 from tests.waits import BOUND_S
@@ -45,11 +46,11 @@ def motors(world: World) -> list[float]:
     return [world.plant.u[world.plant.u_index[f"pwm{m}_us"]] for m in range(1, 5)]
 
 
-def pump(cap: CanPulses, world: World, applied: int, rejected: int) -> None:
+def pump(cap: CanPulses, world: World, applied: int, rejected: int, to_pwm_us: float = 1.0) -> None:
     """Polls until so many frames were applied and rejected (a pty hands bytes over asynchronously)."""
     deadline = time.monotonic() + BOUND_S
     while (cap.figures.applied, cap.figures.rejected) < (applied, rejected) and time.monotonic() < deadline:
-        cap.poll(world)
+        cap.poll(world, to_pwm_us)
 
 
 def test_good_frames_move_the_motors_and_bad_ones_are_counted_and_ignored(wire: tuple[int, str],
@@ -77,6 +78,18 @@ def test_good_frames_move_the_motors_and_bad_ones_are_counted_and_ignored(wire: 
         pump(cap, world, 4, 5)
         assert motors(world) == pytest.approx([1500.0] * 4)
         assert cap.figures.seq_gaps == 2
+    finally:
+        cap.close()
+
+
+def test_oneshot125_widths_from_can_are_scaled_into_the_plants_pwm(wire: tuple[int, str],
+                                                                   world: World) -> None:
+    master, name = wire
+    cap = CanPulses("slcan", name)
+    try:  # OneShot125's 125..250 us is standard PWM's 1000..2000 us divided by eight
+        os.write(master, b"".join(slcan(f, d) for f, d in CanCodec().encode(1, [125.0, 150.0, 187.5, 250.0])))
+        pump(cap, world, 2, 0, ESC_PROTOCOLS["oneshot125"].to_pwm_us)
+        assert motors(world) == pytest.approx([1000.0, 1200.0, 1500.0, 2000.0], abs=0.8)
     finally:
         cap.close()
 
