@@ -148,6 +148,7 @@ bool chip_push_mag(chip_board *b, uint64_t valid_ns, const double field[3])
     chip_mag_sample *s = &h->queue[(h->q_head + h->q_len++) % CHIP_MAG_QUEUE];
     s->valid_ns = valid_ns;
     memcpy(s->field, field, sizeof s->field);
+    s->enc_ok = 0;
     return !dropped;
 }
 
@@ -178,7 +179,11 @@ chip_need chip_advance(chip_board *b, uint64_t now_ns)
     return need;
 }
 
-void chip_prepare(chip_board *b) { mpu_prepare(&b->mpu); }
+void chip_prepare(chip_board *b)
+{
+    mpu_prepare(&b->mpu);
+    hmc_prepare(&b->hmc);
+}
 
 /* ---- bus: byte-level events ---- */
 

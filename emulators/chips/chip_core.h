@@ -107,6 +107,10 @@ typedef struct {
 typedef struct {
     uint64_t valid_ns;
     double field[3]; /* gauss, sensor frame x y z */
+    /* DATA X..Y (X Z Y order) encoded ahead by chip_prepare (enc_ok) under the effective gain enc_gain */
+    uint8_t enc[6];
+    uint8_t enc_ok;
+    double enc_gain;
 } chip_mag_sample;
 
 typedef struct {
@@ -263,8 +267,9 @@ CHIP_API bool chip_push_baro(chip_board *b, uint64_t valid_ns, uint32_t d1, uint
  * mode it may stop before an instant it lacks a sample for and return what it needs. */
 CHIP_API chip_need chip_advance(chip_board *b, uint64_t now_ns);
 
-/* ---- ahead of time ---- Encodes the queued IMU samples under the MPU's present configuration, so
- * that chip_advance (in a bridge: inside the I2C interrupt) copies 14 bytes instead of encoding: a
+/* ---- ahead of time ---- Encodes the queued IMU samples under the MPU's present configuration (and
+ * the magnetometer's under its effective gain), so that chip_advance (in a bridge: inside the I2C
+ * interrupt, or the masked poll) copies the bytes instead of encoding them: a
  * port calls it from its main loop with interrupts enabled. It may be interrupted anywhere by
  * chip_start/chip_advance (a sample taken meanwhile is encoded there, as without it); a configuration
  * changed since, or an axis in standby, is encoded at the instant too. Optional: the bytes are the same. */

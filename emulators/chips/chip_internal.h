@@ -54,6 +54,7 @@ bool mpu_bypass(const chip_mpu *m);
 
 void hmc_reset(chip_hmc *h);
 bool hmc_advance(chip_board *b, uint64_t now_thirds, chip_need *need);
+void hmc_prepare(chip_hmc *h);
 void hmc_start(chip_hmc *h, bool read);
 void hmc_write(chip_hmc *h, uint8_t byte, bool from_aux);
 uint8_t hmc_read(chip_hmc *h);

@@ -41,26 +41,51 @@ static int16_t quantise(double x)
     return (int16_t)r;
 }
 
+/* the data registers for a field (gauss, sensor x y z) at a gain: X, Z, Y, each big-endian */
+static void encode(const double xyz[3], double gain, uint8_t data[6])
+{
+    const double xzy[3] = { xyz[0], xyz[2], xyz[1] };
+    for (int i = 0; i < 3; i++) {
+        uint16_t raw = (uint16_t)quantise(xzy[i] * gain);
+        data[2 * i] = (uint8_t)(raw >> 8);
+        data[2 * i + 1] = (uint8_t)(raw & 0xFF);
+    }
+}
+
+void hmc_prepare(chip_hmc *h)
+{
+    double gain = h->gain_effective; /* (read once: the next measurement's, unless one comes first) */
+    for (uint16_t k = 0; k < h->q_len; k++) {
+        /* volatile: see mpu_prepare (enc_ok is stored after the bytes it vouches for) */
+        volatile chip_mag_sample *s = &h->queue[(h->q_head + k) % CHIP_MAG_QUEUE];
+        if (s->enc_ok && s->enc_gain == gain)
+            continue;
+        s->enc_ok = 0;
+        double xyz[3] = { s->field[0], s->field[1], s->field[2] };
+        uint8_t data[6];
+        encode(xyz, gain, data);
+        for (int i = 0; i < 6; i++)
+            s->enc[i] = data[i];
+        s->enc_gain = gain;
+        s->enc_ok = 1;
+    }
+}
+
 static void measure(chip_hmc *h)
 {
     double gain = h->gain_effective;
     h->gain_effective = CHIP_HMC_GAINS[h->regs[HMC_CRB] >> 5]; /* a new gain counts from the next one */
     uint8_t bias = h->regs[HMC_CRA] & 0x03;
-    double xzy[3];
-    if (bias == 1 || bias == 2) {
-        double sign = bias == 1 ? 1.0 : -1.0;
-        for (int i = 0; i < 3; i++)
-            xzy[i] = sign * CHIP_HMC_BIAS_GA[i];
-    } else {
-        xzy[0] = h->last.field[0];
-        xzy[1] = h->last.field[2];
-        xzy[2] = h->last.field[1];
-    }
     uint8_t data[6];
-    for (int i = 0; i < 3; i++) {
-        uint16_t raw = (uint16_t)quantise(xzy[i] * gain);
-        data[2 * i] = (uint8_t)(raw >> 8);
-        data[2 * i + 1] = (uint8_t)(raw & 0xFF);
+    if (bias == 1 || bias == 2) {
+        double sign = bias == 1 ? 1.0 : -1.0, xyz[3];
+        for (int i = 0; i < 3; i++) /* (CHIP_HMC_BIAS_GA is in X Z Y order, as the registers) */
+            xyz[i] = sign * CHIP_HMC_BIAS_GA[i == 0 ? 0 : i == 1 ? 2 : 1];
+        encode(xyz, gain, data);
+    } else if (h->last.enc_ok && h->last.enc_gain == gain) {
+        memcpy(data, h->last.enc, 6); /* encoded ahead (hmc_prepare) */
+    } else {
+        encode(h->last.field, gain, data);
     }
     if (h->bitmap && h->bitmap != 0x3F) { /* LOCK: hold the result until the read completes */
         memcpy(h->held, data, 6);

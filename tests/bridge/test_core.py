@@ -274,6 +274,24 @@ def test_bypass_enables_the_magnetometer_and_its_samples_are_read(tool: Tool) ->
     assert r.tagged("xfer ok")[-2:] == ["483433", struct.pack(">3h", x, z, y).hex()]
 
 
+def test_a_field_encoded_ahead_is_encoded_again_at_a_new_gain(tool: Tool) -> None:
+    """The field is encoded ahead as it arrives (bridge_idle) at the effective gain, 1090 LSB/G. The board
+    sets CRB to 390 LSB/G: the next single measurement still uses 1090 (a new gain counts from the one
+    after, datasheet), the one after that 390, from the same sample (its copy made ahead not used)."""
+    s = Script().t(0).hello().xfer(2000, 0x68, WAKE, 0).xfer(100_000, 0x68, bytes([0x37, 0x02]), 0)
+    s.send("MAG_SAMPLE", valid_us=0, field=[0.3, -0.1, 0.4])
+    s.xfer(61_000_000, 0x1E, bytes([0x01, 0xA0]), 0)  # CRB: gain 5, 390 LSB/G
+    s.xfer(62_000_000, 0x1E, bytes([0x02, 0x01]), 0).xfer(72_000_000, 0x1E, b"\x03", 6)  # single, read
+    s.xfer(73_000_000, 0x1E, bytes([0x02, 0x01]), 0).xfer(83_000_000, 0x1E, b"\x03", 6)  # single, read
+    r = run(tool, s.lines)
+
+    def xzy(gain: int) -> str:
+        x, y, z = (round(v * gain) for v in (0.3, -0.1, 0.4))
+        return struct.pack(">3h", x, z, y).hex()
+
+    assert r.tagged("xfer ok")[-3::2] == [xzy(1090), xzy(390)]
+
+
 def test_barometer_words_are_given_by_the_conversion_the_board_started(tool: Tool) -> None:
     s = Script().t(0).hello().send("BARO_SAMPLE", valid_us=0, d1=0x812345, d2=0x7A0B0C)
     s.xfer(1_000_000, 0x77, b"\x48", 0).xfer(20_000_000, 0x77, b"\x00", 3)  # D1 at OSR 4096
