@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -125,6 +126,9 @@ def cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[bytes]]
     """A Dask scheduler and two single-thread workers (no nanny: a killed worker stays dead) on loopback."""
     dask = Path(sys.executable).parent / "dask"
     info = tmp_path / "scheduler.json"
+    # the workers' temporary files, removed at the end: the worker the test kills cannot remove its
+    # run's session folder (in /tmp: a session's socket path must stay under AF_UNIX's 108 bytes)
+    private = Path(tempfile.mkdtemp(prefix="rig-dask-", dir="/tmp"))
     procs = [
         subprocess.Popen(
             [
@@ -164,6 +168,7 @@ def cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[bytes]]
                     ],
                     stdout=subprocess.DEVNULL,
                     stderr=subprocess.DEVNULL,
+                    env={**os.environ, "TMPDIR": str(private)},
                 )
             )
         from distributed import Client
@@ -179,6 +184,7 @@ def cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[bytes]]
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait(timeout=30)
+        shutil.rmtree(private, ignore_errors=True)
 
 
 def test_a_dask_cluster_gives_the_same_table_with_a_worker_killed_mid_sweep(
