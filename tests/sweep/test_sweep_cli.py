@@ -126,8 +126,9 @@ def cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[bytes]]
     """A Dask scheduler and two single-thread workers (no nanny: a killed worker stays dead) on loopback."""
     dask = Path(sys.executable).parent / "dask"
     info = tmp_path / "scheduler.json"
-    # the workers' temporary files, removed at the end: the worker the test kills cannot remove its
-    # run's session folder (in /tmp: a session's socket path must stay under AF_UNIX's 108 bytes)
+    # the cluster's temporary files (its scratch space too), removed at the end: the worker the test
+    # kills cannot remove its run's session folder (in /tmp: a session's socket path must stay under
+    # AF_UNIX's 108 bytes)
     private = Path(tempfile.mkdtemp(prefix="rig-dask-", dir="/tmp"))
     procs = [
         subprocess.Popen(
@@ -144,6 +145,7 @@ def cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[bytes]]
             ],
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
+            env={**os.environ, "TMPDIR": str(private)},
         )
     ]
     try:
