@@ -55,10 +55,6 @@ class Vary:
     uniform: tuple[float, float] | None = None  # random mode
     normal: tuple[float, float] | None = None  # random mode
 
-    @property
-    def column(self) -> str:
-        return self.key
-
 
 @dataclass(frozen=True)
 class Variant:
@@ -86,7 +82,7 @@ class Sweep:
 
     @property
     def columns(self) -> list[str]:
-        return [v.column for v in self.vary]
+        return [v.key for v in self.vary]  # (a column is named by its key path)
 
 
 def parse_key(key: str) -> list[str | int]:

@@ -103,14 +103,12 @@ def fly(task: Task) -> dict[str, Any]:
     # this is a worker's entry point (a forkserver process, a Dask worker): the session's hot modules
     # from build/mypyc must be found before anything below imports them, as the CLI does at its start
     compiled.install()
-    from pathlib import Path as P
-
     from reports import html_report, result_json
     from rig import interrupts
     from rig.runner import not_run, run
     from scenarios.schema import ScenarioError, check
 
-    out = P(task.out)
+    out = Path(task.out)
     if task.tmp is not None:
         tempfile.tempdir = task.tmp  # (a pool process flies one run at a time)
     folder = run_dir(out, task.id)
@@ -125,7 +123,7 @@ def fly(task: Task) -> dict[str, Any]:
         "pid": os.getpid(),
     }
     try:
-        scenario = check(task.data, P(task.scenario_path))
+        scenario = check(task.data, Path(task.scenario_path))
     except ScenarioError as e:  # (the sweep checked every variant: only a changed rig gets here)
         row.update(verdict="error", error=str(e), measurements={}, outcomes={}, wall_s=0.0, cpu=-1)
         _write_row(folder, row)
