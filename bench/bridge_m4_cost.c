@@ -5,7 +5,9 @@
    millisecond the host's IMU sample arrives (bridge_link_rx), the main loop encodes it ahead
    (bridge_idle, interruptible), the port polls (bridge_poll), and the
    board reads ACCEL_XOUT_H..GYRO_ZOUT_L in one 14-byte burst with a repeated START, every event of it
-   timed. Prints one line per kind of call: "NAME calls N mean_insns M max_insns X". */
+   timed. Prints one line per kind of call: "NAME calls N mean_insns M max_insns X locked_max L", L
+   the longest the call held the HAL's lock (interrupts masked on the firmware: how long an I2C event
+   that arrives then waits). */
 #include <stdio.h>
 #include <string.h>
 
@@ -45,42 +47,69 @@ struct cost {
     const char *name;
     uint32_t calls;
     uint64_t sum;
-    uint32_t max;
+    uint32_t max, locked_max;
 };
 
-enum { START_W, WRITE, START_R, READ, STOP, LINK_RX, POLL, IDLE, KINDS };
-static struct cost costs[KINDS] = { { "i2c_start_write", 0, 0, 0 },
-                                    { "i2c_write", 0, 0, 0 },
-                                    { "i2c_start_read", 0, 0, 0 },
-                                    { "i2c_read", 0, 0, 0 },
-                                    { "i2c_stop", 0, 0, 0 },
-                                    { "link_rx_imu_sample", 0, 0, 0 },
-                                    { "poll", 0, 0, 0 },
-                                    { "idle_interruptible", 0, 0, 0 } };
+enum { START_W, WRITE, START_R, READ, STOP, LINK_RX, LINK_RX_CONFIG, POLL, IDLE, KINDS };
+static struct cost costs[KINDS] = { { "i2c_start_write", 0, 0, 0, 0 }, { "i2c_write", 0, 0, 0, 0 },
+                                    { "i2c_start_read", 0, 0, 0, 0 },  { "i2c_read", 0, 0, 0, 0 },
+                                    { "i2c_stop", 0, 0, 0, 0 },        { "link_rx_imu_sample", 0, 0, 0, 0 },
+                                    { "link_rx_config", 0, 0, 0, 0 },  { "poll", 0, 0, 0, 0 },
+                                    { "idle_frames_out", 0, 0, 0, 0 } };
 
-static uint32_t t0;
-static void begin(void) { t0 = SYST_CVR; }
+static uint32_t ticks_since(uint32_t from) { return ((from - SYST_CVR) & 0xFFFFFFu) * INSNS_PER_TICK; }
+
+static uint32_t t0, locked_at, locked_longest;
+static unsigned depth;
+
+static uint32_t hal_lock(void *ctx)
+{
+    (void)ctx;
+    if (depth == 0)
+        locked_at = SYST_CVR;
+    return depth++;
+}
+
+static void hal_unlock(void *ctx, uint32_t saved)
+{
+    (void)ctx;
+    depth = saved;
+    if (depth == 0) {
+        uint32_t held = ticks_since(locked_at);
+        if (held > locked_longest)
+            locked_longest = held;
+    }
+}
+
+static void begin(void)
+{
+    locked_longest = 0;
+    t0 = SYST_CVR;
+}
+
 static void end(int kind)
 {
-    uint32_t insns = ((t0 - SYST_CVR) & 0xFFFFFFu) * INSNS_PER_TICK;
+    uint32_t insns = ticks_since(t0);
     struct cost *c = &costs[kind];
     c->calls++;
     c->sum += insns;
     if (insns > c->max)
         c->max = insns;
+    if (locked_longest > c->locked_max)
+        c->locked_max = locked_longest;
 }
 
-static void send(struct bridge *b, struct bridge_msg *m, int measure)
+static void send(struct bridge *b, struct bridge_msg *m, int kind)
 {
     uint8_t wire[LINK_WIRE_MAX];
     static uint8_t seq;
     m->seq = seq++;
     size_t n = link_frame(m, wire);
-    if (measure)
+    if (kind >= 0)
         begin();
     bridge_link_rx(b, wire, n);
-    if (measure)
-        end(LINK_RX);
+    if (kind >= 0)
+        end(kind);
 }
 
 #define BIT_NS 2500u /* 400 kHz */
@@ -88,7 +117,7 @@ static void send(struct bridge *b, struct bridge_msg *m, int measure)
 int main(void)
 {
     static struct bridge b;
-    struct bridge_hal hal = { NULL, hal_now, hal_addr, hal_link, hal_sbus, NULL };
+    struct bridge_hal hal = { NULL, hal_now, hal_addr, hal_link, hal_sbus, NULL, hal_lock, hal_unlock };
     struct bridge_cfg cfg = bridge_defaults();
     bridge_init(&b, &hal, &cfg);
     SYST_RVR = 0xFFFFFFu;
@@ -99,7 +128,16 @@ int main(void)
     memset(&m, 0, sizeof m);
     m.id = BRIDGE_HELLO;
     m.u.hello.version = BRIDGE_PROTOCOL_VERSION;
-    send(&b, &m, 0);
+    send(&b, &m, -1);
+    memset(&m, 0, sizeof m); /* what the rig sends at the start of a run: the chips reset */
+    m.id = BRIDGE_CONFIG;
+    m.u.config.mpu_addr = 0x68;
+    m.u.config.hmc_addr = 0x1E;
+    m.u.config.baro_addr = 0x77;
+    m.u.config.sbus_period_ms = 14;
+    m.u.config.capture_channels = 4;
+    send(&b, &m, LINK_RX_CONFIG);
+    bridge_idle(&b);
     const uint8_t setup[][2] = { { 0x6B, 0x00 }, { 0x1A, 0x01 } }; /* wake; DLPF 1: 1 kHz samples */
     for (unsigned i = 0; i < 2; i++) {
         bridge_i2c_start(&b, 1000u * i, 0x68, 0);
@@ -116,7 +154,7 @@ int main(void)
         m.u.imu_sample.accel[2] = -9.8f;
         m.u.imu_sample.gyro[1] = 0.01f * (float)(k % 5);
         m.u.imu_sample.temp_c = 25.0f;
-        send(&b, &m, 1);
+        send(&b, &m, LINK_RX);
         begin();
         bridge_idle(&b); /* as the firmware's main loop, interrupts on: the sample encoded ahead */
         end(IDLE);
@@ -146,7 +184,8 @@ int main(void)
         end(STOP);
     }
     for (unsigned i = 0; i < KINDS; i++)
-        printf("%s calls %lu mean_insns %lu max_insns %lu\n", costs[i].name, (unsigned long)costs[i].calls,
-               (unsigned long)(costs[i].sum / costs[i].calls), (unsigned long)costs[i].max);
+        printf("%s calls %lu mean_insns %lu max_insns %lu locked_max %lu\n", costs[i].name,
+               (unsigned long)costs[i].calls, (unsigned long)(costs[i].sum / costs[i].calls),
+               (unsigned long)costs[i].max, (unsigned long)costs[i].locked_max);
     return 0;
 }

@@ -6,7 +6,9 @@ per 40). It serves a 1 kHz MPU-6050 reader: each millisecond a host sample, a po
 burst read with a repeated START. Instructions are not cycles: on the G431 at 170 MHz with 4 flash
 wait states behind the ART accelerator, expect 1 to 2 cycles an instruction; the microseconds
 printed take 1.5. The I2C calls run inside the firmware's interrupt, so their cost is how long SCL
-is stretched (docs/bridge-firmware.md, "Not verified on hardware").
+is stretched (docs/bridge-firmware.md, "Not verified on hardware"). The main loop's calls run with
+interrupts on except while they hold the HAL's lock: "masked" is the longest such span of a call,
+how long an I2C event that arrives then waits.
 
     .venv/bin/python bench/bridge_m4_cost.py
 """
@@ -35,10 +37,12 @@ def main() -> int:
           f"{CLOCK_HZ / 1e6:.0f} MHz and {CYCLES_PER_INSN} cycles an instruction")
     for line in done.stdout.splitlines():
         w = line.split()
-        name, calls, mean, worst = w[0], int(w[2]), int(w[4]), int(w[6])
+        name, calls, mean, worst, masked = w[0], int(w[2]), int(w[4]), int(w[6]), int(w[8])
         us = CYCLES_PER_INSN / CLOCK_HZ * 1e6
+        where = ("" if name.startswith("i2c_") else
+                 f"  masked max {masked:6d} ({masked * us:6.2f} us)")
         print(f"  {name:20} {calls:6d} calls  mean {mean:6d} ({mean * us:6.2f} us)  max {worst:6d} "
-              f"({worst * us:6.2f} us)")
+              f"({worst * us:6.2f} us){where}")
     return 0
 
 

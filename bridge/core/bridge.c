@@ -21,13 +21,49 @@ static const uint8_t UNDERRUNS[3] = { CHIP_COUNT_MPU_UNDERRUNS, CHIP_COUNT_HMC_U
 
 static uint64_t now_us(struct bridge *b) { return b->hal.now_us(b->hal.ctx); }
 
+static uint32_t lock(struct bridge *b) { return b->hal.lock ? b->hal.lock(b->hal.ctx) : 0u; }
+
+static void unlock(struct bridge *b, uint32_t saved)
+{
+    if (b->hal.unlock)
+        b->hal.unlock(b->hal.ctx, saved);
+}
+
 void bridge_send(struct bridge *b, struct bridge_msg *msg)
 {
-    uint8_t wire[LINK_WIRE_MAX];
+    uint32_t k = lock(b);
     msg->seq = b->tx_seq++;
-    size_t n = link_frame(msg, wire);
-    if (n)
-        b->hal.link_tx(b->hal.ctx, wire, n);
+    if (b->out_head - b->out_tail < BRIDGE_OUTBOX) {
+        b->outbox[b->out_head % BRIDGE_OUTBOX] = *msg;
+        b->out_head++;
+    } else {
+        b->n.out_dropped++;
+    }
+    unlock(b, k);
+}
+
+/* Framing (the CRC, COBS) costs more than an I2C byte's time at 1 MHz: done here, with the lock held
+   only to take the oldest message out of the outbox. */
+void bridge_flush(struct bridge *b)
+{
+    for (;;) {
+        struct bridge_msg m;
+        uint32_t k = lock(b);
+        int have = b->out_tail != b->out_head;
+        if (have) {
+            m = b->outbox[b->out_tail % BRIDGE_OUTBOX];
+            b->out_tail++;
+        }
+        unlock(b, k);
+        if (!have)
+            return;
+        if (m.id == BRIDGE_TIME_SYNC_REPLY)
+            m.u.time_sync_reply.tx_us = now_us(b); /* the moment it leaves, not the moment it was queued */
+        uint8_t wire[LINK_WIRE_MAX];
+        size_t n = link_frame(&m, wire);
+        if (n)
+            b->hal.link_tx(b->hal.ctx, wire, n);
+    }
 }
 
 static uint8_t chip_addr(const struct bridge *b, int chip)
@@ -55,14 +91,21 @@ static void set_addresses(struct bridge *b, uint64_t t_ns)
     }
 }
 
-/* CONFIG's values (or the defaults at start): the chips reset to power-on */
+/* CONFIG's values (or the defaults at start): the chips reset to power-on. Rebuilding the chip board
+   (some kilobytes cleared: 40 us on the M4) is done with the lock released: meanwhile the addresses
+   are off and `offline` keeps the I2C events away from the board, as chips powering up answer
+   nothing. */
 static void configure(struct bridge *b, uint8_t topology, uint8_t mpu, uint8_t hmc, uint8_t baro, uint8_t sbus_ms,
                       uint8_t channels, uint8_t trace)
 {
+    uint32_t k = lock(b);
     for (int i = 0; i < 3; i++)
         if (b->enabled[ADDRESS_ORDER[i]])
             b->hal.i2c_addr_enable(b->hal.ctx, chip_addr(b, ADDRESS_ORDER[i]), 0);
     memset(b->enabled, 0, sizeof b->enabled);
+    b->offline = 1;
+    b->cur_chip = -1; /* a transaction under way: the rest of it is refused */
+    unlock(b, k);
     b->topology = topology;
     b->mpu_addr = mpu;
     b->hmc_addr = hmc;
@@ -72,8 +115,10 @@ static void configure(struct bridge *b, uint8_t topology, uint8_t mpu, uint8_t h
     chip_board_init(&b->board, topology ? CHIP_TOPOLOGY_DIRECT : CHIP_TOPOLOGY_GY86);
     memset(b->n.underrun_base, 0, sizeof b->n.underrun_base);
     sbus_out_init(&b->sbus, sbus_ms * 1000u);
+    k = lock(b);
+    b->offline = 0;
     set_addresses(b, now_us(b) * 1000u);
-    b->cur_chip = -1;
+    unlock(b, k);
 }
 
 void bridge_init(struct bridge *b, const struct bridge_hal *hal, const struct bridge_cfg *cfg)
@@ -136,6 +181,10 @@ static void trace_byte(struct bridge *b, uint8_t v)
 int bridge_i2c_start(struct bridge *b, uint64_t t_ns, uint8_t addr, int read)
 {
     trace_flush(b); /* a repeated START ends the message before it */
+    if (b->offline) {
+        b->cur_chip = -1;
+        return 0;
+    }
     uint8_t a;
     int chip = core_addr(b, addr, &a);
     int ack = chip_start(&b->board, t_ns, a, read != 0);
@@ -183,13 +232,19 @@ int bridge_i2c_write(struct bridge *b, uint64_t t_ns, uint8_t byte)
 uint8_t bridge_i2c_read(struct bridge *b, uint64_t t_ns)
 {
     (void)t_ns; /* (the chip core moves time only at a START) */
+    if (b->offline)
+        return 0xFF;
     uint8_t v = chip_read_byte(&b->board);
     if (b->cur_chip >= 0)
         trace_byte(b, v);
     return v;
 }
 
-void bridge_idle(struct bridge *b) { chip_prepare(&b->board); }
+void bridge_idle(struct bridge *b)
+{
+    chip_prepare(&b->board);
+    bridge_flush(b);
+}
 
 void bridge_i2c_unread(struct bridge *b)
 {
@@ -204,9 +259,10 @@ void bridge_i2c_unread(struct bridge *b)
 void bridge_i2c_stop(struct bridge *b, uint64_t t_ns)
 {
     trace_flush(b);
-    (void)t_ns;
-    chip_stop(&b->board);
     b->cur_chip = -1;
+    if (b->offline)
+        return;
+    chip_stop(&b->board);
     set_addresses(b, t_ns); /* the bypass may have changed */
 }
 
@@ -246,9 +302,11 @@ static void hello(struct bridge *b, const struct bridge_hello *h)
         b->rx.last_seq = seq;
         b->n.late_samples = b->n.refused = b->n.sbus_dropped = 0;
         b->cap.glitches = 0;
+        uint32_t k = lock(b); /* the I2C events count these */
         b->n.i2c_errors = b->n.i2c_acked = 0;
         for (int c = 0; c < 3; c++)
             b->n.underrun_base[c] = chip_count(&b->board, UNDERRUNS[c]);
+        unlock(b, k);
     }
     bridge_send(b, &m);
 }
@@ -302,13 +360,15 @@ static int fault(struct bridge *b, const struct bridge_fault *f)
         if (!period_ns)
             return -1;
     }
-    return chip_bus_fault_add(&b->board, (uint8_t)chip, (uint8_t)kind, f->start_us * 1000u, f->end_us * 1000u,
-                              period_ns, duty_ns)
-               ? 0
-               : -1;
+    uint32_t k = lock(b);
+    int ok = chip_bus_fault_add(&b->board, (uint8_t)chip, (uint8_t)kind, f->start_us * 1000u, f->end_us * 1000u,
+                                period_ns, duty_ns);
+    unlock(b, k);
+    return ok ? 0 : -1;
 }
 
-/* One good frame from the host, received at t_us: 0 acted on, -1 refused (nothing applied). */
+/* One good frame from the host, received at t_us: 0 acted on, -1 refused (nothing applied). The
+   lock is taken around what the I2C events share (the chips, their counters), nothing longer. */
 static int dispatch(struct bridge *b, const struct bridge_msg *msg, uint64_t t_us)
 {
     if (msg->id == BRIDGE_HELLO) {
@@ -326,7 +386,9 @@ static int dispatch(struct bridge *b, const struct bridge_msg *msg, uint64_t t_u
             return -1;
         late(b, s->valid_us, t_us);
         double v[7] = { s->accel[0], s->accel[1], s->accel[2], s->gyro[0], s->gyro[1], s->gyro[2], s->temp_c };
+        uint32_t k = lock(b);
         chip_push_imu(&b->board, s->valid_us * 1000u, v); /* (full: the oldest made room) */
+        unlock(b, k);
         return 0;
     }
     case BRIDGE_MAG_SAMPLE: {
@@ -335,7 +397,9 @@ static int dispatch(struct bridge *b, const struct bridge_msg *msg, uint64_t t_u
             return -1;
         late(b, s->valid_us, t_us);
         double field[3] = { s->field[0], s->field[1], s->field[2] };
+        uint32_t k = lock(b);
         chip_push_mag(&b->board, s->valid_us * 1000u, field);
+        unlock(b, k);
         return 0;
     }
     case BRIDGE_BARO_SAMPLE: {
@@ -343,7 +407,9 @@ static int dispatch(struct bridge *b, const struct bridge_msg *msg, uint64_t t_u
         if (s->d1 > 0xFFFFFFu || s->d2 > 0xFFFFFFu || s->valid_us > UINT64_MAX / 1000u) /* 24-bit ADC words */
             return -1;
         late(b, s->valid_us, t_us);
+        uint32_t k = lock(b);
         chip_push_baro(&b->board, s->valid_us * 1000u, s->d1, s->d2);
+        unlock(b, k);
         return 0;
     }
     case BRIDGE_SBUS: {
@@ -375,21 +441,29 @@ static int dispatch(struct bridge *b, const struct bridge_msg *msg, uint64_t t_u
     }
 }
 
+int bridge_link_decode(struct bridge *b, uint8_t byte, struct bridge_msg *msg)
+{
+    return link_rx_byte(&b->rx, byte, msg); /* (the link's state is the main loop's alone) */
+}
+
+void bridge_link_apply(struct bridge *b, const struct bridge_msg *msg, uint64_t t_us)
+{
+    b->last_rx_us = t_us;
+    if (b->host_silent) {
+        b->host_silent = 0;
+        b->next_status_us = t_us; /* say it at once */
+    }
+    if (dispatch(b, msg, t_us) < 0)
+        b->n.refused++;
+}
+
 void bridge_link_rx(struct bridge *b, const uint8_t *bytes, size_t n)
 {
     uint64_t t = now_us(b);
     struct bridge_msg msg;
-    for (size_t i = 0; i < n; i++) {
-        if (!link_rx_byte(&b->rx, bytes[i], &msg))
-            continue;
-        b->last_rx_us = t;
-        if (b->host_silent) {
-            b->host_silent = 0;
-            b->next_status_us = t; /* say it at once */
-        }
-        if (dispatch(b, &msg, t) < 0)
-            b->n.refused++;
-    }
+    for (size_t i = 0; i < n; i++)
+        if (bridge_link_decode(b, bytes[i], &msg))
+            bridge_link_apply(b, &msg, t);
 }
 
 /* ---------------------------------------------------------------- periodic work */
@@ -398,6 +472,7 @@ void bridge_status(struct bridge *b, struct bridge_status *s)
 {
     memset(s, 0, sizeof *s);
     s->t_us = now_us(b);
+    uint32_t k = lock(b);
     for (int c = 0; c < 3; c++)
         s->underruns[c] = chip_count(&b->board, UNDERRUNS[c]) - b->n.underrun_base[c];
     s->late_samples = b->n.late_samples;
@@ -410,6 +485,7 @@ void bridge_status(struct bridge *b, struct bridge_status *s)
     s->pulse_glitches = b->cap.glitches;
     s->sbus_dropped = b->n.sbus_dropped;
     s->host_silent = (uint8_t)b->host_silent;
+    unlock(b, k);
 }
 
 /* The widths as the DBC's capture frames, when the port has CAN (a capture device's job: the host may
@@ -437,8 +513,10 @@ static void can_capture(struct bridge *b, const uint16_t tenth_us[PWM_CAPTURE_CH
 void bridge_poll(struct bridge *b)
 {
     uint64_t t = now_us(b);
+    uint32_t k = lock(b); /* the sample instants and the addresses: the I2C events' too */
     chip_advance(&b->board, t * 1000u);
     set_addresses(b, t * 1000u);
+    unlock(b, k);
     uint64_t silent_for = t > b->last_rx_us ? t - b->last_rx_us : 0;
     int silent = silent_for > BRIDGE_HOST_SILENT_US;
     if (silent && !b->host_silent) {

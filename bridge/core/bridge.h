@@ -12,7 +12,8 @@
 
    Up: REG_WRITE per register byte the board wrote (acknowledged), PULSES when new pulses came (at most
    every pulses_period_us, and every 100 ms anyway), STATUS every status_period_us and when the host
-   falls silent or comes back, TRACE per transaction when CONFIG asks for it.
+   falls silent or comes back, TRACE per transaction when CONFIG asks for it. Each is queued with its
+   sequence number in the outbox (a copy: the I2C events send too) and framed by bridge_idle.
 
    Host silence: no good frame for BRIDGE_HOST_SILENT_US sets host_silent (STATUS says so at once); the
    chips hold their last samples and count an underrun at every sample instant without a new one, the
@@ -32,6 +33,10 @@
 
 #define BRIDGE_CORE_VERSION 1
 #define BRIDGE_PULSES_EVERY_US 100000u
+/* messages up queued for bridge_idle to frame: a burst of register writes at 1 MHz fills it no faster
+   than the main loop frames them; one that finds it full is dropped (its sequence number is spent:
+   the host counts the gap) */
+#define BRIDGE_OUTBOX 32u
 
 struct bridge_cfg {
     char id[16]; /* the bridge's name in HELLO_REPLY */
@@ -45,6 +50,7 @@ struct bridge_cfg {
 struct bridge_counters {
     uint32_t late_samples, refused, sbus_dropped, i2c_errors, i2c_acked;
     uint32_t can_dropped;      /* capture frames the port could not queue */
+    uint32_t out_dropped;      /* messages up that found the outbox full */
     uint32_t underrun_base[3]; /* the chip core's underrun counts at the last HELLO */
 };
 
@@ -56,10 +62,13 @@ struct bridge {
     struct pwm_capture cap;
     struct sbus_out sbus;
     struct bridge_counters n;
-    int agreed; /* a HELLO of our version came */
+    int agreed;  /* a HELLO of our version came */
+    int offline; /* CONFIG is rebuilding the chip board: the I2C events leave it alone */
     uint8_t topology, mpu_addr, hmc_addr, baro_addr, capture_channels, trace;
     uint8_t tx_seq;
-    uint8_t enabled[4]; /* by chip (CHIP_MPU..CHIP_BARO): its address is on in the port's target */
+    struct bridge_msg outbox[BRIDGE_OUTBOX]; /* messages up, sequence numbers given, not yet framed */
+    uint32_t out_head, out_tail;             /* (under the lock) */
+    uint8_t enabled[4];                      /* by chip (CHIP_MPU..CHIP_BARO): its address is on in the port's target */
     uint64_t last_rx_us;
     int host_silent;
     uint64_t next_status_us, next_pulses_us;
@@ -85,8 +94,11 @@ uint8_t bridge_i2c_read(struct bridge *b, uint64_t t_ns);
    as if it had not been read (a FIFO keeps the byte, a register pointer stays) */
 void bridge_i2c_unread(struct bridge *b);
 /* from the port's main loop, often, with interrupts enabled: encodes the queued samples ahead, so the
-   I2C interrupt at a sample instant copies them instead of encoding (chip_prepare) */
+   I2C interrupt at a sample instant copies them instead of encoding (chip_prepare), then frames what
+   is queued up (bridge_flush) */
 void bridge_idle(struct bridge *b);
+/* the messages queued up, framed and given to the port's link_tx, oldest first */
+void bridge_flush(struct bridge *b);
 void bridge_i2c_stop(struct bridge *b, uint64_t t_ns);
 void bridge_capture_edge(struct bridge *b, unsigned channel, int level, uint32_t count, uint64_t t_us);
 void bridge_link_rx(struct bridge *b, const uint8_t *bytes, size_t n);
@@ -94,7 +106,12 @@ void bridge_poll(struct bridge *b);
 
 /* what STATUS reports now */
 void bridge_status(struct bridge *b, struct bridge_status *out);
-/* one message up (id and fields set; the sequence byte is the bridge's) */
+/* one message up (id and fields set; the sequence byte is the bridge's), queued: it goes out at the
+   next bridge_flush. Callable from the I2C events: it only copies */
 void bridge_send(struct bridge *b, struct bridge_msg *msg);
+/* one byte from the host, decoded with the lock released: 1 when it completed a good frame (*msg) */
+int bridge_link_decode(struct bridge *b, uint8_t byte, struct bridge_msg *msg);
+/* a good frame received at t_us acted on (under the lock) */
+void bridge_link_apply(struct bridge *b, const struct bridge_msg *msg, uint64_t t_us);
 
 #endif

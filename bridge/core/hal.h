@@ -13,6 +13,11 @@
      sbus_tx         one 25-byte SBUS frame for the board's RC input (100000 baud, 8E2, inverted on an
                      MCU); returns the bytes taken: fewer are dropped and counted by the core
      can_tx          optional (NULL: no CAN): one classic CAN frame, returns 0 when queued
+     lock / unlock   optional (NULL: a port with no interrupts): keep the I2C events out while the
+                     core touches what they share (the chips, the counters, the frames queued up);
+                     lock returns what unlock restores, so they nest. The core holds the lock for
+                     copies and counters only: it decodes, frames and encodes with it released, so an
+                     I2C event is never held off longer than that (docs/bridge-firmware.md)
 
    The port calls (bridge.h):
      bridge_i2c_start / bridge_i2c_write / bridge_i2c_read / bridge_i2c_stop
@@ -24,9 +29,11 @@
                      (it wraps: 16 or 32 bits, as configured) and the time in us
      bridge_link_rx  bytes from the host, in any chunking
      bridge_poll     often (every 100 us or so, and after each I2C transaction): sample instants,
-                     SBUS frames due, PULSES and STATUS up, the host-silent rule
-     bridge_idle     as often as it can, with interrupts enabled (the only call that may be
-                     interrupted by the I2C events): the samples encoded ahead of their instants */
+                     SBUS frames due, PULSES and STATUS queued up, the host-silent rule
+     bridge_idle     as often as it can: the samples encoded ahead of their instants, and the frames
+                     queued up (by any call) framed and given to link_tx
+   The I2C events may come from an interrupt; every other call comes from one main loop, with
+   interrupts enabled (the core takes the port's lock where it must). */
 #ifndef BRIDGE_HAL_H
 #define BRIDGE_HAL_H
 
@@ -40,6 +47,8 @@ struct bridge_hal {
     void (*link_tx)(void *ctx, const uint8_t *bytes, size_t n);
     size_t (*sbus_tx)(void *ctx, const uint8_t *frame, size_t n);
     int (*can_tx)(void *ctx, uint32_t id, const uint8_t *data, uint8_t len); /* NULL: no CAN */
+    uint32_t (*lock)(void *ctx);                                             /* NULL: no interrupts */
+    void (*unlock)(void *ctx, uint32_t saved);
 };
 
 #endif

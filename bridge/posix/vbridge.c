@@ -635,7 +635,7 @@ int main(int argc, char **argv)
         (v.can = open_pty(can_name, sizeof can_name, 0)) < 0)
         return fail("a pty");
 
-    struct bridge_hal hal = { NULL, hal_now, hal_addr, hal_link, hal_sbus, hal_can };
+    struct bridge_hal hal = { NULL, hal_now, hal_addr, hal_link, hal_sbus, hal_can, NULL, NULL }; /* one thread */
     bridge_init(&v.b, &hal, &cfg);
     printf("vbridge link=%s board=%s shm=%s rc=%s can=%s fakes=%s pid=%d\n", link_name, sock_path, shm_path, rc_name,
            can_name, fakes_path, (int)getpid());

@@ -18,10 +18,12 @@
    the only pins left for TIM2 CH3/CH4 once PA2/PA3 carry the host link.
 
    Concurrency: the I2C interrupts (the most urgent: a byte is due within a bit time) call the core
-   directly; everything else calls it from the main loop with interrupts masked for the call, so the
-   core never runs twice at once. Capture edges are queued by TIM2's interrupt and fed from the main
-   loop; the host's bytes arrive by circular DMA and are fed in small chunks; frames up go out by DMA
-   from a ring that drops a frame that does not fit (the host sees the gap in the sequence).
+   directly; everything else calls it from the main loop with interrupts on, and the core masks them
+   (the HAL's lock) only while it touches what the I2C events share: it decodes the host's frames,
+   frames its own and encodes samples with them on. Capture edges are queued by TIM2's interrupt and
+   fed from the main loop; the host's bytes arrive by circular DMA and are fed in small chunks; frames
+   up go out by DMA from a ring that drops a frame that does not fit (the host sees the gap in the
+   sequence).
 
    Capture-only mode (PB0 low at reset): the same core with no I2C target and no SBUS, for users with
    their own sensor set-up: the four ESC pulses go out as the DBC's two CAN frames with each PULSES (at
@@ -201,15 +203,16 @@ void dma1_ch2_irq(void)
     }
 }
 
+/* only the core's bridge_flush, in the main loop, writes the ring: the DMA's interrupt only moves
+   tx_tail on, so the room read here can only grow before the copy is done */
 static void link_send(const uint8_t *bytes, size_t n)
 {
-    uint32_t p = irq_save();
-    if (TX_RING - (tx_head - tx_tail) >= n) {
+    uint32_t head = tx_head;
+    if (TX_RING - (head - tx_tail) >= n) {
         for (size_t i = 0; i < n; i++)
-            tx_ring[(tx_head + i) % TX_RING] = bytes[i];
-        tx_head += (uint32_t)n;
+            tx_ring[(head + i) % TX_RING] = bytes[i];
+        tx_head = head + (uint32_t)n;
     }
-    irq_restore(p);
     tx_kick();
 }
 
@@ -448,15 +451,26 @@ static void i2c_init(void)
 
 /* ---------------------------------------------------------------- main */
 
+/* (the capture's state is the main loop's alone: no lock) */
 static void feed_edges(void)
 {
     while (edge_tail != edge_head) {
         struct edge e = edges[edge_tail % EDGES];
         edge_tail = edge_tail + 1;
-        uint32_t p = irq_save();
         bridge_capture_edge(&br, e.ch, e.level, e.count, e.t_us);
-        irq_restore(p);
     }
+}
+
+static uint32_t hal_lock(void *ctx)
+{
+    (void)ctx;
+    return irq_save();
+}
+
+static void hal_unlock(void *ctx, uint32_t saved)
+{
+    (void)ctx;
+    irq_restore(saved);
 }
 
 int main(void)
@@ -474,7 +488,13 @@ int main(void)
     link_init();
     can_init();
 
-    struct bridge_hal hal = { NULL, hal_now_us, hal_i2c_addr_enable, hal_link_tx, hal_sbus_tx, hal_can_tx };
+    struct bridge_hal hal = { .now_us = hal_now_us,
+                              .i2c_addr_enable = hal_i2c_addr_enable,
+                              .link_tx = hal_link_tx,
+                              .sbus_tx = hal_sbus_tx,
+                              .can_tx = hal_can_tx,
+                              .lock = hal_lock,
+                              .unlock = hal_unlock };
     struct bridge_cfg cfg = bridge_defaults();
     memset(cfg.id, 0, sizeof cfg.id);
     const char *name = capture_only ? (watchdog_reset ? "g431 capture wdt" : "g431 capture")
@@ -500,18 +520,13 @@ int main(void)
         feed_edges();
         uint8_t chunk[32];
         size_t n = link_rx_take(chunk, sizeof chunk);
-        if (n) {
-            p = irq_save();
+        if (n)
             bridge_link_rx(&br, chunk, n);
-            irq_restore(p);
-        }
-        bridge_idle(&br); /* interrupts on: the next samples' register bytes, ready before their instant */
         uint64_t t = hal_now_us(NULL);
         if (t >= next_poll) {
             next_poll = t + 100u;
-            p = irq_save();
             bridge_poll(&br);
-            irq_restore(p);
         }
+        bridge_idle(&br); /* the next samples' register bytes ready before their instant; frames out */
     }
 }

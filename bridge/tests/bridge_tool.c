@@ -2,7 +2,8 @@
    a script on stdin, one command a line; what the core does comes out on stdout, one line each.
    tests/bridge/test_core.py drives it. Commands:
      t US                          the clock
-     rx HEX                        bytes from the host
+     rx HEX                        bytes from the host, then bridge_idle (as the firmware's main loop)
+     rxq HEX                       bytes from the host, the frames up left queued
      poll                          bridge_poll
      start TNS ADDR READ | wr TNS BYTE | rd TNS | stop TNS      I2C target events (ADDR, BYTE hex)
      xfer TNS ADDR WHEX NREAD      a transfer as a 400 kHz master makes it: START, address, the written
@@ -15,8 +16,12 @@
                                    a pwm_capture of its own: "pulse 0|1", "widths a b c d",
                                    and "pwm PULSES GLITCHES" after each
      sbus_encode C0 .. C15 FLAGS   "frame HEX"
+     locks                         "locks N": how often the core took the lock so far
+   After each command but `t` and `rxq` the tool flushes the frames queued up (bridge_flush), as the
+   firmware's main loop does between its calls.
    Out, from the HAL: "up HEX" (a frame to the host), "sbus HEX" (what the UART took), "addr AA 0|1",
-   "can III HEX" (a CAN frame: identifier, data).
+   "can III HEX" (a CAN frame: identifier, data). The HAL's lock is checked: a frame given to the link,
+   or a command that returns, with the lock held prints "lock error ..." (the tests look for it).
    `bridge_tool SCRIPT OUT` reads the script from the file SCRIPT and writes to the file OUT instead: so
    it runs on a Cortex-M4 under QEMU with semihosting (tests/bridge/tools.py), where the files are the
    host's. */
@@ -28,6 +33,23 @@
 
 static uint64_t clock_us;
 static size_t sbus_limit = SBUS_FRAME;
+static unsigned lock_depth;
+static unsigned long locks_taken;
+
+static uint32_t hal_lock(void *ctx)
+{
+    (void)ctx;
+    locks_taken++;
+    return lock_depth++;
+}
+
+static void hal_unlock(void *ctx, uint32_t saved)
+{
+    (void)ctx;
+    if (lock_depth == 0 || saved != lock_depth - 1)
+        printf("lock error: unlock %lu at depth %u\n", (unsigned long)saved, lock_depth);
+    lock_depth = saved;
+}
 
 static void hex(const char *tag, const uint8_t *p, size_t n)
 {
@@ -52,6 +74,8 @@ static void hal_addr(void *ctx, uint8_t addr, int on)
 static void hal_link(void *ctx, const uint8_t *p, size_t n)
 {
     (void)ctx;
+    if (lock_depth)
+        printf("lock error: a frame framed with the lock held\n");
     hex("up", p, n);
 }
 
@@ -124,7 +148,7 @@ int main(int argc, char **argv)
     }
     static char line[1 << 20];
     static uint8_t bytes[1 << 19];
-    struct bridge_hal hal = { NULL, hal_now, hal_addr, hal_link, hal_sbus, hal_can };
+    struct bridge_hal hal = { NULL, hal_now, hal_addr, hal_link, hal_sbus, hal_can, hal_lock, hal_unlock };
     struct bridge_cfg cfg = bridge_defaults();
     memcpy(cfg.id, "bridge_tool", 11);
     static struct bridge b;
@@ -149,6 +173,11 @@ int main(int argc, char **argv)
             size_t n = unhex(rest, bytes, sizeof bytes);
             bridge_link_rx(&b, bytes, n);
             bridge_idle(&b); /* as the firmware's main loop after a chunk: its samples encoded ahead */
+        } else if (!strcmp(cmd, "rxq")) {
+            while (*rest == ' ')
+                rest++;
+            size_t n = unhex(rest, bytes, sizeof bytes);
+            bridge_link_rx(&b, bytes, n);
         } else if (!strcmp(cmd, "poll")) {
             bridge_poll(&b);
         } else if (!strcmp(cmd, "idle")) {
@@ -185,6 +214,8 @@ int main(int argc, char **argv)
                    (unsigned long)st.frames_bad, (unsigned long)st.seq_gaps, (unsigned long)st.refused,
                    (unsigned long)st.pulse_glitches, (unsigned long)st.sbus_dropped, (unsigned)st.host_silent,
                    b.agreed);
+        } else if (!strcmp(cmd, "locks")) {
+            printf("locks %lu\n", locks_taken);
         } else if (!strcmp(cmd, "sbus_limit")) {
             sscanf(rest, "%llu", &a);
             sbus_limit = (size_t)a;
@@ -214,6 +245,10 @@ int main(int argc, char **argv)
             fprintf(stderr, "bridge_tool: unknown command %s\n", cmd);
             return 2;
         }
+        if (lock_depth)
+            printf("lock error: %s returned with the lock held\n", cmd);
+        if (strcmp(cmd, "t") && strcmp(cmd, "rxq"))
+            bridge_flush(&b);
         fflush(stdout);
     }
     return 0;

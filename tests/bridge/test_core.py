@@ -78,6 +78,12 @@ class Script:
         self.seq += 1
         return self
 
+    def queue(self, name: str, **values: object) -> Script:
+        """As send, but the frames up it causes stay queued until a later command (rxq)."""
+        self.lines.append("rxq " + encode(name, self.seq, **values).hex())
+        self.seq += 1
+        return self
+
     def raw(self, wire: bytes) -> Script:
         self.lines.append("rx " + wire.hex())
         return self
@@ -304,6 +310,48 @@ def test_barometer_words_are_given_by_the_conversion_the_board_started(tool: Too
 def test_time_sync_is_answered_with_the_bridge_times(tool: Tool) -> None:
     r = run(tool, Script().t(5).hello().t(123_456).send("TIME_SYNC", id=77, host_ns=999).lines)
     assert r.named("TIME_SYNC_REPLY") == [{"id": 77, "rx_us": 123_456, "tx_us": 123_456}]
+
+
+def test_a_time_sync_reply_is_stamped_when_it_leaves_not_when_it_was_queued(tool: Tool) -> None:
+    """The reply is framed by the main loop after the frame was taken in: tx_us is that moment (the host's
+    offset estimate assumes the reply left at tx_us)."""
+    r = run(tool, Script().t(5).hello().t(100).queue("TIME_SYNC", id=3, host_ns=1).t(250).cmd("idle").lines)
+    assert r.named("TIME_SYNC_REPLY") == [{"id": 3, "rx_us": 100, "tx_us": 250}]
+
+
+def test_frames_are_framed_with_the_lock_released_and_every_lock_is_undone(tool: Tool) -> None:
+    """On the STM32 the lock masks the I2C interrupt: framing (CRC, COBS) under it would hold a byte of the
+    board's bus up. The tool's HAL prints "lock error" for a frame given to the link under the lock and
+    for a call that returns with it held; every kind of message and bus event goes through here."""
+    s = Script().t(0).hello().send("CONFIG", topology=0, mpu_addr=0x68, hmc_addr=0x1E, baro_addr=0x77,
+                                   sbus_period_ms=7, capture_channels=4, trace=1)
+    s.send("IMU_SAMPLE", valid_us=1000, **SAMPLE).send("MAG_SAMPLE", valid_us=1000, field=[0.2, 0.0, 0.4])
+    s.send("BARO_SAMPLE", valid_us=1000, d1=9_000_000, d2=8_000_000).send("TIME_SYNC", id=1, host_ns=2)
+    s.send("FAULT", target=6, kind=6, start_us=50_000, end_us=60_000).send("HEARTBEAT")
+    s.send("SBUS", channels=[992] * 16).xfer(1000, 0x68, WAKE + b"\x00", 0)
+    s.xfer(1_500_000, 0x68, bytes([0x37, 0x02]), 0).xfer(2_000_000, 0x68, b"\x3b", 14)  # bypass on
+    s.xfer(2_500_000, 0x1E, bytes([0x02, 0x00]), 0).xfer(3_000_000, 0x77, b"\x48", 0)
+    s.cmd("edge 0 1 100 10", "edge 0 0 15100 11", "start 3500000 68 1", "rd 3500100", "unread",
+          "stop 3500200").t(5000).queue("TIME_SYNC", id=2, host_ns=3).cmd("poll", "status", "locks")
+    r = run(tool, s.lines)
+    assert [line for line in r.lines if "lock error" in line] == []
+    assert int(r.tagged("locks")[0]) >= 20
+    names = {m.name for m in r.up()}
+    assert {"HELLO_REPLY", "TIME_SYNC_REPLY", "REG_WRITE", "TRACE", "PULSES", "STATUS"} <= names
+
+
+def test_a_full_outbox_drops_whole_messages_and_the_host_sees_the_gap(tool: Tool) -> None:
+    """40 register writes in one burst, with no main loop between them, meet the 32 places of the
+    outbox: 32 go up whole, 8 are dropped, and their sequence numbers are spent, so the host counts
+    the gap."""
+    s = Script().t(0).hello().xfer(1000, 0x68, b"\x0d" + bytes(40), 0).cmd("poll")
+    r = run(tool, s.lines)
+    rx = Receiver("up")
+    got = [m for line in r.tagged("up") for m in rx.feed(bytes.fromhex(line))]
+    writes = [m for m in got if m.name == "REG_WRITE"]
+    assert [m.values["reg"] for m in writes] == list(range(0x0D, 0x0D + 32))
+    status = [m for m in got if m.name == "STATUS"]
+    assert status[0].seq == writes[-1].seq + 9 and rx.seq_gaps == 1 and rx.bad == 0
 
 
 def test_a_bus_fault_nacks_its_chip_in_its_window_and_counts(tool: Tool) -> None:
