@@ -73,6 +73,8 @@ _CHIPS: dict[str, tuple[object, list[object]]] = {
     "chip_write_byte": (None, [_P, ctypes.c_uint8]),
     "chip_read_byte": (ctypes.c_uint8, [_P]),
     "chip_unread_byte": (None, [_P]),
+    "chip_read_preview": (ctypes.c_bool, [_P, ctypes.c_uint64, ctypes.c_uint8,
+                                          ctypes.POINTER(ctypes.c_uint8)]),
     "chip_prepare": (None, [_P]),
     "chip_stop": (None, [_P]),
 }

@@ -321,6 +321,32 @@ uint8_t chip_read_byte(chip_board *b)
     return v;
 }
 
+/* A bridge's target that does not stretch SCL must hold a read's first byte before the address comes:
+ * start, read and give back, then put back what start touched (the undo record covers the read). */
+bool chip_read_preview(chip_board *b, uint64_t t_ns, uint8_t addr, uint8_t *byte)
+{
+    uint8_t chip = resolve(b, addr);
+    if (chip == CHIP_NONE || !chip_answers(b, chip, t_ns))
+        return false;
+    uint8_t current = b->current;
+    chip_read_undo undo = b->undo;
+    bool mpu_first = b->mpu.first_byte, mpu_snap = b->mpu.has_snapshot;
+    bool hmc_first = b->hmc.first_byte, baro_first = b->baro.first_byte;
+    uint8_t snapshot[sizeof b->mpu.snapshot];
+    memcpy(snapshot, b->mpu.snapshot, sizeof snapshot);
+    (void)start(b, t_ns, addr, true);
+    *byte = chip_read_byte(b);
+    chip_unread_byte(b);
+    memcpy(b->mpu.snapshot, snapshot, sizeof snapshot);
+    b->mpu.first_byte = mpu_first;
+    b->mpu.has_snapshot = mpu_snap;
+    b->hmc.first_byte = hmc_first;
+    b->baro.first_byte = baro_first;
+    b->undo = undo;
+    b->current = current;
+    return true;
+}
+
 /* ---- bus: one Linux I2C transfer ---- */
 
 int chip_transfer(chip_board *b, uint64_t t_ns, chip_msg *msgs, uint32_t n, chip_need *need, uint32_t *failed)

@@ -284,6 +284,11 @@ CHIP_API void chip_write_byte(chip_board *b, uint8_t byte);
 CHIP_API uint8_t chip_read_byte(chip_board *b);
 CHIP_API void chip_unread_byte(chip_board *b); /* the last byte read was never sent: as if not read */
 CHIP_API void chip_stop(chip_board *b);
+/* The first byte a read of addr would give if it started now (time does not move: the board's state
+ * as it is, t_ns only for the bus faults' windows), with nothing changed, the transfer under way
+ * included; false when addr would not acknowledge. A bridge target without clock stretching loads it
+ * before the address comes. */
+CHIP_API bool chip_read_preview(chip_board *b, uint64_t t_ns, uint8_t addr, uint8_t *byte);
 
 /* ---- bus: one Linux I2C transfer at t_ns ---- CHIP_OK, CHIP_NACK / CHIP_PROTOCOL (message index in
  * *failed), or CHIP_NEED (demand mode; nothing done, *need filled). */

@@ -5,6 +5,7 @@ core's sample queues, demand mode, its portability rules and a plain C program t
 
 from __future__ import annotations
 
+import ctypes
 import math
 import random
 import re
@@ -81,17 +82,41 @@ def read_ahead(lib, a: int, n: int) -> bytes:
     return got[:n]
 
 
+def previews(board: ChipBoard, t_ns: int) -> dict[int, int | None]:
+    """chip_read_preview of each chip's address (None: it would NACK), asserting it changed nothing of
+    the board, byte for byte (a bridge target without clock stretching takes one before every address
+    it might be sent)."""
+    before = board._mem.raw
+    out: dict[int, int | None] = {}
+    for addr in (M, H, B):
+        byte = ctypes.c_uint8()
+        answers = board.lib.chip_read_preview(board.addr, t_ns, addr, ctypes.byref(byte))
+        out[addr] = byte.value if answers else None
+    assert board._mem.raw == before, "a preview changed the board"
+    return out
+
+
 def byte_transfer(board: ChipBoard, msgs: list[Msg], t_ns: int) -> list[bytes]:
     """The transfer as a bridge's I2C target sees it: START, bytes, STOP (demand served first), each
-    read one byte ahead and the extra byte given back."""
+    read one byte ahead and the extra byte given back. Before each message, and between its bytes, the
+    chips' read previews are taken (they must change nothing: the other boards take none), and a read's
+    first byte must be its preview's."""
     board.bus.advance_ns(t_ns)
     lib, a = board.lib, board.addr
     out = []
     for m in msgs:
+        seen = previews(board, t_ns)
         if not lib.chip_start(a, t_ns, m.addr, m.read):
+            assert seen.get(m.addr) is None, f"previewed {seen.get(m.addr)} from {m.addr:#x}, which NACKed"
             raise I2CNack(m.addr)
+        if m.read and m.length and not m.recv_len:
+            first = read_ahead(lib, a, m.length)
+            assert seen.get(m.addr) == first[0], f"preview {seen.get(m.addr)} of {m.addr:#x}, read {first[0]}"
+            out.append(first)
+            continue
         if m.recv_len:
             count = lib.chip_read_byte(a)
+            assert seen.get(m.addr) == count
             if not 1 <= count <= 32:
                 lib.chip_stop(a)
                 raise I2CProtocolError("count")
@@ -101,6 +126,7 @@ def byte_transfer(board: ChipBoard, msgs: list[Msg], t_ns: int) -> list[bytes]:
         else:
             for byte in m.data:
                 lib.chip_write_byte(a, byte)
+                previews(board, t_ns)
     lib.chip_stop(a)
     return out
 
