@@ -7,7 +7,10 @@
    board reads ACCEL_XOUT_H..GYRO_ZOUT_L in one 14-byte burst with a repeated START, every event of it
    timed. Prints one line per kind of call: "NAME calls N mean_insns M max_insns X locked_max L", L
    the longest the call held the HAL's lock (interrupts masked on the firmware: how long an I2C event
-   that arrives then waits). */
+   that arrives then waits). It serves the board twice: as a target that stretches SCL, then as one
+   that does not (the firmware's NOSTRETCH: i2c_preload, each read's first byte taken at its START,
+   the byte read ahead given back at the NACK and the ports preloaded again); the second pass's names
+   end in "/nostretch". */
 #include <stdio.h>
 #include <string.h>
 
@@ -50,12 +53,21 @@ struct cost {
     uint32_t max, locked_max;
 };
 
-enum { START_W, WRITE, START_R, READ, STOP, LINK_RX, LINK_RX_CONFIG, POLL, IDLE, KINDS };
-static struct cost costs[KINDS] = { { "i2c_start_write", 0, 0, 0, 0 }, { "i2c_write", 0, 0, 0, 0 },
-                                    { "i2c_start_read", 0, 0, 0, 0 },  { "i2c_read", 0, 0, 0, 0 },
-                                    { "i2c_stop", 0, 0, 0, 0 },        { "link_rx_imu_sample", 0, 0, 0, 0 },
-                                    { "link_rx_config", 0, 0, 0, 0 },  { "poll", 0, 0, 0, 0 },
-                                    { "idle_frames_out", 0, 0, 0, 0 } };
+enum { START_W, WRITE, START_R, READ, NACK, STOP, LINK_RX, LINK_RX_CONFIG, POLL, IDLE, KINDS };
+static const char *const NAMES[KINDS] = { "i2c_start_write",    "i2c_write",      "i2c_start_read",
+                                          "i2c_read",           "i2c_nack",       "i2c_stop",
+                                          "link_rx_imu_sample", "link_rx_config", "poll",
+                                          "idle_frames_out" };
+static struct cost passes[2][KINDS];
+static struct cost *costs = passes[0];
+
+static int hal_preload(void *ctx, unsigned port, uint8_t byte)
+{
+    (void)ctx;
+    (void)port;
+    (void)byte;
+    return 1;
+}
 
 static uint32_t ticks_since(uint32_t from) { return ((from - SYST_CVR) & 0xFFFFFFu) * INSNS_PER_TICK; }
 
@@ -114,15 +126,20 @@ static void send(struct bridge *b, struct bridge_msg *m, int kind)
 
 #define BIT_NS 2500u /* 400 kHz */
 
-int main(void)
+static void serve(int nostretch)
 {
     static struct bridge b;
-    struct bridge_hal hal = { NULL, hal_now, hal_addr, hal_link, hal_sbus, NULL, hal_lock, hal_unlock };
+    struct bridge_hal hal = { .now_us = hal_now,
+                              .i2c_addr_enable = hal_addr,
+                              .link_tx = hal_link,
+                              .sbus_tx = hal_sbus,
+                              .i2c_preload = nostretch ? hal_preload : NULL,
+                              .lock = hal_lock,
+                              .unlock = hal_unlock };
     struct bridge_cfg cfg = bridge_defaults();
+    costs = passes[nostretch];
+    clock_us = 0;
     bridge_init(&b, &hal, &cfg);
-    SYST_RVR = 0xFFFFFFu;
-    SYST_CVR = 0;
-    SYST_CSR = 5; /* on, the processor clock, no interrupt */
 
     struct bridge_msg m;
     memset(&m, 0, sizeof m);
@@ -171,21 +188,38 @@ int main(void)
         end(WRITE);
         t += 10 * BIT_NS;
         begin();
-        bridge_i2c_start(&b, t, 0x68, 1);
+        bridge_i2c_start(&b, t, 0x68, 1); /* (nostretch: the first byte read in here) */
         end(START_R);
-        for (unsigned i = 0; i < 14; i++) {
+        for (unsigned i = nostretch ? 1u : 0u; i < 14 + (unsigned)nostretch; i++) { /* (+ the one ahead) */
             t += 9 * BIT_NS;
             begin();
             (void)bridge_i2c_read(&b, t);
             end(READ);
+        }
+        if (nostretch) {
+            begin();
+            bridge_i2c_unread(&b);
+            bridge_i2c_preload_all(&b);
+            end(NACK);
         }
         begin();
         bridge_i2c_stop(&b, t);
         end(STOP);
     }
     for (unsigned i = 0; i < KINDS; i++)
-        printf("%s calls %lu mean_insns %lu max_insns %lu locked_max %lu\n", costs[i].name,
-               (unsigned long)costs[i].calls, (unsigned long)(costs[i].sum / costs[i].calls),
-               (unsigned long)costs[i].max, (unsigned long)costs[i].locked_max);
+        if (costs[i].calls)
+            printf("%s%s calls %lu mean_insns %lu max_insns %lu locked_max %lu\n", NAMES[i],
+                   nostretch ? "/nostretch" : "", (unsigned long)costs[i].calls,
+                   (unsigned long)(costs[i].sum / costs[i].calls), (unsigned long)costs[i].max,
+                   (unsigned long)costs[i].locked_max);
+}
+
+int main(void)
+{
+    SYST_RVR = 0xFFFFFFu;
+    SYST_CVR = 0;
+    SYST_CSR = 5; /* on, the processor clock, no interrupt */
+    serve(0);
+    serve(1);
     return 0;
 }

@@ -78,8 +78,9 @@ static uint8_t chip_addr(const struct bridge *b, int chip)
    the bytes of a START that comes closer to a window's edge than that). */
 static const uint8_t ADDRESS_ORDER[3] = { CHIP_MPU, CHIP_BARO, CHIP_HMC }; /* the HMC's last: it follows the MPU */
 
-static void set_addresses(struct bridge *b, uint64_t t_ns)
+static int set_addresses(struct bridge *b, uint64_t t_ns)
 {
+    int changed = 0;
     for (int i = 0; i < 3; i++) {
         int chip = ADDRESS_ORDER[i];
         int on = chip_answers(&b->board, (uint8_t)chip, t_ns) &&
@@ -87,8 +88,10 @@ static void set_addresses(struct bridge *b, uint64_t t_ns)
         if (on != b->enabled[chip]) {
             b->enabled[chip] = (uint8_t)on;
             b->hal.i2c_addr_enable(b->hal.ctx, chip_addr(b, chip), on);
+            changed = 1;
         }
     }
+    return changed;
 }
 
 /* CONFIG's values (or the defaults at start): the chips reset to power-on. Rebuilding the chip board
@@ -117,7 +120,9 @@ static void configure(struct bridge *b, uint8_t topology, uint8_t mpu, uint8_t h
     sbus_out_init(&b->sbus, sbus_ms * 1000u);
     k = lock(b);
     b->offline = 0;
+    b->guess0 = mpu;
     set_addresses(b, now_us(b) * 1000u);
+    bridge_i2c_preload_all(b);
     unlock(b, k);
 }
 
@@ -156,6 +161,60 @@ static int core_addr(const struct bridge *b, uint8_t addr, uint8_t *out)
     return -1;
 }
 
+/* ---------------------------------------------------------------- preloading (hal.h i2c_preload) */
+
+static unsigned port_of(const struct bridge *b, uint8_t addr) { return addr == b->hmc_addr ? 1u : 0u; }
+
+/* The first byte of the read the port expects next, at the chips' present time (a chip that would not
+   answer gets 0xFF: the lines stay high), given to the port to hold. */
+static void preload(struct bridge *b, unsigned port)
+{
+    if (!b->hal.i2c_preload)
+        return;
+    uint8_t addr = port ? b->hmc_addr : b->guess0, a, byte = 0xFF;
+    uint64_t t = b->board.now_ns;
+    if (b->offline || core_addr(b, addr, &a) < 0 || !chip_read_preview(&b->board, t, a, &byte))
+        byte = 0xFF;
+    if (b->hal.i2c_preload(b->hal.ctx, port, byte)) {
+        struct bridge_preload *pr = &b->pre[port];
+        pr->addr = addr;
+        pr->byte = byte;
+        pr->loaded = 1;
+        pr->t_ns = t;
+    }
+}
+
+/* what moves a chip's registers as time passes: sample instants, measurements, conversions (a bus
+   fault's window too: with faults set, every time) */
+static uint32_t generation(const struct bridge *b)
+{
+    return chip_count(&b->board, CHIP_COUNT_MPU_SAMPLES) + chip_count(&b->board, CHIP_COUNT_HMC_MEASUREMENTS) +
+           chip_count(&b->board, CHIP_COUNT_BARO_CONVERSIONS);
+}
+
+void bridge_i2c_preload_all(struct bridge *b)
+{
+    if (!b->hal.i2c_preload)
+        return;
+    for (unsigned p = 0; p < BRIDGE_I2C_PORTS; p++)
+        preload(b, p);
+    b->preload_gen = generation(b);
+}
+
+/* after the chips' time moved: a preview costs more than a byte's time at 1 MHz with interrupts masked,
+   so the ports are preloaded again only when something they could hold changed */
+static void preload_if_moved(struct bridge *b)
+{
+    if (!b->hal.i2c_preload)
+        return;
+    uint32_t gen = generation(b);
+    int faults = 0;
+    for (int c = CHIP_MPU; c <= CHIP_BARO; c++)
+        faults |= b->board.faults[c].n > 0;
+    if (gen != b->preload_gen || faults)
+        bridge_i2c_preload_all(b);
+}
+
 static void trace_flush(struct bridge *b)
 {
     if (!b->trace || b->cur_chip < 0)
@@ -178,6 +237,10 @@ static void trace_byte(struct bridge *b, uint8_t v)
     b->cur_bytes++;
 }
 
+/* With i2c_preload a read's first byte is on the wire already: the one preloaded for its port. A read
+   from the address it was taken for starts at the chips' time it was taken at (so it is the byte the
+   chip gives, even if a sample instant passed since); another address, or a byte that is not the
+   chip's, is a miss: counted, and the chip's own first byte is read and dropped, as the board took one. */
 int bridge_i2c_start(struct bridge *b, uint64_t t_ns, uint8_t addr, int read)
 {
     trace_flush(b); /* a repeated START ends the message before it */
@@ -187,7 +250,14 @@ int bridge_i2c_start(struct bridge *b, uint64_t t_ns, uint8_t addr, int read)
     }
     uint8_t a;
     int chip = core_addr(b, addr, &a);
-    int ack = chip_start(&b->board, t_ns, a, read != 0);
+    unsigned port = port_of(b, addr);
+    struct bridge_preload *pr = &b->pre[port];
+    int preloaded = read && b->hal.i2c_preload != NULL;
+    int matched = preloaded && pr->loaded && pr->addr == addr;
+    uint64_t before = b->board.now_ns;
+    if (b->cur_chip < 0)
+        b->txn_t_ns = t_ns;
+    int ack = chip_start(&b->board, matched ? pr->t_ns : t_ns, a, read != 0);
     if (!ack && chip >= 0)
         b->n.i2c_errors++; /* one of our chips did not answer: a bus fault, or 0x1E out of bypass */
     if (ack)
@@ -198,15 +268,22 @@ int bridge_i2c_start(struct bridge *b, uint64_t t_ns, uint8_t addr, int read)
     b->cur_bytes = 0;
     b->trace_len = 0;
     b->trace_t_ns = t_ns;
+    if (ack && port == 0)
+        b->guess0 = addr;
+    if (preloaded) {
+        uint8_t sent = pr->loaded ? pr->byte : 0xFF;
+        pr->loaded = 0; /* it went out */
+        if (ack && (bridge_i2c_read(b, t_ns) != sent || !matched))
+            b->n.preload_misses++;
+    }
+    if (b->board.now_ns != before)
+        preload_if_moved(b); /* what the other port holds may be stale */
     return ack;
 }
 
-int bridge_i2c_write(struct bridge *b, uint64_t t_ns, uint8_t byte)
+/* REG_WRITE up for a byte written (not the pointer; the MS5611's command only) */
+static void reg_write(struct bridge *b, uint64_t t_ns, uint8_t byte)
 {
-    if (b->cur_chip < 0)
-        return 0; /* nobody was addressed: nobody acknowledges */
-    chip_write_byte(&b->board, byte);
-    int ack = 1;
     unsigned i = b->cur_bytes;
     trace_byte(b, byte);
     struct bridge_msg m;
@@ -216,17 +293,26 @@ int bridge_i2c_write(struct bridge *b, uint64_t t_ns, uint8_t byte)
     m.u.reg_write.addr = b->cur_addr;
     if (b->cur_chip == CHIP_BARO) {
         if (i > 0)
-            return ack; /* the MS5611 ignores what follows its command */
+            return; /* the MS5611 ignores what follows its command */
         m.u.reg_write.reg = byte;
     } else if (i == 0) {
         b->ptr = byte; /* the register pointer */
-        return ack;
+        return;
     } else {
         m.u.reg_write.reg = (uint8_t)(b->ptr + i - 1);
         m.u.reg_write.value = byte;
     }
     bridge_send(b, &m);
-    return ack;
+}
+
+int bridge_i2c_write(struct bridge *b, uint64_t t_ns, uint8_t byte)
+{
+    if (b->cur_chip < 0)
+        return 0; /* nobody was addressed: nobody acknowledges */
+    chip_write_byte(&b->board, byte);
+    reg_write(b, t_ns, byte);
+    preload(b, port_of(b, b->cur_addr)); /* a repeated START may read from the pointer just written */
+    return 1;
 }
 
 uint8_t bridge_i2c_read(struct bridge *b, uint64_t t_ns)
@@ -264,6 +350,7 @@ void bridge_i2c_stop(struct bridge *b, uint64_t t_ns)
         return;
     chip_stop(&b->board);
     set_addresses(b, t_ns); /* the bypass may have changed */
+    bridge_i2c_preload_all(b);
 }
 
 /* ---------------------------------------------------------------- capture */
@@ -303,7 +390,7 @@ static void hello(struct bridge *b, const struct bridge_hello *h)
         b->n.late_samples = b->n.refused = b->n.sbus_dropped = 0;
         b->cap.glitches = 0;
         uint32_t k = lock(b); /* the I2C events count these */
-        b->n.i2c_errors = b->n.i2c_acked = 0;
+        b->n.i2c_errors = b->n.i2c_acked = b->n.preload_misses = 0;
         for (int c = 0; c < 3; c++)
             b->n.underrun_base[c] = chip_count(&b->board, UNDERRUNS[c]);
         unlock(b, k);
@@ -485,6 +572,7 @@ void bridge_status(struct bridge *b, struct bridge_status *s)
     s->pulse_glitches = b->cap.glitches;
     s->sbus_dropped = b->n.sbus_dropped;
     s->host_silent = (uint8_t)b->host_silent;
+    s->i2c_preload_misses = b->n.preload_misses;
     unlock(b, k);
 }
 
@@ -514,8 +602,16 @@ void bridge_poll(struct bridge *b)
 {
     uint64_t t = now_us(b);
     uint32_t k = lock(b); /* the sample instants and the addresses: the I2C events' too */
-    chip_advance(&b->board, t * 1000u);
-    set_addresses(b, t * 1000u);
+    /* a transaction under way holds the chips' time, as the MPU-6050 holds its data registers while its
+       serial interface is busy: a read after a repeated START gives the instant its first byte was
+       preloaded at */
+    uint64_t before = b->board.now_ns;
+    if (b->cur_chip < 0 || t * 1000u > b->txn_t_ns + BRIDGE_HOLD_NS)
+        chip_advance(&b->board, t * 1000u);
+    if (set_addresses(b, t * 1000u))
+        bridge_i2c_preload_all(b);
+    else if (b->board.now_ns != before)
+        preload_if_moved(b);
     unlock(b, k);
     uint64_t silent_for = t > b->last_rx_us ? t - b->last_rx_us : 0;
     int silent = silent_for > BRIDGE_HOST_SILENT_US;

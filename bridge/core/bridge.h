@@ -37,6 +37,10 @@
    than the main loop frames them; one that finds it full is dropped (its sequence number is spent:
    the host counts the gap) */
 #define BRIDGE_OUTBOX 32u
+/* the target ports of hal.h's i2c_preload: 0 answers the MPU-6050 and the MS5611, 1 the HMC5883L */
+#define BRIDGE_I2C_PORTS 2u
+/* the longest a transaction left open (no STOP) holds the chips' time still */
+#define BRIDGE_HOLD_NS 5000000u
 
 struct bridge_cfg {
     char id[16]; /* the bridge's name in HELLO_REPLY */
@@ -51,7 +55,14 @@ struct bridge_counters {
     uint32_t late_samples, refused, sbus_dropped, i2c_errors, i2c_acked;
     uint32_t can_dropped;      /* capture frames the port could not queue */
     uint32_t out_dropped;      /* messages up that found the outbox full */
+    uint32_t preload_misses;   /* reads whose preloaded first byte was not the chip's */
     uint32_t underrun_base[3]; /* the chip core's underrun counts at the last HELLO */
+};
+
+/* what a target port holds for the next read (i2c_preload) */
+struct bridge_preload {
+    uint8_t addr, byte, loaded;
+    uint64_t t_ns; /* the chips' time it was taken at: a read that matches starts there */
 };
 
 struct bridge {
@@ -81,6 +92,10 @@ struct bridge {
     uint8_t trace_data[16];
     uint8_t trace_len;
     uint64_t trace_t_ns;
+    uint64_t txn_t_ns; /* the open transaction's first START: the poll holds the chips' time till its STOP */
+    struct bridge_preload pre[BRIDGE_I2C_PORTS];
+    uint8_t guess0;       /* the address port 0's next read is expected from: the last one it answered */
+    uint32_t preload_gen; /* the chips' changes (sample instants...) when the ports were last preloaded */
 };
 
 struct bridge_cfg bridge_defaults(void);
@@ -93,6 +108,9 @@ uint8_t bridge_i2c_read(struct bridge *b, uint64_t t_ns);
 /* the last byte bridge_i2c_read gave was never sent (the master NACKed the one before): the chip is
    as if it had not been read (a FIFO keeps the byte, a register pointer stays) */
 void bridge_i2c_unread(struct bridge *b);
+/* a port with i2c_preload: its transmit registers are free (after the master's NACK): each gets the
+   first byte of the read it expects next */
+void bridge_i2c_preload_all(struct bridge *b);
 /* from the port's main loop, often, with interrupts enabled: encodes the queued samples ahead, so the
    I2C interrupt at a sample instant copies them instead of encoding (chip_prepare), then frames what
    is queued up (bridge_flush) */

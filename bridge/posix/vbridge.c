@@ -635,7 +635,10 @@ int main(int argc, char **argv)
         (v.can = open_pty(can_name, sizeof can_name, 0)) < 0)
         return fail("a pty");
 
-    struct bridge_hal hal = { NULL, hal_now, hal_addr, hal_link, hal_sbus, hal_can, NULL, NULL }; /* one thread */
+    /* one thread, no interrupts: no lock; its board's transfers come whole, so it needs no preloading */
+    struct bridge_hal hal = {
+        .now_us = hal_now, .i2c_addr_enable = hal_addr, .link_tx = hal_link, .sbus_tx = hal_sbus, .can_tx = hal_can
+    };
     bridge_init(&v.b, &hal, &cfg);
     printf("vbridge link=%s board=%s shm=%s rc=%s can=%s fakes=%s pid=%d\n", link_name, sock_path, shm_path, rc_name,
            can_name, fakes_path, (int)getpid());

@@ -338,47 +338,75 @@ static void can_init(void)
 
 /* ---------------------------------------------------------------- I2C targets: I2C1 and I2C3 */
 
+/* The targets do not stretch SCL (NOSTRETCH, as the real chips do not): the ADDR event is not waited
+   for, so a read's first byte goes out from TXDR as the address is acknowledged and must be there
+   before (RM0440 §41.4.8, "Target transmitter": with NOSTRETCH the first byte is programmed before the
+   address match, and STOPF is cleared only after it is, or it underruns). The core gives that byte
+   through i2c_preload at every change that may alter it: a STOP, the master's NACK, a byte written,
+   the chips' time moving at a poll. Each later byte is due within a byte time of its TXIS, each
+   received byte must be read within one of its RXNE: the I2C interrupts have the top priority and
+   the main loop masks them for copies only. */
 struct i2c_port {
     uint32_t base;
-    int nack; /* the core refused this transaction: writes are dropped, reads give 0xFF */
+    unsigned index;       /* the core's target port (hal.h i2c_preload) */
+    int nack;             /* the core refused this transaction: writes are dropped, reads give 0xFF */
+    volatile int sending; /* addressed to read: TXDR is the transfer's until the NACK or the STOP */
 };
 
-static struct i2c_port i2c1 = { I2C1_BASE, 0 }, i2c3 = { I2C3_BASE, 0 };
+static struct i2c_port i2c1 = { I2C1_BASE, 0, 0, 0 }, i2c3 = { I2C3_BASE, 1, 0, 0 };
 
 static uint64_t now_ns(void) { return now_ticks() * (1000000000u / TICK_HZ); }
+
+/* the next read's first byte into TXDR, unless the target is sending or its address has just matched
+   (then TXDR may already be in the shift register: the core keeps what it knows the port holds) */
+static int hal_i2c_preload(void *ctx, unsigned index, uint8_t byte)
+{
+    (void)ctx;
+    struct i2c_port *port = index ? &i2c3 : &i2c1;
+    if (capture_only)
+        return 0;
+    uint32_t p = irq_save();
+    int free = !port->sending && !(I2C_ISR(port->base) & I2C_ISR_ADDR);
+    if (free) {
+        I2C_ISR(port->base) = I2C_ISR_TXE; /* flush what it held */
+        I2C_TXDR(port->base) = byte;
+    }
+    irq_restore(p);
+    return free;
+}
 
 static void i2c_event(struct i2c_port *port)
 {
     uint32_t base = port->base;
     uint32_t isr = I2C_ISR(base);
     uint64_t t = now_ns();
-    if (isr & I2C_ISR_RXNE) {
+    if (isr & I2C_ISR_RXNE) { /* (the core preloads from the pointer just written: a repeated START may read) */
         uint8_t byte = (uint8_t)I2C_RXDR(base);
         if (!port->nack && !bridge_i2c_write(&br, t, byte))
             port->nack = 1;
     }
     if (isr & I2C_ISR_NACKF) { /* the master's NACK after its last byte (before a STOP or a repeated START) */
         /* TXDR took the next byte as the last one went out (RM0440 §41.4.7): it was never sent, so the
-           chip gets it back (a FIFO byte stays in the FIFO); a byte asked for too late is not read */
+           chip gets it back (a FIFO byte stays in the FIFO); then the next read's first byte */
         if (!(I2C_ISR(base) & I2C_ISR_TXE))
             bridge_i2c_unread(&br);
-        else if (I2C_ISR(base) & I2C_ISR_TXIS)
-            I2C_TXDR(base) = 0xFFu;
         I2C_ISR(base) = I2C_ISR_TXE;
         I2C_ICR(base) = I2C_ICR_NACKCF;
+        port->sending = 0;
+        bridge_i2c_preload_all(&br);
     }
     if (isr & I2C_ISR_STOPF) {
+        port->sending = 0;
+        bridge_i2c_stop(&br, t); /* preloads the next read's first byte: only then STOPF is cleared */
         I2C_ICR(base) = I2C_ICR_STOPCF;
-        bridge_i2c_stop(&br, t);
     }
     if (isr & I2C_ISR_ADDR) {
         int read = (isr & I2C_ISR_DIR) != 0;
-        if (read)
-            I2C_ISR(base) = I2C_ISR_TXE; /* flush a byte left from a transaction the master cut short */
+        port->sending = read; /* its first byte, the one preloaded, is going out: the core reads it */
         port->nack = !bridge_i2c_start(&br, t, (uint8_t)I2C_ISR_ADDCODE(isr), read);
         I2C_ICR(base) = I2C_ICR_ADDRCF;
     }
-    if (!(isr & I2C_ISR_NACKF) && (I2C_ISR(base) & I2C_ISR_TXIS))
+    if (port->sending && (I2C_ISR(base) & I2C_ISR_TXIS))
         I2C_TXDR(base) = port->nack ? 0xFFu : bridge_i2c_read(&br, t);
 }
 
@@ -390,22 +418,28 @@ static void i2c_setup(uint32_t base)
     I2C_TIMINGR(base) = (3u << 28) | (10u << 20) | (3u << 16);
     /* SCL low for 25 ms: a stuck bus (TIMEOUTA = 25 ms * 170 MHz / 2048 - 1) */
     I2C_TIMEOUTR(base) = 2074u | I2C_TIMEOUTR_TIMOUTEN;
-    I2C_CR1(base) =
-        I2C_CR1_ADDRIE | I2C_CR1_RXIE | I2C_CR1_TXIE | I2C_CR1_STOPIE | I2C_CR1_NACKIE | I2C_CR1_ERRIE | I2C_CR1_PE;
+    I2C_CR1(base) = I2C_CR1_NOSTRETCH | I2C_CR1_ADDRIE | I2C_CR1_RXIE | I2C_CR1_TXIE | I2C_CR1_STOPIE | I2C_CR1_NACKIE |
+                    I2C_CR1_ERRIE | I2C_CR1_PE;
 }
 
+/* OVR is a byte the interrupt came too late for (NOSTRETCH: an underrun sends 0xFF, an overrun loses
+   the byte): counted, the transfer goes on. A bus error or a lost arbitration ends the transfer; SCL
+   held low for 25 ms (TIMEOUT) resets the peripheral. */
 static void i2c_error(struct i2c_port *port)
 {
     uint32_t isr = I2C_ISR(port->base);
-    I2C_ICR(port->base) = I2C_ICR_ALL;
+    I2C_ICR(port->base) = I2C_ICR_ALL & ~(I2C_ICR_ADDRCF | I2C_ICR_NACKCF | I2C_ICR_STOPCF);
     br.n.i2c_errors++;
+    if (!(isr & (I2C_ISR_BERR | I2C_ISR_ARLO | I2C_ISR_TIMEOUT)))
+        return;
     if (isr & I2C_ISR_TIMEOUT) { /* SCL held low: let go of the bus (PE off resets the peripheral) */
         uint32_t oar1 = I2C_OAR1(port->base), oar2 = I2C_OAR2(port->base);
         i2c_setup(port->base);
         I2C_OAR1(port->base) = oar1;
         I2C_OAR2(port->base) = oar2;
     }
-    bridge_i2c_stop(&br, now_ns());
+    port->sending = 0;
+    bridge_i2c_stop(&br, now_ns()); /* (and the next read's first byte preloaded) */
 }
 
 void i2c1_ev_irq(void) { i2c_event(&i2c1); }
@@ -493,6 +527,7 @@ int main(void)
                               .link_tx = hal_link_tx,
                               .sbus_tx = hal_sbus_tx,
                               .can_tx = hal_can_tx,
+                              .i2c_preload = hal_i2c_preload,
                               .lock = hal_lock,
                               .unlock = hal_unlock };
     struct bridge_cfg cfg = bridge_defaults();

@@ -5,7 +5,10 @@
      rx HEX                        bytes from the host, then bridge_idle (as the firmware's main loop)
      rxq HEX                       bytes from the host, the frames up left queued
      poll                          bridge_poll
-     start TNS ADDR READ | wr TNS BYTE | rd TNS | stop TNS      I2C target events (ADDR, BYTE hex)
+     start TNS ADDR READ | wr TNS BYTE | rd TNS | stop TNS      I2C target events (ADDR, BYTE hex);
+                                   after nostretch a read's start prints its first byte as "rd HEX"
+     unread                        the master's NACK: the byte read ahead given back (and, after
+                                   nostretch, the ports preloaded again)
      xfer TNS ADDR WHEX NREAD      a transfer as a 400 kHz master makes it: START, address, the written
                                    bytes, a repeated START and NREAD reads (if any), STOP, each event at
                                    its bit time: "xfer ok HEX" or "xfer nack"
@@ -17,6 +20,11 @@
                                    and "pwm PULSES GLITCHES" after each
      sbus_encode C0 .. C15 FLAGS   "frame HEX"
      locks                         "locks N": how often the core took the lock so far
+     nostretch                     from now on the HAL preloads (i2c_preload), as a target that does
+                                   not stretch SCL: "pre PORT HEX" each time it takes a byte; xfer then
+                                   reads its first byte from what the port held, and gives the ports
+                                   back at the NACK (bridge_i2c_preload_all)
+     busy PORT 0|1                 the port refuses preloads (its target is sending) or takes them
    After each command but `t` and `rxq` the tool flushes the frames queued up (bridge_flush), as the
    firmware's main loop does between its calls.
    Out, from the HAL: "up HEX" (a frame to the host), "sbus HEX" (what the UART took), "addr AA 0|1",
@@ -35,6 +43,19 @@ static uint64_t clock_us;
 static size_t sbus_limit = SBUS_FRAME;
 static unsigned lock_depth;
 static unsigned long locks_taken;
+static uint8_t txdr[BRIDGE_I2C_PORTS];  /* what each target port holds for the next read */
+static int port_busy[BRIDGE_I2C_PORTS]; /* `busy`, or sending (a read under way) */
+static int sending[BRIDGE_I2C_PORTS];
+
+static int hal_preload(void *ctx, unsigned port, uint8_t byte)
+{
+    (void)ctx;
+    if (port >= BRIDGE_I2C_PORTS || port_busy[port] || sending[port])
+        return 0;
+    txdr[port] = byte;
+    printf("pre %u %02x\n", port, byte);
+    return 1;
+}
 
 static uint32_t hal_lock(void *ctx)
 {
@@ -120,14 +141,23 @@ static void xfer(struct bridge *b, uint64_t t, uint8_t addr, const uint8_t *w, s
             ok = bridge_i2c_write(b, t, w[i]);
     }
     if (ok && nr) {
+        unsigned port = addr == 0x1E ? 1u : 0u, i = 0;
+        int preloaded = b->hal.i2c_preload != NULL;
+        if (preloaded) { /* the first byte goes out from the port's register as the address is ACKed */
+            sending[port] = 1;
+            got[i++] = txdr[port];
+        }
         ok = bridge_i2c_start(b, t, addr, 1);
         t += 10 * BIT_NS;
-        for (unsigned i = 0; ok && i < nr && i < sizeof got; i++, t += 9 * BIT_NS)
+        for (; ok && i < nr && i < sizeof got; i++, t += 9 * BIT_NS)
             got[i] = bridge_i2c_read(b, t);
-        if (ok && nr) { /* as the STM32 target does: one byte loaded ahead, given back at the NACK */
+        if (ok) { /* as the STM32 target does: one byte loaded ahead, given back at the NACK */
             (void)bridge_i2c_read(b, t);
             bridge_i2c_unread(b);
         }
+        sending[port] = 0;
+        if (preloaded)
+            bridge_i2c_preload_all(b);
     }
     bridge_i2c_stop(b, t);
     if (ok)
@@ -148,7 +178,13 @@ int main(int argc, char **argv)
     }
     static char line[1 << 20];
     static uint8_t bytes[1 << 19];
-    struct bridge_hal hal = { NULL, hal_now, hal_addr, hal_link, hal_sbus, hal_can, hal_lock, hal_unlock };
+    struct bridge_hal hal = { .now_us = hal_now,
+                              .i2c_addr_enable = hal_addr,
+                              .link_tx = hal_link,
+                              .sbus_tx = hal_sbus,
+                              .can_tx = hal_can,
+                              .lock = hal_lock,
+                              .unlock = hal_unlock };
     struct bridge_cfg cfg = bridge_defaults();
     memcpy(cfg.id, "bridge_tool", 11);
     static struct bridge b;
@@ -184,6 +220,11 @@ int main(int argc, char **argv)
             bridge_idle(&b);
         } else if (!strcmp(cmd, "start")) {
             sscanf(rest, "%llu %llx %llu", &a, &c, &d);
+            unsigned port = c == 0x1E ? 1u : 0u;
+            if (d && b.hal.i2c_preload) { /* the byte the port held goes out first */
+                sending[port] = 1;
+                printf("rd %02x\n", txdr[port]);
+            }
             printf("ack %d\n", bridge_i2c_start(&b, a, (uint8_t)c, (int)d));
         } else if (!strcmp(cmd, "wr")) {
             sscanf(rest, "%llu %llx", &a, &c);
@@ -191,10 +232,14 @@ int main(int argc, char **argv)
         } else if (!strcmp(cmd, "rd")) {
             sscanf(rest, "%llu", &a);
             printf("rd %02x\n", bridge_i2c_read(&b, a));
-        } else if (!strcmp(cmd, "unread")) {
+        } else if (!strcmp(cmd, "unread")) { /* the master's NACK: the byte read ahead given back */
             bridge_i2c_unread(&b);
+            memset(sending, 0, sizeof sending);
+            if (b.hal.i2c_preload)
+                bridge_i2c_preload_all(&b);
         } else if (!strcmp(cmd, "stop")) {
             sscanf(rest, "%llu", &a);
+            memset(sending, 0, sizeof sending);
             bridge_i2c_stop(&b, a);
         } else if (!strcmp(cmd, "xfer")) {
             s1[0] = 0;
@@ -208,12 +253,19 @@ int main(int argc, char **argv)
             struct bridge_status st;
             bridge_status(&b, &st);
             printf("status underruns %lu %lu %lu late %lu i2c_errors %lu ok %lu bad %lu gaps %lu refused %lu "
-                   "glitches %lu sbus_dropped %lu silent %u agreed %d\n",
+                   "glitches %lu sbus_dropped %lu silent %u agreed %d preload_misses %lu\n",
                    (unsigned long)st.underruns[0], (unsigned long)st.underruns[1], (unsigned long)st.underruns[2],
                    (unsigned long)st.late_samples, (unsigned long)st.i2c_errors, (unsigned long)st.frames_ok,
                    (unsigned long)st.frames_bad, (unsigned long)st.seq_gaps, (unsigned long)st.refused,
-                   (unsigned long)st.pulse_glitches, (unsigned long)st.sbus_dropped, (unsigned)st.host_silent,
-                   b.agreed);
+                   (unsigned long)st.pulse_glitches, (unsigned long)st.sbus_dropped, (unsigned)st.host_silent, b.agreed,
+                   (unsigned long)st.i2c_preload_misses);
+        } else if (!strcmp(cmd, "nostretch")) {
+            b.hal.i2c_preload = hal_preload;
+            bridge_i2c_preload_all(&b);
+        } else if (!strcmp(cmd, "busy")) {
+            sscanf(rest, "%llu %llu", &a, &c);
+            if (a < BRIDGE_I2C_PORTS)
+                port_busy[a] = (int)c;
         } else if (!strcmp(cmd, "locks")) {
             printf("locks %lu\n", locks_taken);
         } else if (!strcmp(cmd, "sbus_limit")) {

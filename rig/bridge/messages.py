@@ -17,8 +17,8 @@ import struct
 from dataclasses import dataclass
 from typing import Literal
 
-#: 2: CONFIG carries the ESC pulse limits (OneShot125)
-PROTOCOL_VERSION = 2
+#: 2: CONFIG carries the ESC pulse limits (OneShot125); 3: STATUS counts i2c_preload_misses
+PROTOCOL_VERSION = 3
 
 Direction = Literal["down", "up"]
 #: field type -> (struct code, C type)
@@ -121,6 +121,9 @@ MESSAGES: tuple[Message, ...] = (
                                       "a value out of range, a message the bridge cannot act on"),
                                    _f("pulse_glitches", "u32", doc="captured pulses filtered out"),
                                    _f("sbus_dropped", "u32", doc="SBUS bytes the UART could not take"),
+                                   _f("i2c_preload_misses", "u32", doc="reads whose first byte, loaded "
+                                      "before the address (a target that does not stretch SCL), was not "
+                                      "the chip's"),
                                    _f("host_silent", "u8", doc="1 while no frame came for HOST_SILENT_US")),
             "the bridge's counters, a few times a second"),
     Message("TIME_SYNC_REPLY", 0xA0, "up", (_f("id", "u32"), _f("rx_us", "u64"), _f("tx_us", "u64")),

@@ -61,7 +61,8 @@ class Probe:
         if s:
             out.append(f"bridge's link  frames ok {s['frames_ok']}, bad {s['frames_bad']}, seq gaps "
                        f"{s['seq_gaps']}, refused {s['refused']}; host silent {s['host_silent']}")
-            out.append(f"bridge's board I2C acked {s['i2c_acked']}, errors {s['i2c_errors']}, pulse glitches "
+            out.append(f"bridge's board I2C acked {s['i2c_acked']}, errors {s['i2c_errors']}, preload misses "
+                       f"{s['i2c_preload_misses']}, pulse glitches "
                        f"{s['pulse_glitches']}, SBUS dropped {s['sbus_dropped']}, underruns {s['underruns']}")
         else:
             out.append("bridge's link  no STATUS came")

@@ -384,6 +384,81 @@ def test_a_fifo_burst_read_one_byte_ahead_gives_that_byte_back(tool: Tool) -> No
     assert five + one == accel_bytes(tuple(SAMPLE["accel"]), 30.0, (0, 0, 0))[:6]  # type: ignore[arg-type]
 
 
+# ---- a target that does not stretch SCL (hal.h i2c_preload): each read's first byte held before its address
+
+
+def mixed_traffic(s: Script) -> Script:
+    """Reads of every kind from all three chips: repeated START and STOP-separated, bursts, FIFO, the
+    magnetometer through the MPU's bypass, the barometer's PROM and conversions, with samples."""
+    s.t(0).hello().send("IMU_SAMPLE", valid_us=1000, **SAMPLE)
+    s.send("IMU_SAMPLE", valid_us=2000, accel=[1.0, 2.0, 3.0], gyro=[0, 0, 0], temp_c=25.0)
+    s.send("MAG_SAMPLE", valid_us=0, field=[0.2, -0.1, 0.4]).send("BARO_SAMPLE", valid_us=0, d1=0x812345,
+                                                                   d2=0x7A0B0C)
+    s.xfer(500_000, 0x68, WAKE, 0).xfer(600_000, 0x68, b"\x75", 1).xfer(700_000, 0x68, bytes([0x37, 0x02]), 0)
+    s.xfer(1_500_000, 0x68, b"\x3b", 14).xfer(1_600_000, 0x68, b"\x43", 0).xfer(1_700_000, 0x68, b"", 6)
+    s.t(2000).cmd("poll").xfer(2_500_000, 0x68, b"\x3b", 14)
+    s.xfer(3_000_000, 0x1E, bytes([0x02, 0x00]), 0).t(10_000).cmd("poll").xfer(10_000_000, 0x1E, b"\x03", 6)
+    s.xfer(10_100_000, 0x1E, b"\x0a", 3).xfer(11_000_000, 0x77, b"\x48", 0).t(30_000).cmd("poll")
+    s.xfer(30_000_000, 0x77, b"\x00", 0).xfer(30_100_000, 0x77, b"", 3).xfer(31_000_000, 0x77, b"\xa2", 2)
+    return s.cmd("status")
+
+
+def test_without_stretching_every_read_gives_the_bytes_it_gives_with(tool: Tool) -> None:
+    """The same traffic with the first bytes preloaded (as the STM32 in NOSTRETCH mode must: it sends a
+    read's first byte as it acknowledges the address) gives the same bytes, with no miss."""
+    plain = run(tool, mixed_traffic(Script()).lines)
+    preloaded = run(tool, mixed_traffic(Script().cmd("nostretch")).lines)
+    assert len(plain.tagged("xfer ok")) == 14 and plain.lines.count("xfer nack") == 0
+    assert preloaded.tagged("xfer ok") == plain.tagged("xfer ok")
+    assert preloaded.status()["preload_misses"] == 0 and len(preloaded.tagged("pre")) > 20
+    assert plain.status()["i2c_errors"] == preloaded.status()["i2c_errors"] == 0
+
+
+def burst_across_an_instant(stop_between: bool) -> Script:
+    """Sample A valid at 1 ms, B at 2 ms (the MPU samples every 125 us from its wake-up at about 0.1 ms:
+    B is taken at 2.1 ms); the board sets the pointer at 1.95 ms and reads 14 bytes at 2.2 ms, after a
+    poll at 2.15 ms, with a repeated START or a STOP between."""
+    s = Script().t(0).cmd("nostretch").hello().xfer(100_000, 0x68, WAKE, 0)
+    s.send("IMU_SAMPLE", valid_us=1000, accel=[1, 1, 1], gyro=[0, 0, 0], temp_c=20)
+    s.send("IMU_SAMPLE", valid_us=2000, accel=[-3, -3, -3], gyro=[1, 1, 1], temp_c=40)
+    s.t(1950).cmd("poll", "start 1950000 68 0", "wr 1952500 3b", *(["stop 1955000"] if stop_between else []))
+    s.t(2150).cmd("poll", "start 2200000 68 1", *(f"rd {2202500 + 22500 * i}" for i in range(13)), "unread",
+                  "stop 2500000", "status")
+    return s
+
+
+def test_a_read_after_a_repeated_start_is_the_instant_its_first_byte_was_taken(tool: Tool) -> None:
+    """The transaction is open from its first START: the poll holds the chips' time (the MPU-6050 holds
+    its data registers while its serial interface is busy), so the preloaded first byte and the 13
+    after it are sample A's, though B's instant passed before the repeated START."""
+    r = run(tool, burst_across_an_instant(stop_between=False).lines)
+    assert bytes(int(x, 16) for x in r.tagged("rd")) == accel_bytes((1, 1, 1), 20, (0, 0, 0))
+    assert r.status()["preload_misses"] == 0
+
+
+def test_a_read_after_a_stop_is_preloaded_again_when_time_moves(tool: Tool) -> None:
+    """With a STOP between, the poll after B's instant advances the chips and preloads again: the read is
+    B's whole."""
+    r = run(tool, burst_across_an_instant(stop_between=True).lines)
+    assert bytes(int(x, 16) for x in r.tagged("rd")) == accel_bytes((-3, -3, -3), 40, (1, 1, 1))
+    assert r.status()["preload_misses"] == 0
+
+
+def test_a_read_from_the_address_not_expected_is_a_counted_miss(tool: Tool) -> None:
+    """Port 0 answers the MPU-6050 and the MS5611 and expects a read from the one it answered last: a
+    PROM read from the MS5611 straight after an MPU transaction gets the MPU's byte first (counted),
+    then the MS5611's second byte, and the next read from it is right. A port that could not take
+    its byte (busy) makes the same kind of miss, counted as well."""
+    s = Script().t(0).cmd("nostretch").hello().xfer(100_000, 0x77, b"\xa2", 0).xfer(200_000, 0x68, b"\x75", 1)
+    s.xfer(300_000, 0x77, b"", 2).xfer(400_000, 0x77, b"\xa2", 0).xfer(500_000, 0x77, b"", 2)
+    s.cmd("busy 0 1").xfer(600_000, 0x68, b"\x75", 0).xfer(700_000, 0x68, b"", 1).cmd("busy 0 0", "status")
+    r = run(tool, s.lines)
+    # the MPU's pointer wraps from WHO_AM_I to 0x00, which reads 0; PROM word 1 is 40127 (0x9cbf); the
+    # busy port still holds the MS5611's byte after its PROM word (0), not WHO_AM_I's 0x68
+    assert r.tagged("xfer ok") == ["", "68", "00bf", "", f"{40127:04x}", "", "00"]
+    assert r.status()["preload_misses"] == 2
+
+
 def test_a_bus_fault_turns_the_targets_address_off_for_its_window(tool: Tool) -> None:
     """The STM32's target ACKs its own addresses in hardware: the core turns a silent chip's address
     off at the poll (and on again after), so the board sees a NACK as from the real chip."""

@@ -21,7 +21,8 @@ def m4_tool() -> Path:
 def test_the_programs_exit_status_is_qemus(m4_tool: Path, tmp_path: Path) -> None:
     (tmp_path / "s").write_text("t 5\nstatus\n")
     ok = run_m4(m4_tool, [str(tmp_path / "s"), str(tmp_path / "o")])
-    assert ok.returncode == 0 and (tmp_path / "o").read_text().endswith("silent 0 agreed 0\n")
+    assert ok.returncode == 0
+    assert (tmp_path / "o").read_text().endswith("silent 0 agreed 0 preload_misses 0\n")
     missing = run_m4(m4_tool, [str(tmp_path / "nothing-here"), str(tmp_path / "o")])
     assert missing.returncode == 2 and "cannot open" in missing.stderr
     (tmp_path / "bad").write_text("frobnicate\n")
@@ -50,7 +51,7 @@ def test_a_run_that_hangs_is_killed_and_leaves_no_qemu(m4_tool: Path, tmp_path: 
 
 def test_a_difference_between_host_and_m4_is_an_error(m4_tool: Path) -> None:
     right = Tool(host=bridge_tool(CHIP_CORE), m4=m4_tool, m4_twin=bridge_tool(CHIP_CORE))
-    assert right.run("t 1\nstatus\n").endswith("silent 0 agreed 0\n")
+    assert right.run("t 1\nstatus\n").endswith("silent 0 agreed 0 preload_misses 0\n")
     # a twin that prints something else than the M4's bridge_tool does
     wrong = Tool(host=bridge_tool(CHIP_CORE), m4=m4_tool, m4_twin=Path("/bin/echo"))
     with pytest.raises(AssertionError, match="differ at line 1"):
