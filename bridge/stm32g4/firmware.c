@@ -413,13 +413,18 @@ static void i2c_event(struct i2c_port *port)
 static void i2c_setup(uint32_t base)
 {
     I2C_CR1(base) = 0;
-    /* I2CCLK = PCLK1 = 170 MHz. Target timing: PRESC 3 (23.5 ns), SCLDEL 10 (259 ns data setup, the
-       standard mode's 250 ns), SDADEL 3 (71 ns data hold); the analog filter on */
+    /* I2CCLK = PCLK1 = 170 MHz. Target timing (RM0440 §41.4.5): PRESC 3 (23.5 ns); SDADEL 3: SDA
+       changes 76 ns after SCL's fall is seen (plus the analog filter's delay), a hold that needs SCL to
+       fall in under about 150 ns (the I2C worst case, 300 ns at 400 kHz, would want SDADEL 10, which
+       at 1 MHz leaves the data too late for the master's setup); SCLDEL 10 (259 ns) would make setup
+       by stretching, which NOSTRETCH does not do. The analog filter on. */
     I2C_TIMINGR(base) = (3u << 28) | (10u << 20) | (3u << 16);
     /* SCL low for 25 ms: a stuck bus (TIMEOUTA = 25 ms * 170 MHz / 2048 - 1) */
     I2C_TIMEOUTR(base) = 2074u | I2C_TIMEOUTR_TIMOUTEN;
+    /* NOSTRETCH may only change while PE is 0: configured first, then enabled */
     I2C_CR1(base) = I2C_CR1_NOSTRETCH | I2C_CR1_ADDRIE | I2C_CR1_RXIE | I2C_CR1_TXIE | I2C_CR1_STOPIE | I2C_CR1_NACKIE |
-                    I2C_CR1_ERRIE | I2C_CR1_PE;
+                    I2C_CR1_ERRIE;
+    I2C_CR1(base) |= I2C_CR1_PE;
 }
 
 /* OVR is a byte the interrupt came too late for (NOSTRETCH: an underrun sends 0xFF, an overrun loses
