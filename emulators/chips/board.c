@@ -7,7 +7,9 @@ void chip_board_init(chip_board *b, uint8_t topology)
     memset(b, 0, sizeof *b);
     b->topology = topology == CHIP_TOPOLOGY_DIRECT ? CHIP_TOPOLOGY_DIRECT : CHIP_TOPOLOGY_GY86;
     mpu_reset(&b->mpu);
+    mpu_prime(&b->mpu);
     hmc_reset(&b->hmc);
+    hmc_prime(&b->hmc);
     baro_reset(&b->baro);
 }
 

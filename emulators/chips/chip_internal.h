@@ -46,6 +46,9 @@ bool chip_fault_active(const chip_board *b, uint8_t chip, uint8_t kind, uint64_t
 void mpu_reset(chip_mpu *m);
 bool mpu_advance(chip_board *b, uint64_t now_ns, chip_need *need);
 void mpu_prepare(chip_mpu *m);
+/* the held sample (zeros at power-on) encoded under the present configuration, so the first instants
+ * copy it: called where encoding costs nothing (chip_board_init, outside any interrupt) */
+void mpu_prime(chip_mpu *m);
 void mpu_start(chip_mpu *m, bool read);
 void mpu_write(chip_board *b, uint8_t byte);
 uint8_t mpu_read(chip_mpu *m);
@@ -53,6 +56,7 @@ void mpu_stop(chip_mpu *m);
 bool mpu_bypass(const chip_mpu *m);
 
 void hmc_reset(chip_hmc *h);
+void hmc_prime(chip_hmc *h); /* as mpu_prime: the held field encoded at the effective gain */
 bool hmc_advance(chip_board *b, uint64_t now_thirds, chip_need *need);
 void hmc_prepare(chip_hmc *h);
 void hmc_start(chip_hmc *h, bool read);

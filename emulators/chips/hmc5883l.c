@@ -71,6 +71,13 @@ void hmc_prepare(chip_hmc *h)
     }
 }
 
+void hmc_prime(chip_hmc *h)
+{
+    encode(h->last.field, h->gain_effective, h->last.enc);
+    h->last.enc_gain = h->gain_effective;
+    h->last.enc_ok = 1;
+}
+
 static void measure(chip_hmc *h)
 {
     double gain = h->gain_effective;
@@ -83,9 +90,12 @@ static void measure(chip_hmc *h)
             xyz[i] = sign * CHIP_HMC_BIAS_GA[i == 0 ? 0 : i == 1 ? 2 : 1];
         encode(xyz, gain, data);
     } else if (h->last.enc_ok && h->last.enc_gain == gain) {
-        memcpy(data, h->last.enc, 6); /* encoded ahead (hmc_prepare) */
+        memcpy(data, h->last.enc, 6); /* encoded ahead (hmc_prepare), or here for a field held */
     } else {
         encode(h->last.field, gain, data);
+        memcpy(h->last.enc, data, 6);
+        h->last.enc_gain = gain;
+        h->last.enc_ok = 1;
     }
     if (h->bitmap && h->bitmap != 0x3F) { /* LOCK: hold the result until the read completes */
         memcpy(h->held, data, 6);

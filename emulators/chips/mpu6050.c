@@ -225,15 +225,35 @@ void mpu_prepare(chip_mpu *m)
     }
 }
 
-/* the last sample into the data registers: its bytes encoded ahead when they still hold */
+/* the last sample into the data registers: its bytes encoded ahead when they still hold. Bytes encoded
+ * here are kept with it, so a sample held over many instants (the host fell behind, or none came
+ * yet) is encoded once per configuration, not at every instant inside a bridge's I2C interrupt. */
 static void encode_last(chip_mpu *m)
 {
-    const chip_imu_sample *s = &m->last;
-    if (s->enc_ok && encodable_ahead(m->regs) && s->enc_cfg[0] == m->regs[MPU_GYRO_CONFIG] &&
-        s->enc_cfg[1] == m->regs[MPU_ACCEL_CONFIG])
+    chip_imu_sample *s = &m->last;
+    bool ahead = encodable_ahead(m->regs);
+    if (s->enc_ok && ahead && s->enc_cfg[0] == m->regs[MPU_GYRO_CONFIG] && s->enc_cfg[1] == m->regs[MPU_ACCEL_CONFIG]) {
         memcpy(m->regs + CHIP_MPU_DATA_FIRST, s->enc, sizeof s->enc);
-    else
-        chip_mpu_encode(m->regs, s->v);
+        return;
+    }
+    chip_mpu_encode(m->regs, s->v);
+    if (ahead) {
+        memcpy(s->enc, m->regs + CHIP_MPU_DATA_FIRST, sizeof s->enc);
+        s->enc_cfg[0] = m->regs[MPU_GYRO_CONFIG];
+        s->enc_cfg[1] = m->regs[MPU_ACCEL_CONFIG];
+        s->enc_ok = 1;
+    }
+}
+
+void mpu_prime(chip_mpu *m)
+{
+    uint8_t img[CHIP_MPU_REGS];
+    memcpy(img, m->regs, sizeof img);
+    chip_mpu_encode(img, m->last.v);
+    memcpy(m->last.enc, img + CHIP_MPU_DATA_FIRST, sizeof m->last.enc);
+    m->last.enc_cfg[0] = img[MPU_GYRO_CONFIG];
+    m->last.enc_cfg[1] = img[MPU_ACCEL_CONFIG];
+    m->last.enc_ok = encodable_ahead(img);
 }
 
 bool mpu_advance(chip_board *b, uint64_t now_ns, chip_need *need)

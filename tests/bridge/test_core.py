@@ -244,6 +244,21 @@ def test_a_sample_encoded_ahead_is_encoded_again_when_the_range_changed(tool: To
     assert r.tagged("xfer ok")[-1] == struct.pack(">7h", *a, round((30.0 - 36.53) * 340), *g).hex()
 
 
+def test_a_held_sample_is_encoded_again_under_a_new_range(tool: Tool) -> None:
+    """With no new sample the chip holds the last one (its bytes kept once encoded, so an instant copies
+    them): a range changed since gives the held sample under the new range, not the kept bytes."""
+    s = Script().t(0).hello().xfer(1000, 0x68, WAKE, 0).send("IMU_SAMPLE", valid_us=0, **SAMPLE)
+    s.xfer(1_000_000, 0x68, b"\x3b", 14).xfer(2_000_000, 0x68, b"\x3b", 14)  # held: the kept bytes
+    s.xfer(3_000_000, 0x68, bytes([0x1B, 0x10, 0x10]), 0).xfer(4_000_000, 0x68, b"\x3b", 14).cmd("status")
+    r = run(tool, s.lines)
+    a = [round(x / G * 4096) for x in SAMPLE["accel"]]  # type: ignore[attr-defined]
+    g = [round(x * 57.29578 * 32.8) for x in SAMPLE["gyro"]]  # type: ignore[attr-defined]
+    first, held, ranged = r.tagged("xfer ok")[1], r.tagged("xfer ok")[2], r.tagged("xfer ok")[4]
+    assert first == held == accel_bytes((0.5, -0.25, -G), 30.0, (0.1, -0.2, 0.05)).hex()
+    assert ranged == struct.pack(">7h", *a, round((30.0 - 36.53) * 340), *g).hex()
+    assert r.status()["imu_underruns"] > 0
+
+
 def test_a_burst_read_never_mixes_two_samples(tool: Tool) -> None:
     """Sample B becomes valid in the middle of a 14-byte burst: the burst reads A whole, the next B."""
     s = Script().t(0).hello().xfer(1000, 0x68, WAKE, 0)
