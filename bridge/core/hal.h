@@ -23,8 +23,9 @@
      lock / unlock   optional (NULL: a port with no interrupts): keep the I2C events out while the
                      core touches what they share (the chips, the counters, the frames queued up);
                      lock returns what unlock restores, so they nest. The core holds the lock for
-                     copies and counters only: it decodes, frames and encodes with it released, so an
-                     I2C event is never held off longer than that (docs/bridge-firmware.md)
+                     copies, counters, the sample instants and the preloads only: it decodes, frames
+                     and encodes with it released, so an I2C event is never held off longer than that
+                     (docs/bridge-firmware.md has the numbers)
 
    The port calls (bridge.h):
      bridge_i2c_start / bridge_i2c_write / bridge_i2c_read / bridge_i2c_stop
