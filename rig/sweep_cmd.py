@@ -166,6 +166,11 @@ def _sweep(sweep: Any, args: argparse.Namespace, dut: list[str] | None) -> int:
     return _finish(sweep, out, rows, engine_name, stop, time.perf_counter() - t0)
 
 
+def _tally(verdict: str) -> str:
+    """The progress bar's column for a row's verdict: pass, fail, or error for anything else."""
+    return verdict if verdict in ("pass", "fail") else "error"
+
+
 def _run(
     engine: Any,
     todo: list[Any],
@@ -182,7 +187,7 @@ def _run(
     left: list[Any] = []
     counts = {"pass": 0, "fail": 0, "error": 0}
     for r in rows.values():
-        counts["pass" if r["verdict"] == "pass" else "fail" if r["verdict"] == "fail" else "error"] += 1
+        counts[_tally(r["verdict"])] += 1
     stop: int | None = None
     deadline = 0.0
     while pending:
@@ -211,9 +216,7 @@ def _run(
             if row.get("verdict") == "interrupted":
                 continue
             rows[task.id] = row
-            counts[
-                "pass" if row["verdict"] == "pass" else "fail" if row["verdict"] == "fail" else "error"
-            ] += 1
+            counts[_tally(row["verdict"])] += 1
             bar.update(1)
             bar.set_postfix(counts, refresh=False)
         if stop is None:

@@ -31,6 +31,8 @@ BENCH: Final = "bench"
 LEASE_TTL_S: Final = 5.0  # the bench's lease lasts this long unless renewed (every HEARTBEAT_S)
 HEARTBEAT_S: Final = 1.0
 POLL_S: Final = 0.2
+#: how often a sweep's progress is counted from its run folders (one listing of them each time)
+SWEEP_COUNT_S: Final = 1.0
 KILL_GRACE_S: Final = 5.0
 #: rig run's exit status -> the run's status (anything else: error)
 STATUS_BY_EXIT: Final = {0: "passed", 1: "failed", 130: "interrupted", 143: "interrupted"}
@@ -189,17 +191,27 @@ class Workers:
             self._procs[run["id"]] = proc
             self.db.update(run["id"], pid=proc.pid)
             total = run["total"] if sweep else len(run["scenarios"])
-            beat = time.monotonic()
+            beat = counted = time.monotonic()
+            progress = 0.0
             while True:
                 try:
                     code = proc.wait(timeout=POLL_S)
                     break
                 except subprocess.TimeoutExpired:
+                    now = time.monotonic()
+                    if not sweep:
+                        done = sum((out / Path(s).stem / "result.json").is_file() for s in run["scenarios"])
+                        now_progress = round(100.0 * done / total, 1)
+                    elif now - counted >= SWEEP_COUNT_S:  # (a listing of thousands of run folders)
+                        counted = now
+                        now_progress = sweep_progress(out, total)
+                    else:
+                        now_progress = progress
+                    if now_progress != progress:  # (the database is written only when it changed)
+                        progress = now_progress
+                        self.db.update(run["id"], progress=progress)
                     if sweep:
-                        self.db.update(run["id"], progress=sweep_progress(out, total))
                         continue
-                    done = sum((out / Path(s).stem / "result.json").is_file() for s in run["scenarios"])
-                    self.db.update(run["id"], progress=round(100.0 * done / total, 1))
                     if lease_holder is not None and time.monotonic() - beat >= HEARTBEAT_S:
                         beat = time.monotonic()  # the bench's heartbeat
                         self.db.acquire(BENCH, lease_holder, LEASE_TTL_S)
