@@ -71,12 +71,15 @@ void hmc_prepare(chip_hmc *h)
     }
 }
 
-void hmc_prime(chip_hmc *h)
+/* the held field's bytes at a gain, kept with it: encoded once per gain, however long it is held */
+static void keep_encoded(chip_hmc *h, double gain)
 {
-    encode(h->last.field, h->gain_effective, h->last.enc);
-    h->last.enc_gain = h->gain_effective;
+    encode(h->last.field, gain, h->last.enc);
+    h->last.enc_gain = gain;
     h->last.enc_ok = 1;
 }
+
+void hmc_prime(chip_hmc *h) { keep_encoded(h, h->gain_effective); }
 
 static void measure(chip_hmc *h)
 {
@@ -89,13 +92,10 @@ static void measure(chip_hmc *h)
         for (int i = 0; i < 3; i++) /* (CHIP_HMC_BIAS_GA is in X Z Y order, as the registers) */
             xyz[i] = sign * CHIP_HMC_BIAS_GA[i == 0 ? 0 : i == 1 ? 2 : 1];
         encode(xyz, gain, data);
-    } else if (h->last.enc_ok && h->last.enc_gain == gain) {
-        memcpy(data, h->last.enc, 6); /* encoded ahead (hmc_prepare), or here for a field held */
     } else {
-        encode(h->last.field, gain, data);
-        memcpy(h->last.enc, data, 6);
-        h->last.enc_gain = gain;
-        h->last.enc_ok = 1;
+        if (!h->last.enc_ok || h->last.enc_gain != gain) /* (else encoded ahead, by hmc_prepare or here) */
+            keep_encoded(h, gain);
+        memcpy(data, h->last.enc, 6);
     }
     if (h->bitmap && h->bitmap != 0x3F) { /* LOCK: hold the result until the read completes */
         memcpy(h->held, data, 6);

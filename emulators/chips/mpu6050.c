@@ -225,6 +225,15 @@ void mpu_prepare(chip_mpu *m)
     }
 }
 
+/* the data registers of an image encoded from a sample, kept with it under the image's ranges */
+static void keep_encoded(chip_imu_sample *s, const uint8_t *img)
+{
+    memcpy(s->enc, img + CHIP_MPU_DATA_FIRST, sizeof s->enc);
+    s->enc_cfg[0] = img[MPU_GYRO_CONFIG];
+    s->enc_cfg[1] = img[MPU_ACCEL_CONFIG];
+    s->enc_ok = 1;
+}
+
 /* the last sample into the data registers: its bytes encoded ahead when they still hold. Bytes encoded
  * here are kept with it, so a sample held over many instants (the host fell behind, or none came
  * yet) is encoded once per configuration, not at every instant inside a bridge's I2C interrupt. */
@@ -237,12 +246,8 @@ static void encode_last(chip_mpu *m)
         return;
     }
     chip_mpu_encode(m->regs, s->v);
-    if (ahead) {
-        memcpy(s->enc, m->regs + CHIP_MPU_DATA_FIRST, sizeof s->enc);
-        s->enc_cfg[0] = m->regs[MPU_GYRO_CONFIG];
-        s->enc_cfg[1] = m->regs[MPU_ACCEL_CONFIG];
-        s->enc_ok = 1;
-    }
+    if (ahead)
+        keep_encoded(s, m->regs);
 }
 
 void mpu_prime(chip_mpu *m)
@@ -250,10 +255,8 @@ void mpu_prime(chip_mpu *m)
     uint8_t img[CHIP_MPU_REGS];
     memcpy(img, m->regs, sizeof img);
     chip_mpu_encode(img, m->last.v);
-    memcpy(m->last.enc, img + CHIP_MPU_DATA_FIRST, sizeof m->last.enc);
-    m->last.enc_cfg[0] = img[MPU_GYRO_CONFIG];
-    m->last.enc_cfg[1] = img[MPU_ACCEL_CONFIG];
-    m->last.enc_ok = encodable_ahead(img);
+    if (encodable_ahead(img))
+        keep_encoded(&m->last, img);
 }
 
 bool mpu_advance(chip_board *b, uint64_t now_ns, chip_need *need)
