@@ -33,11 +33,9 @@ void bridge_send(struct bridge *b, struct bridge_msg *msg)
 {
     uint32_t k = lock(b);
     msg->seq = b->tx_seq++;
-    if (b->out_head - b->out_tail < BRIDGE_OUTBOX) {
+    if (b->out_head - b->out_tail < BRIDGE_OUTBOX) { /* (full: dropped, its sequence number spent) */
         b->outbox[b->out_head % BRIDGE_OUTBOX] = *msg;
         b->out_head++;
-    } else {
-        b->n.out_dropped++;
     }
     unlock(b, k);
 }
@@ -528,29 +526,22 @@ static int dispatch(struct bridge *b, const struct bridge_msg *msg, uint64_t t_u
     }
 }
 
-int bridge_link_decode(struct bridge *b, uint8_t byte, struct bridge_msg *msg)
-{
-    return link_rx_byte(&b->rx, byte, msg); /* (the link's state is the main loop's alone) */
-}
-
-void bridge_link_apply(struct bridge *b, const struct bridge_msg *msg, uint64_t t_us)
-{
-    b->last_rx_us = t_us;
-    if (b->host_silent) {
-        b->host_silent = 0;
-        b->next_status_us = t_us; /* say it at once */
-    }
-    if (dispatch(b, msg, t_us) < 0)
-        b->n.refused++;
-}
-
+/* (the link's state is the main loop's alone: frames are taken apart with the lock released) */
 void bridge_link_rx(struct bridge *b, const uint8_t *bytes, size_t n)
 {
     uint64_t t = now_us(b);
     struct bridge_msg msg;
-    for (size_t i = 0; i < n; i++)
-        if (bridge_link_decode(b, bytes[i], &msg))
-            bridge_link_apply(b, &msg, t);
+    for (size_t i = 0; i < n; i++) {
+        if (!link_rx_byte(&b->rx, bytes[i], &msg))
+            continue;
+        b->last_rx_us = t;
+        if (b->host_silent) {
+            b->host_silent = 0;
+            b->next_status_us = t; /* say it at once */
+        }
+        if (dispatch(b, &msg, t) < 0)
+            b->n.refused++;
+    }
 }
 
 /* ---------------------------------------------------------------- periodic work */

@@ -54,7 +54,6 @@ struct bridge_cfg {
 struct bridge_counters {
     uint32_t late_samples, refused, sbus_dropped, i2c_errors, i2c_acked;
     uint32_t can_dropped;      /* capture frames the port could not queue */
-    uint32_t out_dropped;      /* messages up that found the outbox full */
     uint32_t preload_misses;   /* reads whose preloaded first byte was not the chip's */
     uint32_t underrun_base[3]; /* the chip core's underrun counts at the last HELLO */
 };
@@ -127,9 +126,5 @@ void bridge_status(struct bridge *b, struct bridge_status *out);
 /* one message up (id and fields set; the sequence byte is the bridge's), queued: it goes out at the
    next bridge_flush. Callable from the I2C events: it only copies */
 void bridge_send(struct bridge *b, struct bridge_msg *msg);
-/* one byte from the host, decoded with the lock released: 1 when it completed a good frame (*msg) */
-int bridge_link_decode(struct bridge *b, uint8_t byte, struct bridge_msg *msg);
-/* a good frame received at t_us acted on (under the lock) */
-void bridge_link_apply(struct bridge *b, const struct bridge_msg *msg, uint64_t t_us);
 
 #endif

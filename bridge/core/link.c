@@ -2,7 +2,7 @@
 #include "link.h"
 
 /* CRC-16/CCITT-FALSE four bits at a time: a 16-entry table (each nibble's remainder under 0x1021)
-   costs a quarter of the bit loop's instructions, which ran with interrupts masked for each frame */
+   costs a quarter of the bit loop's instructions for each frame the main loop builds or takes apart */
 static const uint16_t CRC_NIBBLE[16] = { 0x0000, 0x1021, 0x2042, 0x3063, 0x4084, 0x50A5, 0x60C6, 0x70E7,
                                          0x8108, 0x9129, 0xA14A, 0xB16B, 0xC18C, 0xD1AD, 0xE1CE, 0xF1EF };
 

@@ -348,12 +348,11 @@ static void can_init(void)
    the main loop masks them for copies only. */
 struct i2c_port {
     uint32_t base;
-    unsigned index;       /* the core's target port (hal.h i2c_preload) */
     int nack;             /* the core refused this transaction: writes are dropped, reads give 0xFF */
     volatile int sending; /* addressed to read: TXDR is the transfer's until the NACK or the STOP */
 };
 
-static struct i2c_port i2c1 = { I2C1_BASE, 0, 0, 0 }, i2c3 = { I2C3_BASE, 1, 0, 0 };
+static struct i2c_port i2c1 = { I2C1_BASE, 0, 0 }, i2c3 = { I2C3_BASE, 0, 0 }; /* the core's ports 0, 1 */
 
 static uint64_t now_ns(void) { return now_ticks() * (1000000000u / TICK_HZ); }
 

@@ -44,8 +44,11 @@ static size_t sbus_limit = SBUS_FRAME;
 static unsigned lock_depth;
 static unsigned long locks_taken;
 static uint8_t txdr[BRIDGE_I2C_PORTS];  /* what each target port holds for the next read */
-static int port_busy[BRIDGE_I2C_PORTS]; /* `busy`, or sending (a read under way) */
-static int sending[BRIDGE_I2C_PORTS];
+static int port_busy[BRIDGE_I2C_PORTS]; /* `busy` */
+static int sending[BRIDGE_I2C_PORTS];   /* a read under way */
+
+/* the target port an address is on (bridge.h BRIDGE_I2C_PORTS) */
+static unsigned port_of(uint8_t addr) { return addr == 0x1E ? 1u : 0u; }
 
 static int hal_preload(void *ctx, unsigned port, uint8_t byte)
 {
@@ -141,7 +144,7 @@ static void xfer(struct bridge *b, uint64_t t, uint8_t addr, const uint8_t *w, s
             ok = bridge_i2c_write(b, t, w[i]);
     }
     if (ok && nr) {
-        unsigned port = addr == 0x1E ? 1u : 0u, i = 0;
+        unsigned port = port_of(addr), i = 0;
         int preloaded = b->hal.i2c_preload != NULL;
         if (preloaded) { /* the first byte goes out from the port's register as the address is ACKed */
             sending[port] = 1;
@@ -203,24 +206,20 @@ int main(int argc, char **argv)
         if (!strcmp(cmd, "t")) {
             sscanf(rest, "%llu", &a);
             clock_us = a;
-        } else if (!strcmp(cmd, "rx")) {
+        } else if (!strcmp(cmd, "rx") || !strcmp(cmd, "rxq")) {
             while (*rest == ' ')
                 rest++;
             size_t n = unhex(rest, bytes, sizeof bytes);
             bridge_link_rx(&b, bytes, n);
-            bridge_idle(&b); /* as the firmware's main loop after a chunk: its samples encoded ahead */
-        } else if (!strcmp(cmd, "rxq")) {
-            while (*rest == ' ')
-                rest++;
-            size_t n = unhex(rest, bytes, sizeof bytes);
-            bridge_link_rx(&b, bytes, n);
+            if (!strcmp(cmd, "rx"))
+                bridge_idle(&b); /* as the firmware's main loop after a chunk: its samples encoded ahead */
         } else if (!strcmp(cmd, "poll")) {
             bridge_poll(&b);
         } else if (!strcmp(cmd, "idle")) {
             bridge_idle(&b);
         } else if (!strcmp(cmd, "start")) {
             sscanf(rest, "%llu %llx %llu", &a, &c, &d);
-            unsigned port = c == 0x1E ? 1u : 0u;
+            unsigned port = port_of((uint8_t)c);
             if (d && b.hal.i2c_preload) { /* the byte the port held goes out first */
                 sending[port] = 1;
                 printf("rd %02x\n", txdr[port]);
