@@ -107,18 +107,7 @@ def _sweep(sweep: Any, args: argparse.Namespace, dut: list[str] | None) -> int:
     local = not (args.engine or os.environ.get(ENV))
     tmp = tempfile.mkdtemp(prefix="rig-sweep-") if local else None
     todo = [
-        Task(
-            v.id,
-            v.index,
-            v.values,
-            v.seed,
-            v.data,
-            str(sweep.scenario_path),
-            str(out),
-            dut,
-            args.wall_timeout,
-            tmp,
-        )
+        Task(v, str(sweep.scenario_path), str(out), dut, args.wall_timeout, tmp)
         for v in sweep.variants
         if v.id not in rows
     ]
@@ -205,17 +194,14 @@ def _run(
                 continue
             except Exception as e:  # a Dask worker lost too often, or the task itself failed to start
                 row = {
-                    "id": task.id,
-                    "index": task.index,
-                    "values": task.values,
-                    "seed": task.seed,
+                    **task.head(),
                     "verdict": "error",
                     "error": f"{type(e).__name__}: {e}",
                     "measurements": {},
                 }
             if row.get("verdict") == "interrupted":
                 continue
-            rows[task.id] = row
+            rows[task.variant.id] = row
             counts[_tally(row["verdict"])] += 1
             bar.update(1)
             bar.set_postfix(counts, refresh=False)

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from rig import compiled
+from scenarios.sweep import Variant
 
 #: a row's file in its run's folder (runs/<id>/)
 ROW = "row.json"
@@ -29,13 +30,10 @@ SLOTS = ".slots"
 
 @dataclass(frozen=True)
 class Task:
-    """What a worker needs (picklable, small): the variant's tables and where to write."""
+    """What a worker needs (picklable, small): the variant (its tables, values and seed) and where to
+    write."""
 
-    id: str
-    index: int
-    values: dict[str, Any]
-    seed: int
-    data: dict[str, Any]
+    variant: Variant
     scenario_path: str
     out: str
     dut: list[str] | None = None
@@ -43,6 +41,11 @@ class Task:
     #: the local pool's: a folder of the sweep's own for the runs' temporary files, so a worker killed
     #: mid-run leaves nothing behind once the sweep removes it (None: the system's, as on a cluster)
     tmp: str | None = None
+
+    def head(self) -> dict[str, Any]:
+        """What begins the variant's row: which run it is."""
+        v = self.variant
+        return {"id": v.id, "index": v.index, "values": v.values, "seed": v.seed}
 
 
 @contextmanager
@@ -111,19 +114,13 @@ def fly(task: Task) -> dict[str, Any]:
     out = Path(task.out)
     if task.tmp is not None:
         tempfile.tempdir = task.tmp  # (a pool process flies one run at a time)
-    folder = run_dir(out, task.id)
+    v = task.variant
+    folder = run_dir(out, v.id)
     folder.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    row: dict[str, Any] = {
-        "id": task.id,
-        "index": task.index,
-        "values": task.values,
-        "seed": task.seed,
-        "host": socket.gethostname(),
-        "pid": os.getpid(),
-    }
+    row: dict[str, Any] = {**task.head(), "host": socket.gethostname(), "pid": os.getpid()}
     try:
-        scenario = check(task.data, Path(task.scenario_path))
+        scenario = check(v.data, Path(task.scenario_path))
     except ScenarioError as e:  # (the sweep checked every variant: only a changed rig gets here)
         row.update(verdict="error", error=str(e), measurements={}, outcomes={}, wall_s=0.0, cpu=-1)
         _write_row(folder, row)
@@ -135,9 +132,9 @@ def fly(task: Task) -> dict[str, Any]:
         interrupts.install()
     with core_slot(out / SLOTS) as cpu:
         try:
-            r = run(scenario, dut=task.dut, seed=task.seed, work_dir=folder, wall_timeout=task.wall_timeout)
+            r = run(scenario, dut=task.dut, seed=v.seed, work_dir=folder, wall_timeout=task.wall_timeout)
         except Exception as e:  # the rig could not fly it: an error row, the sweep goes on
-            r = not_run(scenario, task.seed, f"the rig could not run this variant: {type(e).__name__}: {e}")
+            r = not_run(scenario, v.seed, f"the rig could not run this variant: {type(e).__name__}: {e}")
     row.update(
         verdict=r.verdict,
         error=r.error,
