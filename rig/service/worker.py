@@ -25,6 +25,7 @@ from typing import Any, Final
 
 from rig.service.db import TERMINAL, Db
 from rig.service.store import Store
+from rig.sweep.work import row_files
 
 PR_SET_PDEATHSIG: Final = 1
 BENCH: Final = "bench"
@@ -71,7 +72,7 @@ def command(run: dict[str, Any], out: Path, store: Store) -> list[str]:
 def sweep_results(out: Path, spec: str) -> list[dict[str, Any]]:
     """A sweep's outcome as one result: its scenario, the overall verdict and the counts, from the rows
     its runs left (rig/sweep/work.py)."""
-    rows = [json.loads(p.read_text()) for p in sorted((out / "runs").glob("*/row.json"))]
+    rows = [json.loads(p.read_text()) for p in row_files(out)]
     counts = {v: sum(r.get("verdict") == v for r in rows) for v in ("pass", "fail", "error")}
     verdict = "error" if counts["error"] else "fail" if counts["fail"] else "pass" if rows else "not run"
     return [{"scenario": Path(spec).stem, "verdict": verdict, "measurements": [], "sweep": counts}]
@@ -88,7 +89,7 @@ def count_runs(spec: str, store: Store) -> int:
 
 
 def sweep_progress(out: Path, total: int) -> float:
-    return round(100.0 * len(list((out / "runs").glob("*/row.json"))) / max(total, 1), 1)
+    return round(100.0 * len(row_files(out)) / max(total, 1), 1)
 
 
 def results(out: Path, scenarios: list[str]) -> list[dict[str, Any]]:

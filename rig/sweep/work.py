@@ -18,12 +18,15 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rig import compiled
-from scenarios.sweep import Variant
 
-#: a row's file in its run's folder (runs/<id>/)
+if TYPE_CHECKING:
+    from scenarios.sweep import Variant
+
+#: the runs' folders (runs/<id>/) and a row's file in each
+RUNS = "runs"
 ROW = "row.json"
 SLOTS = ".slots"
 
@@ -85,7 +88,12 @@ def _thread_number() -> int:
 
 
 def run_dir(out: Path, run_id: str) -> Path:
-    return out / "runs" / run_id
+    return out / RUNS / run_id
+
+
+def row_files(out: Path) -> list[Path]:
+    """The rows the sweep's finished runs left, in run-id order."""
+    return sorted((out / RUNS).glob(f"*/{ROW}"))
 
 
 def read_row(out: Path, run_id: str) -> dict[str, Any] | None:
