@@ -28,7 +28,7 @@ BRIDGE_CHIPS := emulators/chips
 BRIDGE_CFLAGS := -std=c99 -pedantic -O2 -Wall -Wextra -Werror -ffp-contract=off -Ibuild/gen -I$(BRIDGE_CHIPS) \
 	-Ibridge/core -Irig/shim
 
-.PHONY: all venv fmu shim native chips compiled dut vbridge firmware demo test test-slow lint bench clean docs-images
+.PHONY: all venv fmu shim native chips compiled dut vbridge firmware avr-toolchain demo test test-slow lint bench clean docs-images
 
 all: fmu shim native compiled dut vbridge
 
@@ -78,6 +78,11 @@ $(VBRIDGE): $(wildcard bridge/core/*.[ch] bridge/posix/*.c) $(CHIP_FILES) rig/sh
 firmware: venv
 	$(PY) -m rig.bridge.firmware
 
+# avr-gcc, avr-libc and libsimavr (tools/avr-toolchain.sh), only when missing: the MCU tier and the AVR
+# firmware need them, the demo does not
+avr-toolchain:
+	tools/avr-toolchain.sh
+
 demo: venv fmu shim native compiled dut
 	$(VENV)/bin/rig run --out build/reports --pdf
 
@@ -98,7 +103,7 @@ lint: venv
 	$(VENV)/bin/mypy
 	clang-format --dry-run --Werror $(C_SOURCES)
 
-test: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) $(VBRIDGE) firmware lint
+test: venv avr-toolchain $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) $(VBRIDGE) firmware lint
 	$(PY) -m pytest -q -m "not slow"
 
 test-slow: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED)
