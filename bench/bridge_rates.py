@@ -23,6 +23,7 @@ from rig.bridge.port import BridgePort  # noqa: E402
 from rig.bridge.vbridge import VirtualBridge  # noqa: E402
 from rig.run_cmd import resolve  # noqa: E402
 from rig.runner import run  # noqa: E402
+from rig.targets.bridge import BridgeTarget  # noqa: E402
 from scenarios.schema import load  # noqa: E402
 
 HOG = "while True: pass"
@@ -59,7 +60,7 @@ def link_latency(n: int = 2000) -> None:
 def bench_run(scenario: str, hogs: int) -> None:
     procs = [subprocess.Popen([sys.executable, "-c", HOG]) for _ in range(hogs)]
     try:
-        r = run(load(resolve([scenario])[0]), bridge="virtual")
+        r = run(load(resolve([scenario])[0]), BridgeTarget("virtual"))
     finally:
         for p in procs:
             p.kill()

@@ -29,6 +29,7 @@ from rig.bridge.esc import ESC_PROTOCOLS
 from scenarios.schema import Scenario, ScenarioError, load
 
 if TYPE_CHECKING:
+    from rig.targets import Target
     from scenarios.result import RunResult
 
 LIBRARY = Path(__file__).resolve().parents[1] / "scenarios" / "library"
@@ -166,7 +167,7 @@ class Plan:
     """A suite with every option and scenario checked: what ``rig run`` will do."""
 
     scenarios: list[Scenario]
-    dut: list[str] | None
+    target: Target
     out: Path
 
 
@@ -175,7 +176,7 @@ def plan(args: argparse.Namespace) -> Plan:
     problem): every scenario file, the DUT command, the reference FC's build, every CAN interface the
     suite would open, the output folder."""
     from rig.capture import check_can
-    from rig.runner import REFERENCE_FC
+    from rig.targets import REFERENCE_FC
 
     problems: list[str] = []
     scenarios: list[Scenario] = []
@@ -265,7 +266,17 @@ def plan(args: argparse.Namespace) -> Plan:
                             "chromium)")
     if problems:
         raise UsageError("\n".join(problems))
-    return Plan(scenarios, dut, args.out)
+    return Plan(scenarios, target_of(args, dut), args.out)
+
+
+def target_of(args: argparse.Namespace, dut: list[str] | None) -> Target:
+    """The target the checked options name (rig/targets)."""
+    from rig.targets.bridge import BridgeTarget
+    from rig.targets.process import ProcessTarget
+
+    if args.bridge is not None:
+        return BridgeTarget(args.bridge, dut, args.can, args.esc)
+    return ProcessTarget(dut, args.realtime)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -297,12 +308,10 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
         run_dir = folder.scenario_dir(sc.stem)
         print(f"[{i}/{n}] {sc.stem} ({sc.duration:g} s sim) ...", end="", file=sys.stderr, flush=True)
         try:
-            r = run(sc, dut=suite.dut, seed=args.seed, work_dir=run_dir, wall_timeout=args.wall_timeout,
-                    realtime=args.realtime, bridge=args.bridge, can=args.can if args.bridge else None,
-                    esc=args.esc)
+            r = run(sc, suite.target, args.seed, run_dir, args.wall_timeout)
         except Exception as e:  # the rig could not fly it (not the DUT's doing): say so, go on
             r = not_run(sc, args.seed, f"the rig could not run this scenario: {type(e).__name__}: {e}",
-                        args.realtime, args.bridge)
+                        suite.target)
         results.append(r)
         (run_dir / "junit.xml").write_text(junit.render([r]))
         (run_dir / "result.json").write_text(result_json.render(r))

@@ -13,8 +13,6 @@ from __future__ import annotations
 import dataclasses
 import datetime
 import math
-import os
-import shlex
 import socket
 import tempfile
 from collections.abc import Callable
@@ -25,29 +23,18 @@ import numpy as np
 
 from emulators.faults import Fault, fault_sets
 from emulators.sensor_models import Normals
-from plant.native_build import BUILD
 from plant.variables import MOTORS
-from rig import __version__, firmware
-from rig.bridge.port import BridgeError
-from rig.bridge.session import BenchConfig, BenchSession
-from rig.capture import install_capture
+from rig import __version__
 from rig.host import Host
-from rig.power.bench_run import PsuRun
-from rig.power.supply import PsuError
 from rig.rc import StickEmulator
-from rig.scheduler import EXIT_RIG_ERROR
-from rig.session import Outcome, Session, SessionConfig
+from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, Target
+from rig.targets.process import ProcessTarget
 from rig.world import World
 from scenarios.criteria import NOT_JUDGED, Measurement, measure
 from scenarios.result import RunResult
 from scenarios.schema import Event, Scenario
 from scenarios.signals import BENCH_SIGNALS, RECORD_PERIOD, SIGNALS
 
-# (the build folder from a module that is never compiled: this one may run from build/mypyc,
-# rig/compiled.py, where __file__ is not the source's)
-REFERENCE_FC: Final = BUILD / "dut" / "fc"
-RC_PATH: Final = "/dev/ttyRC0"
-TELEMETRY_PATH: Final = "/dev/ttyTEL0"
 WIND_PERIOD: Final = 0.01
 TELEMETRY_KEYS = {
     "roll": "est_roll",
@@ -56,34 +43,6 @@ TELEMETRY_KEYS = {
     "alt": "est_alt",
     "armed": "armed",
 }
-
-
-PSU_SAMPLE_S: Final = 0.1  # the bench supply's readings join the run's record at 10 Hz
-
-
-def absolute_command(command: list[str], cwd: Path) -> list[str]:
-    """The command as the report records it: the program and every operand naming an existing file
-    given by a relative path, made absolute (``./fc fc.conf`` says nothing once the folder is gone)."""
-    out = []
-    for k, a in enumerate(command):
-        p = Path(a)
-        named = (k == 0 and "/" in a) or (cwd / p).exists()
-        if a and not a.startswith("-") and not p.is_absolute() and named:
-            a = os.path.normpath(cwd / p)
-        out.append(a)
-    return out
-
-
-def mode(realtime: bool, bridge: str | None = None) -> str:
-    """result.json's ``mode``: how the DUT met the rig: in lockstep, in real time, or behind a bench
-    bridge (real time too)."""
-    return "bridge" if bridge is not None else "real time" if realtime else "lockstep"
-
-
-def reference_config(scenario: Scenario) -> str:
-    lines = [f"rc_path = {RC_PATH}", f"telemetry_path = {TELEMETRY_PATH}", "telemetry_every = 5"]
-    lines += [f"{k} = {v}" for k, v in scenario.fc.items()]
-    return "\n".join(lines) + "\n"
 
 
 class _Wind:
@@ -233,58 +192,29 @@ def _wrap180(x: np.ndarray) -> np.ndarray:
 
 def run(
     scenario: Scenario,
-    dut: list[str] | None = None,
+    target: Target | None = None,
     seed: int = 0,
     work_dir: Path | None = None,
     wall_timeout: float = 600.0,
     stall_timeout: float = 30.0,
-    corrupt_every: int = 0,
-    realtime: bool = False,
-    bridge: str | None = None,
-    can: str | None = None,
-    esc: str = "pwm",
 ) -> RunResult:
-    """Runs ``scenario``; the reference FC (configured from the scenario's [fc] table) when ``dut`` is
-    None. The DUT's stdout, stderr and telemetry go to ``work_dir`` (with None, to a temporary folder
-    removed afterwards). Lockstep virtual time by default; ``realtime`` paces the run by the wall clock
-    (a bench) and reports how late the scheduled events ran. ``bridge`` ("virtual" or a bridge's serial
-    port) runs it in real time through a bench bridge (rig/bridge/session.py): the sensors are the
-    bridge's, the motors its captured pulses (``esc``: their protocol, rig/bridge/esc.py); behind a port
-    the DUT is the board wired to it."""
+    """Runs ``scenario`` against ``target`` (rig/targets: a Linux program in lockstep or real time, a
+    board behind a bridge, a firmware image under emulation; None: the reference FC in lockstep). The
+    DUT's stdout, stderr and telemetry go to ``work_dir`` (with None, to a temporary folder removed
+    afterwards)."""
+    if target is None:
+        target = ProcessTarget()
     if work_dir is None:
         with tempfile.TemporaryDirectory(prefix="rig-run-") as tmp:
-            return run(scenario, dut, seed, Path(tmp), wall_timeout, stall_timeout, corrupt_every, realtime,
-                       bridge, can)
-    realtime = realtime or bridge is not None
-    board = bridge is not None and bridge != "virtual"  # a real board: nothing for the rig to start
+            return run(scenario, target, seed, Path(tmp), wall_timeout, stall_timeout)
     work = Path(work_dir)
     work.mkdir(parents=True, exist_ok=True)
     notes: list[str] = []
-    if board:
-        if dut is not None:
-            raise ValueError("behind a bridge's port the DUT is the board wired to it: no DUT command")
-        command = []
-    elif dut is None:
-        if not REFERENCE_FC.is_file():
-            raise FileNotFoundError(f"reference FC not built at {REFERENCE_FC}; run `make dut`")
-        conf = work / "fc.conf"
-        conf.write_text(reference_config(scenario))
-        command = [str(REFERENCE_FC), str(conf)]
-    else:
-        command = list(dut)
-        if scenario.fc:
-            notes.append("the scenario's [fc] table configures the reference FC only; ignored for this DUT")
     metadata: dict[str, object] = {
         **identity(scenario, seed),
-        "dut_command": shlex.join(absolute_command(command, Path.cwd())) if command
-        else f"the board behind the bridge at {bridge}",
-        **(firmware.identify(command) if command else {}),
-        "fc_config": dict(line.split(" = ", 1) for line in reference_config(scenario).splitlines())
-        if dut is None and not board else None,
-        "capture": scenario.capture.transport if bridge is None else f"can ({can})" if can else "bridge",
+        **target.describe(scenario, work, notes),
         "duration": scenario.duration,
-        "mode": mode(realtime, bridge),
-        "lockstep": not realtime,
+        "mode": target.mode,
     }
     faults = fault_sets(scenario.faults, seed)
     world = World.at_rest(
@@ -296,59 +226,32 @@ def run(
         baro_noise_pa=scenario.baro_noise_pa,
         baro_drift_pa_per_s=scenario.baro_drift_pa_per_s,
     )
-    psu: PsuRun | None = None
-    if bridge is not None and scenario.bench.psu is not None:
-        psu = PsuRun(scenario.bench)
-    elif scenario.bench.psu is not None:
-        notes.append("the scenario's [bench] supply powers a board behind a bridge only: not used here")
     stderr_path = work / "dut-stderr.txt"
     try:  # (the world holds the plant, whose instance close() frees)
         metadata["plant_fmu_sha256"] = world.plant.fmu_sha256
         with open(stderr_path, "w") as err, open(work / "dut-stdout.txt", "w") as out:
-            cfg = SessionConfig(
-                command=command,
-                serial=[RC_PATH, TELEMETRY_PATH],
-                duration=scenario.duration,
-                lockstep=not realtime,
-                wall_timeout=wall_timeout,
-                stall_timeout=stall_timeout,
-                stdout=out,
-                stderr=err,
-            )
-            session: Session | BenchSession
-            if bridge is not None:  # the bridge captures the pulses itself
-                if psu is not None:
-                    _psu_prepare(psu)
-                session = BenchSession(BenchConfig(
-                    bridge=bridge, command=None if board else command, rc_path=RC_PATH,
-                    serial=[] if board else [TELEMETRY_PATH], duration=scenario.duration,
-                    wall_timeout=wall_timeout, stdout=out, stderr=err, faults=faults, can=can, esc=esc,
-                    power_on=None if psu is None else _psu_switch_on(psu)), world)
-                if psu is not None:
-                    session.at(0.0, _psu_sampler(psu, session))
-                capture = None
-            else:
-                session = Session(cfg, world)
-                capture = install_capture(session, scenario.capture, corrupt_every)
-            rc = StickEmulator(RC_PATH)
-            rc.start(session)
-            wind = _Wind(scenario, seed)
-            if wind.active():
-                session.at(0.0, lambda s: wind.tick(s, 0.0))
-            rec = _Recorder(scenario, world, rc, wind, [f.fault for f in scenario.faults])
-            session.at(0.0, rec.tick)
-            for ev in scenario.timeline:
-                session.at(ev.t, _apply_event(rc, ev))
+            ctx = RunContext(scenario, world, faults, work, out, err, wall_timeout, stall_timeout, notes)
+            target_run = target.open(ctx)
             try:
+                session = target_run.session
+                rc = StickEmulator(RC_PATH)
+                rc.start(session)
+                wind = _Wind(scenario, seed)
+                if wind.active():
+                    session.at(0.0, lambda s: wind.tick(s, 0.0))
+                rec = _Recorder(scenario, world, rc, wind, [f.fault for f in scenario.faults])
+                session.at(0.0, rec.tick)
+                for ev in scenario.timeline:
+                    session.at(ev.t, _apply_event(rc, ev))
                 outcome = session.run()
+                signals = rec.signals()
+                metadata.update(target_run.figures(outcome))
+                signals.update(target_run.signals(signals["t"]))
+                idle = target_run.idle(outcome) if outcome.verdict == "ok" else None
             finally:
-                if capture is not None:
-                    capture.close()
+                target_run.close()
     finally:
         world.close()
-        if psu is not None:
-            psu.close()
-    signals = rec.signals()
     raw_telemetry = session.serial_output(TELEMETRY_PATH)
     (work / "dut-telemetry.txt").write_bytes(raw_telemetry)  # the DUT's own words, kept as they came
     tel, bad, nonfinite = parse_telemetry(raw_telemetry, session.dut_clock_base_s)
@@ -364,8 +267,6 @@ def run(
     for ax in ("roll", "pitch", "alt"):
         signals[f"{ax}_est_error"] = signals[f"est_{ax}"] - signals[ax]
     signals["yaw_est_error"] = _wrap180(signals["est_yaw"] - signals["yaw"])
-    if capture is not None:
-        metadata["capture_stats"] = capture.stats()
     metadata.update(
         sim_time=outcome.sim_time,
         wall_time=outcome.wall_time,
@@ -374,12 +275,7 @@ def run(
         dut_clock_base_s=session.dut_clock_base_s,
         bus_transactions=outcome.transactions,
     )
-    if isinstance(session, BenchSession):
-        metadata["bridge"] = session.link_figures()
-    if psu is not None:
-        metadata["bench_power"] = psu.figures()
-        signals.update(psu.signals(signals["t"]))
-    if realtime:
+    if target.realtime:
         metadata["realtime_lateness"] = {
             "events": outcome.events_run,
             "late_over_1ms": outcome.events_late,
@@ -413,7 +309,7 @@ def run(
         for c in scenario.criteria
     ]
     stderr = stderr_path.read_text(errors="replace")
-    error = _idle(outcome) if outcome.verdict == "ok" else None
+    error = idle
     if error:  # a DUT that never flew passes nothing, however still the vehicle stayed
         verdict = "error"
         measurements = [dataclasses.replace(m, outcome=NOT_JUDGED, reason="the DUT did not fly the vehicle",
@@ -449,18 +345,7 @@ def identity(scenario: Scenario, seed: int) -> dict[str, object]:
     }
 
 
-def _idle(outcome: Outcome) -> str | None:
-    """Why a run that ended well still tested nothing, or None."""
-    if outcome.transactions == 0:
-        return ("the DUT never read a sensor (no I2C transfer reached the rig): nothing it did was a "
-                "flight under test")
-    if outcome.pwm_writes == 0:
-        return "the DUT never drove a motor (no sysfs PWM write reached the rig): nothing was flown"
-    return None
-
-
-def not_run(scenario: Scenario, seed: int, error: str, realtime: bool = False,
-            bridge: str | None = None) -> RunResult:
+def not_run(scenario: Scenario, seed: int, error: str, target: Target | None = None) -> RunResult:
     """The result of a scenario the rig could not fly at all (an error before the DUT started):
     nothing recorded, nothing judged."""
     empty = {name: np.zeros(0) for name in ("t", *SIGNALS)}
@@ -470,9 +355,7 @@ def not_run(scenario: Scenario, seed: int, error: str, realtime: bool = False,
         for c in scenario.criteria
     ]
     metadata: dict[str, object] = {**identity(scenario, seed), "duration": scenario.duration,
-                                   "mode": mode(realtime, bridge)}
-    if bridge is not None:
-        metadata["bridge"] = bridge
+                                   **(target or ProcessTarget()).not_run_metadata()}
     return RunResult(scenario, "error", error, measurements, empty, metadata)
 
 
@@ -492,37 +375,3 @@ def _apply_event(rc: StickEmulator, ev: Event) -> Callable[[Host], None]:
             session.world.set_input(k, v)
 
     return apply
-
-
-def _psu_prepare(psu: PsuRun) -> None:
-    """The supply opened, set and switched off before the link starts (a RuntimeError, which the
-    suite reports as a run the rig could not fly, when it does not answer)."""
-    try:
-        psu.prepare()
-    except PsuError as e:
-        raise RuntimeError(f"bench supply: {e}") from None
-
-
-def _psu_switch_on(psu: PsuRun) -> Callable[[], None]:
-    def switch_on() -> None:
-        try:
-            psu.switch_on()
-        except PsuError as e:
-            raise BridgeError(f"bench supply: {e}") from None
-
-    return switch_on
-
-
-def _psu_sampler(psu: PsuRun, session: BenchSession) -> Callable[[Host], None]:
-    """A session event every PSU_SAMPLE_S: the supply's latest reading into the run's record; an
-    over-current or a supply gone silent ends the run as an error."""
-
-    def sample(host: Host) -> None:
-        t = host.now_ns / 1e9
-        problem = psu.sample(t)
-        if problem is not None:
-            session.sched.fail(EXIT_RIG_ERROR, f"{problem} at sim t={t:.3f} s")
-            return
-        host.at(t + PSU_SAMPLE_S, sample)
-
-    return sample

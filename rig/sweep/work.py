@@ -117,6 +117,7 @@ def fly(task: Task) -> dict[str, Any]:
     from reports import html_report, result_json
     from rig import interrupts
     from rig.runner import not_run, run
+    from rig.targets.process import ProcessTarget
     from scenarios.schema import ScenarioError, check
 
     out = Path(task.out)
@@ -140,7 +141,7 @@ def fly(task: Task) -> dict[str, Any]:
         interrupts.install()
     with core_slot(out / SLOTS) as cpu:
         try:
-            r = run(scenario, dut=task.dut, seed=v.seed, work_dir=folder, wall_timeout=task.wall_timeout)
+            r = run(scenario, ProcessTarget(task.dut), v.seed, folder, task.wall_timeout)
         except Exception as e:  # the rig could not fly it: an error row, the sweep goes on
             r = not_run(scenario, v.seed, f"the rig could not run this variant: {type(e).__name__}: {e}")
     row.update(

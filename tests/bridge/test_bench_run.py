@@ -24,7 +24,7 @@ import pytest
 
 from rig.bridge.messages import PROTOCOL_VERSION
 from rig.bridge.session import BenchConfig, BenchSession
-from rig.runner import REFERENCE_FC, reference_config
+from rig.targets import REFERENCE_FC, reference_config
 from rig.world import World
 from scenarios.schema import load
 from tests.bridge.tools import REPO, vbridge

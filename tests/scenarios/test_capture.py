@@ -21,6 +21,7 @@ from emulators.pwm_capture import (
     encode_serial,
 )
 from rig.runner import run
+from rig.targets.process import ProcessTarget
 from scenarios.schema import Capture, load
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
@@ -78,7 +79,7 @@ def test_capture_paths_fly_like_the_direct_path(direct: object, transport: str, 
 @pytest.mark.parametrize("transport", ["can", "serial"])
 def test_corrupted_frames_are_rejected_and_counted(transport: str, tmp_path: Path) -> None:
     sc = dataclasses.replace(load(LIB / "step_roll.toml"), capture=Capture(transport, 1.0, 400.0, 0.0))
-    r = run(sc, work_dir=tmp_path, corrupt_every=50)
+    r = run(sc, ProcessTarget(corrupt_every=50), work_dir=tmp_path)
     stats = r.metadata["capture_stats"]
     frames_per_report = 2 if transport == "can" else 1
     assert stats["frames_rejected"] == stats["frames_sent"] // 50

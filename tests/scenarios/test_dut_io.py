@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from rig.runner import parse_telemetry, run
+from rig.targets.process import ProcessTarget
 from scenarios.schema import load
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
@@ -22,7 +23,7 @@ def test_a_dut_that_never_reads_its_rc_port_does_not_stall_the_run(tmp_path: Pat
     """The session used to wait up to a second per request once the pty was full (553 s of wall time
     for 10 sim-s) and, past 11.5 s, ended with BlockingIOError. 20 sim-s of SBUS is 36 kB, nine times
     the DUT's receive buffer."""
-    r = run(load(LIB / "hover_turbulence.toml"), dut=[sys.executable, str(DUTS / "deaf_to_rc.py")],
+    r = run(load(LIB / "hover_turbulence.toml"), ProcessTarget([sys.executable, str(DUTS / "deaf_to_rc.py")]),
             work_dir=tmp_path, wall_timeout=60.0)
     assert r.verdict in ("pass", "fail"), r.error  # judged: not a watchdog, not an exception
     assert r.metadata["sim_time"] >= 20.0
@@ -33,7 +34,7 @@ def test_a_dut_that_never_reads_its_rc_port_does_not_stall_the_run(tmp_path: Pat
 
 def test_telemetry_in_pieces_and_with_nan_values_is_kept(tmp_path: Path) -> None:
     sc = load(LIB / "step_roll.toml")
-    r = run(sc, dut=[sys.executable, str(DUTS / "chunked_telemetry.py")], work_dir=tmp_path)
+    r = run(sc, ProcessTarget([sys.executable, str(DUTS / "chunked_telemetry.py")]), work_dir=tmp_path)
     assert not any("did not parse" in n for n in r.notes), r.notes
     t, est_roll, est_alt = r.signals["t"], r.signals["est_roll"], r.signals["est_alt"]
     reported = np.isfinite(est_roll)

@@ -6,6 +6,7 @@ import dataclasses
 from pathlib import Path
 
 from rig.runner import run
+from rig.targets.process import ProcessTarget
 from scenarios.schema import load
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
@@ -24,7 +25,7 @@ def test_a_real_time_run_flies_and_reports_its_lateness(tmp_path: Path) -> None:
     assert arm.sticks == {"arm": True, "throttle": 0.0} and climb.sticks == {"throttle": 0.5}
     sc = dataclasses.replace(step_roll, duration=5.0, criteria=(),
                              timeline=(arm, dataclasses.replace(climb, t=3.0)))
-    r = run(sc, work_dir=tmp_path, realtime=True)
+    r = run(sc, ProcessTarget(realtime=True), work_dir=tmp_path)
     assert r.verdict == "pass", r.error
     md = r.metadata
     assert md["lockstep"] is False and md["sim_time"] >= 5.0

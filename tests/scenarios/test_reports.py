@@ -135,7 +135,7 @@ def test_a_marginal_pass_is_marked_in_every_report(tmp_path: Path) -> None:
 
 
 def test_the_dut_command_is_recorded_with_absolute_paths(tmp_path: Path) -> None:
-    from rig.runner import absolute_command
+    from rig.targets.process import absolute_command
 
     (tmp_path / "fw").write_text("")
     (tmp_path / "fc.conf").write_text("")

@@ -122,7 +122,7 @@ def test_rig_validate_reports_without_a_traceback(tmp_path: Path) -> None:
 
 
 def test_fc_values_reach_the_config_file_as_the_fc_reads_them(tmp_path: Path) -> None:
-    from rig.runner import reference_config
+    from rig.targets import reference_config
 
     sc = load(write(tmp_path, GOOD.replace("[[criteria]]", '[fc]\nalpha = [1, 1.5, 1, 1]\nmpu_addr = "0x69"\n'
                                                            'profile = "seed002"\n[[criteria]]')))
@@ -133,7 +133,7 @@ def test_fc_values_reach_the_config_file_as_the_fc_reads_them(tmp_path: Path) ->
 def test_the_fc_key_table_is_the_one_the_fc_compiles(tmp_path: Path) -> None:
     """scenarios/fc_keys.py reads dut/src/config_keys.h; the built FC takes every key it finds there at a
     value inside the table's range, refuses one outside it, and refuses a key the table lacks."""
-    from rig.runner import REFERENCE_FC
+    from rig.targets import REFERENCE_FC
     from scenarios import fc_keys
 
     keys = fc_keys.keys()

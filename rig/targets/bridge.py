@@ -1,0 +1,129 @@
+"""The bridge target: a DUT behind a bench bridge (rig/bridge/session.py), in real time. Behind a serial
+port the DUT is the board wired to the bridge (nothing for the rig to start); with ``virtual`` it is a
+Linux program (the reference FC by default) on the virtual bridge. The sensors are the bridge's, the
+motors the pulses it captures (or a CAN capture device's), the sticks SBUS it sends. A scenario's
+[bench] supply power-cycles a board before the run and is sampled during it (rig/power)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Final
+
+import numpy as np
+
+from rig.bridge.port import BridgeError
+from rig.bridge.session import BenchConfig, BenchSession
+from rig.host import Host
+from rig.power.bench_run import PsuRun
+from rig.power.supply import PsuError
+from rig.scheduler import EXIT_RIG_ERROR
+from rig.session import Outcome
+from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, TargetRun
+from rig.targets.process import command_for, describe_command
+from scenarios.schema import Scenario
+
+PSU_SAMPLE_S: Final = 0.1  # the bench supply's readings join the run's record at 10 Hz
+
+
+class BridgeRun(TargetRun):
+    session: BenchSession
+
+    def __init__(self, session: BenchSession, psu: PsuRun | None) -> None:
+        self.session = session
+        self.psu = psu
+
+    def figures(self, outcome: Outcome) -> dict[str, object]:
+        out: dict[str, object] = {"bridge": self.session.link_figures()}
+        if self.psu is not None:
+            out["bench_power"] = self.psu.figures()
+        return out
+
+    def signals(self, t: np.ndarray) -> dict[str, np.ndarray]:
+        return self.psu.signals(t) if self.psu is not None else {}
+
+    def close(self) -> None:
+        if self.psu is not None:
+            self.psu.close()
+
+
+class BridgeTarget:
+    """``bridge``: "virtual" or the bridge's serial port; ``dut``: the program on the virtual bridge
+    (None: the reference FC); ``can``: INTERFACE:CHANNEL of a CAN capture device for the motors;
+    ``esc``: the board's ESC protocol (rig/bridge/esc.py)."""
+
+    mode = "bridge"
+    realtime = True
+
+    def __init__(self, bridge: str, dut: list[str] | None = None, can: str | None = None,
+                 esc: str = "pwm") -> None:
+        self.board = bridge != "virtual"  # a real board: nothing for the rig to start
+        if self.board and dut is not None:
+            raise ValueError("behind a bridge's port the DUT is the board wired to it: no DUT command")
+        self.bridge, self.dut, self.can, self.esc = bridge, dut, can, esc
+        self._command: list[str] | None = None
+
+    def describe(self, scenario: Scenario, work: Path, notes: list[str]) -> dict[str, object]:
+        if self.board:
+            self._command = None
+            who: dict[str, object] = {"dut_command": f"the board behind the bridge at {self.bridge}",
+                                      "fc_config": None}
+        else:
+            self._command = command_for(self.dut, scenario, work, notes)
+            who = describe_command(self._command, scenario, self.dut is None)
+        return {**who, "capture": f"can ({self.can})" if self.can else "bridge", "lockstep": False}
+
+    def open(self, ctx: RunContext) -> BridgeRun:
+        psu = PsuRun(ctx.scenario.bench) if ctx.scenario.bench.psu is not None else None
+        try:
+            if psu is not None:
+                _psu_prepare(psu)
+            session = BenchSession(BenchConfig(
+                bridge=self.bridge, command=self._command, rc_path=RC_PATH,
+                serial=[] if self.board else [TELEMETRY_PATH], duration=ctx.scenario.duration,
+                wall_timeout=ctx.wall_timeout, stdout=ctx.stdout, stderr=ctx.stderr, faults=ctx.faults,
+                can=self.can, esc=self.esc, power_on=None if psu is None else _psu_switch_on(psu)), ctx.world)
+        except BaseException:
+            if psu is not None:
+                psu.close()
+            raise
+        if psu is not None:
+            session.at(0.0, _psu_sampler(psu, session))
+        return BridgeRun(session, psu)
+
+    def not_run_metadata(self) -> dict[str, object]:
+        return {"mode": self.mode, "bridge": self.bridge}
+
+
+def _psu_prepare(psu: PsuRun) -> None:
+    """The supply opened, set and switched off before the link starts (a RuntimeError, which the
+    suite reports as a run the rig could not fly, when it does not answer)."""
+    try:
+        psu.prepare()
+    except PsuError as e:
+        raise RuntimeError(f"bench supply: {e}") from None
+
+
+def _psu_switch_on(psu: PsuRun) -> Callable[[], None]:
+    def switch_on() -> None:
+        try:
+            psu.switch_on()
+        except PsuError as e:
+            raise BridgeError(f"bench supply: {e}") from None
+
+    return switch_on
+
+
+def _psu_sampler(psu: PsuRun, session: BenchSession) -> Callable[[Host], None]:
+    """A session event every PSU_SAMPLE_S: the supply's latest reading into the run's record; an
+    over-current or a supply gone silent ends the run as an error."""
+
+    def sample(host: Host) -> None:
+        t = host.now_ns / 1e9
+        problem = psu.sample(t)
+        if problem is not None:
+            session.sched.fail(EXIT_RIG_ERROR, f"{problem} at sim t={t:.3f} s")
+            return
+        host.at(t + PSU_SAMPLE_S, sample)
+
+    return sample
