@@ -225,6 +225,7 @@ def run(
         mag_disturbance=scenario.mag_disturbance_at if any(scenario.mag_disturbance) else None,
         baro_noise_pa=scenario.baro_noise_pa,
         baro_drift_pa_per_s=scenario.baro_drift_pa_per_s,
+        **target.world_options(),
     )
     stderr_path = work / "dut-stderr.txt"
     try:  # (the world holds the plant, whose instance close() frees)

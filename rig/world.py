@@ -20,7 +20,7 @@ from emulators.chips.board import ChipBoard, build_chip_board
 from emulators.faults import TARGETS as FAULT_TARGETS
 from emulators.faults import FaultSet
 from emulators.i2c_bus import Msg
-from emulators.sensor_models import AxisErrors, BaroModel, ImuModel, MagModel, TruthRow
+from emulators.sensor_models import FLAT_ON_BOARD, AxisErrors, BaroModel, ImuModel, MagModel, TruthRow
 from plant import Plant
 from plant.variables import MOTORS, PWM_INPUTS, SCENARIO_INPUTS
 
@@ -112,11 +112,13 @@ class World:
         mag_disturbance: Callable[[float], tuple[float, float, float]] | None = None,
         baro_noise_pa: float = 0.0,
         baro_drift_pa_per_s: float = 0.0,
+        mounting: tuple[tuple[float, float, float], ...] = FLAT_ON_BOARD,
     ) -> World:
         """The default world of ``rig exec``: the vehicle resting on the ground, motors off, a GY-86.
         ``faults`` by name: signal faults "accel", "gyro", "mag", "baro" act in the sensor models; bus
         faults "mpu", "hmc", "baro_bus" act on the chip on the bus. The barometer's noise and drift
-        are its model's (the barometer is exact by default, so a reading can be checked to the pascal)."""
+        are its model's (the barometer is exact by default, so a reading can be checked to the pascal).
+        ``mounting``: body FRD to the sensors' frame (the board's; its default lies flat, facing forward)."""
         faults = dict(faults or {})
         unknown = set(faults) - set(FAULT_TARGETS)
         if unknown:
@@ -128,15 +130,15 @@ class World:
         nd = DATASHEET_NOISE if noise else {"accel": 0.0, "gyro": 0.0, "mag": 0.0}
         imu = ImuModel(
             truth,
-            accel=AxisErrors(noise_density=nd["accel"]),
-            gyro=AxisErrors(noise_density=nd["gyro"]),
+            accel=AxisErrors(mounting=mounting, noise_density=nd["accel"]),
+            gyro=AxisErrors(mounting=mounting, noise_density=nd["gyro"]),
             seed=seed,
             accel_faults=faults.get("accel", FaultSet()),
             gyro_faults=faults.get("gyro", FaultSet()),
         )
         mag = MagModel(
             truth,
-            errors=AxisErrors(noise_density=nd["mag"]),
+            errors=AxisErrors(mounting=mounting, noise_density=nd["mag"]),
             seed=seed + 1,
             faults=faults.get("mag", FaultSet()),
             disturbance=mag_disturbance or (lambda t: (0.0, 0.0, 0.0)),

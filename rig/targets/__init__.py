@@ -20,7 +20,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Final, Protocol
+from typing import IO, TYPE_CHECKING, Any, Final, Protocol
 
 import numpy as np
 
@@ -121,6 +121,10 @@ class Target(Protocol):
         """The DUT as result.json names it (``dut_command``, its hashes, ``fc_config``, ``capture``);
         may write what the DUT needs into ``work`` (the reference FC's configuration) and add notes.
         Raises for a DUT that cannot be run at all (a missing build): the run is then not flown."""
+        ...
+
+    def world_options(self) -> dict[str, Any]:
+        """What the DUT's hardware makes of the world (World.at_rest's ``topology``, ``mounting``)."""
         ...
 
     def open(self, ctx: RunContext) -> TargetRun:

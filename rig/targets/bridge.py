@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import Final
+from typing import Any, Final
 
 import numpy as np
 
@@ -90,6 +90,9 @@ class BridgeTarget:
         if psu is not None:
             session.at(0.0, _psu_sampler(psu, session))
         return BridgeRun(session, psu)
+
+    def world_options(self) -> dict[str, Any]:
+        return {}
 
     def not_run_metadata(self) -> dict[str, object]:
         return {"mode": self.mode, "bridge": self.bridge}

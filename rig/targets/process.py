@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import shlex
 from pathlib import Path
+from typing import Any
 
 from rig import firmware
 from rig.capture import CaptureLink, install_capture
@@ -103,6 +104,9 @@ class ProcessTarget:
         )
         session = Session(cfg, ctx.world)
         return ProcessRun(session, install_capture(session, ctx.scenario.capture, self.corrupt_every))
+
+    def world_options(self) -> dict[str, Any]:
+        return {}
 
     def not_run_metadata(self) -> dict[str, object]:
         return {"mode": self.mode}

@@ -1,0 +1,250 @@
+"""Board files: what is wired where on a flight controller board, as data (TOML), one file per board
+design. The MCU tier reads one to know which MCU runs the image at what clock, where the sensors are,
+which timer channel drives which motor with which ESC protocol, where the RC link and the telemetry
+come in and out, what EEPROM image to preload, and how the sensor board is mounted.
+
+A board file is checked like a scenario: every error names the file and the dotted key, and a pin that
+its timer cannot drive (rig/mcu/mcus.py) is refused before anything runs. The shipped boards are in
+rig/mcu/boards/; ``--mcu NAME`` finds them by name, ``--mcu path/to/board.toml`` reads any other.
+
+    [board]      name, description, mcu ("atmega2560" | "atmega328p"), clock_hz
+    [sensors]    bus ("twi"), topology ("gy86" | "direct"), twi_hz, mounting_yaw_deg (0, 90, 180, 270)
+    [[motors]]   motor (1..4: the plant's), pin ("PE4"), timer, channel ("A" | "B" | "C"),
+                 protocol ("pwm" | "oneshot125"), label ("D2": the board's silk-screen name)
+    [rc]         protocol ("sbus" | "ppm" | "msp"), uart (sbus, msp), baud (msp), pin (ppm)
+    [telemetry]  uart, baud, format ("text": the reference FC's ``T t=… key=value`` lines)
+    [eeprom]     image (a file of raw bytes, relative to the board file), or fc = true: built from the
+                 scenario's [fc] table by the reference firmware's layout
+    [fuses]      watchdog_always_on (WDTON programmed)
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final
+
+from emulators.sensor_models import FLAT_ON_BOARD
+from rig.bridge.esc import ESC_PROTOCOLS
+from rig.mcu.mcus import MCUS, Mcu
+from scenarios.schema import ScenarioError, _Check
+
+BOARDS: Final = Path(__file__).resolve().parent / "boards"
+TOP: Final = {"board", "sensors", "motors", "rc", "telemetry", "eeprom", "fuses"}
+BOARD_KEYS: Final = {"name", "description", "mcu", "clock_hz"}
+SENSOR_KEYS: Final = {"bus", "topology", "twi_hz", "mounting_yaw_deg"}
+MOTOR_KEYS: Final = {"motor", "pin", "timer", "channel", "protocol", "label"}
+RC_KEYS: Final = {"protocol", "uart", "baud", "pin"}
+TELEMETRY_KEYS: Final = {"uart", "baud", "format"}
+EEPROM_KEYS: Final = {"image", "fc"}
+FUSE_KEYS: Final = {"watchdog_always_on"}
+RC_PROTOCOLS: Final = ("sbus", "ppm", "msp")
+SBUS_BAUD: Final = 100_000
+
+
+class BoardError(ScenarioError):
+    """A board file that cannot be used: ``file: key: message``."""
+
+
+@dataclass(frozen=True)
+class MotorOut:
+    motor: int      # 1..4, the plant's motor
+    pin: str        # "PE4"
+    timer: int
+    channel: str    # "A" | "B" | "C"
+    protocol: str   # rig/bridge/esc.py ESC_PROTOCOLS
+    label: str
+
+
+@dataclass(frozen=True)
+class RcIn:
+    protocol: str   # "sbus" | "ppm" | "msp"
+    uart: int | None
+    baud: int
+    pin: str | None
+
+
+@dataclass(frozen=True)
+class Board:
+    path: Path
+    name: str
+    description: str
+    mcu: Mcu
+    clock_hz: int
+    topology: str
+    twi_hz: int
+    mounting_yaw_deg: int
+    motors: tuple[MotorOut, ...]
+    rc: RcIn
+    telemetry_uart: int
+    telemetry_baud: int
+    eeprom_image: Path | None
+    eeprom_from_fc: bool
+    watchdog_always_on: bool
+
+
+def find(name: str) -> Path:
+    """A shipped board by name, else the file as given."""
+    p = Path(name)
+    if not p.exists() and p.parent == Path(".") and (BOARDS / f"{p.stem}.toml").exists():
+        return BOARDS / f"{p.stem}.toml"
+    return p
+
+
+def names() -> list[str]:
+    return sorted(p.stem for p in BOARDS.glob("*.toml"))
+
+
+def load(name: str | Path) -> Board:
+    """Reads and checks a board file (a shipped board's name, or a path); BoardError otherwise."""
+    path = find(str(name))
+    c = _BoardCheck(str(path))
+    if not path.is_file():
+        raise c.fail("", "no such board file, and no shipped board of that name (shipped: "
+                         f"{', '.join(names())})")
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as err:
+        raise c.fail("", f"not a readable TOML file: {err}") from None
+    c.table(data, "", TOP)
+    b = c.table(data.get("board", {}), "board", BOARD_KEYS)
+    mcu_name = c.string(b, "mcu", "board", choices=tuple(MCUS))
+    mcu = MCUS[mcu_name]
+    clock = c.integer(b, "clock_hz", "board", 1_000_000, 32_000_000)
+    s = c.table(data.get("sensors", {}), "sensors", SENSOR_KEYS)
+    c.string(s, "bus", "sensors", "twi", choices=("twi",))
+    yaw = c.integer(s, "mounting_yaw_deg", "sensors", 0, 270, default=0)
+    if yaw % 90:
+        raise c.fail("sensors.mounting_yaw_deg", f"expected 0, 90, 180 or 270, got {yaw}")
+    motors = tuple(_motor(c, mcu, m, k) for k, m in enumerate(c.array(data, "motors")))
+    got = sorted(m.motor for m in motors)
+    if got != [1, 2, 3, 4]:
+        raise c.fail("motors", f"expected one output for each of motors 1..4, got motors {got}")
+    pins = [m.pin for m in motors]
+    for p in pins:
+        if pins.count(p) > 1:
+            raise c.fail("motors", f"pin {p} drives two motors")
+    rc = _rc(c, mcu, c.table(data.get("rc", {}), "rc", RC_KEYS))
+    t = c.table(data.get("telemetry", {}), "telemetry", TELEMETRY_KEYS)
+    tel_uart = _uart(c, mcu, t, "telemetry")
+    tel_baud = c.integer(t, "baud", "telemetry", 300, 2_000_000)
+    c.string(t, "format", "telemetry", "text", choices=("text",))
+    if baud_error(clock, tel_baud) > 0.02:
+        raise c.fail("telemetry.baud", f"{tel_baud} baud is over 2 % off anything a USART makes at "
+                                       f"{clock} Hz")
+    if rc.uart is not None and rc.uart == tel_uart:
+        raise c.fail("telemetry.uart", f"USART{tel_uart} is the RC input's already")
+    e = c.table(data.get("eeprom", {}), "eeprom", EEPROM_KEYS)
+    image: Path | None = None
+    if "image" in e:
+        image = (path.parent / c.string(e, "image", "eeprom")).resolve()
+        if not image.is_file():
+            raise c.fail("eeprom.image", f"no such file: {image}")
+        if image.stat().st_size > mcu.eeprom:
+            raise c.fail("eeprom.image", f"{image.stat().st_size} bytes, over the {mcu.name}'s "
+                                         f"{mcu.eeprom} bytes of EEPROM")
+    from_fc = c.boolean(e, "fc", "eeprom", False)
+    if image is not None and from_fc:
+        raise c.fail("eeprom", "either an image or fc = true, not both")
+    f = c.table(data.get("fuses", {}), "fuses", FUSE_KEYS)
+    return Board(
+        path=path.resolve(),
+        name=c.string(b, "name", "board", path.stem),
+        description=c.string(b, "description", "board", ""),
+        mcu=mcu,
+        clock_hz=clock,
+        topology=c.string(s, "topology", "sensors", "gy86", choices=("gy86", "direct")),
+        twi_hz=c.integer(s, "twi_hz", "sensors", 10_000, 1_000_000, default=400_000),
+        mounting_yaw_deg=yaw,
+        motors=tuple(sorted(motors, key=lambda m: m.motor)),
+        rc=rc,
+        telemetry_uart=tel_uart,
+        telemetry_baud=tel_baud,
+        eeprom_image=image,
+        eeprom_from_fc=from_fc,
+        watchdog_always_on=c.boolean(f, "watchdog_always_on", "fuses", False),
+    )
+
+
+class _BoardCheck(_Check):
+    def fail(self, key: str, message: str) -> BoardError:
+        return BoardError(self.file, key, message)
+
+    def integer(self, data: dict[str, Any], key: str, path: str, low: int, high: int,
+                default: int | None = None) -> int:
+        full = f"{path}.{key}"
+        if key not in data:
+            if default is None:
+                raise self.fail(full, "missing; expected an integer")
+            return default
+        v = data[key]
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise self.fail(full, f"expected an integer, got {v!r}")
+        if not low <= v <= high:
+            raise self.fail(full, f"expected an integer in {low}..{high}, got {v}")
+        return v
+
+
+def _uart(c: _BoardCheck, mcu: Mcu, data: dict[str, Any], path: str) -> int:
+    n = c.integer(data, "uart", path, 0, 7)
+    if n not in mcu.usarts:
+        raise c.fail(f"{path}.uart", f"the {mcu.name} has USART {', '.join(map(str, mcu.usarts))} only")
+    return n
+
+
+def _motor(c: _BoardCheck, mcu: Mcu, data: Any, k: int) -> MotorOut:
+    where = f"motors[{k}]"
+    m = c.table(data, where, MOTOR_KEYS)
+    timer = c.integer(m, "timer", where, 0, 5)
+    channel = c.string(m, "channel", where, choices=("A", "B", "C"))
+    pin = c.string(m, "pin", where).upper()
+    oc = mcu.oc_pins.get((timer, channel))
+    if oc is None:
+        raise c.fail(f"{where}.channel", f"the {mcu.name} has no OC{timer}{channel}")
+    if pin != oc:
+        raise c.fail(f"{where}.pin", f"OC{timer}{channel} of the {mcu.name} drives {oc}, not {pin}")
+    return MotorOut(
+        motor=c.integer(m, "motor", where, 1, 4),
+        pin=pin,
+        timer=timer,
+        channel=channel,
+        protocol=c.string(m, "protocol", where, "pwm", choices=tuple(ESC_PROTOCOLS)),
+        label=c.string(m, "label", where, pin),
+    )
+
+
+def _rc(c: _BoardCheck, mcu: Mcu, r: dict[str, Any]) -> RcIn:
+    protocol = c.string(r, "protocol", "rc", choices=RC_PROTOCOLS)
+    if protocol == "ppm":
+        pin = c.string(r, "pin", "rc").upper()
+        if pin not in mcu.ints.values():
+            raise c.fail("rc.pin", f"a PPM sum needs an external-interrupt pin of the {mcu.name} "
+                                   f"({', '.join(sorted(mcu.ints.values()))}), got {pin}")
+        return RcIn("ppm", None, 0, pin)
+    uart = _uart(c, mcu, r, "rc")
+    baud = SBUS_BAUD if protocol == "sbus" else c.integer(r, "baud", "rc", 300, 2_000_000, default=115_200)
+    if protocol == "sbus" and r.get("baud", SBUS_BAUD) != SBUS_BAUD:
+        raise c.fail("rc.baud", f"SBUS runs at {SBUS_BAUD} baud")
+    return RcIn(protocol, uart, baud, None)
+
+
+def baud_error(clock_hz: int, baud: int) -> float:
+    """How far the nearest baud an AVR USART makes at ``clock_hz`` (normal or double speed) is from
+    ``baud``, as a fraction: above about 2 % a receiver misreads frames."""
+    best = math.inf
+    for div in (16, 8):
+        ubrr = max(0, round(clock_hz / (div * baud)) - 1)
+        best = min(best, abs(clock_hz / (div * (ubrr + 1)) / baud - 1))
+    return best
+
+
+def mounting(yaw_deg: int) -> tuple[tuple[float, float, float], ...]:
+    """Body FRD to the sensors' frame of a board turned ``yaw_deg`` clockwise (seen from above; a
+    multiple of 90) from facing forward: the board's own FRD axes, then the flat board's
+    (emulators/sensor_models.py FLAT_ON_BOARD)."""
+    c, s = round(math.cos(math.radians(yaw_deg))), round(math.sin(math.radians(yaw_deg)))
+    turned = ((c, s, 0), (-s, c, 0), (0, 0, 1))  # rows: the board's x, y, z axes in body FRD
+    rows = [[float(sum(f[k] * turned[k][j] for k in range(3))) for j in range(3)] for f in FLAT_ON_BOARD]
+    return tuple((r[0], r[1], r[2]) for r in rows)

@@ -1,0 +1,99 @@
+"""Board files (rig/mcu/board.py) are checked like scenarios: the shipped ones load and say what their
+boards' silk screens and datasheets say, and each kind of mistake is refused naming the file and the
+key before anything runs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from rig.mcu import board
+from rig.mcu.board import BoardError, baud_error, mounting
+
+#: The Arduino boards' pin maps (Arduino's schematics: Mega 2560 rev3, Pro Mini), for the shipped
+#: boards' motors: silk-screen name -> port pin
+ARDUINO_MEGA = {"D2": "PE4", "D3": "PE5", "D5": "PE3", "D6": "PH3"}
+ARDUINO_PRO_MINI = {"D9": "PB1", "D10": "PB2", "D11": "PB3", "D3": "PD3"}
+
+
+def test_the_shipped_boards_load_as_their_silk_screens_say() -> None:
+    mega = board.load("mega2560-gy86")
+    assert mega.mcu.name == "atmega2560" and mega.clock_hz == 16_000_000
+    assert {m.label: m.pin for m in mega.motors} == ARDUINO_MEGA
+    assert [(m.timer, m.channel) for m in mega.motors] == [(3, "B"), (3, "C"), (3, "A"), (4, "A")]
+    assert mega.rc.protocol == "sbus" and mega.rc.uart == 1 and mega.rc.baud == 100_000
+    mini = board.load("promini328-gy86")
+    assert {m.label: m.pin for m in mini.motors} == ARDUINO_PRO_MINI
+    assert mini.rc.protocol == "ppm" and mini.rc.pin == "PD2"
+    assert set(board.names()) >= {"mega2560-gy86", "promini328-gy86"}
+
+
+def test_a_board_file_by_path_loads_too(tmp_path: Path) -> None:
+    p = tmp_path / "mine.toml"
+    p.write_text(board.find("mega2560-gy86").read_text().replace('name = "mega2560-gy86"', 'name = "mine"'))
+    assert board.load(str(p)).name == "mine"
+
+
+MEGA = board.find("mega2560-gy86").read_text()
+
+
+@pytest.mark.parametrize(
+    ("change", "key", "words"),
+    [
+        (('pin = "PE4"', 'pin = "PE6"'), "motors[0].pin", "OC3B of the atmega2560 drives PE4, not PE6"),
+        (('channel = "C"', 'channel = "D"'), "motors[1].channel", "expected one of A, B, C"),
+        (("timer = 4", "timer = 0"), "motors[3].pin", "OC0A of the atmega2560 drives PB7, not PH3"),
+        (("motor = 4", "motor = 3"), "motors", "expected one output for each of motors 1..4"),
+        (('mcu = "atmega2560"', 'mcu = "atmega8"'), "board.mcu", "expected one of atmega2560, atmega328p"),
+        (("uart = 1", "uart = 7"), "rc.uart", "USART 0, 1, 2, 3 only"),
+        (("uart = 0 ", "uart = 1 "), "telemetry.uart", "USART1 is the RC input's already"),
+        (("baud = 500_000", "baud = 115_200"), "telemetry.baud", "over 2 % off"),
+        (("clock_hz = 16_000_000", "clock_hz = 16e6"), "board.clock_hz", "expected an integer"),
+        (("[rc]", "[rc]\nbaud = 115200"), "rc.baud", "SBUS runs at 100000 baud"),
+        (("[fuses]", "[fuse]"), "", ""),
+        (('format = "text"', 'format = "mavlink"'), "telemetry.format", "expected one of text"),
+    ],
+)
+def test_each_mistake_is_refused_naming_the_key(tmp_path: Path, change: tuple[str, str], key: str,
+                                                words: str) -> None:
+    old, new = change
+    text = MEGA + "\n[fuses]\n" if old == "[fuses]" else MEGA
+    assert old in text
+    p = tmp_path / "bad.toml"
+    p.write_text(text.replace(old, new, 1))
+    with pytest.raises(BoardError) as e:
+        board.load(str(p))
+    assert str(e.value).startswith(f"{p}: {key}: " if key else f"{p}: ")
+    assert words in str(e.value)
+
+
+def test_a_ppm_receiver_needs_an_interrupt_pin(tmp_path: Path) -> None:
+    p = tmp_path / "bad.toml"
+    p.write_text(board.find("promini328-gy86").read_text().replace('pin = "PD2"', 'pin = "PB0"'))
+    with pytest.raises(BoardError, match=r"rc.pin: a PPM sum needs an external-interrupt pin"):
+        board.load(str(p))
+
+
+def test_no_such_board_names_the_shipped_ones() -> None:
+    with pytest.raises(BoardError, match="mega2560-gy86"):
+        board.load("no-such-board")
+
+
+def test_baud_errors_are_the_datasheets() -> None:
+    # ATmega2560 datasheet, table 22-12 (16 MHz): 115.2k is -3.5 % at U2X 0 and 2.1 % at U2X 1;
+    # 250k, 500k and 1M are exact
+    assert baud_error(16_000_000, 115_200) == pytest.approx(0.021, abs=0.001)
+    assert baud_error(16_000_000, 250_000) == 0.0
+    assert baud_error(16_000_000, 1_000_000) == 0.0
+
+
+def test_a_board_turned_90_degrees_sees_the_nose_on_its_right() -> None:
+    """A board turned 90° clockwise: the body's forward axis is the board's -y (its right, FRD), which
+    a flat board (x forward, y left, z up) reads on +y; the body's down is the sensor's -z either way."""
+    m = mounting(90)
+    forward = [m[i][0] for i in range(3)]
+    down = [m[i][2] for i in range(3)]
+    assert forward == [0.0, 1.0, 0.0]
+    assert down == [0.0, 0.0, -1.0]
+    assert mounting(0) == ((1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (0.0, 0.0, -1.0))
