@@ -28,7 +28,7 @@ BRIDGE_CHIPS := emulators/chips
 BRIDGE_CFLAGS := -std=c99 -pedantic -O2 -Wall -Wextra -Werror -ffp-contract=off -Ibuild/gen -I$(BRIDGE_CHIPS) \
 	-Ibridge/core -Irig/shim
 
-.PHONY: all venv fmu shim native chips compiled dut vbridge firmware avr-toolchain demo test test-slow lint bench clean docs-images
+.PHONY: all venv fmu shim native chips compiled dut vbridge firmware avr-toolchain test-packages demo test test-slow lint bench clean docs-images
 
 all: fmu shim native compiled dut vbridge
 
@@ -75,13 +75,18 @@ $(VBRIDGE): $(wildcard bridge/core/*.[ch] bridge/posix/*.c) $(CHIP_FILES) rig/sh
 # the bridge firmware for the STM32G431 (docs/bridge-firmware.md): build/firmware/bridge.elf, .bin, .map
 # with Debian's arm-none-eabi-gcc; prints flash and RAM used against 128 KB / 32 KB and fails when over
 # (rig/bridge/firmware.py rebuilds only when a source is newer)
-firmware: venv
+firmware: venv test-packages
 	$(PY) -m rig.bridge.firmware
 
 # avr-gcc, avr-libc and libsimavr (tools/avr-toolchain.sh), only when missing: the MCU tier and the AVR
 # firmware need them, the demo does not
 avr-toolchain:
 	tools/avr-toolchain.sh
+
+# what make test needs beyond the demo (tools/test-packages.sh): linters, the ARM and AVR toolchains,
+# QEMU, i2c-tools, poppler; only what is missing
+test-packages: venv
+	tools/test-packages.sh
 
 demo: venv fmu shim native compiled dut
 	$(VENV)/bin/rig run --out build/reports --pdf
@@ -98,12 +103,12 @@ docs-images: venv fmu shim native compiled dut
 C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/tests/*.c emulators/c/*.c emulators/chips/*.[ch] plant/c/*.[ch] \
 	rig/shim/*.[ch] bridge/*/*.[ch] bench/*.c tests/rig/device_clients/*.c))
 
-lint: venv
+lint: venv test-packages
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/mypy
 	clang-format --dry-run --Werror $(C_SOURCES)
 
-test: venv avr-toolchain $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) $(VBRIDGE) firmware lint
+test: venv test-packages $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) $(VBRIDGE) firmware lint
 	$(PY) -m pytest -q -m "not slow"
 
 test-slow: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED)
