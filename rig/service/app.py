@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Literal
 
-from fastapi import Depends, FastAPI, HTTPException, Query, Request
+from fastapi import Depends, FastAPI, HTTPException, Query, Request, Response
 from fastapi.responses import FileResponse, StreamingResponse
 from pydantic import BaseModel, Field
 
@@ -38,22 +38,26 @@ class RunRequest(BaseModel):
     priority: int = Field(default=0, ge=-100, le=100)
 
 
-def check_run(req: RunRequest, store: Store, scenarios: bool = True) -> list[str]:
+def check_run(req: RunRequest, store: Store, scenarios: bool = True) -> tuple[list[str], dict[str, str]]:
     """Every problem of a run request, in words (the validator's for the scenarios; ``scenarios``
-    False: only the DUT, for a sweep)."""
+    False: only the DUT, for a sweep), and the version of each scenario it names: the one checked
+    here is the one the run records and flies."""
     from scenarios.schema import ScenarioError, load
 
     problems = []
+    versions: dict[str, str] = {}
     for name in req.scenarios if scenarios else []:
-        path = store.scenario(name)
-        if path is None:
+        sha = store.pin(name)
+        path = None if sha is None else store.version_file(sha)
+        if sha is None or path is None:
             problems.append(f"{name!r}: no library scenario of that name, and none uploaded "
                             "(GET /api/scenarios lists them)")
             continue
+        versions[name] = sha
         try:
             load(path)
         except ScenarioError as e:
-            problems.append(str(e))
+            problems.append(str(e).replace(str(path), f"{name}.toml"))
     kinds = set(req.dut)
     if kinds - {"command", "firmware"} or len(kinds) > 1:
         problems.append("dut: {\"command\": \"...\"} or {\"firmware\": SHA256} (POST /api/firmware first)")
@@ -65,7 +69,7 @@ def check_run(req: RunRequest, store: Store, scenarios: bool = True) -> list[str
                 problems.append("dut.command is empty")
         except ValueError as e:
             problems.append(f"dut.command: {e}")
-    return problems
+    return problems, versions
 
 
 def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifacts: Path) -> FastAPI:
@@ -87,34 +91,58 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
 
     @app.get("/api/scenarios")
     def scenarios() -> list[dict[str, Any]]:
-        """The library's scenarios, then the uploaded ones."""
+        """The library's scenarios, then the uploaded ones, each with its version (``sha256``)."""
+        import hashlib
+
         from rig.run_cmd import resolve
         from scenarios.schema import ScenarioError, load
 
+        found: list[tuple[str, str, str, Path | None]] = [
+            ("library", p.stem, hashlib.sha256(p.read_bytes()).hexdigest(), p) for p in resolve([])]
+        found += [("uploaded", name, sha, store.version_file(sha))
+                  for name, sha in store.uploaded_scenarios().items()]
         out = []
-        for origin, paths in (("library", resolve([])), ("uploaded", store.uploaded_scenarios())):
-            for p in paths:
-                try:
-                    sc = load(p)
-                    out.append({"name": p.stem, "origin": origin, "title": sc.name, "duration": sc.duration})
-                except ScenarioError as e:
-                    out.append({"name": p.stem, "origin": origin, "error": str(e)})
+        for origin, name, sha, path in found:
+            entry: dict[str, Any] = {"name": name, "origin": origin, "sha256": sha}
+            try:
+                if path is None:
+                    raise ScenarioError(f"{name}.toml", "", f"its version {sha[:12]} is not in the store")
+                sc = load(path)
+                entry.update(title=name if sc.name == path.stem else sc.name, duration=sc.duration)
+            except ScenarioError as e:
+                entry["error"] = str(e)
+            out.append(entry)
         return out
 
     @app.post("/api/scenarios", status_code=201)
-    async def upload_scenario(request: Request, name: str = Query()) -> dict[str, Any]:
+    async def upload_scenario(request: Request, response: Response, name: str = Query(),
+                              replace: bool = Query(default=False, description="point NAME at this file "
+                                                    "even if it points at another version")
+                              ) -> dict[str, Any]:
         """A scenario file (TOML, the request's body), checked by the validator ``rig validate`` uses
-        (its words returned as they are, 422) and stored as NAME."""
+        (its words returned as they are, 422), stored once under its SHA-256 and NAME pointed at it:
+        201 a new version of NAME, 200 the version NAME points at already, 409 NAME points at another
+        version (``?replace=true`` points it at this one; runs queued already keep theirs)."""
         body = b""
         async for chunk in request.stream():
             body += chunk
             if len(body) > MAX_SCENARIO:
                 raise HTTPException(413, f"a scenario over {MAX_SCENARIO} bytes")
         try:
-            store.put_scenario(name, body)
+            stored = store.put_scenario(name, body, replace)
         except UploadError as e:
             raise HTTPException(e.status, str(e)) from e
-        return {"name": name}
+        if not stored["new"]:
+            response.status_code = 200
+        return stored
+
+    @app.get("/api/scenarios/{name}/versions")
+    def versions(name: str) -> list[dict[str, Any]]:
+        """The versions an uploaded name has pointed at, oldest first; the last is the current one."""
+        found = db.history(name)
+        if not found:
+            raise HTTPException(404, f"no scenario was uploaded as {name!r}")
+        return found
 
     @app.post("/api/firmware", status_code=201)
     async def upload_firmware(request: Request) -> dict[str, Any]:
@@ -131,10 +159,10 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
 
     @app.post("/api/runs", status_code=201)
     def submit(req: RunRequest) -> dict[str, Any]:
-        problems = check_run(req, store)
+        problems, versions = check_run(req, store)
         if problems:
             raise HTTPException(422, {"problems": problems})
-        run_id = db.submit(req.scenarios, req.seed, req.dut, req.mode, req.priority)
+        run_id = db.submit(req.scenarios, req.seed, req.dut, req.mode, req.priority, versions=versions)
         workers.wake()
         return {"id": run_id}
 
@@ -154,20 +182,30 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
             body += chunk
             if len(body) > MAX_SCENARIO:
                 raise HTTPException(413, f"a sweep spec over {MAX_SCENARIO} bytes")
-        problems = check_run(RunRequest(scenarios=["-"], dut={"command": dut} if dut is not None else {}),
-                             store, scenarios=False)
+        problems, _ = check_run(RunRequest(scenarios=["-"], dut={"command": dut} if dut is not None else {}),
+                                store, scenarios=False)
         if problems:
             raise HTTPException(422, {"problems": problems})
+        versions: dict[str, str] = {}
+
+        def pinned(name: str) -> Path | None:  # the version checked here is the one the sweep flies
+            sha = store.pin(name)
+            if sha is not None:
+                versions[name] = sha
+            return None if sha is None else store.version_file(sha)
+
         try:
             path = store.put_sweep(body)
-            sweep = load_sweep(path, LIBRARY, store.scenario)
+            sweep = load_sweep(path, LIBRARY, pinned)
         except UploadError as e:
             raise HTTPException(e.status, str(e)) from e
         except SweepError as e:
             raise HTTPException(422, {"problems": [str(e).replace(str(path), "the spec")]}) from e
-        run_id = db.submit([str(path)], 0, {"command": dut} if dut is not None else {}, "sweep", priority)
+        run_id = db.submit([str(path)], 0, {"command": dut} if dut is not None else {}, "sweep", priority,
+                           versions=versions)
         workers.wake()
-        return {"id": run_id, "runs": len(sweep.variants), "scenario": sweep.scenario_path.stem}
+        [(name, sha)] = versions.items()
+        return {"id": run_id, "runs": len(sweep.variants), "scenario": name, "sha256": sha}
 
     @app.get("/api/sweeps")
     def sweeps(limit: int = Query(default=50, ge=1, le=500)) -> list[dict[str, Any]]:

@@ -10,6 +10,7 @@ two, never take the same run.
 
 from __future__ import annotations
 
+import builtins
 import json
 import sqlite3
 import threading
@@ -48,11 +49,22 @@ MIGRATIONS: Final = (
     );""",
     # who asked for the run: "api" (HTTP, the page, rig submit) or "plc" (the test cell's Modbus TCP)
     "ALTER TABLE runs ADD COLUMN origin TEXT NOT NULL DEFAULT 'api'",
+    # scenarios are stored by content (store.py): a name points at a version, the latest row of its
+    # name here (the rows before it are its history); a run records the version of each scenario it
+    # names when it is queued ({name: SHA-256}; '{}': queued before versions, pinned when it starts)
+    """CREATE TABLE scenario_versions (
+        id INTEGER PRIMARY KEY,
+        name TEXT NOT NULL,
+        sha256 TEXT NOT NULL,
+        created REAL NOT NULL
+    );
+    CREATE INDEX scenario_versions_name ON scenario_versions (name, id);
+    ALTER TABLE runs ADD COLUMN versions TEXT NOT NULL DEFAULT '{}'""",
 )
 SCHEMA_VERSION: Final = len(MIGRATIONS)
 TERMINAL: Final = ("passed", "failed", "error", "cancelled", "interrupted")
 STATUSES: Final = ("queued", "running", *TERMINAL)
-JSON_COLUMNS: Final = ("scenarios", "dut", "results")
+JSON_COLUMNS: Final = ("scenarios", "dut", "results", "versions")
 
 
 class Db:
@@ -95,12 +107,13 @@ class Db:
     # ---- runs ---------------------------------------------------------------------------------
 
     def submit(self, scenarios: list[str], seed: int, dut: dict[str, str], mode: str, priority: int,
-               origin: str = "api") -> int:
+               origin: str = "api", versions: dict[str, str] | None = None) -> int:
+        """Queues a run; ``versions`` is the SHA-256 of each scenario it names, as they are now."""
         with self.transaction() as c:
             cur = c.execute("INSERT INTO runs (created, status, priority, mode, seed, scenarios, dut, "
-                            "origin) VALUES (?, 'queued', ?, ?, ?, ?, ?, ?)",
+                            "origin, versions) VALUES (?, 'queued', ?, ?, ?, ?, ?, ?, ?)",
                             (time.time(), priority, mode, seed, json.dumps(scenarios), json.dumps(dut),
-                             origin))
+                             origin, json.dumps(versions or {})))
             assert cur.lastrowid is not None
             return cur.lastrowid
 
@@ -168,9 +181,10 @@ class Db:
         if since is not None:
             where.append("created >= ?")
             args.append(since)
-        if scenario is not None:  # a name among the JSON list, matched whole
-            where.append("EXISTS (SELECT 1 FROM json_each(runs.scenarios) WHERE json_each.value = ?)")
-            args.append(scenario)
+        if scenario is not None:  # a name among the JSON list (or a sweep's versions), matched whole
+            where.append("(EXISTS (SELECT 1 FROM json_each(runs.scenarios) WHERE json_each.value = ?) OR "
+                         "EXISTS (SELECT 1 FROM json_each(runs.versions) WHERE json_each.key = ?))")
+            args += [scenario, scenario]
         if firmware is not None:
             where.append("json_extract(dut, '$.firmware') = ?")
             args.append(firmware)
@@ -178,6 +192,46 @@ class Db:
         sql += " ORDER BY id DESC LIMIT ? OFFSET ?"
         with self._lock:
             return [_decode(r) for r in self._conn.execute(sql, (*args, limit, offset)).fetchall()]
+
+    # ---- scenario names -> versions ----------------------------------------------------------------
+
+    def point(self, name: str, sha256: str, replace: bool) -> tuple[str | None, bool]:
+        """Points ``name`` at the version ``sha256`` unless it points at another one and ``replace`` is
+        False: (the version it pointed at before, whether it points at ``sha256`` now), in one write
+        transaction, so two uploads under one name cannot both think they took it first."""
+        with self.transaction() as c:
+            row = c.execute("SELECT sha256 FROM scenario_versions WHERE name = ? ORDER BY id DESC LIMIT 1",
+                            (name,)).fetchone()
+            current = None if row is None else str(row["sha256"])
+            if current == sha256:
+                return current, True
+            if current is not None and not replace:
+                return current, False
+            c.execute("INSERT INTO scenario_versions (name, sha256, created) VALUES (?, ?, ?)",
+                      (name, sha256, time.time()))
+            return current, True
+
+    def version(self, name: str) -> str | None:
+        """The version ``name`` points at (None: no scenario was uploaded under it)."""
+        with self._lock:
+            row = self._conn.execute("SELECT sha256 FROM scenario_versions WHERE name = ? ORDER BY id DESC "
+                                     "LIMIT 1", (name,)).fetchone()
+        return None if row is None else str(row["sha256"])
+
+    def names(self) -> dict[str, str]:
+        """Every uploaded name and the version it points at, by name."""
+        with self._lock:
+            rows = self._conn.execute("SELECT name, sha256 FROM scenario_versions v WHERE id = "
+                                      "(SELECT MAX(id) FROM scenario_versions WHERE name = v.name) "
+                                      "ORDER BY name").fetchall()
+        return {str(r["name"]): str(r["sha256"]) for r in rows}
+
+    def history(self, name: str) -> builtins.list[dict[str, Any]]:
+        """The versions ``name`` has pointed at, oldest first (a version pointed at again appears again)."""
+        with self._lock:
+            rows = self._conn.execute("SELECT sha256, created FROM scenario_versions WHERE name = ? "
+                                      "ORDER BY id", (name,)).fetchall()
+        return [dict(r) for r in rows]
 
     # ---- leases -------------------------------------------------------------------------------
 

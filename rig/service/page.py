@@ -27,6 +27,7 @@ from rig.service.worker import Workers
 
 HERE = Path(__file__).resolve().parent
 UPLOT = HERE.parents[1] / "reports" / "vendor" / "uplot"  # the reports' copy: vendored once
+SHORT = 8  # hex digits of a scenario's version shown beside its name
 
 
 def _utc(t: float) -> str:
@@ -41,18 +42,26 @@ def _num(v: object) -> str:
     return str(v)
 
 
+def _labels(run: dict[str, Any]) -> str:
+    """A run's scenarios as NAME@VERSION (the version's first 8 hex digits), a sweep's as "sweep of"."""
+    versions = run.get("versions") or {}
+    names = list(versions) if run["mode"] == "sweep" else run["scenarios"]
+    label = ", ".join(f"{n}@{versions[n][:SHORT]}" if n in versions else n for n in names)
+    return f"sweep of {label}" if run["mode"] == "sweep" else label
+
+
 def register(app: FastAPI, db: Db, workers: Workers, store: Store) -> None:
     from rig.service.app import RunRequest, check_run
 
     templates = Jinja2Templates(directory=str(HERE / "templates"))
-    templates.env.filters.update(utc=_utc, num=_num)
+    templates.env.filters.update(utc=_utc, num=_num, labels=_labels)
     app.mount("/static/htmx", StaticFiles(directory=HERE / "static" / "htmx"), name="htmx")
     app.mount("/static/uplot", StaticFiles(directory=UPLOT), name="uplot")
 
     def scenario_names() -> list[dict[str, str]]:
         from rig.run_cmd import resolve
 
-        return [{"name": p.stem} for p in [*resolve([]), *store.uploaded_scenarios()]]
+        return [{"name": p.stem} for p in resolve([])] + [{"name": n} for n in store.uploaded_scenarios()]
 
     def page(request: Request, name: str, **context: Any) -> HTMLResponse:
         return templates.TemplateResponse(request, name, {"version": __version__, **context})
@@ -80,11 +89,11 @@ def register(app: FastAPI, db: Db, workers: Workers, store: Store) -> None:
                              mode=form.get("mode", ["lockstep"])[0])  # type: ignore[arg-type]
         except (ValidationError, ValueError) as e:
             return HTMLResponse(f"<p class=error>not started: {_escape(str(e))}</p>", status_code=422)
-        problems = check_run(req, store)
+        problems, versions = check_run(req, store)
         if problems:
             return HTMLResponse("<p class=error>not started: " + "; ".join(map(_escape, problems)) + "</p>",
                                 status_code=422)
-        run_id = db.submit(req.scenarios, req.seed, req.dut, req.mode, req.priority)
+        run_id = db.submit(req.scenarios, req.seed, req.dut, req.mode, req.priority, versions=versions)
         workers.wake()
         return HTMLResponse(f'<p>queued <a href="/runs/{run_id}">run {run_id}</a></p>',
                             headers={"HX-Trigger": "refresh"})
@@ -102,14 +111,16 @@ def register(app: FastAPI, db: Db, workers: Workers, store: Store) -> None:
         return page(request, "compare.html", a=ra, b=rb, scenario=scenario, rows=rows)
 
     @app.get("/trend", response_class=HTMLResponse, include_in_schema=False)
-    def trend_page(request: Request, scenario: str, measurement: str) -> HTMLResponse:
-        return page(request, "trend.html", scenario=scenario, measurement=measurement,
-                    points=trend(db, scenario, measurement))
+    def trend_page(request: Request, scenario: str, measurement: str, version: str = "") -> HTMLResponse:
+        points = trend(db, scenario, measurement, version)
+        return page(request, "trend.html", scenario=scenario, measurement=measurement, version=version,
+                    points=points, versions=list(dict.fromkeys(p["version"] for p in points)))
 
     @app.get("/api/trend")
-    def trend_api(scenario: str, measurement: str) -> list[dict[str, Any]]:
-        """A measurement of a scenario over the finished runs, oldest first, with the firmware each ran."""
-        return trend(db, scenario, measurement)
+    def trend_api(scenario: str, measurement: str, version: str = "") -> list[dict[str, Any]]:
+        """A measurement of a scenario over the finished runs, oldest first, with the firmware each ran
+        and the scenario's version each flew (``version``: only the versions whose SHA-256 begins so)."""
+        return trend(db, scenario, measurement, version)
 
     @app.get("/runs/{run_id}", response_class=HTMLResponse, include_in_schema=False)
     def run_page(request: Request, run_id: int) -> HTMLResponse:
@@ -126,15 +137,21 @@ def _measured(run: dict[str, Any], scenario: str) -> dict[str, Any] | None:
     return None
 
 
-def trend(db: Db, scenario: str, measurement: str, limit: int = 500) -> list[dict[str, Any]]:
+def trend(db: Db, scenario: str, measurement: str, version: str = "", limit: int = 500
+          ) -> list[dict[str, Any]]:
+    """The points of a trend, oldest first: each with the scenario's version the run flew (what its
+    result.json says; a run from before versions: "" unknown), so versions are never mixed unawares
+    (the page draws each version as a series of its own), and ``version`` keeps one of them."""
     points = []
     for run in reversed(db.list(scenario=scenario, limit=limit)):
         for r in run["results"]:
             for m in r["measurements"] if r["scenario"] == scenario else []:
-                if m["name"] == measurement and isinstance(m["value"], int | float):
+                sha = r.get("sha256") or run.get("versions", {}).get(scenario) or ""
+                numeric = isinstance(m["value"], int | float)
+                if m["name"] == measurement and numeric and sha.startswith(version):
                     dut = run["dut"]
                     points.append({"run": run["id"], "created": run["created"], "value": m["value"],
-                                   "outcome": m["outcome"],
+                                   "outcome": m["outcome"], "version": sha,
                                    "firmware": dut.get("firmware") or dut.get("command") or "reference FC"})
     return points
 

@@ -144,8 +144,10 @@ class Plc:
                 return "busy"
             if not 1 <= self.scenario <= len(self.scenarios):
                 return "value"  # no scenario chosen yet
-            self.run_id = self.db.submit([self.scenarios[self.scenario - 1]], 0, {}, self.mode, 0,
-                                         origin=PLC_ORIGIN)
+            name = self.scenarios[self.scenario - 1]
+            sha = self.workers.store.pin(name)  # (the library's version now is the one it flies)
+            self.run_id = self.db.submit([name], 0, {}, self.mode, 0, origin=PLC_ORIGIN,
+                                         versions={name: sha} if sha is not None else {})
             self.acknowledged = False
             self.workers.wake()
         elif cmd == CMD_ABORT:

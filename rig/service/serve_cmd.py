@@ -83,7 +83,7 @@ def main(args: argparse.Namespace) -> int:
     if interrupted:
         print(f"rig serve: {interrupted} run(s) were running when the service last stopped: interrupted",
               file=sys.stderr)
-    store = Store(args.data)
+    store = Store(args.data, db)
     workers = Workers(db, args.data / "runs", store, args.slots)
     plc_server = None
     if args.modbus is not None:

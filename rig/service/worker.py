@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any, Final
 
 from rig.service.db import TERMINAL, Db
-from rig.service.store import Store
+from rig.service.store import SWEEP_SPEC, Store
 from rig.sweep.work import row_files
 
 PR_SET_PDEATHSIG: Final = 1
@@ -35,6 +35,8 @@ POLL_S: Final = 0.2
 #: how often a sweep's progress is counted from its run folders (one listing of them each time)
 SWEEP_COUNT_S: Final = 1.0
 KILL_GRACE_S: Final = 5.0
+#: in a run's folder, the scenario versions it flies as NAME.toml (hidden: not among its artifacts)
+PINNED: Final = ".scenarios"
 #: rig run's exit status -> the run's status (anything else: error)
 STATUS_BY_EXIT: Final = {0: "passed", 1: "failed", 130: "interrupted", 143: "interrupted"}
 
@@ -43,20 +45,20 @@ def _die_with_parent() -> None:  # (runs in the child between fork and exec)
     ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
 
 
-def command(run: dict[str, Any], out: Path, store: Store) -> list[str]:
-    """``rig run`` for this run (the API checked every part before it was queued; what an upload that
-    went missing since cannot give is refused here, as an error of the run)."""
+def command(run: dict[str, Any], out: Path, store: Store) -> tuple[list[str], dict[str, str]]:
+    """``rig run`` (or ``rig sweep``) for this run, flying the scenario versions it was queued with (the
+    API checked every part before it was queued; what an upload that went missing since cannot give is
+    refused here, as an error of the run), and those versions by name."""
+    pinned = out / PINNED
     if run["mode"] == "sweep":  # one lockstep slot: the sweep's runs one at a time, on its core
-        cmd = [sys.executable, "-m", "rig.cli", "sweep", run["scenarios"][0], "--out", str(out),
-               "--jobs", "1"]
+        spec, flown = store.sweep_spec(Path(run["scenarios"][0]), pinned, run["versions"])
+        cmd = [sys.executable, "-m", "rig.cli", "sweep", str(spec), "--out", str(out), "--jobs", "1"]
         if run["dut"].get("command"):
             cmd += ["--dut", run["dut"]["command"]]
-        return cmd
-    paths = [store.scenario(name) for name in run["scenarios"]]
-    if None in paths:
-        raise LookupError(f"a scenario of this run is no longer there: {run['scenarios']}")
-    cmd = [sys.executable, "-m", "rig.cli", "run", *map(str, paths), "--seed", str(run["seed"]),
-           "--out", str(out)]
+        return cmd, flown
+    flown = store.materialize(pinned, run["scenarios"], run["versions"])
+    files = [str(pinned / f"{name}.toml") for name in run["scenarios"]]
+    cmd = [sys.executable, "-m", "rig.cli", "run", *files, "--seed", str(run["seed"]), "--out", str(out)]
     if run["mode"] == "bridge":
         cmd += ["--bridge", "virtual"]
     if run["dut"].get("command"):
@@ -66,24 +68,25 @@ def command(run: dict[str, Any], out: Path, store: Store) -> list[str]:
         if program is None:
             raise LookupError(f"the firmware {run['dut']['firmware']} is no longer there")
         cmd += ["--dut", shlex.quote(str(program))]
-    return cmd
+    return cmd, flown
 
 
-def sweep_results(out: Path, spec: str) -> list[dict[str, Any]]:
-    """A sweep's outcome as one result: its scenario, the overall verdict and the counts, from the rows
-    its runs left (rig/sweep/work.py)."""
+def sweep_results(out: Path, scenario: str, sha256: str) -> list[dict[str, Any]]:
+    """A sweep's outcome as one result: its scenario and version, the overall verdict and the counts,
+    from the rows its runs left (rig/sweep/work.py)."""
     rows = [json.loads(p.read_text()) for p in row_files(out)]
     counts = {v: sum(r.get("verdict") == v for r in rows) for v in ("pass", "fail", "error")}
     verdict = "error" if counts["error"] else "fail" if counts["fail"] else "pass" if rows else "not run"
-    return [{"scenario": Path(spec).stem, "verdict": verdict, "measurements": [], "sweep": counts}]
+    return [{"scenario": scenario, "sha256": sha256, "verdict": verdict, "measurements": [],
+             "sweep": counts}]
 
 
-def count_runs(spec: str, store: Store) -> int:
+def count_runs(spec: Path) -> int:
     from rig.run_cmd import LIBRARY
     from scenarios.sweep import SweepError, load_sweep
 
     try:
-        return len(load_sweep(spec, LIBRARY, store.scenario).variants)
+        return len(load_sweep(spec, LIBRARY).variants)
     except SweepError as e:
         raise LookupError(f"the sweep spec no longer checks: {e}") from None
 
@@ -102,7 +105,8 @@ def results(out: Path, scenarios: list[str]) -> list[dict[str, Any]]:
         except (OSError, ValueError):
             found.append({"scenario": Path(name).stem, "verdict": "not run", "measurements": []})
             continue
-        found.append({"scenario": r["scenario"], "verdict": r["verdict"], "error": r.get("error"),
+        found.append({"scenario": r["scenario"], "sha256": r.get("metadata", {}).get("scenario_sha256"),
+                      "verdict": r["verdict"], "error": r.get("error"),
                       "measurements": [{k: m.get(k) for k in ("name", "value", "units", "min", "max",
                                                                 "outcome", "marginal")}
                                        for m in r["measurements"]]})
@@ -176,12 +180,14 @@ class Workers:
         out.mkdir(parents=True, exist_ok=True)
         sweep = run["mode"] == "sweep"
         try:
-            cmd = command(run, out, self.store)
-            if sweep:  # (checked when it was queued; a library scenario changed since: an error here)
-                run["total"] = count_runs(run["scenarios"][0], self.store)
+            cmd, flown = command(run, out, self.store)
+            if sweep:  # (checked when it was queued)
+                run["total"] = count_runs(out / PINNED / SWEEP_SPEC)
         except LookupError as e:
             self.db.finish(run["id"], "error", error=str(e))
             return
+        if flown != run["versions"]:  # (a run queued before runs recorded versions: pinned now)
+            self.db.update(run["id"], versions=flown)
         with open(out / "rig-run.log", "wb") as log:
             try:
                 proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
@@ -223,7 +229,7 @@ class Workers:
             f"{_last_line(out / 'rig-run.log')}"
         if self._stop:
             status, error = "interrupted", "the service stopped while this run was running"
-        found = sweep_results(out, run["scenarios"][0]) if sweep else results(out, run["scenarios"])
+        found = sweep_results(out, *next(iter(flown.items()))) if sweep else results(out, run["scenarios"])
         self.db.finish(run["id"], status, exit_code=code, error=error, progress=100.0, pid=None,
                        results=found)
 
