@@ -108,7 +108,8 @@ def register(app: FastAPI, db: Db, workers: Workers, store: Store) -> None:
         if ma is None or mb is None:
             raise HTTPException(404, f"both runs must have run {scenario!r}")
         rows = [(name, value, mb.get(name)) for name, value in ma.items()]
-        return page(request, "compare.html", a=ra, b=rb, scenario=scenario, rows=rows)
+        return page(request, "compare.html", a=ra, b=rb, scenario=scenario, rows=rows,
+                    versions=(_version(ra, scenario), _version(rb, scenario)))
 
     @app.get("/trend", response_class=HTMLResponse, include_in_schema=False)
     def trend_page(request: Request, scenario: str, measurement: str, version: str = "") -> HTMLResponse:
@@ -137,6 +138,13 @@ def _measured(run: dict[str, Any], scenario: str) -> dict[str, Any] | None:
     return None
 
 
+def _version(run: dict[str, Any], scenario: str) -> str:
+    """The scenario's version the run flew (its result.json's), or was queued with; "" unknown (a run
+    from before versions)."""
+    flown = [r.get("sha256") for r in run["results"] if r["scenario"] == scenario]
+    return (flown[0] if flown else None) or run.get("versions", {}).get(scenario) or ""
+
+
 def trend(db: Db, scenario: str, measurement: str, version: str = "", limit: int = 500
           ) -> list[dict[str, Any]]:
     """The points of a trend, oldest first: each with the scenario's version the run flew (what its
@@ -146,7 +154,7 @@ def trend(db: Db, scenario: str, measurement: str, version: str = "", limit: int
     for run in reversed(db.list(scenario=scenario, limit=limit)):
         for r in run["results"]:
             for m in r["measurements"] if r["scenario"] == scenario else []:
-                sha = r.get("sha256") or run.get("versions", {}).get(scenario) or ""
+                sha = _version(run, scenario)
                 numeric = isinstance(m["value"], int | float)
                 if m["name"] == measurement and numeric and sha.startswith(version):
                     dut = run["dut"]

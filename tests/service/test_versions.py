@@ -104,6 +104,10 @@ def test_a_queued_run_flies_the_version_it_was_queued_with(service: Service, tmp
     index = page(service, "/")
     assert f"ver@{sha(FIRST)[:8]}" in index and f"ver@{sha(SECOND)[:8]}" in index
     assert f"@{sha(FIRST)[:8]}" in page(service, f"/runs/{queued['id']}")
+    compared = page(service, f"/compare?a={queued['id']}&b={later['id']}&scenario=ver")
+    assert 'id="versions-differ"' in compared and sha(SECOND)[:8] in compared
+    itself = page(service, f"/compare?a={queued['id']}&b={queued['id']}&scenario=ver")
+    assert 'id="versions-differ"' not in itself
     trend_page = page(service, "/trend?scenario=ver&measurement=level")
     assert trend_page.count("version-changed") == 1 and sha(SECOND)[:8] in trend_page
     from playwright.sync_api import expect, sync_playwright
