@@ -150,13 +150,27 @@ def test_a_sweep_of_an_uploaded_scenario_flies_the_version_it_was_queued_with(se
     assert f"sweep of ver@{sha(FIRST)[:8]}" in page(service, "/")
 
 
-def test_uploads_kept_by_name_in_an_older_data_folder_become_versions(tmp_path: Path) -> None:
-    """A data folder from before versions (scenarios/NAME.toml): each upload becomes the version its
-    name points at when the service starts, and nothing else there is touched."""
+def test_an_older_data_folder_is_brought_over(tmp_path: Path) -> None:
+    """A data folder from before versions (schema 3, uploads kept as scenarios/NAME.toml, a run queued
+    by name): each upload becomes the version its name points at when the service starts, nothing else
+    there is touched, and the queued run flies the version its name points at when it starts."""
+    import sqlite3
+
+    from rig.service.db import MIGRATIONS
+    from rig.service.worker import PINNED, command
+
     data = tmp_path / "data"
     (data / "scenarios").mkdir(parents=True)
     (data / "scenarios" / "legacy.toml").write_bytes(FIRST)
     (data / "scenarios" / "Not A Name.toml").write_bytes(SECOND)
+    old = sqlite3.connect(data / "rig.sqlite")
+    for migration in MIGRATIONS[:3]:
+        old.executescript(migration)
+    old.execute("PRAGMA user_version = 3")
+    old.execute("INSERT INTO runs (created, status, priority, mode, seed, scenarios, dut) "
+                "VALUES (0, 'queued', 0, 'lockstep', 0, '[\"legacy\"]', '{}')")
+    old.commit()
+    old.close()
     db = Db(data / "rig.sqlite")
     try:
         store = Store(data, db)
@@ -164,6 +178,11 @@ def test_uploads_kept_by_name_in_an_older_data_folder_become_versions(tmp_path: 
         kept = sorted(p.name for p in (data / "scenarios").iterdir())
         assert kept == ["Not A Name.toml", f"{sha(FIRST)}.toml"]
         assert Store(data, db).uploaded_scenarios() == {"legacy": sha(FIRST)}  # (again: nothing changes)
+        run = db.claim("lockstep")
+        assert run is not None and run["versions"] == {}
+        cmd, flown = command(run, tmp_path / "out", store)
+        assert flown == {"legacy": sha(FIRST)} and str(tmp_path / "out" / PINNED / "legacy.toml") in cmd
+        assert (tmp_path / "out" / PINNED / "legacy.toml").read_bytes() == FIRST
     finally:
         db.close()
 
