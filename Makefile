@@ -28,7 +28,7 @@ BRIDGE_CHIPS := emulators/chips
 BRIDGE_CFLAGS := -std=c99 -pedantic -O2 -Wall -Wextra -Werror -ffp-contract=off -Ibuild/gen -I$(BRIDGE_CHIPS) \
 	-Ibridge/core -Irig/shim
 
-.PHONY: all venv fmu shim native chips compiled dut vbridge firmware avr-toolchain test-packages demo test test-slow lint bench clean docs-images
+.PHONY: all venv fmu shim native chips compiled dut vbridge firmware avr-toolchain test-packages mcu-test-firmware demo test test-slow lint bench clean docs-images
 
 all: fmu shim native compiled dut vbridge
 
@@ -88,6 +88,21 @@ avr-toolchain:
 test-packages: venv
 	tools/test-packages.sh
 
+# the MCU tier's test firmwares (tests/mcu/firmware, docs/mcu.md), each for both MCUs:
+# build/mcu/test/NAME-atmega328p.elf and NAME-atmega2560.elf; the TWI replayer's trace tables are generated
+# from emulators/traces/*.json
+MCU_FW_DIR := tests/mcu/firmware
+MCU_FW_NAMES := $(basename $(notdir $(wildcard $(MCU_FW_DIR)/*.c)))
+MCU_FW := $(foreach n,$(MCU_FW_NAMES),build/mcu/test/$(n)-atmega328p.elf build/mcu/test/$(n)-atmega2560.elf)
+AVR_CFLAGS := -std=gnu11 -DF_CPU=16000000UL -Os -Wall -Wextra -Werror -I$(MCU_FW_DIR) -Ibuild/mcu/test
+mcu-test-firmware: avr-toolchain $(MCU_FW)
+build/mcu/test/%-atmega328p.elf: $(MCU_FW_DIR)/%.c $(wildcard $(MCU_FW_DIR)/*.h) | avr-toolchain
+	@mkdir -p $(@D)
+	avr-gcc -mmcu=atmega328p $(AVR_CFLAGS) -o $@ $<
+build/mcu/test/%-atmega2560.elf: $(MCU_FW_DIR)/%.c $(wildcard $(MCU_FW_DIR)/*.h) | avr-toolchain
+	@mkdir -p $(@D)
+	avr-gcc -mmcu=atmega2560 $(AVR_CFLAGS) -o $@ $<
+
 demo: venv fmu shim native compiled dut
 	$(VENV)/bin/rig run --out build/reports --pdf
 
@@ -108,7 +123,7 @@ lint: venv test-packages
 	$(VENV)/bin/mypy
 	clang-format --dry-run --Werror $(C_SOURCES)
 
-test: venv test-packages $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) $(VBRIDGE) firmware lint
+test: venv test-packages mcu-test-firmware $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) $(VBRIDGE) firmware lint
 	$(PY) -m pytest -q -m "not slow"
 
 test-slow: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED)

@@ -1,0 +1,1 @@
+"""The MCU tier's engine: an AVR image run by simavr, the chip core on its TWI (docs/mcu.md)."""

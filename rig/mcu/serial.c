@@ -1,0 +1,165 @@
+/* Bytes into the USARTs at frame timing and out of them, and pin schedules (glue.h).
+ *
+ * A byte sent to USARTn arrives when its last stop bit ends: one frame after the one before (start, 8
+ * data, parity, stops at the sender's baud). The receiver takes it when its own set-up reads the same
+ * frame: the bit time within 2 % (UBRR, U2X), the same parity (the second stop bit the receiver never
+ * checks, as the hardware); otherwise the byte is a frame error on the real line, counted, and not
+ * delivered. simavr's receiver then makes it readable after its own byte time (for 8E2 the same as
+ * the line's; it counts a parity bit in 8N1 too, one bit late).
+ *
+ * A pin schedule drives an input pin to given levels at given cycles (a PPM sum): an edge on an INTx or
+ * PCINT pin interrupts as on the hardware. */
+#include <string.h>
+
+#include <simavr/avr_ioport.h>
+#include <simavr/avr_uart.h>
+#include <simavr/sim_io.h>
+
+#include "glue.h"
+
+static void tx_byte(struct avr_irq_t *irq, uint32_t value, void *param)
+{
+    (void)irq;
+    mcu_uart *u = param;
+    if (u->n_tx == MCU_TX_BYTES) {
+        u->tx_dropped++;
+        return;
+    }
+    u->tx[u->n_tx++] = (uint8_t)value;
+}
+
+/* USARTn ('0'..'3') at UCSRnA = base; false when simavr has no such USART */
+MCU_API bool mcu_uart_define(mcu_engine *e, uint8_t n, uint16_t base)
+{
+    if (n >= MCU_UARTS)
+        return false;
+    mcu_uart *u = &e->uarts[n];
+    avr_irq_t *in = avr_io_getirq(e->avr, AVR_IOCTL_UART_GETIRQ('0' + n), UART_IRQ_INPUT);
+    avr_irq_t *out = avr_io_getirq(e->avr, AVR_IOCTL_UART_GETIRQ('0' + n), UART_IRQ_OUTPUT);
+    if (!in || !out)
+        return false;
+    memset(u, 0, sizeof *u);
+    u->used = true;
+    u->engine = e;
+    u->base = base;
+    u->irq = in;
+    u->next = MCU_NEVER;
+    avr_irq_register_notify(out, tx_byte, u);
+    return true;
+}
+
+/* queues bytes from now on, one frame apart; false when the queue is full (nothing queued) */
+MCU_API bool mcu_uart_send(mcu_engine *e, uint8_t n, const uint8_t *data, uint32_t len, uint32_t baud, char parity,
+                           uint8_t stop_bits)
+{
+    mcu_uart *u = &e->uarts[n];
+    if (!u->used || len > MCU_RX_BYTES - u->len || !baud)
+        return false;
+    uint64_t bits = 1 + 8 + (parity != 'N') + stop_bits;
+    uint64_t frame = (bits * e->clock_hz + baud / 2) / baud;
+    if (u->len == 0)
+        u->next = e->avr->cycle + frame;
+    u->frame_cycles = frame;
+    u->bit_cycles = (e->clock_hz + baud / 2) / baud;
+    u->baud = baud;
+    u->parity = (uint8_t)parity;
+    u->stop_bits = stop_bits;
+    for (uint32_t i = 0; i < len; i++)
+        u->bytes[(u->head + u->len + i) % MCU_RX_BYTES] = data[i];
+    u->len += len;
+    mcu_reschedule(e);
+    return true;
+}
+
+/* the receiver reads the line's frames as they are sent */
+static bool same_frame(const mcu_engine *e, const mcu_uart *u)
+{
+    const uint8_t *d = e->avr->data;
+    uint8_t a = d[u->base], b = d[u->base + 1], c = d[u->base + 2];
+    uint32_t ubrr = (uint32_t)(d[u->base + 4] | (d[u->base + 5] & 0x0F) << 8);
+    uint64_t rx_bit = (ubrr + 1u) * ((a & 0x02) ? 8u : 16u);
+    uint64_t tx_bit = u->bit_cycles;
+    uint8_t upm = c >> 4 & 3, size = (uint8_t)((c >> 1 & 3) | (b & 0x04));
+    char parity = upm == 2 ? 'E' : upm == 3 ? 'O' : 'N';
+    return size == 3 && parity == (char)u->parity &&
+           50 * (rx_bit > tx_bit ? rx_bit - tx_bit : tx_bit - rx_bit) <= tx_bit;
+}
+
+uint64_t mcu_serial_next(const mcu_engine *e)
+{
+    uint64_t next = MCU_NEVER;
+    for (int i = 0; i < MCU_UARTS; i++)
+        if (e->uarts[i].used && e->uarts[i].len && e->uarts[i].next < next)
+            next = e->uarts[i].next;
+    for (int i = 0; i < 4; i++)
+        if (e->pins[i].used && e->pins[i].len && e->pins[i].edges[e->pins[i].head].cycle < next)
+            next = e->pins[i].edges[e->pins[i].head].cycle;
+    return next;
+}
+
+void mcu_serial_event(mcu_engine *e)
+{
+    uint64_t now = e->avr->cycle;
+    for (int i = 0; i < MCU_UARTS; i++) {
+        mcu_uart *u = &e->uarts[i];
+        while (u->used && u->len && u->next <= now) {
+            uint8_t byte = u->bytes[u->head];
+            u->head = (u->head + 1) % MCU_RX_BYTES;
+            u->len--;
+            if (same_frame(e, u)) {
+                avr_raise_irq((avr_irq_t *)u->irq, byte);
+                u->delivered++;
+            } else {
+                u->frame_errors++;
+            }
+            u->next += u->frame_cycles;
+        }
+    }
+    for (int i = 0; i < 4; i++) {
+        mcu_pin *p = &e->pins[i];
+        while (p->used && p->len && p->edges[p->head].cycle <= now) {
+            avr_irq_t *irq = avr_io_getirq(e->avr, AVR_IOCTL_IOPORT_GETIRQ(p->port), p->bit);
+            avr_raise_irq(irq, p->edges[p->head].level);
+            p->head = (p->head + 1) % MCU_PIN_EDGES;
+            p->len--;
+        }
+    }
+}
+
+MCU_API uint32_t mcu_uart_take(mcu_engine *e, uint8_t n, uint8_t *out, uint32_t max)
+{
+    mcu_uart *u = &e->uarts[n];
+    uint32_t k = u->n_tx < max ? u->n_tx : max;
+    memcpy(out, u->tx, k);
+    memmove(u->tx, u->tx + k, u->n_tx - k);
+    u->n_tx -= k;
+    return k;
+}
+
+MCU_API uint32_t mcu_uart_count(const mcu_engine *e, uint8_t n, int which)
+{
+    const mcu_uart *u = &e->uarts[n];
+    return which == 0 ? u->delivered : which == 1 ? u->frame_errors : which == 2 ? u->len : u->tx_dropped;
+}
+
+/* levels at cycles (ascending, from now on) on an input pin; slot 0..3 per pin; false when full */
+MCU_API bool mcu_pin_drive(mcu_engine *e, char port, uint8_t bit, const uint64_t *cycles, const uint8_t *levels,
+                           uint32_t n)
+{
+    mcu_pin *p = NULL;
+    for (int i = 0; i < 4 && !p; i++)
+        if (e->pins[i].used && e->pins[i].port == (uint8_t)port && e->pins[i].bit == bit)
+            p = &e->pins[i];
+    for (int i = 0; i < 4 && !p; i++)
+        if (!e->pins[i].used) {
+            p = &e->pins[i];
+            *p = (mcu_pin){ .used = true, .port = (uint8_t)port, .bit = bit };
+        }
+    if (!p || n > MCU_PIN_EDGES - p->len || !avr_io_getirq(e->avr, AVR_IOCTL_IOPORT_GETIRQ(port), bit))
+        return false;
+    for (uint32_t i = 0; i < n; i++)
+        p->edges[(p->head + p->len + i) % MCU_PIN_EDGES] = (mcu_edge){ cycles[i], levels[i] };
+    p->len += n;
+    mcu_reschedule(e);
+    return true;
+}

@@ -1,0 +1,19 @@
+"""The MCU tier's tests run real firmwares (tests/mcu/firmware, built by make mcu-test-firmware) under the
+real engine: `firmware(name, mcu)` builds what is missing or stale through make, as the rig's C libraries
+are built on first use."""
+
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+MCUS = ("atmega328p", "atmega2560")
+
+
+def firmware(name: str, mcu: str) -> Path:
+    target = f"build/mcu/test/{name}-{mcu}.elf"
+    done = subprocess.run(["make", "-s", "--no-print-directory", target], cwd=REPO, capture_output=True,
+                          text=True)
+    assert done.returncode == 0, done.stderr
+    return REPO / target
