@@ -39,7 +39,8 @@ def script(writes: list[tuple[int, int]]) -> bytes:
     return out + b"\xff\xff\x00"
 
 
-def setup(mcu: str, timer: int, channel: str, case: Case, ocr: int, top: int, cs: int) -> list[tuple[int, int]]:
+def setup(mcu: str, timer: int, channel: str, case: Case, ocr: int, top: int,
+          cs: int) -> list[tuple[int, int]]:
     wide, tccra, tccrb, _tcnt, icr, ocra, ocrb, ocrc = TIMERS[mcu][timer]
     ch = "ABC".index(channel)
     pin = OC_PINS[mcu][(timer, channel)]
@@ -71,7 +72,8 @@ def expected(case: Case, ocr: int, top: int, prescale: int) -> tuple[int, int]:
     return round(cycles[0] * NS_PER_CYCLE), round(cycles[1] * NS_PER_CYCLE)
 
 
-def run(mcu: str, timer: int, channel: str, writes: list[tuple[int, int]], t_ns: int) -> list[tuple[int, int, int]]:
+def run(mcu: str, timer: int, channel: str, writes: list[tuple[int, int]],
+        t_ns: int) -> list[tuple[int, int, int]]:
     cfg = EngineConfig(mcu, CLOCK, firmware("regscript", mcu), motors=(Motor(OC_PINS[mcu][(timer, channel)],
                                                                                timer, channel),),
                        eeprom=script(writes), hang_ns=0)
@@ -83,7 +85,7 @@ def run(mcu: str, timer: int, channel: str, writes: list[tuple[int, int]], t_ns:
 
 def check(pulses: list[tuple[int, int, int]], width: int, period: int) -> None:
     assert len(pulses) >= 4
-    for rise, w, p in pulses[1:]:
+    for _, w, p in pulses[1:]:
         assert (w, p) == (width, period)
     rises = [r for r, _, _ in pulses[1:]]
     assert {b - a for a, b in zip(rises, rises[1:], strict=False)} == {period}
