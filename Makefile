@@ -96,6 +96,9 @@ MCU_FW_NAMES := $(basename $(notdir $(wildcard $(MCU_FW_DIR)/*.c)))
 MCU_FW := $(foreach n,$(MCU_FW_NAMES),build/mcu/test/$(n)-atmega328p.elf build/mcu/test/$(n)-atmega2560.elf)
 AVR_CFLAGS := -std=gnu11 -DF_CPU=16000000UL -Os -Wall -Wextra -Werror -I$(MCU_FW_DIR) -Ibuild/mcu/test
 mcu-test-firmware: avr-toolchain $(MCU_FW)
+build/mcu/test/traces.h: $(wildcard emulators/traces/*.json) tests/mcu/gen_traces.py emulators/trace.py | venv
+	$(PY) -m tests.mcu.gen_traces $@
+build/mcu/test/twi_replay-atmega328p.elf build/mcu/test/twi_replay-atmega2560.elf: build/mcu/test/traces.h
 build/mcu/test/%-atmega328p.elf: $(MCU_FW_DIR)/%.c $(wildcard $(MCU_FW_DIR)/*.h) | avr-toolchain
 	@mkdir -p $(@D)
 	avr-gcc -mmcu=atmega328p $(AVR_CFLAGS) -o $@ $<

@@ -100,6 +100,7 @@ static void twcr_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
         if (t->in_transfer)
             end_transfer(e);
         avr_clear_interrupt(avr, e->twi_vector);
+        avr->data[addr] &= (uint8_t)~TWINT;
         t->state = IDLE;
         t->event = EV_NONE;
         status(e, 0xF8, false);
@@ -110,8 +111,8 @@ static void twcr_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
     bool go = (v & TWINT) || (t->state == IDLE && (v & TWSTA) && !(old & TWSTA));
     if (!go || t->event != EV_NONE)
         return;
-    avr_clear_interrupt(avr, e->twi_vector);
-    avr->data[addr] &= (uint8_t)~TWWC;
+    avr_clear_interrupt(avr, e->twi_vector); /* (TWINT is a sticky flag to simavr: cleared here) */
+    avr->data[addr] &= (uint8_t)~(TWINT | TWWC);
     if (v & TWSTO) {
         end_transfer(e);
         t->state = IDLE;

@@ -1,0 +1,138 @@
+"""The chip core on the MCU's TWI: every recorded client trace (emulators/traces) replayed by a firmware
+through the TWI carries the trace's messages and gives the bytes the same transfers give through the
+lockstep path (ChipBus.transfer_ns at the same times, on a board of its own); the engine stops for samples
+the core lacks (demand mode) without the firmware seeing it. A chip that is off NACKs on the TWI."""
+
+from __future__ import annotations
+
+import pytest
+
+from emulators.chips.board import ChipBoard, build_chip_board
+from emulators.faults import Fault, FaultSet
+from emulators.i2c_bus import I2CNack, Msg
+from emulators.mpu6050 import ImuTruth
+from emulators.ms5611 import BaroTruth
+from emulators.trace import TRACE_DIR, load, parse_msg
+from rig.mcu.engine import AvrEngine, EngineConfig, TwiRecord
+from tests.mcu.conftest import firmware
+from tests.mcu.gen_traces import TRACE_NAMES
+
+CLOCK = 16_000_000
+
+
+def board_for(trace: dict, faults: dict[str, FaultSet] | None = None) -> ChipBoard:
+    tr = trace["truth"]
+    return build_chip_board(lambda t: ImuTruth(tuple(tr["accel"]), tuple(tr["gyro"]), tr["temperature"]),
+                            lambda t: tuple(tr["field"]),
+                            lambda t: BaroTruth(tr["pressure"], tr["temperature"]),
+                            trace["topology"], dlpf=False, faults=faults)
+
+
+def replay_on_mcu(name: str, mcu: str,
+                  board: ChipBoard) -> tuple[list[tuple[int, bytes]], list[TwiRecord], int]:
+    """(nacked, bytes read) per step as the firmware reported them over USART0; the TWI's records; the
+    needs served."""
+    cfg = EngineConfig(mcu, CLOCK, firmware("twi_replay", mcu), eeprom=bytes([TRACE_NAMES.index(name)]))
+    out = b""
+    needs = 0
+    with AvrEngine(cfg, board) as e:
+        e.twi_log()
+        t = 0
+        while not out.endswith(b"\x5a\x5a") and t < 2_000_000_000:
+            t += 1_000_000
+            while (stop := e.run_until(t)).kind == "need":
+                board.serve(stop.need)
+                needs += 1
+            assert stop.kind == "reached", stop.describe()
+            out += e.uart_take(0)
+        records = e.twi_take()
+    assert out.endswith(b"\x5a\x5a")
+    return parse(out[:-2], [sum(map(len, reads)) for _, _, reads, _ in transfers(records)]), records, needs
+
+
+def parse(out: bytes, counts: list[int]) -> list[tuple[int, bytes]]:
+    """The firmware's report, step by step: 0xA5, the NACK flag, the bytes read (as many as the TWI
+    carried in that step's transfer)."""
+    steps = []
+    at = 0
+    for n in counts:
+        assert out[at] == 0xA5, f"byte {at}: {out[at:at + 8].hex()}"
+        steps.append((out[at + 1], out[at + 2:at + 2 + n]))
+        at += 2 + n
+    assert at == len(out)
+    return steps
+
+
+def transfers(records: list[TwiRecord]) -> list[tuple[int, list[Msg], list[bytes], bool]]:
+    """The TWI's records as transfers: (first START's time, messages, bytes read per read, NACKed)."""
+    out: list[tuple[int, list[Msg], list[bytes], bool]] = []
+    msgs: list[Msg] = []
+    reads: list[bytes] = []
+    t0, nack = -1, False
+    for r in records:
+        if r.kind == "S" and t0 < 0:
+            t0, msgs, reads, nack = r.t_ns, [], [], False
+        elif r.kind == "A":
+            if not r.ack:
+                nack = True
+            msgs.append(Msg(r.value >> 1, bool(r.value & 1), b"", 0))
+            if r.value & 1:
+                reads.append(b"")
+        elif r.kind == "W":
+            msgs[-1] = Msg(msgs[-1].addr, False, msgs[-1].data + bytes([r.value]))
+        elif r.kind == "R":
+            reads[-1] += bytes([r.value])
+            msgs[-1] = Msg(msgs[-1].addr, True, b"", msgs[-1].length + 1)
+        elif r.kind == "P":
+            out.append((t0, msgs, reads, nack))
+            t0 = -1
+    return out
+
+
+@pytest.mark.parametrize("name", TRACE_NAMES)
+def test_a_trace_through_the_twi_reads_what_lockstep_reads(name: str) -> None:
+    trace = load(TRACE_DIR / f"{name}.json")
+    steps, records, _ = replay_on_mcu(name, "atmega2560", board_for(trace))
+    assert len(steps) == len(trace["steps"])
+    lockstep = board_for(trace)
+    done = transfers(records)
+    assert len(done) == len(steps)
+    for i, ((t0, msgs, reads, nacked), (reported_nack, reported)) in enumerate(zip(done, steps, strict=True)):
+        assert reported_nack == nacked, f"step {i}"
+        assert b"".join(reads) == reported, f"step {i}: the firmware reports what the TWI carried"
+        try:
+            got = lockstep.bus.transfer_ns(msgs, t0)
+        except I2CNack:
+            assert nacked, f"step {i}: lockstep NACKs, the TWI did not"
+            continue
+        assert not nacked, f"step {i}: the TWI NACKed, lockstep did not"
+        assert got == reads, f"step {i}: {msgs}"
+    # the TWI carried the trace's messages (up to a NACK), so the bytes compared above answer them. (The
+    # trace's expected bytes are lockstep's at the trace's times, tests/emulators/test_traces.py: on the
+    # TWI a transfer takes time, a 70-byte FIFO read 1.6 ms, and the steps after it start later)
+    for i, (step, (flag, _), (_, msgs, _, _)) in enumerate(zip(trace["steps"], steps, done, strict=True)):
+        assert bool(step.get("nack")) == bool(flag), f"step {i}"
+        sent = [parse_msg(m) for m in step["msgs"]]
+        if flag:  # the message NACKed carried its address only, and the ones after it nothing
+            assert (msgs[-1].addr, msgs[-1].read) == (sent[len(msgs) - 1].addr, sent[len(msgs) - 1].read)
+            msgs, sent = msgs[:-1], sent[:len(msgs) - 1]
+        assert [(m.addr, m.read, m.data, m.length) for m in msgs] == [(m.addr, m.read, m.data, m.length)
+                                                                      for m in sent], f"step {i}"
+
+
+def test_the_engine_stops_for_samples_and_the_bytes_do_not_change() -> None:
+    """The MPU-6050's aux master reading the HMC5883L (GY-86) keeps every sample: the core asks for them
+    many times; the replay is the same run after run."""
+    trace = load(TRACE_DIR / "multiwii_gy86.json")
+    a = replay_on_mcu("multiwii_gy86", "atmega328p", board_for(trace))
+    b = replay_on_mcu("multiwii_gy86", "atmega328p", board_for(trace))
+    assert a[2] > 0 and a == b
+
+
+def test_a_chip_that_is_off_nacks_on_the_twi() -> None:
+    trace = load(TRACE_DIR / "i2c_tools.json")
+    off = {"mpu": FaultSet([Fault("off", 0.0, float("inf"))], seed=1)}
+    steps, records, _ = replay_on_mcu("i2c_tools", "atmega328p", board_for(trace, off))
+    to_mpu = [r for r in records if r.kind == "A" and r.value >> 1 == 0x68]
+    assert to_mpu and not any(r.ack for r in to_mpu)
+    assert any(nacked for nacked, _ in steps)
