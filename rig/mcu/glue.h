@@ -122,11 +122,13 @@ typedef struct {
     mcu_engine *engine;
     uint16_t base; /* UCSRnA's data-space address: B, C, UBRRL, UBRRH, UDR follow at +1, +2, +4, +5, +6 */
     void *irq;     /* simavr's UART_IRQ_INPUT */
+    void *port;    /* simavr's avr_uart_t */
+    avr_io_write_t orig[6];
+    void *orig_param[6];
     uint8_t bytes[MCU_RX_BYTES];
     uint32_t head, len;
     uint64_t next;         /* cycle the next byte's stop bit ends */
     uint64_t frame_cycles; /* one frame, in cycles */
-    uint64_t bit_cycles;   /* one bit, in cycles (rounded) */
     uint32_t baud;
     uint8_t parity, stop_bits; /* 'N' 'E' 'O' */
     uint32_t delivered, frame_errors;

@@ -1,11 +1,12 @@
 /* Bytes into the USARTs at frame timing and out of them, and pin schedules (glue.h).
  *
- * A byte sent to USARTn arrives when its last stop bit ends: one frame after the one before (start, 8
- * data, parity, stops at the sender's baud). The receiver takes it when its own set-up reads the same
- * frame: the bit time within 2 % (UBRR, U2X), the same parity (the second stop bit the receiver never
- * checks, as the hardware); otherwise the byte is a frame error on the real line, counted, and not
- * delivered. simavr's receiver then makes it readable after its own byte time (for 8E2 the same as
- * the line's; it counts a parity bit in 8N1 too, one bit late).
+ * A byte sent to USARTn is on the line for one frame (start, 8 data, parity, stops at the sender's
+ * baud), the next one right after it. It goes into simavr's receiver as its start bit begins: simavr
+ * makes it readable (RXC) one of its byte times later, which the glue keeps equal to the receiver's
+ * frame, so a byte is read when its last stop bit ends. The receiver takes it when its set-up reads
+ * the line's frame: the rate within the receiver's tolerance (UBRR, U2X), the same parity (the second
+ * stop bit the receiver never checks, as the hardware); otherwise the byte is a frame error on the
+ * real line, counted, and not delivered.
  *
  * A pin schedule drives an input pin to given levels at given cycles (a PPM sum): an edge on an INTx or
  * PCINT pin interrupts as on the hardware. */
@@ -28,6 +29,29 @@ static void tx_byte(struct avr_irq_t *irq, uint32_t value, void *param)
     u->tx[u->n_tx++] = (uint8_t)value;
 }
 
+/* simavr 1.6 computes its byte time at a UBRR write only, with a parity bit whether there is one or not:
+ * after every write to the set-up registers it is the frame's again (1 + data + parity + stops bits) */
+static void frame_time(mcu_uart *u)
+{
+    const uint8_t *d = u->engine->avr->data;
+    uint8_t a = d[u->base], b = d[u->base + 1], c = d[u->base + 2];
+    uint32_t ubrr = (uint32_t)(d[u->base + 4] | (d[u->base + 5] & 0x0F) << 8);
+    static const uint8_t data_bits[8] = { 5, 6, 7, 8, 8, 8, 8, 9 };
+    uint32_t bits = 1u + data_bits[(c >> 1 & 3) | (b & 0x04)] + ((c >> 4 & 3) >= 2) + 1u + (c >> 3 & 1);
+    ((avr_uart_t *)u->port)->cycles_per_byte = (ubrr + 1u) * ((a & 0x02) ? 8u : 16u) * bits;
+}
+
+static void setup_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
+{
+    mcu_uart *u = param;
+    int k = addr - u->base;
+    if (u->orig[k])
+        u->orig[k](avr, addr, v, u->orig_param[k]);
+    else
+        avr->data[addr] = v;
+    frame_time(u);
+}
+
 /* USARTn ('0'..'3') at UCSRnA = base; false when simavr has no such USART */
 MCU_API bool mcu_uart_define(mcu_engine *e, uint8_t n, uint16_t base)
 {
@@ -38,12 +62,29 @@ MCU_API bool mcu_uart_define(mcu_engine *e, uint8_t n, uint16_t base)
     avr_irq_t *out = avr_io_getirq(e->avr, AVR_IOCTL_UART_GETIRQ('0' + n), UART_IRQ_OUTPUT);
     if (!in || !out)
         return false;
+    uint32_t flags = 0; /* simavr's defaults: a usleep(1) per poll of an idle UCSRnA, stdout echo */
+    avr_ioctl(e->avr, AVR_IOCTL_UART_SET_FLAGS('0' + n), &flags);
     memset(u, 0, sizeof *u);
     u->used = true;
     u->engine = e;
     u->base = base;
     u->irq = in;
     u->next = MCU_NEVER;
+    for (avr_io_t *port = e->avr->io_port; port; port = port->next)
+        if (!strcmp(port->kind, "uart") && ((avr_uart_t *)port)->name == '0' + n)
+            u->port = port;
+    if (!u->port)
+        return false;
+    for (int k = 0; k < 6; k++) {
+        if (k == 3)
+            continue;
+        int io = AVR_DATA_TO_IO(base + k);
+        u->orig[k] = e->avr->io[io].w.c;
+        u->orig_param[k] = e->avr->io[io].w.param;
+        e->avr->io[io].w.c = setup_write;
+        e->avr->io[io].w.param = u;
+    }
+    frame_time(u);
     avr_irq_register_notify(out, tx_byte, u);
     return true;
 }
@@ -58,9 +99,8 @@ MCU_API bool mcu_uart_send(mcu_engine *e, uint8_t n, const uint8_t *data, uint32
     uint64_t bits = 1 + 8 + (parity != 'N') + stop_bits;
     uint64_t frame = (bits * e->clock_hz + baud / 2) / baud;
     if (u->len == 0)
-        u->next = e->avr->cycle + frame;
+        u->next = e->avr->cycle;
     u->frame_cycles = frame;
-    u->bit_cycles = (e->clock_hz + baud / 2) / baud;
     u->baud = baud;
     u->parity = (uint8_t)parity;
     u->stop_bits = stop_bits;
@@ -71,18 +111,23 @@ MCU_API bool mcu_uart_send(mcu_engine *e, uint8_t n, const uint8_t *data, uint32
     return true;
 }
 
-/* the receiver reads the line's frames as they are sent */
+/* the receiver reads the line's frames as they are sent: 8 data bits, the same parity, and the line's
+ * rate within the receiver's tolerance (the datasheets' "maximum receiver baud rate error" table, for 8
+ * data bits with or without parity, normal or double speed), in 1/10000 of the receiver's rate */
 static bool same_frame(const mcu_engine *e, const mcu_uart *u)
 {
+    static const uint16_t slow[2][2] = { { 9536, 9581 }, { 9600, 9639 } },
+                          fast[2][2] = { { 10458, 10414 }, { 10390, 10353 } };
     const uint8_t *d = e->avr->data;
     uint8_t a = d[u->base], b = d[u->base + 1], c = d[u->base + 2];
     uint32_t ubrr = (uint32_t)(d[u->base + 4] | (d[u->base + 5] & 0x0F) << 8);
-    uint64_t rx_bit = (ubrr + 1u) * ((a & 0x02) ? 8u : 16u);
-    uint64_t tx_bit = u->bit_cycles;
+    bool u2x = (a & 0x02) != 0;
+    uint64_t rx_bit = (ubrr + 1u) * (u2x ? 8u : 16u);
     uint8_t upm = c >> 4 & 3, size = (uint8_t)((c >> 1 & 3) | (b & 0x04));
     char parity = upm == 2 ? 'E' : upm == 3 ? 'O' : 'N';
-    return size == 3 && parity == (char)u->parity &&
-           50 * (rx_bit > tx_bit ? rx_bit - tx_bit : tx_bit - rx_bit) <= tx_bit;
+    uint64_t ratio = rx_bit * u->baud * 10000u / e->clock_hz; /* the line's rate over the receiver's */
+    bool p = parity != 'N';
+    return size == 3 && parity == (char)u->parity && ratio >= slow[u2x][p] && ratio <= fast[u2x][p];
 }
 
 uint64_t mcu_serial_next(const mcu_engine *e)
