@@ -367,8 +367,8 @@ class AvrEngine:
         """A byte of the data space (registers, I/O, SRAM) as it is."""
         return int(self._lib.mcu_peek(self._e, addr))
 
-    def figures(self) -> dict[str, object]:
-        figs: dict[str, object] = {name: int(self._lib.mcu_figure(self._e, i))
+    def figures(self) -> dict[str, Any]:
+        figs: dict[str, Any] = {name: int(self._lib.mcu_figure(self._e, i))
                                    for i, name in enumerate(FIGURES)}
         figs["sim_ns"] = self.now_ns
         figs["last_twi"] = format_transaction(self.last_twi())

@@ -34,7 +34,7 @@ static mcu_engine *engine_of(avr_t *avr) { return avr ? (mcu_engine *)avr->custo
 static void logger(avr_t *avr, const int level, const char *format, va_list ap)
 {
     mcu_engine *e = engine_of(avr);
-    if (!e || level > LOG_ERROR)
+    if (!e || level > LOG_ERROR || !strcmp(format, "%s\n")) /* (avr_sadly_crashed's own line) */
         return;
     vsnprintf(e->last_error, sizeof e->last_error, format, ap);
     for (char *c = e->last_error; *c; c++) /* drop the terminal's colour escapes and the newline */
@@ -73,6 +73,19 @@ static void on_reset(avr_t *avr)
     if (e->core_reset)
         e->core_reset(avr);
     e->reset_seen = true;
+}
+
+/* where the run must look at the firmware's hang and unanswered checks: the earliest of their deadlines
+ * and the target (a glue event that starts a deadline calls it again) */
+void mcu_deadline(mcu_engine *e)
+{
+    uint64_t to = e->target;
+    if (e->hang_cycles && e->last_activity + e->hang_cycles < to)
+        to = e->last_activity + e->hang_cycles;
+    if (e->unanswered_cycles && e->twi.nack_since_cycle != MCU_NEVER &&
+        e->twi.nack_since_cycle + e->unanswered_cycles < to)
+        to = e->twi.nack_since_cycle + e->unanswered_cycles;
+    e->stop_at = to;
 }
 
 void mcu_reschedule(mcu_engine *e)
@@ -211,11 +224,12 @@ static int check(mcu_engine *e)
     return 0;
 }
 
-static int run_to(mcu_engine *e, uint64_t target_cycle)
+/* runs to e->stop_at (which a glue event may bring nearer) or an earlier stop */
+static int run_to(mcu_engine *e)
 {
     avr_t *avr = e->avr;
     uint32_t code_end = e->code_end;
-    set_marker(e, target_cycle);
+    set_marker(e, e->stop_at);
     for (;;) {
         if (avr->cycle >= e->next_event) {
             if (e->twi.event && avr->cycle >= e->twi.event_cycle) {
@@ -226,9 +240,9 @@ static int run_to(mcu_engine *e, uint64_t target_cycle)
             mcu_pwm_event(e);
             mcu_serial_event(e);
             mcu_reschedule(e);
-            set_marker(e, target_cycle);
+            set_marker(e, e->stop_at);
         }
-        if (avr->cycle >= target_cycle)
+        if (avr->cycle >= e->stop_at)
             return MCU_REACHED;
         int state = avr_run(avr);
         e->instructions++;
@@ -238,7 +252,7 @@ static int run_to(mcu_engine *e, uint64_t target_cycle)
             int r = check(e);
             if (r)
                 return r;
-            set_marker(e, target_cycle);
+            set_marker(e, e->stop_at);
         }
     }
 }
@@ -252,13 +266,9 @@ MCU_API int mcu_run(mcu_engine *e, uint64_t target_cycle)
         return e->stop;
     e->stop = MCU_REACHED;
     for (;;) {
-        uint64_t to = target_cycle;
-        if (e->hang_cycles && e->last_activity + e->hang_cycles < to)
-            to = e->last_activity + e->hang_cycles;
-        if (e->unanswered_cycles && e->twi.nack_since_cycle != MCU_NEVER &&
-            e->twi.nack_since_cycle + e->unanswered_cycles < to)
-            to = e->twi.nack_since_cycle + e->unanswered_cycles;
-        int r = run_to(e, to);
+        e->target = target_cycle;
+        mcu_deadline(e);
+        int r = run_to(e);
         if (r == MCU_NEED)
             return e->stop = MCU_NEED;
         if (r)

@@ -154,6 +154,7 @@ struct mcu_engine {
     uint32_t clock_hz;
     uint32_t code_end; /* bytes of the image: a PC at or past it runs erased flash */
     uint64_t next_event;
+    uint64_t target, stop_at; /* the run's target cycle; where it looks at the deadlines next */
     /* the stop */
     int stop;
     uint32_t stop_pc;
@@ -189,6 +190,7 @@ struct mcu_engine {
 /* glue.c */
 uint64_t mcu_ns(const mcu_engine *e, uint64_t cycle);
 void mcu_reschedule(mcu_engine *e);
+void mcu_deadline(mcu_engine *e);
 /* twi.c */
 void mcu_twi_attach(mcu_engine *e);
 void mcu_twi_reset(mcu_engine *e);

@@ -112,7 +112,7 @@ static void twcr_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
     if (!go || t->event != EV_NONE)
         return;
     avr_clear_interrupt(avr, e->twi_vector); /* (TWINT is a sticky flag to simavr: cleared here) */
-    avr->data[addr] &= (uint8_t)~(TWINT | TWWC);
+    avr->data[addr] &= (uint8_t) ~(TWINT | TWWC);
     if (v & TWSTO) {
         end_transfer(e);
         t->state = IDLE;
@@ -211,8 +211,10 @@ int mcu_twi_event(mcu_engine *e)
             t->nack_since_cycle = MCU_NEVER;
         } else {
             t->nacks++;
-            if (t->nacks_in_row++ == 0)
+            if (t->nacks_in_row++ == 0) {
                 t->nack_since_cycle = avr->cycle;
+                mcu_deadline(e);
+            }
         }
         status(e, read ? (ack ? 0x40 : 0x48) : (ack ? 0x18 : 0x20), true);
         t->state = ack ? (read ? READING : WRITING) : NACKED;
