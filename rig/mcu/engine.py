@@ -106,6 +106,7 @@ _API: Final[dict[str, tuple[Any, list[Any]]]] = {
     "mcu_attach_chips": (None, [_P, _P, ctypes.POINTER(_Calls)]),
     "mcu_figure": (_U64, [_P, ctypes.c_int]),
     "mcu_peek": (_U8, [_P, _U16]),
+    "mcu_stock": (None, [_P, ctypes.c_int]),
     "mcu_twi_last": (_U32, [_P, ctypes.POINTER(_Record)]),
     "mcu_twi_log": (None, [_P, ctypes.c_bool]),
     "mcu_twi_take": (_U32, [_P, ctypes.POINTER(_Record), _U32]),
@@ -362,6 +363,11 @@ class AvrEngine:
         while (n := self._lib.mcu_twi_take(self._e, buf, 1024)) > 0:
             out += [TwiRecord(r.t_ns, chr(r.kind), r.value, bool(r.ack)) for r in buf[:n]]
         return out
+
+    def stock(self, extint_poll: bool = False, uart_poll_sleep: bool = False) -> None:
+        """simavr 1.6's own behaviour back, for bench/mcu_rates.py to measure what the glue's fixes save:
+        the per-cycle poll of an INTx pin held low, a usleep(1) per poll of an idle USART."""
+        self._lib.mcu_stock(self._e, (1 if extint_poll else 0) | (2 if uart_poll_sleep else 0))
 
     def peek(self, addr: int) -> int:
         """A byte of the data space (registers, I/O, SRAM) as it is."""

@@ -7,6 +7,7 @@
 
 #include <simavr/avr_eeprom.h>
 #include <simavr/avr_extint.h>
+#include <simavr/avr_uart.h>
 #include <simavr/sim_core.h>
 
 #include "glue.h"
@@ -60,11 +61,13 @@ static avr_cycle_count_t marker_fired(avr_t *avr, avr_cycle_count_t when, void *
     return 0;
 }
 
-/* simavr 1.6 re-arms a per-cycle poll of every INTx pin written low (level triggering) on each reset: off */
+/* simavr 1.6 re-arms a per-cycle poll of every INTx pin written low (level triggering) on each reset: off
+ * (unless the bench asked for stock simavr, to measure what this saves) */
 static void extint_fix(avr_t *avr)
 {
+    mcu_engine *e = engine_of(avr);
     for (uint8_t i = 0; i < 8; i++)
-        avr_extint_set_strict_lvl_trig(avr, i, 0);
+        avr_extint_set_strict_lvl_trig(avr, i, e && e->stock_extint);
 }
 
 static void on_reset(avr_t *avr)
@@ -335,6 +338,18 @@ MCU_API uint64_t mcu_figure(const mcu_engine *e, int which)
         return e->avr->data[R_SPL] | e->avr->data[R_SPH] << 8;
     default:
         return 0;
+    }
+}
+
+/* bench/mcu_rates.py only: simavr's own behaviour back (1: the INTx level poll, 2: the UART poll sleep) */
+MCU_API void mcu_stock(mcu_engine *e, int which)
+{
+    e->stock_extint = which & 1;
+    extint_fix(e->avr);
+    if (which & 2) {
+        uint32_t flags = AVR_UART_FLAG_POLL_SLEEP;
+        for (char n = '0'; n <= '3'; n++)
+            avr_ioctl(e->avr, AVR_IOCTL_UART_SET_FLAGS(n), &flags);
     }
 }
 

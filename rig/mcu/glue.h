@@ -166,6 +166,7 @@ struct mcu_engine {
     /* resets */
     void (*core_reset)(avr_t *avr);
     bool reset_seen;
+    bool stock_extint;
     uint32_t resets, watchdog_resets, watchdog_limit;
     uint64_t marker; /* the cycle simavr's sleep may not pass */
     /* hang: no TWI and no motor pulse for hang_cycles */

@@ -1,0 +1,100 @@
+"""How fast the MCU tier's engine runs (bench, not a test): simulated seconds per second for the
+ATmega2560 and the ATmega328P at 16 MHz, and what one plant tick (a 1 ms run_until) costs. Seconds of
+this process's CPU time, best of three: the machine is shared, wall time measures the neighbours.
+
+  busy           the busy-loop firmware in one run_until of 2 s, then in 2000 calls of 1 ms; what a
+                 call costs beyond the simulation (ctypes, the glue's checks), against 1 ms simulated
+  pwm int4/5     the ATmega2560 with Timer3's fast PWM on OC3B/OC3C (PE4/PE5, also INT4/INT5): simavr
+                 drives the pins low every period, which in stock 1.6 starts a per-cycle INTx poll
+  usart poll     the RC echo firmware polling its USARTs: stock 1.6 usleep(1)s on each idle poll
+
+Each runs with the glue's fixes, then with simavr's own behaviour back (AvrEngine.stock). The goal is
+2x real time; the anchor is ArduPilot's AVR build under Renode: 0.03-0.2x.
+
+    .venv/bin/python bench/mcu_rates.py
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from rig.mcu.engine import TIMERS, AvrEngine, EngineConfig  # noqa: E402
+from tests.mcu.conftest import firmware  # noqa: E402
+
+CLOCK = 16_000_000
+ANCHOR = "ArduPilot under Renode: 0.03-0.2x"
+
+
+def rate(cfg: EngineConfig, sim_s: float, step_s: float | None = None, stock: dict[str, bool] | None = None,
+         clock: Callable[[], float] = time.process_time) -> float:
+    """The best of three runs (the machine is shared: the best is the engine's own speed)."""
+    return max(rate_once(cfg, sim_s, step_s, stock, clock) for _ in range(3))
+
+
+def rate_once(cfg: EngineConfig, sim_s: float, step_s: float | None, stock: dict[str, bool] | None,
+              clock: Callable[[], float]) -> float:
+    with AvrEngine(cfg, None) as e:
+        if stock:
+            e.stock(**stock)
+        e.run_until(1_000_000)  # set-up out of the measure
+        start, t0 = e.now_ns, clock()
+        end = start + round(sim_s * 1e9)
+        if step_s is None:
+            stop = e.run_until(end)
+        else:
+            t = start
+            while t < end:
+                t += round(step_s * 1e9)
+                stop = e.run_until(t)
+        wall = clock() - t0
+        assert stop.kind == "reached", stop.describe()
+        return (e.now_ns - start) * 1e-9 / wall
+
+
+def call_cost_us(cfg: EngineConfig) -> float:
+    """What a run_until costs beyond the simulation: calls that have nothing to run."""
+    with AvrEngine(cfg, None) as e:
+        e.run_until(1_000_000)
+        t = e.now_ns
+        t0 = time.process_time()
+        for _ in range(100_000):
+            e.run_until(t)
+        return (time.process_time() - t0) / 100_000 * 1e6
+
+
+def pwm_script() -> bytes:
+    _, tccra, tccrb, _, _, _, ocrb, ocrc = TIMERS["atmega2560"][3]
+    writes = [(0x2D, 0x30), (ocrb, 128), (ocrc, 64), (tccra, 0x28 | 0x01), (tccrb, 0x08 | 0x03)]
+    return b"".join(a.to_bytes(2, "little") + bytes([v]) for a, v in writes) + b"\xff\xff\x00"
+
+
+def main() -> int:
+    print(f"simulated s per CPU s at 16 MHz (goal >= 2x; {ANCHOR})")
+    for mcu in ("atmega2560", "atmega328p"):
+        busy = EngineConfig(mcu, CLOCK, firmware("busy", mcu), hang_ns=0)
+        one = rate(busy, 2.0)
+        ticks = rate(busy, 2.0, 0.001)
+        cost = call_cost_us(busy)
+        print(f"{mcu:11s} busy          {one:6.2f}x in one call, {ticks:6.2f}x in 1 ms calls; a call "
+              f"costs {cost:.1f} us: {cost * one / 10:.1f} % of a 1 ms tick")
+    pwm = EngineConfig("atmega2560", CLOCK, firmware("regscript", "atmega2560"), eeprom=pwm_script(),
+                       hang_ns=0)
+    fixed, stock = rate(pwm, 1.0), rate(pwm, 0.2, stock={"extint_poll": True})
+    print(f"atmega2560  pwm int4/5     {fixed:6.2f}x fixed, {stock:6.2f}x stock simavr 1.6 "
+          f"({fixed / stock:.1f} times)")
+    for mcu in ("atmega2560", "atmega328p"):
+        rc = EngineConfig(mcu, CLOCK, firmware("rc_echo", mcu), hang_ns=0)
+        wall = time.perf_counter  # (stock simavr sleeps: wall time)
+        fixed, stock = rate(rc, 1.0, clock=wall), rate(rc, 0.01, stock={"uart_poll_sleep": True}, clock=wall)
+        print(f"{mcu:11s} usart poll     {fixed:6.2f}x fixed, {stock:6.3f}x stock simavr 1.6 "
+              f"({fixed / stock:.0f} times; wall time)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
