@@ -130,3 +130,20 @@ def test_a_compare_value_is_taken_where_the_hardware_latches_it() -> None:
         between = [w for w in widths if w not in (old, new)]
         assert widths[0] == old and widths[-1] == new
         assert between == ([(2000 + 1000) * 500] if mixed else [])
+
+
+def test_a_motor_without_a_timer_is_measured_from_its_pin_edges() -> None:
+    """Software PWM: the firmware sets and clears the pin itself (here 2 ms high every 5 ms)."""
+    portb, ddrb = 0x25, 0x24
+    writes = [(ddrb, 0x02)]
+    for _ in range(4):
+        writes += [(portb, 0x02), (0xFFFE, 2), (portb, 0x00), (0xFFFE, 3)]
+    cfg = EngineConfig("atmega328p", CLOCK, firmware("regscript", "atmega328p"), motors=(Motor("PB1", None),),
+                       eeprom=script(writes), hang_ns=0)
+    with AvrEngine(cfg, None) as e:
+        e.run_until(30_000_000)
+        pulses = e.pulses()[0]
+    assert len(pulses) == 4
+    for i, (_, width, period) in enumerate(pulses):
+        assert abs(width - 2_000_000) < 20_000  # _delay_ms and the EEPROM reads: within 1 %
+        assert period == 0 if i == 0 else abs(period - 5_000_000) < 50_000
