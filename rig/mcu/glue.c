@@ -168,6 +168,7 @@ MCU_API int mcu_open(mcu_engine *e, const char *mcu, uint32_t clock_hz, const ui
     e->watchdog_limit = 3;
     e->twi.nack_since_cycle = MCU_NEVER;
     mcu_twi_attach(e);
+    mcu_pcint_attach(e);
     return 0;
 }
 

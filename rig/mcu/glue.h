@@ -142,6 +142,13 @@ typedef struct {
     uint8_t level;
 } mcu_edge;
 
+/* a pin of the ATmega2560's ports J and K, whose pin change interrupts simavr 1.6 lacks */
+typedef struct {
+    mcu_engine *engine;
+    uint8_t group; /* PCINT group 1 (port J) or 2 (port K) */
+    uint8_t mask;  /* its bit in PCMSKn */
+} mcu_pcint_pin;
+
 typedef struct {
     bool used;
     uint8_t port, bit;
@@ -186,6 +193,8 @@ struct mcu_engine {
     uint8_t n_wraps;
     mcu_uart uarts[MCU_UARTS];
     mcu_pin pins[4];
+    avr_int_vector_t pcint[3]; /* [1] PCINT1, [2] PCINT2 (2560) */
+    mcu_pcint_pin pcint_pins[15];
 };
 
 /* glue.c */
@@ -204,5 +213,6 @@ uint64_t mcu_pwm_next(const mcu_engine *e);
 /* serial.c */
 void mcu_serial_event(mcu_engine *e);
 uint64_t mcu_serial_next(const mcu_engine *e);
+void mcu_pcint_attach(mcu_engine *e);
 
 #endif

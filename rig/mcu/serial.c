@@ -9,7 +9,9 @@
  * real line, counted, and not delivered.
  *
  * A pin schedule drives an input pin to given levels at given cycles (a PPM sum): an edge on an INTx or
- * PCINT pin interrupts as on the hardware. */
+ * PCINT pin interrupts as on the hardware. simavr 1.6's ATmega2560 has pin change interrupts on port B
+ * only: the glue adds PCINT1 (PJ0-PJ6, PCINT9-15) and PCINT2 (port K, PCINT16-23), where Mega flight
+ * controllers take PWM receivers. */
 #include <string.h>
 
 #include <simavr/avr_ioport.h>
@@ -207,4 +209,41 @@ MCU_API bool mcu_pin_drive(mcu_engine *e, char port, uint8_t bit, const uint64_t
     p->len += n;
     mcu_reschedule(e);
     return true;
+}
+
+#define PCICR_2560 0x68
+#define PCIFR_2560 0x3B
+#define PCMSK1_2560 0x6C
+
+static void pcint_changed(struct avr_irq_t *irq, uint32_t value, void *param)
+{
+    mcu_pcint_pin *p = param;
+    avr_t *avr = p->engine->avr;
+    if (!value == !irq->value)
+        return;
+    if (avr->data[PCMSK1_2560 + p->group - 1] & p->mask)
+        avr_raise_interrupt(avr, &p->engine->pcint[p->group]);
+}
+
+void mcu_pcint_attach(mcu_engine *e)
+{
+    avr_t *avr = e->avr;
+    if (strcmp(avr->mmcu, "atmega2560"))
+        return;
+    int k = 0;
+    for (uint8_t group = 1; group <= 2; group++) {
+        avr_int_vector_t *v = &e->pcint[group];
+        *v = (avr_int_vector_t){ .vector = (uint8_t)(9 + group), /* PCINT1_vect 10, PCINT2_vect 11 */
+                                 .enable = AVR_IO_REGBIT(PCICR_2560, group),
+                                 .raised = AVR_IO_REGBIT(PCIFR_2560, group) };
+        avr_register_vector(avr, v);
+        for (uint8_t bit = 0; bit < (group == 1 ? 7 : 8); bit++) {
+            avr_irq_t *irq = avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ(group == 1 ? 'J' : 'K'), bit);
+            if (!irq)
+                continue;
+            mcu_pcint_pin *p = &e->pcint_pins[k++];
+            *p = (mcu_pcint_pin){ e, group, (uint8_t)(group == 1 ? 1u << (bit + 1) : 1u << bit) };
+            avr_irq_register_notify(irq, pcint_changed, p);
+        }
+    }
 }

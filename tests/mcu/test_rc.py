@@ -111,3 +111,20 @@ def test_a_ppm_sum_on_an_interrupt_pin_is_measured(mcu: str) -> None:
     for _, measured in got:
         assert len(measured) == len(widths)
         assert all(abs(m - w) <= 1 for m, w in zip(measured, widths, strict=True)), measured
+
+
+@pytest.mark.parametrize(("mcu", "pin"), [("atmega2560", "PK3"), ("atmega328p", "PD3")])
+def test_a_pwm_receiver_on_a_pin_change_interrupt_is_measured(mcu: str, pin: str) -> None:
+    """Port K's pin change interrupts (the Mega's RC inputs) are the glue's: simavr 1.6 has port B's only."""
+    widths = [1500, 1000, 2000, 1234]
+    edges: list[tuple[int, int]] = []
+    for i, w in enumerate(widths):
+        start = 2_000_000 + i * 20_000_000
+        edges += [(start, 1), (start + w * 1000, 0)]
+    with AvrEngine(EngineConfig(mcu, CLOCK, firmware("pcint_rc", mcu), hang_ns=0), None) as e:
+        e.pin_drive(pin, edges)
+        e.run_until(90_000_000)
+        out = e.uart_take(0)
+    got = [out[i] | out[i + 1] << 8 for i in range(0, len(out), 2)]
+    assert len(got) == len(widths)
+    assert all(abs(g - w) <= 1 for g, w in zip(got, widths, strict=True)), got
