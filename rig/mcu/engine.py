@@ -230,10 +230,11 @@ class AvrEngine:
         self.cfg = cfg
         self._lib = lib()
         self._mem = ctypes.create_string_buffer(self._lib.mcu_engine_size())
-        self._e = ctypes.addressof(self._mem)
+        self._addr = ctypes.addressof(self._mem)
+        self._open = False
         err = ctypes.create_string_buffer(256)
         eeprom = cfg.eeprom if cfg.eeprom is not None else image.eeprom
-        if self._lib.mcu_open(self._e, cfg.mcu.encode(), cfg.clock_hz, image.flash, len(image.flash),
+        if self._lib.mcu_open(self._addr, cfg.mcu.encode(), cfg.clock_hz, image.flash, len(image.flash),
                               eeprom, len(eeprom or b""), err, len(err)) != 0:
             raise FirmwareError(f"{cfg.firmware}: {err.value.decode()}")
         self._open = True
@@ -253,6 +254,13 @@ class AvrEngine:
                 self._uarts[n] = _Uart()
         self._pulse_buf = (_U64 * (3 * 64))()
         self._stop: Stop | None = None
+
+    @property
+    def _e(self) -> int:
+        """The glue's engine (a closed engine's memory is gone: using it is an error, not a crash)."""
+        if not self._open:
+            raise RuntimeError("the engine is closed")
+        return self._addr
 
     def _add_motor(self, i: int, m: Motor) -> None:
         mcu = self.cfg.mcu
@@ -385,7 +393,7 @@ class AvrEngine:
 
     def close(self) -> None:
         if getattr(self, "_open", False):
-            self._lib.mcu_close(self._e)
+            self._lib.mcu_close(self._addr)
             self._open = False
 
     def __enter__(self) -> AvrEngine:

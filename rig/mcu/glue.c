@@ -114,6 +114,8 @@ static void set_marker(mcu_engine *e, uint64_t target)
 
 MCU_API size_t mcu_engine_size(void) { return sizeof(mcu_engine); }
 
+MCU_API void mcu_close(mcu_engine *e);
+
 /* 0 or an error in err: the MCU unknown, the image too big */
 MCU_API int mcu_open(mcu_engine *e, const char *mcu, uint32_t clock_hz, const uint8_t *image, uint32_t size,
                      const uint8_t *eeprom, uint32_t ee_size, char *err, size_t err_len)
@@ -142,6 +144,7 @@ MCU_API int mcu_open(mcu_engine *e, const char *mcu, uint32_t clock_hz, const ui
         free(data);
         free(flash);
         snprintf(err, err_len, "out of memory");
+        mcu_close(e);
         return -1;
     }
     memcpy(data, avr->data, avr->ramend + 1u);

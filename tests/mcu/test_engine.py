@@ -128,3 +128,16 @@ def test_an_intel_hex_runs_as_its_elf(tmp_path: Path) -> None:
 
 def engine_for(path: Path) -> AvrEngine:
     return AvrEngine(EngineConfig("atmega328p", CLOCK, path), None)
+
+
+def test_a_closed_engine_says_so() -> None:
+    e = engine("busy", "atmega328p")
+    e.close()
+    e.close()
+    with pytest.raises(RuntimeError, match="closed"):
+        e.run_until(1_000)
+
+
+def test_an_eeprom_image_bigger_than_the_eeprom_is_refused() -> None:
+    with pytest.raises(FirmwareError, match="EEPROM image is 1025 bytes; the atmega328p's EEPROM is 1024"):
+        engine("busy", "atmega328p", eeprom=bytes(1025))
