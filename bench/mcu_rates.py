@@ -7,6 +7,9 @@ this process's CPU time, best of three: the machine is shared, wall time measure
   pwm int4/5     the ATmega2560 with Timer3's fast PWM on OC3B/OC3C (PE4/PE5, also INT4/INT5): simavr
                  drives the pins low every period, which in stock 1.6 starts a per-cycle INTx poll
   usart poll     the RC echo firmware polling its USARTs: stock 1.6 usleep(1)s on each idle poll
+  imu + escs     a flight controller's skeleton (imu_reader): the MPU-6050 read every 1 ms at 400 kHz
+                 from the chip core in demand mode (a sample served each ms), two ESC outputs at 400 Hz,
+                 run in 1 ms ticks with the pulses taken each tick, as the session does
 
 Each runs with the glue's fixes, then with simavr's own behaviour back (AvrEngine.stock). The goal is
 2x real time; the anchor is ArduPilot's AVR build under Renode: 0.03-0.2x.
@@ -23,7 +26,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from rig.mcu.engine import TIMERS, AvrEngine, EngineConfig  # noqa: E402
+from emulators.chips.board import build_chip_board  # noqa: E402
+from emulators.mpu6050 import ImuTruth  # noqa: E402
+from emulators.ms5611 import BaroTruth  # noqa: E402
+from rig.mcu.engine import TIMERS, AvrEngine, EngineConfig, Motor  # noqa: E402
 from tests.mcu.conftest import firmware  # noqa: E402
 
 CLOCK = 16_000_000
@@ -67,6 +73,24 @@ def call_cost_us(cfg: EngineConfig) -> float:
         return (time.process_time() - t0) / 100_000 * 1e6
 
 
+def imu_rate(mcu: str) -> float:
+    """imu_reader in 1 ms ticks, needs served, pulses taken: the best of three."""
+    best = 0.0
+    for _ in range(3):
+        board = build_chip_board(lambda t: ImuTruth((0.0, 0.0, 9.81), (0.0, 0.0, 0.0), 25.0),
+                                 lambda t: (0.2, 0.0, 0.4), lambda t: BaroTruth(101325.0, 25.0))
+        pins = ("PB1", "PB2") if mcu == "atmega328p" else ("PB5", "PB6")
+        cfg = EngineConfig(mcu, CLOCK, firmware("imu_reader", mcu), motors=(Motor(pins[0], 1, "A"),
+                                                                            Motor(pins[1], 1, "B")))
+        with AvrEngine(cfg, board) as e:
+            t0 = time.process_time()
+            for k in range(1, 1001):
+                assert e.run_served(k * 1_000_000).kind == "reached"
+                e.pulses()
+            best = max(best, 1.0 / (time.process_time() - t0))
+    return best
+
+
 def pwm_script() -> bytes:
     _, tccra, tccrb, _, _, _, ocrb, ocrc = TIMERS["atmega2560"][3]
     writes = [(0x2D, 0x30), (ocrb, 128), (ocrc, 64), (tccra, 0x28 | 0x01), (tccrb, 0x08 | 0x03)]
@@ -93,6 +117,8 @@ def main() -> int:
         fixed, stock = rate(rc, 1.0, clock=wall), rate(rc, 0.01, stock={"uart_poll_sleep": True}, clock=wall)
         print(f"{mcu:11s} usart poll     {fixed:6.2f}x fixed, {stock:6.3f}x stock simavr 1.6 "
               f"({fixed / stock:.0f} times; wall time)")
+    for mcu in ("atmega2560", "atmega328p"):
+        print(f"{mcu:11s} imu + escs     {imu_rate(mcu):6.2f}x in 1 ms ticks, a sample served each")
     return 0
 
 

@@ -13,7 +13,7 @@ from emulators.i2c_bus import I2CNack, Msg
 from emulators.mpu6050 import ImuTruth
 from emulators.ms5611 import BaroTruth
 from emulators.trace import TRACE_DIR, load, parse_msg
-from rig.mcu.engine import AvrEngine, EngineConfig, TwiRecord
+from rig.mcu.engine import AvrEngine, EngineConfig, Motor, TwiRecord
 from tests.mcu.conftest import firmware
 from tests.mcu.gen_traces import TRACE_NAMES
 
@@ -136,3 +136,21 @@ def test_a_chip_that_is_off_nacks_on_the_twi() -> None:
     to_mpu = [r for r in records if r.kind == "A" and r.value >> 1 == 0x68]
     assert to_mpu and not any(r.ack for r in to_mpu)
     assert any(nacked for nacked, _ in steps)
+
+
+@pytest.mark.parametrize("mcu", ["atmega328p", "atmega2560"])
+@pytest.mark.parametrize(("accel_z", "width_ns"), [(9.80665, 1_128_500), (-9.80665, 872_500)])
+def test_a_sample_reaches_the_motors_through_the_firmware(mcu: str, accel_z: float, width_ns: int) -> None:
+    """The imu_reader firmware reads the MPU-6050 every millisecond and sets its ESC pulses from the
+    accelerometer's z: (2000 + az_raw / 64 + 1) half-microseconds, az_raw = +-16384 at +-1 g (+-2 g range)."""
+    imu = build_chip_board(lambda t: ImuTruth((0.0, 0.0, accel_z), (0.0, 0.0, 0.0), 25.0),
+                           lambda t: (0.2, 0.0, 0.4), lambda t: BaroTruth(101325.0, 25.0))
+    pins = ("PB1", "PB2") if mcu == "atmega328p" else ("PB5", "PB6")
+    cfg = EngineConfig(mcu, CLOCK, firmware("imu_reader", mcu), motors=(Motor(pins[0], 1, "A"),
+                                                                        Motor(pins[1], 1, "B")))
+    with AvrEngine(cfg, imu) as e:
+        widths = []
+        for k in range(1, 31):
+            assert e.run_served(k * 1_000_000).kind == "reached"
+            widths += [w for _, w, p in e.pulses()[0] if p == 2_500_000]
+    assert len(widths) >= 10 and widths[-5:] == [width_ns] * 5
