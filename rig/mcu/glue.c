@@ -253,6 +253,8 @@ static int run_to(mcu_engine *e)
             return MCU_REACHED;
         int state = avr_run(avr);
         e->instructions++;
+        if (e->next_event < e->marker) /* an instruction started a glue event: a sleep may not pass it */
+            set_marker(e, e->stop_at);
         if (state != cpu_Running || avr->pc >= code_end || e->bad_opcode || e->reset_seen) {
             if (state == cpu_Sleeping && avr->pc < code_end && !e->bad_opcode && !e->reset_seen)
                 continue;

@@ -154,3 +154,18 @@ def test_a_sample_reaches_the_motors_through_the_firmware(mcu: str, accel_z: flo
             assert e.run_served(k * 1_000_000).kind == "reached"
             widths += [w for _, w, p in e.pulses()[0] if p == 2_500_000]
     assert len(widths) >= 10 and widths[-5:] == [width_ns] * 5
+
+
+def test_a_sleeping_cpu_wakes_for_the_twi_on_time() -> None:
+    """simavr's sleep jumps to its next cycle timer: the glue keeps one at its next event, so a TWI byte
+    ends at its time (START one bit, address nine: 40 cycles a bit at 400 kHz) however long the run."""
+    trace = load(TRACE_DIR / "i2c_tools.json")
+    cfg = EngineConfig("atmega328p", CLOCK, firmware("twi_sleep", "atmega328p"), hang_ns=0)
+    with AvrEngine(cfg, board_for(trace)) as e:
+        e.twi_log()
+        assert e.run_served(50_000_000).kind == "reached"
+        records = e.twi_take()
+    assert [r.kind for r in records] == ["S", "A", "P"] and records[1].ack
+    nine_bits = 9 * 40 * 1000 // 16
+    assert records[0].t_ns < 10_000  # the START: one bit after the first instructions
+    assert nine_bits <= records[1].t_ns - records[0].t_ns < nine_bits + 100 * 1000 // 16  # + the ISR's entry
