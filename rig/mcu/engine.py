@@ -26,6 +26,7 @@ from emulators import native
 from emulators.chips.board import ChipBoard
 from plant.native_build import BUILD, compile_shared, is_stale
 from rig.mcu.image import FLASH, FirmwareError, load
+from rig.mcu.mcus import MCUS
 
 __all__ = ["AvrEngine", "EngineConfig", "FirmwareError", "Motor", "Stop"]
 
@@ -52,15 +53,8 @@ TIMERS: Final[dict[str, dict[int, tuple[bool, int, int, int, int, int, int, int]
                    **{n: (True, b, b + 1, b + 4, b + 6, b + 8, b + 10, b + 12)
                       for n, b in _T16_2560.items()}},
 }
-#: the compare output pins: (timer, channel) -> pin
-OC_PINS: Final = {
-    "atmega328p": {(0, "A"): "PD6", (0, "B"): "PD5", (1, "A"): "PB1", (1, "B"): "PB2", (2, "A"): "PB3",
-                   (2, "B"): "PD3"},
-    "atmega2560": {(0, "A"): "PB7", (0, "B"): "PG5", (1, "A"): "PB5", (1, "B"): "PB6", (1, "C"): "PB7",
-                   (2, "A"): "PB4", (2, "B"): "PH6", (3, "A"): "PE3", (3, "B"): "PE4", (3, "C"): "PE5",
-                   (4, "A"): "PH3", (4, "B"): "PH4", (4, "C"): "PH5", (5, "A"): "PL3", (5, "B"): "PL4",
-                   (5, "C"): "PL5"},
-}
+#: the compare output pins: (timer, channel) -> pin (rig/mcu/mcus.py, the datasheets')
+OC_PINS: Final = {name: m.oc_pins for name, m in MCUS.items()}
 #: PINx addresses (DDRx follows)
 PORTS: Final = {
     "atmega328p": {"B": 0x23, "C": 0x26, "D": 0x29},

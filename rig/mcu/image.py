@@ -10,9 +10,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Final
 
+from rig.mcu.mcus import MCUS
+
 #: flash and EEPROM sizes in bytes, by the MCU's name as simavr spells it
-FLASH: Final = {"atmega328p": 32 * 1024, "atmega2560": 256 * 1024}
-EEPROM: Final = {"atmega328p": 1024, "atmega2560": 4096}
+FLASH: Final = {name: m.flash for name, m in MCUS.items()}
+EEPROM: Final = {name: m.eeprom for name, m in MCUS.items()}
 EM_AVR: Final = 83
 #: avr-gcc's address spaces in an ELF: flash below, then RAM, EEPROM, fuses, lock bits, signature
 EEPROM_BASE: Final = 0x810000
