@@ -101,6 +101,7 @@ _API: Final[dict[str, tuple[Any, list[Any]]]] = {
     "mcu_figure": (_U64, [_P, ctypes.c_int]),
     "mcu_peek": (_U8, [_P, _U16]),
     "mcu_stock": (None, [_P, ctypes.c_int]),
+    "mcu_fuses": (None, [_P, ctypes.c_bool]),
     "mcu_twi_last": (_U32, [_P, ctypes.POINTER(_Record)]),
     "mcu_twi_log": (None, [_P, ctypes.c_bool]),
     "mcu_twi_take": (_U32, [_P, ctypes.POINTER(_Record), _U32]),
@@ -156,6 +157,8 @@ class EngineConfig:
     watchdog_resets: int = 3
     hang_ns: int = 1_000_000_000
     unanswered_ns: int = 1_000_000_000
+    #: the WDTON fuse programmed: the watchdog always on in system reset mode (a board's [fuses])
+    watchdog_always_on: bool = False
 
 
 @dataclass(frozen=True)
@@ -233,6 +236,7 @@ class AvrEngine:
             raise FirmwareError(f"{cfg.firmware}: {err.value.decode()}")
         self._open = True
         self._lib.mcu_limits(self._e, cfg.watchdog_resets, cfg.hang_ns, cfg.unanswered_ns)
+        self._lib.mcu_fuses(self._e, cfg.watchdog_always_on)
         self.chips = chips if cfg.twi else None
         if self.chips is not None:
             so = native.chips()

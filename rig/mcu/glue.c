@@ -70,6 +70,44 @@ static void extint_fix(avr_t *avr)
         avr_extint_set_strict_lvl_trig(avr, i, e && e->stock_extint);
 }
 
+/* the WDTON fuse: the watchdog always on in system reset mode, WDE never cleared. Set through simavr's
+ * own WDTCSR handler with the timed sequence (WDCE and WDE, then WDE with the prescaler), so its timer
+ * runs; a firmware's write that clears WDE is followed by the same sequence. */
+#define WDTCSR 0x60
+#define WDCE 0x10
+#define WDE 0x08
+
+static void wdton_arm(mcu_engine *e)
+{
+    avr_t *avr = e->avr;
+    uint8_t wdp = avr->data[WDTCSR] & 0x27;
+    e->wdt_write(avr, WDTCSR, WDCE | WDE, e->wdt_param);
+    e->wdt_write(avr, WDTCSR, (uint8_t)(WDE | wdp), e->wdt_param);
+}
+
+static void wdtcsr_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
+{
+    mcu_engine *e = param;
+    e->wdt_write(avr, addr, v, e->wdt_param);
+    if (!(avr->data[WDTCSR] & WDE))
+        wdton_arm(e);
+}
+
+/* the fuses the engine models (0: none) */
+MCU_API void mcu_fuses(mcu_engine *e, bool watchdog_always_on)
+{
+    avr_t *avr = e->avr;
+    int io = AVR_DATA_TO_IO(WDTCSR);
+    if (!watchdog_always_on || e->wdton || !avr->io[io].w.c)
+        return;
+    e->wdton = true;
+    e->wdt_write = avr->io[io].w.c;
+    e->wdt_param = avr->io[io].w.param;
+    avr->io[io].w.c = wdtcsr_write;
+    avr->io[io].w.param = e;
+    wdton_arm(e);
+}
+
 static void on_reset(avr_t *avr)
 {
     mcu_engine *e = engine_of(avr);
@@ -220,6 +258,8 @@ static int check(mcu_engine *e)
         mcu_twi_reset(e);
         mcu_pwm_reset(e);
         e->marker = MCU_NEVER; /* a reset clears simavr's cycle timers */
+        if (e->wdton)
+            wdton_arm(e);
         if (avr_regbit_get(avr, avr->reset_flags.wdrf)) {
             e->watchdog_resets++;
             if (e->watchdog_resets >= e->watchdog_limit)

@@ -174,6 +174,9 @@ struct mcu_engine {
     void (*core_reset)(avr_t *avr);
     bool reset_seen;
     bool stock_extint;
+    bool wdton; /* the WDTON fuse: simavr's WDTCSR handler, wrapped */
+    avr_io_write_t wdt_write;
+    void *wdt_param;
     uint32_t resets, watchdog_resets, watchdog_limit;
     uint64_t marker; /* the cycle simavr's sleep may not pass */
     /* hang: no TWI and no motor pulse for hang_cycles */

@@ -141,3 +141,13 @@ def test_a_closed_engine_says_so() -> None:
 def test_an_eeprom_image_bigger_than_the_eeprom_is_refused() -> None:
     with pytest.raises(FirmwareError, match="EEPROM image is 1025 bytes; the atmega328p's EEPROM is 1024"):
         engine("busy", "atmega328p", eeprom=bytes(1025))
+
+
+@pytest.mark.parametrize("mcu", MCUS)
+def test_the_wdton_fuse_keeps_the_watchdog_on(mcu: str) -> None:
+    with engine("wdt_clear", mcu, hang_ns=0) as e:
+        assert e.run_until(100_000_000).kind == "reached"  # no fuse: wdt_disable holds
+    with engine("wdt_clear", mcu, hang_ns=0, watchdog_always_on=True) as e:
+        stop = e.run_until(100_000_000)
+    assert stop.kind == "watchdog"
+    assert 47_000_000 < stop.cycle * 10**9 // CLOCK < 50_000_000  # 16 ms (WDP 0), three times
