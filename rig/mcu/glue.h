@@ -31,7 +31,7 @@
 
 #define MCU_NEVER UINT64_MAX
 #define MCU_MOTORS 8
-#define MCU_PULSES 64 /* pulses kept per motor between two takes (the oldest are dropped) */
+#define MCU_PULSES 256 /* pulses kept per motor between two takes (the oldest are dropped) */
 #define MCU_UARTS 4
 #define MCU_RX_BYTES 4096
 #define MCU_TX_BYTES 4096

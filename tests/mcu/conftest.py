@@ -4,6 +4,7 @@ are built on first use."""
 
 from __future__ import annotations
 
+import functools
 import subprocess
 from pathlib import Path
 
@@ -11,6 +12,7 @@ REPO = Path(__file__).resolve().parents[2]
 MCUS = ("atmega328p", "atmega2560")
 
 
+@functools.cache  # (once a session: make's own check costs 50-100 ms)
 def firmware(name: str, mcu: str) -> Path:
     target = f"build/mcu/test/{name}-{mcu}.elf"
     done = subprocess.run(["make", "-s", "--no-print-directory", target], cwd=REPO, capture_output=True,
