@@ -25,10 +25,11 @@ from typing import Any, Final
 from emulators import native
 from emulators.chips.board import ChipBoard
 from plant.native_build import BUILD, compile_shared, is_stale
+from rig.mcu.board import Board
 from rig.mcu.image import FLASH, FirmwareError, load
 from rig.mcu.mcus import MCUS
 
-__all__ = ["AvrEngine", "EngineConfig", "FirmwareError", "Motor", "Stop"]
+__all__ = ["AvrEngine", "EngineConfig", "FirmwareError", "Motor", "Stop", "config_for"]
 
 HERE: Final = Path(__file__).resolve().parent
 SOURCES: Final = tuple(HERE / f for f in ("glue.c", "twi.c", "pwm.c", "serial.c"))
@@ -159,6 +160,14 @@ class EngineConfig:
     unanswered_ns: int = 1_000_000_000
     #: the WDTON fuse programmed: the watchdog always on in system reset mode (a board's [fuses])
     watchdog_always_on: bool = False
+
+
+def config_for(board: Board, firmware: Path, eeprom: bytes | None = None, **limits: Any) -> EngineConfig:
+    """The engine's configuration for a board file (rig/mcu/board.py): its MCU, clock, motors in the
+    plant's order (1..4), fuses; ``limits``: EngineConfig's error limits (hang_ns, ...)."""
+    motors = tuple(Motor(m.pin, m.timer, m.channel) for m in sorted(board.motors, key=lambda m: m.motor))
+    return EngineConfig(board.mcu.name, board.clock_hz, firmware, motors, eeprom=eeprom,
+                        watchdog_always_on=board.watchdog_always_on, **limits)
 
 
 @dataclass(frozen=True)

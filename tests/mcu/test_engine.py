@@ -151,3 +151,16 @@ def test_the_wdton_fuse_keeps_the_watchdog_on(mcu: str) -> None:
         stop = e.run_until(100_000_000)
     assert stop.kind == "watchdog"
     assert 47_000_000 < stop.cycle * 10**9 // CLOCK < 50_000_000  # 16 ms (WDP 0), three times
+
+
+@pytest.mark.parametrize("name", ["mega2560-gy86", "promini328-gy86"])
+def test_a_shipped_board_configures_the_engine(name: str) -> None:
+    from rig.mcu import board as boards
+    from rig.mcu.engine import config_for
+
+    b = boards.load(name)
+    cfg = config_for(b, firmware("busy", b.mcu.name), hang_ns=0)
+    assert [m.pin for m in cfg.motors] == [m.pin for m in sorted(b.motors, key=lambda m: m.motor)]
+    with AvrEngine(cfg, None) as e:
+        assert e.run_until(1_000_000).kind == "reached"
+        assert e.pulses() == [[], [], [], []]  # (the busy loop drives no timer)
