@@ -6,6 +6,10 @@ such a signal raises ``Interrupted`` only where a run can be cut at once, inside
 session's wait loop, which then stops the DUT and cleans up); anywhere else it waits until the next
 ``check()`` (between two scenarios), so what is being written is finished first. Outside ``handled()``
 (the rig used as a library, tests) Python's own handling is untouched.
+
+A sweep's pool worker (``install()``) differs in one way: the first signal stays. Runs already queued
+for it cannot be taken back, so once told to stop it flies none of them (``stopped()``), and the sweep
+can end it.
 """
 
 from __future__ import annotations
@@ -19,6 +23,8 @@ SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 _pending: int | None = None
 _live = False
+_worker = False  # install(): a pool worker, which keeps the first signal in _stopped
+_stopped: int | None = None
 
 
 class Interrupted(Exception):
@@ -35,7 +41,9 @@ class Interrupted(Exception):
 
 
 def _handler(signum: int, frame: FrameType | None) -> None:
-    global _pending, _live
+    global _pending, _live, _stopped
+    if _worker and _stopped is None:
+        _stopped = signum
     if _live:
         _live = False  # once: a second signal must not cut the clean-up the first one started
         raise Interrupted(signum)
@@ -59,9 +67,16 @@ def handled() -> Iterator[None]:
 def install() -> None:
     """Installs the handlers for the rest of the process: a sweep's pool worker (rig/sweep/work.py),
     where a signal stops the run under way (or the next one) and never the worker in the middle of
-    writing a report."""
+    writing a report; after it, ``stopped()`` says so."""
+    global _worker
+    _worker = True
     for s in SIGNALS:
         signal.signal(s, _handler)
+
+
+def stopped() -> int | None:
+    """In a process ``install()`` set up: the signal that asked it to stop (for good), else None."""
+    return _stopped
 
 
 @contextmanager

@@ -27,8 +27,6 @@ from rig.run_cmd import LIBRARY, ReportFolder, UsageError
 EXIT_FAIL, EXIT_USAGE, EXIT_ERROR = 1, 2, 3
 #: a local pool whose process died (killed, out of memory) is started again this many times
 POOL_RESTARTS = 3
-#: after a Ctrl-C, how long the runs under way get to end (each stops its DUT and says "interrupted")
-STOP_GRACE_S = 30.0
 
 
 def add_parser(sub: Any) -> None:
@@ -170,6 +168,8 @@ def _run(
     """Submits ``todo``, collects rows as they come; returns what is left (a broken pool's, or nothing)
     and the signal's exit code when one stopped the sweep."""
     from concurrent.futures.process import BrokenProcessPool
+
+    from rig.sweep.engine import STOP_GRACE_S
 
     futures = {engine.executor.submit(fly, t): t for t in todo}
     pending = set(futures)

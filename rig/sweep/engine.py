@@ -1,13 +1,22 @@
 """Where a sweep's runs go: the embedded default, a local process pool (one run per core), or a Dask
 distributed cluster (``--engine tcp://HOST:PORT`` or DASK_SCHEDULER_ADDRESS) through
 ``client.get_executor()``: both are concurrent.futures executors, so the sweep has one code path.
-Dask is imported only when asked for (it is a large import)."""
+Dask is imported only when asked for (it is a large import).
+
+The local pool's workers are the sweep's own children (spawn), each taking SIGINT, SIGTERM and SIGHUP
+as an orderly stop (rig/interrupts.py) from its first moment, and killed by the kernel if the sweep dies
+first. They were forkserver's: a SIGTERM or SIGHUP to the group killed the fork server (it ignores only
+SIGINT), every worker looked dead to the pool, the sweep printed its tally and removed its temporary
+folder, and the workers, never told to end, flew what was queued and waited for more until SIGKILL.
+Whatever happens, the pool is not left before every worker has ended (STOP_GRACE_S, then SIGKILL)."""
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
 import os
 import signal
+import threading
 from collections.abc import Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor
 from contextlib import contextmanager
@@ -17,6 +26,9 @@ from typing import Any
 ENV = "DASK_SCHEDULER_ADDRESS"
 #: how long a sweep waits for the cluster's scheduler to answer
 CONNECT_TIMEOUT_S = 10.0
+#: how long a local pool's workers get to end (the runs under way stop their DUTs) before SIGKILL
+STOP_GRACE_S = 30.0
+PR_SET_PDEATHSIG = 1
 
 
 class EngineError(RuntimeError):
@@ -43,20 +55,26 @@ def open_engine(jobs: int | None = None, address: str | None = None) -> Iterator
     address = address or os.environ.get(ENV) or None
     if address is None:
         n = local_jobs(jobs)
-        # forkserver: workers start from a clean process, not from the sweep's (its progress thread)
-        pool = ProcessPoolExecutor(max_workers=n, mp_context=multiprocessing.get_context("forkserver"))
+        _start_resource_tracker()
+        # spawn: workers start from a clean process, not from the sweep's (its progress thread)
+        pool = ProcessPoolExecutor(
+            max_workers=n,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=_worker_start,
+            initargs=(os.getpid(),),
+        )
 
-        def stop_running() -> None:
-            for p in list(getattr(pool, "_processes", {}).values()):  # (the pool keeps them; no public API)
+        def stop_running() -> None:  # (for a signal sent to the sweep alone, not to its group)
+            for pid in [p.pid for p in _processes(pool) if p.pid is not None]:
                 try:
-                    os.kill(p.pid, signal.SIGINT)
-                except (ProcessLookupError, AttributeError):
+                    os.kill(pid, signal.SIGINT)
+                except ProcessLookupError:
                     pass
 
         try:
             yield Engine(pool, "local", n, stop_running)
         finally:
-            pool.shutdown(wait=True, cancel_futures=True)
+            _shut(pool)
         return
     try:
         from distributed import Client
@@ -72,3 +90,54 @@ def open_engine(jobs: int | None = None, address: str | None = None) -> Iterator
         yield Engine(client.get_executor(pure=False), address, threads or 1)
     finally:
         client.close()
+
+
+def _processes(pool: ProcessPoolExecutor) -> list[multiprocessing.Process]:
+    return list((getattr(pool, "_processes", None) or {}).values())  # (the pool's; no public API)
+
+
+def _shut(pool: ProcessPoolExecutor) -> None:
+    """Shuts the pool down and returns once every worker has ended: those still stopping their runs get
+    STOP_GRACE_S, then SIGKILL (the DUT's keeper ends the DUT then), so nothing can still write into the
+    sweep's folders or its temporary folder afterwards."""
+    workers = _processes(pool)
+
+    def kill() -> None:
+        for p in workers:
+            if p.is_alive():
+                p.kill()
+
+    timer = threading.Timer(STOP_GRACE_S, kill)
+    timer.daemon = True
+    timer.start()
+    try:
+        pool.shutdown(wait=True, cancel_futures=True)
+        for p in workers:
+            p.join()
+    finally:
+        timer.cancel()
+
+
+def _start_resource_tracker() -> None:
+    """multiprocessing's resource tracker (the pool's semaphores) started with SIGHUP blocked, as it
+    ignores SIGINT and SIGTERM: a SIGHUP to the sweep's group killed it, and every process that used a
+    semaphore afterwards printed a traceback. (It unblocks only the two it ignores, so SIGHUP stays
+    blocked there; a SIGHUP meanwhile waits for the sweep's handler.)"""
+    from multiprocessing import resource_tracker
+
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGHUP})
+    try:
+        resource_tracker.ensure_running()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _worker_start(parent: int) -> None:
+    """A local pool worker's first act: the kernel kills it when the sweep dies (even by SIGKILL), and a
+    signal from now on stops its run cleanly and every run after it (rig/interrupts.py)."""
+    from rig import interrupts
+
+    ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    if os.getppid() != parent:  # the sweep died before the line above
+        os._exit(1)
+    interrupts.install()

@@ -15,7 +15,7 @@ import tempfile
 import threading
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -67,11 +67,18 @@ def core_slot(folder: Path) -> Iterator[int]:
         for cpu in order:
             fd = os.open(folder / f"{host}-{cpu}.lock", os.O_RDWR | os.O_CREAT, 0o644)
             try:
-                fcntl.flock(fd, fcntl.LOCK_EX | (0 if blocking else fcntl.LOCK_NB))
+                if blocking:
+                    with _interruptible():  # (a stopped sweep does not wait for a core)
+                        fcntl.flock(fd, fcntl.LOCK_EX)
+                else:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
                 break
             except BlockingIOError:
                 os.close(fd)
                 fd = -1
+            except BaseException:
+                os.close(fd)
+                raise
         if fd >= 0:
             break
     try:
@@ -81,6 +88,14 @@ def core_slot(folder: Path) -> Iterator[int]:
         os.sched_setaffinity(0, allowed)
         fcntl.flock(fd, fcntl.LOCK_UN)
         os.close(fd)
+
+
+def _interruptible() -> AbstractContextManager[None]:
+    """A local pool's worker (its main thread, where rig/interrupts.py's handlers are) leaves a wait at
+    once on a signal; a Dask worker's thread cannot take signals (its worker handles them)."""
+    from rig import interrupts
+
+    return interrupts.live() if threading.current_thread() is threading.main_thread() else nullcontext()
 
 
 def _thread_number() -> int:
@@ -111,7 +126,7 @@ def _number(v: float) -> float | None:
 
 def fly(task: Task) -> dict[str, Any]:
     """Runs one variant; never raises for the run's own problems (they are its row's error)."""
-    # this is a worker's entry point (a forkserver process, a Dask worker): the session's hot modules
+    # this is a worker's entry point (a local pool's process, a Dask worker): the session's hot modules
     # from build/mypyc must be found before anything below imports them, as the CLI does at its start
     compiled.install()
     from reports import html_report, result_json
@@ -121,29 +136,32 @@ def fly(task: Task) -> dict[str, Any]:
     from scenarios.schema import ScenarioError, check
 
     out = Path(task.out)
+    row: dict[str, Any] = {**task.head(), "host": socket.gethostname(), "pid": os.getpid()}
+    if interrupts.stopped() is not None:  # a worker told to stop flies none of the runs queued for it
+        return {**row, "verdict": "interrupted", "error": None, "measurements": {}}
     if task.tmp is not None:
         tempfile.tempdir = task.tmp  # (a pool process flies one run at a time)
     v = task.variant
     folder = run_dir(out, v.id)
     folder.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    row: dict[str, Any] = {**task.head(), "host": socket.gethostname(), "pid": os.getpid()}
     try:
         scenario = check(v.data, Path(task.scenario_path))
     except ScenarioError as e:  # (the sweep checked every variant: only a changed rig gets here)
         row.update(verdict="error", error=str(e), measurements={}, outcomes={}, wall_s=0.0, cpu=-1)
         _write_row(folder, row)
         return row
-    # a local pool's process runs its task on its main thread: there a Ctrl-C stops the run cleanly
-    # (and one that comes while a report is written, the next run); a Dask worker's task thread cannot
-    # take signals: its worker handles them
-    if threading.current_thread() is threading.main_thread():
-        interrupts.install()
-    with core_slot(out / SLOTS) as cpu:
-        try:
-            r = run(scenario, ProcessTarget(task.dut), v.seed, folder, task.wall_timeout)
-        except Exception as e:  # the rig could not fly it: an error row, the sweep goes on
-            r = not_run(scenario, v.seed, f"the rig could not run this variant: {type(e).__name__}: {e}")
+    # a local pool's process (rig/sweep/engine.py) has rig/interrupts.py's handlers: a signal stops the
+    # run under way cleanly (one that comes while a report is written: the next run); a Dask worker's
+    # task thread cannot take signals: its worker handles them
+    try:
+        with core_slot(out / SLOTS) as cpu:
+            try:
+                r = run(scenario, ProcessTarget(task.dut), v.seed, folder, task.wall_timeout)
+            except Exception as e:  # the rig could not fly it: an error row, the sweep goes on
+                r = not_run(scenario, v.seed, f"the rig could not run this variant: {type(e).__name__}: {e}")
+    except interrupts.Interrupted:  # while it waited for a core
+        return {**row, "verdict": "interrupted", "error": None, "measurements": {}}
     row.update(
         verdict=r.verdict,
         error=r.error,
