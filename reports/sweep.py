@@ -182,8 +182,30 @@ def histogram(values: Sequence[float], lo: float | None, hi: float | None, title
     )
 
 
+def _dut(rows: Sequence[dict[str, Any]], info: dict[str, Any]) -> str:
+    """What flew the runs: the sweep's DUT and its hash, and the runs a rebuilt one flew, if any."""
+    e = html.escape
+    sha = info.get("dut_sha256")
+    text = (
+        f"<p>DUT: <code>{e(str(info.get('dut_command')))}</code>, SHA-256 "
+        + (f"<code>{e(sha)}</code>" if sha else "none (not hashed)")
+        + (f" (of {e(str(info['dut_firmware']))})" if info.get("dut_firmware") else "")
+        + ".</p>"
+    )
+    others = sorted({str(r.get("dut_sha256")) for r in rows if r.get("dut_sha256") != sha})
+    if others:
+        n = sum(r.get("dut_sha256") != sha for r in rows)
+        text += (
+            f"<p><strong>{n} runs flew another build</strong> (SHA-256 "
+            + ", ".join(f"<code>{e(o)}</code>" for o in others)
+            + "): the DUT changed during the sweep.</p>"
+        )
+    return text
+
+
 def summary(rows: Sequence[dict[str, Any]], info: dict[str, Any], keys: Sequence[str]) -> str:
-    """The page: ``info`` says what the sweep was (scenario, mode, engine, counts of runs not done)."""
+    """The page: ``info`` says what the sweep was (scenario, mode, engine, counts of runs not done, the
+    DUT: rig/sweep/store.py's dut_identity)."""
     e = html.escape
     n = len(rows)
     counts = {v: sum(r["verdict"] == v for r in rows) for v in ("pass", "fail")}
@@ -195,6 +217,7 @@ def summary(rows: Sequence[dict[str, Any]], info: dict[str, Any], keys: Sequence
         f"{info.get('seeds', 0)} seed(s), on {e(str(info.get('engine')))}. "
         f'The table: <a href="runs.parquet">runs.parquet</a>; CI: <a href="junit.xml">junit.xml</a>.</p>',
     ]
+    parts.append(_dut(rows, info))
     if info.get("not_done"):
         parts.append(
             f"<p><strong>{info['not_done']} runs not done</strong> (interrupted: the same spec into the "

@@ -51,6 +51,11 @@ def add_parser(sub: Any) -> None:
         "DIR must be on storage the workers share",
     )
     p.add_argument("--retry-errors", action="store_true", help="fly again the runs that ended in error")
+    p.add_argument(
+        "--fresh",
+        action="store_true",
+        help="start afresh: remove the runs DIR holds (needed when they flew another DUT) and fly every run",
+    )
     p.add_argument("--dut", help="the DUT command line (default: the reference FC, as rig run)")
     p.add_argument(
         "--wall-timeout",
@@ -93,19 +98,33 @@ def main(args: argparse.Namespace) -> int:
 def _sweep(sweep: Any, args: argparse.Namespace, dut: list[str] | None) -> int:
     from tqdm import tqdm
 
+    from rig.sweep import store
     from rig.sweep.engine import ENV, EngineError, open_engine
     from rig.sweep.work import Task, fly, read_row
 
     out: Path = args.out.resolve()
+    ident = store.dut_identity(dut)
+    if args.fresh:
+        _remove_runs(out)
     rows: dict[str, dict[str, Any]] = {}
     for v in sweep.variants:
         row = read_row(out, v.id)
         if row is not None and (row.get("verdict") in ("pass", "fail") or not args.retry_errors):
             rows[v.id] = row
+    recorded = store.read_dut(out)
+    kept = [*([recorded] if recorded else []), *rows.values()]
+    other = next((d for d in kept if not store.same_dut(d, ident)), None)
+    if other is not None:
+        raise UsageError(
+            f"--out {out} holds runs of another DUT: {store.describe(other)}; this sweep's DUT is "
+            f"{store.describe(ident)}. Give --fresh to start afresh (it removes those runs), or another --out"
+        )
+    store.write_dut(out, ident)
     local = not (args.engine or os.environ.get(ENV))
     tmp = tempfile.mkdtemp(prefix="rig-sweep-") if local else None
+    flown_by = {k: ident[k] for k in store.DUT_KEYS}
     todo = [
-        Task(v, str(sweep.scenario_path), str(out), dut, args.wall_timeout, tmp)
+        Task(v, str(sweep.scenario_path), str(out), dut, args.wall_timeout, tmp, **flown_by)
         for v in sweep.variants
         if v.id not in rows
     ]
@@ -150,7 +169,7 @@ def _sweep(sweep: Any, args: argparse.Namespace, dut: list[str] | None) -> int:
         bar.close()
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
-    return _finish(sweep, out, rows, engine_name, stop, time.perf_counter() - t0)
+    return _finish(sweep, out, rows, engine_name, stop, time.perf_counter() - t0, ident)
 
 
 def _tally(verdict: str) -> str:
@@ -226,7 +245,13 @@ def _run(
 
 
 def _finish(
-    sweep: Any, out: Path, rows: dict[str, dict[str, Any]], engine: str, stop: int | None, wall: float
+    sweep: Any,
+    out: Path,
+    rows: dict[str, dict[str, Any]],
+    engine: str,
+    stop: int | None,
+    wall: float,
+    dut: dict[str, Any],
 ) -> int:
     from reports import sweep as sweep_report
     from rig.sweep import store
@@ -244,6 +269,7 @@ def _finish(
         "engine": engine,
         "total": len(sweep.variants),
         "not_done": len(sweep.variants) - len(ordered),
+        **dut,
     }
     (out / "summary.html").write_text(sweep_report.summary(ordered, info, keys))
     _clean(out)
@@ -260,6 +286,18 @@ def _finish(
     if n_err or len(ordered) < len(sweep.variants):
         return EXIT_ERROR
     return EXIT_FAIL if n_fail else 0
+
+
+def _remove_runs(out: Path) -> None:
+    """--fresh: what an earlier sweep wrote in ``out`` goes (only that: other files stay)."""
+    from rig.sweep import store
+
+    for name in store.WRITTEN:
+        path = out / name
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        else:
+            path.unlink(missing_ok=True)
 
 
 def _clean(out: Path) -> None:

@@ -44,11 +44,21 @@ class Task:
     #: the local pool's: a folder of the sweep's own for the runs' temporary files, so a worker killed
     #: mid-run leaves nothing behind once the sweep removes it (None: the system's, as on a cluster)
     tmp: str | None = None
+    #: the sweep's DUT (rig/sweep/store.py's dut_identity)
+    dut_command: str | None = None
+    dut_sha256: str | None = None
 
     def head(self) -> dict[str, Any]:
-        """What begins the variant's row: which run it is."""
+        """What begins the variant's row: which run it is, and the DUT that flies it."""
         v = self.variant
-        return {"id": v.id, "index": v.index, "values": v.values, "seed": v.seed}
+        return {
+            "id": v.id,
+            "index": v.index,
+            "values": v.values,
+            "seed": v.seed,
+            "dut_command": self.dut_command,
+            "dut_sha256": self.dut_sha256,
+        }
 
 
 @contextmanager
@@ -163,6 +173,8 @@ def fly(task: Task) -> dict[str, Any]:
     except interrupts.Interrupted:  # while it waited for a core
         return {**row, "verdict": "interrupted", "error": None, "measurements": {}}
     row.update(
+        # (what the run itself hashed: a DUT rebuilt since the sweep began shows here)
+        dut_sha256=r.metadata.get("dut_firmware_sha256", task.dut_sha256),
         verdict=r.verdict,
         error=r.error,
         cpu=cpu,

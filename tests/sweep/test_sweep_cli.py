@@ -21,7 +21,7 @@ import pytest
 
 from rig.run_cmd import LIBRARY
 from rig.sweep import store
-from rig.sweep.work import ROW, run_dir
+from rig.sweep.work import ROW, row_files, run_dir
 from scenarios.sweep import load_sweep
 from tests.sweep import SHOW
 from tests.waits import wait_file
@@ -252,9 +252,14 @@ def test_errors_are_kept_and_flown_again_with_retry_errors(tmp_path: Path) -> No
     assert r.returncode == 3 and "2 error" in r.stderr
     t = store.read(out / store.TABLE)
     assert t["verdict"] == ["error", "error"] and t["seed"] == [3, 5] and all(t["error"])
-    r = sweep(spec, "--out", out)
+    rows = {f: f.stat().st_mtime_ns for f in row_files(out)}
+    r = sweep(spec, "--out", out, "--dut", "/bin/false")
     assert "2 done already, 0 to run" in r.stderr and r.returncode == 3
-    r = sweep(spec, "--out", out, "--retry-errors")
+    r = sweep(spec, "--out", out, "--dut", "/bin/false", "--retry-errors")
+    assert "0 done already, 2 to run" in r.stderr and r.returncode == 3, r.stderr
+    assert all(f.stat().st_mtime_ns != t for f, t in rows.items())  # flown again
+    # another DUT (the reference FC) needs --fresh (tests/sweep/test_sweep_dut.py)
+    r = sweep(spec, "--out", out, "--fresh")
     assert "0 done already, 2 to run" in r.stderr and r.returncode == 0, r.stderr
     assert store.read(out / store.TABLE)["verdict"] == ["pass", "pass"]
 
