@@ -2,7 +2,8 @@
 on the local pool or a Dask cluster (rig/sweep/engine.py), with a progress bar; what finished is kept
 in DIR (runs/<id>/, one folder per run), and DIR's runs.parquet, summary.html and junit.xml are
 written from it at the end, interrupted or not. The same spec into the same DIR flies only what is
-missing (``--retry-errors``: and the runs that ended in error).
+missing (``--retry-errors``: and the runs that ended in error); a DIR whose runs another DUT flew (DIR's
+sweep.json, rig/sweep/store.py) is refused unless ``--fresh``, which removes them first.
 
 Exit status: 0 every run passed, 1 a run failed a criterion, 2 bad usage or a bad spec (nothing runs),
 3 a run ended in error or the engine could not be reached, 128+N stopped by signal N."""
