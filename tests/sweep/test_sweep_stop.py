@@ -2,7 +2,8 @@
 terminal, `rig serve` cancelling a sweep with killpg): the sweep exits 128+N with every process it
 started gone, no run cut short is a row (not then, not later), and a resume flies what is missing into
 the table an uninterrupted sweep writes. The Ctrl-C case is in test_sweep_cli.py; step_roll keeps these
-short (a run is about a second)."""
+short (a run is about a second), and the stopped sweep has one core for its two workers, so that one
+of them is waiting for a core when the signal comes."""
 
 from __future__ import annotations
 
@@ -71,6 +72,9 @@ def test_a_signal_to_the_group_ends_every_worker_and_keeps_no_cut_run(
             stderr=err,
             start_new_session=True,
             env={**os.environ, "TMPDIR": str(private)},
+            # one core for two workers: while one flies, the other waits for the core (a state the
+            # signal must end too)
+            preexec_fn=lambda: os.sched_setaffinity(0, {min(os.sched_getaffinity(0))}),
         )
     left: list[int] = []
     try:
