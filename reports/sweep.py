@@ -58,7 +58,10 @@ def worst_margin(row: dict[str, Any]) -> float:
 # ---------------------------------------------------------------- junit
 
 
-def junit(rows: Sequence[dict[str, Any]], scenario: str, not_run: int = 0) -> str:
+def junit(
+    rows: Sequence[dict[str, Any]], scenario: str, not_run: int = 0, dut: dict[str, Any] | None = None
+) -> str:
+    """``dut``: the sweep's DUT (rig/sweep/store.py's dut_identity), the suite's properties."""
     root = ET.Element("testsuites", name="rig sweep")
     fails = sum(r["verdict"] == "fail" for r in rows)
     errors = sum(r["verdict"] not in ("pass", "fail") for r in rows)
@@ -72,6 +75,10 @@ def junit(rows: Sequence[dict[str, Any]], scenario: str, not_run: int = 0) -> st
         skipped=str(not_run),
         time=f"{sum(float(r.get('wall_s') or 0) for r in rows):.3f}",
     )
+    if dut:
+        props = ET.SubElement(suite, "properties")
+        for k, v in dut.items():
+            ET.SubElement(props, "property", name=k, value=str(v))
     for r in rows:
         case = ET.SubElement(
             suite,

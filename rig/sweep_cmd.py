@@ -210,7 +210,7 @@ def _run(
             except BrokenProcessPool:
                 left.append(task)
                 continue
-            except KeyboardInterrupt:  # (a pool process the terminal's Ctrl-C caught between two runs)
+            except KeyboardInterrupt:  # (defensive: a worker takes SIGINT as the rig's stop)
                 continue
             except Exception as e:  # a Dask worker lost too often, or the task itself failed to start
                 row = {
@@ -261,7 +261,7 @@ def _finish(
     keys = sweep.columns
     store.write(out / store.TABLE, ordered, keys)
     (out / "junit.xml").write_text(
-        sweep_report.junit(ordered, sweep.scenario_path.stem, len(sweep.variants) - len(ordered))
+        sweep_report.junit(ordered, sweep.scenario_path.stem, len(sweep.variants) - len(ordered), dut)
     )
     info = {
         "scenario": sweep.scenario_path.stem,

@@ -1,11 +1,13 @@
 """A sweep's runs are its DUT's: the folder records the DUT (its command and the SHA-256 of its
-firmware), every row and runs.parquet carry it, summary.html names it, and a resume with another DUT,
-or with the same path rebuilt, is refused (exit 2, naming both, nothing written) unless --fresh. Each
-sweep here is step_roll at two seeds; the DUTs that are not the reference FC end at once (error rows)."""
+firmware), every row and runs.parquet carry it, summary.html and junit.xml name it, and a resume with
+another DUT, or with the same path rebuilt, is refused (exit 2, naming both, nothing written) unless
+--fresh. Each sweep here is step_roll at two seeds; the DUTs other than the reference FC end at once
+(error rows)."""
 
 from __future__ import annotations
 
 import hashlib
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from rig.runner import REFERENCE_FC
@@ -39,6 +41,8 @@ def test_a_resume_with_another_dut_is_refused_unless_fresh(tmp_path: Path) -> No
     assert t["dut_command"] == [f"reference FC {REFERENCE_FC}"] * 2 and t["dut_sha256"] == [fc] * 2
     page = (out / "summary.html").read_text()
     assert str(REFERENCE_FC) in page and fc in page
+    props = {p.get("name"): p.get("value") for p in ET.parse(out / "junit.xml").getroot().iter("property")}
+    assert props["dut_command"] == f"reference FC {REFERENCE_FC}" and props["dut_sha256"] == fc
     before = snapshot(out)
     r = sweep(spec, "--out", out, "--dut", "/bin/false")
     false = sha256(Path("/bin/false"))
