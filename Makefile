@@ -62,7 +62,7 @@ $(COMPILED): $(COMPILED_SOURCES) rig/compiled.py rig/mypyc_build.py | venv
 	$(PY) -m rig.mypyc_build
 
 dut: $(DUT_BIN)
-$(DUT_BIN): $(wildcard dut/src/* dut/tests/* dut/Makefile) bench/fc_bench.c
+$(DUT_BIN): $(wildcard dut/src/* dut/linux/* dut/tests/* dut/Makefile) bench/fc_bench.c
 	$(MAKE) -s -C dut
 
 vbridge: $(VBRIDGE)
@@ -118,7 +118,7 @@ docs-images: venv fmu shim native compiled dut
 	$(PY) tools/service_screenshot.py
 
 # our C, in one style (.clang-format); the FMI headers are vendored as they came
-C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/tests/*.c emulators/c/*.c emulators/chips/*.[ch] plant/c/*.[ch] \
+C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/linux/*.[ch] dut/avr/*.[ch] dut/tests/*.c emulators/c/*.c emulators/chips/*.[ch] plant/c/*.[ch] \
 	rig/shim/*.[ch] bridge/*/*.[ch] bench/*.c tests/rig/device_clients/*.c))
 
 lint: venv test-packages

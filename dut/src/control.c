@@ -5,9 +5,9 @@
 
 #include "fc.h"
 
-double clampd(double v, double lo, double hi) { return v < lo ? lo : v > hi ? hi : v; }
+real clampd(real v, real lo, real hi) { return v < lo ? lo : v > hi ? hi : v; }
 
-void pid_init(pid *p, double kp, double ki, double kd, double out_limit, double sum_limit)
+void pid_init(pid *p, real kp, real ki, real kd, real out_limit, real sum_limit)
 {
     *p = (pid){ .kp = kp, .ki = ki, .kd = kd, .out_limit = out_limit, .sum_limit = sum_limit };
 }
@@ -18,22 +18,22 @@ void pid_reset(pid *p)
     p->started = 0;
 }
 
-double pid_step(pid *p, double e, double T)
+real pid_step(pid *p, real e, real T)
 {
     if (!(p->i_band > 0) || fabs(e) <= p->i_band)
         p->sum += e * T;
     if (p->sum_limit > 0 && p->ki != 0) {
-        double lim = p->sum_limit / fabs(p->ki);
+        real lim = p->sum_limit / fabs(p->ki);
         p->sum = clampd(p->sum, -lim, lim);
     }
-    double d = p->started ? (e - p->prev) / T : 0.0; /* no derivative kick on the first step */
+    real d = p->started ? (e - p->prev) / T : 0.0; /* no derivative kick on the first step */
     p->prev = e;
     p->started = 1;
-    double u = p->kp * e + p->ki * p->sum + p->kd * d;
+    real u = p->kp * e + p->ki * p->sum + p->kd * d;
     return p->out_limit > 0 ? clampd(u, -p->out_limit, p->out_limit) : u;
 }
 
-void mix(enum mixer_kind kind, double throttle, double roll, double pitch, double yaw, double out[4])
+void mix(enum mixer_kind kind, real throttle, real roll, real pitch, real yaw, real out[4])
 {
     if (kind == MIXER_PLUS) { /* eq. 15: 1 front, 2 left, 3 rear, 4 right; 1 and 3 counter-clockwise */
         out[0] = throttle + pitch + yaw;
@@ -49,16 +49,16 @@ void mix(enum mixer_kind kind, double throttle, double roll, double pitch, doubl
     }
 }
 
-double throttle_compensate(double value, double alpha, double beta) { return alpha * (value - beta); }
+real throttle_compensate(real value, real alpha, real beta) { return alpha * (value - beta); }
 
-double baro_altitude(double pressure, double start_pressure)
+real baro_altitude(real pressure, real start_pressure)
 {
     return 44330.0 * (1.0 - pow(pressure / start_pressure, 0.1903));
 }
 
-void alt_filter_init(alt_filter *a, double k1, double k2) { *a = (alt_filter){ .k1 = k1, .k2 = k2 }; }
+void alt_filter_init(alt_filter *a, real k1, real k2) { *a = (alt_filter){ .k1 = k1, .k2 = k2 }; }
 
-void alt_filter_update(alt_filter *a, double baro_h, double acc_up, double T)
+void alt_filter_update(alt_filter *a, real baro_h, real acc_up, real T)
 {
     if (!a->started) {
         a->h = baro_h;
@@ -66,7 +66,7 @@ void alt_filter_update(alt_filter *a, double baro_h, double acc_up, double T)
         a->started = 1;
         return;
     }
-    double err = baro_h - a->h;
+    real err = baro_h - a->h;
     a->v += (acc_up + a->k2 * err) * T;
     a->h += (a->v + a->k1 * err) * T;
 }

@@ -6,28 +6,28 @@
 
 #include "fc.h"
 
-vec3 v3(double x, double y, double z) { return (vec3){ x, y, z }; }
+vec3 v3(real x, real y, real z) { return (vec3){ x, y, z }; }
 vec3 v3_add(vec3 a, vec3 b) { return v3(a.x + b.x, a.y + b.y, a.z + b.z); }
-vec3 v3_scale(vec3 a, double k) { return v3(a.x * k, a.y * k, a.z * k); }
+vec3 v3_scale(vec3 a, real k) { return v3(a.x * k, a.y * k, a.z * k); }
 vec3 v3_cross(vec3 a, vec3 b) { return v3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x); }
-double v3_dot(vec3 a, vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-double v3_norm(vec3 a) { return sqrt(v3_dot(a, a)); }
+real v3_dot(vec3 a, vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+real v3_norm(vec3 a) { return sqrt(v3_dot(a, a)); }
 vec3 v3_unit(vec3 a)
 {
-    double n = v3_norm(a);
+    real n = v3_norm(a);
     return n > 0 ? v3_scale(a, 1.0 / n) : a;
 }
 
-static void quat_normalise(double q[4])
+static void quat_normalise(real q[4])
 {
-    double n = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    real n = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
     for (int i = 0; i < 4; i++)
         q[i] /= n;
 }
 
-static void quat_to_dcm(const double q[4], double R[3][3])
+static void quat_to_dcm(const real q[4], real R[3][3])
 {
-    double w = q[0], x = q[1], y = q[2], z = q[3];
+    real w = q[0], x = q[1], y = q[2], z = q[3];
     R[0][0] = 1 - 2 * (y * y + z * z);
     R[0][1] = 2 * (x * y - w * z);
     R[0][2] = 2 * (x * z + w * y);
@@ -39,30 +39,30 @@ static void quat_to_dcm(const double q[4], double R[3][3])
     R[2][2] = 1 - 2 * (x * x + y * y);
 }
 
-static vec3 mat_vec(const double R[3][3], vec3 v)
+static vec3 mat_vec(const real R[3][3], vec3 v)
 {
     return v3(R[0][0] * v.x + R[0][1] * v.y + R[0][2] * v.z, R[1][0] * v.x + R[1][1] * v.y + R[1][2] * v.z,
               R[2][0] * v.x + R[2][1] * v.y + R[2][2] * v.z);
 }
 
-static vec3 mat_t_vec(const double R[3][3], vec3 v)
+static vec3 mat_t_vec(const real R[3][3], vec3 v)
 {
     return v3(R[0][0] * v.x + R[1][0] * v.y + R[2][0] * v.z, R[0][1] * v.x + R[1][1] * v.y + R[2][1] * v.z,
               R[0][2] * v.x + R[1][2] * v.y + R[2][2] * v.z);
 }
 
-euler quat_to_euler(const double q[4])
+euler quat_to_euler(const real q[4])
 {
-    double w = q[0], x = q[1], y = q[2], z = q[3];
-    double s = clampd(2 * (w * y - x * z), -1.0, 1.0);
+    real w = q[0], x = q[1], y = q[2], z = q[3];
+    real s = clampd(2 * (w * y - x * z), -1.0, 1.0);
     return (euler){ atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)), asin(s),
                     atan2(2 * (x * y + w * z), 1 - 2 * (y * y + z * z)) };
 }
 
-void euler_to_quat(euler e, double q[4])
+void euler_to_quat(euler e, real q[4])
 {
-    double cr = cos(e.roll / 2), sr = sin(e.roll / 2), cp = cos(e.pitch / 2), sp = sin(e.pitch / 2);
-    double cy = cos(e.yaw / 2), sy = sin(e.yaw / 2);
+    real cr = cos(e.roll / 2), sr = sin(e.roll / 2), cp = cos(e.pitch / 2), sp = sin(e.pitch / 2);
+    real cy = cos(e.yaw / 2), sy = sin(e.yaw / 2);
     q[0] = cr * cp * cy + sr * sp * sy;
     q[1] = sr * cp * cy - cr * sp * sy;
     q[2] = cr * sp * cy + sr * cp * sy;
@@ -70,11 +70,11 @@ void euler_to_quat(euler e, double q[4])
 }
 
 /* Seed 000 eq. 3-4: Q(t+1) = [I (1 - dtheta^2/8) + dPhi/2] Q(t), dPhi = Omega(w) T. */
-void picard2(double q[4], vec3 w, double T)
+void picard2(real q[4], vec3 w, real T)
 {
-    double ax = w.x * T, ay = w.y * T, az = w.z * T;
-    double c = 1.0 - (ax * ax + ay * ay + az * az) / 8.0;
-    double q0 = q[0], q1 = q[1], q2 = q[2], q3 = q[3];
+    real ax = w.x * T, ay = w.y * T, az = w.z * T;
+    real c = 1.0 - (ax * ax + ay * ay + az * az) / 8.0;
+    real q0 = q[0], q1 = q[1], q2 = q[2], q3 = q[3];
     q[0] = c * q0 + 0.5 * (-ax * q1 - ay * q2 - az * q3);
     q[1] = c * q1 + 0.5 * (ax * q0 + az * q2 - ay * q3);
     q[2] = c * q2 + 0.5 * (ay * q0 - az * q1 + ax * q3);
@@ -83,18 +83,18 @@ void picard2(double q[4], vec3 w, double T)
 }
 
 /* What a level, resting accelerometer reads, normalised, in body axes: minus gravity's direction. */
-static vec3 predicted_up(const double R[3][3]) { return v3(-R[2][0], -R[2][1], -R[2][2]); }
+static vec3 predicted_up(const real R[3][3]) { return v3(-R[2][0], -R[2][1], -R[2][2]); }
 
 /* The earth field as the estimate sees it, folded into the north-down plane (the reference vector of
    seed 000 eq. 1), then back in body axes. */
-static vec3 predicted_field(const double R[3][3], vec3 m)
+static vec3 predicted_field(const real R[3][3], vec3 m)
 {
     vec3 h = mat_vec(R, m);
     vec3 b = v3(sqrt(h.x * h.x + h.y * h.y), 0.0, h.z);
     return mat_t_vec(R, b);
 }
 
-void quat_cf_init(quat_cf *f, double kp, double ki)
+void quat_cf_init(quat_cf *f, real kp, real ki)
 {
     memset(f, 0, sizeof *f);
     f->q[0] = 1.0;
@@ -104,9 +104,9 @@ void quat_cf_init(quat_cf *f, double kp, double ki)
 
 void quat_cf_set_euler(quat_cf *f, euler e) { euler_to_quat(e, f->q); }
 
-void quat_cf_update(quat_cf *f, vec3 gyro, vec3 accel, vec3 mag, double T)
+void quat_cf_update(quat_cf *f, vec3 gyro, vec3 accel, vec3 mag, real T)
 {
-    double R[3][3];
+    real R[3][3];
     quat_to_dcm(f->q, R);
     vec3 e = v3(0, 0, 0);
     if (v3_norm(accel) > 0)
@@ -122,7 +122,7 @@ void quat_cf_update(quat_cf *f, vec3 gyro, vec3 accel, vec3 mag, double T)
 
 /* ---- Mahony on the DCM (seed 002 section 2.3) -------------------------------------------------------- */
 
-void mahony_init(mahony_dcm *f, double kp, double ki)
+void mahony_init(mahony_dcm *f, real kp, real ki)
 {
     memset(f, 0, sizeof *f);
     f->R[0][0] = f->R[1][1] = f->R[2][2] = 1.0;
@@ -132,22 +132,22 @@ void mahony_init(mahony_dcm *f, double kp, double ki)
 
 void mahony_set_euler(mahony_dcm *f, euler e)
 {
-    double q[4];
+    real q[4];
     euler_to_quat(e, q);
     quat_to_dcm(q, f->R);
 }
 
-euler dcm_to_euler(const double R[3][3])
+euler dcm_to_euler(const real R[3][3])
 {
     return (euler){ atan2(R[2][1], R[2][2]), asin(clampd(-R[2][0], -1.0, 1.0)), atan2(R[1][0], R[0][0]) };
 }
 
 /* Section 2.3.1: share the rows' dot product as error between r_x and r_y, rebuild r_z from them, and
    renormalise each row with the first-order Taylor step (3 - |r|^2) / 2. */
-void dcm_orthonormalise(double R[3][3])
+void dcm_orthonormalise(real R[3][3])
 {
     vec3 rx = v3(R[0][0], R[0][1], R[0][2]), ry = v3(R[1][0], R[1][1], R[1][2]);
-    double err = v3_dot(rx, ry);
+    real err = v3_dot(rx, ry);
     vec3 rx2 = v3_add(rx, v3_scale(ry, -err / 2)), ry2 = v3_add(ry, v3_scale(rx, -err / 2));
     vec3 rz2 = v3_cross(rx2, ry2);
     vec3 rows[3] = { rx2, ry2, rz2 };
@@ -159,7 +159,7 @@ void dcm_orthonormalise(double R[3][3])
     }
 }
 
-void mahony_update(mahony_dcm *f, vec3 gyro, vec3 accel, vec3 mag, double T)
+void mahony_update(mahony_dcm *f, vec3 gyro, vec3 accel, vec3 mag, real T)
 {
     vec3 e = v3(0, 0, 0);
     if (v3_norm(accel) > 0)
@@ -173,8 +173,8 @@ void mahony_update(mahony_dcm *f, vec3 gyro, vec3 accel, vec3 mag, double T)
     }
     f->integral = v3_add(f->integral, v3_scale(e, T));
     vec3 w = v3_add(gyro, v3_add(v3_scale(e, f->kp), v3_scale(f->integral, f->ki)));
-    double a = w.x * T, b = w.y * T, c = w.z * T; /* R = R (I + [w T]x) */
-    double Om[3][3] = { { 1, -c, b }, { c, 1, -a }, { -b, a, 1 } }, N[3][3];
+    real a = w.x * T, b = w.y * T, c = w.z * T; /* R = R (I + [w T]x) */
+    real Om[3][3] = { { 1, -c, b }, { c, 1, -a }, { -b, a, 1 } }, N[3][3];
     for (int i = 0; i < 3; i++)
         for (int j = 0; j < 3; j++)
             N[i][j] = f->R[i][0] * Om[0][j] + f->R[i][1] * Om[1][j] + f->R[i][2] * Om[2][j];
@@ -201,10 +201,10 @@ void ekf_init(ekf7 *f)
 void ekf_set_euler(ekf7 *f, euler e) { euler_to_quat(e, f->x); }
 euler ekf_euler(const ekf7 *f) { return quat_to_euler(f->x); }
 
-static void ekf_measure(const double x[7], vec3 m_body, double z[6])
+static void ekf_measure(const real x[7], vec3 m_body, real z[6])
 {
-    double R[3][3];
-    double q[4] = { x[0], x[1], x[2], x[3] };
+    real R[3][3];
+    real q[4] = { x[0], x[1], x[2], x[3] };
     quat_normalise(q);
     quat_to_dcm(q, R);
     vec3 up = predicted_up(R), fld = v3_unit(predicted_field(R, m_body));
@@ -217,29 +217,29 @@ static void ekf_measure(const double x[7], vec3 m_body, double z[6])
 }
 
 /* Solves S X = B for X (n <= 6, m columns) by Gauss-Jordan with partial pivoting; 0 if singular. */
-static int solve(int n, double S[6][6], int m, double B[6][7])
+static int solve(int n, real S[6][6], int m, real B[6][7])
 {
     for (int c = 0; c < n; c++) {
         int p = c;
         for (int r = c + 1; r < n; r++)
             if (fabs(S[r][c]) > fabs(S[p][c]))
                 p = r;
-        if (fabs(S[p][c]) < 1e-300)
+        if (fabs(S[p][c]) < FC_TINY)
             return 0;
         for (int k = 0; k < n; k++) {
-            double t = S[c][k];
+            real t = S[c][k];
             S[c][k] = S[p][k];
             S[p][k] = t;
         }
         for (int k = 0; k < m; k++) {
-            double t = B[c][k];
+            real t = B[c][k];
             B[c][k] = B[p][k];
             B[p][k] = t;
         }
         for (int r = 0; r < n; r++) {
             if (r == c)
                 continue;
-            double k = S[r][c] / S[c][c];
+            real k = S[r][c] / S[c][c];
             for (int j = 0; j < n; j++)
                 S[r][j] -= k * S[c][j];
             for (int j = 0; j < m; j++)
@@ -252,16 +252,16 @@ static int solve(int n, double S[6][6], int m, double B[6][7])
     return 1;
 }
 
-void ekf_update(ekf7 *f, vec3 gyro, vec3 accel, vec3 mag, double T)
+void ekf_update(ekf7 *f, vec3 gyro, vec3 accel, vec3 mag, real T)
 {
-    double *x = f->x;
+    real *x = f->x;
     /* predict: q' = (I + Omega(w - b) T / 2) q, b' = b */
     vec3 w = v3(gyro.x - x[4], gyro.y - x[5], gyro.z - x[6]);
-    double F[7][7] = { { 0 } };
-    double hx = w.x * T / 2, hy = w.y * T / 2, hz = w.z * T / 2;
-    double Phi[4][4] = { { 1, -hx, -hy, -hz }, { hx, 1, hz, -hy }, { hy, -hz, 1, hx }, { hz, hy, -hx, 1 } };
-    double q0 = x[0], q1 = x[1], q2 = x[2], q3 = x[3];
-    double Xi[4][3] = { { -q1, -q2, -q3 }, { q0, -q3, q2 }, { q3, q0, -q1 }, { -q2, q1, q0 } };
+    real F[7][7] = { { 0 } };
+    real hx = w.x * T / 2, hy = w.y * T / 2, hz = w.z * T / 2;
+    real Phi[4][4] = { { 1, -hx, -hy, -hz }, { hx, 1, hz, -hy }, { hy, -hz, 1, hx }, { hz, hy, -hx, 1 } };
+    real q0 = x[0], q1 = x[1], q2 = x[2], q3 = x[3];
+    real Xi[4][3] = { { -q1, -q2, -q3 }, { q0, -q3, q2 }, { q3, q0, -q1 }, { -q2, q1, q0 } };
     for (int i = 0; i < 4; i++) {
         for (int j = 0; j < 4; j++)
             F[i][j] = Phi[i][j];
@@ -270,12 +270,12 @@ void ekf_update(ekf7 *f, vec3 gyro, vec3 accel, vec3 mag, double T)
     }
     for (int i = 4; i < 7; i++)
         F[i][i] = 1;
-    double xq[4];
+    real xq[4];
     for (int i = 0; i < 4; i++)
         xq[i] = Phi[i][0] * q0 + Phi[i][1] * q1 + Phi[i][2] * q2 + Phi[i][3] * q3;
     memcpy(x, xq, sizeof xq);
     quat_normalise(x);
-    double FP[7][7] = { { 0 } }, P2[7][7] = { { 0 } };
+    real FP[7][7] = { { 0 } }, P2[7][7] = { { 0 } };
     for (int i = 0; i < 7; i++)
         for (int j = 0; j < 7; j++)
             for (int k = 0; k < 7; k++)
@@ -292,20 +292,20 @@ void ekf_update(ekf7 *f, vec3 gyro, vec3 accel, vec3 mag, double T)
         return;
     /* update with the accel and mag directions; H by central differences (the model is small) */
     vec3 a = v3_unit(accel), m = v3_unit(mag);
-    double z[6] = { a.x, a.y, a.z, m.x, m.y, m.z }, h[6], H[6][7];
+    real z[6] = { a.x, a.y, a.z, m.x, m.y, m.z }, h[6], H[6][7];
     ekf_measure(x, m, h);
     for (int j = 0; j < 7; j++) {
-        double xp[7], xm[7], hp[6], hm[6];
+        real xp[7], xm[7], hp[6], hm[6];
         memcpy(xp, x, sizeof xp);
         memcpy(xm, x, sizeof xm);
-        xp[j] += 1e-6;
-        xm[j] -= 1e-6;
+        xp[j] += FC_EKF_DX;
+        xm[j] -= FC_EKF_DX;
         ekf_measure(xp, m, hp);
         ekf_measure(xm, m, hm);
         for (int i = 0; i < 6; i++)
-            H[i][j] = (hp[i] - hm[i]) / 2e-6;
+            H[i][j] = (hp[i] - hm[i]) / (2 * FC_EKF_DX);
     }
-    double PHt[7][6] = { { 0 } }, S[6][6] = { { 0 } }, B[6][7];
+    real PHt[7][6] = { { 0 } }, S[6][6] = { { 0 } }, B[6][7];
     for (int i = 0; i < 7; i++)
         for (int j = 0; j < 6; j++)
             for (int k = 0; k < 7; k++)
@@ -326,7 +326,7 @@ void ekf_update(ekf7 *f, vec3 gyro, vec3 accel, vec3 mag, double T)
         for (int j = 0; j < 6; j++)
             x[i] += B[j][i] * (z[j] - h[j]);
     quat_normalise(x);
-    double KH[7][7] = { { 0 } }, P3[7][7] = { { 0 } };
+    real KH[7][7] = { { 0 } }, P3[7][7] = { { 0 } };
     for (int i = 0; i < 7; i++)
         for (int j = 0; j < 7; j++)
             for (int k = 0; k < 6; k++)

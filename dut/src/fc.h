@@ -1,106 +1,128 @@
 /*
- * The reference flight controller: the seed papers as a Linux userspace program (libc + libm only).
+ * The reference flight controller's algorithms: the seed papers as portable C (no OS, libm only), shared
+ * by the platforms in dut/linux (a Linux program) and dut/avr (ATmega2560 firmware).
  * Conventions as docs/design.md section 3: body FRD, earth NED, quaternions scalar-first, Euler ZYX, SI.
  * Everything here is plain computation on structs, so tests link it without any device.
+ *
+ * Precision: `real` is double, or float with -DFC_SINGLE (the AVR's double is 32 bits anyway, so the
+ * host builds the same single-precision arithmetic to test it, with -fsingle-precision-constant so that
+ * literals do not widen expressions back to double). On the host <tgmath.h> picks sqrtf for a float and
+ * sqrt for a double, so the double build is the very same code as before `real` existed. Clocks stay
+ * double (seconds since boot lose milliseconds in a float), and are a platform's business anyway.
  */
 #ifndef FC_H
 #define FC_H
 
 #include <stddef.h>
 #include <stdint.h>
+#if defined(__AVR__)
+#include <math.h>
+#else
+#include <tgmath.h>
+#endif
+
+#ifdef FC_SINGLE
+typedef float real;
+#define FC_TINY 1e-30  /* below this a pivot is singular */
+#define FC_EKF_DX 1e-3 /* the EKF's central-difference step: 1e-6 is at float's rounding, 1e-3 is not */
+#else
+typedef double real;
+#define FC_TINY 1e-300
+#define FC_EKF_DX 1e-6
+#endif
 
 #define FC_G0 9.80665
 
 typedef struct {
-    double x, y, z;
+    real x, y, z;
 } vec3;
 
-vec3 v3(double x, double y, double z);
+vec3 v3(real x, real y, real z);
 vec3 v3_add(vec3 a, vec3 b);
-vec3 v3_scale(vec3 a, double k);
+vec3 v3_scale(vec3 a, real k);
 vec3 v3_cross(vec3 a, vec3 b);
-double v3_dot(vec3 a, vec3 b);
-double v3_norm(vec3 a);
+real v3_dot(vec3 a, vec3 b);
+real v3_norm(vec3 a);
 vec3 v3_unit(vec3 a); /* zero stays zero */
 
 typedef struct {
-    double roll, pitch, yaw;
+    real roll, pitch, yaw;
 } euler;
 
 /* ---- seed 000: quaternion complementary filter (eqs. 1-5) -------------------------------------- */
 typedef struct {
-    double q[4];   /* body -> earth */
+    real q[4];     /* body -> earth */
     vec3 integral; /* sum of e(t) T */
-    double kp, ki;
+    real kp, ki;
 } quat_cf;
 
-void quat_cf_init(quat_cf *f, double kp, double ki);
+void quat_cf_init(quat_cf *f, real kp, real ki);
 void quat_cf_set_euler(quat_cf *f, euler e);
 /* gyro in rad/s (body), accel any units (body specific force), mag any units (body); T seconds.
    A zero accel or mag vector skips that correction. */
-void quat_cf_update(quat_cf *f, vec3 gyro, vec3 accel, vec3 mag, double T);
-void picard2(double q[4], vec3 w, double T); /* eq. 3-4, then normalised */
-euler quat_to_euler(const double q[4]);      /* eq. 5 */
-void euler_to_quat(euler e, double q[4]);
+void quat_cf_update(quat_cf *f, vec3 gyro, vec3 accel, vec3 mag, real T);
+void picard2(real q[4], vec3 w, real T); /* eq. 3-4, then normalised */
+euler quat_to_euler(const real q[4]);    /* eq. 5 */
+void euler_to_quat(euler e, real q[4]);
 
 /* ---- seed 002: Mahony filter on the DCM ----------------------------------------------------------- */
 typedef struct {
-    double R[3][3]; /* body -> earth; rows are r_x, r_y, r_z of eq. 11 */
+    real R[3][3]; /* body -> earth; rows are r_x, r_y, r_z of eq. 11 */
     vec3 integral;
-    double kp, ki;
+    real kp, ki;
 } mahony_dcm;
 
-void mahony_init(mahony_dcm *f, double kp, double ki);
+void mahony_init(mahony_dcm *f, real kp, real ki);
 void mahony_set_euler(mahony_dcm *f, euler e);
-void mahony_update(mahony_dcm *f, vec3 gyro, vec3 accel, vec3 mag, double T);
-void dcm_orthonormalise(double R[3][3]); /* section 2.3.1 */
-euler dcm_to_euler(const double R[3][3]);
+void mahony_update(mahony_dcm *f, vec3 gyro, vec3 accel, vec3 mag, real T);
+void dcm_orthonormalise(real R[3][3]); /* section 2.3.1 */
+euler dcm_to_euler(const real R[3][3]);
 
 /* ---- EKF baseline: state q (4) and gyro bias (3); accel and mag directions measured ---------------- */
 typedef struct {
-    double x[7];
-    double P[7][7];
-    double q_gyro, q_bias, r_acc, r_mag;
+    real x[7];
+    real P[7][7];
+    real q_gyro, q_bias, r_acc, r_mag;
 } ekf7;
 
 void ekf_init(ekf7 *f);
 void ekf_set_euler(ekf7 *f, euler e);
-void ekf_update(ekf7 *f, vec3 gyro, vec3 accel, vec3 mag, double T);
+void ekf_update(ekf7 *f, vec3 gyro, vec3 accel, vec3 mag, real T);
 euler ekf_euler(const ekf7 *f);
 
 /* ---- control (seed 000 eqs. 8-16) ------------------------------------------------------------------ */
 typedef struct {
-    double kp, ki, kd;
-    double sum;  /* sum of e(j) T */
-    double prev; /* e(t-1) */
+    real kp, ki, kd;
+    real sum;  /* sum of e(j) T */
+    real prev; /* e(t-1) */
     int started;
-    double out_limit; /* |u| <= out_limit (0: none) */
-    double sum_limit; /* |ki sum| <= sum_limit (0: none), against wind-up */
-    double i_band;    /* > 0: integrate only while |e| <= i_band (conditional integration) */
+    real out_limit; /* |u| <= out_limit (0: none) */
+    real sum_limit; /* |ki sum| <= sum_limit (0: none), against wind-up */
+    real i_band;    /* > 0: integrate only while |e| <= i_band (conditional integration) */
 } pid;
 
-void pid_init(pid *p, double kp, double ki, double kd, double out_limit, double sum_limit);
-double pid_step(pid *p, double e, double T); /* eq. 8, position form */
+void pid_init(pid *p, real kp, real ki, real kd, real out_limit, real sum_limit);
+real pid_step(pid *p, real e, real T); /* eq. 8, position form */
 void pid_reset(pid *p);
-double clampd(double v, double lo, double hi);
+real clampd(real v, real lo, real hi);
 
 enum mixer_kind { MIXER_PLUS = 0, MIXER_X = 1 };
 /* eq. 15 ("+": motor 1 front, 2 left, 3 rear, 4 right) and the X layout of the plant's frame = 1 (1
    front-right, 2 front-left, 3 rear-left, 4 rear-right; control.c); outputs are throttle units (us above
    idle). */
-void mix(enum mixer_kind kind, double throttle, double roll, double pitch, double yaw, double out[4]);
-double throttle_compensate(double value, double alpha, double beta); /* eq. 16 */
+void mix(enum mixer_kind kind, real throttle, real roll, real pitch, real yaw, real out[4]);
+real throttle_compensate(real value, real alpha, real beta); /* eq. 16 */
 
-double baro_altitude(double pressure, double start_pressure); /* eq. 6 */
+real baro_altitude(real pressure, real start_pressure); /* eq. 6 */
 
 /* Altitude from the barometer fused with vertical acceleration (a second-order complementary filter). */
 typedef struct {
-    double h, v, k1, k2;
+    real h, v, k1, k2;
     int started;
 } alt_filter;
-void alt_filter_init(alt_filter *a, double k1, double k2);
+void alt_filter_init(alt_filter *a, real k1, real k2);
 /* acc_up: vertical acceleration (m/s^2, up positive, gravity removed) */
-void alt_filter_update(alt_filter *a, double baro_h, double acc_up, double T);
+void alt_filter_update(alt_filter *a, real baro_h, real acc_up, real T);
 
 /* ---- MS5611 datasheet maths -------------------------------------------------------------------------- */
 unsigned ms5611_crc4(const uint16_t prom[8]);
@@ -149,6 +171,6 @@ typedef struct {
 void sbus_parser_init(sbus_parser *p);
 /* Feeds bytes; returns 1 and fills *out when the last byte completed a valid frame (the newest wins). */
 int sbus_feed(sbus_parser *p, const uint8_t *data, size_t n, sbus_frame *out);
-double sbus_to_unit(uint16_t raw); /* 172..1811 -> -1..1 */
+real sbus_to_unit(uint16_t raw); /* 172..1811 -> -1..1 */
 
 #endif

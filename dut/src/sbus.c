@@ -71,4 +71,4 @@ int sbus_feed(sbus_parser *p, const uint8_t *data, size_t n, sbus_frame *out)
     return got;
 }
 
-double sbus_to_unit(uint16_t raw) { return clampd((raw - 992.0) / 819.5, -1.0, 1.0); }
+real sbus_to_unit(uint16_t raw) { return clampd((raw - 992.0) / 819.5, -1.0, 1.0); }

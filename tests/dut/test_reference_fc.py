@@ -27,8 +27,10 @@ def fc() -> Path:
     return BUILD / "fc"
 
 
-def test_algorithms_against_independent_truth(fc: Path) -> None:
-    done = subprocess.run([str(BUILD / "test_fc")], capture_output=True, text=True)
+@pytest.mark.parametrize("program", ["test_fc", "test_fc32"])
+def test_algorithms_against_independent_truth(fc: Path, program: str) -> None:
+    """In double (the Linux FC) and in single precision (test_fc32: what the AVR computes)."""
+    done = subprocess.run([str(BUILD / program)], capture_output=True, text=True)
     lines = done.stdout.splitlines()
     assert done.returncode == 0, done.stdout
     assert not [line for line in lines if not line.startswith("ok ")]

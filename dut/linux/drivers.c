@@ -85,7 +85,7 @@ int mpu_read(int fd, int addr, vec3 *acc, vec3 *gyro)
     int r = rregs(fd, addr, 0x3B, b, 14);
     if (r < 0)
         return r;
-    double ka = FC_G0 / ACC_LSB_PER_G, kg = (M_PI / 180.0) / GYRO_LSB_PER_DPS;
+    real ka = FC_G0 / ACC_LSB_PER_G, kg = (M_PI / 180.0) / GYRO_LSB_PER_DPS;
     *acc = v3(be16(b) * ka, be16(b + 2) * ka, be16(b + 4) * ka);
     *gyro = v3(be16(b + 8) * kg, be16(b + 10) * kg, be16(b + 12) * kg);
     return 0;
@@ -117,7 +117,7 @@ int hmc_read(int fd, int addr, vec3 *field)
     int r = rregs(fd, addr, 0x03, b, 6);
     if (r < 0)
         return r;
-    const double k = 1.0 / 1090.0; /* gain 1, gauss per LSB; data order X, Z, Y */
+    const real k = 1.0 / 1090.0; /* gain 1, gauss per LSB; data order X, Z, Y */
     *field = v3(be16(b) * k, be16(b + 4) * k, be16(b + 2) * k);
     return 0;
 }

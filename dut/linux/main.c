@@ -40,12 +40,12 @@ static void ts_add(struct timespec *t, long ns)
     }
 }
 
-static vec3 calibrate(vec3 v, const double off[3], const double scale[3])
+static vec3 calibrate(vec3 v, const real off[3], const real scale[3])
 {
     return v3((v.x - off[0]) * scale[0], (v.y - off[1]) * scale[1], (v.z - off[2]) * scale[2]);
 }
 
-static double i_limit(double out_limit, double ki) { return ki > 0 ? 0.5 * out_limit / ki : 0; }
+static real i_limit(real out_limit, real ki) { return ki > 0 ? 0.5 * out_limit / ki : 0; }
 
 int main(int argc, char **argv)
 {
@@ -79,7 +79,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "fc: cannot open RC input %s: %s\n", c.rc_path, strerror(errno));
         return 2;
     }
-    const double T = 1.0 / c.est_rate_hz, Tc = 1.0 / c.ctrl_rate_hz;
+    const real T = 1.0 / c.est_rate_hz, Tc = 1.0 / c.ctrl_rate_hz;
     const double t_start = now_s();
     struct timespec next;
     long step_ns = (long)(1e9 / c.est_rate_hz);
@@ -155,11 +155,12 @@ int main(int argc, char **argv)
     sbus_parser_init(&sp);
     sbus_frame sticks;
     memset(&sticks, 0, sizeof sticks);
-    double last_rc = -1e9, failsafe_since = -1, start_pressure = 0, alt_target = 0, alt_base = 0, last_baro = 0;
+    double last_rc = -1e9, failsafe_since = -1, last_baro = 0; /* clock seconds */
+    real start_pressure = 0, alt_target = 0, alt_base = 0;
     int baro_rejects = 0, armed = 0, had_rc = 0, reported_garbage = 0, alt_hold = 0, gyro_same = 0, gyro_fault = 0;
     double ctrl_phase = 1.0; /* the first cycle controls */
     vec3 last_gyro = v3(0, 0, 0);
-    double out[4] = { 1000, 1000, 1000, 1000 };
+    real out[4] = { 1000, 1000, 1000, 1000 };
     unsigned long cycles = 0, overruns = 0;
     double loop_max_us = 0;
     euler att = { 0, 0, 0 };
@@ -200,8 +201,8 @@ int main(int argc, char **argv)
             att = ekf_euler(&kf);
         }
         /* vertical acceleration: specific force rotated to earth, plus gravity, up positive */
-        double cr = cos(att.roll), sr = sin(att.roll), cpi = cos(att.pitch), spi = sin(att.pitch);
-        double acc_up = -(-spi * a.x + cpi * sr * a.y + cpi * cr * a.z + FC_G0);
+        real cr = cos(att.roll), sr = sin(att.roll), cpi = cos(att.pitch), spi = sin(att.pitch);
+        real acc_up = -(-spi * a.x + cpi * sr * a.y + cpi * cr * a.z + FC_G0);
         int32_t p_pa, t_c;
         if (ms5611_poll(&baro, &baro_bus, &p_pa, &t_c) == 1) {
             if (start_pressure == 0)
@@ -210,7 +211,7 @@ int main(int argc, char **argv)
             last_baro = t0;
             /* innovation gate: a barometer jump of more than baro_gate_m against the fused altitude is a
                glitch, not a climb; after 25 rejections in a row (about 0.6 s) the reading is believed */
-            double bh = baro_altitude(p_pa, start_pressure);
+            real bh = baro_altitude(p_pa, start_pressure);
             if (altf.started && fabs(bh - altf.h) > c.baro_gate_m && baro_rejects < 25) {
                 baro_rejects++;
                 alt_filter_update(&altf, altf.h, acc_up, dt); /* coast on the accelerometer */
@@ -237,7 +238,7 @@ int main(int argc, char **argv)
             }
         }
         int rc_ok = had_rc && t0 - last_rc < RC_TIMEOUT_S;
-        double thr = (sbus_to_unit(sticks.ch[2]) + 1) / 2; /* 0..1 */
+        real thr = (sbus_to_unit(sticks.ch[2]) + 1) / 2; /* 0..1 */
         if (rc_ok) {
             failsafe_since = -1;
             int arm_switch = sbus_to_unit(sticks.ch[4]) > 0.5;
@@ -262,7 +263,7 @@ int main(int argc, char **argv)
         if (control_now)
             ctrl_phase -= 1.0;
         /* alt hold setpoint: the altitude where hold engaged, moved by RC ch7 (centre: no offset) */
-        double alt_offset = rc_ok ? sbus_to_unit(sticks.ch[6]) * c.alt_sp_range_m : 0;
+        real alt_offset = rc_ok ? sbus_to_unit(sticks.ch[6]) * c.alt_sp_range_m : 0;
         if (rc_ok && alt_hold)
             alt_target = alt_base + alt_offset;
         if (control_now && armed && gyro_fault) {
@@ -271,26 +272,26 @@ int main(int argc, char **argv)
             alt_target = altf.h;
             alt_base = altf.h - alt_offset; /* after recovery, hold where the descent ended */
         } else if (control_now && armed) {
-            double sp_roll = rc_ok ? sbus_to_unit(sticks.ch[0]) * c.max_angle_deg * M_PI / 180 : 0;
-            double sp_pitch = rc_ok ? sbus_to_unit(sticks.ch[1]) * c.max_angle_deg * M_PI / 180 : 0;
-            double sp_yaw_rate = rc_ok ? sbus_to_unit(sticks.ch[3]) * c.max_yaw_rate_dps * M_PI / 180 : 0;
-            double r_sp = pid_step(&angle[0], sp_roll - att.roll, Tc); /* eq. 9 */
-            double p_sp = pid_step(&angle[1], sp_pitch - att.pitch, Tc);
-            double r_out = pid_step(&rate[0], r_sp - w.x, Tc); /* eq. 10, limited (eq. 13) */
-            double p_out = pid_step(&rate[1], p_sp - w.y, Tc);
-            double y_out = pid_step(&rate[2], sp_yaw_rate - w.z, Tc);
+            real sp_roll = rc_ok ? sbus_to_unit(sticks.ch[0]) * c.max_angle_deg * M_PI / 180 : 0;
+            real sp_pitch = rc_ok ? sbus_to_unit(sticks.ch[1]) * c.max_angle_deg * M_PI / 180 : 0;
+            real sp_yaw_rate = rc_ok ? sbus_to_unit(sticks.ch[3]) * c.max_yaw_rate_dps * M_PI / 180 : 0;
+            real r_sp = pid_step(&angle[0], sp_roll - att.roll, Tc); /* eq. 9 */
+            real p_sp = pid_step(&angle[1], sp_pitch - att.pitch, Tc);
+            real r_out = pid_step(&rate[0], r_sp - w.x, Tc); /* eq. 10, limited (eq. 13) */
+            real p_out = pid_step(&rate[1], p_sp - w.y, Tc);
+            real y_out = pid_step(&rate[2], sp_yaw_rate - w.z, Tc);
             if (c.defect_mixer_sign)
                 r_out = -r_out; /* negative control: a roll sign error */
-            double throttle;
+            real throttle;
             if (alt_hold) { /* eqs. 11-12, limited (eq. 14), in percent of the throttle range */
-                double acc_sp = pid_step(&alt_pid, alt_target - altf.h, Tc) - c.alt_kv * altf.v;
+                real acc_sp = pid_step(&alt_pid, alt_target - altf.h, Tc) - c.alt_kv * altf.v;
                 throttle = c.hover_us - 1000 + 10 * pid_step(&acc_pid, acc_sp - acc_up, Tc);
             } else {
                 throttle = thr * 1000;
                 alt_target = altf.h;
                 alt_base = altf.h - alt_offset; /* engaging hold keeps this altitude whatever ch7 says */
             }
-            double m[4];
+            real m[4];
             mix((enum mixer_kind)c.mixer, throttle, r_out, p_out, y_out, m);
             for (int i = 0; i < 4; i++)
                 out[i] = clampd(1000 + throttle_compensate(m[i], c.alpha[i], c.beta[i]), 1000, 2000); /* eq. 16 */
