@@ -1,0 +1,68 @@
+/* One cycle of the reference FC's flight logic, for both platforms: calibration of the sensor samples,
+   the estimator, the altitude fusion with its barometer gate, RC (arming, link loss, failsafe), the gyro
+   fault ride-through, and the cascaded control to four pulse widths. The platform reads the chips, the
+   RC bytes and its clock, and calls these in the order of one loop cycle:
+     flight_sense  (the MPU-6050 sample; the HMC5883L's, when the platform read one)
+     flight_baro   (a pressure from ms5611_poll, when there was one)
+     flight_rc     (each valid SBUS frame)
+     flight_control (returns whether this cycle wrote the motors, and what happened worth saying)
+   Times are the platform's clock in seconds (double: on Linux seconds since boot). */
+#ifndef FLIGHT_H
+#define FLIGHT_H
+
+#include "config.h"
+#include "fc.h"
+
+#define FLIGHT_RC_TIMEOUT_S 0.5
+#define FLIGHT_FAILSAFE_DESCENT_S 10.0
+#define FLIGHT_GYRO_STUCK_N 10
+
+/* what flight_control reports (a bit set) */
+enum {
+    FLIGHT_CONTROLLED = 1, /* this cycle computed out[] */
+    FLIGHT_GYRO_STUCK = 2, /* the gyro was declared stuck this cycle */
+    FLIGHT_GYRO_RECOVERED = 4,
+    FLIGHT_RC_LOST = 8, /* the RC link was lost while armed: failsafe began */
+};
+
+typedef struct {
+    const fc_config *c;
+    real T, Tc;
+    vec3 bias, mag; /* gyro bias (body); the newest calibrated field (body) */
+    quat_cf cf;
+    mahony_dcm mh;
+#ifndef FC_NO_EKF /* (the AVR leaves the EKF out: it does not fit the cycle budget, docs/avr-fc.md) */
+    ekf7 kf;
+#endif
+    euler att;
+    vec3 w, a; /* this cycle's body rates (bias removed) and calibrated specific force */
+    real acc_up;
+    pid angle[2], rate[3], alt_pid, acc_pid;
+    alt_filter altf;
+    sbus_frame sticks;
+    double last_rc, failsafe_since, last_baro; /* clock seconds */
+    real start_pressure, alt_target, alt_base;
+    int baro_rejects, armed, had_rc, alt_hold, gyro_same, gyro_fault, rc_ok, events;
+    double ctrl_phase;
+    vec3 last_gyro;
+    real out[4];
+} flight;
+
+/* Sensor frame of a board lying flat (x forward, y left, z up) to body FRD. */
+vec3 flight_to_body(vec3 s);
+vec3 flight_calibrate(vec3 v, const real off[3], const real scale[3]);
+
+/* After the platform's second at rest: the gyro bias and the mean specific force and field (body,
+   calibrated; a zero field when none was read). Sets up the filters (aligned to the resting vectors
+   through themselves, at a high gain) and the loops. `all_estimators`: align all three (Linux), or
+   only c->estimator's (the AVR, where the EKF is not built and time counts). The field stays the
+   newest until flight_sense gets another. */
+void flight_init(flight *f, const fc_config *c, vec3 bias, vec3 acc_mean, vec3 mag_mean, int all_estimators,
+                 void (*each)(void)); /* each: called between alignment steps (a watchdog), or NULL */
+/* acc (m/s^2) and gyro (rad/s) in the sensor frame; mag (gauss, sensor frame) or NULL when none was read */
+void flight_sense(flight *f, vec3 acc, vec3 gyro, const vec3 *mag);
+void flight_baro(flight *f, int32_t p_pa, double t0);
+void flight_rc(flight *f, const sbus_frame *frame, double t0);
+int flight_control(flight *f, double t0);
+
+#endif
