@@ -28,7 +28,7 @@ BRIDGE_CHIPS := emulators/chips
 BRIDGE_CFLAGS := -std=c99 -pedantic -O2 -Wall -Wextra -Werror -ffp-contract=off -Ibuild/gen -I$(BRIDGE_CHIPS) \
 	-Ibridge/core -Irig/shim
 
-.PHONY: all venv fmu shim native chips compiled dut vbridge firmware avr-toolchain test-packages mcu-test-firmware demo test test-slow lint bench clean docs-images
+.PHONY: all venv fmu shim native chips compiled dut vbridge firmware avr avr-toolchain test-packages mcu-test-firmware demo test test-slow lint bench clean docs-images
 
 all: fmu shim native compiled dut vbridge
 
@@ -77,6 +77,11 @@ $(VBRIDGE): $(wildcard bridge/core/*.[ch] bridge/posix/*.c) $(CHIP_FILES) rig/sh
 # (rig/bridge/firmware.py rebuilds only when a source is newer)
 firmware: venv test-packages
 	$(PY) -m rig.bridge.firmware
+
+# the reference FC as ATmega2560 firmware (docs/avr-fc.md): build/avr/fc.elf, .hex, .eep; prints flash, RAM
+# and EEPROM use against 256 KB / 8 KB / 4 KB and fails when over
+avr: avr-toolchain
+	$(MAKE) -s -C dut avr
 
 # avr-gcc, avr-libc and libsimavr (tools/avr-toolchain.sh), only when missing: the MCU tier and the AVR
 # firmware need them, the demo does not

@@ -21,7 +21,10 @@ struct image_key {
     float low, high; /* NAN: no limit */
 };
 #define ANY NAN
-#define FC_KEY(name, kind, n, low, high) { #kind[0], n, offsetof(fc_config, name), low, high },
+#define KIND_D 'D'
+#define KIND_I 'I'
+#define KIND_S 'S'
+#define FC_KEY(name, kind, n, low, high) { KIND_##kind, n, offsetof(fc_config, name), low, high },
 static const struct image_key keys[] FLASH = { FC_CONFIG_KEYS(FC_KEY) };
 #undef FC_KEY
 

@@ -22,9 +22,9 @@ unsigned ms5611_crc4(const uint16_t prom[8])
 void ms5611_compensate(const uint16_t c[8], uint32_t d1, uint32_t d2, int32_t *p, int32_t *temp)
 {
     int64_t dt = (int64_t)d2 - ((int64_t)c[5] << 8);
-    int64_t t = 2000 + dt * c[6] / (1 << 23);
-    int64_t off = ((int64_t)c[2] << 16) + ((int64_t)c[4] * dt) / (1 << 7);
-    int64_t sens = ((int64_t)c[1] << 15) + ((int64_t)c[3] * dt) / (1 << 8);
+    int64_t t = 2000 + dt * c[6] / ((int64_t)1 << 23);
+    int64_t off = ((int64_t)c[2] << 16) + ((int64_t)c[4] * dt) / ((int64_t)1 << 7);
+    int64_t sens = ((int64_t)c[1] << 15) + ((int64_t)c[3] * dt) / ((int64_t)1 << 8);
     if (t < 2000) { /* second order, datasheet */
         int64_t t2 = dt * dt / ((int64_t)1 << 31);
         int64_t off2 = 5 * (t - 2000) * (t - 2000) / 2;
@@ -37,7 +37,7 @@ void ms5611_compensate(const uint16_t c[8], uint32_t d1, uint32_t d2, int32_t *p
         off -= off2;
         sens -= sens2;
     }
-    *p = (int32_t)(((int64_t)d1 * sens / (1 << 21) - off) / (1 << 15));
+    *p = (int32_t)(((int64_t)d1 * sens / ((int64_t)1 << 21) - off) / ((int64_t)1 << 15));
     *temp = (int32_t)t;
 }
 

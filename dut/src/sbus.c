@@ -8,9 +8,10 @@ int sbus_decode(const uint8_t f[SBUS_FRAME], sbus_frame *out)
 {
     if (f[0] != 0x0F || f[24] != 0x00)
         return -1;
-    unsigned acc = 0, bits = 0, ch = 0;
+    uint32_t acc = 0; /* up to 18 bits pending: wider than an AVR unsigned */
+    unsigned bits = 0, ch = 0;
     for (int i = 1; i <= 22 && ch < 16; i++) {
-        acc |= (unsigned)f[i] << bits;
+        acc |= (uint32_t)f[i] << bits;
         bits += 8;
         while (bits >= 11 && ch < 16) {
             out->ch[ch++] = acc & 0x7FF;
@@ -27,9 +28,10 @@ void sbus_encode(const sbus_frame *in, uint8_t f[SBUS_FRAME])
 {
     memset(f, 0, SBUS_FRAME);
     f[0] = 0x0F;
-    unsigned acc = 0, bits = 0, at = 1;
+    uint32_t acc = 0;
+    unsigned bits = 0, at = 1;
     for (int ch = 0; ch < 16; ch++) {
-        acc |= (unsigned)(in->ch[ch] & 0x7FF) << bits;
+        acc |= (uint32_t)(in->ch[ch] & 0x7FF) << bits;
         bits += 11;
         while (bits >= 8) {
             f[at++] = acc & 0xFF;

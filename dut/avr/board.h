@@ -1,0 +1,23 @@
+/* The board: an Arduino Mega 2560 (ATmega2560, 16 MHz crystal) with a GY-86 on the TWI, four ESCs on
+   timers 3 and 4, an SBUS receiver (through the usual inverter) on USART1, telemetry on USART0 (the USB
+   serial). These match the MCU tier's board file mega2560-gy86; docs/avr-fc.md has the wiring. */
+#ifndef BOARD_H
+#define BOARD_H
+
+#define BOARD_F_CPU 16000000UL
+
+/* motors 1..4 (the plant's numbering, the mixer's order): D2 PE4 OC3B, D3 PE5 OC3C, D5 PE3 OC3A,
+   D6 PH3 OC4A. Phase-correct PWM, TOP = ICRn = 2040, prescaler 8: 0.5 us ticks, a period of
+   2 x 2040 ticks = 2.04 ms (490 Hz); the output is high for 2 x OCR ticks, so OCR = the pulse in us */
+#define PWM_TOP 2040
+#define PWM_MIN_US 1000
+#define PWM_MAX_US 2000
+
+#define TWI_HZ 400000UL
+#define SBUS_BAUD 100000UL      /* 8E2; UBRR 9 at 16 MHz, exact */
+#define TELEMETRY_BAUD 500000UL /* U2X, UBRR 3 at 16 MHz, exact */
+
+/* the clock: timer 1, prescaler 8, free-running: 2 ticks per microsecond */
+#define TICKS_PER_S 2000000UL
+
+#endif

@@ -1,0 +1,246 @@
+/* The reference flight controller as ATmega2560 firmware (docs/avr-fc.md). The same flight logic as the
+   Linux FC (src/flight.c) on this board: the GY-86 on the TWI, motors on timers 3 and 4, SBUS on USART1,
+   telemetry on USART0, the configuration in EEPROM (defaults in flash), a watchdog.
+
+   Start-up: motors at 1000 us at once (ESCs arm on it); the configuration from EEPROM (a bad image: the
+   defaults, and the telemetry says why); the chips (failure: a message, the motor outputs off, as the
+   Linux FC exits without motor output); the gyro bias from 500 samples 2 ms apart; then a loop at
+   est_rate_hz on absolute deadlines of the clock, with overruns counted. A "T ..." line every
+   telemetry_every cycles, in the Linux FC's keys (and the AVR's counters); "# fc: ..." lines say what
+   happened (start-up, faults). The EKF (estimator = 2) is not built here: 2 is refused at start-up. */
+#include <avr/eeprom.h>
+#include <avr/interrupt.h>
+#include <avr/io.h>
+#include <avr/wdt.h>
+#include <string.h>
+
+#include "board.h"
+#include "clock.h"
+#include "config_image.h"
+#include "flight.h"
+#include "motors.h"
+#include "sbus_rx.h"
+#include "sensors.h"
+#include "twi.h"
+#include "uart0.h"
+
+/* the EEPROM holds the configuration image at address 0; the ELF's copy is blank (0xFF: the defaults),
+   and the rig or avrdude writes a scenario's (scenarios/eeprom.py) */
+static const uint8_t ee_image[FC_IMAGE_SIZE] EEMEM = { [0 ... FC_IMAGE_SIZE - 1] = 0xFF };
+
+static uint8_t reset_cause __attribute__((section(".noinit")));
+
+/* before main: after a watchdog reset the watchdog stays on at its shortest period; turn it off first */
+void early(void) __attribute__((naked, used, section(".init3")));
+void early(void)
+{
+    reset_cause = MCUSR;
+    MCUSR = 0;
+    wdt_disable();
+}
+
+static fc_config cfg;
+static flight fl;
+static ms5611_dev baro;
+static uint8_t baro_addr;
+static const char *cfg_why = "";
+
+static void feed(void) { wdt_reset(); }
+
+static void say(const char *a, const char *b)
+{
+    char buf[120];
+    line l = { buf, 0, sizeof buf - 1 };
+    line_str(&l, "# fc: ");
+    line_str(&l, a);
+    line_str(&l, b);
+    buf[l.n++] = '\n';
+    while (uart0_line(buf, l.n) < 0) /* start-up and fault messages wait for room: they must arrive */
+        wdt_reset();
+}
+
+/* No motor output, for good: the outputs stop (ESCs without a signal do not run), the message repeats
+   every second so a late listener sees it. */
+static void halt(const char *why)
+{
+    motors_off();
+    for (;;) {
+        say(why, "; no motor output");
+        uint32_t t = clock_ticks();
+        while (clock_ticks() - t < TICKS_PER_S)
+            wdt_reset();
+    }
+}
+
+static uint64_t wide_ticks(void)
+{
+    static uint32_t last, wraps;
+    uint32_t t = clock_ticks();
+    if (t < last)
+        wraps++;
+    last = t;
+    return (uint64_t)wraps << 32 | t;
+}
+
+static void telemetry(uint32_t loop_ticks, uint32_t max_ticks, uint32_t overruns)
+{
+    char buf[220];
+    line l = { buf, 0, sizeof buf - 1 };
+    uint64_t t = wide_ticks();
+    const real deg = 180 / M_PI;
+    line_str(&l, "T t=");
+    line_int(&l, (int32_t)(t / TICKS_PER_S));
+    line_str(&l, ".");
+    uint32_t frac = (uint32_t)(t % TICKS_PER_S) / (TICKS_PER_S / 10000);
+    char d[4] = { (char)('0' + frac / 1000), (char)('0' + frac / 100 % 10), (char)('0' + frac / 10 % 10),
+                  (char)('0' + frac % 10) };
+    for (uint8_t i = 0; i < 4; i++)
+        buf[l.n++] = d[i];
+    line_str(&l, " roll=");
+    line_fixed(&l, fl.att.roll * deg, 3);
+    line_str(&l, " pitch=");
+    line_fixed(&l, fl.att.pitch * deg, 3);
+    line_str(&l, " yaw=");
+    line_fixed(&l, fl.att.yaw * deg, 3);
+    line_str(&l, " alt=");
+    line_fixed(&l, fl.altf.h, 3);
+    line_str(&l, " armed=");
+    line_int(&l, fl.armed);
+    line_str(&l, " rc=");
+    line_int(&l, fl.rc_ok);
+    line_str(&l, " gyro_fault=");
+    line_int(&l, fl.gyro_fault);
+    line_str(&l, " loop_us=");
+    line_int(&l, (int32_t)(loop_ticks / 2));
+    line_str(&l, " max_us=");
+    line_int(&l, (int32_t)(max_ticks / 2));
+    line_str(&l, " overruns=");
+    line_int(&l, (int32_t)overruns);
+    sbus_rx_stats s = sbus_rx_counters();
+    line_str(&l, " cfg=");
+    line_str(&l, cfg_why);
+    line_str(&l, " twi_err=");
+    line_int(&l, (int32_t)twi_counters.nacks + twi_counters.timeouts + twi_counters.bus_errors);
+    line_str(&l, " twi_rec=");
+    line_int(&l, twi_counters.recoveries);
+    line_str(&l, " sbus_ok=");
+    line_int(&l, s.frames);
+    line_str(&l, " sbus_bad=");
+    line_int(&l, (int32_t)s.bad_frames + s.byte_errors);
+    line_str(&l, " tel_drop=");
+    line_int(&l, uart0_dropped());
+    buf[l.n++] = '\n';
+    uart0_line(buf, l.n);
+}
+
+int main(void)
+{
+    motors_init(); /* 1000 us from the first moment: the ESCs arm */
+    clock_init();
+    uart0_init();
+    sbus_rx_init();
+    twi_init();
+    sei();
+    wdt_enable(WDTO_250MS);
+    {
+        static const char hex[] = "0123456789abcdef";
+        char cause[3] = { hex[reset_cause >> 4], hex[reset_cause & 15], 0 };
+        /* MCUSR: 1 power-on, 2 external, 4 brown-out, 8 watchdog */
+        say("ATmega2560 reference FC; reset cause (MCUSR) 0x", cause);
+    }
+    {
+        uint8_t img[FC_IMAGE_SIZE];
+        eeprom_read_block(img, ee_image, sizeof img);
+        int st = config_from_image(&cfg, img, sizeof img);
+        cfg_why = st == FC_IMAGE_OK ? "eeprom" : fc_image_why(st); /* anything else: the defaults */
+        say(st == FC_IMAGE_OK ? "configuration: EEPROM image" : "configuration: the defaults; EEPROM image: ",
+            st == FC_IMAGE_OK ? "" : cfg_why);
+    }
+    if (cfg.estimator == 2)
+        halt("estimator 2 (the EKF) is not built for the AVR: it does not fit the cycle budget");
+    baro_addr = (uint8_t)cfg.baro_addr;
+    ms5611_bus baro_bus = sensors_baro_bus(&baro_addr);
+    int r = sensors_init((uint8_t)cfg.mpu_addr, (uint8_t)cfg.hmc_addr, baro_addr, &baro, feed);
+    if (r < 0)
+        halt(sensors_why(r));
+
+    /* gyro bias: 500 samples at rest, 2 ms apart on absolute deadlines; the field averaged over the
+       same second (one sample in 7), as the Linux FC does */
+    vec3 bias = v3(0, 0, 0), acc, gyro, mag, acc_mean = v3(0, 0, 0), mag_sum = v3(0, 0, 0);
+    int mag_n = 0, mag_ok;
+    uint32_t next = clock_ticks();
+    for (int i = 0; i < 500; i++) {
+        if (sensors_read((uint8_t)cfg.mpu_addr, &acc, &gyro, &mag, &mag_ok) < 0)
+            halt("MPU-6050 read failed during calibration");
+        bias = v3_add(bias, v3_scale(flight_to_body(gyro), 1.0 / 500));
+        acc_mean =
+            v3_add(acc_mean, v3_scale(flight_calibrate(flight_to_body(acc), cfg.acc_offset, cfg.acc_scale), 1.0 / 500));
+        if (i % 7 == 0 && mag_ok) {
+            mag_sum = v3_add(mag_sum, flight_calibrate(flight_to_body(mag), cfg.mag_offset, cfg.mag_scale));
+            mag_n++;
+        }
+        next += TICKS_PER_S / 500;
+        while ((int32_t)(clock_ticks() - next) < 0)
+            ;
+        wdt_reset();
+    }
+    flight_init(&fl, &cfg, bias, acc_mean, mag_n > 0 ? v3_scale(mag_sum, 1.0 / mag_n) : v3(0, 0, 0), 0, feed);
+    say("running", "");
+    wdt_enable(WDTO_60MS); /* the loop feeds it every cycle (4 ms at 250 Hz) */
+
+    const uint32_t period = (uint32_t)(TICKS_PER_S / cfg.est_rate_hz + 0.5);
+    const double t_start = clock_seconds();
+    uint32_t cycles = 0, overruns = 0, max_ticks = 0;
+    int mag_clean = 1;
+    next = clock_ticks();
+    for (;;) {
+        uint32_t c0 = clock_ticks();
+        double t0 = clock_seconds();
+        if (sensors_read((uint8_t)cfg.mpu_addr, &acc, &gyro, &mag, &mag_ok) < 0) {
+            for (uint8_t i = 0; i < 4; i++)
+                motors_write_us(i, 1000);
+            halt("MPU-6050 read failed in flight; motors to idle and stop");
+        }
+        if (cfg.defect_crash_at > 0 && t0 - t_start >= cfg.defect_crash_at)
+            for (;;) /* negative control: a firmware that hangs mid-flight, until the watchdog resets it */
+                ;
+        mag_clean &= mag_ok;
+        int fresh_mag = cycles % 4 == 0 && mag_clean; /* the HMC5883L updates at 75 Hz, as on Linux */
+        if (cycles % 4 == 0)
+            mag_clean = 1;
+        flight_sense(&fl, acc, gyro, fresh_mag ? &mag : NULL);
+        int32_t p_pa, t_c;
+        if (ms5611_poll(&baro, &baro_bus, &p_pa, &t_c) == 1)
+            flight_baro(&fl, p_pa, t0);
+        sbus_frame f;
+        int got;
+        while ((got = sbus_rx_take(&f)) != 0)
+            if (got > 0)
+                flight_rc(&fl, &f, t0);
+        int events = flight_control(&fl, t0);
+        if (events & FLIGHT_CONTROLLED)
+            for (uint8_t i = 0; i < 4; i++)
+                motors_write_us(i, (uint16_t)(fl.out[i] + 0.5));
+        if (events & FLIGHT_GYRO_STUCK)
+            say("gyro stuck: holding level torque, descending", "");
+        if (events & FLIGHT_GYRO_RECOVERED)
+            say("gyro recovered", "");
+        if (events & FLIGHT_RC_LOST)
+            say("RC lost: failsafe (level, descend, disarm)", "");
+        uint32_t loop_ticks = clock_ticks() - c0;
+        if (loop_ticks > max_ticks)
+            max_ticks = loop_ticks;
+        if (cycles % (uint32_t)cfg.telemetry_every == 0)
+            telemetry(loop_ticks, max_ticks, overruns);
+        cycles++;
+        wdt_reset();
+        next += period;
+        if ((int32_t)(clock_ticks() - next) > 0) {
+            overruns++;
+            if ((int32_t)(clock_ticks() - next) > (int32_t)(4 * period))
+                next = clock_ticks(); /* far behind (a bus recovery): start again rather than race */
+        }
+        while ((int32_t)(clock_ticks() - next) < 0)
+            ;
+    }
+}

@@ -1,0 +1,25 @@
+/* Telemetry out of USART0 (TX0, D1/PE1; the Mega's USB serial) at 500000 baud, 8N1: a ring buffer the
+   data-register-empty interrupt drains, so a line costs the loop only its formatting. A line that does
+   not fit the free space is dropped whole and counted: a torn line would parse as garbage. */
+#ifndef UART0_H
+#define UART0_H
+
+#include <stdint.h>
+
+void uart0_init(void);
+/* queues a whole line (must end in '\n'); 0, or -1 when it did not fit (dropped, counted) */
+int uart0_line(const char *s, uint8_t n);
+uint16_t uart0_dropped(void);
+void uart0_flush(void); /* waits until everything queued is sent (start-up messages before a reset) */
+
+/* Line building into a caller's buffer: text, integers, and fixed-point numbers (no printf: avr-libc's
+   float printf costs 1.5 KB of flash and ~1 ms a number) */
+typedef struct {
+    char *buf;
+    uint8_t n, cap;
+} line;
+void line_str(line *l, const char *s);
+void line_int(line *l, int32_t v);
+void line_fixed(line *l, float v, uint8_t decimals); /* NaN: "nan", beyond +-2e9 units: "inf" */
+
+#endif
