@@ -17,6 +17,13 @@
 #define SBUS_BAUD 100000UL      /* 8E2; UBRR 9 at 16 MHz, exact */
 #define TELEMETRY_BAUD 500000UL /* U2X, UBRR 3 at 16 MHz, exact */
 
+/* The loop rate the firmware runs at most: float arithmetic is libm calls on this CPU, and a cycle
+   (Mahony, the control, the MPU burst, and at worst a barometer pair, an SBUS frame and a telemetry line)
+   is about 136000 cycles (bench/avr_fc_cycles.py), 85 % of 100 Hz's 160000. A configuration asking for
+   more (the library's 250 Hz) runs at this rate, its control and telemetry rates scaled alike. */
+#define AVR_RATE_HZ 100
+#define AVR_RATE_TEXT "100"
+
 /* the clock: timer 1, prescaler 8, free-running: 2 ticks per microsecond */
 #define TICKS_PER_S 2000000UL
 

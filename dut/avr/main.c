@@ -21,6 +21,7 @@
 #include "motors.h"
 #include "sbus_rx.h"
 #include "sensors.h"
+#include "telemetry.h"
 #include "twi.h"
 #include "uart0.h"
 
@@ -72,65 +73,18 @@ static void halt(const char *why)
     }
 }
 
-static uint64_t wide_ticks(void)
-{
-    static uint32_t last, wraps;
-    uint32_t t = clock_ticks();
-    if (t < last)
-        wraps++;
-    last = t;
-    return (uint64_t)wraps << 32 | t;
-}
+static uint16_t wraps; /* the 32-bit clock's wraps (every 2147 s), for the telemetry's t */
+static uint32_t last_ticks;
 
 static void telemetry(uint32_t loop_ticks, uint32_t max_ticks, uint32_t overruns)
 {
-    char buf[220];
-    line l = { buf, 0, sizeof buf - 1 };
-    uint64_t t = wide_ticks();
-    const real deg = 180 / M_PI;
-    line_str(&l, "T t=");
-    line_int(&l, (int32_t)(t / TICKS_PER_S));
-    line_str(&l, ".");
-    uint32_t frac = (uint32_t)(t % TICKS_PER_S) / (TICKS_PER_S / 10000);
-    char d[4] = { (char)('0' + frac / 1000), (char)('0' + frac / 100 % 10), (char)('0' + frac / 10 % 10),
-                  (char)('0' + frac % 10) };
-    for (uint8_t i = 0; i < 4; i++)
-        buf[l.n++] = d[i];
-    line_str(&l, " roll=");
-    line_fixed(&l, fl.att.roll * deg, 3);
-    line_str(&l, " pitch=");
-    line_fixed(&l, fl.att.pitch * deg, 3);
-    line_str(&l, " yaw=");
-    line_fixed(&l, fl.att.yaw * deg, 3);
-    line_str(&l, " alt=");
-    line_fixed(&l, fl.altf.h, 3);
-    line_str(&l, " armed=");
-    line_int(&l, fl.armed);
-    line_str(&l, " rc=");
-    line_int(&l, fl.rc_ok);
-    line_str(&l, " gyro_fault=");
-    line_int(&l, fl.gyro_fault);
-    line_str(&l, " loop_us=");
-    line_int(&l, (int32_t)(loop_ticks / 2));
-    line_str(&l, " max_us=");
-    line_int(&l, (int32_t)(max_ticks / 2));
-    line_str(&l, " overruns=");
-    line_int(&l, (int32_t)overruns);
-    sbus_rx_stats s = sbus_rx_counters();
-    line_str(&l, " cfg=");
-    line_str(&l, cfg_why);
-    line_str(&l, " twi_err=");
-    line_int(&l, (int32_t)twi_counters.nacks + twi_counters.timeouts + twi_counters.bus_errors);
-    line_str(&l, " twi_rec=");
-    line_int(&l, twi_counters.recoveries);
-    line_str(&l, " sbus_ok=");
-    line_int(&l, s.frames);
-    line_str(&l, " sbus_bad=");
-    line_int(&l, (int32_t)s.bad_frames + s.byte_errors);
-    line_str(&l, " tel_drop=");
-    line_int(&l, uart0_dropped());
-    buf[l.n++] = '\n';
-    uart0_line(buf, l.n);
+    char buf[TELEMETRY_LINE];
+    tel_counters k = { loop_ticks, max_ticks, overruns, cfg_why, twi_counters, sbus_rx_counters(), uart0_dropped() };
+    uint32_t now = clock_ticks();
+    if (now < last_ticks)
+        wraps++;
+    last_ticks = now;
+    uart0_line(buf, telemetry_line(buf, wraps, now, &fl, &k));
 }
 
 int main(void)
@@ -155,6 +109,15 @@ int main(void)
         cfg_why = st == FC_IMAGE_OK ? "eeprom" : fc_image_why(st); /* anything else: the defaults */
         say(st == FC_IMAGE_OK ? "configuration: EEPROM image" : "configuration: the defaults; EEPROM image: ",
             st == FC_IMAGE_OK ? "" : cfg_why);
+    }
+    if (cfg.est_rate_hz > AVR_RATE_HZ) { /* as fast as this CPU goes; the rates keep their ratios */
+        real k = AVR_RATE_HZ / cfg.est_rate_hz;
+        cfg.est_rate_hz = AVR_RATE_HZ;
+        cfg.ctrl_rate_hz *= k;
+        cfg.telemetry_every = (int)(cfg.telemetry_every * k + 0.5);
+        if (cfg.telemetry_every < 1)
+            cfg.telemetry_every = 1;
+        say("est_rate_hz is over what the AVR fits: the loop runs at ", AVR_RATE_TEXT " Hz");
     }
     if (cfg.estimator == 2)
         halt("estimator 2 (the EKF) is not built for the AVR: it does not fit the cycle budget");
@@ -191,6 +154,7 @@ int main(void)
     const uint32_t period = (uint32_t)(TICKS_PER_S / cfg.est_rate_hz + 0.5);
     const double t_start = clock_seconds();
     uint32_t cycles = 0, overruns = 0, max_ticks = 0;
+    const uint8_t mag_every = cfg.est_rate_hz >= 93.75 ? (uint8_t)(cfg.est_rate_hz / 62.5 + 0.5) : 1;
     int mag_clean = 1;
     next = clock_ticks();
     for (;;) {
@@ -205,11 +169,12 @@ int main(void)
             for (;;) /* negative control: a firmware that hangs mid-flight, until the watchdog resets it */
                 ;
         mag_clean &= mag_ok;
-        int fresh_mag = cycles % 4 == 0 && mag_clean; /* the HMC5883L updates at 75 Hz, as on Linux */
-        if (cycles % 4 == 0)
+        /* a field every mag_every cycles (62.5 Hz: 4 at 250 Hz as on Linux; the HMC5883L runs at 75 Hz) */
+        int mag_due = cycles % mag_every == 0, fresh_mag = mag_due && mag_clean;
+        if (mag_due)
             mag_clean = 1;
         flight_sense(&fl, acc, gyro, fresh_mag ? &mag : NULL);
-        int32_t p_pa, t_c;
+        int32_t p_pa = 0, t_c = 0;
         if (ms5611_poll(&baro, &baro_bus, &p_pa, &t_c) == 1)
             flight_baro(&fl, p_pa, t0);
         sbus_frame f;

@@ -20,6 +20,7 @@ typedef struct {
 } line;
 void line_str(line *l, const char *s);
 void line_int(line *l, int32_t v);
-void line_fixed(line *l, float v, uint8_t decimals); /* NaN: "nan", beyond +-2e9 units: "inf" */
+void line_fixed_digits(line *l, uint32_t v, uint8_t digits); /* v with leading zeros to `digits` */
+void line_fixed(line *l, float v, uint8_t decimals);         /* NaN: "nan", beyond +-2e9 units: "inf" */
 
 #endif

@@ -1,6 +1,7 @@
 /* The reference FC's flight logic, one cycle at a time (flight.h), moved here from the Linux program
    unchanged so that the AVR firmware flies the very same code: the platforms only read chips and clocks.
-   A gyro that repeats one sample for FLIGHT_GYRO_STUCK_N cycles while armed is declared failed: without
+   A gyro that repeats one sample for FLIGHT_GYRO_STUCK_S (in cycles of the loop: 10 at 250 Hz, 5 on the
+   AVR's slower loop, so the fault is caught as soon at any rate) while armed is declared failed: without
    rate feedback the loops would wind up, so the FC holds zero differential torque at descent throttle
    until the gyro moves again (fault ride-through; defect negative control: gyro_fault_check = 0). */
 #include "flight.h"
@@ -70,6 +71,9 @@ void flight_init(flight *f, const fc_config *c, vec3 bias, vec3 acc_mean, vec3 m
     f->last_rc = -1e9;
     f->failsafe_since = -1;
     f->ctrl_phase = 1.0; /* the first cycle controls */
+    f->stuck_n = (int)(FLIGHT_GYRO_STUCK_S * c->est_rate_hz + 0.5);
+    if (f->stuck_n < 3)
+        f->stuck_n = 3;
     for (int i = 0; i < 4; i++)
         f->out[i] = 1000;
 }
@@ -80,7 +84,7 @@ void flight_sense(flight *f, vec3 acc, vec3 gyro, const vec3 *mag)
     f->gyro_same =
         (gyro.x == f->last_gyro.x && gyro.y == f->last_gyro.y && gyro.z == f->last_gyro.z) ? f->gyro_same + 1 : 0;
     f->last_gyro = gyro;
-    int stuck = f->armed && c->gyro_fault_check && f->gyro_same >= FLIGHT_GYRO_STUCK_N;
+    int stuck = f->armed && c->gyro_fault_check && f->gyro_same >= f->stuck_n;
     if (stuck != f->gyro_fault)
         f->events |= stuck ? FLIGHT_GYRO_STUCK : FLIGHT_GYRO_RECOVERED;
     f->gyro_fault = stuck;

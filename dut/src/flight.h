@@ -15,7 +15,7 @@
 
 #define FLIGHT_RC_TIMEOUT_S 0.5
 #define FLIGHT_FAILSAFE_DESCENT_S 10.0
-#define FLIGHT_GYRO_STUCK_N 10
+#define FLIGHT_GYRO_STUCK_S 0.04 /* a gyro repeating one sample this long is stuck: 10 cycles at 250 Hz */
 
 /* what flight_control reports (a bit set) */
 enum {
@@ -43,6 +43,7 @@ typedef struct {
     double last_rc, failsafe_since, last_baro; /* clock seconds */
     real start_pressure, alt_target, alt_base;
     int baro_rejects, armed, had_rc, alt_hold, gyro_same, gyro_fault, rc_ok, events;
+    int stuck_n; /* FLIGHT_GYRO_STUCK_S in cycles (at least 3) */
     double ctrl_phase;
     vec3 last_gyro;
     real out[4];
