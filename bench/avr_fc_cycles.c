@@ -76,7 +76,7 @@ int main(void)
     static flight fl;
     config_defaults(&c);
     c.estimator = 1;
-    flight_init(&fl, &c, v3(0, 0, 0), v3(0, 0, -9.8), v3(0.25, 0, 0.433), 0, NULL);
+    flight_init(&fl, &c, v3(0, 0, 0), v3(0, 0, -9.8), v3(0.25, 0, 0.433), 0, 100, NULL);
     sbus_frame f = { { 992, 992, 172, 992, 1811, 1811, 992, 992, 992, 992, 992, 992, 992, 992, 992, 992 }, 0, 0 };
     flight_rc(&fl, &f, 1.0);
     flight_control(&fl, 1.0); /* arms */

@@ -147,7 +147,8 @@ int main(void)
             ;
         wdt_reset();
     }
-    flight_init(&fl, &cfg, bias, acc_mean, mag_n > 0 ? v3_scale(mag_sum, 1.0 / mag_n) : v3(0, 0, 0), 0, feed);
+    flight_init(&fl, &cfg, bias, acc_mean, mag_n > 0 ? v3_scale(mag_sum, 1.0 / mag_n) : v3(0, 0, 0), 0, AVR_ALIGN_STEPS,
+                feed);
     say("running", "");
     wdt_enable(WDTO_60MS); /* the loop feeds it every cycle (4 ms at 250 Hz) */
 

@@ -100,7 +100,7 @@ int main(int argc, char **argv)
     if (mag_n > 0)
         mag = v3_scale(mag_sum, 1.0 / mag_n);
     flight fl;
-    flight_init(&fl, &c, bias, acc_mean, mag, 1, NULL);
+    flight_init(&fl, &c, bias, acc_mean, mag, 1, 1000, NULL);
     sbus_parser sp;
     sbus_parser_init(&sp);
     int reported_garbage = 0;

@@ -21,6 +21,10 @@
 #include <tgmath.h>
 #endif
 
+#ifndef M_PI /* (POSIX's, not C's: a strict -std=c11 build lacks it) */
+#define M_PI 3.14159265358979323846
+#endif
+
 #ifdef FC_SINGLE
 typedef float real;
 #define FC_TINY 1e-30  /* below this a pivot is singular */

@@ -17,7 +17,7 @@ vec3 flight_calibrate(vec3 v, const real off[3], const real scale[3])
 
 static real i_limit(real out_limit, real ki) { return ki > 0 ? 0.5 * out_limit / ki : 0; }
 
-void flight_init(flight *f, const fc_config *c, vec3 bias, vec3 acc_mean, vec3 mag, int all_estimators,
+void flight_init(flight *f, const fc_config *c, vec3 bias, vec3 acc_mean, vec3 mag, int all_estimators, int align_steps,
                  void (*each)(void))
 {
     memset(f, 0, sizeof *f);
@@ -35,14 +35,15 @@ void flight_init(flight *f, const fc_config *c, vec3 bias, vec3 acc_mean, vec3 m
          with a high gain, so a vehicle that starts tilted (the seed 000 roll stand) starts estimated */
         f->cf.kp = f->mh.kp = 5.0;
         f->cf.ki = f->mh.ki = 0.0;
-        for (int i = 0; i < 1000; i++) {
+        const real Ta = 4.0 / align_steps; /* 4 s of the filters' time, 20 time constants at kp 5 */
+        for (int i = 0; i < align_steps; i++) {
             if (all_estimators || c->estimator == 0)
-                quat_cf_update(&f->cf, v3(0, 0, 0), acc_mean, mag, 0.004);
+                quat_cf_update(&f->cf, v3(0, 0, 0), acc_mean, mag, Ta);
             if (all_estimators || c->estimator == 1)
-                mahony_update(&f->mh, v3(0, 0, 0), acc_mean, mag, 0.004);
+                mahony_update(&f->mh, v3(0, 0, 0), acc_mean, mag, Ta);
 #ifndef FC_NO_EKF
             if (all_estimators || c->estimator == 2)
-                ekf_update(&f->kf, v3(0, 0, 0), acc_mean, mag, 0.004);
+                ekf_update(&f->kf, v3(0, 0, 0), acc_mean, mag, Ta);
 #endif
             if (each)
                 each();

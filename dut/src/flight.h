@@ -56,10 +56,12 @@ vec3 flight_calibrate(vec3 v, const real off[3], const real scale[3]);
 /* After the platform's second at rest: the gyro bias and the mean specific force and field (body,
    calibrated; a zero field when none was read). Sets up the filters (aligned to the resting vectors
    through themselves, at a high gain) and the loops. `all_estimators`: align all three (Linux), or
-   only c->estimator's (the AVR, where the EKF is not built and time counts). The field stays the
+   only c->estimator's (the AVR, where the EKF is not built and time counts). The alignment runs 4 s of
+   the filters' time in align_steps steps: 1000 on Linux (instant there); 100 on the AVR, where 1000
+   updates took 1.4 s and the loop started after the scenarios' arming at 1.2 s. The field stays the
    newest until flight_sense gets another. */
 void flight_init(flight *f, const fc_config *c, vec3 bias, vec3 acc_mean, vec3 mag_mean, int all_estimators,
-                 void (*each)(void)); /* each: called between alignment steps (a watchdog), or NULL */
+                 int align_steps, void (*each)(void)); /* each: called between alignment steps (a watchdog), or NULL */
 /* acc (m/s^2) and gyro (rad/s) in the sensor frame; mag (gauss, sensor frame) or NULL when none was read */
 void flight_sense(flight *f, vec3 acc, vec3 gyro, const vec3 *mag);
 void flight_baro(flight *f, int32_t p_pa, double t0);
