@@ -28,6 +28,13 @@
    same 4 s of the filters' time; 1000 took 1.4 s here, and the loop began after the scenarios arm */
 #define AVR_ALIGN_STEPS 100
 
+/* The rate loop's gain when the configuration leaves it (no rate_kp, no profile): the Linux FC's 40
+   (tuned in lockstep, where no time passes between a sample and the motors) makes this board's 4-5 ms
+   from sample to pulse (the MPU burst, the rate loop's arithmetic, the timers' compare latch) a 7 Hz
+   limit cycle of 1.6 deg rms at 100 Hz; 25 flies step_roll in the MCU tier as Linux does in lockstep
+   (0.04 deg rms hovering, 0.16 about the 10 deg step; docs/avr-fc.md) */
+#define AVR_RATE_KP 25
+
 /* the clock: timer 1, prescaler 8, free-running: 2 ticks per microsecond */
 #define TICKS_PER_S 2000000UL
 

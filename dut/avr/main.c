@@ -107,6 +107,9 @@ int main(void)
         eeprom_read_block(img, ee_image, sizeof img);
         int st = config_from_image(&cfg, img, sizeof img);
         cfg_why = st == FC_IMAGE_OK ? "eeprom" : fc_image_why(st); /* anything else: the defaults */
+        int own_gain = st != FC_IMAGE_OK || (!fc_image_sets(img, FC_KEY_INDEX_rate_kp) && !fc_image_has_profile(img));
+        if (own_gain) /* this board's default (board.h): the configuration did not choose */
+            cfg.rate_kp = AVR_RATE_KP;
         say(st == FC_IMAGE_OK ? "configuration: EEPROM image" : "configuration: the defaults; EEPROM image: ",
             st == FC_IMAGE_OK ? "" : cfg_why);
     }
@@ -174,7 +177,14 @@ int main(void)
         int mag_due = cycles % mag_every == 0, fresh_mag = mag_due && mag_clean;
         if (mag_due)
             mag_clean = 1;
-        flight_sense(&fl, acc, gyro, fresh_mag ? &mag : NULL);
+        /* the rate loop on this sample at once (flight.h): measure, control, motors; then the estimate
+           for the next cycle's attitude loop, and the barometer and RC for the next control */
+        flight_measure(&fl, acc, gyro, fresh_mag ? &mag : NULL);
+        int events = flight_control(&fl, t0);
+        if (events & FLIGHT_CONTROLLED)
+            for (uint8_t i = 0; i < 4; i++)
+                motors_write_us(i, (uint16_t)(fl.out[i] + 0.5));
+        flight_estimate(&fl);
         int32_t p_pa = 0, t_c = 0;
         if (ms5611_poll(&baro, &baro_bus, &p_pa, &t_c) == 1)
             flight_baro(&fl, p_pa, t0);
@@ -183,10 +193,6 @@ int main(void)
         while ((got = sbus_rx_take(&f)) != 0)
             if (got > 0)
                 flight_rc(&fl, &f, t0);
-        int events = flight_control(&fl, t0);
-        if (events & FLIGHT_CONTROLLED)
-            for (uint8_t i = 0; i < 4; i++)
-                motors_write_us(i, (uint16_t)(fl.out[i] + 0.5));
         if (events & FLIGHT_GYRO_STUCK)
             say("gyro stuck: holding level torque, descending", "");
         if (events & FLIGHT_GYRO_RECOVERED)

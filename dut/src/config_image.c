@@ -138,3 +138,7 @@ const char *fc_image_why(int status)
         return "?";
     }
 }
+
+int fc_image_sets(const uint8_t *img, enum fc_key_index key) { return img[6 + key / 8] >> (key % 8) & 1; }
+
+int fc_image_has_profile(const uint8_t *img) { return img[4] != 0xFF; }

@@ -45,11 +45,18 @@ enum fc_image_status {
     FC_IMAGE_RATES_BAD,   /* ctrl_rate_hz above est_rate_hz */
 };
 
+/* each key's index in the table (and in the presence bits): FC_KEY_INDEX_rate_kp, ... */
+#define FC_IMAGE_KEY_INDEX_(name, kind, n, lo, hi) FC_KEY_INDEX_##name,
+enum fc_key_index { FC_CONFIG_KEYS(FC_IMAGE_KEY_INDEX_) FC_KEY_INDEX_COUNT };
+
 uint16_t fc_crc16(const uint8_t *p, unsigned n, uint16_t crc); /* CCITT-FALSE step; start with 0xFFFF */
 uint16_t fc_image_layout(void);                                /* the CRC-16 of the signature */
 /* *c gets the defaults, then the image's profile and keys when the whole image is good; else it keeps
    the defaults. Returns an fc_image_status. */
 int config_from_image(fc_config *c, const uint8_t *img, unsigned n);
 const char *fc_image_why(int status);
+/* Of an image config_from_image took: whether it sets this key, and whether it names a profile */
+int fc_image_sets(const uint8_t *img, enum fc_key_index key);
+int fc_image_has_profile(const uint8_t *img);
 
 #endif

@@ -79,7 +79,7 @@ void flight_init(flight *f, const fc_config *c, vec3 bias, vec3 acc_mean, vec3 m
         f->out[i] = 1000;
 }
 
-void flight_sense(flight *f, vec3 acc, vec3 gyro, const vec3 *mag)
+void flight_measure(flight *f, vec3 acc, vec3 gyro, const vec3 *mag)
 {
     const fc_config *c = f->c;
     f->gyro_same =
@@ -93,6 +93,11 @@ void flight_sense(flight *f, vec3 acc, vec3 gyro, const vec3 *mag)
     f->w = v3_add(flight_to_body(gyro), v3_scale(f->bias, -1));
     if (mag)
         f->mag = flight_calibrate(flight_to_body(*mag), c->mag_offset, c->mag_scale);
+}
+
+void flight_estimate(flight *f)
+{
+    const fc_config *c = f->c;
     if (c->estimator == 0) {
         quat_cf_update(&f->cf, f->w, f->a, f->mag, f->T);
         f->att = quat_to_euler(f->cf.q);
@@ -108,6 +113,12 @@ void flight_sense(flight *f, vec3 acc, vec3 gyro, const vec3 *mag)
     /* vertical acceleration: specific force rotated to earth, plus gravity, up positive */
     real cr = cos(f->att.roll), sr = sin(f->att.roll), cpi = cos(f->att.pitch), spi = sin(f->att.pitch);
     f->acc_up = -(-spi * f->a.x + cpi * sr * f->a.y + cpi * cr * f->a.z + FC_G0);
+}
+
+void flight_sense(flight *f, vec3 acc, vec3 gyro, const vec3 *mag)
+{
+    flight_measure(f, acc, gyro, mag);
+    flight_estimate(f);
 }
 
 void flight_baro(flight *f, int32_t p_pa, double t0)

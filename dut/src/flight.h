@@ -62,8 +62,14 @@ vec3 flight_calibrate(vec3 v, const real off[3], const real scale[3]);
    newest until flight_sense gets another. */
 void flight_init(flight *f, const fc_config *c, vec3 bias, vec3 acc_mean, vec3 mag_mean, int all_estimators,
                  int align_steps, void (*each)(void)); /* each: called between alignment steps (a watchdog), or NULL */
-/* acc (m/s^2) and gyro (rad/s) in the sensor frame; mag (gauss, sensor frame) or NULL when none was read */
+/* acc (m/s^2) and gyro (rad/s) in the sensor frame; mag (gauss, sensor frame) or NULL when none was read:
+   flight_measure (the gyro check, calibration) then flight_estimate (the estimator, vertical acceleration).
+   A platform whose estimator takes a large part of the cycle (the AVR: 3.4 of 10 ms) runs the control
+   between the two, so the rate loop acts on a fresh gyro sample at once and the attitude loop on the
+   previous cycle's estimate (the delay from sample to motors is the rate loop's margin). */
 void flight_sense(flight *f, vec3 acc, vec3 gyro, const vec3 *mag);
+void flight_measure(flight *f, vec3 acc, vec3 gyro, const vec3 *mag);
+void flight_estimate(flight *f);
 void flight_baro(flight *f, int32_t p_pa, double t0);
 void flight_rc(flight *f, const sbus_frame *frame, double t0);
 int flight_control(flight *f, double t0);
