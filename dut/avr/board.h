@@ -24,9 +24,12 @@
 #define AVR_RATE_HZ 100
 #define AVR_RATE_TEXT "100"
 
-/* the initial alignment's steps (flight_init): 100 of 40 ms rather than Linux's 1000 of 4 ms, the
-   same 4 s of the filters' time; 1000 took 1.4 s here, and the loop began after the scenarios arm */
-#define AVR_ALIGN_STEPS 100
+/* the initial alignment (flight.h) runs during the calibration second, a filter step every 3 samples
+   (166 steps of 24 ms: the Linux FC's 4 s of the filters' time, which it runs in 1000 steps after the
+   second). A step takes up to 2.6 ms here: one every 2 samples stretched the second by 12 %, and 1000
+   after it started the loop at 2.7 s, after the library's scenarios arm (1.2 s); now it starts at
+   1.13 s (Linux: 1.10) */
+#define AVR_ALIGN_EVERY 3
 
 /* The rate loop's gain when the configuration leaves it (no rate_kp, no profile): the Linux FC's 40
    (tuned in lockstep, where no time passes between a sample and the motors) makes this board's 4-5 ms

@@ -131,9 +131,13 @@ int main(void)
         halt(sensors_why(r));
 
     /* gyro bias: 500 samples at rest, 2 ms apart on absolute deadlines; the field averaged over the
-       same second (one sample in 7), as the Linux FC does */
+       same second (one sample in 7), as the Linux FC does. The alignment (flight.h) runs meanwhile, a
+       step every AVR_ALIGN_EVERY samples on the means so far, in the time the samples leave */
     vec3 bias = v3(0, 0, 0), acc, gyro, mag, acc_mean = v3(0, 0, 0), mag_sum = v3(0, 0, 0);
     int mag_n = 0, mag_ok;
+    say("calibrating: one second at rest", "");
+    flight_start(&fl, &cfg, 0);
+    const real Ta = 4.0 / (500 / AVR_ALIGN_EVERY); /* 4 s of the filters' time in all, as on Linux */
     uint32_t next = clock_ticks();
     for (int i = 0; i < 500; i++) {
         if (sensors_read((uint8_t)cfg.mpu_addr, &acc, &gyro, &mag, &mag_ok) < 0)
@@ -145,13 +149,15 @@ int main(void)
             mag_sum = v3_add(mag_sum, flight_calibrate(flight_to_body(mag), cfg.mag_offset, cfg.mag_scale));
             mag_n++;
         }
+        if (i % AVR_ALIGN_EVERY == AVR_ALIGN_EVERY - 1)
+            flight_align(&fl, v3_scale(acc_mean, 500.0 / (i + 1)),
+                         mag_n > 0 ? v3_scale(mag_sum, 1.0 / mag_n) : v3(0, 0, 0), Ta);
         next += TICKS_PER_S / 500;
         while ((int32_t)(clock_ticks() - next) < 0)
             ;
         wdt_reset();
     }
-    flight_init(&fl, &cfg, bias, acc_mean, mag_n > 0 ? v3_scale(mag_sum, 1.0 / mag_n) : v3(0, 0, 0), 0, AVR_ALIGN_STEPS,
-                feed);
+    flight_ready(&fl, bias, mag_n > 0 ? v3_scale(mag_sum, 1.0 / mag_n) : v3(0, 0, 0));
     say("running", "");
     wdt_enable(WDTO_60MS); /* the loop feeds it every cycle (4 ms at 250 Hz) */
 

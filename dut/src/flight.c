@@ -17,41 +17,58 @@ vec3 flight_calibrate(vec3 v, const real off[3], const real scale[3])
 
 static real i_limit(real out_limit, real ki) { return ki > 0 ? 0.5 * out_limit / ki : 0; }
 
-void flight_init(flight *f, const fc_config *c, vec3 bias, vec3 acc_mean, vec3 mag, int all_estimators, int align_steps,
-                 void (*each)(void))
+void flight_start(flight *f, const fc_config *c, int all_estimators)
 {
     memset(f, 0, sizeof *f);
     f->c = c;
+    f->all_estimators = all_estimators;
     f->T = 1.0 / c->est_rate_hz;
     f->Tc = 1.0 / c->ctrl_rate_hz;
-    f->bias = bias;
-    f->mag = mag;
     quat_cf_init(&f->cf, c->kp_est, c->ki_est);
     mahony_init(&f->mh, c->kp_est, c->ki_est);
 #ifndef FC_NO_EKF
     ekf_init(&f->kf);
 #endif
-    { /* initial alignment: the resting accelerometer and magnetometer (means), through the filters themselves
-         with a high gain, so a vehicle that starts tilted (the seed 000 roll stand) starts estimated */
-        f->cf.kp = f->mh.kp = 5.0;
-        f->cf.ki = f->mh.ki = 0.0;
-        const real Ta = 4.0 / align_steps; /* 4 s of the filters' time, 20 time constants at kp 5 */
-        for (int i = 0; i < align_steps; i++) {
-            if (all_estimators || c->estimator == 0)
-                quat_cf_update(&f->cf, v3(0, 0, 0), acc_mean, mag, Ta);
-            if (all_estimators || c->estimator == 1)
-                mahony_update(&f->mh, v3(0, 0, 0), acc_mean, mag, Ta);
+    /* initial alignment: the resting accelerometer and magnetometer (means), through the filters themselves
+       with a high gain, so a vehicle that starts tilted (the seed 000 roll stand) starts estimated */
+    f->cf.kp = f->mh.kp = 5.0;
+    f->cf.ki = f->mh.ki = 0.0;
+}
+
+void flight_align(flight *f, vec3 acc_mean, vec3 mag, real Ta)
+{
+    const fc_config *c = f->c;
+    if (f->all_estimators || c->estimator == 0)
+        quat_cf_update(&f->cf, v3(0, 0, 0), acc_mean, mag, Ta);
+    if (f->all_estimators || c->estimator == 1)
+        mahony_update(&f->mh, v3(0, 0, 0), acc_mean, mag, Ta);
 #ifndef FC_NO_EKF
-            if (all_estimators || c->estimator == 2)
-                ekf_update(&f->kf, v3(0, 0, 0), acc_mean, mag, Ta);
+    if (f->all_estimators || c->estimator == 2)
+        ekf_update(&f->kf, v3(0, 0, 0), acc_mean, mag, Ta);
 #endif
-            if (each)
-                each();
-        }
-        f->cf.kp = f->mh.kp = c->kp_est;
-        f->cf.ki = f->mh.ki = c->ki_est;
-        f->cf.integral = f->mh.integral = v3(0, 0, 0);
+}
+
+void flight_init(flight *f, const fc_config *c, vec3 bias, vec3 acc_mean, vec3 mag, int all_estimators, int align_steps,
+                 void (*each)(void))
+{
+    flight_start(f, c, all_estimators);
+    const real Ta = 4.0 / align_steps; /* 4 s of the filters' time, 20 time constants at kp 5 */
+    for (int i = 0; i < align_steps; i++) {
+        flight_align(f, acc_mean, mag, Ta);
+        if (each)
+            each();
     }
+    flight_ready(f, bias, mag);
+}
+
+void flight_ready(flight *f, vec3 bias, vec3 mag)
+{
+    const fc_config *c = f->c;
+    f->bias = bias;
+    f->mag = mag;
+    f->cf.kp = f->mh.kp = c->kp_est;
+    f->cf.ki = f->mh.ki = c->ki_est;
+    f->cf.integral = f->mh.integral = v3(0, 0, 0);
     for (int i = 0; i < 2; i++) {
         pid_init(&f->angle[i], c->angle_kp, c->angle_ki, c->angle_kd, 0,
                  0.1); /* anti-windup: I adds <= ki * 0.1 rad/s */

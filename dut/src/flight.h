@@ -43,7 +43,8 @@ typedef struct {
     double last_rc, failsafe_since, last_baro; /* clock seconds */
     real start_pressure, alt_target, alt_base;
     int baro_rejects, armed, had_rc, alt_hold, gyro_same, gyro_fault, rc_ok, events;
-    int stuck_n; /* FLIGHT_GYRO_STUCK_S in cycles (at least 3) */
+    int stuck_n;        /* FLIGHT_GYRO_STUCK_S in cycles (at least 3) */
+    int all_estimators; /* flight_align: all three, or c->estimator's only */
     double ctrl_phase;
     vec3 last_gyro;
     real out[4];
@@ -60,6 +61,12 @@ vec3 flight_calibrate(vec3 v, const real off[3], const real scale[3]);
    the filters' time in align_steps steps: 1000 on Linux (instant there); 100 on the AVR, where 1000
    updates took 1.4 s and the loop started after the scenarios' arming at 1.2 s. The field stays the
    newest until flight_sense gets another. */
+/* flight_init in its parts, for a platform that aligns while it calibrates (the AVR: its filter
+   updates take the time a calibration sample leaves, so the loop starts when Linux's does): flight_start;
+   flight_align steps on the means so far (Ta: each step's filter time, 4 s in all); flight_ready */
+void flight_start(flight *f, const fc_config *c, int all_estimators);
+void flight_align(flight *f, vec3 acc_mean, vec3 mag_mean, real Ta);
+void flight_ready(flight *f, vec3 bias, vec3 mag_mean);
 void flight_init(flight *f, const fc_config *c, vec3 bias, vec3 acc_mean, vec3 mag_mean, int all_estimators,
                  int align_steps, void (*each)(void)); /* each: called between alignment steps (a watchdog), or NULL */
 /* acc (m/s^2) and gyro (rad/s) in the sensor frame; mag (gauss, sensor frame) or NULL when none was read:
