@@ -33,3 +33,15 @@ def test_the_docs_the_readme_names_exist() -> None:
     named = set(re.findall(r"\((docs/[\w./-]+\.md)", readme))
     assert {"docs/design.md", "docs/sensors.md"} <= named
     assert all((REPO / n).is_file() for n in named), named
+
+
+def test_the_readme_is_a_front_door() -> None:
+    """The README says what the rig is, the two commands and one command per target, and links on: it
+    stays short, and neither it nor the docs it links speak in issue numbers (a user has no tracker)."""
+    readme = (REPO / "README.md").read_text()
+    assert len(readme.splitlines()) < 250
+    assert "make demo" in readme and "make test" in readme and "--mcu" in readme and "--bridge" in readme
+    pages = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+    numbered = [f"{p.relative_to(REPO)}: {m.group(0)}" for p in pages
+                for m in re.finditer(r"\bissues? #?\d+", p.read_text(), re.I)]
+    assert not numbered, numbered

@@ -1,5 +1,5 @@
 """The acceptance suite must not depend on the noise seed. Flying the library over 20 seeds found two
-weaknesses of the reference FC, not of the limits (the distributions are in the README, "The suite
+weaknesses of the reference FC, not of the limits (the distributions are in docs/scenarios.md, "The suite
 over many seeds"): the initial heading came from one noisy magnetometer sample, and seed 000's eq. 1
 carries a heading error into roll (0.43 of it at a 60 deg dip), so the roll step's steady-state error
 spread to 0.64 deg at some seeds; and the altitude integral wound up while hold engaged on a climb,

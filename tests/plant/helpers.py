@@ -9,7 +9,7 @@ from plant import Plant
 G = 9.80665
 MASS, ARM, K_THRUST, K_TORQUE = 1.2, 0.2, 3.13e-5, 7.5e-7        # seed 001 Table 1
 IXX, IYY, IZZ = 2.353e-3, 2.353e-3, 5.262e-2
-OMEGA_MAX, ESC_MIN, ESC_MAX, MOTOR_TAU = 600.0, 1000.0, 2000.0, 0.02  # plant defaults (README)
+OMEGA_MAX, ESC_MIN, ESC_MAX, MOTOR_TAU = 600.0, 1000.0, 2000.0, 0.02  # plant defaults (docs/plant.md)
 OMEGA_HOVER = math.sqrt(MASS * G / (4 * K_THRUST))               # docs/design.md §3: about 306.6 rad/s
 DT = 1e-3
 

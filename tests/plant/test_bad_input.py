@@ -1,4 +1,4 @@
-"""Bad input gets the documented answer (README, "Bad input") and never corrupts the state.
+"""Bad input gets the documented answer (docs/plant.md, "Bad input") and never corrupts the state.
 
 "Not corrupted" is checked against a twin plant that never saw the bad input: after the rejected call,
 both continue with the same good inputs and must stay bit-identical.

@@ -1,6 +1,6 @@
 """A second, independent integration of the same equations agrees with the FMU.
 
-The reference below is written from the equations in the README, not from the C code, and uses a
+The reference below is written from the equations in docs/plant.md, not from the C code, and uses a
 different formulation: attitude as a rotation matrix (dR/dt = R [w]x) rather than a quaternion, and
 scipy's adaptive DOP853 at tight tolerances rather than fixed-step RK4.
 """

@@ -213,14 +213,13 @@ def test_a_report_folder_reads_back(tmp_path: Path) -> None:
 
 
 def test_the_docs_show_a_page_of_the_acceptance_pdf() -> None:
-    """docs/acceptance-report-page.png (`make docs-images`): a PNG of an A4 page, named by the README."""
+    """docs/acceptance-report-page.png (`make docs-images`): a PNG of an A4 page, named by the docs."""
     png = (Path(__file__).resolve().parents[2] / "docs" / "acceptance-report-page.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and png[12:16] == b"IHDR"
     width, height = int.from_bytes(png[16:20], "big"), int.from_bytes(png[20:24], "big")
     assert width >= 600 and height / width == pytest.approx(297 / 210, rel=0.01)
-    assert (
-        "docs/acceptance-report-page.png" in (Path(__file__).resolve().parents[2] / "README.md").read_text()
-    )
+    docs = Path(__file__).resolve().parents[2] / "docs"
+    assert "acceptance-report-page.png" in (docs / "scenarios.md").read_text()
 
 
 def test_a_plot_keeps_every_peak_of_a_long_trace() -> None:
