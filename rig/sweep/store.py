@@ -32,7 +32,8 @@ def dut_identity(dut: list[str] | None, cwd: Path | None = None) -> dict[str, An
     reference FC's program), ``dut_sha256`` (of its firmware: rig/firmware.py) and ``dut_firmware``
     (what was hashed, in words)."""
     from rig import firmware
-    from rig.runner import REFERENCE_FC, absolute_command
+    from rig.targets import REFERENCE_FC
+    from rig.targets.process import absolute_command
 
     cwd = cwd or Path.cwd()
     command = list(dut) if dut is not None else [str(REFERENCE_FC)]

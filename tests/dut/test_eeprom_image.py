@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from rig.runner import reference_config
+from rig.targets import reference_config
 from scenarios import eeprom
 from scenarios.schema import load
 

@@ -12,7 +12,9 @@ from pathlib import Path
 
 import pytest
 
-from rig.runner import reference_config, run
+from rig.runner import run
+from rig.targets import reference_config
+from rig.targets.process import ProcessTarget
 from scenarios.schema import load
 
 REPO = Path(__file__).resolve().parents[2]
@@ -32,7 +34,7 @@ def fly(fc32: Path, name: str, rate: int, tmp: Path) -> None:
     conf = tmp / "fc.conf"
     # the reference FC's file, the rate last (keys later in a file win), as the AVR runs it
     conf.write_text(reference_config(sc) + f"est_rate_hz = {rate}\nctrl_rate_hz = {rate}\n")
-    r = run(sc, dut=[str(fc32), str(conf)], work_dir=tmp / "run")
+    r = run(sc, ProcessTarget([str(fc32), str(conf)]), work_dir=tmp / "run")
     assert r.verdict == "pass", (r.error, [(m.name, m.value) for m in r.measurements if m.outcome != "pass"])
 
 

@@ -10,8 +10,8 @@ import hashlib
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from rig.runner import REFERENCE_FC
 from rig.sweep import store
+from rig.targets import REFERENCE_FC
 from tests.sweep.test_sweep_cli import sweep
 
 SPEC = '[sweep]\nscenario = "step_roll"\nseeds = [3, 5]\n'
