@@ -131,7 +131,7 @@ lint: venv test-packages
 	$(VENV)/bin/mypy
 	clang-format --dry-run --Werror $(C_SOURCES)
 
-test: venv test-packages mcu-test-firmware $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) $(VBRIDGE) firmware lint
+test: venv test-packages mcu-test-firmware avr $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) $(VBRIDGE) firmware lint
 	$(PY) -m pytest -q -m "not slow"
 
 test-slow: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED)

@@ -97,6 +97,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         help="with --bridge: the board's ESC protocol, which sets the capture's pulse limits and how a "
         "pulse becomes a motor command (default pwm: 1000..2000 us; oneshot125: 125..250 us)",
     )
+    p.add_argument(
+        "--mcu",
+        metavar="BOARD",
+        help="fly a firmware image under emulation in lockstep: BOARD is a board file or a shipped "
+        "board's name (mega2560-gy86, promini328-gy86, ...; docs/mcu.md); needs --firmware",
+    )
+    p.add_argument("--firmware", type=Path, metavar="FILE", help="with --mcu: the image (.elf or .hex)")
     add_pdf_options(p)
     v = sub.add_parser("validate", help="check scenario files without running them")
     v.add_argument("scenarios", nargs="+", metavar="SCENARIO")
@@ -212,7 +219,7 @@ def plan(args: argparse.Namespace) -> Plan:
         if not os.path.exists(args.bridge):
             problems.append(f"--bridge {args.bridge}: no such port (a bridge's serial port, e.g. "
                             "/dev/ttyACM0, or 'virtual')")
-    elif not REFERENCE_FC.is_file():
+    elif args.mcu is None and not REFERENCE_FC.is_file():
         problems.append(f"the reference FC is not built ({REFERENCE_FC}); run `make dut`")
     if args.can and args.bridge is not None:  # the motors from a CAN capture device, opened by the run
         if args.can.partition(":")[2] == "vbridge" and args.bridge != "virtual":
@@ -264,9 +271,10 @@ def plan(args: argparse.Namespace) -> Plan:
         if chromium() is None:
             problems.append("--pdf: no chromium on PATH to print the PDF with (Debian: apt-get install "
                             "chromium)")
+    mcu = _mcu_target(args, problems)
     if problems:
         raise UsageError("\n".join(problems))
-    return Plan(scenarios, target_of(args, dut), args.out)
+    return Plan(scenarios, mcu or target_of(args, dut), args.out)
 
 
 def target_of(args: argparse.Namespace, dut: list[str] | None) -> Target:
@@ -277,6 +285,32 @@ def target_of(args: argparse.Namespace, dut: list[str] | None) -> Target:
     if args.bridge is not None:
         return BridgeTarget(args.bridge, dut, args.can, args.esc)
     return ProcessTarget(dut, args.realtime)
+
+
+def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:
+    """``--mcu BOARD --firmware FILE``, both checked (the board file as a scenario is, the image's
+    format and size against the board's MCU); None without --mcu."""
+    if args.mcu is None:
+        if args.firmware is not None:
+            problems.append("--firmware goes with --mcu BOARD")
+        return None
+    if args.firmware is None:
+        problems.append("--mcu needs --firmware FILE (the image: .elf or .hex)")
+        return None
+    clash = [o for o, v in (("--dut", args.dut), ("--bridge", args.bridge), ("--realtime", args.realtime))
+             if v]
+    if clash:
+        problems.append(f"--mcu runs a firmware image in lockstep: not with {', '.join(clash)}")
+        return None
+    from rig.mcu.board import BoardError
+    from rig.mcu.engine import FirmwareError
+    from rig.targets.mcu import McuTarget
+
+    try:
+        return McuTarget(args.mcu, args.firmware)
+    except (BoardError, FirmwareError) as e:
+        problems.append(f"--mcu: {e}")
+        return None
 
 
 def cmd_run(args: argparse.Namespace) -> int:

@@ -146,14 +146,17 @@ class _Recorder:
 
 def parse_telemetry(text: bytes, clock_base_s: float) -> tuple[dict[str, np.ndarray], int, dict[str, float]]:
     """The DUT's ``T t=… key=value …`` lines as columns (time in sim seconds: the DUT's monotonic clock
-    minus ``clock_base_s``, its reading at sim time 0, ``Session.dut_clock_base_s``). Lines that do not
-    parse are counted and skipped: the DUT's bytes are not trusted. A value the DUT reports as NaN or
+    minus ``clock_base_s``, its reading at sim time 0, ``Session.dut_clock_base_s``). Lines starting
+    with ``#`` are the DUT's messages, passed over. Other lines that do not parse are counted and
+    skipped: the DUT's bytes are not trusted. A value the DUT reports as NaN or
     infinite is kept as NaN (the rest of its line stands); the third result gives, per key, the sim
     time it was first non-finite."""
     cols: dict[str, list[float]] = {"t": [], **{k: [] for k in TELEMETRY_KEYS}}
     bad = 0
     nonfinite: dict[str, float] = {}
     for line in text.decode("ascii", "replace").splitlines():
+        if line.startswith("#"):  # the DUT's messages on its telemetry port (the AVR FC's "# fc: ...")
+            continue
         if not line.startswith("T "):
             bad += bool(line.strip())
             continue

@@ -7,7 +7,6 @@ firmware formats a telemetry line from a known state, and the rig's own parser r
 from __future__ import annotations
 
 import re
-import shutil
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
@@ -20,10 +19,6 @@ from scenarios.schema import load
 
 REPO = Path(__file__).resolve().parents[2]
 AVR = REPO / "build" / "avr"
-
-pytestmark = pytest.mark.skipif(not (shutil.which("avr-gcc") and shutil.which("simavr")),
-                                reason="avr-gcc and simavr (make avr-toolchain)")
-
 
 @pytest.fixture(scope="module")
 def built() -> str:

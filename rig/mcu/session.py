@@ -1,0 +1,249 @@
+"""The MCU session: a firmware image running under an emulator (rig/mcu/engine.py), and the world it
+lives in, in lockstep.
+
+The session owns time: the MCU's cycle counter divided by its clock is sim time. Each step goes to the
+next plant tick (1 ms) or the next scheduled event, whichever is first:
+
+1. the world advances to the step's end, the motors as the last pulses left them (a zero-order hold:
+   the plant's inputs change at step boundaries, as an ESC's do at its pulses);
+2. the MCU runs to the step's end; when the chip core reaches a sample instant it has no sample for,
+   the engine stops there, the world's producers make exactly that sample from the plant's history,
+   and the MCU resumes: the bytes on the TWI are the lockstep session's;
+3. the pulses that ended become the motors' commands (an ESC that sees no pulse for ESC_TIMEOUT_S
+   stops its motor, as on the bench);
+4. the scheduled events at the step's end run: sticks as SBUS bytes into the RC USART at their
+   frame timing, wind, faults, the recorder.
+
+A firmware that crashes (a bad opcode, a jump out of flash, a wild store), sleeps for ever, resets
+in a loop, hangs (no TWI transaction and no pulse for a second of sim time) or talks to a bus no chip
+answers ends the run with an error naming what happened, where (program counter) and when (cycle),
+and the last TWI transaction: the engine says so (rig/mcu/engine.py Stop).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Final
+
+from emulators import sbus
+from rig import interrupts
+from rig.bridge.esc import esc_protocol
+from rig.mcu.board import Board
+from rig.mcu.engine import AvrEngine, config_for
+from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, Stop
+from rig.session import Outcome
+from rig.world import World
+
+TICK_NS: Final = 1_000_000
+#: an ESC that gets no pulse for this long stops its motor (BLHeli's signal-loss time is about 0.25 s;
+#: a shorter one here makes a firmware that stops pulsing show at once)
+ESC_TIMEOUT_S: Final = 0.1
+#: PPM sum: frame sync gap and channel pulse (a common receiver's)
+PPM_PULSE_NS: Final = 300_000
+PPM_FRAME_NS: Final = 22_500_000
+
+
+@dataclass
+class McuConfig:
+    board: Board
+    firmware: Path
+    duration: float
+    rc_path: str
+    telemetry_path: str
+    eeprom: bytes | None = None
+    wall_timeout: float = 600.0
+    sim_timeout: float = 600.0
+    trace: Path | None = None
+
+
+@dataclass
+class _MotorState:
+    last_pulse_ns: int = -1
+    pulses: int = 0
+
+
+@dataclass
+class McuFigures:
+    motors: list[_MotorState] = field(default_factory=list)
+    rc_bytes: int = 0
+
+
+class McuSession:
+    """A Host for the scenario's events (rig/host.py) whose DUT is a firmware image."""
+
+    def __init__(self, config: McuConfig, world: World) -> None:
+        self.cfg = config
+        self.world = world
+        b = config.board
+        self.sched = Scheduler(world, self, config.duration, config.sim_timeout)
+        self.engine_config = config_for(b, config.firmware, config.eeprom)
+        self._escs = [esc_protocol(m.protocol) for m in b.motors]
+        self.engine: AvrEngine | None = None
+        self._telemetry = bytearray()
+        self._t_ns = 0
+        self.figures = McuFigures([_MotorState() for _ in b.motors])
+        self.notes: list[str] = []
+        self._ppm_channels: list[int] | None = None
+        self._ppm_next_ns = 0
+
+    # ---- the Host the scenario's events use ---------------------------------------------------
+
+    @property
+    def now_ns(self) -> int:
+        event_ns = self.sched.event_ns
+        return event_ns if event_ns is not None else self._t_ns
+
+    def at(self, t: float, fn: Callable[[McuSession], None]) -> None:
+        self.sched.at(t, fn)
+
+    def serial_write(self, path: str, data: bytes) -> None:
+        """The RC port's SBUS frames go to the board's RC input as its protocol has them: SBUS bytes
+        into the USART, or the same channels as a PPM sum on the pin or an MSP SET_RAW_RC frame."""
+        if path != self.cfg.rc_path or self.engine is None:
+            return
+        rc = self.cfg.board.rc
+        self.figures.rc_bytes += len(data)
+        if rc.protocol == "sbus":
+            assert rc.uart is not None
+            self.engine.uart_send(rc.uart, data, rc.baud, "E", 2)
+            return
+        channels = _sbus_channels(data)
+        if channels is None:
+            return
+        us = [round(sbus_to_us(c)) for c in channels[:8]]
+        if rc.protocol == "msp":
+            assert rc.uart is not None
+            self.engine.uart_send(rc.uart, msp_set_raw_rc(us), rc.baud)
+        else:
+            self._ppm_channels = us
+
+    def serial_silence(self, path: str) -> None:
+        """A lost RC link: a PPM receiver stops its pulses too (SBUS and MSP simply send nothing)."""
+        if path == self.cfg.rc_path:
+            self._ppm_channels = None
+
+    def serial_output(self, path: str) -> bytes:
+        if path == self.cfg.telemetry_path:
+            return bytes(self._telemetry)
+        return b""
+
+    @property
+    def dut_clock_base_s(self) -> float:
+        """A firmware's clock starts at its reset, which is sim time 0."""
+        return 0.0
+
+    # ---- running ------------------------------------------------------------------------------
+
+    def run(self) -> Outcome:
+        wall0 = time.perf_counter()
+        engine = AvrEngine(self.engine_config, self.world.board)
+        self.engine = engine
+        try:
+            while not self.sched.over:
+                nxt = min(self._t_ns + TICK_NS - self._t_ns % TICK_NS, self.sched.limit_ns)
+                ev = self.sched.next_event_ns()
+                if ev is not None and self._t_ns < ev < nxt:
+                    nxt = ev
+                self.world.advance_to(nxt)
+                self._ppm(nxt)
+                problem = self._run_mcu(engine, nxt)
+                if problem is not None:
+                    self.sched.fail(EXIT_RIG_ERROR, problem)
+                    break
+                self._t_ns = nxt
+                self._telemetry += engine.uart_take(self.cfg.board.telemetry_uart)
+                self._motors(engine.pulses(), nxt)
+                if time.perf_counter() - wall0 > self.cfg.wall_timeout:
+                    self.sched.fail(EXIT_WATCHDOG, f"wall-time watchdog: {self.cfg.wall_timeout:g} s")
+                    break
+                interrupts.check()
+                try:
+                    # (past the end: the scheduler runs what is due there, says the duration is over, stops)
+                    self.sched.advance(nxt if nxt < self.sched.limit_ns else nxt + 1)
+                except Stop:
+                    break
+        except interrupts.Interrupted as e:
+            self.sched.fail(e.exit_code, str(e))
+            interrupted = True
+        else:
+            interrupted = False
+        finally:
+            self.figures_at_end = engine.figures()
+            engine.close()
+        verdict, code, error = self.sched.verdict(None, self._t_ns / NS, True, True, interrupted)
+        pulses = sum(m.pulses for m in self.figures.motors)
+        twi = int(self.figures_at_end["twi_transactions"])
+        return Outcome(verdict, code, error, None, self._t_ns / NS, self.world.time_ns / NS,
+                       time.perf_counter() - wall0, twi, 0, 0, self.notes, [], self.world.outputs(), pulses)
+
+    def _run_mcu(self, engine: AvrEngine, t_ns: int) -> str | None:
+        """Runs the MCU to ``t_ns``, serving the chip core's needs; what went wrong, or None."""
+        while True:
+            stop = engine.run_until(t_ns)
+            if stop.kind == "reached":
+                return None
+            if stop.kind == "need":
+                self.world.board.serve(stop.need)
+                continue
+            return f"the firmware {stop.describe()}"
+
+    def _motors(self, pulses: list[list[tuple[int, int, int]]], t_ns: int) -> None:
+        """The pulses that ended become the motors' commands (the last one of each train, as an ESC
+        takes the newest pulse); a motor with no pulse for ESC_TIMEOUT_S stops."""
+        for k, (train, esc) in enumerate(zip(pulses, self._escs, strict=True)):
+            state = self.figures.motors[k]
+            motor = self.cfg.board.motors[k].motor - 1
+            if train:
+                state.last_pulse_ns = t_ns
+                state.pulses += len(train)
+                self.world.set_motor(motor, train[-1][1] / 1000.0 * esc.to_pwm_us)
+            elif state.last_pulse_ns >= 0 and t_ns - state.last_pulse_ns > ESC_TIMEOUT_S * NS:
+                state.last_pulse_ns = -1
+                self.world.set_motor(motor, 0.0)
+
+    def _ppm(self, t_ns: int) -> None:
+        """A PPM sum on the RC pin: one frame every PPM_FRAME_NS while the link is up."""
+        if self.cfg.board.rc.protocol != "ppm" or self.engine is None:
+            return
+        while self._ppm_next_ns <= t_ns:
+            start = self._ppm_next_ns
+            self._ppm_next_ns += PPM_FRAME_NS
+            if self._ppm_channels is None:
+                continue
+            edges: list[tuple[int, int]] = []
+            t = start
+            for us in self._ppm_channels:
+                edges += [(t, 0), (t + PPM_PULSE_NS, 1)]
+                t += us * 1000
+            edges += [(t, 0), (t + PPM_PULSE_NS, 1)]
+            pin = self.cfg.board.rc.pin
+            assert pin is not None
+            self.engine.pin_drive(pin, edges)
+
+
+def sbus_to_us(raw: int) -> float:
+    """An SBUS channel value (172..1811, centre 992) as the PWM microseconds a receiver puts out."""
+    return 1000.0 + (raw - 172) * 1000.0 / (1811 - 172)
+
+
+def _sbus_channels(data: bytes) -> list[int] | None:
+    if len(data) != 25:
+        return None
+    try:
+        channels, _flags = sbus.decode(data)
+    except ValueError:
+        return None
+    return channels
+
+
+def msp_set_raw_rc(us: list[int]) -> bytes:
+    """An MSP v1 SET_RAW_RC (200) frame: ``$M<``, size, command, the channels little-endian, XOR."""
+    payload = b"".join(int(min(max(u, 0), 0xFFFF)).to_bytes(2, "little") for u in us)
+    body = bytes([len(payload), 200]) + payload
+    check = 0
+    for b in body:
+        check ^= b
+    return b"$M<" + body + bytes([check])

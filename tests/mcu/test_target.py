@@ -1,0 +1,126 @@
+"""The MCU target end to end: the AVR reference FC's image, unmodified, flies library scenarios through
+``rig run --mcu BOARD --firmware FILE`` with the scenario's [fc] table as its EEPROM; the same seed gives
+the same bytes; a firmware that hangs, resets in a loop, jumps wild or hits a bad opcode ends its run
+with an error verdict naming where and when, and the suite goes on; a bad image or board is exit 2
+before anything runs."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from rig.runner import run
+from rig.targets.mcu import McuTarget
+from scenarios.schema import load
+from tests.mcu.conftest import REPO, firmware
+
+LIB = REPO / "scenarios" / "library"
+FC = REPO / "build" / "avr" / "fc.elf"
+
+
+@pytest.fixture(scope="module")
+def fc() -> Path:
+    done = subprocess.run(["make", "-s", "--no-print-directory", "avr"], cwd=REPO, capture_output=True,
+                          text=True)
+    assert done.returncode == 0, done.stderr
+    return FC
+
+
+def rig_run(*args: object) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "rig.cli", "run", *map(str, args)], capture_output=True,
+                          text=True, timeout=600)
+
+
+def test_the_avr_reference_fc_flies_the_library_through_the_tier(fc: Path, tmp_path: Path) -> None:
+    done = rig_run("--mcu", "mega2560-gy86", "--firmware", fc, "step_roll", "rc_loss_failsafe",
+                   "--out", tmp_path)
+    assert done.returncode == 0, done.stderr
+    for name, duration in (("step_roll", 10.0), ("rc_loss_failsafe", 20.0)):
+        r = json.loads((tmp_path / name / "result.json").read_text())
+        meta = r["metadata"]
+        assert r["verdict"] == "pass"
+        assert meta["mode"] == "mcu" and meta["board"] == "mega2560-gy86"
+        assert meta["dut_firmware_sha256"] and meta["fc_config"] is not None
+        mcu = meta["mcu"]
+        assert mcu["cycles"] == round(16e6 * duration)  # sim time is the MCU's cycle count
+        assert mcu["twi_transactions"] > 100 * duration and mcu["twi_nacks"] == 0
+        assert min(mcu["motor_pulses"]) > 400 * duration  # ~490 Hz ESC pulses, all four motors
+        assert meta["realtime_factor"] > 0
+        told = (tmp_path / name / "dut-telemetry.txt").read_text()
+        assert "# fc: configuration: EEPROM image" in told  # the scenario's [fc] table reached it
+
+
+def test_the_same_seed_gives_the_same_bytes(fc: Path, tmp_path: Path) -> None:
+    sc = load(LIB / "seed000_roll_stand.toml")
+    a = run(sc, McuTarget("mega2560-gy86", fc), 3, tmp_path / "a")
+    b = run(sc, McuTarget("mega2560-gy86", fc), 3, tmp_path / "b")
+    assert a.verdict == b.verdict == "pass"
+    assert [m.value for m in a.measurements] == [m.value for m in b.measurements]
+    told = {k: (tmp_path / k / "dut-telemetry.txt").read_bytes() for k in "ab"}
+    assert told["a"] == told["b"]
+    assert all((a.signals[k] == b.signals[k]).all() for k in ("roll", "pwm1", "pwm4"))
+    c = run(sc, McuTarget("mega2560-gy86", fc), 4, tmp_path / "c")  # another seed: other noise
+    assert (tmp_path / "c" / "dut-telemetry.txt").read_bytes() != told["a"]
+    assert c.verdict == "pass"
+
+
+@pytest.mark.parametrize(
+    ("name", "kind"),
+    [("busy", "hung"), ("watchdog", "watchdog"), ("wild_jump", "crashed"), ("bad_opcode", "crashed")],
+)
+def test_bad_firmware_ends_its_run_with_a_named_error(tmp_path: Path, name: str, kind: str) -> None:
+    sc = load(LIB / "step_roll.toml")
+    r = run(sc, McuTarget("mega2560-gy86", firmware(name, "atmega2560")), 0, tmp_path)
+    assert r.verdict == "error"
+    assert r.error is not None and f"the firmware {kind}:" in r.error
+    assert "pc 0x" in r.error and "cycle" in r.error
+    assert all(m.outcome == "not judged" for m in r.measurements)
+    print(f"{name}: {r.error} ({r.metadata['wall_time']:.2f} s wall)")
+
+
+def test_a_suite_goes_on_after_a_bad_firmware(tmp_path: Path) -> None:
+    done = rig_run("--mcu", "mega2560-gy86", "--firmware", firmware("busy", "atmega2560"), "step_roll",
+                   "seed000_roll_stand", "--out", tmp_path)
+    assert done.returncode == 3, done.stderr
+    assert "[2/2] seed000_roll_stand" in done.stderr and done.stderr.count("ERROR") == 2
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["--firmware", "README.md"], "neither an AVR ELF nor an Intel HEX file"),
+        (["--firmware", "no-such.elf"], "cannot read it"),
+        (["--mcu", "no-such-board"], "no such board file"),
+        ([], "--mcu needs --firmware"),
+        (["--dut", "true"], "--mcu runs a firmware image in lockstep: not with --dut"),
+    ],
+)
+def test_bad_options_are_exit_2_before_anything_runs(tmp_path: Path, args: list[str], words: str) -> None:
+    base = ["--mcu", "mega2560-gy86"]
+    if "--mcu" in args:
+        base = []
+    if "--firmware" not in args and words != "--mcu needs --firmware":
+        base += ["--firmware", str(firmware("busy", "atmega2560"))]
+    done = rig_run(*base, *args, "step_roll", "--out", tmp_path / "out")
+    assert done.returncode == 2, done.stderr
+    assert words in done.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_image_bigger_than_the_mcus_flash_is_refused(tmp_path: Path) -> None:
+    """A 40 KB image is fine for the ATmega2560 (256 KB) and too big for the 328P (32 KB)."""
+    big = tmp_path / "big.hex"
+    rows = [f":10{a & 0xFFFF:04X}00{'00' * 16}" for a in range(0, 0xA000, 16)]
+    lines = []
+    for k, r in enumerate(rows):
+        if k and (k * 16) % 0x10000 == 0:
+            lines.append(f":02000004{k * 16 >> 16:04X}{(-(2 + 4 + (k * 16 >> 16))) & 0xFF:02X}")
+        data = bytes.fromhex(r[1:])
+        lines.append(r + f"{(-sum(data)) & 0xFF:02X}")
+    big.write_text("\n".join([*lines, ":00000001FF"]) + "\n")
+    done = rig_run("--mcu", "promini328-gy86", "--firmware", big, "step_roll", "--out", tmp_path / "out")
+    assert done.returncode == 2 and "the flash image is 40960 bytes; the MCU has 32768" in done.stderr
