@@ -2,11 +2,14 @@
 
 A PLC writes the scenario's position in ``rig list`` and a start command; the run it starts is an
 ordinary run of the service (queued, run by a worker, kept in the history, origin ``plc``), and the
-PLC polls its status, verdict, progress, run id and chosen measurements. The server is pymodbus's
-(``pymodbus.simulator``: a SimDevice passed straight to ModbusTcpServer) in a thread with its own event
-loop; the action hook sees every access, so the read-only registers are computed from the database
-as each request reads them, and every write is checked there: pymodbus itself refuses writes to the
-read-only registers (ILLEGAL DATA ADDRESS) before the hook runs.
+PLC polls its status, verdict, progress, run id and chosen measurements. The read-only registers are
+computed from the database as each request reads them, and every write is checked there.
+
+The server is this module's own small asyncio Modbus TCP server, not pymodbus's simulator: the
+simulator answered function codes 1, 2 and 4 that the map does not have, answered a wrong unit id with
+exception 4 (or a KeyError), and echoed a write of the command register with the value it reads back
+(0) instead of the request, which the spec requires. Three function codes over one register block are a
+few dozen lines to get exactly right; pymodbus stays the PLC side in the tests and the Riden client.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ from __future__ import annotations
 import asyncio
 import math
 import struct
+import sys
 import threading
 import time
 from dataclasses import dataclass
@@ -60,6 +64,11 @@ BY_STATUS: Final = {
     "cancelled": (ERROR, NO_VERDICT),  # aborted: no verdict
 }
 UNIT: Final = 1
+WRITABLE: Final = frozenset(r.address for r in REGISTERS if r.access != "read")
+#: Modbus exception codes the server answers with
+ILLEGAL_FUNCTION, ILLEGAL_ADDRESS, ILLEGAL_VALUE, DEVICE_BUSY, GATEWAY_NO_RESPONSE = 1, 2, 3, 6, 11
+READ_HOLDING, WRITE_ONE, WRITE_MANY = 3, 6, 16
+MAX_READ, MAX_WRITE = 125, 123  # registers per request (the spec's limits)
 PLC_ORIGIN: Final = "plc"
 
 
@@ -78,22 +87,23 @@ class Plc:
             raise ValueError(f"at most {MAX_MEASUREMENTS} measurements on the PLC's registers")
         self.db, self.workers, self.scenarios, self.measurements, self.mode = \
             db, workers, scenarios, measurements, mode
+        unknown = unknown_measurements(measurements)
+        if unknown:  # (a typo would read NaN forever: the PLC could not tell it from "not measured yet")
+            print(f"rig serve: warning: no scenario of `rig list` has a criterion named "
+                  f"{', '.join(repr(n) for n in unknown)}: its --modbus-measure registers will read NaN",
+                  file=sys.stderr, flush=True)
         self.t0 = time.monotonic()
         latest = db.list(origin=PLC_ORIGIN, limit=1)  # a restart keeps the PLC's last run in view
         self.run_id: int | None = latest[0]["id"] if latest else None
         self.acknowledged = False
-        self.scenario = 0
+        # and the scenario register the position of that run's scenario (0 when there is none, or the
+        # library no longer has it): a PLC that only writes start after a restart flies the same one
+        last = latest[0]["scenarios"][0] if latest and latest[0].get("scenarios") else None
+        self.scenario = scenarios.index(last) + 1 if last in scenarios else 0
 
-    def device(self) -> Any:
-        from pymodbus.simulator import DataType, SimData, SimDevice
-
-        n = 2 * len(self.measurements)
-        data = [SimData(0, count=2, values=0, datatype=DataType.REGISTERS),
-                SimData(2, count=8, values=0, datatype=DataType.REGISTERS, readonly=True)]
-        if n:
-            data.append(SimData(MEASUREMENTS_AT, count=n, values=0, datatype=DataType.REGISTERS,
-                                readonly=True))
-        return SimDevice(UNIT, simdata=data, action=self.action)
+    def size(self) -> int:
+        """How many registers the map has (0..size-1 answer; beyond is ILLEGAL DATA ADDRESS)."""
+        return MEASUREMENTS_AT + 2 * len(self.measurements)
 
     def _current(self) -> dict[str, Any] | None:
         if self.run_id is None or self.acknowledged:
@@ -105,7 +115,7 @@ class Plc:
         run = self._current()
         status, verdict = BY_STATUS.get(run["status"], (ERROR, VERDICT_ERROR)) if run else (IDLE, NO_VERDICT)
         run_id = self.run_id or 0
-        out = {0: 0, 1: self.scenario, 2: status, 3: verdict, 4: run_id >> 16, 5: run_id & 0xFFFF,
+        out = {0: 0, 1: self.scenario, 2: status, 3: verdict, 4: (run_id >> 16) & 0xFFFF, 5: run_id & 0xFFFF,
                6: round(run["progress"]) if run else 0,
                7: int(time.monotonic() - self.t0) & 0xFFFF, 8: 0, 9: 0}
         values = _measured(run) if run else {}
@@ -115,25 +125,23 @@ class Plc:
             out[MEASUREMENTS_AT + 2 * k], out[MEASUREMENTS_AT + 2 * k + 1] = hi, lo
         return out
 
-    async def action(self, function_code: int, start_address: int, address: int, count: int,
-                     current: list[int], set_values: list[int] | list[bool] | None) -> Any:
-        from pymodbus.constants import ExcCodes
-
-        if set_values is None:  # a read: the registers as they stand now
-            for reg, value in self.registers().items():
-                if 0 <= reg - start_address < len(current):
-                    current[reg - start_address] = value
-            return None
-        writes = dict(zip(range(address, address + count), (int(v) for v in set_values), strict=False))
+    def write(self, address: int, values: list[int]) -> int | None:
+        """A write of ``values`` from ``address`` (FC 6 or 16): None when carried out, else the Modbus
+        exception code. Nothing is changed unless every register written is writable."""
+        if address < 0 or address + len(values) > self.size():
+            return ILLEGAL_ADDRESS
+        if any(reg not in WRITABLE for reg in range(address, address + len(values))):
+            return ILLEGAL_ADDRESS
+        writes = dict(zip(range(address, address + len(values)), values, strict=True))
         if 1 in writes:
             if not 1 <= writes[1] <= len(self.scenarios):
-                return ExcCodes.ILLEGAL_VALUE
+                return ILLEGAL_VALUE
             self.scenario = writes[1]
         if 0 in writes:
             refused = self.command(writes[0])
             if refused is not None:
-                return {"busy": ExcCodes.DEVICE_BUSY, "value": ExcCodes.ILLEGAL_VALUE}[refused]
-        return None  # (the answer echoes the write, as a Modbus device's must; a read of 0 gives 0)
+                return {"busy": DEVICE_BUSY, "value": ILLEGAL_VALUE}[refused]
+        return None
 
     def command(self, cmd: int) -> str | None:
         """Carries out a command; None, or why it is refused ("busy", "value")."""
@@ -171,16 +179,51 @@ def _measured(run: dict[str, Any]) -> dict[str, float]:
     return out
 
 
+def answer(plc: Plc, unit: int, pdu: bytes) -> bytes | None:
+    """The response PDU to one request PDU (None: no answer; the caller drops the connection)."""
+    if not pdu:
+        return None
+    fc = pdu[0]
+
+    def refuse(code: int) -> bytes:
+        return bytes((fc | 0x80, code))
+
+    if unit != UNIT:  # no such device behind this address: as a gateway answers (docs/plc.md)
+        return refuse(GATEWAY_NO_RESPONSE)
+    if fc not in (READ_HOLDING, WRITE_ONE, WRITE_MANY):
+        return refuse(ILLEGAL_FUNCTION)
+    if len(pdu) < 5:
+        return refuse(ILLEGAL_VALUE)
+    address, n = struct.unpack(">HH", pdu[1:5])
+    if fc == READ_HOLDING:
+        if len(pdu) != 5 or not 1 <= n <= MAX_READ:
+            return refuse(ILLEGAL_VALUE)
+        if address + n > plc.size():
+            return refuse(ILLEGAL_ADDRESS)
+        regs = plc.registers()
+        return bytes((fc, 2 * n)) + struct.pack(f">{n}H", *(regs[r] for r in range(address, address + n)))
+    if fc == WRITE_ONE:
+        if len(pdu) != 5:
+            return refuse(ILLEGAL_VALUE)
+        code = plc.write(address, [n])
+        return pdu if code is None else refuse(code)  # the reply echoes the request, as the spec says
+    if len(pdu) < 6 or not 1 <= n <= MAX_WRITE or pdu[5] != 2 * n or len(pdu) != 6 + 2 * n:
+        return refuse(ILLEGAL_VALUE)
+    code = plc.write(address, list(struct.unpack(f">{n}H", pdu[6:])))
+    return pdu[:5] if code is None else refuse(code)
+
+
 class PlcServer:
     """The Modbus TCP server in a thread of its own (its own event loop: a slow PLC never holds up the
-    HTTP API, nor the API the PLC)."""
+    HTTP API, nor the API the PLC). Requests are answered one at a time, so the Plc needs no lock."""
 
     def __init__(self, plc: Plc, host: str, port: int) -> None:
         self.plc, self.host, self.port = plc, host, port
         self._loop: asyncio.AbstractEventLoop | None = None
-        self._server: Any = None
+        self._stopped: asyncio.Event | None = None
         self._ready = threading.Event()
         self._error: BaseException | None = None
+        self._lock: asyncio.Lock | None = None
         self._thread = threading.Thread(target=self._main, daemon=True, name="modbus")
 
     def start(self, timeout: float = 10.0) -> None:
@@ -193,22 +236,43 @@ class PlcServer:
         asyncio.run(self._serve())
 
     async def _serve(self) -> None:
-        from pymodbus.server import ModbusTcpServer
-
         self._loop = asyncio.get_running_loop()
+        self._stopped, self._lock = asyncio.Event(), asyncio.Lock()
         try:
-            self._server = ModbusTcpServer(self.plc.device(), address=(self.host, self.port))
-            await self._server.serve_forever(background=True)
-        except BaseException as e:  # (reported by start(), in the caller's thread)
+            server = await asyncio.start_server(self._client, self.host, self.port)
+        except OSError as e:  # (reported by start(), in the caller's thread)
             self._error = e
             self._ready.set()
             return
         self._ready.set()
-        await self._server.serving
+        async with server:
+            await self._stopped.wait()
+
+    async def _client(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        """One PLC's connection: MBAP header (transaction, protocol 0, length, unit), then the PDU. A
+        frame that is not Modbus TCP closes the connection (there is no resynchronising a stream)."""
+        assert self._lock is not None
+        try:
+            while True:
+                head = await reader.readexactly(7)
+                transaction, protocol, length, unit = struct.unpack(">HHHB", head)
+                if protocol != 0 or not 2 <= length <= 254:
+                    break
+                pdu = await reader.readexactly(length - 1)
+                async with self._lock:
+                    reply = answer(self.plc, unit, pdu)
+                if reply is None:
+                    break
+                writer.write(struct.pack(">HHHB", transaction, 0, len(reply) + 1, unit) + reply)
+                await writer.drain()
+        except (asyncio.IncompleteReadError, ConnectionError):
+            pass
+        finally:
+            writer.close()
 
     def stop(self) -> None:
-        if self._loop is not None and self._server is not None and self._thread.is_alive():
-            asyncio.run_coroutine_threadsafe(self._server.shutdown(), self._loop).result(timeout=5)
+        if self._loop is not None and self._stopped is not None and self._thread.is_alive():
+            self._loop.call_soon_threadsafe(self._stopped.set)
         self._thread.join(timeout=5)
 
 
@@ -217,3 +281,17 @@ def library_names() -> list[str]:
     from rig.run_cmd import resolve
 
     return [Path(p).stem for p in resolve([])]
+
+
+def unknown_measurements(names: list[str]) -> list[str]:
+    """The names no criterion of the library's scenarios has (what a --modbus-measure could never read)."""
+    from rig.run_cmd import resolve
+    from scenarios.schema import ScenarioError, load
+
+    known: set[str] = set()
+    for path in resolve([]):
+        try:
+            known.update(c.name for c in load(path).criteria)
+        except (ScenarioError, OSError):
+            continue  # (rig validate reports it; the others still count)
+    return [n for n in names if n not in known]

@@ -129,3 +129,84 @@ def test_modbus_beyond_loopback_needs_an_explicit_yes(tmp_path: Path) -> None:
                         "--modbus", str(free_port()), "--data", str(tmp_path)],
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and "Modbus TCP has no authentication" in r.stderr
+
+
+def _raw(port: int, unit: int, pdu: bytes, transaction: int = 0x1234) -> bytes:
+    """One Modbus TCP request as bytes on a socket; the response's PDU (after checking its header)."""
+    import socket
+
+    with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
+        s.sendall(struct.pack(">HHHB", transaction, 0, len(pdu) + 1, unit) + pdu)
+        head = b""
+        while len(head) < 7:
+            chunk = s.recv(7 - len(head))
+            assert chunk, "the server closed the connection without an answer"
+            head += chunk
+        tid, protocol, length, got_unit = struct.unpack(">HHHB", head)
+        assert (tid, protocol, got_unit) == (transaction, 0, unit)
+        body = b""
+        while len(body) < length - 1:
+            chunk = s.recv(length - 1 - len(body))
+            assert chunk
+            body += chunk
+        return body
+
+
+def test_the_wire_as_the_spec_says_raw_bytes(cell: tuple[Service, Plc]) -> None:
+    _, plc = cell
+    port = plc.client.comm_params.port
+    position = library_names().index("seed000_roll_stand") + 1
+    # FC 6: the reply is the request, byte for byte, even for the command register (which reads 0)
+    for request in (bytes([6, 0, 1, 0, position]), bytes([6, 0, 0, 0, 3])):
+        assert _raw(port, 1, request) == request
+    # FC 16: address and count
+    assert _raw(port, 1, bytes([16, 0, 1, 0, 1, 2, 0, position])) == bytes([16, 0, 1, 0, 1])
+    # FC 3: byte count, then the registers
+    reply = _raw(port, 1, bytes([3, 0, 1, 0, 2]))
+    assert reply[:2] == bytes([3, 4]) and struct.unpack(">HH", reply[2:]) == (position, 0)
+    # the map has holding registers only: coils, discrete inputs, input registers are illegal functions
+    for fc in (1, 2, 4, 5, 15, 23, 43):
+        assert _raw(port, 1, bytes([fc, 0, 0, 0, 1])) == bytes([fc | 0x80, 1]), fc
+    # another unit id: no such device behind this address, as a gateway answers (exception 11)
+    for unit in (0, 2, 255):
+        assert _raw(port, unit, bytes([3, 0, 0, 0, 1])) == bytes([0x83, 11]), unit
+        assert _raw(port, unit, bytes([6, 0, 0, 0, 1])) == bytes([0x86, 11]), unit
+    # malformed requests: a count of 0 or beyond the spec's, a byte count that disagrees
+    assert _raw(port, 1, bytes([3, 0, 0, 0, 0])) == bytes([0x83, 3])
+    assert _raw(port, 1, bytes([3, 0, 0, 0, 126])) == bytes([0x83, 3])
+    assert _raw(port, 1, bytes([16, 0, 1, 0, 1, 4, 0, 1, 0, 0])) == bytes([0x90, 3])
+    assert _raw(port, 1, bytes([16, 0, 1, 0, 2, 4, 0, 1, 0, 0])) == bytes([0x90, 2])  # 2 is read-only
+    assert plc.read(0, 4)[:4] == [0, position, 0, 0]  # nothing refused changed anything
+
+
+def test_the_wire_as_pymodbus_client_sees_it(cell: tuple[Service, Plc]) -> None:
+    _, plc = cell
+    r = plc.client.write_register(0, 3, device_id=1)  # acknowledge with nothing to acknowledge
+    assert not r.isError() and (r.address, r.registers) == (0, [3])  # the echo, not the 0 it reads
+    for call in (plc.client.read_coils, plc.client.read_discrete_inputs, plc.client.read_input_registers):
+        r = call(0, count=1, device_id=1)
+        assert r.isError() and r.exception_code == 1, call
+    r = plc.client.read_holding_registers(0, count=1, device_id=7)
+    assert r.isError() and r.exception_code == 11
+
+
+def test_after_a_restart_the_scenario_register_reads_the_last_runs(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from rig.service.db import Db
+    from rig.service.plc import Plc as Registers
+
+    names = library_names()
+    db = Db(tmp_path / "rig.sqlite")
+    try:
+        assert Registers(db, None, names, []).registers()[1] == 0  # type: ignore[arg-type]  # no PLC run yet
+        db.submit(["seed000_roll_stand"], 0, {}, "lockstep", 0, origin="plc")
+        db.submit(["step_roll"], 0, {}, "lockstep", 0, origin="api")  # (not the PLC's)
+        again = Registers(db, None, names, ["overshoot after release"])  # type: ignore[arg-type]
+        assert again.registers()[1] == names.index("seed000_roll_stand") + 1
+        assert "warning" not in capsys.readouterr().err
+        # a mistyped measurement name is told at once, not read as NaN forever in silence
+        Registers(db, None, names, ["overshot after release"])  # type: ignore[arg-type]
+        err = capsys.readouterr().err
+        assert "warning" in err and "'overshot after release'" in err
+    finally:
+        db.close()
