@@ -23,6 +23,9 @@ from rig.bridge.timesync import ClockMap, Exchange
 from rig.bridge.vbridge import VirtualBridge
 
 SYNCS = 16
+#: at most this many (25 s at SYNC_INTERVAL_S): 100000 took 40 minutes, and past a few hundred the drift
+#: estimate gains nothing a run's own time sync does not measure better
+MAX_SYNCS = 1000
 #: probes this far apart (as a session's are, 10 Hz or more): 16 span 0.4 s, enough for a first drift
 SYNC_INTERVAL_S = 0.025
 #: the bridge sends STATUS every 200 ms: a second without one means it is not sending them
@@ -44,6 +47,8 @@ class Probe:
     checkout_sha256: str = ""
 
     def _which_firmware(self) -> str:
+        if self.port == "virtual":  # (build/vbridge, started by the probe: no firmware image to compare)
+            return " (the virtual bridge: this checkout's build/vbridge, no firmware image)"
         if not self.checkout_sha256:
             return ""
         if self.firmware_sha256 == self.checkout_sha256:
@@ -149,13 +154,15 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     bsub = bridge.add_subparsers(dest="bridge_command", required=True)
     p = bsub.add_parser("probe", help="a bridge's identity, firmware hash, clock and link statistics")
     p.add_argument("port", help="the bridge's serial port (/dev/ttyACM0), or 'virtual'")
-    p.add_argument("--syncs", type=int, default=SYNCS, help=f"time-sync exchanges (default {SYNCS})")
+    p.add_argument("--syncs", type=int, default=SYNCS,
+                   help=f"time-sync exchanges, 1..{MAX_SYNCS} (default {SYNCS})")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
 
 
 def main(args: argparse.Namespace) -> int:
-    if args.syncs < 1:
-        print("rig bridge probe: --syncs must be at least 1", file=sys.stderr)
+    if not 1 <= args.syncs <= MAX_SYNCS:
+        print(f"rig bridge probe: --syncs: expected 1..{MAX_SYNCS} ({SYNC_INTERVAL_S * 1000:g} ms each), "
+              f"got {args.syncs}", file=sys.stderr)
         return 2
     try:
         p = probe(args.port, args.syncs)

@@ -30,8 +30,10 @@ def test_probe_of_the_virtual_bridge(built: Path) -> None:
     assert isinstance(p, Probe) and p.port == "virtual"
     assert (p.bridge_id, p.protocol, p.clock_hz) == ("vbridge", PROTOCOL_VERSION, 1_000_000)
     assert p.firmware_sha256 == "00" * 8 and p.core_version == 1
-    # the virtual bridge carries no firmware hash: not this checkout's STM32 firmware
-    assert p.checkout_sha256 == firmware_hash().hex() and "(not this checkout's" in p.lines()[1]
+    # the virtual bridge carries no firmware hash, and is this checkout's own build/vbridge: said so, not
+    # "not this checkout's" as a board running other firmware would be
+    assert p.checkout_sha256 == firmware_hash().hex() and "not this checkout's" not in p.lines()[1]
+    assert p.lines()[1].endswith("(the virtual bridge: this checkout's build/vbridge, no firmware image)")
     assert p.clock["exchanges"] == 8 and p.clock["rejected"] == 0 and 0 < p.clock["rtt_p50_us"]
     # the virtual bridge counts CLOCK_MONOTONIC microseconds: the mapped bridge time is the host's
     assert abs(float(p.clock["bridge_us"]) - time.monotonic_ns() / 1000) < 500_000
@@ -75,3 +77,6 @@ def test_a_port_where_nothing_answers_is_a_clear_error(silent_port: str,
     assert main(["bridge", "probe", "/nonexistent/ttyACM9"]) == 1
     assert "cannot open the bridge's port /nonexistent/ttyACM9" in capsys.readouterr().err
     assert main(["bridge", "probe", silent_port, "--syncs", "0"]) == 2
+    # no unbounded probe: 100000 exchanges 25 ms apart took 40 minutes
+    assert main(["bridge", "probe", silent_port, "--syncs", "100000"]) == 2
+    assert "--syncs: expected 1..1000 (25 ms each), got 100000" in capsys.readouterr().err
