@@ -14,6 +14,7 @@ import argparse
 import dataclasses
 import fcntl
 import json
+import math
 import os
 import shlex
 import shutil
@@ -34,6 +35,30 @@ if TYPE_CHECKING:
 
 LIBRARY = Path(__file__).resolve().parents[1] / "scenarios" / "library"
 EXIT_FAILED, EXIT_USAGE, EXIT_ERROR = 1, 2, 3
+#: seeds are 0..2^31-1, as the service's API takes them (a run queued there is a run of this command)
+SEED_LIMIT = 2**31
+
+
+def seed_option(text: str) -> int:
+    """argparse type of --seed: a bad one is exit 2 before anything runs (-1 reached numpy mid-run)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer 0..{SEED_LIMIT - 1}, got {text!r}") from None
+    if not 0 <= value < SEED_LIMIT:
+        raise argparse.ArgumentTypeError(f"expected an integer 0..{SEED_LIMIT - 1}, got {text}")
+    return value
+
+
+def seconds_option(text: str) -> float:
+    """argparse type of a timeout: a finite number of seconds > 0 (-5 made every run an error)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
+    if not 0 < value < math.inf:
+        raise argparse.ArgumentTypeError(f"expected a finite number of seconds > 0, got {text}")
+    return value
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
@@ -58,9 +83,10 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--out", type=Path, default=Path("build/reports"), help="report folder (default %(default)s)"
     )
-    p.add_argument("--seed", type=int, default=0, help="random seed for noise, turbulence and faults")
+    p.add_argument("--seed", type=seed_option, default=0,
+                   help="random seed for noise, turbulence and faults (0..2^31-1)")
     p.add_argument(
-        "--wall-timeout", type=float, default=600.0, help="wall seconds per run before it is ended"
+        "--wall-timeout", type=seconds_option, default=600.0, help="wall seconds per run before it is ended"
     )
     p.add_argument(
         "--realtime",

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from rig import interrupts
-from rig.run_cmd import LIBRARY, ReportFolder, UsageError
+from rig.run_cmd import LIBRARY, ReportFolder, UsageError, seconds_option
 
 EXIT_FAIL, EXIT_USAGE, EXIT_ERROR = 1, 2, 3
 #: a local pool whose process died (killed, out of memory) is started again this many times
@@ -60,7 +60,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--dut", help="the DUT command line (default: the reference FC, as rig run)")
     p.add_argument(
         "--wall-timeout",
-        type=float,
+        type=seconds_option,
         default=600.0,
         metavar="S",
         help="a run that takes longer than this is stopped (an error; default %(default)s)",

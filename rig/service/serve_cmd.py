@@ -46,6 +46,21 @@ def _loopback(host: str) -> bool:
         return False
 
 
+def _data_problem(data: Path) -> str | None:
+    """Why --data cannot be the service's folder (a file, under a file, not writable), or None; checked
+    before anything is created (it was a traceback from mkdir)."""
+    if data.exists():
+        if not data.is_dir():
+            return f"--data {data} exists and is not a folder"
+        return None if os.access(data, os.W_OK | os.X_OK) else f"--data {data}: not writable"
+    parent = data.absolute().parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        return f"--data {data}: {parent} is not a folder"
+    return None if os.access(parent, os.W_OK | os.X_OK) else f"--data {data}: {parent} is not writable"
+
+
 def main(args: argparse.Namespace) -> int:
     if not _loopback(args.host) and not args.token:
         print(f"rig serve: --host {args.host} listens beyond this machine: give --token (or $RIG_TOKEN)",
@@ -53,6 +68,10 @@ def main(args: argparse.Namespace) -> int:
         return 2
     if not 1 <= args.slots <= 256 or not 0 <= args.port <= 65535:
         print("rig serve: --slots is 1..256 and --port 0..65535", file=sys.stderr)
+        return 2
+    problem = _data_problem(args.data)
+    if problem is not None:
+        print(f"rig serve: {problem}", file=sys.stderr)
         return 2
     if args.modbus is not None:
         from rig.service.plc import MAX_MEASUREMENTS
@@ -77,7 +96,11 @@ def main(args: argparse.Namespace) -> int:
     from rig.service.store import Store
     from rig.service.worker import Workers
 
-    args.data.mkdir(parents=True, exist_ok=True)
+    try:
+        args.data.mkdir(parents=True, exist_ok=True)
+    except OSError as e:  # (what the checks above cannot foresee: /proc, a read-only mount as root)
+        print(f"rig serve: --data {args.data}: {e.strerror or e}", file=sys.stderr)
+        return 2
     db = Db(args.data / "rig.sqlite")
     interrupted = db.interrupt_running()
     if interrupted:
