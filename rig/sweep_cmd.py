@@ -51,6 +51,14 @@ def add_parser(sub: Any) -> None:
         help="a Dask scheduler to run on (default: DASK_SCHEDULER_ADDRESS, else the local pool); "
         "DIR must be on storage the workers share",
     )
+    p.add_argument(
+        "--wait-workers",
+        type=seconds_option,
+        default=None,
+        metavar="S",
+        help="with a Dask cluster: how long to wait for a worker when the scheduler has none "
+        "(default 120; the wait is counted on stderr)",
+    )
     p.add_argument("--retry-errors", action="store_true", help="fly again the runs that ended in error")
     p.add_argument(
         "--fresh",
@@ -68,8 +76,18 @@ def add_parser(sub: Any) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    from rig.sweep.engine import ENV, check_address
     from scenarios.sweep import SweepError, load_sweep
 
+    address = args.engine or os.environ.get(ENV)
+    if address:
+        problem = check_address(address)
+        if problem is not None:
+            print(f"rig sweep: {'--engine' if args.engine else ENV}: {problem}", file=sys.stderr)
+            return EXIT_USAGE
+    elif args.wait_workers is not None:
+        print("rig sweep: --wait-workers goes with a Dask cluster (--engine)", file=sys.stderr)
+        return EXIT_USAGE
     if args.jobs is not None and not 1 <= args.jobs <= 1024:
         print(f"rig sweep: --jobs: expected 1..1024, got {args.jobs}", file=sys.stderr)
         return EXIT_USAGE
@@ -100,7 +118,7 @@ def _sweep(sweep: Any, args: argparse.Namespace, dut: list[str] | None) -> int:
     from tqdm import tqdm
 
     from rig.sweep import store
-    from rig.sweep.engine import ENV, EngineError, open_engine
+    from rig.sweep.engine import ENV, WORKERS_TIMEOUT_S, EngineError, open_engine
     from rig.sweep.work import Task, fly, read_row
 
     out: Path = args.out.resolve()
@@ -150,7 +168,8 @@ def _sweep(sweep: Any, args: argparse.Namespace, dut: list[str] | None) -> int:
         restarts = 0
         while todo and stop is None:
             try:
-                with open_engine(args.jobs, args.engine) as engine:
+                with open_engine(args.jobs, args.engine, args.wait_workers or WORKERS_TIMEOUT_S,
+                                 lambda m: bar.write(f"rig sweep: {m}", file=sys.stderr)) as engine:
                     engine_name = engine.name
                     bar.set_description(f"{engine.name} ×{engine.workers}")
                     todo, stop = _run(engine, todo, fly, rows, bar)

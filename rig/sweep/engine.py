@@ -8,7 +8,11 @@ as an orderly stop (rig/interrupts.py) from its first moment, and killed by the 
 first. They were forkserver's: a SIGTERM or SIGHUP to the group killed the fork server (it ignores only
 SIGINT), every worker looked dead to the pool, the sweep printed its tally and removed its temporary
 folder, and the workers, never told to end, flew what was queued and waited for more until SIGKILL.
-Whatever happens, the pool is not left before every worker has ended (STOP_GRACE_S, then SIGKILL)."""
+Whatever happens, the pool is not left before every worker has ended (STOP_GRACE_S, then SIGKILL).
+
+A cluster's address is checked before anything (check_address: a malformed one made the half-built
+Client hang 20 s on its way out and print a traceback), and a scheduler with no workers is waited for
+with a count the user sees, up to a timeout (it was waited for forever, the bar saying ×1)."""
 
 from __future__ import annotations
 
@@ -17,7 +21,7 @@ import multiprocessing
 import os
 import signal
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -26,6 +30,12 @@ from typing import Any
 ENV = "DASK_SCHEDULER_ADDRESS"
 #: how long a sweep waits for the cluster's scheduler to answer
 CONNECT_TIMEOUT_S = 10.0
+#: how long a sweep waits for a scheduler with no workers to get one (rig sweep --wait-workers)
+WORKERS_TIMEOUT_S = 120.0
+#: how often the wait says how it stands
+WORKERS_SAY_EVERY_S = 10.0
+#: the schemes a Dask address can have here (distributed's TCP comm, plain or TLS)
+SCHEMES = ("tcp", "tls")
 #: how long a local pool's workers get to end (the runs under way stop their DUTs) before SIGKILL
 STOP_GRACE_S = 30.0
 PR_SET_PDEATHSIG = 1
@@ -45,13 +55,33 @@ class Engine:
     stop_running: Any = field(default=None)  # ends the runs under way (a local pool: SIGINT each process)
 
 
+def check_address(address: str) -> str | None:
+    """Why ``address`` cannot be a Dask scheduler's (``tcp://HOST:PORT``; ``HOST:PORT`` is tcp), or None."""
+    from urllib.parse import urlsplit
+
+    want = f"expected tcp://HOST:PORT (or tls://), got {address!r}"
+    try:
+        u = urlsplit(address if "://" in address else f"tcp://{address}")
+        port = u.port
+    except ValueError:
+        return want
+    if u.scheme not in SCHEMES or not u.hostname or port is None or not 1 <= port <= 65535:
+        return want
+    if u.path not in ("", "/") or u.query or u.fragment or u.username:
+        return want
+    return None
+
+
 def local_jobs(jobs: int | None) -> int:
     return jobs if jobs is not None else len(os.sched_getaffinity(0))
 
 
 @contextmanager
-def open_engine(jobs: int | None = None, address: str | None = None) -> Iterator[Engine]:
-    """The local pool (``address`` None and no DASK_SCHEDULER_ADDRESS) or the Dask cluster there."""
+def open_engine(jobs: int | None = None, address: str | None = None,
+                workers_timeout_s: float = WORKERS_TIMEOUT_S,
+                say: Callable[[str], None] = lambda _: None) -> Iterator[Engine]:
+    """The local pool (``address`` None and no DASK_SCHEDULER_ADDRESS) or the Dask cluster there: once it
+    has a worker, waited for up to ``workers_timeout_s`` (``say`` tells how the wait stands)."""
     address = address or os.environ.get(ENV) or None
     if address is None:
         n = local_jobs(jobs)
@@ -76,6 +106,9 @@ def open_engine(jobs: int | None = None, address: str | None = None) -> Iterator
         finally:
             _shut(pool)
         return
+    problem = check_address(address)
+    if problem is not None:
+        raise EngineError(f"the Dask scheduler's address: {problem}")
     try:
         from distributed import Client
     except ImportError as e:  # pragma: no cover (a dependency of the rig)
@@ -85,11 +118,40 @@ def open_engine(jobs: int | None = None, address: str | None = None) -> Iterator
     except (OSError, TimeoutError, ValueError) as e:
         raise EngineError(f"no Dask scheduler at {address}: {e}") from None
     try:
-        info = client.scheduler_info()
-        threads = sum(int(w.get("nthreads", 1)) for w in info.get("workers", {}).values())
-        yield Engine(client.get_executor(pure=False), address, threads or 1)
+        threads = _wait_for_workers(client, address, workers_timeout_s, say)
+        yield Engine(client.get_executor(pure=False), address, threads)
     finally:
         client.close()
+
+
+def _threads(client: Any) -> int:
+    info = client.scheduler_info()
+    return sum(int(w.get("nthreads", 1)) for w in info.get("workers", {}).values())
+
+
+def _wait_for_workers(client: Any, address: str, timeout_s: float, say: Callable[[str], None]) -> int:
+    """The cluster's threads, once it has any; EngineError when none came in ``timeout_s``."""
+    threads = _threads(client)
+    if threads:
+        return threads
+    say(f"the Dask scheduler at {address} has no workers: waiting up to {timeout_s:g} s for one "
+        f"(start one with `dask worker {address}`)")
+    waited = 0.0
+    while waited < timeout_s:
+        step = min(WORKERS_SAY_EVERY_S, timeout_s - waited)
+        try:
+            client.wait_for_workers(1, timeout=step)
+        except TimeoutError:
+            waited += step
+            if waited < timeout_s:
+                say(f"still 0 workers at {address} after {waited:g} s of {timeout_s:g} s")
+            continue
+        threads = _threads(client)
+        if threads:
+            say(f"{len(client.scheduler_info().get('workers', {}))} worker(s) at {address}: starting")
+            return threads
+    raise EngineError(f"no worker joined the Dask scheduler at {address} in {timeout_s:g} s "
+                      "(start one with `dask worker ADDRESS`, or give --wait-workers longer)")
 
 
 def _processes(pool: ProcessPoolExecutor) -> list[multiprocessing.Process]:

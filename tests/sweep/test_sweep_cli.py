@@ -121,71 +121,67 @@ def test_the_local_pool_writes_the_table_the_summary_and_junit(show: dict[str, A
     assert not (out / ".slots").exists()  # the core-slot locks went with the sweep
 
 
+DASK = Path(sys.executable).parent / "dask"
+
+
+def start_scheduler(info: Path, private: Path) -> tuple[str, subprocess.Popen[bytes]]:
+    """A Dask scheduler on loopback (its address from its scheduler file)."""
+    proc = subprocess.Popen(
+        [DASK, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard", "--scheduler-file", info],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env={**os.environ, "TMPDIR": str(private)},
+    )
+    if wait_file([info]) != info:
+        proc.kill()
+        proc.wait()
+        raise AssertionError("the scheduler did not start")
+    address = __import__("json").loads(info.read_text())["address"]
+    assert address.startswith("tcp://127.0.0.1:")
+    return address, proc
+
+
+def start_worker(address: str, name: str, private: Path) -> subprocess.Popen[bytes]:
+    """A single-thread worker, no nanny (a killed worker stays dead)."""
+    return subprocess.Popen(
+        [DASK, "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard", "--host", "127.0.0.1",
+         "--name", name],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env={**os.environ, "TMPDIR": str(private)},
+    )
+
+
+def end(procs: list[subprocess.Popen[bytes]]) -> None:
+    """The workers first (a worker whose scheduler is gone waits for it before it stops)."""
+    for p in reversed(procs):
+        p.terminate()
+        try:
+            p.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait(timeout=30)
+
+
 @pytest.fixture
 def cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[bytes]]]]:
     """A Dask scheduler and two single-thread workers (no nanny: a killed worker stays dead) on loopback."""
-    dask = Path(sys.executable).parent / "dask"
-    info = tmp_path / "scheduler.json"
     # the cluster's temporary files (its scratch space too), removed at the end: the worker the test
     # kills cannot remove its run's session folder (in /tmp: a session's socket path must stay under
     # AF_UNIX's 108 bytes)
     private = Path(tempfile.mkdtemp(prefix="rig-dask-", dir="/tmp"))
-    procs = [
-        subprocess.Popen(
-            [
-                dask,
-                "scheduler",
-                "--host",
-                "127.0.0.1",
-                "--port",
-                "0",
-                "--no-dashboard",
-                "--scheduler-file",
-                info,
-            ],
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-            env={**os.environ, "TMPDIR": str(private)},
-        )
-    ]
+    procs: list[subprocess.Popen[bytes]] = []
     try:
-        assert wait_file([info]) == info, "the scheduler did not start"
-        address = __import__("json").loads(info.read_text())["address"]
-        assert address.startswith("tcp://127.0.0.1:")
-        for n in range(2):
-            procs.append(
-                subprocess.Popen(
-                    [
-                        dask,
-                        "worker",
-                        address,
-                        "--nthreads",
-                        "1",
-                        "--no-nanny",
-                        "--no-dashboard",
-                        "--host",
-                        "127.0.0.1",
-                        "--name",
-                        f"w{n}",
-                    ],
-                    stdout=subprocess.DEVNULL,
-                    stderr=subprocess.DEVNULL,
-                    env={**os.environ, "TMPDIR": str(private)},
-                )
-            )
+        address, scheduler = start_scheduler(tmp_path / "scheduler.json", private)
+        procs.append(scheduler)
+        procs += [start_worker(address, f"w{n}", private) for n in range(2)]
         from distributed import Client
 
         with Client(address, timeout=60) as c:
             c.wait_for_workers(2, timeout=60)
         yield address, procs
-    finally:  # the workers first (a worker whose scheduler is gone waits for it before it stops)
-        for p in reversed(procs):
-            p.terminate()
-            try:
-                p.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait(timeout=30)
+    finally:
+        end(procs)
         shutil.rmtree(private, ignore_errors=True)
 
 
