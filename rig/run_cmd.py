@@ -186,7 +186,8 @@ def cmd_validate(names: list[str]) -> int:
             sc = load(p)
             print(f"ok   {p}: {len(sc.criteria)} criteria, {sc.duration:g} s")
         except ScenarioError as e:
-            print(f"FAIL {e}", file=sys.stderr)
+            for problem in e.problems:  # every problem of the file, a line each
+                print(f"FAIL {problem}", file=sys.stderr)
             bad += 1
     return EXIT_USAGE if bad else 0
 

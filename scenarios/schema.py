@@ -13,7 +13,8 @@ import hashlib
 import json
 import math
 import tomllib
-from collections.abc import Collection
+from collections.abc import Collection, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -41,6 +42,19 @@ class ScenarioError(ValueError):
     def __init__(self, file: str, key: str, message: str) -> None:
         super().__init__(f"{file}: {key}: {message}" if key else f"{file}: {message}")
         self.file, self.key = file, key
+        #: every problem of the file (this one first); str() of the error says them all, a line each
+        self.problems: list[ScenarioError] = [self]
+
+
+def _all(problems: list[ScenarioError]) -> ScenarioError:
+    """One error that says every problem of a file (the first's file and key)."""
+    if len(problems) == 1:
+        return problems[0]
+    first = problems[0]
+    err = ScenarioError(first.file, first.key, "")
+    err.args = ("\n".join(str(p) for p in problems),)
+    err.problems = list(problems)
+    return err
 
 
 @dataclass(frozen=True)
@@ -138,9 +152,32 @@ class _Check:
 
     def __init__(self, file: str) -> None:
         self.file = file
+        self.problems: list[ScenarioError] = []
 
     def fail(self, key: str, message: str) -> ScenarioError:
         return ScenarioError(self.file, key, message)
+
+    @contextmanager
+    def part(self) -> Iterator[None]:
+        """A part of the file checked on its own: a problem in it is kept and the check goes on with the
+        next part, so that one run of `rig validate` names every problem (a table, an entry of an array,
+        a criterion's keys: one problem each, as what follows from a bad value would only repeat it)."""
+        try:
+            yield
+        except ScenarioError as e:
+            self.problems.extend(e.problems)
+
+    def lenient(self, data: Any, key: str, known: Collection[str]) -> dict[str, Any]:
+        """``data`` as a table, an unknown key in it kept as a problem while its known keys are still
+        checked (a typo beside a bad value: both are reported); {} when it is not a table."""
+        with self.part():
+            self.table(data, key, known)
+        return data if isinstance(data, dict) else {}
+
+    def done(self) -> None:
+        """Raises every problem the parts kept, as one error."""
+        if self.problems:
+            raise _all(self.problems)
 
     def table(self, data: Any, key: str, known: Collection[str] | None) -> dict[str, Any]:
         """``data`` as a table whose keys are all ``known`` (None: any key, checked elsewhere)."""
@@ -172,12 +209,12 @@ class _Check:
                 raise self.fail(full, "missing; expected a number")
             return default
         v = data[key]
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        if isinstance(v, bool) or not isinstance(v, int | float):
             raise self.fail(full, f"expected a finite number, got {_kind(v)}")
-        if positive and not v > 0:
-            raise self.fail(full, f"expected a number > 0, got {v}")
-        if not low <= v <= high:
-            raise self.fail(full, f"expected a number in {low:g}..{high:g}, got {v}")
+        if not math.isfinite(v):
+            raise self.fail(full, f"expected a finite number, got {v}")
+        if (positive and not v > 0) or not low <= v <= high:
+            raise self.fail(full, f"expected {_range(low, high, positive)}, got {v:g}")
         return float(v)
 
     def optional(self, data: dict[str, Any], key: str, path: str) -> float | None:
@@ -224,6 +261,16 @@ class _Check:
         if not isinstance(v, list):
             raise self.fail(key, f"expected an array of tables ([[{key}]]), got {_kind(v)}")
         return v
+
+
+def _range(low: float, high: float, positive: bool) -> str:
+    """The numbers a key takes, in words ("a number in 0..1", "a number > 0 and at most 3600")."""
+    above = "> 0" if positive and low <= 0 else (f">= {low:g}" if low > -math.inf else "")
+    if high < math.inf:
+        if above.startswith(">=") or (positive and low > 0):
+            return f"a number in {low:g}..{high:g}"
+        return f"a number {above} and at most {high:g}" if above else f"a number at most {high:g}"
+    return f"a number {above}" if above else "a number"
 
 
 def _kind(v: Any) -> str:
@@ -293,130 +340,223 @@ def check(data: dict[str, Any], path: Path, sha256: str | None = None) -> Scenar
     if sha256 is None:
         sha256 = hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()
     c = _Check(file)
-    c.table(data, "", TOP)
-    meta = c.table(data.get("scenario", {}), "scenario", SCENARIO_KEYS)
-    if "scenario" not in data:
-        raise c.fail("scenario", "missing; expected a [scenario] table with name and duration")
-    duration = c.number(meta, "duration", "scenario", positive=True, high=3600)
+    c.table(data, "", TOP)  # (a file that is not a table of tables: nothing else can be checked)
+    duration = math.inf  # (a bad duration: the times are checked against no end)
+    meta = c.lenient(data.get("scenario", {}), "scenario", SCENARIO_KEYS)
+    with c.part():
+        if "scenario" not in data:
+            raise c.fail("scenario", "missing; expected a [scenario] table with name and duration")
+        duration = c.number(meta, "duration", "scenario", positive=True, high=3600)
 
-    vehicle = c.table(data.get("vehicle", {}), "vehicle", PLANT_PARAMETERS)
-    plant = {k: c.number(vehicle, k, "vehicle") for k in vehicle}
-    refused = check_parameters(plant)  # the FMU's own rules, before it is asked
-    if refused:
-        raise c.fail(f"vehicle.{refused.split()[0]}", f"the plant refuses it: {refused}")
+    plant: dict[str, float] = {}
+    with c.part():
+        vehicle = c.table(data.get("vehicle", {}), "vehicle", PLANT_PARAMETERS)
+        plant = {k: c.number(vehicle, k, "vehicle") for k in vehicle}
+        refused = check_parameters(plant)  # the FMU's own rules, before it is asked
+        if refused:
+            raise c.fail(f"vehicle.{refused.split()[0]}", f"the plant refuses it: {refused}")
 
     # the reference FC's keys, from its own table: a typo must not fly with a default
-    fc_raw = c.table(data.get("fc", {}), "fc", [*fc_keys.keys(), "profile"])
-    fc = {}
+    fc: dict[str, Any] = {}
+    known_fc = [*fc_keys.keys(), "profile"]
+    fc_raw = c.lenient(data.get("fc", {}), "fc", known_fc)
     for k, v in fc_raw.items():
-        if k == "profile":
-            fc[k] = c.string(fc_raw, k, "fc", choices=fc_keys.profiles())
-            continue
-        fc[k], why = fc_keys.keys()[k].check(v)
-        if why:
-            raise c.fail(f"fc.{k}", why)
+        if k not in known_fc:
+            continue  # (said above)
+        with c.part():
+            if k == "profile":
+                fc[k] = c.string(fc_raw, k, "fc", choices=fc_keys.profiles())
+                continue
+            fc[k], why = fc_keys.keys()[k].check(v)
+            if why:
+                raise c.fail(f"fc.{k}", why)
 
-    sensors = c.table(data.get("sensors", {}), "sensors", SENSOR_KEYS)
-    env = c.table(data.get("environment", {}), "environment", ENV_KEYS)
-    rc = c.table(data.get("rc", {}), "rc", RC_KEYS)
-    cap = c.table(data.get("capture", {}), "capture", CAPTURE_KEYS)
-    capture = Capture(
-        c.string(cap, "transport", "capture", "direct", CAPTURES),
-        c.number(cap, "resolution_us", "capture", 1.0, positive=True, high=100),
-        c.number(cap, "rate_hz", "capture", 400.0, positive=True, high=10_000),
-        c.number(cap, "latency_s", "capture", 0.0, low=0, high=1),
-        c.string(cap, "can_interface", "capture", "virtual"),
-        c.string(cap, "can_channel", "capture", ""),
-    )
-    if capture.can_interface != "virtual" and not capture.can_channel:
-        raise c.fail(
-            "capture.can_channel", f"missing; interface {capture.can_interface!r} needs a channel (e.g. can0)"
+    tables: dict[str, dict[str, Any]] = {}
+    for name, known in (("sensors", SENSOR_KEYS), ("environment", ENV_KEYS), ("rc", RC_KEYS),
+                        ("capture", CAPTURE_KEYS), ("bench", BENCH_KEYS)):
+        tables[name] = c.lenient(data.get(name, {}), name, known)
+    sensors, env, rc, cap, b = (tables[k] for k in ("sensors", "environment", "rc", "capture", "bench"))
+    capture = Capture()
+    with c.part():
+        capture = Capture(
+            c.string(cap, "transport", "capture", "direct", CAPTURES),
+            c.number(cap, "resolution_us", "capture", 1.0, positive=True, high=100),
+            c.number(cap, "rate_hz", "capture", 400.0, positive=True, high=10_000),
+            c.number(cap, "latency_s", "capture", 0.0, low=0, high=1),
+            c.string(cap, "can_interface", "capture", "virtual"),
+            c.string(cap, "can_channel", "capture", ""),
         )
+        if capture.can_interface != "virtual" and not capture.can_channel:
+            raise c.fail("capture.can_channel",
+                         f"missing; interface {capture.can_interface!r} needs a channel (e.g. can0)")
 
-    b = c.table(data.get("bench", {}), "bench", BENCH_KEYS)
-    psu = c.string(b, "psu", "bench", "") or None
-    if psu is not None:
-        try:
-            parse_psu(psu)
-        except ValueError as e:
-            raise c.fail("bench.psu", str(e)) from None
-    bench = BenchPower(
-        psu,
-        c.optional(b, "volts", "bench"),
-        c.optional(b, "current_limit", "bench"),
-        c.optional(b, "max_current", "bench"),
-        c.number(b, "off_s", "bench", 1.0, low=0, high=60),
-        c.number(b, "settle_s", "bench", 3.0, positive=True, high=60),
-    )
-    for key in ("volts", "current_limit", "max_current"):
-        value = getattr(bench, key)
-        if value is not None and not 0 < value <= 100:
-            raise c.fail(f"bench.{key}", f"expected a number in 0..100 (exclusive of 0), got {value}")
+    bench = BenchPower()
+    with c.part():
+        psu = c.string(b, "psu", "bench", "") or None
+        if psu is not None:
+            try:
+                parse_psu(psu)
+            except ValueError as e:
+                raise c.fail("bench.psu", str(e)) from None
+        bench = BenchPower(
+            psu,
+            c.optional(b, "volts", "bench"),
+            c.optional(b, "current_limit", "bench"),
+            c.optional(b, "max_current", "bench"),
+            c.number(b, "off_s", "bench", 1.0, low=0, high=60),
+            c.number(b, "settle_s", "bench", 3.0, positive=True, high=60),
+        )
+        for key in ("volts", "current_limit", "max_current"):
+            value = getattr(bench, key)
+            if value is not None and not 0 < value <= 100:
+                raise c.fail(f"bench.{key}", f"expected a number in 0..100 (exclusive of 0), got {value}")
 
     timeline = []
-    for i, entry in enumerate(c.array(data, "timeline")):
-        key = f"timeline[{i}]"
-        ev = c.table(entry, key, EVENT_KEYS)
-        t = c.number(ev, "t", key, low=0, high=duration)
-        sticks = c.table(ev.get("sticks", {}), f"{key}.sticks", STICKS)
-        st: dict[str, float | bool] = {}
-        for k in sticks:
-            if k in ("arm", "alt_hold"):
-                st[k] = c.boolean(sticks, k, f"{key}.sticks", False)
-            else:
-                st[k] = c.number(sticks, k, f"{key}.sticks", low=0 if k == "throttle" else -1, high=1)
-        link = c.string(ev, "link", key, choices=LINK_STATES) if "link" in ev else None
-        inputs_raw = c.table(ev.get("inputs", {}), f"{key}.inputs", PLANT_INPUTS)
-        inputs = {k: c.number(inputs_raw, k, f"{key}.inputs") for k in inputs_raw}
-        timeline.append(Event(t, st, link, inputs))
+    with c.part():
+        entries = c.array(data, "timeline")
+        for i, entry in enumerate(entries):
+            with c.part():
+                timeline.append(_event(c, entry, f"timeline[{i}]", duration))
 
     faults = []
-    for i, f in enumerate(c.array(data, "faults")):
-        key = f"faults[{i}]"
-        f = c.table(f, key, FAULT_KEYS)
-        start = c.number(f, "start", key, low=0, high=duration)
-        end = c.number(f, "end", key, math.inf)
-        if not end > start:
-            raise c.fail(f"{key}.end", f"expected a time after start ({start:g} s), got {end:g}")
-        target = c.string(f, "target", key, choices=FAULT_TARGETS)
-        kind = c.string(f, "kind", key, choices=FAULT_KINDS)
-        try:  # (the fault's own rules: a delay is not negative, …)
-            fault = Fault(kind, start, end, c.number(f, "magnitude", key, 0.0),
-                          c.number(f, "period", key, 0.1, positive=True),
-                          c.number(f, "duty", key, 0.5, low=0, high=1))
-        except ValueError as err:
-            raise c.fail(key, str(err)) from None
-        faults.append(TargetedFault(target, fault))
+    with c.part():
+        entries = c.array(data, "faults")
+        for i, f in enumerate(entries):
+            with c.part():
+                faults.append(_fault(c, f, f"faults[{i}]", duration))
 
     gusts = []
-    for i, g in enumerate(c.array(data, "gusts")):
-        key = f"gusts[{i}]"
-        g = c.table(g, key, GUST_KEYS)
-        gusts.append(
-            Gust(
-                c.number(g, "start", key, low=0, high=duration),
-                c.number(g, "duration", key, positive=True),
-                c.vector(g, "peak", key),
-            )
-        )
+    with c.part():
+        entries = c.array(data, "gusts")
+        for i, g in enumerate(entries):
+            with c.part():
+                key = f"gusts[{i}]"
+                g = c.table(g, key, GUST_KEYS)
+                gusts.append(
+                    Gust(
+                        c.number(g, "start", key, low=0, high=duration),
+                        c.number(g, "duration", key, positive=True),
+                        c.vector(g, "peak", key),
+                    )
+                )
 
     criteria = []
-    for i, cr in enumerate(c.array(data, "criteria")):
-        key = f"criteria[{i}]"
-        cr = c.table(cr, key, CRITERION_KEYS)
+    with c.part():
+        entries = c.array(data, "criteria")
+        for i, cr in enumerate(entries):
+            criterion = _criterion(c, cr, f"criteria[{i}]", duration)
+            if criterion is not None:
+                criteria.append(criterion)
+        if not entries:
+            raise c.fail("criteria", "missing; expected at least one [[criteria]] table")
+
+    values: dict[str, Any] = {}
+    for name, read in (
+        ("name", lambda: c.string(meta, "name", "scenario", path.stem)),
+        ("description", lambda: c.string(meta, "description", "scenario", "")),
+        ("seed_paper", lambda: c.string(meta, "seed_paper", "scenario", "")),
+        ("noise", lambda: c.boolean(sensors, "noise", "sensors", True)),
+        ("baro_noise_pa", lambda: c.number(sensors, "baro_noise_pa", "sensors", 0.0, low=0)),
+        ("baro_drift_pa_per_s", lambda: c.number(sensors, "baro_drift_pa_per_s", "sensors", 0.0)),
+        ("wind", lambda: c.vector(env, "wind", "environment")),
+        ("turbulence", lambda: c.number(env, "turbulence", "environment", 0.0, low=0, high=20)),
+        ("turbulence_tau", lambda: c.number(env, "turbulence_tau", "environment", 1.0, positive=True)),
+        ("mag_disturbance", lambda: c.vector(env, "mag_disturbance", "environment")),
+        ("mag_disturbance_start", lambda: c.number(env, "mag_disturbance_start", "environment", 0.0, low=0)),
+        ("mag_disturbance_end", lambda: c.number(env, "mag_disturbance_end", "environment", math.inf)),
+        ("max_angle_deg", lambda: c.number(rc, "max_angle_deg", "rc", 30.0, positive=True, high=90)),
+        ("max_yaw_rate_dps", lambda: c.number(rc, "max_yaw_rate_dps", "rc", 90.0, positive=True)),
+    ):
+        with c.part():
+            values[name] = read()
+    c.done()
+    return Scenario(
+        path=path,
+        duration=duration,
+        plant=plant,
+        fc=fc,
+        gusts=tuple(gusts),
+        faults=tuple(faults),
+        timeline=tuple(sorted(timeline, key=lambda e: e.t)),
+        criteria=tuple(criteria),
+        capture=capture,
+        bench=bench,
+        sha256=sha256,
+        **values,
+    )
+
+
+def _event(c: _Check, entry: Any, key: str, duration: float) -> Event:
+    ev = c.table(entry, key, EVENT_KEYS)
+    t = c.number(ev, "t", key, low=0, high=duration)
+    sticks = c.table(ev.get("sticks", {}), f"{key}.sticks", STICKS)
+    st: dict[str, float | bool] = {}
+    for k in sticks:
+        if k in ("arm", "alt_hold"):
+            st[k] = c.boolean(sticks, k, f"{key}.sticks", False)
+        else:
+            st[k] = c.number(sticks, k, f"{key}.sticks", low=0 if k == "throttle" else -1, high=1)
+    link = c.string(ev, "link", key, choices=LINK_STATES) if "link" in ev else None
+    inputs_raw = c.table(ev.get("inputs", {}), f"{key}.inputs", PLANT_INPUTS)
+    inputs = {k: c.number(inputs_raw, k, f"{key}.inputs") for k in inputs_raw}
+    return Event(t, st, link, inputs)
+
+
+def _fault(c: _Check, raw: Any, key: str, duration: float) -> TargetedFault:
+    f = c.table(raw, key, FAULT_KEYS)
+    start = c.number(f, "start", key, low=0, high=duration)
+    end = c.number(f, "end", key, math.inf)
+    if not end > start:
+        raise c.fail(f"{key}.end", f"expected a time after start ({start:g} s), got {end:g}")
+    target = c.string(f, "target", key, choices=FAULT_TARGETS)
+    kind = c.string(f, "kind", key, choices=FAULT_KINDS)
+    try:  # (the fault's own rules: a delay is not negative, …)
+        fault = Fault(kind, start, end, c.number(f, "magnitude", key, 0.0),
+                      c.number(f, "period", key, 0.1, positive=True),
+                      c.number(f, "duty", key, 0.5, low=0, high=1))
+    except ValueError as err:
+        raise c.fail(key, str(err)) from None
+    return TargetedFault(target, fault)
+
+
+def _criterion(c: _Check, raw: Any, key: str, duration: float) -> CriterionSpec | None:
+    """One [[criteria]] table, its parts checked apart (None when any is bad: kept in ``c``)."""
+    before = len(c.problems)
+    if not isinstance(raw, dict):
+        with c.part():
+            c.table(raw, key, CRITERION_KEYS)
+        return None
+    cr = c.lenient(raw, key, CRITERION_KEYS)
+    metric = signal = ""
+    with c.part():
         metric = c.string(cr, "metric", key, choices=tuple(METRICS))
+        needs = METRICS[metric].needs
+        for need in needs:
+            if need not in cr:
+                raise c.fail(f"{key}.{need}", f"missing; metric {metric} needs {', '.join(needs)}")
+    with c.part():
         signal = c.string(cr, "signal", key, choices=tuple(SIGNALS))
-        m = METRICS[metric]
+    start, end = 0.0, duration
+    with c.part():
         start = c.number(cr, "start", key, 0.0, low=0, high=duration)
         end = c.number(cr, "end", key, duration, low=0, high=duration)
         if not end > start:
             raise c.fail(f"{key}.end", f"expected a time after start ({start:g} s), got {end:g}")
-        for need in m.needs:
-            if need not in cr:
-                raise c.fail(f"{key}.{need}", f"missing; metric {metric} needs {', '.join(m.needs)}")
-        lo, hi = c.optional(cr, "min", key), c.optional(cr, "max", key)
-        if lo is None and hi is None:
+    lo = hi = None
+    with c.part():
+        lo = c.optional(cr, "min", key)
+    with c.part():
+        hi = c.optional(cr, "max", key)
+    with c.part():
+        if "min" not in cr and "max" not in cr:
             raise c.fail(key, "expected a limit: min, max or both")
+        if lo is not None and hi is not None and lo > hi:
+            raise c.fail(f"{key}.max", f"expected a limit at least min ({lo:g}), got {hi:g}: no value "
+                         "could pass")
+    baseline_at = target = band = marginal = None
+    with c.part():
+        target = c.optional(cr, "target", key)
+    with c.part():
         baseline_at = c.optional(cr, "baseline_at", key)
         if baseline_at is not None:
             if "target" not in cr:
@@ -425,55 +565,30 @@ def check(data: dict[str, Any], path: Path, sha256: str | None = None) -> Scenar
                 )
             if not 0 <= baseline_at <= duration:
                 raise c.fail(f"{key}.baseline_at", f"expected a time in 0..{duration:g}, got {baseline_at:g}")
+    with c.part():
         band = c.optional(cr, "band", key)
         if band is not None and band <= 0:
             raise c.fail(f"{key}.band", f"expected a number > 0, got {band}")
+    with c.part():
         marginal = c.optional(cr, "marginal", key)
         if marginal is not None and not 0 <= marginal < 100:
             raise c.fail(f"{key}.marginal", f"expected a percentage in 0..100, got {marginal:g}")
-        criteria.append(
-            CriterionSpec(
-                c.string(cr, "name", key, f"{metric} of {signal}"),
-                metric,
-                signal,
-                start,
-                end,
-                c.optional(cr, "target", key),
-                band,
-                lo,
-                hi,
-                m.units or SIGNALS[signal].units,
-                baseline_at,
-                MARGINAL_PCT if marginal is None else marginal,
-            )
-        )
-    if not criteria:
-        raise c.fail("criteria", "missing; expected at least one [[criteria]] table")
-
-    return Scenario(
-        path=path,
-        name=c.string(meta, "name", "scenario", path.stem),
-        description=c.string(meta, "description", "scenario", ""),
-        seed_paper=c.string(meta, "seed_paper", "scenario", ""),
-        duration=duration,
-        plant=plant,
-        fc=fc,
-        noise=c.boolean(sensors, "noise", "sensors", True),
-        baro_noise_pa=c.number(sensors, "baro_noise_pa", "sensors", 0.0, low=0),
-        baro_drift_pa_per_s=c.number(sensors, "baro_drift_pa_per_s", "sensors", 0.0),
-        wind=c.vector(env, "wind", "environment"),
-        turbulence=c.number(env, "turbulence", "environment", 0.0, low=0, high=20),
-        turbulence_tau=c.number(env, "turbulence_tau", "environment", 1.0, positive=True),
-        mag_disturbance=c.vector(env, "mag_disturbance", "environment"),
-        mag_disturbance_start=c.number(env, "mag_disturbance_start", "environment", 0.0, low=0),
-        mag_disturbance_end=c.number(env, "mag_disturbance_end", "environment", math.inf),
-        gusts=tuple(gusts),
-        faults=tuple(faults),
-        timeline=tuple(sorted(timeline, key=lambda e: e.t)),
-        criteria=tuple(criteria),
-        capture=capture,
-        bench=bench,
-        max_angle_deg=c.number(rc, "max_angle_deg", "rc", 30.0, positive=True, high=90),
-        max_yaw_rate_dps=c.number(rc, "max_yaw_rate_dps", "rc", 90.0, positive=True),
-        sha256=sha256,
+    name = ""
+    with c.part():
+        name = c.string(cr, "name", key, f"{metric} of {signal}")
+    if len(c.problems) > before:
+        return None
+    return CriterionSpec(
+        name,
+        metric,
+        signal,
+        start,
+        end,
+        target,
+        band,
+        lo,
+        hi,
+        METRICS[metric].units or SIGNALS[signal].units,
+        baseline_at,
+        MARGINAL_PCT if marginal is None else marginal,
     )

@@ -92,6 +92,50 @@ def test_bad_files_name_the_file_the_key_and_what_was_expected(
     assert expected in str(e.value)
 
 
+@pytest.mark.parametrize(
+    "edit, key, said",
+    [
+        (("max = 5.0", "max = nan"), "criteria[0].max", "expected a finite number, got nan"),
+        (("max = 5.0", "max = -inf"), "criteria[0].max", "expected a finite number, got -inf"),
+        (("duration = 5.0", "duration = 1e12"), "scenario.duration",
+         "expected a number > 0 and at most 3600, got 1e+12"),
+        (("max = 5.0", "min = 10\nmax = 5"), "criteria[0].max",
+         "expected a limit at least min (10), got 5: no value could pass"),
+    ],
+)
+def test_the_message_says_what_the_value_is_and_what_was_expected(
+    tmp_path: Path, edit: tuple[str, str], key: str, said: str
+) -> None:
+    p = write(tmp_path, GOOD.replace(*edit))
+    with pytest.raises(ScenarioError) as e:
+        load(p)
+    assert str(e.value) == f"{p}: {key}: {said}"
+    assert "-inf.." not in str(e.value) and "got a number" not in str(e.value)
+
+
+def test_min_equal_to_max_is_an_exact_value_and_passes_the_check(tmp_path: Path) -> None:
+    assert load(write(tmp_path, GOOD.replace("max = 5.0", "min = 5\nmax = 5"))).criteria[0].min == 5
+
+
+THREE_BAD = GOOD.replace("duration = 5.0", "duration = 5.0\ndescripton = 1").replace(
+    "max = 5.0", "min = 10\nmax = 5\nband = -1"
+) + '\n[[timeline]]\nt = 99\n\n[environment]\nturbulence = 50\n'
+
+
+def test_every_problem_of_a_file_is_reported_not_only_the_first(tmp_path: Path) -> None:
+    p = write(tmp_path, THREE_BAD)
+    with pytest.raises(ScenarioError) as e:
+        load(p)
+    keys = [x.key for x in e.value.problems]
+    assert keys == ["scenario.descripton", "timeline[0].t", "criteria[0].max", "criteria[0].band",
+                    "environment.turbulence"], str(e.value)
+    assert str(e.value).splitlines() == [str(x) for x in e.value.problems]
+    done = subprocess.run([sys.executable, "-m", "rig.cli", "validate", str(p)], capture_output=True,
+                          text=True)
+    assert done.returncode == 2
+    assert [line.split(": ")[1] for line in done.stderr.splitlines() if line.startswith("FAIL ")] == keys
+
+
 def test_not_toml_and_missing_files(tmp_path: Path) -> None:
     with pytest.raises(ScenarioError, match="not valid TOML"):
         load(write(tmp_path, "[scenario\n"))
