@@ -12,6 +12,7 @@ from typing import Any, Final
 
 import numpy as np
 
+from rig.bridge.esc import esc_protocol
 from rig.bridge.port import BridgeError
 from rig.bridge.session import BenchConfig, BenchSession
 from rig.host import Host
@@ -29,9 +30,25 @@ PSU_SAMPLE_S: Final = 0.1  # the bench supply's readings join the run's record a
 class BridgeRun(TargetRun):
     session: BenchSession
 
-    def __init__(self, session: BenchSession, psu: PsuRun | None) -> None:
+    def __init__(self, session: BenchSession, psu: PsuRun | None, esc: str = "pwm") -> None:
         self.session = session
         self.psu = psu
+        self.esc = esc
+
+    def idle(self, outcome: Outcome) -> str | None:
+        """As any target's, but no motor driven while the bridge counted pulse glitches is said as what it
+        is: pulses came, outside the ESC protocol's window (a PWM board run with --esc oneshot125 read
+        "the DUT never drove a motor" beside 11168 glitches in result.json)."""
+        why = super().idle(outcome)
+        if why is None or outcome.transactions == 0 or outcome.pwm_writes != 0:
+            return why
+        glitches = self.session.figures.status.get("pulse_glitches", 0)
+        if not isinstance(glitches, int) or glitches <= 0:
+            return why
+        p = esc_protocol(self.esc)
+        return (f"no pulse within the {p.name} protocol's window ({p.pulse_min_us}..{p.pulse_max_us} us, "
+                f"{p.period_min_us} us apart at least) reached a motor, but the bridge counted {glitches} "
+                f"pulses outside it (pulse glitches): is the board's ESC protocol {p.name}? (rig run --esc)")
 
     def figures(self, outcome: Outcome) -> dict[str, object]:
         out: dict[str, object] = {"bridge": self.session.link_figures()}
@@ -89,7 +106,7 @@ class BridgeTarget:
             raise
         if psu is not None:
             session.at(0.0, _psu_sampler(psu, session))
-        return BridgeRun(session, psu)
+        return BridgeRun(session, psu, self.esc)
 
     def world_options(self) -> dict[str, Any]:
         return {}
