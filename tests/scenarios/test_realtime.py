@@ -8,6 +8,7 @@ from pathlib import Path
 from rig.runner import run
 from rig.targets.process import ProcessTarget
 from scenarios.schema import load
+from tests.realtime import realtime
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
 
@@ -15,7 +16,8 @@ LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
 def test_a_real_time_run_flies_and_reports_its_lateness(tmp_path: Path) -> None:
     """The bench mode: the same scenario paced by the wall clock. The FC arms from the SBUS frames and
     flies; the result says it was not lockstep and how late the scheduled events ran (numbers are
-    reported, not judged: timing belongs in bench/).
+    reported, not judged: timing belongs in bench/). A run the host starved is flown again, then
+    inconclusive (tests/realtime.py).
 
     The FC arms only while the throttle stick is low, and in real time its start-up (1 s of gyro
     calibration in real sleeps) takes as long as the wall clock makes it: the throttle goes up at 3 s, not
@@ -25,7 +27,9 @@ def test_a_real_time_run_flies_and_reports_its_lateness(tmp_path: Path) -> None:
     assert arm.sticks == {"arm": True, "throttle": 0.0} and climb.sticks == {"throttle": 0.5}
     sc = dataclasses.replace(step_roll, duration=5.0, criteria=(),
                              timeline=(arm, dataclasses.replace(climb, t=3.0)))
-    r = run(sc, ProcessTarget(realtime=True), work_dir=tmp_path)
+    tries = iter(range(2))
+    r = realtime(lambda: run(sc, ProcessTarget(realtime=True), work_dir=tmp_path / f"try{next(tries)}"),
+                 lambda r: {"step_roll": r.metadata.get("realtime_lateness", {})})
     assert r.verdict == "pass", r.error
     md = r.metadata
     assert md["lockstep"] is False and md["sim_time"] >= 5.0

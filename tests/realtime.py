@@ -1,0 +1,76 @@
+"""Real-time tests on a shared machine: a run paced by the wall clock is only a test of the DUT when the
+host kept pace. Every such test hands its runs to ``realtime()``, which checks each run's own
+``realtime_lateness`` (result.json's, or a session Outcome's) before the test judges anything: a
+starved run is flown again once; starved twice, the test ends inconclusive with ``pytest.skip`` and the
+figures (pytest's ``-ra`` summary lists it), never passed silently and never failed as the DUT's fault.
+On a loaded VM such runs failed with 18-35 deg of tilt and thousands of events over 1 ms late.
+
+"Starved" is a property of the host, not of the DUT, so the threshold lives here and not in a scenario:
+the bench tolerances (tests/bridge/bench_tolerance.json) and the bridge's 3 ms lead were derived on a
+host whose lateness p99 was 0.5-0.6 ms. A run is starved when more than STARVED_SHARE of its events
+ran over 1 ms late (one in twenty: the 3 ms lead no longer absorbs them, the bridge underruns; the runs
+that failed had 20-30 %, while a loaded 2-core VM's good runs have about 1 %) or when one event ran
+STARVED_MAX_S late (a stall of 25 of the FC's 4 ms cycles: the vehicle flies open-loop meanwhile).
+Below those, whatever the run measured is the DUT's."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Iterable, Mapping
+from pathlib import Path
+from typing import Any, TypeVar
+
+import pytest
+
+#: share of scheduled events over 1 ms late above which a run is starved
+STARVED_SHARE = 0.05
+#: one event this late (s) starves the run
+STARVED_MAX_S = 0.1
+
+T = TypeVar("T")
+
+
+def starved(name: str, lateness: Mapping[str, Any]) -> str | None:
+    """The figures of a starved run in words, or None when the host kept pace. ``lateness`` is
+    result.json's ``realtime_lateness`` (events, late_over_1ms, max_s, p99_s)."""
+    events, late = int(lateness.get("events", 0)), int(lateness.get("late_over_1ms", 0))
+    worst, p99 = float(lateness.get("max_s", 0.0)), float(lateness.get("p99_s", 0.0))
+    if events and (late > STARVED_SHARE * events or worst >= STARVED_MAX_S):
+        return (f"{name}: {late} of {events} events over 1 ms late, p99 {p99 * 1e3:.1f} ms, worst "
+                f"{worst * 1e3:.1f} ms")
+    return None
+
+
+def of_outcome(outcome: Any) -> dict[str, Any]:
+    """A session Outcome's lateness in result.json's shape."""
+    return {"events": outcome.events_run, "late_over_1ms": outcome.events_late,
+            "max_s": outcome.max_lateness_s, "p99_s": outcome.p99_lateness_s}
+
+
+def of_results(folder: Path, names: Iterable[str]) -> Callable[[Any], dict[str, dict[str, Any]]]:
+    """For ``realtime``: each named run's lateness from ``folder/NAME/result.json`` (a run with no
+    result.json is not judged here: the test says what is missing)."""
+
+    def read(_: Any) -> dict[str, dict[str, Any]]:
+        out = {}
+        for name in names:
+            f = folder / name / "result.json"
+            if f.is_file():
+                out[name] = json.loads(f.read_text())["metadata"].get("realtime_lateness", {})
+        return out
+
+    return read
+
+
+def realtime(fly: Callable[[], T], lateness: Callable[[T], Mapping[str, Mapping[str, Any]]]) -> T:
+    """``fly()``'s result once no run in it (``lateness(result)``: run name -> its lateness) was
+    starved; flown at most twice, then the test is skipped as inconclusive with both tries' figures."""
+    tries: list[str] = []
+    for _ in range(2):
+        got = fly()
+        figures = [s for name, late in lateness(got).items() if (s := starved(name, late))]
+        if not figures:
+            return got
+        tries.append("; ".join(figures))
+    pytest.skip("inconclusive: the host could not keep real time (starved twice: "
+                + " | then ".join(tries) + ")")
