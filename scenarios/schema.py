@@ -346,7 +346,8 @@ def check(data: dict[str, Any], path: Path, sha256: str | None = None) -> Scenar
     with c.part():
         if "scenario" not in data:
             raise c.fail("scenario", "missing; expected a [scenario] table with name and duration")
-        duration = c.number(meta, "duration", "scenario", positive=True, high=3600)
+        if isinstance(data["scenario"], dict):  # (not a table: said above)
+            duration = c.number(meta, "duration", "scenario", positive=True, high=3600)
 
     plant: dict[str, float] = {}
     with c.part():
