@@ -224,6 +224,7 @@ class PlcServer:
         self._ready = threading.Event()
         self._error: BaseException | None = None
         self._lock: asyncio.Lock | None = None
+        self._writers: set[asyncio.StreamWriter] = set()
         self._thread = threading.Thread(target=self._main, daemon=True, name="modbus")
 
     def start(self, timeout: float = 10.0) -> None:
@@ -247,11 +248,14 @@ class PlcServer:
         self._ready.set()
         async with server:
             await self._stopped.wait()
+            for writer in list(self._writers):  # (a PLC still connected does not hold the stop up)
+                writer.close()
 
     async def _client(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         """One PLC's connection: MBAP header (transaction, protocol 0, length, unit), then the PDU. A
         frame that is not Modbus TCP closes the connection (there is no resynchronising a stream)."""
         assert self._lock is not None
+        self._writers.add(writer)
         try:
             while True:
                 head = await reader.readexactly(7)
@@ -268,6 +272,7 @@ class PlcServer:
         except (asyncio.IncompleteReadError, ConnectionError):
             pass
         finally:
+            self._writers.discard(writer)
             writer.close()
 
     def stop(self) -> None:
