@@ -64,6 +64,7 @@ MIGRATIONS: Final = (
 SCHEMA_VERSION: Final = len(MIGRATIONS)
 TERMINAL: Final = ("passed", "failed", "error", "cancelled", "interrupted")
 STATUSES: Final = ("queued", "running", *TERMINAL)
+SQLITE_INT: Final = (-(2**63), 2**63 - 1)  # the ids SQLite can hold
 JSON_COLUMNS: Final = ("scenarios", "dut", "results", "versions")
 
 
@@ -154,20 +155,25 @@ class Db:
             return cur.rowcount == 1
 
     def get(self, run_id: int) -> dict[str, Any] | None:
+        if not SQLITE_INT[0] <= run_id <= SQLITE_INT[1]:  # (no such run, rather than an OverflowError)
+            return None
         with self._lock:
             row = self._conn.execute("SELECT * FROM runs WHERE id = ?", (run_id,)).fetchone()
             if row is None:
                 return None
-            run = _decode(row)
-            if run["status"] == "queued":
-                run["position"] = self._conn.execute(
-                    "SELECT COUNT(*) FROM runs WHERE status = 'queued' AND mode = ? AND "
-                    "(priority > ? OR (priority = ? AND (created < ? OR (created = ? AND id < ?))))",
-                    (run["mode"], run["priority"], run["priority"], run["created"], run["created"],
-                     run["id"])).fetchone()[0] + 1
-            else:
-                run["position"] = None
-            return run
+            return self._positioned(_decode(row))
+
+    def _positioned(self, run: dict[str, Any]) -> dict[str, Any]:
+        """The run with its place in its mode's queue (1: next), None once it has left the queue."""
+        if run["status"] == "queued":
+            run["position"] = self._conn.execute(
+                "SELECT COUNT(*) FROM runs WHERE status = 'queued' AND mode = ? AND "
+                "(priority > ? OR (priority = ? AND (created < ? OR (created = ? AND id < ?))))",
+                (run["mode"], run["priority"], run["priority"], run["created"], run["created"],
+                 run["id"])).fetchone()[0] + 1
+        else:
+            run["position"] = None
+        return run
 
     def list(self, status: str | None = None, scenario: str | None = None, since: float | None = None,
              limit: int = 50, offset: int = 0, firmware: str | None = None,
@@ -191,7 +197,8 @@ class Db:
         sql = "SELECT * FROM runs" + (" WHERE " + " AND ".join(where) if where else "")
         sql += " ORDER BY id DESC LIMIT ? OFFSET ?"
         with self._lock:
-            return [_decode(r) for r in self._conn.execute(sql, (*args, limit, offset)).fetchall()]
+            return [self._positioned(_decode(r))
+                    for r in self._conn.execute(sql, (*args, limit, offset)).fetchall()]
 
     # ---- scenario names -> versions ----------------------------------------------------------------
 

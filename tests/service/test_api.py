@@ -45,6 +45,7 @@ class Service:
     proc: subprocess.Popen[str]
     url: str
     token: str | None = None
+    data: Path = Path()
 
     def call(self, method: str, path: str, body: object = None, token: str | None = None) -> tuple[int, Any]:
         data = None if body is None else json.dumps(body).encode()
@@ -91,7 +92,7 @@ def start(data: Path, *extra: str, token: str | None = None) -> Service:
         line = proc.stderr.readline() if ready else ""
         assert line, f"rig serve did not start: {seen}"
         seen += line
-    return Service(proc, f"http://127.0.0.1:{port}", token)
+    return Service(proc, f"http://127.0.0.1:{port}", token, data)
 
 
 def stop(svc: Service, sig: int = signal.SIGTERM) -> None:
@@ -319,3 +320,51 @@ def test_the_bench_is_leased_and_a_dead_holders_lease_expires(service: Service, 
         assert service.follow(body["id"])["status"] == "passed"
     finally:
         other.close()
+
+
+def test_unknown_fields_and_query_parameters_are_refused_by_name(service: Service) -> None:
+    status, body = service.call("POST", "/api/runs", {"scenarios": ["step_roll"], "sead": 3})
+    assert status == 422, body
+    assert body["detail"]["problems"] == ["sead: no such field (known: scenarios, seed, dut, mode, priority)"]
+    status, body = service.call("GET", "/api/runs?stauts=passed")
+    assert status == 422 and "stauts: no such query parameter" in body["detail"]["problems"][0], body
+    # pydantic's own refusals come in the same shape: sentences naming the field
+    status, body = service.call("POST", "/api/runs", {"scenarios": ["step_roll"], "seed": -1})
+    assert status == 422 and body["detail"]["problems"][0].startswith("seed: "), body
+    assert service.call("GET", "/api/runs")[1] == []  # nothing was queued
+
+
+def test_a_run_id_beyond_sqlites_integers_is_no_such_run(service: Service) -> None:
+    _, body = service.call("POST", "/api/runs", {"scenarios": ["step_roll"]})
+    service.follow(body["id"])
+    for huge in (2**63, 2**64 + 1, -(2**63) - 1):
+        for method, path in (("GET", f"/api/runs/{huge}"), ("GET", f"/api/runs/{huge}/artifacts"),
+                             ("GET", f"/api/runs/{huge}/artifacts/index.html"),
+                             ("GET", f"/api/runs/{huge}/events"), ("DELETE", f"/api/runs/{huge}"),
+                             ("GET", f"/runs/{huge}"),
+                             ("GET", f"/compare?a={huge}&b={body['id']}&scenario=x")):
+            req = urllib.request.Request(service.url + path, method=method)
+            try:
+                with urllib.request.urlopen(req, timeout=BOUND_S) as r:
+                    code = r.status
+            except urllib.error.HTTPError as e:
+                code = e.code
+            assert code == 404, (method, path, code)
+    assert service.call("GET", f"/api/runs?offset={2**63}")[0] == 422
+    assert service.proc.poll() is None
+
+
+def test_a_bearer_tokens_scheme_is_case_insensitive(tmp_path: Path) -> None:
+    svc = start(tmp_path / "data", token="s3cret")
+    try:
+        for given, expected in (("bearer s3cret", 200), ("BEARER s3cret", 200), ("Bearer s3cret", 200),
+                                ("Basic s3cret", 401), ("bearer wrong", 401), ("s3cret", 401)):
+            req = urllib.request.Request(svc.url + "/api/health", headers={"authorization": given})
+            try:
+                with urllib.request.urlopen(req, timeout=BOUND_S) as r:
+                    code = r.status
+            except urllib.error.HTTPError as e:
+                code = e.code
+            assert code == expected, given
+    finally:
+        stop(svc)

@@ -77,8 +77,11 @@ def test_a_sweep_runs_as_a_job_and_equals_rig_sweep(service: Service, tmp_path: 
     (b'[sweep]\nscenario = "../../../etc/passwd.toml"\n', "no scenario named"),
     (b'[sweep]\nscenario = "no_such_scenario"\n', "no scenario named"),
     (b"[sweep\n", "not valid TOML"),
+    (b"", "sweep"),
 ])
 def test_a_bad_spec_is_refused_before_it_is_queued(service: Service, spec: bytes, words: str) -> None:
     status, body = post_bytes(service, "/api/sweeps", spec)
     assert status == 422 and words in json.dumps(body), body
     assert service.call("GET", "/api/sweeps")[1] == []
+    stored = service.data / "sweeps"
+    assert not stored.exists() or list(stored.iterdir()) == []  # a refused spec is not kept
