@@ -84,15 +84,23 @@ def start(data: Path, *extra: str, token: str | None = None) -> Service:
     args = [sys.executable, "-m", "rig.cli", "serve", "--port", str(port), "--data", str(data), *extra]
     if token:
         args += ["--token", token]
-    proc = subprocess.Popen(args, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
+    # (its own process group, as a terminal's job: a test's Ctrl-C reaches it and its runs alike)
+    proc = subprocess.Popen(args, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
+                            start_new_session=True)
+    until_line(proc, "listening on")
+    return Service(proc, f"http://127.0.0.1:{port}", token, data)
+
+
+def until_line(proc: subprocess.Popen[str], words: str) -> str:
+    """What the process wrote on stderr up to the line with ``words`` (none by BOUND_S: fails)."""
     assert proc.stderr is not None
     seen = ""
-    while "listening on" not in seen:
+    while words not in seen:
         ready, _, _ = select.select([proc.stderr], [], [], BOUND_S)
         line = proc.stderr.readline() if ready else ""
-        assert line, f"rig serve did not start: {seen}"
+        assert line, f"{proc.args!r} never wrote {words!r}: {seen}"
         seen += line
-    return Service(proc, f"http://127.0.0.1:{port}", token, data)
+    return seen
 
 
 def stop(svc: Service, sig: int = signal.SIGTERM) -> None:
@@ -368,3 +376,43 @@ def test_a_bearer_tokens_scheme_is_case_insensitive(tmp_path: Path) -> None:
             assert code == expected, given
     finally:
         stop(svc)
+
+
+def test_ctrl_c_ends_rig_serve_and_rig_submit_wait_without_a_traceback(tmp_path: Path) -> None:
+    svc = start(tmp_path / "data", "--slots", "1")
+    command, fifo = blocked_dut(tmp_path)
+    try:
+        waiting = subprocess.Popen([sys.executable, "-m", "rig.cli", "submit", "--server", svc.url,
+                                    "step_roll", "--dut", command, "--wait"], stdout=subprocess.PIPE,
+                                   stderr=subprocess.PIPE, text=True, start_new_session=True)
+        dut = read_pid(fifo)
+        until_line(waiting, ": running")
+        os.killpg(waiting.pid, signal.SIGINT)
+        out, err = waiting.communicate(timeout=BOUND_S)
+        run_id = int(out.split()[0])
+        assert waiting.returncode == 130 and "Traceback" not in err, err
+        assert f"interrupted: run {run_id} goes on" in err
+        assert svc.call("GET", f"/api/runs/{run_id}")[1]["status"] == "running"  # only the waiting stopped
+    finally:
+        os.killpg(svc.proc.pid, signal.SIGINT)  # Ctrl-C at the service's terminal
+        _, err = svc.proc.communicate(timeout=BOUND_S)
+    assert svc.proc.returncode == 130 and "Traceback" not in err, err
+    assert "rig serve: stopped (Ctrl-C)" in err
+    assert wait_gone(dut)
+
+
+def test_rig_submit_needs_a_servers_scheme_and_serve_brackets_ipv6(tmp_path: Path) -> None:
+    for command in ("submit", "status"):
+        bad = rig(command, "--server", "127.0.0.1:8300", *(["step_roll"] if command == "submit" else []))
+        assert bad.returncode == 2 and "give it as http://HOST:PORT" in bad.stderr, bad.stderr
+    port = free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "rig.cli", "serve", "--host", "::1", "--port", str(port),
+                             "--data", str(tmp_path / "data")], stderr=subprocess.PIPE, text=True,
+                            stdout=subprocess.DEVNULL, start_new_session=True)
+    try:
+        seen = until_line(proc, "listening on")
+        assert f"listening on http://[::1]:{port} " in seen, seen
+        assert rig("status", "--server", f"http://[::1]:{port}").returncode == 0
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=BOUND_S)
