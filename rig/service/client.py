@@ -92,10 +92,19 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
 
 
 def line(run: dict[str, Any]) -> str:
+    """A run in one line: its status, place in the queue and progress, what it flies (the service's
+    label: a sweep as "sweep of NAME@VERSION"), its verdicts and its error."""
     where = f" (position {run['position']})" if run.get("position") else ""
-    verdicts = ", ".join(f"{r['scenario']} {r['verdict']}" for r in run.get("results") or [])
-    return (f"run {run['id']}: {run['status']}{where} {run['progress']:.0f} %"
-            + (f" — {verdicts}" if verdicts else "") + (f" — {run['error']}" if run.get("error") else ""))
+    what = run.get("label") or ", ".join(run.get("scenarios") or [])
+    if run.get("mode") == "sweep":
+        counts = [r["sweep"] for r in run.get("results") or [] if isinstance(r.get("sweep"), dict)]
+        verdicts = "; ".join(f"{c.get('pass')} pass, {c.get('fail')} fail, {c.get('error')} error"
+                             for c in counts)
+        what += f": {verdicts}" if verdicts else ""
+    else:  # (the verdicts name the scenarios)
+        what = ", ".join(f"{r['scenario']} {r['verdict']}" for r in run.get("results") or []) or what
+    return (f"run {run['id']}: {run['status']}{where} {run['progress']:.0f} % — {what}"
+            + (f" — {run['error']}" if run.get("error") else ""))
 
 
 def cmd_submit(args: argparse.Namespace) -> int:

@@ -27,7 +27,6 @@ from rig.service.worker import Workers
 
 HERE = Path(__file__).resolve().parent
 UPLOT = HERE.parents[1] / "reports" / "vendor" / "uplot"  # the reports' copy: vendored once
-SHORT = 8  # hex digits of a scenario's version shown beside its name
 
 
 def _utc(t: float) -> str:
@@ -42,19 +41,11 @@ def _num(v: object) -> str:
     return str(v)
 
 
-def _labels(run: dict[str, Any]) -> str:
-    """A run's scenarios as NAME@VERSION (the version's first 8 hex digits), a sweep's as "sweep of"."""
-    versions = run.get("versions") or {}
-    names = list(versions) if run["mode"] == "sweep" else run["scenarios"]
-    label = ", ".join(f"{n}@{versions[n][:SHORT]}" if n in versions else n for n in names)
-    return f"sweep of {label}" if run["mode"] == "sweep" else label
-
-
 def register(app: FastAPI, db: Db, workers: Workers, store: Store) -> None:
     from rig.service.app import RunRequest, check_run, problems_of
 
     templates = Jinja2Templates(directory=str(HERE / "templates"))
-    templates.env.filters.update(utc=_utc, num=_num, labels=_labels)
+    templates.env.filters.update(utc=_utc, num=_num)
     app.mount("/static/htmx", StaticFiles(directory=HERE / "static" / "htmx"), name="htmx")
     app.mount("/static/uplot", StaticFiles(directory=UPLOT), name="uplot")
 

@@ -215,6 +215,8 @@ def test_rig_submit_waits_and_exits_with_rig_runs_codes(service: Service) -> Non
     # a DUT that exits at once: the run is an error, and so is submit's exit status (3, as rig run's)
     done = rig("submit", "--server", service.url, "step_roll", "--dut", "true", "--wait")
     assert done.returncode == 3, done.stderr
+    status = rig("status", "--server", service.url, done.stdout.split()[0])
+    assert "rig run exited with status 3: 0 passed, 0 failed, 1 errors" in status.stdout  # as written
     bad = rig("submit", "--server", service.url, "no_such_scenario")
     assert bad.returncode == 2 and "no library scenario of that name" in bad.stderr
     assert rig("status", "--server", service.url, "999").returncode == 2
@@ -416,3 +418,33 @@ def test_rig_submit_needs_a_servers_scheme_and_serve_brackets_ipv6(tmp_path: Pat
     finally:
         proc.send_signal(signal.SIGTERM)
         proc.wait(timeout=BOUND_S)
+
+
+def test_the_queue_shows_positions_and_a_killed_run_says_how_it_ended(tmp_path: Path) -> None:
+    svc = start(tmp_path / "data", "--slots", "1")
+    command, fifo = blocked_dut(tmp_path)
+    try:
+        _, first = svc.call("POST", "/api/runs", {"scenarios": ["step_roll"], "dut": {"command": command}})
+        dut = read_pid(fifo)
+        running = svc.until(first["id"], "running")
+        queued = [svc.call("POST", "/api/runs", {"scenarios": ["step_roll"]})[1]["id"] for _ in range(2)]
+        listed = {r["id"]: r["position"] for r in svc.call("GET", "/api/runs")[1]}
+        assert listed == {first["id"]: None, queued[0]: 1, queued[1]: 2}
+        with urllib.request.urlopen(svc.url + "/", timeout=BOUND_S) as r:
+            html = r.read().decode()
+        for position, run_id in enumerate(queued, 1):
+            assert f'<a href="/runs/{run_id}">{run_id}</a></td><td class="queued">queued</td>\n' \
+                   f"<td>{position}</td>" in html
+        status = rig("status", "--server", svc.url)
+        assert f"run {queued[1]}: queued (position 2) 0 % — step_roll" in status.stdout, status.stdout
+        for run_id in queued:
+            assert svc.call("DELETE", f"/api/runs/{run_id}")[0] == 200
+        os.killpg(running["pid"], signal.SIGKILL)  # rig run killed from outside the service
+        os.kill(dut, signal.SIGKILL)
+        assert wait_gone(dut)
+        ended = svc.follow(first["id"])
+        assert ended["status"] == "error", ended
+        assert ended["error"].startswith("rig run was stopped by SIGKILL"), ended
+        assert "'" not in ended["error"] and "(no output)" not in ended["error"]
+    finally:
+        stop(svc)
