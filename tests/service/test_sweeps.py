@@ -75,9 +75,9 @@ def test_a_sweep_runs_as_a_job_and_equals_rig_sweep(service: Service, tmp_path: 
     code, index = get(service, "/")
     assert code == 200 and label.encode() in index and b"/sweeps/" not in index
     assert f'{label}</td><td></td>'.encode() in index  # (no seed: the spec's seeds)
-    status = subprocess.run([sys.executable, "-m", "rig.cli", "status", "--server", service.url,
+    listed = subprocess.run([sys.executable, "-m", "rig.cli", "status", "--server", service.url,
                              str(body["id"])], capture_output=True, text=True, timeout=60)
-    assert status.stdout.strip() == f"run {body['id']}: passed 100 % — {label}: 4 pass, 0 fail, 0 error"
+    assert listed.stdout.strip() == f"run {body['id']}: passed 100 % — {label}: 4 pass, 0 fail, 0 error"
 
 
 @pytest.mark.parametrize("spec, words", [
