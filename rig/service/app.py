@@ -56,6 +56,11 @@ def problems_of(errors: list[Any]) -> list[str]:
     return out
 
 
+def refusal(status: int, message: str) -> HTTPException:
+    """An HTTP refusal: a 422 in the shape of every 422 (``{"problems": [...]}``), others a sentence."""
+    return HTTPException(status, {"problems": [message]} if status == 422 else message)
+
+
 def check_run(req: RunRequest, store: Store, scenarios: bool = True) -> tuple[list[str], dict[str, str]]:
     """Every problem of a run request, in words (the validator's for the scenarios; ``scenarios``
     False: only the DUT, for a sweep), and the version of each scenario it names: the one checked
@@ -175,7 +180,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         try:
             stored = store.put_scenario(name, body, replace)
         except UploadError as e:
-            raise HTTPException(e.status, str(e)) from e
+            raise refusal(e.status, str(e)) from e
         if not stored["new"]:
             response.status_code = 200
         return stored
@@ -194,7 +199,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         try:
             sha, size = await store.put_firmware(request.stream())
         except UploadError as e:
-            raise HTTPException(e.status, str(e)) from e
+            raise refusal(e.status, str(e)) from e
         return {"sha256": sha, "size": size}
 
     @app.get("/api/firmware")
@@ -247,7 +252,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         try:
             path, sweep = store.put_sweep(body, check)  # (kept only once checked)
         except UploadError as e:
-            raise HTTPException(e.status, str(e)) from e
+            raise refusal(e.status, str(e)) from e
         run_id = db.submit([str(path)], 0, {"command": dut} if dut is not None else {}, "sweep", priority,
                            versions=versions)
         workers.wake()
@@ -267,10 +272,10 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         """The runs, newest first. ``verdict`` (pass, fail, error) names a run's outcome as rig run's
         verdicts do; ``firmware`` is an uploaded firmware's SHA-256."""
         if status is not None and status not in STATUSES:
-            raise HTTPException(422, f"status is one of {', '.join(STATUSES)}")
+            raise refusal(422, f"status: one of {', '.join(STATUSES)}")
         if verdict is not None:
             if verdict not in VERDICTS or (status is not None and status != VERDICTS[verdict]):
-                raise HTTPException(422, f"verdict is one of {', '.join(VERDICTS)} (and agrees with status)")
+                raise refusal(422, f"verdict: one of {', '.join(VERDICTS)} (and agrees with status)")
             status = VERDICTS[verdict]
         return db.list(status, scenario, since, limit, offset, firmware)
 

@@ -268,7 +268,8 @@ def test_uploads_are_checked_stored_once_and_run(service: Service, tmp_path: Pat
     text = (Path(__file__).resolve().parents[2] / "scenarios" / "library" / "step_roll.toml").read_text()
     assert post_bytes(service, "/api/scenarios?name=my_roll", text.encode())[0] == 201
     status, body = post_bytes(service, "/api/scenarios?name=broken", b"[scenario]\nduration = -1\n")
-    assert status == 422 and "broken.toml" in body["detail"] and "duration" in body["detail"]
+    [problem] = body["detail"]["problems"]
+    assert status == 422 and "broken.toml" in problem and "duration" in problem
     assert post_bytes(service, "/api/scenarios?name=step_roll", text.encode())[0] == 409
     assert post_bytes(service, "/api/scenarios?name=../x", text.encode())[0] == 422
     assert post_bytes(service, "/api/scenarios?name=huge", b"#" * (300 << 10))[0] == 413
@@ -341,6 +342,8 @@ def test_unknown_fields_and_query_parameters_are_refused_by_name(service: Servic
     # pydantic's own refusals come in the same shape: sentences naming the field
     status, body = service.call("POST", "/api/runs", {"scenarios": ["step_roll"], "seed": -1})
     assert status == 422 and body["detail"]["problems"][0].startswith("seed: "), body
+    status, body = service.call("GET", "/api/runs?status=sleeping")  # and so do the API's own
+    assert status == 422 and body["detail"]["problems"][0].startswith("status: one of queued"), body
     assert service.call("GET", "/api/runs")[1] == []  # nothing was queued
 
 
