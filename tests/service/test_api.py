@@ -418,6 +418,9 @@ def test_rig_submit_needs_a_servers_scheme_and_serve_brackets_ipv6(tmp_path: Pat
         seen = until_line(proc, "listening on")
         assert f"listening on http://[::1]:{port} " in seen, seen
         assert rig("status", "--server", f"http://[::1]:{port}").returncode == 0
+        refused = rig("submit", "--server", f"http://[::1]:{port}", "step_roll", "--seed", "-1")
+        assert refused.returncode == 2 and "rig submit: seed: Input should be greater than or equal to 0" \
+            in refused.stderr and "{" not in refused.stderr, refused.stderr  # sentences, not pydantic's dicts
     finally:
         proc.send_signal(signal.SIGTERM)
         proc.wait(timeout=BOUND_S)
