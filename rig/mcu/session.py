@@ -32,8 +32,8 @@ from emulators import sbus
 from rig import interrupts
 from rig.bridge.esc import esc_protocol
 from rig.mcu.board import Board
-from rig.mcu.engine import AvrEngine, TwiRecord, config_for
-from rig.mcu.vcd import mcu_trace
+from rig.mcu.engine import AvrEngine, config_for
+from rig.mcu.vcd import McuTrace
 from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, Stop
 from rig.session import Outcome
 from rig.world import World
@@ -93,8 +93,6 @@ class McuSession:
         self.notes: list[str] = []
         self._ppm_channels: list[int] | None = None
         self._ppm_next_ns = 0
-        self._trace_twi: list[TwiRecord] = []
-        self._trace_pulses: list[list[tuple[int, int, int]]] = [[] for _ in b.motors]
 
     # ---- the Host the scenario's events use ---------------------------------------------------
 
@@ -148,8 +146,9 @@ class McuSession:
         wall0 = time.perf_counter()
         engine = AvrEngine(self.engine_config, self.world.board)
         self.engine = engine
-        tracing = self.cfg.trace is not None
-        if tracing:
+        trace = None
+        if self.cfg.trace is not None:
+            trace = self._open_trace(self.cfg.trace)
             engine.twi_log(True)
         ppm = self.cfg.board.rc.protocol == "ppm"
         telemetry_uart = self.cfg.board.telemetry_uart
@@ -170,10 +169,8 @@ class McuSession:
                 self._telemetry += engine.uart_take(telemetry_uart)
                 trains = engine.pulses()
                 self._motors(trains, nxt)
-                if tracing:
-                    self._trace_twi += engine.twi_take()
-                    for kept, train in zip(self._trace_pulses, trains, strict=True):
-                        kept += train
+                if trace is not None:
+                    trace.add(engine.twi_take(), trains, nxt)
                 if time.perf_counter() - wall0 > self.cfg.wall_timeout:
                     self.sched.fail(EXIT_WATCHDOG, f"wall-time watchdog: {self.cfg.wall_timeout:g} s")
                     break
@@ -190,23 +187,22 @@ class McuSession:
             interrupted = False
         finally:
             self.figures_at_end = engine.figures()
-            if tracing:
-                self._trace_twi += engine.twi_take()
+            if trace is not None:
+                trace.add(engine.twi_take(), [], self._t_ns)  # (the pulses: all taken, and counted)
+                trace.close()
             engine.close()
-        if self.cfg.trace is not None:
-            self._write_trace(self.cfg.trace)
         verdict, code, error = self.sched.verdict(None, self._t_ns / NS, True, True, interrupted)
         pulses = sum(m.pulses for m in self.figures.motors)
         twi = int(self.figures_at_end["twi_transactions"])
         return Outcome(verdict, code, error, None, self._t_ns / NS, self.world.time_ns / NS,
                        time.perf_counter() - wall0, twi, 0, 0, self.notes, [], self.world.outputs(), pulses)
 
-    def _write_trace(self, path: Path) -> None:
+    def _open_trace(self, path: Path) -> McuTrace:
         b = self.cfg.board
         names = [f"m{m.motor}_{m.pin}" for m in b.motors]
         path.parent.mkdir(parents=True, exist_ok=True)
-        mcu_trace(path, self._trace_twi, self._trace_pulses, names, b.twi_hz,
-                  comment=f"{self.cfg.firmware.name} on {b.name}: TWI and motor outputs, sim time")
+        return McuTrace(path, names, b.twi_hz,
+                        comment=f"{self.cfg.firmware.name} on {b.name}: TWI and motor outputs, sim time")
 
     def _run_mcu(self, engine: AvrEngine, t_ns: int) -> str | None:
         """Runs the MCU to ``t_ns``, serving the chip core's needs; what went wrong, or None."""

@@ -25,7 +25,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
+from typing import Final, TextIO
 
 from rig.mcu.engine import TwiRecord
 
@@ -56,49 +56,79 @@ def _value(var: Var, ident: str, value: int | None) -> str:
     return f"b{bits} {ident}"
 
 
+class VcdWriter:
+    """A VCD written as a run goes: ``change`` (time, variable index, value) in any order, ``flush``
+    writes those before a time in time order (stable: of two changes of one variable at one time the
+    later given wins; a change to the value a variable has is left out), ``close`` the rest. A change
+    earlier than what is written already is an error (the caller holds its changes back far enough)."""
+
+    def __init__(self, out: TextIO, variables: Sequence[Var], timescale: str = "1 ns", comment: str = ""):
+        for v in variables:
+            if not v.name or any(c.isspace() for c in v.name + v.scope) or v.width < 1:
+                raise ValueError(f"VCD variable {v.scope}.{v.name!r} (width {v.width}): a name without "
+                                 "spaces")
+        self._out, self._vars = out, list(variables)
+        self._idents = [_ident(i) for i in range(len(variables))]
+        self._current: list[int | None] = [v.initial for v in variables]
+        self._pending: dict[int, dict[int, int]] = {}
+        self._written = 0  #: changes before this time are written
+        if comment:
+            out.write(f"$comment\n  {comment}\n$end\n")
+        out.write(f"$timescale {timescale} $end\n")
+        scopes: dict[str, list[int]] = {}
+        for i, v in enumerate(variables):
+            scopes.setdefault(v.scope, []).append(i)
+        for scope, members in scopes.items():
+            out.write(f"$scope module {scope} $end\n")
+            for i in members:
+                v, kind = variables[i], "wire" if variables[i].width == 1 else "reg"
+                out.write(f"$var {kind} {v.width} {self._idents[i]} {v.name} $end\n")
+            out.write("$upscope $end\n")
+        out.write("$enddefinitions $end\n#0\n$dumpvars\n")
+        for i, v in enumerate(variables):
+            out.write(_value(v, self._idents[i], v.initial) + "\n")
+        out.write("$end\n")
+
+    def change(self, t: int, index: int, value: int) -> None:
+        if t < self._written:
+            raise ValueError(f"VCD change at {t}, before {self._written}, which is written already")
+        at = self._pending.setdefault(t, {})
+        at.pop(index, None)  # (keeps the order of the last change of each variable)
+        at[index] = value
+
+    @property
+    def written(self) -> int:
+        """Changes from this time on can still be given."""
+        return self._written
+
+    def flush(self, before: int | None = None) -> None:
+        """Writes the changes before ``before`` (None: all)."""
+        times = sorted(t for t in self._pending if before is None or t < before)
+        chunks = []
+        for t in times:
+            lines = []
+            for i, value in self._pending.pop(t).items():
+                if self._current[i] != value:
+                    self._current[i] = value
+                    lines.append(_value(self._vars[i], self._idents[i], value))
+            if lines:
+                chunks.append(f"#{t}\n" + "\n".join(lines) + "\n")
+        self._out.write("".join(chunks))
+        if times:
+            self._written = times[-1] + 1
+        if before is not None:
+            self._written = max(self._written, before)
+
+
 def write_vcd(out: TextIO, variables: Sequence[Var], changes: Iterable[tuple[int, int, int]],
               timescale: str = "1 ns", comment: str = "") -> None:
-    """Writes a VCD: ``changes`` are (time, variable index, value), in any order; they are put in time
-    order (stable: of two changes of one variable at one time the later given wins), and a change to
-    the value a variable already has is left out."""
-    for v in variables:
-        if not v.name or any(c.isspace() for c in v.name + v.scope) or v.width < 1:
-            raise ValueError(f"VCD variable {v.scope}.{v.name!r} (width {v.width}): a name without spaces")
-    idents = [_ident(i) for i in range(len(variables))]
-    if comment:
-        out.write(f"$comment\n  {comment}\n$end\n")
-    out.write(f"$timescale {timescale} $end\n")
-    scopes: dict[str, list[int]] = {}
-    for i, v in enumerate(variables):
-        scopes.setdefault(v.scope, []).append(i)
-    for scope, members in scopes.items():
-        out.write(f"$scope module {scope} $end\n")
-        for i in members:
-            v = variables[i]
-            kind = "wire" if v.width == 1 else "reg"
-            out.write(f"$var {kind} {v.width} {idents[i]} {v.name} $end\n")
-        out.write("$upscope $end\n")
-    out.write("$enddefinitions $end\n")
-    current: list[int | None] = [v.initial for v in variables]
-    out.write("#0\n$dumpvars\n")
-    for i, v in enumerate(variables):
-        out.write(_value(v, idents[i], v.initial) + "\n")
-    out.write("$end\n")
-    by_time: dict[int, dict[int, int]] = {}
+    """A whole VCD at once: ``changes`` are (time, variable index, value) in any order (VcdWriter)."""
+    w = VcdWriter(out, variables, timescale, comment)
     for t, i, value in changes:
         if t < 0:
             raise ValueError(f"VCD change at a negative time {t}")
-        at = by_time.setdefault(t, {})
-        at.pop(i, None)  # (keeps the order of the last change of each variable)
-        at[i] = value
-    for t in sorted(by_time):
-        lines = []
-        for i, value in by_time[t].items():
-            if current[i] != value:
-                current[i] = value
-                lines.append(_value(variables[i], idents[i], value))
-        if lines:
-            out.write(f"#{t}\n" + "\n".join(lines) + "\n")
+        w.change(t, i, value)
+    w.flush()
 
 
 # ---- a firmware run's trace ------------------------------------------------------------------------
@@ -106,49 +136,87 @@ def write_vcd(out: TextIO, variables: Sequence[Var], changes: Iterable[tuple[int
 SCL, SDA, BYTE, ACK, BUSY = range(5)
 
 
-def twi_changes(records: Sequence[TwiRecord], bit_ns: int) -> list[tuple[int, int, int]]:
-    """The TWI records as changes of the five twi.* variables (indices SCL..BUSY)."""
-    out: list[tuple[int, int, int]] = []
-    prev = 0  # the time the bus was last drawn to
-    busy = False
-    for r in records:
-        t = max(r.t_ns, prev)
-        room = t - prev
-        if r.kind == "S" and not busy:  # from an idle bus (both lines high): SDA falls
-            out += [(t, SDA, 0), (t, BUSY, 1)]
-        elif r.kind == "S":  # a repeated START: the lines go high first, then SDA falls
-            half = max(min(bit_ns // 2, room // 3), 0)
-            out += [(t - 2 * half, SCL, 0), (t - 2 * half, SDA, 1), (t - half, SCL, 1), (t, SDA, 0)]
-        elif r.kind == "P":  # SDA low, SCL high, then SDA rises
-            half = max(min(bit_ns // 2, room // 3), 0)
-            out += [(t - 2 * half, SCL, 0), (t - 2 * half, SDA, 0), (t - half, SCL, 1), (t, SDA, 1),
-                    (t, BUSY, 0)]
-            busy = False
-        else:  # A, W, R: eight data bits MSB first and the acknowledge, the ninth clock ending at t
-            bit = max(min(bit_ns, room // 10), 0)
-            start = t - 9 * bit
-            bits = [(r.value >> (7 - k)) & 1 for k in range(8)] + [0 if r.ack else 1]
-            for k, level in enumerate(bits):
-                b0 = start + k * bit
-                out += [(b0, SCL, 0), (b0 + bit // 4, SDA, level), (b0 + bit // 2, SCL, 1)]
-            out += [(t, SCL, 0), (t, BYTE, r.value), (t, ACK, 1 if r.ack else 0)]
-        busy = busy or r.kind == "S"
-        prev = t
-    return out
+class TwiDrawing:
+    """The TWI records as changes of the five twi.* variables (indices SCL..BUSY), record after record
+    (the bus's state carries over from one batch to the next)."""
+
+    def __init__(self, bit_ns: int) -> None:
+        self.bit_ns = bit_ns
+        self.prev = 0  #: the time the bus was last drawn to
+        self.busy = False
+
+    def draw(self, records: Iterable[TwiRecord]) -> list[tuple[int, int, int]]:
+        out: list[tuple[int, int, int]] = []
+        bit_ns = self.bit_ns
+        for r in records:
+            t = max(r.t_ns, self.prev)
+            room = t - self.prev
+            if r.kind == "S" and not self.busy:  # from an idle bus (both lines high): SDA falls
+                out += [(t, SDA, 0), (t, BUSY, 1)]
+            elif r.kind == "S":  # a repeated START: the lines go high first, then SDA falls
+                half = max(min(bit_ns // 2, room // 3), 0)
+                out += [(t - 2 * half, SCL, 0), (t - 2 * half, SDA, 1), (t - half, SCL, 1), (t, SDA, 0)]
+            elif r.kind == "P":  # SDA low, SCL high, then SDA rises
+                half = max(min(bit_ns // 2, room // 3), 0)
+                out += [(t - 2 * half, SCL, 0), (t - 2 * half, SDA, 0), (t - half, SCL, 1), (t, SDA, 1),
+                        (t, BUSY, 0)]
+                self.busy = False
+            else:  # A, W, R: eight data bits MSB first and the acknowledge, the ninth clock ending at t
+                bit = max(min(bit_ns, room // 10), 0)
+                start = t - 9 * bit
+                bits = [(r.value >> (7 - k)) & 1 for k in range(8)] + [0 if r.ack else 1]
+                for k, level in enumerate(bits):
+                    b0 = start + k * bit
+                    out += [(b0, SCL, 0), (b0 + bit // 4, SDA, level), (b0 + bit // 2, SCL, 1)]
+                out += [(t, SCL, 0), (t, BYTE, r.value), (t, ACK, 1 if r.ack else 0)]
+            self.busy = self.busy or r.kind == "S"
+            self.prev = t
+        return out
+
+
+class McuTrace:
+    """A run's trace written as it goes (a long run's records are not held): ``add`` each step's TWI
+    records (engine.twi_take) and motor pulses (engine.pulses: rise_ns, width_ns, period_ns) with the
+    step's end. A pulse is reported when it ends and a byte's bits are drawn before its record's time,
+    so the changes of the last HOLD_NS (or twice the longest pulse seen) are held back; one that still
+    comes too late (a pin held high longer than that) is written at the earliest time still open."""
+
+    HOLD_NS: Final = 100_000_000
+
+    def __init__(self, path: Path, motor_names: Sequence[str], twi_hz: int, comment: str = "") -> None:
+        variables = [Var("twi", "scl", 1, 1), Var("twi", "sda", 1, 1), Var("twi", "byte", 8),
+                     Var("twi", "ack", 1), Var("twi", "busy", 1, 0)]
+        variables += [Var("motors", name, 1, 0) for name in motor_names]
+        self._twi = TwiDrawing(max(1, round(1e9 / twi_hz)))
+        self._file = open(path, "w", encoding="ascii", newline="\n")  # noqa: SIM115 (closed by close())
+        self._vcd = VcdWriter(self._file, variables, comment=comment)
+        self._hold_ns = max(self.HOLD_NS, 20 * self._twi.bit_ns)
+
+    def add(self, records: Iterable[TwiRecord], pulses: Sequence[Iterable[tuple[int, int, int]]],
+            now_ns: int) -> None:
+        vcd = self._vcd
+        changes = self._twi.draw(records)
+        for k, train in enumerate(pulses):
+            index = BUSY + 1 + k
+            for rise, width, _period in train:
+                changes += [(rise, index, 1), (rise + width, index, 0)]
+                self._hold_ns = max(self._hold_ns, 2 * width)
+        open_ns = vcd.written
+        for t, i, value in changes:
+            vcd.change(max(t, open_ns), i, value)
+        vcd.flush(now_ns - self._hold_ns)
+
+    def close(self) -> None:
+        if not self._file.closed:
+            self._vcd.flush()
+            self._file.close()
 
 
 def mcu_trace(path: Path, records: Sequence[TwiRecord], pulses: Sequence[Iterable[tuple[int, int, int]]],
               motor_names: Sequence[str], twi_hz: int, comment: str = "") -> None:
-    """Writes a run's trace: the TWI records (engine.twi_take) and each motor's pulses (engine.pulses:
-    rise_ns, width_ns, period_ns), one name per motor (``m1_PE4``)."""
-    variables = [Var("twi", "scl", 1, 1), Var("twi", "sda", 1, 1), Var("twi", "byte", 8),
-                 Var("twi", "ack", 1), Var("twi", "busy", 1, 0)]
-    variables += [Var("motors", name, 1, 0) for name in motor_names]
-    changes = twi_changes(records, max(1, round(1e9 / twi_hz)))
-    for k, train in enumerate(pulses):
-        index = BUSY + 1 + k
-        for rise, width, _period in train:
-            changes += [(rise, index, 1), (rise + width, index, 0)]
-    with open(path, "w", encoding="ascii", newline="\n") as out:
-        write_vcd(out, variables, changes, comment=comment)
-
+    """A run's whole trace at once (McuTrace with one step)."""
+    trace = McuTrace(path, motor_names, twi_hz, comment)
+    try:
+        trace.add(records, pulses, 0)
+    finally:
+        trace.close()

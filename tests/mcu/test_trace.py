@@ -16,7 +16,7 @@ import pytest
 import vcdvcd  # type: ignore[import-untyped]
 
 from rig.mcu.engine import TwiRecord
-from rig.mcu.vcd import Var, mcu_trace, write_vcd
+from rig.mcu.vcd import McuTrace, Var, mcu_trace, write_vcd
 from tests.mcu.conftest import REPO, firmware
 
 FC = REPO / "build" / "avr" / "fc.elf"
@@ -78,6 +78,24 @@ def test_the_twi_records_decode_back_from_scl_and_sda(tmp_path: Path) -> None:
     assert [(t, int(v, 2)) for t, v in vcd["twi.byte"].tv[1:]] == [
         (r.t_ns, r.value) for r in RECORDS if r.kind in "AWR"]
     assert vcd["twi.busy"].tv == [(0, "0"), (10_000, "1"), (150_000, "0"), (200_000, "1"), (240_000, "0")]
+
+
+def test_a_trace_written_step_by_step_is_the_one_written_at_once(tmp_path: Path) -> None:
+    """As the session writes it: 1 ms steps, each pulse reported in the step it ends in (its rise in an
+    earlier one), the file written as the run goes; the same bytes as from all changes at once."""
+    pulses = [(t, 1_500_000, 2_040_000) for t in range(100_000, 298_000_000, 2_040_000)]
+    records = [TwiRecord(r.t_ns + k * 1_000_000, r.kind, r.value, r.ack) for k in range(0, 300, 7)
+               for r in RECORDS]
+    mcu_trace(tmp_path / "once.vcd", records, [pulses], ["m1_PE4"], 400_000)
+    trace = McuTrace(tmp_path / "steps.vcd", ["m1_PE4"], 400_000)
+    for step in range(1, 301):
+        now = step * 1_000_000
+        trace.add([r for r in records if now - 1_000_000 < r.t_ns <= now],
+                  [[p for p in pulses if now - 1_000_000 < p[0] + p[1] <= now]], now)
+    trace.close()
+    once = (tmp_path / "once.vcd").read_bytes()
+    assert (tmp_path / "steps.vcd").read_bytes() == once
+    assert once.count(b"\n1&\n") == len(pulses)
 
 
 def test_the_writer_orders_changes_and_drops_repeats() -> None:
