@@ -22,6 +22,7 @@ firmware, scenario and seed give the same bytes.
 
 from __future__ import annotations
 
+import heapq
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -71,6 +72,7 @@ class VcdWriter:
         self._idents = [_ident(i) for i in range(len(variables))]
         self._current: list[int | None] = [v.initial for v in variables]
         self._pending: dict[int, dict[int, int]] = {}
+        self._times: list[int] = []  #: the pending times, a heap
         self._written = 0  #: changes before this time are written
         if comment:
             out.write(f"$comment\n  {comment}\n$end\n")
@@ -92,8 +94,12 @@ class VcdWriter:
     def change(self, t: int, index: int, value: int) -> None:
         if t < self._written:
             raise ValueError(f"VCD change at {t}, before {self._written}, which is written already")
-        at = self._pending.setdefault(t, {})
-        at.pop(index, None)  # (keeps the order of the last change of each variable)
+        at = self._pending.get(t)
+        if at is None:
+            at = self._pending[t] = {}
+            heapq.heappush(self._times, t)
+        else:
+            at.pop(index, None)  # (keeps the order of the last change of each variable)
         at[index] = value
 
     @property
@@ -103,7 +109,9 @@ class VcdWriter:
 
     def flush(self, before: int | None = None) -> None:
         """Writes the changes before ``before`` (None: all)."""
-        times = sorted(t for t in self._pending if before is None or t < before)
+        times, heap = [], self._times
+        while heap and (before is None or heap[0] < before):
+            times.append(heapq.heappop(heap))
         chunks = []
         for t in times:
             lines = []
