@@ -19,8 +19,6 @@ from rig.mcu.engine import TwiRecord
 from rig.mcu.vcd import McuTrace, Var, mcu_trace, write_vcd
 from tests.mcu.conftest import REPO, firmware
 
-FC = REPO / "build" / "avr" / "fc.elf"
-
 
 def read(path: Path) -> vcdvcd.VCDVCD:
     return vcdvcd.VCDVCD(str(path))
@@ -114,18 +112,12 @@ def rig_exec(*args: object) -> subprocess.CompletedProcess[bytes]:
                           timeout=600, cwd=REPO)
 
 
-@pytest.fixture(scope="module")
-def fc() -> Path:
-    done = subprocess.run(["make", "-s", "--no-print-directory", "avr"], cwd=REPO, capture_output=True,
-                          text=True)
-    assert done.returncode == 0, done.stderr
-    return FC
 
-
-def test_exec_mcu_traces_what_its_figures_count_and_the_same_bytes_twice(fc: Path, tmp_path: Path) -> None:
+def test_exec_mcu_traces_what_its_figures_count_and_the_same_bytes_twice(avr_fc: Path,
+                                                                         tmp_path: Path) -> None:
     runs = []
     for k in "ab":
-        done = rig_exec("--mcu", "mega2560-gy86", "--firmware", fc, "--duration", "1.2", "--seed", 1,
+        done = rig_exec("--mcu", "mega2560-gy86", "--firmware", avr_fc, "--duration", "1.2", "--seed", 1,
                         "--summary", tmp_path / f"{k}.json", "--trace", tmp_path / k)
         assert done.returncode == 0, done.stderr
         assert b"# fc: configuration: EEPROM image" in done.stdout  # its telemetry USART, on stdout
@@ -148,9 +140,10 @@ def test_exec_mcu_traces_what_its_figures_count_and_the_same_bytes_twice(fc: Pat
         assert rises == mcu["motor_pulses"][m] > 400
 
 
-def test_run_mcu_traces_each_scenario_into_the_folder(fc: Path, tmp_path: Path) -> None:
-    done = subprocess.run([sys.executable, "-m", "rig.cli", "run", "--mcu", "mega2560-gy86", "--firmware", fc,
-                           "--trace", tmp_path / "traces", "--out", tmp_path / "out", "gust_rejection"],
+def test_run_mcu_traces_each_scenario_into_the_folder(avr_fc: Path, tmp_path: Path) -> None:
+    done = subprocess.run([sys.executable, "-m", "rig.cli", "run", "--mcu", "mega2560-gy86", "--firmware",
+                           avr_fc, "--trace", tmp_path / "traces", "--out", tmp_path / "out",
+                           "gust_rejection"],
                           capture_output=True, text=True, timeout=600, cwd=REPO)
     assert done.returncode == 0, done.stderr
     mcu = json.loads((tmp_path / "out" / "gust_rejection" / "result.json").read_text())["metadata"]["mcu"]
@@ -178,8 +171,8 @@ def test_exec_mcu_a_crashing_firmware_is_125_with_where_and_when(tmp_path: Path)
      (["--mcu", "nosuchboard", "--firmware", "F", "--duration", "1"], "--mcu:"),
      (["--mcu", "mega2560-gy86", "--firmware", "pyproject.toml", "--duration", "1"], "--mcu:")],
 )
-def test_exec_mcu_usage_errors_are_exit_2(args: list[str], says: str) -> None:
-    args = [str(FC) if a == "F" else a for a in args]
+def test_exec_mcu_usage_errors_are_exit_2(avr_fc: Path, args: list[str], says: str) -> None:
+    args = [str(avr_fc) if a == "F" else a for a in args]
     done = rig_exec(*args)
     assert done.returncode == 2, done.stderr
     assert says in done.stderr.decode()
