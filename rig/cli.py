@@ -42,7 +42,19 @@ def parser() -> argparse.ArgumentParser:
     sweep_cmd.add_parser(sub)
     serve_cmd.add_parser(sub)
     client.add_parsers(sub)
+    _plain(p)
     return p
+
+
+def _plain(p: argparse.ArgumentParser) -> None:
+    """The commands' descriptions are their modules' docstrings, which mark code as ``x`` for the
+    source's readers: --help shows it as x."""
+    for action in p._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for child in action.choices.values():
+                if child.description:
+                    child.description = child.description.replace("``", "")
+                _plain(child)
 
 
 def _dispatch(argv: list[str] | None) -> int:

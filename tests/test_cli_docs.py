@@ -47,3 +47,19 @@ def test_the_walk_sees_a_missing_option() -> None:
     assert list(options(p)) == [("rig x", "--not-in-the-docs")]
     assert not named("--not-in-the-docs", DOC.read_text())
     assert not named("--modbus", "`--modbus-open`") and named("--modbus", "`--modbus PORT`")
+
+
+def test_help_shows_no_source_markup() -> None:
+    """The descriptions come from docstrings that mark code as ``x``: --help shows plain x."""
+    marked = []
+
+    def walk(p: argparse.ArgumentParser) -> None:
+        if "``" in p.format_help():
+            marked.append(p.prog)
+        for action in p._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for child in action.choices.values():
+                    walk(child)
+
+    walk(parser())
+    assert marked == []
