@@ -66,11 +66,11 @@ $(DUT_BIN): $(wildcard dut/src/* dut/linux/* dut/tests/* dut/Makefile) bench/fc_
 	$(MAKE) -s -C dut
 
 vbridge: $(VBRIDGE)
-$(VBRIDGE): $(wildcard bridge/core/*.[ch] bridge/posix/*.c) $(CHIP_FILES) rig/shim/protocol.h \
+$(VBRIDGE): $(wildcard bridge/core/*.[ch] bridge/posix/*.[ch]) $(CHIP_FILES) rig/shim/protocol.h \
 		rig/bridge/messages.py rig/bridge/gen.py | venv
 	$(PY) -m rig.bridge.gen >/dev/null
 	$(PY) -m emulators.chips.gen >/dev/null
-	$(CC) $(BRIDGE_CFLAGS) -o $@ bridge/posix/vbridge.c bridge/core/*.c $(BRIDGE_CHIPS)/*.c -lm
+	$(CC) $(BRIDGE_CFLAGS) -o $@ bridge/posix/*.c bridge/core/*.c $(BRIDGE_CHIPS)/*.c -lm
 
 # the bridge firmware for the STM32G431 (docs/bridge-firmware.md): build/firmware/bridge.elf, .bin, .map
 # with Debian's arm-none-eabi-gcc; prints flash and RAM used against 128 KB / 32 KB and fails when over
@@ -124,7 +124,7 @@ docs-images: venv fmu shim native compiled dut
 
 # our C, in one style (.clang-format); the FMI headers are vendored as they came
 C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/linux/*.[ch] dut/avr/*.[ch] dut/tests/*.c emulators/c/*.c emulators/chips/*.[ch] plant/c/*.[ch] \
-	rig/shim/*.[ch] bridge/*/*.[ch] bench/*.c tests/rig/device_clients/*.c))
+	rig/shim/*.[ch] bridge/*/*.[ch] bench/*.c tests/rig/device_clients/*.c rig/mcu/*.[ch] tests/mcu/firmware/*.c))
 
 lint: venv test-packages
 	$(VENV)/bin/ruff check .

@@ -10,6 +10,11 @@ this process's CPU time, best of three: the machine is shared, wall time measure
   imu + escs     a flight controller's skeleton (imu_reader): the MPU-6050 read every 1 ms at 400 kHz
                  from the chip core in demand mode (a sample served each ms), two ESC outputs at 400 Hz,
                  run in 1 ms ticks with the pulses taken each tick, as the session does
+  reference FC   the AVR reference FC (build/avr/fc.elf, `make avr`) flying a library scenario through
+                 the MCU target (rig/targets/mcu.py: the runner, the world, the session), whole run; then
+                 the same split: the engine (time inside run_until: the firmware's instructions, its TWI
+                 and timers) and the rest, per 1 ms plant tick (the world's step, the needs served, the
+                 pulses and telemetry taken, the events and the recorder)
 
 Each runs with the glue's fixes, then with simavr's own behaviour back (AvrEngine.stock). The goal is
 2x real time; the anchor is ArduPilot's AVR build under Renode: 0.03-0.2x.
@@ -23,6 +28,7 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -30,6 +36,10 @@ from emulators.chips.board import build_chip_board  # noqa: E402
 from emulators.mpu6050 import ImuTruth  # noqa: E402
 from emulators.ms5611 import BaroTruth  # noqa: E402
 from rig.mcu.engine import TIMERS, AvrEngine, EngineConfig, Motor  # noqa: E402
+from rig.mcu.session import McuSession  # noqa: E402
+from rig.runner import run  # noqa: E402
+from rig.targets.mcu import McuTarget  # noqa: E402
+from scenarios.schema import load  # noqa: E402
 from tests.mcu.conftest import firmware  # noqa: E402
 
 CLOCK = 16_000_000
@@ -91,6 +101,46 @@ def imu_rate(mcu: str) -> float:
     return best
 
 
+def fc_rate(scenario: str = "step_roll") -> tuple[float, float, float, float]:
+    """The reference FC through the target, best of three: (sim s per CPU s of the whole run, the same
+    of the engine alone: time inside run_until, the session's loop per plant tick beyond the engine in
+    us, the engine per tick in us). run_until and the session's run are timed by wrappers of this
+    bench's own (process time)."""
+    fc = Path(__file__).resolve().parents[1] / "build" / "avr" / "fc.elf"
+    if not fc.is_file():
+        raise SystemExit(f"{fc} is not built: make avr")
+    sc = load(Path(__file__).resolve().parents[1] / "scenarios" / "library" / f"{scenario}.toml")
+    spent = {"engine": 0.0, "session": 0.0}
+
+    def timed(fn: Callable[..., Any], key: str) -> Callable[..., Any]:
+        def wrapper(*args: Any) -> Any:
+            t0 = time.process_time()
+            try:
+                return fn(*args)
+            finally:
+                spent[key] += time.process_time() - t0
+        return wrapper
+
+    best: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    run_until, session_run = AvrEngine.run_until, McuSession.run
+    AvrEngine.run_until = timed(run_until, "engine")  # type: ignore[method-assign]
+    McuSession.run = timed(session_run, "session")  # type: ignore[method-assign]
+    try:
+        for _ in range(3):
+            spent.update(engine=0.0, session=0.0)
+            t0 = time.process_time()
+            r = run(sc, McuTarget("mega2560-gy86", fc), 0)
+            whole = time.process_time() - t0
+            assert r.verdict == "pass", r.error
+            ticks = sc.duration * 1000
+            loop_us = (spent["session"] - spent["engine"]) / ticks * 1e6
+            best = max(best, (sc.duration / whole, sc.duration / spent["engine"], loop_us,
+                              spent["engine"] / ticks * 1e6))
+    finally:
+        AvrEngine.run_until, McuSession.run = run_until, session_run  # type: ignore[method-assign]
+    return best
+
+
 def pwm_script() -> bytes:
     _, tccra, tccrb, _, _, _, ocrb, ocrc = TIMERS["atmega2560"][3]
     writes = [(0x2D, 0x30), (ocrb, 128), (ocrc, 64), (tccra, 0x28 | 0x01), (tccrb, 0x08 | 0x03)]
@@ -119,6 +169,11 @@ def main() -> int:
               f"({fixed / stock:.0f} times; wall time)")
     for mcu in ("atmega2560", "atmega328p"):
         print(f"{mcu:11s} imu + escs     {imu_rate(mcu):6.2f}x in 1 ms ticks, a sample served each")
+    whole, engine, rest_us, engine_us = fc_rate()
+    print(f"atmega2560  reference FC   {whole:6.2f}x step_roll through the target, the whole run (set-up and "
+          f"criteria included); {ANCHOR}: {whole / 0.2:.0f}-{whole / 0.03:.0f} times that\n"
+          f"{'':27s}{engine:6.2f}x the engine alone: {engine_us:.0f} us of CPU a 1 ms plant tick; the "
+          f"session's loop adds {rest_us:.0f} us a tick (world, needs served, pulses, telemetry, events)")
     return 0
 
 

@@ -24,29 +24,47 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BROKEN_PIPE
 
 
-def _dispatch(argv: list[str] | None) -> int:
-    compiled.install()  # the hot modules from build/mypyc, before the commands import them
-    from rig import exec_cmd, report_cmd, run_cmd
+def parser() -> argparse.ArgumentParser:
+    """The whole command line (docs/cli.md documents every option it has: tests/test_cli_docs.py)."""
+    from rig import exec_cmd, power_cmd, report_cmd, run_cmd, sweep_cmd
+    from rig.bridge import probe
+    from rig.service import client, serve_cmd
 
-    parser = argparse.ArgumentParser(prog="rig", description="Quadrotor hardware-in-the-loop test rig")
-    parser.add_argument("--version", action="version", version=f"rig {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True)
+    p = argparse.ArgumentParser(prog="rig", description="Quadrotor hardware-in-the-loop test rig")
+    p.add_argument("--version", action="version", version=f"rig {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
     sub.add_parser("demo", help="fly the plant FMU: seed-000 roll-stand release and open-loop hovers")
     exec_cmd.add_parser(sub)
     run_cmd.add_parsers(sub)
     report_cmd.add_parser(sub)
-    from rig.bridge import probe
-
     probe.add_parser(sub)
-    from rig import power_cmd, sweep_cmd
-
     power_cmd.add_parser(sub)
     sweep_cmd.add_parser(sub)
-    from rig.service import client, serve_cmd
-
     serve_cmd.add_parser(sub)
     client.add_parsers(sub)
-    args = parser.parse_args(argv)
+    _plain(p)
+    return p
+
+
+def _plain(p: argparse.ArgumentParser) -> None:
+    """The commands' descriptions are their modules' docstrings, which mark code as ``x`` for the
+    source's readers: --help shows it as x."""
+    for action in p._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for child in action.choices.values():
+                if child.description:
+                    child.description = child.description.replace("``", "")
+                _plain(child)
+
+
+def _dispatch(argv: list[str] | None) -> int:
+    compiled.install()  # the hot modules from build/mypyc, before the commands import them
+    from rig import exec_cmd, power_cmd, report_cmd, run_cmd, sweep_cmd
+    from rig.bridge import probe
+    from rig.service import client, serve_cmd
+
+    cli = parser()
+    args = cli.parse_args(argv)
     if args.command == "exec":
         return exec_cmd.main(args)
     if args.command == "run":
@@ -73,7 +91,7 @@ def _dispatch(argv: list[str] | None) -> int:
         from rig import demo
 
         return demo.main()
-    parser.error(f"unknown command {args.command}")
+    cli.error(f"unknown command {args.command}")
     return 2
 
 

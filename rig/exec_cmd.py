@@ -1,5 +1,11 @@
 """``rig exec [options] -- CMD ARGS...``: run any program with the emulated devices attached.
 
+``rig exec --mcu BOARD --firmware FILE --duration S``: a firmware image on its board instead of a
+command (docs/mcu.md), the world at rest, no scenario; its telemetry USART's bytes go to stdout. It
+exits 0 when the duration ends it, 125 when the firmware fails (a crash, a bad opcode, sleep with
+interrupts off, a watchdog reset loop, a hang, a bus no chip answers, or never reading a sensor or
+driving a motor), 124 on the wall-time watchdog.
+
 The command sees a GY-86 on ``/dev/i2c-1`` (MPU-6050 0x68, MS5611 0x77, HMC5883L 0x1E behind the
 MPU's bypass), eight sysfs PWM channels on ``/sys/class/pwm/pwmchip0`` (channels 0..3 drive motors
 1..4), the serial paths asked for, and, in lockstep (the default), virtual time. The plant starts at
@@ -22,6 +28,7 @@ from plant.variables import PARAMETERS, check_parameters
 from rig import interrupts
 from rig.bridge.esc import ESC_PROTOCOLS
 from rig.bridge.session import BenchConfig, BenchSession
+from rig.scheduler import EXIT_RIG_ERROR
 from rig.session import Session, SessionConfig
 from rig.world import World
 
@@ -101,6 +108,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--summary", type=Path, metavar="FILE", help="write the outcome as JSON here")
     p.add_argument("--allow-no-devices", action="store_true",
                    help="a command that never touches the devices is not an error")
+    p.add_argument("--mcu", metavar="BOARD",
+                   help="run a firmware image under emulation instead of a command: BOARD is a board file "
+                        "or a shipped board's name (docs/mcu.md); needs --firmware and --duration")
+    p.add_argument("--firmware", type=Path, metavar="FILE", help="with --mcu: the image (.elf or .hex)")
+    p.add_argument("--trace", type=Path, metavar="DIR",
+                   help="with --mcu: write the TWI transactions and motor pin edges as DIR/FIRMWARE.vcd")
     p.add_argument("argv", nargs=argparse.REMAINDER, metavar="-- CMD ARGS", help="the command to run")
     p.set_defaults(exec_parser=p)  # (usage errors found after parsing say "rig exec: error: ...")
 
@@ -108,6 +121,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def main(args: argparse.Namespace) -> int:
     parser: argparse.ArgumentParser = args.exec_parser
     command = args.argv[1:] if args.argv[:1] == ["--"] else args.argv
+    if args.mcu is not None:
+        return _exec_mcu(args, parser, command)
+    for option, value in (("--firmware", args.firmware), ("--trace", args.trace)):
+        if value is not None:
+            parser.error(f"{option} goes with --mcu BOARD")
     if not command:
         parser.error("rig exec needs a command after --")
     if not 1 <= args.pwm_channels <= 16:
@@ -152,5 +170,65 @@ def main(args: argparse.Namespace) -> int:
     if args.summary:
         summary = asdict(outcome)
         summary["command"] = command
+        args.summary.write_text(json.dumps(summary, indent=2, sort_keys=True) + "\n")
+    return outcome.exit_code
+
+
+def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command: list[str]) -> int:
+    """A firmware image on its board, the world at rest, for --duration sim seconds: the MCU target's
+    session (rig/targets/mcu.py) with no scenario events."""
+    from rig.mcu.board import BoardError
+    from rig.mcu.engine import FirmwareError
+    from rig.targets import TELEMETRY_PATH
+    from rig.targets.mcu import McuRun, McuTarget
+
+    if command:
+        parser.error("--mcu runs a firmware image, not a command: nothing goes after --")
+    if args.firmware is None:
+        parser.error("--mcu needs --firmware FILE (the image: .elf or .hex)")
+    if args.duration is None:
+        parser.error("--mcu needs --duration S (a firmware never exits)")
+    clash = [o for o, v in (("--bridge", args.bridge), ("--realtime", args.realtime), ("--log", args.log),
+                            ("--serial", args.serial), ("--pin", args.pin)) if v]
+    if clash:
+        parser.error(f"--mcu runs a firmware image in lockstep: not with {', '.join(clash)}")
+    refused = check_parameters(dict(args.param))
+    if refused:
+        parser.error(f"--param: the plant refuses it: {refused}")
+    _writable(parser, "--summary", args.summary)
+    try:
+        target = McuTarget(args.mcu, args.firmware)
+    except (BoardError, FirmwareError) as e:
+        parser.error(f"--mcu: {e}")
+    trace = None
+    if args.trace is not None:
+        trace = args.trace / f"{target.firmware.stem}.vcd"
+        try:
+            args.trace.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            parser.error(f"--trace {args.trace}: {e.strerror}")
+        _writable(parser, "--trace", trace)
+    world = World.at_rest(seed=args.seed, noise=not args.no_noise, params=dict(args.param),
+                          **target.world_options())
+    try:
+        with interrupts.handled():
+            run = McuRun(target.session(world, args.duration, {}, args.wall_timeout, trace, args.sim_timeout))
+            outcome = run.session.run()
+    finally:
+        world.close()
+    idle = None if outcome.error or args.allow_no_devices else run.idle(outcome)
+    if idle is not None:  # (as a command that never touches the devices: nothing was tested)
+        outcome.verdict, outcome.exit_code, outcome.error = "error", EXIT_RIG_ERROR, idle
+    sys.stdout.buffer.write(run.session.serial_output(TELEMETRY_PATH))
+    sys.stdout.flush()
+    if outcome.error:
+        print(f"rig exec: error: {outcome.error}", file=sys.stderr)
+    if args.summary:
+        summary = asdict(outcome)
+        rate = outcome.sim_time / outcome.wall_time if outcome.wall_time > 0 else None
+        summary.update(firmware=str(target.firmware), board=target.board.name, realtime_factor=rate,
+                       **run.figures(outcome))
+        if trace is not None:
+            summary["trace"] = str(trace)
         args.summary.write_text(json.dumps(summary, indent=2, sort_keys=True) + "\n")
     return outcome.exit_code

@@ -130,6 +130,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "board's name (mega2560-gy86, promini328-gy86, ...; docs/mcu.md); needs --firmware",
     )
     p.add_argument("--firmware", type=Path, metavar="FILE", help="with --mcu: the image (.elf or .hex)")
+    p.add_argument("--trace", type=Path, metavar="DIR",
+                   help="with --mcu: write each scenario's TWI transactions and motor pin edges as "
+                   "DIR/SCENARIO.vcd (GTKWave, PulseView)")
     add_pdf_options(p)
     v = sub.add_parser("validate", help="check scenario files without running them")
     v.add_argument("scenarios", nargs="+", metavar="SCENARIO")
@@ -318,8 +321,9 @@ def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:
     """``--mcu BOARD --firmware FILE``, both checked (the board file as a scenario is, the image's
     format and size against the board's MCU); None without --mcu."""
     if args.mcu is None:
-        if args.firmware is not None:
-            problems.append("--firmware goes with --mcu BOARD")
+        for option, value in (("--firmware", args.firmware), ("--trace", args.trace)):
+            if value is not None:
+                problems.append(f"{option} goes with --mcu BOARD")
         return None
     if args.firmware is None:
         problems.append("--mcu needs --firmware FILE (the image: .elf or .hex)")
@@ -333,8 +337,14 @@ def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:
     from rig.mcu.engine import FirmwareError
     from rig.targets.mcu import McuTarget
 
+    if args.trace is not None:
+        try:
+            args.trace.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            problems.append(f"--trace {args.trace}: {e.strerror}")
+            return None
     try:
-        return McuTarget(args.mcu, args.firmware)
+        return McuTarget(args.mcu, args.firmware, args.trace)
     except (BoardError, FirmwareError) as e:
         problems.append(f"--mcu: {e}")
         return None

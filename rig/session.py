@@ -318,6 +318,10 @@ class Session:
         try:
             with interrupts.live():
                 self._serve(sel, listener, keeper, wall0)
+                # a signal to the process group ends the DUT too: its death may be seen before this
+                # (compiled) loop ran the rig's handler, which a call into Python runs now, so the run
+                # reads as stopped by the signal, not as a DUT killed
+                interrupts.check()
         except interrupts.Interrupted as e:  # stop the DUT (the keeper does), keep what was recorded
             self.interrupted = e.signum
             self.sched.fail(e.exit_code, f"{e} at sim t={self.now_ns / NS:.3f} s")

@@ -1,6 +1,7 @@
 /* GY-86 drivers on the TWI (sensors.h). Register numbers from the MPU-6000/6050 register map, the
    HMC5883L and MS5611 datasheets, as docs/sensors.md section 7 lists them. */
 #include "sensors.h"
+#include "gy86.h"
 
 #include <string.h>
 
@@ -53,18 +54,8 @@ int sensors_init(uint8_t mpu, uint8_t hmc, uint8_t baro, ms5611_dev *d, void (*e
         return -1;
     if ((id & 0x7E) != 0x68)
         return -2;
-    static const uint8_t seq[][2] = {
-        { 0x6B, 0x80 }, /* DEVICE_RESET */
-        { 0x6B, 0x01 }, /* wake, PLL on gyro X */
-        { 0x19, 0x00 }, /* SMPLRT_DIV: 1 kHz with the DLPF */
-        { 0x1A, 0x03 }, /* CONFIG: DLPF 44/42 Hz */
-        { 0x1B, 0x18 }, /* GYRO_CONFIG: +-2000 dps */
-        { 0x1C, 0x08 }, /* ACCEL_CONFIG: +-4 g */
-        { 0x6A, 0x00 }, /* USER_CTRL: aux master off */
-        { 0x37, 0x02 }, /* INT_PIN_CFG: bypass, to configure the HMC5883L directly */
-    };
-    for (uint8_t i = 0; i < sizeof seq / sizeof seq[0]; i++) {
-        if (wreg(mpu, seq[i][0], seq[i][1]) < 0)
+    for (uint8_t i = 0; i < MPU_SETUP_N; i++) {
+        if (wreg(mpu, mpu_setup[i][0], mpu_setup[i][1]) < 0)
             return -3;
         if (i == 0)
             wait_ms(100, each);

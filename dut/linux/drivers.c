@@ -1,6 +1,7 @@
 /* Drivers: the sequences of docs/sensors.md section 7 for the MPU-6050, HMC5883L and MS5611, through
    the i2c-dev ioctls a real board uses, and motors through the Linux sysfs PWM class. */
 #include "drivers.h"
+#include "gy86.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -56,19 +57,9 @@ int mpu_init(int fd, int addr, char *err, int errlen)
         snprintf(err, (size_t)errlen, "MPU-6050: wrong WHO_AM_I 0x%02x at 0x%02x (expected 0x68)", id, addr);
         return -1;
     }
-    static const uint8_t seq[][2] = {
-        { 0x6B, 0x80 }, /* DEVICE_RESET */
-        { 0x6B, 0x01 }, /* wake, PLL on gyro X */
-        { 0x19, 0x00 }, /* SMPLRT_DIV: 1 kHz with the DLPF */
-        { 0x1A, 0x03 }, /* CONFIG: DLPF 44/42 Hz */
-        { 0x1B, 0x18 }, /* GYRO_CONFIG: +-2000 dps */
-        { 0x1C, 0x08 }, /* ACCEL_CONFIG: +-4 g */
-        { 0x6A, 0x00 }, /* USER_CTRL: aux master off */
-        { 0x37, 0x02 }, /* INT_PIN_CFG: bypass, so the GY-86's HMC5883L is on the main bus */
-    };
-    for (size_t i = 0; i < sizeof seq / sizeof seq[0]; i++) {
-        if ((r = wreg(fd, addr, seq[i][0], seq[i][1])) < 0) {
-            snprintf(err, (size_t)errlen, "MPU-6050: write 0x%02x failed (%s)", seq[i][0], strerror(-r));
+    for (size_t i = 0; i < MPU_SETUP_N; i++) {
+        if ((r = wreg(fd, addr, mpu_setup[i][0], mpu_setup[i][1])) < 0) {
+            snprintf(err, (size_t)errlen, "MPU-6050: write 0x%02x failed (%s)", mpu_setup[i][0], strerror(-r));
             return -1;
         }
         if (i == 0)

@@ -74,6 +74,9 @@ class _Need(ctypes.Structure):  # chip_core.h chip_need
                 ("target_ns", ctypes.c_uint64)]
 
 
+_NEED_FIELDS: Final = tuple(f[0] for f in _Need._fields_)
+
+
 class _Record(ctypes.Structure):  # glue.h mcu_twi_record
     _fields_ = [("t_ns", ctypes.c_uint64), ("kind", ctypes.c_uint8), ("value", ctypes.c_uint8),
                 ("ack", ctypes.c_uint8), ("pad", ctypes.c_uint8 * 5)]
@@ -109,6 +112,7 @@ _API: Final[dict[str, tuple[Any, list[Any]]]] = {
     "mcu_timer_define": (None, [_P, _U8, ctypes.c_bool, _U16, _U16, _U16, _U16, _U16, _U16, _U16]),
     "mcu_motor_add": (ctypes.c_bool, [_P, ctypes.c_int8, _U8, ctypes.c_char, _U8, _U16]),
     "mcu_pulses": (_U32, [_P, _U8, ctypes.POINTER(_U64), _U32]),
+    "mcu_pulses_all": (_U32, [_P, ctypes.POINTER(_U64), _U32, ctypes.POINTER(_U32)]),
     "mcu_uart_define": (ctypes.c_bool, [_P, _U8, _U16]),
     "mcu_uart_send": (ctypes.c_bool, [_P, _U8, ctypes.c_char_p, _U32, _U32, ctypes.c_char, _U8]),
     "mcu_uart_take": (_U32, [_P, _U8, ctypes.POINTER(_U8), _U32]),
@@ -260,6 +264,10 @@ class AvrEngine:
             if self._lib.mcu_uart_define(self._e, n, base):
                 self._uarts[n] = _Uart()
         self._pulse_buf = (_U64 * (3 * 64))()
+        self._pulse_counts = (_U32 * len(cfg.motors))()
+        self._uart_buf = (_U8 * 4096)()
+        self._need = _Need()
+        self._need_ref = ctypes.byref(self._need)
         self._stop: Stop | None = None
 
     @property
@@ -298,17 +306,17 @@ class AvrEngine:
         """Runs until sim time ``t_ns`` (its first cycle at or after it) or an earlier stop."""
         if self._stop is not None:
             return self._stop
-        r = self._lib.mcu_run(self._e, self._lib.mcu_cycle_at(self._e, max(t_ns, 0)))
+        e, c = self._e, self._lib
+        r = c.mcu_run(e, c.mcu_cycle_at(e, max(t_ns, 0)))
         kind = STOPS[r]
         if kind == "reached":
-            return Stop("reached", self.cycle)
+            return Stop("reached", c.mcu_cycle(e))
         if kind == "need":
-            n = _Need()
-            self._lib.mcu_need(self._e, ctypes.byref(n))
-            need = tuple(getattr(n, f[0]) for f in _Need._fields_)
-            return Stop("need", self.cycle, need=need)
-        self._stop = Stop(kind, int(self._lib.mcu_stop_cycle(self._e)), int(self._lib.mcu_stop_pc(self._e)),
-                          self._lib.mcu_what(self._e).decode(errors="replace"),
+            n = self._need
+            c.mcu_need(e, self._need_ref)
+            return Stop("need", c.mcu_cycle(e), need=tuple(getattr(n, f) for f in _NEED_FIELDS))
+        self._stop = Stop(kind, int(c.mcu_stop_cycle(e)), int(c.mcu_stop_pc(e)),
+                          c.mcu_what(e).decode(errors="replace"),
                           last_twi=format_transaction(self.last_twi()))
         return self._stop
 
@@ -333,9 +341,9 @@ class AvrEngine:
 
     def uart_take(self, uart: int) -> bytes:
         """What the firmware transmitted on USARTn since the last take."""
-        buf = (_U8 * 4096)()
-        n = self._lib.mcu_uart_take(self._e, uart, buf, 4096)
-        return bytes(buf[:n])
+        buf = self._uart_buf
+        n = self._lib.mcu_uart_take(self._e, uart, buf, len(buf))
+        return ctypes.string_at(buf, n) if n else b""
 
     def uart_counts(self, uart: int) -> dict[str, int]:
         names = ("delivered", "frame_errors", "waiting", "tx_dropped")
@@ -353,14 +361,20 @@ class AvrEngine:
 
     def pulses(self) -> list[list[tuple[int, int, int]]]:
         """Per motor, the pulses ended since the last call: (rise_ns, width_ns, period_ns)."""
-        out = []
-        buf = self._pulse_buf
-        for i in range(len(self.motors)):
-            got: list[tuple[int, int, int]] = []
-            while (n := self._lib.mcu_pulses(self._e, i, buf, 64)) > 0:
-                got += [(buf[3 * k], buf[3 * k + 1], buf[3 * k + 2]) for k in range(n)]
-            out.append(got)
-        return out
+        out: list[list[tuple[int, int, int]]] = [[] for _ in self.motors]
+        buf, counts, take, e = self._pulse_buf, self._pulse_counts, self._lib.mcu_pulses_all, self._e
+        while True:  # (one call into C a plant tick: a tick holds a few pulses, the buffer 64)
+            total = take(e, buf, 64, counts)
+            if total:
+                flat = buf[:3 * total]
+                k = 0
+                for got, n in zip(out, counts, strict=False):
+                    if n:
+                        part = flat[3 * k:3 * (k + n)]
+                        got += zip(part[0::3], part[1::3], part[2::3], strict=True)
+                        k += n
+            if total < 64:
+                return out
 
     # ---- looking in ----
     def last_twi(self) -> list[TwiRecord]:

@@ -275,3 +275,15 @@ MCU_API uint32_t mcu_pulses(mcu_engine *e, uint8_t motor, uint64_t *out, uint32_
     m->n_out = (uint16_t)(m->n_out - n);
     return n;
 }
+
+/* every motor's pulses in one call (the session takes them each plant tick): counts[i] pulses of
+   motor i, one after the other in out, max in all; returns how many in all (max: call again) */
+MCU_API uint32_t mcu_pulses_all(mcu_engine *e, uint64_t *out, uint32_t max, uint32_t *counts)
+{
+    uint32_t total = 0;
+    for (uint8_t i = 0; i < e->n_motors; i++) {
+        counts[i] = mcu_pulses(e, i, out + 3 * total, max - total);
+        total += counts[i];
+    }
+    return total;
+}

@@ -33,6 +33,7 @@ from rig import interrupts
 from rig.bridge.esc import esc_protocol
 from rig.mcu.board import Board
 from rig.mcu.engine import AvrEngine, config_for
+from rig.mcu.vcd import McuTrace
 from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, Stop
 from rig.session import Outcome
 from rig.world import World
@@ -41,6 +42,7 @@ TICK_NS: Final = 1_000_000
 #: an ESC that gets no pulse for this long stops its motor (BLHeli's signal-loss time is about 0.25 s;
 #: a shorter one here makes a firmware that stops pulsing show at once)
 ESC_TIMEOUT_S: Final = 0.1
+ESC_TIMEOUT_NS: Final = round(ESC_TIMEOUT_S * NS)
 #: PPM sum: frame sync gap and channel pulse (a common receiver's)
 PPM_PULSE_NS: Final = 300_000
 PPM_FRAME_NS: Final = 22_500_000
@@ -56,6 +58,7 @@ class McuConfig:
     eeprom: bytes | None = None
     wall_timeout: float = 600.0
     sim_timeout: float = 600.0
+    #: write the TWI transactions and the motor pins' edges here as VCD (rig/mcu/vcd.py)
     trace: Path | None = None
 
 
@@ -80,7 +83,9 @@ class McuSession:
         b = config.board
         self.sched = Scheduler(world, self, config.duration, config.sim_timeout)
         self.engine_config = config_for(b, config.firmware, config.eeprom)
-        self._escs = [esc_protocol(m.protocol) for m in b.motors]
+        # per motor: the plant's motor (0-based) and its ESC's pulse us to the plant's PWM us
+        self._motor_index = [m.motor - 1 for m in b.motors]
+        self._to_us = [esc_protocol(m.protocol).to_pwm_us for m in b.motors]
         self.engine: AvrEngine | None = None
         self._telemetry = bytearray()
         self._t_ns = 0
@@ -141,6 +146,12 @@ class McuSession:
         wall0 = time.perf_counter()
         engine = AvrEngine(self.engine_config, self.world.board)
         self.engine = engine
+        trace = None
+        if self.cfg.trace is not None:
+            trace = self._open_trace(self.cfg.trace)
+            engine.twi_log(True)
+        ppm = self.cfg.board.rc.protocol == "ppm"
+        telemetry_uart = self.cfg.board.telemetry_uart
         try:
             while not self.sched.over:
                 nxt = min(self._t_ns + TICK_NS - self._t_ns % TICK_NS, self.sched.limit_ns)
@@ -148,14 +159,18 @@ class McuSession:
                 if ev is not None and self._t_ns < ev < nxt:
                     nxt = ev
                 self.world.advance_to(nxt)
-                self._ppm(nxt)
+                if ppm:
+                    self._ppm(nxt)
                 problem = self._run_mcu(engine, nxt)
                 if problem is not None:
                     self.sched.fail(EXIT_RIG_ERROR, problem)
                     break
                 self._t_ns = nxt
-                self._telemetry += engine.uart_take(self.cfg.board.telemetry_uart)
-                self._motors(engine.pulses(), nxt)
+                self._telemetry += engine.uart_take(telemetry_uart)
+                trains = engine.pulses()
+                self._motors(trains, nxt)
+                if trace is not None:
+                    trace.add(engine.twi_take(), trains, nxt)
                 if time.perf_counter() - wall0 > self.cfg.wall_timeout:
                     self.sched.fail(EXIT_WATCHDOG, f"wall-time watchdog: {self.cfg.wall_timeout:g} s")
                     break
@@ -172,12 +187,22 @@ class McuSession:
             interrupted = False
         finally:
             self.figures_at_end = engine.figures()
+            if trace is not None:
+                trace.add(engine.twi_take(), [], self._t_ns)  # (the pulses: all taken, and counted)
+                trace.close()
             engine.close()
         verdict, code, error = self.sched.verdict(None, self._t_ns / NS, True, True, interrupted)
         pulses = sum(m.pulses for m in self.figures.motors)
         twi = int(self.figures_at_end["twi_transactions"])
         return Outcome(verdict, code, error, None, self._t_ns / NS, self.world.time_ns / NS,
                        time.perf_counter() - wall0, twi, 0, 0, self.notes, [], self.world.outputs(), pulses)
+
+    def _open_trace(self, path: Path) -> McuTrace:
+        b = self.cfg.board
+        names = [f"m{m.motor}_{m.pin}" for m in b.motors]
+        path.parent.mkdir(parents=True, exist_ok=True)
+        return McuTrace(path, names, b.twi_hz,
+                        comment=f"{self.cfg.firmware.name} on {b.name}: TWI and motor outputs, sim time")
 
     def _run_mcu(self, engine: AvrEngine, t_ns: int) -> str | None:
         """Runs the MCU to ``t_ns``, serving the chip core's needs; what went wrong, or None."""
@@ -193,16 +218,16 @@ class McuSession:
     def _motors(self, pulses: list[list[tuple[int, int, int]]], t_ns: int) -> None:
         """The pulses that ended become the motors' commands (the last one of each train, as an ESC
         takes the newest pulse); a motor with no pulse for ESC_TIMEOUT_S stops."""
-        for k, (train, esc) in enumerate(zip(pulses, self._escs, strict=True)):
-            state = self.figures.motors[k]
-            motor = self.cfg.board.motors[k].motor - 1
+        set_motor = self.world.set_motor
+        for train, state, motor, to_us in zip(pulses, self.figures.motors, self._motor_index, self._to_us,
+                                              strict=True):
             if train:
                 state.last_pulse_ns = t_ns
                 state.pulses += len(train)
-                self.world.set_motor(motor, train[-1][1] / 1000.0 * esc.to_pwm_us)
-            elif state.last_pulse_ns >= 0 and t_ns - state.last_pulse_ns > ESC_TIMEOUT_S * NS:
+                set_motor(motor, train[-1][1] / 1000.0 * to_us)
+            elif state.last_pulse_ns >= 0 and t_ns - state.last_pulse_ns > ESC_TIMEOUT_NS:
                 state.last_pulse_ns = -1
-                self.world.set_motor(motor, 0.0)
+                set_motor(motor, 0.0)
 
     def _ppm(self, t_ns: int) -> None:
         """A PPM sum on the RC pin: one frame every PPM_FRAME_NS while the link is up."""

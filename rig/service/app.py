@@ -17,11 +17,14 @@ from pathlib import Path
 from typing import Any, Literal
 
 from fastapi import Depends, FastAPI, HTTPException, Query, Request, Response
-from fastapi.responses import FileResponse, StreamingResponse
-from pydantic import BaseModel, Field
+from fastapi.dependencies.models import Dependant
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import FileResponse, JSONResponse, StreamingResponse
+from fastapi.routing import APIRoute
+from pydantic import BaseModel, ConfigDict, Field
 
 from rig import __version__
-from rig.service.db import SCHEMA_VERSION, STATUSES, TERMINAL, Db
+from rig.service.db import SCHEMA_VERSION, SQLITE_INT, STATUSES, TERMINAL, Db
 from rig.service.store import MAX_SCENARIO, Store, UploadError
 from rig.service.worker import Workers
 
@@ -31,11 +34,31 @@ WAIT_POLL_S = 0.1
 
 
 class RunRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")  # a mistyped field ("sead") is refused, never defaulted
+
     scenarios: list[str] = Field(min_length=1, max_length=MAX_SCENARIOS)
     seed: int = Field(default=0, ge=0, lt=2**31)
     dut: dict[str, str] = Field(default_factory=dict)
     mode: Literal["lockstep", "bridge"] = "lockstep"
     priority: int = Field(default=0, ge=-100, le=100)
+
+
+def problems_of(errors: list[Any]) -> list[str]:
+    """Pydantic's errors (a ValidationError's or FastAPI's) as sentences naming the field: what a 422
+    carries as ``{"detail": {"problems": [...]}}``, the one shape of every refusal of this API."""
+    out = []
+    for e in errors:
+        where = ".".join(str(x) for x in e.get("loc", ()) if x not in ("body", "query", "path"))
+        if e.get("type") == "extra_forbidden":
+            out.append(f"{where}: no such field (known: {', '.join(RunRequest.model_fields)})")
+        else:
+            out.append(f"{where or 'the request'}: {e.get('msg', 'invalid')}")
+    return out
+
+
+def refusal(status: int, message: str) -> HTTPException:
+    """An HTTP refusal: a 422 in the shape of every 422 (``{"problems": [...]}``), others a sentence."""
+    return HTTPException(status, {"problems": [message]} if status == 422 else message)
 
 
 def check_run(req: RunRequest, store: Store, scenarios: bool = True) -> tuple[list[str], dict[str, str]]:
@@ -72,18 +95,44 @@ def check_run(req: RunRequest, store: Store, scenarios: bool = True) -> tuple[li
     return problems, versions
 
 
+def _query_names(dependant: Dependant) -> set[str]:
+    """The query parameters a route (and its dependencies) take."""
+    names = {p.alias for p in dependant.query_params}
+    for sub in dependant.dependencies:
+        names |= _query_names(sub)
+    return names
+
+
 def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifacts: Path) -> FastAPI:
     """The API over ``db``, its runs executed by ``workers``, uploads in ``store``."""
 
     def authorised(request: Request) -> None:
         if token is None:
             return
-        given = request.headers.get("authorization", "")
-        if not hmac.compare_digest(given.encode(), f"Bearer {token}".encode()):
+        scheme, _, given = request.headers.get("authorization", "").strip().partition(" ")
+        # the scheme is case-insensitive (RFC 9110): "bearer TOKEN" is as good as "Bearer TOKEN"
+        if scheme.lower() != "bearer" or not hmac.compare_digest(given.strip().encode(), token.encode()):
             raise HTTPException(401, "this service needs its token: Authorization: Bearer TOKEN",
                                 headers={"WWW-Authenticate": "Bearer"})
 
-    app = FastAPI(title="quadrotor HIL rig", version=__version__, dependencies=[Depends(authorised)])
+    def known_query(request: Request) -> None:
+        """A query parameter the route does not take is refused by name, as a body's unknown field is."""
+        route = request.scope.get("route")
+        if not isinstance(route, APIRoute):
+            return
+        known = _query_names(route.dependant)
+        unknown = sorted(set(request.query_params) - known)
+        if unknown:
+            raise HTTPException(422, {"problems": [
+                f"{name}: no such query parameter (known: {', '.join(sorted(known)) or 'none'})"
+                for name in unknown]})
+
+    app = FastAPI(title="quadrotor HIL rig", version=__version__,
+                  dependencies=[Depends(authorised), Depends(known_query)])
+
+    @app.exception_handler(RequestValidationError)
+    async def refused(request: Request, exc: RequestValidationError) -> JSONResponse:
+        return JSONResponse({"detail": {"problems": problems_of(list(exc.errors()))}}, status_code=422)
 
     @app.get("/api/health")
     def health() -> dict[str, Any]:
@@ -131,7 +180,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         try:
             stored = store.put_scenario(name, body, replace)
         except UploadError as e:
-            raise HTTPException(e.status, str(e)) from e
+            raise refusal(e.status, str(e)) from e
         if not stored["new"]:
             response.status_code = 200
         return stored
@@ -150,7 +199,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         try:
             sha, size = await store.put_firmware(request.stream())
         except UploadError as e:
-            raise HTTPException(e.status, str(e)) from e
+            raise refusal(e.status, str(e)) from e
         return {"sha256": sha, "size": size}
 
     @app.get("/api/firmware")
@@ -175,7 +224,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         runs as one job of a lockstep slot (``rig sweep --jobs 1``); GET /api/runs/ID follows it and
         its artifacts hold summary.html, runs.parquet and junit.xml."""
         from rig.run_cmd import LIBRARY
-        from scenarios.sweep import SweepError, load_sweep
+        from scenarios.sweep import Sweep, SweepError, load_sweep
 
         body = b""
         async for chunk in request.stream():
@@ -194,13 +243,16 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
                 versions[name] = sha
             return None if sha is None else store.version_file(sha)
 
+        def check(path: Path) -> Sweep:
+            try:
+                return load_sweep(path, LIBRARY, pinned)
+            except SweepError as e:
+                raise HTTPException(422, {"problems": [str(e).replace(str(path), "the spec")]}) from e
+
         try:
-            path = store.put_sweep(body)
-            sweep = load_sweep(path, LIBRARY, pinned)
+            path, sweep = store.put_sweep(body, check)  # (kept only once checked)
         except UploadError as e:
-            raise HTTPException(e.status, str(e)) from e
-        except SweepError as e:
-            raise HTTPException(422, {"problems": [str(e).replace(str(path), "the spec")]}) from e
+            raise refusal(e.status, str(e)) from e
         run_id = db.submit([str(path)], 0, {"command": dut} if dut is not None else {}, "sweep", priority,
                            versions=versions)
         workers.wake()
@@ -216,14 +268,14 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
     def runs(status: str | None = Query(default=None), verdict: str | None = None,
              scenario: str | None = None, firmware: str | None = None, since: float | None = None,
              limit: int = Query(default=50, ge=1, le=500),
-             offset: int = Query(default=0, ge=0)) -> list[dict[str, Any]]:
+             offset: int = Query(default=0, ge=0, le=SQLITE_INT[1])) -> list[dict[str, Any]]:
         """The runs, newest first. ``verdict`` (pass, fail, error) names a run's outcome as rig run's
         verdicts do; ``firmware`` is an uploaded firmware's SHA-256."""
         if status is not None and status not in STATUSES:
-            raise HTTPException(422, f"status is one of {', '.join(STATUSES)}")
+            raise refusal(422, f"status: one of {', '.join(STATUSES)}")
         if verdict is not None:
             if verdict not in VERDICTS or (status is not None and status != VERDICTS[verdict]):
-                raise HTTPException(422, f"verdict is one of {', '.join(VERDICTS)} (and agrees with status)")
+                raise refusal(422, f"verdict: one of {', '.join(VERDICTS)} (and agrees with status)")
             status = VERDICTS[verdict]
         return db.list(status, scenario, since, limit, offset, firmware)
 

@@ -14,6 +14,7 @@ import json
 import os
 import sys
 import urllib.error
+import urllib.parse
 import urllib.request
 from typing import Any
 
@@ -49,10 +50,29 @@ def call(server: str, method: str, path: str, token: str | None, body: object = 
             detail = json.loads(e.read()).get("detail")
         except ValueError:
             detail = e.reason
-        problems = detail.get("problems") if isinstance(detail, dict) else None
-        raise ClientError("\n".join(problems) if problems else f"HTTP {e.code}: {detail}", e.code) from e
+        raise ClientError("\n".join(_sentences(detail)) or f"HTTP {e.code}: {e.reason}", e.code) from e
     except (urllib.error.URLError, OSError, ValueError) as e:
         raise ClientError(f"cannot reach {server}: {e}") from e
+
+
+def _sentences(detail: object) -> list[str]:
+    """A refusal's detail in words: the service's problems, or (from a service older than this
+    client) FastAPI's error dicts as "field: message", never printed as raw dicts."""
+    if isinstance(detail, dict) and isinstance(detail.get("problems"), list):
+        return [str(p) for p in detail["problems"]]
+    if isinstance(detail, list):
+        return [".".join(str(x) for x in d.get("loc", ()) if x != "body") + f": {d.get('msg')}"
+                if isinstance(d, dict) else str(d) for d in detail]
+    return [str(detail)] if detail else []
+
+
+def server_url(server: str) -> str:
+    """``--server`` as a base URL, refused (ClientError, exit 2) unless it is http(s)://HOST[:PORT]."""
+    parts = urllib.parse.urlsplit(server)
+    if parts.scheme not in ("http", "https") or not parts.hostname:
+        raise ClientError(f"--server {server!r} is not a URL: give it as http://HOST:PORT "
+                          "(e.g. http://127.0.0.1:8300)", 400)
+    return server
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
@@ -72,10 +92,19 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
 
 
 def line(run: dict[str, Any]) -> str:
+    """A run in one line: its status, place in the queue and progress, what it flies (the service's
+    label: a sweep as "sweep of NAME@VERSION"), its verdicts and its error."""
     where = f" (position {run['position']})" if run.get("position") else ""
-    verdicts = ", ".join(f"{r['scenario']} {r['verdict']}" for r in run.get("results") or [])
-    return (f"run {run['id']}: {run['status']}{where} {run['progress']:.0f} %"
-            + (f" — {verdicts}" if verdicts else "") + (f" — {run['error']}" if run.get("error") else ""))
+    what = run.get("label") or ", ".join(run.get("scenarios") or [])
+    if run.get("mode") == "sweep":
+        counts = [r["sweep"] for r in run.get("results") or [] if isinstance(r.get("sweep"), dict)]
+        verdicts = "; ".join(f"{c.get('pass')} pass, {c.get('fail')} fail, {c.get('error')} error"
+                             for c in counts)
+        what += f": {verdicts}" if verdicts else ""
+    else:  # (the verdicts name the scenarios)
+        what = ", ".join(f"{r['scenario']} {r['verdict']}" for r in run.get("results") or []) or what
+    return (f"run {run['id']}: {run['status']}{where} {run['progress']:.0f} % — {what}"
+            + (f" — {run['error']}" if run.get("error") else ""))
 
 
 def cmd_submit(args: argparse.Namespace) -> int:
@@ -83,8 +112,9 @@ def cmd_submit(args: argparse.Namespace) -> int:
                             "mode": "bridge" if args.bridge else "lockstep"}
     if args.dut:
         body["dut"] = {"command": args.dut}
+    run_id = None
     try:
-        run_id = call(args.server, "POST", "/api/runs", args.token, body)["id"]
+        run_id = call(server_url(args.server), "POST", "/api/runs", args.token, body)["id"]
         print(run_id, flush=True)
         if not args.wait:
             return 0
@@ -100,16 +130,25 @@ def cmd_submit(args: argparse.Namespace) -> int:
         for problem in str(e).splitlines():
             print(f"rig submit: {problem}", file=sys.stderr)
         return e.exit_code
+    except KeyboardInterrupt:  # Ctrl-C stops the waiting, not the run: say so, without a traceback
+        where = "" if run_id is None else f": run {run_id} goes on (rig status --server {args.server} " \
+            f"{run_id}; cancel it with DELETE /api/runs/{run_id})"
+        print(f"rig submit: interrupted{where}", file=sys.stderr)
+        return EXIT_BY_STATUS["interrupted"]
 
 
 def cmd_status(args: argparse.Namespace) -> int:
     try:
+        server_url(args.server)
         if args.id is not None:
             print(line(call(args.server, "GET", f"/api/runs/{args.id}", args.token)))
         else:
             for run in call(args.server, "GET", "/api/runs?limit=20", args.token):
                 print(line(run))
     except ClientError as e:
-        print(f"rig status: {e}", file=sys.stderr)
+        for problem in str(e).splitlines():
+            print(f"rig status: {problem}", file=sys.stderr)
         return e.exit_code
+    except KeyboardInterrupt:
+        return EXIT_BY_STATUS["interrupted"]
     return 0

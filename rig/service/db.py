@@ -64,6 +64,8 @@ MIGRATIONS: Final = (
 SCHEMA_VERSION: Final = len(MIGRATIONS)
 TERMINAL: Final = ("passed", "failed", "error", "cancelled", "interrupted")
 STATUSES: Final = ("queued", "running", *TERMINAL)
+SQLITE_INT: Final = (-(2**63), 2**63 - 1)  # the ids SQLite can hold
+SHORT: Final = 8  # hex digits of a scenario's version shown beside its name
 JSON_COLUMNS: Final = ("scenarios", "dut", "results", "versions")
 
 
@@ -154,20 +156,27 @@ class Db:
             return cur.rowcount == 1
 
     def get(self, run_id: int) -> dict[str, Any] | None:
+        if not SQLITE_INT[0] <= run_id <= SQLITE_INT[1]:  # (no such run, rather than an OverflowError)
+            return None
         with self._lock:
             row = self._conn.execute("SELECT * FROM runs WHERE id = ?", (run_id,)).fetchone()
             if row is None:
                 return None
-            run = _decode(row)
-            if run["status"] == "queued":
-                run["position"] = self._conn.execute(
-                    "SELECT COUNT(*) FROM runs WHERE status = 'queued' AND mode = ? AND "
-                    "(priority > ? OR (priority = ? AND (created < ? OR (created = ? AND id < ?))))",
-                    (run["mode"], run["priority"], run["priority"], run["created"], run["created"],
-                     run["id"])).fetchone()[0] + 1
-            else:
-                run["position"] = None
-            return run
+            return self._positioned(_decode(row))
+
+    def _positioned(self, run: dict[str, Any]) -> dict[str, Any]:
+        """The run with its ``label`` and its place in its mode's queue (``position``, 1: next; None
+        once it has left the queue)."""
+        run["label"] = label(run)
+        if run["status"] == "queued":
+            run["position"] = self._conn.execute(
+                "SELECT COUNT(*) FROM runs WHERE status = 'queued' AND mode = ? AND "
+                "(priority > ? OR (priority = ? AND (created < ? OR (created = ? AND id < ?))))",
+                (run["mode"], run["priority"], run["priority"], run["created"], run["created"],
+                 run["id"])).fetchone()[0] + 1
+        else:
+            run["position"] = None
+        return run
 
     def list(self, status: str | None = None, scenario: str | None = None, since: float | None = None,
              limit: int = 50, offset: int = 0, firmware: str | None = None,
@@ -191,7 +200,8 @@ class Db:
         sql = "SELECT * FROM runs" + (" WHERE " + " AND ".join(where) if where else "")
         sql += " ORDER BY id DESC LIMIT ? OFFSET ?"
         with self._lock:
-            return [_decode(r) for r in self._conn.execute(sql, (*args, limit, offset)).fetchall()]
+            return [self._positioned(_decode(r))
+                    for r in self._conn.execute(sql, (*args, limit, offset)).fetchall()]
 
     # ---- scenario names -> versions ----------------------------------------------------------------
 
@@ -265,6 +275,18 @@ class Db:
             return c.execute("UPDATE runs SET status = 'interrupted', finished = ?, pid = NULL, "
                              "error = 'the service stopped while this run was running' "
                              "WHERE status = 'running'", (time.time(),)).rowcount
+
+
+def label(run: dict[str, Any]) -> str:
+    """What a run flies, in words for a person: its scenarios as NAME@VERSION (the version's first 8
+    hex digits), a sweep's as "sweep of NAME@VERSION", never the server's path of its spec."""
+    versions = run.get("versions") or {}
+    if run["mode"] == "sweep":
+        names = list(versions) or [f"the spec {Path(run['scenarios'][0]).stem[:SHORT]}"]  # (older data)
+    else:
+        names = run["scenarios"]
+    text = ", ".join(f"{n}@{versions[n][:SHORT]}" if n in versions else n for n in names)
+    return f"sweep of {text}" if run["mode"] == "sweep" else text
 
 
 def _decode(row: sqlite3.Row) -> dict[str, Any]:

@@ -27,7 +27,6 @@ from rig.service.worker import Workers
 
 HERE = Path(__file__).resolve().parent
 UPLOT = HERE.parents[1] / "reports" / "vendor" / "uplot"  # the reports' copy: vendored once
-SHORT = 8  # hex digits of a scenario's version shown beside its name
 
 
 def _utc(t: float) -> str:
@@ -42,19 +41,11 @@ def _num(v: object) -> str:
     return str(v)
 
 
-def _labels(run: dict[str, Any]) -> str:
-    """A run's scenarios as NAME@VERSION (the version's first 8 hex digits), a sweep's as "sweep of"."""
-    versions = run.get("versions") or {}
-    names = list(versions) if run["mode"] == "sweep" else run["scenarios"]
-    label = ", ".join(f"{n}@{versions[n][:SHORT]}" if n in versions else n for n in names)
-    return f"sweep of {label}" if run["mode"] == "sweep" else label
-
-
 def register(app: FastAPI, db: Db, workers: Workers, store: Store) -> None:
-    from rig.service.app import RunRequest, check_run
+    from rig.service.app import RunRequest, check_run, problems_of
 
     templates = Jinja2Templates(directory=str(HERE / "templates"))
-    templates.env.filters.update(utc=_utc, num=_num, labels=_labels)
+    templates.env.filters.update(utc=_utc, num=_num)
     app.mount("/static/htmx", StaticFiles(directory=HERE / "static" / "htmx"), name="htmx")
     app.mount("/static/uplot", StaticFiles(directory=UPLOT), name="uplot")
 
@@ -81,18 +72,19 @@ def register(app: FastAPI, db: Db, workers: Workers, store: Store) -> None:
     async def start(request: Request) -> Response:
         body = await request.body()
         if len(body) > MAX_SCENARIO:
-            raise HTTPException(413, "form too large")
+            return refused(["the form is too large"], 413)
         form = urllib.parse.parse_qs(body.decode("utf-8", "replace"))
         try:
-            req = RunRequest(scenarios=form.get("scenarios", []), seed=int(form.get("seed", ["0"])[0] or 0),
-                             priority=int(form.get("priority", ["0"])[0] or 0),
+            req = RunRequest(scenarios=form.get("scenarios", []), seed=_whole(form, "seed"),
+                             priority=_whole(form, "priority"),
                              mode=form.get("mode", ["lockstep"])[0])  # type: ignore[arg-type]
-        except (ValidationError, ValueError) as e:
-            return HTMLResponse(f"<p class=error>not started: {_escape(str(e))}</p>", status_code=422)
+        except ValidationError as e:
+            return refused(problems_of(list(e.errors())))
+        except ValueError as e:
+            return refused([str(e)])
         problems, versions = check_run(req, store)
         if problems:
-            return HTMLResponse("<p class=error>not started: " + "; ".join(map(_escape, problems)) + "</p>",
-                                status_code=422)
+            return refused(problems)
         run_id = db.submit(req.scenarios, req.seed, req.dut, req.mode, req.priority, versions=versions)
         workers.wake()
         return HTMLResponse(f'<p>queued <a href="/runs/{run_id}">run {run_id}</a></p>',
@@ -162,6 +154,21 @@ def trend(db: Db, scenario: str, measurement: str, version: str = "", limit: int
                                    "outcome": m["outcome"], "version": sha,
                                    "firmware": dut.get("firmware") or dut.get("command") or "reference FC"})
     return points
+
+
+def refused(problems: list[str], status: int = 422) -> HTMLResponse:
+    """The form's refusal in the service's words, which the page shows beside the form (its htmx
+    config swaps a 413 or 422 in as it swaps a success)."""
+    return HTMLResponse('<p class="error" id="refused">not started: ' + "; ".join(map(_escape, problems))
+                        + "</p>", status_code=status)
+
+
+def _whole(form: dict[str, list[str]], name: str) -> int:
+    text = (form.get(name) or ["0"])[0].strip() or "0"
+    try:
+        return int(text)
+    except ValueError:
+        raise ValueError(f"{name}: {text!r} is not a whole number") from None
 
 
 def _escape(text: str) -> str:

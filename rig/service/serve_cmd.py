@@ -11,6 +11,12 @@ import time
 from pathlib import Path
 
 DEFAULT_PORT = 8300
+EXIT_INTERRUPTED = 130
+
+
+def authority(host: str, port: int) -> str:
+    """HOST:PORT as a URL writes it: an IPv6 address in brackets (``[::1]:8300``)."""
+    return f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -121,7 +127,7 @@ def main(args: argparse.Namespace) -> int:
             print(f"rig serve: {e}", file=sys.stderr)
             db.close()
             return 1
-        print(f"rig serve: the PLC's Modbus TCP on {args.host}:{args.modbus}, unit 1 (docs/plc.md)",
+        print(f"rig serve: the PLC's Modbus TCP on {authority(args.host, args.modbus)}, unit 1 (docs/plc.md)",
               file=sys.stderr, flush=True)
     workers.start()
     app = create_app(db, workers, args.token, store, args.data / "runs")
@@ -132,12 +138,15 @@ def main(args: argparse.Namespace) -> int:
         while not server.started and not server.should_exit:
             time.sleep(0.01)
         if server.started:
-            print(f"rig serve: listening on http://{args.host}:{args.port} (data in {args.data})",
+            print(f"rig serve: listening on http://{authority(args.host, args.port)} (data in {args.data})",
                   file=sys.stderr, flush=True)
 
     threading.Thread(target=announce, daemon=True).start()
     try:
         server.run()
+    except KeyboardInterrupt:  # uvicorn shut down cleanly, then re-raised the Ctrl-C: no traceback
+        print("rig serve: stopped (Ctrl-C)", file=sys.stderr)
+        return EXIT_INTERRUPTED
     finally:
         if plc_server is not None:
             plc_server.stop()

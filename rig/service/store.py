@@ -16,11 +16,13 @@ import os
 import re
 import tempfile
 import tomllib
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from pathlib import Path
-from typing import Any, Final
+from typing import Any, Final, TypeVar
 
 from rig.service.db import Db
+
+T = TypeVar("T")
 
 SHA256: Final = re.compile(r"[0-9a-f]{64}")
 NAME: Final = re.compile(r"[a-z0-9][a-z0-9_]{0,63}")
@@ -208,18 +210,22 @@ class Store:
             self.db.point(path.stem, sha, replace=False)
             path.unlink()
 
-    def put_sweep(self, text: bytes) -> Path:
-        """A sweep spec from a request, stored once under its SHA-256 (it is checked by the caller)."""
+    def put_sweep(self, text: bytes, check: Callable[[Path], T]) -> tuple[Path, T]:
+        """A sweep spec from a request, stored once under its SHA-256 if ``check`` (given the file)
+        returns: a spec it refuses (by raising) leaves nothing behind."""
         if len(text) > MAX_SCENARIO:
             raise UploadError(f"a sweep spec over {MAX_SCENARIO} bytes", 413)
         self.sweep_dir.mkdir(exist_ok=True)
         path = self.sweep_dir / f"{hashlib.sha256(text).hexdigest()}.toml"
-        if not path.exists():
-            fd, tmp = tempfile.mkstemp(dir=self.sweep_dir, prefix=".upload-", suffix=".toml")
+        fd, tmp = tempfile.mkstemp(dir=self.sweep_dir, prefix=".upload-", suffix=".toml")
+        try:
             with os.fdopen(fd, "wb") as f:
                 f.write(text)
+            checked = check(Path(tmp))
             os.replace(tmp, path)
-        return path
+        finally:
+            Path(tmp).unlink(missing_ok=True)
+        return path, checked
 
 
 def _taken(name: str, current: str, sha: str) -> str:

@@ -225,8 +225,7 @@ class Workers:
             self._procs.pop(run["id"], None)
         status = STATUS_BY_EXIT.get(code, "error")
         what = "rig sweep" if sweep else "rig run"
-        error = None if status in ("passed", "failed") else f"{what} exited with status {code}: " \
-            f"{_last_line(out / 'rig-run.log')}"
+        error = None if status in ("passed", "failed") else ended(what, code, out / "rig-run.log")
         if self._stop:
             status, error = "interrupted", "the service stopped while this run was running"
         found = sweep_results(out, *next(iter(flown.items()))) if sweep else results(out, run["scenarios"])
@@ -245,6 +244,22 @@ def _end(proc: subprocess.Popen[bytes]) -> None:
         pass
 
 
+def ended(what: str, code: int, log: Path) -> str:
+    """How a run's process ended, for a person: "rig run stopped by SIGKILL", or its exit status with
+    the last line it wrote (as written: no shell quoting, control characters shown as escapes)."""
+    if code < 0:
+        try:
+            by = signal.Signals(-code).name
+        except ValueError:
+            by = f"signal {-code}"
+        last = _last_line(log)
+        return f"{what} was stopped by {by}" + (f" (its last line: {last})" if last else "")
+    return f"{what} exited with status {code}: {_last_line(log) or '(no output)'}"
+
+
 def _last_line(log: Path) -> str:
-    lines = [x for x in log.read_text(errors="replace").splitlines() if x.strip()]
-    return shlex.quote(lines[-1][:300]) if lines else "(no output)"
+    try:
+        lines = [x for x in log.read_text(errors="replace").splitlines() if x.strip()]
+    except OSError:
+        return ""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in lines[-1][:300]) if lines else ""

@@ -184,8 +184,10 @@ def fly(task: Task) -> dict[str, Any]:
         limits={m.name: [m.min, m.max] for m in r.measurements},
         units={m.name: m.units for m in r.measurements},
     )
-    if r.verdict == "interrupted":
-        return row  # not kept: a resumed sweep flies it again
+    if r.verdict == "interrupted" or (r.verdict == "error" and interrupts.stopped() is not None):
+        # not kept: a resumed sweep flies it again (an error while a signal stopped the worker is the
+        # signal's doing, such as a DUT it killed first)
+        return {**row, "verdict": "interrupted"}
     (folder / "result.json").write_text(result_json.render(r))
     (folder / "report.html").write_text(html_report.render(r))
     _write_row(folder, row)

@@ -5,8 +5,9 @@ motors, the sticks arrive on its RC input as its board file wires it (rig/mcu/bo
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rig.mcu import board as boards
 from rig.mcu.session import McuConfig, McuSession
@@ -14,6 +15,9 @@ from rig.session import Outcome
 from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, TargetRun
 from rig.targets.process import NO_SUPPLY
 from scenarios.schema import Scenario
+
+if TYPE_CHECKING:
+    from rig.world import World
 
 
 class McuRun(TargetRun):
@@ -27,6 +31,8 @@ class McuRun(TargetRun):
         f = dict(getattr(s, "figures_at_end", {}))
         f["motor_pulses"] = [m.pulses for m in s.figures.motors]
         f["rc_bytes"] = s.figures.rc_bytes
+        if s.cfg.trace is not None:
+            f["trace"] = str(s.cfg.trace)
         return {"mcu": f}
 
     def idle(self, outcome: Outcome) -> str | None:
@@ -40,18 +46,20 @@ class McuRun(TargetRun):
 
 class McuTarget:
     """``board``: a board file's name or path; ``firmware``: the image. Both are checked here, before
-    anything runs (BoardError, FirmwareError)."""
+    anything runs (BoardError, FirmwareError). ``trace``: a folder for each run's VCD trace,
+    ``SCENARIO.vcd`` (rig/mcu/vcd.py)."""
 
     mode = "mcu"
     realtime = False
 
-    def __init__(self, board: str | Path, firmware: Path) -> None:
+    def __init__(self, board: str | Path, firmware: Path, trace: Path | None = None) -> None:
         from rig.mcu.image import load
 
         self.board = boards.load(board)
         self.firmware = Path(firmware).resolve()
         load(self.firmware, self.board.mcu.name)  # (FirmwareError: not an AVR image, or too big)
         self.firmware_sha256 = hashlib.sha256(self.firmware.read_bytes()).hexdigest()
+        self.trace = trace
 
     def describe(self, scenario: Scenario, work: Path, notes: list[str]) -> dict[str, object]:
         if scenario.bench.psu is not None:
@@ -75,16 +83,24 @@ class McuTarget:
         return {"topology": self.board.topology, "mounting": boards.mounting(self.board.mounting_yaw_deg)}
 
     def open(self, ctx: RunContext) -> McuRun:
+        trace = None if self.trace is None else self.trace / f"{ctx.scenario.stem}.vcd"
+        return McuRun(self.session(ctx.world, ctx.scenario.duration, ctx.scenario.fc, ctx.wall_timeout,
+                                   trace))
+
+    def session(self, world: World, duration: float, fc: Mapping[str, Any], wall_timeout: float,
+                trace: Path | None = None, sim_timeout: float = 600.0) -> McuSession:
+        """The firmware on its board in ``world`` for ``duration`` sim seconds; ``fc``: the [fc] table
+        that becomes the EEPROM on a board that says so (an empty one: the reference FC's defaults)."""
         eeprom: bytes | None = None
         if self.board.eeprom_image is not None:
             eeprom = self.board.eeprom_image.read_bytes()
         elif self.board.eeprom_from_fc:
             from scenarios.eeprom import image  # the reference firmware's layout
 
-            eeprom = image(ctx.scenario.fc)
-        cfg = McuConfig(self.board, self.firmware, ctx.scenario.duration, RC_PATH, TELEMETRY_PATH, eeprom,
-                        ctx.wall_timeout)
-        return McuRun(McuSession(cfg, ctx.world))
+            eeprom = image(fc)
+        cfg = McuConfig(self.board, self.firmware, duration, RC_PATH, TELEMETRY_PATH, eeprom, wall_timeout,
+                        sim_timeout, trace)
+        return McuSession(cfg, world)
 
     def not_run_metadata(self) -> dict[str, object]:
         return {"mode": self.mode, "board": self.board.name}

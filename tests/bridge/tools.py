@@ -140,10 +140,11 @@ def bridge_tools(kind: str) -> Tool:
 def vbridge() -> Path:
     """build/vbridge, as `make vbridge` builds it (rebuilt here when a source is newer)."""
     out = BUILD / "vbridge"
-    sources = [REPO / "bridge" / "posix" / "vbridge.c", *sorted(CORE.glob("*.c")), *sorted(CHIPS.glob("*.c"))]
+    posix = REPO / "bridge" / "posix"
+    sources = [*sorted(posix.glob("*.c")), *sorted(CORE.glob("*.c")), *sorted(CHIPS.glob("*.c"))]
     includes = [*_headers(CHIPS), REPO / "rig" / "shim"]
-    if is_stale(out, [*sources, *CORE.glob("*.h"), *CHIPS.glob("*.h"), REPO / "rig" / "shim" / "protocol.h",
-                      *TABLE, *chips_gen.SOURCES, *includes[0].glob("*.h")]):
+    headers = [*posix.glob("*.h"), *CORE.glob("*.h"), *CHIPS.glob("*.h"), REPO / "rig/shim/protocol.h"]
+    if is_stale(out, [*sources, *headers, *TABLE, *chips_gen.SOURCES, *includes[0].glob("*.h")]):
         compile_c(sources, out, "the virtual bridge", libs=["-lm"],
                   flags=[*FLAGS, *(f"-I{i}" for i in includes)])
     return out

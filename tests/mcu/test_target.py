@@ -19,15 +19,7 @@ from scenarios.schema import load
 from tests.mcu.conftest import REPO, firmware
 
 LIB = REPO / "scenarios" / "library"
-FC = REPO / "build" / "avr" / "fc.elf"
 
-
-@pytest.fixture(scope="module")
-def fc() -> Path:
-    done = subprocess.run(["make", "-s", "--no-print-directory", "avr"], cwd=REPO, capture_output=True,
-                          text=True)
-    assert done.returncode == 0, done.stderr
-    return FC
 
 
 def rig_run(*args: object) -> subprocess.CompletedProcess[str]:
@@ -35,8 +27,8 @@ def rig_run(*args: object) -> subprocess.CompletedProcess[str]:
                           text=True, timeout=600)
 
 
-def test_the_avr_reference_fc_flies_the_library_through_the_tier(fc: Path, tmp_path: Path) -> None:
-    done = rig_run("--mcu", "mega2560-gy86", "--firmware", fc, "step_roll", "rc_loss_failsafe",
+def test_the_avr_reference_fc_flies_the_library_through_the_tier(avr_fc: Path, tmp_path: Path) -> None:
+    done = rig_run("--mcu", "mega2560-gy86", "--firmware", avr_fc, "step_roll", "rc_loss_failsafe",
                    "--out", tmp_path)
     assert done.returncode == 0, done.stderr
     for name, duration in (("step_roll", 10.0), ("rc_loss_failsafe", 20.0)):
@@ -54,16 +46,16 @@ def test_the_avr_reference_fc_flies_the_library_through_the_tier(fc: Path, tmp_p
         assert "# fc: configuration: EEPROM image" in told  # the scenario's [fc] table reached it
 
 
-def test_the_same_seed_gives_the_same_bytes(fc: Path, tmp_path: Path) -> None:
+def test_the_same_seed_gives_the_same_bytes(avr_fc: Path, tmp_path: Path) -> None:
     sc = load(LIB / "seed000_roll_stand.toml")
-    a = run(sc, McuTarget("mega2560-gy86", fc), 3, tmp_path / "a")
-    b = run(sc, McuTarget("mega2560-gy86", fc), 3, tmp_path / "b")
+    a = run(sc, McuTarget("mega2560-gy86", avr_fc), 3, tmp_path / "a")
+    b = run(sc, McuTarget("mega2560-gy86", avr_fc), 3, tmp_path / "b")
     assert a.verdict == b.verdict == "pass"
     assert [m.value for m in a.measurements] == [m.value for m in b.measurements]
     told = {k: (tmp_path / k / "dut-telemetry.txt").read_bytes() for k in "ab"}
     assert told["a"] == told["b"]
     assert all((a.signals[k] == b.signals[k]).all() for k in ("roll", "pwm1", "pwm4"))
-    c = run(sc, McuTarget("mega2560-gy86", fc), 4, tmp_path / "c")  # another seed: other noise
+    c = run(sc, McuTarget("mega2560-gy86", avr_fc), 4, tmp_path / "c")  # another seed: other noise
     assert (tmp_path / "c" / "dut-telemetry.txt").read_bytes() != told["a"]
     assert c.verdict == "pass"
 

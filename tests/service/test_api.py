@@ -45,6 +45,7 @@ class Service:
     proc: subprocess.Popen[str]
     url: str
     token: str | None = None
+    data: Path = Path()
 
     def call(self, method: str, path: str, body: object = None, token: str | None = None) -> tuple[int, Any]:
         data = None if body is None else json.dumps(body).encode()
@@ -83,15 +84,23 @@ def start(data: Path, *extra: str, token: str | None = None) -> Service:
     args = [sys.executable, "-m", "rig.cli", "serve", "--port", str(port), "--data", str(data), *extra]
     if token:
         args += ["--token", token]
-    proc = subprocess.Popen(args, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
+    # (its own process group, as a terminal's job: a test's Ctrl-C reaches it and its runs alike)
+    proc = subprocess.Popen(args, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
+                            start_new_session=True)
+    until_line(proc, "listening on")
+    return Service(proc, f"http://127.0.0.1:{port}", token, data)
+
+
+def until_line(proc: subprocess.Popen[str], words: str) -> str:
+    """What the process wrote on stderr up to the line with ``words`` (none by BOUND_S: fails)."""
     assert proc.stderr is not None
     seen = ""
-    while "listening on" not in seen:
+    while words not in seen:
         ready, _, _ = select.select([proc.stderr], [], [], BOUND_S)
         line = proc.stderr.readline() if ready else ""
-        assert line, f"rig serve did not start: {seen}"
+        assert line, f"{proc.args!r} never wrote {words!r}: {seen}"
         seen += line
-    return Service(proc, f"http://127.0.0.1:{port}", token)
+    return seen
 
 
 def stop(svc: Service, sig: int = signal.SIGTERM) -> None:
@@ -206,6 +215,8 @@ def test_rig_submit_waits_and_exits_with_rig_runs_codes(service: Service) -> Non
     # a DUT that exits at once: the run is an error, and so is submit's exit status (3, as rig run's)
     done = rig("submit", "--server", service.url, "step_roll", "--dut", "true", "--wait")
     assert done.returncode == 3, done.stderr
+    status = rig("status", "--server", service.url, done.stdout.split()[0])
+    assert "rig run exited with status 3: 0 passed, 0 failed, 1 errors" in status.stdout  # as written
     bad = rig("submit", "--server", service.url, "no_such_scenario")
     assert bad.returncode == 2 and "no library scenario of that name" in bad.stderr
     assert rig("status", "--server", service.url, "999").returncode == 2
@@ -257,7 +268,8 @@ def test_uploads_are_checked_stored_once_and_run(service: Service, tmp_path: Pat
     text = (Path(__file__).resolve().parents[2] / "scenarios" / "library" / "step_roll.toml").read_text()
     assert post_bytes(service, "/api/scenarios?name=my_roll", text.encode())[0] == 201
     status, body = post_bytes(service, "/api/scenarios?name=broken", b"[scenario]\nduration = -1\n")
-    assert status == 422 and "broken.toml" in body["detail"] and "duration" in body["detail"]
+    [problem] = body["detail"]["problems"]
+    assert status == 422 and "broken.toml" in problem and "duration" in problem
     assert post_bytes(service, "/api/scenarios?name=step_roll", text.encode())[0] == 409
     assert post_bytes(service, "/api/scenarios?name=../x", text.encode())[0] == 422
     assert post_bytes(service, "/api/scenarios?name=huge", b"#" * (300 << 10))[0] == 413
@@ -319,3 +331,126 @@ def test_the_bench_is_leased_and_a_dead_holders_lease_expires(service: Service, 
         assert service.follow(body["id"])["status"] == "passed"
     finally:
         other.close()
+
+
+def test_unknown_fields_and_query_parameters_are_refused_by_name(service: Service) -> None:
+    status, body = service.call("POST", "/api/runs", {"scenarios": ["step_roll"], "sead": 3})
+    assert status == 422, body
+    assert body["detail"]["problems"] == ["sead: no such field (known: scenarios, seed, dut, mode, priority)"]
+    status, body = service.call("GET", "/api/runs?stauts=passed")
+    assert status == 422 and "stauts: no such query parameter" in body["detail"]["problems"][0], body
+    # pydantic's own refusals come in the same shape: sentences naming the field
+    status, body = service.call("POST", "/api/runs", {"scenarios": ["step_roll"], "seed": -1})
+    assert status == 422 and body["detail"]["problems"][0].startswith("seed: "), body
+    status, body = service.call("GET", "/api/runs?status=sleeping")  # and so do the API's own
+    assert status == 422 and body["detail"]["problems"][0].startswith("status: one of queued"), body
+    assert service.call("GET", "/api/runs")[1] == []  # nothing was queued
+
+
+def test_a_run_id_beyond_sqlites_integers_is_no_such_run(service: Service) -> None:
+    _, body = service.call("POST", "/api/runs", {"scenarios": ["step_roll"]})
+    service.follow(body["id"])
+    for huge in (2**63, 2**64 + 1, -(2**63) - 1):
+        for method, path in (("GET", f"/api/runs/{huge}"), ("GET", f"/api/runs/{huge}/artifacts"),
+                             ("GET", f"/api/runs/{huge}/artifacts/index.html"),
+                             ("GET", f"/api/runs/{huge}/events"), ("DELETE", f"/api/runs/{huge}"),
+                             ("GET", f"/runs/{huge}"),
+                             ("GET", f"/compare?a={huge}&b={body['id']}&scenario=x")):
+            req = urllib.request.Request(service.url + path, method=method)
+            try:
+                with urllib.request.urlopen(req, timeout=BOUND_S) as r:
+                    code = r.status
+            except urllib.error.HTTPError as e:
+                code = e.code
+            assert code == 404, (method, path, code)
+    assert service.call("GET", f"/api/runs?offset={2**63}")[0] == 422
+    assert service.proc.poll() is None
+
+
+def test_a_bearer_tokens_scheme_is_case_insensitive(tmp_path: Path) -> None:
+    svc = start(tmp_path / "data", token="s3cret")
+    try:
+        for given, expected in (("bearer s3cret", 200), ("BEARER s3cret", 200), ("Bearer s3cret", 200),
+                                ("Basic s3cret", 401), ("bearer wrong", 401), ("s3cret", 401)):
+            req = urllib.request.Request(svc.url + "/api/health", headers={"authorization": given})
+            try:
+                with urllib.request.urlopen(req, timeout=BOUND_S) as r:
+                    code = r.status
+            except urllib.error.HTTPError as e:
+                code = e.code
+            assert code == expected, given
+    finally:
+        stop(svc)
+
+
+def test_ctrl_c_ends_rig_serve_and_rig_submit_wait_without_a_traceback(tmp_path: Path) -> None:
+    svc = start(tmp_path / "data", "--slots", "1")
+    command, fifo = blocked_dut(tmp_path)
+    try:
+        waiting = subprocess.Popen([sys.executable, "-m", "rig.cli", "submit", "--server", svc.url,
+                                    "step_roll", "--dut", command, "--wait"], stdout=subprocess.PIPE,
+                                   stderr=subprocess.PIPE, text=True, start_new_session=True)
+        dut = read_pid(fifo)
+        until_line(waiting, ": running")
+        os.killpg(waiting.pid, signal.SIGINT)
+        out, err = waiting.communicate(timeout=BOUND_S)
+        run_id = int(out.split()[0])
+        assert waiting.returncode == 130 and "Traceback" not in err, err
+        assert f"interrupted: run {run_id} goes on" in err
+        assert svc.call("GET", f"/api/runs/{run_id}")[1]["status"] == "running"  # only the waiting stopped
+    finally:
+        os.killpg(svc.proc.pid, signal.SIGINT)  # Ctrl-C at the service's terminal
+        _, err = svc.proc.communicate(timeout=BOUND_S)
+    assert svc.proc.returncode == 130 and "Traceback" not in err, err
+    assert "rig serve: stopped (Ctrl-C)" in err
+    assert wait_gone(dut)
+
+
+def test_rig_submit_needs_a_servers_scheme_and_serve_brackets_ipv6(tmp_path: Path) -> None:
+    for command in ("submit", "status"):
+        bad = rig(command, "--server", "127.0.0.1:8300", *(["step_roll"] if command == "submit" else []))
+        assert bad.returncode == 2 and "give it as http://HOST:PORT" in bad.stderr, bad.stderr
+    port = free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "rig.cli", "serve", "--host", "::1", "--port", str(port),
+                             "--data", str(tmp_path / "data")], stderr=subprocess.PIPE, text=True,
+                            stdout=subprocess.DEVNULL, start_new_session=True)
+    try:
+        seen = until_line(proc, "listening on")
+        assert f"listening on http://[::1]:{port} " in seen, seen
+        assert rig("status", "--server", f"http://[::1]:{port}").returncode == 0
+        refused = rig("submit", "--server", f"http://[::1]:{port}", "step_roll", "--seed", "-1")
+        assert refused.returncode == 2 and "rig submit: seed: Input should be greater than or equal to 0" \
+            in refused.stderr and "{" not in refused.stderr, refused.stderr  # sentences, not pydantic's dicts
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=BOUND_S)
+
+
+def test_the_queue_shows_positions_and_a_killed_run_says_how_it_ended(tmp_path: Path) -> None:
+    svc = start(tmp_path / "data", "--slots", "1")
+    command, fifo = blocked_dut(tmp_path)
+    try:
+        _, first = svc.call("POST", "/api/runs", {"scenarios": ["step_roll"], "dut": {"command": command}})
+        dut = read_pid(fifo)
+        running = svc.until(first["id"], "running")
+        queued = [svc.call("POST", "/api/runs", {"scenarios": ["step_roll"]})[1]["id"] for _ in range(2)]
+        listed = {r["id"]: r["position"] for r in svc.call("GET", "/api/runs")[1]}
+        assert listed == {first["id"]: None, queued[0]: 1, queued[1]: 2}
+        with urllib.request.urlopen(svc.url + "/", timeout=BOUND_S) as r:
+            html = r.read().decode()
+        for position, run_id in enumerate(queued, 1):
+            assert f'<a href="/runs/{run_id}">{run_id}</a></td><td class="queued">queued</td>\n' \
+                   f"<td>{position}</td>" in html
+        status = rig("status", "--server", svc.url)
+        assert f"run {queued[1]}: queued (position 2) 0 % — step_roll" in status.stdout, status.stdout
+        for run_id in queued:
+            assert svc.call("DELETE", f"/api/runs/{run_id}")[0] == 200
+        os.killpg(running["pid"], signal.SIGKILL)  # rig run killed from outside the service
+        os.kill(dut, signal.SIGKILL)
+        assert wait_gone(dut)
+        ended = svc.follow(first["id"])
+        assert ended["status"] == "error", ended
+        assert ended["error"].startswith("rig run was stopped by SIGKILL"), ended
+        assert "'" not in ended["error"] and "(no output)" not in ended["error"]
+    finally:
+        stop(svc)

@@ -104,3 +104,33 @@ def test_two_runs_overlaid_and_a_measurements_trend(service: Service) -> None:
         assert not errors, errors
         browser.close()
     assert service.call("GET", f"/compare?a={a}&b=999&scenario=step_roll")[0] == 404
+
+
+def test_the_form_shows_why_a_run_was_not_started(service: Service) -> None:
+    from playwright.sync_api import expect, sync_playwright
+
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_FLAGS)
+        page = browser.new_page()
+        errors: list[str] = []
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(service.url + "/")
+        page.select_option("#start select[name=scenarios]", ["step_roll"])
+        refused = page.locator("#started #refused")
+        # a seed the service refuses (the browser lets it through): the service's words, by the form
+        page.fill("#start input[name=seed]", "3000000000")
+        page.click("#start button")
+        expect(refused).to_contain_text("not started: seed: Input should be less than 2147483648")
+        # a seed the browser refuses (htmx then sends nothing): its words, by the form
+        page.fill("#start input[name=seed]", "-1")
+        page.click("#start button")
+        expect(refused).to_contain_text("not started: seed: ")
+        expect(refused).not_to_contain_text("2147483648")
+        # and a good one still starts a run
+        page.fill("#start input[name=seed]", "2")
+        page.click("#start button")
+        expect(page.locator("#started")).to_contain_text("queued run")
+        assert not errors, errors
+        browser.close()
+    queued = service.call("GET", "/api/runs")[1]
+    assert [r["seed"] for r in queued] == [2]  # the refused ones were not queued

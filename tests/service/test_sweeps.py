@@ -69,6 +69,15 @@ def test_a_sweep_runs_as_a_job_and_equals_rig_sweep(service: Service, tmp_path: 
     code, page = get(service, f"/runs/{body['id']}")
     assert code == 200 and f'src="/api/runs/{body["id"]}/artifacts/summary.html"'.encode() in page
     assert b"4 pass, 0 fail, 0 error" in page
+    # a sweep reads as what it sweeps, never as its spec's path on the server, nor as "seed 0"
+    label = f"sweep of step_roll@{body['sha256'][:8]}"
+    assert run["label"] == label and label.encode() in page and b"seed 0" not in page
+    code, index = get(service, "/")
+    assert code == 200 and label.encode() in index and b"/sweeps/" not in index
+    assert f'{label}</td><td></td>'.encode() in index  # (no seed: the spec's seeds)
+    listed = subprocess.run([sys.executable, "-m", "rig.cli", "status", "--server", service.url,
+                             str(body["id"])], capture_output=True, text=True, timeout=60)
+    assert listed.stdout.strip() == f"run {body['id']}: passed 100 % — {label}: 4 pass, 0 fail, 0 error"
 
 
 @pytest.mark.parametrize("spec, words", [
@@ -77,8 +86,11 @@ def test_a_sweep_runs_as_a_job_and_equals_rig_sweep(service: Service, tmp_path: 
     (b'[sweep]\nscenario = "../../../etc/passwd.toml"\n', "no scenario named"),
     (b'[sweep]\nscenario = "no_such_scenario"\n', "no scenario named"),
     (b"[sweep\n", "not valid TOML"),
+    (b"", "sweep"),
 ])
 def test_a_bad_spec_is_refused_before_it_is_queued(service: Service, spec: bytes, words: str) -> None:
     status, body = post_bytes(service, "/api/sweeps", spec)
     assert status == 422 and words in json.dumps(body), body
     assert service.call("GET", "/api/sweeps")[1] == []
+    stored = service.data / "sweeps"
+    assert not stored.exists() or list(stored.iterdir()) == []  # a refused spec is not kept

@@ -1,0 +1,230 @@
+"""A firmware run's bus and motor traffic as a VCD file (IEEE 1364 §18), for GTKWave or PulseView.
+
+Why a writer of our own: the format is a few lines of text, and what we need of it is narrow (wires
+and small vectors, a nanosecond timescale, changes in time order); a dependency for that would be more
+code to trust than this. Why a VCD at all: it is what logic analysers' software opens, so a user looks
+at the firmware's TWI and ESC outputs as they would look at a capture from the bench.
+
+What the file holds (``mcu_trace``):
+
+* ``twi.scl``, ``twi.sda``: the TWI drawn as wires, so PulseView's I2C decoder reads START, the
+  address and R/W, each byte, ACK/NACK and STOP. Each byte's nine bits end at the byte's sim time (when
+  the MCU's TWI finished it); inside a byte the bits are drawn at the board's ``twi_hz``, closer
+  together when the bytes followed each other faster than that (the engine records when a byte ended,
+  not its clock);
+* ``twi.byte`` (8 bits) and ``twi.ack``: each address or data byte and its acknowledge at its sim time,
+  for a viewer without a decoder; ``twi.busy``: 1 from a START to its STOP;
+* ``motors.mN_PIN``: each motor's output pin, rising and falling at its pulses' edges.
+
+Nothing in the file depends on the wall clock or the machine (no ``$date``): two runs of the same
+firmware, scenario and seed give the same bytes.
+"""
+
+from __future__ import annotations
+
+import heapq
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Final, TextIO
+
+from rig.mcu.engine import TwiRecord
+
+
+@dataclass(frozen=True)
+class Var:
+    scope: str
+    name: str
+    width: int = 1
+    initial: int | None = None  #: None: unknown ("x") until its first change
+
+
+def _ident(n: int) -> str:
+    """The n-th short identifier: printable ASCII 33..126, as many characters as needed."""
+    chars = []
+    while True:
+        chars.append(chr(33 + n % 94))
+        n //= 94
+        if n == 0:
+            return "".join(chars)
+        n -= 1
+
+
+def _value(var: Var, ident: str, value: int | None) -> str:
+    if var.width == 1:
+        return f"{'x' if value is None else value & 1}{ident}"
+    bits = "x" if value is None else format(value & ((1 << var.width) - 1), "b")
+    return f"b{bits} {ident}"
+
+
+class VcdWriter:
+    """A VCD written as a run goes: ``change`` (time, variable index, value) in any order, ``flush``
+    writes those before a time in time order (stable: of two changes of one variable at one time the
+    later given wins; a change to the value a variable has is left out), ``close`` the rest. A change
+    earlier than what is written already is an error (the caller holds its changes back far enough)."""
+
+    def __init__(self, out: TextIO, variables: Sequence[Var], timescale: str = "1 ns", comment: str = ""):
+        for v in variables:
+            if not v.name or any(c.isspace() for c in v.name + v.scope) or v.width < 1:
+                raise ValueError(f"VCD variable {v.scope}.{v.name!r} (width {v.width}): a name without "
+                                 "spaces")
+        self._out, self._vars = out, list(variables)
+        self._idents = [_ident(i) for i in range(len(variables))]
+        self._current: list[int | None] = [v.initial for v in variables]
+        self._pending: dict[int, dict[int, int]] = {}
+        self._times: list[int] = []  #: the pending times, a heap
+        self._written = 0  #: changes before this time are written
+        if comment:
+            out.write(f"$comment\n  {comment}\n$end\n")
+        out.write(f"$timescale {timescale} $end\n")
+        scopes: dict[str, list[int]] = {}
+        for i, v in enumerate(variables):
+            scopes.setdefault(v.scope, []).append(i)
+        for scope, members in scopes.items():
+            out.write(f"$scope module {scope} $end\n")
+            for i in members:
+                v, kind = variables[i], "wire" if variables[i].width == 1 else "reg"
+                out.write(f"$var {kind} {v.width} {self._idents[i]} {v.name} $end\n")
+            out.write("$upscope $end\n")
+        out.write("$enddefinitions $end\n#0\n$dumpvars\n")
+        for i, v in enumerate(variables):
+            out.write(_value(v, self._idents[i], v.initial) + "\n")
+        out.write("$end\n")
+
+    def change(self, t: int, index: int, value: int) -> None:
+        if t < self._written:
+            raise ValueError(f"VCD change at {t}, before {self._written}, which is written already")
+        at = self._pending.get(t)
+        if at is None:
+            at = self._pending[t] = {}
+            heapq.heappush(self._times, t)
+        else:
+            at.pop(index, None)  # (keeps the order of the last change of each variable)
+        at[index] = value
+
+    @property
+    def written(self) -> int:
+        """Changes from this time on can still be given."""
+        return self._written
+
+    def flush(self, before: int | None = None) -> None:
+        """Writes the changes before ``before`` (None: all)."""
+        times, heap = [], self._times
+        while heap and (before is None or heap[0] < before):
+            times.append(heapq.heappop(heap))
+        chunks = []
+        for t in times:
+            lines = []
+            for i, value in self._pending.pop(t).items():
+                if self._current[i] != value:
+                    self._current[i] = value
+                    lines.append(_value(self._vars[i], self._idents[i], value))
+            if lines:
+                chunks.append(f"#{t}\n" + "\n".join(lines) + "\n")
+        self._out.write("".join(chunks))
+        if times:
+            self._written = times[-1] + 1
+        if before is not None:
+            self._written = max(self._written, before)
+
+
+def write_vcd(out: TextIO, variables: Sequence[Var], changes: Iterable[tuple[int, int, int]],
+              timescale: str = "1 ns", comment: str = "") -> None:
+    """A whole VCD at once: ``changes`` are (time, variable index, value) in any order (VcdWriter)."""
+    w = VcdWriter(out, variables, timescale, comment)
+    for t, i, value in changes:
+        if t < 0:
+            raise ValueError(f"VCD change at a negative time {t}")
+        w.change(t, i, value)
+    w.flush()
+
+
+# ---- a firmware run's trace ------------------------------------------------------------------------
+
+SCL, SDA, BYTE, ACK, BUSY = range(5)
+
+
+class TwiDrawing:
+    """The TWI records as changes of the five twi.* variables (indices SCL..BUSY), record after record
+    (the bus's state carries over from one batch to the next)."""
+
+    def __init__(self, bit_ns: int) -> None:
+        self.bit_ns = bit_ns
+        self.prev = 0  #: the time the bus was last drawn to
+        self.busy = False
+
+    def draw(self, records: Iterable[TwiRecord]) -> list[tuple[int, int, int]]:
+        out: list[tuple[int, int, int]] = []
+        bit_ns = self.bit_ns
+        for r in records:
+            t = max(r.t_ns, self.prev)
+            room = t - self.prev
+            if r.kind == "S" and not self.busy:  # from an idle bus (both lines high): SDA falls
+                out += [(t, SDA, 0), (t, BUSY, 1)]
+            elif r.kind == "S":  # a repeated START: the lines go high first, then SDA falls
+                half = max(min(bit_ns // 2, room // 3), 0)
+                out += [(t - 2 * half, SCL, 0), (t - 2 * half, SDA, 1), (t - half, SCL, 1), (t, SDA, 0)]
+            elif r.kind == "P":  # SDA low, SCL high, then SDA rises
+                half = max(min(bit_ns // 2, room // 3), 0)
+                out += [(t - 2 * half, SCL, 0), (t - 2 * half, SDA, 0), (t - half, SCL, 1), (t, SDA, 1),
+                        (t, BUSY, 0)]
+                self.busy = False
+            else:  # A, W, R: eight data bits MSB first and the acknowledge, the ninth clock ending at t
+                bit = max(min(bit_ns, room // 10), 0)
+                start = t - 9 * bit
+                bits = [(r.value >> (7 - k)) & 1 for k in range(8)] + [0 if r.ack else 1]
+                for k, level in enumerate(bits):
+                    b0 = start + k * bit
+                    out += [(b0, SCL, 0), (b0 + bit // 4, SDA, level), (b0 + bit // 2, SCL, 1)]
+                out += [(t, SCL, 0), (t, BYTE, r.value), (t, ACK, 1 if r.ack else 0)]
+            self.busy = self.busy or r.kind == "S"
+            self.prev = t
+        return out
+
+
+class McuTrace:
+    """A run's trace written as it goes (a long run's records are not held): ``add`` each step's TWI
+    records (engine.twi_take) and motor pulses (engine.pulses: rise_ns, width_ns, period_ns) with the
+    step's end. A pulse is reported when it ends and a byte's bits are drawn before its record's time,
+    so the changes of the last HOLD_NS (or twice the longest pulse seen) are held back; one that still
+    comes too late (a pin held high longer than that) is written at the earliest time still open."""
+
+    HOLD_NS: Final = 100_000_000
+
+    def __init__(self, path: Path, motor_names: Sequence[str], twi_hz: int, comment: str = "") -> None:
+        variables = [Var("twi", "scl", 1, 1), Var("twi", "sda", 1, 1), Var("twi", "byte", 8),
+                     Var("twi", "ack", 1), Var("twi", "busy", 1, 0)]
+        variables += [Var("motors", name, 1, 0) for name in motor_names]
+        self._twi = TwiDrawing(max(1, round(1e9 / twi_hz)))
+        self._file = open(path, "w", encoding="ascii", newline="\n")  # noqa: SIM115 (closed by close())
+        self._vcd = VcdWriter(self._file, variables, comment=comment)
+        self._hold_ns = max(self.HOLD_NS, 20 * self._twi.bit_ns)
+
+    def add(self, records: Iterable[TwiRecord], pulses: Sequence[Iterable[tuple[int, int, int]]],
+            now_ns: int) -> None:
+        vcd = self._vcd
+        changes = self._twi.draw(records)
+        for k, train in enumerate(pulses):
+            index = BUSY + 1 + k
+            for rise, width, _period in train:
+                changes += [(rise, index, 1), (rise + width, index, 0)]
+                self._hold_ns = max(self._hold_ns, 2 * width)
+        open_ns = vcd.written
+        for t, i, value in changes:
+            vcd.change(max(t, open_ns), i, value)
+        vcd.flush(now_ns - self._hold_ns)
+
+    def close(self) -> None:
+        if not self._file.closed:
+            self._vcd.flush()
+            self._file.close()
+
+
+def mcu_trace(path: Path, records: Sequence[TwiRecord], pulses: Sequence[Iterable[tuple[int, int, int]]],
+              motor_names: Sequence[str], twi_hz: int, comment: str = "") -> None:
+    """A run's whole trace at once (McuTrace with one step)."""
+    trace = McuTrace(path, motor_names, twi_hz, comment)
+    try:
+        trace.add(records, pulses, 0)
+    finally:
+        trace.close()
