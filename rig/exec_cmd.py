@@ -28,6 +28,7 @@ from plant.variables import PARAMETERS, check_parameters
 from rig import interrupts
 from rig.bridge.esc import ESC_PROTOCOLS
 from rig.bridge.session import BenchConfig, BenchSession
+from rig.run_cmd import seconds_option
 from rig.scheduler import EXIT_RIG_ERROR
 from rig.session import Session, SessionConfig
 from rig.world import World
@@ -63,16 +64,6 @@ def _writable(parser: argparse.ArgumentParser, option: str, path: Path | None) -
         parser.error(f"{option} {path}: {e.strerror}")
 
 
-def _positive(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
-    if not v > 0:
-        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
-    return v
-
-
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("exec", help="run a command with the emulated devices attached (lockstep by default)",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -92,11 +83,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="each transfer takes its wire time at this SCL clock (default 0: no time)")
     p.add_argument("--quantum-ns", type=int, default=1000, metavar="NS",
                    help="sim time one clock read costs in lockstep (default 1000)")
-    p.add_argument("--duration", type=_positive, metavar="S",
+    p.add_argument("--duration", type=seconds_option, metavar="S",
                    help="run for S sim seconds, then stop the command (a flight controller never exits)")
-    p.add_argument("--sim-timeout", type=_positive, default=600.0, metavar="S", help="sim-time watchdog")
-    p.add_argument("--wall-timeout", type=_positive, default=600.0, metavar="S", help="wall-time watchdog")
-    p.add_argument("--stall-timeout", type=_positive, default=30.0, metavar="S",
+    p.add_argument("--sim-timeout", type=seconds_option, default=600.0, metavar="S", help="sim-time watchdog")
+    p.add_argument("--wall-timeout", type=seconds_option, default=600.0, metavar="S",
+                   help="wall-time watchdog")
+    p.add_argument("--stall-timeout", type=seconds_option, default=30.0, metavar="S",
                    help="lockstep: wall seconds without a request or clock read before the run is stopped")
     p.add_argument("--pin", action=argparse.BooleanOptionalAction, default=None,
                    help="pin the command and the session to one core (default: in lockstep only)")
