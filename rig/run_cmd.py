@@ -350,6 +350,16 @@ def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:
         return None
 
 
+def write_run(run_dir: Path, r: RunResult) -> None:
+    """One run's files, as ``rig run`` and ``rig.api.run`` both write them."""
+    from reports import html_report, junit, result_json, telemetry
+
+    (run_dir / "junit.xml").write_text(junit.render([r]))
+    (run_dir / "result.json").write_text(result_json.render(r))
+    (run_dir / "telemetry.csv").write_text(telemetry.render(r.signals))
+    (run_dir / "report.html").write_text(html_report.render(r))
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     try:
         suite = plan(args)
@@ -362,7 +372,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> int:
-    from reports import html_report, junit, result_json, telemetry
+    from reports import html_report, junit
     from rig.runner import not_run, run
 
     results: list[RunResult] = []
@@ -384,10 +394,7 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
             r = not_run(sc, args.seed, f"the rig could not run this scenario: {type(e).__name__}: {e}",
                         suite.target)
         results.append(r)
-        (run_dir / "junit.xml").write_text(junit.render([r]))
-        (run_dir / "result.json").write_text(result_json.render(r))
-        (run_dir / "telemetry.csv").write_text(telemetry.render(r.signals))
-        (run_dir / "report.html").write_text(html_report.render(r))
+        write_run(run_dir, r)
         failed = [m.name for m in r.measurements if m.outcome == "fail"]
         rate = r.metadata.get("realtime_factor") or 0.0
         wall = float(r.metadata.get("wall_time") or 0.0)

@@ -1,0 +1,281 @@
+"""The rig's public Python API (docs/api.md): run a scenario, read its result, check files, sweep.
+
+Firmware teams drive their hardware tests from Python (pytest above all: rig/pytest_plugin.py is
+built on this module). Everything here is stable within a major version; the modules behind it
+(rig.runner, rig.targets, scenarios.schema, rig.sweep...) stay free to change, so nothing of theirs
+leaks out: results are this module's own frozen dataclasses, telemetry and sweep tables are pyarrow
+Tables. A run goes through the same checks and writes the same files as ``rig run`` (the option
+checks of rig/run_cmd.py's ``plan``, its report folder and its ``write_run``), so a run made here and
+one made on the command line are the same run.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from scenarios.schema import Scenario, ScenarioError
+
+if TYPE_CHECKING:
+    import pyarrow as pa
+
+__all__ = ["Criterion", "Result", "RigError", "Scenario", "ScenarioError", "load_scenario", "run", "sweep",
+           "validate"]
+
+#: The files a run folder may hold, by kind, as ``Result.artifacts`` names them (run.mcap only when the
+#: run's writer made it)
+ARTIFACTS = {"result": "result.json", "telemetry": "telemetry.csv", "report": "report.html",
+             "junit": "junit.xml", "mcap": "run.mcap"}
+
+
+class RigError(Exception):
+    """Bad options, an unreadable scenario, an engine that cannot be reached: nothing was run."""
+
+
+@dataclass(frozen=True)
+class Criterion:
+    """One measured criterion: ``value`` in ``units`` against ``min``/``max`` (None: no limit on that
+    side); ``margin`` is how far inside the nearer limit the value is, in % (None: no margin, e.g. a
+    one-sided limit at zero); ``outcome`` "pass", "fail" or "not judged" (a run that ended early)."""
+
+    name: str
+    metric: str
+    signal: str
+    value: float
+    units: str
+    min: float | None
+    max: float | None
+    margin: float | None
+    outcome: str
+    reason: str = ""
+
+
+@dataclass(frozen=True)
+class Result:
+    """What one run produced. ``verdict``: "pass", "fail", "error" (the DUT crashed, hung or exited;
+    ``error`` says why) or "interrupted". ``metadata`` is result.json's "metadata" (seed, scenario
+    and firmware SHA-256, the DUT, the rig's figures). ``artifacts`` maps a kind ("result",
+    "telemetry", "report", "junit", "mcap") to the file the run wrote."""
+
+    scenario: str  # the file's stem, as rig run names the run's folder
+    name: str  # the scenario's [scenario] name
+    verdict: str
+    error: str | None
+    seed: int
+    criteria: tuple[Criterion, ...]
+    metadata: Mapping[str, Any]
+    run_dir: Path
+    artifacts: Mapping[str, Path]
+    notes: tuple[str, ...] = ()
+    _telemetry: pa.Table | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def passed(self) -> bool:
+        return self.verdict == "pass"
+
+    @property
+    def failed_criteria(self) -> tuple[Criterion, ...]:
+        return tuple(c for c in self.criteria if c.outcome == "fail")
+
+    @property
+    def telemetry(self) -> pa.Table:
+        """The recorded signals, one column per signal (telemetry.csv's, units in each field's
+        metadata), one row per 10 ms of sim time. ``.to_pandas()`` on it needs pandas installed."""
+        if self._telemetry is None:  # a Result made by hand: read the run's CSV
+            from reports import telemetry
+
+            return _table(telemetry.read(self.artifacts["telemetry"].read_text()))
+        return self._telemetry
+
+
+def load_scenario(scenario: str | os.PathLike[str]) -> Scenario:
+    """A scenario file, or a library scenario by name (``"step_roll"``), read and checked; raises
+    ScenarioError (``file: key: message``) for a bad one."""
+    from rig.run_cmd import resolve
+
+    return _load(resolve([os.fspath(scenario)])[0])
+
+
+def _load(path: Path) -> Scenario:
+    from scenarios.schema import load
+
+    return load(path)
+
+
+def _scenario(scenario: str | os.PathLike[str] | Scenario) -> Scenario:
+    return scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+
+
+def validate(scenario: str | os.PathLike[str]) -> list[str]:
+    """Every problem of one scenario file, each as ``file: key: message``; [] for a good file.
+
+    The checker stops at a file's first problem; here each problem's key is taken out of the file's
+    tables and the rest checked again, so one call names them all (a missing key, or a problem that
+    cannot be taken out, such as bad TOML, ends the list)."""
+    import hashlib
+    import tomllib
+
+    from rig.run_cmd import resolve
+    from scenarios.schema import check
+
+    path = resolve([os.fspath(scenario)])[0]
+    try:
+        _load(path)
+        return []
+    except ScenarioError as e:
+        problems = [str(e)]
+        key = e.key
+    if not key:  # the file as a whole (unreadable, not TOML): nothing further can be checked
+        return problems
+    data = tomllib.loads(path.read_text())  # (it loaded far enough to fail on a key: the TOML is good)
+    sha = hashlib.sha256(path.read_bytes()).hexdigest()
+    seen = {key}
+    while key and _drop(data, key) and len(problems) < 100:
+        try:
+            check(data, path, sha)
+            break
+        except ScenarioError as e:
+            if e.key in seen:
+                break
+            problems.append(str(e))
+            seen.add(key := e.key)
+    return problems
+
+
+def _drop(data: dict[str, Any], key: str) -> bool:
+    """Takes the dotted ``key`` (``criteria[2].max``, ``vehicle.mass``) out of ``data``; False if it is
+    not there (a missing key: nothing to take out)."""
+    node: Any = data
+    parts = key.replace("[", ".[").split(".")
+    for k, part in enumerate(parts):
+        last = k == len(parts) - 1
+        if part.startswith("[") and part.endswith("]") and part[1:-1].isdigit() and isinstance(node, list):
+            i = int(part[1:-1])
+            if i >= len(node):
+                return False
+            if last:
+                del node[i]
+                return True
+            node = node[i]
+        elif isinstance(node, dict) and part in node:
+            if last:
+                del node[part]
+                return True
+            node = node[part]
+        else:
+            return False
+    return False
+
+
+def run(
+    scenario: str | os.PathLike[str] | Scenario,
+    *,
+    dut: str | Sequence[str] | None = None,
+    mcu: tuple[str | os.PathLike[str], str | os.PathLike[str]] | None = None,
+    bridge: str | None = None,
+    seed: int = 0,
+    out: str | os.PathLike[str] = "build/reports",
+    wall_timeout: float = 600.0,
+) -> Result:
+    """Flies one scenario and returns its result; writes ``out/<scenario>/`` as ``rig run`` does.
+
+    The DUT is one of: ``dut``, a command line (a string, split as a shell would, or a list; default:
+    the reference FC); ``mcu=(board, firmware)``, a firmware image under emulation; ``bridge``, a
+    bench bridge's serial port or "virtual". Raises RigError for bad options (nothing is run); a DUT
+    that crashes or hangs is a Result with verdict "error", as on the command line."""
+    import argparse
+    import shlex
+
+    from rig import compiled
+
+    compiled.install()  # (an entry point, as the CLI: the hot modules compiled, before they are imported)
+    from rig.run_cmd import ReportFolder, UsageError, plan, write_run
+    from rig.runner import not_run
+    from rig.runner import run as run_one
+
+    sc = _scenario(scenario)
+    if mcu is not None and (not isinstance(mcu, tuple) or len(mcu) != 2):
+        raise RigError("mcu: expected (board, firmware)")
+    args = argparse.Namespace(
+        scenarios=[str(sc.path)],
+        dut=shlex.join(dut) if isinstance(dut, Sequence) and not isinstance(dut, str) else dut,
+        out=Path(out), seed=int(seed), wall_timeout=float(wall_timeout), realtime=False, bridge=bridge,
+        can=None, psu=None, esc="pwm", mcu=None if mcu is None else os.fspath(mcu[0]),
+        firmware=None if mcu is None else Path(mcu[1]), trace=None, pdf=False, operator="",
+    )
+    try:
+        suite = plan(args)
+        with ReportFolder(suite.out) as folder:
+            run_dir = folder.scenario_dir(sc.stem)
+            try:
+                r = run_one(sc, suite.target, args.seed, run_dir, args.wall_timeout)
+            except Exception as e:  # as rig run: the rig could not fly it, and the result says so
+                r = not_run(sc, args.seed, f"the rig could not run this scenario: {type(e).__name__}: {e}",
+                            suite.target)
+            write_run(run_dir, r)
+    except UsageError as e:
+        raise RigError(str(e)) from None
+    criteria = tuple(
+        Criterion(m.name, m.metric, m.signal, float(m.value), m.units, _float(m.min), _float(m.max),
+                  _float(m.margin), m.outcome, m.reason)
+        for m in r.measurements
+    )
+    artifacts = {kind: run_dir / name for kind, name in ARTIFACTS.items() if (run_dir / name).is_file()}
+    return Result(sc.stem, sc.name, r.verdict, r.error, args.seed, criteria, dict(r.metadata), run_dir,
+                  artifacts, tuple(r.notes), _table(r.signals))
+
+
+def _float(v: float | None) -> float | None:
+    return None if v is None else float(v)
+
+
+def _table(signals: Mapping[str, Any]) -> pa.Table:
+    """Signals as a pyarrow Table in telemetry.csv's column order, units in each field's metadata."""
+    import pyarrow as pa
+
+    from scenarios.signals import SIGNALS
+
+    names = ["t"] + [n for n in SIGNALS if n in signals and n != "t"]
+    fields = [pa.field(n, pa.float64(), metadata={"units": SIGNALS[n].units if n in SIGNALS else "s"})
+              for n in names]
+    return pa.table([pa.array(signals[n], type=pa.float64()) for n in names], schema=pa.schema(fields))
+
+
+def sweep(
+    spec: str | os.PathLike[str],
+    *,
+    out: str | os.PathLike[str],
+    engine: str | None = None,
+    jobs: int | None = None,
+    dut: str | None = None,
+    fresh: bool = False,
+    wall_timeout: float = 600.0,
+) -> pa.Table:
+    """Runs a sweep spec (docs/sweeps.md) as ``rig sweep`` does into ``out`` (resumable) and returns
+    the runs' table (runs.parquet: one row per run, its variation, verdict and measurements).
+    ``engine``: a Dask scheduler's address (default: the local pool, ``jobs`` at once). Raises
+    RigError when nothing could be run (a bad spec, bad options, an unreachable engine)."""
+    import argparse
+
+    import pyarrow.parquet as pq
+
+    from rig import compiled
+
+    compiled.install()
+    from rig import sweep_cmd
+    from rig.sweep import store
+
+    args = argparse.Namespace(spec=Path(spec), out=Path(out), jobs=jobs, engine=engine, retry_errors=False,
+                              fresh=fresh, dut=dut, wall_timeout=float(wall_timeout))
+    said = io.StringIO()
+    with contextlib.redirect_stderr(said):
+        code = sweep_cmd.main(args)
+    table = Path(out) / store.TABLE
+    if code == sweep_cmd.EXIT_USAGE or not table.is_file():
+        raise RigError(said.getvalue().strip() or f"rig sweep ended with status {code}")
+    return pq.read_table(table)
