@@ -1,0 +1,116 @@
+"""The pytest plugin through real pytest in a subprocess, loaded by its installed entry point (as a
+firmware team's `pip install` registers it): collection, a passing and a failing item, -n 2, the JUnit
+properties, the `rig` fixture, a bad scenario file."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from importlib.metadata import entry_points
+from pathlib import Path
+
+from tests.api import LIBRARY, SHORT, failing_copy
+
+
+def pytest_run(cwd: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    """pytest in ``cwd`` (its own rootdir: not this repository's configuration), with no cache."""
+    return subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "--rootdir", str(cwd),
+                           *args], cwd=cwd, capture_output=True, text=True, timeout=300)
+
+
+def test_the_entry_point_is_installed():
+    assert [e.value for e in entry_points(group="pytest11") if e.name == "rig"] == ["rig.pytest_plugin"]
+
+
+def test_collects_the_library_one_item_per_file(tmp_path):
+    (tmp_path / "pyproject.toml").write_text('[project]\nname = "x"\n')  # not a scenario: not collected
+    done = pytest_run(tmp_path, "--collect-only", "-q", str(LIBRARY), str(tmp_path))
+    assert done.returncode == 0, done.stdout + done.stderr
+    items = [line for line in done.stdout.splitlines() if "::" in line]
+    stems = sorted(p.stem for p in LIBRARY.glob("*.toml"))
+    assert sorted(i.split("::")[1] for i in items) == stems
+    assert all(i.split("::")[0].endswith(".toml") for i in items)
+
+
+def test_passing_and_failing_items_with_junit_properties(tmp_path):
+    shutil.copy(SHORT, tmp_path)
+    failing_copy(tmp_path)
+    junit = tmp_path / "junit.xml"
+    done = pytest_run(tmp_path, str(tmp_path), "--rig-seed", "5", "--rig-out", "out", f"--junitxml={junit}")
+    out = done.stdout
+    assert done.returncode == 1, out + done.stderr
+    assert "1 failed, 1 passed" in out
+    # the failing item: its criteria table (value, limits, margin) and its report's path
+    assert "scenario roll_stand_too_strict (Seed 000: roll stand recovery from -70 deg): FAIL with seed 5" \
+        in out
+    table = [line for line in out.splitlines() if "overshoot after release" in line and "FAIL" in line]
+    assert table, out
+    value, units, low, high, margin, outcome = table[0].split()[-6:]
+    assert (units, low, high, outcome) == ("%", "-", "0.001", "FAIL"), table[0]
+    assert float(value) > 0.001 and float(margin) < 0, table[0]  # outside its limit, by a negative margin
+    header = [line.split() for line in out.splitlines() if line.strip().startswith("criterion")]
+    assert header == [["criterion", "value", "units", "min", "max", "margin", "%", "outcome"]]
+    report = tmp_path / "out" / "roll_stand_too_strict" / "report.html"
+    assert f"report: {report}" in out and report.is_file()
+    assert "Traceback" not in out
+    # --junitxml: seed, scenario and firmware SHA-256 as properties of each test case
+    cases = {c.get("name"): c for c in ET.parse(junit).getroot().iter("testcase")}
+    assert set(cases) == {"seed000_roll_stand", "roll_stand_too_strict"}
+    from rig import api
+
+    for name, case in cases.items():
+        props = {p.get("name"): p.get("value") for p in case.iter("property")}
+        assert props["seed"] == "5"
+        assert props["scenario_sha256"] == api.load_scenario(tmp_path / f"{name}.toml").sha256
+        assert len(props["firmware_sha256"]) == 64
+    assert cases["roll_stand_too_strict"].find("failure") is not None
+    assert cases["seed000_roll_stand"].find("failure") is None
+
+
+def test_xdist_one_folder_per_worker(tmp_path):
+    for stem in ("a_roll_stand", "b_roll_stand"):
+        shutil.copy(SHORT, tmp_path / f"{stem}.toml")
+    done = pytest_run(tmp_path, str(tmp_path), "-n", "2", "--rig-out", "out")
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "2 passed" in done.stdout
+    runs = sorted((tmp_path / "out").glob("*/*/result.json"))
+    assert sorted(p.parent.name for p in runs) == ["a_roll_stand", "b_roll_stand"]
+    assert {p.parents[1].name for p in runs} <= {"gw0", "gw1"}
+    assert not list((tmp_path / "out").glob("*_roll_stand"))  # nothing outside a worker's folder
+
+
+def test_rig_fixture_and_marker(tmp_path):
+    (tmp_path / "test_mine.py").write_text('''
+import pytest
+
+@pytest.mark.rig_scenario("seed000_roll_stand", seeds=[0, 1])
+def test_roll_stand(rig, scenario, seed):
+    result = rig.run(scenario, seed=seed)
+    assert result.passed, rig.explain(result)
+    assert result.seed == seed
+    assert result.telemetry.num_rows > 700
+    assert result.run_dir.is_relative_to(rig.out)
+
+def test_validate(rig):
+    assert rig.validate("seed000_roll_stand") == []
+''')
+    junit = tmp_path / "junit.xml"
+    done = pytest_run(tmp_path, "-v", "--rig-out", "out", f"--junitxml={junit}")
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "test_roll_stand[seed000_roll_stand-seed0] PASSED" in done.stdout
+    assert "test_roll_stand[seed000_roll_stand-seed1] PASSED" in done.stdout
+    assert "3 passed" in done.stdout
+    props = ET.parse(junit).getroot().iter("property")
+    seeds = sorted(p.get("value") for p in props if p.get("name") == "seed")
+    assert seeds == ["0", "1"]
+
+
+def test_bad_scenario_file_is_a_collection_error_naming_the_key(tmp_path):
+    (tmp_path / "typo.toml").write_text(SHORT.read_text().replace("roll0 = ", "rol0 = "))
+    done = pytest_run(tmp_path, str(tmp_path))
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert "ERROR collecting typo.toml" in done.stdout
+    assert "bad scenario file:" in done.stdout and "vehicle.rol0: unknown key" in done.stdout
+    assert "Traceback" not in done.stdout
