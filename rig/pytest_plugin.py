@@ -1,7 +1,7 @@
 """The rig as a pytest plugin (docs/pytest.md), registered by the package's ``pytest11`` entry point.
 
 Firmware teams already run their hardware tests with pytest, its JUnit XML and pytest-xdist; here the
-rig meets them there, on top of the public API (rig/api.py) only:
+rig meets them there, on top of the public API (rig/api.py) and ``rig run``'s report folder:
 
 * a TOML file with a ``[scenario]`` table is a test item, named by its stem (other TOML files, such as
   pyproject.toml or a sweep spec, are left alone); a file that does not check is a collection error
@@ -14,7 +14,9 @@ rig meets them there, on top of the public API (rig/api.py) only:
   test's own; ``@pytest.mark.rig_scenario(*scenarios, seeds=[...])`` parametrises a test's
   ``scenario`` and ``seed`` arguments;
 * under pytest-xdist each worker writes under ``DIR/<worker>/`` (a report folder is held by one run at
-  a time); JUnit properties carry the seed and the scenario's and firmware's SHA-256.
+  a time); JUnit properties carry the seed and the scenario's and firmware's SHA-256;
+* the scenario items' folder is a ``rig run`` report folder: ``rig report DIR --pdf`` prints its
+  acceptance PDF, and a new session first removes the runs the previous one wrote there.
 
 The imports of the rig are deferred to the first run: the plugin is loaded into every pytest session
 of an environment the package is installed in, and must cost nothing there.
@@ -75,6 +77,25 @@ class Options:
             out = Path(config.invocation_params.dir) / out
         worker = os.environ.get("PYTEST_XDIST_WORKER")
         self.out = out / worker if worker else out
+        self.stems: list[str] | None = None  # the scenario items this process has run, in order
+
+    def ran(self, stem: str) -> None:
+        """Keeps the folder a report folder as ``rig run`` leaves one (so ``rig report DIR --pdf`` reads
+        it): the first scenario item removes the runs the previous session listed; each one run is
+        added to the list (.rig-run.json)."""
+        import json
+
+        from rig.run_cmd import ReportFolder
+
+        if self.stems is None:
+            self.stems = []
+            with ReportFolder(self.out) as folder:
+                folder.begin([])
+        self.stems.append(stem)
+        manifest = self.out / ReportFolder.MANIFEST
+        tmp = manifest.with_suffix(".tmp")
+        tmp.write_text(json.dumps(self.stems) + "\n")
+        tmp.replace(manifest)
 
     def run(self, scenario: str | os.PathLike[str] | Scenario, out: Path, **kw: Any) -> Result:
         from rig import api
@@ -132,6 +153,7 @@ class ScenarioItem(pytest.Item):
     def runtest(self) -> None:
         opts = _options(self.config)
         self.user_properties += [("seed", opts.seed), ("scenario_sha256", self.scenario.sha256)]
+        opts.ran(self.scenario.stem)
         result = opts.run(self.scenario, opts.out)
         record(self.user_properties, result)
         if not result.passed:

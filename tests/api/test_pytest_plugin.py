@@ -38,6 +38,10 @@ def test_passing_and_failing_items_with_junit_properties(tmp_path):
     shutil.copy(SHORT, tmp_path)
     failing_copy(tmp_path)
     junit = tmp_path / "junit.xml"
+    stale = tmp_path / "out" / "old_run"  # a previous session's run, listed as rig run lists its runs
+    stale.mkdir(parents=True)
+    (stale / "result.json").write_text("{}")
+    (tmp_path / "out" / ".rig-run.json").write_text('["old_run"]')
     done = pytest_run(tmp_path, str(tmp_path), "--rig-seed", "5", "--rig-out", "out", f"--junitxml={junit}")
     out = done.stdout
     assert done.returncode == 1, out + done.stderr
@@ -67,6 +71,13 @@ def test_passing_and_failing_items_with_junit_properties(tmp_path):
         assert len(props["firmware_sha256"]) == 64
     assert cases["roll_stand_too_strict"].find("failure") is not None
     assert cases["seed000_roll_stand"].find("failure") is None
+    # the items' folder is a report folder of this session's runs only: rig report reads it
+    assert not stale.exists()
+    report = subprocess.run([sys.executable, "-m", "rig.cli", "report", str(tmp_path / "out")],
+                            capture_output=True, text=True, timeout=60)
+    assert report.returncode == 0, report.stderr
+    index = (tmp_path / "out" / "index.html").read_text()
+    assert "roll_stand_too_strict/report.html" in index and "seed000_roll_stand/report.html" in index
 
 
 def test_xdist_one_folder_per_worker(tmp_path):
