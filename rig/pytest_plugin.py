@@ -56,6 +56,11 @@ def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         "markers", "rig_scenario(*scenarios, seeds=None): run the test once per scenario (its `scenario` "
         "argument: a library name or a file) and seed (its `seed` argument)")
+    board, firmware = config.getoption("rig_mcu"), config.getoption("rig_firmware")
+    if firmware is not None and board is None:
+        raise pytest.UsageError("--rig-firmware goes with --rig-mcu BOARD")
+    if board is not None and firmware is None:
+        raise pytest.UsageError("--rig-mcu needs --rig-firmware FILE")
 
 
 class Options:
@@ -65,11 +70,7 @@ class Options:
         opt = config.getoption
         self.dut: str | None = opt("rig_dut")
         self.bridge: str | None = opt("rig_bridge")
-        board, firmware = opt("rig_mcu"), opt("rig_firmware")
-        if firmware is not None and board is None:
-            raise pytest.UsageError("--rig-firmware goes with --rig-mcu BOARD")
-        if board is not None and firmware is None:
-            raise pytest.UsageError("--rig-mcu needs --rig-firmware FILE")
+        board, firmware = opt("rig_mcu"), opt("rig_firmware")  # (paired: pytest_configure)
         self.mcu: tuple[str, str] | None = (board, firmware) if board is not None else None
         self.seed: int = opt("rig_seed")
         out = Path(opt("rig_out"))

@@ -4,6 +4,8 @@ properties, the `rig` fixture, a bad scenario file."""
 
 from __future__ import annotations
 
+import hashlib
+import json
 import shutil
 import subprocess
 import sys
@@ -12,6 +14,9 @@ from importlib.metadata import entry_points
 from pathlib import Path
 
 from tests.api import LIBRARY, SHORT, failing_copy
+from tests.mcu import conftest as mcu
+
+avr_fc = mcu.avr_fc  # (the MCU tier's fixture: build/avr/fc.elf, brought up to date by make)
 
 
 def pytest_run(cwd: Path, *args: str) -> subprocess.CompletedProcess[str]:
@@ -125,3 +130,21 @@ def test_bad_scenario_file_is_a_collection_error_naming_the_key(tmp_path):
     assert "ERROR collecting typo.toml" in done.stdout
     assert "bad scenario file:" in done.stdout and "vehicle.rol0: unknown key" in done.stdout
     assert "Traceback" not in done.stdout
+
+
+def test_rig_mcu_runs_the_image_and_names_its_hash(tmp_path, avr_fc):
+    shutil.copy(SHORT, tmp_path)
+    junit = tmp_path / "junit.xml"
+    done = pytest_run(tmp_path, str(tmp_path), "--rig-mcu", "mega2560-gy86", "--rig-firmware", str(avr_fc),
+                      f"--junitxml={junit}")
+    assert done.returncode == 0, done.stdout + done.stderr
+    props = {p.get("name"): p.get("value") for p in ET.parse(junit).getroot().iter("property")}
+    assert props["firmware_sha256"] == hashlib.sha256(avr_fc.read_bytes()).hexdigest()
+    result = json.loads((Path(props["report"]) / "result.json").read_text())
+    assert result["metadata"]["mode"] == "mcu"
+
+
+def test_rig_mcu_without_firmware_stops_pytest(tmp_path):
+    done = pytest_run(tmp_path, str(tmp_path), "--rig-mcu", "mega2560-gy86")
+    assert done.returncode == 4, done.stdout + done.stderr  # pytest's usage error
+    assert "--rig-mcu needs --rig-firmware FILE" in done.stderr
