@@ -190,8 +190,9 @@ def run(
     that crashes or hangs is a Result with verdict "error", as on the command line."""
     import argparse
     import shlex
+    import threading
 
-    from rig import compiled
+    from rig import compiled, interrupts
 
     compiled.install()  # (an entry point, as the CLI: the hot modules compiled, before they are imported)
     from rig.run_cmd import ReportFolder, UsageError, plan, write_run
@@ -208,9 +209,12 @@ def run(
         can=None, psu=None, esc="pwm", mcu=None if mcu is None else os.fspath(mcu[0]),
         firmware=None if mcu is None else Path(mcu[1]), trace=None, pdf=False, operator="",
     )
+    # Ctrl-C or a CI job's SIGTERM stops the DUT and finishes the run's files, as in rig run, and then
+    # reaches the caller as KeyboardInterrupt; (signal handlers can be set from the main thread only)
+    main = threading.current_thread() is threading.main_thread()
     try:
         suite = plan(args)
-        with ReportFolder(suite.out) as folder:
+        with interrupts.handled() if main else contextlib.nullcontext(), ReportFolder(suite.out) as folder:
             run_dir = folder.scenario_dir(sc.stem)
             try:
                 r = run_one(sc, suite.target, args.seed, run_dir, args.wall_timeout)
@@ -218,8 +222,13 @@ def run(
                 r = not_run(sc, args.seed, f"the rig could not run this scenario: {type(e).__name__}: {e}",
                             suite.target)
             write_run(run_dir, r)
+            if r.verdict == "interrupted":
+                raise KeyboardInterrupt(f"{r.error}; the run's files are in {run_dir}")
+            interrupts.check()
     except UsageError as e:
         raise RigError(str(e)) from None
+    except interrupts.Interrupted as e:  # (a signal while the files were written: they are whole)
+        raise KeyboardInterrupt(f"{e}; the run's files are in {run_dir}") from None
     criteria = tuple(
         Criterion(m.name, m.metric, m.signal, float(m.value), m.units, _float(m.min), _float(m.max),
                   _float(m.margin), m.outcome, m.reason)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
+import signal
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -15,6 +16,9 @@ from pathlib import Path
 
 from tests.api import LIBRARY, SHORT, failing_copy
 from tests.mcu import conftest as mcu
+from tests.waits import pid_fifo, read_pid, wait_gone
+
+DUTS = Path(__file__).resolve().parents[1] / "scenarios" / "misbehaving_firmware"
 
 avr_fc = mcu.avr_fc  # (the MCU tier's fixture: build/avr/fc.elf, brought up to date by make)
 
@@ -148,3 +152,20 @@ def test_rig_mcu_without_firmware_stops_pytest(tmp_path):
     done = pytest_run(tmp_path, str(tmp_path), "--rig-mcu", "mega2560-gy86")
     assert done.returncode == 4, done.stdout + done.stderr  # pytest's usage error
     assert "--rig-mcu needs --rig-firmware FILE" in done.stderr
+
+
+def test_ctrl_c_stops_the_dut_and_pytest_and_keeps_the_run(tmp_path):
+    fifo = pid_fifo(tmp_path / "pid")
+    shutil.copy(SHORT, tmp_path)
+    dut = f"{sys.executable} {DUTS / 'stall_after_one_read.py'} {fifo}"
+    proc = subprocess.Popen([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "--rootdir",
+                             str(tmp_path), str(tmp_path), "--rig-dut", dut, "--rig-out", "out"],
+                            cwd=tmp_path, stdout=subprocess.PIPE, text=True)
+    pid = read_pid(fifo)  # the DUT is up: the item is in its run
+    proc.send_signal(signal.SIGINT)
+    stdout = proc.communicate(timeout=60)[0]
+    assert proc.returncode == 2, stdout  # pytest's "interrupted"
+    assert "KeyboardInterrupt" in stdout and "the run's files are in" in stdout
+    assert wait_gone(pid, timeout=0)  # the DUT is gone
+    result = json.loads((tmp_path / "out" / "seed000_roll_stand" / "result.json").read_text())
+    assert result["verdict"] == "interrupted" and "SIGINT" in result["error"]
