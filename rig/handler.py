@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     from rig.session import Session, SessionConfig, _Conn
 
 FOREVER_SLICE_NS: Final = 10_000_000  # a wait with no deadline lets 10 ms pass, then the DUT looks again
+I2C_LOG_CAP: Final = 1_000_000  # transfers kept for run.mcap (scenarios/result.py's I2C_RECORD_CAP)
 
 
 class Handler:
@@ -34,6 +35,9 @@ class Handler:
         self.lockstep = cfg.lockstep  # in real time the page holds PWM states, not the clock
         self.transactions = self.waits = self.pwm_writes = 0
         self.notes: list[str] = []
+        #: every transfer, for run.mcap: (sim time ns, address, bytes written, bytes read, status); one
+        #: tuple append per transfer (the lockstep rate is unchanged, bench/scenario_rates.py)
+        self.i2c_log: list[tuple[int, int, bytes, bytes, int]] = []
 
     def handle(self, conn: _Conn, hdr: P.Header, payload: bytes) -> None:
         if self.sched.over and hdr.type in P.REQUESTS:
@@ -93,6 +97,9 @@ class Handler:
         if self.lockstep:
             self.page.set(t_after)
         self.transactions += 1
+        if len(self.i2c_log) < I2C_LOG_CAP:
+            wrote = b"".join([m.data for m in msgs if not m.read])
+            self.i2c_log.append((t, msgs[0].addr if msgs else 0, wrote, b"".join(results), status))
         if session.logging:
             session.log(t, f"c{conn.index} i2c-{bus} {describe(msgs, results)} "
                            f"{'ok' if not status else errno.errorcode[status]}")

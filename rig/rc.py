@@ -22,6 +22,8 @@ class StickEmulator:
     period: float = PERIOD_S
     sticks: Sticks = field(default_factory=Sticks)
     link: str = "ok"
+    #: every frame sent: (sim time ns, channels, failsafe), for run.mcap's /rc channel (~70 a second)
+    frames: list[tuple[int, tuple[int, ...], bool]] = field(default_factory=list)
 
     def start(self, session: Host, t: float = 0.0) -> None:
         session.at(t, lambda s: self._tick(s, t))
@@ -30,13 +32,8 @@ class StickEmulator:
         if self.link == "lost":
             session.serial_silence(self.path)
         else:
-            session.serial_write(
-                self.path,
-                encode(
-                    self.sticks.channels(),
-                    failsafe=self.link == "failsafe",
-                    frame_lost=self.link == "failsafe",
-                ),
-            )
+            channels, failsafe = self.sticks.channels(), self.link == "failsafe"
+            session.serial_write(self.path, encode(channels, failsafe=failsafe, frame_lost=failsafe))
+            self.frames.append((round(t * 1e9), tuple(channels), failsafe))
         nxt = t + self.period
         session.at(nxt, lambda s: self._tick(s, nxt))

@@ -352,12 +352,13 @@ def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:
 
 def write_run(run_dir: Path, r: RunResult) -> None:
     """One run's files, as ``rig run`` and ``rig.api.run`` both write them."""
-    from reports import html_report, junit, result_json, telemetry
+    from reports import html_report, junit, mcap, result_json, telemetry
 
     (run_dir / "junit.xml").write_text(junit.render([r]))
     (run_dir / "result.json").write_text(result_json.render(r))
     (run_dir / "telemetry.csv").write_text(telemetry.render(r.signals))
     (run_dir / "report.html").write_text(html_report.render(r))
+    mcap.write_run(run_dir, r)
 
 
 def cmd_run(args: argparse.Namespace) -> int:

@@ -31,7 +31,7 @@ from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, Target
 from rig.targets.process import ProcessTarget
 from rig.world import World
 from scenarios.criteria import NOT_JUDGED, Measurement, measure
-from scenarios.result import RunResult
+from scenarios.result import RcFrame, RunResult
 from scenarios.schema import Event, Scenario
 from scenarios.signals import BENCH_SIGNALS, RECORD_PERIOD, SIGNALS
 
@@ -252,6 +252,7 @@ def run(
                 metadata.update(target_run.figures(outcome))
                 signals.update(target_run.signals(signals["t"]))
                 idle = target_run.idle(outcome) if outcome.verdict == "ok" else None
+                i2c = target_run.transactions()
             finally:
                 target_run.close()
     finally:
@@ -331,8 +332,9 @@ def run(
         verdict = "pass" if all(m.outcome == "pass" for m in measurements) else "fail"
     notes += outcome.notes
     assert set(SIGNALS) - set(BENCH_SIGNALS) <= set(signals), set(SIGNALS) - set(signals)
+    rc_frames = [RcFrame(t, ch, fs) for t, ch, fs in rc.frames]
     return RunResult(scenario, verdict, error, measurements, signals, metadata, outcome.exit_code, stderr,
-                     notes)
+                     notes, i2c, rc_frames)
 
 
 def identity(scenario: Scenario, seed: int) -> dict[str, object]:

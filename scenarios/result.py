@@ -45,6 +45,35 @@ _: type[ScenarioInfo] = Scenario  # (both kinds are ScenarioInfo: mypy checks it
 __: type[ScenarioInfo] = ScenarioRecord
 
 
+@dataclass(frozen=True)
+class I2CRecord:
+    """One I2C transfer as the chips saw it (run.mcap's /i2c channel): its sim time, the address of its
+    first message, the register (the first byte written; None for a bare read), the bytes written and
+    read, and whether it completed (False: NACK or protocol error)."""
+
+    t_ns: int
+    address: int
+    register: int | None
+    wrote: bytes
+    read: bytes
+    ok: bool
+
+
+@dataclass(frozen=True)
+class RcFrame:
+    """One RC frame sent to the DUT (run.mcap's /rc channel): its sim time, its 16 channels' SBUS
+    values and its failsafe flag."""
+
+    t_ns: int
+    channels: tuple[int, ...]
+    failsafe: bool
+
+
+#: the most I2C transfers a run keeps for run.mcap (a 30 s run at 1 kHz makes ~30 k; beyond the cap
+#: the rest are counted, not kept, and run.mcap's metadata says so)
+I2C_RECORD_CAP = 1_000_000
+
+
 @dataclass
 class RunResult:
     scenario: ScenarioInfo
@@ -56,3 +85,7 @@ class RunResult:
     exit_code: int | None = None  # the session's (rig exec's) exit status; 128 + N for signal N
     stderr: str = ""
     notes: list[str] = field(default_factory=list)
+    #: for run.mcap: the bus transfers (None: the target cannot say) and the RC frames sent (None: not
+    #: known, as for a run read back from its folder)
+    i2c: list[I2CRecord] | None = None
+    rc_frames: list[RcFrame] | None = None

@@ -31,6 +31,9 @@ from rig.service.worker import Workers
 MAX_SCENARIOS = 100
 VERDICTS = {"pass": "passed", "fail": "failed", "error": "error"}
 WAIT_POLL_S = 0.1
+#: artifacts' media types Python's mimetypes does not know (MCAP has no registered type; Foxglove's own
+#: servers give it as application/octet-stream)
+MEDIA_TYPES = {".mcap": "application/octet-stream"}
 
 
 class RunRequest(BaseModel):
@@ -303,7 +306,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
     @app.get("/api/runs/{run_id}/artifacts")
     def artifact_list(run_id: int) -> list[str]:
         """The run's files: the suite's junit.xml and index.html, each scenario's result.json,
-        telemetry.csv, report.html, junit.xml and the DUT's output."""
+        telemetry.csv, run.mcap, report.html, junit.xml and the DUT's output."""
         folder = _folder(run_id)
         if not folder.is_dir():
             return []
@@ -318,7 +321,8 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         if (not path.is_relative_to(folder) or not path.is_file() or (folder / name).is_symlink()
                 or any(part.startswith(".") for part in Path(name).parts)):
             raise HTTPException(404, f"run {run_id} has no artifact {name!r}")
-        return FileResponse(path)
+        # (a name Python's mimetypes does not know would be served as text/plain)
+        return FileResponse(path, media_type=MEDIA_TYPES.get(path.suffix))
 
     @app.get("/api/runs/{run_id}/events")
     def events(run_id: int) -> StreamingResponse:

@@ -139,7 +139,7 @@ def fly(task: Task) -> dict[str, Any]:
     # this is a worker's entry point (a local pool's process, a Dask worker): the session's hot modules
     # from build/mypyc must be found before anything below imports them, as the CLI does at its start
     compiled.install()
-    from reports import html_report, result_json
+    from reports import html_report, mcap, result_json
     from rig import interrupts
     from rig.runner import not_run, run
     from rig.targets.process import ProcessTarget
@@ -190,6 +190,7 @@ def fly(task: Task) -> dict[str, Any]:
         return {**row, "verdict": "interrupted"}
     (folder / "result.json").write_text(result_json.render(r))
     (folder / "report.html").write_text(html_report.render(r))
+    mcap.write_run(folder, r)
     _write_row(folder, row)
     return row
 

@@ -26,6 +26,7 @@ import numpy as np
 
 from plant.native_build import BUILD
 from rig.host import Host
+from scenarios.result import I2CRecord
 
 if TYPE_CHECKING:
     from emulators.faults import FaultSet
@@ -95,6 +96,11 @@ class TargetRun:
     def signals(self, t: np.ndarray) -> dict[str, np.ndarray]:
         """Extra signals on the recorder's grid ``t`` (a bench supply's volts and amps)."""
         return {}
+
+    def transactions(self) -> list[I2CRecord] | None:
+        """The run's I2C transfers as the chips saw them (run.mcap's /i2c channel), at most
+        I2C_RECORD_CAP of them; None when this target cannot see them (its bus is elsewhere)."""
+        return None
 
     def idle(self, outcome: Outcome) -> str | None:
         """Why a run that ended well still tested nothing (no sensor read, no motor driven), or None."""

@@ -22,6 +22,7 @@ from rig.targets import (
     reference_command,
     reference_config,
 )
+from scenarios.result import I2CRecord
 from scenarios.schema import Scenario
 
 #: a note for a run whose target has no bench supply to drive
@@ -61,12 +62,21 @@ def command_for(dut: list[str] | None, scenario: Scenario, work: Path, notes: li
 
 
 class ProcessRun(TargetRun):
+    session: Session
+
     def __init__(self, session: Session, capture: CaptureLink | None) -> None:
         self.session = session
         self.capture = capture
 
     def figures(self, outcome: Outcome) -> dict[str, object]:
         return {"capture_stats": self.capture.stats()} if self.capture is not None else {}
+
+    def transactions(self) -> list[I2CRecord] | None:
+        handler = self.session.handler
+        if handler is None:  # (the DUT never started)
+            return []
+        return [I2CRecord(t, addr, wrote[0] if wrote else None, wrote, read, status == 0)
+                for t, addr, wrote, read, status in handler.i2c_log]
 
     def close(self) -> None:
         if self.capture is not None:

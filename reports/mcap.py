@@ -1,0 +1,256 @@
+"""run.mcap: one run as an MCAP file (Foxglove's container, written with the ``mcap`` package), so the
+tools flight-software teams already use to look at flight logs (Foxglove, PlotJuggler) open a rig run
+as they open a drone's log, with no CSV import step.
+
+Why these choices:
+
+* JSON messages with JSON schemas (``message_encoding="json"``, schema encoding ``jsonschema``): every
+  MCAP viewer reads them with no generated code, and a test can read them back with the plain reader.
+* One channel per signal group, each message stamped with its sim time in nanoseconds (log and publish
+  time alike): the recorder's 100 Hz grid for the flight (``/attitude``: attitude, rates, altitude,
+  setpoints, sticks and what the DUT reported; ``/motors``: the pulse widths), every I2C transfer at
+  the sim time it reached the chips (``/i2c``), the sensor chips' own words decoded from those
+  transfers (``/sensors``), every RC frame sent (``/rc``), the scheduled faults' switching as events
+  (``/faults``) and the criteria as one final message (``/criteria``).
+* "Sensors as the chips reported them" is taken literally: the raw counts the DUT read from each chip's
+  data registers (the MPU-6050's 14-byte burst from 0x3B, the HMC5883L's 6 bytes from 0x03, the
+  MS5611's 24-bit ADC result), decoded from the I2C channel's bytes. That is what the firmware saw,
+  faults and noise included, which the plant's truth on ``/attitude`` is not.
+* The run's metadata (result.json's ``metadata``, each value as JSON text, since MCAP metadata maps
+  strings to strings) goes in a metadata record ``result``; the verdict, error and notes in ``run``;
+  a record ``mcap`` says which channels are empty and why (a target that cannot see the bus, an old
+  run written again by ``rig report --mcap``, the transaction cap).
+
+The attitude and motor channels hold exactly telemetry.csv's columns, sample for sample (NaN as null).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import IO, Any, Final
+
+import numpy as np
+from mcap.writer import Writer
+
+from reports import result_json
+from scenarios.result import I2CRecord, RcFrame, RunResult
+from scenarios.schema import Scenario
+from scenarios.signals import SIGNALS
+
+NS: Final = 1_000_000_000
+PROFILE: Final = ""  # (no ROS profile: plain JSON channels)
+#: the channels, in the order they are declared
+ATTITUDE: Final = tuple(n for n in SIGNALS if not n.startswith("pwm") and n not in ("psu_volts", "psu_amps"))
+MOTORS_GROUP: Final = tuple(n for n in SIGNALS if n.startswith("pwm"))
+BENCH: Final = ("psu_volts", "psu_amps")
+TOPICS: Final = ("/attitude", "/motors", "/sensors", "/i2c", "/rc", "/faults", "/criteria")
+
+
+def _number_schema(names: Iterable[str]) -> dict[str, Any]:
+    props: dict[str, Any] = {"t": {"type": "number", "description": "sim time, s"}}
+    for n in names:
+        s = SIGNALS[n]
+        props[n] = {"type": ["number", "null"], "description": f"{s.text} [{s.units}]" if s.units else s.text}
+    return {"type": "object", "properties": props, "required": list(props)}
+
+
+SCHEMAS: Final[dict[str, dict[str, Any]]] = {
+    "/attitude": {"title": "rig.Attitude", **_number_schema(ATTITUDE)},
+    "/motors": {"title": "rig.Motors", **_number_schema(MOTORS_GROUP + BENCH)},
+    "/sensors": {
+        "title": "rig.SensorReading",
+        "type": "object",
+        "properties": {
+            "chip": {"type": "string", "description": "MPU-6050, HMC5883L or MS5611"},
+            "address": {"type": "integer"},
+            "register": {"type": "integer"},
+            "values": {"type": "object", "additionalProperties": {"type": "integer"},
+                       "description": "raw counts as the chip reported them"},
+        },
+        "required": ["chip", "address", "register", "values"],
+    },
+    "/i2c": {
+        "title": "rig.I2CTransaction",
+        "type": "object",
+        "properties": {
+            "t_ns": {"type": "integer", "description": "sim time the transfer reached the bus, ns"},
+            "address": {"type": "integer", "description": "7-bit address of the first message"},
+            "register": {"type": ["integer", "null"], "description": "the first byte written, if any"},
+            "wrote": {"type": "string", "description": "bytes written, hex"},
+            "read": {"type": "string", "description": "bytes read, hex"},
+            "ok": {"type": "boolean", "description": "false: NACK or protocol error"},
+        },
+        "required": ["t_ns", "address", "register", "wrote", "read", "ok"],
+    },
+    "/rc": {
+        "title": "rig.RcFrame",
+        "type": "object",
+        "properties": {
+            "channels": {"type": "array", "items": {"type": "integer"}, "description": "SBUS values 0..2047"},
+            "failsafe": {"type": "boolean"},
+        },
+        "required": ["channels", "failsafe"],
+    },
+    "/faults": {
+        "title": "rig.FaultEvent",
+        "type": "object",
+        "properties": {
+            "event": {"type": "string", "enum": ["active", "cleared"]},
+            "what": {"type": "string"},
+        },
+        "required": ["event", "what"],
+    },
+    "/criteria": {
+        "title": "rig.Criteria",
+        "type": "object",
+        "properties": {
+            "verdict": {"type": "string"},
+            "error": {"type": ["string", "null"]},
+            "measurements": {"type": "array", "items": {"type": "object"}},
+        },
+        "required": ["verdict", "error", "measurements"],
+    },
+}
+
+# (address, first register) -> (chip, struct format, field names): the data registers the rig's chips
+# answer a DUT with (emulators/chips); a read starting elsewhere is configuration, left to /i2c
+_MPU = ("MPU-6050", ">7h", ("ax", "ay", "az", "temp", "gx", "gy", "gz"))
+_HMC = ("HMC5883L", ">3h", ("x", "z", "y"))
+SENSOR_REGISTERS: Final[dict[tuple[int, int], tuple[str, str, tuple[str, ...]]]] = {
+    (0x68, 0x3B): _MPU, (0x69, 0x3B): _MPU, (0x1E, 0x03): _HMC,
+}
+_MS5611 = (0x76, 0x77)
+
+
+def _sensor(rec: I2CRecord) -> dict[str, Any] | None:
+    """The chip's data as it reported them, when ``rec`` read a data register; else None."""
+    if not rec.ok or rec.register is None or not rec.read:
+        return None
+    if rec.address in _MS5611 and rec.register == 0x00 and len(rec.read) == 3:
+        return {"chip": "MS5611", "address": rec.address, "register": 0,
+                "values": {"adc": int.from_bytes(rec.read, "big")}}
+    spec = SENSOR_REGISTERS.get((rec.address, rec.register))
+    if spec is None:
+        return None
+    chip, fmt, names = spec
+    size = struct.calcsize(fmt)
+    if len(rec.read) < size:
+        return None
+    values = struct.unpack_from(fmt, rec.read)
+    return {"chip": chip, "address": rec.address, "register": rec.register,
+            "values": dict(zip(names, values, strict=True))}
+
+
+def _value(v: float) -> float | None:
+    return None if math.isnan(v) else float(v)
+
+
+def _rows(signals: dict[str, np.ndarray], names: Sequence[str]) -> Iterable[tuple[int, dict[str, Any]]]:
+    t = signals["t"]
+    cols = [(n, signals[n]) for n in names if n in signals and len(signals[n]) == len(t)]
+    for k in range(len(t)):
+        yield round(float(t[k]) * NS), {"t": float(t[k]), **{n: _value(float(c[k])) for n, c in cols}}
+
+
+def _fault_events(r: RunResult) -> list[tuple[int, dict[str, Any]]]:
+    """The ``fault`` signal's edges (any scheduled sensor fault or magnetic disturbance switching on
+    or off), named by the scenario's faults when the run still has them."""
+    t, f = r.signals.get("t", np.zeros(0)), r.signals.get("fault", np.zeros(0))
+    faults = r.scenario.faults if isinstance(r.scenario, Scenario) else ()
+    what = "; ".join(f"{f.target} {f.fault.kind} {f.fault.start:g}..{f.fault.end:g} s" for f in faults)
+    what = what or "a scheduled sensor fault or the magnetic disturbance (the signal fault)"
+    out, prev = [], 0.0
+    for k in range(min(len(t), len(f))):
+        now = 0.0 if math.isnan(f[k]) else float(f[k])
+        if now != prev:
+            out.append((round(float(t[k]) * NS), {"event": "active" if now else "cleared", "what": what}))
+        prev = now
+    return out
+
+
+def write(out: IO[bytes] | Path, r: RunResult, i2c: Sequence[I2CRecord] | None,
+          rc: Sequence[RcFrame] | None, why_empty: dict[str, str] | None = None) -> None:
+    """Writes ``r`` as MCAP to ``out``. ``i2c``/``rc``: the run's transactions and frames; None when
+    they are not known (the target cannot see the bus, an old run): ``why_empty`` says why, by topic,
+    into the ``mcap`` metadata record."""
+    if isinstance(out, Path):
+        with open(out, "wb") as f:
+            write(f, r, i2c, rc, why_empty)
+        return
+    why = dict(why_empty or {})
+    if i2c is None:
+        why.setdefault("/i2c", "the run's transactions are not known")
+        why.setdefault("/sensors", "decoded from /i2c, which is empty")
+    if rc is None:
+        why.setdefault("/rc", "the run's RC frames are not known")
+    w = Writer(out)
+    w.start(profile=PROFILE, library="rig reports/mcap.py")
+    ch: dict[str, int] = {}
+    for topic in TOPICS:
+        sid = w.register_schema(name=SCHEMAS[topic]["title"], encoding="jsonschema",
+                                data=json.dumps(SCHEMAS[topic]).encode())
+        ch[topic] = w.register_channel(topic=topic, message_encoding="json", schema_id=sid)
+    seq = dict.fromkeys(TOPICS, 0)
+
+    def put(topic: str, t_ns: int, msg: dict[str, Any]) -> None:
+        t_ns = max(0, t_ns)  # (MCAP times are unsigned)
+        w.add_message(channel_id=ch[topic], log_time=t_ns, publish_time=t_ns, sequence=seq[topic],
+                      data=json.dumps(msg, allow_nan=False).encode())
+        seq[topic] += 1
+
+    for t_ns, row in _rows(r.signals, ATTITUDE):
+        put("/attitude", t_ns, row)
+    for t_ns, row in _rows(r.signals, MOTORS_GROUP + BENCH):
+        put("/motors", t_ns, row)
+    for rec in i2c or ():
+        put("/i2c", rec.t_ns, {"t_ns": rec.t_ns, "address": rec.address, "register": rec.register,
+                               "wrote": rec.wrote.hex(), "read": rec.read.hex(), "ok": rec.ok})
+        reading = _sensor(rec)
+        if reading is not None:
+            put("/sensors", rec.t_ns, reading)
+    for frame in rc or ():
+        put("/rc", frame.t_ns, {"channels": list(frame.channels), "failsafe": frame.failsafe})
+    for t_ns, ev in _fault_events(r):
+        put("/faults", t_ns, ev)
+    t = r.signals.get("t", np.zeros(0))
+    end = round(float(t[-1]) * NS) if len(t) else 0
+    doc = result_json.to_dict(r)
+    put("/criteria", end, {"verdict": r.verdict, "error": r.error, "measurements": doc["measurements"]})
+    w.add_metadata("result", {str(k): json.dumps(v, allow_nan=False) for k, v in r.metadata.items()})
+    w.add_metadata("run", {"scenario": r.scenario.stem, "verdict": r.verdict, "error": r.error or "",
+                           "notes": json.dumps(r.notes), "format": result_json.FORMAT})
+    w.add_metadata("mcap", {**{f"empty {k}": v for k, v in why.items()},
+                            **{f"messages {k}": str(n) for k, n in seq.items()}})
+    w.finish()
+
+
+FILE: Final = "run.mcap"
+
+
+def write_run(folder: Path, r: RunResult, why_empty: dict[str, str] | None = None) -> Path:
+    """``folder``/run.mcap for ``r``, written whole or not at all (a temporary name, then renamed)."""
+    why = dict(why_empty or {})
+    mode = r.metadata.get("mode", "?")
+    if r.i2c is None:
+        why.setdefault("/i2c", f"this target ({mode}) cannot see the DUT's I2C transfers: only their count "
+                               "(result.json's bus_transactions) is known")
+    else:
+        total = r.metadata.get("bus_transactions")
+        if isinstance(total, int) and total > len(r.i2c):
+            why.setdefault("/i2c", f"holds the first {len(r.i2c)} of the run's {total} transfers (the cap "
+                                   "keeps a run's memory bounded)")
+    path = folder / FILE
+    tmp = folder / f".{FILE}.tmp"
+    try:
+        write(tmp, r, r.i2c, r.rc_frames, why)
+        tmp.replace(path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
+
+
+__all__ = ["FILE", "SCHEMAS", "TOPICS", "write", "write_run"]
