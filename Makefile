@@ -121,6 +121,7 @@ docs-images: venv fmu shim native compiled dut
 	$(VENV)/bin/rig run rc_loss_failsafe fault_gyro_stuck --out build/docs-report --pdf --operator "A. Tester"
 	pdftoppm -f 3 -l 3 -r 80 -png -singlefile build/docs-report/acceptance.pdf docs/acceptance-report-page
 	$(PY) tools/service_screenshot.py
+	$(PY) tools/mcap_screenshot.py build/docs-report/fault_gyro_stuck/run.mcap
 
 # our C, in one style (.clang-format); the FMI headers are vendored as they came
 C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/linux/*.[ch] dut/avr/*.[ch] dut/tests/*.c emulators/c/*.c emulators/chips/*.[ch] plant/c/*.[ch] \

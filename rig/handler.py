@@ -22,7 +22,7 @@ if TYPE_CHECKING:
     from rig.session import Session, SessionConfig, _Conn
 
 FOREVER_SLICE_NS: Final = 10_000_000  # a wait with no deadline lets 10 ms pass, then the DUT looks again
-I2C_LOG_CAP: Final = 1_000_000  # transfers kept for run.mcap (scenarios/result.py's I2C_RECORD_CAP)
+I2C_LOG_CAP: Final = 1_000_000  # transfers kept for run.mcap (TargetRun.transactions)
 
 
 class Handler:

@@ -69,11 +69,6 @@ class RcFrame:
     failsafe: bool
 
 
-#: the most I2C transfers a run keeps for run.mcap (a 30 s run at 1 kHz makes ~30 k; beyond the cap
-#: the rest are counted, not kept, and run.mcap's metadata says so)
-I2C_RECORD_CAP = 1_000_000
-
-
 @dataclass
 class RunResult:
     scenario: ScenarioInfo

@@ -98,8 +98,9 @@ class TargetRun:
         return {}
 
     def transactions(self) -> list[I2CRecord] | None:
-        """The run's I2C transfers as the chips saw them (run.mcap's /i2c channel), at most
-        I2C_RECORD_CAP of them; None when this target cannot see them (its bus is elsewhere)."""
+        """The run's I2C transfers as the chips saw them (run.mcap's /i2c channel), the first million
+        at most (rig/handler.py's I2C_LOG_CAP: a 30 s run at 1 kHz makes ~30 k); None when this target
+        cannot see them (a bridge's bus is on the board, it reports counts only)."""
         return None
 
     def idle(self, outcome: Outcome) -> str | None:
