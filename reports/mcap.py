@@ -223,7 +223,7 @@ def write(out: IO[bytes] | Path, r: RunResult, i2c: Sequence[I2CRecord] | None,
     w.add_metadata("result", {str(k): json.dumps(v, allow_nan=False) for k, v in r.metadata.items()})
     w.add_metadata("run", {"scenario": r.scenario.stem, "verdict": r.verdict, "error": r.error or "",
                            "notes": json.dumps(r.notes), "format": result_json.FORMAT})
-    w.add_metadata("mcap", {**{f"empty {k}": v for k, v in why.items()},
+    w.add_metadata("mcap", {**{f"note {k}": v for k, v in why.items()},
                             **{f"messages {k}": str(n) for k, n in seq.items()}})
     w.finish()
 
@@ -235,6 +235,9 @@ def write_run(folder: Path, r: RunResult, why_empty: dict[str, str] | None = Non
     """``folder``/run.mcap for ``r``, written whole or not at all (a temporary name, then renamed)."""
     why = dict(why_empty or {})
     mode = r.metadata.get("mode", "?")
+    if not len(r.signals.get("t", ())):  # (rig/runner.py's not_run: the DUT never started)
+        for topic in ("/i2c", "/sensors", "/rc"):
+            why.setdefault(topic, "the run recorded nothing: it did not take place")
     if r.i2c is None:
         why.setdefault("/i2c", f"this target ({mode}) cannot see the DUT's I2C transfers: only their count "
                                "(result.json's bus_transactions) is known")

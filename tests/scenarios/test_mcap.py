@@ -110,7 +110,7 @@ def test_the_i2c_channel_holds_every_bus_transaction(run_dir: Path) -> None:
     sensors = [m for _, m in by_topic["/sensors"] if m["chip"] == "MPU-6050"]
     raw = bytes.fromhex(burst["read"])
     assert sensors[0]["values"]["az"] == int.from_bytes(raw[4:6], "big", signed=True)
-    assert "empty /i2c" not in meta["mcap"]
+    assert "note /i2c" not in meta["mcap"]
 
 
 def test_the_metadata_is_result_json_s(run_dir: Path) -> None:
@@ -153,6 +153,30 @@ def test_rig_report_mcap_writes_it_for_an_old_run(run_dir: Path, tmp_path: Path)
     for (_, a), (_, b) in zip(by_topic["/attitude"], fresh["/attitude"], strict=True):
         assert a["roll"] == pytest.approx(b["roll"], rel=1e-5, abs=1e-9)
     assert "/i2c" not in by_topic and "/rc" not in by_topic
-    assert "rig report --mcap" in meta["mcap"]["empty /i2c"]
-    assert "rig report --mcap" in meta["mcap"]["empty /rc"]
+    assert "rig report --mcap" in meta["mcap"]["note /i2c"]
+    assert "rig report --mcap" in meta["mcap"]["note /rc"]
     assert [(t, m["event"]) for t, m in by_topic["/faults"]] == [(t, m["event"]) for t, m in fresh["/faults"]]
+
+
+def test_a_target_that_cannot_see_the_bus_says_so(run_dir: Path, tmp_path: Path) -> None:
+    from reports.load import read_run
+
+    r = read_run(run_dir)  # (i2c and rc_frames None: as a bridge run's result has them)
+    r.metadata["mode"] = "bridge"
+    summary, by_topic, meta = read(rig_mcap.write_run(tmp_path, r))
+    assert len(summary.channels) == 7 and "/i2c" not in by_topic and "/sensors" not in by_topic
+    assert "this target (bridge) cannot see" in meta["mcap"]["note /i2c"]
+    assert meta["mcap"]["messages /i2c"] == "0"
+    assert [p.name for p in tmp_path.iterdir()] == ["run.mcap"]  # (no temporary file left)
+
+
+def test_a_capped_transaction_log_is_said_in_the_metadata(run_dir: Path, tmp_path: Path) -> None:
+    from reports.load import read_run
+    from scenarios.result import I2CRecord
+
+    r = read_run(run_dir)
+    r.i2c = [I2CRecord(1000 * k, 0x68, None, b"", b"\x00", True) for k in range(3)]
+    r.metadata["bus_transactions"] = 5
+    _, by_topic, meta = read(rig_mcap.write_run(tmp_path, r))
+    assert len(by_topic["/i2c"]) == 3
+    assert "the first 3 of the run's 5 transfers" in meta["mcap"]["note /i2c"]

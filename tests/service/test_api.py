@@ -234,9 +234,12 @@ def test_a_runs_artifacts_and_events_are_served_and_nothing_else(service: Servic
     assert len({(e["status"], e["progress"]) for e in events}) == len(events)  # one event per change
     _, names = service.call("GET", f"/api/runs/{run_id}/artifacts")
     assert {"junit.xml", "index.html", "step_roll/result.json", "step_roll/report.html",
-            "step_roll/telemetry.csv"} <= set(names)
+            "step_roll/telemetry.csv", "step_roll/run.mcap"} <= set(names)
     with urllib.request.urlopen(f"{service.url}/api/runs/{run_id}/artifacts/step_roll/result.json") as r:
         served = json.loads(r.read())
+    with urllib.request.urlopen(f"{service.url}/api/runs/{run_id}/artifacts/step_roll/run.mcap") as r:
+        assert r.headers["content-type"] == "application/octet-stream"  # (not text/plain)
+        assert r.read().startswith(b"\x89MCAP0\r\n")  # the format's magic
     run = service.call("GET", f"/api/runs/{run_id}")[1]
     assert [m["value"] for m in served["measurements"]] == \
         [m["value"] for m in run["results"][0]["measurements"]]
