@@ -124,6 +124,8 @@ SENSOR_REGISTERS: Final[dict[tuple[int, int], tuple[str, str, tuple[str, ...]]]]
     (0x68, 0x3B): _MPU, (0x69, 0x3B): _MPU, (0x1E, 0x03): _HMC,
 }
 _MS5611 = (0x76, 0x77)
+#: one encoder for every message (json.dumps with options makes a new one per call), compact
+_JSON: Final = json.JSONEncoder(allow_nan=False, separators=(",", ":"))
 
 
 def _sensor(rec: I2CRecord) -> dict[str, Any] | None:
@@ -145,15 +147,16 @@ def _sensor(rec: I2CRecord) -> dict[str, Any] | None:
             "values": dict(zip(names, values, strict=True))}
 
 
-def _value(v: float) -> float | None:
-    return None if math.isnan(v) else float(v)
-
-
 def _rows(signals: dict[str, np.ndarray], names: Sequence[str]) -> Iterable[tuple[int, dict[str, Any]]]:
-    t = signals["t"]
-    cols = [(n, signals[n]) for n in names if n in signals and len(signals[n]) == len(t)]
-    for k in range(len(t)):
-        yield round(float(t[k]) * NS), {"t": float(t[k]), **{n: _value(float(c[k])) for n, c in cols}}
+    t = signals["t"].tolist()
+    # (plain lists of floats: indexing a numpy array per sample costs more than the JSON)
+    cols = [(n, signals[n].tolist()) for n in names if n in signals and len(signals[n]) == len(t)]
+    for k, tk in enumerate(t):
+        row: dict[str, Any] = {"t": tk}
+        for n, c in cols:
+            v = c[k]
+            row[n] = None if v != v else v  # (NaN: null)
+        yield round(tk * NS), row
 
 
 def _fault_events(r: RunResult) -> list[tuple[int, dict[str, Any]]]:
@@ -199,7 +202,7 @@ def write(out: IO[bytes] | Path, r: RunResult, i2c: Sequence[I2CRecord] | None,
     def put(topic: str, t_ns: int, msg: dict[str, Any]) -> None:
         t_ns = max(0, t_ns)  # (MCAP times are unsigned)
         w.add_message(channel_id=ch[topic], log_time=t_ns, publish_time=t_ns, sequence=seq[topic],
-                      data=json.dumps(msg, allow_nan=False).encode())
+                      data=_JSON.encode(msg).encode())
         seq[topic] += 1
 
     for t_ns, row in _rows(r.signals, ATTITUDE):
