@@ -11,6 +11,7 @@ one made on the command line are the same run.
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import io
 import os
@@ -188,7 +189,6 @@ def run(
     the reference FC); ``mcu=(board, firmware)``, a firmware image under emulation; ``bridge``, a
     bench bridge's serial port or "virtual". Raises RigError for bad options (nothing is run); a DUT
     that crashes or hangs is a Result with verdict "error", as on the command line."""
-    import argparse
     import shlex
     import threading
 
@@ -202,13 +202,15 @@ def run(
     sc = _scenario(scenario)
     if mcu is not None and (not isinstance(mcu, tuple) or len(mcu) != 2):
         raise RigError("mcu: expected (board, firmware)")
-    args = argparse.Namespace(
-        scenarios=[str(sc.path)],
-        dut=shlex.join(dut) if isinstance(dut, Sequence) and not isinstance(dut, str) else dut,
-        out=Path(out), seed=int(seed), wall_timeout=float(wall_timeout), realtime=False, bridge=bridge,
-        can=None, psu=None, esc="pwm", mcu=None if mcu is None else os.fspath(mcu[0]),
-        firmware=None if mcu is None else Path(mcu[1]), trace=None, pdf=False, operator="",
-    )
+    words = [str(sc.path), "--out", os.fspath(out), "--seed", str(int(seed)), "--wall-timeout",
+             repr(float(wall_timeout))]
+    if dut is not None:
+        words += ["--dut", shlex.join(dut) if isinstance(dut, Sequence) and not isinstance(dut, str) else dut]
+    if bridge is not None:
+        words += ["--bridge", bridge]
+    if mcu is not None:
+        words += ["--mcu", os.fspath(mcu[0]), "--firmware", os.fspath(mcu[1])]
+    args = _options("run", words)
     # Ctrl-C or a CI job's SIGTERM stops the DUT and finishes the run's files, as in rig run, and then
     # reaches the caller as KeyboardInterrupt; (signal handlers can be set from the main thread only)
     main = threading.current_thread() is threading.main_thread()
@@ -269,7 +271,6 @@ def sweep(
     the runs' table (runs.parquet: one row per run, its variation, verdict and measurements).
     ``engine``: a Dask scheduler's address (default: the local pool, ``jobs`` at once). Raises
     RigError when nothing could be run (a bad spec, bad options, an unreachable engine)."""
-    import argparse
 
     import pyarrow.parquet as pq
 
@@ -279,8 +280,12 @@ def sweep(
     from rig import sweep_cmd
     from rig.sweep import store
 
-    args = argparse.Namespace(spec=Path(spec), out=Path(out), jobs=jobs, engine=engine, retry_errors=False,
-                              fresh=fresh, dut=dut, wall_timeout=float(wall_timeout))
+    words = [os.fspath(spec), "--out", os.fspath(out), "--wall-timeout", repr(float(wall_timeout))]
+    words += ["--jobs", str(jobs)] if jobs is not None else []
+    words += ["--engine", engine] if engine is not None else []
+    words += ["--dut", dut] if dut is not None else []
+    words += ["--fresh"] if fresh else []
+    args = _options("sweep", words)
     said = io.StringIO()
     with contextlib.redirect_stderr(said):
         code = sweep_cmd.main(args)
@@ -288,3 +293,17 @@ def sweep(
     if code == sweep_cmd.EXIT_USAGE or not table.is_file():
         raise RigError(said.getvalue().strip() or f"rig sweep ended with status {code}")
     return pq.read_table(table)
+
+
+def _options(command: str, words: list[str]) -> argparse.Namespace:
+    """The command line's own options for ``rig COMMAND WORDS`` (rig/cli.py's parser, so the API takes
+    exactly what the command takes, defaults and new options included); RigError with argparse's words."""
+    from rig.cli import parser
+
+    said = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(said):
+            return parser().parse_args([command, *words])
+    except SystemExit:
+        raise RigError(said.getvalue().strip().splitlines()[-1] if said.getvalue().strip()
+                       else f"rig {command}: bad options") from None
