@@ -13,9 +13,9 @@ Why these choices:
   transfers (``/sensors``), every RC frame sent (``/rc``), the scheduled faults' switching as events
   (``/faults``) and the criteria as one final message (``/criteria``).
 * "Sensors as the chips reported them" is taken literally: the raw counts the DUT read from each chip's
-  data registers (the MPU-6050's 14-byte burst from 0x3B, the HMC5883L's 6 bytes from 0x03, the
-  MS5611's 24-bit ADC result), decoded from the I2C channel's bytes. That is what the firmware saw,
-  faults and noise included, which the plant's truth on ``/attitude`` is not.
+  data registers (the MPU-6050's 14 bytes from 0x3B, the HMC5883L's 6 bytes from 0x03, in a read that
+  covers them; the MS5611's 24-bit ADC result), decoded from the I2C channel's bytes. That is what the
+  firmware saw, faults and noise included, which the plant's truth on ``/attitude`` is not.
 * The run's metadata (result.json's ``metadata``, each value as JSON text, since MCAP metadata maps
   strings to strings) goes in a metadata record ``result``; the verdict, error and notes in ``run``;
   a record ``mcap`` says which channels are empty and why (a target that cannot see the bus, an old
@@ -116,13 +116,17 @@ SCHEMAS: Final[dict[str, dict[str, Any]]] = {
     },
 }
 
-# (address, first register) -> (chip, struct format, field names): the data registers the rig's chips
-# answer a DUT with (emulators/chips); a read starting elsewhere is configuration, left to /i2c
+# the chips' data registers (emulators/chips): (addresses, first data register, chip, struct format,
+# field names). A read that covers them, from that register or one before it (a firmware reading
+# INT_STATUS or I2C_MST_STATUS with the samples in one burst), is decoded; other reads are configuration,
+# left to /i2c. (The MPU-6050's EXT_SENS_DATA is laid out as each firmware sets its aux master up: left
+# to /i2c too.)
 _MPU = ("MPU-6050", ">7h", ("ax", "ay", "az", "temp", "gx", "gy", "gz"))
 _HMC = ("HMC5883L", ">3h", ("x", "z", "y"))
-SENSOR_REGISTERS: Final[dict[tuple[int, int], tuple[str, str, tuple[str, ...]]]] = {
-    (0x68, 0x3B): _MPU, (0x69, 0x3B): _MPU, (0x1E, 0x03): _HMC,
-}
+SENSOR_WINDOWS: Final[tuple[tuple[tuple[int, ...], int, tuple[str, str, tuple[str, ...]]], ...]] = (
+    ((0x68, 0x69), 0x3B, _MPU),
+    ((0x1E,), 0x03, _HMC),
+)
 _MS5611 = (0x76, 0x77)
 #: one encoder for every message (json.dumps with options makes a new one per call), compact
 _JSON: Final = json.JSONEncoder(allow_nan=False, separators=(",", ":"))
@@ -135,16 +139,13 @@ def _sensor(rec: I2CRecord) -> dict[str, Any] | None:
     if rec.address in _MS5611 and rec.register == 0x00 and len(rec.read) == 3:
         return {"chip": "MS5611", "address": rec.address, "register": 0,
                 "values": {"adc": int.from_bytes(rec.read, "big")}}
-    spec = SENSOR_REGISTERS.get((rec.address, rec.register))
-    if spec is None:
-        return None
-    chip, fmt, names = spec
-    size = struct.calcsize(fmt)
-    if len(rec.read) < size:
-        return None
-    values = struct.unpack_from(fmt, rec.read)
-    return {"chip": chip, "address": rec.address, "register": rec.register,
-            "values": dict(zip(names, values, strict=True))}
+    for addresses, first, (chip, fmt, names) in SENSOR_WINDOWS:
+        skip = first - rec.register
+        if rec.address in addresses and skip >= 0 and len(rec.read) >= skip + struct.calcsize(fmt):
+            values = struct.unpack_from(fmt, rec.read, skip)
+            return {"chip": chip, "address": rec.address, "register": first,
+                    "values": dict(zip(names, values, strict=True))}
+    return None
 
 
 def _rows(signals: dict[str, np.ndarray], names: Sequence[str]) -> Iterable[tuple[int, dict[str, Any]]]:

@@ -269,6 +269,7 @@ class AvrEngine:
         self._need = _Need()
         self._need_ref = ctypes.byref(self._need)
         self._stop: Stop | None = None
+        self._twi_buf = (_Record * 1024)()  # (twi_take's, made once: it runs every plant tick)
 
     @property
     def _e(self) -> int:
@@ -388,7 +389,7 @@ class AvrEngine:
 
     def twi_take(self) -> list[TwiRecord]:
         out: list[TwiRecord] = []
-        buf = (_Record * 1024)()
+        buf = self._twi_buf
         while (n := self._lib.mcu_twi_take(self._e, buf, 1024)) > 0:
             out += [TwiRecord(r.t_ns, chr(r.kind), r.value, bool(r.ack)) for r in buf[:n]]
         return out

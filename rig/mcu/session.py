@@ -33,6 +33,7 @@ from rig import interrupts
 from rig.bridge.esc import esc_protocol
 from rig.mcu.board import Board
 from rig.mcu.engine import AvrEngine, config_for
+from rig.mcu.twi_log import TwiTransfers
 from rig.mcu.vcd import McuTrace
 from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, Stop
 from rig.session import Outcome
@@ -89,6 +90,7 @@ class McuSession:
         self.engine: AvrEngine | None = None
         self._telemetry = bytearray()
         self._t_ns = 0
+        self.transfers = TwiTransfers()  # what the chips saw, for run.mcap's /i2c
         self.figures = McuFigures([_MotorState() for _ in b.motors])
         self.notes: list[str] = []
         self._ppm_channels: list[int] | None = None
@@ -149,7 +151,7 @@ class McuSession:
         trace = None
         if self.cfg.trace is not None:
             trace = self._open_trace(self.cfg.trace)
-            engine.twi_log(True)
+        engine.twi_log(True)  # (the transfers for run.mcap, and the trace's)
         ppm = self.cfg.board.rc.protocol == "ppm"
         telemetry_uart = self.cfg.board.telemetry_uart
         try:
@@ -169,8 +171,10 @@ class McuSession:
                 self._telemetry += engine.uart_take(telemetry_uart)
                 trains = engine.pulses()
                 self._motors(trains, nxt)
+                events = engine.twi_take()
+                self.transfers.feed(events)
                 if trace is not None:
-                    trace.add(engine.twi_take(), trains, nxt)
+                    trace.add(events, trains, nxt)
                 if time.perf_counter() - wall0 > self.cfg.wall_timeout:
                     self.sched.fail(EXIT_WATCHDOG, f"wall-time watchdog: {self.cfg.wall_timeout:g} s")
                     break
@@ -187,8 +191,11 @@ class McuSession:
             interrupted = False
         finally:
             self.figures_at_end = engine.figures()
+            events = engine.twi_take()
+            self.transfers.feed(events)
+            self.transfers.finish()
             if trace is not None:
-                trace.add(engine.twi_take(), [], self._t_ns)  # (the pulses: all taken, and counted)
+                trace.add(events, [], self._t_ns)  # (the pulses: all taken, and counted)
                 trace.close()
             engine.close()
         verdict, code, error = self.sched.verdict(None, self._t_ns / NS, True, True, interrupted)

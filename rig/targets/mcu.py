@@ -14,6 +14,7 @@ from rig.mcu.session import McuConfig, McuSession
 from rig.session import Outcome
 from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, TargetRun
 from rig.targets.process import NO_SUPPLY
+from scenarios.result import I2CRecord
 from scenarios.schema import Scenario
 
 if TYPE_CHECKING:
@@ -34,6 +35,9 @@ class McuRun(TargetRun):
         if s.cfg.trace is not None:
             f["trace"] = str(s.cfg.trace)
         return {"mcu": f}
+
+    def transactions(self) -> list[I2CRecord] | None:
+        return self.session.transfers.records
 
     def idle(self, outcome: Outcome) -> str | None:
         if outcome.transactions == 0:

@@ -17,6 +17,7 @@ from rig.runner import run
 from rig.targets.mcu import McuTarget
 from scenarios.schema import load
 from tests.mcu.conftest import REPO, firmware
+from tests.scenarios.test_mcap import read
 
 LIB = REPO / "scenarios" / "library"
 
@@ -44,6 +45,18 @@ def test_the_avr_reference_fc_flies_the_library_through_the_tier(avr_fc: Path, t
         assert meta["realtime_factor"] > 0
         told = (tmp_path / name / "dut-telemetry.txt").read_text()
         assert "# fc: configuration: EEPROM image" in told  # the scenario's [fc] table reached it
+    # run.mcap's /i2c holds every TWI transaction (one per address phase, as the engine counts them):
+    # the firmware's one burst a loop, 25 bytes from I2C_MST_STATUS (0x36), decoded on /sensors
+    _, by_topic, meta = read(tmp_path / "step_roll" / "run.mcap")
+    mcu = json.loads((tmp_path / "step_roll" / "result.json").read_text())["metadata"]["mcu"]
+    i2c = [m for _, m in by_topic["/i2c"]]
+    assert len(i2c) == mcu["twi_transactions"] and "note /i2c" not in meta["mcap"]
+    bursts = [m for m in i2c if m["address"] == 0x68 and m["register"] == 0x36 and m["read"]]
+    assert len(bursts) > 900  # 100 Hz for 10 s
+    mpu = [m for _, m in by_topic["/sensors"] if m["chip"] == "MPU-6050"]
+    assert len(mpu) == len(bursts)
+    raw = bytes.fromhex(bursts[-1]["read"])  # ACCEL_ZOUT at 0x3F: 9 bytes into a burst from 0x36
+    assert mpu[-1]["values"]["az"] == int.from_bytes(raw[9:11], "big", signed=True)
 
 
 def test_the_same_seed_gives_the_same_bytes(avr_fc: Path, tmp_path: Path) -> None:
