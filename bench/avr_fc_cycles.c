@@ -92,6 +92,23 @@ int main(void)
     for (uint8_t k = 0; k < N; k++)
         sink = flight_control(&fl, 1.0 + k * 0.004);
     report("flight_control", clock_ticks() - t0, N);
+    /* its halves, as the AVR loop runs them (the rate loop at twice the estimator's rate) */
+    t0 = clock_ticks();
+    for (uint8_t k = 0; k < N; k++)
+        flight_measure(&fl, acc[k], gyro[k], k % 4 ? NULL : &mag[k]);
+    report("flight_measure", clock_ticks() - t0, N);
+    t0 = clock_ticks();
+    for (uint8_t k = 0; k < N; k++)
+        flight_estimate(&fl);
+    report("flight_estimate_mahony", clock_ticks() - t0, N);
+    t0 = clock_ticks();
+    for (uint8_t k = 0; k < N; k++)
+        sink = flight_outer(&fl, 1.0 + k * 0.004);
+    report("flight_outer", clock_ticks() - t0, N);
+    t0 = clock_ticks();
+    for (uint8_t k = 0; k < N; k++)
+        sink = flight_inner(&fl, 0.005);
+    report("flight_inner", clock_ticks() - t0, N);
     sink = fl.armed && fl.alt_hold; /* (the path measured: armed, holding altitude) */
 
     uint16_t prom[8] = { 0, 40127, 36924, 23317, 23282, 33464, 28312, 0x0103 };

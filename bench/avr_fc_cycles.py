@@ -1,9 +1,10 @@
 """The AVR reference firmware's cycle budget: cycles per call of each part of its loop, counted in
 simavr by the firmware's own timer (bench/avr_fc_cycles.c: timer 1 at the CPU clock, canned samples of a
 moving vehicle), the TWI bus time of a cycle computed from its bytes at 400 kHz (simavr has no chips to
-answer; the MCU tier's runs report the measured loop in the telemetry's loop_us), and the loop's
-headroom at 250 Hz and at the rate the firmware runs (AVR_RATE_HZ in dut/avr/board.h); then flash, RAM
-and EEPROM of build/avr/fc.elf.
+answer; the MCU tier's runs report the measured loop in the telemetry's loop_us), a single loop's
+headroom at 250 Hz and at the estimator's rate (AVR_RATE_HZ in dut/avr/board.h), each slot of the
+firmware's loop (the rate loop AVR_INNER_PER_EST times a cycle, the estimator and the outer loops in
+alternate slots) against its budget; then flash, RAM and EEPROM of build/avr/fc.elf.
 
 Why: the ATmega2560 has no FPU; every float operation is a libm call of 100-3000 cycles, so which
 estimator fits, and at what loop rate, is a measurement, not a guess. Simavr counts cycles exactly, so
@@ -49,6 +50,11 @@ def board_rate() -> int:
     return int(m.group(1)) if m else 250
 
 
+def board_inner() -> int:
+    m = re.search(r"#define AVR_INNER_PER_EST (\d+)", (REPO / "dut" / "avr" / "board.h").read_text())
+    return int(m.group(1)) if m else 1
+
+
 def main() -> int:
     subprocess.run(["make", "-s", "-C", str(REPO / "dut"), "avr", "avr-bench"], check=True)
     p = parts(bench_lines(ELF))
@@ -59,7 +65,11 @@ def main() -> int:
         ("estimator: seed-002 Mahony DCM (+ Euler)", p["estimator_mahony"]),
         ("estimator: EKF, 7 states (+ Euler)", p["estimator_ekf"]),
         ("flight_sense (calibration, Mahony, vertical acceleration)", p["flight_sense_mahony"]),
+        ("  flight_measure (the gyro check, calibration)", p["flight_measure"]),
+        ("  flight_estimate (Mahony, vertical acceleration)", p["flight_estimate_mahony"]),
         ("flight_control (RC, arming, 7 PIDs in altitude hold, mixer)", p["flight_control"]),
+        ("  flight_outer (RC, arming, 2 attitude + 2 altitude PIDs)", p["flight_outer"]),
+        ("  flight_inner (3 rate PIDs, mixer)", p["flight_inner"]),
         ("flight_baro (eq. 6, the gate, the altitude filter)", p["flight_baro"]),
         ("MS5611 compensation (64-bit integer)", p["ms5611_compensate"]),
         ("SBUS frame decode", p["sbus_decode"]),
@@ -70,9 +80,11 @@ def main() -> int:
     print("AVR reference FC (ATmega2560, 16 MHz), cycles per call, counted in simavr:")
     for name, cyc in rows:
         print(f"  {name:<62} {cyc:>9,d}  {cyc / F_CPU * 1e6:>8.0f} us")
+    # one loop of everything at once (the firmware before its rate loop ran alone)
     worst = (p["flight_sense_mahony"] + p["flight_control"] + p["flight_baro"] + p["ms5611_compensate"]
              + p["sbus_decode"] + p["telemetry_line"] + burst + baro_io)
     usual = p["flight_sense_mahony"] + p["flight_control"] + burst
+    print("one loop doing everything each cycle:")
     for name, cyc in (("a cycle, usual (sense, control, MPU burst)", usual),
                       ("a cycle, worst (+ baro pair, SBUS frame, telemetry line)", worst)):
         print(f"  {name:<62} {cyc:>9,d}  {cyc / F_CPU * 1e6:>8.0f} us")
@@ -82,7 +94,27 @@ def main() -> int:
         print(f"  at {rate} Hz: budget {budget:,d} cycles; worst cycle {100 * worst / budget:.0f} % "
               f"(headroom {budget - worst:,d}); usual {100 * usual / budget:.0f} %; "
               f"with the EKF {100 * ekf_cycle / budget:.0f} %")
-    print(f"  the loop rate the firmware runs: {board_rate()} Hz (dut/avr/board.h AVR_RATE_HZ)")
+    # the firmware's loop (dut/avr/main.c): slots at board_rate() * inner, each the MPU burst and the
+    # rate loop; the first slot of a cycle adds the estimator, the others the outer loops, a barometer
+    # step, an SBUS frame and, when no barometer pair came in the same slot, the telemetry line
+    inner = board_inner()
+    slot_rate = board_rate() * inner
+    budget = F_CPU // slot_rate
+    rate_loop = burst + p["flight_measure"] + p["flight_inner"]
+    outer = rate_loop + p["flight_outer"] + baro_io + p["sbus_decode"]
+    slots = (
+        ("slot: rate loop + estimator", rate_loop + p["flight_estimate_mahony"]),
+        ("slot: rate loop + outer loops, baro step, SBUS frame", outer),
+        ("slot: ... + a barometer pair (compensation, fusion)",
+         outer + p["ms5611_compensate"] + p["flight_baro"]),
+        ("slot: ... + a telemetry line (no barometer pair)", outer + p["telemetry_line"]),
+    )
+    print(f"the firmware's loop: the rate loop at {slot_rate} Hz, the estimator and outer loops at "
+          f"{board_rate()} Hz; a slot's budget {budget:,d} cycles:")
+    for name, cyc in slots:
+        print(f"  {name:<62} {cyc:>9,d}  {cyc / F_CPU * 1e6:>8.0f} us  {100 * cyc / budget:>4.0f} %")
+    print(f"  the rate loop alone (burst, measure, rate PIDs): {rate_loop:,d} cycles, "
+          f"{rate_loop / F_CPU * 1e6:.0f} us from the sample's request to the compare registers")
     size = subprocess.run(["avr-size", "-A", str(FC_ELF)], capture_output=True, text=True, check=True).stdout
     rows_ = (line.split() for line in size.splitlines())
     sec = {f[0]: int(f[1]) for f in rows_ if len(f) >= 2 and f[1].isdigit()}

@@ -17,12 +17,18 @@
 #define SBUS_BAUD 100000UL      /* 8E2; UBRR 9 at 16 MHz, exact */
 #define TELEMETRY_BAUD 500000UL /* U2X, UBRR 3 at 16 MHz, exact */
 
-/* The loop rate the firmware runs at most: float arithmetic is libm calls on this CPU, and a cycle
-   (Mahony, the control, the MPU burst, and at worst a barometer pair, an SBUS frame and a telemetry line)
-   is about 136000 cycles (bench/avr_fc_cycles.py), 85 % of 100 Hz's 160000. A configuration asking for
-   more (the library's 250 Hz) runs at this rate, its control and telemetry rates scaled alike. */
-#define AVR_RATE_HZ 100
-#define AVR_RATE_TEXT "100"
+/* The estimator's and the outer loops' rate at most, and the rate loop's multiple of it: float
+   arithmetic is libm calls on this CPU. The rate loop (the MPU burst, the rate PIDs, the motors) runs
+   AVR_INNER_PER_EST times a cycle, so that the time from a gyro sample to the pulses is the burst and the
+   rate PIDs (about 1.4 ms) plus the PWM's latch, not an estimator's update besides; the estimator and the
+   outer loops (with the barometer, the RC frames and the telemetry) take alternate slots. The slot with
+   the estimator is the longest: 76,000 cycles in bench/avr_fc_cycles.py, up to 6.25 ms (100,000) measured
+   in the MCU tier (max_us), so a slot is 6.67 ms: 150 Hz for the rate loop, 75 Hz for the rest (5 ms,
+   200 and 100 Hz, overran every cycle). A configuration asking for more (the library's 250 Hz) runs at
+   this rate, its control and telemetry rates scaled alike. */
+#define AVR_RATE_HZ 75
+#define AVR_RATE_TEXT "75"
+#define AVR_INNER_PER_EST 2
 
 /* the initial alignment (flight.h) runs during the calibration second, a filter step every 3 samples
    (166 steps of 24 ms: the Linux FC's 4 s of the filters' time, which it runs in 1000 steps after the
@@ -36,7 +42,7 @@
    from sample to pulse (the MPU burst, the rate loop's arithmetic, the timers' compare latch) a 7 Hz
    limit cycle of 1.6 deg rms at 100 Hz; 25 flies step_roll in the MCU tier as Linux does in lockstep
    (0.04 deg rms hovering, 0.16 about the 10 deg step; docs/avr-fc.md) */
-#define AVR_RATE_KP 25
+#define AVR_RATE_KP 40
 
 /* the clock: timer 1, prescaler 8, free-running: 2 ticks per microsecond */
 #define TICKS_PER_S 2000000UL

@@ -158,12 +158,22 @@ int main(void)
         wdt_reset();
     }
     flight_ready(&fl, bias, mag_n > 0 ? v3_scale(mag_sum, 1.0 / mag_n) : v3(0, 0, 0));
+    /* the gyro check counts flight_measure's calls: AVR_INNER_PER_EST a cycle here */
+    fl.stuck_n = (int)(FLIGHT_GYRO_STUCK_S * cfg.est_rate_hz * AVR_INNER_PER_EST + 0.5);
     say("running", "");
-    wdt_enable(WDTO_60MS); /* the loop feeds it every cycle (4 ms at 250 Hz) */
+    wdt_enable(WDTO_60MS); /* the loop feeds it every slot (5 ms) */
 
-    const uint32_t period = (uint32_t)(TICKS_PER_S / cfg.est_rate_hz + 0.5);
+    /* Two slots per cycle of est_rate_hz (board.h): each reads the MPU burst and runs the rate loop on
+       it at once (flight_measure, flight_inner, the motors); the first slot then runs the estimator,
+       the second the outer loops on its estimate (flight_outer: the rate set points for the next slots),
+       the barometer, the RC frames and the telemetry. The estimator (54 k cycles) and the outer work do
+       not fit one 5 ms slot together; each fits beside the rate loop (bench/avr_fc_cycles.py). */
+    const uint32_t period = (uint32_t)(TICKS_PER_S / (cfg.est_rate_hz * AVR_INNER_PER_EST) + 0.5);
+    const real Ti = 1.0 / (cfg.est_rate_hz * AVR_INNER_PER_EST);
     const double t_start = clock_seconds();
     uint32_t cycles = 0, overruns = 0, max_ticks = 0;
+    uint8_t slot = 0;
+    int tel_due = 0;
     const uint8_t mag_every = cfg.est_rate_hz >= 93.75 ? (uint8_t)(cfg.est_rate_hz / 62.5 + 0.5) : 1;
     int mag_clean = 1;
     next = clock_ticks();
@@ -179,38 +189,57 @@ int main(void)
             for (;;) /* negative control: a firmware that hangs mid-flight, until the watchdog resets it */
                 ;
         mag_clean &= mag_ok;
-        /* a field every mag_every cycles (62.5 Hz: 4 at 250 Hz as on Linux; the HMC5883L runs at 75 Hz) */
-        int mag_due = cycles % mag_every == 0, fresh_mag = mag_due && mag_clean;
+        /* a field every mag_every cycles (62.5 Hz: 4 at 250 Hz as on Linux; the HMC5883L runs at 75 Hz),
+           given to the estimator's slot */
+        int mag_due = slot == 0 && cycles % mag_every == 0, fresh_mag = mag_due && mag_clean;
         if (mag_due)
             mag_clean = 1;
-        /* the rate loop on this sample at once (flight.h): measure, control, motors; then the estimate
-           for the next cycle's attitude loop, and the barometer and RC for the next control */
+        /* the rate loop on this sample at once; out[] also holds what the outer loop set (disarmed,
+           the gyro fault's descent) */
         flight_measure(&fl, acc, gyro, fresh_mag ? &mag : NULL);
-        int events = flight_control(&fl, t0);
-        if (events & FLIGHT_CONTROLLED)
-            for (uint8_t i = 0; i < 4; i++)
-                motors_write_us(i, (uint16_t)(fl.out[i] + 0.5));
-        flight_estimate(&fl);
-        int32_t p_pa = 0, t_c = 0;
-        if (ms5611_poll(&baro, &baro_bus, &p_pa, &t_c) == 1)
-            flight_baro(&fl, p_pa, t0);
-        sbus_frame f;
-        int got;
-        while ((got = sbus_rx_take(&f)) != 0)
-            if (got > 0)
-                flight_rc(&fl, &f, t0);
-        if (events & FLIGHT_GYRO_STUCK)
-            say("gyro stuck: holding level torque, descending", "");
-        if (events & FLIGHT_GYRO_RECOVERED)
-            say("gyro recovered", "");
-        if (events & FLIGHT_RC_LOST)
-            say("RC lost: failsafe (level, descend, disarm)", "");
+        flight_inner(&fl, Ti);
+        for (uint8_t i = 0; i < 4; i++)
+            motors_write_us(i, (uint16_t)(fl.out[i] + 0.5));
+        int baro_now = 0;
+        if (slot == 0) {
+            flight_estimate(&fl);
+        } else {
+            int events = flight_outer(&fl, t0);
+            if (!fl.inner_on) /* disarmed, or the gyro fault's descent: out[] at once, not a slot later */
+                for (uint8_t i = 0; i < 4; i++)
+                    motors_write_us(i, (uint16_t)(fl.out[i] + 0.5));
+            int32_t p_pa = 0, t_c = 0;
+            if (ms5611_poll(&baro, &baro_bus, &p_pa, &t_c) == 1) {
+                flight_baro(&fl, p_pa, t0);
+                baro_now = 1;
+            }
+            sbus_frame f;
+            int got;
+            while ((got = sbus_rx_take(&f)) != 0)
+                if (got > 0)
+                    flight_rc(&fl, &f, t0);
+            if (events & FLIGHT_GYRO_STUCK)
+                say("gyro stuck: holding level torque, descending", "");
+            if (events & FLIGHT_GYRO_RECOVERED)
+                say("gyro recovered", "");
+            if (events & FLIGHT_RC_LOST)
+                say("RC lost: failsafe (level, descend, disarm)", "");
+        }
         uint32_t loop_ticks = clock_ticks() - c0;
         if (loop_ticks > max_ticks)
             max_ticks = loop_ticks;
-        if (cycles % (uint32_t)cfg.telemetry_every == 0)
-            telemetry(loop_ticks, max_ticks, overruns);
-        cycles++;
+        if (slot == 1) {
+            if (cycles % (uint32_t)cfg.telemetry_every == 0)
+                tel_due = 1;
+            /* a line and a barometer pair together overrun the slot: the line waits for the next
+               outer slot (the pairs come every other one) */
+            if (tel_due && !baro_now) {
+                telemetry(loop_ticks, max_ticks, overruns);
+                tel_due = 0;
+            }
+            cycles++;
+        }
+        slot ^= 1;
         wdt_reset();
         next += period;
         if ((int32_t)(clock_ticks() - next) > 0) {

@@ -166,7 +166,7 @@ void flight_rc(flight *f, const sbus_frame *frame, double t0)
     f->had_rc = 1;
 }
 
-int flight_control(flight *f, double t0)
+int flight_outer(flight *f, double t0)
 {
     const fc_config *c = f->c;
     const sbus_frame *sticks = &f->sticks;
@@ -204,6 +204,7 @@ int flight_control(flight *f, double t0)
     const alt_filter *altf = &f->altf;
     real *out = f->out;
     if (control_now && f->armed && f->gyro_fault) {
+        f->inner_on = 0;
         for (int i = 0; i < 4; i++) /* zero differential torque, 5 % under hover: a slow descent */
             out[i] = clampd(c->hover_us - 0.05 * (c->hover_us - 1000), 1000, 2000);
         f->alt_target = altf->h;
@@ -211,28 +212,20 @@ int flight_control(flight *f, double t0)
     } else if (control_now && f->armed) {
         real sp_roll = rc_ok ? sbus_to_unit(sticks->ch[0]) * c->max_angle_deg * M_PI / 180 : 0;
         real sp_pitch = rc_ok ? sbus_to_unit(sticks->ch[1]) * c->max_angle_deg * M_PI / 180 : 0;
-        real sp_yaw_rate = rc_ok ? sbus_to_unit(sticks->ch[3]) * c->max_yaw_rate_dps * M_PI / 180 : 0;
-        real r_sp = pid_step(&f->angle[0], sp_roll - f->att.roll, f->Tc); /* eq. 9 */
-        real p_sp = pid_step(&f->angle[1], sp_pitch - f->att.pitch, f->Tc);
-        real r_out = pid_step(&f->rate[0], r_sp - f->w.x, f->Tc); /* eq. 10, limited (eq. 13) */
-        real p_out = pid_step(&f->rate[1], p_sp - f->w.y, f->Tc);
-        real y_out = pid_step(&f->rate[2], sp_yaw_rate - f->w.z, f->Tc);
-        if (c->defect_mixer_sign)
-            r_out = -r_out; /* negative control: a roll sign error */
-        real throttle;
+        f->rate_sp[2] = rc_ok ? sbus_to_unit(sticks->ch[3]) * c->max_yaw_rate_dps * M_PI / 180 : 0;
+        f->rate_sp[0] = pid_step(&f->angle[0], sp_roll - f->att.roll, f->Tc); /* eq. 9 */
+        f->rate_sp[1] = pid_step(&f->angle[1], sp_pitch - f->att.pitch, f->Tc);
         if (f->alt_hold) { /* eqs. 11-12, limited (eq. 14), in percent of the throttle range */
             real acc_sp = pid_step(&f->alt_pid, f->alt_target - altf->h, f->Tc) - c->alt_kv * altf->v;
-            throttle = c->hover_us - 1000 + 10 * pid_step(&f->acc_pid, acc_sp - f->acc_up, f->Tc);
+            f->throttle = c->hover_us - 1000 + 10 * pid_step(&f->acc_pid, acc_sp - f->acc_up, f->Tc);
         } else {
-            throttle = thr * 1000;
+            f->throttle = thr * 1000;
             f->alt_target = altf->h;
             f->alt_base = altf->h - alt_offset; /* engaging hold keeps this altitude whatever ch7 says */
         }
-        real m[4];
-        mix((enum mixer_kind)c->mixer, throttle, r_out, p_out, y_out, m);
-        for (int i = 0; i < 4; i++)
-            out[i] = clampd(1000 + throttle_compensate(m[i], c->alpha[i], c->beta[i]), 1000, 2000); /* eq. 16 */
+        f->inner_on = 1;
     } else if (!f->armed) {
+        f->inner_on = 0;
         for (int i = 0; i < 4; i++)
             out[i] = 1000;
         for (int i = 0; i < 2; i++) {
@@ -244,4 +237,29 @@ int flight_control(flight *f, double t0)
         pid_reset(&f->acc_pid);
     }
     return events | (control_now ? FLIGHT_CONTROLLED : 0);
+}
+
+int flight_inner(flight *f, real dt)
+{
+    if (!f->inner_on || !f->armed || f->gyro_fault)
+        return 0;
+    const fc_config *c = f->c;
+    real r_out = pid_step(&f->rate[0], f->rate_sp[0] - f->w.x, dt); /* eq. 10, limited (eq. 13) */
+    real p_out = pid_step(&f->rate[1], f->rate_sp[1] - f->w.y, dt);
+    real y_out = pid_step(&f->rate[2], f->rate_sp[2] - f->w.z, dt);
+    if (c->defect_mixer_sign)
+        r_out = -r_out; /* negative control: a roll sign error */
+    real m[4];
+    mix((enum mixer_kind)c->mixer, f->throttle, r_out, p_out, y_out, m);
+    for (int i = 0; i < 4; i++)
+        f->out[i] = clampd(1000 + throttle_compensate(m[i], c->alpha[i], c->beta[i]), 1000, 2000); /* eq. 16 */
+    return 1;
+}
+
+int flight_control(flight *f, double t0)
+{
+    int events = flight_outer(f, t0);
+    if (events & FLIGHT_CONTROLLED)
+        flight_inner(f, f->Tc);
+    return events;
 }

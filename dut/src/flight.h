@@ -47,6 +47,8 @@ typedef struct {
     int all_estimators; /* flight_align: all three, or c->estimator's only */
     double ctrl_phase;
     vec3 last_gyro;
+    real rate_sp[3], throttle; /* the outer loops' set points for the rate loop (rad/s) and throttle (us) */
+    int inner_on;              /* armed, the gyro sound, set points computed: the rate loop runs */
     real out[4];
 } flight;
 
@@ -80,5 +82,12 @@ void flight_estimate(flight *f);
 void flight_baro(flight *f, int32_t p_pa, double t0);
 void flight_rc(flight *f, const sbus_frame *frame, double t0);
 int flight_control(flight *f, double t0);
+/* flight_control in its two halves, for a platform whose rate loop runs faster than its estimator (the
+   AVR): flight_outer (RC, arming, failsafe, the attitude and altitude loops: the rate set points and the
+   throttle, at ctrl_rate_hz) and flight_inner (the rate PIDs on the newest f->w, the mixer, out[]; dt its
+   own period; returns whether it wrote out[]). flight_control is flight_outer then, on a control cycle,
+   flight_inner with dt = 1 / ctrl_rate_hz: the same arithmetic as before the split. */
+int flight_outer(flight *f, double t0);
+int flight_inner(flight *f, real dt);
 
 #endif

@@ -72,7 +72,7 @@ def test_a_scenarios_image_configures_the_firmware(built: str, tmp_path: Path) -
     ee = eeprom_hex(eeprom.image(sc.fc), tmp_path)
     lines = list(simavr_lines(["-ee", str(ee), str(AVR / "fc.hex")], until="no motor output"))
     assert "# fc: configuration: EEPROM image" in lines, lines
-    assert any("est_rate_hz is over what the AVR fits: the loop runs at 100 Hz" in s for s in lines), lines
+    assert any("est_rate_hz is over what the AVR fits: the loop runs at 75 Hz" in s for s in lines), lines
 
 
 def test_a_corrupt_image_leaves_the_defaults_and_says_why(built: str, tmp_path: Path) -> None:
