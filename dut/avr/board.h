@@ -30,6 +30,15 @@
 #define AVR_RATE_TEXT "75"
 #define AVR_INNER_PER_EST 2
 
+/* A gyro repeating one sample this many times in a row (the rate loop's samples, 150 Hz: 20 ms) while
+   armed is declared stuck (flight.h; Linux: 40 ms, 10 samples at 250 Hz). A stuck sample is what the
+   rate loop acts on until then, at the Linux gain, and this board's rate loop rings a little where
+   Linux's does not (its sample-to-pulse delay): in fault_gyro_stuck the stuck pitch rate is 10 deg/s,
+   and 40 ms of it spun the vehicle up to 80 deg/s (a 16 deg flip, limit 15). Three equal readings of
+   all three axes of a live MPU-6050 (several LSB of noise at 0.06 deg/s each) do not happen; three is
+   flight.c's least. */
+#define AVR_STUCK_SAMPLES 3
+
 /* the initial alignment (flight.h) runs during the calibration second, a filter step every 3 samples
    (166 steps of 24 ms: the Linux FC's 4 s of the filters' time, which it runs in 1000 steps after the
    second). A step takes up to 2.6 ms here: one every 2 samples stretched the second by 12 %, and 1000
@@ -37,11 +46,10 @@
    1.13 s (Linux: 1.10) */
 #define AVR_ALIGN_EVERY 3
 
-/* The rate loop's gain when the configuration leaves it (no rate_kp, no profile): the Linux FC's 40
-   (tuned in lockstep, where no time passes between a sample and the motors) makes this board's 4-5 ms
-   from sample to pulse (the MPU burst, the rate loop's arithmetic, the timers' compare latch) a 7 Hz
-   limit cycle of 1.6 deg rms at 100 Hz; 25 flies step_roll in the MCU tier as Linux does in lockstep
-   (0.04 deg rms hovering, 0.16 about the 10 deg step; docs/avr-fc.md) */
+/* The rate loop's gain when the configuration leaves it (no rate_kp, no profile): the Linux FC's 40.
+   The former single 100 Hz loop needed 25 (4-5 ms from sample to pulse made 40 a 7 Hz limit cycle of
+   1.6 deg rms in step_roll), and 25 left degraded_motor 5.1 deg off level (limit 4); the rate loop at
+   150 Hz, 1.4 ms from the burst to the compare registers, flies 40 (docs/avr-fc.md, "Rate loop gain") */
 #define AVR_RATE_KP 40
 
 /* the clock: timer 1, prescaler 8, free-running: 2 ticks per microsecond */

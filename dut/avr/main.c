@@ -158,8 +158,8 @@ int main(void)
         wdt_reset();
     }
     flight_ready(&fl, bias, mag_n > 0 ? v3_scale(mag_sum, 1.0 / mag_n) : v3(0, 0, 0));
-    /* the gyro check counts flight_measure's calls: AVR_INNER_PER_EST a cycle here */
-    fl.stuck_n = (int)(FLIGHT_GYRO_STUCK_S * cfg.est_rate_hz * AVR_INNER_PER_EST + 0.5);
+    /* the gyro check counts flight_measure's calls, the rate loop's samples: AVR_STUCK_SAMPLES (board.h) */
+    fl.stuck_n = AVR_STUCK_SAMPLES;
     say("running", "");
     wdt_enable(WDTO_60MS); /* the loop feeds it every slot (5 ms) */
 
