@@ -161,13 +161,13 @@ int main(void)
     /* the gyro check counts flight_measure's calls, the rate loop's samples: AVR_STUCK_SAMPLES (board.h) */
     fl.stuck_n = AVR_STUCK_SAMPLES;
     say("running", "");
-    wdt_enable(WDTO_60MS); /* the loop feeds it every slot (5 ms) */
+    wdt_enable(WDTO_60MS); /* the loop feeds it every slot (6.67 ms) */
 
     /* Two slots per cycle of est_rate_hz (board.h): each reads the MPU burst and runs the rate loop on
        it at once (flight_measure, flight_inner, the motors); the first slot then runs the estimator,
        the second the outer loops on its estimate (flight_outer: the rate set points for the next slots),
        the barometer, the RC frames and the telemetry. The estimator (54 k cycles) and the outer work do
-       not fit one 5 ms slot together; each fits beside the rate loop (bench/avr_fc_cycles.py). */
+       not fit one 6.67 ms slot together; each fits beside the rate loop (bench/avr_fc_cycles.py). */
     const uint32_t period = (uint32_t)(TICKS_PER_S / (cfg.est_rate_hz * AVR_INNER_PER_EST) + 0.5);
     const real Ti = 1.0 / (cfg.est_rate_hz * AVR_INNER_PER_EST);
     const double t_start = clock_seconds();
