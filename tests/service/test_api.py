@@ -9,10 +9,12 @@ from __future__ import annotations
 import json
 import os
 import select
+import shutil
 import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import urllib.error
 import urllib.request
 from collections.abc import Iterator
@@ -79,14 +81,15 @@ class Service:
         raise AssertionError(f"run {run_id} never became {status}: {run}")
 
 
-def start(data: Path, *extra: str, token: str | None = None) -> Service:
+def start(data: Path, *extra: str, token: str | None = None, tmp: Path | None = None) -> Service:
+    """``tmp``: the service's and its runs' TMPDIR (a test that SIGKILLs a run: what it leaves)."""
     port = free_port()
     args = [sys.executable, "-m", "rig.cli", "serve", "--port", str(port), "--data", str(data), *extra]
     if token:
         args += ["--token", token]
     # (its own process group, as a terminal's job: a test's Ctrl-C reaches it and its runs alike)
     proc = subprocess.Popen(args, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
-                            start_new_session=True)
+                            start_new_session=True, env={**os.environ, "TMPDIR": str(tmp)} if tmp else None)
     until_line(proc, "listening on")
     return Service(proc, f"http://127.0.0.1:{port}", token, data)
 
@@ -430,7 +433,10 @@ def test_rig_submit_needs_a_servers_scheme_and_serve_brackets_ipv6(tmp_path: Pat
 
 
 def test_the_queue_shows_positions_and_a_killed_run_says_how_it_ended(tmp_path: Path) -> None:
-    svc = start(tmp_path / "data", "--slots", "1")
+    # the SIGKILLed run's session folder cannot be removed by the run: it lands in a folder of the
+    # test's (under /tmp: a session's socket path must stay under AF_UNIX's 108 bytes)
+    private = Path(tempfile.mkdtemp(prefix="rig-test-", dir="/tmp"))
+    svc = start(tmp_path / "data", "--slots", "1", tmp=private)
     command, fifo = blocked_dut(tmp_path)
     try:
         _, first = svc.call("POST", "/api/runs", {"scenarios": ["step_roll"], "dut": {"command": command}})
@@ -457,3 +463,4 @@ def test_the_queue_shows_positions_and_a_killed_run_says_how_it_ended(tmp_path: 
         assert "'" not in ended["error"] and "(no output)" not in ended["error"]
     finally:
         stop(svc)
+        shutil.rmtree(private, ignore_errors=True)
