@@ -97,13 +97,26 @@ def test_bad_options_raise_before_anything_runs(tmp_path):
 
 
 def test_sweep_returns_the_runs_table(tmp_path):
+    """In a process of its own: a sweep's local pool (spawned workers, multiprocessing's resource
+    tracker, signal masks) is not left in the test runner's process (a make test run died of SIGPIPE
+    after the in-process version, a direct pytest run did not; not understood yet: see the notes)."""
     spec = tmp_path / "sweep.toml"
     spec.write_text('[sweep]\nscenario = "seed000_roll_stand"\nseeds = [1, 2]\n')
-    table = api.sweep(spec, out=tmp_path / "sweep", jobs=2)
-    assert isinstance(table, pa.Table)
-    assert table.num_rows == 2
-    assert sorted(table.column("seed").to_pylist()) == [1, 2]
-    assert table.column("verdict").to_pylist() == ["pass", "pass"]
-    spec.write_text('[sweep]\nscenario = "no_such"\n')
-    with pytest.raises(api.RigError, match="sweep.scenario"):
-        api.sweep(spec, out=tmp_path / "sweep2")
+    code = (
+        "import sys, json\nfrom pathlib import Path\nimport pyarrow as pa\nfrom rig import api\n"
+        "t = api.sweep(Path(sys.argv[1]), out=Path(sys.argv[2]), jobs=2)\n"
+        "assert isinstance(t, pa.Table)\n"
+        "print(json.dumps({'rows': t.num_rows, 'seed': t.column('seed').to_pylist(),"
+        " 'verdict': t.column('verdict').to_pylist()}))\n"
+        "try:\n    api.sweep(Path(sys.argv[3]), out=Path(sys.argv[2]) / 'x')\n"
+        "except api.RigError as e:\n    print(json.dumps({'error': str(e)}))\n"
+    )
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[sweep]\nscenario = "no_such"\n')
+    done = subprocess.run([sys.executable, "-c", code, str(spec), str(tmp_path / "sweep"), str(bad)],
+                          capture_output=True, text=True, timeout=300, stdin=subprocess.DEVNULL)
+    assert done.returncode == 0, done.stderr
+    table, refused = (json.loads(line) for line in done.stdout.splitlines()[-2:])
+    assert table["rows"] == 2 and sorted(table["seed"]) == [1, 2]
+    assert table["verdict"] == ["pass", "pass"]
+    assert "sweep.scenario" in refused["error"]
