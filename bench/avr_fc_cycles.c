@@ -8,6 +8,7 @@
 #include <avr/sleep.h>
 #include <math.h>
 
+#include "canned_motion.h"
 #include "clock.h"
 #include "config.h"
 #include "flight.h"
@@ -40,12 +41,8 @@ int main(void)
     TCCR1B = _BV(CS10); /* the clock counts CPU cycles here */
     uart0_init();
     sei();
-    for (uint8_t k = 0; k < N; k++) {
-        real t = k * 0.004;
-        gyro[k] = v3(0.2 * sin(t), 0.1 * cos(0.7 * t), 0.05);
-        acc[k] = v3(0.3 * sin(t), -0.2 * cos(t), -9.7);
-        mag[k] = v3(0.25 * cos(0.05 * t), 0.25 * sin(0.05 * t), 0.433);
-    }
+    for (uint8_t k = 0; k < N; k++)
+        canned_motion(k, &gyro[k], &acc[k], &mag[k]);
     quat_cf cf;
     mahony_dcm mh;
     ekf7 kf;

@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <time.h>
 
+#include "canned_motion.h"
 #include "fc.h"
 
 static double now(void)
@@ -17,12 +18,8 @@ int main(void)
 {
     enum { N = 200000 };
     static vec3 gyro[N], acc[N], mag[N];
-    for (int k = 0; k < N; k++) {
-        double t = k * 0.004;
-        gyro[k] = v3(0.2 * sin(t), 0.1 * cos(0.7 * t), 0.05);
-        acc[k] = v3(0.3 * sin(t), -0.2 * cos(t), -9.7);
-        mag[k] = v3(0.25 * cos(0.05 * t), 0.25 * sin(0.05 * t), 0.433);
-    }
+    for (int k = 0; k < N; k++)
+        canned_motion(k, &gyro[k], &acc[k], &mag[k]);
     quat_cf cf;
     mahony_dcm mh;
     ekf7 kf;
