@@ -139,7 +139,15 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
 
     @app.get("/api/health")
     def health() -> dict[str, Any]:
-        return {"status": "ok", "version": __version__, "schema": SCHEMA_VERSION, "bench": db.lease("bench")}
+        """``status`` ok, or ``degraded`` while the Dask cluster (rig serve --engine) cannot be reached:
+        nothing is dispatched to it then, and ``engine.problem`` says why."""
+        found: dict[str, Any] = {"status": "ok", "version": __version__, "schema": SCHEMA_VERSION,
+                                 "bench": db.lease("bench")}
+        if workers.farm is not None:
+            found["engine"] = workers.farm.state()
+            if not found["engine"]["connected"]:
+                found["status"] = "degraded"
+        return found
 
     @app.get("/api/scenarios")
     def scenarios() -> list[dict[str, Any]]:

@@ -21,11 +21,14 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Any, Final
+from typing import TYPE_CHECKING, Any, Final
 
 from rig.service.db import TERMINAL, Db
 from rig.service.store import SWEEP_SPEC, Store
 from rig.sweep.work import row_files
+
+if TYPE_CHECKING:
+    from rig.service.farm import Farm
 
 PR_SET_PDEATHSIG: Final = 1
 BENCH: Final = "bench"
@@ -114,8 +117,14 @@ def results(out: Path, scenarios: list[str]) -> list[dict[str, Any]]:
 
 
 class Workers:
-    def __init__(self, db: Db, artifacts: Path, store: Store, lockstep_slots: int) -> None:
-        self.db, self.artifacts, self.store = db, artifacts, store
+    """The local slots; with ``farm`` (rig serve --engine), lockstep runs and sweeps go to the Dask
+    cluster instead (rig/service/farm.py) and only the bench is run here."""
+
+    def __init__(self, db: Db, artifacts: Path, store: Store, lockstep_slots: int,
+                 farm: Farm | None = None) -> None:
+        self.db, self.artifacts, self.store, self.farm = db, artifacts, store, farm
+        if farm is not None:
+            lockstep_slots = 0
         self._wake = threading.Condition()
         self._stop = False
         self._procs: dict[int, subprocess.Popen[bytes]] = {}
@@ -125,10 +134,14 @@ class Workers:
     def start(self) -> None:
         for t in self._threads:
             t.start()
+        if self.farm is not None:
+            self.farm.start()
 
     def wake(self) -> None:
         with self._wake:
             self._wake.notify_all()
+        if self.farm is not None:
+            self.farm.wake()
 
     def stop(self) -> None:
         """The service is stopping: the runs under way end (interrupted, as at a restart)."""
@@ -138,11 +151,15 @@ class Workers:
         self.wake()
         for t in self._threads:
             t.join(timeout=KILL_GRACE_S + 1)
+        if self.farm is not None:
+            self.farm.stop()
 
     def cancel(self, run_id: int) -> None:
         proc = self._procs.get(run_id)
         if proc is not None:
             _end(proc)
+        if self.farm is not None:
+            self.farm.cancel(run_id)
 
     def abort(self, run_id: int) -> str | None:
         """Cancels a queued or running run (a running one: its rig run is stopped, its DUT with it).
