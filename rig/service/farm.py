@@ -52,6 +52,8 @@ from rig.service.worker import (
 OUT: Final = "\0out\0"
 #: stands for the worker's Python (each host has its own)
 PYTHON: Final = "\0python\0"
+#: stands for the bench host's bridge in a bench run's command line (rig bench-host --bridge)
+BRIDGE: Final = "\0bridge\0"
 #: in the run's folder on the worker: the firmware it flies (hidden, not sent back)
 FIRMWARE: Final = ".firmware"
 #: how long a connection to the scheduler is tried before the service says it is unreachable
@@ -91,12 +93,39 @@ def fly(job: Job) -> dict[str, Any]:
             if rel.startswith(FIRMWARE + "/"):
                 path.chmod(0o755)
         argv = [sys.executable if a == PYTHON else a.replace(OUT, str(out)) for a in job.argv]
+        if BRIDGE in argv:
+            argv = _on_the_bench(argv, job.run_id)
         with open(out / "rig-run.log", "wb") as log:
             proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                     cwd=tmp, start_new_session=True, preexec_fn=_die_with_parent)
             code = _watch(proc, job.run_id)
         inputs = {Path(rel).parts[0] for rel in job.files}
         return {"exit_code": code, "archive": _pack(out, inputs), "host": socket.gethostname()}
+
+
+def _on_the_bench(argv: list[str], run_id: int) -> list[str]:
+    """A bench run's command line on its bench host: its bridge (and supply). Refused if this run has
+    started once already (its bench host died meanwhile and came back): a bench run is never flown
+    again behind its user's back."""
+    from rig.service import bench_host
+
+    bench = bench_host.BENCH
+    if bench is None:
+        raise RuntimeError("a bench run reached a worker that is no bench host")
+    try:
+        from distributed import Variable, get_client
+
+        started = Variable(f"rig-started-{run_id}", client=get_client())
+        try:
+            started.get(timeout=0.1)
+        except TimeoutError:
+            started.set(bench["name"])
+        else:
+            raise RuntimeError(f"bench run {run_id} started once already: it is not flown again")
+    except ValueError:  # (not on a Dask worker)
+        pass
+    argv = [bench["bridge"] if a == BRIDGE else a for a in argv]
+    return argv + (["--psu", bench["psu"]] if bench.get("psu") else [])
 
 
 def _watch(proc: subprocess.Popen[bytes], run_id: int) -> int:
@@ -161,6 +190,8 @@ def job_for(run: dict[str, Any], out: Path, store: Store) -> tuple[Job, dict[str
             files[f"{FIRMWARE}/{program.name}"] = program.read_bytes()
             arg = arg.replace(str(program), f"{OUT}/{FIRMWARE}/{program.name}")
         argv.append(arg.replace(str(out), OUT))
+    if run["mode"] == "bridge":  # (command gives the service's own bench: the virtual bridge)
+        argv[argv.index("--bridge") + 1] = BRIDGE
     return Job(run["id"], argv, files, run.get("label", "")), flown
 
 
@@ -169,7 +200,18 @@ class Flight:
     run: dict[str, Any]
     future: Any
     flown: dict[str, str]
+    bench: str | None = None  # a bench run's bench, and the worker that holds it
+    worker: str | None = None
     started: float = field(default_factory=time.monotonic)
+
+
+def matches(bench: dict[str, Any], selector: dict[str, str]) -> bool:
+    labels = bench.get("labels") or {}
+    return all(labels.get(k) == v for k, v in selector.items())
+
+
+def labels_text(labels: dict[str, str]) -> str:
+    return ",".join(f"{k}={v}" for k, v in sorted(labels.items())) or "no labels"
 
 
 class Farm:
@@ -185,11 +227,14 @@ class Farm:
         self._stale = list(stale or [])
         self._client: Any = None
         self._flights: dict[int, Flight] = {}
+        #: the benches the scheduler knows (published by rig bench-host), each with its worker or None
+        self._benches: dict[str, dict[str, Any]] = {}
         self._wake = threading.Condition()
         self._stop = False
         self._state: dict[str, Any] = {"address": address, "connected": False, "workers": 0, "threads": 0,
                                        "running": 0, "problem": "not connected yet"}
         self._thread = threading.Thread(target=self._loop, daemon=True, name="farm")
+        self._tried = threading.Event()  # set once the first connection has been tried
 
     def start(self) -> None:
         self._thread.start()
@@ -202,6 +247,39 @@ class Farm:
         """How the cluster stands, for /api/health and the page: connected, its workers and threads, the
         runs in flight, and the problem in words when it is not reachable."""
         return dict(self._state)
+
+    def benches(self) -> list[dict[str, Any]]:
+        """Every bench the scheduler knows: its labels, host, bridge and state (free, busy with a run,
+        offline: its host is not connected, maintenance: disabled here)."""
+        disabled = self.db.disabled_benches()
+        running = {f.bench: f.run["id"] for f in list(self._flights.values()) if f.bench}
+        out = []
+        for name, b in sorted(self._benches.items()):
+            state = ("maintenance" if name in disabled else "offline" if not b.get("worker")
+                     else "busy" if name in running else "free")
+            out.append({"name": name, "state": state, "run": running.get(name), "labels": b.get("labels", {}),
+                        **{k: b.get(k) for k in ("host", "bridge", "psu", "bridge_id", "firmware_sha256")}})
+        return out
+
+    def refuse(self, selector: dict[str, str]) -> str | None:
+        """Why no bench could ever take a run with this selector (it names labels no bench has), or None:
+        a run that matches only busy, offline or disabled benches waits, and so does every run while
+        the scheduler cannot be reached (its benches are not known then)."""
+        self._tried.wait(timeout=CONNECT_S + 1)  # (a request right after the start: the first look)
+        if not self._state["connected"]:
+            return None  # (the benches cannot be known: the run waits in the queue with the rest)
+        benches = dict(self._benches)
+        if not any(matches(b, selector) for b in benches.values()):
+            try:  # (a bench that joined since the last look, every RECONNECT_S)
+                self._survey()
+                benches = dict(self._benches)
+            except Exception:
+                pass
+        if any(matches(b, selector) for b in benches.values()):
+            return None
+        known = "; ".join(f"{n}: {labels_text(b.get('labels') or {})}" for n, b in sorted(benches.items()))
+        return (f"bench: no bench has the labels {labels_text(selector)} "
+                f"(known: {known or 'none: no bench host has joined the scheduler'})")
 
     def cancel(self, run_id: int) -> None:
         """The run's task stops its rig run (the status is the caller's: cancelled)."""
@@ -240,7 +318,14 @@ class Farm:
 
     def _loop(self) -> None:
         while not self._stop:
-            if not self._connected():
+            connected = self._connected()
+            if connected and not self._tried.is_set():
+                try:
+                    self._survey()
+                except Exception:
+                    pass
+            self._tried.set()
+            if not connected:
                 with self._wake:
                     self._wake.wait(timeout=RECONNECT_S)
                 continue
@@ -249,15 +334,17 @@ class Farm:
                     self._flights.pop(run_id)
                     self._land(flight)
             try:
-                threads = self._threads()
+                plain, threads = self._survey()
             except Exception as e:  # (the scheduler went away between two looks)
                 self._lost(f"the Dask scheduler at {self.address} stopped answering: {e}")
                 continue
-            while not self._stop and len(self._flights) < threads:
+            self._check_benches()
+            while not self._stop and sum(f.bench is None for f in self._flights.values()) < threads:
                 run = self.db.claim("lockstep", "sweep")
                 if run is None:
                     break
-                self._dispatch(run)
+                self._dispatch(run, workers=plain)
+            self._dispatch_benches()
             self._state["running"] = len(self._flights)
             with self._wake:
                 self._wake.wait(timeout=RECONNECT_S)
@@ -290,12 +377,53 @@ class Farm:
         self._stale = []
         return True
 
-    def _threads(self) -> int:
-        info = self._client.scheduler_info()
-        workers = info.get("workers", {})
-        threads = sum(int(w.get("nthreads", 1)) for w in workers.values())
-        self._state.update(workers=len(workers), threads=threads)
-        return int(threads)
+    def _survey(self) -> tuple[list[str], int]:
+        """The workers for lockstep runs (not bench hosts) and their threads; the benches published in
+        the scheduler's metadata, each with the worker that holds its resource now (None: offline)."""
+        from rig.service.bench_host import METADATA, RESOURCE
+
+        workers = self._client.scheduler_info().get("workers", {})
+        published = self._client.get_metadata([METADATA], default={}) or {}
+        where: dict[str, str] = {}
+        plain: list[str] = []
+        threads = 0
+        for address, w in workers.items():
+            names = [r[len(RESOURCE):] for r in (w.get("resources") or {}) if r.startswith(RESOURCE)]
+            for name in names:
+                where[name] = address
+            if not names:
+                plain.append(address)
+                threads += int(w.get("nthreads", 1))
+        self._benches = {str(n): {**b, "worker": where.get(str(n))} for n, b in published.items()
+                         if isinstance(b, dict)}
+        self._state.update(workers=len(plain), threads=threads, benches=len(where))
+        return plain, threads
+
+    def _check_benches(self) -> None:
+        """A bench run whose bench host went away (or came back as another worker) is interrupted, its
+        task cancelled: never flown again, here or on another bench."""
+        for run_id, flight in list(self._flights.items()):
+            if flight.bench is None or flight.future.done():
+                continue
+            if (self._benches.get(flight.bench) or {}).get("worker") != flight.worker:
+                self._flights.pop(run_id)
+                flight.future.cancel()
+                self.db.finish(run_id, "interrupted", pid=None, error=f"the bench host of {flight.bench} "
+                               "went away while this run was running; it is not run again")
+
+    def _dispatch_benches(self) -> None:
+        """Each queued bench run, in the queue's order, onto a free bench its selector matches."""
+        disabled = self.db.disabled_benches()
+        busy = {f.bench for f in self._flights.values() if f.bench}
+        for run in self.db.queued("bridge"):
+            free = [n for n, b in sorted(self._benches.items())
+                    if b.get("worker") and n not in busy and n not in disabled and matches(b, run["bench"])]
+            if not free:
+                continue
+            claimed = self.db.claim_run(run["id"], bench_name=free[0])
+            if claimed is not None:
+                busy.add(free[0])
+                self._dispatch(claimed, bench=free[0])
 
     def _lost(self, problem: str) -> None:
         """No scheduler: nothing is dispatched; the runs in flight are interrupted (Dask cancelled them)."""
@@ -307,7 +435,8 @@ class Farm:
             self.db.finish(run_id, "interrupted", pid=None, error=f"{problem} while this run was running")
         self._state["running"] = len(self._flights)
 
-    def _dispatch(self, run: dict[str, Any]) -> None:
+    def _dispatch(self, run: dict[str, Any], workers: list[str] | None = None,
+                  bench: str | None = None) -> None:
         out = self.artifacts / str(run["id"])
         out.mkdir(parents=True, exist_ok=True)
         try:
@@ -323,14 +452,20 @@ class Farm:
             from distributed import Event
 
             Event(cancel_event(run["id"]), client=self._client).clear()  # (a restart's leftover)
+            from rig.service.bench_host import resource
+
+            where: dict[str, Any] = ({"resources": {resource(bench): 1}} if bench is not None
+                                     else {"workers": workers} if workers else {})
             future = self._client.submit(fly, job, key=f"rig-run-{run['id']}-{secrets.token_hex(4)}",
-                                         pure=False, retries=0)
+                                         pure=False, retries=0, **where)
         except Exception as e:
-            self.db.update_if(run["id"], "running", status="queued", started=None)  # (tried again)
+            self.db.update_if(run["id"], "running", status="queued", started=None,
+                              bench_name=None)  # (tried again)
             self._lost(f"the Dask scheduler at {self.address} refused the run: {e}")
             return
         future.add_done_callback(lambda _: self.wake())
-        self._flights[run["id"]] = Flight(run, future, flown)
+        self._flights[run["id"]] = Flight(run, future, flown, bench,
+                                          (self._benches.get(bench) or {}).get("worker") if bench else None)
 
     def _land(self, flight: Flight) -> None:
         """A run's task has ended: its folder into the data folder, its status as rig run's exit says."""

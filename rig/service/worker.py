@@ -117,19 +117,20 @@ def results(out: Path, scenarios: list[str]) -> list[dict[str, Any]]:
 
 
 class Workers:
-    """The local slots; with ``farm`` (rig serve --engine), lockstep runs and sweeps go to the Dask
-    cluster instead (rig/service/farm.py) and only the bench is run here."""
+    """The local slots; with ``farm`` (rig serve --engine), every run goes to the Dask cluster instead
+    (rig/service/farm.py): lockstep runs and sweeps to its workers, bench runs to its bench hosts."""
 
     def __init__(self, db: Db, artifacts: Path, store: Store, lockstep_slots: int,
                  farm: Farm | None = None) -> None:
         self.db, self.artifacts, self.store, self.farm = db, artifacts, store, farm
+        benches = 1 if farm is None else 0
         if farm is not None:
             lockstep_slots = 0
         self._wake = threading.Condition()
         self._stop = False
         self._procs: dict[int, subprocess.Popen[bytes]] = {}
         self._threads = [threading.Thread(target=self._loop, args=(mode,), daemon=True, name=f"{mode}-{k}")
-                         for mode, n in (("lockstep", lockstep_slots), ("bridge", 1)) for k in range(n)]
+                         for mode, n in (("lockstep", lockstep_slots), ("bridge", benches)) for k in range(n)]
 
     def start(self) -> None:
         for t in self._threads:

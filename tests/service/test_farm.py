@@ -68,6 +68,7 @@ def page(svc: Service) -> str:
         return str(r.read().decode())
 
 
+@pytest.mark.slow  # (~30 s on 2 shared cores)
 def test_lockstep_runs_fly_on_the_cluster_and_their_folders_come_back(cluster: Cluster,
                                                                       tmp_path: Path) -> None:
     svc = start(tmp_path / "data", "--engine", cluster.address)
@@ -120,6 +121,7 @@ def test_a_cancelled_run_stops_its_dut_on_the_worker(cluster: Cluster, tmp_path:
         stop(svc)
 
 
+@pytest.mark.slow  # (~25 s: schedulers and workers started twice)
 def test_a_scheduler_gone_stops_dispatch_and_the_queue_waits_across_a_restart(
     cluster: Cluster, tmp_path: Path
 ) -> None:
