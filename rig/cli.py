@@ -28,7 +28,7 @@ def parser() -> argparse.ArgumentParser:
     """The whole command line (docs/cli.md documents every option it has: tests/test_cli_docs.py)."""
     from rig import exec_cmd, power_cmd, report_cmd, run_cmd, sweep_cmd
     from rig.bridge import probe
-    from rig.service import client, serve_cmd
+    from rig.service import bench_host, client, serve_cmd
 
     p = argparse.ArgumentParser(prog="rig", description="Quadrotor hardware-in-the-loop test rig")
     p.add_argument("--version", action="version", version=f"rig {__version__}")
@@ -42,6 +42,7 @@ def parser() -> argparse.ArgumentParser:
     sweep_cmd.add_parser(sub)
     serve_cmd.add_parser(sub)
     client.add_parsers(sub)
+    bench_host.add_parser(sub)
     _plain(p)
     return p
 
@@ -83,6 +84,12 @@ def _dispatch(argv: list[str] | None) -> int:
         return client.cmd_submit(args)
     if args.command == "status":
         return client.cmd_status(args)
+    if args.command == "bench":
+        return client.cmd_bench(args)
+    if args.command == "bench-host":
+        from rig.service import bench_host
+
+        return bench_host.main(args)
     if args.command == "validate":
         return run_cmd.cmd_validate(args.scenarios)
     if args.command == "list":

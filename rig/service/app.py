@@ -44,6 +44,8 @@ class RunRequest(BaseModel):
     dut: dict[str, str] = Field(default_factory=dict)
     mode: Literal["lockstep", "bridge"] = "lockstep"
     priority: int = Field(default=0, ge=-100, le=100)
+    #: a bench run's selector: the labels its bench must have (rig serve --engine: docs/farm.md)
+    bench: dict[str, str] | None = None
 
 
 def problems_of(errors: list[Any]) -> list[str]:
@@ -98,6 +100,19 @@ def check_run(req: RunRequest, store: Store, scenarios: bool = True) -> tuple[li
     return problems, versions
 
 
+def bench_problems(req: RunRequest, workers: Workers) -> list[str]:
+    """A bench selector's problems: it goes with mode bridge on a farm, and some bench must have its
+    labels (one that matches only busy benches waits in the queue)."""
+    if req.bench is None:
+        return []
+    if req.mode != "bridge":
+        return ["bench: a selector goes with mode bridge"]
+    if workers.farm is None:
+        return ["bench: this service has one bench of its own; selectors need a farm (rig serve --engine)"]
+    problem = workers.farm.refuse(req.bench)
+    return [] if problem is None else [problem]
+
+
 def _query_names(dependant: Dependant) -> set[str]:
     """The query parameters a route (and its dependencies) take."""
     names = {p.alias for p in dependant.query_params}
@@ -139,7 +154,15 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
 
     @app.get("/api/health")
     def health() -> dict[str, Any]:
-        return {"status": "ok", "version": __version__, "schema": SCHEMA_VERSION, "bench": db.lease("bench")}
+        """``status`` ok, or ``degraded`` while the Dask cluster (rig serve --engine) cannot be reached:
+        nothing is dispatched to it then, and ``engine.problem`` says why."""
+        found: dict[str, Any] = {"status": "ok", "version": __version__, "schema": SCHEMA_VERSION,
+                                 "bench": db.lease("bench")}
+        if workers.farm is not None:
+            found["engine"] = workers.farm.state()
+            if not found["engine"]["connected"]:
+                found["status"] = "degraded"
+        return found
 
     @app.get("/api/scenarios")
     def scenarios() -> list[dict[str, Any]]:
@@ -212,9 +235,11 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
     @app.post("/api/runs", status_code=201)
     def submit(req: RunRequest) -> dict[str, Any]:
         problems, versions = check_run(req, store)
+        problems += bench_problems(req, workers)
         if problems:
             raise HTTPException(422, {"problems": problems})
-        run_id = db.submit(req.scenarios, req.seed, req.dut, req.mode, req.priority, versions=versions)
+        run_id = db.submit(req.scenarios, req.seed, req.dut, req.mode, req.priority, versions=versions,
+                           bench=req.bench)
         workers.wake()
         return {"id": run_id}
 
@@ -261,6 +286,23 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         workers.wake()
         [(name, sha)] = versions.items()
         return {"id": run_id, "runs": len(sweep.variants), "scenario": name, "sha256": sha}
+
+    @app.get("/api/benches")
+    def benches() -> list[dict[str, Any]]:
+        """The farm's benches (rig serve --engine): name, labels, host, bridge, and state (free, busy
+        with ``run``, offline, maintenance). Without a farm: none."""
+        return workers.farm.benches() if workers.farm is not None else []
+
+    @app.post("/api/benches/{name}/{action}")
+    def bench_action(name: str, action: Literal["disable", "enable"]) -> dict[str, Any]:
+        """Takes a bench out for maintenance (no run is sent to it; the one on it finishes) or puts it
+        back."""
+        known = {b["name"]: b for b in benches()}
+        if name not in known:
+            raise HTTPException(404, f"no bench {name!r} (known: {', '.join(known) or 'none'})")
+        db.disable_bench(name, action == "disable")
+        workers.wake()
+        return {b["name"]: b for b in benches()}[name]
 
     @app.get("/api/sweeps")
     def sweeps(limit: int = Query(default=50, ge=1, le=500)) -> list[dict[str, Any]]:

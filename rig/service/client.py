@@ -82,6 +82,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--dut", help="the DUT command line (default: the reference FC)")
     s.add_argument("--bridge", choices=["virtual"], help="run on the service's bench (the virtual bridge)")
+    s.add_argument("--bench", metavar="k=v,...",
+                   help="run on a farm's bench with these labels (docs/farm.md)")
     s.add_argument("--priority", type=int, default=0, help="higher runs first (-100..100)")
     s.add_argument("--wait", action="store_true", help="follow the run and exit with rig run's codes")
     s.add_argument("--token", default=os.environ.get("RIG_TOKEN"))
@@ -89,6 +91,11 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     t.add_argument("--server", required=True, metavar="URL")
     t.add_argument("id", nargs="?", type=int)
     t.add_argument("--token", default=os.environ.get("RIG_TOKEN"))
+    b = sub.add_parser("bench", help="take a farm's bench out for maintenance, or put it back")
+    b.add_argument("--server", required=True, metavar="URL")
+    b.add_argument("action", choices=["disable", "enable", "list"])
+    b.add_argument("name", nargs="?")
+    b.add_argument("--token", default=os.environ.get("RIG_TOKEN"))
 
 
 def line(run: dict[str, Any]) -> str:
@@ -109,7 +116,15 @@ def line(run: dict[str, Any]) -> str:
 
 def cmd_submit(args: argparse.Namespace) -> int:
     body: dict[str, Any] = {"scenarios": args.scenarios, "seed": args.seed, "priority": args.priority,
-                            "mode": "bridge" if args.bridge else "lockstep"}
+                            "mode": "bridge" if args.bridge or args.bench else "lockstep"}
+    if args.bench:
+        from rig.service.bench_host import parse_labels
+
+        try:
+            body["bench"] = parse_labels([args.bench])
+        except ValueError as e:
+            print(f"rig submit: --bench: {e}", file=sys.stderr)
+            return EXIT_USAGE
     if args.dut:
         body["dut"] = {"command": args.dut}
     run_id = None
@@ -135,6 +150,28 @@ def cmd_submit(args: argparse.Namespace) -> int:
             f"{run_id}; cancel it with DELETE /api/runs/{run_id})"
         print(f"rig submit: interrupted{where}", file=sys.stderr)
         return EXIT_BY_STATUS["interrupted"]
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    """``rig bench --server URL list|disable NAME|enable NAME``: the farm's benches, one a line."""
+    try:
+        server_url(args.server)
+        if args.action == "list":
+            found = call(args.server, "GET", "/api/benches", args.token)
+        elif not args.name:
+            raise ClientError(f"rig bench {args.action} needs a bench's NAME", 400)
+        else:
+            found = [call(args.server, "POST", f"/api/benches/{urllib.parse.quote(args.name, safe='')}/"
+                          f"{args.action}", args.token)]
+        for b in found:
+            labels = ",".join(f"{k}={v}" for k, v in sorted(b.get("labels", {}).items()))
+            run = f" with run {b['run']}" if b.get("run") else ""
+            print(f"{b['name']}: {b['state']}{run} — {labels} on {b.get('host')} ({b.get('bridge')})")
+    except ClientError as e:
+        for problem in str(e).splitlines():
+            print(f"rig bench: {problem}", file=sys.stderr)
+        return e.exit_code
+    return 0
 
 
 def cmd_status(args: argparse.Namespace) -> int:

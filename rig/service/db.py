@@ -60,13 +60,21 @@ MIGRATIONS: Final = (
     );
     CREATE INDEX scenario_versions_name ON scenario_versions (name, id);
     ALTER TABLE runs ADD COLUMN versions TEXT NOT NULL DEFAULT '{}'""",
+    # the farm (docs/farm.md): a bench run's selector ({label: value}; '{}': any bench), the bench it
+    # went to, and the benches taken out for maintenance (the benches themselves are the scheduler's)
+    """ALTER TABLE runs ADD COLUMN bench TEXT NOT NULL DEFAULT '{}';
+    ALTER TABLE runs ADD COLUMN bench_name TEXT;
+    CREATE TABLE benches_disabled (
+        name TEXT PRIMARY KEY,
+        since REAL NOT NULL
+    )""",
 )
 SCHEMA_VERSION: Final = len(MIGRATIONS)
 TERMINAL: Final = ("passed", "failed", "error", "cancelled", "interrupted")
 STATUSES: Final = ("queued", "running", *TERMINAL)
 SQLITE_INT: Final = (-(2**63), 2**63 - 1)  # the ids SQLite can hold
 SHORT: Final = 8  # hex digits of a scenario's version shown beside its name
-JSON_COLUMNS: Final = ("scenarios", "dut", "results", "versions")
+JSON_COLUMNS: Final = ("scenarios", "dut", "results", "versions", "bench")
 
 
 class Db:
@@ -109,13 +117,15 @@ class Db:
     # ---- runs ---------------------------------------------------------------------------------
 
     def submit(self, scenarios: list[str], seed: int, dut: dict[str, str], mode: str, priority: int,
-               origin: str = "api", versions: dict[str, str] | None = None) -> int:
-        """Queues a run; ``versions`` is the SHA-256 of each scenario it names, as they are now."""
+               origin: str = "api", versions: dict[str, str] | None = None,
+               bench: dict[str, str] | None = None) -> int:
+        """Queues a run; ``versions`` is the SHA-256 of each scenario it names, as they are now;
+        ``bench`` a bench run's selector (labels it needs; the farm's)."""
         with self.transaction() as c:
             cur = c.execute("INSERT INTO runs (created, status, priority, mode, seed, scenarios, dut, "
-                            "origin, versions) VALUES (?, 'queued', ?, ?, ?, ?, ?, ?, ?)",
+                            "origin, versions, bench) VALUES (?, 'queued', ?, ?, ?, ?, ?, ?, ?, ?)",
                             (time.time(), priority, mode, seed, json.dumps(scenarios), json.dumps(dut),
-                             origin, json.dumps(versions or {})))
+                             origin, json.dumps(versions or {}), json.dumps(bench or {})))
             assert cur.lastrowid is not None
             return cur.lastrowid
 
@@ -131,6 +141,31 @@ class Db:
             c.execute("UPDATE runs SET status = 'running', started = ? WHERE id = ?",
                       (time.time(), row["id"]))
         return self.get(row["id"])
+
+    def queued(self, mode: str) -> builtins.list[dict[str, Any]]:
+        """The queued runs of ``mode`` in the order they are claimed (priority, then age)."""
+        with self._lock:
+            rows = self._conn.execute("SELECT * FROM runs WHERE status = 'queued' AND mode = ? "
+                                      "ORDER BY priority DESC, created, id", (mode,)).fetchall()
+        return [_decode(r) for r in rows]
+
+    def claim_run(self, run_id: int, **fields: Any) -> dict[str, Any] | None:
+        """This queued run, now running (None: it left the queue meanwhile: cancelled)."""
+        if not self.update_if(run_id, "queued", status="running", started=time.time(), **fields):
+            return None
+        return self.get(run_id)
+
+    def disabled_benches(self) -> set[str]:
+        with self._lock:
+            return {str(r[0]) for r in self._conn.execute("SELECT name FROM benches_disabled").fetchall()}
+
+    def disable_bench(self, name: str, disabled: bool) -> None:
+        with self.transaction() as c:
+            if disabled:
+                c.execute("INSERT OR IGNORE INTO benches_disabled (name, since) VALUES (?, ?)",
+                          (name, time.time()))
+            else:
+                c.execute("DELETE FROM benches_disabled WHERE name = ?", (name,))
 
     def update(self, run_id: int, **fields: Any) -> None:
         for k in JSON_COLUMNS:

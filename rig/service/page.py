@@ -61,7 +61,8 @@ def register(app: FastAPI, db: Db, workers: Workers, store: Store) -> None:
     def index(request: Request) -> HTMLResponse:
         queue = [r for status in ("running", "queued") for r in db.list(status=status, limit=100)]
         return page(request, "index.html", queue=queue, runs=db.list(limit=50), scenarios=scenario_names(),
-                    statuses=STATUSES)
+                    statuses=STATUSES, engine=workers.farm.state() if workers.farm is not None else None,
+                    benches=workers.farm.benches() if workers.farm is not None else [])
 
     @app.get("/ui/runs", response_class=HTMLResponse, include_in_schema=False)
     def runs_table(request: Request, status: str = "", scenario: str = "") -> HTMLResponse:

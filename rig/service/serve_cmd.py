@@ -31,6 +31,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="every request must carry it (Authorization: Bearer TOKEN); default $RIG_TOKEN")
     p.add_argument("--slots", type=int, default=os.cpu_count() or 1,
                    help="lockstep runs at once (default: one per core, %(default)s)")
+    p.add_argument("--engine", metavar="tcp://HOST:PORT",
+                   help="run lockstep runs and sweeps on this Dask scheduler's workers instead of local "
+                        "slots (docs/farm.md); their folders come back into --data")
     p.add_argument("--modbus", type=int, metavar="PORT",
                    help="also serve the test cell's PLC over Modbus TCP on PORT (docs/plc.md), on --host")
     p.add_argument("--modbus-measure", action="append", default=[], metavar="NAME",
@@ -76,6 +79,11 @@ def main(args: argparse.Namespace) -> int:
         print("rig serve: --slots is 1..256 and --port 0..65535", file=sys.stderr)
         return 2
     problem = _data_problem(args.data)
+    if problem is None and args.engine is not None:
+        from rig.sweep.engine import check_address
+
+        problem = check_address(args.engine)
+        problem = None if problem is None else f"--engine: {problem}"
     if problem is not None:
         print(f"rig serve: {problem}", file=sys.stderr)
         return 2
@@ -108,12 +116,20 @@ def main(args: argparse.Namespace) -> int:
         print(f"rig serve: --data {args.data}: {e.strerror or e}", file=sys.stderr)
         return 2
     db = Db(args.data / "rig.sqlite")
+    stale = [r["id"] for r in db.list(status="running", limit=500)]  # (a farm's tasks are told to stop)
     interrupted = db.interrupt_running()
     if interrupted:
         print(f"rig serve: {interrupted} run(s) were running when the service last stopped: interrupted",
               file=sys.stderr)
     store = Store(args.data, db)
-    workers = Workers(db, args.data / "runs", store, args.slots)
+    farm = None
+    if args.engine is not None:
+        from rig.service.farm import Farm
+
+        farm = Farm(db, args.data / "runs", store, args.engine, stale=stale)
+        print(f"rig serve: lockstep runs and sweeps go to the Dask scheduler at {args.engine}",
+              file=sys.stderr, flush=True)
+    workers = Workers(db, args.data / "runs", store, args.slots, farm)
     plc_server = None
     if args.modbus is not None:
         from rig.service.plc import Plc, PlcServer, library_names

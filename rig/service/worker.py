@@ -21,11 +21,14 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Any, Final
+from typing import TYPE_CHECKING, Any, Final
 
 from rig.service.db import TERMINAL, Db
 from rig.service.store import SWEEP_SPEC, Store
 from rig.sweep.work import row_files
+
+if TYPE_CHECKING:
+    from rig.service.farm import Farm
 
 PR_SET_PDEATHSIG: Final = 1
 BENCH: Final = "bench"
@@ -114,21 +117,32 @@ def results(out: Path, scenarios: list[str]) -> list[dict[str, Any]]:
 
 
 class Workers:
-    def __init__(self, db: Db, artifacts: Path, store: Store, lockstep_slots: int) -> None:
-        self.db, self.artifacts, self.store = db, artifacts, store
+    """The local slots; with ``farm`` (rig serve --engine), every run goes to the Dask cluster instead
+    (rig/service/farm.py): lockstep runs and sweeps to its workers, bench runs to its bench hosts."""
+
+    def __init__(self, db: Db, artifacts: Path, store: Store, lockstep_slots: int,
+                 farm: Farm | None = None) -> None:
+        self.db, self.artifacts, self.store, self.farm = db, artifacts, store, farm
+        benches = 1 if farm is None else 0
+        if farm is not None:
+            lockstep_slots = 0
         self._wake = threading.Condition()
         self._stop = False
         self._procs: dict[int, subprocess.Popen[bytes]] = {}
         self._threads = [threading.Thread(target=self._loop, args=(mode,), daemon=True, name=f"{mode}-{k}")
-                         for mode, n in (("lockstep", lockstep_slots), ("bridge", 1)) for k in range(n)]
+                         for mode, n in (("lockstep", lockstep_slots), ("bridge", benches)) for k in range(n)]
 
     def start(self) -> None:
         for t in self._threads:
             t.start()
+        if self.farm is not None:
+            self.farm.start()
 
     def wake(self) -> None:
         with self._wake:
             self._wake.notify_all()
+        if self.farm is not None:
+            self.farm.wake()
 
     def stop(self) -> None:
         """The service is stopping: the runs under way end (interrupted, as at a restart)."""
@@ -138,11 +152,15 @@ class Workers:
         self.wake()
         for t in self._threads:
             t.join(timeout=KILL_GRACE_S + 1)
+        if self.farm is not None:
+            self.farm.stop()
 
     def cancel(self, run_id: int) -> None:
         proc = self._procs.get(run_id)
         if proc is not None:
             _end(proc)
+        if self.farm is not None:
+            self.farm.cancel(run_id)
 
     def abort(self, run_id: int) -> str | None:
         """Cancels a queued or running run (a running one: its rig run is stopped, its DUT with it).

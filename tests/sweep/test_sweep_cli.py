@@ -124,10 +124,12 @@ def test_the_local_pool_writes_the_table_the_summary_and_junit(show: dict[str, A
 DASK = Path(sys.executable).parent / "dask"
 
 
-def start_scheduler(info: Path, private: Path) -> tuple[str, subprocess.Popen[bytes]]:
+def start_scheduler(info: Path, private: Path, port: int = 0) -> tuple[str, subprocess.Popen[bytes]]:
     """A Dask scheduler on loopback (its address from its scheduler file)."""
+    info.unlink(missing_ok=True)
     proc = subprocess.Popen(
-        [DASK, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard", "--scheduler-file", info],
+        [DASK, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard", "--scheduler-file",
+         info],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
         env={**os.environ, "TMPDIR": str(private)},
@@ -141,14 +143,15 @@ def start_scheduler(info: Path, private: Path) -> tuple[str, subprocess.Popen[by
     return address, proc
 
 
-def start_worker(address: str, name: str, private: Path) -> subprocess.Popen[bytes]:
-    """A single-thread worker, no nanny (a killed worker stays dead)."""
+def start_worker(address: str, name: str, private: Path, cwd: Path | None = None) -> subprocess.Popen[bytes]:
+    """A single-thread worker, no nanny (a killed worker stays dead); ``cwd``: where it runs."""
     return subprocess.Popen(
         [DASK, "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard", "--host", "127.0.0.1",
          "--name", name],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
         env={**os.environ, "TMPDIR": str(private)},
+        cwd=cwd,
     )
 
 

@@ -1,0 +1,158 @@
+"""`rig serve --engine`: lockstep runs go to a real Dask cluster on 127.0.0.1 (`dask scheduler`, a `dask
+worker` in a process of its own, with another working folder and another TMPDIR), and each run's folder
+comes back into the service's data folder as bytes (nothing shared but the machine: the worker's run
+lives in its own temporary folder, gone afterwards). A cancelled run stops its DUT on the worker. A
+scheduler killed mid-run interrupts that run, says so at /api/health and on the page, and keeps what is
+queued queued, across a restart of the service too, until a scheduler is back."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import urllib.request
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from tests.service.test_api import Service, blocked_dut, post_bytes, start, stop
+from tests.sweep.test_sweep_cli import end, start_scheduler, start_worker
+from tests.waits import read_pid, wait_file, wait_gone
+
+
+@dataclass
+class Cluster:
+    address: str
+    port: int
+    info: Path
+    private: Path  # the cluster's TMPDIR
+    elsewhere: Path  # the worker's working folder
+    procs: list[subprocess.Popen[bytes]]
+
+    def worker(self, name: str) -> subprocess.Popen[bytes]:
+        proc = start_worker(self.address, name, self.private, cwd=self.elsewhere)
+        self.procs.append(proc)
+        from distributed import Client
+
+        with Client(self.address, timeout=60) as c:
+            c.wait_for_workers(sum(p.poll() is None for p in self.procs[1:]), timeout=60)
+        return proc
+
+
+@pytest.fixture
+def cluster(tmp_path: Path) -> Iterator[Cluster]:
+    """A scheduler and one single-thread worker whose working folder and TMPDIR are not the service's."""
+    private = Path(tempfile.mkdtemp(prefix="rig-farm-", dir="/tmp"))  # (AF_UNIX paths stay short)
+    elsewhere = tmp_path / "worker-cwd"
+    elsewhere.mkdir()
+    procs: list[subprocess.Popen[bytes]] = []
+    try:
+        address, scheduler = start_scheduler(tmp_path / "scheduler.json", private)
+        procs.append(scheduler)
+        c = Cluster(address, int(address.rsplit(":", 1)[1]), tmp_path / "scheduler.json", private, elsewhere,
+                    procs)
+        c.worker("w0")
+        yield c
+    finally:
+        end(procs)
+        shutil.rmtree(private, ignore_errors=True)
+
+
+def page(svc: Service) -> str:
+    with urllib.request.urlopen(svc.url + "/", timeout=30) as r:
+        return str(r.read().decode())
+
+
+@pytest.mark.slow  # (~30 s on 2 shared cores)
+def test_lockstep_runs_fly_on_the_cluster_and_their_folders_come_back(cluster: Cluster,
+                                                                      tmp_path: Path) -> None:
+    svc = start(tmp_path / "data", "--engine", cluster.address)
+    try:
+        _, body = svc.call("POST", "/api/runs", {"scenarios": ["seed000_roll_stand", "step_roll"], "seed": 3})
+        _, sweep = post_bytes(svc, "/api/sweeps", b'[sweep]\nscenario = "step_roll"\nseeds = [0, 1]\n')
+        run = svc.follow(body["id"])
+        assert run["status"] == "passed" and run["exit_code"] == 0, run
+        folder = tmp_path / "data" / "runs" / str(body["id"])
+        result = json.loads((folder / "step_roll" / "result.json").read_text())
+        # flown in the worker's temporary folder, not here: no file system is shared
+        assert result["metadata"]["scenario_file"].startswith(str(cluster.private)), result["metadata"]
+        plain = subprocess.run([sys.executable, "-m", "rig.cli", "run", "seed000_roll_stand", "step_roll",
+                                "--seed", "3", "--out", str(tmp_path / "plain")],
+                               capture_output=True, text=True)
+        assert plain.returncode == 0, plain.stderr
+        for r in run["results"]:
+            expected = json.loads((tmp_path / "plain" / r["scenario"] / "result.json").read_text())
+            assert [(m["name"], m["value"]) for m in r["measurements"]] == \
+                [(m["name"], m["value"]) for m in expected["measurements"]]  # lockstep: the same values
+        files = svc.call("GET", f"/api/runs/{body['id']}/artifacts")[1]
+        assert {"junit.xml", "rig-run.log", "step_roll/result.json", "step_roll/telemetry.csv"} <= set(files)
+        assert not any(f.startswith(".") for f in files)
+        swept = svc.follow(sweep["id"])
+        assert swept["status"] == "passed", swept
+        assert swept["results"][0]["sweep"] == {"pass": 2, "fail": 0, "error": 0}
+        swept_files = svc.call("GET", f"/api/runs/{sweep['id']}/artifacts")[1]
+        assert {"summary.html", "runs.parquet"} <= set(swept_files)
+        health = svc.call("GET", "/api/health")[1]
+        engine = health["engine"]
+        assert health["status"] == "ok" and engine["connected"] and engine["workers"] == 1
+        assert f"the Dask cluster at\n{cluster.address}: 1 worker(s)" in page(svc)
+    finally:
+        stop(svc)
+    assert list(cluster.private.glob("rig-farm-*")) == [] and list(cluster.elsewhere.iterdir()) == []
+
+
+def test_a_cancelled_run_stops_its_dut_on_the_worker(cluster: Cluster, tmp_path: Path) -> None:
+    svc = start(tmp_path / "data", "--engine", cluster.address)
+    try:
+        command, fifo = blocked_dut(tmp_path)
+        _, body = svc.call("POST", "/api/runs", {"scenarios": ["step_roll"], "dut": {"command": command}})
+        dut = read_pid(fifo)
+        assert svc.call("DELETE", f"/api/runs/{body['id']}")[1]["status"] == "cancelled"
+        assert wait_gone(dut)
+        assert svc.follow(body["id"])["status"] == "cancelled"
+        log = tmp_path / "data" / "runs" / str(body["id"]) / "rig-run.log"
+        assert wait_file([log]) == log  # what the stopped run left came back
+    finally:
+        stop(svc)
+
+
+@pytest.mark.slow  # (~25 s: schedulers and workers started twice)
+def test_a_scheduler_gone_stops_dispatch_and_the_queue_waits_across_a_restart(
+    cluster: Cluster, tmp_path: Path
+) -> None:
+    svc = start(tmp_path / "data", "--engine", cluster.address)
+    try:
+        command, fifo = blocked_dut(tmp_path)
+        _, first = svc.call("POST", "/api/runs", {"scenarios": ["step_roll"], "dut": {"command": command}})
+        dut = read_pid(fifo)
+        cluster.procs[0].send_signal(signal.SIGKILL)  # the scheduler dies
+        cluster.procs[0].wait()
+        run = svc.follow(first["id"])
+        assert run["status"] == "interrupted" and "Dask scheduler" in run["error"], run
+        health = svc.call("GET", "/api/health")[1]
+        assert health["status"] == "degraded" and not health["engine"]["connected"], health
+        assert health["engine"]["problem"] and cluster.address in health["engine"]["problem"]
+        assert "nothing is dispatched, the queue waits" in page(svc)
+        _, second = svc.call("POST", "/api/runs", {"scenarios": ["step_roll"]})
+        assert svc.call("GET", f"/api/runs/{second['id']}")[1]["position"] == 1
+    finally:
+        stop(svc)
+    cluster.procs[1].kill()  # (the old worker: it may be waiting for its scheduler still)
+    assert wait_gone(dut)
+    svc = start(tmp_path / "data", "--engine", cluster.address)  # the service restarts meanwhile
+    try:
+        queued = svc.call("GET", f"/api/runs/{second['id']}")[1]
+        assert queued["status"] == "queued" and queued["position"] == 1
+        address, scheduler = start_scheduler(cluster.info, cluster.private, cluster.port)
+        assert address == cluster.address
+        cluster.procs[0] = scheduler
+        cluster.worker("w1")
+        assert svc.follow(second["id"])["status"] == "passed"  # re-attached: the queue went on
+        assert svc.call("GET", "/api/health")[1]["status"] == "ok"
+    finally:
+        stop(svc)
