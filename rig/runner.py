@@ -286,6 +286,7 @@ def run(
             "late_over_1ms": outcome.events_late,
             "max_s": outcome.max_lateness_s,
             "p99_s": outcome.p99_lateness_s,
+            "p50_s": outcome.p50_lateness_s,
         }
         if outcome.events_late:
             notes.append(

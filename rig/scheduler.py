@@ -157,11 +157,12 @@ class Scheduler:
             return "failed", returncode, None
         return "ok", 0, None
 
-    def lateness(self) -> tuple[int, int, float, float]:
-        """Real time: events run, how many ran over 1 ms late, the worst and the 99th percentile (s)."""
+    def lateness(self) -> tuple[int, int, float, float, float]:
+        """Real time: events run, how many ran over 1 ms late, the worst, the 99th percentile and the
+        median (s)."""
         late = sorted(self.lateness_ns) or [0]
         return (len(self.lateness_ns), sum(x > LATE_NS for x in late), late[-1] / NS,
-                late[int(0.99 * (len(late) - 1))] / NS)
+                late[int(0.99 * (len(late) - 1))] / NS, late[(len(late) - 1) // 2] / NS)
 
 
 def fmt(t_ns: int) -> str:

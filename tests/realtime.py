@@ -47,7 +47,8 @@ def starved(name: str, lateness: Mapping[str, Any]) -> str | None:
 def of_outcome(outcome: Any) -> dict[str, Any]:
     """A session Outcome's lateness in result.json's shape."""
     return {"events": outcome.events_run, "late_over_1ms": outcome.events_late,
-            "max_s": outcome.max_lateness_s, "p99_s": outcome.p99_lateness_s}
+            "max_s": outcome.max_lateness_s, "p99_s": outcome.p99_lateness_s,
+            "p50_s": outcome.p50_lateness_s}
 
 
 def of_results(folder: Path, names: Iterable[str]) -> Callable[[Any], dict[str, dict[str, Any]]]:

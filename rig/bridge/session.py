@@ -452,12 +452,12 @@ class BenchSession:
                                                   self.interrupted is not None)
         if keeper is not None and keeper.exec_errno is not None:
             verdict, code, error = "error", 127, f"command not found or not executable: {self.cfg.command}"
-        events, late, worst, p99 = self.sched.lateness()
+        events, late, worst, p99, p50 = self.sched.lateness()
         acked = self.figures.status.get("i2c_acked", 0)  # the board's transfers are the bridge's to count
         transfers = int(acked) if isinstance(acked, int) else 0
         return Outcome(verdict, code, error, returncode, sim, sim, time.perf_counter() - wall0, transfers, 0,
                        0, self.notes + self.stream.figures.notes, [], self.world.outputs(),
-                       self.figures.pulses_driven, events, late, worst, p99)
+                       self.figures.pulses_driven, events, late, worst, p99, p50)
 
     def link_figures(self) -> dict[str, object]:
         """For result.json: the bridge's identity and the link's figures."""

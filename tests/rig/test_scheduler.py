@@ -111,3 +111,16 @@ def test_the_clock_page_moves_forward_only_and_carries_the_end(tmp_path: Path) -
     assert page.now() == 5_000
     raw = (tmp_path / "shm").read_bytes()
     assert int.from_bytes(raw[P.SHM_LIMIT_OFFSET:P.SHM_LIMIT_OFFSET + 8], "little") == 7 * NS
+
+
+def test_the_lateness_figures_count_the_late_and_give_median_p99_and_worst(world: World) -> None:
+    """Real time: each event's lateness is the wall clock at its start minus its due time (a fake wall
+    clock here, which says 0.2 ms late for the first event, 2 ms for the last)."""
+    walls = iter([200_000 + 1_000_000 * k for k in range(9)] + [11_000_000])
+    sched = Scheduler(world, Host(), duration=10.0, sim_timeout=600.0, wall_now=lambda: next(walls))
+    for k in range(10):
+        sched.at(0.001 * k, lambda h: None)
+    sched.advance(9_000_000)
+    events, late, worst, p99, p50 = sched.lateness()
+    assert sched.lateness_ns == [200_000] * 9 + [2_000_000]
+    assert (events, late, worst, p99, p50) == (10, 1, 0.002, 0.0002, 0.0002)
