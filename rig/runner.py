@@ -287,6 +287,7 @@ def run(
             "max_s": outcome.max_lateness_s,
             "p99_s": outcome.p99_lateness_s,
             "p50_s": outcome.p50_lateness_s,
+            **outcome.host_state,
         }
         if outcome.events_late:
             notes.append(

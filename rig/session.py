@@ -37,6 +37,7 @@ from typing import IO, Final
 from rig import interrupts
 from rig import protocol as P
 from rig.handler import Handler
+from rig.pace import PacedSelector, RealtimeHost
 from rig.scheduler import (
     EXIT_WATCHDOG,
     MONO_BASE_NS,
@@ -103,6 +104,8 @@ class Outcome:
     max_lateness_s: float = 0.0
     p99_lateness_s: float = 0.0
     p50_lateness_s: float = 0.0
+    #: real time only: how the loop ran (rig.pace.HostState.as_dict: SCHED_FIFO, mlockall, why not)
+    host_state: dict[str, object] = field(default_factory=dict)
 
 
 @dataclass
@@ -150,6 +153,7 @@ class Session:
         self._conns: list[_Conn] = []
         self._n_conns = 0
         self._rt_t0 = 0.0
+        self._rt_host = RealtimeHost()  # real time: SCHED_FIFO and mlockall where permitted (rig/pace)
         self._running = False
         self.interrupted: int | None = None  # the signal that stopped the rig mid-run (rig.interrupts)
 
@@ -247,7 +251,9 @@ class Session:
         # (a list, not an Optional: compiled by mypyc, a local narrowed to _Keeper in the try is checked
         # as one in the finally, and an error before it was set became a TypeError that hid the error)
         keepers: list[_Keeper] = []
-        sel = selectors.DefaultSelector()
+        # real time: a selector that waits in C for the next event's absolute deadline (rig/pace)
+        sel = (selectors.DefaultSelector() if cfg.lockstep
+               else PacedSelector(self._deadline_ns, self._realtime_tick))
         wall0 = time.perf_counter()
         returncode: int | None = None
         self._running = True
@@ -271,13 +277,18 @@ class Session:
             env = self._dut_env(shim, tmp)
             if cfg.pin or (cfg.pin is None and cfg.lockstep):
                 os.sched_setaffinity(0, {max(old_affinity)})  # the keeper and the DUT inherit it
-            self._rt_t0 = time.perf_counter()
+            if not cfg.lockstep:  # before sim time 0: locking the memory takes a while (the DUT: not FIFO)
+                self._rt_host.start()
             keeper = _Keeper(keeper_path, cfg.command, env, cfg.stdout, cfg.stderr, KILL_GRACE_S)
             keepers.append(keeper)
+            # sim time 0 once the keeper runs (it starts the DUT only now): its few milliseconds of
+            # start-up made the first events late in real time
+            self._rt_t0 = time.perf_counter()
             sel.register(keeper.status, selectors.EVENT_READ, "keeper")
             returncode = self._loop(sel, listener, keeper, wall0)
         finally:
             self._running = False
+            self._rt_host.stop()
             for k in keepers:
                 k.finish()  # the DUT and everything it started are gone when this returns
             os.sched_setaffinity(0, old_affinity)
@@ -373,6 +384,11 @@ class Session:
             if not stopping and self.sched.over:
                 keeper.stop()  # SIGTERM to the DUT and all it started; SIGKILL after the grace
                 stopping = True
+
+    def _deadline_ns(self) -> int | None:
+        """Real time: the next event's due time on CLOCK_MONOTONIC (ns), or None."""
+        due = self.sched.next_event_ns()
+        return None if due is None else round(self._rt_t0 * NS) + due
 
     def _realtime_tick(self) -> float:
         """Real time: run due events and keep the world at the wall clock; seconds to the next event."""
@@ -513,7 +529,8 @@ class Session:
         events, late, worst, p99, p50 = self.sched.lateness()
         return Outcome(verdict, code, error, returncode, sim, self.world.time_ns / NS,
                        time.perf_counter() - wall0, counts[0], counts[1], self._n_conns, notes,
-                       self.malformed, self.world.outputs(), counts[2], events, late, worst, p99, p50)
+                       self.malformed, self.world.outputs(), counts[2], events, late, worst, p99, p50,
+                       {} if self.cfg.lockstep else self._rt_host.state.as_dict())
 
 
 def dut_env(base: dict[str, str] | None, shim: Path, socket_path: Path | str, shm: Path | str, lockstep: bool,

@@ -17,7 +17,6 @@ and there is no process to start: the run lasts its duration.
 
 from __future__ import annotations
 
-import gc
 import math
 import os
 import selectors
@@ -39,12 +38,13 @@ from rig.bridge.port import BridgeError, BridgePort, bridge_id
 from rig.bridge.stream import SampleStream
 from rig.bridge.timesync import ClockMap, Exchange
 from rig.bridge.vbridge import Endpoints, VirtualBridge
+from rig.pace import PacedSelector, RealtimeHost
 from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, Stop
 from rig.session import KILL_GRACE_S, Outcome, _Keeper, _Pty, dut_env
 from rig.world import World
 
 SYNC_PERIOD_S: Final = 0.1
-RT_PRIORITY: Final = 10  # SCHED_RR: the host loop, the virtual bridge and its DUT, above other work
+RT_PRIORITY: Final = 10  # SCHED_RR: the virtual bridge and its DUT, above other work (the loop: rig.pace)
 SBUS_OUT_OFF: Final = 0x80  # SBUS flags: the bridge sends no frames (messages.py)
 FAULT_NEVER_US: Final = 1 << 53  # a fault with no end (the bridge takes ends up to 2^64 ns)
 SYNC_START: Final = 8  # exchanges before the run starts: the clock map has a line by then
@@ -117,6 +117,7 @@ class BenchSession:
         self.interrupted: int | None = None
         self.stream = SampleStream(self)
         self._rc_silent = False
+        self._rt_host = RealtimeHost()  # the loop under SCHED_FIFO and mlockall where permitted
 
     # ---- the API scenarios use -----------------------------------------------------------------
 
@@ -130,6 +131,11 @@ class BenchSession:
 
     def _wall_ns(self) -> int:
         return time.monotonic_ns() - self._t0_ns
+
+    def _deadline_ns(self) -> int | None:
+        """The next event's due time on CLOCK_MONOTONIC (ns), or None."""
+        due = self.sched.next_event_ns()
+        return None if due is None else self._t0_ns + due
 
     @property
     def dut_clock_base_s(self) -> float:
@@ -183,16 +189,11 @@ class BenchSession:
         tmp = Path(tempfile.mkdtemp(prefix="rig-bench-"))
         vbridge: VirtualBridge | None = None
         keeper: _Keeper | None = None
-        # select(2), not epoll: epoll_wait counts its timeout in whole milliseconds, which made every
-        # event due within the next millisecond up to a millisecond late
-        sel = selectors.SelectSelector()
+        # not epoll: epoll_wait counts its timeout in whole milliseconds, which made every event due
+        # within the next millisecond up to a millisecond late; the wait is rig.pace's, on absolute deadlines
+        sel = PacedSelector(self._deadline_ns, self._run_due)
         returncode: int | None = None
         policy = self._raise_priority()
-        # no cyclic garbage collection while the run lasts: a full collection of the plant's and the
-        # models' objects stalled the host loop for tens of milliseconds (reference counting still frees
-        # what the loop makes; the few cycles wait for the run's end)
-        gc.freeze()
-        gc.disable()
         try:
             with interrupts.live():
                 try:
@@ -213,6 +214,7 @@ class BenchSession:
                         os.set_blocking(master, False)
                         self._ptys[path] = _Pty(path, master, slave)
                         sel.register(master, selectors.EVENT_READ, ("pty", path))
+                    self._rt_host.start(fifo=False)  # (before sim time 0: locking the memory takes a while)
                     self._t0_ns = time.monotonic_ns()
                     self._send_faults()
                     self.stream.start()
@@ -225,6 +227,7 @@ class BenchSession:
                                          KILL_GRACE_S)
                         sel.register(keeper.status, selectors.EVENT_READ, "keeper")
                     self.at(0.0, _sync_tick)
+                    self._rt_host.take_fifo()  # (once the bridge and the DUT run: they stay SCHED_RR)
                     self._serve(sel, keeper, wall0)
                 except BridgeError as e:
                     self.sched.fail(EXIT_RIG_ERROR, f"bridge: {e}")
@@ -234,6 +237,7 @@ class BenchSession:
             self.interrupted = e.signum
             self.sched.fail(e.exit_code, f"{e} at sim t={self.now_ns / NS:.3f} s")
         finally:
+            self._rt_host.stop()
             if keeper is not None:
                 keeper.finish()
             for pty in self._ptys.values():
@@ -254,17 +258,16 @@ class BenchSession:
             shutil.rmtree(tmp, ignore_errors=True)
             if policy is not None:
                 os.sched_setscheduler(0, *policy)
-            gc.enable()
-            gc.unfreeze()
         return self._outcome(returncode, wall0, keeper)
 
     def _raise_priority(self) -> tuple[int, os.sched_param] | None:
-        """Real time on a shared machine: the host loop, and what it starts (the virtual bridge, the
-        keeper and the DUT inherit it), runs under SCHED_RR at RT_PRIORITY when allowed (root, or
-        CAP_SYS_NICE / RLIMIT_RTPRIO). They sleep most of the time; the kernel keeps 5 % of each core for
-        everything else even if one spins (sched_rt_runtime_us). A raised nice value was not enough
-        here: with scheduling autogroups a nice value ranks a process only inside its session's group,
-        and the bridge and the DUT start sessions of their own. Returns the old policy to restore, or
+        """Real time on a shared machine: what the host starts (the virtual bridge, the keeper and the
+        DUT inherit it) runs under SCHED_RR at RT_PRIORITY when allowed (root, or CAP_SYS_NICE /
+        RLIMIT_RTPRIO); the loop itself runs above them, SCHED_FIFO (rig.pace.RealtimeHost). They
+        sleep most of the time; the kernel keeps 5 % of each core for everything else even if one spins
+        (sched_rt_runtime_us). A raised nice value was not enough here: with scheduling autogroups a
+        nice value ranks a process only inside its session's group, and the bridge and the DUT start
+        sessions of their own. Returns the old policy to restore, or
         None; not allowed, the run goes on as it is and its notes say so."""
         old = os.sched_getscheduler(0), os.sched_getparam(0)
         if old[0] != os.SCHED_OTHER:
@@ -304,6 +307,14 @@ class BenchSession:
         return dut_env(self.cfg.env, shim, ends.board, ends.shm, False, self.cfg.i2c_bus, serial,
                        tmp / "fakes")
 
+    def _run_due(self) -> None:
+        """Runs the events due by now and the world to now (the paced wait calls it at each deadline)."""
+        if not self.sched.over:
+            try:
+                self.sched.advance(self._wall_ns())
+            except Stop:
+                pass
+
     def _serve(self, sel: selectors.BaseSelector, keeper: _Keeper | None, wall0: float) -> None:
         stopping = False
         port = self.port
@@ -311,10 +322,7 @@ class BenchSession:
         while keeper is None or not keeper.done:
             timeout = 0.05
             if not self.sched.over:
-                try:
-                    self.sched.advance(self._wall_ns())
-                except Stop:
-                    pass
+                self._run_due()
                 due = self.sched.next_event_ns()
                 if due is not None:
                     timeout = min(timeout, max(0.0, (due - self._wall_ns()) / NS))
@@ -457,7 +465,8 @@ class BenchSession:
         transfers = int(acked) if isinstance(acked, int) else 0
         return Outcome(verdict, code, error, returncode, sim, sim, time.perf_counter() - wall0, transfers, 0,
                        0, self.notes + self.stream.figures.notes, [], self.world.outputs(),
-                       self.figures.pulses_driven, events, late, worst, p99, p50)
+                       self.figures.pulses_driven, events, late, worst, p99, p50,
+                       self._rt_host.state.as_dict())
 
     def link_figures(self) -> dict[str, object]:
         """For result.json: the bridge's identity and the link's figures."""

@@ -1,0 +1,95 @@
+"""The real-time loop's pacing (rig/pace): its wait never returns before the deadline and still wakes for
+a readable descriptor; the host set-up is taken where permitted, said in the outcome, never inherited by
+the DUT, and undone; a paced session runs its events in order, none before its due time.
+
+No timing threshold here (timing belongs in bench/realtime_lateness.py): "not before the deadline" is
+an ordering, true on any machine; a session run the host starved is flown again, then inconclusive
+(tests/realtime.py)."""
+
+from __future__ import annotations
+
+import os
+import selectors
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+
+from rig import pace
+from rig.scheduler import NS
+from rig.session import Outcome, Session, SessionConfig
+from rig.world import World
+from tests.realtime import of_outcome, realtime
+
+
+def test_the_wait_returns_at_its_deadline_never_before() -> None:
+    a, b = socket.socketpair()
+    deadlines: list[int] = []
+    sel = pace.PacedSelector(lambda: deadlines[-1])
+    try:
+        sel.register(a, selectors.EVENT_READ, "a")
+        for _ in range(20):
+            deadlines.append(pace.now_ns() + 2_000_000)
+            assert sel.select(1.0) == []             # nothing to read: the deadline ended the wait
+            assert time.monotonic_ns() >= deadlines[-1]  # (the same clock)
+    finally:
+        sel.close()
+        a.close()
+        b.close()
+
+
+def test_a_readable_descriptor_wakes_the_wait_and_is_seen_past_a_deadline() -> None:
+    a, b = socket.socketpair()
+    far = pace.now_ns() + 3600 * NS
+    sel = pace.PacedSelector(lambda: far)
+    try:
+        sel.register(a, selectors.EVENT_READ, "a")
+        sel.register(b, selectors.EVENT_READ, "b")
+        b.send(b"x")
+        assert [(k.data, ev) for k, ev in sel.select(3600.0)] == [("a", selectors.EVENT_READ)]
+        far = pace.now_ns() - NS  # a deadline already past: what is readable is still reported
+        assert [k.data for k, _ in sel.select(0.0)] == ["a"]
+        sel.unregister(a)
+        assert sel.select(0.0) == []                 # the unregistered one is no longer waited on
+    finally:
+        sel.close()
+        a.close()
+        b.close()
+
+
+def test_the_host_set_up_is_said_not_inherited_by_children_and_undone() -> None:
+    before = os.sched_getscheduler(0)
+    host = pace.RealtimeHost()
+    with host as state:
+        child = subprocess.run([sys.executable, "-c", "import os; print(os.sched_getscheduler(0))"],
+                               capture_output=True, text=True, check=True)
+        inside = os.sched_getscheduler(0) & ~os.SCHED_RESET_ON_FORK
+    assert state.sched_fifo == (inside == os.SCHED_FIFO)
+    assert state.sched_fifo or any(w.startswith("SCHED_FIFO") for w in state.not_taken)
+    assert state.mlockall or any(w.startswith("mlockall") for w in state.not_taken)
+    assert int(child.stdout) == os.SCHED_OTHER       # a process started by the loop: never FIFO
+    assert os.sched_getscheduler(0) == before
+    assert state.as_dict()["sched_fifo"] == state.sched_fifo
+
+
+def test_a_paced_session_runs_its_events_in_order_none_before_its_time() -> None:
+    def fly() -> tuple[Outcome, list[tuple[int, int]]]:
+        cfg = SessionConfig(command=["sleep", "5"], lockstep=False, duration=0.3, allow_no_devices=True)
+        session = Session(cfg, World.at_rest(noise=False))
+        ran: list[tuple[int, int]] = []  # (due ns, wall ns since the start when it ran)
+        def note(due: int) -> Callable[[Session], None]:
+            return lambda s: ran.append((due, s._wall_ns()))
+
+        for k in range(60):  # scheduled out of order; ties at 0.1 s
+            due = (59 - k) * 5_000_000 if k % 3 else 100_000_000
+            session.at(due / NS, note(due))
+        return session.run(), ran
+
+    outcome, ran = realtime(fly, lambda got: {"paced": of_outcome(got[0])})
+    assert outcome.verdict == "ok", outcome.error
+    assert [due for due, _ in ran] == sorted(due for due, _ in ran) and len(ran) == 60
+    assert all(wall >= due for due, wall in ran)
+    state = outcome.host_state
+    assert set(state) == {"sched_fifo", "mlockall", "not_taken"}
+    assert state["sched_fifo"] or state["not_taken"]
