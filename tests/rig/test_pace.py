@@ -8,19 +8,26 @@ an ordering, true on any machine; a session run the host starved is flown again,
 
 from __future__ import annotations
 
+import json
 import os
 import selectors
+import shutil
 import socket
 import subprocess
 import sys
 import time
 from collections.abc import Callable
+from pathlib import Path
+
+import pytest
 
 from rig import pace
 from rig.scheduler import NS
 from rig.session import Outcome, Session, SessionConfig
 from rig.world import World
 from tests.realtime import of_outcome, realtime
+
+REPO = Path(__file__).resolve().parents[2]
 
 
 def test_the_wait_returns_at_its_deadline_never_before() -> None:
@@ -93,3 +100,24 @@ def test_a_paced_session_runs_its_events_in_order_none_before_its_time() -> None
     state = outcome.host_state
     assert set(state) == {"sched_fifo", "mlockall", "not_taken"}
     assert state["sched_fifo"] or state["not_taken"]
+
+
+@pytest.mark.skipif(shutil.which("setpriv") is None, reason="needs setpriv (util-linux) to drop capabilities")
+def test_where_not_permitted_the_loop_runs_as_it_is_and_says_why() -> None:
+    """A process without CAP_SYS_NICE and CAP_IPC_LOCK (dropped by setpriv, as in a container) and with
+    no real-time priority or locked memory allowed: the set-up falls back without an error."""
+    code = ("import json, os, resource\n"
+            "resource.setrlimit(resource.RLIMIT_MEMLOCK, (65536, 65536))\n"
+            "resource.setrlimit(resource.RLIMIT_RTPRIO, (0, 0))\n"
+            "from rig import pace\n"
+            "with pace.RealtimeHost() as state:\n"
+            "    policy = os.sched_getscheduler(0)\n"
+            "print(json.dumps([state.as_dict(), policy]))\n")
+    done = subprocess.run(["setpriv", "--bounding-set", "-sys_nice,-ipc_lock", sys.executable, "-c", code],
+                          capture_output=True, text=True, cwd=REPO)
+    if done.returncode and done.stderr.startswith("setpriv:"):  # (not allowed to drop them here)
+        pytest.skip(done.stderr.strip())
+    assert done.returncode == 0, done.stderr
+    state, policy = json.loads(done.stdout)
+    assert (state["sched_fifo"], state["mlockall"], policy) == (False, False, os.SCHED_OTHER)
+    assert [w.split(":")[0] for w in state["not_taken"]] == ["mlockall", "SCHED_FIFO"]
