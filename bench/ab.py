@@ -51,6 +51,12 @@ def python_loop_ms() -> float:
     return (time.process_time() - t0) * 1000
 
 
+def load() -> str:
+    """The load average: the calibration loop counts CPU time, so other processes sharing the cores
+    slow the wall-clock rates without showing in it."""
+    return "load average " + " ".join(f"{x:.1f}" for x in os.getloadavg())
+
+
 def git(*args: str, cwd: Path = REPO) -> str:
     return subprocess.run(["git", *args], cwd=cwd, capture_output=True, text=True, check=True).stdout.strip()
 
@@ -162,8 +168,8 @@ def interleave(pairs: int, measure: Callable[[Path], T], before: Path, after: Pa
         a = measure(before)
         b = measure(after)
         out.append(Pair((c0 + python_loop_ms()) / 2, a, b))
-        print(f"  {label} pair {k + 1}/{pairs}: calibration {out[-1].calibration_ms:.0f} ms", file=sys.stderr,
-              flush=True)
+        print(f"  {label} pair {k + 1}/{pairs}: calibration {out[-1].calibration_ms:.0f} ms, {load()}",
+              file=sys.stderr, flush=True)
     return out
 
 

@@ -61,7 +61,7 @@ def single() -> None:
     from rig.compiled import install, status
 
     install()  # the compiled hot modules, before they are imported
-    print(status())
+    print(f"{status()}; {ab.load()}")
     for which, label in LABELS.items():
         rtf, tx, calib, cpu = [], [], [], []
         for _ in range(REPEATS):

@@ -39,7 +39,7 @@ def single(runs: int, jobs: list[int]) -> None:
         plain = min(ab.command(ab.REPO, ["-m", "rig.cli", "run", SCENARIO, "--seed", str(s), "--out",
                                          f"{tmp}/run{s}"]) for s in range(3))
         print(f"sweep_rates: {SCENARIO} ({runs} seeds); a plain rig run: {plain:.2f} s wall; "
-              f"Python loop {ab.python_loop_ms():.0f} ms")
+              f"Python loop {ab.python_loop_ms():.0f} ms; {ab.load()}")
         print("  (a plain run includes its process start, checks and index/CSV: a sweep pays them once)")
         rates = {}
         for j in jobs:
@@ -47,7 +47,7 @@ def single(runs: int, jobs: list[int]) -> None:
             per_run = 60 / rates[j] * j
             print(f"  {j} worker(s): {rates[j]:6.1f} runs/min, {per_run:.2f} s per run and worker "
                   f"({per_run / plain:.2f}x a plain rig run, overhead {per_run - plain:+.2f} s); "
-                  f"Python loop {ab.python_loop_ms():.0f} ms")
+                  f"Python loop {ab.python_loop_ms():.0f} ms; {ab.load()}")
         if 1 in rates and 2 in rates:
             print(f"  2 workers / 1 worker: {rates[2] / rates[1]:.2f}x")
 
