@@ -11,6 +11,13 @@ and range are printed. Prints; asserts nothing.
 
     python bench/cycle_cost.py                  # microseconds per cycle (wall clock, noisy)
     python bench/cycle_cost.py --instructions   # instructions per cycle (needs valgrind)
+    python bench/cycle_cost.py --instructions --breakdown [--parts FILE.json]
+                                                # and by part, from callgrind (bench/callgrind.py)
+
+``--breakdown`` profiles the same two run lengths under callgrind and subtracts each part's
+instructions (message handling, plant, samples, chip core, scheduler; "other" is the harness's own
+DUT side and what no part reaches). ``--parts`` replaces callgrind.PARTS with a JSON list of
+[part, pattern] pairs, for a per-cycle path in new files.
 """
 
 from __future__ import annotations
@@ -119,6 +126,27 @@ def _instructions(n: int) -> int:
     return int(line.split()[-1].replace(",", ""))
 
 
+def _by_part(n: int, parts: list[tuple[str, str]] | None) -> dict[str, float]:
+    import callgrind
+
+    env = {**os.environ, "PYTHONHASHSEED": "0", "OPENBLAS_NUM_THREADS": "1", "RIG_CYCLES": str(n)}
+    with tempfile.TemporaryDirectory(prefix="rig-callgrind-") as tmp:
+        out = Path(tmp) / "callgrind.out"
+        cmd = ["setarch", "-R", "valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", sys.executable,
+               __file__, "--child"]
+        subprocess.run(cmd, capture_output=True, text=True, env=env, check=True)
+        return callgrind.split(callgrind.parse(out.read_text()), parts)
+
+
+def breakdown(short: int, long: int, parts: list[tuple[str, str]] | None) -> None:
+    a, b = _by_part(short, parts), _by_part(long, parts)
+    per = {p: (b.get(p, 0) - a.get(p, 0)) / (long - short) for p in dict.fromkeys([*b, *a])}
+    total = sum(per.values())
+    print(f"by part (callgrind, {long} - {short} cycles): {total / 1000:.1f} k instructions per cycle")
+    for part, cost in sorted(per.items(), key=lambda kv: -kv[1]):
+        print(f"  {part:18} {cost / 1000:7.1f} k ({cost / total * 100:5.1f} %)")
+
+
 def main() -> None:
     if "--child" in sys.argv:
         run_cycles(int(os.environ["RIG_CYCLES"]))
@@ -131,6 +159,16 @@ def main() -> None:
         per = sorted((_instructions(long) - _instructions(short)) / (long - short) / 1000 for _ in range(3))
         print(f"session cost of one FC cycle: {per[1]:.0f} k instructions "
               f"(median of 3; {per[0]:.0f}-{per[2]:.0f})")
+        if "--breakdown" in sys.argv:
+            parts = None
+            if "--parts" in sys.argv:
+                import json
+
+                raw = json.loads(Path(sys.argv[sys.argv.index("--parts") + 1]).read_text())
+                if not (isinstance(raw, list) and all(isinstance(x, list) and len(x) == 2 for x in raw)):
+                    sys.exit("--parts: a JSON list of [part, pattern] pairs")
+                parts = [(str(p), str(pat)) for p, pat in raw]
+            breakdown(short, long, parts)
     else:
         runs = sorted(run_cycles(2500) * 1e6 for _ in range(3))
         print(f"session cost of one FC cycle: {runs[1]:.0f} us CPU (median of 3; best {runs[0]:.0f}); "
