@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import select
+from collections.abc import Callable
 from pathlib import Path
 
 BOUND_S = 60.0
@@ -45,12 +46,15 @@ def wait_gone(pid: int, timeout: float = BOUND_S) -> bool:
         os.close(fd)
 
 
-IN_CREATE, IN_MOVED_TO = 0x100, 0x80
+IN_CLOSE_WRITE, IN_CREATE, IN_MOVED_TO = 0x8, 0x100, 0x80
 
 
-def wait_file(paths: list[Path], timeout: float = BOUND_S) -> Path | None:
+def wait_file(paths: list[Path], timeout: float = BOUND_S,
+              ready: Callable[[Path], bool] = Path.exists) -> Path | None:
     """The first of ``paths`` to exist (they may be created, or renamed into place, after the call), by
-    inotify on their folders, which must exist; None after ``timeout`` seconds."""
+    inotify on their folders, which must exist; None after ``timeout`` seconds. ``ready`` says when a
+    file is there for the caller: one its writer creates empty and fills later (a Dask scheduler file)
+    wants its content checked, and each write closed wakes the wait to look again."""
     import ctypes
     import time
 
@@ -59,11 +63,12 @@ def wait_file(paths: list[Path], timeout: float = BOUND_S) -> Path | None:
     assert fd >= 0, f"inotify_init1: errno {ctypes.get_errno()}"
     try:
         for folder in {p.parent for p in paths}:
-            assert libc.inotify_add_watch(fd, bytes(folder), IN_CREATE | IN_MOVED_TO) >= 0, folder
+            mask = IN_CREATE | IN_MOVED_TO | IN_CLOSE_WRITE
+            assert libc.inotify_add_watch(fd, bytes(folder), mask) >= 0, folder
         deadline = time.monotonic() + timeout
         while True:
             for p in paths:  # (after the watches: a file made before them is seen here)
-                if p.exists():
+                if ready(p):
                     return p
             left = deadline - time.monotonic()
             if left <= 0 or not select.select([fd], [], [], left)[0]:

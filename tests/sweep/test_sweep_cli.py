@@ -5,6 +5,7 @@ lockstep and seeded, so both engines must give the same table, value for value."
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import shutil
@@ -124,6 +125,14 @@ def test_the_local_pool_writes_the_table_the_summary_and_junit(show: dict[str, A
 DASK = Path(sys.executable).parent / "dask"
 
 
+def scheduler_file_written(info: Path) -> bool:
+    """The scheduler file is created before its JSON is written: it is there once the JSON is whole."""
+    try:
+        return "address" in json.loads(info.read_text())
+    except (FileNotFoundError, ValueError):
+        return False
+
+
 def start_scheduler(info: Path, private: Path, port: int = 0) -> tuple[str, subprocess.Popen[bytes]]:
     """A Dask scheduler on loopback (its address from its scheduler file)."""
     info.unlink(missing_ok=True)
@@ -134,11 +143,11 @@ def start_scheduler(info: Path, private: Path, port: int = 0) -> tuple[str, subp
         stderr=subprocess.DEVNULL,
         env={**os.environ, "TMPDIR": str(private)},
     )
-    if wait_file([info]) != info:
+    if wait_file([info], ready=scheduler_file_written) != info:
         proc.kill()
         proc.wait()
         raise AssertionError("the scheduler did not start")
-    address = __import__("json").loads(info.read_text())["address"]
+    address = json.loads(info.read_text())["address"]
     assert address.startswith("tcp://127.0.0.1:")
     return address, proc
 
