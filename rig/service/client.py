@@ -135,7 +135,10 @@ def cmd_submit(args: argparse.Namespace) -> int:
             return 0
         seen = ""
         while True:
-            run = call(args.server, "GET", f"/api/runs/{run_id}?wait=30", args.token)
+            # the server's wait ends on a change from what it finds at the call: the first call must not
+            # wait, or a run already running when it came is shown only at its next change (30 s on)
+            wait = 30 if seen else 0
+            run = call(args.server, "GET", f"/api/runs/{run_id}?wait={wait}", args.token)
             if line(run) != seen:
                 seen = line(run)
                 print(seen, file=sys.stderr, flush=True)

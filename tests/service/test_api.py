@@ -15,6 +15,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+import time
 import urllib.error
 import urllib.request
 from collections.abc import Iterator
@@ -95,15 +96,18 @@ def start(data: Path, *extra: str, token: str | None = None, tmp: Path | None = 
 
 
 def until_line(proc: subprocess.Popen[str], words: str) -> str:
-    """What the process wrote on stderr up to the line with ``words`` (none by BOUND_S: fails)."""
+    """What the process wrote on stderr up to the line with ``words`` (none by BOUND_S: fails). Read
+    from the descriptor, not the text wrapper: a readline after select() leaves lines that came in the
+    same chunk in the wrapper's buffer, where select() does not see them (the line waited for would be
+    found only when the process next wrote something)."""
     assert proc.stderr is not None
-    seen = ""
-    while words not in seen:
-        ready, _, _ = select.select([proc.stderr], [], [], BOUND_S)
-        line = proc.stderr.readline() if ready else ""
-        assert line, f"{proc.args!r} never wrote {words!r}: {seen}"
-        seen += line
-    return seen
+    fd, seen = proc.stderr.fileno(), b""
+    while words.encode() not in seen or not seen.endswith(b"\n"):
+        ready, _, _ = select.select([fd], [], [], BOUND_S)
+        chunk = os.read(fd, 65536) if ready else b""
+        assert chunk, f"{proc.args!r} never wrote {words!r}: {seen.decode(errors='replace')}"
+        seen += chunk
+    return seen.decode(errors="replace")
 
 
 def stop(svc: Service, sig: int = signal.SIGTERM) -> None:
@@ -389,27 +393,58 @@ def test_a_bearer_tokens_scheme_is_case_insensitive(tmp_path: Path) -> None:
         stop(svc)
 
 
+#: the session stops a lockstep DUT that sends nothing for 30 s of wall time (the blocked DUT does
+#: that): a host that took longer than this to start the service's run and its DUT is too starved for
+#: the Ctrl-C to come before that watchdog
+STARTED_IN_TIME_S = 10.0
+
+
 def test_ctrl_c_ends_rig_serve_and_rig_submit_wait_without_a_traceback(tmp_path: Path) -> None:
+    """Paced by the wall clock (the stall watchdog): an attempt on a host too starved to start the run
+    in time is inconclusive, flown once more, then skipped with the figure; never a pass or a failure.
+    After a start in time, ``rig submit --wait`` must show the run running at once (it once showed
+    nothing until the run's next change, here the watchdog's error 30 s on: a failure)."""
+    late = []
+    for attempt in range(2):
+        took = _ctrl_c_serve_and_submit(tmp_path / f"attempt{attempt}")
+        if took is None:
+            return
+        late.append(f"{took:.1f} s")
+    pytest.skip(f"inconclusive: the host took over {STARTED_IN_TIME_S:g} s to start the run's DUT (took "
+                f"{', then '.join(late)})")
+
+
+def _ctrl_c_serve_and_submit(tmp_path: Path) -> float | None:
+    """One attempt: None when it was judged, else the seconds the DUT took to start (too late to judge)."""
+    tmp_path.mkdir()
     svc = start(tmp_path / "data", "--slots", "1")
     command, fifo = blocked_dut(tmp_path)
     try:
+        submitted = time.monotonic()
         waiting = subprocess.Popen([sys.executable, "-m", "rig.cli", "submit", "--server", svc.url,
                                     "step_roll", "--dut", command, "--wait"], stdout=subprocess.PIPE,
                                    stderr=subprocess.PIPE, text=True, start_new_session=True)
         dut = read_pid(fifo)
+        took = time.monotonic() - submitted
+        if took > STARTED_IN_TIME_S:
+            waiting.kill()
+            waiting.communicate()
+            return took
         until_line(waiting, ": running")
         os.killpg(waiting.pid, signal.SIGINT)
         out, err = waiting.communicate(timeout=BOUND_S)
         run_id = int(out.split()[0])
+        status = svc.call("GET", f"/api/runs/{run_id}")[1]["status"]
         assert waiting.returncode == 130 and "Traceback" not in err, err
         assert f"interrupted: run {run_id} goes on" in err
-        assert svc.call("GET", f"/api/runs/{run_id}")[1]["status"] == "running"  # only the waiting stopped
+        assert status == "running"  # only the waiting stopped
     finally:
         os.killpg(svc.proc.pid, signal.SIGINT)  # Ctrl-C at the service's terminal
         _, err = svc.proc.communicate(timeout=BOUND_S)
     assert svc.proc.returncode == 130 and "Traceback" not in err, err
     assert "rig serve: stopped (Ctrl-C)" in err
     assert wait_gone(dut)
+    return None
 
 
 def test_rig_submit_needs_a_servers_scheme_and_serve_brackets_ipv6(tmp_path: Path) -> None:
