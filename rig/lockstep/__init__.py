@@ -21,7 +21,12 @@ from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
 from emulators import native
+from emulators.chips.board import CHIP_MPU, ImuFeed
+from emulators.dlpf import DLPF
+from emulators.mpu6050 import CONFIG, SMPLRT_DIV
+from emulators.sensor_models import ImuModel
 from plant.native_build import BUILD, EXTENSION_SUFFIX, compile_extension, is_stale, load_extension
+from rig.world import HISTORY, World, _WorldTruth
 
 if TYPE_CHECKING:
     from rig.handler import Handler
@@ -30,8 +35,8 @@ HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent
 SHIM_DIR = REPO / "rig" / "shim"
 #: the module's source first; the headers it shares with the shim (the wire) and the chip core
-SOURCES = (HERE / "fastpath.c", SHIM_DIR / "protocol.h", native.CHIPS_DIR / "chip_core.h",
-           native.C_DIR / "need_tuple.h")
+SOURCES = (HERE / "fastpath.c", HERE / "imu_feed.c", SHIM_DIR / "protocol.h",
+           native.CHIPS_DIR / "chip_core.h", native.C_DIR / "need_tuple.h")
 MODULE_NAME = "_riglockstep"
 LIB = BUILD / f"{MODULE_NAME}{EXTENSION_SUFFIX}"
 #: the environment variable that sends every message to the Python handler
@@ -73,6 +78,7 @@ class FastPath:
             world.advance_to, world.apply_pwm, world.board.serve, world.pwm, sched.events, sched,
             handler.i2c_log, handler, handler.page.mmap, world.board.addr, _address(chips.chip_transfer),
             _address(chips.chip_advance), world.step_ns, sched.limit_ns, cfg.i2c_clock_hz, cfg.i2c_bus)
+        self.imu_in_c = _imu_in_c(self._state, world)
 
     @property
     def handled(self) -> int:
@@ -83,6 +89,27 @@ class FastPath:
     def handle(self, fd: int, buf: bytearray, off: int) -> int:
         off_after: int = self._handle(self._state, fd, buf, off)
         return off_after
+
+
+def _imu_in_c(state: object, world: World) -> bool:
+    """The IMU's samples made in C (imu_feed.c) when the producer is the world's own: an ImuModel over
+    the world's history, through the DLPF. Another source (a test's function of time) stays Python."""
+    feed = world.board.feeds[CHIP_MPU]
+    model = getattr(feed, "source", None)
+    if not isinstance(feed, ImuFeed) or not isinstance(model, ImuModel) or not feed.dlpf:
+        return False
+    table = model._table
+    if not isinstance(table, _WorldTruth) or table.world is not world:
+        return False
+    lib = native.sampling()
+    sampler = feed._sampler
+    module().setup_imu(
+        state, feed, sampler, model._a, model._g, model.accel_faults.faults, model.gyro_faults.faults, world,
+        model._cols_addr, model.die_offset_c, sampler.block_addr, world._k0, HISTORY, world._hist_addr,
+        world._row_bytes, lib.rig_lowpass_max_depth(), world.step_ns, CONFIG, SMPLRT_DIV, DLPF,
+        _address(lib.rig_imu_measure), _address(lib.rig_lowpass_run), _address(lib.chip_push_imu),
+        _address(lib.chip_peek))
+    return True
 
 
 def handled_total() -> int:

@@ -23,6 +23,7 @@
 #include <Python.h>
 
 #include <errno.h>
+#include <math.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <string.h>
@@ -45,7 +46,10 @@
 typedef int (*transfer_fn)(chip_board *, uint64_t, chip_msg *, uint32_t, chip_need *, uint32_t *);
 typedef chip_need (*advance_fn)(chip_board *, uint64_t);
 
+#include "imu_feed.c"
+
 typedef struct {
+    imu_feed imu;            /* the IMU's samples in C (imu_feed.c), when setup_imu said so */
     PyObject *world_advance; /* World.advance_to */
     PyObject *apply_pwm;     /* World.apply_pwm */
     PyObject *serve;         /* ChipBoard.serve */
@@ -85,6 +89,7 @@ static void state_free(PyObject *capsule)
     fast_state *s = PyCapsule_GetPointer(capsule, "rig.lockstep");
     if (!s)
         return;
+    imu_free(&s->imu);
     Py_XDECREF(s->world_advance);
     Py_XDECREF(s->apply_pwm);
     Py_XDECREF(s->serve);
@@ -148,6 +153,76 @@ static PyObject *fp_setup(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
     return capsule;
 }
 
+/* setup_imu(state, feed, sampler, accel, gyro, accel_faults, gyro_faults, world, cols_addr, die_offset,
+ *           block_addr, k0, history, hist_addr, row_bytes, max_depth, step_ns, reg_config, reg_smplrt_div,
+ *           dlpf (8 rows of 4 numbers), measure_addr, lowpass_addr, push_addr, peek_addr): the IMU's
+ * samples in C from now on (imu_feed.c); accel and gyro are the model's two channels (_Channel) */
+static PyObject *fp_setup_imu(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 24)
+        return PyErr_Format(PyExc_TypeError, "setup_imu takes 24 arguments (%zd given)", nargs);
+    fast_state *s = PyCapsule_GetPointer(a[0], "rig.lockstep");
+    if (!s)
+        return NULL;
+    if (!PyList_Check(a[5]) || !PyList_Check(a[6]))
+        return PyErr_Format(PyExc_TypeError, "setup_imu: the fault lists are lists");
+    imu_feed *f = &s->imu;
+    imu_free(f);
+    PyObject **refs[] = { &f->feed, &f->sampler, &f->accel, &f->gyro, &f->accel_faults, &f->gyro_faults, &f->world };
+    for (int i = 0; i < 7; i++) {
+        Py_INCREF(a[1 + i]);
+        *refs[i] = a[1 + i];
+    }
+    PyObject *addr_a = PyObject_GetAttrString(a[3], "addr"), *addr_g = PyObject_GetAttrString(a[4], "addr");
+    if (addr_a && addr_g) {
+        f->accel_addr = PyLong_AsVoidPtr(addr_a);
+        f->gyro_addr = PyLong_AsVoidPtr(addr_g);
+    }
+    Py_XDECREF(addr_a);
+    Py_XDECREF(addr_g);
+    f->cols = PyLong_AsVoidPtr(a[8]);
+    f->die_offset = PyFloat_AsDouble(a[9]);
+    f->block = PyLong_AsVoidPtr(a[10]);
+    f->k0 = PyLong_AsLongLong(a[11]);
+    f->history = PyLong_AsLongLong(a[12]);
+    f->hist = PyLong_AsVoidPtr(a[13]);
+    f->row_bytes = PyLong_AsLongLong(a[14]);
+    f->max_depth = PyLong_AsLongLong(a[15]);
+    f->step_ns = PyLong_AsLongLong(a[16]);
+    f->reg_config = (uint8_t)PyLong_AsLong(a[17]);
+    f->reg_smplrt_div = (uint8_t)PyLong_AsLong(a[18]);
+    PyObject *rows = PySequence_Fast(a[19], "setup_imu: dlpf is a sequence");
+    if (rows && PySequence_Fast_GET_SIZE(rows) == 8) {
+        for (int i = 0; i < 8 && !PyErr_Occurred(); i++) {
+            PyObject *row = PySequence_Fast(PySequence_Fast_GET_ITEM(rows, i), "setup_imu: a dlpf row");
+            if (!row)
+                break;
+            for (int j = 0; j < 4 && j < PySequence_Fast_GET_SIZE(row); j++)
+                f->dlpf[i][j] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(row, j));
+            Py_DECREF(row);
+        }
+    } else if (rows) {
+        PyErr_SetString(PyExc_ValueError, "setup_imu: dlpf has 8 rows");
+    }
+    Py_XDECREF(rows);
+    f->measure = (imu_measure_fn)PyLong_AsVoidPtr(a[20]);
+    f->lowpass = (lowpass_run_fn)PyLong_AsVoidPtr(a[21]);
+    f->push = (push_imu_fn)PyLong_AsVoidPtr(a[22]);
+    f->peek = (peek_fn)PyLong_AsVoidPtr(a[23]);
+    if (PyErr_Occurred()) {
+        imu_free(f);
+        return NULL;
+    }
+    if (!f->accel_addr || !f->gyro_addr || !f->cols || !f->block || !f->hist || f->history <= 0 || f->row_bytes <= 0 ||
+        f->step_ns <= 0 || !f->measure || !f->lowpass || !f->push || !f->peek) {
+        imu_free(f);
+        return PyErr_Format(PyExc_ValueError, "setup_imu: addresses, history, rows and step must be set");
+    }
+    f->on = 1;
+    Py_RETURN_NONE;
+}
+
 /* ---- what the Python side keeps: events, the run's end ---- */
 
 /* 1: nothing the scheduler does stands between now and t (no event at or before t, the limit not
@@ -198,6 +273,11 @@ static int world_to(fast_state *s, uint64_t t)
 
 static int serve(fast_state *s, const chip_need *need)
 {
+    if (need->chip == CHIP_MPU) {
+        int r = imu_serve(&s->imu, s->board, need);
+        if (r)
+            return r < 0 ? -1 : 0;
+    }
     PyObject *t = need_tuple(need);
     if (!t)
         return -1;
@@ -494,6 +574,7 @@ static PyObject *fp_handled(PyObject *self, PyObject *state)
 
 static PyMethodDef methods[] = {
     { "setup", (PyCFunction)(void (*)(void))fp_setup, METH_FASTCALL, "the fast path's state for a session" },
+    { "setup_imu", (PyCFunction)(void (*)(void))fp_setup_imu, METH_FASTCALL, "the IMU's samples in C" },
     { "handle", (PyCFunction)(void (*)(void))fp_handle, METH_FASTCALL, "acts on the messages it takes" },
     { "handled", fp_handled, METH_O, "the messages acted on here so far" },
     { NULL, NULL, 0, NULL },
@@ -518,6 +599,13 @@ PyMODINIT_FUNC PyInit__riglockstep(void)
     s_transactions = PyUnicode_InternFromString("transactions");
     s_waits = PyUnicode_InternFromString("waits");
     s_pwm_writes = PyUnicode_InternFromString("pwm_writes");
+    PyObject **names[] = { &s_epoch,   &s_anchor, &s_cfg,  &s_div, &s_period, &s_next_t,
+                           &s_accel_f, &s_gyro_f, &s_addr, &s_k,   &s_refill };
+    const char *texts[] = { "_epoch",   "_anchor", "_cfg",  "_div", "_period", "next_t",
+                            "_accel_f", "_gyro_f", "_addr", "_k",   "refill" };
+    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
+        if (!(*names[i] = PyUnicode_InternFromString(texts[i])))
+            return NULL;
     if (!s_over || !s_duty_ns || !s_transactions || !s_waits || !s_pwm_writes)
         return NULL;
     return PyModule_Create(&module);

@@ -5,6 +5,7 @@ write the same results."""
 
 from __future__ import annotations
 
+import ctypes
 import json
 import socket
 import struct
@@ -14,6 +15,7 @@ from typing import Any
 import pytest
 
 import rig.protocol as P
+from emulators import native
 from rig import lockstep
 from rig.session import Session, SessionConfig, _Conn
 from rig.world import World
@@ -77,6 +79,7 @@ def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_h
     session = Session(cfg, World.at_rest(seed=3))
     session.open_page(tmp_path / f"shm-{py_path}-{clock_hz}")
     assert (session.fast is None) == py_path
+    assert session.fast is None or session.fast.imu_in_c  # the MPU's samples made in C too
     session.at(0.2, lambda s: s.world.set_input("wind_n", 2.0))  # an event between two cycles
     ours, dut = socket.socketpair()
     conn = _Conn(ours, 1)
@@ -94,11 +97,16 @@ def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_h
             dut.setblocking(True)
     handler = session.handler
     assert handler is not None and session.page is not None
+    board = session.world.board
+    sampler = board._imu._sampler
     return {"received": bytes(received), "counts": (handler.transactions, handler.waits, handler.pwm_writes),
             "log": list(handler.i2c_log), "clock": session.page.now(), "world": session.world.outputs(),
             "plant_ns": session.world.time_ns, "malformed": len(session.malformed),
             "pwm": [(c.exported, c.period_ns, c.duty_ns, c.enabled, c.inversed) for c in session.world.pwm],
-            "handled": session.fast.handled if session.fast else 0}
+            "handled": session.fast.handled if session.fast else 0,
+            # the chip core's whole state (its samples as float64, to the bit) and the IMU producer's
+            "board": ctypes.string_at(board.addr, native.chips().rig_chip_board_size()),
+            "block": sampler.block.tobytes(), "next_t": sampler.next_t}
 
 
 @pytest.mark.parametrize("clock_hz", [0, 400_000])
