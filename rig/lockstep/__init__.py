@@ -25,7 +25,9 @@ from emulators.chips.board import CHIP_MPU, ImuFeed
 from emulators.dlpf import DLPF
 from emulators.mpu6050 import CONFIG, SMPLRT_DIV
 from emulators.sensor_models import ImuModel
+from plant.fmu import _STEP_CALLS
 from plant.native_build import BUILD, EXTENSION_SUFFIX, compile_extension, is_stale, load_extension
+from plant.variables import MOTORS
 from rig.world import HISTORY, World, _WorldTruth
 
 if TYPE_CHECKING:
@@ -35,8 +37,9 @@ HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent
 SHIM_DIR = REPO / "rig" / "shim"
 #: the module's source first; the headers it shares with the shim (the wire) and the chip core
+PLANT_C = REPO / "plant" / "c"
 SOURCES = (HERE / "fastpath.c", HERE / "imu_feed.c", SHIM_DIR / "protocol.h",
-           native.CHIPS_DIR / "chip_core.h", native.C_DIR / "need_tuple.h")
+           native.CHIPS_DIR / "chip_core.h", native.C_DIR / "need_tuple.h", PLANT_C / "plant_steps.c")
 MODULE_NAME = "_riglockstep"
 LIB = BUILD / f"{MODULE_NAME}{EXTENSION_SUFFIX}"
 #: the environment variable that sends every message to the Python handler
@@ -45,7 +48,8 @@ PY_PATH_ENV = "RIG_PY_PATH"
 
 def build() -> Path:
     return compile_extension(SOURCES[:1], LIB, "the lockstep fast path",
-                             flags=(f"-I{SHIM_DIR}", f"-I{native.CHIPS_DIR}", f"-I{native.C_DIR}"))
+                             flags=(f"-I{SHIM_DIR}", f"-I{native.CHIPS_DIR}", f"-I{native.C_DIR}",
+                                    f"-I{PLANT_C}"))
 
 
 @functools.cache
@@ -75,9 +79,12 @@ class FastPath:
         chips = native.chips()
         self._handle = module().handle
         self._state = module().setup(
-            world.advance_to, world.apply_pwm, world.board.serve, world.pwm, sched.events, sched,
-            handler.i2c_log, handler, handler.page.mmap, world.board.addr, _address(chips.chip_transfer),
-            _address(chips.chip_advance), world.step_ns, sched.limit_ns, cfg.i2c_clock_hz, cfg.i2c_bus)
+            world.advance_to, world.board.serve, world.pwm, sched.events, sched, handler.i2c_log, handler,
+            handler.page.mmap, world.board.addr, _address(chips.chip_transfer), _address(chips.chip_advance),
+            world.step_ns, sched.limit_ns, cfg.i2c_clock_hz, cfg.i2c_bus)
+        plant = world.plant
+        module().setup_world(self._state, world, plant, world._hist, plant.u.ctypes.data,
+                             world._u_pwm[:MOTORS], MOTORS, _STEP_CALLS)
         self.imu_in_c = _imu_in_c(self._state, world)
 
     @property

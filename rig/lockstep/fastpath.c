@@ -14,7 +14,8 @@
  *
  * What it does is what the handler does, in the same order: the world is run to the message's time
  * (World.advance_to), the chip core (emulators/chips/) transfers, the needs it reports are made by the
- * same Python producers (ChipBoard.serve), PWM duty goes through World.apply_pwm, and the clock page,
+ * same Python producers (ChipBoard.serve), PWM duty sets the motor's input as World.apply_pwm does, the
+ * plant steps as World.advance_to steps it (rig_plant_steps, the plant's own C), and the clock page,
  * the reply, the counts and the transfer log (run.mcap's /i2c) come out the same. The chip core's
  * entry points are the emulators' library's own (addresses from emulators/native.py), so one chip core
  * runs a session, whichever path serves a message.
@@ -31,6 +32,7 @@
 
 #include "chip_core.h"
 #include "need_tuple.h"
+#include "plant_steps.c" /* rig_plant_steps: the plant's steps, the plant's own code */
 #include "protocol.h"
 
 #define MAX_MSGS 42      /* rig/protocol.py I2C_RDWR_MAX_MSGS */
@@ -49,16 +51,21 @@ typedef chip_need (*advance_fn)(chip_board *, uint64_t);
 #include "imu_feed.c"
 
 typedef struct {
-    imu_feed imu;            /* the IMU's samples in C (imu_feed.c), when setup_imu said so */
-    PyObject *world_advance; /* World.advance_to */
-    PyObject *apply_pwm;     /* World.apply_pwm */
-    PyObject *serve;         /* ChipBoard.serve */
-    PyObject *pwm;           /* World.pwm: the PwmChannel list */
-    PyObject *events;        /* Scheduler.events: the heap of (t_ns, seq, fn) */
-    PyObject *sched;         /* Scheduler (its ``over``) */
-    PyObject *i2c_log;       /* Handler.i2c_log */
-    PyObject *handler;       /* Handler (its counts) */
-    PyObject *page_obj;      /* the clock page's mmap, its buffer held */
+    imu_feed imu;                   /* the IMU's samples in C (imu_feed.c), when setup_imu said so */
+    PyObject *world_advance;        /* World.advance_to */
+    PyObject *serve;                /* ChipBoard.serve */
+    PyObject *pwm;                  /* World.pwm: the PwmChannel list */
+    PyObject *events;               /* Scheduler.events: the heap of (t_ns, seq, fn) */
+    PyObject *sched;                /* Scheduler (its ``over``) */
+    PyObject *i2c_log;              /* Handler.i2c_log */
+    PyObject *handler;              /* Handler (its counts) */
+    PyObject *page_obj;             /* the clock page's mmap, its buffer held */
+    PyObject *world, *plant, *hist; /* for the plant's steps in C (World.advance_to's) */
+    struct rig_plant_steps *steps;  /* the plant's, once it has stepped into the world's history */
+    double *u;                      /* the plant's inputs (Plant.u) */
+    int64_t u_pwm[RIG_PWM_MAX];     /* World._u_pwm: the input of motor channel i */
+    Py_ssize_t motors;
+    PyObject *step_calls; /* plant.fmu._STEP_CALLS: a failed call's name */
     Py_buffer page;
     chip_board *board;
     transfer_fn transfer;
@@ -71,6 +78,7 @@ typedef struct {
 
 static uint64_t handled_total; /* messages acted on here by every session of this process */
 
+static PyObject *s_steps_at, *s_ring, *s_direct_pwm, *s_exported, *s_enabled, *s_period_ns, *s_inversed;
 static PyObject *s_over, *s_duty_ns, *s_transactions, *s_waits, *s_pwm_writes;
 
 static volatile uint64_t *sim_ns(fast_state *s)
@@ -91,13 +99,16 @@ static void state_free(PyObject *capsule)
         return;
     imu_free(&s->imu);
     Py_XDECREF(s->world_advance);
-    Py_XDECREF(s->apply_pwm);
     Py_XDECREF(s->serve);
     Py_XDECREF(s->pwm);
     Py_XDECREF(s->events);
     Py_XDECREF(s->sched);
     Py_XDECREF(s->i2c_log);
     Py_XDECREF(s->handler);
+    Py_XDECREF(s->world);
+    Py_XDECREF(s->plant);
+    Py_XDECREF(s->hist);
+    Py_XDECREF(s->step_calls);
     if (s->page_obj) {
         PyBuffer_Release(&s->page);
         Py_DECREF(s->page_obj);
@@ -105,14 +116,14 @@ static void state_free(PyObject *capsule)
     PyMem_Free(s);
 }
 
-/* setup(world_advance, apply_pwm, serve, pwm, events, sched, i2c_log, handler, page_mmap, board_addr,
+/* setup(world_advance, serve, pwm, events, sched, i2c_log, handler, page_mmap, board_addr,
  *       transfer_addr, advance_addr, step_ns, limit_ns, i2c_clock_hz, bus) -> state */
 static PyObject *fp_setup(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 16)
-        return PyErr_Format(PyExc_TypeError, "setup takes 16 arguments (%zd given)", nargs);
-    if (!PyList_Check(a[3]) || !PyList_Check(a[4]) || !PyList_Check(a[6]))
+    if (nargs != 15)
+        return PyErr_Format(PyExc_TypeError, "setup takes 15 arguments (%zd given)", nargs);
+    if (!PyList_Check(a[2]) || !PyList_Check(a[3]) || !PyList_Check(a[5]))
         return PyErr_Format(PyExc_TypeError, "setup: pwm, events and i2c_log are lists");
     fast_state *s = PyMem_Calloc(1, sizeof *s);
     if (!s)
@@ -122,25 +133,24 @@ static PyObject *fp_setup(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
         PyMem_Free(s);
         return NULL;
     }
-    PyObject **refs[] = { &s->world_advance, &s->apply_pwm, &s->serve,   &s->pwm,
-                          &s->events,        &s->sched,     &s->i2c_log, &s->handler };
-    for (int i = 0; i < 8; i++) {
+    PyObject **refs[] = { &s->world_advance, &s->serve, &s->pwm, &s->events, &s->sched, &s->i2c_log, &s->handler };
+    for (int i = 0; i < 7; i++) {
         Py_INCREF(a[i]);
         *refs[i] = a[i];
     }
-    if (PyObject_GetBuffer(a[8], &s->page, PyBUF_WRITABLE) < 0) {
+    if (PyObject_GetBuffer(a[7], &s->page, PyBUF_WRITABLE) < 0) {
         Py_DECREF(capsule);
         return NULL;
     }
-    Py_INCREF(a[8]);
-    s->page_obj = a[8];
-    s->board = PyLong_AsVoidPtr(a[9]);
-    s->transfer = (transfer_fn)PyLong_AsVoidPtr(a[10]);
-    s->advance = (advance_fn)PyLong_AsVoidPtr(a[11]);
-    s->step_ns = PyLong_AsUnsignedLongLong(a[12]);
-    s->limit_ns = PyLong_AsUnsignedLongLong(a[13]);
-    s->i2c_clock_hz = PyLong_AsUnsignedLongLong(a[14]);
-    s->bus = (unsigned)PyLong_AsUnsignedLong(a[15]);
+    Py_INCREF(a[7]);
+    s->page_obj = a[7];
+    s->board = PyLong_AsVoidPtr(a[8]);
+    s->transfer = (transfer_fn)PyLong_AsVoidPtr(a[9]);
+    s->advance = (advance_fn)PyLong_AsVoidPtr(a[10]);
+    s->step_ns = PyLong_AsUnsignedLongLong(a[11]);
+    s->limit_ns = PyLong_AsUnsignedLongLong(a[12]);
+    s->i2c_clock_hz = PyLong_AsUnsignedLongLong(a[13]);
+    s->bus = (unsigned)PyLong_AsUnsignedLong(a[14]);
     if (PyErr_Occurred()) {
         Py_DECREF(capsule);
         return NULL;
@@ -223,6 +233,41 @@ static PyObject *fp_setup_imu(PyObject *self, PyObject *const *a, Py_ssize_t nar
     Py_RETURN_NONE;
 }
 
+/* setup_world(state, world, plant, hist, u_addr, u_pwm, motors, step_calls): the plant's steps and the
+ * motors' inputs written here (World.advance_to's and World.apply_pwm's work) */
+static PyObject *fp_setup_world(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 8)
+        return PyErr_Format(PyExc_TypeError, "setup_world takes 8 arguments (%zd given)", nargs);
+    fast_state *s = PyCapsule_GetPointer(a[0], "rig.lockstep");
+    if (!s)
+        return NULL;
+    if (!PyList_Check(a[5]) || PyList_GET_SIZE(a[5]) > RIG_PWM_MAX || !PyDict_Check(a[7]))
+        return PyErr_Format(PyExc_TypeError, "setup_world: u_pwm is a list of at most %d, step_calls a dict",
+                            RIG_PWM_MAX);
+    double *u = PyLong_AsVoidPtr(a[4]);
+    Py_ssize_t motors = PyLong_AsSsize_t(a[6]);
+    int64_t idx[RIG_PWM_MAX];
+    for (Py_ssize_t i = 0; i < PyList_GET_SIZE(a[5]) && !PyErr_Occurred(); i++)
+        idx[i] = PyLong_AsLongLong(PyList_GET_ITEM(a[5], i));
+    if (PyErr_Occurred())
+        return NULL;
+    if (!u || motors < 0 || motors > PyList_GET_SIZE(a[5]))
+        return PyErr_Format(PyExc_ValueError, "setup_world: an input address and at most %zd motors",
+                            PyList_GET_SIZE(a[5]));
+    PyObject **refs[] = { &s->world, &s->plant, &s->hist, &s->step_calls };
+    PyObject *objs[] = { a[1], a[2], a[3], a[7] };
+    for (int i = 0; i < 4; i++) {
+        Py_INCREF(objs[i]);
+        Py_XSETREF(*refs[i], objs[i]);
+    }
+    s->u = u;
+    s->motors = motors;
+    memcpy(s->u_pwm, idx, sizeof(int64_t) * (size_t)motors);
+    Py_RETURN_NONE;
+}
+
 /* ---- what the Python side keeps: events, the run's end ---- */
 
 /* 1: nothing the scheduler does stands between now and t (no event at or before t, the limit not
@@ -253,20 +298,77 @@ static int clear_until(fast_state *s, uint64_t t)
     return overflow < 0 || v <= 0 || (uint64_t)v <= t ? 0 : 1;
 }
 
-/* Scheduler.advance with no event due: the world to t (World.advance_to, called only when a whole
- * step has passed since the last call: it moves nothing otherwise) */
+/* the plant's step struct, once Plant.step_many has made it with the world's history as its ring */
+static struct rig_plant_steps *plant_steps_of(fast_state *s)
+{
+    if (s->steps)
+        return s->steps;
+    PyObject *ring = PyObject_GetAttr(s->plant, s_ring);
+    if (!ring)
+        return NULL;
+    int ours = ring == s->hist;
+    Py_DECREF(ring);
+    PyObject *at = ours ? PyObject_GetAttr(s->plant, s_steps_at) : NULL;
+    if (at) {
+        s->steps = PyLong_AsVoidPtr(at);
+        Py_DECREF(at);
+    }
+    PyErr_Clear(); /* (no struct yet: World.advance_to makes it) */
+    return s->steps;
+}
+
+/* Scheduler.advance with no event due: World.advance_to(t), its steps made here once the plant has its
+ * struct (rig_plant_steps, as Plant.step_many calls it), World._k moved after them; a failed step raises
+ * the plant's own error (Plant._fail). Called only when a whole step may have passed since the last. */
 static int world_to(fast_state *s, uint64_t t)
 {
     if (t / s->step_ns <= s->stepped_to / s->step_ns && s->stepped_to)
         return 0;
-    PyObject *arg = PyLong_FromUnsignedLongLong(t);
-    if (!arg)
-        return -1;
-    PyObject *r = PyObject_CallOneArg(s->world_advance, arg);
-    Py_DECREF(arg);
-    if (!r)
-        return -1;
-    Py_DECREF(r);
+    struct rig_plant_steps *steps = plant_steps_of(s);
+    if (steps) {
+        long long k;
+        PyObject *kv = PyObject_GetAttr(s->world, s_k);
+        if (!kv)
+            return -1;
+        k = PyLong_AsLongLong(kv);
+        Py_DECREF(kv);
+        if (k == -1 && PyErr_Occurred())
+            return -1;
+        long long n = (long long)(t / s->step_ns) - k;
+        if (n > 0) {
+            int32_t done = rig_plant_steps(steps, (int32_t)n, (double)s->step_ns * 1e-9, 1, k + 1);
+            if (done < n || steps->failed_call) {
+                PyObject *code = PyLong_FromLong(steps->failed_call);
+                PyObject *what = code ? PyDict_GetItemWithError(s->step_calls, code) : NULL; /* borrowed */
+                Py_XDECREF(code);
+                if (!PyErr_Occurred()) {
+                    PyObject *r = what ? PyObject_CallMethod(s->plant, "_fail", "Oi", what, (int)steps->failed_status)
+                                       : PyObject_CallMethod(s->plant, "_fail", "si", "rig_plant_steps",
+                                                             (int)steps->failed_status);
+                    Py_XDECREF(r);
+                }
+                if (!PyErr_Occurred())
+                    PyErr_SetString(PyExc_RuntimeError, "the plant's step failed");
+                return -1;
+            }
+            PyObject *kn = PyLong_FromLongLong(k + n);
+            if (!kn)
+                return -1;
+            int bad = PyObject_SetAttr(s->world, s_k, kn);
+            Py_DECREF(kn);
+            if (bad)
+                return -1;
+        }
+    } else {
+        PyObject *arg = PyLong_FromUnsignedLongLong(t);
+        if (!arg)
+            return -1;
+        PyObject *r = PyObject_CallOneArg(s->world_advance, arg);
+        Py_DECREF(arg);
+        if (!r)
+            return -1;
+        Py_DECREF(r);
+    }
     s->stepped_to = t;
     return 0;
 }
@@ -426,6 +528,20 @@ static int i2c(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p)
     return 1;
 }
 
+/* a PwmChannel attribute as an int64 (0: it did not fit, the handler takes the message) */
+static int channel_attr(PyObject *ch, PyObject *name, long long *out)
+{
+    PyObject *v = PyObject_GetAttr(ch, name);
+    if (!v)
+        return -1;
+    int overflow = 0;
+    *out = PyLong_AsLongLongAndOverflow(v, &overflow);
+    Py_DECREF(v);
+    if (*out == -1 && PyErr_Occurred())
+        return -1;
+    return overflow || *out < 0 ? 0 : 1;
+}
+
 static int pwm(fast_state *s, const struct rig_hdr *h, const uint8_t *p)
 {
     struct rig_pwm_msg m;
@@ -437,23 +553,39 @@ static int pwm(fast_state *s, const struct rig_hdr *h, const uint8_t *p)
     int clear = clear_until(s, h->t_ns);
     if (clear <= 0)
         return clear;
+    /* PwmChannel.pulse_us with the new duty, its fields read before anything moves */
+    PyObject *ch = PyList_GET_ITEM(s->pwm, m.channel);
+    long long exported, enabled, period, inversed;
+    int r;
+    if ((r = channel_attr(ch, s_exported, &exported)) <= 0 || (r = channel_attr(ch, s_enabled, &enabled)) <= 0 ||
+        (r = channel_attr(ch, s_period_ns, &period)) <= 0 || (r = channel_attr(ch, s_inversed, &inversed)) <= 0)
+        return r;
+    PyObject *direct = PyObject_GetAttr(s->world, s_direct_pwm);
+    if (!direct)
+        return -1;
+    int is_direct = PyObject_IsTrue(direct);
+    Py_DECREF(direct);
+    if (is_direct < 0)
+        return -1;
+    /* acting from here on: Scheduler.advance, then the handler's PWM notice */
     if (world_to(s, h->t_ns) < 0)
         return -1;
     PyObject *value = PyLong_FromUnsignedLongLong(m.value);
     if (!value)
         return -1;
-    int bad = PyObject_SetAttr(PyList_GET_ITEM(s->pwm, m.channel), s_duty_ns, value);
+    int bad = PyObject_SetAttr(ch, s_duty_ns, value);
     Py_DECREF(value);
     if (bad)
         return -1;
-    PyObject *ch = PyLong_FromLong(m.channel);
-    if (!ch)
-        return -1;
-    PyObject *r = PyObject_CallOneArg(s->apply_pwm, ch);
-    Py_DECREF(ch);
-    if (!r)
-        return -1;
-    Py_DECREF(r);
+    if (m.channel < s->motors && is_direct) { /* World.apply_pwm */
+        double pulse = 0.0;
+        if (exported && enabled && period > 0) {
+            long long duty = (long long)m.value, high = inversed ? period - duty : duty;
+            high = high < 0 ? 0 : high;
+            pulse = (double)(high < period ? high : period) / 1000.0;
+        }
+        s->u[s->u_pwm[m.channel]] = pulse;
+    }
     return 1;
 }
 
@@ -574,6 +706,7 @@ static PyObject *fp_handled(PyObject *self, PyObject *state)
 
 static PyMethodDef methods[] = {
     { "setup", (PyCFunction)(void (*)(void))fp_setup, METH_FASTCALL, "the fast path's state for a session" },
+    { "setup_world", (PyCFunction)(void (*)(void))fp_setup_world, METH_FASTCALL, "the plant's steps in C" },
     { "setup_imu", (PyCFunction)(void (*)(void))fp_setup_imu, METH_FASTCALL, "the IMU's samples in C" },
     { "handle", (PyCFunction)(void (*)(void))fp_handle, METH_FASTCALL, "acts on the messages it takes" },
     { "handled", fp_handled, METH_O, "the messages acted on here so far" },
@@ -599,10 +732,12 @@ PyMODINIT_FUNC PyInit__riglockstep(void)
     s_transactions = PyUnicode_InternFromString("transactions");
     s_waits = PyUnicode_InternFromString("waits");
     s_pwm_writes = PyUnicode_InternFromString("pwm_writes");
-    PyObject **names[] = { &s_epoch,   &s_anchor, &s_cfg,  &s_div, &s_period, &s_next_t,
-                           &s_accel_f, &s_gyro_f, &s_addr, &s_k,   &s_refill };
-    const char *texts[] = { "_epoch",   "_anchor", "_cfg",  "_div", "_period", "next_t",
-                            "_accel_f", "_gyro_f", "_addr", "_k",   "refill" };
+    PyObject **names[] = { &s_steps_at, &s_ring,    &s_direct_pwm, &s_exported, &s_enabled, &s_period_ns,
+                           &s_inversed, &s_epoch,   &s_anchor,     &s_cfg,      &s_div,     &s_period,
+                           &s_next_t,   &s_accel_f, &s_gyro_f,     &s_addr,     &s_k,       &s_refill };
+    const char *texts[] = { "_steps_at", "_ring",    "direct_pwm", "exported", "enabled", "period_ns",
+                            "inversed",  "_epoch",   "_anchor",    "_cfg",     "_div",    "_period",
+                            "next_t",    "_accel_f", "_gyro_f",    "_addr",    "_k",      "refill" };
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
         if (!(*names[i] = PyUnicode_InternFromString(texts[i])))
             return NULL;

@@ -62,6 +62,8 @@ def _script() -> list[bytes]:
         out += [_pwm(t + 1000, ch, P.PWM_DUTY, 1_100_000 + 10_000 * k + 1000 * ch) for ch in range(4)]
         if k == 30:
             out.append(_pwm(t + 1500, 0, P.PWM_POLARITY, 0))  # (the handler's)
+        if k == 40:  # channel 1 inversed, channel 2 off: the duty writes after it act differently
+            out += [_pwm(t + 1500, 1, P.PWM_POLARITY, 1), _pwm(t + 1500, 2, P.PWM_ENABLE, 0)]
         if k % 3 == 0:
             out.append(_wait(t + 2000, t + CYCLE_NS, P.WAIT_AHEAD))
         elif k % 3 == 1:
@@ -129,6 +131,7 @@ def test_the_world_moved(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Non
     fast = _fly(monkeypatch, tmp_path, False, 0)
     assert fast["plant_ns"] > 300_000_000 and fast["clock"] >= fast["plant_ns"]
     assert fast["pwm"][1][2] == 1_100_000 + 10_000 * 59 + 1000
+    assert fast["pwm"][1][4] and not fast["pwm"][2][3]
 
 
 def _result(run_dir: Path) -> dict[str, Any]:
