@@ -132,7 +132,7 @@ docs-images: venv fmu shim native compiled dut
 	$(PY) tools/mcap_screenshot.py build/docs-report/fault_gyro_stuck/run.mcap
 
 # our C, in one style (.clang-format); the FMI headers are vendored as they came
-C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/linux/*.[ch] dut/avr/*.[ch] dut/tests/*.c emulators/c/*.c emulators/chips/*.[ch] plant/c/*.[ch] \
+C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/linux/*.[ch] dut/avr/*.[ch] dut/tests/*.c emulators/c/*.[ch] rig/lockstep/*.c emulators/chips/*.[ch] plant/c/*.[ch] \
 	rig/shim/*.[ch] bridge/*/*.[ch] bench/*.c tests/rig/device_clients/*.c rig/mcu/*.[ch] tests/mcu/firmware/*.c))
 
 lint: venv test-packages
