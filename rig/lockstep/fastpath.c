@@ -173,64 +173,7 @@ static PyObject *fp_setup_imu(PyObject *self, PyObject *const *a, Py_ssize_t nar
     if (nargs != 24)
         return PyErr_Format(PyExc_TypeError, "setup_imu takes 24 arguments (%zd given)", nargs);
     fast_state *s = PyCapsule_GetPointer(a[0], "rig.lockstep");
-    if (!s)
-        return NULL;
-    if (!PyList_Check(a[5]) || !PyList_Check(a[6]))
-        return PyErr_Format(PyExc_TypeError, "setup_imu: the fault lists are lists");
-    imu_feed *f = &s->imu;
-    imu_free(f);
-    PyObject **refs[] = { &f->feed, &f->sampler, &f->accel, &f->gyro, &f->accel_faults, &f->gyro_faults, &f->world };
-    for (int i = 0; i < 7; i++) {
-        Py_INCREF(a[1 + i]);
-        *refs[i] = a[1 + i];
-    }
-    PyObject *addr_a = PyObject_GetAttrString(a[3], "addr"), *addr_g = PyObject_GetAttrString(a[4], "addr");
-    if (addr_a && addr_g) {
-        f->accel_addr = PyLong_AsVoidPtr(addr_a);
-        f->gyro_addr = PyLong_AsVoidPtr(addr_g);
-    }
-    Py_XDECREF(addr_a);
-    Py_XDECREF(addr_g);
-    f->cols = PyLong_AsVoidPtr(a[8]);
-    f->die_offset = PyFloat_AsDouble(a[9]);
-    f->block = PyLong_AsVoidPtr(a[10]);
-    f->k0 = PyLong_AsLongLong(a[11]);
-    f->history = PyLong_AsLongLong(a[12]);
-    f->hist = PyLong_AsVoidPtr(a[13]);
-    f->row_bytes = PyLong_AsLongLong(a[14]);
-    f->max_depth = PyLong_AsLongLong(a[15]);
-    f->step_ns = PyLong_AsLongLong(a[16]);
-    f->reg_config = (uint8_t)PyLong_AsLong(a[17]);
-    f->reg_smplrt_div = (uint8_t)PyLong_AsLong(a[18]);
-    PyObject *rows = PySequence_Fast(a[19], "setup_imu: dlpf is a sequence");
-    if (rows && PySequence_Fast_GET_SIZE(rows) == 8) {
-        for (int i = 0; i < 8 && !PyErr_Occurred(); i++) {
-            PyObject *row = PySequence_Fast(PySequence_Fast_GET_ITEM(rows, i), "setup_imu: a dlpf row");
-            if (!row)
-                break;
-            for (int j = 0; j < 4 && j < PySequence_Fast_GET_SIZE(row); j++)
-                f->dlpf[i][j] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(row, j));
-            Py_DECREF(row);
-        }
-    } else if (rows) {
-        PyErr_SetString(PyExc_ValueError, "setup_imu: dlpf has 8 rows");
-    }
-    Py_XDECREF(rows);
-    f->measure = (imu_measure_fn)PyLong_AsVoidPtr(a[20]);
-    f->lowpass = (lowpass_run_fn)PyLong_AsVoidPtr(a[21]);
-    f->push = (push_imu_fn)PyLong_AsVoidPtr(a[22]);
-    f->peek = (peek_fn)PyLong_AsVoidPtr(a[23]);
-    if (PyErr_Occurred()) {
-        imu_free(f);
-        return NULL;
-    }
-    if (!f->accel_addr || !f->gyro_addr || !f->cols || !f->block || !f->hist || f->history <= 0 || f->row_bytes <= 0 ||
-        f->step_ns <= 0 || !f->measure || !f->lowpass || !f->push || !f->peek) {
-        imu_free(f);
-        return PyErr_Format(PyExc_ValueError, "setup_imu: addresses, history, rows and step must be set");
-    }
-    f->on = 1;
-    Py_RETURN_NONE;
+    return s ? imu_setup(&s->imu, a) : NULL;
 }
 
 /* setup_world(state, world, plant, hist, u_addr, u_pwm, motors, step_calls): the plant's steps and the
