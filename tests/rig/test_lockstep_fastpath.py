@@ -75,7 +75,8 @@ def _script() -> list[bytes]:
     return out
 
 
-def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_hz: int) -> dict[str, Any]:
+def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_hz: int,
+         script: list[bytes] | None = None) -> dict[str, Any]:
     monkeypatch.setenv(lockstep.PY_PATH_ENV, "1" if py_path else "0")
     cfg = SessionConfig(command=["true"], duration=100.0, i2c_clock_hz=clock_hz)
     session = Session(cfg, World.at_rest(seed=3))
@@ -87,7 +88,7 @@ def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_h
     conn = _Conn(ours, 1)
     received = bytearray()
     with ours, dut:
-        for m in _script():
+        for m in script if script is not None else _script():
             dut.sendall(m)
             session._on_readable(conn, None)  # type: ignore[arg-type]  # (not registered: no selector)
             dut.setblocking(False)
@@ -104,6 +105,7 @@ def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_h
     return {"received": bytes(received), "counts": (handler.transactions, handler.waits, handler.pwm_writes),
             "log": list(handler.i2c_log), "clock": session.page.now(), "world": session.world.outputs(),
             "plant_ns": session.world.time_ns, "malformed": len(session.malformed),
+            "why": list(session.malformed),
             "pwm": [(c.exported, c.period_ns, c.duty_ns, c.enabled, c.inversed) for c in session.world.pwm],
             "handled": session.fast.handled if session.fast else 0,
             # the chip core's whole state (its samples as float64, to the bit) and the IMU producer's
@@ -132,6 +134,48 @@ def test_the_world_moved(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Non
     assert fast["plant_ns"] > 300_000_000 and fast["clock"] >= fast["plant_ns"]
     assert fast["pwm"][1][2] == 1_100_000 + 10_000 * 59 + 1000
     assert fast["pwm"][1][4] and not fast["pwm"][2][3]
+
+
+BAD = {
+    "no messages": _msg(20_000_000, P.I2C_HEAD.pack(1, 0), P.MSG_I2C),
+    "43 messages": _msg(20_000_000, P.I2C_HEAD.pack(1, 43) + P.I2C_MSG.pack(0x68, 0, 0, 0) * 43, P.MSG_I2C),
+    "short write": _msg(20_000_000, P.I2C_HEAD.pack(1, 1) + P.I2C_MSG.pack(0x68, 0, 3, 0) + b"\x3b",
+                        P.MSG_I2C),
+    "bytes after": _msg(20_000_000, _i2c(0, [(0x68, 0, 1, b"\x3b")])[P.HEADER.size:] + b"\x00", P.MSG_I2C),
+    "read too long": _i2c(20_000_000, [(0x68, P.I2C_M_RD, P.I2C_MAX_LEN + 1, b"")]),
+    "pwm short": _msg(20_000_000, P.PWM_MSG.pack(0, 0, P.PWM_DUTY, 0, 5)[:-1], P.MSG_PWM),
+    "pwm channel": _pwm(20_000_000, 9, P.PWM_DUTY, 1_000_000),
+    "ahead forever": _wait(20_000_000, P.WAIT_FOREVER, P.WAIT_AHEAD),
+    "wait short": _msg(20_000_000, P.WAIT_MSG.pack(0, P.WAIT_SLEEP, 0)[:-4], P.MSG_WAIT),
+    "type 9": _msg(20_000_000, b"", 9),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BAD))
+def test_malformed_messages_are_the_handlers(monkeypatch: pytest.MonkeyPatch, tmp_path: Path,
+                                             name: str) -> None:
+    """What the fast path does not take goes to the handler, which drops the connection and says why."""
+    script = _script()[:60] + [BAD[name]]
+    py = _fly(monkeypatch, tmp_path, True, 0, script)
+    fast = _fly(monkeypatch, tmp_path, False, 0, script)
+    assert len(py["why"]) == 1 and fast["why"] == py["why"]
+    assert fast["received"] == py["received"] and fast["log"] == py["log"]
+
+
+def test_the_entry_points_refuse_wrong_arguments(tmp_path: Path) -> None:
+    m = lockstep.module()
+    with pytest.raises(TypeError, match="15 arguments"):
+        m.setup(1, 2)
+    with pytest.raises(ValueError, match="PyCapsule"):  # not a fast path's state
+        m.handle(object(), 0, bytearray(), 0)
+    session = Session(SessionConfig(command=["true"]), World.at_rest())
+    session.open_page(tmp_path / "shm")
+    assert session.fast is not None
+    state = session.fast._state
+    with pytest.raises(TypeError, match="bytearray"):
+        m.handle(state, 0, b"", 0)
+    with pytest.raises(ValueError, match="outside the buffer"):
+        m.handle(state, 0, bytearray(4), 5)
 
 
 def _result(run_dir: Path) -> dict[str, Any]:
