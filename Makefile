@@ -13,7 +13,7 @@ SHIM   := build/librigshim.so
 # the C extension modules (the sensors' sampling chain; the plant's steps): their names carry the
 # interpreter's suffix
 EXT := $(shell $(PYTHON) -c 'import importlib.machinery as m; print(m.EXTENSION_SUFFIXES[0])')
-NATIVE := build/_rignative$(EXT) build/_plantsteps$(EXT) build/_rigpace$(EXT)
+NATIVE := build/_rignative$(EXT) build/_plantsteps$(EXT) build/_rigpace$(EXT) build/_riglockstep$(EXT)
 # the modules rig/compiled.py compiles with mypyc (its MODULES, read from there)
 COMPILED := build/mypyc/manifest.json
 COMPILED_SOURCES := $(shell $(PYTHON) rig/compiled.py --sources)
@@ -51,12 +51,17 @@ native: $(NATIVE)
 # ones (emulators/chips/gen.py): any of them changing rebuilds it
 CHIP_FILES := $(wildcard emulators/chips/*.c emulators/chips/*.h) emulators/chips/gen.py emulators/registers.py \
 	emulators/mpu6050.py emulators/hmc5883l.py emulators/ms5611.py
-build/_rignative$(EXT): emulators/c/fastcalls.c emulators/c/sampling.c $(CHIP_FILES) emulators/native.py plant/native_build.py | venv
+build/_rignative$(EXT): emulators/c/fastcalls.c emulators/c/sampling.c emulators/c/need_tuple.h $(CHIP_FILES) emulators/native.py plant/native_build.py | venv
 	$(PY) -m emulators.native
 chips: build/_rignative$(EXT)
 # the real-time loop's wait (rig/pace; also built on first use)
 build/_rigpace$(EXT): rig/pace/pace.c rig/pace/__init__.py plant/native_build.py | venv
 	$(PY) -c 'import rig.pace; rig.pace.native()'
+# the lockstep fast path (rig/lockstep): the wire's header is the shim's, the chip core's and the need's
+# headers the emulators'
+build/_riglockstep$(EXT): rig/lockstep/fastpath.c rig/lockstep/imu_feed.c rig/lockstep/__init__.py rig/shim/protocol.h emulators/chips/chip_core.h \
+	emulators/c/need_tuple.h plant/c/plant_steps.c plant/native_build.py | venv
+	$(PY) -m rig.lockstep
 build/_plantsteps$(EXT): plant/c/steps_module.c plant/c/plant_steps.c plant/steps.py plant/native_build.py | venv
 	$(PY) -m plant.steps
 
@@ -127,7 +132,7 @@ docs-images: venv fmu shim native compiled dut
 	$(PY) tools/mcap_screenshot.py build/docs-report/fault_gyro_stuck/run.mcap
 
 # our C, in one style (.clang-format); the FMI headers are vendored as they came
-C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/linux/*.[ch] dut/avr/*.[ch] dut/tests/*.c emulators/c/*.c emulators/chips/*.[ch] plant/c/*.[ch] \
+C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/linux/*.[ch] dut/avr/*.[ch] dut/tests/*.c emulators/c/*.[ch] rig/lockstep/*.c emulators/chips/*.[ch] plant/c/*.[ch] \
 	rig/shim/*.[ch] bridge/*/*.[ch] bench/*.c tests/rig/device_clients/*.c rig/mcu/*.[ch] tests/mcu/firmware/*.c))
 
 lint: venv test-packages

@@ -27,15 +27,20 @@ from dataclasses import dataclass, field
 #: mypyc names a compiled function CPyDef_/CPyPy_ MODULE___CLASS___METHOD (attribute accessors without
 #: the prefix); C functions are named by their source file.
 MYPYC = r"(?:^|:)(?:CPy(?:Def|Py)_)?"
+#: The lockstep fast path (rig/lockstep, one object file) is split by its functions.
+LOCKSTEP = r"_riglockstep[^:]*:"
 PARTS: list[tuple[str, str]] = [
-    ("scheduler", MYPYC + r"scheduler___"),
-    ("plant", r"/plant/c/|_plantsteps|" + MYPYC + r"world___World___advance_to"),
+    ("scheduler", MYPYC + r"scheduler___|" + LOCKSTEP + r"clear_until\b"),
+    ("plant", r"/plant/c/|_plantsteps|" + MYPYC + r"world___World___advance_to|"
+              + LOCKSTEP + r"(world_to|plant_steps_of|rig_plant_steps)\b"),
     ("samples", r"emulators/c/sampling\.c:|:fc_(imu_measure|lowpass_run|mpu_encode|channel_measure)\b|"
+                + LOCKSTEP + r"(serve|imu_serve|attr_ll|attr_double|filter_addr|need_tuple)\b|"
                 + MYPYC + r"(sensor_models|dlpf|faults)___|"
                 + MYPYC + r"world___(World___(row_addresses|_slots|truth)|TruthTable)"),
-    ("chip core", r"/emulators/chips/|:fc_chip_|" + MYPYC + r"(board|ms5611|i2c_bus)___|"
+    ("chip core", r"/emulators/chips/|:fc_chip_|" + r"_rignative[^:]*:(chip|mpu|hmc|baro|fifo)_|"
+                  + MYPYC + r"(board|ms5611|i2c_bus)___|"
                   + MYPYC + r"world___World___transfer"),
-    ("message handling", MYPYC + r"(session|handler|protocol|world|rc|sbus|host)___"),
+    ("message handling", MYPYC + r"(session|handler|protocol|world|rc|sbus|host)___|_riglockstep"),
 ]
 OTHER = "other"
 

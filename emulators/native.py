@@ -34,7 +34,7 @@ SAMPLING_SOURCE = C_DIR / "sampling.c"
 CHIP_SOURCES = tuple(CHIPS_DIR / f for f in ("board.c", "mpu6050.c", "hmc5883l.c", "ms5611.c"))
 CHIP_HEADERS = (CHIPS_DIR / "chip_core.h", CHIPS_DIR / "chip_internal.h")
 #: the module's source first: it includes sampling.c (one translation unit); the chip core's files follow
-SOURCES = (C_DIR / "fastcalls.c", SAMPLING_SOURCE, *CHIP_SOURCES, *CHIP_HEADERS)
+SOURCES = (C_DIR / "fastcalls.c", SAMPLING_SOURCE, C_DIR / "need_tuple.h", *CHIP_SOURCES, *CHIP_HEADERS)
 #: the chip core's entry points are exported (ctypes reaches its set-up calls)
 CHIP_FLAGS = ("-DCHIP_API=__attribute__((visibility(\"default\")))", f"-I{CHIPS_DIR}")
 MODULE_NAME = "_rignative"

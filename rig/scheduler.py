@@ -59,6 +59,11 @@ class SharedPage:
     def now(self) -> int:
         return self._words[P.SIM_NS_OFFSET // 8]
 
+    @property
+    def mmap(self) -> mmap.mmap:
+        """The page itself (the lockstep fast path, rig/lockstep, writes the clock through it)."""
+        return self._mm
+
     def set(self, t_ns: int) -> None:
         """Moves the clock forward to ``t_ns`` (never back: the DUT may have read it on already)."""
         if t_ns > self._words[P.SIM_NS_OFFSET // 8]:

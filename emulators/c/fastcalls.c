@@ -128,25 +128,7 @@ EXPORT size_t rig_chip_board_size(void) { return sizeof(chip_board); }
 
 static uint64_t u64(PyObject *o) { return (uint64_t)PyLong_AsUnsignedLongLong(o); }
 
-/* the need as a tuple of 13 ints (board.py's Need), built directly: no format string parsed per need */
-static PyObject *need_tuple(const chip_need *n)
-{
-    unsigned long long v[13] = { n->chip,      n->keeps_all, n->anchor_mpu, n->osr,   n->t_thirds,
-                                 n->hmc_start, n->count,     n->anchor,     n->epoch, n->t_ns,
-                                 n->period_ns, n->anchor_ns, n->target_ns };
-    PyObject *t = PyTuple_New(13);
-    if (!t)
-        return NULL;
-    for (Py_ssize_t i = 0; i < 13; i++) {
-        PyObject *x = PyLong_FromUnsignedLongLong(v[i]);
-        if (!x) {
-            Py_DECREF(t);
-            return NULL;
-        }
-        PyTuple_SET_ITEM(t, i, x);
-    }
-    return t;
-}
+#include "need_tuple.h"
 
 #define MAX_MSGS 42 /* I2C_RDWR_IOCTL_MAX_MSGS */
 

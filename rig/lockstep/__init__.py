@@ -1,0 +1,133 @@
+"""The lockstep session's per-cycle messages in C (rig/lockstep/fastpath.c, the extension module
+``build/_riglockstep*.so``): I2C transfers, PWM duty writes and waits answered without the Python
+handler, which stays the reference and acts on everything the fast path declines (see fastpath.c).
+
+Why: a flight controller's cycle (an MPU burst read, four PWM duty notices, a wait) cost the session
+about twice the plant and the samples together as Python objects (docs/design.md, the lockstep section).
+
+``RIG_PY_PATH=1`` in the environment turns it off: every message goes to the Python handler, the oracle a
+test compares the fast path with. The module is built on first use, and again when a source is newer,
+as the other extensions are (plant/native_build.py); ``python -m rig.lockstep`` (part of ``make native``)
+builds it explicitly.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import os
+from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
+
+from emulators import native
+from emulators.chips.board import CHIP_MPU, ImuFeed
+from emulators.dlpf import DLPF
+from emulators.mpu6050 import CONFIG, SMPLRT_DIV
+from emulators.sensor_models import ImuModel
+from plant.fmu import _STEP_CALLS
+from plant.native_build import BUILD, EXTENSION_SUFFIX, compile_extension, is_stale, load_extension
+from plant.variables import MOTORS
+from rig.world import HISTORY, World, _WorldTruth
+
+if TYPE_CHECKING:
+    from rig.handler import Handler
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent.parent
+SHIM_DIR = REPO / "rig" / "shim"
+#: the module's source first; the headers it shares with the shim (the wire) and the chip core
+PLANT_C = REPO / "plant" / "c"
+SOURCES = (HERE / "fastpath.c", HERE / "imu_feed.c", SHIM_DIR / "protocol.h",
+           native.CHIPS_DIR / "chip_core.h", native.C_DIR / "need_tuple.h", PLANT_C / "plant_steps.c")
+MODULE_NAME = "_riglockstep"
+LIB = BUILD / f"{MODULE_NAME}{EXTENSION_SUFFIX}"
+#: the environment variable that sends every message to the Python handler
+PY_PATH_ENV = "RIG_PY_PATH"
+
+
+def build() -> Path:
+    return compile_extension(SOURCES[:1], LIB, "the lockstep fast path",
+                             flags=(f"-I{SHIM_DIR}", f"-I{native.CHIPS_DIR}", f"-I{native.C_DIR}",
+                                    f"-I{PLANT_C}"))
+
+
+@functools.cache
+def module() -> ModuleType:
+    if is_stale(LIB, SOURCES):
+        build()
+    return load_extension(MODULE_NAME, LIB)
+
+
+def enabled() -> bool:
+    return os.environ.get(PY_PATH_ENV, "") in ("", "0")
+
+
+def _address(fn: Any) -> int:
+    value = ctypes.cast(fn, ctypes.c_void_p).value
+    if not value:
+        raise RuntimeError("the chip core's entry point has no address")
+    return value
+
+
+class FastPath:
+    """The fast path of one lockstep session's handler: ``handle(fd, buf, off)`` acts on the whole
+    messages from ``off`` that it takes and returns the offset of the first it leaves to the handler."""
+
+    def __init__(self, handler: Handler) -> None:
+        world, sched, cfg = handler.world, handler.sched, handler.cfg
+        chips = native.chips()
+        self._handle = module().handle
+        self._state = module().setup(
+            world.advance_to, world.board.serve, world.pwm, sched.events, sched, handler.i2c_log, handler,
+            handler.page.mmap, world.board.addr, _address(chips.chip_transfer), _address(chips.chip_advance),
+            world.step_ns, sched.limit_ns, cfg.i2c_clock_hz, cfg.i2c_bus)
+        plant = world.plant
+        module().setup_world(self._state, world, plant, world._hist, plant.u.ctypes.data,
+                             world._u_pwm[:MOTORS], MOTORS, _STEP_CALLS)
+        self.imu_in_c = _imu_in_c(self._state, world)
+
+    @property
+    def handled(self) -> int:
+        """The messages acted on here so far (the rest went to the handler)."""
+        n: int = module().handled(self._state)
+        return n
+
+    def handle(self, fd: int, buf: bytearray, off: int) -> int:
+        off_after: int = self._handle(self._state, fd, buf, off)
+        return off_after
+
+
+def _imu_in_c(state: object, world: World) -> bool:
+    """The IMU's samples made in C (imu_feed.c) when the producer is the world's own: an ImuModel over
+    the world's history, through the DLPF. Another source (a test's function of time) stays Python."""
+    feed = world.board.feeds[CHIP_MPU]
+    model = getattr(feed, "source", None)
+    if not isinstance(feed, ImuFeed) or not isinstance(model, ImuModel) or not feed.dlpf:
+        return False
+    table = model._table
+    if not isinstance(table, _WorldTruth) or table.world is not world:
+        return False
+    lib = native.sampling()
+    sampler = feed._sampler
+    module().setup_imu(
+        state, feed, sampler, model._a, model._g, model.accel_faults.faults, model.gyro_faults.faults, world,
+        model._cols_addr, model.die_offset_c, sampler.block_addr, world._k0, HISTORY, world._hist_addr,
+        world._row_bytes, lib.rig_lowpass_max_depth(), world.step_ns, CONFIG, SMPLRT_DIV, DLPF,
+        _address(lib.rig_imu_measure), _address(lib.rig_lowpass_run), _address(lib.chip_push_imu),
+        _address(lib.chip_peek))
+    return True
+
+
+def handled_total() -> int:
+    """The messages the fast path has acted on in this process, all sessions together (a test's
+    evidence that a flight went through it)."""
+    n: int = module().handled(None)
+    return n
+
+
+def attach(handler: Handler) -> FastPath | None:
+    """The fast path for ``handler``'s session, or None: in real time, or turned off (RIG_PY_PATH=1)."""
+    if not handler.lockstep or not enabled():
+        return None
+    return FastPath(handler)

@@ -1,0 +1,690 @@
+/* The lockstep session's per-cycle messages in C, ``_riglockstep``: I2C transfers, PWM duty writes and
+ * waits of a DUT in lockstep, answered without the Python handler (rig/handler.py), which stays the
+ * reference and keeps everything else.
+ *
+ * Why: a flight controller's cycle is one I2C burst read, four PWM duty notices and one wait. Parsed
+ * and dispatched as Python objects these cost about twice the plant and the samples together.
+ *
+ * How: handle() takes the connection's buffered bytes and acts on whole messages, in order, for as long
+ * as each is one it takes: an I2C transfer, a PWM duty write, a WAIT, with no scheduled event due at
+ * or before its time, the run's limit not reached, and nothing malformed. At the first message it does
+ * not take it returns that message's offset, untouched, and the Python handler acts on it (HELLO,
+ * NOTE, other PWM attributes, anything malformed, an event due, the end of the run). A message is
+ * checked completely before anything happens, so declining it leaves no trace.
+ *
+ * What it does is what the handler does, in the same order: the world is run to the message's time
+ * (World.advance_to), the chip core (emulators/chips/) transfers, the needs it reports are made by the
+ * same Python producers (ChipBoard.serve), PWM duty sets the motor's input as World.apply_pwm does, the
+ * plant steps as World.advance_to steps it (rig_plant_steps, the plant's own C), and the clock page,
+ * the reply, the counts and the transfer log (run.mcap's /i2c) come out the same. The chip core's
+ * entry points are the emulators' library's own (addresses from emulators/native.py), so one chip core
+ * runs a session, whichever path serves a message.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+
+#include <errno.h>
+#include <math.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+#include <sys/socket.h>
+
+#include "chip_core.h"
+#include "need_tuple.h"
+#include "plant_steps.c" /* rig_plant_steps: the plant's steps, the plant's own code */
+#include "protocol.h"
+
+#define MAX_MSGS 42      /* rig/protocol.py I2C_RDWR_MAX_MSGS */
+#define I2C_MAX_LEN 8192 /* rig/protocol.py I2C_MAX_LEN */
+#define I2C_M_RD 0x0001
+#define I2C_M_TEN 0x0010
+#define I2C_M_RECV_LEN 0x0400
+#define NS 1000000000ull
+#define FOREVER_SLICE_NS 10000000ull /* rig/handler.py FOREVER_SLICE_NS */
+#define I2C_LOG_CAP 1000000          /* rig/handler.py I2C_LOG_CAP */
+#define REPLY_MAX (sizeof(struct rig_hdr) + MAX_MSGS * (I2C_MAX_LEN + 1))
+
+typedef int (*transfer_fn)(chip_board *, uint64_t, chip_msg *, uint32_t, chip_need *, uint32_t *);
+typedef chip_need (*advance_fn)(chip_board *, uint64_t);
+
+#include "imu_feed.c"
+
+typedef struct {
+    imu_feed imu;                   /* the IMU's samples in C (imu_feed.c), when setup_imu said so */
+    PyObject *world_advance;        /* World.advance_to */
+    PyObject *serve;                /* ChipBoard.serve */
+    PyObject *pwm;                  /* World.pwm: the PwmChannel list */
+    PyObject *events;               /* Scheduler.events: the heap of (t_ns, seq, fn) */
+    PyObject *sched;                /* Scheduler (its ``over``) */
+    PyObject *i2c_log;              /* Handler.i2c_log */
+    PyObject *handler;              /* Handler (its counts) */
+    PyObject *page_obj;             /* the clock page's mmap, its buffer held */
+    PyObject *world, *plant, *hist; /* for the plant's steps in C (World.advance_to's) */
+    struct rig_plant_steps *steps;  /* the plant's, once it has stepped into the world's history */
+    double *u;                      /* the plant's inputs (Plant.u) */
+    int64_t u_pwm[RIG_PWM_MAX];     /* World._u_pwm: the input of motor channel i */
+    Py_ssize_t motors;
+    PyObject *step_calls; /* plant.fmu._STEP_CALLS: a failed call's name */
+    Py_buffer page;
+    chip_board *board;
+    transfer_fn transfer;
+    advance_fn advance;
+    uint64_t step_ns, stepped_to, limit_ns, i2c_clock_hz;
+    uint64_t handled; /* messages acted on here (the rest went to the Python handler) */
+    unsigned bus;
+    uint8_t reply[REPLY_MAX];
+} fast_state;
+
+static uint64_t handled_total; /* messages acted on here by every session of this process */
+
+static PyObject *s_steps_at, *s_ring, *s_direct_pwm, *s_exported, *s_enabled, *s_period_ns, *s_inversed;
+static PyObject *s_over, *s_duty_ns, *s_transactions, *s_waits, *s_pwm_writes;
+
+static volatile uint64_t *sim_ns(fast_state *s)
+{
+    return (volatile uint64_t *)((char *)s->page.buf + offsetof(struct rig_shm, sim_ns));
+}
+
+static void page_set(fast_state *s, uint64_t t)
+{
+    if (t > *sim_ns(s))
+        *sim_ns(s) = t;
+}
+
+static void state_free(PyObject *capsule)
+{
+    fast_state *s = PyCapsule_GetPointer(capsule, "rig.lockstep");
+    if (!s)
+        return;
+    imu_free(&s->imu);
+    Py_XDECREF(s->world_advance);
+    Py_XDECREF(s->serve);
+    Py_XDECREF(s->pwm);
+    Py_XDECREF(s->events);
+    Py_XDECREF(s->sched);
+    Py_XDECREF(s->i2c_log);
+    Py_XDECREF(s->handler);
+    Py_XDECREF(s->world);
+    Py_XDECREF(s->plant);
+    Py_XDECREF(s->hist);
+    Py_XDECREF(s->step_calls);
+    if (s->page_obj) {
+        PyBuffer_Release(&s->page);
+        Py_DECREF(s->page_obj);
+    }
+    PyMem_Free(s);
+}
+
+/* setup(world_advance, serve, pwm, events, sched, i2c_log, handler, page_mmap, board_addr,
+ *       transfer_addr, advance_addr, step_ns, limit_ns, i2c_clock_hz, bus) -> state */
+static PyObject *fp_setup(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 15)
+        return PyErr_Format(PyExc_TypeError, "setup takes 15 arguments (%zd given)", nargs);
+    if (!PyList_Check(a[2]) || !PyList_Check(a[3]) || !PyList_Check(a[5]))
+        return PyErr_Format(PyExc_TypeError, "setup: pwm, events and i2c_log are lists");
+    fast_state *s = PyMem_Calloc(1, sizeof *s);
+    if (!s)
+        return PyErr_NoMemory();
+    PyObject *capsule = PyCapsule_New(s, "rig.lockstep", state_free);
+    if (!capsule) {
+        PyMem_Free(s);
+        return NULL;
+    }
+    PyObject **refs[] = { &s->world_advance, &s->serve, &s->pwm, &s->events, &s->sched, &s->i2c_log, &s->handler };
+    for (int i = 0; i < 7; i++) {
+        Py_INCREF(a[i]);
+        *refs[i] = a[i];
+    }
+    if (PyObject_GetBuffer(a[7], &s->page, PyBUF_WRITABLE) < 0) {
+        Py_DECREF(capsule);
+        return NULL;
+    }
+    Py_INCREF(a[7]);
+    s->page_obj = a[7];
+    s->board = PyLong_AsVoidPtr(a[8]);
+    s->transfer = (transfer_fn)PyLong_AsVoidPtr(a[9]);
+    s->advance = (advance_fn)PyLong_AsVoidPtr(a[10]);
+    s->step_ns = PyLong_AsUnsignedLongLong(a[11]);
+    s->limit_ns = PyLong_AsUnsignedLongLong(a[12]);
+    s->i2c_clock_hz = PyLong_AsUnsignedLongLong(a[13]);
+    s->bus = (unsigned)PyLong_AsUnsignedLong(a[14]);
+    if (PyErr_Occurred()) {
+        Py_DECREF(capsule);
+        return NULL;
+    }
+    if (s->page.len < (Py_ssize_t)sizeof(struct rig_shm) || !s->board || !s->transfer || !s->advance || !s->step_ns) {
+        Py_DECREF(capsule);
+        return PyErr_Format(PyExc_ValueError, "setup: a page of %zu bytes and non-zero addresses and step",
+                            sizeof(struct rig_shm));
+    }
+    return capsule;
+}
+
+/* setup_imu(state, feed, sampler, accel, gyro, accel_faults, gyro_faults, world, cols_addr, die_offset,
+ *           block_addr, k0, history, hist_addr, row_bytes, max_depth, step_ns, reg_config, reg_smplrt_div,
+ *           dlpf (8 rows of 4 numbers), measure_addr, lowpass_addr, push_addr, peek_addr): the IMU's
+ * samples in C from now on (imu_feed.c); accel and gyro are the model's two channels (_Channel) */
+static PyObject *fp_setup_imu(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 24)
+        return PyErr_Format(PyExc_TypeError, "setup_imu takes 24 arguments (%zd given)", nargs);
+    fast_state *s = PyCapsule_GetPointer(a[0], "rig.lockstep");
+    return s ? imu_setup(&s->imu, a) : NULL;
+}
+
+/* setup_world(state, world, plant, hist, u_addr, u_pwm, motors, step_calls): the plant's steps and the
+ * motors' inputs written here (World.advance_to's and World.apply_pwm's work) */
+static PyObject *fp_setup_world(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 8)
+        return PyErr_Format(PyExc_TypeError, "setup_world takes 8 arguments (%zd given)", nargs);
+    fast_state *s = PyCapsule_GetPointer(a[0], "rig.lockstep");
+    if (!s)
+        return NULL;
+    if (!PyList_Check(a[5]) || PyList_GET_SIZE(a[5]) > RIG_PWM_MAX || !PyDict_Check(a[7]))
+        return PyErr_Format(PyExc_TypeError, "setup_world: u_pwm is a list of at most %d, step_calls a dict",
+                            RIG_PWM_MAX);
+    double *u = PyLong_AsVoidPtr(a[4]);
+    Py_ssize_t motors = PyLong_AsSsize_t(a[6]);
+    int64_t idx[RIG_PWM_MAX];
+    for (Py_ssize_t i = 0; i < PyList_GET_SIZE(a[5]) && !PyErr_Occurred(); i++)
+        idx[i] = PyLong_AsLongLong(PyList_GET_ITEM(a[5], i));
+    if (PyErr_Occurred())
+        return NULL;
+    if (!u || motors < 0 || motors > PyList_GET_SIZE(a[5]))
+        return PyErr_Format(PyExc_ValueError, "setup_world: an input address and at most %zd motors",
+                            PyList_GET_SIZE(a[5]));
+    PyObject **refs[] = { &s->world, &s->plant, &s->hist, &s->step_calls };
+    PyObject *objs[] = { a[1], a[2], a[3], a[7] };
+    for (int i = 0; i < 4; i++) {
+        Py_INCREF(objs[i]);
+        Py_XSETREF(*refs[i], objs[i]);
+    }
+    s->u = u;
+    s->motors = motors;
+    memcpy(s->u_pwm, idx, sizeof(int64_t) * (size_t)motors);
+    Py_RETURN_NONE;
+}
+
+/* ---- what the Python side keeps: events, the run's end ---- */
+
+/* 1: nothing the scheduler does stands between now and t (no event at or before t, the limit not
+ * passed, the run not over); 0: the Python handler must act; -1: error */
+static int clear_until(fast_state *s, uint64_t t)
+{
+    if (t > s->limit_ns)
+        return 0;
+    PyObject *over = PyObject_GetAttr(s->sched, s_over);
+    if (!over)
+        return -1;
+    int is_over = PyObject_IsTrue(over);
+    Py_DECREF(over);
+    if (is_over)
+        return is_over < 0 ? -1 : 0;
+    if (PyList_GET_SIZE(s->events) == 0)
+        return 1;
+    PyObject *first = PyList_GET_ITEM(s->events, 0);
+    if (!PyTuple_Check(first) || PyTuple_GET_SIZE(first) < 1)
+        return 0;
+    PyObject *te = PyTuple_GET_ITEM(first, 0);
+    int overflow = 0;
+    long long v = PyLong_AsLongLongAndOverflow(te, &overflow);
+    if (v == -1 && PyErr_Occurred())
+        return -1;
+    if (overflow > 0)
+        return 1;
+    return overflow < 0 || v <= 0 || (uint64_t)v <= t ? 0 : 1;
+}
+
+/* the plant's step struct, once Plant.step_many has made it with the world's history as its ring */
+static struct rig_plant_steps *plant_steps_of(fast_state *s)
+{
+    if (s->steps)
+        return s->steps;
+    PyObject *ring = PyObject_GetAttr(s->plant, s_ring);
+    if (!ring)
+        return NULL;
+    int ours = ring == s->hist;
+    Py_DECREF(ring);
+    PyObject *at = ours ? PyObject_GetAttr(s->plant, s_steps_at) : NULL;
+    if (at) {
+        s->steps = PyLong_AsVoidPtr(at);
+        Py_DECREF(at);
+    }
+    PyErr_Clear(); /* (no struct yet: World.advance_to makes it) */
+    return s->steps;
+}
+
+/* Scheduler.advance with no event due: World.advance_to(t), its steps made here once the plant has its
+ * struct (rig_plant_steps, as Plant.step_many calls it), World._k moved after them; a failed step raises
+ * the plant's own error (Plant._fail). Called only when a whole step may have passed since the last. */
+static int world_to(fast_state *s, uint64_t t)
+{
+    if (t / s->step_ns <= s->stepped_to / s->step_ns && s->stepped_to)
+        return 0;
+    struct rig_plant_steps *steps = plant_steps_of(s);
+    if (steps) {
+        long long k;
+        PyObject *kv = PyObject_GetAttr(s->world, s_k);
+        if (!kv)
+            return -1;
+        k = PyLong_AsLongLong(kv);
+        Py_DECREF(kv);
+        if (k == -1 && PyErr_Occurred())
+            return -1;
+        long long n = (long long)(t / s->step_ns) - k;
+        if (n > 0) {
+            int32_t done = rig_plant_steps(steps, (int32_t)n, (double)s->step_ns * 1e-9, 1, k + 1);
+            if (done < n || steps->failed_call) {
+                PyObject *code = PyLong_FromLong(steps->failed_call);
+                PyObject *what = code ? PyDict_GetItemWithError(s->step_calls, code) : NULL; /* borrowed */
+                Py_XDECREF(code);
+                if (!PyErr_Occurred()) {
+                    PyObject *r = what ? PyObject_CallMethod(s->plant, "_fail", "Oi", what, (int)steps->failed_status)
+                                       : PyObject_CallMethod(s->plant, "_fail", "si", "rig_plant_steps",
+                                                             (int)steps->failed_status);
+                    Py_XDECREF(r);
+                }
+                if (!PyErr_Occurred())
+                    PyErr_SetString(PyExc_RuntimeError, "the plant's step failed");
+                return -1;
+            }
+            PyObject *kn = PyLong_FromLongLong(k + n);
+            if (!kn)
+                return -1;
+            int bad = PyObject_SetAttr(s->world, s_k, kn);
+            Py_DECREF(kn);
+            if (bad)
+                return -1;
+        }
+    } else {
+        PyObject *arg = PyLong_FromUnsignedLongLong(t);
+        if (!arg)
+            return -1;
+        PyObject *r = PyObject_CallOneArg(s->world_advance, arg);
+        Py_DECREF(arg);
+        if (!r)
+            return -1;
+        Py_DECREF(r);
+    }
+    s->stepped_to = t;
+    return 0;
+}
+
+static int serve(fast_state *s, const chip_need *need)
+{
+    if (need->chip == CHIP_MPU) {
+        int r = imu_serve(&s->imu, s->board, need);
+        if (r)
+            return r < 0 ? -1 : 0;
+    }
+    PyObject *t = need_tuple(need);
+    if (!t)
+        return -1;
+    PyObject *r = PyObject_CallOneArg(s->serve, t);
+    Py_DECREF(t);
+    if (!r)
+        return -1;
+    Py_DECREF(r);
+    return 0;
+}
+
+static int send_all(int fd, const uint8_t *p, size_t n)
+{
+    while (n) {
+        ssize_t k = send(fd, p, n, MSG_NOSIGNAL);
+        if (k < 0) {
+            if (errno == EINTR)
+                continue;
+            return 0; /* the DUT is gone; the loop sees its exit (Session.send) */
+        }
+        p += k, n -= (size_t)k;
+    }
+    return 1;
+}
+
+static void put_hdr(uint8_t *out, uint32_t len, uint16_t type, uint16_t status, uint64_t t)
+{
+    struct rig_hdr h = { len, type, status, t };
+    memcpy(out, &h, sizeof h);
+}
+
+/* ---- the messages: 1 acted on, 0 for the Python handler (nothing done), -1 a Python error ---- */
+
+static int i2c(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p)
+{
+    uint16_t head[2];
+    if (h->len < sizeof head)
+        return 0;
+    memcpy(head, p, sizeof head);
+    uint32_t n = head[1];
+    if (n < 1 || n > MAX_MSGS)
+        return 0;
+    size_t at = sizeof head + n * sizeof(struct rig_i2c_msg);
+    if (h->len < at)
+        return 0;
+    struct rig_i2c_msg m[MAX_MSGS];
+    memcpy(m, p + sizeof head, n * sizeof m[0]);
+    const uint8_t *data[MAX_MSGS];
+    for (uint32_t i = 0; i < n; i++) {
+        if (m[i].len > I2C_MAX_LEN)
+            return 0;
+        data[i] = p + at;
+        if (!(m[i].flags & I2C_M_RD)) {
+            if (h->len - at < m[i].len)
+                return 0;
+            at += m[i].len;
+        }
+    }
+    if (at != h->len)
+        return 0;
+    uint64_t now = *sim_ns(s), t = h->t_ns > now ? h->t_ns : now;
+    int clear = clear_until(s, t);
+    if (clear <= 0)
+        return clear;
+    /* acting from here on */
+    if (world_to(s, t) < 0)
+        return -1;
+    uint8_t *out = s->reply + sizeof(struct rig_hdr);
+    chip_msg cm[MAX_MSGS];
+    uint16_t status = 0;
+    size_t got = 0;
+    if (head[0] != s->bus) {
+        status = ENODEV;
+    } else {
+        size_t off = 0;
+        for (uint32_t i = 0; i < n; i++) {
+            cm[i].addr = m[i].addr <= 0x7F && !(m[i].flags & I2C_M_TEN) ? (uint8_t)m[i].addr : 0;
+            if (m[i].flags & I2C_M_RD) {
+                int recv_len = (m[i].flags & I2C_M_RECV_LEN) != 0;
+                cm[i].flags = (uint8_t)(CHIP_MSG_READ | (recv_len ? CHIP_MSG_RECV_LEN : 0));
+                cm[i].len = (uint16_t)(recv_len ? 1 + CHIP_SMBUS_BLOCK_MAX : m[i].len);
+                cm[i].buf = out + off;
+                off += cm[i].len;
+            } else {
+                cm[i].flags = 0;
+                cm[i].len = m[i].len;
+                cm[i].buf = (uint8_t *)data[i];
+            }
+        }
+        chip_need need;
+        while ((need = s->advance(s->board, t)).chip != CHIP_NONE) /* ChipBus.advance_ns */
+            if (serve(s, &need) < 0)
+                return -1;
+        uint32_t failed = 0;
+        int st;
+        while ((st = s->transfer(s->board, t, cm, n, &need, &failed)) == CHIP_NEED)
+            if (serve(s, &need) < 0)
+                return -1;
+        if (st == CHIP_NACK) {
+            status = ENXIO;
+        } else if (st == CHIP_PROTOCOL) {
+            status = EPROTO;
+        } else { /* the reads' bytes, packed (a RECV_LEN read has its own length now) */
+            for (uint32_t i = 0; i < n; i++) {
+                if (!(cm[i].flags & CHIP_MSG_READ))
+                    continue;
+                memmove(out + got, cm[i].buf, cm[i].len);
+                got += cm[i].len;
+            }
+        }
+    }
+    uint64_t t_after = t;
+    if (s->i2c_clock_hz) { /* Handler._bus_time_ns: a failed transfer's reads count no bytes */
+        uint64_t bits = 1;
+        for (uint32_t i = 0; i < n; i++) {
+            uint64_t k = m[i].flags & I2C_M_RD ? (status ? 0 : cm[i].len) : m[i].len;
+            bits += 10 + 9 * k;
+        }
+        t_after += bits * NS / s->i2c_clock_hz;
+    }
+    page_set(s, t_after);
+    if (PyList_GET_SIZE(s->i2c_log) < I2C_LOG_CAP) {
+        size_t wrote = 0;
+        for (uint32_t i = 0; i < n; i++)
+            wrote += m[i].flags & I2C_M_RD ? 0 : m[i].len;
+        PyObject *w = PyBytes_FromStringAndSize(NULL, (Py_ssize_t)wrote);
+        if (!w)
+            return -1;
+        wrote = 0;
+        for (uint32_t i = 0; i < n; i++)
+            if (!(m[i].flags & I2C_M_RD)) {
+                memcpy(PyBytes_AS_STRING(w) + wrote, data[i], m[i].len);
+                wrote += m[i].len;
+            }
+        PyObject *row = Py_BuildValue("(KINy#H)", (unsigned long long)t, (unsigned)m[0].addr, w, (const char *)out,
+                                      (Py_ssize_t)got, status);
+        if (!row)
+            return -1;
+        int bad = PyList_Append(s->i2c_log, row);
+        Py_DECREF(row);
+        if (bad)
+            return -1;
+    }
+    put_hdr(s->reply, (uint32_t)got, RIG_MSG_I2C, status, t_after);
+    send_all(fd, s->reply, sizeof(struct rig_hdr) + got);
+    return 1;
+}
+
+/* a PwmChannel attribute as an int64 (0: it did not fit, the handler takes the message) */
+static int channel_attr(PyObject *ch, PyObject *name, long long *out)
+{
+    PyObject *v = PyObject_GetAttr(ch, name);
+    if (!v)
+        return -1;
+    int overflow = 0;
+    *out = PyLong_AsLongLongAndOverflow(v, &overflow);
+    Py_DECREF(v);
+    if (*out == -1 && PyErr_Occurred())
+        return -1;
+    return overflow || *out < 0 ? 0 : 1;
+}
+
+static int pwm(fast_state *s, const struct rig_hdr *h, const uint8_t *p)
+{
+    struct rig_pwm_msg m;
+    if (h->len != sizeof m)
+        return 0;
+    memcpy(&m, p, sizeof m);
+    if (m.chip != 0 || m.attr != RIG_PWM_DUTY || m.channel >= PyList_GET_SIZE(s->pwm) || m.value > INT64_MAX)
+        return 0;
+    int clear = clear_until(s, h->t_ns);
+    if (clear <= 0)
+        return clear;
+    /* PwmChannel.pulse_us with the new duty, its fields read before anything moves */
+    PyObject *ch = PyList_GET_ITEM(s->pwm, m.channel);
+    long long exported, enabled, period, inversed;
+    int r;
+    if ((r = channel_attr(ch, s_exported, &exported)) <= 0 || (r = channel_attr(ch, s_enabled, &enabled)) <= 0 ||
+        (r = channel_attr(ch, s_period_ns, &period)) <= 0 || (r = channel_attr(ch, s_inversed, &inversed)) <= 0)
+        return r;
+    PyObject *direct = PyObject_GetAttr(s->world, s_direct_pwm);
+    if (!direct)
+        return -1;
+    int is_direct = PyObject_IsTrue(direct);
+    Py_DECREF(direct);
+    if (is_direct < 0)
+        return -1;
+    /* acting from here on: Scheduler.advance, then the handler's PWM notice */
+    if (world_to(s, h->t_ns) < 0)
+        return -1;
+    PyObject *value = PyLong_FromUnsignedLongLong(m.value);
+    if (!value)
+        return -1;
+    int bad = PyObject_SetAttr(ch, s_duty_ns, value);
+    Py_DECREF(value);
+    if (bad)
+        return -1;
+    if (m.channel < s->motors && is_direct) { /* World.apply_pwm */
+        double pulse = 0.0;
+        if (exported && enabled && period > 0) {
+            long long duty = (long long)m.value, high = inversed ? period - duty : duty;
+            high = high < 0 ? 0 : high;
+            pulse = (double)(high < period ? high : period) / 1000.0;
+        }
+        s->u[s->u_pwm[m.channel]] = pulse;
+    }
+    return 1;
+}
+
+static int wait(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p)
+{
+    struct {
+        uint64_t wake;
+        uint32_t kind, zero;
+    } m;
+    if (h->len != sizeof m)
+        return 0;
+    memcpy(&m, p, sizeof m);
+    if (m.kind == RIG_WAIT_AHEAD) {
+        if (m.wake == RIG_WAIT_FOREVER)
+            return 0;
+        uint64_t target = m.wake > h->t_ns ? m.wake : h->t_ns;
+        int clear = clear_until(s, target);
+        if (clear <= 0)
+            return clear;
+        return world_to(s, target) < 0 ? -1 : 1;
+    }
+    if (m.kind != RIG_WAIT_SLEEP && m.kind != RIG_WAIT_POLL)
+        return 0;
+    uint64_t now = *sim_ns(s), t = h->t_ns > now ? h->t_ns : now;
+    uint32_t reason = RIG_WAKE_DEADLINE;
+    uint64_t target = m.wake > t ? m.wake : t;
+    if (m.wake == RIG_WAIT_FOREVER) {
+        if (t > UINT64_MAX - FOREVER_SLICE_NS)
+            return 0;
+        target = t + FOREVER_SLICE_NS, reason = RIG_WAKE_SLICE;
+    }
+    int clear = clear_until(s, target);
+    if (clear <= 0)
+        return clear;
+    if (world_to(s, target) < 0)
+        return -1;
+    page_set(s, target);
+    put_hdr(s->reply, sizeof reason, RIG_MSG_WAIT, 0, target);
+    memcpy(s->reply + sizeof(struct rig_hdr), &reason, sizeof reason);
+    send_all(fd, s->reply, sizeof(struct rig_hdr) + sizeof reason);
+    return 1;
+}
+
+static int add_count(PyObject *handler, PyObject *name, long n)
+{
+    if (!n)
+        return 0;
+    PyObject *old = PyObject_GetAttr(handler, name);
+    if (!old)
+        return -1;
+    PyObject *add = PyLong_FromLong(n);
+    PyObject *sum = add ? PyNumber_Add(old, add) : NULL;
+    Py_DECREF(old);
+    Py_XDECREF(add);
+    if (!sum)
+        return -1;
+    int bad = PyObject_SetAttr(handler, name, sum);
+    Py_DECREF(sum);
+    return bad;
+}
+
+/* handle(state, fd, buf, off) -> the offset of the first message not acted on (the end of the whole
+ * messages, or one for the Python handler). buf: the connection's bytearray, unchanged. */
+static PyObject *fp_handle(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 4)
+        return PyErr_Format(PyExc_TypeError, "handle takes 4 arguments (%zd given)", nargs);
+    fast_state *s = PyCapsule_GetPointer(a[0], "rig.lockstep");
+    int fd = (int)PyLong_AsLong(a[1]);
+    Py_ssize_t off = PyLong_AsSsize_t(a[3]);
+    if (!s || PyErr_Occurred())
+        return NULL;
+    if (!PyByteArray_Check(a[2]))
+        return PyErr_Format(PyExc_TypeError, "handle takes the connection's bytearray");
+    const uint8_t *buf = (const uint8_t *)PyByteArray_AS_STRING(a[2]);
+    Py_ssize_t end = PyByteArray_GET_SIZE(a[2]);
+    if (off < 0 || off > end)
+        return PyErr_Format(PyExc_ValueError, "handle: offset %zd outside the buffer", off);
+    long counts[3] = { 0, 0, 0 }; /* transactions, waits, pwm_writes */
+    int r = 1;
+    while (end - off >= (Py_ssize_t)sizeof(struct rig_hdr)) {
+        struct rig_hdr h;
+        memcpy(&h, buf + off, sizeof h);
+        if (h.len > RIG_MAX_PAYLOAD || (Py_ssize_t)(end - off - sizeof h) < (Py_ssize_t)h.len)
+            break;
+        const uint8_t *p = buf + off + sizeof h;
+        if (h.type == RIG_MSG_I2C)
+            r = i2c(s, fd, &h, p), counts[0] += r > 0;
+        else if (h.type == RIG_MSG_PWM)
+            r = pwm(s, &h, p), counts[2] += r > 0;
+        else if (h.type == RIG_MSG_WAIT)
+            r = wait(s, fd, &h, p), counts[1] += r > 0;
+        else
+            r = 0;
+        if (r <= 0)
+            break;
+        s->handled++;
+        handled_total++;
+        off += (Py_ssize_t)(sizeof h + h.len);
+    }
+    /* the counts are the handler's (the run's outcome reads them there), even when a message failed */
+    if (add_count(s->handler, s_transactions, counts[0]) < 0 || add_count(s->handler, s_waits, counts[1]) < 0 ||
+        add_count(s->handler, s_pwm_writes, counts[2]) < 0 || r < 0)
+        return NULL;
+    return PyLong_FromSsize_t(off);
+}
+
+/* handled(state) -> the messages acted on here so far; handled(None): by every session of the process */
+static PyObject *fp_handled(PyObject *self, PyObject *state)
+{
+    (void)self;
+    if (state == Py_None)
+        return PyLong_FromUnsignedLongLong(handled_total);
+    fast_state *s = PyCapsule_GetPointer(state, "rig.lockstep");
+    return s ? PyLong_FromUnsignedLongLong(s->handled) : NULL;
+}
+
+static PyMethodDef methods[] = {
+    { "setup", (PyCFunction)(void (*)(void))fp_setup, METH_FASTCALL, "the fast path's state for a session" },
+    { "setup_world", (PyCFunction)(void (*)(void))fp_setup_world, METH_FASTCALL, "the plant's steps in C" },
+    { "setup_imu", (PyCFunction)(void (*)(void))fp_setup_imu, METH_FASTCALL, "the IMU's samples in C" },
+    { "handle", (PyCFunction)(void (*)(void))fp_handle, METH_FASTCALL, "acts on the messages it takes" },
+    { "handled", fp_handled, METH_O, "the messages acted on here so far" },
+    { NULL, NULL, 0, NULL },
+};
+
+static struct PyModuleDef module = {
+    PyModuleDef_HEAD_INIT,
+    "_riglockstep",
+    "The lockstep session's per-cycle messages in C.",
+    -1,
+    methods,
+    NULL,
+    NULL,
+    NULL,
+    NULL,
+};
+
+PyMODINIT_FUNC PyInit__riglockstep(void)
+{
+    s_over = PyUnicode_InternFromString("over");
+    s_duty_ns = PyUnicode_InternFromString("duty_ns");
+    s_transactions = PyUnicode_InternFromString("transactions");
+    s_waits = PyUnicode_InternFromString("waits");
+    s_pwm_writes = PyUnicode_InternFromString("pwm_writes");
+    PyObject **names[] = { &s_steps_at, &s_ring,    &s_direct_pwm, &s_exported, &s_enabled, &s_period_ns,
+                           &s_inversed, &s_epoch,   &s_anchor,     &s_cfg,      &s_div,     &s_period,
+                           &s_next_t,   &s_accel_f, &s_gyro_f,     &s_addr,     &s_k,       &s_refill };
+    const char *texts[] = { "_steps_at", "_ring",    "direct_pwm", "exported", "enabled", "period_ns",
+                            "inversed",  "_epoch",   "_anchor",    "_cfg",     "_div",    "_period",
+                            "next_t",    "_accel_f", "_gyro_f",    "_addr",    "_k",      "refill" };
+    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
+        if (!(*names[i] = PyUnicode_InternFromString(texts[i])))
+            return NULL;
+    if (!s_over || !s_duty_ns || !s_transactions || !s_waits || !s_pwm_writes)
+        return NULL;
+    return PyModule_Create(&module);
+}

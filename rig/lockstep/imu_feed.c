@@ -1,0 +1,222 @@
+/* The MPU-6050's samples for the lockstep fast path (included by fastpath.c: one translation unit).
+ *
+ * Why: at 1 kHz the IMU producer (emulators/chips/board.py ImuFeed.serve, over dlpf.ImuSampler.take,
+ * sensor_models.ImuModel.sample_block and World.row_addresses) ran as Python once per FC cycle and
+ * cost about as much as the rest of the cycle together; its arithmetic was C already.
+ *
+ * What: the steady case of ImuFeed.serve, step for step: the same float times (the running sum of the
+ * period from the sampler's next_t, written back), the same history rows (World._slots' arithmetic), the
+ * same C calls (rig_imu_measure, rig_lowpass_run, chip_push_imu: the emulators' library's own entry
+ * points), the same DLPF gains and delays (LowPass's formulas). The normals stay numpy's, refilled by
+ * the Python channel when C runs short. Anything else goes to the Python producer, which keeps its
+ * state: a reset or a wake-up (its epoch or anchor moved), a new sample rate, the FIFO or the aux
+ * master keeping every sample, a wait long enough to skip samples, and signal faults on accel or gyro.
+ * Every case is decided before anything moves, so the Python producer takes over from the same state.
+ */
+
+typedef int32_t (*imu_measure_fn)(void *accel, void *gyro, int32_t n, const double *t, const double *const *rows,
+                                  const int32_t cols[7], double die_offset, double *out);
+typedef void (*lowpass_run_fn)(void *f, int32_t n, double *xs, int32_t stride, double a, int32_t depth);
+typedef bool (*push_imu_fn)(chip_board *b, uint64_t valid_ns, const double v[7]);
+typedef uint8_t (*peek_fn)(const chip_board *b, uint8_t chip, uint8_t reg);
+
+#define IMU_BLOCK 64 /* emulators.native.BLOCK */
+
+typedef struct {
+    int on;
+    PyObject *feed, *sampler, *accel, *gyro, *accel_faults, *gyro_faults, *world; /* owned */
+    void *accel_addr, *gyro_addr;
+    const int32_t *cols;
+    double die_offset;
+    double *block;
+    int64_t k0, history, row_bytes, max_depth, step_ns;
+    char *hist;
+    uint8_t reg_config, reg_smplrt_div;
+    double dlpf[8][4]; /* emulators.dlpf.DLPF: accel bw, accel delay, gyro bw, gyro delay */
+    imu_measure_fn measure;
+    lowpass_run_fn lowpass;
+    push_imu_fn push;
+    peek_fn peek;
+} imu_feed;
+
+static PyObject *s_epoch, *s_anchor, *s_cfg, *s_div, *s_period, *s_next_t, *s_accel_f, *s_gyro_f, *s_addr, *s_k,
+    *s_refill;
+
+static void imu_free(imu_feed *f)
+{
+    PyObject *refs[] = { f->feed, f->sampler, f->accel, f->gyro, f->accel_faults, f->gyro_faults, f->world };
+    for (size_t i = 0; i < sizeof refs / sizeof refs[0]; i++)
+        Py_XDECREF(refs[i]);
+    memset(f, 0, sizeof *f);
+}
+
+static int attr_ll(PyObject *o, PyObject *name, long long *out)
+{
+    PyObject *v = PyObject_GetAttr(o, name);
+    if (!v)
+        return -1;
+    *out = PyLong_AsLongLong(v);
+    Py_DECREF(v);
+    return *out == -1 && PyErr_Occurred() ? -1 : 0;
+}
+
+static int attr_double(PyObject *o, PyObject *name, double *out)
+{
+    PyObject *v = PyObject_GetAttr(o, name);
+    if (!v)
+        return -1;
+    *out = PyFloat_AsDouble(v);
+    Py_DECREF(v);
+    return *out == -1.0 && PyErr_Occurred() ? -1 : 0;
+}
+
+/* the address of a LowPass's C state (sampler._accel_f._addr): the filters are new after a reset */
+static int filter_addr(PyObject *sampler, PyObject *name, void **out)
+{
+    PyObject *f = PyObject_GetAttr(sampler, name);
+    if (!f)
+        return -1;
+    PyObject *a = PyObject_GetAttr(f, s_addr);
+    Py_DECREF(f);
+    if (!a)
+        return -1;
+    *out = PyLong_AsVoidPtr(a);
+    Py_DECREF(a);
+    return PyErr_Occurred() ? -1 : 0;
+}
+
+/* LowPass.run's delay in samples: max(0, round(delay / dt)) (round half to even, as Python's round) */
+static int32_t depth_of(double delay, double dt)
+{
+    if (!(dt > 0.0))
+        return 0;
+    double d = nearbyint(delay / dt);
+    return d > 0.0 ? (int32_t)d : 0;
+}
+
+/* LowPass._a: the gain of the exact first-order response over span seconds */
+static double gain_of(double bw, double span) { return 1.0 - exp(-2.0 * M_PI * bw * span); }
+
+/* 1: served; 0: for the Python producer (nothing done); -1: a Python error */
+static int imu_serve(imu_feed *f, chip_board *b, const chip_need *need)
+{
+    uint32_t n = need->count;
+    if (!f->on || need->keeps_all || n == 0 || n > IMU_BLOCK || PyList_GET_SIZE(f->accel_faults) ||
+        PyList_GET_SIZE(f->gyro_faults))
+        return 0;
+    long long epoch, anchor, cfg, div, k;
+    if (attr_ll(f->feed, s_epoch, &epoch) < 0 || attr_ll(f->feed, s_anchor, &anchor) < 0 ||
+        attr_ll(f->feed, s_cfg, &cfg) < 0 || attr_ll(f->feed, s_div, &div) < 0)
+        return -1;
+    if (epoch != need->epoch || anchor != need->anchor || cfg != f->peek(b, CHIP_MPU, f->reg_config) ||
+        div != f->peek(b, CHIP_MPU, f->reg_smplrt_div))
+        return 0;
+    double period, next_t;
+    void *accel_f, *gyro_f;
+    if (attr_double(f->feed, s_period, &period) < 0 || attr_double(f->sampler, s_next_t, &next_t) < 0 ||
+        filter_addr(f->sampler, s_accel_f, &accel_f) < 0 || filter_addr(f->sampler, s_gyro_f, &gyro_f) < 0 ||
+        attr_ll(f->world, s_k, &k) < 0)
+        return -1;
+    const double *dl = f->dlpf[cfg & 0x07];
+    int32_t a_depth = depth_of(dl[1], period), g_depth = depth_of(dl[3], period);
+    if (a_depth > f->max_depth || g_depth > f->max_depth)
+        return 0; /* the Python filter says why */
+    /* ImuSampler.take: the times; World._slots: their history rows */
+    double t[IMU_BLOCK];
+    const double *rows[IMU_BLOCK];
+    int64_t oldest = k - f->history + 1 > f->k0 ? k - f->history + 1 : f->k0;
+    for (uint32_t i = 0; i < n; i++) {
+        t[i] = next_t;
+        next_t += period;
+        int64_t slot = (int64_t)floor(t[i] * 1e9 / (double)f->step_ns + 1e-9);
+        slot = slot < oldest ? oldest : slot;
+        slot = slot > k ? k : slot;
+        rows[i] = (const double *)(f->hist + (slot % f->history) * f->row_bytes);
+    }
+    PyObject *v = PyFloat_FromDouble(next_t);
+    if (!v)
+        return -1;
+    int bad = PyObject_SetAttr(f->sampler, s_next_t, v);
+    Py_DECREF(v);
+    if (bad)
+        return -1;
+    /* ImuModel.sample_block: the model, refilling a channel's normals when it runs short */
+    int32_t short_of;
+    while (
+        (short_of = f->measure(f->accel_addr, f->gyro_addr, (int32_t)n, t, rows, f->cols, f->die_offset, f->block))) {
+        PyObject *want = PyLong_FromLong(6 * (long)n);
+        if (!want)
+            return -1;
+        PyObject *r = PyObject_CallMethodObjArgs(short_of == 1 ? f->accel : f->gyro, s_refill, want, NULL);
+        Py_DECREF(want);
+        if (!r)
+            return -1;
+        Py_DECREF(r);
+    }
+    /* the DLPF */
+    f->lowpass(accel_f, (int32_t)n, f->block, 7, gain_of(dl[0], period), a_depth);
+    f->lowpass(gyro_f, (int32_t)n, f->block + 3, 7, gain_of(dl[2], period), g_depth);
+    /* only the last instant's sample is encoded */
+    f->push(b, need->t_ns + (uint64_t)(n - 1) * need->period_ns, f->block + 7 * (n - 1));
+    return 1;
+}
+
+/* setup_imu's work (fastpath.c): a[1..23] as setup_imu's arguments say; f is off until it succeeds */
+static PyObject *imu_setup(imu_feed *f, PyObject *const *a)
+{
+    if (!PyList_Check(a[5]) || !PyList_Check(a[6]))
+        return PyErr_Format(PyExc_TypeError, "setup_imu: the fault lists are lists");
+    imu_free(f);
+    PyObject **refs[] = { &f->feed, &f->sampler, &f->accel, &f->gyro, &f->accel_faults, &f->gyro_faults, &f->world };
+    for (int i = 0; i < 7; i++) {
+        Py_INCREF(a[1 + i]);
+        *refs[i] = a[1 + i];
+    }
+    PyObject *addr_a = PyObject_GetAttrString(a[3], "addr"), *addr_g = PyObject_GetAttrString(a[4], "addr");
+    if (addr_a && addr_g) {
+        f->accel_addr = PyLong_AsVoidPtr(addr_a);
+        f->gyro_addr = PyLong_AsVoidPtr(addr_g);
+    }
+    Py_XDECREF(addr_a);
+    Py_XDECREF(addr_g);
+    f->cols = PyLong_AsVoidPtr(a[8]);
+    f->die_offset = PyFloat_AsDouble(a[9]);
+    f->block = PyLong_AsVoidPtr(a[10]);
+    f->k0 = PyLong_AsLongLong(a[11]);
+    f->history = PyLong_AsLongLong(a[12]);
+    f->hist = PyLong_AsVoidPtr(a[13]);
+    f->row_bytes = PyLong_AsLongLong(a[14]);
+    f->max_depth = PyLong_AsLongLong(a[15]);
+    f->step_ns = PyLong_AsLongLong(a[16]);
+    f->reg_config = (uint8_t)PyLong_AsLong(a[17]);
+    f->reg_smplrt_div = (uint8_t)PyLong_AsLong(a[18]);
+    PyObject *rows = PySequence_Fast(a[19], "setup_imu: dlpf is a sequence");
+    if (rows && PySequence_Fast_GET_SIZE(rows) == 8) {
+        for (int i = 0; i < 8 && !PyErr_Occurred(); i++) {
+            PyObject *row = PySequence_Fast(PySequence_Fast_GET_ITEM(rows, i), "setup_imu: a dlpf row");
+            if (!row)
+                break;
+            for (int j = 0; j < 4 && j < PySequence_Fast_GET_SIZE(row); j++)
+                f->dlpf[i][j] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(row, j));
+            Py_DECREF(row);
+        }
+    } else if (rows) {
+        PyErr_SetString(PyExc_ValueError, "setup_imu: dlpf has 8 rows");
+    }
+    Py_XDECREF(rows);
+    f->measure = (imu_measure_fn)PyLong_AsVoidPtr(a[20]);
+    f->lowpass = (lowpass_run_fn)PyLong_AsVoidPtr(a[21]);
+    f->push = (push_imu_fn)PyLong_AsVoidPtr(a[22]);
+    f->peek = (peek_fn)PyLong_AsVoidPtr(a[23]);
+    if (PyErr_Occurred()) {
+        imu_free(f);
+        return NULL;
+    }
+    if (!f->accel_addr || !f->gyro_addr || !f->cols || !f->block || !f->hist || f->history <= 0 || f->row_bytes <= 0 ||
+        f->step_ns <= 0 || !f->measure || !f->lowpass || !f->push || !f->peek) {
+        imu_free(f);
+        return PyErr_Format(PyExc_ValueError, "setup_imu: addresses, history, rows and step must be set");
+    }
+    f->on = 1;
+    Py_RETURN_NONE;
+}

@@ -1,0 +1,213 @@
+"""The lockstep fast path (rig/lockstep) against the Python handler, its reference: the same messages
+through a session, once each way (RIG_PY_PATH=1 is the handler alone), must give the DUT the same bytes
+and leave the same world, clock, counts and transfer log. A flight of a library scenario each way must
+write the same results."""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import socket
+import struct
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import rig.protocol as P
+from emulators import native
+from rig import lockstep
+from rig.session import Session, SessionConfig, _Conn
+from rig.world import World
+
+CYCLE_NS = 4_000_000
+
+
+def _msg(t_ns: int, payload: bytes, mtype: int) -> bytes:
+    return P.HEADER.pack(len(payload), mtype, 0, t_ns) + payload
+
+
+def _i2c(t_ns: int, parts: list[tuple[int, int, int, bytes]], bus: int = 1) -> bytes:
+    descs = b"".join(P.I2C_MSG.pack(addr, flags, n, 0) for addr, flags, n, _ in parts)
+    return _msg(t_ns, P.I2C_HEAD.pack(bus, len(parts)) + descs + b"".join(d for *_, d in parts), P.MSG_I2C)
+
+
+def _pwm(t_ns: int, channel: int, attr: int, value: int) -> bytes:
+    return _msg(t_ns, P.PWM_MSG.pack(0, channel, attr, 0, value), P.MSG_PWM)
+
+
+def _wait(t_ns: int, wake: int, kind: int) -> bytes:
+    return _msg(t_ns, P.WAIT_MSG.pack(wake, kind, 0), P.MSG_WAIT)
+
+
+def _script() -> list[bytes]:
+    """A flight controller's set-up and cycles, with the cases the fast path must get right or leave
+    to the handler: a NACK, another bus, a block read with an impossible count, a 10-bit address, every
+    kind of wait, other PWM attributes, an event due mid-cycle, and a malformed message at the end."""
+    rd = P.I2C_M_RD
+    out = [_msg(0, P.HELLO_MSG.pack(P.PROTOCOL_VERSION, 1234), P.MSG_HELLO)]
+    out += [_i2c(0, [(0x68, 0, 2, bytes(rv))]) for rv in ((0x6B, 0x00), (0x1A, 0x03), (0x19, 0x00))]
+    for ch in range(4):
+        out += [_pwm(0, ch, P.PWM_EXPORT, 0), _pwm(0, ch, P.PWM_PERIOD, 2_500_000),
+                _pwm(0, ch, P.PWM_DUTY, 1_000_000), _pwm(0, ch, P.PWM_ENABLE, 1)]
+    t = 10_000_000
+    for k in range(60):
+        out.append(_i2c(t, [(0x68, 0, 1, b"\x3b"), (0x68, rd, 14, b"")]))
+        if k % 7 == 0:
+            out.append(_i2c(t + 10, [(0x1E, 0, 1, b"\x03"), (0x1E, rd, 6, b"")]))  # behind the MPU: NACK
+            out.append(_i2c(t + 20, [(0x68, rd, 1, b"")], bus=2))                     # no such bus
+            out.append(_i2c(t + 30, [(0x68, 0, 1, b"\x75"), (0x68, rd | P.I2C_M_RECV_LEN, 0, b"")]))
+            out.append(_i2c(t + 40, [(0x68, P.I2C_M_TEN, 1, b"\x00")]))               # 10-bit: nobody
+            out.append(_i2c(t + 50, [(0x77, 0, 1, b"\x48")]))                         # baro: convert D1
+        out += [_pwm(t + 1000, ch, P.PWM_DUTY, 1_100_000 + 10_000 * k + 1000 * ch) for ch in range(4)]
+        if k == 30:
+            out.append(_pwm(t + 1500, 0, P.PWM_POLARITY, 0))  # (the handler's)
+        if k == 40:  # channel 1 inversed, channel 2 off: the duty writes after it act differently
+            out += [_pwm(t + 1500, 1, P.PWM_POLARITY, 1), _pwm(t + 1500, 2, P.PWM_ENABLE, 0)]
+        if k % 3 == 0:
+            out.append(_wait(t + 2000, t + CYCLE_NS, P.WAIT_AHEAD))
+        elif k % 3 == 1:
+            out.append(_wait(t + 2000, t + CYCLE_NS, P.WAIT_SLEEP))
+        else:
+            out.append(_wait(t + 2000, P.WAIT_FOREVER, P.WAIT_POLL))
+        t += CYCLE_NS if k % 3 != 2 else 10_002_000
+    out.append(_wait(t, t + 1, 9))  # malformed: the connection goes
+    return out
+
+
+def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_hz: int,
+         script: list[bytes] | None = None) -> dict[str, Any]:
+    monkeypatch.setenv(lockstep.PY_PATH_ENV, "1" if py_path else "0")
+    cfg = SessionConfig(command=["true"], duration=100.0, i2c_clock_hz=clock_hz)
+    session = Session(cfg, World.at_rest(seed=3))
+    session.open_page(tmp_path / f"shm-{py_path}-{clock_hz}")
+    assert (session.fast is None) == py_path
+    assert session.fast is None or session.fast.imu_in_c  # the MPU's samples made in C too
+    session.at(0.2, lambda s: s.world.set_input("wind_n", 2.0))  # an event between two cycles
+    ours, dut = socket.socketpair()
+    conn = _Conn(ours, 1)
+    received = bytearray()
+    with ours, dut:
+        for m in script if script is not None else _script():
+            dut.sendall(m)
+            session._on_readable(conn, None)  # type: ignore[arg-type]  # (not registered: no selector)
+            dut.setblocking(False)
+            try:
+                while chunk := dut.recv(1 << 16):
+                    received += chunk
+            except BlockingIOError:
+                pass
+            dut.setblocking(True)
+    handler = session.handler
+    assert handler is not None and session.page is not None
+    board = session.world.board
+    sampler = board._imu._sampler
+    return {"received": bytes(received), "counts": (handler.transactions, handler.waits, handler.pwm_writes),
+            "log": list(handler.i2c_log), "clock": session.page.now(), "world": session.world.outputs(),
+            "plant_ns": session.world.time_ns, "malformed": len(session.malformed),
+            "why": list(session.malformed),
+            "pwm": [(c.exported, c.period_ns, c.duty_ns, c.enabled, c.inversed) for c in session.world.pwm],
+            "handled": session.fast.handled if session.fast else 0,
+            # the chip core's whole state (its samples as float64, to the bit) and the IMU producer's
+            "board": ctypes.string_at(board.addr, native.chips().rig_chip_board_size()),
+            "block": sampler.block.tobytes(), "next_t": sampler.next_t}
+
+
+@pytest.mark.parametrize("clock_hz", [0, 400_000])
+def test_the_fast_path_answers_as_the_handler_does(monkeypatch: pytest.MonkeyPatch, tmp_path: Path,
+                                                   clock_hz: int) -> None:
+    py = _fly(monkeypatch, tmp_path, True, clock_hz)
+    fast = _fly(monkeypatch, tmp_path, False, clock_hz)
+    assert fast["handled"] > 300  # most of the 60 cycles' messages went through C
+    assert py["handled"] == 0
+    assert py["malformed"] == fast["malformed"] == 1
+    statuses = {row[4] for row in py["log"]}
+    assert {0, 6, 19, 71} <= statuses  # ok, ENXIO, ENODEV, EPROTO: each case was met
+    for key in py:
+        if key != "handled":
+            assert fast[key] == py[key], key
+
+
+def test_the_world_moved(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """(The comparison above is not of two idle worlds: the motors ran and the clock went on.)"""
+    fast = _fly(monkeypatch, tmp_path, False, 0)
+    assert fast["plant_ns"] > 300_000_000 and fast["clock"] >= fast["plant_ns"]
+    assert fast["pwm"][1][2] == 1_100_000 + 10_000 * 59 + 1000
+    assert fast["pwm"][1][4] and not fast["pwm"][2][3]
+
+
+BAD = {
+    "no messages": _msg(20_000_000, P.I2C_HEAD.pack(1, 0), P.MSG_I2C),
+    "43 messages": _msg(20_000_000, P.I2C_HEAD.pack(1, 43) + P.I2C_MSG.pack(0x68, 0, 0, 0) * 43, P.MSG_I2C),
+    "short write": _msg(20_000_000, P.I2C_HEAD.pack(1, 1) + P.I2C_MSG.pack(0x68, 0, 3, 0) + b"\x3b",
+                        P.MSG_I2C),
+    "bytes after": _msg(20_000_000, _i2c(0, [(0x68, 0, 1, b"\x3b")])[P.HEADER.size:] + b"\x00", P.MSG_I2C),
+    "read too long": _i2c(20_000_000, [(0x68, P.I2C_M_RD, P.I2C_MAX_LEN + 1, b"")]),
+    "pwm short": _msg(20_000_000, P.PWM_MSG.pack(0, 0, P.PWM_DUTY, 0, 5)[:-1], P.MSG_PWM),
+    "pwm channel": _pwm(20_000_000, 9, P.PWM_DUTY, 1_000_000),
+    "ahead forever": _wait(20_000_000, P.WAIT_FOREVER, P.WAIT_AHEAD),
+    "wait short": _msg(20_000_000, P.WAIT_MSG.pack(0, P.WAIT_SLEEP, 0)[:-4], P.MSG_WAIT),
+    "type 9": _msg(20_000_000, b"", 9),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BAD))
+def test_malformed_messages_are_the_handlers(monkeypatch: pytest.MonkeyPatch, tmp_path: Path,
+                                             name: str) -> None:
+    """What the fast path does not take goes to the handler, which drops the connection and says why."""
+    script = _script()[:60] + [BAD[name]]
+    py = _fly(monkeypatch, tmp_path, True, 0, script)
+    fast = _fly(monkeypatch, tmp_path, False, 0, script)
+    assert len(py["why"]) == 1 and fast["why"] == py["why"]
+    assert fast["received"] == py["received"] and fast["log"] == py["log"]
+
+
+def test_the_entry_points_refuse_wrong_arguments(tmp_path: Path) -> None:
+    m = lockstep.module()
+    with pytest.raises(TypeError, match="15 arguments"):
+        m.setup(1, 2)
+    with pytest.raises(ValueError, match="PyCapsule"):  # not a fast path's state
+        m.handle(object(), 0, bytearray(), 0)
+    session = Session(SessionConfig(command=["true"]), World.at_rest())
+    session.open_page(tmp_path / "shm")
+    assert session.fast is not None
+    state = session.fast._state
+    with pytest.raises(TypeError, match="bytearray"):
+        m.handle(state, 0, b"", 0)
+    with pytest.raises(ValueError, match="outside the buffer"):
+        m.handle(state, 0, bytearray(4), 5)
+
+
+def _result(run_dir: Path) -> dict[str, Any]:
+    data: dict[str, Any] = json.loads((run_dir / "result.json").read_text())
+    meta = data["metadata"]
+    for volatile in ("started", "wall_time", "realtime_factor"):
+        meta.pop(volatile, None)
+    return data
+
+
+def test_a_flight_is_the_same_either_way(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    from rig import api
+
+    results = []
+    for py_path in (True, False):
+        monkeypatch.setenv(lockstep.PY_PATH_ENV, "1" if py_path else "0")
+        before = lockstep.handled_total()
+        r = api.run("fault_mag_nack", seed=2, out=tmp_path / f"py{py_path}")
+        went_fast = lockstep.handled_total() - before
+        assert (went_fast == 0) if py_path else (went_fast > 1000)
+        results.append((_result(r.run_dir), (r.run_dir / "telemetry.csv").read_bytes()))
+    (py_json, py_csv), (fast_json, fast_csv) = results
+    for data in (py_json, fast_json):  # (the folders differ by name)
+        meta = data["metadata"]
+        data["metadata"] = {k: v for k, v in meta.items() if not isinstance(v, str) or "/py" not in v}
+    assert fast_json == py_json
+    assert fast_csv == py_csv
+
+
+def test_status_numbers() -> None:
+    """(The statuses asserted above by number are Linux's errnos.)"""
+    import errno
+
+    assert (errno.ENXIO, errno.ENODEV, errno.EPROTO) == (6, 19, 71)
+    assert struct.calcsize("<IHHQ") == P.HEADER.size
