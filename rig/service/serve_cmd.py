@@ -34,6 +34,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--engine", metavar="tcp://HOST:PORT",
                    help="run lockstep runs and sweeps on this Dask scheduler's workers instead of local "
                         "slots (docs/farm.md); their folders come back into --data")
+    from rig.sweep.engine import add_tls_options
+
+    add_tls_options(p)
     p.add_argument("--modbus", type=int, metavar="PORT",
                    help="also serve the test cell's PLC over Modbus TCP on PORT (docs/plc.md), on --host")
     p.add_argument("--modbus-measure", action="append", default=[], metavar="NAME",
@@ -84,6 +87,13 @@ def main(args: argparse.Namespace) -> int:
 
         problem = check_address(args.engine)
         problem = None if problem is None else f"--engine: {problem}"
+    security = None
+    if problem is None and args.engine is not None:
+        from rig.sweep.engine import tls_security
+
+        security, problem = tls_security(args.engine, args.tls_ca_file, args.tls_cert, args.tls_key)
+    elif problem is None and (args.tls_ca_file or args.tls_cert or args.tls_key):
+        problem = "--tls-ca-file, --tls-cert and --tls-key go with --engine tls://HOST:PORT"
     if problem is not None:
         print(f"rig serve: {problem}", file=sys.stderr)
         return 2
@@ -126,7 +136,7 @@ def main(args: argparse.Namespace) -> int:
     if args.engine is not None:
         from rig.service.farm import Farm
 
-        farm = Farm(db, args.data / "runs", store, args.engine, stale=stale)
+        farm = Farm(db, args.data / "runs", store, args.engine, security, stale=stale)
         print(f"rig serve: lockstep runs and sweeps go to the Dask scheduler at {args.engine}",
               file=sys.stderr, flush=True)
     workers = Workers(db, args.data / "runs", store, args.slots, farm)
