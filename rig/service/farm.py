@@ -45,6 +45,7 @@ from rig.service.worker import (
     count_runs,
     ended,
     results,
+    sweep_progress,
     sweep_results,
 )
 
@@ -62,6 +63,8 @@ CONNECT_S: Final = 5.0
 RECONNECT_S: Final = 1.0
 #: how often a task looks whether its run was cancelled
 CANCEL_POLL_S: Final = 1.0
+#: the Dask event topic a task reports its run's progress on ({"run": ID, "progress": PERCENT})
+PROGRESS: Final = "rig-progress"
 #: the largest run folder a worker may send back (a lockstep run's MCAP and CSVs are a few MiB)
 MAX_ARCHIVE: Final = 1 << 30
 
@@ -74,6 +77,10 @@ class Job:
     argv: list[str]
     files: dict[str, bytes]  # relative to the run's folder
     label: str = ""
+    #: how its progress is counted on the worker: each scenario's result.json (relative to the run's
+    #: folder), or a sweep's rows out of sweep_total
+    results: tuple[str, ...] = ()
+    sweep_total: int = 0
 
 
 def cancel_event(run_id: int) -> str:
@@ -98,7 +105,7 @@ def fly(job: Job) -> dict[str, Any]:
         with open(out / "rig-run.log", "wb") as log:
             proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                     cwd=tmp, start_new_session=True, preexec_fn=_die_with_parent)
-            code = _watch(proc, job.run_id)
+            code = _watch(proc, job, out)
         inputs = {Path(rel).parts[0] for rel in job.files}
         return {"exit_code": code, "archive": _pack(out, inputs), "host": socket.gethostname()}
 
@@ -128,25 +135,34 @@ def _on_the_bench(argv: list[str], run_id: int) -> list[str]:
     return argv + (["--psu", bench["psu"]] if bench.get("psu") else [])
 
 
-def _watch(proc: subprocess.Popen[bytes], run_id: int) -> int:
-    """The run's exit status; a cancelled run (its Event set by the service) is stopped first."""
-    event = None
+def _watch(proc: subprocess.Popen[bytes], job: Job, out: Path) -> int:
+    """The run's exit status; its progress reported as it changes (the PROGRESS topic); a cancelled
+    run (its Event set by the service) is stopped first."""
+    event = worker = None
     try:
-        from distributed import Event, get_client
+        from distributed import Event, get_client, get_worker
 
-        event = Event(cancel_event(run_id), client=get_client())
+        event = Event(cancel_event(job.run_id), client=get_client())
+        worker = get_worker()
     except (ImportError, ValueError):  # (not on a Dask worker: a test calling fly directly)
         pass
     looked = time.monotonic()
+    progress = 0.0
     while True:
         try:
             return proc.wait(timeout=POLL_S)
         except subprocess.TimeoutExpired:
             pass
-        if event is None or time.monotonic() - looked < CANCEL_POLL_S:
+        if event is None or worker is None or time.monotonic() - looked < CANCEL_POLL_S:
             continue
         looked = time.monotonic()
+        done = sum((out / r).is_file() for r in job.results)
+        now = (sweep_progress(out, job.sweep_total) if job.sweep_total
+               else round(100.0 * done / max(len(job.results), 1), 1))
         try:
+            if now != progress:
+                progress = now
+                worker.log_event(PROGRESS, {"run": job.run_id, "progress": progress})
             cancelled = event.is_set()
         except Exception:  # (the scheduler is unreachable: this worker goes too, and the run with it)
             cancelled = False
@@ -192,7 +208,9 @@ def job_for(run: dict[str, Any], out: Path, store: Store) -> tuple[Job, dict[str
         argv.append(arg.replace(str(out), OUT))
     if run["mode"] == "bridge":  # (command gives the service's own bench: the virtual bridge)
         argv[argv.index("--bridge") + 1] = BRIDGE
-    return Job(run["id"], argv, files, run.get("label", "")), flown
+    watched = tuple(f"{Path(n).stem}/result.json" for n in run["scenarios"]) if run["mode"] != "sweep" else ()
+    total = count_runs(out / PINNED / SWEEP_SPEC) if run["mode"] == "sweep" else 0
+    return Job(run["id"], argv, files, run.get("label", ""), watched, total), flown
 
 
 @dataclass
@@ -371,11 +389,26 @@ class Farm:
         except (OSError, TimeoutError, ValueError) as e:
             self._lost(f"no Dask scheduler at {self.address}: {e}")
             return False
+        try:
+            self._client.subscribe_topic(PROGRESS, self._progressed)
+        except Exception as e:
+            self._lost(f"the Dask scheduler at {self.address}: {e}")
+            return False
         self._state.update(connected=True, problem=None)
         for run_id in self._stale:
             self._set(run_id)
         self._stale = []
         return True
+
+    def _progressed(self, event: tuple[float, Any]) -> None:
+        """A task's report of its run's progress (from the worker: checked before it is believed)."""
+        msg = event[1] if isinstance(event, tuple) and len(event) == 2 else None
+        if not isinstance(msg, dict):
+            return
+        run_id, progress = msg.get("run"), msg.get("progress")
+        if (isinstance(run_id, int) and run_id in self._flights and isinstance(progress, int | float)
+                and 0.0 <= progress < 100.0):
+            self.db.update_if(run_id, "running", progress=float(progress))
 
     def _survey(self) -> tuple[list[str], int]:
         """The workers for lockstep runs (not bench hosts) and their threads; the benches published in
@@ -441,8 +474,6 @@ class Farm:
         out.mkdir(parents=True, exist_ok=True)
         try:
             job, flown = job_for(run, out, self.store)
-            if run["mode"] == "sweep":
-                run["total"] = count_runs(out / PINNED / SWEEP_SPEC)
         except (LookupError, OSError) as e:
             self.db.finish(run["id"], "error", error=str(e))
             return

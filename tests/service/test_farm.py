@@ -75,8 +75,14 @@ def test_lockstep_runs_fly_on_the_cluster_and_their_folders_come_back(cluster: C
     try:
         _, body = svc.call("POST", "/api/runs", {"scenarios": ["seed000_roll_stand", "step_roll"], "seed": 3})
         _, sweep = post_bytes(svc, "/api/sweeps", b'[sweep]\nscenario = "step_roll"\nseeds = [0, 1]\n')
-        run = svc.follow(body["id"])
+        seen = []  # the progress it showed, each change (the long poll answers at each)
+        for _ in range(100):
+            run = svc.call("GET", f"/api/runs/{body['id']}?wait=30")[1]
+            seen.append(run["progress"])
+            if run["status"] not in ("queued", "running"):
+                break
         assert run["status"] == "passed" and run["exit_code"] == 0, run
+        assert 50.0 in seen and seen[-1] == 100.0, seen  # reported by the worker as each scenario ends
         folder = tmp_path / "data" / "runs" / str(body["id"])
         result = json.loads((folder / "step_roll" / "result.json").read_text())
         # flown in the worker's temporary folder, not here: no file system is shared
