@@ -186,6 +186,9 @@ def unpack(archive: bytes, folder: Path) -> None:
         raise ValueError(f"the run's folder is over {MAX_ARCHIVE} bytes")
     try:
         with tarfile.open(fileobj=io.BytesIO(archive), mode="r:gz") as tar:
+            for member in tar.getmembers():  # (the filter would only strip a leading /: refused here)
+                if member.name.startswith("/") or ".." in Path(member.name).parts:
+                    raise tarfile.TarError(f"{member.name!r} is not inside the run's folder")
             tar.extractall(folder, filter="data")
     except (tarfile.TarError, OSError, EOFError) as e:
         raise ValueError(f"the run's folder came back unreadable: {e}") from None
@@ -223,6 +226,20 @@ class Flight:
     started: float = field(default_factory=time.monotonic)
 
 
+def published_bench(name: object, bench: object) -> bool:
+    """Whether a bench's entry in the scheduler's metadata has the shape rig bench-host gives it (anyone
+    who reaches the scheduler can write there: an entry of another shape is ignored)."""
+    from rig.service.bench_host import NAME
+
+    if not isinstance(name, str) or not NAME.fullmatch(name) or not isinstance(bench, dict):
+        return False
+    labels = bench.get("labels")
+    return (isinstance(labels, dict)
+            and all(isinstance(k, str) and isinstance(v, str) for k, v in labels.items())
+            and all(isinstance(bench.get(k), str) for k in ("host", "bridge"))
+            and bench.get("name") == name)
+
+
 def matches(bench: dict[str, Any], selector: dict[str, str]) -> bool:
     labels = bench.get("labels") or {}
     return all(labels.get(k) == v for k, v in selector.items())
@@ -233,8 +250,8 @@ def labels_text(labels: dict[str, str]) -> str:
 
 
 class Farm:
-    """Dispatches lockstep runs and sweeps to the Dask scheduler at ``address`` (one thread of its own)
-    and brings their folders back into ``artifacts``."""
+    """Dispatches lockstep runs and sweeps to the Dask scheduler at ``address``'s workers, and bench runs
+    to its bench hosts (one thread of its own), and brings their folders back into ``artifacts``."""
 
     def __init__(self, db: Db, artifacts: Path, store: Store, address: str, security: Any = None,
                  stale: list[int] | None = None) -> None:
@@ -406,7 +423,7 @@ class Farm:
         if not isinstance(msg, dict):
             return
         run_id, progress = msg.get("run"), msg.get("progress")
-        if (isinstance(run_id, int) and run_id in self._flights and isinstance(progress, int | float)
+        if (type(run_id) is int and run_id in self._flights and isinstance(progress, int | float)
                 and 0.0 <= progress < 100.0):
             self.db.update_if(run_id, "running", progress=float(progress))
 
@@ -427,8 +444,8 @@ class Farm:
             if not names:
                 plain.append(address)
                 threads += int(w.get("nthreads", 1))
-        self._benches = {str(n): {**b, "worker": where.get(str(n))} for n, b in published.items()
-                         if isinstance(b, dict)}
+        self._benches = {n: {**b, "worker": where.get(n)} for n, b in published.items()
+                         if published_bench(n, b)}
         self._state.update(workers=len(plain), threads=threads, benches=len(where))
         return plain, threads
 
