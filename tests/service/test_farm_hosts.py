@@ -24,6 +24,7 @@ from pathlib import Path
 import pytest
 
 from tests.service.test_api import Service, start, stop, until_line
+from tests.service.test_benches import drain
 from tests.sweep.test_sweep_cli import DASK
 from tests.waits import wait_file
 
@@ -137,6 +138,7 @@ def hosts(net: Net, tmp_path: Path) -> Iterator[Hosts]:
                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env, cwd=tmp[k])
             procs.append(host)
             until_line(host, "joined")
+            drain(host)
             bench_hosts[name] = host
         from distributed import Client
         from distributed.security import Security
