@@ -87,6 +87,11 @@ def cancel_event(run_id: int) -> str:
     return f"rig-cancel-{run_id}"
 
 
+def dataset(run_id: int) -> str:
+    """The name its future is published under while it flies: a service that restarts finds it again."""
+    return f"rig-run-{run_id}"
+
+
 def fly(job: Job) -> dict[str, Any]:
     """On a worker: the run in a temporary folder of this host, its folder back as a tar archive (its
     inputs left out). Its exit status as rig run's."""
@@ -255,8 +260,9 @@ class Farm:
 
     def __init__(self, db: Db, artifacts: Path, store: Store, address: str, security: Any = None,
                  stale: list[int] | None = None) -> None:
-        """``stale``: runs a service that died left running (interrupted now): their tasks, if they still
-        fly on a worker, are told to stop once the scheduler answers."""
+        """``stale``: runs a service that died left running: re-attached to once the scheduler answers if
+        their tasks are still there (each is published as a Dask dataset while it flies), interrupted
+        otherwise (or if the first connection fails: a scheduler restarted has none of them)."""
         self.db, self.artifacts, self.store, self.address = db, artifacts, store, address
         self.security = security
         self._stale = list(stale or [])
@@ -341,6 +347,7 @@ class Farm:
         self._thread.join(timeout=CONNECT_S + 5)
         for run_id in list(self._flights):
             self._flights.pop(run_id)
+            self._forget(run_id)
             self.db.finish(run_id, "interrupted", pid=None,
                            error="the service stopped while this run was running")
         if self._client is not None:
@@ -405,17 +412,41 @@ class Farm:
                                   security=self.security)
         except (OSError, TimeoutError, ValueError) as e:
             self._lost(f"no Dask scheduler at {self.address}: {e}")
+            self._reattach(False)
             return False
         try:
             self._client.subscribe_topic(PROGRESS, self._progressed)
+            self._survey()
         except Exception as e:
             self._lost(f"the Dask scheduler at {self.address}: {e}")
+            self._reattach(False)
             return False
         self._state.update(connected=True, problem=None)
-        for run_id in self._stale:
-            self._set(run_id)
-        self._stale = []
+        self._reattach(True)
         return True
+
+    def _reattach(self, connected: bool) -> None:
+        """The runs a service that died left running, once: each still on the cluster is followed
+        again, as if dispatched here; the others are interrupted (and told to stop, if they fly)."""
+        stale, self._stale = self._stale, []
+        for run_id in stale:
+            run = self.db.get(run_id)
+            if run is None or run["status"] != "running":
+                continue
+            future = None
+            if connected:
+                try:
+                    future = self._client.get_dataset(dataset(run_id))
+                except Exception:  # (KeyError: not published, i.e. not on the cluster any more)
+                    self._set(run_id)
+            if future is None:
+                self.db.finish(run_id, "interrupted", pid=None,
+                               error="the service stopped while this run was running")
+                continue
+            bench = run.get("bench_name")
+            future.add_done_callback(lambda _: self.wake())
+            self._flights[run_id] = Flight(run, future, run["versions"], bench,
+                                           (self._benches.get(bench) or {}).get("worker") if bench else None)
 
     def _progressed(self, event: tuple[float, Any]) -> None:
         """A task's report of its run's progress (from the worker: checked before it is believed)."""
@@ -457,6 +488,7 @@ class Farm:
                 continue
             if (self._benches.get(flight.bench) or {}).get("worker") != flight.worker:
                 self._flights.pop(run_id)
+                self._forget(run_id)
                 flight.future.cancel()
                 self.db.finish(run_id, "interrupted", pid=None, error=f"the bench host of {flight.bench} "
                                "went away while this run was running; it is not run again")
@@ -511,13 +543,24 @@ class Farm:
                               bench_name=None)  # (tried again)
             self._lost(f"the Dask scheduler at {self.address} refused the run: {e}")
             return
+        try:
+            self._client.publish_dataset(future, name=dataset(run["id"]), override=True)
+        except Exception:  # (then a restart of the service interrupts it, as before)
+            pass
         future.add_done_callback(lambda _: self.wake())
         self._flights[run["id"]] = Flight(run, future, flown, bench,
                                           (self._benches.get(bench) or {}).get("worker") if bench else None)
 
+    def _forget(self, run_id: int) -> None:
+        try:
+            self._client.unpublish_dataset(dataset(run_id))
+        except Exception:  # (not published, or the scheduler is gone: nothing to forget)
+            pass
+
     def _land(self, flight: Flight) -> None:
         """A run's task has ended: its folder into the data folder, its status as rig run's exit says."""
         run, out = flight.run, self.artifacts / str(flight.run["id"])
+        self._forget(run["id"])
         sweep = run["mode"] == "sweep"
         what = "rig sweep" if sweep else "rig run"
         try:

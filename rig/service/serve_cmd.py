@@ -126,8 +126,13 @@ def main(args: argparse.Namespace) -> int:
         print(f"rig serve: --data {args.data}: {e.strerror or e}", file=sys.stderr)
         return 2
     db = Db(args.data / "rig.sqlite")
-    stale = [r["id"] for r in db.list(status="running", limit=500)]  # (a farm's tasks are told to stop)
-    interrupted = db.interrupt_running()
+    # with a farm, the runs a service that died left running may still fly on the cluster: the farm
+    # re-attaches to them (or interrupts them) once it has asked the scheduler
+    stale = [r["id"] for r in db.list(status="running", limit=500)] if args.engine is not None else []
+    interrupted = 0 if args.engine is not None else db.interrupt_running()
+    if stale:
+        print(f"rig serve: {len(stale)} run(s) were running when the service last stopped: re-attached if "
+              "they are still on the cluster, interrupted otherwise", file=sys.stderr)
     if interrupted:
         print(f"rig serve: {interrupted} run(s) were running when the service last stopped: interrupted",
               file=sys.stderr)

@@ -64,3 +64,26 @@ def test_only_a_bench_host_shaped_entry_is_a_bench() -> None:
                       ("b", good), ("../a", {**good, "name": "../a"}), ("a", "a bench"),
                       ("a", {**good, "host": None})]:
         assert not published_bench(name, bad), bad
+
+
+def test_a_workers_progress_report_is_taken_only_for_a_run_in_flight(tmp_path: Path) -> None:
+    from rig.service.db import Db
+    from rig.service.farm import Farm, Flight
+    from rig.service.store import Store
+
+    db = Db(tmp_path / "rig.sqlite")
+    try:
+        farm = Farm(db, tmp_path / "runs", Store(tmp_path, db), "tcp://127.0.0.1:1")
+        run_id = db.submit(["step_roll"], 0, {}, "lockstep", 0)
+        run = db.claim("lockstep")
+        assert run is not None
+        farm._flights[run_id] = Flight(run, None, {})
+        for bad in [{"run": run_id, "progress": 150.0}, {"run": True, "progress": 10.0},
+                    {"run": str(run_id), "progress": 10.0}, {"run": run_id + 1, "progress": 10.0},
+                    {"run": run_id, "progress": "50"}, "50"]:
+            farm._progressed((0.0, bad))
+        assert (db.get(run_id) or {})["progress"] == 0.0
+        farm._progressed((0.0, {"run": run_id, "progress": 50.0}))
+        assert (db.get(run_id) or {})["progress"] == 50.0
+    finally:
+        db.close()

@@ -25,7 +25,7 @@ import pytest
 
 from tests.service.test_api import Service, start, stop, until_line
 from tests.service.test_benches import drain
-from tests.sweep.test_sweep_cli import DASK
+from tests.sweep.test_sweep_cli import DASK, scheduler_file_written
 from tests.waits import wait_file
 
 IP = shutil.which("ip") or "/usr/sbin/ip"
@@ -121,7 +121,7 @@ def hosts(net: Net, tmp_path: Path) -> Iterator[Hosts]:
              "--no-dashboard", "--scheduler-file", str(info), *tls],
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, text=True,
             env={**os.environ, "TMPDIR": str(tmp[1])}))
-        assert wait_file([info]) == info, "the scheduler did not start"
+        assert wait_file([info], ready=scheduler_file_written) == info, "the scheduler did not start"
         address = json.loads(info.read_text())["address"]
         assert address.startswith(f"tls://{net.prefix}1:")
         bench_hosts = {}
