@@ -31,6 +31,15 @@ def tree(root: Path) -> list[Path]:
     (("sweep", "spec.toml", "--out", "out", "--wall-timeout", "0"), "argument --wall-timeout"),
     (("serve", "--data", "afile", "--port", "0"), "--data afile exists and is not a folder"),
     (("serve", "--data", "afile/data", "--port", "0"), "afile is not a folder"),
+    (("serve", "--data", "d", "--engine", "http://127.0.0.1:8786"), "--engine: expected tcp://HOST:PORT"),
+    (("serve", "--data", "d", "--engine", "tls://127.0.0.1:8786"), "a tls:// address needs --tls-ca-file"),
+    (("serve", "--data", "d", "--tls-cert", "c.pem"), "go with --engine tls://HOST:PORT"),
+    (("bench-host", "--engine", "tcp://127.0.0.1:8786", "--bridge", "virtual", "--host", "10.1.2.3"),
+     "--host 10.1.2.3 listens beyond this machine: give a tls:// --engine"),
+    (("bench-host", "--engine", "tcp://127.0.0.1:8786", "--bridge", "virtual", "--label", "site"),
+     "--label: a label is k=v"),
+    (("bench-host", "--engine", "nowhere", "--bridge", "virtual"), "--engine: expected tcp://HOST:PORT"),
+    (("submit", "--server", "http://127.0.0.1:1", "step_roll", "--bench", "=x"), "--bench: a label is k=v"),
 ])
 def test_a_bad_option_is_exit_2_with_nothing_written(tmp_path: Path, args: tuple[str, ...],
                                                      said: str) -> None:

@@ -10,6 +10,8 @@
 #   qemu-system-arm
 #                 runs those tests on an emulated Cortex-M4 (mps2-an386): what the host and the MCU
 #                 compute must agree byte for byte
+#   iproute2      ip netns and veth: the farm's test across hosts makes network namespaces
+#   openssl       the farm's TLS test makes a self-signed certificate with it
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MISSING=()
@@ -19,6 +21,8 @@ if ! command -v pdftotext >/dev/null || ! command -v pdftoppm >/dev/null; then M
 if ! command -v arm-none-eabi-gcc >/dev/null; then MISSING+=(gcc-arm-none-eabi); fi
 if [ ! -e /usr/lib/arm-none-eabi/newlib/thumb/v7e-m+fp/hard/librdimon.a ]; then MISSING+=(libnewlib-arm-none-eabi); fi
 if ! command -v qemu-system-arm >/dev/null; then MISSING+=(qemu-system-arm); fi
+if ! PATH="$PATH:/usr/sbin:/sbin" command -v ip >/dev/null; then MISSING+=(iproute2); fi
+if ! command -v openssl >/dev/null; then MISSING+=(openssl); fi
 tools/apt-install.sh test-packages "${MISSING[@]}"
 tools/avr-toolchain.sh
 # the test suite's Python packages (pyproject.toml's [test] extra) into the virtualenv bootstrap.sh made

@@ -52,7 +52,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--psu", metavar="MAKE:PORT[@BAUD]", help="the bench supply (as rig run --psu)")
     p.add_argument("--label", action="append", default=[], metavar="k=v", help="a label (repeat)")
     p.add_argument("--name", default=socket.gethostname(), help="the bench's name (default: the host's)")
-    p.add_argument("--host", default=None, help="the address the worker listens on (default: Dask's)")
+    p.add_argument("--host", default="127.0.0.1",
+                   help="the address the worker listens on (default %(default)s); any other needs a tls:// "
+                        "engine: Dask's mutual TLS is the credential (docs/farm.md)")
+    from rig.sweep.engine import add_tls_options
+
+    add_tls_options(p)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -62,6 +67,17 @@ def main(args: argparse.Namespace) -> int:
     problem = check_address(args.engine)
     if problem is not None:
         print(f"rig bench-host: --engine: {problem}", file=sys.stderr)
+        return 2
+    from rig.service.serve_cmd import _loopback
+    from rig.sweep.engine import tls_security
+
+    security, problem = tls_security(args.engine, args.tls_ca_file, args.tls_cert, args.tls_key)
+    if problem is not None:
+        print(f"rig bench-host: {problem}", file=sys.stderr)
+        return 2
+    if not _loopback(args.host) and security is None:
+        print(f"rig bench-host: --host {args.host} listens beyond this machine: give a tls:// --engine with "
+              "its certificates (Dask's mutual TLS is the credential)", file=sys.stderr)
         return 2
     if not NAME.fullmatch(args.name):
         print(f"rig bench-host: --name {args.name!r}: letters, digits, _ . - (at most 64)", file=sys.stderr)
@@ -82,7 +98,7 @@ def main(args: argparse.Namespace) -> int:
     BENCH = {"name": args.name, "host": socket.gethostname(), "bridge": args.bridge, "psu": args.psu,
              "labels": labels, "bridge_id": found.bridge_id, "firmware_sha256": found.firmware_sha256}
     try:
-        asyncio.run(_serve(args.engine, BENCH, args.host))
+        asyncio.run(_serve(args.engine, BENCH, args.host, security))
     except KeyboardInterrupt:
         print("rig bench-host: stopped (Ctrl-C)", file=sys.stderr)
         return 130
@@ -90,7 +106,7 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-async def _serve(address: str, bench: dict[str, Any], host: str | None) -> None:
+async def _serve(address: str, bench: dict[str, Any], host: str | None, security: Any) -> None:
     """The worker, joined again whenever its scheduler comes back, until SIGTERM or Ctrl-C."""
     from distributed import Worker
 
@@ -101,7 +117,7 @@ async def _serve(address: str, bench: dict[str, Any], host: str | None) -> None:
     while not stopping.is_set():
         try:
             worker = Worker(address, nthreads=1, resources={resource(name): 1}, name=f"bench-{name}",
-                            host=host, dashboard=False)
+                            host=host, dashboard=False, security=security)
             await worker
         except (OSError, TimeoutError) as e:
             print(f"rig bench-host: no scheduler at {address} ({e}): trying again", file=sys.stderr,

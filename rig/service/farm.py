@@ -45,6 +45,7 @@ from rig.service.worker import (
     count_runs,
     ended,
     results,
+    sweep_progress,
     sweep_results,
 )
 
@@ -62,6 +63,8 @@ CONNECT_S: Final = 5.0
 RECONNECT_S: Final = 1.0
 #: how often a task looks whether its run was cancelled
 CANCEL_POLL_S: Final = 1.0
+#: the Dask event topic a task reports its run's progress on ({"run": ID, "progress": PERCENT})
+PROGRESS: Final = "rig-progress"
 #: the largest run folder a worker may send back (a lockstep run's MCAP and CSVs are a few MiB)
 MAX_ARCHIVE: Final = 1 << 30
 
@@ -74,10 +77,19 @@ class Job:
     argv: list[str]
     files: dict[str, bytes]  # relative to the run's folder
     label: str = ""
+    #: how its progress is counted on the worker: each scenario's result.json (relative to the run's
+    #: folder), or a sweep's rows out of sweep_total
+    results: tuple[str, ...] = ()
+    sweep_total: int = 0
 
 
 def cancel_event(run_id: int) -> str:
     return f"rig-cancel-{run_id}"
+
+
+def dataset(run_id: int) -> str:
+    """The name its future is published under while it flies: a service that restarts finds it again."""
+    return f"rig-run-{run_id}"
 
 
 def fly(job: Job) -> dict[str, Any]:
@@ -98,7 +110,7 @@ def fly(job: Job) -> dict[str, Any]:
         with open(out / "rig-run.log", "wb") as log:
             proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                     cwd=tmp, start_new_session=True, preexec_fn=_die_with_parent)
-            code = _watch(proc, job.run_id)
+            code = _watch(proc, job, out)
         inputs = {Path(rel).parts[0] for rel in job.files}
         return {"exit_code": code, "archive": _pack(out, inputs), "host": socket.gethostname()}
 
@@ -128,25 +140,34 @@ def _on_the_bench(argv: list[str], run_id: int) -> list[str]:
     return argv + (["--psu", bench["psu"]] if bench.get("psu") else [])
 
 
-def _watch(proc: subprocess.Popen[bytes], run_id: int) -> int:
-    """The run's exit status; a cancelled run (its Event set by the service) is stopped first."""
-    event = None
+def _watch(proc: subprocess.Popen[bytes], job: Job, out: Path) -> int:
+    """The run's exit status; its progress reported as it changes (the PROGRESS topic); a cancelled
+    run (its Event set by the service) is stopped first."""
+    event = worker = None
     try:
-        from distributed import Event, get_client
+        from distributed import Event, get_client, get_worker
 
-        event = Event(cancel_event(run_id), client=get_client())
+        event = Event(cancel_event(job.run_id), client=get_client())
+        worker = get_worker()
     except (ImportError, ValueError):  # (not on a Dask worker: a test calling fly directly)
         pass
     looked = time.monotonic()
+    progress = 0.0
     while True:
         try:
             return proc.wait(timeout=POLL_S)
         except subprocess.TimeoutExpired:
             pass
-        if event is None or time.monotonic() - looked < CANCEL_POLL_S:
+        if event is None or worker is None or time.monotonic() - looked < CANCEL_POLL_S:
             continue
         looked = time.monotonic()
+        done = sum((out / r).is_file() for r in job.results)
+        now = (sweep_progress(out, job.sweep_total) if job.sweep_total
+               else round(100.0 * done / max(len(job.results), 1), 1))
         try:
+            if now != progress:
+                progress = now
+                worker.log_event(PROGRESS, {"run": job.run_id, "progress": progress})
             cancelled = event.is_set()
         except Exception:  # (the scheduler is unreachable: this worker goes too, and the run with it)
             cancelled = False
@@ -170,6 +191,9 @@ def unpack(archive: bytes, folder: Path) -> None:
         raise ValueError(f"the run's folder is over {MAX_ARCHIVE} bytes")
     try:
         with tarfile.open(fileobj=io.BytesIO(archive), mode="r:gz") as tar:
+            for member in tar.getmembers():  # (the filter would only strip a leading /: refused here)
+                if member.name.startswith("/") or ".." in Path(member.name).parts:
+                    raise tarfile.TarError(f"{member.name!r} is not inside the run's folder")
             tar.extractall(folder, filter="data")
     except (tarfile.TarError, OSError, EOFError) as e:
         raise ValueError(f"the run's folder came back unreadable: {e}") from None
@@ -192,7 +216,9 @@ def job_for(run: dict[str, Any], out: Path, store: Store) -> tuple[Job, dict[str
         argv.append(arg.replace(str(out), OUT))
     if run["mode"] == "bridge":  # (command gives the service's own bench: the virtual bridge)
         argv[argv.index("--bridge") + 1] = BRIDGE
-    return Job(run["id"], argv, files, run.get("label", "")), flown
+    watched = tuple(f"{Path(n).stem}/result.json" for n in run["scenarios"]) if run["mode"] != "sweep" else ()
+    total = count_runs(out / PINNED / SWEEP_SPEC) if run["mode"] == "sweep" else 0
+    return Job(run["id"], argv, files, run.get("label", ""), watched, total), flown
 
 
 @dataclass
@@ -205,6 +231,20 @@ class Flight:
     started: float = field(default_factory=time.monotonic)
 
 
+def published_bench(name: object, bench: object) -> bool:
+    """Whether a bench's entry in the scheduler's metadata has the shape rig bench-host gives it (anyone
+    who reaches the scheduler can write there: an entry of another shape is ignored)."""
+    from rig.service.bench_host import NAME
+
+    if not isinstance(name, str) or not NAME.fullmatch(name) or not isinstance(bench, dict):
+        return False
+    labels = bench.get("labels")
+    return (isinstance(labels, dict)
+            and all(isinstance(k, str) and isinstance(v, str) for k, v in labels.items())
+            and all(isinstance(bench.get(k), str) for k in ("host", "bridge"))
+            and bench.get("name") == name)
+
+
 def matches(bench: dict[str, Any], selector: dict[str, str]) -> bool:
     labels = bench.get("labels") or {}
     return all(labels.get(k) == v for k, v in selector.items())
@@ -215,13 +255,14 @@ def labels_text(labels: dict[str, str]) -> str:
 
 
 class Farm:
-    """Dispatches lockstep runs and sweeps to the Dask scheduler at ``address`` (one thread of its own)
-    and brings their folders back into ``artifacts``."""
+    """Dispatches lockstep runs and sweeps to the Dask scheduler at ``address``'s workers, and bench runs
+    to its bench hosts (one thread of its own), and brings their folders back into ``artifacts``."""
 
     def __init__(self, db: Db, artifacts: Path, store: Store, address: str, security: Any = None,
                  stale: list[int] | None = None) -> None:
-        """``stale``: runs a service that died left running (interrupted now): their tasks, if they still
-        fly on a worker, are told to stop once the scheduler answers."""
+        """``stale``: runs a service that died left running: re-attached to once the scheduler answers if
+        their tasks are still there (each is published as a Dask dataset while it flies), interrupted
+        otherwise (or if the first connection fails: a scheduler restarted has none of them)."""
         self.db, self.artifacts, self.store, self.address = db, artifacts, store, address
         self.security = security
         self._stale = list(stale or [])
@@ -306,6 +347,7 @@ class Farm:
         self._thread.join(timeout=CONNECT_S + 5)
         for run_id in list(self._flights):
             self._flights.pop(run_id)
+            self._forget(run_id)
             self.db.finish(run_id, "interrupted", pid=None,
                            error="the service stopped while this run was running")
         if self._client is not None:
@@ -370,12 +412,51 @@ class Farm:
                                   security=self.security)
         except (OSError, TimeoutError, ValueError) as e:
             self._lost(f"no Dask scheduler at {self.address}: {e}")
+            self._reattach(False)
+            return False
+        try:
+            self._client.subscribe_topic(PROGRESS, self._progressed)
+            self._survey()
+        except Exception as e:
+            self._lost(f"the Dask scheduler at {self.address}: {e}")
+            self._reattach(False)
             return False
         self._state.update(connected=True, problem=None)
-        for run_id in self._stale:
-            self._set(run_id)
-        self._stale = []
+        self._reattach(True)
         return True
+
+    def _reattach(self, connected: bool) -> None:
+        """The runs a service that died left running, once: each still on the cluster is followed
+        again, as if dispatched here; the others are interrupted (and told to stop, if they fly)."""
+        stale, self._stale = self._stale, []
+        for run_id in stale:
+            run = self.db.get(run_id)
+            if run is None or run["status"] != "running":
+                continue
+            future = None
+            if connected:
+                try:
+                    future = self._client.get_dataset(dataset(run_id))
+                except Exception:  # (KeyError: not published, i.e. not on the cluster any more)
+                    self._set(run_id)
+            if future is None:
+                self.db.finish(run_id, "interrupted", pid=None,
+                               error="the service stopped while this run was running")
+                continue
+            bench = run.get("bench_name")
+            future.add_done_callback(lambda _: self.wake())
+            self._flights[run_id] = Flight(run, future, run["versions"], bench,
+                                           (self._benches.get(bench) or {}).get("worker") if bench else None)
+
+    def _progressed(self, event: tuple[float, Any]) -> None:
+        """A task's report of its run's progress (from the worker: checked before it is believed)."""
+        msg = event[1] if isinstance(event, tuple) and len(event) == 2 else None
+        if not isinstance(msg, dict):
+            return
+        run_id, progress = msg.get("run"), msg.get("progress")
+        if (type(run_id) is int and run_id in self._flights and isinstance(progress, int | float)
+                and 0.0 <= progress < 100.0):
+            self.db.update_if(run_id, "running", progress=float(progress))
 
     def _survey(self) -> tuple[list[str], int]:
         """The workers for lockstep runs (not bench hosts) and their threads; the benches published in
@@ -394,8 +475,8 @@ class Farm:
             if not names:
                 plain.append(address)
                 threads += int(w.get("nthreads", 1))
-        self._benches = {str(n): {**b, "worker": where.get(str(n))} for n, b in published.items()
-                         if isinstance(b, dict)}
+        self._benches = {n: {**b, "worker": where.get(n)} for n, b in published.items()
+                         if published_bench(n, b)}
         self._state.update(workers=len(plain), threads=threads, benches=len(where))
         return plain, threads
 
@@ -407,6 +488,7 @@ class Farm:
                 continue
             if (self._benches.get(flight.bench) or {}).get("worker") != flight.worker:
                 self._flights.pop(run_id)
+                self._forget(run_id)
                 flight.future.cancel()
                 self.db.finish(run_id, "interrupted", pid=None, error=f"the bench host of {flight.bench} "
                                "went away while this run was running; it is not run again")
@@ -441,8 +523,6 @@ class Farm:
         out.mkdir(parents=True, exist_ok=True)
         try:
             job, flown = job_for(run, out, self.store)
-            if run["mode"] == "sweep":
-                run["total"] = count_runs(out / PINNED / SWEEP_SPEC)
         except (LookupError, OSError) as e:
             self.db.finish(run["id"], "error", error=str(e))
             return
@@ -463,13 +543,24 @@ class Farm:
                               bench_name=None)  # (tried again)
             self._lost(f"the Dask scheduler at {self.address} refused the run: {e}")
             return
+        try:
+            self._client.publish_dataset(future, name=dataset(run["id"]), override=True)
+        except Exception:  # (then a restart of the service interrupts it, as before)
+            pass
         future.add_done_callback(lambda _: self.wake())
         self._flights[run["id"]] = Flight(run, future, flown, bench,
                                           (self._benches.get(bench) or {}).get("worker") if bench else None)
 
+    def _forget(self, run_id: int) -> None:
+        try:
+            self._client.unpublish_dataset(dataset(run_id))
+        except Exception:  # (not published, or the scheduler is gone: nothing to forget)
+            pass
+
     def _land(self, flight: Flight) -> None:
         """A run's task has ended: its folder into the data folder, its status as rig run's exit says."""
         run, out = flight.run, self.artifacts / str(flight.run["id"])
+        self._forget(run["id"])
         sweep = run["mode"] == "sweep"
         what = "rig sweep" if sweep else "rig run"
         try:

@@ -34,6 +34,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--engine", metavar="tcp://HOST:PORT",
                    help="run lockstep runs and sweeps on this Dask scheduler's workers instead of local "
                         "slots (docs/farm.md); their folders come back into --data")
+    from rig.sweep.engine import add_tls_options
+
+    add_tls_options(p)
     p.add_argument("--modbus", type=int, metavar="PORT",
                    help="also serve the test cell's PLC over Modbus TCP on PORT (docs/plc.md), on --host")
     p.add_argument("--modbus-measure", action="append", default=[], metavar="NAME",
@@ -84,6 +87,13 @@ def main(args: argparse.Namespace) -> int:
 
         problem = check_address(args.engine)
         problem = None if problem is None else f"--engine: {problem}"
+    security = None
+    if problem is None and args.engine is not None:
+        from rig.sweep.engine import tls_security
+
+        security, problem = tls_security(args.engine, args.tls_ca_file, args.tls_cert, args.tls_key)
+    elif problem is None and (args.tls_ca_file or args.tls_cert or args.tls_key):
+        problem = "--tls-ca-file, --tls-cert and --tls-key go with --engine tls://HOST:PORT"
     if problem is not None:
         print(f"rig serve: {problem}", file=sys.stderr)
         return 2
@@ -116,8 +126,13 @@ def main(args: argparse.Namespace) -> int:
         print(f"rig serve: --data {args.data}: {e.strerror or e}", file=sys.stderr)
         return 2
     db = Db(args.data / "rig.sqlite")
-    stale = [r["id"] for r in db.list(status="running", limit=500)]  # (a farm's tasks are told to stop)
-    interrupted = db.interrupt_running()
+    # with a farm, the runs a service that died left running may still fly on the cluster: the farm
+    # re-attaches to them (or interrupts them) once it has asked the scheduler
+    stale = [r["id"] for r in db.list(status="running", limit=500)] if args.engine is not None else []
+    interrupted = 0 if args.engine is not None else db.interrupt_running()
+    if stale:
+        print(f"rig serve: {len(stale)} run(s) were running when the service last stopped: re-attached if "
+              "they are still on the cluster, interrupted otherwise", file=sys.stderr)
     if interrupted:
         print(f"rig serve: {interrupted} run(s) were running when the service last stopped: interrupted",
               file=sys.stderr)
@@ -126,7 +141,7 @@ def main(args: argparse.Namespace) -> int:
     if args.engine is not None:
         from rig.service.farm import Farm
 
-        farm = Farm(db, args.data / "runs", store, args.engine, stale=stale)
+        farm = Farm(db, args.data / "runs", store, args.engine, security, stale=stale)
         print(f"rig serve: lockstep runs and sweeps go to the Dask scheduler at {args.engine}",
               file=sys.stderr, flush=True)
     workers = Workers(db, args.data / "runs", store, args.slots, farm)

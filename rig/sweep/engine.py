@@ -72,6 +72,32 @@ def check_address(address: str) -> str | None:
     return None
 
 
+def tls_security(address: str, ca: str | None, cert: str | None, key: str | None) -> tuple[Any, str | None]:
+    """Dask's own security object for a ``tls://`` scheduler (mutual TLS: each side shows a certificate
+    the CA signed, and the connection is encrypted), or None for ``tcp://``; and why the options do not
+    fit the address (a tls:// address needs all three files, a tcp:// one none), or None."""
+    given = [x for x in (ca, cert, key) if x]
+    if not address.startswith("tls://"):
+        return None, ("--tls-ca-file, --tls-cert and --tls-key go with a tls:// address" if given else None)
+    if len(given) != 3:
+        return None, "a tls:// address needs --tls-ca-file, --tls-cert and --tls-key"
+    for path in given:
+        if not os.path.isfile(path):
+            return None, f"{path}: no such file"
+    from distributed.security import Security
+
+    return Security(tls_ca_file=ca, tls_client_cert=cert, tls_client_key=key, tls_worker_cert=cert,
+                    tls_worker_key=key, require_encryption=True), None
+
+
+def add_tls_options(p: Any) -> None:
+    """The command line's TLS options for a tls:// Dask scheduler (docs/farm.md)."""
+    p.add_argument("--tls-ca-file", metavar="PEM", help="with a tls:// engine: the CA that signed every "
+                   "party's certificate")
+    p.add_argument("--tls-cert", metavar="PEM", help="with a tls:// engine: this party's certificate")
+    p.add_argument("--tls-key", metavar="PEM", help="with a tls:// engine: its private key")
+
+
 def local_jobs(jobs: int | None) -> int:
     return jobs if jobs is not None else len(os.sched_getaffinity(0))
 

@@ -13,6 +13,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import urllib.request
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -44,7 +45,14 @@ def bench_host(address: str, name: str, private: Path, *labels: str) -> subproce
     proc = subprocess.Popen(args, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
                             start_new_session=True, env={**os.environ, "TMPDIR": str(private)})
     until_line(proc, "joined")
+    drain(proc)
     return proc
+
+
+def drain(proc: subprocess.Popen[str]) -> None:
+    """Its stderr read to the end in a thread of its own: Dask's log lines never fill the pipe."""
+    assert proc.stderr is not None
+    threading.Thread(target=proc.stderr.read, daemon=True).start()
 
 
 @pytest.fixture
