@@ -185,16 +185,31 @@ def _pack(folder: Path, leave_out: set[str]) -> bytes:
 
 
 def unpack(archive: bytes, folder: Path) -> None:
-    """A worker's run folder into ``folder``: only regular files and folders inside it (tarfile's data
-    filter refuses absolute paths, ``..``, devices and links out); ValueError when it is not that."""
+    """A worker's run folder into ``folder``: only regular files and folders inside it (no absolute
+    path, no ``..``, no link, device or FIFO); ValueError when it is not that. Written member by member
+    rather than by ``extractall``: its ``filter`` argument, which would do this, is not in Debian 12's
+    Python 3.11.2, and a worker's bytes are not trusted."""
     if len(archive) > MAX_ARCHIVE:
         raise ValueError(f"the run's folder is over {MAX_ARCHIVE} bytes")
     try:
         with tarfile.open(fileobj=io.BytesIO(archive), mode="r:gz") as tar:
-            for member in tar.getmembers():  # (the filter would only strip a leading /: refused here)
-                if member.name.startswith("/") or ".." in Path(member.name).parts:
+            members = tar.getmembers()
+            for member in members:
+                parts = Path(member.name).parts
+                if member.name.startswith("/") or ".." in parts or not parts:
                     raise tarfile.TarError(f"{member.name!r} is not inside the run's folder")
-            tar.extractall(folder, filter="data")
+                if not (member.isfile() or member.isdir()):
+                    raise tarfile.TarError(f"{member.name!r} is not a regular file or a folder")
+            folder.mkdir(parents=True, exist_ok=True)
+            for member in members:
+                target = folder.joinpath(*Path(member.name).parts)
+                if member.isdir():
+                    target.mkdir(parents=True, exist_ok=True)
+                    continue
+                source = tar.extractfile(member)
+                assert source is not None  # (a regular file, checked above)
+                target.parent.mkdir(parents=True, exist_ok=True)
+                target.write_bytes(source.read())
     except (tarfile.TarError, OSError, EOFError) as e:
         raise ValueError(f"the run's folder came back unreadable: {e}") from None
 

@@ -65,12 +65,13 @@ def net() -> Iterator[Net]:
     third = next(n for n in range(10, 250) if f"10.254.{n}." not in used)
     n = Net(f"10.254.{third}.", secrets.token_hex(2))
     try:
-        try:
+        try:  # (the first command inside one too: in a chroot whose / is no mount point, `ip -n` cannot
+            # remount /sys in the namespace: "mount --make-rslave / failed")
             sh("netns", "add", n.ns(0))
+            n.namespaces.append(n.ns(0))
+            sh("-n", n.ns(0), "link", "add", "br0", "type", "bridge")
         except subprocess.CalledProcessError as e:
             pytest.skip(f"network namespaces cannot be made here: {e.stderr.decode().strip()}")
-        n.namespaces.append(n.ns(0))
-        sh("-n", n.ns(0), "link", "add", "br0", "type", "bridge")
         sh("-n", n.ns(0), "link", "set", "br0", "up")
         for k in (1, 2, 3):  # 1: this host (no namespace of its own), 2 and 3: the bench hosts
             inside = f"v{n.tag}h{k}"
