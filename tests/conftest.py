@@ -4,6 +4,7 @@ module imports one."""
 
 from __future__ import annotations
 
+import signal
 from pathlib import Path
 
 import pytest
@@ -12,6 +13,12 @@ from plant import DEFAULT_FMU
 from rig import compiled
 
 compiled.install()  # (plant is not among the hot modules; nothing hot is imported before this)
+
+# A suite started in the background by a non-interactive shell (`make test &`, a CI step run so)
+# inherits SIGINT ignored, and so would every command a test starts: a test pressing Ctrl-C on `rig
+# submit` would see it ignored. Handled here, it is the default again in every child, as from a terminal.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(scope="session")
