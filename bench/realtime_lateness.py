@@ -38,17 +38,10 @@ import time
 from pathlib import Path
 from typing import Any
 
+from ab import python_loop_ms  # (bench/ is the script's folder: on sys.path)
+
 REPO = Path(__file__).resolve().parents[1]
 MODES = {"realtime": ["--realtime"], "virtual": ["--bridge", "virtual"]}
-
-
-def python_loop_ms() -> float:
-    """CPU time of one fixed million-iteration Python loop (as bench/scenario_rates.py measures it)."""
-    t0 = time.process_time()
-    x = 0
-    for i in range(1_000_000):
-        x += i * i
-    return (time.process_time() - t0) * 1000
 
 
 def sleep_overshoot_us(n: int = 500) -> tuple[float, float]:
