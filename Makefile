@@ -141,7 +141,7 @@ lint: venv test-packages
 	clang-format --dry-run --Werror $(C_SOURCES)
 
 test: venv test-packages mcu-test-firmware avr $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) $(VBRIDGE) firmware lint
-	$(PY) -m pytest -q -m "not slow"
+	$(PY) -m pytest -q -m "not slow" --durations=25
 
 test-slow: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED)
 	$(PY) -m pytest -q -m slow
