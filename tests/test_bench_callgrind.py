@@ -4,26 +4,16 @@ profile written by hand in callgrind's format (name compression, a callee in ano
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
-from types import ModuleType
 
 import pytest
+
+from tests.bench_scripts import load_bench
 
 REPO = Path(__file__).resolve().parents[1]
 
 
-def _load() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("callgrind", REPO / "bench" / "callgrind.py")
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod  # (its dataclass looks its module up there)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-cg = _load()
+cg = load_bench("callgrind")
 
 # main (10 own) calls plant_step (50 inclusive), sin in libm (5) and helper (35); plant_step (30 own)
 # calls helper too (20): helper's 55 are shared 35 : 20 between main's part and the plant's

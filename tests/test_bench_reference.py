@@ -6,29 +6,18 @@ measurements themselves are never asserted."""
 from __future__ import annotations
 
 import copy
-import importlib.util
 import math
-import sys
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import pytest
 
+from tests.bench_scripts import load_bench
+
 REPO = Path(__file__).resolve().parents[1]
 
 
-def _load() -> ModuleType:
-    path = REPO / "bench" / "library_reference.py"
-    spec = importlib.util.spec_from_file_location("library_reference", path)
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod  # (its dataclass looks its module up there)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-ref = _load()
+ref = load_bench("library_reference")
 
 
 def crit(name: str, value: float | str | None, lo: float | None, hi: float | None, outcome: str = "pass"
