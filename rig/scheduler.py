@@ -134,7 +134,10 @@ class Scheduler:
         return t_ns
 
     def next_event_ns(self) -> int | None:
-        return self.events[0][0] if self.events else None
+        """The next event's due time, or None: none is left, or the run is over (nothing runs any more;
+        a paced loop that kept waking for a past event once the run was over spun at SCHED_FIFO and
+        starved, on a one-core host, the DUT it was stopping: the run never ended)."""
+        return self.events[0][0] if self.events and not self.over else None
 
     def verdict(self, returncode: int | None, sim_s: float, reached: bool, allow_no_devices: bool,
                 interrupted: bool) -> tuple[str, int, str | None]:

@@ -330,6 +330,10 @@ class BenchSession:
                 if keeper is None:
                     return
                 if not stopping:
+                    # nothing reads the link once the run is over: left registered, its unread bytes
+                    # woke the wait at once, again and again, and that loop at SCHED_FIFO starved the
+                    # keeper stopping the DUT on a one-core host (the run never ended)
+                    sel.unregister(port.fileno())
                     keeper.stop()
                     stopping = True
             ready = sel.select(timeout)
