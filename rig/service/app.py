@@ -325,19 +325,21 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         return db.list(status, scenario, since, limit, offset, firmware)
 
     @app.get("/api/runs/{run_id}")
-    def run(run_id: int, wait: float = Query(default=0.0, ge=0.0, le=60.0)) -> dict[str, Any]:
+    def run(run_id: int, wait: float = Query(default=0.0, ge=0.0, le=60.0),
+            seen: str | None = Query(default=None, max_length=20)) -> dict[str, Any]:
         """The run; with ``wait``, answered as soon as its status or progress changes, or after that
-        many seconds (a client follows a run without polling in a loop of its own)."""
+        many seconds (a client follows a run without polling in a loop of its own). ``seen``, the
+        status the client last saw, is what the status is compared with: a change between two calls
+        (queued, then running while no call was waiting) is answered at once, never missed."""
         found = db.get(run_id)
         if found is None:
             raise HTTPException(404, f"no run {run_id}")
         deadline = time.monotonic() + wait
-        seen = (found["status"], found["progress"])
-        while found["status"] not in TERMINAL and time.monotonic() < deadline:
+        last = (found["status"] if seen is None else seen, found["progress"])
+        while (found["status"], found["progress"]) == last and found["status"] not in TERMINAL \
+                and time.monotonic() < deadline:
             time.sleep(WAIT_POLL_S)
             found = db.get(run_id) or found
-            if (found["status"], found["progress"]) != seen:
-                break
         return found
 
     def _folder(run_id: int) -> Path:

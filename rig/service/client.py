@@ -133,12 +133,11 @@ def cmd_submit(args: argparse.Namespace) -> int:
         print(run_id, flush=True)
         if not args.wait:
             return 0
-        seen = ""
+        seen, status = "", "queued"
         while True:
-            # the server's wait ends on a change from what it finds at the call: the first call must not
-            # wait, or a run already running when it came is shown only at its next change (30 s on)
-            wait = 30 if seen else 0
-            run = call(args.server, "GET", f"/api/runs/{run_id}?wait={wait}", args.token)
+            # ``seen``: the server answers at once when the status is no longer the one last shown
+            run = call(args.server, "GET", f"/api/runs/{run_id}?wait=30&seen={status}", args.token)
+            status = run["status"]
             if line(run) != seen:
                 seen = line(run)
                 print(seen, file=sys.stderr, flush=True)
