@@ -140,8 +140,12 @@ lint: venv test-packages
 	$(VENV)/bin/mypy
 	clang-format --dry-run --Werror $(C_SOURCES)
 
+# make test runs the suite on every core (pytest-xdist; each worker holds a core: tests/conftest.py), then
+# the tests paced by the wall clock alone (marker paced: tests/realtime.py). TEST_JOBS=1: one process.
+TEST_JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 test: venv test-packages mcu-test-firmware avr $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) $(VBRIDGE) firmware lint
-	$(PY) -m pytest -q -m "not slow" --durations=25
+	$(PY) -m pytest -q -m "not slow and not paced" -n $(TEST_JOBS) --durations=25
+	$(PY) -m pytest -q -m "paced and not slow" --durations=5
 
 test-slow: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED)
 	$(PY) -m pytest -q -m slow

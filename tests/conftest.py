@@ -4,6 +4,7 @@ module imports one."""
 
 from __future__ import annotations
 
+import os
 import signal
 from pathlib import Path
 
@@ -19,6 +20,15 @@ compiled.install()  # (plant is not among the hot modules; nothing hot is import
 # submit` would see it ignored. Handled here, it is the default again in every child, as from a terminal.
 if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+# Under pytest-xdist (make test runs the suite on every core) each worker holds a core of its own. A
+# lockstep session pins itself and its DUT to the highest core it may use (rig/session.py): with every
+# core allowed, every worker's sessions would share that one core while the others idle.
+_WORKER = os.environ.get("PYTEST_XDIST_WORKER", "")
+if _WORKER.startswith("gw") and _WORKER[2:].isdigit():
+    _allowed = sorted(os.sched_getaffinity(0))
+    os.sched_setaffinity(0, {_allowed[int(_WORKER[2:]) % len(_allowed)]})
 
 
 @pytest.fixture(scope="session")

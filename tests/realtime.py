@@ -4,6 +4,8 @@ host kept pace. Every such test hands its runs to ``realtime()``, which checks e
 starved run is flown again once; starved twice, the test ends inconclusive with ``pytest.skip`` and the
 figures (pytest's ``-ra`` summary lists it), never passed silently and never failed as the DUT's fault.
 On a loaded VM such runs failed with 18-35 deg of tilt and thousands of events over 1 ms late.
+Every such test carries the ``paced`` marker: ``make test`` runs them alone, after the rest of the suite
+has run on every core, so the suite's own load does not starve them.
 
 "Starved" is a property of the host, not of the DUT, so the threshold lives here and not in a scenario:
 the bench tolerances (tests/bridge/bench_tolerance.json) were derived with the bridge streaming its

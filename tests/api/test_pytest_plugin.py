@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import shutil
 import signal
 import subprocess
@@ -23,10 +24,16 @@ DUTS = Path(__file__).resolve().parents[1] / "scenarios" / "misbehaving_firmware
 avr_fc = mcu.avr_fc  # (the MCU tier's fixture: build/avr/fc.elf, brought up to date by make)
 
 
+def own_env() -> dict[str, str]:
+    """This environment without pytest-xdist's worker variables: a pytest started from a test that runs
+    under ``make test``'s xdist would otherwise take itself for a worker (and write under out/gwN)."""
+    return {k: v for k, v in os.environ.items() if not k.startswith("PYTEST_XDIST_")}
+
+
 def pytest_run(cwd: Path, *args: str) -> subprocess.CompletedProcess[str]:
     """pytest in ``cwd`` (its own rootdir: not this repository's configuration), with no cache."""
     return subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "--rootdir", str(cwd),
-                           *args], cwd=cwd, capture_output=True, text=True, timeout=300)
+                           *args], cwd=cwd, capture_output=True, text=True, timeout=300, env=own_env())
 
 
 def test_the_entry_point_is_installed():
@@ -162,7 +169,7 @@ def test_ctrl_c_stops_the_dut_and_pytest_and_keeps_the_run(tmp_path):
     dut = f"{sys.executable} {DUTS / 'stall_after_one_read.py'} {fifo}"
     proc = subprocess.Popen([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "--rootdir",
                              str(tmp_path), str(tmp_path), "--rig-dut", dut, "--rig-out", "out"],
-                            cwd=tmp_path, stdout=subprocess.PIPE, text=True)
+                            cwd=tmp_path, stdout=subprocess.PIPE, text=True, env=own_env())
     pid = read_pid(fifo)  # the DUT is up: the item is in its run
     proc.send_signal(signal.SIGINT)
     stdout = proc.communicate(timeout=60)[0]

@@ -69,6 +69,7 @@ def supply() -> Iterator[SimRiden]:
     s.close()
 
 
+@pytest.mark.paced
 def test_power_cycled_before_the_run_and_recorded_in_the_telemetry(tmp_path: Path, supply: SimRiden) -> None:
     code, stderr, result, telemetry = bench_run(tmp_path, supply, paced=True)
     assert code == 0, stderr

@@ -80,6 +80,7 @@ def test_the_host_set_up_is_said_not_inherited_by_children_and_undone() -> None:
     assert state.as_dict()["sched_fifo"] == state.sched_fifo
 
 
+@pytest.mark.paced
 def test_a_paced_session_runs_its_events_in_order_none_before_its_time() -> None:
     def fly() -> tuple[Outcome, list[tuple[int, int]]]:
         cfg = SessionConfig(command=["sleep", "5"], lockstep=False, duration=0.3, allow_no_devices=True)

@@ -5,12 +5,16 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+import pytest
+
 from rig.runner import run
 from rig.targets.process import ProcessTarget
 from scenarios.schema import load
 from tests.realtime import realtime
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
+
+pytestmark = pytest.mark.paced  # (make test runs these alone: tests/realtime.py)
 
 
 def test_a_real_time_run_flies_and_reports_its_lateness(tmp_path: Path) -> None:
