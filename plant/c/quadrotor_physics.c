@@ -218,14 +218,37 @@ static double resting_down_force(const ctx_t *c, const double *y)
     return acc[2];
 }
 
+/* The arms' body coordinates for the frame and arm length. Kept from the last call: make_ctx runs
+ * twice a step (the step, then its outputs), and its eight sines and cosines were about an eighth of
+ * the plant's instructions (bench/cycle_cost.py --breakdown) for values that change only with two
+ * parameters. The same calls on the same arguments when they do change: bit for bit what computing
+ * them every time gives. Thread-local: a sweep may step plants in several threads of one process. */
+static void arm_coordinates(const qr_params *p, double x[4], double y[4])
+{
+    static _Thread_local struct {
+        int valid, frame;
+        double length, x[4], y[4];
+    } memo;
+    if (!memo.valid || memo.frame != p->frame || memo.length != p->arm_length) { /* (NaN: never equal) */
+        for (int i = 0; i < 4; i++) {
+            double a = ARM_ANGLE[i] + (p->frame == 1 ? QR_PI / 4 : 0.0);
+            memo.x[i] = p->arm_length * cos(a);
+            memo.y[i] = p->arm_length * sin(a);
+        }
+        memo.valid = 1;
+        memo.frame = p->frame;
+        memo.length = p->arm_length;
+    }
+    memcpy(x, memo.x, sizeof memo.x);
+    memcpy(y, memo.y, sizeof memo.y);
+}
+
 static void make_ctx(const qr_params *p, const qr_inputs *in, ctx_t *c)
 {
     c->par = p;
     c->in = in;
+    arm_coordinates(p, c->arm_x, c->arm_y);
     for (int i = 0; i < 4; i++) {
-        double a = ARM_ANGLE[i] + (p->frame == 1 ? QR_PI / 4 : 0.0);
-        c->arm_x[i] = p->arm_length * cos(a);
-        c->arm_y[i] = p->arm_length * sin(a);
         c->omega_cmd[i] = qr_esc_omega_cmd(p, i, in->pwm_us[i]);
         c->health[i] = isfinite(in->motor_health[i]) && in->motor_health[i] > 0 ? in->motor_health[i] : 0.0;
     }
