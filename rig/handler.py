@@ -34,6 +34,9 @@ class Handler:
         self.session, self.cfg, self.sched, self.world, self.page = session, cfg, sched, world, page
         self.lockstep = cfg.lockstep  # in real time the page holds PWM states, not the clock
         self.transactions = self.waits = self.pwm_writes = 0
+        #: PWM notices other than duty acted on here: the fast path keeps the channels' settings until
+        #: this changes (rig/lockstep/pwm_duty.c)
+        self.pwm_config_changes = 0
         self.notes: list[str] = []
         #: every transfer, for run.mcap: (sim time ns, address, bytes written, bytes read, status); one
         #: tuple append per transfer (the lockstep rate is unchanged, bench/scenario_rates.py)
@@ -125,6 +128,8 @@ class Handler:
         session = self.session
         session.advance(t)
         self.pwm_writes += 1
+        if attr != P.PWM_DUTY:
+            self.pwm_config_changes += 1
         ch = world.pwm[channel]
         if attr == P.PWM_EXPORT:
             ch.exported = True

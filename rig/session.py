@@ -387,6 +387,14 @@ class Session:
                 keeper.stop()  # SIGTERM to the DUT and all it started; SIGKILL after the grace
                 stopping = True
 
+    def message_counts(self) -> tuple[int, int, int]:
+        """The I2C transfers, waits and PWM writes the DUT made: the handler's and the fast path's."""
+        handler, fast = self.handler, self.fast
+        if handler is None:
+            return 0, 0, 0
+        i2c, waits, pwm = fast.counts if fast is not None else (0, 0, 0)
+        return handler.transactions + i2c, handler.waits + waits, handler.pwm_writes + pwm
+
     def _deadline_ns(self) -> int | None:
         """Real time: the next event's due time on CLOCK_MONOTONIC (ns), or None."""
         due = self.sched.next_event_ns()
@@ -535,7 +543,7 @@ class Session:
         verdict, code, error = self.sched.verdict(returncode, sim, self._n_conns > 0,
                                                   self.cfg.allow_no_devices, self.interrupted is not None)
         handler = self.handler
-        counts = (handler.transactions, handler.waits, handler.pwm_writes) if handler else (0, 0, 0)
+        counts = self.message_counts()
         notes = (handler.notes if handler else []) + self.notes
         events, late, worst, p99, p50 = self.sched.lateness()
         return Outcome(verdict, code, error, returncode, sim, self.world.time_ns / NS,

@@ -38,7 +38,7 @@ REPO = HERE.parent.parent
 SHIM_DIR = REPO / "rig" / "shim"
 #: the module's source first; the headers it shares with the shim (the wire) and the chip core
 PLANT_C = REPO / "plant" / "c"
-SOURCES = (HERE / "fastpath.c", HERE / "imu_feed.c", SHIM_DIR / "protocol.h",
+SOURCES = (HERE / "fastpath.c", HERE / "imu_feed.c", HERE / "pwm_duty.c", SHIM_DIR / "protocol.h",
            native.CHIPS_DIR / "chip_core.h", native.C_DIR / "need_tuple.h", PLANT_C / "plant_steps.c")
 MODULE_NAME = "_riglockstep"
 LIB = BUILD / f"{MODULE_NAME}{EXTENSION_SUFFIX}"
@@ -92,6 +92,12 @@ class FastPath:
         """The messages acted on here so far (the rest went to the handler)."""
         n: int = module().handled(self._state)
         return n
+
+    @property
+    def counts(self) -> tuple[int, int, int]:
+        """The I2C transfers, waits and PWM writes acted on here (the handler counts the rest)."""
+        i2c, waits, pwm = module().counts(self._state)
+        return int(i2c), int(waits), int(pwm)
 
     def handle(self, fd: int, buf: bytearray, off: int) -> int:
         off_after: int = self._handle(self._state, fd, buf, off)

@@ -50,6 +50,15 @@ typedef chip_need (*advance_fn)(chip_board *, uint64_t);
 
 #include "imu_feed.c"
 
+/* the PWM channels' settings, kept between duty writes (pwm_duty.c) */
+typedef struct {
+    long long changes;                  /* Handler.pwm_config_changes when they were read */
+    int valid_changes, checked;         /* changes read at all; read in this handle() call */
+    int is_direct;                      /* World.direct_pwm */
+    uint8_t known[RIG_PWM_MAX];         /* settings[i] read since the last change */
+    long long settings[RIG_PWM_MAX][4]; /* exported, enabled, period_ns, inversed */
+} pwm_cache;
+
 typedef struct {
     imu_feed imu;                   /* the IMU's samples in C (imu_feed.c), when setup_imu said so */
     PyObject *world_advance;        /* World.advance_to */
@@ -71,7 +80,9 @@ typedef struct {
     transfer_fn transfer;
     advance_fn advance;
     uint64_t step_ns, stepped_to, limit_ns, i2c_clock_hz;
-    uint64_t handled; /* messages acted on here (the rest went to the Python handler) */
+    uint64_t handled;   /* messages acted on here (the rest went to the Python handler) */
+    uint64_t counts[3]; /* of those: I2C transfers, waits, PWM writes (the handler's counts add them) */
+    pwm_cache pwm_seen; /* the channels' settings as last read (pwm_duty.c) */
     unsigned bus;
     uint8_t reply[REPLY_MAX];
 } fast_state;
@@ -79,7 +90,7 @@ typedef struct {
 static uint64_t handled_total; /* messages acted on here by every session of this process */
 
 static PyObject *s_steps_at, *s_ring, *s_direct_pwm, *s_exported, *s_enabled, *s_period_ns, *s_inversed;
-static PyObject *s_over, *s_duty_ns, *s_transactions, *s_waits, *s_pwm_writes;
+static PyObject *s_over, *s_duty_ns, *s_pwm_config_changes;
 
 static volatile uint64_t *sim_ns(fast_state *s)
 {
@@ -471,66 +482,7 @@ static int i2c(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p)
     return 1;
 }
 
-/* a PwmChannel attribute as an int64 (0: it did not fit, the handler takes the message) */
-static int channel_attr(PyObject *ch, PyObject *name, long long *out)
-{
-    PyObject *v = PyObject_GetAttr(ch, name);
-    if (!v)
-        return -1;
-    int overflow = 0;
-    *out = PyLong_AsLongLongAndOverflow(v, &overflow);
-    Py_DECREF(v);
-    if (*out == -1 && PyErr_Occurred())
-        return -1;
-    return overflow || *out < 0 ? 0 : 1;
-}
-
-static int pwm(fast_state *s, const struct rig_hdr *h, const uint8_t *p)
-{
-    struct rig_pwm_msg m;
-    if (h->len != sizeof m)
-        return 0;
-    memcpy(&m, p, sizeof m);
-    if (m.chip != 0 || m.attr != RIG_PWM_DUTY || m.channel >= PyList_GET_SIZE(s->pwm) || m.value > INT64_MAX)
-        return 0;
-    int clear = clear_until(s, h->t_ns);
-    if (clear <= 0)
-        return clear;
-    /* PwmChannel.pulse_us with the new duty, its fields read before anything moves */
-    PyObject *ch = PyList_GET_ITEM(s->pwm, m.channel);
-    long long exported, enabled, period, inversed;
-    int r;
-    if ((r = channel_attr(ch, s_exported, &exported)) <= 0 || (r = channel_attr(ch, s_enabled, &enabled)) <= 0 ||
-        (r = channel_attr(ch, s_period_ns, &period)) <= 0 || (r = channel_attr(ch, s_inversed, &inversed)) <= 0)
-        return r;
-    PyObject *direct = PyObject_GetAttr(s->world, s_direct_pwm);
-    if (!direct)
-        return -1;
-    int is_direct = PyObject_IsTrue(direct);
-    Py_DECREF(direct);
-    if (is_direct < 0)
-        return -1;
-    /* acting from here on: Scheduler.advance, then the handler's PWM notice */
-    if (world_to(s, h->t_ns) < 0)
-        return -1;
-    PyObject *value = PyLong_FromUnsignedLongLong(m.value);
-    if (!value)
-        return -1;
-    int bad = PyObject_SetAttr(ch, s_duty_ns, value);
-    Py_DECREF(value);
-    if (bad)
-        return -1;
-    if (m.channel < s->motors && is_direct) { /* World.apply_pwm */
-        double pulse = 0.0;
-        if (exported && enabled && period > 0) {
-            long long duty = (long long)m.value, high = inversed ? period - duty : duty;
-            high = high < 0 ? 0 : high;
-            pulse = (double)(high < period ? high : period) / 1000.0;
-        }
-        s->u[s->u_pwm[m.channel]] = pulse;
-    }
-    return 1;
-}
+#include "pwm_duty.c"
 
 static int wait(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p)
 {
@@ -572,24 +524,6 @@ static int wait(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p
     return 1;
 }
 
-static int add_count(PyObject *handler, PyObject *name, long n)
-{
-    if (!n)
-        return 0;
-    PyObject *old = PyObject_GetAttr(handler, name);
-    if (!old)
-        return -1;
-    PyObject *add = PyLong_FromLong(n);
-    PyObject *sum = add ? PyNumber_Add(old, add) : NULL;
-    Py_DECREF(old);
-    Py_XDECREF(add);
-    if (!sum)
-        return -1;
-    int bad = PyObject_SetAttr(handler, name, sum);
-    Py_DECREF(sum);
-    return bad;
-}
-
 /* handle(state, fd, buf, off) -> the offset of the first message not acted on (the end of the whole
  * messages, or one for the Python handler). buf: the connection's bytearray, unchanged. */
 static PyObject *fp_handle(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
@@ -608,7 +542,8 @@ static PyObject *fp_handle(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
     Py_ssize_t end = PyByteArray_GET_SIZE(a[2]);
     if (off < 0 || off > end)
         return PyErr_Format(PyExc_ValueError, "handle: offset %zd outside the buffer", off);
-    long counts[3] = { 0, 0, 0 }; /* transactions, waits, pwm_writes */
+    uint64_t *counts = s->counts; /* transactions, waits, pwm_writes */
+    s->pwm_seen.checked = 0;      /* (the handler may have acted on PWM settings since the last call) */
     int r = 1;
     while (end - off >= (Py_ssize_t)sizeof(struct rig_hdr)) {
         struct rig_hdr h;
@@ -630,11 +565,7 @@ static PyObject *fp_handle(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
         handled_total++;
         off += (Py_ssize_t)(sizeof h + h.len);
     }
-    /* the counts are the handler's (the run's outcome reads them there), even when a message failed */
-    if (add_count(s->handler, s_transactions, counts[0]) < 0 || add_count(s->handler, s_waits, counts[1]) < 0 ||
-        add_count(s->handler, s_pwm_writes, counts[2]) < 0 || r < 0)
-        return NULL;
-    return PyLong_FromSsize_t(off);
+    return r < 0 ? NULL : PyLong_FromSsize_t(off);
 }
 
 /* handled(state) -> the messages acted on here so far; handled(None): by every session of the process */
@@ -647,12 +578,25 @@ static PyObject *fp_handled(PyObject *self, PyObject *state)
     return s ? PyLong_FromUnsignedLongLong(s->handled) : NULL;
 }
 
+/* counts(state) -> (transactions, waits, pwm_writes) acted on here: the run's outcome adds them to the
+ * handler's (kept here, not added to the handler's attributes at each call: that was 2 k instructions
+ * of an FC cycle) */
+static PyObject *fp_counts(PyObject *self, PyObject *state)
+{
+    (void)self;
+    fast_state *s = PyCapsule_GetPointer(state, "rig.lockstep");
+    return s ? Py_BuildValue("(KKK)", (unsigned long long)s->counts[0], (unsigned long long)s->counts[1],
+                             (unsigned long long)s->counts[2])
+             : NULL;
+}
+
 static PyMethodDef methods[] = {
     { "setup", (PyCFunction)(void (*)(void))fp_setup, METH_FASTCALL, "the fast path's state for a session" },
     { "setup_world", (PyCFunction)(void (*)(void))fp_setup_world, METH_FASTCALL, "the plant's steps in C" },
     { "setup_imu", (PyCFunction)(void (*)(void))fp_setup_imu, METH_FASTCALL, "the IMU's samples in C" },
     { "handle", (PyCFunction)(void (*)(void))fp_handle, METH_FASTCALL, "acts on the messages it takes" },
     { "handled", fp_handled, METH_O, "the messages acted on here so far" },
+    { "counts", fp_counts, METH_O, "the I2C transfers, waits and PWM writes acted on here" },
     { NULL, NULL, 0, NULL },
 };
 
@@ -672,9 +616,7 @@ PyMODINIT_FUNC PyInit__riglockstep(void)
 {
     s_over = PyUnicode_InternFromString("over");
     s_duty_ns = PyUnicode_InternFromString("duty_ns");
-    s_transactions = PyUnicode_InternFromString("transactions");
-    s_waits = PyUnicode_InternFromString("waits");
-    s_pwm_writes = PyUnicode_InternFromString("pwm_writes");
+    s_pwm_config_changes = PyUnicode_InternFromString("pwm_config_changes");
     PyObject **names[] = { &s_steps_at, &s_ring,    &s_direct_pwm, &s_exported, &s_enabled, &s_period_ns,
                            &s_inversed, &s_epoch,   &s_anchor,     &s_cfg,      &s_div,     &s_period,
                            &s_next_t,   &s_accel_f, &s_gyro_f,     &s_addr,     &s_k,       &s_refill };
@@ -684,7 +626,7 @@ PyMODINIT_FUNC PyInit__riglockstep(void)
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
         if (!(*names[i] = PyUnicode_InternFromString(texts[i])))
             return NULL;
-    if (!s_over || !s_duty_ns || !s_transactions || !s_waits || !s_pwm_writes)
+    if (!s_over || !s_duty_ns || !s_pwm_config_changes)
         return NULL;
     return PyModule_Create(&module);
 }

@@ -43,7 +43,8 @@ def _wait(t_ns: int, wake: int, kind: int) -> bytes:
 def _script() -> list[bytes]:
     """A flight controller's set-up and cycles, with the cases the fast path must get right or leave
     to the handler: a NACK, another bus, a block read with an impossible count, a 10-bit address, every
-    kind of wait, other PWM attributes, an event due mid-cycle, and a malformed message at the end."""
+    kind of wait, other PWM attributes (a channel unexported and exported again among them: the fast path
+    keeps the channels' settings), an event due mid-cycle, and a malformed message at the end."""
     rd = P.I2C_M_RD
     out = [_msg(0, P.HELLO_MSG.pack(P.PROTOCOL_VERSION, 1234), P.MSG_HELLO)]
     out += [_i2c(0, [(0x68, 0, 2, bytes(rv))]) for rv in ((0x6B, 0x00), (0x1A, 0x03), (0x19, 0x00))]
@@ -64,6 +65,11 @@ def _script() -> list[bytes]:
             out.append(_pwm(t + 1500, 0, P.PWM_POLARITY, 0))  # (the handler's)
         if k == 40:  # channel 1 inversed, channel 2 off: the duty writes after it act differently
             out += [_pwm(t + 1500, 1, P.PWM_POLARITY, 1), _pwm(t + 1500, 2, P.PWM_ENABLE, 0)]
+        if k == 50:  # channel 3 gone (a new channel object), then back with another period
+            out.append(_pwm(t + 1500, 3, P.PWM_UNEXPORT, 0))
+        if k == 53:
+            out += [_pwm(t + 1500, 3, P.PWM_EXPORT, 0), _pwm(t + 1500, 3, P.PWM_PERIOD, 2_000_000),
+                    _pwm(t + 1500, 3, P.PWM_ENABLE, 1)]
         if k % 3 == 0:
             out.append(_wait(t + 2000, t + CYCLE_NS, P.WAIT_AHEAD))
         elif k % 3 == 1:
@@ -102,7 +108,7 @@ def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_h
     assert handler is not None and session.page is not None
     board = session.world.board
     sampler = board._imu._sampler
-    return {"received": bytes(received), "counts": (handler.transactions, handler.waits, handler.pwm_writes),
+    return {"received": bytes(received), "counts": session.message_counts(),
             "log": list(handler.i2c_log), "clock": session.page.now(), "world": session.world.outputs(),
             "plant_ns": session.world.time_ns, "malformed": len(session.malformed),
             "why": list(session.malformed),
