@@ -29,6 +29,7 @@ from rig.world import World
 from scenarios.schema import load
 from tests.bridge.tools import REPO, vbridge
 from tests.realtime import of_outcome, of_results, realtime
+from tests.short_scenario import SHORT_BENCH
 
 pytestmark = pytest.mark.paced  # (make test runs these alone: tests/realtime.py)
 
@@ -217,31 +218,17 @@ def test_the_motors_can_come_from_the_bridges_can_frames_over_slcan(tmp_path: Pa
         assert abs(mb["value"] - ml["value"]) <= table[mb["name"]]["tolerance"], mb["name"]
 
 
-ONE_CORE_SCENARIO = """[scenario]
-name = "a short check on one core"
-duration = 1.5
-[[timeline]]
-t = 1.0
-sticks = { arm = true, throttle = 0.0 }
-[[criteria]]
-name = "level"
-metric = "max"
-signal = "tilt"
-max = 5.0
-"""
-
-
 @pytest.mark.parametrize("mode", [["--bridge", "virtual"], ["--realtime"]], ids=["bridge", "realtime"])
 def test_a_paced_run_on_a_one_core_host_ends(tmp_path: Path, mode: list[str]) -> None:
     """Everything on one core: the paced loop (SCHED_FIFO), the virtual bridge, the keeper and the DUT.
     Once the run was over, the bench loop kept waking for the link's unread bytes, at a priority above
     the keeper's, so the keeper stopping the DUT never ran again and the run never ended. Whether the
     flight keeps pace on one core is not judged here: only that the run ends, with its result."""
-    (tmp_path / "one_core.toml").write_text(ONE_CORE_SCENARIO)
+    (tmp_path / "short_bench.toml").write_text(SHORT_BENCH)
     core = max(os.sched_getaffinity(0))
-    r = subprocess.run([sys.executable, "-m", "rig.cli", "run", *mode, str(tmp_path / "one_core.toml"),
+    r = subprocess.run([sys.executable, "-m", "rig.cli", "run", *mode, str(tmp_path / "short_bench.toml"),
                         "--out", str(tmp_path / "out")], capture_output=True, text=True, timeout=120,
                        preexec_fn=lambda: os.sched_setaffinity(0, {core}))
     assert r.returncode in (0, 1), r.stderr
-    result = json.loads((tmp_path / "out" / "one_core" / "result.json").read_text())
-    assert result["verdict"] in ("pass", "fail")
+    ended = json.loads((tmp_path / "out" / "short_bench" / "result.json").read_text())
+    assert ended["verdict"] in ("pass", "fail")

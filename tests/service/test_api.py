@@ -26,6 +26,7 @@ from typing import Any
 
 import pytest
 
+from tests.short_scenario import SHORT_BENCH
 from tests.waits import BOUND_S, pid_fifo, read_pid, wait_gone
 
 BLOCKED = Path(__file__).resolve().parent / "blocked_dut.py"
@@ -300,18 +301,7 @@ def test_uploads_are_checked_stored_once_and_run(service: Service, tmp_path: Pat
     assert service.call("POST", "/api/runs", unknown)[0] == 422
 
 
-SHORT = """[scenario]
-name = "a short bench check"
-duration = 2.5
-[[timeline]]
-t = 1.2
-sticks = { arm = true, throttle = 0.0 }
-[[criteria]]
-name = "level"
-metric = "max"
-signal = "tilt"
-max = 5.0
-"""
+SHORT = SHORT_BENCH
 
 
 def test_the_bench_is_leased_and_a_dead_holders_lease_expires(service: Service, tmp_path: Path) -> None:
