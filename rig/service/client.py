@@ -133,11 +133,12 @@ def cmd_submit(args: argparse.Namespace) -> int:
         print(run_id, flush=True)
         if not args.wait:
             return 0
-        seen, status = "", "queued"
+        seen, ask = "", ""
         while True:
-            # ``seen``: the server answers at once when the status is no longer the one last shown
-            run = call(args.server, "GET", f"/api/runs/{run_id}?wait=30&seen={status}", args.token)
-            status = run["status"]
+            # the first call does not wait (the run is shown as it is now); the later ones wait for a
+            # change from the status last shown (``seen``: one that came between two calls is not missed)
+            run = call(args.server, "GET", f"/api/runs/{run_id}{ask}", args.token)
+            ask = f"?wait=30&seen={run['status']}"
             if line(run) != seen:
                 seen = line(run)
                 print(seen, file=sys.stderr, flush=True)
