@@ -52,8 +52,8 @@ typedef chip_need (*advance_fn)(chip_board *, uint64_t);
 
 /* the PWM channels' settings, kept between duty writes (pwm_duty.c) */
 typedef struct {
-    long long changes;                  /* Handler.pwm_config_changes when they were read */
-    int valid_changes, checked;         /* changes read at all; read in this handle() call */
+    long long changes;                  /* Handler.pwm_config_changes when they were read (0 at first) */
+    int checked;                        /* changes read in this handle() call */
     int is_direct;                      /* World.direct_pwm */
     uint8_t known[RIG_PWM_MAX];         /* settings[i] read since the last change */
     long long settings[RIG_PWM_MAX][4]; /* exported, enabled, period_ns, inversed */

@@ -45,9 +45,9 @@ static int pwm_settings_current(fast_state *s)
     Py_DECREF(direct);
     if (is_direct < 0)
         return -1;
-    if (!c->valid_changes || changes != c->changes)
+    if (changes != c->changes) /* (the state starts zeroed: nothing known, as the handler's 0 says) */
         memset(c->known, 0, sizeof c->known);
-    c->changes = changes, c->valid_changes = 1, c->is_direct = is_direct, c->checked = 1;
+    c->changes = changes, c->is_direct = is_direct, c->checked = 1;
     return 1;
 }
 
