@@ -13,6 +13,8 @@ import pytest
 from plant import DEFAULT_FMU
 from rig import compiled
 
+pytest_plugins = ["tests.worker_deaths"]  # (why a pytest-xdist worker died, said in the log)
+
 compiled.install()  # (plant is not among the hot modules; nothing hot is imported before this)
 
 # A suite started in the background by a non-interactive shell (`make test &`, a CI step run so)
