@@ -117,13 +117,19 @@ def run_cycles(n: int) -> float:
     return (time.process_time() - c0) / n
 
 
-def _instructions(n: int) -> int:
-    env = {**os.environ, "PYTHONHASHSEED": "0", "OPENBLAS_NUM_THREADS": "1", "RIG_CYCLES": str(n)}
+def instructions(argv: list[str], env: dict[str, str]) -> int:
+    """The instructions Python running ``argv`` executes, counted by cachegrind (its own process only;
+    ASLR off, a fixed hash seed, OpenBLAS on one thread: see above)."""
+    env = {**os.environ, **env, "PYTHONHASHSEED": "0", "OPENBLAS_NUM_THREADS": "1"}
     cmd = ["setarch", "-R", "valgrind", "--tool=cachegrind", "--cache-sim=no",
-           "--cachegrind-out-file=/dev/null", sys.executable, __file__, "--child"]
+           "--cachegrind-out-file=/dev/null", sys.executable, *argv]
     done = subprocess.run(cmd, capture_output=True, text=True, env=env, check=True)
     line = next(x for x in done.stderr.splitlines() if "I   refs:" in x or "I refs:" in x)
     return int(line.split()[-1].replace(",", ""))
+
+
+def _instructions(n: int) -> int:
+    return instructions([__file__, "--child"], {"RIG_CYCLES": str(n)})
 
 
 def _by_part(n: int, parts: list[tuple[str, str]] | None) -> dict[str, float]:

@@ -145,6 +145,7 @@ class Session:
         self.page: SharedPage | None = None  # the clock page, made when the run starts
         self.handler: Handler | None = None
         self.fast: FastPath | None = None  # the per-cycle messages in C (rig/lockstep), lockstep only
+        self._pump_fd = -1  # the loop's epoll set, for FastPath.pump; -1 while none
         self._ptys: dict[str, _Pty] = {}
         self.in_flight: dict[int, int] = {}  # pty slave fd -> bytes readable once delivered
         self._unstamped = False  # a pty has bytes from the DUT that no request has stamped yet
@@ -259,6 +260,7 @@ class Session:
         wall0 = time.perf_counter()
         returncode: int | None = None
         self._running = True
+        self._pump_fd = sel.fileno() if isinstance(sel, selectors.EpollSelector) else -1
         try:
             (tmp / "fakes").mkdir()
             self.open_page(tmp / "shm")
@@ -290,6 +292,7 @@ class Session:
             returncode = self._loop(sel, listener, keeper, wall0)
         finally:
             self._running = False
+            self._pump_fd = -1
             self._rt_host.stop()
             for k in keepers:
                 k.finish()  # the DUT and everything it started are gone when this returns
@@ -429,22 +432,36 @@ class Session:
             conn.sock.close()
 
     def _on_readable(self, conn: _Conn, sel: selectors.BaseSelector) -> bool:
-        """Reads what the connection has and handles every whole message; True if any arrived."""
-        try:
-            chunk = conn.sock.recv(1 << 18, socket.MSG_DONTWAIT)
-        except BlockingIOError:
-            return False
-        except OSError:
-            chunk = b""
-        if not chunk:
-            self._drop(conn, sel)
-            return False
-        conn.buf += chunk
+        """Reads what the connection has and handles every whole message; True if any arrived.
+
+        While the fast path may act (below), it reads the connection itself and acts in C until this
+        loop is needed (FastPath.pump): a wake of this loop per message cost more than the message."""
         buf = conn.buf
+        fast, fd = self.fast, conn.sock.fileno()
+        got = -1
+        if fast is not None and conn.hello and self._pump_fd >= 0 \
+                and not (self.logging or self.in_flight or self._unstamped):
+            try:
+                got = fast.pump(fd, self._pump_fd, buf)
+            except Stop:
+                buf.clear()
+                return True
+            if got == 0:
+                return False
+        if got < 0:
+            try:
+                chunk = conn.sock.recv(1 << 18, socket.MSG_DONTWAIT)
+            except BlockingIOError:
+                return False
+            except OSError:
+                chunk = b""
+            if not chunk:
+                self._drop(conn, sel)
+                return False
+            buf += chunk
         size, off, end = P.HEADER.size, 0, len(buf)
         handler = self.handler
         assert handler is not None
-        fast, fd = self.fast, conn.sock.fileno()
         try:
             while end - off >= size:  # every whole message; what they took is cut off the buffer once
                 # the fast path acts on what it takes; never with a log to write, serial bytes to hand

@@ -38,8 +38,9 @@ REPO = HERE.parent.parent
 SHIM_DIR = REPO / "rig" / "shim"
 #: the module's source first; the headers it shares with the shim (the wire) and the chip core
 PLANT_C = REPO / "plant" / "c"
-SOURCES = (HERE / "fastpath.c", HERE / "imu_feed.c", HERE / "pwm_duty.c", SHIM_DIR / "protocol.h",
-           native.CHIPS_DIR / "chip_core.h", native.C_DIR / "need_tuple.h", PLANT_C / "plant_steps.c")
+SOURCES = (HERE / "fastpath.c", HERE / "imu_feed.c", HERE / "pwm_duty.c", HERE / "pump.c",
+           SHIM_DIR / "protocol.h", native.CHIPS_DIR / "chip_core.h", native.C_DIR / "need_tuple.h",
+           PLANT_C / "plant_steps.c")
 MODULE_NAME = "_riglockstep"
 LIB = BUILD / f"{MODULE_NAME}{EXTENSION_SUFFIX}"
 #: the environment variable that sends every message to the Python handler
@@ -78,6 +79,7 @@ class FastPath:
         world, sched, cfg = handler.world, handler.sched, handler.cfg
         chips = native.chips()
         self._handle = module().handle
+        self._pump = module().pump
         self._state = module().setup(
             world.advance_to, world.board.serve, world.pwm, sched.events, sched, handler.i2c_log, handler,
             handler.page.mmap, world.board.addr, _address(chips.chip_transfer), _address(chips.chip_advance),
@@ -102,6 +104,14 @@ class FastPath:
     def handle(self, fd: int, buf: bytearray, off: int) -> int:
         off_after: int = self._handle(self._state, fd, buf, off)
         return off_after
+
+    def pump(self, fd: int, epoll_fd: int, buf: bytearray) -> int:
+        """Reads connection ``fd`` and acts on its messages in C until something needs the session's loop
+        (pump.c: a message for the handler, another of ``epoll_fd``'s descriptors ready, its time budget
+        spent); what it did not act on is left in ``buf``. Returns the bytes it received, or -1 with
+        nothing done: the loop's own read takes over (the connection ended, or ``buf`` is too full)."""
+        got: int = self._pump(self._state, fd, epoll_fd, buf)
+        return got
 
 
 def _imu_in_c(state: object, world: World) -> bool:

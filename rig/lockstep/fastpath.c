@@ -84,6 +84,7 @@ typedef struct {
     uint64_t counts[3]; /* of those: I2C transfers, waits, PWM writes (the handler's counts add them) */
     pwm_cache pwm_seen; /* the channels' settings as last read (pwm_duty.c) */
     unsigned bus;
+    uint8_t *rx; /* pump()'s receive buffer, once it has run (pump.c) */
     uint8_t reply[REPLY_MAX];
 } fast_state;
 
@@ -109,6 +110,7 @@ static void state_free(PyObject *capsule)
     if (!s)
         return;
     imu_free(&s->imu);
+    PyMem_Free(s->rx);
     Py_XDECREF(s->world_advance);
     Py_XDECREF(s->serve);
     Py_XDECREF(s->pwm);
@@ -524,6 +526,40 @@ static int wait(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p
     return 1;
 }
 
+/* Acts on the whole messages in buf[off:end] for as long as each is one the fast path takes; *r: 1 when
+ * it stopped at the end of the whole messages, 0 at one for the Python handler, -1 at an error (raised).
+ * Returns the offset of the first message not acted on. */
+static Py_ssize_t handle_bytes(fast_state *s, int fd, const uint8_t *buf, Py_ssize_t off, Py_ssize_t end, int *r)
+{
+    uint64_t *counts = s->counts; /* transactions, waits, pwm_writes */
+    s->pwm_seen.checked = 0;      /* (the handler may have acted on PWM settings since the last call) */
+    *r = 1;
+    while (end - off >= (Py_ssize_t)sizeof(struct rig_hdr)) {
+        struct rig_hdr h;
+        memcpy(&h, buf + off, sizeof h);
+        if (h.len > RIG_MAX_PAYLOAD || (Py_ssize_t)(end - off - sizeof h) < (Py_ssize_t)h.len)
+            break;
+        const uint8_t *p = buf + off + sizeof h;
+        int k;
+        if (h.type == RIG_MSG_I2C)
+            k = i2c(s, fd, &h, p), counts[0] += k > 0;
+        else if (h.type == RIG_MSG_PWM)
+            k = pwm(s, &h, p), counts[2] += k > 0;
+        else if (h.type == RIG_MSG_WAIT)
+            k = wait(s, fd, &h, p), counts[1] += k > 0;
+        else
+            k = 0;
+        if (k <= 0) {
+            *r = k;
+            break;
+        }
+        s->handled++;
+        handled_total++;
+        off += (Py_ssize_t)(sizeof h + h.len);
+    }
+    return off;
+}
+
 /* handle(state, fd, buf, off) -> the offset of the first message not acted on (the end of the whole
  * messages, or one for the Python handler). buf: the connection's bytearray, unchanged. */
 static PyObject *fp_handle(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
@@ -538,35 +574,15 @@ static PyObject *fp_handle(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
         return NULL;
     if (!PyByteArray_Check(a[2]))
         return PyErr_Format(PyExc_TypeError, "handle takes the connection's bytearray");
-    const uint8_t *buf = (const uint8_t *)PyByteArray_AS_STRING(a[2]);
     Py_ssize_t end = PyByteArray_GET_SIZE(a[2]);
     if (off < 0 || off > end)
         return PyErr_Format(PyExc_ValueError, "handle: offset %zd outside the buffer", off);
-    uint64_t *counts = s->counts; /* transactions, waits, pwm_writes */
-    s->pwm_seen.checked = 0;      /* (the handler may have acted on PWM settings since the last call) */
-    int r = 1;
-    while (end - off >= (Py_ssize_t)sizeof(struct rig_hdr)) {
-        struct rig_hdr h;
-        memcpy(&h, buf + off, sizeof h);
-        if (h.len > RIG_MAX_PAYLOAD || (Py_ssize_t)(end - off - sizeof h) < (Py_ssize_t)h.len)
-            break;
-        const uint8_t *p = buf + off + sizeof h;
-        if (h.type == RIG_MSG_I2C)
-            r = i2c(s, fd, &h, p), counts[0] += r > 0;
-        else if (h.type == RIG_MSG_PWM)
-            r = pwm(s, &h, p), counts[2] += r > 0;
-        else if (h.type == RIG_MSG_WAIT)
-            r = wait(s, fd, &h, p), counts[1] += r > 0;
-        else
-            r = 0;
-        if (r <= 0)
-            break;
-        s->handled++;
-        handled_total++;
-        off += (Py_ssize_t)(sizeof h + h.len);
-    }
+    int r;
+    off = handle_bytes(s, fd, (const uint8_t *)PyByteArray_AS_STRING(a[2]), off, end, &r);
     return r < 0 ? NULL : PyLong_FromSsize_t(off);
 }
+
+#include "pump.c" /* pump(): the connection read and acted on in C while nothing else needs the session */
 
 /* handled(state) -> the messages acted on here so far; handled(None): by every session of the process */
 static PyObject *fp_handled(PyObject *self, PyObject *state)
@@ -595,6 +611,7 @@ static PyMethodDef methods[] = {
     { "setup_world", (PyCFunction)(void (*)(void))fp_setup_world, METH_FASTCALL, "the plant's steps in C" },
     { "setup_imu", (PyCFunction)(void (*)(void))fp_setup_imu, METH_FASTCALL, "the IMU's samples in C" },
     { "handle", (PyCFunction)(void (*)(void))fp_handle, METH_FASTCALL, "acts on the messages it takes" },
+    { "pump", (PyCFunction)(void (*)(void))fp_pump, METH_FASTCALL, "reads and acts on a connection" },
     { "handled", fp_handled, METH_O, "the messages acted on here so far" },
     { "counts", fp_counts, METH_O, "the I2C transfers, waits and PWM writes acted on here" },
     { NULL, NULL, 0, NULL },

@@ -81,3 +81,14 @@ def test_malformed_messages_are_reported_and_the_session_survives(tmp_path: Path
     assert "exceeds 65536" in reasons[2]
     assert run.stderr.count("malformed message") == 3
     assert log.read_text().count("malformed:") == 3
+
+
+def test_the_wall_time_watchdog_ends_a_dut_the_fast_path_keeps_busy(tmp_path: Path) -> None:
+    # every message is one the fast path takes in C (rig/lockstep/pump.c) and no event is scheduled: the
+    # loop's watchdogs still run, because pump hands back to the loop within its budget
+    forever = TOUCH_BUS + ("import time\nwhile True:\n"
+                           "    b.read_i2c_block_data(0x68, 0x3B, 14); time.sleep(0.0025)")
+    run = rig_exec(tmp_path, PY, "-c", forever, options=("--duration", "3600", "--wall-timeout", "1"))
+    assert run.returncode == EXIT_WATCHDOG, run.stderr
+    assert "wall-time watchdog" in run.stderr
+    assert run.summary["sim_time"] < 3600

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import ctypes
 import json
+import os
+import selectors
 import socket
 import struct
 from pathlib import Path
@@ -82,21 +84,40 @@ def _script() -> list[bytes]:
 
 
 def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_hz: int,
-         script: list[bytes] | None = None) -> dict[str, Any]:
+         script: list[bytes] | None = None, pump: bool = False) -> dict[str, Any]:
+    """The script through a session's _on_readable, a message at a time. ``pump``: with the loop's
+    epoll set, so the fast path reads the connection itself (FastPath.pump); a pipe that is always
+    readable beside it makes pump return as soon as the connection has nothing more."""
     monkeypatch.setenv(lockstep.PY_PATH_ENV, "1" if py_path else "0")
     cfg = SessionConfig(command=["true"], duration=100.0, i2c_clock_hz=clock_hz)
     session = Session(cfg, World.at_rest(seed=3))
-    session.open_page(tmp_path / f"shm-{py_path}-{clock_hz}")
+    session.open_page(tmp_path / f"shm-{py_path}-{clock_hz}-{pump}")
     assert (session.fast is None) == py_path
     assert session.fast is None or session.fast.imu_in_c  # the MPU's samples made in C too
     session.at(0.2, lambda s: s.world.set_input("wind_n", 2.0))  # an event between two cycles
     ours, dut = socket.socketpair()
     conn = _Conn(ours, 1)
     received = bytearray()
-    with ours, dut:
+    sel = selectors.EpollSelector()
+    pumped: list[int] = []  # what each pump call received
+    other_r, other_w = os.pipe()
+    os.write(other_w, b"x")
+    if pump:
+        sel.register(ours, selectors.EVENT_READ, conn)
+        sel.register(other_r, selectors.EVENT_READ, "other")
+        session._pump_fd = sel.fileno()
+        assert session.fast is not None
+        real_pump = session.fast.pump
+
+        def counted(*args: Any) -> int:
+            got = real_pump(*args)
+            pumped.append(got)
+            return got
+        monkeypatch.setattr(session.fast, "pump", counted)
+    with ours, dut, sel:
         for m in script if script is not None else _script():
             dut.sendall(m)
-            session._on_readable(conn, None)  # type: ignore[arg-type]  # (not registered: no selector)
+            session._on_readable(conn, sel)  # (conn is not among the session's: never dropped from sel)
             dut.setblocking(False)
             try:
                 while chunk := dut.recv(1 << 16):
@@ -104,6 +125,8 @@ def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_h
             except BlockingIOError:
                 pass
             dut.setblocking(True)
+    os.close(other_r)
+    os.close(other_w)
     handler = session.handler
     assert handler is not None and session.page is not None
     board = session.world.board
@@ -114,24 +137,47 @@ def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_h
             "why": list(session.malformed),
             "pwm": [(c.exported, c.period_ns, c.duty_ns, c.enabled, c.inversed) for c in session.world.pwm],
             "handled": session.fast.handled if session.fast else 0,
+            "pumped": sum(n for n in pumped if n > 0),
             # the chip core's whole state (its samples as float64, to the bit) and the IMU producer's
             "board": ctypes.string_at(board.addr, native.chips().rig_chip_board_size()),
             "block": sampler.block.tobytes(), "next_t": sampler.next_t}
 
 
 @pytest.mark.parametrize("clock_hz", [0, 400_000])
+@pytest.mark.parametrize("pump", [False, True])
 def test_the_fast_path_answers_as_the_handler_does(monkeypatch: pytest.MonkeyPatch, tmp_path: Path,
-                                                   clock_hz: int) -> None:
+                                                   clock_hz: int, pump: bool) -> None:
     py = _fly(monkeypatch, tmp_path, True, clock_hz)
-    fast = _fly(monkeypatch, tmp_path, False, clock_hz)
+    fast = _fly(monkeypatch, tmp_path, False, clock_hz, pump=pump)
     assert fast["handled"] > 300  # most of the 60 cycles' messages went through C
     assert py["handled"] == 0
     assert py["malformed"] == fast["malformed"] == 1
     statuses = {row[4] for row in py["log"]}
     assert {0, 6, 19, 71} <= statuses  # ok, ENXIO, ENODEV, EPROTO: each case was met
     for key in py:
-        if key != "handled":
+        if key not in ("handled", "pumped"):
             assert fast[key] == py[key], key
+    assert (fast["pumped"] > len(b"".join(_script())) // 2) == pump  # pump read most of it
+
+
+def test_pump_takes_messages_in_pieces_and_leaves_the_handlers(monkeypatch: pytest.MonkeyPatch,
+                                                               tmp_path: Path) -> None:
+    """Bytes split anywhere, several messages in one read, a message for the handler among them: the
+    DUT gets the same bytes as from the handler alone, and pump's reads covered every message."""
+    script = _script()
+    stream = b"".join(script)
+    cuts = [b"".join(script[:k]) for k in range(0, len(script), 5)]
+    # pieces: five messages at a time, each cut 3 bytes into the next
+    pieces = [stream[max(0, len(c) - 3):len(n) - 3] for c, n in zip(cuts, cuts[1:], strict=False)]
+    pieces.append(stream[len(cuts[-1]) - 3:])
+    assert b"".join(pieces) == stream
+    py = _fly(monkeypatch, tmp_path, True, 0)
+    pumped = _fly(monkeypatch, tmp_path, False, 0, script=pieces, pump=True)
+    assert pumped["handled"] > 300
+    assert pumped["pumped"] > len(stream) // 2
+    for key in py:
+        if key not in ("handled", "pumped"):
+            assert pumped[key] == py[key], key
 
 
 def test_the_world_moved(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
@@ -182,6 +228,15 @@ def test_the_entry_points_refuse_wrong_arguments(tmp_path: Path) -> None:
         m.handle(state, 0, b"", 0)
     with pytest.raises(ValueError, match="outside the buffer"):
         m.handle(state, 0, bytearray(4), 5)
+    with pytest.raises(TypeError, match="4 arguments"):
+        m.pump(state, 0)
+    with pytest.raises(TypeError, match="bytearray"):
+        m.pump(state, 0, 0, b"")
+    a, b = socket.socketpair()
+    with a, b:
+        b.close()  # the connection ended before anything came: the loop's own read takes it
+        buf = bytearray(b"abc")
+        assert m.pump(state, a.fileno(), -1, buf) == -1 and buf == b"abc"
 
 
 def _result(run_dir: Path) -> dict[str, Any]:

@@ -1,0 +1,122 @@
+/*
+ * pump(): a DUT connection read and acted on in C for as long as nothing needs the session's Python
+ * loop (included by fastpath.c, after handle_bytes).
+ *
+ * Why: in a lockstep flight the session wakes about twice per FC cycle for the DUT's next messages.
+ * Each wake through the Python loop (the selector, recv, the connection's buffer, the watchdogs' clock
+ * reads) cost about 20 k instructions: more than the fast path's own work on the messages it brought.
+ *
+ * How: buf's bytes (a partial message, usually none) move to a C buffer; then, for as long as the fast
+ * path takes every message, the connection is read, its whole messages are acted on, and when it has
+ * nothing more the session's own epoll set (epfd, the selector the loop waits on: level-triggered, so
+ * nothing it reports is lost to the loop) is waited on. pump returns, with the bytes not acted on put
+ * back in buf, when
+ *   - a message is one for the Python handler (the loop acts on it next, from buf);
+ *   - anything other than this connection is ready: the keeper, a pty, the listener, another connection;
+ *   - it has run for PUMP_BUDGET_NS (the loop's watchdogs), or nothing came in that time;
+ *   - the connection ended (the loop's own read sees that again, and drops it).
+ * A signal's Python handler runs in it (PyErr_CheckSignals), and an exception it raises comes out of
+ * pump, as one raised by the fast path does.
+ */
+#include <sys/epoll.h>
+#include <time.h>
+
+#define PUMP_RX (1 << 18) /* as the loop's own recv */
+#define PUMP_BUDGET_NS 20000000ull
+#define PUMP_EVENTS 8
+
+static uint64_t mono_ns(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (uint64_t)ts.tv_sec * 1000000000ull + (uint64_t)ts.tv_nsec;
+}
+
+/* buf = p[0:n] */
+static int give_back(PyObject *buf, const uint8_t *p, Py_ssize_t n)
+{
+    if (PyByteArray_Resize(buf, n) < 0)
+        return -1;
+    if (n)
+        memcpy(PyByteArray_AS_STRING(buf), p, (size_t)n);
+    return 0;
+}
+
+/* pump(state, fd, epfd, buf) -> the bytes received from fd; -1, with nothing done, when there is no
+ * room for them in C or the connection ended before anything came (the loop's own read takes it) */
+static PyObject *fp_pump(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 4)
+        return PyErr_Format(PyExc_TypeError, "pump takes 4 arguments (%zd given)", nargs);
+    fast_state *s = PyCapsule_GetPointer(a[0], "rig.lockstep");
+    int fd = (int)PyLong_AsLong(a[1]);
+    int epfd = (int)PyLong_AsLong(a[2]);
+    PyObject *buf = a[3];
+    if (!s || PyErr_Occurred())
+        return NULL;
+    if (!PyByteArray_Check(buf))
+        return PyErr_Format(PyExc_TypeError, "pump takes the connection's bytearray");
+    Py_ssize_t n = PyByteArray_GET_SIZE(buf);
+    if (n > PUMP_RX / 2)
+        return PyLong_FromLong(-1);
+    if (!s->rx && !(s->rx = PyMem_Malloc(PUMP_RX)))
+        return PyErr_NoMemory();
+    memcpy(s->rx, PyByteArray_AS_STRING(buf), (size_t)n);
+    if (PyByteArray_Resize(buf, 0) < 0)
+        return NULL;
+    Py_ssize_t got = 0;
+    const uint64_t until = mono_ns() + PUMP_BUDGET_NS;
+    for (;;) {
+        if (PyErr_CheckSignals() < 0)
+            goto fail;
+        ssize_t k = recv(fd, s->rx + n, (size_t)(PUMP_RX - n), MSG_DONTWAIT);
+        if (k > 0) {
+            got += k;
+            n += k;
+            int r;
+            Py_ssize_t off = handle_bytes(s, fd, s->rx, 0, n, &r);
+            if (r < 0) {
+                give_back(buf, s->rx + off, n - off);
+                return NULL;
+            }
+            memmove(s->rx, s->rx + off, (size_t)(n - off));
+            n -= off;
+            if (r == 0 || n > PUMP_RX / 2) /* one for the handler; or a message this large: the loop's */
+                break;
+            continue; /* more may be there already */
+        }
+        if (k < 0 && errno == EINTR)
+            continue;
+        if (k == 0 || (errno != EAGAIN && errno != EWOULDBLOCK)) {
+            /* the end: what came before it goes to the loop; nothing came: the loop reads the end */
+            if (give_back(buf, s->rx, n) < 0)
+                return NULL;
+            return PyLong_FromSsize_t(got ? got : -1);
+        }
+        uint64_t now = mono_ns();
+        if (now >= until)
+            break;
+        struct epoll_event ev[PUMP_EVENTS];
+        int ready, wait_ms = (int)((until - now + 999999) / 1000000);
+        PyThreadState *saved = PyEval_SaveThread(); /* (other Python threads run while it waits) */
+        ready = epoll_wait(epfd, ev, PUMP_EVENTS, wait_ms);
+        int wait_errno = errno;
+        PyEval_RestoreThread(saved);
+        if (ready < 0 && wait_errno == EINTR)
+            continue; /* (its Python handler runs at the top) */
+        if (ready <= 0)
+            break;
+        int others = 0;
+        for (int i = 0; i < ready; i++)
+            others |= ev[i].data.fd != fd;
+        if (others)
+            break;
+    }
+    if (give_back(buf, s->rx, n) < 0)
+        return NULL;
+    return PyLong_FromSsize_t(got);
+fail:
+    give_back(buf, s->rx, n);
+    return NULL;
+}
