@@ -7,9 +7,10 @@
  * reads) cost about 20 k instructions: more than the fast path's own work on the messages it brought.
  *
  * How: buf's bytes (a partial message, usually none) move to a C buffer; then, for as long as the fast
- * path takes every message, the connection is read, its whole messages are acted on, and when it has
- * nothing more the session's own epoll set (epfd, the selector the loop waits on: level-triggered, so
- * nothing it reports is lost to the loop) is waited on. pump returns, with the bytes not acted on put
+ * path takes every message, the connection is read and its whole messages are acted on, and before
+ * each next read the session's own epoll set is waited on (epfd, the selector the loop waits on:
+ * level-triggered, so nothing it reports is lost to the loop), as the loop would: a message of another
+ * connection that came meanwhile is not passed over for this one's. pump returns, with the bytes not acted on put
  * back in buf, when
  *   - a message is one for the Python handler (the loop acts on it next, from buf);
  *   - anything other than this connection is ready: the keeper, a pty, the listener, another connection;
@@ -67,9 +68,31 @@ static PyObject *fp_pump(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
         return NULL;
     Py_ssize_t got = 0;
     const uint64_t until = mono_ns() + PUMP_BUDGET_NS;
+    int readable = 1; /* the loop found fd readable: it is read before anything is waited on */
     for (;;) {
         if (PyErr_CheckSignals() < 0)
             goto fail;
+        if (!readable) { /* the loop's set first: another connection's message is not passed over */
+            uint64_t now = mono_ns();
+            if (now >= until)
+                break;
+            struct epoll_event ev[PUMP_EVENTS];
+            int ready, wait_ms = (int)((until - now + 999999) / 1000000);
+            PyThreadState *saved = PyEval_SaveThread(); /* (other Python threads run while it waits) */
+            ready = epoll_wait(epfd, ev, PUMP_EVENTS, wait_ms);
+            int wait_errno = errno;
+            PyEval_RestoreThread(saved);
+            if (ready < 0 && wait_errno == EINTR)
+                continue; /* (its Python handler runs at the top) */
+            if (ready <= 0)
+                break;
+            int others = 0;
+            for (int i = 0; i < ready; i++)
+                others |= ev[i].data.fd != fd;
+            if (others)
+                break;
+        }
+        readable = 0;
         ssize_t k = recv(fd, s->rx + n, (size_t)(PUMP_RX - n), MSG_DONTWAIT);
         if (k > 0) {
             got += k;
@@ -84,34 +107,14 @@ static PyObject *fp_pump(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
             n -= off;
             if (r == 0 || n > PUMP_RX / 2) /* one for the handler; or a message this large: the loop's */
                 break;
-            continue; /* more may be there already */
-        }
-        if (k < 0 && errno == EINTR)
             continue;
-        if (k == 0 || (errno != EAGAIN && errno != EWOULDBLOCK)) {
-            /* the end: what came before it goes to the loop; nothing came: the loop reads the end */
-            if (give_back(buf, s->rx, n) < 0)
-                return NULL;
-            return PyLong_FromSsize_t(got ? got : -1);
         }
-        uint64_t now = mono_ns();
-        if (now >= until)
-            break;
-        struct epoll_event ev[PUMP_EVENTS];
-        int ready, wait_ms = (int)((until - now + 999999) / 1000000);
-        PyThreadState *saved = PyEval_SaveThread(); /* (other Python threads run while it waits) */
-        ready = epoll_wait(epfd, ev, PUMP_EVENTS, wait_ms);
-        int wait_errno = errno;
-        PyEval_RestoreThread(saved);
-        if (ready < 0 && wait_errno == EINTR)
-            continue; /* (its Python handler runs at the top) */
-        if (ready <= 0)
-            break;
-        int others = 0;
-        for (int i = 0; i < ready; i++)
-            others |= ev[i].data.fd != fd;
-        if (others)
-            break;
+        if (k < 0 && (errno == EINTR || errno == EAGAIN || errno == EWOULDBLOCK))
+            continue;
+        /* the end: what came before it goes to the loop; nothing came: the loop reads the end itself */
+        if (give_back(buf, s->rx, n) < 0)
+            return NULL;
+        return PyLong_FromSsize_t(got ? got : -1);
     }
     if (give_back(buf, s->rx, n) < 0)
         return NULL;
