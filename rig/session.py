@@ -439,8 +439,7 @@ class Session:
         buf = conn.buf
         fast, fd = self.fast, conn.sock.fileno()
         got = -1
-        if fast is not None and conn.hello and self._pump_fd >= 0 \
-                and not (self.logging or self.in_flight or self._unstamped):
+        if fast is not None and conn.hello and self._pump_fd >= 0 and self._quiet():
             try:
                 got = fast.pump(fd, self._pump_fd, buf)
             except Stop:
@@ -464,10 +463,8 @@ class Session:
         assert handler is not None
         try:
             while end - off >= size:  # every whole message; what they took is cut off the buffer once
-                # the fast path acts on what it takes; never with a log to write, serial bytes to hand
-                # over or stamp (the handler's and the session's jobs), or before HELLO
-                quiet = not (self.logging or self.in_flight or self._unstamped)
-                if fast is not None and conn.hello and quiet:
+                # the fast path acts on what it takes; never before HELLO, nor unless quiet
+                if fast is not None and conn.hello and self._quiet():
                     off = fast.handle(fd, buf, off)
                     if end - off < size:
                         break
@@ -490,6 +487,11 @@ class Session:
             return True
         del buf[:off]
         return True
+
+    def _quiet(self) -> bool:
+        """Nothing for the handler or the session to do between messages: no log to write, no serial
+        bytes to hand over or stamp. Only then may the fast path act (and pump read) on its own."""
+        return not (self.logging or self.in_flight or self._unstamped)
 
     def send(self, conn: _Conn, data: bytes) -> None:
         """A reply to the DUT; what events wrote to its ports is readable before it runs again."""
