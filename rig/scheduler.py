@@ -112,26 +112,34 @@ class Scheduler:
                 self.fail(EXIT_WATCHDOG, f"sim-time watchdog: the command was still running after "
                                          f"{self.sim_timeout:g} s of sim time")
             raise Stop
-        events, world = self.events, self.world
+        events = self.events
         while events and events[0][0] <= t_ns:
-            te, _, fn = heapq.heappop(events)
-            if self._wall_now is not None:
-                self.lateness_ns.append(max(0, self._wall_now() - te))
-            te = max(te, world.time_ns)
-            world.advance_to(te)
-            self.event_output = False
-            self.event_ns = te
-            try:
-                fn(self.host)
-            except Exception as e:  # a scenario's event must not take the rig down; the run is void
-                self.fail(EXIT_RIG_ERROR, f"event at {fmt(te)} failed: {type(e).__name__}: {e}")
-                raise Stop from e
-            finally:
-                self.event_ns = None
+            te = self.run_next()
             if stop_on_output and self.event_output:
                 return te
-        world.advance_to(t_ns)
+        self.world.advance_to(t_ns)
         return t_ns
+
+    def run_next(self) -> int:
+        """Runs the first event, the world stepped to its time first; returns that time. One step of
+        advance(), and what the lockstep fast path calls for each event a wait crosses
+        (rig/lockstep/events.c), so an event runs alike whichever path reached it."""
+        te, _, fn = heapq.heappop(self.events)
+        if self._wall_now is not None:
+            self.lateness_ns.append(max(0, self._wall_now() - te))
+        world = self.world
+        te = max(te, world.time_ns)
+        world.advance_to(te)
+        self.event_output = False
+        self.event_ns = te
+        try:
+            fn(self.host)
+        except Exception as e:  # a scenario's event must not take the rig down; the run is void
+            self.fail(EXIT_RIG_ERROR, f"event at {fmt(te)} failed: {type(e).__name__}: {e}")
+            raise Stop from e
+        finally:
+            self.event_ns = None
+        return te
 
     def next_event_ns(self) -> int | None:
         """The next event's due time, or None: none is left, or the run is over (nothing runs any more;

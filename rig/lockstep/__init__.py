@@ -38,7 +38,7 @@ REPO = HERE.parent.parent
 SHIM_DIR = REPO / "rig" / "shim"
 #: the module's source first; the headers it shares with the shim (the wire) and the chip core
 PLANT_C = REPO / "plant" / "c"
-SOURCES = (HERE / "fastpath.c", HERE / "imu_feed.c", HERE / "pwm_duty.c", HERE / "pump.c",
+SOURCES = (HERE / "fastpath.c", HERE / "imu_feed.c", HERE / "pwm_duty.c", HERE / "pump.c", HERE / "events.c",
            SHIM_DIR / "protocol.h", native.CHIPS_DIR / "chip_core.h", native.C_DIR / "need_tuple.h",
            PLANT_C / "plant_steps.c")
 MODULE_NAME = "_riglockstep"
@@ -87,6 +87,8 @@ class FastPath:
         plant = world.plant
         module().setup_world(self._state, world, plant, world._hist, plant.u.ctypes.data,
                              world._u_pwm[:MOTORS], MOTORS, _STEP_CALLS)
+        session = handler.session
+        module().setup_events(self._state, sched.run_next, session.in_flight, session.deliver_serial)
         self.imu_in_c = _imu_in_c(self._state, world)
 
     @property

@@ -74,7 +74,8 @@ typedef struct {
     double *u;                      /* the plant's inputs (Plant.u) */
     int64_t u_pwm[RIG_PWM_MAX];     /* World._u_pwm: the input of motor channel i */
     Py_ssize_t motors;
-    PyObject *step_calls; /* plant.fmu._STEP_CALLS: a failed call's name */
+    PyObject *step_calls;                     /* plant.fmu._STEP_CALLS: a failed call's name */
+    PyObject *run_next, *in_flight, *deliver; /* the events a wait crosses (events.c) */
     Py_buffer page;
     chip_board *board;
     transfer_fn transfer;
@@ -122,6 +123,9 @@ static void state_free(PyObject *capsule)
     Py_XDECREF(s->plant);
     Py_XDECREF(s->hist);
     Py_XDECREF(s->step_calls);
+    Py_XDECREF(s->run_next);
+    Py_XDECREF(s->in_flight);
+    Py_XDECREF(s->deliver);
     if (s->page_obj) {
         PyBuffer_Release(&s->page);
         Py_DECREF(s->page_obj);
@@ -227,8 +231,9 @@ static PyObject *fp_setup_world(PyObject *self, PyObject *const *a, Py_ssize_t n
 /* ---- what the Python side keeps: events, the run's end ---- */
 
 /* 1: nothing the scheduler does stands between now and t (no event at or before t, the limit not
- * passed, the run not over); 0: the Python handler must act; -1: error */
-static int clear_until(fast_state *s, uint64_t t)
+ * passed, the run not over; with runs_events, events due are the caller's to run: events.c);
+ * 0: the Python handler must act; -1: error */
+static int clear_until(fast_state *s, uint64_t t, int runs_events)
 {
     if (t > s->limit_ns)
         return 0;
@@ -239,7 +244,7 @@ static int clear_until(fast_state *s, uint64_t t)
     Py_DECREF(over);
     if (is_over)
         return is_over < 0 ? -1 : 0;
-    if (PyList_GET_SIZE(s->events) == 0)
+    if ((runs_events && s->run_next) || PyList_GET_SIZE(s->events) == 0)
         return 1;
     PyObject *first = PyList_GET_ITEM(s->events, 0);
     if (!PyTuple_Check(first) || PyTuple_GET_SIZE(first) < 1)
@@ -397,7 +402,7 @@ static int i2c(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p)
     if (at != h->len)
         return 0;
     uint64_t now = *sim_ns(s), t = h->t_ns > now ? h->t_ns : now;
-    int clear = clear_until(s, t);
+    int clear = clear_until(s, t, 0);
     if (clear <= 0)
         return clear;
     /* acting from here on */
@@ -484,6 +489,7 @@ static int i2c(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p)
     return 1;
 }
 
+#include "events.c"
 #include "pwm_duty.c"
 
 static int wait(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p)
@@ -495,14 +501,18 @@ static int wait(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p
     if (h->len != sizeof m)
         return 0;
     memcpy(&m, p, sizeof m);
-    if (m.kind == RIG_WAIT_AHEAD) {
+    uint64_t woke;
+    if (m.kind == RIG_WAIT_AHEAD) { /* Handler._wait's notice: the world caught up, no reply */
         if (m.wake == RIG_WAIT_FOREVER)
             return 0;
         uint64_t target = m.wake > h->t_ns ? m.wake : h->t_ns;
-        int clear = clear_until(s, target);
+        int clear = clear_until(s, target, 1);
         if (clear <= 0)
             return clear;
-        return world_to(s, target) < 0 ? -1 : 1;
+        s->counts[1]++;
+        if (run_due(s, target, 0, &woke) < 0 || world_to(s, target) < 0)
+            return -1;
+        return deliver_written(s) < 0 ? -1 : 1;
     }
     if (m.kind != RIG_WAIT_SLEEP && m.kind != RIG_WAIT_POLL)
         return 0;
@@ -514,12 +524,20 @@ static int wait(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p
             return 0;
         target = t + FOREVER_SLICE_NS, reason = RIG_WAKE_SLICE;
     }
-    int clear = clear_until(s, target);
+    int clear = clear_until(s, target, 1);
     if (clear <= 0)
         return clear;
-    if (world_to(s, target) < 0)
+    /* acting from here on: Handler._wait */
+    s->counts[1]++;
+    if (run_due(s, target, m.kind == RIG_WAIT_POLL, &woke) < 0)
+        return -1;
+    if (woke < target)
+        target = woke, reason = RIG_WAKE_EVENT; /* (the world is at the event's time) */
+    else if (world_to(s, target) < 0)
         return -1;
     page_set(s, target);
+    if (deliver_written(s) < 0)
+        return -1;
     put_hdr(s->reply, sizeof reason, RIG_MSG_WAIT, 0, target);
     memcpy(s->reply + sizeof(struct rig_hdr), &reason, sizeof reason);
     send_all(fd, s->reply, sizeof(struct rig_hdr) + sizeof reason);
@@ -546,7 +564,7 @@ static Py_ssize_t handle_bytes(fast_state *s, int fd, const uint8_t *buf, Py_ssi
         else if (h.type == RIG_MSG_PWM)
             k = pwm(s, &h, p), counts[2] += k > 0;
         else if (h.type == RIG_MSG_WAIT)
-            k = wait(s, fd, &h, p), counts[1] += k > 0;
+            k = wait(s, fd, &h, p); /* (it counts the waits it takes: an event may end one with Stop) */
         else
             k = 0;
         if (k <= 0) {
@@ -610,6 +628,7 @@ static PyMethodDef methods[] = {
     { "setup", (PyCFunction)(void (*)(void))fp_setup, METH_FASTCALL, "the fast path's state for a session" },
     { "setup_world", (PyCFunction)(void (*)(void))fp_setup_world, METH_FASTCALL, "the plant's steps in C" },
     { "setup_imu", (PyCFunction)(void (*)(void))fp_setup_imu, METH_FASTCALL, "the IMU's samples in C" },
+    { "setup_events", (PyCFunction)(void (*)(void))fp_setup_events, METH_FASTCALL, "the events waits cross" },
     { "handle", (PyCFunction)(void (*)(void))fp_handle, METH_FASTCALL, "acts on the messages it takes" },
     { "pump", (PyCFunction)(void (*)(void))fp_pump, METH_FASTCALL, "reads and acts on a connection" },
     { "handled", fp_handled, METH_O, "the messages acted on here so far" },

@@ -78,7 +78,7 @@ static int pwm(fast_state *s, const struct rig_hdr *h, const uint8_t *p)
     if (m.chip != 0 || m.attr != RIG_PWM_DUTY || m.channel >= PyList_GET_SIZE(s->pwm) || m.channel >= RIG_PWM_MAX ||
         m.value > INT64_MAX)
         return 0;
-    int clear = clear_until(s, h->t_ns);
+    int clear = clear_until(s, h->t_ns, 0);
     if (clear <= 0)
         return clear;
     /* PwmChannel.pulse_us with the new duty, its settings known before anything moves */

@@ -11,6 +11,7 @@ import os
 import selectors
 import socket
 import struct
+import tty
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +20,7 @@ import pytest
 import rig.protocol as P
 from emulators import native
 from rig import lockstep
-from rig.session import Session, SessionConfig, _Conn
+from rig.session import Session, SessionConfig, _Conn, _Pty
 from rig.world import World
 
 CYCLE_NS = 4_000_000
@@ -83,11 +84,46 @@ def _script() -> list[bytes]:
     return out
 
 
+RC = "/dev/ttyRC0"
+
+
+def _ticking(session: Session, fail_at: float | None) -> list[tuple[Any, ...]]:
+    """Events as a flight has them: a recorder at 100 Hz (what it saw: the event's time, the world's, the
+    clock's, the plant), frames to the DUT's serial port every 7 ms (a polling wait wakes at each), and
+    with ``fail_at``, an event that raises then (the run ends with the rig's error)."""
+    seen: list[tuple[Any, ...]] = []
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    os.set_blocking(master, False)
+    os.set_blocking(slave, False)
+    session._ptys[RC] = _Pty(RC, master, slave)
+
+    def record(s: Session, k: int) -> None:
+        assert s.page is not None
+        seen.append((s.now_ns, s.world.time_ns, s.page.now(), tuple(s.world.outputs().values())))
+        s.at((k + 1) * 0.01 + 0.0013, lambda s: record(s, k + 1))
+
+    def frame(s: Session, k: int) -> None:
+        s.serial_write(RC, bytes([k % 256]) * 25)
+        s.at((k + 1) * 0.007, lambda s: frame(s, k + 1))
+
+    def fail(s: Session) -> None:
+        raise RuntimeError("a scenario's event went wrong")
+
+    session.at(0.0013, lambda s: record(s, 0))
+    session.at(0.0, lambda s: frame(s, 0))
+    if fail_at is not None:
+        session.at(fail_at, fail)
+    return seen
+
+
 def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_hz: int,
-         script: list[bytes] | None = None, pump: bool = False) -> dict[str, Any]:
+         script: list[bytes] | None = None, pump: bool = False, events: bool = False,
+         fail_at: float | None = None) -> dict[str, Any]:
     """The script through a session's _on_readable, a message at a time. ``pump``: with the loop's
     epoll set, so the fast path reads the connection itself (FastPath.pump); a pipe that is always
-    readable beside it makes pump return as soon as the connection has nothing more."""
+    readable beside it makes pump return as soon as the connection has nothing more. ``events``: the
+    events of ``_ticking`` too, and the bytes they wrote to the DUT's port are returned."""
     monkeypatch.setenv(lockstep.PY_PATH_ENV, "1" if py_path else "0")
     cfg = SessionConfig(command=["true"], duration=100.0, i2c_clock_hz=clock_hz)
     session = Session(cfg, World.at_rest(seed=3))
@@ -95,6 +131,7 @@ def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_h
     assert (session.fast is None) == py_path
     assert session.fast is None or session.fast.imu_in_c  # the MPU's samples made in C too
     session.at(0.2, lambda s: s.world.set_input("wind_n", 2.0))  # an event between two cycles
+    seen = _ticking(session, fail_at) if events else []
     ours, dut = socket.socketpair()
     conn = _Conn(ours, 1)
     received = bytearray()
@@ -127,6 +164,14 @@ def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_h
             dut.setblocking(True)
     os.close(other_r)
     os.close(other_w)
+    serial = b""
+    for pty in session._ptys.values():
+        try:
+            serial = os.read(pty.slave, 1 << 16)
+        except BlockingIOError:
+            pass
+        os.close(pty.master)
+        os.close(pty.slave)
     handler = session.handler
     assert handler is not None and session.page is not None
     board = session.world.board
@@ -137,6 +182,8 @@ def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_h
             "why": list(session.malformed),
             "pwm": [(c.exported, c.period_ns, c.duty_ns, c.enabled, c.inversed) for c in session.world.pwm],
             "handled": session.fast.handled if session.fast else 0,
+            "fast_waits": session.fast.counts[1] if session.fast else 0,
+            "events": seen, "serial": serial, "error": session.sched.error,
             "pumped": sum(n for n in pumped if n > 0),
             # the chip core's whole state (its samples as float64, to the bit) and the IMU producer's
             "board": ctypes.string_at(board.addr, native.chips().rig_chip_board_size()),
@@ -154,9 +201,7 @@ def test_the_fast_path_answers_as_the_handler_does(monkeypatch: pytest.MonkeyPat
     assert py["malformed"] == fast["malformed"] == 1
     statuses = {row[4] for row in py["log"]}
     assert {0, 6, 19, 71} <= statuses  # ok, ENXIO, ENODEV, EPROTO: each case was met
-    for key in py:
-        if key not in ("handled", "pumped"):
-            assert fast[key] == py[key], key
+    _same(py, fast)
     assert (fast["pumped"] > len(b"".join(_script())) // 2) == pump  # pump read most of it
 
 
@@ -175,9 +220,47 @@ def test_pump_takes_messages_in_pieces_and_leaves_the_handlers(monkeypatch: pyte
     pumped = _fly(monkeypatch, tmp_path, False, 0, script=pieces, pump=True)
     assert pumped["handled"] > 300
     assert pumped["pumped"] > len(stream) // 2
+    _same(py, pumped)
+
+
+def _wake_reasons(replies: bytes) -> list[int]:
+    """Why each WAIT reply woke the DUT, from the bytes it received."""
+    reasons, off = [], 0
+    while off < len(replies):
+        length, mtype, _, _ = P.HEADER.unpack_from(replies, off)
+        if mtype == P.MSG_WAIT:
+            reasons.append(struct.unpack_from("<I", replies, off + P.HEADER.size)[0])
+        off += P.HEADER.size + length
+    return reasons
+
+
+def _same(py: dict[str, Any], fast: dict[str, Any]) -> None:
     for key in py:
-        if key not in ("handled", "pumped"):
-            assert pumped[key] == py[key], key
+        if key not in ("handled", "pumped", "fast_waits"):
+            assert fast[key] == py[key], key
+
+
+@pytest.mark.parametrize("pump", [False, True])
+def test_events_a_wait_crosses_run_as_the_handler_runs_them(monkeypatch: pytest.MonkeyPatch,
+                                                            tmp_path: Path, pump: bool) -> None:
+    """A recorder and serial frames in sim time, as in a flight: the waits that cross them stay the fast
+    path's (every one of the 60), and the events see, and the DUT gets, what they do from the handler:
+    the same times, the same world, the same frames, a polling wait woken at the same frame."""
+    py = _fly(monkeypatch, tmp_path, True, 0, events=True)
+    fast = _fly(monkeypatch, tmp_path, False, 0, events=True, pump=pump)
+    assert len(py["events"]) > 30 and len(py["serial"]) > 25 * 40 and py["error"] is None
+    assert P.WAKE_EVENT in _wake_reasons(py["received"])  # a polling wait woke at a frame
+    _same(py, fast)
+    assert fast["fast_waits"] == 60
+
+
+def test_an_event_that_fails_in_a_fast_wait_ends_the_run_as_in_the_handler(monkeypatch: pytest.MonkeyPatch,
+                                                                          tmp_path: Path) -> None:
+    py = _fly(monkeypatch, tmp_path, True, 0, events=True, fail_at=0.1)
+    fast = _fly(monkeypatch, tmp_path, False, 0, events=True, fail_at=0.1, pump=True)
+    assert py["error"] is not None and "a scenario's event went wrong" in py["error"][1]
+    _same(py, fast)
+    assert py["counts"][1] < 30  # the run ended at 0.1 s: the waits after it were not answered
 
 
 def test_the_world_moved(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
@@ -230,6 +313,10 @@ def test_the_entry_points_refuse_wrong_arguments(tmp_path: Path) -> None:
         m.handle(state, 0, bytearray(4), 5)
     with pytest.raises(TypeError, match="4 arguments"):
         m.pump(state, 0)
+    with pytest.raises(TypeError, match="4 arguments"):
+        m.setup_events(state)
+    with pytest.raises(TypeError, match="run_next, a dict and deliver"):
+        m.setup_events(state, print, [], print)
     with pytest.raises(TypeError, match="bytearray"):
         m.pump(state, 0, 0, b"")
     a, b = socket.socketpair()

@@ -1,0 +1,99 @@
+/* The scheduled events a lockstep wait crosses, run from the fast path (included by fastpath.c).
+ *
+ * Why: the recorder and the wind tick at 100 Hz and the sticks' SBUS frames at about 70 Hz, so about
+ * every other FC cycle's wait crosses an event. Declined to the Python handler, such a wait cost about
+ * 28 k instructions more than the event's own work (parsed, dispatched, the world stepped and the reply
+ * built in Python): a fifth of a whole flight's cost per FC cycle (bench/run_instructions.py).
+ *
+ * How: a wait the fast path takes runs the events due before its time as Scheduler.advance does, one
+ * Scheduler.run_next each (the same Python step, so an event runs alike on both paths), the world stepped
+ * to each event's time here first, in C, so that run_next's own step finds nothing left to do. A polling
+ * wait ends at the first event that wrote to the DUT, as Scheduler.advance(stop_on_output) ends it. What
+ * the events wrote to the DUT's ports is handed over (Session.deliver_serial) before the DUT runs again.
+ * A wait with an event due is taken only once it is checked completely: once an event has run, the wait
+ * is the fast path's to finish, and nothing is left for the handler to do again.
+ */
+
+static PyObject *s_event_output;
+
+/* 1 when the first event is due at or before t, 0 when none is; -1: error (raised) */
+static int next_due(fast_state *s, uint64_t t)
+{
+    if (PyList_GET_SIZE(s->events) == 0)
+        return 0;
+    PyObject *first = PyList_GET_ITEM(s->events, 0);
+    if (!PyTuple_Check(first) || PyTuple_GET_SIZE(first) < 1) {
+        PyErr_SetString(PyExc_TypeError, "the scheduler's events are (t_ns, seq, fn) tuples");
+        return -1;
+    }
+    int overflow = 0;
+    long long v = PyLong_AsLongLongAndOverflow(PyTuple_GET_ITEM(first, 0), &overflow);
+    if (v == -1 && PyErr_Occurred())
+        return -1;
+    if (overflow)
+        return overflow < 0;
+    return v <= 0 || (uint64_t)v <= t;
+}
+
+/* Scheduler.advance's events up to t (the world is not moved to t itself). With stop_on_output, the
+ * first event that wrote to the DUT ends it: *woke is its time. 1: done; -1: error (an event's Stop) */
+static int run_due(fast_state *s, uint64_t t, int stop_on_output, uint64_t *woke)
+{
+    int due;
+    *woke = t;
+    while ((due = next_due(s, t)) > 0) {
+        long long v = PyLong_AsLongLong(PyTuple_GET_ITEM(PyList_GET_ITEM(s->events, 0), 0));
+        if (v > 0 && world_to(s, (uint64_t)v) < 0) /* (PyLong_AsLongLong: known to fit, above) */
+            return -1;
+        PyObject *te = PyObject_CallNoArgs(s->run_next);
+        if (!te)
+            return -1;
+        unsigned long long when = PyLong_AsUnsignedLongLong(te);
+        Py_DECREF(te);
+        if (when == (unsigned long long)-1 && PyErr_Occurred())
+            return -1;
+        if (stop_on_output) {
+            PyObject *out = PyObject_GetAttr(s->sched, s_event_output);
+            int wrote = out ? PyObject_IsTrue(out) : -1;
+            Py_XDECREF(out);
+            if (wrote < 0)
+                return -1;
+            if (wrote) {
+                *woke = when;
+                return 1;
+            }
+        }
+    }
+    return due < 0 ? -1 : 1;
+}
+
+/* Session.deliver_serial, when the events wrote to the DUT's ports: readable before it runs again */
+static int deliver_written(fast_state *s)
+{
+    if (!s->in_flight || PyDict_GET_SIZE(s->in_flight) == 0)
+        return 0;
+    PyObject *r = PyObject_CallNoArgs(s->deliver);
+    Py_XDECREF(r);
+    return r ? 0 : -1;
+}
+
+/* setup_events(state, run_next, in_flight, deliver): the events a wait crosses run here from now on */
+static PyObject *fp_setup_events(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 4)
+        return PyErr_Format(PyExc_TypeError, "setup_events takes 4 arguments (%zd given)", nargs);
+    fast_state *s = PyCapsule_GetPointer(a[0], "rig.lockstep");
+    if (!s)
+        return NULL;
+    if (!PyCallable_Check(a[1]) || !PyDict_Check(a[2]) || !PyCallable_Check(a[3]))
+        return PyErr_Format(PyExc_TypeError, "setup_events: run_next, a dict and deliver");
+    if (!s_event_output && !(s_event_output = PyUnicode_InternFromString("event_output")))
+        return NULL;
+    PyObject **refs[] = { &s->run_next, &s->in_flight, &s->deliver };
+    for (int i = 0; i < 3; i++) {
+        Py_INCREF(a[i + 1]);
+        Py_XSETREF(*refs[i], a[i + 1]);
+    }
+    Py_RETURN_NONE;
+}
