@@ -157,7 +157,11 @@ class Plant:
         self.u_index = {n: i for i, n in enumerate(self.input_names)}
         self.y_index = {n: i for i, n in enumerate(self.output_names)}
         self._on_ground_vr = (c_uint * 1)(self.variables["on_ground"].valueReference)
-        self._bool_buf = (c_int * 1)()
+        from plant.steps import get_boolean  # (here: `python -m plant.steps` must not import itself first)
+
+        self._get_boolean = get_boolean()
+        self._get_boolean_at = ctypes.cast(self._get_int["Boolean"], c_void_p).value or 0
+        self._component_at = self._component.value or 0
         self._steps: _Steps | None = None  # for step_many, made on first use
         self._ring: np.ndarray | None = None
 
@@ -267,9 +271,11 @@ class Plant:
 
     @property
     def on_ground(self) -> bool:
-        status = self._get_int["Boolean"](self._component, self._on_ground_vr, 1, self._bool_buf)
-        self._check("reading on_ground", status)
-        return bool(self._bool_buf[0])
+        """(The recorder reads it at 100 Hz: through plant/steps.py's get_boolean, not ctypes.)"""
+        got = self._get_boolean(self._get_boolean_at, self._component_at, self._on_ground_vr[0])
+        if got < 0:
+            self._check("reading on_ground", -got)
+        return got == 1
 
     # ---- fast path ---------------------------------------------------------------------------
 

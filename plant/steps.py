@@ -8,6 +8,7 @@ import functools
 import sys
 from collections.abc import Callable
 from pathlib import Path
+from types import ModuleType
 
 from plant.native_build import (
     BUILD,
@@ -29,12 +30,22 @@ def build() -> Path:
 
 
 @functools.cache
-def plant_steps() -> Callable[[int, int, float, int, int], int]:
-    """``plant_steps(steps_address, n, h, write_inputs, first_row) -> steps completed``."""
+def _module() -> ModuleType:
     if is_stale(LIB, SOURCES):
         build()
-    steps: Callable[[int, int, float, int, int], int] = load_extension(MODULE_NAME, LIB).plant_steps
+    return load_extension(MODULE_NAME, LIB)
+
+
+def plant_steps() -> Callable[[int, int, float, int, int], int]:
+    """``plant_steps(steps_address, n, h, write_inputs, first_row) -> steps completed``."""
+    steps: Callable[[int, int, float, int, int], int] = _module().plant_steps
     return steps
+
+
+def get_boolean() -> Callable[[int, int, int], int]:
+    """``get_boolean(fmi2GetBoolean_address, component, vr) -> 0 or 1``, or minus a failed call's status."""
+    fn: Callable[[int, int, int], int] = _module().get_boolean
+    return fn
 
 
 if __name__ == "__main__":

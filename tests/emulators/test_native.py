@@ -68,3 +68,30 @@ def test_the_plant_steps_refuse_wrong_arguments_with_a_clear_error() -> None:
         plant_steps()()  # type: ignore[call-arg]
     with pytest.raises(TypeError):
         plant_steps()(0, 1, "a step", 1, 0)  # type: ignore[arg-type]
+    from plant.steps import get_boolean
+
+    with pytest.raises(TypeError, match="get_boolean takes 3 arguments \\(1 given\\)"):
+        get_boolean()(0)  # type: ignore[call-arg]
+    with pytest.raises(ValueError, match="a function and a component"):
+        get_boolean()(0, 0, 1)
+
+
+def test_on_ground_read_in_c_is_the_fmus_own_answer() -> None:
+    """The plant's on_ground (read through _plantsteps.get_boolean) against fmi2GetBoolean through
+    ctypes, at rest and in the air."""
+    import ctypes
+
+    from plant.fmu import Plant
+
+    plant = Plant()
+    out = (ctypes.c_int * 1)()
+
+    def by_ctypes() -> bool:
+        assert plant._get_int["Boolean"](plant._component, plant._on_ground_vr, 1, out) == 0
+        return bool(out[0])
+
+    assert plant.on_ground and by_ctypes()
+    for name in ("pwm1_us", "pwm2_us", "pwm3_us", "pwm4_us"):
+        plant.u[plant.u_index[name]] = 2000.0
+    plant.run(0.5, 0.001)
+    assert not plant.on_ground and not by_ctypes()
