@@ -490,8 +490,10 @@ class Session:
 
     def _quiet(self) -> bool:
         """Nothing for the handler or the session to do between messages: no log to write, no serial
-        bytes to hand over or stamp. Only then may the fast path act (and pump read) on its own."""
-        return not (self.logging or self.in_flight or self._unstamped)
+        bytes to hand over. Only then may the fast path act (and pump read) on its own. (What the DUT
+        wrote and the loop has read may wait for its stamp: the stamp's time is only the log's, and
+        the handler's next request, serial_output and the run's end all take it into ``received``.)"""
+        return not (self.logging or self.in_flight)
 
     def send(self, conn: _Conn, data: bytes) -> None:
         """A reply to the DUT; what events wrote to its ports is readable before it runs again."""
