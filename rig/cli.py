@@ -6,14 +6,16 @@ import argparse
 import os
 import sys
 
-from rig import __version__, compiled
+from rig import __version__, compiled, scratch
 
 EXIT_BROKEN_PIPE = 128 + 13  # as a shell reports a command ended by SIGPIPE
 
 
 def main(argv: list[str] | None = None) -> int:
     """Runs one command. A reader that goes away early (``rig list | head``) ends it quietly, as it
-    ends other Unix commands, instead of with a BrokenPipeError traceback."""
+    ends other Unix commands, instead of with a BrokenPipeError traceback. First, the temporary
+    folders of rigs that were killed without cleaning up go (rig/scratch.py)."""
+    scratch.reap()
     try:
         code = _dispatch(argv)
         sys.stdout.flush()  # (here, not at exit, where the error could only be printed)

@@ -14,7 +14,6 @@ import dataclasses
 import datetime
 import math
 import socket
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Final
@@ -24,7 +23,7 @@ import numpy as np
 from emulators.faults import Fault, fault_sets
 from emulators.sensor_models import Normals
 from plant.variables import MOTORS
-from rig import __version__
+from rig import __version__, scratch
 from rig.host import Host
 from rig.rc import StickEmulator
 from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, Target
@@ -213,7 +212,7 @@ def run(
     if target is None:
         target = ProcessTarget()
     if work_dir is None:
-        with tempfile.TemporaryDirectory(prefix="rig-run-") as tmp:
+        with scratch.folder("run") as tmp:
             return run(scenario, target, seed, Path(tmp), wall_timeout, stall_timeout)
     work = Path(work_dir)
     work.mkdir(parents=True, exist_ok=True)

@@ -25,7 +25,6 @@ import selectors
 import shutil
 import socket
 import subprocess
-import tempfile
 import termios
 import time
 import tty
@@ -34,7 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Final
 
-from rig import interrupts
+from rig import interrupts, scratch
 from rig import protocol as P
 from rig.handler import Handler
 from rig.lockstep import FastPath, attach
@@ -249,7 +248,7 @@ class Session:
 
         shim = cfg.shim_path or ensure_shim()
         keeper_path = ensure_keeper()
-        tmp = Path(tempfile.mkdtemp(prefix="rig-session-"))
+        tmp = scratch.make("session")
         old_affinity = os.sched_getaffinity(0)
         # (a list, not an Optional: compiled by mypyc, a local narrowed to _Keeper in the try is checked
         # as one in the finally, and an error before it was set became a TypeError that hid the error)

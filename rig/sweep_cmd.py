@@ -16,13 +16,12 @@ import os
 import shlex
 import shutil
 import sys
-import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from rig import interrupts
+from rig import interrupts, scratch
 from rig.run_cmd import LIBRARY, ReportFolder, UsageError, seconds_option
 
 EXIT_FAIL, EXIT_USAGE, EXIT_ERROR = 1, 2, 3
@@ -140,7 +139,7 @@ def _sweep(sweep: Any, args: argparse.Namespace, dut: list[str] | None) -> int:
         )
     store.write_dut(out, ident)
     local = not (args.engine or os.environ.get(ENV))
-    tmp = tempfile.mkdtemp(prefix="rig-sweep-") if local else None
+    tmp = str(scratch.make("sweep")) if local else None
     flown_by = {k: ident[k] for k in store.DUT_KEYS}
     todo = [
         Task(v, str(sweep.scenario_path), str(out), dut, args.wall_timeout, tmp, **flown_by)

@@ -21,7 +21,6 @@ import math
 import os
 import selectors
 import shutil
-import tempfile
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -31,7 +30,7 @@ from typing import IO, Final
 from emulators import sbus
 from emulators.faults import BUS_TARGETS, KINDS, TARGETS, FaultSet
 from plant.variables import MOTORS
-from rig import interrupts
+from rig import interrupts, scratch
 from rig.bridge.can_capture import VBRIDGE_CHANNEL, CanPulses, parse
 from rig.bridge.esc import esc_protocol
 from rig.bridge.port import BridgeError, BridgePort, bridge_id
@@ -186,7 +185,7 @@ class BenchSession:
     def run(self) -> Outcome:
         cfg = self.cfg
         wall0 = time.perf_counter()
-        tmp = Path(tempfile.mkdtemp(prefix="rig-bench-"))
+        tmp = scratch.make("bench")
         vbridge: VirtualBridge | None = None
         keeper: _Keeper | None = None
         # not epoll: epoll_wait counts its timeout in whole milliseconds, which made every event due

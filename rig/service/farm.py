@@ -26,13 +26,13 @@ import socket
 import subprocess
 import sys
 import tarfile
-import tempfile
 import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final
 
+from rig import scratch
 from rig.service.db import Db
 from rig.service.store import SWEEP_SPEC, Store
 from rig.service.worker import (
@@ -95,7 +95,7 @@ def dataset(run_id: int) -> str:
 def fly(job: Job) -> dict[str, Any]:
     """On a worker: the run in a temporary folder of this host, its folder back as a tar archive (its
     inputs left out). Its exit status as rig run's."""
-    with tempfile.TemporaryDirectory(prefix="rig-farm-") as tmp:
+    with scratch.folder("farm") as tmp:
         out = Path(tmp) / "run"
         out.mkdir()
         for rel, data in job.files.items():
