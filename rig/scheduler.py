@@ -19,6 +19,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Final
 
+from rig import interrupts
 from rig import protocol as P
 from rig.world import World
 
@@ -134,6 +135,8 @@ class Scheduler:
         self.event_ns = te
         try:
             fn(self.host)
+        except interrupts.Interrupted:  # a signal that stops the rig, not the event's fault: the
+            raise                       # session ends the run as interrupted (rig/interrupts.py)
         except Exception as e:  # a scenario's event must not take the rig down; the run is void
             self.fail(EXIT_RIG_ERROR, f"event at {fmt(te)} failed: {type(e).__name__}: {e}")
             raise Stop from e

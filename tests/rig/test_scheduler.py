@@ -4,12 +4,14 @@ tested only by spawning a program."""
 
 from __future__ import annotations
 
+import os
 import signal
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
+from rig import interrupts
 from rig import protocol as P
 from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, SharedPage, Stop
 from rig.world import World
@@ -72,6 +74,17 @@ def test_the_duration_ends_the_run_well_and_the_timeout_as_a_watchdog(world: Wor
         assert "sim-time watchdog" in timed.error[1]
     finally:
         w2.close()
+
+
+def test_a_signal_during_an_event_interrupts_the_run_and_is_not_the_events_failure(world: World) -> None:
+    """SIGTERM while an event runs (inside the session's loop, where a signal raises at once): the run
+    is interrupted, as a signal between events interrupts it, not voided as an event that failed."""
+    sched = Scheduler(world, Host(), duration=10.0, sim_timeout=600.0)
+    sched.at(0.25, lambda host: os.kill(os.getpid(), signal.SIGTERM))
+    with interrupts.handled(), interrupts.live(), pytest.raises(interrupts.Interrupted) as got:
+        sched.advance(1 * NS)
+    assert got.value.signum == signal.SIGTERM
+    assert sched.error is None and sched.event_ns is None
 
 
 def test_an_event_that_raises_voids_the_run_without_taking_the_rig_down(world: World) -> None:
