@@ -77,23 +77,8 @@ static void set_defaults(instance *m)
     m->s.mode = MODE_INSTANTIATED;
 }
 
-static double *real_ref(instance *m, fmi2ValueReference vr, var_kind *kind, const char **name)
-{
-    switch (vr) {
-#define X(vr, field, KIND, start, nm) \
-    case vr:                          \
-        *kind = KIND_##KIND;          \
-        *name = nm;                   \
-        return &FIELD_##KIND(m, field);
-        QR_REAL_VARIABLES(X)
-#undef X
-    default:
-        return NULL;
-    }
-}
-
 /* Each Real variable's place in the instance, by value reference (plant/variables.py numbers them
- * from 0 without gaps). fmi2GetReal reads every output after each step: through real_ref's switch that
+ * from 0 without gaps). fmi2GetReal reads every output after each step: through a switch on it that
  * cost the plant about a tenth of its instructions per FC cycle (bench/cycle_cost.py --breakdown). */
 #define MEMBER_INPUT in
 #define MEMBER_PARAM par
@@ -105,6 +90,16 @@ static const size_t REAL_OFFSET[] = { QR_REAL_VARIABLES(X) };
 enum { N_REAL = 0 QR_REAL_VARIABLES(X) };
 #undef X
 _Static_assert(sizeof REAL_OFFSET / sizeof REAL_OFFSET[0] == N_REAL, "Real value references are 0..N-1");
+/* ... and its kind and name, for fmi2SetReal's checks: the inputs are written before every batch of
+ * steps, where a switch per input and per pass cost about 2 k instructions per FC cycle */
+#define X(vr, field, KIND, start, nm) [vr] = KIND_##KIND,
+static const var_kind REAL_KIND[] = { QR_REAL_VARIABLES(X) };
+#undef X
+#define X(vr, field, KIND, start, nm) [vr] = nm,
+static const char *const REAL_NAME[] = { QR_REAL_VARIABLES(X) };
+#undef X
+
+static double *real_at(instance *m, fmi2ValueReference vr) { return (double *)((char *)m + REAL_OFFSET[vr]); }
 
 /* Integers and Booleans are both C ints here. */
 static int *int_ref(instance *m, fmi2ValueReference vr, int boolean, var_kind *kind, const char **name)
@@ -270,7 +265,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     for (size_t i = 0; i < nvr; i++) {
         if (vr[i] >= N_REAL)
             return report(m, fmi2Error, "no Real variable has value reference %u", vr[i]);
-        value[i] = *(const double *)((const char *)m + REAL_OFFSET[vr[i]]);
+        value[i] = *real_at(m, vr[i]);
     }
     return fmi2OK;
 }
@@ -310,18 +305,17 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[])
 {
     instance *m = c;
-    var_kind kind;
-    const char *name;
     for (size_t i = 0; i < nvr; i++) { /* check the whole call before storing anything */
-        if (real_ref(m, vr[i], &kind, &name) == NULL)
+        if (vr[i] >= N_REAL)
             return report(m, fmi2Error, "no Real variable has value reference %u", vr[i]);
-        if (check_settable(m, kind, name) != fmi2OK)
+        if (check_settable(m, REAL_KIND[vr[i]], REAL_NAME[vr[i]]) != fmi2OK)
             return fmi2Error;
         if (!isfinite(value[i]))
-            return report(m, fmi2Error, "%s = %g is not a finite number (value not applied)", name, value[i]);
+            return report(m, fmi2Error, "%s = %g is not a finite number (value not applied)", REAL_NAME[vr[i]],
+                          value[i]);
     }
     for (size_t i = 0; i < nvr; i++)
-        *real_ref(m, vr[i], &kind, &name) = value[i];
+        *real_at(m, vr[i]) = value[i];
     if (nvr > 0)
         m->s.outputs_valid = 0;
     return fmi2OK;

@@ -77,6 +77,19 @@ def test_outputs_cannot_be_set():
             plant.set_value("roll", 1.0)
 
 
+def test_an_unknown_value_reference_is_refused_and_nothing_is_set():
+    """fmi2SetReal checks the whole call first: a value reference past the last Real refuses it all."""
+    import ctypes
+
+    with flying() as plant:
+        before = plant.get_value("wind_n")
+        vrs = (ctypes.c_uint * 2)(plant.variables["wind_n"].valueReference, 10_000)
+        values = (ctypes.c_double * 2)(3.0, 1.0)
+        assert plant._set_real(plant._component, vrs, 2, values) == 3  # fmi2Error
+        assert "no Real variable has value reference 10000" in plant.messages[-1]
+        assert plant.get_value("wind_n") == before
+
+
 @pytest.mark.parametrize(("given", "same_as"), [(5000.0, 2000.0), (2000.5, 2000.0), (-50.0, 1000.0),
                                                 (0.0, 1000.0), (999.0, 1000.0)])
 def test_out_of_range_pulse_widths_are_clamped_by_the_esc(given, same_as):
