@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import io
 import json
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -18,6 +19,11 @@ import vcdvcd  # type: ignore[import-untyped]
 from rig.mcu.engine import TwiRecord
 from rig.mcu.vcd import McuTrace, Var, mcu_trace, write_vcd
 from tests.mcu.conftest import REPO, firmware
+
+# vcdvcd sets SIGPIPE to SIG_DFL when imported: in a pytest-xdist worker (every worker imports every
+# test module) a later test writing to a child that had exited then killed the whole worker. Back to
+# Python's own: ignored, a write to a closed pipe is an EPIPE error (tests/test_sigpipe.py)
+signal.signal(signal.SIGPIPE, signal.SIG_IGN)
 
 
 def read(path: Path) -> vcdvcd.VCDVCD:
