@@ -98,8 +98,9 @@ def test_bad_options_raise_before_anything_runs(tmp_path):
 
 def test_sweep_returns_the_runs_table(tmp_path):
     """In a process of its own: a sweep's local pool (spawned workers, multiprocessing's resource
-    tracker, signal masks) is not left in the test runner's process (a make test run died of SIGPIPE
-    after the in-process version, a direct pytest run did not; not understood yet: see the notes)."""
+    tracker, signal masks) is not left in the test runner's process. (A make test run once died of
+    SIGPIPE after the in-process version: vcdvcd's import had set SIGPIPE to SIG_DFL in every xdist
+    worker, since fixed and checked by tests/test_sigpipe.py.)"""
     spec = tmp_path / "sweep.toml"
     spec.write_text('[sweep]\nscenario = "seed000_roll_stand"\nseeds = [1, 2]\n')
     code = (
