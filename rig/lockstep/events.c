@@ -16,34 +16,15 @@
 
 static PyObject *s_event_output;
 
-/* 1 when the first event is due at or before t, 0 when none is; -1: error (raised) */
-static int next_due(fast_state *s, uint64_t t)
-{
-    if (PyList_GET_SIZE(s->events) == 0)
-        return 0;
-    PyObject *first = PyList_GET_ITEM(s->events, 0);
-    if (!PyTuple_Check(first) || PyTuple_GET_SIZE(first) < 1) {
-        PyErr_SetString(PyExc_TypeError, "the scheduler's events are (t_ns, seq, fn) tuples");
-        return -1;
-    }
-    int overflow = 0;
-    long long v = PyLong_AsLongLongAndOverflow(PyTuple_GET_ITEM(first, 0), &overflow);
-    if (v == -1 && PyErr_Occurred())
-        return -1;
-    if (overflow)
-        return overflow < 0;
-    return v <= 0 || (uint64_t)v <= t;
-}
-
 /* Scheduler.advance's events up to t (the world is not moved to t itself). With stop_on_output, the
  * first event that wrote to the DUT ends it: *woke is its time. 1: done; -1: error (an event's Stop) */
 static int run_due(fast_state *s, uint64_t t, int stop_on_output, uint64_t *woke)
 {
     int due;
     *woke = t;
-    while ((due = next_due(s, t)) > 0) {
-        long long v = PyLong_AsLongLong(PyTuple_GET_ITEM(PyList_GET_ITEM(s->events, 0), 0));
-        if (v > 0 && world_to(s, (uint64_t)v) < 0) /* (PyLong_AsLongLong: known to fit, above) */
+    uint64_t first;
+    while ((due = first_event_ns(s, &first)) > 0 && first <= t) {
+        if (first > 0 && world_to(s, first) < 0)
             return -1;
         PyObject *te = PyObject_CallNoArgs(s->run_next);
         if (!te)

@@ -230,6 +230,25 @@ static PyObject *fp_setup_world(PyObject *self, PyObject *const *a, Py_ssize_t n
 
 /* ---- what the Python side keeps: events, the run's end ---- */
 
+/* The scheduler's first event's time (0 for one at or before 0, UINT64_MAX past 2^63 ns): 1, or 0 when
+ * there is none; -1: error (raised). clear_until and run_due (events.c) both read it here. */
+static int first_event_ns(fast_state *s, uint64_t *t)
+{
+    if (PyList_GET_SIZE(s->events) == 0)
+        return 0;
+    PyObject *first = PyList_GET_ITEM(s->events, 0);
+    if (!PyTuple_Check(first) || PyTuple_GET_SIZE(first) < 1) {
+        PyErr_SetString(PyExc_TypeError, "the scheduler's events are (t_ns, seq, fn) tuples");
+        return -1;
+    }
+    int overflow = 0;
+    long long v = PyLong_AsLongLongAndOverflow(PyTuple_GET_ITEM(first, 0), &overflow);
+    if (v == -1 && PyErr_Occurred())
+        return -1;
+    *t = overflow > 0 ? UINT64_MAX : overflow < 0 || v <= 0 ? 0 : (uint64_t)v;
+    return 1;
+}
+
 /* 1: nothing the scheduler does stands between now and t (no event at or before t, the limit not
  * passed, the run not over; with runs_events, events due are the caller's to run: events.c);
  * 0: the Python handler must act; -1: error */
@@ -244,19 +263,11 @@ static int clear_until(fast_state *s, uint64_t t, int runs_events)
     Py_DECREF(over);
     if (is_over)
         return is_over < 0 ? -1 : 0;
-    if ((runs_events && s->run_next) || PyList_GET_SIZE(s->events) == 0)
+    if (runs_events && s->run_next)
         return 1;
-    PyObject *first = PyList_GET_ITEM(s->events, 0);
-    if (!PyTuple_Check(first) || PyTuple_GET_SIZE(first) < 1)
-        return 0;
-    PyObject *te = PyTuple_GET_ITEM(first, 0);
-    int overflow = 0;
-    long long v = PyLong_AsLongLongAndOverflow(te, &overflow);
-    if (v == -1 && PyErr_Occurred())
-        return -1;
-    if (overflow > 0)
-        return 1;
-    return overflow < 0 || v <= 0 || (uint64_t)v <= t ? 0 : 1;
+    uint64_t first;
+    int some = first_event_ns(s, &first);
+    return some <= 0 ? (some < 0 ? -1 : 1) : first > t;
 }
 
 /* the plant's step struct, once Plant.step_many has made it with the world's history as its ring */
