@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime
+import functools
 import math
 import socket
 from collections.abc import Callable
@@ -338,7 +339,7 @@ def run(
         verdict = "pass" if all(m.outcome == "pass" for m in measurements) else "fail"
     notes += outcome.notes
     assert set(SIGNALS) - set(BENCH_SIGNALS) <= set(signals), set(SIGNALS) - set(signals)
-    rc_frames = [RcFrame(t, ch, fs) for t, ch, fs in rc.frames]
+    rc_frames = list(map(functools.partial(tuple.__new__, RcFrame), rc.frames))  # (no Python frame each)
     return RunResult(scenario, verdict, error, measurements, signals, metadata, outcome.exit_code, stderr,
                      notes, i2c, rc_frames)
 

@@ -5,6 +5,7 @@ reference FC, configured from the scenario's [fc] table."""
 
 from __future__ import annotations
 
+import functools
 import os
 import shlex
 from pathlib import Path
@@ -75,7 +76,8 @@ class ProcessRun(TargetRun):
         handler = self.session.handler
         if handler is None:  # (the DUT never started)
             return []
-        return [I2CRecord(t, addr, wrote[0] if wrote else None, wrote, read, status == 0)
+        make = functools.partial(tuple.__new__, I2CRecord)  # (no Python frame per record)
+        return [make((t, addr, wrote[0] if wrote else None, wrote, read, status == 0))
                 for t, addr, wrote, read, status in handler.i2c_log]
 
     def close(self) -> None:
