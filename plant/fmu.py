@@ -10,11 +10,12 @@ status is checked; an error raises ``PlantError`` with the FMU's own message.
 from __future__ import annotations
 
 import ctypes
+import functools
 import hashlib
 import os
 import shutil
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from ctypes import (
     POINTER,
     Structure,
@@ -159,9 +160,11 @@ class Plant:
         self._on_ground_vr = (c_uint * 1)(self.variables["on_ground"].valueReference)
         from plant.steps import get_boolean  # (here: `python -m plant.steps` must not import itself first)
 
-        self._get_boolean = get_boolean()
-        self._get_boolean_at = ctypes.cast(self._get_int["Boolean"], c_void_p).value or 0
-        self._component_at = self._component.value or 0
+        #: ``read_on_ground()``: 1 or 0, or minus a failed call's status. A C call bound to this FMU
+        #: with no Python frame: the recorder reads on_ground at 100 Hz (through World.on_ground)
+        self.read_on_ground: Callable[[], int] = functools.partial(
+            get_boolean(), ctypes.cast(self._get_int["Boolean"], c_void_p).value or 0,
+            self._component.value or 0, self._on_ground_vr[0])
         self._steps: _Steps | None = None  # for step_many, made on first use
         self._ring: np.ndarray | None = None
 
@@ -271,8 +274,7 @@ class Plant:
 
     @property
     def on_ground(self) -> bool:
-        """(The recorder reads it at 100 Hz: through plant/steps.py's get_boolean, not ctypes.)"""
-        got = self._get_boolean(self._get_boolean_at, self._component_at, self._on_ground_vr[0])
+        got = self.read_on_ground()
         if got < 0:
             self._check("reading on_ground", -got)
         return got == 1

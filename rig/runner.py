@@ -97,13 +97,17 @@ class _Recorder:
         self.rows: list[tuple[float, ...]] = []
         self.k = 0
         self._probe = world.probe(RECORDED)
+        # the magnetic disturbance's window, read once (Scenario.mag_disturbance_at is plain Python)
+        on = any(scenario.mag_disturbance)
+        self._mag_from = scenario.mag_disturbance_start if on else math.inf
+        self._mag_to = scenario.mag_disturbance_end if on else -math.inf
 
     def tick(self, session: Host) -> None:
         values = self._probe.read()
         roll, pitch, yaw, pd, vd, vn, ve, p, q, r = values[:len(RECORDED)]
         t = self.k * RECORD_PERIOD
         st = self.rc.sticks
-        faulted = any(f.active(t) for f in self.faults) or any(self.sc.mag_disturbance_at(t))
+        faulted = any(f.active(t) for f in self.faults) or self._mag_from <= t < self._mag_to
         self.rows.append(
             (
                 t, roll, pitch, yaw, -pd, -vd, math.hypot(vn, ve), p, q, r,

@@ -102,6 +102,7 @@ class World:
         self._hist[self._k % HISTORY] = self.plant.y
         self._u_pwm = [self.plant.u_index[name] for name in PWM_INPUTS]
         self._u_named = {name: self.plant.u_index[name] for name in SCENARIO_INPUTS}
+        self._read_on_ground = self.plant.read_on_ground
 
     @classmethod
     def at_rest(
@@ -217,7 +218,9 @@ class World:
 
     @property
     def on_ground(self) -> bool:
-        return self.plant.on_ground
+        # the plant's C reader, not its property (plain Python: 3 k instructions per read at 100 Hz)
+        got = self._read_on_ground()
+        return got == 1 if got >= 0 else self.plant.on_ground  # (a failed read: the plant raises)
 
     def outputs(self) -> dict[str, float]:
         return self.plant.outputs()
