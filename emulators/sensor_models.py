@@ -224,6 +224,12 @@ class ImuModel:
         return ImuTruth((ax, ay, az), (gx, gy, gz), temp)
 
 
+def no_disturbance(t: float) -> tuple[float, float, float]:
+    """MagModel's default disturbance: none (a named function, so that the lockstep fast path can tell
+    it from a scenario's and make the samples in C, rig/lockstep/mag_feed.c)."""
+    return (0.0, 0.0, 0.0)
+
+
 @dataclass
 class MagModel:
     """Source for the HMC5883L: plant field (mag_x..z, body, gauss) -> sensor frame, plus hard iron
@@ -232,7 +238,7 @@ class MagModel:
     truth: TruthFn
     errors: AxisErrors = field(default_factory=AxisErrors)
     faults: FaultSet = field(default_factory=FaultSet)
-    disturbance: Callable[[float], tuple[float, float, float]] = lambda t: (0.0, 0.0, 0.0)
+    disturbance: Callable[[float], tuple[float, float, float]] = no_disturbance
     seed: int = 1
 
     def __post_init__(self) -> None:

@@ -20,7 +20,15 @@ from emulators.chips.board import ChipBoard, build_chip_board
 from emulators.faults import TARGETS as FAULT_TARGETS
 from emulators.faults import FaultSet
 from emulators.i2c_bus import Msg
-from emulators.sensor_models import FLAT_ON_BOARD, AxisErrors, BaroModel, ImuModel, MagModel, TruthRow
+from emulators.sensor_models import (
+    FLAT_ON_BOARD,
+    AxisErrors,
+    BaroModel,
+    ImuModel,
+    MagModel,
+    TruthRow,
+    no_disturbance,
+)
 from plant import Plant
 from plant.variables import MOTORS, PWM_INPUTS, SCENARIO_INPUTS
 
@@ -145,7 +153,7 @@ class World:
             errors=AxisErrors(mounting=mounting, noise_density=nd["mag"]),
             seed=seed + 1,
             faults=faults.get("mag", FaultSet()),
-            disturbance=mag_disturbance or (lambda t: (0.0, 0.0, 0.0)),
+            disturbance=mag_disturbance or no_disturbance,
         )
         baro = BaroModel(truth, seed=seed + 2, faults=faults.get("baro", FaultSet()), noise_pa=baro_noise_pa,
                          drift_pa_per_s=baro_drift_pa_per_s)

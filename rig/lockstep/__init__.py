@@ -15,20 +15,22 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import math
 import os
 from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
-from emulators import native
-from emulators.chips.board import CHIP_MPU, ImuFeed
+from emulators import hmc5883l, ms5611, native
+from emulators.chips.board import CHIP_BARO, CHIP_HMC, CHIP_MPU, BaroFeed, ImuFeed, MagFeed
 from emulators.dlpf import DLPF
 from emulators.mpu6050 import CONFIG, SMPLRT_DIV
-from emulators.sensor_models import ImuModel
+from emulators.sensor_models import BaroModel, ImuModel, MagModel, no_disturbance
 from plant.fmu import _STEP_CALLS
 from plant.native_build import BUILD, EXTENSION_SUFFIX, compile_extension, is_stale, load_extension
 from plant.variables import MOTORS
 from rig.world import HISTORY, World, _WorldTruth
+from scenarios.schema import Scenario
 
 if TYPE_CHECKING:
     from rig.handler import Handler
@@ -38,7 +40,8 @@ REPO = HERE.parent.parent
 SHIM_DIR = REPO / "rig" / "shim"
 #: the module's source first; the headers it shares with the shim (the wire) and the chip core
 PLANT_C = REPO / "plant" / "c"
-SOURCES = (HERE / "fastpath.c", HERE / "imu_feed.c", HERE / "pwm_duty.c", HERE / "pump.c", HERE / "events.c",
+SOURCES = (HERE / "fastpath.c", HERE / "imu_feed.c", HERE / "mag_feed.c", HERE / "baro_feed.c",
+           HERE / "pwm_duty.c", HERE / "pump.c", HERE / "events.c",
            SHIM_DIR / "protocol.h", native.CHIPS_DIR / "chip_core.h", native.C_DIR / "need_tuple.h",
            PLANT_C / "plant_steps.c")
 MODULE_NAME = "_riglockstep"
@@ -90,6 +93,8 @@ class FastPath:
         session = handler.session
         module().setup_events(self._state, sched.run_next, session.in_flight, session.deliver_serial)
         self.imu_in_c = _imu_in_c(self._state, world)
+        self.mag_in_c = _mag_in_c(self._state, world)
+        self.baro_in_c = _baro_in_c(self._state, world)
 
     @property
     def handled(self) -> int:
@@ -102,6 +107,12 @@ class FastPath:
         """The I2C transfers, waits and PWM writes acted on here (the handler counts the rest)."""
         i2c, waits, pwm = module().counts(self._state)
         return int(i2c), int(waits), int(pwm)
+
+    @property
+    def made_here(self) -> tuple[int, int]:
+        """The magnetometer's measurements and the barometer's conversions made in C so far."""
+        mag, baro = module().made_here(self._state)
+        return int(mag), int(baro)
 
     def handle(self, fd: int, buf: bytearray, off: int) -> int:
         off_after: int = self._handle(self._state, fd, buf, off)
@@ -134,6 +145,53 @@ def _imu_in_c(state: object, world: World) -> bool:
         world._row_bytes, lib.rig_lowpass_max_depth(), world.step_ns, CONFIG, SMPLRT_DIV, DLPF,
         _address(lib.rig_imu_measure), _address(lib.rig_lowpass_run), _address(lib.chip_push_imu),
         _address(lib.chip_peek))
+    return True
+
+
+def _mag_in_c(state: object, world: World) -> bool:
+    """The magnetometer's samples made in C (mag_feed.c) when the producer is the world's own: a MagModel
+    over the world's history, with no disturbance or a scenario's window. Another source or disturbance
+    stays Python."""
+    feed = world.board.feeds[CHIP_HMC]
+    model = getattr(feed, "source", None)
+    if not isinstance(feed, MagFeed) or not isinstance(model, MagModel):
+        return False
+    if not isinstance(model.truth, _WorldTruth) or model.truth.world is not world:
+        return False
+    dist = model.disturbance
+    scenario = getattr(dist, "__self__", None)
+    if dist is no_disturbance:
+        vec, start, end = (0.0, 0.0, 0.0), math.inf, -math.inf
+    elif isinstance(scenario, Scenario) and getattr(dist, "__func__", None) is Scenario.mag_disturbance_at:
+        vec = scenario.mag_disturbance
+        start, end = scenario.mag_disturbance_start, scenario.mag_disturbance_end
+    else:
+        return False
+    lib = native.sampling()
+    cols = [world.plant.y_index[n] for n in ("mag_x", "mag_y", "mag_z")]
+    module().setup_mag(
+        state, feed, model._c, model._c.faults.faults, world, world._k0, HISTORY, world._hist_addr,
+        world._row_bytes, world.step_ns, hmc5883l.CRA, hmc5883l.RATES_HZ, cols, vec, start, end,
+        _address(lib.rig_channel_measure), _address(lib.chip_push_mag), _address(lib.chip_peek))
+    return True
+
+
+def _baro_in_c(state: object, world: World) -> bool:
+    """The barometer's conversions made in C (baro_feed.c) when the producer is the world's own: a
+    BaroModel over the world's history (baro_feed.c declines, conversion by conversion, what it does not
+    make: noise, faults, the float encoding)."""
+    feed = world.board.feeds[CHIP_BARO]
+    model = getattr(feed, "source", None)
+    if not isinstance(feed, BaroFeed) or not isinstance(model, BaroModel):
+        return False
+    if not isinstance(model.truth, _WorldTruth) or model.truth.world is not world:
+        return False
+    lib = native.sampling()
+    cols = [world.plant.y_index[n] for n in ("pressure", "temperature")]
+    module().setup_baro(
+        state, feed, model, model.faults.faults, world, world._k0, HISTORY, world._hist_addr,
+        world._row_bytes, world.step_ns, cols, ms5611.CONVERSION_TYPICAL + ms5611.CONVERSION_MAX,
+        _address(lib.chip_push_baro))
     return True
 
 

@@ -59,8 +59,15 @@ typedef struct {
     long long settings[RIG_PWM_MAX][4]; /* exported, enabled, period_ns, inversed */
 } pwm_cache;
 
+typedef struct mag_feed mag_feed;   /* (mag_feed.c) */
+typedef struct baro_feed baro_feed; /* (baro_feed.c) */
+static void mag_release(mag_feed *f);
+static void baro_release(baro_feed *f);
+
 typedef struct {
     imu_feed imu;                   /* the IMU's samples in C (imu_feed.c), when setup_imu said so */
+    mag_feed *mag;                  /* the magnetometer's (mag_feed.c), when setup_mag said so */
+    baro_feed *baro;                /* the barometer's (baro_feed.c), when setup_baro said so */
     PyObject *world_advance;        /* World.advance_to */
     PyObject *serve;                /* ChipBoard.serve */
     PyObject *pwm;                  /* World.pwm: the PwmChannel list */
@@ -111,6 +118,8 @@ static void state_free(PyObject *capsule)
     if (!s)
         return;
     imu_free(&s->imu);
+    mag_release(s->mag);
+    baro_release(s->baro);
     PyMem_Free(s->rx);
     Py_XDECREF(s->world_advance);
     Py_XDECREF(s->serve);
@@ -345,13 +354,18 @@ static int world_to(fast_state *s, uint64_t t)
     return 0;
 }
 
+#include "mag_feed.c"
+
+#include "baro_feed.c" /* (after mag_feed.c: made_here reads both) */
+
 static int serve(fast_state *s, const chip_need *need)
 {
-    if (need->chip == CHIP_MPU) {
-        int r = imu_serve(&s->imu, s->board, need);
-        if (r)
-            return r < 0 ? -1 : 0;
-    }
+    int done = need->chip == CHIP_MPU    ? imu_serve(&s->imu, s->board, need)
+               : need->chip == CHIP_HMC  ? mag_serve(s->mag, s->board, need)
+               : need->chip == CHIP_BARO ? baro_serve(s->baro, s->board, need)
+                                         : 0;
+    if (done)
+        return done < 0 ? -1 : 0;
     PyObject *t = need_tuple(need);
     if (!t)
         return -1;
@@ -639,6 +653,9 @@ static PyMethodDef methods[] = {
     { "setup", (PyCFunction)(void (*)(void))fp_setup, METH_FASTCALL, "the fast path's state for a session" },
     { "setup_world", (PyCFunction)(void (*)(void))fp_setup_world, METH_FASTCALL, "the plant's steps in C" },
     { "setup_imu", (PyCFunction)(void (*)(void))fp_setup_imu, METH_FASTCALL, "the IMU's samples in C" },
+    { "setup_mag", (PyCFunction)(void (*)(void))fp_setup_mag, METH_FASTCALL, "the magnetometer's in C" },
+    { "setup_baro", (PyCFunction)(void (*)(void))fp_setup_baro, METH_FASTCALL, "the barometer's in C" },
+    { "made_here", fp_made_here, METH_O, "the magnetometer's and barometer's samples made here" },
     { "setup_events", (PyCFunction)(void (*)(void))fp_setup_events, METH_FASTCALL, "the events waits cross" },
     { "handle", (PyCFunction)(void (*)(void))fp_handle, METH_FASTCALL, "acts on the messages it takes" },
     { "pump", (PyCFunction)(void (*)(void))fp_pump, METH_FASTCALL, "reads and acts on a connection" },

@@ -12,6 +12,7 @@ import selectors
 import socket
 import struct
 import tty
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +20,7 @@ import pytest
 
 import rig.protocol as P
 from emulators import native
+from emulators.chips.board import CHIP_HMC
 from rig import lockstep
 from rig.session import Session, SessionConfig, _Conn, _Pty
 from rig.world import World
@@ -119,14 +121,15 @@ def _ticking(session: Session, fail_at: float | None) -> list[tuple[Any, ...]]:
 
 def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_hz: int,
          script: list[bytes] | None = None, pump: bool = False, events: bool = False,
-         fail_at: float | None = None) -> dict[str, Any]:
+         fail_at: float | None = None, world: Callable[[], World] = lambda: World.at_rest(seed=3)
+         ) -> dict[str, Any]:
     """The script through a session's _on_readable, a message at a time. ``pump``: with the loop's
     epoll set, so the fast path reads the connection itself (FastPath.pump); a pipe that is always
     readable beside it makes pump return as soon as the connection has nothing more. ``events``: the
     events of ``_ticking`` too, and the bytes they wrote to the DUT's port are returned."""
     monkeypatch.setenv(lockstep.PY_PATH_ENV, "1" if py_path else "0")
     cfg = SessionConfig(command=["true"], duration=100.0, i2c_clock_hz=clock_hz)
-    session = Session(cfg, World.at_rest(seed=3))
+    session = Session(cfg, world())
     session.open_page(tmp_path / f"shm-{py_path}-{clock_hz}-{pump}")
     assert (session.fast is None) == py_path
     assert session.fast is None or session.fast.imu_in_c  # the MPU's samples made in C too
@@ -187,7 +190,9 @@ def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_h
             "pumped": sum(n for n in pumped if n > 0),
             # the chip core's whole state (its samples as float64, to the bit) and the IMU producer's
             "board": ctypes.string_at(board.addr, native.chips().rig_chip_board_size()),
-            "block": sampler.block.tobytes(), "next_t": sampler.next_t}
+            "block": sampler.block.tobytes(), "next_t": sampler.next_t,
+            "mag": tuple(getattr(board.feeds[CHIP_HMC], a) for a in ("_anchor", "_index", "_next_t")),
+            "made_here": session.fast.made_here if session.fast else (0, 0)}
 
 
 @pytest.mark.parametrize("clock_hz", [0, 400_000])
@@ -236,7 +241,7 @@ def _wake_reasons(replies: bytes) -> list[int]:
 
 def _same(py: dict[str, Any], fast: dict[str, Any]) -> None:
     for key in py:
-        if key not in ("handled", "pumped", "fast_waits"):
+        if key not in ("handled", "pumped", "fast_waits", "made_here"):
             assert fast[key] == py[key], key
 
 
