@@ -11,7 +11,7 @@
  * the datasheet compensation (ms5611.encode's integer mode: the same integer steps, with Python's floor
  * semantics for >> and //), then chip_push_baro. The temperature's D2 is searched once per temperature
  * and kept (ms5611.encode_temperature is cached likewise). Everything else stays with the Python
- * producer: noise on the model or the conversion (numpy's generator), a signal fault, the float encoding,
+ * producer: a source replaced since setup, noise on the model or the conversion (numpy's generator), a signal fault, the float encoding,
  * a value outside the sensor's range (Python raises), and a PROM whose words do not fit 16 bits.
  */
 
@@ -175,6 +175,9 @@ static int baro_serve(baro_feed *f, chip_board *b, const chip_need *need)
 {
     if (!f || !f->on || PyList_GET_SIZE(f->faults) || need->osr >= 5)
         return 0;
+    int same = same_attr(f->feed, s_source, f->model);
+    if (same <= 0)
+        return same; /* (another source since setup_baro: Python's) */
     int osr_noise = attr_true(f->feed, s_osr_noise), noisy = attr_true(f->model, s_noise_pa);
     if (osr_noise < 0 || noisy < 0)
         return -1;

@@ -10,7 +10,7 @@
  * (World._slots' arithmetic, as imu_feed.c), the disturbance of a scenario's window or none, the same C
  * call for the errors and noise (rig_channel_measure, the emulators' library's own entry point, its
  * normals refilled by the Python channel when short) and chip_push_mag. Everything else stays with the
- * Python producer, which keeps its state: a new anchor (a restart of the measurement clock), a signal
+ * Python producer, which keeps its state: a source or disturbance replaced since setup, a new anchor (a restart of the measurement clock), a signal
  * fault on the magnetometer, and a disturbance that is not a scenario's window.
  */
 
@@ -21,6 +21,7 @@ typedef bool (*push_mag_fn)(chip_board *b, uint64_t valid_ns, const double field
 struct mag_feed {
     int on;
     PyObject *feed, *channel, *faults, *world; /* owned: MagFeed, its model's _Channel, FaultSet.faults, World */
+    PyObject *model, *disturbance;             /* owned: the feed's source and its disturbance at setup */
     void *channel_addr;
     int64_t k0, history, row_bytes, step_ns;
     char *hist;
@@ -34,11 +35,22 @@ struct mag_feed {
     uint64_t served; /* measurements made here */
 };
 
-static PyObject *s_mag_index, *s_mag_next_t;
+static PyObject *s_mag_index, *s_mag_next_t, *s_source, *s_disturbance;
+
+/* 1: o.name is still `expected` (a producer's model or the model's disturbance, replaced after setup:
+ * then the Python producer serves); 0: it is another object; -1: error */
+static int same_attr(PyObject *o, PyObject *name, PyObject *expected)
+{
+    PyObject *v = PyObject_GetAttr(o, name);
+    if (!v)
+        return -1;
+    Py_DECREF(v);
+    return v == expected;
+}
 
 static void mag_free(mag_feed *f)
 {
-    PyObject *refs[] = { f->feed, f->channel, f->faults, f->world };
+    PyObject *refs[] = { f->feed, f->channel, f->faults, f->world, f->model, f->disturbance };
     for (size_t i = 0; i < sizeof refs / sizeof refs[0]; i++)
         Py_XDECREF(refs[i]);
     memset(f, 0, sizeof *f);
@@ -56,6 +68,10 @@ static int mag_serve(mag_feed *f, chip_board *b, const chip_need *need)
 {
     if (!f || !f->on || PyList_GET_SIZE(f->faults))
         return 0;
+    int same = same_attr(f->feed, s_source, f->model);
+    same = same > 0 ? same_attr(f->model, s_disturbance, f->disturbance) : same;
+    if (same <= 0)
+        return same;
     long long anchor, index, k;
     double next_t;
     if (attr_ll(f->feed, s_anchor, &anchor) < 0 || attr_ll(f->feed, s_mag_index, &index) < 0 ||
@@ -103,7 +119,9 @@ static PyObject *mag_setup(mag_feed *f, PyObject *const *a)
     if (!PyList_Check(a[3]))
         return PyErr_Format(PyExc_TypeError, "setup_mag: the fault list is a list");
     if ((!s_mag_index && !(s_mag_index = PyUnicode_InternFromString("_index"))) ||
-        (!s_mag_next_t && !(s_mag_next_t = PyUnicode_InternFromString("_next_t"))))
+        (!s_mag_next_t && !(s_mag_next_t = PyUnicode_InternFromString("_next_t"))) ||
+        (!s_source && !(s_source = PyUnicode_InternFromString("source"))) ||
+        (!s_disturbance && !(s_disturbance = PyUnicode_InternFromString("disturbance"))))
         return NULL;
     mag_free(f);
     PyObject **refs[] = { &f->feed, &f->channel, &f->faults, &f->world };
@@ -111,6 +129,8 @@ static PyObject *mag_setup(mag_feed *f, PyObject *const *a)
         Py_INCREF(a[1 + i]);
         *refs[i] = a[1 + i];
     }
+    f->model = PyObject_GetAttr(f->feed, s_source);
+    f->disturbance = f->model ? PyObject_GetAttr(f->model, s_disturbance) : NULL;
     PyObject *addr = PyObject_GetAttrString(a[2], "addr");
     if (addr) {
         f->channel_addr = PyLong_AsVoidPtr(addr);

@@ -121,8 +121,8 @@ def _ticking(session: Session, fail_at: float | None) -> list[tuple[Any, ...]]:
 
 def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_hz: int,
          script: list[bytes] | None = None, pump: bool = False, events: bool = False,
-         fail_at: float | None = None, world: Callable[[], World] = lambda: World.at_rest(seed=3)
-         ) -> dict[str, Any]:
+         fail_at: float | None = None, world: Callable[[], World] = lambda: World.at_rest(seed=3),
+         prepare: Callable[[Session], None] | None = None) -> dict[str, Any]:
     """The script through a session's _on_readable, a message at a time. ``pump``: with the loop's
     epoll set, so the fast path reads the connection itself (FastPath.pump); a pipe that is always
     readable beside it makes pump return as soon as the connection has nothing more. ``events``: the
@@ -130,6 +130,8 @@ def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_h
     monkeypatch.setenv(lockstep.PY_PATH_ENV, "1" if py_path else "0")
     cfg = SessionConfig(command=["true"], duration=100.0, i2c_clock_hz=clock_hz)
     session = Session(cfg, world())
+    if prepare is not None:  # (what a test sets up once the session, and its fast path, are made)
+        prepare(session)
     session.open_page(tmp_path / f"shm-{py_path}-{clock_hz}-{pump}")
     assert (session.fast is None) == py_path
     assert session.fast is None or session.fast.imu_in_c  # the MPU's samples made in C too

@@ -17,8 +17,10 @@ import pytest
 import rig.protocol as P
 import scenarios
 from emulators import ms5611
-from emulators.chips.board import CHIP_BARO, BaroFeed
-from rig.world import World
+from emulators.chips.board import CHIP_BARO, CHIP_HMC, BaroFeed, MagFeed
+from emulators.sensor_models import AxisErrors, BaroModel, MagModel
+from rig.session import Session
+from rig.world import World, _WorldTruth
 from scenarios.schema import load
 from tests.rig.test_lockstep_fastpath import CYCLE_NS, _fly, _i2c, _msg, _pwm, _same, _wait
 
@@ -130,4 +132,29 @@ def test_what_c_does_not_make_stays_python(monkeypatch: pytest.MonkeyPatch, tmp_
     fast = _fly(monkeypatch, tmp_path, False, 0, script=_script(), world=world)  # type: ignore[arg-type]
     made_mag, made_baro = fast["made_here"]
     assert made_baro == 0 and (made_mag == 0) == (world is _python_only)
+    _same(py, fast)
+
+
+def _new_models(session: Session) -> None:
+    """At 0.3 s the magnetometer's and barometer's producers get new models (another seed and hard iron,
+    a barometer offset), as a test may set them: C made their samples until then, Python after."""
+    def swap(s: Session) -> None:
+        board, truth = s.world.board, _WorldTruth(s.world.plant)
+        truth.world = s.world
+        mag, baro = board.feeds[CHIP_HMC], board.feeds[CHIP_BARO]
+        assert isinstance(mag, MagFeed) and isinstance(baro, BaroFeed)
+        mag.source = MagModel(truth, errors=AxisErrors(bias=(0.05, 0.0, 0.0)), seed=11)
+        baro.source = BaroModel(truth, offset_pa=50.0)
+    session.at(0.3, swap)
+
+
+def test_a_model_replaced_after_set_up_is_served_by_python(monkeypatch: pytest.MonkeyPatch,
+                                                           tmp_path: Path) -> None:
+    world = lambda: _spinning(World.at_rest(seed=3))  # noqa: E731
+    py = _fly(monkeypatch, tmp_path, True, 0, script=_script(), world=world, prepare=_new_models)
+    fast = _fly(monkeypatch, tmp_path, False, 0, script=_script(), world=world, prepare=_new_models)
+    plain = _fly(monkeypatch, tmp_path, False, 0, script=_script(), world=world)
+    made_mag, made_baro = fast["made_here"]
+    assert 0 < made_mag < plain["made_here"][0] and 0 < made_baro < plain["made_here"][1]
+    assert fast["log"] != plain["log"]  # (the new models read differently)
     _same(py, fast)
