@@ -19,7 +19,7 @@ import math
 import os
 from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from emulators import hmc5883l, ms5611, native
 from emulators.chips.board import CHIP_BARO, CHIP_HMC, CHIP_MPU, BaroFeed, ImuFeed, MagFeed
@@ -46,6 +46,8 @@ SOURCES = (HERE / "fastpath.c", HERE / "imu_feed.c", HERE / "mag_feed.c", HERE /
            PLANT_C / "plant_steps.c")
 MODULE_NAME = "_riglockstep"
 LIB = BUILD / f"{MODULE_NAME}{EXTENSION_SUFFIX}"
+Feed = TypeVar("Feed")
+Model = TypeVar("Model")
 #: the environment variable that sends every message to the Python handler
 PY_PATH_ENV = "RIG_PY_PATH"
 
@@ -148,16 +150,26 @@ def _imu_in_c(state: object, world: World) -> bool:
     return True
 
 
+def _own_model(world: World, chip: int, feed_kind: type[Feed], model_kind: type[Model]
+               ) -> tuple[Feed, Model] | None:
+    """The chip's producer and its model when the model reads the world's own history (what C can make
+    in their place), else None."""
+    feed = world.board.feeds[chip]
+    model = getattr(feed, "source", None)
+    if not isinstance(feed, feed_kind) or not isinstance(model, model_kind):
+        return None
+    truth = getattr(model, "truth", None)
+    return (feed, model) if isinstance(truth, _WorldTruth) and truth.world is world else None
+
+
 def _mag_in_c(state: object, world: World) -> bool:
     """The magnetometer's samples made in C (mag_feed.c) when the producer is the world's own: a MagModel
     over the world's history, with no disturbance or a scenario's window. Another source or disturbance
     stays Python."""
-    feed = world.board.feeds[CHIP_HMC]
-    model = getattr(feed, "source", None)
-    if not isinstance(feed, MagFeed) or not isinstance(model, MagModel):
+    own = _own_model(world, CHIP_HMC, MagFeed, MagModel)
+    if own is None:
         return False
-    if not isinstance(model.truth, _WorldTruth) or model.truth.world is not world:
-        return False
+    feed, model = own
     dist = model.disturbance
     scenario = getattr(dist, "__self__", None)
     if dist is no_disturbance:
@@ -180,12 +192,10 @@ def _baro_in_c(state: object, world: World) -> bool:
     """The barometer's conversions made in C (baro_feed.c) when the producer is the world's own: a
     BaroModel over the world's history (baro_feed.c declines, conversion by conversion, what it does not
     make: noise, faults, the float encoding)."""
-    feed = world.board.feeds[CHIP_BARO]
-    model = getattr(feed, "source", None)
-    if not isinstance(feed, BaroFeed) or not isinstance(model, BaroModel):
+    own = _own_model(world, CHIP_BARO, BaroFeed, BaroModel)
+    if own is None:
         return False
-    if not isinstance(model.truth, _WorldTruth) or model.truth.world is not world:
-        return False
+    feed, model = own
     lib = native.sampling()
     cols = [world.plant.y_index[n] for n in ("pressure", "temperature")]
     module().setup_baro(
