@@ -326,6 +326,24 @@ def test_the_entry_points_refuse_wrong_arguments(tmp_path: Path) -> None:
         m.setup_events(state, print, [], print)
     with pytest.raises(TypeError, match="bytearray"):
         m.pump(state, 0, 0, b"")
+    with pytest.raises(TypeError, match="19 arguments"):
+        m.setup_mag(state)
+    with pytest.raises(TypeError, match="13 arguments"):
+        m.setup_baro(state)
+    with pytest.raises(TypeError, match="fault list is a list"):
+        m.setup_mag(state, *[0] * 18)
+    with pytest.raises(TypeError, match="fault list is a list"):
+        m.setup_baro(state, *[0] * 12)
+    with pytest.raises(ValueError, match="2 columns and 10 conversion times"):
+        m.setup_baro(state, 0, 0, [], 0, 0, 256, 1, 1, 1, [0], [0.0] * 10, 1)
+    with pytest.raises(ValueError, match="history and step must be set"):
+        m.setup_baro(state, 0, 0, [], 0, 0, 256, 0, 8, 1_000_000, [0, 1], [1e-3] * 10, 1)
+    with pytest.raises(AttributeError, match="addr"):  # (a channel that is none)
+        m.setup_mag(state, 0, 0, [], 0, 0, 256, 1, 8, 1_000_000, 0, [75.0] * 8, [0, 1, 2], [0.0] * 3,
+                    0.0, 0.0, 1, 1, 1)
+    with pytest.raises(ValueError, match="PyCapsule"):
+        m.made_here(object())
+    assert m.made_here(state) == (0, 0)  # (nothing read yet)
     a, b = socket.socketpair()
     with a, b:
         b.close()  # the connection ended before anything came: the loop's own read takes it
