@@ -23,8 +23,7 @@ struct baro_feed {
     PyObject *prom_obj;                      /* owned: the PROM tuple prom[] was read from */
     int64_t prom[8];
     int64_t temp_key, temp_d2; /* the last temperature (0.01 °C) searched and its D2; key -1 << 40: none */
-    int64_t k0, history, row_bytes, step_ns;
-    char *hist;
+    truth_ring ring;
     int32_t cols[2];         /* pressure, temperature in a history row */
     double conversion[2][5]; /* ms5611.CONVERSION_TYPICAL, CONVERSION_MAX by OSR index */
     push_baro_fn push;
@@ -200,11 +199,7 @@ static int baro_serve(baro_feed *f, chip_board *b, const chip_need *need)
         return -1;
     /* BaroFeed.serve's instant, World._slots' row, BaroModel.__call__, BaroFeed.words' clamps */
     double t = (double)need->anchor_ns * 1e-9 + f->conversion[max][need->osr];
-    int64_t oldest = k - f->history + 1 > f->k0 ? k - f->history + 1 : f->k0;
-    int64_t slot = (int64_t)floor(t * 1e9 / (double)f->step_ns + 1e-9);
-    slot = slot < oldest ? oldest : slot;
-    slot = slot > k ? k : slot;
-    const double *row = (const double *)(f->hist + (slot % f->history) * f->row_bytes);
+    const double *row = ring_row(&f->ring, k, t);
     double p = row[f->cols[0]] + offset + drift * t, temp = row[f->cols[1]];
     p = 1000.0 > p ? 1000.0 : p;
     p = 120000.0 < p ? 120000.0 : p;
@@ -256,11 +251,7 @@ static PyObject *fp_setup_baro(PyObject *self, PyObject *const *a, Py_ssize_t na
         Py_INCREF(a[1 + i]);
         *refs[i] = a[1 + i];
     }
-    f->k0 = PyLong_AsLongLong(a[5]);
-    f->history = PyLong_AsLongLong(a[6]);
-    f->hist = PyLong_AsVoidPtr(a[7]);
-    f->row_bytes = PyLong_AsLongLong(a[8]);
-    f->step_ns = PyLong_AsLongLong(a[9]);
+    ring_read(&f->ring, a + 5);
     PyObject *cols = PySequence_Fast(a[10], "setup_baro: cols is a sequence");
     PyObject *conv = PySequence_Fast(a[11], "setup_baro: conversion is a sequence");
     if (cols && conv && (PySequence_Fast_GET_SIZE(cols) != 2 || PySequence_Fast_GET_SIZE(conv) != 10))
@@ -277,7 +268,7 @@ static PyObject *fp_setup_baro(PyObject *self, PyObject *const *a, Py_ssize_t na
         baro_free(f);
         return NULL;
     }
-    if (!f->hist || f->history <= 0 || f->row_bytes <= 0 || f->step_ns <= 0 || !f->push) {
+    if (!ring_ok(&f->ring) || !f->push) {
         baro_free(f);
         return PyErr_Format(PyExc_ValueError, "setup_baro: addresses, history and step must be set");
     }

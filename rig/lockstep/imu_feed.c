@@ -22,6 +22,35 @@ typedef uint8_t (*peek_fn)(const chip_board *b, uint8_t chip, uint8_t reg);
 
 #define IMU_BLOCK 64 /* emulators.native.BLOCK */
 
+/* The world's history of plant-output rows (World._hist), as the samples' producers here read it */
+typedef struct {
+    char *hist;
+    int64_t k0, history, row_bytes, step_ns; /* World._k0, HISTORY, the row's bytes, World.step_ns */
+} truth_ring;
+
+/* World._slots and its row for sim time t (seconds) with the world at step k: the last step at or before
+ * t, clamped to the history kept (one copy of this arithmetic for every producer in C) */
+static const double *ring_row(const truth_ring *r, int64_t k, double t)
+{
+    int64_t oldest = k - r->history + 1 > r->k0 ? k - r->history + 1 : r->k0;
+    int64_t slot = (int64_t)floor(t * 1e9 / (double)r->step_ns + 1e-9);
+    slot = slot < oldest ? oldest : slot;
+    slot = slot > k ? k : slot;
+    return (const double *)(r->hist + (slot % r->history) * r->row_bytes);
+}
+
+/* a[0..4]: k0, history, hist_addr, row_bytes, step_ns into r (errors: raised, checked by the caller) */
+static void ring_read(truth_ring *r, PyObject *const *a)
+{
+    r->k0 = PyLong_AsLongLong(a[0]);
+    r->history = PyLong_AsLongLong(a[1]);
+    r->hist = PyLong_AsVoidPtr(a[2]);
+    r->row_bytes = PyLong_AsLongLong(a[3]);
+    r->step_ns = PyLong_AsLongLong(a[4]);
+}
+
+static int ring_ok(const truth_ring *r) { return r->hist && r->history > 0 && r->row_bytes > 0 && r->step_ns > 0; }
+
 typedef struct {
     int on;
     PyObject *feed, *sampler, *accel, *gyro, *accel_faults, *gyro_faults, *world; /* owned */
@@ -29,8 +58,8 @@ typedef struct {
     const int32_t *cols;
     double die_offset;
     double *block;
-    int64_t k0, history, row_bytes, max_depth, step_ns;
-    char *hist;
+    truth_ring ring;
+    int64_t max_depth;
     uint8_t reg_config, reg_smplrt_div;
     double dlpf[8][4]; /* emulators.dlpf.DLPF: accel bw, accel delay, gyro bw, gyro delay */
     imu_measure_fn measure;
@@ -124,14 +153,10 @@ static int imu_serve(imu_feed *f, chip_board *b, const chip_need *need)
     /* ImuSampler.take: the times; World._slots: their history rows */
     double t[IMU_BLOCK];
     const double *rows[IMU_BLOCK];
-    int64_t oldest = k - f->history + 1 > f->k0 ? k - f->history + 1 : f->k0;
     for (uint32_t i = 0; i < n; i++) {
         t[i] = next_t;
         next_t += period;
-        int64_t slot = (int64_t)floor(t[i] * 1e9 / (double)f->step_ns + 1e-9);
-        slot = slot < oldest ? oldest : slot;
-        slot = slot > k ? k : slot;
-        rows[i] = (const double *)(f->hist + (slot % f->history) * f->row_bytes);
+        rows[i] = ring_row(&f->ring, k, t[i]);
     }
     PyObject *v = PyFloat_FromDouble(next_t);
     if (!v)
@@ -182,12 +207,9 @@ static PyObject *imu_setup(imu_feed *f, PyObject *const *a)
     f->cols = PyLong_AsVoidPtr(a[8]);
     f->die_offset = PyFloat_AsDouble(a[9]);
     f->block = PyLong_AsVoidPtr(a[10]);
-    f->k0 = PyLong_AsLongLong(a[11]);
-    f->history = PyLong_AsLongLong(a[12]);
-    f->hist = PyLong_AsVoidPtr(a[13]);
-    f->row_bytes = PyLong_AsLongLong(a[14]);
+    PyObject *const ring_args[] = { a[11], a[12], a[13], a[14], a[16] };
+    ring_read(&f->ring, ring_args);
     f->max_depth = PyLong_AsLongLong(a[15]);
-    f->step_ns = PyLong_AsLongLong(a[16]);
     f->reg_config = (uint8_t)PyLong_AsLong(a[17]);
     f->reg_smplrt_div = (uint8_t)PyLong_AsLong(a[18]);
     PyObject *rows = PySequence_Fast(a[19], "setup_imu: dlpf is a sequence");
@@ -212,8 +234,8 @@ static PyObject *imu_setup(imu_feed *f, PyObject *const *a)
         imu_free(f);
         return NULL;
     }
-    if (!f->accel_addr || !f->gyro_addr || !f->cols || !f->block || !f->hist || f->history <= 0 || f->row_bytes <= 0 ||
-        f->step_ns <= 0 || !f->measure || !f->lowpass || !f->push || !f->peek) {
+    if (!f->accel_addr || !f->gyro_addr || !f->cols || !f->block || !ring_ok(&f->ring) || !f->measure || !f->lowpass ||
+        !f->push || !f->peek) {
         imu_free(f);
         return PyErr_Format(PyExc_ValueError, "setup_imu: addresses, history, rows and step must be set");
     }

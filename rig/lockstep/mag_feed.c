@@ -23,8 +23,7 @@ struct mag_feed {
     PyObject *feed, *channel, *faults, *world; /* owned: MagFeed, its model's _Channel, FaultSet.faults, World */
     PyObject *model, *disturbance;             /* owned: the feed's source and its disturbance at setup */
     void *channel_addr;
-    int64_t k0, history, row_bytes, step_ns;
-    char *hist;
+    truth_ring ring;
     int32_t cols[3];                    /* mag_x, mag_y, mag_z in a history row */
     double rates_hz[8];                 /* hmc5883l.RATES_HZ by CRA.DO */
     double dist[3], dist_from, dist_to; /* the scenario's disturbance (body, gauss) in [from, to) */
@@ -83,11 +82,7 @@ static int mag_serve(mag_feed *f, chip_board *b, const chip_need *need)
     for (; index < (long long)need->count; index++)
         next_t += period;
     /* World._slots and MagModel.__call__ */
-    int64_t oldest = k - f->history + 1 > f->k0 ? k - f->history + 1 : f->k0;
-    int64_t slot = (int64_t)floor(next_t * 1e9 / (double)f->step_ns + 1e-9);
-    slot = slot < oldest ? oldest : slot;
-    slot = slot > k ? k : slot;
-    const double *row = (const double *)(f->hist + (slot % f->history) * f->row_bytes);
+    const double *row = ring_row(&f->ring, k, next_t);
     int in = f->dist_from <= next_t && next_t < f->dist_to;
     double field[3], out[3], temperature = 25.0;
     for (int i = 0; i < 3; i++)
@@ -136,11 +131,7 @@ static PyObject *mag_setup(mag_feed *f, PyObject *const *a)
         f->channel_addr = PyLong_AsVoidPtr(addr);
         Py_DECREF(addr);
     }
-    f->k0 = PyLong_AsLongLong(a[5]);
-    f->history = PyLong_AsLongLong(a[6]);
-    f->hist = PyLong_AsVoidPtr(a[7]);
-    f->row_bytes = PyLong_AsLongLong(a[8]);
-    f->step_ns = PyLong_AsLongLong(a[9]);
+    ring_read(&f->ring, a + 5);
     f->reg_cra = (uint8_t)PyLong_AsLong(a[10]);
     double *into[] = { f->rates_hz, f->dist };
     Py_ssize_t sizes[] = { 8, 3 }, cols = 3;
@@ -171,8 +162,7 @@ static PyObject *mag_setup(mag_feed *f, PyObject *const *a)
     int rates_ok = 1;
     for (int i = 0; i < 8; i++)
         rates_ok &= f->rates_hz[i] > 0.0;
-    if (!f->channel_addr || !f->hist || f->history <= 0 || f->row_bytes <= 0 || f->step_ns <= 0 || !rates_ok ||
-        !f->measure || !f->push || !f->peek) {
+    if (!f->channel_addr || !ring_ok(&f->ring) || !rates_ok || !f->measure || !f->push || !f->peek) {
         mag_free(f);
         return PyErr_Format(PyExc_ValueError, "setup_mag: addresses, history, rates and step must be set");
     }
