@@ -98,9 +98,7 @@ class _Recorder:
         self.k = 0
         self._probe = world.probe(RECORDED)
         # the magnetic disturbance's window, read once (Scenario.mag_disturbance_at is plain Python)
-        on = any(scenario.mag_disturbance)
-        self._mag_from = scenario.mag_disturbance_start if on else math.inf
-        self._mag_to = scenario.mag_disturbance_end if on else -math.inf
+        _, self._mag_from, self._mag_to = scenario.mag_disturbance_window
 
     def tick(self, session: Host) -> None:
         values = self._probe.read()

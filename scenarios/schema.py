@@ -140,6 +140,15 @@ class Scenario:
         return (0.0, 0.0, 0.0)
 
     @property
+    def mag_disturbance_window(self) -> tuple[tuple[float, float, float], float, float]:
+        """The disturbance and the window [start, end) it acts in, as mag_disturbance_at applies them,
+        for those that read it once instead of calling it (the recorder, the lockstep fast path); an
+        empty window when the disturbance is zero."""
+        if not any(self.mag_disturbance):
+            return (0.0, 0.0, 0.0), math.inf, -math.inf
+        return self.mag_disturbance, self.mag_disturbance_start, self.mag_disturbance_end
+
+    @property
     def stem(self) -> str:
         return self.path.stem
 

@@ -175,8 +175,7 @@ def _mag_in_c(state: object, world: World) -> bool:
     if dist is no_disturbance:
         vec, start, end = (0.0, 0.0, 0.0), math.inf, -math.inf
     elif isinstance(scenario, Scenario) and getattr(dist, "__func__", None) is Scenario.mag_disturbance_at:
-        vec = scenario.mag_disturbance
-        start, end = scenario.mag_disturbance_start, scenario.mag_disturbance_end
+        vec, start, end = scenario.mag_disturbance_window
     else:
         return False
     lib = native.sampling()

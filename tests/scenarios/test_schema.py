@@ -199,3 +199,18 @@ def test_the_fc_key_table_is_the_one_the_fc_compiles(tmp_path: Path) -> None:
         assert "unknown key" not in said and "must be" not in said, (k.name, said)
     assert "estimator must be in 0..2" in fc_says("estimator = 3")
     assert "unknown key 'estimater'" in fc_says("estimater = 1")
+
+
+@pytest.mark.parametrize("stem", ["mag_disturbance", "hover_turbulence"])
+def test_the_disturbance_window_is_where_mag_disturbance_at_acts(stem: str) -> None:
+    """What the recorder and the fast path read once (mag_disturbance_window) says what the scenario's
+    mag_disturbance_at gives at every instant of the run: the field inside [start, end), none outside."""
+    sc = load(LIB / f"{stem}.toml")
+    vec, start, end = sc.mag_disturbance_window
+    inside = 0
+    for k in range(round(sc.duration * 1000) + 1):
+        t = k / 1000
+        acting = start <= t < end
+        inside += acting
+        assert sc.mag_disturbance_at(t) == (vec if acting else (0.0, 0.0, 0.0))
+    assert (inside > 100) == (stem == "mag_disturbance")
