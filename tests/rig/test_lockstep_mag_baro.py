@@ -2,9 +2,10 @@
 baro_feed.c) against the Python producers (emulators/chips/board.py MagFeed over MagModel, BaroFeed
 over BaroModel and ms5611.encode), their reference: a flight controller that reads the HMC5883L through
 the MPU's bypass, changes its rate and its mode (a new anchor: the Python producer's case), and reads
-the MS5611's conversions at two OSRs, must get the same bytes, and leave the chip core's state (the
+the MS5611's conversions at three OSRs, must get the same bytes, and leave the chip core's state (the
 samples as float64, to the bit) and the producers' clocks the same, with the samples made in C; what C
-does not make (a disturbance that is not a window, noise, the float encoding) stays Python's."""
+does not make (a disturbance that is not a window, noise, the float encoding, a model replaced after
+set-up) stays Python's."""
 
 from __future__ import annotations
 
