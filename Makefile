@@ -59,7 +59,7 @@ build/_rigpace$(EXT): rig/pace/pace.c rig/pace/__init__.py plant/native_build.py
 	$(PY) -c 'import rig.pace; rig.pace.native()'
 # the lockstep fast path (rig/lockstep): the wire's header is the shim's, the chip core's and the need's
 # headers the emulators'
-build/_riglockstep$(EXT): rig/lockstep/fastpath.c rig/lockstep/imu_feed.c rig/lockstep/__init__.py rig/shim/protocol.h emulators/chips/chip_core.h \
+build/_riglockstep$(EXT): $(wildcard rig/lockstep/*.c) rig/lockstep/__init__.py rig/shim/protocol.h emulators/chips/chip_core.h \
 	emulators/c/need_tuple.h plant/c/plant_steps.c plant/native_build.py | venv
 	$(PY) -m rig.lockstep
 build/_plantsteps$(EXT): plant/c/steps_module.c plant/c/plant_steps.c plant/steps.py plant/native_build.py | venv

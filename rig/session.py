@@ -148,6 +148,8 @@ class Session:
         self.fast: FastPath | None = None  # the per-cycle messages in C (rig/lockstep), lockstep only
         self._pump_fd = -1  # the loop's epoll set, for FastPath.pump; -1 while none
         self._ptys: dict[str, _Pty] = {}
+        #: (master fd, pending) of each pty, for FastPath.pump, which reads them in the loop's place
+        self._pump_ptys: tuple[tuple[int, bytearray], ...] = ()
         self.in_flight: dict[int, int] = {}  # pty slave fd -> bytes readable once delivered
         self._unstamped = False  # a pty has bytes from the DUT that no request has stamped yet
         self.notes: list[str] = []
@@ -276,6 +278,7 @@ class Session:
                 os.set_blocking(master, False)
                 self._ptys[path] = _Pty(path, master, slave)
                 sel.register(master, selectors.EVENT_READ, ("pty", path))
+            self._pump_ptys = tuple((pty.master, pty.pending) for pty in self._ptys.values())
             if cfg.log_path:
                 self._log = open(cfg.log_path, "w", encoding="ascii")
                 self.logging = True
@@ -294,6 +297,7 @@ class Session:
         finally:
             self._running = False
             self._pump_fd = -1
+            self._pump_ptys = ()
             self._rt_host.stop()
             for k in keepers:
                 k.finish()  # the DUT and everything it started are gone when this returns
@@ -442,10 +446,12 @@ class Session:
         got = -1
         if fast is not None and conn.hello and self._pump_fd >= 0 and self._quiet():
             try:
-                got = fast.pump(fd, self._pump_fd, buf)
+                got = fast.pump(fd, self._pump_fd, buf, self._pump_ptys)
             except Stop:
                 buf.clear()
                 return True
+            finally:
+                self._unstamped |= bool(self._pump_ptys)  # (pump may have read a pty into its pending)
             if got == 0:
                 return False
         if got < 0:

@@ -120,12 +120,15 @@ class FastPath:
         off_after: int = self._handle(self._state, fd, buf, off)
         return off_after
 
-    def pump(self, fd: int, epoll_fd: int, buf: bytearray) -> int:
+    def pump(self, fd: int, epoll_fd: int, buf: bytearray, ptys: tuple[tuple[int, bytearray], ...] = ()
+             ) -> int:
         """Reads connection ``fd`` and acts on its messages in C until something needs the session's loop
         (pump.c: a message for the handler, another of ``epoll_fd``'s descriptors ready, its time budget
-        spent); what it did not act on is left in ``buf``. Returns the bytes it received, or -1 with
-        nothing done: the loop's own read takes over (the connection ended, or ``buf`` is too full)."""
-        got: int = self._pump(self._state, fd, epoll_fd, buf)
+        spent); what it did not act on is left in ``buf``. A pty of ``ptys`` (master fd, the bytearray its
+        bytes go to) that is ready is read into its bytearray meanwhile, as the loop would. Returns the
+        bytes it received, or -1 with nothing done: the loop's own read takes over (the connection ended,
+        or ``buf`` is too full)."""
+        got: int = self._pump(self._state, fd, epoll_fd, buf, ptys)
         return got
 
 

@@ -13,18 +13,24 @@
  * connection that came meanwhile is not passed over for this one's. pump returns, with the bytes not acted on put
  * back in buf, when
  *   - a message is one for the Python handler (the loop acts on it next, from buf);
- *   - anything other than this connection is ready: the keeper, a pty, the listener, another connection;
+ *   - anything other than this connection and the DUT's ptys is ready: the keeper, the listener, another
+ *     connection;
  *   - it has run for PUMP_BUDGET_NS (the loop's watchdogs), or nothing came in that time;
  *   - the connection ended (the loop's own read sees that again, and drops it).
+ * A pty that is ready (the DUT's telemetry, a line each FC cycle for the reference FC) is read here into its
+ * bytearray of bytes not yet stamped (the session's _Pty.pending), as the loop's _read_pty would: the loop
+ * woke for it about once every three FC cycles, for about 6 k instructions a cycle (run_instructions.py).
  * A signal's Python handler runs in it (PyErr_CheckSignals), and an exception it raises comes out of
  * pump, as one raised by the fast path does.
  */
 #include <sys/epoll.h>
 #include <time.h>
+#include <unistd.h>
 
 #define PUMP_RX (1 << 18) /* as the loop's own recv */
 #define PUMP_BUDGET_NS 20000000ull
 #define PUMP_EVENTS 8
+#define PUMP_PTY_READ 65536 /* as the loop's _read_pty */
 
 static uint64_t mono_ns(void)
 {
@@ -43,21 +49,64 @@ static int give_back(PyObject *buf, const uint8_t *p, Py_ssize_t n)
     return 0;
 }
 
-/* pump(state, fd, epfd, buf) -> the bytes received from fd; -1, with nothing done, when there is no
+/* ptys: a tuple of (master fd, bytearray) pairs, checked before anything is read */
+static int pty_pairs_ok(PyObject *ptys)
+{
+    if (!PyTuple_Check(ptys)) {
+        PyErr_SetString(PyExc_TypeError, "pump takes the ptys as a tuple of (fd, bytearray) pairs");
+        return 0;
+    }
+    for (Py_ssize_t i = 0; i < PyTuple_GET_SIZE(ptys); i++) {
+        PyObject *pair = PyTuple_GET_ITEM(ptys, i);
+        if (!PyTuple_Check(pair) || PyTuple_GET_SIZE(pair) != 2 || !PyLong_Check(PyTuple_GET_ITEM(pair, 0)) ||
+            !PyByteArray_Check(PyTuple_GET_ITEM(pair, 1))) {
+            PyErr_SetString(PyExc_TypeError, "pump takes the ptys as a tuple of (fd, bytearray) pairs");
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* The pty pair of descriptor ``fd``, or NULL */
+static PyObject *pty_of(PyObject *ptys, int fd)
+{
+    for (Py_ssize_t i = 0; i < PyTuple_GET_SIZE(ptys); i++) {
+        PyObject *pair = PyTuple_GET_ITEM(ptys, i);
+        if (PyLong_AsLong(PyTuple_GET_ITEM(pair, 0)) == fd)
+            return pair;
+    }
+    return NULL;
+}
+
+/* What the pty has, appended to its bytearray (one read, as _read_pty: an error or nothing is no bytes) */
+static int read_pty(PyObject *pair)
+{
+    int fd = (int)PyLong_AsLong(PyTuple_GET_ITEM(pair, 0));
+    PyObject *into = PyTuple_GET_ITEM(pair, 1);
+    Py_ssize_t had = PyByteArray_GET_SIZE(into);
+    if (PyByteArray_Resize(into, had + PUMP_PTY_READ) < 0)
+        return -1;
+    ssize_t k = read(fd, PyByteArray_AS_STRING(into) + had, PUMP_PTY_READ);
+    return PyByteArray_Resize(into, had + (k > 0 ? k : 0));
+}
+
+/* pump(state, fd, epfd, buf, ptys) -> the bytes received from fd; -1, with nothing done, when there is no
  * room for them in C or the connection ended before anything came (the loop's own read takes it) */
 static PyObject *fp_pump(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 4)
-        return PyErr_Format(PyExc_TypeError, "pump takes 4 arguments (%zd given)", nargs);
+    if (nargs != 5)
+        return PyErr_Format(PyExc_TypeError, "pump takes 5 arguments (%zd given)", nargs);
     fast_state *s = PyCapsule_GetPointer(a[0], "rig.lockstep");
     int fd = (int)PyLong_AsLong(a[1]);
     int epfd = (int)PyLong_AsLong(a[2]);
-    PyObject *buf = a[3];
+    PyObject *buf = a[3], *ptys = a[4];
     if (!s || PyErr_Occurred())
         return NULL;
     if (!PyByteArray_Check(buf))
         return PyErr_Format(PyExc_TypeError, "pump takes the connection's bytearray");
+    if (!pty_pairs_ok(ptys))
+        return NULL;
     Py_ssize_t n = PyByteArray_GET_SIZE(buf);
     if (n > PUMP_RX / 2)
         return PyLong_FromLong(-1);
@@ -86,11 +135,18 @@ static PyObject *fp_pump(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
                 continue; /* (its Python handler runs at the top) */
             if (ready <= 0)
                 break;
-            int others = 0;
-            for (int i = 0; i < ready; i++)
-                others |= ev[i].data.fd != fd;
+            int others = 0, mine = 0;
+            for (int i = 0; i < ready && !others; i++) {
+                PyObject *pty = ev[i].data.fd == fd ? NULL : pty_of(ptys, ev[i].data.fd);
+                mine |= ev[i].data.fd == fd;
+                others |= ev[i].data.fd != fd && !pty;
+                if (pty && read_pty(pty) < 0)
+                    goto fail;
+            }
             if (others)
                 break;
+            if (!mine)
+                continue;
         }
         readable = 0;
         ssize_t k = recv(fd, s->rx + n, (size_t)(PUMP_RX - n), MSG_DONTWAIT);

@@ -8,6 +8,7 @@ from __future__ import annotations
 import ctypes
 import json
 import os
+import select
 import selectors
 import socket
 import struct
@@ -318,14 +319,18 @@ def test_the_entry_points_refuse_wrong_arguments(tmp_path: Path) -> None:
         m.handle(state, 0, b"", 0)
     with pytest.raises(ValueError, match="outside the buffer"):
         m.handle(state, 0, bytearray(4), 5)
-    with pytest.raises(TypeError, match="4 arguments"):
+    with pytest.raises(TypeError, match="5 arguments"):
         m.pump(state, 0)
     with pytest.raises(TypeError, match="4 arguments"):
         m.setup_events(state)
     with pytest.raises(TypeError, match="run_next, a dict and deliver"):
         m.setup_events(state, print, [], print)
     with pytest.raises(TypeError, match="bytearray"):
-        m.pump(state, 0, 0, b"")
+        m.pump(state, 0, 0, b"", ())
+    bad: list[Any] = [[], ((0, b""),), ((0,),), (("0", bytearray()),)]
+    for ptys in bad:
+        with pytest.raises(TypeError, match=r"\(fd, bytearray\) pairs"):
+            m.pump(state, 0, 0, bytearray(), ptys)
     with pytest.raises(TypeError, match="19 arguments"):
         m.setup_mag(state)
     with pytest.raises(TypeError, match="13 arguments"):
@@ -348,7 +353,53 @@ def test_the_entry_points_refuse_wrong_arguments(tmp_path: Path) -> None:
     with a, b:
         b.close()  # the connection ended before anything came: the loop's own read takes it
         buf = bytearray(b"abc")
-        assert m.pump(state, a.fileno(), -1, buf) == -1 and buf == b"abc"
+        assert m.pump(state, a.fileno(), -1, buf, ()) == -1 and buf == b"abc"
+
+
+def test_pump_reads_the_duts_ptys_in_the_loops_place(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """The DUT writes a line to its pty while pump reads its connection: pump reads the line into the
+    pty's bytes not yet stamped, after those there already, and goes on with the connection (it went back
+    to the loop for it before: a wake of the loop about every third FC cycle of the reference FC). The
+    DUT's replies are the handler's."""
+    lines = [b"t=0.010 roll=0.1\n", b"t=0.014 roll=0.2\n"]
+    cycles = [_i2c(10_000_000 + k * CYCLE_NS, [(0x68, 0, 1, b"\x3b"), (0x68, P.I2C_M_RD, 14, b"")])
+              for k in range(2)]
+    replies = []
+    for py_path in (True, False):
+        monkeypatch.setenv(lockstep.PY_PATH_ENV, "1" if py_path else "0")
+        session = Session(SessionConfig(command=["true"]), World.at_rest(seed=3))
+        session.open_page(tmp_path / f"shm-{py_path}")
+        fast = session.fast
+        assert (fast is None) == py_path
+        master, slave = os.openpty()
+        tty.setraw(slave)
+        os.set_blocking(master, False)
+        pending = bytearray(b"earlier ")
+        ours, dut = socket.socketpair()
+        with ours, dut, selectors.EpollSelector() as sel:
+            sel.register(ours, selectors.EVENT_READ, "conn")
+            sel.register(master, selectors.EVENT_READ, "pty")
+            got = bytearray()
+            for cycle, line in zip(cycles, lines, strict=True):
+                dut.sendall(cycle)
+                os.write(slave, line)
+                select.select([master], [], [], 10.0)  # (the pty hands bytes over in a kernel worker)
+                if fast is None:
+                    handler = session.handler
+                    assert handler is not None
+                    hdr = P.Header.parse(cycle, 0)
+                    handler.handle(_Conn(ours, 1, hello=True), hdr, cycle[P.HEADER.size:])
+                else:
+                    buf = bytearray()
+                    # the cycle's bytes, and the line read in C: pump returned for neither
+                    assert fast.pump(ours.fileno(), sel.fileno(), buf, ((master, pending),)) == len(cycle)
+                    assert buf == b""
+                got += dut.recv(1 << 16)
+            replies.append(bytes(got))
+        os.close(master)
+        os.close(slave)
+    assert pending == b"earlier " + b"".join(lines)
+    assert replies[0] == replies[1] and len(replies[0]) > 2 * 14
 
 
 def _result(run_dir: Path) -> dict[str, Any]:
