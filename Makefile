@@ -160,13 +160,19 @@ build/bench/physics_bench: bench/physics_bench.c $(PLANT_SOURCES) | venv $(FMU)
 	@mkdir -p build/bench
 	$(CC) $(CFLAGS_BENCH) -Ibuild/plant/gen -Iplant/c -o $@ bench/physics_bench.c plant/c/quadrotor_physics.c -lm
 
-bench: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) $(VBRIDGE) build/bench/physics_bench
+# what one lockstep round trip costs the transport alone: a socket against a futex (bench/roundtrip.c)
+build/bench/roundtrip: bench/roundtrip.c
+	@mkdir -p build/bench
+	$(CC) $(CFLAGS_BENCH) -o $@ bench/roundtrip.c
+
+bench: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED) $(DUT_BIN) $(VBRIDGE) build/bench/physics_bench build/bench/roundtrip
 	$(PY) bench/plant_rates.py
 	$(PY) bench/emulator_rates.py
 	$(PY) bench/exec_rates.py
 	build/dut/bench_fc
 	$(PY) bench/scenario_rates.py
 	$(PY) bench/cycle_cost.py
+	build/bench/roundtrip
 	$(PY) bench/bridge_m4_cost.py
 	$(PY) bench/bridge_rates.py
 	$(PY) bench/sweep_rates.py
