@@ -5,6 +5,7 @@ that arrives in pieces or carries non-finite values."""
 from __future__ import annotations
 
 import math
+import random
 import sys
 from pathlib import Path
 
@@ -52,3 +53,68 @@ def test_a_non_finite_value_leaves_the_rest_of_its_line() -> None:
     assert cols["roll"][0] == 2.0 and math.isnan(cols["roll"][1])
     assert math.isnan(cols["alt"][0]) and cols["alt"][1] == 1.5
     assert nonfinite == {"alt": 1.0, "roll": 2.0}
+
+
+def _plain_reading(text: bytes, base: float) -> tuple[dict[str, list[float]], int, dict[str, float]]:
+    """parse_telemetry's docstring read literally, as a second implementation: each line of ``T`` items
+    into a dict of every item (split at its first ``=``)."""
+    keys = ["roll", "pitch", "yaw", "alt", "armed"]
+    cols: dict[str, list[float]] = {"t": [], **{k: [] for k in keys}}
+    bad, nonfinite = 0, dict[str, float]()
+    for line in text.decode("ascii", "replace").splitlines():
+        if line.startswith("#"):
+            continue
+        if not line.startswith("T "):
+            bad += bool(line.strip())
+            continue
+        try:
+            items = dict(item.split("=", 1) for item in line[2:].split())
+            t = float(items["t"]) - base
+            values = {k: float(items[k]) for k in keys if k in items}
+        except (ValueError, KeyError):
+            bad += 1
+            continue
+        if not math.isfinite(t):
+            bad += 1
+            continue
+        cols["t"].append(t)
+        for k in keys:
+            v = values.get(k, math.nan)
+            if k in values and not math.isfinite(v):
+                nonfinite.setdefault(k, t)
+                v = math.nan
+            cols[k].append(v)
+    return cols, bad, nonfinite
+
+
+def test_the_telemetry_parser_reads_what_a_plain_reading_reads() -> None:
+    """Odd lines and two thousand random edits of a reference FC line: the same columns (NaN for NaN),
+    the same count of lines that did not parse and the same first non-finite times."""
+    good = "T t=1001.25 roll=0.123 pitch=-0.456 yaw=1.234 alt=1.500 armed=1 rc=1 loop_us=35 overruns=0"
+    odd = [good, good.replace(" ", "\t"), good.replace(" ", "\x1c"), good + " roll=7", good + " bare",
+           "T t=1 roll=1=2", "T =5 t=2", "T roll=1", "T t=nan", "T t=inf roll=1", "T t=3 alt=-inf yaw=NaN",
+           "T t=4 roll==1", "T t=5 Roll=1 rolls=2 xroll=3", "T", "T  ", "Tt=1", "# fc: hello", "", "   ",
+           "T t=6 pitch=1e400 armed=", "T t=0x10", "T t=7 rc=abc", "t=8 roll=1", "T t=9 roll=1\x85alt=2"]
+    rng = random.Random(11)
+    alphabet = " =.-+eEtT#\t\x0bnaifrolpchyw0123456789x\u00e9"
+    lines = list(odd)
+    for _ in range(2000):
+        chars = list(good)
+        for _ in range(rng.randint(1, 4)):
+            at = rng.randrange(len(chars))
+            what = rng.randrange(3)
+            if what == 0:
+                del chars[at]
+            elif what == 1:
+                chars.insert(at, rng.choice(alphabet))
+            else:
+                chars[at] = rng.choice(alphabet)
+        lines.append("".join(chars))
+    text = "\n".join(lines).encode("utf-8")
+    cols, bad, nonfinite = parse_telemetry(text, 1000.0)
+    want_cols, want_bad, want_nonfinite = _plain_reading(text, 1000.0)
+    assert (bad, nonfinite) == (want_bad, want_nonfinite)
+    assert set(cols) == set(want_cols)
+    for k, want in want_cols.items():
+        assert np.array_equal(cols[k], np.array(want, dtype=float), equal_nan=True), k
+    assert 300 < want_bad < 1900 and len(want_cols["t"]) > 300 and want_nonfinite  # every kind was met
