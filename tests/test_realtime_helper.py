@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from tests.realtime import STARVED_MAX_S, STARVED_P99_S, realtime, starved
+from tests.realtime import STARVED_MAX_S, STARVED_P99_S, realtime, realtime_each, starved
 
 KEPT = {"events": 10_000, "late_over_1ms": 3, "max_s": 0.004, "p99_s": 0.0006}
 STARVED = {"events": 10_000, "late_over_1ms": 2_400, "max_s": 0.031, "p99_s": 0.012}
@@ -52,3 +52,35 @@ def test_starved_twice_is_inconclusive_with_the_figures_never_a_pass_or_a_failur
     assert said.startswith("inconclusive: the host could not keep real time")
     assert "run: 2400 of 10000 events over 1 ms late" in said
     assert "then run: 900 of 10000 events over 1 ms late, p99 4.0 ms" in said
+
+
+def each(*tries: dict[str, dict[str, Any]]) -> tuple[list[tuple[list[str], int]], Any, Any]:
+    """Flights of several runs: the k-th flight's figures per run are tries[k]'s."""
+    flown: list[tuple[list[str], int]] = []
+
+    def fly(names: list[str], attempt: int) -> int:
+        flown.append((list(names), attempt))
+        return attempt
+
+    return flown, fly, lambda k: {n: v for n, v in tries[k].items() if n in flown[k][0]}
+
+
+def test_only_the_starved_runs_are_flown_again_and_each_is_judged_where_it_kept_pace() -> None:
+    flown, fly, late = each({"a": KEPT, "b": STARVED, "c": KEPT}, {"b": KEPT})
+    assert realtime_each(["a", "b", "c"], fly, late) == [(0, ["a", "c"]), (1, ["b"])]
+    assert flown == [(["a", "b", "c"], 0), (["b"], 1)]
+
+
+def test_runs_that_kept_pace_at_once_are_flown_once() -> None:
+    flown, fly, late = each({"a": KEPT, "b": KEPT})
+    assert realtime_each(["a", "b"], fly, late) == [(0, ["a", "b"])] and len(flown) == 1
+
+
+def test_a_run_starved_twice_is_inconclusive_whatever_the_others_did() -> None:
+    flown, fly, late = each({"a": STARVED, "b": KEPT, "c": STARVED}, {"a": KEPT, "c": STARVED})
+    with pytest.raises(pytest.skip.Exception) as e:
+        realtime_each(["a", "b", "c"], fly, late)
+    assert flown == [(["a", "b", "c"], 0), (["a", "c"], 1)]
+    said = str(e.value)
+    assert said.startswith("inconclusive: the host could not keep real time")
+    assert "a: 2400 of 10000" in said and "then c: 2400 of 10000" in said and "then a" not in said
