@@ -17,9 +17,10 @@
  *     connection;
  *   - it has run for PUMP_BUDGET_NS (the loop's watchdogs), or nothing came in that time;
  *   - the connection ended (the loop's own read sees that again, and drops it).
- * A pty that is ready (the DUT's telemetry, a line each FC cycle for the reference FC) is read here into its
+ * A pty that is ready (the DUT's telemetry: the reference FC's 50 lines a second) is read here into its
  * bytearray of bytes not yet stamped (the session's _Pty.pending), as the loop's _read_pty would: the loop
  * woke for it about once every three FC cycles, for about 6 k instructions a cycle (run_instructions.py).
+ * A pty that stays ready with nothing to read is passed over until the budget is spent, as in the loop.
  * A signal's Python handler runs in it (PyErr_CheckSignals), and an exception it raises comes out of
  * pump, as one raised by the fast path does.
  */
