@@ -11,8 +11,9 @@
  * the datasheet compensation (ms5611.encode's integer mode: the same integer steps, with Python's floor
  * semantics for >> and //), then chip_push_baro. The temperature's D2 is searched once per temperature
  * and kept (ms5611.encode_temperature is cached likewise). Everything else stays with the Python
- * producer: a source replaced since setup, noise on the model or the conversion (numpy's generator), a signal fault, the float encoding,
- * a value outside the sensor's range (Python raises), and a PROM whose words do not fit 16 bits.
+ * producer: a source replaced since setup, noise on the model or the conversion (numpy's generator), a signal
+ * fault, the float encoding, a value outside the sensor's range (Python raises), and a PROM whose words do not
+ * fit 16 bits.
  */
 
 typedef bool (*push_baro_fn)(chip_board *b, uint64_t valid_ns, uint32_t d1, uint32_t d2);

@@ -10,8 +10,9 @@
  * (World._slots' arithmetic, as imu_feed.c), the disturbance of a scenario's window or none, the same C
  * call for the errors and noise (rig_channel_measure, the emulators' library's own entry point, its
  * normals refilled by the Python channel when short) and chip_push_mag. Everything else stays with the
- * Python producer, which keeps its state: a source or disturbance replaced since setup, a new anchor (a restart of the measurement clock), a signal
- * fault on the magnetometer, and a disturbance that is not a scenario's window.
+ * Python producer, which keeps its state: a source or disturbance replaced since setup, a new anchor (a restart
+ * of the measurement clock), a signal fault on the magnetometer, and a disturbance that is not a scenario's
+ * window.
  */
 
 typedef int32_t (*channel_measure_fn)(void *c, int32_t n, const double *t, const double *truth, const double *temp,
