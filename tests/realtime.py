@@ -4,8 +4,8 @@ host kept pace. Every such test hands its runs to ``realtime()``, which checks e
 starved run is flown again once; starved twice, the test ends inconclusive with ``pytest.skip`` and the
 figures (pytest's ``-ra`` summary lists it), never passed silently and never failed as the DUT's fault.
 On a loaded VM such runs failed with 18-35 deg of tilt and thousands of events over 1 ms late.
-Several runs of one test are judged each on its own
-(``realtime_each``): only the starved ones are flown again.
+Several runs of one test are judged each on its own (``realtime_each``): only the starved ones are
+flown again.
 Every such test carries the ``paced`` marker: ``make test`` runs them alone, after the rest of the suite
 has run on every core, so the suite's own load does not starve them.
 
@@ -25,7 +25,7 @@ from __future__ import annotations
 import json
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, NoReturn, TypeVar
 
 import pytest
 
@@ -70,6 +70,12 @@ def of_results(folder: Path, names: Iterable[str]) -> Callable[[Any], dict[str, 
     return read
 
 
+def _inconclusive(tries: list[str]) -> NoReturn:
+    """Skips the test as inconclusive, with each try's starved runs in words."""
+    pytest.skip("inconclusive: the host could not keep real time (starved twice: "
+                + " | then ".join(tries) + ")")
+
+
 def realtime_each(names: list[str], fly: Callable[[list[str], int], T],
                   lateness: Callable[[T], Mapping[str, Mapping[str, Any]]]) -> list[tuple[T, list[str]]]:
     """Several runs judged each on its own: ``fly(names, attempt)`` flies the named runs (attempt 0, then 1)
@@ -91,8 +97,7 @@ def realtime_each(names: list[str], fly: Callable[[list[str], int], T],
             return flights
         tries.append("; ".join(figures.values()))
         todo = [n for n in todo if n in figures]
-    pytest.skip("inconclusive: the host could not keep real time (starved twice: "
-                + " | then ".join(tries) + ")")
+    _inconclusive(tries)
 
 
 def realtime(fly: Callable[[], T], lateness: Callable[[T], Mapping[str, Mapping[str, Any]]]) -> T:
@@ -105,5 +110,4 @@ def realtime(fly: Callable[[], T], lateness: Callable[[T], Mapping[str, Mapping[
         if not figures:
             return got
         tries.append("; ".join(figures))
-    pytest.skip("inconclusive: the host could not keep real time (starved twice: "
-                + " | then ".join(tries) + ")")
+    _inconclusive(tries)
