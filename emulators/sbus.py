@@ -65,6 +65,11 @@ class Sticks:
     alt_hold: bool = False
     alt_offset: float = 0.0
 
+    def setting(self) -> tuple[float, float, float, float, bool, bool, float]:
+        """What the channels are made from, to compare with a frame's (an emulator sends the same
+        sticks ~70 times a second: comparing these is a seventh of making the channels)."""
+        return self.roll, self.pitch, self.throttle, self.yaw, self.arm, self.alt_hold, self.alt_offset
+
     def channels(self) -> list[int]:
         ch = [RAW_CENTRE] * CHANNELS
         ch[0], ch[1], ch[3] = unit_to_raw(self.roll), unit_to_raw(self.pitch), unit_to_raw(self.yaw)

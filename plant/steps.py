@@ -48,6 +48,13 @@ def get_boolean() -> Callable[[int, int, int], int]:
     return fn
 
 
+def gather() -> Callable[[int, int, tuple[int, ...], int, int, tuple[int, ...]], list[float]]:
+    """``gather(a_address, a_len, a_indices, b_address, b_len, b_indices) -> [a[i]..., b[j]...]``: doubles
+    of two buffers at the given indices (each checked against its buffer's length)."""
+    fn: Callable[[int, int, tuple[int, ...], int, int, tuple[int, ...]], list[float]] = _module().gather
+    return fn
+
+
 if __name__ == "__main__":
     try:
         print(build())

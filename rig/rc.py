@@ -24,11 +24,12 @@ class StickEmulator:
     link: str = "ok"
     #: every frame sent: (sim time ns, channels, failsafe), for run.mcap's /rc channel (~70 a second)
     frames: list[tuple[int, tuple[int, ...], bool]] = field(default_factory=list)
-    #: the last frame encoded and what it carries: the sticks mostly hold still between frames
-    _encoded: tuple[tuple[int, ...], bool, bytes] = field(init=False, repr=False)
+    #: the last frame encoded and what it was made from (Sticks.setting, failsafe, its channels): the
+    #: sticks mostly hold still between frames
+    _encoded: tuple[tuple[float, ...], bool, tuple[int, ...], bytes] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        self._encoded = ((), False, b"")  # (here, not as the field's default: mypyc leaves that unset)
+        self._encoded = ((), False, (), b"")  # (here, not as the field's default: mypyc leaves that unset)
 
     def start(self, session: Host, t: float = 0.0) -> None:
         session.at(t, lambda s: self._tick(s, t))
@@ -37,11 +38,12 @@ class StickEmulator:
         if self.link == "lost":
             session.serial_silence(self.path)
         else:
-            channels, failsafe = tuple(self.sticks.channels()), self.link == "failsafe"
-            last, last_failsafe, frame = self._encoded
-            if channels != last or failsafe != last_failsafe:
+            setting, failsafe = self.sticks.setting(), self.link == "failsafe"
+            last, last_failsafe, channels, frame = self._encoded
+            if setting != last or failsafe != last_failsafe:
+                channels = tuple(self.sticks.channels())
                 frame = encode(list(channels), failsafe=failsafe, frame_lost=failsafe)
-                self._encoded = channels, failsafe, frame
+                self._encoded = setting, failsafe, channels, frame
             session.serial_write(self.path, frame)
             self.frames.append((round(t * 1e9), channels, failsafe))
         nxt = t + self.period

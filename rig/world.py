@@ -80,17 +80,12 @@ class _WorldTruth:
 
 class Probe:
     """Some plant outputs and the motors' pulse widths, read together (the recorder's 100 Hz row): one
-    indexed copy and list conversion of each buffer per read, not a numpy scalar per value (nor the
-    whole buffers as lists: a third of the cost)."""
+    C call over the plant's buffers (Plant.reader), not a numpy scalar per value (nor two indexed
+    copies converted to lists: 7 k instructions a row)."""
 
     def __init__(self, plant: Plant, outputs: list[int], motors: list[int]) -> None:
-        self._plant = plant
-        self._y, self._u = np.array(outputs, dtype=np.intp), np.array(motors, dtype=np.intp)
-
-    def read(self) -> list[float]:
-        plant = self._plant
-        out: list[float] = plant.y[self._y].tolist() + plant.u[self._u].tolist()
-        return out
+        self._plant = plant  # (its buffers: the reader holds their addresses)
+        self.read: Callable[[], list[float]] = plant.reader(outputs, motors)
 
 
 @dataclass

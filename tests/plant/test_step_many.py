@@ -61,3 +61,28 @@ def test_a_ring_of_the_wrong_shape_is_refused() -> None:
             with pytest.raises(ValueError, match="C-contiguous float64 rows"):
                 a.step_many(1, DT, ring=bad)
         assert a.time == 0.0
+
+
+def test_a_reader_gives_the_outputs_and_inputs_numpy_indexing_gives() -> None:
+    """Plant.reader (one C call over the buffers) against numpy's own indexing of the same buffers, as a
+    flight changes them; indices outside a buffer are refused, by the Python check and by the C one."""
+    from plant.steps import gather
+
+    with flying(WOBBLE) as a:
+        outputs, inputs = [3, 0, len(a.y) - 1, 3], [len(a.u) - 1, 0]
+        read = a.reader(outputs, inputs)
+        for n in (0, 1, 7):
+            a.step_many(n, DT)
+            a.set_input("wind_n", float(n))
+            assert read() == a.y[outputs].tolist() + a.u[inputs].tolist()
+        assert a.reader([], [])() == []
+        for bad_out, bad_in in (([len(a.y)], []), ([], [-1])):
+            with pytest.raises(IndexError, match="outside the plant's"):
+                a.reader(bad_out, bad_in)
+        y_addr, u_addr = a.y.ctypes.data, a.u.ctypes.data
+        with pytest.raises(IndexError, match="index 5 outside 5"):
+            gather()(y_addr, 5, (0, 5), u_addr, 1, ())
+        with pytest.raises(TypeError, match="tuples"):
+            gather()(y_addr, 5, [0], u_addr, 1, ())
+        with pytest.raises(ValueError, match="addresses"):
+            gather()(0, 5, (0,), u_addr, 1, ())

@@ -69,3 +69,28 @@ def test_each_frame_carries_the_sticks_and_link_of_its_instant() -> None:
     by_time = {t: decode(frame)[0] for t, frame in host.sent}
     assert by_time[min(t for t in by_time if t > 200_000_000)][2] == round(992 + (2 * 0.4 - 1) * 819)
     assert any(f for _, f in expected) and {c[3] for c, _ in expected} >= {992, 173}  # yaw centred, then -1
+
+
+def test_sticks_changed_in_place_reach_the_next_frame() -> None:
+    """A scenario's timeline sets the sticks' fields on the same object (rig/runner.py): each frame
+    carries the channels of a fresh copy of the sticks at its instant, whatever the emulator kept."""
+    host = _Port()
+    rc = StickEmulator("/dev/ttyRC0")
+    rc.start(host)
+    changes: list[tuple[int, Sticks]] = [(0, Sticks())]
+
+    def set_field(t: float, name: str, value: float | bool) -> None:
+        def fn(_: Host) -> None:
+            setattr(rc.sticks, name, value)
+            changes.append((host.now_ns, Sticks(*rc.sticks.setting())))
+        host.at(t, fn)
+
+    for t, name, value in ((0.1, "arm", True), (0.2, "throttle", 0.55), (0.3, "roll", -0.25),
+                           (0.4, "roll", -0.25), (0.5, "alt_offset", 0.3), (0.6, "roll", -0.0), (0.7, "yaw", 1.0)):
+        set_field(t, name, value)
+    host.sched.advance(999_000_000)
+    assert len(host.sent) == int(0.999 / PERIOD_S) + 1
+    for t, frame in host.sent:
+        sticks = [s for when, s in changes if when <= t][-1]
+        assert decode(frame) == (sticks.channels(), 0)
+    assert {decode(f)[0][0] for _, f in host.sent} == {992, round(992 - 0.25 * 819)}

@@ -4,7 +4,9 @@ tested only by spawning a program."""
 
 from __future__ import annotations
 
+import math
 import os
+import random
 import signal
 from collections.abc import Callable
 from pathlib import Path
@@ -13,7 +15,7 @@ import pytest
 
 from rig import interrupts
 from rig import protocol as P
-from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, SharedPage, Stop
+from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, SharedPage, Stop, round_half_even
 from rig.world import World
 
 
@@ -137,3 +139,21 @@ def test_the_lateness_figures_count_the_late_and_give_median_p99_and_worst(world
     events, late, worst, p99, p50 = sched.lateness()
     assert sched.lateness_ns == [200_000] * 9 + [2_000_000]
     assert (events, late, worst, p99, p50) == (10, 1, 0.002, 0.0002, 0.0002)
+
+
+def test_an_events_time_rounds_as_the_builtin_round_does():
+    """round_half_even (the scheduler's own, cheaper round) against Python's round: halves, the floats
+    next to them, negatives, event times, integers past 2**53 and past 2**63."""
+    rng = random.Random(7)
+    values = [0.0, -0.0, 0.5, 1.5, 2.5, -0.5, -1.5, -2.5, 0.49999999999999994, 2.0**52 + 1, 2.0**53, 2.0**64,
+              -2.0**70, 1e300, 5e-324]
+    for _ in range(20000):
+        half = rng.randint(-10**9, 10**9) + 0.5
+        values += [half, math.nextafter(half, math.inf), math.nextafter(half, -math.inf),
+                   rng.uniform(-1e12, 1e12), rng.randint(0, 10**6) * 0.001 * NS, rng.randint(0, 10**5) * 0.014 * NS]
+    assert [round_half_even(x) for x in values] == [round(x) for x in values]
+    for bad, error in ((math.nan, ValueError), (math.inf, OverflowError), (-math.inf, OverflowError)):
+        with pytest.raises(error):
+            round(bad)
+        with pytest.raises(error):
+            round_half_even(bad)
