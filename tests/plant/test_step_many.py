@@ -83,6 +83,6 @@ def test_a_reader_gives_the_outputs_and_inputs_numpy_indexing_gives() -> None:
         with pytest.raises(IndexError, match="index 5 outside 5"):
             gather()(y_addr, 5, (0, 5), u_addr, 1, ())
         with pytest.raises(TypeError, match="tuples"):
-            gather()(y_addr, 5, [0], u_addr, 1, ())
+            gather()(y_addr, 5, [0], u_addr, 1, ())  # type: ignore[arg-type]
         with pytest.raises(ValueError, match="addresses"):
             gather()(0, 5, (0,), u_addr, 1, ())

@@ -85,8 +85,9 @@ def test_sticks_changed_in_place_reach_the_next_frame() -> None:
             changes.append((host.now_ns, Sticks(*rc.sticks.setting())))
         host.at(t, fn)
 
-    for t, name, value in ((0.1, "arm", True), (0.2, "throttle", 0.55), (0.3, "roll", -0.25),
-                           (0.4, "roll", -0.25), (0.5, "alt_offset", 0.3), (0.6, "roll", -0.0), (0.7, "yaw", 1.0)):
+    timeline = ((0.1, "arm", True), (0.2, "throttle", 0.55), (0.3, "roll", -0.25), (0.4, "roll", -0.25),
+                (0.5, "alt_offset", 0.3), (0.6, "roll", -0.0), (0.7, "yaw", 1.0))
+    for t, name, value in timeline:
         set_field(t, name, value)
     host.sched.advance(999_000_000)
     assert len(host.sent) == int(0.999 / PERIOD_S) + 1

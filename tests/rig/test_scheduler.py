@@ -149,8 +149,9 @@ def test_an_events_time_rounds_as_the_builtin_round_does():
               -2.0**70, 1e300, 5e-324]
     for _ in range(20000):
         half = rng.randint(-10**9, 10**9) + 0.5
-        values += [half, math.nextafter(half, math.inf), math.nextafter(half, -math.inf),
-                   rng.uniform(-1e12, 1e12), rng.randint(0, 10**6) * 0.001 * NS, rng.randint(0, 10**5) * 0.014 * NS]
+        values += [half, math.nextafter(half, math.inf), math.nextafter(half, -math.inf)]
+        event_times = rng.randint(0, 10**6) * 0.001 * NS, rng.randint(0, 10**5) * 0.014 * NS  # (ms, SBUS)
+        values += [rng.uniform(-1e12, 1e12), *event_times]
     assert [round_half_even(x) for x in values] == [round(x) for x in values]
     for bad, error in ((math.nan, ValueError), (math.inf, OverflowError), (-math.inf, OverflowError)):
         with pytest.raises(error):
