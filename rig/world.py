@@ -105,6 +105,7 @@ class World:
         self._hist[self._k % HISTORY] = self.plant.y
         self._u_pwm = [self.plant.u_index[name] for name in PWM_INPUTS]
         self._u_named = {name: self.plant.u_index[name] for name in SCENARIO_INPUTS}
+        self._u_cells = self.plant.u_cells
         self._read_on_ground = self.plant.read_on_ground
 
     @classmethod
@@ -199,13 +200,13 @@ class World:
         """Channels 0..MOTORS-1 drive motors 1..MOTORS at once, unless a capture link (rig/capture.py)
         stands between them and sets ``direct_pwm`` False."""
         if channel < MOTORS and self.direct_pwm:
-            self.plant.u[self._u_pwm[channel]] = self.pwm[channel].pulse_us()
+            self._u_cells[self._u_pwm[channel]] = self.pwm[channel].pulse_us()
 
     # ---- the scenario's side: what the world accepts from outside, by name ---------------------
 
     def set_motor(self, motor: int, pulse_us: float) -> None:
         """The ESC pulse of motor ``motor`` (0-based, as the PWM channels) from a capture link."""
-        self.plant.u[self._u_pwm[motor]] = pulse_us
+        self._u_cells[self._u_pwm[motor]] = pulse_us
 
     def set_input(self, name: str, value: float) -> None:
         """One of the plant's scenario inputs by name (plant.variables.SCENARIO_INPUTS: wind, external
@@ -213,7 +214,7 @@ class World:
         index = self._u_named.get(name)
         if index is None:
             raise KeyError(f"{name!r} is not an input of the world; known: {', '.join(self._u_named)}")
-        self.plant.u[index] = value
+        self._u_cells[index] = value
 
     def probe(self, outputs: Sequence[str]) -> Probe:
         """Reads the named plant outputs and the motors' pulse widths (in that order) in one call."""

@@ -53,8 +53,8 @@ static PyObject *get_boolean(PyObject *self, PyObject *const *a, Py_ssize_t narg
     return PyLong_FromLong(status > 1 ? -status : value != 0);
 }
 
-/* the doubles at a tuple's indices of an array of n, appended to a list: 0, or -1 (raised) */
-static int gather_into(PyObject *list, const double *v, Py_ssize_t n, PyObject *idx)
+/* the doubles at a tuple's indices of an array of n, into list[at...]: 0, or -1 (raised) */
+static int gather_into(PyObject *list, Py_ssize_t at, const double *v, Py_ssize_t n, PyObject *idx)
 {
     for (Py_ssize_t i = 0; i < PyTuple_GET_SIZE(idx); i++) {
         Py_ssize_t k = PyLong_AsSsize_t(PyTuple_GET_ITEM(idx, i));
@@ -65,11 +65,9 @@ static int gather_into(PyObject *list, const double *v, Py_ssize_t n, PyObject *
             return -1;
         }
         PyObject *x = PyFloat_FromDouble(v[k]);
-        if (!x || PyList_Append(list, x) < 0) {
-            Py_XDECREF(x);
+        if (!x)
             return -1;
-        }
-        Py_DECREF(x);
+        PyList_SET_ITEM(list, at + i, x);
     }
     return 0;
 }
@@ -97,8 +95,8 @@ static PyObject *gather(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
         PyErr_SetString(PyExc_ValueError, "gather: two buffers' addresses");
         return NULL;
     }
-    PyObject *out = PyList_New(0);
-    if (out && (gather_into(out, va, na, a[2]) < 0 || gather_into(out, vb, nb, a[5]) < 0))
+    PyObject *out = PyList_New(PyTuple_GET_SIZE(a[2]) + PyTuple_GET_SIZE(a[5])); /* (items NULL until set) */
+    if (out && (gather_into(out, 0, va, na, a[2]) < 0 || gather_into(out, PyTuple_GET_SIZE(a[2]), vb, nb, a[5]) < 0))
         Py_CLEAR(out);
     return out;
 }

@@ -93,7 +93,7 @@ class FastPath:
         module().setup_world(self._state, world, plant, world._hist, plant.u.ctypes.data,
                              world._u_pwm[:MOTORS], MOTORS, _STEP_CALLS)
         session = handler.session
-        module().setup_events(self._state, sched.run_next, session.in_flight, session.deliver_serial)
+        module().setup_events(self._state, sched.run_next, session.in_flight)
         self.imu_in_c = _imu_in_c(self._state, world)
         self.mag_in_c = _mag_in_c(self._state, world)
         self.baro_in_c = _baro_in_c(self._state, world)

@@ -81,8 +81,8 @@ typedef struct {
     double *u;                      /* the plant's inputs (Plant.u) */
     int64_t u_pwm[RIG_PWM_MAX];     /* World._u_pwm: the input of motor channel i */
     Py_ssize_t motors;
-    PyObject *step_calls;                     /* plant.fmu._STEP_CALLS: a failed call's name */
-    PyObject *run_next, *in_flight, *deliver; /* the events a wait crosses (events.c) */
+    PyObject *step_calls;           /* plant.fmu._STEP_CALLS: a failed call's name */
+    PyObject *run_next, *in_flight; /* the events a wait crosses (events.c) */
     Py_buffer page;
     chip_board *board;
     transfer_fn transfer;
@@ -134,7 +134,6 @@ static void state_free(PyObject *capsule)
     Py_XDECREF(s->step_calls);
     Py_XDECREF(s->run_next);
     Py_XDECREF(s->in_flight);
-    Py_XDECREF(s->deliver);
     if (s->page_obj) {
         PyBuffer_Release(&s->page);
         Py_DECREF(s->page_obj);
