@@ -398,6 +398,8 @@ static void put_hdr(uint8_t *out, uint32_t len, uint16_t type, uint16_t status, 
 
 /* ---- the messages: 1 acted on, 0 for the Python handler (nothing done), -1 a Python error ---- */
 
+#include "i2c_log.c"
+
 static int i2c(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p)
 {
     uint16_t head[2];
@@ -486,28 +488,8 @@ static int i2c(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p)
         t_after += bits * NS / s->i2c_clock_hz;
     }
     page_set(s, t_after);
-    if (PyList_GET_SIZE(s->i2c_log) < I2C_LOG_CAP) {
-        size_t wrote = 0;
-        for (uint32_t i = 0; i < n; i++)
-            wrote += m[i].flags & I2C_M_RD ? 0 : m[i].len;
-        PyObject *w = PyBytes_FromStringAndSize(NULL, (Py_ssize_t)wrote);
-        if (!w)
-            return -1;
-        wrote = 0;
-        for (uint32_t i = 0; i < n; i++)
-            if (!(m[i].flags & I2C_M_RD)) {
-                memcpy(PyBytes_AS_STRING(w) + wrote, data[i], m[i].len);
-                wrote += m[i].len;
-            }
-        PyObject *row = Py_BuildValue("(KINy#H)", (unsigned long long)t, (unsigned)m[0].addr, w, (const char *)out,
-                                      (Py_ssize_t)got, status);
-        if (!row)
-            return -1;
-        int bad = PyList_Append(s->i2c_log, row);
-        Py_DECREF(row);
-        if (bad)
-            return -1;
-    }
+    if (log_transfer(s, t, m, n, data, out, got, status) < 0)
+        return -1;
     put_hdr(s->reply, (uint32_t)got, RIG_MSG_I2C, status, t_after);
     send_all(fd, s->reply, sizeof(struct rig_hdr) + got);
     return 1;
