@@ -36,7 +36,7 @@ from typing import IO, Final
 from rig import interrupts, scratch
 from rig import protocol as P
 from rig.handler import Handler
-from rig.lockstep import FastPath, attach
+from rig.lockstep import FastPath, attach, pending_input
 from rig.pace import PacedSelector, RealtimeHost
 from rig.scheduler import (
     EXIT_WATCHDOG,
@@ -151,6 +151,8 @@ class Session:
         #: (master fd, pending) of each pty, for FastPath.pump, which reads them in the loop's place
         self._pump_ptys: tuple[tuple[int, bytearray], ...] = ()
         self.in_flight: dict[int, int] = {}  # pty slave fd -> bytes readable once delivered
+        #: the bytes readable on a descriptor: the fast path's C call once it is attached (open_page)
+        self._pending: Callable[[int], int] = _pending_input
         self._unstamped = False  # a pty has bytes from the DUT that no request has stamped yet
         self.notes: list[str] = []
         self.malformed: list[str] = []
@@ -181,7 +183,7 @@ class Session:
         pty = self._ptys[path]
         before = self.in_flight.get(pty.slave)
         if before is None:
-            before = _pending_input(pty.slave)
+            before = self._pending(pty.slave)
         room = max(0, RX_BUFFER - before)
         if len(data) > room:
             self._overflow(pty, len(data) - room)
@@ -519,6 +521,8 @@ class Session:
                                self.sched.limit_ns)
         self.handler = Handler(self, self.cfg, self.sched, self.world, self.page)
         self.fast = attach(self.handler)
+        if self.fast is not None:
+            self._pending = pending_input()
 
     def advance(self, t_ns: int, stop_on_output: bool = False) -> int:
         """Stamps what the DUT wrote so far, then runs events and the world to ``t_ns``

@@ -17,6 +17,7 @@ import ctypes
 import functools
 import math
 import os
+from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -212,6 +213,13 @@ def handled_total() -> int:
     evidence that a flight went through it)."""
     n: int = module().handled(None)
     return n
+
+
+def pending_input() -> Callable[[int], int]:
+    """``pending_input(fd)`` -> the bytes readable on ``fd`` (FIONREAD), one C call (events.c's own
+    count): what the session's serial writes ask ~70 times a second in lockstep."""
+    fn: Callable[[int], int] = module().pending_input
+    return fn
 
 
 def attach(handler: Handler) -> FastPath | None:

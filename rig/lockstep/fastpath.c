@@ -638,6 +638,7 @@ static PyMethodDef methods[] = {
     { "setup_baro", (PyCFunction)(void (*)(void))fp_setup_baro, METH_FASTCALL, "the barometer's in C" },
     { "made_here", fp_made_here, METH_O, "the magnetometer's and barometer's samples made here" },
     { "setup_events", (PyCFunction)(void (*)(void))fp_setup_events, METH_FASTCALL, "the events waits cross" },
+    { "pending_input", fp_pending_input, METH_O, "the bytes readable on a descriptor (FIONREAD)" },
     { "handle", (PyCFunction)(void (*)(void))fp_handle, METH_FASTCALL, "acts on the messages it takes" },
     { "pump", (PyCFunction)(void (*)(void))fp_pump, METH_FASTCALL, "reads and acts on a connection" },
     { "handled", fp_handled, METH_O, "the messages acted on here so far" },

@@ -363,6 +363,37 @@ def test_the_entry_points_refuse_wrong_arguments(tmp_path: Path) -> None:
         assert m.pump(state, a.fileno(), -1, buf, ()) == -1 and buf == b"abc"
 
 
+def test_the_pending_count_is_the_ptys_own() -> None:
+    """lockstep.pending_input (C, what serial_write asks in lockstep) against the session's Python
+    count over a pty's bytes as they are written and read; a closed descriptor and a non-int refused."""
+    pending = lockstep.pending_input()
+    master, slave = os.openpty()
+    try:
+        tty.setraw(slave)
+        for written in (0, 25, 125):
+            os.write(master, b"x" * (written - _pending_input(slave)))
+            # the pty hands bytes over asynchronously: between two Python counts the C one lies between
+            before = _pending_input(slave)
+            ours = pending(slave)
+            assert before <= ours <= _pending_input(slave)
+            for _ in range(100_000):  # (until the handover is done, as Session.deliver_serial waits)
+                if _pending_input(slave) == written:
+                    break
+                os.sched_yield()
+            assert pending(slave) == _pending_input(slave) == written
+        os.read(slave, 30)
+        assert pending(slave) == _pending_input(slave) == 95
+    finally:
+        os.close(master)
+        os.close(slave)
+    with pytest.raises(OSError):
+        pending(slave)
+    with pytest.raises(OSError):
+        pending(-1)
+    with pytest.raises(TypeError):
+        pending("0")  # type: ignore[arg-type]
+
+
 def test_pump_reads_the_duts_ptys_in_the_loops_place(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     """The DUT writes a line to its pty while pump reads its connection: pump reads the line into the
     pty's bytes not yet stamped, after those there already, and goes on with the connection (it went back
