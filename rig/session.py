@@ -215,7 +215,7 @@ class Session:
         own work instead of stalling each write."""
         deadline = time.monotonic() + 1.0
         for slave, target in self.in_flight.items():
-            while _pending_input(slave) < target and time.monotonic() < deadline:
+            while self._pending(slave) < target and time.monotonic() < deadline:
                 time.sleep(0)
         self.in_flight.clear()
 

@@ -51,11 +51,12 @@ static int run_due(fast_state *s, uint64_t t, int stop_on_output, uint64_t *woke
     return due < 0 ? -1 : 1;
 }
 
-static double monotonic_s(void)
+/* the wall clock for a wait's deadline (here and pump.c's budget) */
+static uint64_t mono_ns(void)
 {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
+    return (uint64_t)ts.tv_sec * NS + (uint64_t)ts.tv_nsec;
 }
 
 /* the bytes readable on fd (FIONREAD): >= 0, or -1 (errno set) */
@@ -84,7 +85,7 @@ static int deliver_written(fast_state *s)
 {
     if (!s->in_flight || PyDict_GET_SIZE(s->in_flight) == 0)
         return 0;
-    double deadline = monotonic_s() + 1.0;
+    uint64_t deadline = mono_ns() + NS;
     Py_ssize_t pos = 0;
     PyObject *key, *value;
     while (PyDict_Next(s->in_flight, &pos, &key, &value)) {
@@ -98,7 +99,7 @@ static int deliver_written(fast_state *s)
                 PyErr_SetFromErrno(PyExc_OSError);
                 return -1;
             }
-            if (readable >= target || monotonic_s() >= deadline)
+            if (readable >= target || mono_ns() >= deadline)
                 break;
             sched_yield();
         }

@@ -33,13 +33,6 @@
 #define PUMP_EVENTS 8
 #define PUMP_PTY_READ 65536 /* as the loop's _read_pty */
 
-static uint64_t mono_ns(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (uint64_t)ts.tv_sec * 1000000000ull + (uint64_t)ts.tv_nsec;
-}
-
 /* buf = p[0:n] */
 static int give_back(PyObject *buf, const uint8_t *p, Py_ssize_t n)
 {
