@@ -167,7 +167,7 @@ def _telemetry_row(line: str) -> tuple[float, list[float | None]] | None:
     """A ``T`` line's t and each of _TELEMETRY_COLUMNS' values (None: not on the line); None when the
     line does not parse: an item that is not ``key=value``, no t, or a number that is not one. A key
     given twice counts its last. Only the keys read are kept: a dict of every item, each split in two,
-    cost 43.5 k instructions a line compiled, this 29.8 k (callgrind, bench/reference/cycle-after.md)."""
+    cost 43.5 k instructions a line compiled, this 30.3 k (callgrind, bench/reference/cycle-after.md)."""
     text: list[str | None] = [None] * len(_ROW_INDEX)
     for item in line[2:].split():
         key, eq, value = item.partition("=")
