@@ -13,7 +13,8 @@ SHIM   := build/librigshim.so
 # the C extension modules (the sensors' sampling chain; the plant's steps): their names carry the
 # interpreter's suffix
 EXT := $(shell $(PYTHON) -c 'import importlib.machinery as m; print(m.EXTENSION_SUFFIXES[0])')
-NATIVE := build/_rignative$(EXT) build/_plantsteps$(EXT) build/_rigpace$(EXT) build/_riglockstep$(EXT)
+NATIVE := build/_rignative$(EXT) build/_plantsteps$(EXT) build/_rigpace$(EXT) build/_riglockstep$(EXT) \
+	build/_rigtelemetry$(EXT)
 # the modules rig/compiled.py compiles with mypyc (its MODULES, read from there)
 COMPILED := build/mypyc/manifest.json
 COMPILED_SOURCES := $(shell $(PYTHON) rig/compiled.py --sources)
@@ -57,6 +58,9 @@ chips: build/_rignative$(EXT)
 # the real-time loop's wait (rig/pace; also built on first use)
 build/_rigpace$(EXT): rig/pace/pace.c rig/pace/__init__.py plant/native_build.py | venv
 	$(PY) -c 'import rig.pace; rig.pace.native()'
+# the DUT's telemetry lines read after a run (rig/telemetry; also built on first use)
+build/_rigtelemetry$(EXT): rig/telemetry/lines.c rig/telemetry/__init__.py plant/native_build.py | venv
+	$(PY) -c 'import rig.telemetry; rig.telemetry.native()'
 # the lockstep fast path (rig/lockstep): the wire's header is the shim's, the chip core's and the need's
 # headers the emulators'
 build/_riglockstep$(EXT): $(wildcard rig/lockstep/*.c) rig/lockstep/__init__.py rig/shim/protocol.h emulators/chips/chip_core.h \
@@ -132,7 +136,7 @@ docs-images: venv fmu shim native compiled dut
 	$(PY) tools/mcap_screenshot.py build/docs-report/fault_gyro_stuck/run.mcap
 
 # our C, in one style (.clang-format); the FMI headers are vendored as they came
-C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/linux/*.[ch] dut/avr/*.[ch] dut/tests/*.c emulators/c/*.[ch] rig/lockstep/*.c emulators/chips/*.[ch] plant/c/*.[ch] \
+C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/linux/*.[ch] dut/avr/*.[ch] dut/tests/*.c emulators/c/*.[ch] rig/lockstep/*.c rig/telemetry/*.c rig/pace/*.c emulators/chips/*.[ch] plant/c/*.[ch] \
 	rig/shim/*.[ch] bridge/*/*.[ch] bench/*.c tests/rig/device_clients/*.c rig/mcu/*.[ch] tests/mcu/firmware/*.c))
 
 lint: venv test-packages

@@ -29,6 +29,7 @@ from rig.host import Host
 from rig.rc import StickEmulator
 from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, Target
 from rig.targets.process import ProcessTarget
+from rig.telemetry import read_columns
 from rig.world import World
 from scenarios.criteria import NOT_JUDGED, Measurement, measure
 from scenarios.result import RcFrame, RunResult
@@ -151,76 +152,15 @@ class _Recorder:
         return s
 
 
-#: the telemetry's columns after t, in TELEMETRY_KEYS' order (a tuple: read per line)
+#: the telemetry's columns after t, in TELEMETRY_KEYS' order
 _TELEMETRY_COLUMNS: Final = tuple(TELEMETRY_KEYS)
-#: where each key read goes in _telemetry_row's text: t first, then the columns
-_ROW_INDEX: Final = {k: i for i, k in enumerate(["t", *_TELEMETRY_COLUMNS])}
-_NAN: Final = float("nan")
-
-
-def _finite(x: float) -> bool:
-    """math.isfinite without a call through the math module (it was one per value parsed)."""
-    return x - x == 0.0
-
-
-def _telemetry_row(line: str) -> tuple[float, list[float | None]] | None:
-    """A ``T`` line's t and each of _TELEMETRY_COLUMNS' values (None: not on the line); None when the
-    line does not parse: an item that is not ``key=value``, no t, or a number that is not one. A key
-    given twice counts its last. Only the keys read are kept: a dict of every item, each split in two,
-    cost 43.5 k instructions a line compiled, this 30.3 k (callgrind, bench/reference/cycle-after.md)."""
-    text: list[str | None] = [None] * len(_ROW_INDEX)
-    for item in line[2:].split():
-        key, eq, value = item.partition("=")
-        if not eq:
-            return None
-        i = _ROW_INDEX.get(key)
-        if i is not None:
-            text[i] = value
-    t = text[0]
-    if t is None:
-        return None
-    try:
-        return float(t), [None if v is None else float(v) for v in text[1:]]
-    except ValueError:
-        return None
 
 
 def parse_telemetry(text: bytes, clock_base_s: float) -> tuple[dict[str, np.ndarray], int, dict[str, float]]:
-    """The DUT's ``T t=… key=value …`` lines as columns (time in sim seconds: the DUT's monotonic clock
-    minus ``clock_base_s``, its reading at sim time 0, ``Session.dut_clock_base_s``). Lines starting
-    with ``#`` are the DUT's messages, passed over. Other lines that do not parse are counted and
-    skipped: the DUT's bytes are not trusted. A value the DUT reports as NaN or infinite is kept as NaN
-    (the rest of its line stands); the third result gives, per key, the sim time it was first
-    non-finite."""
-    times: list[float] = []
-    cols: list[list[float]] = [[] for _ in _TELEMETRY_COLUMNS]
-    bad = 0
-    nonfinite: dict[str, float] = {}
-    for line in text.decode("ascii", "replace").splitlines():
-        if line.startswith("#"):  # the DUT's messages on its telemetry port (the AVR FC's "# fc: ...")
-            continue
-        if not line.startswith("T "):
-            bad += bool(line.strip())
-            continue
-        row = _telemetry_row(line)
-        t = row[0] - clock_base_s if row is not None else _NAN
-        if row is None or not _finite(t):
-            bad += 1
-            continue
-        times.append(t)
-        values = row[1]
-        for i, col in enumerate(cols):
-            v = values[i]
-            if v is None:
-                v = _NAN
-            elif not _finite(v):
-                nonfinite.setdefault(_TELEMETRY_COLUMNS[i], t)
-                v = _NAN
-            col.append(v)
-    out = {"t": np.array(times, dtype=float)}
-    for k, col in zip(_TELEMETRY_COLUMNS, cols, strict=True):
-        out[k] = np.array(col, dtype=float)
-    return out, bad, nonfinite
+    """The DUT's ``T t=… key=value …`` lines as columns (rig/telemetry: time in sim seconds, the DUT's
+    monotonic clock minus ``clock_base_s``, its reading at sim time 0, ``Session.dut_clock_base_s``),
+    the count of lines skipped, and per key the sim time it was first non-finite."""
+    return read_columns(text, clock_base_s, _TELEMETRY_COLUMNS)
 
 
 def _hold(t_grid: np.ndarray, t_src: np.ndarray, v: np.ndarray) -> np.ndarray:

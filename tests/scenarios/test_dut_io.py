@@ -10,9 +10,11 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from rig.runner import parse_telemetry, run
 from rig.targets.process import ProcessTarget
+from rig.telemetry import native, read_columns
 from scenarios.schema import load
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
@@ -94,9 +96,12 @@ def test_the_telemetry_parser_reads_what_a_plain_reading_reads() -> None:
     odd = [good, good.replace(" ", "\t"), good.replace(" ", "\x1c"), good + " roll=7", good + " bare",
            "T t=1 roll=1=2", "T =5 t=2", "T roll=1", "T t=nan", "T t=inf roll=1", "T t=3 alt=-inf yaw=NaN",
            "T t=4 roll==1", "T t=5 Roll=1 rolls=2 xroll=3", "T", "T  ", "Tt=1", "# fc: hello", "", "   ",
-           "T t=6 pitch=1e400 armed=", "T t=0x10", "T t=7 rc=abc", "t=8 roll=1", "T t=9 roll=1\x85alt=2"]
+           "T t=6 pitch=1e400 armed=", "T t=0x10", "T t=7 rc=abc", "t=8 roll=1", "T t=9 roll=1\x85alt=2",
+           "T t=1_0 roll=2_5", "T t=1__0", "T t=11 roll=1\x00", "T t=12\r\nT t=13\rT t=14\x1eT t=15",
+           "T t=16 roll=\u00e9", "T t=17 r\u00e9=1 alt=2", "T t=" + "1" * 100, "T t=18 yaw=" + "0" * 80 + "1",
+           "T t=19\x1froll=1", "\x1f \t", "T t=20 roll=INFINITY pitch=-Infinity yaw=+nan"]
     rng = random.Random(11)
-    alphabet = " =.-+eEtT#\t\x0bnaifrolpchyw0123456789x\u00e9"
+    alphabet = " =.-+_eEtT#\t\x0b\r\x1c\x1f\x00naifrolpchyw0123456789x\u00e9"
     lines = list(odd)
     for _ in range(2000):
         chars = list(good)
@@ -118,3 +123,20 @@ def test_the_telemetry_parser_reads_what_a_plain_reading_reads() -> None:
     for k, want in want_cols.items():
         assert np.array_equal(cols[k], np.array(want, dtype=float), equal_nan=True), k
     assert 300 < want_bad < 1900 and len(want_cols["t"]) > 300 and want_nonfinite  # every kind was met
+
+
+def test_the_telemetry_reader_refuses_what_it_cannot_read() -> None:
+    """Clear errors for arguments that are not text and keys (the C reader's own checks), and any
+    buffer of bytes read alike."""
+    with pytest.raises(TypeError):
+        read_columns("T t=1", 0.0, ["roll"])  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="keys are str"):
+        native().parse(b"T t=1", 0.0, ("t", 5))
+    with pytest.raises(ValueError, match="keys"):
+        native().parse(b"T t=1", 0.0, ())
+    with pytest.raises(ValueError, match="keys"):
+        native().parse(b"T t=1", 0.0, tuple(f"k{i}" for i in range(33)))
+    text = b"T t=2.5 roll=1\nT t=3 roll=x\n"
+    for given in (text, bytearray(text), memoryview(text)):
+        cols, bad, _ = read_columns(given, 0.5, ["roll"])
+        assert (cols["t"].tolist(), cols["roll"].tolist(), bad) == ([2.0], [1.0], 1)
