@@ -276,9 +276,12 @@ class Plant:
         values["on_ground"] = float(self.on_ground)
         return values
 
-    def reader(self, outputs: Sequence[int], inputs: Sequence[int]) -> Callable[[], list[float]]:
-        """``read()`` -> the outputs and then the inputs at these indices, as floats: one C call bound to
-        this FMU's buffers (plant/steps.py's gather), for a reader at 100 Hz (the recorder's row)."""
+    def reader(self, outputs: Sequence[int], inputs: Sequence[int]
+               ) -> Callable[[int, int, tuple[float, ...]], None]:
+        """``read(out_address, out_room, extras)``: the outputs and then the inputs at these indices,
+        then ``extras``, written as doubles to ``out_address`` (``out_room`` doubles left there): one C
+        call bound to this FMU's buffers (plant/steps.py's gather), for a table's row at 100 Hz (the
+        recorder's)."""
         from plant.steps import gather
 
         for what, idx, n in (("output", outputs, len(self.y)), ("input", inputs, len(self.u))):

@@ -48,10 +48,16 @@ def get_boolean() -> Callable[[int, int, int], int]:
     return fn
 
 
-def gather() -> Callable[[int, int, tuple[int, ...], int, int, tuple[int, ...]], list[float]]:
-    """``gather(a_address, a_len, a_indices, b_address, b_len, b_indices) -> [a[i]..., b[j]...]``: doubles
-    of two buffers at the given indices (each checked against its buffer's length)."""
-    fn: Callable[[int, int, tuple[int, ...], int, int, tuple[int, ...]], list[float]] = _module().gather
+#: gather's signature: a's address, length and indices, b's, the row's address, its room, the extras
+Gather = Callable[[int, int, tuple[int, ...], int, int, tuple[int, ...], int, int, tuple[float, ...]], None]
+
+
+def gather() -> Gather:
+    """``gather(a_address, a_len, a_indices, b_address, b_len, b_indices, out_address, out_room, extras)``:
+    the doubles of two buffers at the given indices (each checked against its buffer's length), then
+    the floats of the tuple ``extras``, written to the doubles at ``out_address`` (``out_room`` of them
+    left there: a longer row is refused)."""
+    fn: Gather = _module().gather
     return fn
 
 

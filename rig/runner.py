@@ -85,68 +85,71 @@ class _Wind:
 
 #: The plant outputs the recorder reads, before the motors' pulse widths (World.probe)
 RECORDED = ("roll", "pitch", "yaw", "pd", "vd", "vn", "ve", "p", "q", "r")
-#: What each row holds after t, the outputs and the motors
-ROW_TAIL = ("on_ground", "roll_sp", "pitch_sp", "yaw_rate_sp", "throttle", "rc_link", "fault", "wind")
+#: the recorder's table is made with room for the whole run up to this many rows (about 17 minutes)
+MAX_ROWS_AT_ONCE: Final = 100_000
+#: What each row holds after the outputs and the motors: the recorder's own values
+EXTRAS = ("t", "on_ground", "roll_sp", "pitch_sp", "yaw_rate_sp", "throttle", "rc_link", "fault",
+          "wind_n", "wind_e", "wind_d")
 
 
 class _Recorder:
-    """Samples the plant, the motor inputs, the sticks and the scenario state on the 100 Hz grid."""
+    """Samples the plant, the motor inputs, the sticks and the scenario state on the 100 Hz grid, into a
+    table the world's probe writes in C (the signals derived from them are computed after the run)."""
 
     def __init__(self, scenario: Scenario, world: World, rc: StickEmulator, wind: _Wind,
                  faults: list[Fault]) -> None:
         self.sc, self.world, self.rc, self.wind, self.faults = scenario, world, rc, wind, faults
-        self.rows: list[tuple[float, ...]] = []
         self.k = 0
-        self._probe = world.probe(RECORDED)
+        # the grid's rows (the table grows by doubling past MAX_ROWS_AT_ONCE)
+        d = scenario.duration
+        rows = int(d / RECORD_PERIOD) + 2 if 0 <= d < MAX_ROWS_AT_ONCE * RECORD_PERIOD else MAX_ROWS_AT_ONCE
+        self._probe = world.probe(RECORDED, len(EXTRAS), rows)
         # the magnetic disturbance's window, read once (Scenario.mag_disturbance_at is plain Python)
         _, self._mag_from, self._mag_to = scenario.mag_disturbance_window
 
     def tick(self, session: Host) -> None:
-        values = self._probe.read()
-        roll, pitch, yaw, pd, vd, vn, ve, p, q, r = values[:len(RECORDED)]
         t = self.k * RECORD_PERIOD
         st = self.rc.sticks
-        faulted = any(f.active(t) for f in self.faults) or self._mag_from <= t < self._mag_to
-        self.rows.append(
-            (
-                t, roll, pitch, yaw, -pd, -vd, math.hypot(vn, ve), p, q, r,
-                *values[len(RECORDED):],
-                float(self.world.on_ground),
-                st.roll * self.sc.max_angle_deg,
-                st.pitch * self.sc.max_angle_deg,
-                st.yaw * self.sc.max_yaw_rate_dps,
-                st.throttle,
-                float(self.rc.link == "ok"),
-                float(faulted),
-                math.hypot(*self.wind.now),
-            )
-        )
+        faulted = self._mag_from <= t < self._mag_to
+        for f in self.faults:
+            faulted = faulted or f.active(t)
+        wn, we, wd = self.wind.now
+        sc = self.sc
+        self._probe.record((
+            t, float(self.world.on_ground), st.roll * sc.max_angle_deg, st.pitch * sc.max_angle_deg,
+            st.yaw * sc.max_yaw_rate_dps, st.throttle, float(self.rc.link == "ok"), float(faulted),
+            wn, we, wd,
+        ))
         self.k += 1
         session.at(self.k * RECORD_PERIOD, self.tick)
 
     def signals(self) -> dict[str, np.ndarray]:
-        first_motor = 10  # after t, roll, pitch, yaw, alt, climb, speed, p, q, r
-        tail = first_motor + MOTORS
-        a = np.array(self.rows, dtype=float).reshape(-1, tail + len(ROW_TAIL))
+        a = self._probe.rows()
+        col = {name: a[:, i] for i, name in enumerate(RECORDED)}
+        first_motor = len(RECORDED)
+        col.update((name, a[:, first_motor + MOTORS + i]) for i, name in enumerate(EXTRAS))
         deg = 180 / math.pi
         s = {
-            "t": a[:, 0],
-            "roll": a[:, 1] * deg,
-            "pitch": a[:, 2] * deg,
-            "yaw": a[:, 3] * deg,
-            "alt": a[:, 4],
-            "climb": a[:, 5],
-            "speed": a[:, 6],
-            "p": a[:, 7] * deg,
-            "q": a[:, 8] * deg,
-            "r": a[:, 9] * deg,
+            "t": col["t"],
+            "roll": col["roll"] * deg,
+            "pitch": col["pitch"] * deg,
+            "yaw": col["yaw"] * deg,
+            "alt": -col["pd"],
+            "climb": -col["vd"],
+            # math.hypot as the row was computed before (numpy's rounds differently in the last bit)
+            "speed": np.array(list(map(math.hypot, col["vn"].tolist(), col["ve"].tolist())), dtype=float),
+            "p": col["p"] * deg,
+            "q": col["q"] * deg,
+            "r": col["r"] * deg,
         }
+        motors = a[:, first_motor:first_motor + MOTORS]
         for m in range(MOTORS):
-            s[f"pwm{m + 1}"] = a[:, first_motor + m]
-        motors = a[:, first_motor:tail]
+            s[f"pwm{m + 1}"] = motors[:, m]
         s["pwm_max"], s["pwm_min"] = motors.max(axis=1), motors.min(axis=1)
-        for k, n in enumerate(ROW_TAIL):
-            s[n] = a[:, tail + k]
+        for name in ("on_ground", "roll_sp", "pitch_sp", "yaw_rate_sp", "throttle", "rc_link", "fault"):
+            s[name] = col[name]
+        s["wind"] = np.array(list(map(math.hypot, col["wind_n"].tolist(), col["wind_e"].tolist(),
+                                      col["wind_d"].tolist())), dtype=float)
         s["roll_track_error"], s["pitch_track_error"] = s["roll"] - s["roll_sp"], s["pitch"] - s["pitch_sp"]
         s["tilt"] = np.maximum(np.abs(s["roll"]), np.abs(s["pitch"]))
         return s

@@ -53,8 +53,8 @@ static PyObject *get_boolean(PyObject *self, PyObject *const *a, Py_ssize_t narg
     return PyLong_FromLong(status > 1 ? -status : value != 0);
 }
 
-/* the doubles at a tuple's indices of an array of n, into list[at...]: 0, or -1 (raised) */
-static int gather_into(PyObject *list, Py_ssize_t at, const double *v, Py_ssize_t n, PyObject *idx)
+/* the doubles at a tuple's indices of an array of n, into out[]: 0, or -1 (raised) */
+static int gather_into(double *out, const double *v, Py_ssize_t n, PyObject *idx)
 {
     for (Py_ssize_t i = 0; i < PyTuple_GET_SIZE(idx); i++) {
         Py_ssize_t k = PyLong_AsSsize_t(PyTuple_GET_ITEM(idx, i));
@@ -64,47 +64,59 @@ static int gather_into(PyObject *list, Py_ssize_t at, const double *v, Py_ssize_
             PyErr_Format(PyExc_IndexError, "gather: index %zd outside %zd values", k, n);
             return -1;
         }
-        PyObject *x = PyFloat_FromDouble(v[k]);
-        if (!x)
-            return -1;
-        PyList_SET_ITEM(list, at + i, x);
+        out[i] = v[k];
     }
     return 0;
 }
 
-/* gather(a_address, a_len, a_indices, b_address, b_len, b_indices) -> [a[i]..., b[j]...]: some of the
- * plant's outputs and inputs as floats in one call (the recorder's row at 100 Hz, where two numpy
- * fancy indexings and their conversions to lists cost about 7 k instructions). The addresses are the
- * plant's own buffers (plant/fmu.py); each index is checked against its buffer's length. */
+/* gather(a_address, a_len, a_indices, b_address, b_len, b_indices, out_address, out_room, extras) ->
+ * None: some of the plant's outputs and inputs, then the floats of the tuple extras, written to the
+ * doubles at out_address (a row of the recorder's table at 100 Hz: where numpy indexing, lists of
+ * floats and a table made of tuples after the run cost about 15 k instructions a row). The addresses
+ * are the plant's own buffers (plant/fmu.py) and the caller's table (rig/world.py's Probe, which says
+ * how many doubles are left from out_address: out_room); each index is checked against its buffer's
+ * length, and the row against the room. */
 static PyObject *gather(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 6) {
-        PyErr_Format(PyExc_TypeError, "gather takes 6 arguments (%zd given)", nargs);
+    if (nargs != 9) {
+        PyErr_Format(PyExc_TypeError, "gather takes 9 arguments (%zd given)", nargs);
         return NULL;
     }
-    if (!PyTuple_Check(a[2]) || !PyTuple_Check(a[5])) {
-        PyErr_SetString(PyExc_TypeError, "gather: the indices are tuples of ints");
+    if (!PyTuple_Check(a[2]) || !PyTuple_Check(a[5]) || !PyTuple_Check(a[8])) {
+        PyErr_SetString(PyExc_TypeError, "gather: the indices and the extras are tuples");
         return NULL;
     }
     const double *va = PyLong_AsVoidPtr(a[0]), *vb = PyLong_AsVoidPtr(a[3]);
-    Py_ssize_t na = PyLong_AsSsize_t(a[1]), nb = PyLong_AsSsize_t(a[4]);
+    double *out = PyLong_AsVoidPtr(a[6]);
+    Py_ssize_t na = PyLong_AsSsize_t(a[1]), nb = PyLong_AsSsize_t(a[4]), room = PyLong_AsSsize_t(a[7]);
     if (PyErr_Occurred())
         return NULL;
-    if (!va || !vb) {
-        PyErr_SetString(PyExc_ValueError, "gather: two buffers' addresses");
+    if (!va || !vb || !out) {
+        PyErr_SetString(PyExc_ValueError, "gather: three buffers' addresses");
         return NULL;
     }
-    PyObject *out = PyList_New(PyTuple_GET_SIZE(a[2]) + PyTuple_GET_SIZE(a[5])); /* (items NULL until set) */
-    if (out && (gather_into(out, 0, va, na, a[2]) < 0 || gather_into(out, PyTuple_GET_SIZE(a[2]), vb, nb, a[5]) < 0))
-        Py_CLEAR(out);
-    return out;
+    Py_ssize_t from_a = PyTuple_GET_SIZE(a[2]), from_b = PyTuple_GET_SIZE(a[5]), extras = PyTuple_GET_SIZE(a[8]);
+    if (from_a + from_b + extras > room) {
+        PyErr_Format(PyExc_IndexError, "gather: a row of %zd values where %zd are left", from_a + from_b + extras,
+                     room);
+        return NULL;
+    }
+    if (gather_into(out, va, na, a[2]) < 0 || gather_into(out + from_a, vb, nb, a[5]) < 0)
+        return NULL;
+    for (Py_ssize_t i = 0; i < extras; i++) {
+        double x = PyFloat_AsDouble(PyTuple_GET_ITEM(a[8], i));
+        if (x == -1.0 && PyErr_Occurred())
+            return NULL;
+        out[from_a + from_b + i] = x;
+    }
+    Py_RETURN_NONE;
 }
 
 static PyMethodDef methods[] = {
     { "plant_steps", (PyCFunction)(void (*)(void))plant_steps, METH_FASTCALL, "rig_plant_steps" },
     { "get_boolean", (PyCFunction)(void (*)(void))get_boolean, METH_FASTCALL, "one fmi2GetBoolean" },
-    { "gather", (PyCFunction)(void (*)(void))gather, METH_FASTCALL, "some outputs and inputs as floats" },
+    { "gather", (PyCFunction)(void (*)(void))gather, METH_FASTCALL, "some outputs and inputs into a row" },
     { NULL, NULL, 0, NULL },
 };
 

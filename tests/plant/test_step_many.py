@@ -64,25 +64,38 @@ def test_a_ring_of_the_wrong_shape_is_refused() -> None:
 
 
 def test_a_reader_gives_the_outputs_and_inputs_numpy_indexing_gives() -> None:
-    """Plant.reader (one C call over the buffers) against numpy's own indexing of the same buffers, as a
-    flight changes them; indices outside a buffer are refused, by the Python check and by the C one."""
+    """Plant.reader (one C call over the buffers, into a row) against numpy's own indexing of the same
+    buffers, as a flight changes them, with the extras after them and the row's neighbours untouched;
+    indices outside a buffer and rows longer than their room are refused, by the Python check and by
+    the C one."""
     from plant.steps import gather
 
     with flying(WOBBLE) as a:
         outputs, inputs = [3, 0, len(a.y) - 1, 3], [len(a.u) - 1, 0]
         read = a.reader(outputs, inputs)
+        table = np.full(16, -7.0)
         for n in (0, 1, 7):
             a.step_many(n, DT)
             a.set_input("wind_n", float(n))
-            assert read() == a.y[outputs].tolist() + a.u[inputs].tolist()
-        assert a.reader([], [])() == []
+            read(table.ctypes.data + 8, 9, (float(n), 2))
+            want = a.y[outputs].tolist() + a.u[inputs].tolist() + [float(n), 2.0]
+            assert table.tolist() == [-7.0, *want, *[-7.0] * 7]
+        a.reader([], [])(table.ctypes.data, 0, ())  # nothing to write: no room needed
         for bad_out, bad_in in (([len(a.y)], []), ([], [-1])):
             with pytest.raises(IndexError, match="outside the plant's"):
                 a.reader(bad_out, bad_in)
-        y_addr, u_addr = a.y.ctypes.data, a.u.ctypes.data
+        with pytest.raises(IndexError, match="a row of 8 values where 7 are left"):
+            read(table.ctypes.data, 7, (1.0, 2.0))
+        with pytest.raises(TypeError, match="must be real number"):
+            read(table.ctypes.data, 16, ("1.0",))  # type: ignore[arg-type]
+        y_addr, u_addr, out = a.y.ctypes.data, a.u.ctypes.data, table.ctypes.data
         with pytest.raises(IndexError, match="index 5 outside 5"):
-            gather()(y_addr, 5, (0, 5), u_addr, 1, ())
+            gather()(y_addr, 5, (0, 5), u_addr, 1, (), out, 16, ())
         with pytest.raises(TypeError, match="tuples"):
-            gather()(y_addr, 5, [0], u_addr, 1, ())  # type: ignore[arg-type]
+            gather()(y_addr, 5, [0], u_addr, 1, (), out, 16, ())  # type: ignore[arg-type]
         with pytest.raises(ValueError, match="addresses"):
-            gather()(0, 5, (0,), u_addr, 1, ())
+            gather()(0, 5, (0,), u_addr, 1, (), out, 16, ())
+        with pytest.raises(ValueError, match="addresses"):
+            gather()(y_addr, 5, (0,), u_addr, 1, (), 0, 16, ())
+        with pytest.raises(TypeError, match="9 arguments"):
+            gather()(y_addr, 5, (0,), u_addr, 1, ())  # type: ignore[call-arg]

@@ -29,7 +29,12 @@ def test_a_probe_reads_outputs_then_motors() -> None:
     world = World.at_rest(noise=False)
     try:
         world.set_motor(2, 1234.0)
-        values = world.probe(["pd", "qw"]).read()
-        assert values == [0.0, 1.0, 0.0, 0.0, 1234.0, 0.0]
+        probe = world.probe(["pd", "qw"], extras=2, rows=2)
+        for k in range(5):  # past the room made at once: the table grows, the rows already made stay
+            probe.record((float(k), -1.0))
+        assert probe.rows().tolist() == [[0.0, 1.0, 0.0, 0.0, 1234.0, 0.0, float(k), -1.0] for k in range(5)]
+        with pytest.raises(ValueError, match="2 extras, not 3"):
+            probe.record((1.0, 2.0, 3.0))
+        assert probe.count == 5
     finally:
         world.close()
