@@ -72,7 +72,8 @@ typedef struct {
     PyObject *serve;                /* ChipBoard.serve */
     PyObject *pwm;                  /* World.pwm: the PwmChannel list */
     PyObject *events;               /* Scheduler.events: the heap of (t_ns, seq, fn) */
-    PyObject *sched;                /* Scheduler (its ``over``) */
+    PyObject *sched;                /* Scheduler */
+    PyObject *over;                 /* Scheduler.over_byte: its ``over`` as a bytearray's byte */
     PyObject *i2c_log;              /* Handler.i2c_log */
     PyObject *handler;              /* Handler (its counts) */
     PyObject *page_obj;             /* the clock page's mmap, its buffer held */
@@ -99,7 +100,7 @@ typedef struct {
 static uint64_t handled_total; /* messages acted on here by every session of this process */
 
 static PyObject *s_steps_at, *s_ring, *s_direct_pwm, *s_exported, *s_enabled, *s_period_ns, *s_inversed;
-static PyObject *s_over, *s_duty_ns, *s_pwm_config_changes;
+static PyObject *s_over_byte, *s_duty_ns, *s_pwm_config_changes;
 
 static volatile uint64_t *sim_ns(fast_state *s)
 {
@@ -126,6 +127,7 @@ static void state_free(PyObject *capsule)
     Py_XDECREF(s->pwm);
     Py_XDECREF(s->events);
     Py_XDECREF(s->sched);
+    Py_XDECREF(s->over);
     Py_XDECREF(s->i2c_log);
     Py_XDECREF(s->handler);
     Py_XDECREF(s->world);
@@ -169,6 +171,11 @@ static PyObject *fp_setup(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
     }
     Py_INCREF(a[7]);
     s->page_obj = a[7];
+    s->over = PyObject_GetAttr(s->sched, s_over_byte);
+    if (!s->over || !PyByteArray_Check(s->over)) {
+        Py_DECREF(capsule);
+        return s->over ? PyErr_Format(PyExc_TypeError, "setup: the scheduler's over_byte is a bytearray") : NULL;
+    }
     s->board = PyLong_AsVoidPtr(a[8]);
     s->transfer = (transfer_fn)PyLong_AsVoidPtr(a[9]);
     s->advance = (advance_fn)PyLong_AsVoidPtr(a[10]);
@@ -264,13 +271,8 @@ static int clear_until(fast_state *s, uint64_t t, int runs_events)
 {
     if (t > s->limit_ns)
         return 0;
-    PyObject *over = PyObject_GetAttr(s->sched, s_over);
-    if (!over)
-        return -1;
-    int is_over = PyObject_IsTrue(over);
-    Py_DECREF(over);
-    if (is_over)
-        return is_over < 0 ? -1 : 0;
+    if (PyByteArray_GET_SIZE(s->over) < 1 || PyByteArray_AS_STRING(s->over)[0])
+        return 0;
     if (runs_events && s->run_next)
         return 1;
     uint64_t first;
@@ -660,7 +662,7 @@ static struct PyModuleDef module = {
 
 PyMODINIT_FUNC PyInit__riglockstep(void)
 {
-    s_over = PyUnicode_InternFromString("over");
+    s_over_byte = PyUnicode_InternFromString("over_byte");
     s_duty_ns = PyUnicode_InternFromString("duty_ns");
     s_pwm_config_changes = PyUnicode_InternFromString("pwm_config_changes");
     PyObject **names[] = { &s_steps_at, &s_ring,    &s_direct_pwm, &s_exported, &s_enabled, &s_period_ns,
@@ -672,7 +674,7 @@ PyMODINIT_FUNC PyInit__riglockstep(void)
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
         if (!(*names[i] = PyUnicode_InternFromString(texts[i])))
             return NULL;
-    if (!s_over || !s_duty_ns || !s_pwm_config_changes)
+    if (!s_over_byte || !s_duty_ns || !s_pwm_config_changes)
         return NULL;
     return PyModule_Create(&module);
 }

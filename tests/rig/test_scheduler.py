@@ -64,6 +64,7 @@ def test_the_duration_ends_the_run_well_and_the_timeout_as_a_watchdog(world: Wor
     with pytest.raises(Stop):
         sched.advance(700_000_000)
     assert sched.ended_by_duration and sched.over and sched.error is None
+    assert sched.over_byte == b"\x01"  # (what the lockstep fast path reads)
     assert world.time_ns == 500_000_000  # the world stops at the end, not at the request
     assert sched.verdict(-15, 0.5, True, False, False) == ("ok", 0, None)  # stopped by the rig: fine
 
@@ -74,6 +75,7 @@ def test_the_duration_ends_the_run_well_and_the_timeout_as_a_watchdog(world: Wor
             timed.advance(300_000_000)
         assert timed.error is not None and timed.error[0] == EXIT_WATCHDOG
         assert "sim-time watchdog" in timed.error[1]
+        assert timed.over and timed.over_byte == b"\x01"
     finally:
         w2.close()
 
@@ -96,10 +98,12 @@ def test_an_event_that_raises_voids_the_run_without_taking_the_rig_down(world: W
         raise ZeroDivisionError("division by zero")
 
     sched.at(0.25, broken)
+    assert not sched.over and sched.over_byte == b"\x00"
     with pytest.raises(Stop):
         sched.advance(1 * NS)
     assert sched.error == (EXIT_RIG_ERROR,
                            "event at 0.250000000 failed: ZeroDivisionError: division by zero")
+    assert sched.over and sched.over_byte == b"\x01"
     assert sched.event_ns is None  # the session's "now" is the clock again
 
 
