@@ -41,8 +41,8 @@ REPO = HERE.parent.parent
 SHIM_DIR = REPO / "rig" / "shim"
 #: the module's source first; the headers it shares with the shim (the wire) and the chip core
 PLANT_C = REPO / "plant" / "c"
-SOURCES = (HERE / "fastpath.c", HERE / "imu_feed.c", HERE / "mag_feed.c", HERE / "baro_feed.c",
-           HERE / "pwm_duty.c", HERE / "pump.c", HERE / "events.c", HERE / "i2c_log.c",
+SOURCES = (HERE / "fastpath.c", HERE / "attrs.c", HERE / "imu_feed.c", HERE / "mag_feed.c",
+           HERE / "baro_feed.c", HERE / "pwm_duty.c", HERE / "pump.c", HERE / "events.c", HERE / "i2c_log.c",
            SHIM_DIR / "protocol.h", native.CHIPS_DIR / "chip_core.h", native.C_DIR / "need_tuple.h",
            PLANT_C / "plant_steps.c")
 MODULE_NAME = "_riglockstep"

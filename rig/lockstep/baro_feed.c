@@ -129,19 +129,10 @@ static int baro_encode_pressure(const int64_t *c, int64_t d2, int64_t pressure_p
     return 1;
 }
 
-/* attribute `name` of o is true: 1, false: 0, -1: error */
-static int attr_true(PyObject *o, PyObject *name)
-{
-    PyObject *v = PyObject_GetAttr(o, name);
-    int r = v ? PyObject_IsTrue(v) : -1;
-    Py_XDECREF(v);
-    return r;
-}
-
 /* 1: the feed's PROM (read again only when it is another tuple) fits; 0: for Python; -1: error */
 static int baro_prom(baro_feed *f)
 {
-    PyObject *prom = PyObject_GetAttr(f->feed, s_prom);
+    PyObject *prom = attr_get(f->feed, s_prom);
     if (!prom)
         return -1;
     if (prom == f->prom_obj) {
@@ -183,7 +174,7 @@ static int baro_serve(baro_feed *f, chip_board *b, const chip_need *need)
         return -1;
     if (osr_noise || noisy)
         return 0;
-    PyObject *encoding = PyObject_GetAttr(f->feed, s_encoding), *timing = PyObject_GetAttr(f->feed, s_timing);
+    PyObject *encoding = attr_get(f->feed, s_encoding), *timing = attr_get(f->feed, s_timing);
     int is_float = encoding ? PyObject_RichCompareBool(encoding, s_float, Py_EQ) : -1; /* (else integer) */
     int max = timing ? PyObject_RichCompareBool(timing, s_max, Py_EQ) : -1;
     Py_XDECREF(encoding);

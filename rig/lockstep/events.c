@@ -37,7 +37,7 @@ static int run_due(fast_state *s, uint64_t t, int stop_on_output, uint64_t *woke
         if (when == (unsigned long long)-1 && PyErr_Occurred())
             return -1;
         if (stop_on_output) {
-            PyObject *out = PyObject_GetAttr(s->sched, s_event_output);
+            PyObject *out = attr_get(s->sched, s_event_output);
             int wrote = out ? PyObject_IsTrue(out) : -1;
             Py_XDECREF(out);
             if (wrote < 0)

@@ -48,6 +48,7 @@
 typedef int (*transfer_fn)(chip_board *, uint64_t, chip_msg *, uint32_t, chip_need *, uint32_t *);
 typedef chip_need (*advance_fn)(chip_board *, uint64_t);
 
+#include "attrs.c" /* the attributes read and written each cycle */
 #include "imu_feed.c"
 
 /* the PWM channels' settings, kept between duty writes (pwm_duty.c) */
@@ -171,7 +172,7 @@ static PyObject *fp_setup(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
     }
     Py_INCREF(a[7]);
     s->page_obj = a[7];
-    s->over = PyObject_GetAttr(s->sched, s_over_byte);
+    s->over = attr_get(s->sched, s_over_byte);
     if (!s->over || !PyByteArray_Check(s->over)) {
         Py_DECREF(capsule);
         return s->over ? PyErr_Format(PyExc_TypeError, "setup: the scheduler's over_byte is a bytearray") : NULL;
@@ -285,12 +286,12 @@ static struct rig_plant_steps *plant_steps_of(fast_state *s)
 {
     if (s->steps)
         return s->steps;
-    PyObject *ring = PyObject_GetAttr(s->plant, s_ring);
+    PyObject *ring = attr_get(s->plant, s_ring);
     if (!ring)
         return NULL;
     int ours = ring == s->hist;
     Py_DECREF(ring);
-    PyObject *at = ours ? PyObject_GetAttr(s->plant, s_steps_at) : NULL;
+    PyObject *at = ours ? attr_get(s->plant, s_steps_at) : NULL;
     if (at) {
         s->steps = PyLong_AsVoidPtr(at);
         Py_DECREF(at);
@@ -309,7 +310,7 @@ static int world_to(fast_state *s, uint64_t t)
     struct rig_plant_steps *steps = plant_steps_of(s);
     if (steps) {
         long long k;
-        PyObject *kv = PyObject_GetAttr(s->world, s_k);
+        PyObject *kv = attr_get(s->world, s_k);
         if (!kv)
             return -1;
         k = PyLong_AsLongLong(kv);
@@ -336,7 +337,7 @@ static int world_to(fast_state *s, uint64_t t)
             PyObject *kn = PyLong_FromLongLong(k + n);
             if (!kn)
                 return -1;
-            int bad = PyObject_SetAttr(s->world, s_k, kn);
+            int bad = attr_set(s->world, s_k, kn);
             Py_DECREF(kn);
             if (bad)
                 return -1;
@@ -641,6 +642,7 @@ static PyMethodDef methods[] = {
     { "made_here", fp_made_here, METH_O, "the magnetometer's and barometer's samples made here" },
     { "setup_events", (PyCFunction)(void (*)(void))fp_setup_events, METH_FASTCALL, "the events waits cross" },
     { "pending_input", fp_pending_input, METH_O, "the bytes readable on a descriptor (FIONREAD)" },
+    { "attr", (PyCFunction)(void (*)(void))fp_attr, METH_FASTCALL, "o.name by the route of attrs.c" },
     { "handle", (PyCFunction)(void (*)(void))fp_handle, METH_FASTCALL, "acts on the messages it takes" },
     { "pump", (PyCFunction)(void (*)(void))fp_pump, METH_FASTCALL, "reads and acts on a connection" },
     { "handled", fp_handled, METH_O, "the messages acted on here so far" },

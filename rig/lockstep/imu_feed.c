@@ -79,33 +79,13 @@ static void imu_free(imu_feed *f)
     memset(f, 0, sizeof *f);
 }
 
-static int attr_ll(PyObject *o, PyObject *name, long long *out)
-{
-    PyObject *v = PyObject_GetAttr(o, name);
-    if (!v)
-        return -1;
-    *out = PyLong_AsLongLong(v);
-    Py_DECREF(v);
-    return *out == -1 && PyErr_Occurred() ? -1 : 0;
-}
-
-static int attr_double(PyObject *o, PyObject *name, double *out)
-{
-    PyObject *v = PyObject_GetAttr(o, name);
-    if (!v)
-        return -1;
-    *out = PyFloat_AsDouble(v);
-    Py_DECREF(v);
-    return *out == -1.0 && PyErr_Occurred() ? -1 : 0;
-}
-
 /* the address of a LowPass's C state (sampler._accel_f._addr): the filters are new after a reset */
 static int filter_addr(PyObject *sampler, PyObject *name, void **out)
 {
-    PyObject *f = PyObject_GetAttr(sampler, name);
+    PyObject *f = attr_get(sampler, name);
     if (!f)
         return -1;
-    PyObject *a = PyObject_GetAttr(f, s_addr);
+    PyObject *a = attr_get(f, s_addr);
     Py_DECREF(f);
     if (!a)
         return -1;
@@ -161,7 +141,7 @@ static int imu_serve(imu_feed *f, chip_board *b, const chip_need *need)
     PyObject *v = PyFloat_FromDouble(next_t);
     if (!v)
         return -1;
-    int bad = PyObject_SetAttr(f->sampler, s_next_t, v);
+    int bad = attr_set(f->sampler, s_next_t, v);
     Py_DECREF(v);
     if (bad)
         return -1;

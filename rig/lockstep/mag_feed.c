@@ -37,17 +37,6 @@ struct mag_feed {
 
 static PyObject *s_mag_index, *s_mag_next_t, *s_source, *s_disturbance;
 
-/* 1: o.name is still `expected` (a producer's model or the model's disturbance, replaced after setup:
- * then the Python producer serves); 0: it is another object; -1: error */
-static int same_attr(PyObject *o, PyObject *name, PyObject *expected)
-{
-    PyObject *v = PyObject_GetAttr(o, name);
-    if (!v)
-        return -1;
-    Py_DECREF(v);
-    return v == expected;
-}
-
 static void mag_free(mag_feed *f)
 {
     PyObject *refs[] = { f->feed, f->channel, f->faults, f->world, f->model, f->disturbance };
@@ -99,7 +88,7 @@ static int mag_serve(mag_feed *f, chip_board *b, const chip_need *need)
         Py_DECREF(r);
     }
     PyObject *vi = PyLong_FromLongLong(index), *vt = PyFloat_FromDouble(next_t);
-    int bad = !vi || !vt || PyObject_SetAttr(f->feed, s_mag_index, vi) || PyObject_SetAttr(f->feed, s_mag_next_t, vt);
+    int bad = !vi || !vt || attr_set(f->feed, s_mag_index, vi) || attr_set(f->feed, s_mag_next_t, vt);
     Py_XDECREF(vi);
     Py_XDECREF(vt);
     if (bad)
@@ -125,8 +114,8 @@ static PyObject *mag_setup(mag_feed *f, PyObject *const *a)
         Py_INCREF(a[1 + i]);
         *refs[i] = a[1 + i];
     }
-    f->model = PyObject_GetAttr(f->feed, s_source);
-    f->disturbance = f->model ? PyObject_GetAttr(f->model, s_disturbance) : NULL;
+    f->model = attr_get(f->feed, s_source);
+    f->disturbance = f->model ? attr_get(f->model, s_disturbance) : NULL;
     PyObject *addr = PyObject_GetAttrString(a[2], "addr");
     if (addr) {
         f->channel_addr = PyLong_AsVoidPtr(addr);

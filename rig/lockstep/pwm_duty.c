@@ -13,7 +13,7 @@
 /* a PwmChannel attribute as an int64 (0: it did not fit, the handler takes the message) */
 static int channel_attr(PyObject *ch, PyObject *name, long long *out)
 {
-    PyObject *v = PyObject_GetAttr(ch, name);
+    PyObject *v = attr_get(ch, name);
     if (!v)
         return -1;
     int overflow = 0;
@@ -31,14 +31,14 @@ static int pwm_settings_current(fast_state *s)
     pwm_cache *c = &s->pwm_seen;
     if (c->checked)
         return 1;
-    PyObject *v = PyObject_GetAttr(s->handler, s_pwm_config_changes);
+    PyObject *v = attr_get(s->handler, s_pwm_config_changes);
     if (!v)
         return -1;
     long long changes = PyLong_AsLongLong(v);
     Py_DECREF(v);
     if (changes == -1 && PyErr_Occurred())
         return -1;
-    PyObject *direct = PyObject_GetAttr(s->world, s_direct_pwm);
+    PyObject *direct = attr_get(s->world, s_direct_pwm);
     if (!direct)
         return -1;
     int is_direct = PyObject_IsTrue(direct);
@@ -94,7 +94,7 @@ static int pwm(fast_state *s, const struct rig_hdr *h, const uint8_t *p)
     PyObject *value = PyLong_FromUnsignedLongLong(m.value);
     if (!value)
         return -1;
-    int bad = PyObject_SetAttr(PyList_GET_ITEM(s->pwm, m.channel), s_duty_ns, value);
+    int bad = attr_set(PyList_GET_ITEM(s->pwm, m.channel), s_duty_ns, value);
     Py_DECREF(value);
     if (bad)
         return -1;

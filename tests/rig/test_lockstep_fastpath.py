@@ -473,3 +473,41 @@ def test_status_numbers() -> None:
 
     assert (errno.ENXIO, errno.ENODEV, errno.EPROTO) == (6, 19, 71)
     assert struct.calcsize("<IHHQ") == P.HEADER.size
+
+
+def test_attributes_read_by_their_descriptor_are_what_getattr_reads() -> None:
+    """The fast path reads the attributes it needs each cycle through their type's getset descriptor,
+    cached per type and name (attrs.c): the same values as getattr for a compiled class's attributes,
+    plain objects, properties and __getattr__, and a class changed after a read is read anew (a cache
+    that ignored the type's version would still give the old route's value)."""
+    attr = lockstep.module().attr
+    world = World.at_rest(noise=False)
+    try:
+        world.advance_to(8_000_000)
+        for name in ("_k", "step_ns", "direct_pwm", "pwm"):
+            assert attr(world, name) == getattr(world, name)
+            assert attr(world, name) == getattr(world, name)  # (now from the cache)
+    finally:
+        world.close()
+
+    class Plain:
+        def __init__(self) -> None:
+            self.x = 1
+
+        @property
+        def doubled(self) -> int:
+            return 2 * self.x
+
+    class Lazy:
+        def __getattr__(self, name: str) -> str:
+            return name.upper()
+
+    p = Plain()
+    assert (attr(p, "x"), attr(p, "doubled"), attr(Lazy(), "abc")) == (1, 2, "ABC")
+    assert attr(p, "__weakref__") is None  # a getset descriptor of a Python class: the cached route
+    setattr(Plain, "__weakref__", property(lambda self: "replaced"))  # noqa: B010 (a test's patch)
+    assert getattr(p, "__weakref__") == "replaced" and attr(p, "__weakref__") == "replaced"  # noqa: B009
+    with pytest.raises(AttributeError):
+        attr(p, "missing")
+    with pytest.raises(TypeError, match="an object and a name"):
+        attr(p, 5)
