@@ -17,6 +17,7 @@ from emulators.i2c_bus import I2CNack, I2CProtocolError, Msg
 from rig import protocol as P
 from rig.scheduler import NS, Scheduler, SharedPage, Stop, fmt
 from rig.world import PwmChannel, World
+from scenarios.result import I2CRecord
 
 if TYPE_CHECKING:
     from rig.session import Session, SessionConfig, _Conn
@@ -40,7 +41,7 @@ class Handler:
         self.notes: list[str] = []
         #: every transfer, for run.mcap: (sim time ns, address, bytes written, bytes read, status); one
         #: tuple append per transfer (the lockstep rate is unchanged, bench/scenario_rates.py)
-        self.i2c_log: list[tuple[int, int, bytes, bytes, int]] = []
+        self.i2c_log: list[I2CRecord] = []  # (the run's result keeps this list: the fast path adds to it too)
 
     def handle(self, conn: _Conn, hdr: P.Header, payload: bytes) -> None:
         if self.sched.over and hdr.type in P.REQUESTS:
@@ -102,7 +103,8 @@ class Handler:
         self.transactions += 1
         if len(self.i2c_log) < I2C_LOG_CAP:
             wrote = b"".join([m.data for m in msgs if not m.read])
-            self.i2c_log.append((t, msgs[0].addr if msgs else 0, wrote, b"".join(results), status))
+            self.i2c_log.append(I2CRecord(t, msgs[0].addr if msgs else 0, wrote[0] if wrote else None, wrote,
+                                          b"".join(results), status == 0))
         if session.logging:
             session.log(t, f"c{conn.index} i2c-{bus} {describe(msgs, results)} "
                            f"{'ok' if not status else errno.errorcode[status]}")

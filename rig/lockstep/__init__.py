@@ -31,6 +31,7 @@ from plant.fmu import _STEP_CALLS
 from plant.native_build import BUILD, EXTENSION_SUFFIX, compile_extension, is_stale, load_extension
 from plant.variables import MOTORS
 from rig.world import HISTORY, World, _WorldTruth
+from scenarios.result import I2CRecord
 from scenarios.schema import Scenario
 
 if TYPE_CHECKING:
@@ -89,7 +90,7 @@ class FastPath:
         self._state = module().setup(
             world.advance_to, world.board.serve, world.pwm, sched.events, sched, handler.i2c_log, handler,
             handler.page.mmap, world.board.addr, _address(chips.chip_transfer), _address(chips.chip_advance),
-            world.step_ns, sched.limit_ns, cfg.i2c_clock_hz, cfg.i2c_bus)
+            world.step_ns, sched.limit_ns, cfg.i2c_clock_hz, cfg.i2c_bus, I2CRecord)
         plant = world.plant
         module().setup_world(self._state, world, plant, world._hist, plant.u.ctypes.data,
                              world._u_pwm[:MOTORS], MOTORS, _STEP_CALLS)

@@ -76,6 +76,7 @@ typedef struct {
     PyObject *sched;                /* Scheduler */
     PyObject *over;                 /* Scheduler.over_byte: its ``over`` as a bytearray's byte */
     PyObject *i2c_log;              /* Handler.i2c_log */
+    PyTypeObject *record;           /* its rows' type (scenarios.result.I2CRecord, a tuple's subclass) */
     PyObject *handler;              /* Handler (its counts) */
     PyObject *page_obj;             /* the clock page's mmap, its buffer held */
     PyObject *world, *plant, *hist; /* for the plant's steps in C (World.advance_to's) */
@@ -130,6 +131,7 @@ static void state_free(PyObject *capsule)
     Py_XDECREF(s->sched);
     Py_XDECREF(s->over);
     Py_XDECREF(s->i2c_log);
+    Py_XDECREF(s->record);
     Py_XDECREF(s->handler);
     Py_XDECREF(s->world);
     Py_XDECREF(s->plant);
@@ -145,12 +147,12 @@ static void state_free(PyObject *capsule)
 }
 
 /* setup(world_advance, serve, pwm, events, sched, i2c_log, handler, page_mmap, board_addr,
- *       transfer_addr, advance_addr, step_ns, limit_ns, i2c_clock_hz, bus) -> state */
+ *       transfer_addr, advance_addr, step_ns, limit_ns, i2c_clock_hz, bus, record_type) -> state */
 static PyObject *fp_setup(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 15)
-        return PyErr_Format(PyExc_TypeError, "setup takes 15 arguments (%zd given)", nargs);
+    if (nargs != 16)
+        return PyErr_Format(PyExc_TypeError, "setup takes 16 arguments (%zd given)", nargs);
     if (!PyList_Check(a[2]) || !PyList_Check(a[3]) || !PyList_Check(a[5]))
         return PyErr_Format(PyExc_TypeError, "setup: pwm, events and i2c_log are lists");
     fast_state *s = PyMem_Calloc(1, sizeof *s);
@@ -184,6 +186,15 @@ static PyObject *fp_setup(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
     s->limit_ns = PyLong_AsUnsignedLongLong(a[12]);
     s->i2c_clock_hz = PyLong_AsUnsignedLongLong(a[13]);
     s->bus = (unsigned)PyLong_AsUnsignedLong(a[14]);
+    if (!PyType_Check(a[15]) || !PyType_IsSubtype((PyTypeObject *)a[15], &PyTuple_Type) ||
+        ((PyTypeObject *)a[15])->tp_basicsize != PyTuple_Type.tp_basicsize ||
+        ((PyTypeObject *)a[15])->tp_itemsize != PyTuple_Type.tp_itemsize) {
+        Py_DECREF(capsule);
+        return PyErr_Format(PyExc_TypeError, "setup: the log's record type is a tuple's subclass with no fields of "
+                                             "its own (a NamedTuple)");
+    }
+    Py_INCREF(a[15]);
+    s->record = (PyTypeObject *)a[15];
     if (PyErr_Occurred()) {
         Py_DECREF(capsule);
         return NULL;

@@ -5,7 +5,6 @@ reference FC, configured from the scenario's [fc] table."""
 
 from __future__ import annotations
 
-import functools
 import os
 import shlex
 from pathlib import Path
@@ -76,9 +75,7 @@ class ProcessRun(TargetRun):
         handler = self.session.handler
         if handler is None:  # (the DUT never started)
             return []
-        make = functools.partial(tuple.__new__, I2CRecord)  # (no Python frame per record)
-        return [make((t, addr, wrote[0] if wrote else None, wrote, read, status == 0))
-                for t, addr, wrote, read, status in handler.i2c_log]
+        return handler.i2c_log  # (I2CRecords as they were made: the session is over)
 
     def close(self) -> None:
         if self.capture is not None:

@@ -100,9 +100,9 @@ def test_the_samples_made_in_c_read_as_from_python(monkeypatch: pytest.MonkeyPat
     py = _fly(monkeypatch, tmp_path, True, 0, script=_script(), world=world)  # type: ignore[arg-type]
     fast = _fly(monkeypatch, tmp_path, False, 0, script=_script(), world=world)  # type: ignore[arg-type]
     assert abs(py["world"]["yaw"]) > 0.1 and py["world"]["pd"] < -0.05  # (it turned and climbed)
-    mag = [row[3] for row in py["log"] if row[1] == HMC and len(row[3]) == 6]
+    mag = [row.read for row in py["log"] if row.address == HMC and len(row.read) == 6]
     assert len(mag) == 50 and len(set(mag)) > 10  # the field moved between reads
-    baro = [row[3] for row in py["log"] if row[1] == BARO and len(row[3]) == 3]
+    baro = [row.read for row in py["log"] if row.address == BARO and len(row.read) == 3]
     assert len(baro) == 130 and len(set(baro)) > 20  # D1 and D2 changed as it climbed
     # samples made in C (20 of the 50 magnetometer reads found a new one; each new anchor's first is
     # Python's) and every conversion
