@@ -37,7 +37,7 @@ from rig import interrupts, scratch
 from rig import protocol as P
 from rig.handler import Handler
 from rig.lockstep import FastPath, attach, pending_input
-from rig.pace import PacedSelector, RealtimeHost
+from rig.pace import FrozenHeap, PacedSelector, RealtimeHost
 from rig.scheduler import (
     EXIT_WATCHDOG,
     MONO_BASE_NS,
@@ -162,6 +162,7 @@ class Session:
         self._n_conns = 0
         self._rt_t0 = 0.0
         self._rt_host = RealtimeHost()  # real time: SCHED_FIFO and mlockall where permitted (rig/pace)
+        self._heap = FrozenHeap()  # lockstep: the collector walks what the run makes, not the rig (rig/pace)
         self._running = False
         self.interrupted: int | None = None  # the signal that stopped the rig mid-run (rig.interrupts)
 
@@ -289,6 +290,8 @@ class Session:
                 os.sched_setaffinity(0, {max(old_affinity)})  # the keeper and the DUT inherit it
             if not cfg.lockstep:  # before sim time 0: locking the memory takes a while (the DUT: not FIFO)
                 self._rt_host.start()
+            else:
+                self._heap.start()
             keeper = _Keeper(keeper_path, cfg.command, env, cfg.stdout, cfg.stderr, KILL_GRACE_S)
             keepers.append(keeper)
             # sim time 0 once the keeper runs (it starts the DUT only now): its few milliseconds of
@@ -301,6 +304,7 @@ class Session:
             self._pump_fd = -1
             self._pump_ptys = ()
             self._rt_host.stop()
+            self._heap.stop()
             for k in keepers:
                 k.finish()  # the DUT and everything it started are gone when this returns
             os.sched_setaffinity(0, old_affinity)
