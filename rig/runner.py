@@ -55,6 +55,11 @@ class _Wind:
         self.turb: tuple[float, float, float] = (0.0, 0.0, 0.0)
         self.a = math.exp(-WIND_PERIOD / scenario.turbulence_tau)
         self.now = tuple(scenario.wind)
+        # the scenario's numbers, read once (a Scenario is plain Python: 7 attribute lookups a tick)
+        self._steady = scenario.wind
+        self._turbulence = scenario.turbulence
+        self._s = scenario.turbulence * math.sqrt(1 - self.a**2)
+        self._gusts = tuple(scenario.gusts)
 
     def active(self) -> bool:
         return any(self.sc.wind) or self.sc.turbulence > 0 or bool(self.sc.gusts)
@@ -62,15 +67,15 @@ class _Wind:
     def tick(self, session: Host, t: float) -> None:
         # three scalars, not sequences, zips and numpy calls: this runs a hundred times a second (the
         # same float operations in the same order as per-axis sequences would do them)
-        sc = self.sc
         tn, te, td = self.turb
-        if sc.turbulence > 0:
-            a, s = self.a, sc.turbulence * math.sqrt(1 - self.a**2)
+        if self._turbulence > 0:
+            a, s = self.a, self._s
             zn, ze, zd = self.normals.take(3)
             tn, te, td = a * tn + s * zn, a * te + s * ze, a * td + s * zd
             self.turb = (tn, te, td)
-        wn, we, wd = sc.wind[0] + tn, sc.wind[1] + te, sc.wind[2] + td
-        for g in sc.gusts:
+        steady = self._steady
+        wn, we, wd = steady[0] + tn, steady[1] + te, steady[2] + td
+        for g in self._gusts:
             if g.start <= t <= g.start + g.duration:
                 shape = 0.5 * (1 - math.cos(2 * math.pi * (t - g.start) / g.duration))
                 wn, we, wd = wn + g.peak[0] * shape, we + g.peak[1] * shape, wd + g.peak[2] * shape

@@ -9,7 +9,7 @@ import pytest
 
 from emulators.faults import Fault, FaultSet
 from emulators.i2c_bus import I2CNack, read, write
-from emulators.sensor_models import IMU_TRUTH, AxisErrors, BaroModel, ImuModel, MagModel, TruthRow
+from emulators.sensor_models import IMU_TRUTH, AxisErrors, BaroModel, ImuModel, MagModel, Normals, TruthRow
 from rig.world import World
 from tests.emulators.boards import make_board, s16
 
@@ -215,3 +215,19 @@ def test_sample_block_refuses_a_buffer_it_cannot_fill() -> None:
         model.sample_block([0.0], np.zeros((4, 6)))
     with pytest.raises(ValueError, match="0..2 samples"):
         model.sample_block([0.0, 0.001, 0.002], np.zeros((2, 7)))
+
+
+def test_normals_taken_are_the_generators_sequence_across_blocks_and_readers() -> None:
+    """Normals.take (from its list of the block) gives the generator's own values in order: across
+    block boundaries, and after another reader moved ``pos`` (C reads a channel's block in place)."""
+    normals = Normals(np.random.default_rng(5))
+    block = normals.BLOCK  # (compiled by mypyc, the class's attribute is read on an instance)
+    want = np.random.default_rng(5).standard_normal(3 * block).tolist()
+    got: list[float] = []
+    while len(got) < block + 10:
+        got += normals.take(3)
+    normals.pos += 7  # another reader used seven
+    del want[len(got):len(got) + 7]
+    while len(got) < 2 * block + 100:
+        got += normals.take(5)
+    assert got == want[:len(got)]
