@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from emulators.sbus import PERIOD_S, Sticks, encode
+from rig.scheduler import round_half_even
 
 if TYPE_CHECKING:
     from rig.host import Host
@@ -45,6 +46,6 @@ class StickEmulator:
                 frame = encode(list(channels), failsafe=failsafe, frame_lost=failsafe)
                 self._encoded = setting, failsafe, channels, frame
             session.serial_write(self.path, frame)
-            self.frames.append((round(t * 1e9), channels, failsafe))
+            self.frames.append((round_half_even(t * 1e9), channels, failsafe))  # (round's: 1.3 k a call)
         nxt = t + self.period
         session.at(nxt, lambda s: self._tick(s, nxt))
