@@ -32,21 +32,31 @@ BUCKETS = 400
 
 def extremes(values: np.ndarray, buckets: int = BUCKETS) -> np.ndarray:
     """Indices of the samples to draw: all of them when they are few, else each bucket's smallest and
-    largest finite value in time order, and a bucket's first non-finite sample (a gap stays a gap)."""
+    largest finite value in time order, and a bucket's first non-finite sample (a gap stays a gap).
+
+    The buckets as the rows of one array (the last padded with samples that are neither finite nor
+    there): a loop over them cost a report about 2 ms a trace (65 ms of a sweep run's 127 ms flight),
+    this about a tenth. Ties go to the first sample, as a bucket's own argmin and argmax give."""
     n = len(values)
     if n <= 2 * buckets:
         return np.arange(n)
     size = math.ceil(n / buckets)
-    keep: list[int] = []
-    for a in range(0, n, size):
-        seg = values[a : a + size]
-        finite = np.isfinite(seg)
-        if not finite.all():
-            keep.append(a + int(np.argmin(finite)))
-        if finite.any():
-            keep.append(a + int(np.argmin(np.where(finite, seg, np.inf))))
-            keep.append(a + int(np.argmax(np.where(finite, seg, -np.inf))))
-    return np.unique(keep)
+    rows = math.ceil(n / size)
+    padded = np.zeros(rows * size)
+    padded[:n] = values
+    is_finite = np.zeros(rows * size, dtype=bool)
+    is_finite[:n] = np.isfinite(values)
+    there = (np.arange(rows * size) < n).reshape(rows, size)
+    vals, finite = padded.reshape(rows, size), is_finite.reshape(rows, size)
+    start = np.arange(rows) * size
+    gap = there & ~finite
+    some_gap, some_finite = gap.any(axis=1), finite.any(axis=1)
+    keep = [
+        (start + gap.argmax(axis=1))[some_gap],
+        (start + np.where(finite, vals, np.inf).argmin(axis=1))[some_finite],
+        (start + np.where(finite, vals, -np.inf).argmax(axis=1))[some_finite],
+    ]
+    return np.unique(np.concatenate(keep))
 
 
 def _empty(title: str) -> str:

@@ -233,3 +233,38 @@ def test_a_plot_keeps_every_peak_of_a_long_trace() -> None:
     assert len(keep) <= 3 * BUCKETS and 4321 in keep and np.nanmax(v[keep]) == 9.0
     assert np.isnan(v[keep]).any() and np.all(np.diff(keep) > 0)
     assert np.array_equal(extremes(v[:500]), np.arange(500))  # short: every sample
+
+
+def _extremes_bucket_by_bucket(values: np.ndarray, buckets: int) -> np.ndarray:
+    """extremes' docstring read literally, one bucket at a time (a second implementation)."""
+    n = len(values)
+    if n <= 2 * buckets:
+        return np.arange(n)
+    size = math.ceil(n / buckets)
+    keep: list[int] = []
+    for a in range(0, n, size):
+        seg = values[a:a + size]
+        finite = np.isfinite(seg)
+        if not finite.all():
+            keep.append(a + int(np.argmin(finite)))
+        if finite.any():
+            keep.append(a + int(np.argmin(np.where(finite, seg, np.inf))))
+            keep.append(a + int(np.argmax(np.where(finite, seg, -np.inf))))
+    return np.unique(keep)
+
+
+def test_a_plots_samples_are_those_a_bucket_by_bucket_reading_keeps() -> None:
+    """Random traces with gaps, infinities, ties and lengths that leave the last bucket short."""
+    from reports.svg_plot import extremes
+
+    rng = np.random.default_rng(3)
+    for n in (801, 1000, 1013, 4000, 6001, 20011):
+        v = np.round(rng.normal(size=n), 1)  # (rounded: ties within buckets)
+        v[rng.integers(0, n, n // 50)] = math.nan
+        v[rng.integers(0, n, 5)] = math.inf
+        v[rng.integers(0, n, 5)] = -math.inf
+        v[n // 3:n // 3 + 200] = math.nan  # whole buckets of gap
+        for buckets in (400, 37):
+            want = _extremes_bucket_by_bucket(v, buckets)
+            got = extremes(v, buckets)
+            assert got.dtype == want.dtype and np.array_equal(got, want), (n, buckets)
