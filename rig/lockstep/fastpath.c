@@ -86,6 +86,8 @@ typedef struct {
     Py_ssize_t motors;
     PyObject *step_calls;           /* plant.fmu._STEP_CALLS: a failed call's name */
     PyObject *run_next, *in_flight; /* the events a wait crosses (events.c) */
+    PyObject *first;                /* the scheduler's first event as last read (held), and its time */
+    uint64_t first_ns;
     Py_buffer page;
     chip_board *board;
     transfer_fn transfer;
@@ -129,6 +131,7 @@ static void state_free(PyObject *capsule)
     Py_XDECREF(s->pwm);
     Py_XDECREF(s->events);
     Py_XDECREF(s->sched);
+    Py_XDECREF(s->first);
     Py_XDECREF(s->over);
     Py_XDECREF(s->i2c_log);
     Py_XDECREF(s->record);
@@ -257,24 +260,7 @@ static PyObject *fp_setup_world(PyObject *self, PyObject *const *a, Py_ssize_t n
 
 /* ---- what the Python side keeps: events, the run's end ---- */
 
-/* The scheduler's first event's time (0 for one at or before 0, UINT64_MAX past 2^63 ns): 1, or 0 when
- * there is none; -1: error (raised). clear_until and run_due (events.c) both read it here. */
-static int first_event_ns(fast_state *s, uint64_t *t)
-{
-    if (PyList_GET_SIZE(s->events) == 0)
-        return 0;
-    PyObject *first = PyList_GET_ITEM(s->events, 0);
-    if (!PyTuple_Check(first) || PyTuple_GET_SIZE(first) < 1) {
-        PyErr_SetString(PyExc_TypeError, "the scheduler's events are (t_ns, seq, fn) tuples");
-        return -1;
-    }
-    int overflow = 0;
-    long long v = PyLong_AsLongLongAndOverflow(PyTuple_GET_ITEM(first, 0), &overflow);
-    if (v == -1 && PyErr_Occurred())
-        return -1;
-    *t = overflow > 0 ? UINT64_MAX : overflow < 0 || v <= 0 ? 0 : (uint64_t)v;
-    return 1;
-}
+static int first_event_ns(fast_state *s, uint64_t *t); /* (events.c) */
 
 /* 1: nothing the scheduler does stands between now and t (no event at or before t, the limit not
  * passed, the run not over; with runs_events, events due are the caller's to run: events.c);
