@@ -128,23 +128,54 @@ SENSOR_WINDOWS: Final[tuple[tuple[tuple[int, ...], int, tuple[str, str, tuple[st
     ((0x1E,), 0x03, _HMC),
 )
 _MS5611 = (0x76, 0x77)
-#: one encoder for every message (json.dumps with options makes a new one per call), compact
+#: one encoder for the messages built as dicts (json.dumps with options makes a new one per call), compact
 _JSON: Final = json.JSONEncoder(allow_nan=False, separators=(",", ":"))
 
 
-def _sensor(rec: I2CRecord) -> dict[str, Any] | None:
-    """The chip's data as it reported them, when ``rec`` read a data register; else None."""
+def _template(fields: Sequence[tuple[str, str]]) -> str:
+    """A %-format of one JSON object as ``_JSON`` writes it, for fields whose values need no escaping:
+    ``(name, "%d" | "%s" | '"%s"' | the JSON of a constant or a nested template)``."""
+    return "{" + ",".join(f"{json.dumps(k)}:{v}" for k, v in fields) + "}"
+
+
+# /i2c and /sensors by bytes formatting: their fields are ints, hex and names with nothing to escape,
+# and they are four fifths of a run's messages; the JSON encoder's dicts were about a third of
+# writing run.mcap, a sweep run's largest report (tests/scenarios/test_mcap_encoding.py checks them
+# against json.dumps)
+_I2C: Final = _template([("t_ns", "%d"), ("address", "%d"), ("register", "%s"), ("wrote", '"%s"'),
+                         ("read", '"%s"'), ("ok", "%s")]).encode()
+_BOOL: Final = b"false", b"true"
+
+
+def _i2c_json(rec: I2CRecord) -> bytes:
+    """/i2c's message for ``rec``, as ``_JSON`` writes it."""
+    register = b"null" if rec.register is None else b"%d" % rec.register
+    return _I2C % (rec.t_ns, rec.address, register, rec.wrote.hex().encode(), rec.read.hex().encode(),
+                   _BOOL[bool(rec.ok)])
+
+
+def _sensor_template(chip: str, register: int, names: Sequence[str]) -> bytes:
+    values = _template([(n, "%d") for n in names])
+    return _template([("chip", json.dumps(chip)), ("address", "%d"), ("register", str(register)),
+                      ("values", values)]).encode()
+
+
+_MS5611_TEMPLATE: Final = _sensor_template("MS5611", 0, ("adc",))
+_SENSOR_TEMPLATES: Final = tuple(_sensor_template(chip, first, names)
+                                 for _, first, (chip, _, names) in SENSOR_WINDOWS)
+
+
+def _sensor_json(rec: I2CRecord) -> bytes | None:
+    """/sensors' message: the chip's data as it reported them, when ``rec`` read a data register; else
+    None."""
     if not rec.ok or rec.register is None or not rec.read:
         return None
     if rec.address in _MS5611 and rec.register == 0x00 and len(rec.read) == 3:
-        return {"chip": "MS5611", "address": rec.address, "register": 0,
-                "values": {"adc": int.from_bytes(rec.read, "big")}}
-    for addresses, first, (chip, fmt, names) in SENSOR_WINDOWS:
+        return _MS5611_TEMPLATE % (rec.address, int.from_bytes(rec.read, "big"))
+    for (addresses, first, (_, fmt, _)), template in zip(SENSOR_WINDOWS, _SENSOR_TEMPLATES, strict=True):
         skip = first - rec.register
         if rec.address in addresses and skip >= 0 and len(rec.read) >= skip + struct.calcsize(fmt):
-            values = struct.unpack_from(fmt, rec.read, skip)
-            return {"chip": chip, "address": rec.address, "register": first,
-                    "values": dict(zip(names, values, strict=True))}
+            return template % (rec.address, *struct.unpack_from(fmt, rec.read, skip))
     return None
 
 
@@ -200,10 +231,10 @@ def write(out: IO[bytes] | Path, r: RunResult, i2c: Sequence[I2CRecord] | None,
         ch[topic] = w.register_channel(topic=topic, message_encoding="json", schema_id=sid)
     seq = dict.fromkeys(TOPICS, 0)
 
-    def put(topic: str, t_ns: int, msg: dict[str, Any]) -> None:
+    def put(topic: str, t_ns: int, msg: dict[str, Any] | bytes) -> None:
         t_ns = max(0, t_ns)  # (MCAP times are unsigned)
-        w.add_message(channel_id=ch[topic], log_time=t_ns, publish_time=t_ns, sequence=seq[topic],
-                      data=_JSON.encode(msg).encode())
+        data = msg if isinstance(msg, bytes) else _JSON.encode(msg).encode()
+        w.add_message(channel_id=ch[topic], log_time=t_ns, publish_time=t_ns, sequence=seq[topic], data=data)
         seq[topic] += 1
 
     for t_ns, row in _rows(r.signals, ATTITUDE):
@@ -211,9 +242,8 @@ def write(out: IO[bytes] | Path, r: RunResult, i2c: Sequence[I2CRecord] | None,
     for t_ns, row in _rows(r.signals, MOTORS_GROUP + BENCH):
         put("/motors", t_ns, row)
     for rec in i2c or ():
-        put("/i2c", rec.t_ns, {"t_ns": rec.t_ns, "address": rec.address, "register": rec.register,
-                               "wrote": rec.wrote.hex(), "read": rec.read.hex(), "ok": rec.ok})
-        reading = _sensor(rec)
+        put("/i2c", rec.t_ns, _i2c_json(rec))
+        reading = _sensor_json(rec)
         if reading is not None:
             put("/sensors", rec.t_ns, reading)
     for frame in rc or ():
