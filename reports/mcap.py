@@ -1,4 +1,5 @@
-"""run.mcap: one run as an MCAP file (Foxglove's container, written with the ``mcap`` package), so the
+"""run.mcap: one run as an MCAP file (Foxglove's container, as the ``mcap`` package's writer writes it:
+reports/mcap_container.py), so the
 tools flight-software teams already use to look at flight logs (Foxglove, PlotJuggler) open a rig run
 as they open a drone's log, with no CSV import step.
 
@@ -34,9 +35,9 @@ from pathlib import Path
 from typing import IO, Any, Final
 
 import numpy as np
-from mcap.writer import Writer
 
 from reports import result_json
+from reports.mcap_container import ContainerWriter
 from scenarios.result import I2CRecord, RcFrame, RunResult
 from scenarios.schema import Scenario
 from scenarios.signals import SIGNALS
@@ -222,7 +223,7 @@ def write(out: IO[bytes] | Path, r: RunResult, i2c: Sequence[I2CRecord] | None,
         why.setdefault("/sensors", "decoded from /i2c, which is empty")
     if rc is None:
         why.setdefault("/rc", "the run's RC frames are not known")
-    w = Writer(out)
+    w = ContainerWriter(out)
     w.start(profile=PROFILE, library="rig reports/mcap.py")
     ch: dict[str, int] = {}
     for topic in TOPICS:
