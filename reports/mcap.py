@@ -1,7 +1,6 @@
 """run.mcap: one run as an MCAP file (Foxglove's container, as the ``mcap`` package's writer writes it:
-reports/mcap_container.py), so the
-tools flight-software teams already use to look at flight logs (Foxglove, PlotJuggler) open a rig run
-as they open a drone's log, with no CSV import step.
+reports/mcap_container.py), so the tools flight-software teams already use to look at flight logs
+(Foxglove, PlotJuggler) open a rig run as they open a drone's log, with no CSV import step.
 
 Why these choices:
 

@@ -27,6 +27,7 @@ from mcap.records import (
     DataEnd,
     Footer,
     Header,
+    McapRecord,
     Metadata,
     MetadataIndex,
     Schema,
@@ -43,10 +44,10 @@ _INDEX_HEAD: Final = struct.Struct("<BQHI")
 CHUNK_SIZE: Final = 1024 * 1024  # (the package's default)
 
 
-def _record(write: object) -> bytes:
-    """The bytes of one of the package's records (its ``write(RecordBuilder)``)."""
+def _record(record: McapRecord) -> bytes:
+    """The bytes of one of the package's records."""
     builder = RecordBuilder()
-    write(builder)  # type: ignore[operator]
+    record.write(builder)
     return builder.end()
 
 
@@ -66,18 +67,16 @@ class ContainerWriter:
         self._chunk_size = chunk_size
         self._schemas: list[Schema] = []
         self._channels: list[Channel] = []
-        # the chunk being built: its records, their length, its messages' index by channel, times
+        # the chunk being built: its records, their length, its messages' index by channel (empty: no
+        # message yet), their times
         self._chunk: list[bytes] = []
         self._chunk_len = 0
         self._index: dict[int, list[int]] = {}  # channel -> flat (log time, offset in the chunk) pairs
         self._chunk_times = (0, 0)
-        self._chunk_messages = 0
         self._chunk_indexes: list[ChunkIndex] = []
         self._metadata_indexes: list[MetadataIndex] = []
         self._counts: dict[int, int] = {}  # messages by channel, in the order channels first had one
-        self._messages = 0
         self._times = (0, 0)
-        self._chunks = 0
 
     def _write(self, data: bytes) -> None:
         self._out.write(data)
@@ -85,7 +84,7 @@ class ContainerWriter:
 
     def start(self, profile: str, library: str) -> None:
         self._write(MCAP0_MAGIC)
-        self._write(_record(Header(profile, library).write))
+        self._write(_record(Header(profile, library)))
 
     def _to_chunk(self, record: bytes) -> None:
         self._chunk.append(record)
@@ -96,39 +95,36 @@ class ContainerWriter:
     def register_schema(self, name: str, encoding: str, data: bytes) -> int:
         schema = Schema(id=len(self._schemas) + 1, data=data, encoding=encoding, name=name)
         self._schemas.append(schema)
-        self._to_chunk(_record(schema.write))
+        self._to_chunk(_record(schema))
         return schema.id
 
     def register_channel(self, topic: str, message_encoding: str, schema_id: int) -> int:
         channel = Channel(id=len(self._channels) + 1, topic=topic, message_encoding=message_encoding,
                           schema_id=schema_id, metadata={})
         self._channels.append(channel)
-        self._to_chunk(_record(channel.write))
+        self._to_chunk(_record(channel))
         return channel.id
 
     def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
                     sequence: int) -> None:
-        self._times = _widened(self._times, log_time, self._messages == 0)
-        self._messages += 1
+        self._times = _widened(self._times, log_time, not self._counts)
         self._counts[channel_id] = self._counts.get(channel_id, 0) + 1
-        self._chunk_times = _widened(self._chunk_times, log_time, self._chunk_messages == 0)
-        self._chunk_messages += 1
+        self._chunk_times = _widened(self._chunk_times, log_time, not self._index)
         self._index.setdefault(channel_id, []).extend((log_time, self._chunk_len))
         head = _MESSAGE.pack(Opcode.MESSAGE, _MESSAGE_BODY + len(data), channel_id, sequence, log_time,
                              publish_time)
         self._to_chunk(head + data)
 
     def _finish_chunk(self) -> None:
-        if self._chunk_messages == 0:
+        if not self._index:  # (no message: its schemas and channels wait for one, as the package's do)
             return
-        self._chunks += 1
         data = b"".join(self._chunk)
         packed = zstandard.compress(data)
         first, last = self._chunk_times
         chunk = Chunk(compression="zstd", data=packed, message_start_time=first, message_end_time=last,
                       uncompressed_crc=zlib.crc32(data), uncompressed_size=len(data))
         start = self._pos
-        self._write(_record(chunk.write))
+        self._write(_record(chunk))
         index = ChunkIndex(message_start_time=first, message_end_time=last, chunk_start_offset=start,
                            chunk_length=self._pos - start, message_index_offsets={}, message_index_length=0,
                            compression="zstd", compressed_size=len(packed), uncompressed_size=len(data))
@@ -139,23 +135,22 @@ class ContainerWriter:
                         + struct.pack(f"<{len(pairs)}Q", *pairs))
         index.message_index_length = self._pos - indexes_start
         self._chunk_indexes.append(index)
-        self._chunk, self._chunk_len, self._index = [], 0, {}
-        self._chunk_times, self._chunk_messages = (0, 0), 0
+        self._chunk, self._chunk_len, self._index, self._chunk_times = [], 0, {}, (0, 0)
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         start = self._pos
-        self._write(_record(Metadata(name=name, metadata=data).write))
+        self._write(_record(Metadata(name=name, metadata=data)))
         self._metadata_indexes.append(MetadataIndex(offset=start, length=self._pos - start, name=name))
 
     def finish(self) -> None:
         self._finish_chunk()
-        self._write(_record(DataEnd(0).write))
+        self._write(_record(DataEnd(0)))
         summary_start = self._pos
         summary = RecordBuilder()
         offsets: list[SummaryOffset] = []
         statistics = Statistics(attachment_count=0, channel_count=len(self._channels),
-                                channel_message_counts=self._counts, chunk_count=self._chunks,
-                                message_count=self._messages, message_start_time=self._times[0],
+                                channel_message_counts=self._counts, chunk_count=len(self._chunk_indexes),
+                                message_count=sum(self._counts.values()), message_start_time=self._times[0],
                                 message_end_time=self._times[1], metadata_count=len(self._metadata_indexes),
                                 schema_count=len(self._schemas))
         groups: tuple[tuple[Opcode, list[Schema] | list[Channel] | list[Statistics] | list[ChunkIndex]
@@ -178,7 +173,7 @@ class ContainerWriter:
         crc = zlib.crc32(footer_head, zlib.crc32(data))  # (the summary's and the footer's own head)
         self._write(data)
         self._write(_record(Footer(summary_start=footer_start, summary_offset_start=offsets_start,
-                                   summary_crc=crc).write))
+                                   summary_crc=crc)))
         self._write(MCAP0_MAGIC)
 
 
