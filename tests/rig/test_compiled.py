@@ -17,17 +17,17 @@ from rig.compiled import _SUFFIX, MANIFEST, MODULES, OUT, REPO, CompiledFinder, 
 
 SCENARIO = REPO / "scenarios" / "library" / "seed000_roll_stand.toml"
 
-# Runs the scenario and prints which session ran it and a digest of everything it recorded and judged.
+# Runs the scenario (its work folder argv[2]) and prints which session ran it and a digest of everything
+# it recorded and judged.
 FLIGHT = """
-import hashlib, sys, tempfile
+import hashlib, sys
 import numpy as np
 from rig import compiled
 compiled.install()
 import rig.session
 from rig.runner import run
 from scenarios.schema import load
-with tempfile.TemporaryDirectory(prefix="rig-flight-") as work:
-    r = run(load(sys.argv[1]), work_dir=work)
+r = run(load(sys.argv[1]), work_dir=sys.argv[2])
 h = hashlib.sha256(repr(r.measurements).encode())
 for name in sorted(r.signals):
     h.update(name.encode())
@@ -36,11 +36,14 @@ print(rig.session.__file__, r.verdict, h.hexdigest())
 """
 
 
-def _flight(pure: bool) -> list[str]:
+def _flight(pure: bool, work: Path) -> list[str]:
+    """The flight's digest; its work folder is the test's, so a child the timeout kills (SIGKILL: no
+    clean-up of its own) leaves nothing in the system's temporary folder."""
     env = {k: v for k, v in os.environ.items() if k != "RIG_PURE_PYTHON"}
     if pure:
         env["RIG_PURE_PYTHON"] = "1"
-    done = subprocess.run([sys.executable, "-c", FLIGHT, str(SCENARIO)], cwd=REPO, env=env,
+    work.mkdir()
+    done = subprocess.run([sys.executable, "-c", FLIGHT, str(SCENARIO), str(work)], cwd=REPO, env=env,
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     return done.stdout.split()
@@ -112,9 +115,10 @@ def test_importing_the_packages_installs_no_import_hook() -> None:
     assert installed == "False" and session == str(source_of("rig.session"))
 
 
-def test_compiled_and_source_fly_the_same_flight_bit_for_bit() -> None:
+def test_compiled_and_source_fly_the_same_flight_bit_for_bit(tmp_path: Path) -> None:
     """The source is the reference: the compiled modules must not change a single recorded value."""
-    compiled, pure = _flight(pure=False), _flight(pure=True)
+    compiled = _flight(pure=False, work=tmp_path / "compiled")
+    pure = _flight(pure=True, work=tmp_path / "pure")
     assert Path(compiled[0]).is_relative_to(OUT) and pure[0] == str(source_of("rig.session"))
     assert compiled[1] == pure[1] == "pass"
     assert compiled[2] == pure[2]
