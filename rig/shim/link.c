@@ -9,6 +9,8 @@ static char sock_path[108];
 static int ahead; /* lockstep: a sleep moved the clock in a notice the session has not answered yet */
 static int sock = -1;
 static pid_t sock_pid;
+static char held[4096]; /* lockstep: notices not sent yet (see send_msg) */
+static size_t held_len;
 
 static void die_session(const char *why)
 {
@@ -16,12 +18,12 @@ static void die_session(const char *why)
     _exit(125);
 }
 
-/* The whole buffer or -1, across signals and short transfers, in either direction. */
-static int io_all(void *buf, size_t n, int sending)
+/* The whole buffer or -1, across signals and short reads. */
+static int recv_all(void *buf, size_t n)
 {
     char *p = buf;
     while (n) {
-        ssize_t k = sending ? send(sock, p, n, MSG_NOSIGNAL) : recv(sock, p, n, 0);
+        ssize_t k = recv(sock, p, n, 0);
         if (k < 0 && errno == EINTR)
             continue;
         if (k <= 0)
@@ -31,9 +33,6 @@ static int io_all(void *buf, size_t n, int sending)
     }
     return 0;
 }
-
-static int send_all(const void *buf, size_t n) { return io_all((void *)buf, n, 1); }
-static int recv_all(void *buf, size_t n) { return io_all(buf, n, 0); }
 
 static uint64_t now_peek(void) { return __atomic_load_n(&shm->sim_ns, __ATOMIC_SEQ_CST); }
 
@@ -46,6 +45,7 @@ static void ensure_connected(void)
         return;
     if (sock >= 0)
         LOAD(close)(sock); /* the parent's connection, inherited by fork */
+    held_len = 0;          /* (and what the parent held: the parent sends it) */
     sock = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
     struct sockaddr_un addr = { .sun_family = AF_UNIX };
     strcpy(addr.sun_path, sock_path);
@@ -61,41 +61,102 @@ static void ensure_connected(void)
         die_session("the session refused this shim's protocol version");
 }
 
-/* Header and payload in one sendmsg: two sends would wake the session twice per message (once for a
-   header it cannot act on yet), which in lockstep costs as much as the work itself. */
-static void send_msg(uint16_t type, const void *payload, uint32_t len)
+/* The iovecs whole, across signals and short writes. */
+static void send_iov(struct iovec *iov, int n)
 {
-    struct rig_hdr h = { .len = len, .type = type, .status = 0, .t_ns = lockstep ? now_peek() : 0 };
-    struct iovec iov[2] = { { .iov_base = &h, .iov_len = sizeof h }, { .iov_base = (void *)payload, .iov_len = len } };
-    struct msghdr m = { .msg_iov = iov, .msg_iovlen = len ? 2 : 1 };
-    size_t total = sizeof h + len;
-    ssize_t k;
-    do
-        k = sendmsg(sock, &m, MSG_NOSIGNAL);
-    while (k < 0 && errno == EINTR);
-    if (k < 0)
-        die_session("send failed");
-    if ((size_t)k < total) { /* a short write (a full socket buffer): the rest byte-exactly */
+    while (n) {
+        struct msghdr m = { .msg_iov = iov, .msg_iovlen = (size_t)n };
+        ssize_t k = sendmsg(sock, &m, MSG_NOSIGNAL);
+        if (k < 0 && errno == EINTR)
+            continue;
+        if (k < 0)
+            die_session("send failed");
         size_t done = (size_t)k;
-        if (done < sizeof h && send_all((const char *)&h + done, sizeof h - done) < 0)
-            die_session("send failed");
-        size_t off = done > sizeof h ? done - sizeof h : 0;
-        if (len > off && send_all((const char *)payload + off, len - off) < 0)
-            die_session("send failed");
+        for (; n && done >= iov->iov_len; iov++, n--)
+            done -= iov->iov_len;
+        if (n) {
+            iov->iov_base = (char *)iov->iov_base + done;
+            iov->iov_len -= done;
+        }
     }
 }
 
-/* One request, one reply. The reply payload (at most cap bytes) lands in out. Caller holds lock. */
+/* What is held (hold_msg), then header and payload, in one sendmsg: two sends would wake the session
+   twice per message (once for a header it cannot act on yet), which in lockstep costs as much as the
+   work itself. */
+static void send_msg(uint16_t type, const void *payload, uint32_t len)
+{
+    struct rig_hdr h = { .len = len, .type = type, .status = 0, .t_ns = lockstep ? now_peek() : 0 };
+    struct iovec iov[3] = { { held, held_len }, { &h, sizeof h }, { (void *)payload, len } };
+    held_len = 0;
+    send_iov(iov[0].iov_len ? iov : iov + 1, (iov[0].iov_len ? 3 : 2) - (len ? 0 : 1));
+}
+
+/* Sends what is held (hold_msg), if anything. Caller holds lock. */
+static void send_held(void)
+{
+    if (held_len && sock >= 0 && sock_pid == self_pid()) {
+        struct iovec iov = { held, held_len };
+        send_iov(&iov, 1);
+    }
+    held_len = 0;
+}
+
+/* A notice. Lockstep: the notices (PWM writes, a sleep that went ahead, notes) wait here, each stamped
+   when it was made, and go with the process's next message in the same sendmsg. A control loop's
+   cycle (read the sensors, write four motors, sleep) then wakes the session once, for its one request,
+   where each notice sent alone woke it again: in lockstep the session and the DUT take turns, so every
+   wake-up is on the run's critical path. The session sees the same messages in the same order; none
+   of them needs an answer, and nothing in the session moves on before the DUT's next message. They
+   also go before the DUT looks at the outside world (catch_up), before a fork (the child starts with
+   none) and at exit. In real time a notice goes at once. Caller holds lock. */
+static void hold_msg(uint16_t type, const void *payload, uint32_t len)
+{
+    struct rig_hdr h = { .len = len, .type = type, .status = 0, .t_ns = lockstep ? now_peek() : 0 };
+    if (!lockstep || sizeof h + len > sizeof held) {
+        send_msg(type, payload, len);
+        return;
+    }
+    if (held_len + sizeof h + len > sizeof held)
+        send_held();
+    memcpy(held + held_len, &h, sizeof h);
+    memcpy(held + held_len + sizeof h, payload, len);
+    held_len += sizeof h + len;
+}
+
+/* send_held where the lock is not held yet: before the DUT looks outside, at fork, at the process's end.
+   It only tries the lock: these calls may come from a signal handler (waitpid in SIGCHLD's, _exit)
+   that interrupted this very thread inside the lock. Another holder is sending or requesting, which
+   takes what is held with it. */
+static void send_held_now(void)
+{
+    if (!__atomic_load_n(&held_len, __ATOMIC_RELAXED) || pthread_mutex_trylock(&lock))
+        return;
+    send_held();
+    pthread_mutex_unlock(&lock);
+}
+
+/* One request, one reply. The reply payload (at most cap bytes) lands in out. Caller holds lock. The
+   session sends a reply whole and nothing else on this connection while a request waits, so one
+   recvmsg into header and payload usually takes all of it: a second read per request was a tenth of
+   the DUT's system calls. */
 static struct rig_hdr request(uint16_t type, const void *payload, uint32_t len, void *out, uint32_t cap)
 {
     ensure_connected();
     send_msg(type, payload, len);
     struct rig_hdr h;
-    if (recv_all(&h, sizeof h) < 0)
+    struct iovec iov[2] = { { &h, sizeof h }, { out, cap } };
+    struct msghdr m = { .msg_iov = iov, .msg_iovlen = cap ? 2 : 1 };
+    ssize_t k;
+    do
+        k = recvmsg(sock, &m, 0);
+    while (k < 0 && errno == EINTR);
+    if (k <= 0 || ((size_t)k < sizeof h && recv_all((char *)&h + k, sizeof h - (size_t)k) < 0))
         die_session("no reply");
-    if (h.type != type || h.len > cap)
+    size_t got = (size_t)k > sizeof h ? (size_t)k - sizeof h : 0;
+    if (h.type != type || h.len > cap || got > h.len)
         die_session("a reply that does not fit the request");
-    if (h.len && recv_all(out, h.len) < 0)
+    if (h.len > got && recv_all((char *)out + got, h.len - got) < 0)
         die_session("short reply");
     __atomic_store_n(&ahead, 0, __ATOMIC_RELEASE); /* the session has read everything before this */
     return h;
@@ -105,7 +166,7 @@ static void notice(uint16_t type, const void *payload, uint32_t len)
 {
     pthread_mutex_lock(&lock);
     ensure_connected();
-    send_msg(type, payload, len);
+    hold_msg(type, payload, len);
     pthread_mutex_unlock(&lock);
 }
 

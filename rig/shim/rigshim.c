@@ -14,7 +14,7 @@
  * a concern, so each can be read alone while the compiler still sees one file (static functions inline
  * across parts, nothing more is exported: -fvisibility=hidden, EXPORT marks the interposers):
  *   real_libc.c  the real functions behind the interposed ones (LOAD), errno_ret
- *   link.c       the socket to the session: connect, send, request, notice, note
+ *   link.c       the socket to the session: connect, send, request, notice (held in lockstep), note
  *   vtime.c      virtual time: the clocks, the sleeps, the poll family's timeouts
  *   usermem.c    the caller's memory copied as the kernel copies it (EFAULT, never a crash)
  *   paths.c      what a path names (classify: a target), the shape of a device kind (struct kind_ops)
@@ -25,6 +25,7 @@
  *   sysfs_pwm.c  the kinds K_PWM_ATTR and K_PWM_DIR: the sysfs PWM class's attributes and directories
  *   kinds[]      (here) the table of the kinds' operations, one row per kind
  *   dispatch.c   the interposed calls on paths and descriptors that may be a device's
+ *   process_ends.c  exec, spawn, wait and _exit: the notices link.c holds go first
  * and ends with the start-up (the constructor), which reads the environment the session set.
  *
  * The device kinds: everything that differs between devices sits in the kind's file and is reached
@@ -53,6 +54,7 @@
 #include <linux/i2c.h>
 #include <poll.h>
 #include <pthread.h>
+#include <spawn.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -71,6 +73,7 @@
 #include <sys/time.h>
 #include <sys/uio.h>
 #include <sys/un.h>
+#include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
 #include <wchar.h>
@@ -176,8 +179,13 @@ static const struct kind_ops kinds[N_KINDS] = {
 };
 
 #include "dispatch.c"
+#include "process_ends.c"
 
 /* ---------------------------------------------------------------- start-up */
+
+/* The notices held (link.c) are the process's own: they go before a fork (the child starts without
+   them) and before the process ends. */
+__attribute__((destructor)) static void shim_fini(void) { send_held_now(); }
 
 static void after_fork_child(void)
 {
@@ -214,7 +222,7 @@ __attribute__((constructor)) static void shim_init(void)
     if (fk && fk[0] == '/' && strlen(fk) < sizeof fakes_dir - 64)
         strcpy(fakes_dir, fk);
     own_pid = getpid();
-    pthread_atfork(NULL, NULL, after_fork_child);
+    pthread_atfork(send_held_now, NULL, after_fork_child);
     active = 1;
     adopt_inherited_fakes();
 }

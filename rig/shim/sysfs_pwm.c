@@ -258,7 +258,7 @@ static ssize_t pwm_attr_write(struct fake *f, const void *buf, size_t n)
     msg.value = v;
     if (!err) {
         ensure_connected();
-        send_msg(RIG_MSG_PWM, &msg, sizeof msg); /* a notice: the DUT never waits for it */
+        hold_msg(RIG_MSG_PWM, &msg, sizeof msg); /* a notice: the DUT never waits for it */
     }
     pthread_mutex_unlock(&lock);
     return err ? errno_ret(err) : (ssize_t)n;

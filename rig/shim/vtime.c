@@ -93,7 +93,7 @@ static void sleep_until(uint64_t wake_ns)
         struct wait_req req = { wake_ns, RIG_WAIT_AHEAD, 0 };
         pthread_mutex_lock(&lock);
         ensure_connected();
-        send_msg(RIG_MSG_WAIT, &req, sizeof req); /* stamped with the time the sleep began */
+        hold_msg(RIG_MSG_WAIT, &req, sizeof req); /* stamped with the time the sleep began */
         clock_advance_to(wake_ns);
         __atomic_store_n(&ahead, 1, __ATOMIC_RELEASE);
         pthread_mutex_unlock(&lock);
@@ -104,11 +104,14 @@ static void sleep_until(uint64_t wake_ns)
 }
 
 /* Before the DUT looks at anything outside the shim (a pty, a pipe, a file) after a sleep that went
-   ahead: a plain WAIT to now, so the session has run the events of that sleep (written their bytes). */
+   ahead: a plain WAIT to now, so the session has run the events of that sleep (written their bytes).
+   Otherwise what notices are held go now: what the DUT looks at may be answering them. */
 static void catch_up(void)
 {
     if (__atomic_load_n(&ahead, __ATOMIC_ACQUIRE) && virtual_clock(CLOCK_MONOTONIC))
         wait_until(now_peek(), RIG_WAIT_SLEEP);
+    else
+        send_held_now();
 }
 
 static int valid_ts(const struct timespec *ts)
