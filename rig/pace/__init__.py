@@ -161,6 +161,7 @@ class RealtimeHost:
         self._slack = 0
         self._started = False
         self._heap = FrozenHeap()
+        self._gc_was_enabled = True
 
     def start(self, fifo: bool = True) -> HostState:
         """Everything; with ``fifo`` False all but SCHED_FIFO (``take_fifo()`` later: processes started
@@ -168,6 +169,7 @@ class RealtimeHost:
         pace = native()
         self._started = True
         self._heap.start()
+        self._gc_was_enabled = gc.isenabled()
         gc.disable()
         self._slack = pace.timerslack(TIMER_SLACK_NS)
         err = pace.mlockall()
@@ -216,5 +218,6 @@ class RealtimeHost:
         if self.state.mlockall:
             pace.munlockall()
         pace.timerslack(self._slack)
-        gc.enable()
+        if self._gc_was_enabled:  # (a caller that had turned the collector off keeps it off)
+            gc.enable()
         self._heap.stop()

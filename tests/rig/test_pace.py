@@ -81,6 +81,17 @@ def test_the_host_set_up_is_said_not_inherited_by_children_and_undone() -> None:
     assert state.as_dict()["sched_fifo"] == state.sched_fifo
 
 
+@pytest.mark.parametrize("enabled", [True, False])
+def test_the_host_leaves_the_collector_as_it_found_it(enabled: bool) -> None:
+    (gc.enable if enabled else gc.disable)()
+    try:
+        with pace.RealtimeHost():
+            assert not gc.isenabled()                # no cyclic collection while paced
+        assert gc.isenabled() == enabled
+    finally:
+        gc.enable()
+
+
 def test_a_lockstep_loop_runs_with_the_heap_frozen_and_leaves_it_as_it_was() -> None:
     """The objects alive before a lockstep session's loop are out of the collector's work while it runs
     (frozen), the collector still on; after the run nothing is frozen. A heap frozen by someone else
