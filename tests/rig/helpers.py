@@ -42,3 +42,11 @@ def tool(name: str) -> str:
     if found is None:
         pytest.fail(f"{name} is missing: the project's setup (tools/bootstrap.sh) installs i2c-tools")
     return found
+
+
+def build_client(tmp_path_factory: pytest.TempPathFactory, name: str) -> Path:
+    """device_clients/NAME.c compiled as a user would build a C program, warnings as errors."""
+    exe = tmp_path_factory.mktemp("dut") / name
+    subprocess.run(["gcc", "-std=c11", "-O1", "-Wall", "-Wextra", "-Werror", "-o", str(exe),
+                    str(DUTS / f"{name}.c")], check=True)
+    return exe

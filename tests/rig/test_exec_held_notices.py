@@ -6,22 +6,18 @@ after it (``sleep``)."""
 
 from __future__ import annotations
 
-import subprocess
 from pathlib import Path
 
 import pytest
 
-from tests.rig.helpers import DUTS, rig_exec
+from tests.rig.helpers import build_client, rig_exec
 
 LEAVINGS = ["return", "_exit", "execl", "execle", "execvp", "posix_spawnp", "fork", "vfork", "system"]
 
 
 @pytest.fixture(scope="module")
 def dut(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    exe = tmp_path_factory.mktemp("dut") / "pwm_then_leave"
-    subprocess.run(["gcc", "-std=c11", "-O1", "-Wall", "-Wextra", "-Werror", "-o", str(exe),
-                    str(DUTS / "pwm_then_leave.c")], check=True)
-    return exe
+    return build_client(tmp_path_factory, "pwm_then_leave")
 
 
 def pwm_lines(tmp_path: Path, dut: Path, how: str) -> list[str]:

@@ -4,32 +4,24 @@ never crashes the DUT inside the shim."""
 
 from __future__ import annotations
 
-import subprocess
 from pathlib import Path
 
 import pytest
 
-from tests.rig.helpers import DUTS, rig_exec
+from tests.rig.helpers import build_client, rig_exec
 
 FUZZ_SEED = 20251123
 FUZZ_CALLS = 10000
 
 
-def build(tmp_path_factory: pytest.TempPathFactory, name: str) -> Path:
-    exe = tmp_path_factory.mktemp("dut") / name
-    subprocess.run(["gcc", "-std=c11", "-O1", "-Wall", "-Wextra", "-Werror", "-o", str(exe),
-                    str(DUTS / f"{name}.c")], check=True)
-    return exe
-
-
 @pytest.fixture(scope="module")
 def bad_pointers(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return build(tmp_path_factory, "bad_pointers")
+    return build_client(tmp_path_factory, "bad_pointers")
 
 
 @pytest.fixture(scope="module")
 def i2c_fuzz(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return build(tmp_path_factory, "i2c_fuzz")
+    return build_client(tmp_path_factory, "i2c_fuzz")
 
 
 def test_bad_pointers_are_efault_and_the_dut_lives_on(tmp_path: Path, bad_pointers: Path) -> None:

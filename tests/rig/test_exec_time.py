@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import subprocess
 from pathlib import Path
 
 import pytest
@@ -11,17 +10,14 @@ import pytest
 from rig.scheduler import EPOCH_NS, MONO_BASE_NS, NS
 from rig.session import Session, SessionConfig
 from rig.world import World
-from tests.rig.helpers import DUTS, PY, rig_exec
+from tests.rig.helpers import DUTS, PY, build_client, rig_exec
 
 QUANTUM = 1000  # ns per clock read (the default)
 
 
 @pytest.fixture(scope="module")
 def c_dut(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    exe = tmp_path_factory.mktemp("dut") / "clocks_and_pwm"
-    subprocess.run(["gcc", "-std=c11", "-O1", "-Wall", "-Wextra", "-Werror", "-o", str(exe),
-                    str(DUTS / "clocks_and_pwm.c")], check=True)
-    return exe
+    return build_client(tmp_path_factory, "clocks_and_pwm")
 
 
 def parse_lines(text: str) -> dict[str, list[int]]:
