@@ -95,6 +95,12 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "how late scheduled events ran goes into result.json",
     )
     p.add_argument(
+        "--spin",
+        action="store_true",
+        help="lockstep on two CPU cores: the session and the DUT each on its own, polling for the other's "
+        "messages instead of sleeping (about 1.7x as fast; the results are the same)",
+    )
+    p.add_argument(
         "--bridge",
         metavar="PORT|virtual",
         help="run in real time through a bench bridge: PORT is the serial port of a bridge wired to a "
@@ -295,6 +301,15 @@ def plan(args: argparse.Namespace) -> Plan:
                      for sc in scenarios]
     if args.out.exists() and not args.out.is_dir():
         problems.append(f"--out {args.out} exists and is not a folder")
+    if args.spin:
+        from rig.cores import CoresError, allowed_cores, placement
+
+        try:
+            placement(allowed_cores(), not args.realtime, None, True)
+        except CoresError as e:
+            problems.append(str(e))
+        if args.bridge is not None or args.mcu is not None:
+            problems.append("--spin is for a Linux program in lockstep: not with --bridge or --mcu")
     if args.pdf:
         from reports.pdf import chromium
 
@@ -314,7 +329,7 @@ def target_of(args: argparse.Namespace, dut: list[str] | None) -> Target:
 
     if args.bridge is not None:
         return BridgeTarget(args.bridge, dut, args.can, args.esc)
-    return ProcessTarget(dut, args.realtime)
+    return ProcessTarget(dut, args.realtime, spin=args.spin)
 
 
 def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:

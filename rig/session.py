@@ -35,6 +35,7 @@ from typing import IO, Final
 
 from rig import interrupts, scratch
 from rig import protocol as P
+from rig.cores import SPIN_NS, placement
 from rig.handler import Handler
 from rig.lockstep import FastPath, attach, pending_input
 from rig.pace import FrozenHeap, PacedSelector, RealtimeHost
@@ -69,6 +70,7 @@ class SessionConfig:
     wall_timeout: float = 600.0
     stall_timeout: float = 30.0       # lockstep: wall seconds with no request and no clock read
     pin: bool | None = None           # DUT and session on one CPU core; None: in lockstep only
+    spin: bool = False                # lockstep: a core each, polling for messages (rig/cores.py)
     log_path: Path | None = None
     allow_no_devices: bool = False
     env: dict[str, str] | None = None
@@ -286,14 +288,17 @@ class Session:
                 self._log = open(cfg.log_path, "w", encoding="ascii")
                 self.logging = True
             env = self._dut_env(shim, tmp)
-            if cfg.pin or (cfg.pin is None and cfg.lockstep):
-                os.sched_setaffinity(0, {max(old_affinity)})  # the keeper and the DUT inherit it
+            cores = placement(set(old_affinity), cfg.lockstep, cfg.pin, cfg.spin)
+            if cores.dut is not None:
+                os.sched_setaffinity(0, cores.dut)  # the keeper and the DUT inherit it
             if not cfg.lockstep:  # before sim time 0: locking the memory takes a while (the DUT: not FIFO)
                 self._rt_host.start()
             else:
                 self._heap.start()
             keeper = _Keeper(keeper_path, cfg.command, env, cfg.stdout, cfg.stderr, KILL_GRACE_S)
             keepers.append(keeper)
+            if cores.session is not None:
+                os.sched_setaffinity(0, cores.session)
             # sim time 0 once the keeper runs (it starts the DUT only now): its few milliseconds of
             # start-up made the first events late in real time
             self._rt_t0 = time.perf_counter()
@@ -323,8 +328,11 @@ class Session:
         return self._outcome(returncode, wall0)
 
     def _dut_env(self, shim: Path, tmp: Path) -> dict[str, str]:
-        return dut_env(self.cfg.env, shim, tmp / "rig.sock", tmp / "shm", self.cfg.lockstep, self.cfg.i2c_bus,
-                       {p: pty.slave_name for p, pty in self._ptys.items()}, tmp / "fakes")
+        env = dut_env(self.cfg.env, shim, tmp / "rig.sock", tmp / "shm", self.cfg.lockstep, self.cfg.i2c_bus,
+                      {p: pty.slave_name for p, pty in self._ptys.items()}, tmp / "fakes")
+        if self.cfg.spin:
+            env["RIG_SPIN_NS"] = str(SPIN_NS)
+        return env
 
     def _report_bypassed_bytes(self, fakes: Path) -> None:
         """The shim backs each emulated descriptor with a file of its own in ``fakes`` (named after the

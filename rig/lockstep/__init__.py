@@ -30,6 +30,7 @@ from emulators.sensor_models import BaroModel, ImuModel, MagModel, no_disturbanc
 from plant.fmu import _STEP_CALLS
 from plant.native_build import BUILD, EXTENSION_SUFFIX, compile_extension, is_stale, load_extension
 from plant.variables import MOTORS
+from rig.cores import SPIN_NS
 from rig.world import HISTORY, World, _WorldTruth
 from scenarios.result import I2CRecord
 from scenarios.schema import Scenario
@@ -87,6 +88,7 @@ class FastPath:
         chips = native.chips()
         self._handle = module().handle
         self._pump = module().pump
+        self._spin_ns = SPIN_NS if cfg.spin else 0  # (rig/cores.py)
         self._state = module().setup(
             world.advance_to, world.board.serve, world.pwm, sched.events, sched, handler.i2c_log, handler,
             handler.page.mmap, world.board.addr, _address(chips.chip_transfer), _address(chips.chip_advance),
@@ -130,7 +132,7 @@ class FastPath:
         bytes go to) that is ready is read into its bytearray meanwhile, as the loop would. Returns the
         bytes it received, or -1 with nothing done: the loop's own read takes over (the connection ended,
         or ``buf`` is too full)."""
-        got: int = self._pump(self._state, fd, epoll_fd, buf, ptys)
+        got: int = self._pump(self._state, fd, epoll_fd, buf, ptys, self._spin_ns)
         return got
 
 

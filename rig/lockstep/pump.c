@@ -84,17 +84,18 @@ static int read_pty(PyObject *pair)
     return PyByteArray_Resize(into, had + (k > 0 ? k : 0));
 }
 
-/* pump(state, fd, epfd, buf, ptys) -> the bytes received from fd; -1, with nothing done, when there is no
+/* pump(state, fd, epfd, buf, ptys, spin_ns) -> the bytes received from fd; -1, with nothing done, when there is no
  * room for them in C or the connection ended before anything came (the loop's own read takes it) */
 static PyObject *fp_pump(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 5)
-        return PyErr_Format(PyExc_TypeError, "pump takes 5 arguments (%zd given)", nargs);
+    if (nargs != 6)
+        return PyErr_Format(PyExc_TypeError, "pump takes 6 arguments (%zd given)", nargs);
     fast_state *s = PyCapsule_GetPointer(a[0], "rig.lockstep");
     int fd = (int)PyLong_AsLong(a[1]);
     int epfd = (int)PyLong_AsLong(a[2]);
     PyObject *buf = a[3], *ptys = a[4];
+    const uint64_t spin_ns = PyLong_AsUnsignedLongLong(a[5]);
     if (!s || PyErr_Occurred())
         return NULL;
     if (!PyByteArray_Check(buf))
@@ -120,11 +121,19 @@ static PyObject *fp_pump(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
             if (now >= until)
                 break;
             struct epoll_event ev[PUMP_EVENTS];
-            int ready, wait_ms = (int)((until - now + 999999) / 1000000);
-            PyThreadState *saved = PyEval_SaveThread(); /* (other Python threads run while it waits) */
-            ready = epoll_wait(epfd, ev, PUMP_EVENTS, wait_ms);
-            int wait_errno = errno;
-            PyEval_RestoreThread(saved);
+            int ready = 0, wait_errno = 0, wait_ms = (int)((until - now + 999999) / 1000000);
+            if (spin_ns) { /* --spin: polled for (the shim's recv_spinning says why) */
+                const uint64_t spin_until = now + spin_ns < until ? now + spin_ns : until;
+                while ((ready = epoll_wait(epfd, ev, PUMP_EVENTS, 0)) == 0 && mono_ns() < spin_until)
+                    ;
+                wait_errno = errno;
+            }
+            if (ready == 0) {
+                PyThreadState *saved = PyEval_SaveThread(); /* (other Python threads run while it waits) */
+                ready = epoll_wait(epfd, ev, PUMP_EVENTS, wait_ms);
+                wait_errno = errno;
+                PyEval_RestoreThread(saved);
+            }
             if (ready < 0 && wait_errno == EINTR)
                 continue; /* (its Python handler runs at the top) */
             if (ready <= 0)

@@ -11,6 +11,7 @@ static int sock = -1;
 static pid_t sock_pid;
 static char held[4096]; /* lockstep: notices not sent yet (see send_msg) */
 static size_t held_len;
+static uint64_t spin_ns; /* RIG_SPIN_NS: how long a request polls for its reply before it sleeps */
 
 static void die_session(const char *why)
 {
@@ -136,6 +137,25 @@ static void send_held_now(void)
     pthread_mutex_unlock(&lock);
 }
 
+/* With RIG_SPIN_NS (`--spin`: the session and the DUT on cores of their own): the reply polled for up to
+   spin_ns of real time, as the session polls for the next request. A wake-up from sleep costs a pair of
+   context switches, ~14 us on one core and ~90 us across two on these VMs (bench/roundtrip.c); a poll
+   sees the reply within a microsecond or two. -1 (errno EAGAIN): none came, sleep for it. */
+static ssize_t recv_spinning(struct msghdr *m)
+{
+    struct timespec ts;
+    LOAD(clock_gettime)(CLOCK_MONOTONIC, &ts);
+    uint64_t until = (uint64_t)ts.tv_sec * 1000000000u + (uint64_t)ts.tv_nsec + spin_ns;
+    for (;;) {
+        ssize_t k = recvmsg(sock, m, MSG_DONTWAIT);
+        if (k >= 0 || (errno != EAGAIN && errno != EINTR))
+            return k;
+        LOAD(clock_gettime)(CLOCK_MONOTONIC, &ts);
+        if ((uint64_t)ts.tv_sec * 1000000000u + (uint64_t)ts.tv_nsec >= until)
+            return -1;
+    }
+}
+
 /* One request, one reply. The reply payload (at most cap bytes) lands in out. Caller holds lock. The
    session sends a reply whole and nothing else on this connection while a request waits, so one
    recvmsg into header and payload usually takes all of it: a second read per request was a tenth of
@@ -147,10 +167,11 @@ static struct rig_hdr request(uint16_t type, const void *payload, uint32_t len, 
     struct rig_hdr h;
     struct iovec iov[2] = { { &h, sizeof h }, { out, cap } };
     struct msghdr m = { .msg_iov = iov, .msg_iovlen = cap ? 2 : 1 };
-    ssize_t k;
-    do
-        k = recvmsg(sock, &m, 0);
-    while (k < 0 && errno == EINTR);
+    ssize_t k = spin_ns ? recv_spinning(&m) : -1;
+    if (k < 0)
+        do
+            k = recvmsg(sock, &m, 0);
+        while (k < 0 && errno == EINTR);
     if (k <= 0 || ((size_t)k < sizeof h && recv_all((char *)&h + k, sizeof h - (size_t)k) < 0))
         die_session("no reply");
     size_t got = (size_t)k > sizeof h ? (size_t)k - sizeof h : 0;

@@ -218,6 +218,10 @@ __attribute__((constructor)) static void shim_init(void)
             kinds[k].init();
     const char *ls = getenv("RIG_LOCKSTEP");
     lockstep = ls && strcmp(ls, "1") == 0;
+    const char *spin = getenv("RIG_SPIN_NS");
+    spin_ns = lockstep && spin ? strtoull(spin, NULL, 10) : 0;
+    if (spin_ns > 10000000u) /* (10 ms: more would only burn the core) */
+        spin_ns = 10000000u;
     const char *fk = getenv("RIG_FAKES");
     if (fk && fk[0] == '/' && strlen(fk) < sizeof fakes_dir - 64)
         strcpy(fakes_dir, fk);

@@ -84,11 +84,14 @@ class ProcessRun(TargetRun):
 
 class ProcessTarget:
     """A Linux program (``dut``: its command line; None: the reference FC) in lockstep or real time.
-    ``corrupt_every``: the capture link corrupts every Nth frame (the link's own tests)."""
+    ``corrupt_every``: the capture link corrupts every Nth frame (the link's own tests). ``spin``: the
+    session and the DUT on a core each, polling (rig/cores.py)."""
 
-    def __init__(self, dut: list[str] | None = None, realtime: bool = False, corrupt_every: int = 0) -> None:
+    def __init__(self, dut: list[str] | None = None, realtime: bool = False, corrupt_every: int = 0,
+                 spin: bool = False) -> None:
         self.dut = dut
         self.realtime = realtime
+        self.spin = spin
         self.mode = "real time" if realtime else "lockstep"
         self.corrupt_every = corrupt_every
         self._command: list[str] = []
@@ -106,6 +109,7 @@ class ProcessTarget:
             serial=[RC_PATH, TELEMETRY_PATH],
             duration=ctx.scenario.duration,
             lockstep=not self.realtime,
+            spin=self.spin,
             wall_timeout=ctx.wall_timeout,
             stall_timeout=ctx.stall_timeout,
             stdout=ctx.stdout,

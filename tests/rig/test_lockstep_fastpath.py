@@ -339,18 +339,20 @@ def test_the_entry_points_refuse_wrong_arguments(tmp_path: Path) -> None:
         m.handle(state, 0, b"", 0)
     with pytest.raises(ValueError, match="outside the buffer"):
         m.handle(state, 0, bytearray(4), 5)
-    with pytest.raises(TypeError, match="5 arguments"):
+    with pytest.raises(TypeError, match="6 arguments"):
         m.pump(state, 0)
     with pytest.raises(TypeError, match="3 arguments"):
         m.setup_events(state)
     with pytest.raises(TypeError, match="run_next and a dict"):
         m.setup_events(state, print, [])
     with pytest.raises(TypeError, match="bytearray"):
-        m.pump(state, 0, 0, b"", ())
+        m.pump(state, 0, 0, b"", (), 0)
+    with pytest.raises(OverflowError):
+        m.pump(state, 0, 0, bytearray(), (), -1)  # (a spin of negative time)
     bad: list[Any] = [[], ((0, b""),), ((0,),), (("0", bytearray()),)]
     for ptys in bad:
         with pytest.raises(TypeError, match=r"\(fd, bytearray\) pairs"):
-            m.pump(state, 0, 0, bytearray(), ptys)
+            m.pump(state, 0, 0, bytearray(), ptys, 0)
     with pytest.raises(TypeError, match="19 arguments"):
         m.setup_mag(state)
     with pytest.raises(TypeError, match="13 arguments"):
@@ -373,7 +375,7 @@ def test_the_entry_points_refuse_wrong_arguments(tmp_path: Path) -> None:
     with a, b:
         b.close()  # the connection ended before anything came: the loop's own read takes it
         buf = bytearray(b"abc")
-        assert m.pump(state, a.fileno(), -1, buf, ()) == -1 and buf == b"abc"
+        assert m.pump(state, a.fileno(), -1, buf, (), 0) == -1 and buf == b"abc"
 
 
 def test_the_pending_count_is_the_ptys_own() -> None:
