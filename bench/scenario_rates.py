@@ -11,7 +11,7 @@ one in one sitting, interleaved A B A B with the calibration per pair, and print
 the ratio after/before per phase (fast or slow, by the calibration), so a change's speed-up is not
 the VM's.
 
-    .venv/bin/python bench/scenario_rates.py
+    .venv/bin/python bench/scenario_rates.py [--spin]
     .venv/bin/python bench/scenario_rates.py --before aa79ab7 [--pairs 5]
 """
 
@@ -31,9 +31,10 @@ REPEATS = 3
 LABELS = {"roll": "seed-000 roll recovery", "hover": "30 s hover"}
 
 
-def measure(which: str) -> dict[str, float]:
+def measure(which: str, spin: bool = False) -> dict[str, float]:
     """One lockstep run of ``which`` ("roll" or "hover") with the rig importable here (the tree's own
-    library scenario): its real-time factor, session CPU ms per sim second, I2C transactions/s."""
+    library scenario): its real-time factor, session CPU ms per sim second, I2C transactions/s. ``spin``:
+    on two cores, polling (rig/cores.py; this tree only)."""
     import dataclasses
 
     import scenarios
@@ -45,7 +46,12 @@ def measure(which: str) -> dict[str, float]:
     if which == "hover":
         sc = dataclasses.replace(load(lib / "hover_turbulence.toml"), duration=30.0)
     c0 = time.process_time()
-    m: Any = run(sc).metadata
+    if spin:
+        from rig.targets.process import ProcessTarget
+
+        m: Any = run(sc, ProcessTarget(spin=True)).metadata
+    else:
+        m = run(sc).metadata
     return {"rtf": m["realtime_factor"], "cpu_ms": (time.process_time() - c0) / m["sim_time"] * 1000,
             "tx_s": m["bus_transactions"] / m["wall_time"], "sim_time": m["sim_time"]}
 
@@ -55,26 +61,31 @@ def _measure_in(tree: Path, which: str) -> dict[str, float]:
     return result
 
 
-def single() -> None:
-    """Today's mode: this tree only, REPEATS runs of each, with the calibration loop's range."""
+def single(spin: bool) -> None:
+    """Today's mode: this tree only, REPEATS runs of each, with the calibration loop's range; with
+    ``spin`` each run is followed by one with ``--spin`` (rig/cores.py), and both are printed."""
     sys.path.insert(0, str(ab.REPO))
     from rig.compiled import install, status
 
     install()  # the compiled hot modules, before they are imported
     print(f"{status()}; {ab.load()}")
     for which, label in LABELS.items():
-        rtf, tx, calib, cpu = [], [], [], []
+        kinds = (False, True) if spin else (False,)
+        runs: dict[bool, list[dict[str, float]]] = {k: [] for k in kinds}
+        calib = []
         for _ in range(REPEATS):
             calib.append(ab.python_loop_ms())
-            m = measure(which)
-            cpu.append(m["cpu_ms"])
-            rtf.append(m["rtf"])
-            tx.append(m["tx_s"])
-        print(
-            f"{label:24} {m['sim_time']:5.1f} sim-s: real-time factor best {max(rtf):5.1f}x, median "
-            f"{statistics.median(rtf):5.1f}x; session CPU {statistics.median(cpu):4.0f} ms per sim-s; "
-            f"{statistics.median(tx):6.0f} I2C tx/s; Python loop {min(calib):.0f}-{max(calib):.0f} ms"
-        )
+            for k in kinds:
+                runs[k].append(measure(which, k))
+        for k, ms in runs.items():
+            rtf = [m["rtf"] for m in ms]
+            print(
+                f"{label + (' --spin' if k else ''):31} {ms[0]['sim_time']:5.1f} sim-s: real-time factor "
+                f"best {max(rtf):5.1f}x, median {statistics.median(rtf):5.1f}x; session CPU "
+                f"{statistics.median(m['cpu_ms'] for m in ms):4.0f} ms per sim-s; "
+                f"{statistics.median(m['tx_s'] for m in ms):6.0f} I2C tx/s; Python loop "
+                f"{min(calib):.0f}-{max(calib):.0f} ms"
+            )
 
 
 def before_after(commit: str | None, pairs: int) -> None:
@@ -100,9 +111,10 @@ def main() -> None:
     ap.add_argument("--before", metavar="COMMIT", nargs="?", const="",
                     help="also measure COMMIT (default: git merge-base HEAD main), interleaved")
     ap.add_argument("--pairs", type=int, default=5, help="A/B pairs per scenario with --before (default 5)")
+    ap.add_argument("--spin", action="store_true", help="also each run with --spin (two cores, polling)")
     args = ap.parse_args()
     if args.before is None:
-        single()
+        single(args.spin)
     else:
         before_after(args.before or None, args.pairs)
 
