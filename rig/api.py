@@ -182,13 +182,15 @@ def run(
     seed: int = 0,
     out: str | os.PathLike[str] = "build/reports",
     wall_timeout: float = 600.0,
+    spin: bool = False,
 ) -> Result:
     """Flies one scenario and returns its result; writes ``out/<scenario>/`` as ``rig run`` does.
 
     The DUT is one of: ``dut``, a command line (a string, split as a shell would, or a list; default:
     the reference FC); ``mcu=(board, firmware)``, a firmware image under emulation; ``bridge``, a
-    bench bridge's serial port or "virtual". Raises RigError for bad options (nothing is run); a DUT
-    that crashes or hangs is a Result with verdict "error", as on the command line."""
+    bench bridge's serial port or "virtual". ``spin``: as ``rig run --spin`` (two cores, polling).
+    Raises RigError for bad options (nothing is run); a DUT that crashes or hangs is a Result with
+    verdict "error", as on the command line."""
     import shlex
     import threading
 
@@ -210,6 +212,8 @@ def run(
         words += ["--bridge", bridge]
     if mcu is not None:
         words += ["--mcu", os.fspath(mcu[0]), "--firmware", os.fspath(mcu[1])]
+    if spin:
+        words.append("--spin")
     args = _options("run", words)
     # Ctrl-C or a CI job's SIGTERM stops the DUT and finishes the run's files, as in rig run, and then
     # reaches the caller as KeyboardInterrupt; (signal handlers can be set from the main thread only)

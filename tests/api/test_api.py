@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -93,6 +94,13 @@ def test_bad_options_raise_before_anything_runs(tmp_path):
         api.run(SHORT, dut="", out=tmp_path / "out")
     with pytest.raises(api.RigError, match="--mcu"):
         api.run(SHORT, mcu=("no-such-board", tmp_path / "none.hex"), out=tmp_path / "out")
+    was = os.sched_getaffinity(0)
+    os.sched_setaffinity(0, {min(was)})
+    try:
+        with pytest.raises(api.RigError, match="--spin takes two CPU cores; this process may use 1"):
+            api.run(SHORT, spin=True, out=tmp_path / "out")
+    finally:
+        os.sched_setaffinity(0, was)
     assert not (tmp_path / "out" / "seed000_roll_stand").exists()
 
 
