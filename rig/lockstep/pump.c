@@ -84,8 +84,9 @@ static int read_pty(PyObject *pair)
     return PyByteArray_Resize(into, had + (k > 0 ? k : 0));
 }
 
-/* pump(state, fd, epfd, buf, ptys, spin_ns) -> the bytes received from fd; -1, with nothing done, when there is no
- * room for them in C or the connection ended before anything came (the loop's own read takes it) */
+/* pump(state, fd, epfd, buf, ptys, spin_ns) -> the bytes received from fd; -1, with nothing done, when
+ * there is no room for them in C or the connection ended before anything came (the loop's own read
+ * takes it). spin_ns: how long to poll the epoll set before sleeping on it (--spin, rig/cores.py) */
 static PyObject *fp_pump(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
 {
     (void)self;

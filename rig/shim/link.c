@@ -9,7 +9,7 @@ static char sock_path[108];
 static int ahead; /* lockstep: a sleep moved the clock in a notice the session has not answered yet */
 static int sock = -1;
 static pid_t sock_pid;
-static char held[4096]; /* lockstep: notices not sent yet (see send_msg) */
+static char held[4096]; /* lockstep: notices not sent yet (hold_msg) */
 static size_t held_len;
 static uint64_t spin_ns; /* RIG_SPIN_NS: how long a request polls for its reply before it sleeps */
 
