@@ -328,11 +328,9 @@ class Session:
         return self._outcome(returncode, wall0)
 
     def _dut_env(self, shim: Path, tmp: Path) -> dict[str, str]:
-        env = dut_env(self.cfg.env, shim, tmp / "rig.sock", tmp / "shm", self.cfg.lockstep, self.cfg.i2c_bus,
-                      {p: pty.slave_name for p, pty in self._ptys.items()}, tmp / "fakes")
-        if self.cfg.spin:
-            env["RIG_SPIN_NS"] = str(SPIN_NS)
-        return env
+        return dut_env(self.cfg.env, shim, tmp / "rig.sock", tmp / "shm", self.cfg.lockstep, self.cfg.i2c_bus,
+                       {p: pty.slave_name for p, pty in self._ptys.items()}, tmp / "fakes",
+                       SPIN_NS if self.cfg.spin else 0)
 
     def _report_bypassed_bytes(self, fakes: Path) -> None:
         """The shim backs each emulated descriptor with a file of its own in ``fakes`` (named after the
@@ -597,9 +595,10 @@ class Session:
 
 
 def dut_env(base: dict[str, str] | None, shim: Path, socket_path: Path | str, shm: Path | str, lockstep: bool,
-            i2c_bus: int, serial: dict[str, str], fakes: Path) -> dict[str, str]:
+            i2c_bus: int, serial: dict[str, str], fakes: Path, spin_ns: int = 0) -> dict[str, str]:
     """The DUT's environment: the shim preloaded and told where its session (or a virtual bridge's
-    board side) listens, the clock page, the emulated bus, and which pty serves each serial path."""
+    board side) listens, the clock page, the emulated bus, which pty serves each serial path, and how
+    long a request polls for its reply (``spin_ns``, rig/cores.py; 0: it sleeps at once)."""
     env = dict(base if base is not None else os.environ)
     preload = env.get("LD_PRELOAD", "")
     env.update({
@@ -612,6 +611,8 @@ def dut_env(base: dict[str, str] | None, shim: Path, socket_path: Path | str, sh
         "RIG_SERIAL": ":".join(f"{path}={tty}" for path, tty in serial.items()),
         "RIG_FAKES": str(fakes.resolve()),
     })
+    if spin_ns:
+        env["RIG_SPIN_NS"] = str(spin_ns)
     return env
 
 
