@@ -134,6 +134,8 @@ def main(args: argparse.Namespace) -> int:
     if refused:
         parser.error(f"--param: the plant refuses it: {refused}")
     if args.spin:
+        if args.bridge is not None:
+            parser.error("--spin is for lockstep: not with --bridge")
         try:
             placement(allowed_cores(), not args.realtime, args.pin, True)
         except CoresError as e:
@@ -147,8 +149,6 @@ def main(args: argparse.Namespace) -> int:
                         allow_no_devices=args.allow_no_devices)
     world = World.at_rest(seed=args.seed, topology=args.topology, noise=not args.no_noise,
                           params=dict(args.param), pwm_channels=args.pwm_channels)
-    if args.spin and args.bridge is not None:
-        parser.error("--spin is for lockstep: not with --bridge")
     if args.bridge is not None and args.bridge != "virtual":
         parser.error("a command runs against the virtual bridge only (--bridge virtual); behind a real "
                      "bridge the board is the DUT: use rig run --bridge PORT")
