@@ -85,9 +85,15 @@ static void send_iov(struct iovec *iov, int n)
 /* What is held (hold_msg), then header and payload, in one sendmsg: two sends would wake the session
    twice per message (once for a header it cannot act on yet), which in lockstep costs as much as the
    work itself. */
+/* A message's header, stamped now (lockstep: the DUT's sim time; real time: 0). */
+static struct rig_hdr header(uint16_t type, uint32_t len)
+{
+    return (struct rig_hdr){ .len = len, .type = type, .status = 0, .t_ns = lockstep ? now_peek() : 0 };
+}
+
 static void send_msg(uint16_t type, const void *payload, uint32_t len)
 {
-    struct rig_hdr h = { .len = len, .type = type, .status = 0, .t_ns = lockstep ? now_peek() : 0 };
+    struct rig_hdr h = header(type, len);
     struct iovec iov[3] = { { held, held_len }, { &h, sizeof h }, { (void *)payload, len } };
     held_len = 0;
     send_iov(iov[0].iov_len ? iov : iov + 1, (iov[0].iov_len ? 3 : 2) - (len ? 0 : 1));
@@ -113,11 +119,11 @@ static void send_held(void)
    none) and at exit. In real time a notice goes at once. Caller holds lock. */
 static void hold_msg(uint16_t type, const void *payload, uint32_t len)
 {
-    struct rig_hdr h = { .len = len, .type = type, .status = 0, .t_ns = lockstep ? now_peek() : 0 };
-    if (!lockstep || sizeof h + len > sizeof held) {
+    if (!lockstep || sizeof(struct rig_hdr) + len > sizeof held) {
         send_msg(type, payload, len);
         return;
     }
+    struct rig_hdr h = header(type, len);
     if (held_len + sizeof h + len > sizeof held)
         send_held();
     memcpy(held + held_len, &h, sizeof h);
