@@ -5,8 +5,8 @@ Lockstep's two processes take turns: one runs while the other waits. By default 
 cores the host must wake a halted vCPU, ~90 us (bench/reference/roundtrip.md). With ``spin`` each has a
 core of its own and polls for the other's message instead of sleeping (up to ``SPIN_NS``; rig/shim's
 ``recv_spinning``, rig/lockstep's pump): a message is seen within a microsecond or two, and a run
-goes about 1.7 times as fast, for two whole cores. A sweep's pool gives each run one core, so it never
-spins; on one core a poller would hold the core its peer needs.
+goes 1.5-1.7 times as fast (bench/reference/rates-after.md), for two whole cores. A sweep's pool
+gives each run one core, so it never spins; on one core a poller would hold the core its peer needs.
 """
 
 from __future__ import annotations

@@ -98,7 +98,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "--spin",
         action="store_true",
         help="lockstep on two CPU cores: the session and the DUT each on its own, polling for the other's "
-        "messages instead of sleeping (about 1.7x as fast; the results are the same)",
+        "messages instead of sleeping (1.5-1.7x as fast; the results are the same)",
     )
     p.add_argument(
         "--bridge",
