@@ -39,7 +39,8 @@ from rig.compiled import install, status  # noqa: E402
 
 install()  # the compiled hot modules, before they are imported
 import rig.protocol as P  # noqa: E402
-from rig.session import Session, SessionConfig, _Conn  # noqa: E402
+from rig.connection import Conn  # noqa: E402
+from rig.session import Session, SessionConfig  # noqa: E402
 from rig.world import World  # noqa: E402
 
 CYCLE_NS = 4_000_000
@@ -96,7 +97,7 @@ def run_cycles(n: int) -> float:
     with tempfile.TemporaryDirectory(prefix="rig-cycle-") as tmp:
         session.open_page(Path(tmp) / "shm")  # (mapped: the file may go at once)
     ours, dut = socket.socketpair()
-    conn = _Conn(ours, 1)
+    conn = Conn(ours, 1)
     conn.hello = True
     setup = [_i2c(0, [(0x68, 0, 2, bytes(rv))]) for rv in ((0x6B, 0x00), (0x1A, 0x03), (0x19, 0x00))]
     for ch in range(4):  # the FC's MPU set-up (awake, DLPF 3, 1 kHz) and PWM channels

@@ -42,7 +42,8 @@ GROUP = "rig_hot"  # mypyc's shared runtime library is the extension ``rig_hot__
 #: The chips run in C (emulators/chips/); their Python classes (emulators.mpu6050, hmc5883l,
 #: registers) are the plain-Python reference the core is tested against, and the host-side producers
 #: that feed the core are compiled instead.
-MODULES = ("rig.protocol", "rig.session", "rig.handler", "rig.scheduler", "rig.world", "rig.rc",
+MODULES = ("rig.protocol", "rig.connection", "rig.session", "rig.handler", "rig.scheduler", "rig.world",
+           "rig.rc",
            "emulators.chips.board", "emulators.dlpf", "emulators.sensor_models", "emulators.faults",
            "emulators.ms5611", "emulators.i2c_bus", "emulators.sbus", "rig.runner")
 

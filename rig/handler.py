@@ -20,7 +20,8 @@ from rig.world import PwmChannel, World
 from scenarios.result import I2CRecord
 
 if TYPE_CHECKING:
-    from rig.session import Session, SessionConfig, _Conn
+    from rig.connection import Conn
+    from rig.session import Session, SessionConfig
 
 FOREVER_SLICE_NS: Final = 10_000_000  # a wait with no deadline lets 10 ms pass, then the DUT looks again
 I2C_LOG_CAP: Final = 1_000_000  # transfers kept for run.mcap (TargetRun.transactions)
@@ -43,18 +44,19 @@ class Handler:
         #: tuple append per transfer (the lockstep rate is unchanged, bench/scenario_rates.py)
         self.i2c_log: list[I2CRecord] = []  # (the run's result keeps this list: the fast path adds to it too)
 
-    def handle(self, conn: _Conn, hdr: P.Header, payload: bytes) -> None:
+    def handle(self, conn: Conn, hdr: P.Header, payload: bytes) -> None:
         if self.sched.over and hdr.type in P.REQUESTS:
             raise Stop
         if not conn.hello and hdr.type != P.MSG_HELLO:
             raise P.Malformed(f"{P.MSG_NAMES[hdr.type]} before HELLO")
         if hdr.type == P.MSG_HELLO:
-            version, pid = P.parse_fixed(payload, P.HELLO_MSG, "HELLO")
+            version, pid, flags = P.parse_hello(payload)
             conn.hello, conn.pid = True, pid
             status = 0 if version == P.PROTOCOL_VERSION else errno.EPROTO
             if status:
                 self.notes.append(f"pid {pid}: shim protocol {version}, session speaks {P.PROTOCOL_VERSION}")
-            self.session.send(conn, P.reply(P.MSG_HELLO, self.session.now_ns, status=status))
+            self.session.greet(conn, P.reply(P.MSG_HELLO, self.session.now_ns, status=status),
+                               not status and bool(flags & P.HELLO_MAILBOX))
         elif hdr.type == P.MSG_I2C:
             self._i2c(conn, hdr, payload)
         elif hdr.type == P.MSG_PWM:
@@ -78,7 +80,7 @@ class Handler:
         (after a WAIT AHEAD it runs ahead of what the session has read)."""
         return hdr.t_ns if self.lockstep else self.session.now_ns
 
-    def _i2c(self, conn: _Conn, hdr: P.Header, payload: bytes) -> None:
+    def _i2c(self, conn: Conn, hdr: P.Header, payload: bytes) -> None:
         bus, msgs = P.parse_i2c(payload)
         t = self._request_time(hdr)
         session = self.session
@@ -121,7 +123,7 @@ class Handler:
             bits += 10 + 9 * n
         return bits * NS // self.cfg.i2c_clock_hz
 
-    def _pwm(self, conn: _Conn, hdr: P.Header, payload: bytes) -> None:
+    def _pwm(self, conn: Conn, hdr: P.Header, payload: bytes) -> None:
         chip, channel, attr, _, value = P.parse_fixed(payload, P.PWM_MSG, "PWM")
         world = self.world
         if chip != 0 or channel >= len(world.pwm) or attr not in P.PWM_ATTR_NAMES:
@@ -151,7 +153,7 @@ class Handler:
         if session.logging:  # (the message is not even formatted otherwise: this runs per request)
             session.log(t, f"c{conn.index} pwm{channel} {P.PWM_ATTR_NAMES[attr]} {value}")
 
-    def _wait(self, conn: _Conn, hdr: P.Header, payload: bytes) -> None:
+    def _wait(self, conn: Conn, hdr: P.Header, payload: bytes) -> None:
         wake, kind, _ = P.parse_fixed(payload, P.WAIT_MSG, "WAIT")
         if kind not in (P.WAIT_SLEEP, P.WAIT_POLL, P.WAIT_AHEAD):
             raise P.Malformed(f"WAIT of unknown kind {kind}")

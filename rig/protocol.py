@@ -22,6 +22,8 @@ MSG_NAMES = {MSG_HELLO: "HELLO", MSG_I2C: "I2C", MSG_PWM: "PWM", MSG_WAIT: "WAIT
 REQUESTS = frozenset({MSG_HELLO, MSG_I2C, MSG_WAIT})
 
 HELLO_MSG = struct.Struct("<II")       # version, pid
+HELLO_FLAGS_MSG = struct.Struct("<III")  # version, pid, flags
+HELLO_MAILBOX: Final = 1               # flags: the process would take a mailbox (rig/shim/ring.h)
 I2C_HEAD = struct.Struct("<HH")        # bus, nmsgs
 I2C_MSG = struct.Struct("<HHHH")       # addr, flags, len, reserved
 I2C_M_RD: Final = 0x0001
@@ -57,6 +59,7 @@ SHM_PWM = struct.Struct("<QQIIII")     # period_ns, duty_ns, exported, enabled, 
 SHM_SIZE: Final = 4096
 SIM_NS_OFFSET: Final = 16
 SHM_LIMIT_OFFSET: Final = 560  # limit_ns, after the PWM states
+SHM_WAKE_OFFSET: Final = 568  # wake_seq, then session_state (the mailboxes' futex, rig/shim/ring.h)
 
 
 class Malformed(ValueError):
@@ -127,6 +130,15 @@ def parse_i2c(payload: bytes) -> tuple[int, list[I2CMessage]]:
     if at != len(payload):
         raise Malformed(f"I2C request has {len(payload) - at} bytes after its last message")
     return bus, msgs
+
+
+def parse_hello(payload: bytes) -> tuple[int, int, int]:
+    """HELLO's version, pid and flags (0 when it has none: a client that knows no mailbox)."""
+    if len(payload) == HELLO_FLAGS_MSG.size:
+        version, pid, flags = HELLO_FLAGS_MSG.unpack(payload)
+        return version, pid, flags
+    version, pid = parse_fixed(payload, HELLO_MSG, "HELLO")
+    return version, pid, 0
 
 
 def parse_fixed(payload: bytes, shape: struct.Struct, what: str) -> tuple[int, ...]:

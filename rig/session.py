@@ -35,6 +35,7 @@ from typing import IO, Final
 
 from rig import interrupts, scratch
 from rig import protocol as P
+from rig.connection import Conn
 from rig.cores import SPIN_NS, placement
 from rig.handler import Handler
 from rig.lockstep import FastPath, attach, pending_input
@@ -55,6 +56,8 @@ EXIT_NOT_EXECUTABLE: Final = 126
 EXIT_NOT_FOUND: Final = 127
 #: What a serial port holds for a DUT that has not read it: the tty's read buffer (N_TTY_BUF_SIZE - 1)
 RX_BUFFER: Final = 4095
+#: "socket": no connection gets a mailbox (rig/connection.py); every message crosses the socket
+TRANSPORT_ENV: Final = "RIG_TRANSPORT"
 
 
 @dataclass
@@ -110,17 +113,6 @@ class Outcome:
     host_state: dict[str, object] = field(default_factory=dict)
 
 
-# eq=False: compared by identity. The loop compares each woken key's data with "listen" and "keeper",
-# and a generated __eq__ ran as Python for each (about 650 calls per simulated 4 s).
-@dataclass(eq=False)
-class _Conn:
-    sock: socket.socket
-    index: int
-    buf: bytearray = field(default_factory=bytearray)
-    hello: bool = False
-    pid: int = 0
-
-
 @dataclass
 class _Pty:
     path: str
@@ -160,12 +152,13 @@ class Session:
         self.malformed: list[str] = []
         self._log: IO[str] | None = None
         self.logging = False
-        self._conns: list[_Conn] = []
+        self._conns: list[Conn] = []
         self._n_conns = 0
         self._rt_t0 = 0.0
         self._rt_host = RealtimeHost()  # real time: SCHED_FIFO and mlockall where permitted (rig/pace)
         self._heap = FrozenHeap()  # lockstep: the collector walks what the run makes, not the rig (rig/pace)
         self._running = False
+        self._mailboxes = os.environ.get(TRANSPORT_ENV, "") != "socket"
         self.interrupted: int | None = None  # the signal that stopped the rig mid-run (rig.interrupts)
 
     # ---- the API scenarios use ------------------------------------------------------------------
@@ -376,10 +369,19 @@ class Session:
         cfg = self.cfg
         last_progress, last_sim = time.perf_counter(), self.now_ns
         stopping = False
+        fast = self.fast
         while not keeper.done:
             timeout = 0.1
             if not cfg.lockstep:
                 timeout = min(timeout, self._realtime_tick())
+            # a mailbox's message wakes this epoll by a byte on its socket from here on; one put there
+            # before that has rung nothing (rig/lockstep/mailbox.c)
+            ready = fast.mailbox_ready() if fast is not None else []
+            if ready:
+                timeout = 0.0
+                for conn in [c for c in self._conns if c.sock.fileno() in ready]:
+                    if self._on_readable(conn, sel):
+                        last_progress = time.perf_counter()
             for key, _ in sel.select(max(timeout, 0.0)):
                 if key.data == "listen":
                     self._accept(listener, sel)
@@ -438,17 +440,17 @@ class Session:
             return
         sock.setblocking(True)
         self._n_conns += 1
-        conn = _Conn(sock, self._n_conns)
+        conn = Conn(sock, self._n_conns)
         self._conns.append(conn)
         sel.register(sock, selectors.EVENT_READ, conn)
 
-    def _drop(self, conn: _Conn, sel: selectors.BaseSelector) -> None:
+    def _drop(self, conn: Conn, sel: selectors.BaseSelector) -> None:
         if conn in self._conns:
             self._conns.remove(conn)
             sel.unregister(conn.sock)
-            conn.sock.close()
+            conn.close()
 
-    def _on_readable(self, conn: _Conn, sel: selectors.BaseSelector) -> bool:
+    def _on_readable(self, conn: Conn, sel: selectors.BaseSelector) -> bool:
         """Reads what the connection has and handles every whole message; True if any arrived.
 
         While the fast path may act (below), it reads the connection itself and acts in C until this
@@ -466,21 +468,18 @@ class Session:
                 self._unstamped |= bool(self._pump_ptys)  # (pump may have read a pty into its pending)
             if got == 0:
                 return False
-        if got < 0:
-            try:
-                chunk = conn.sock.recv(1 << 18, socket.MSG_DONTWAIT)
-            except BlockingIOError:
-                return False
-            except OSError:
-                chunk = b""
-            if not chunk:
-                self._drop(conn, sel)
-                return False
-            buf += chunk
-        size, off, end = P.HEADER.size, 0, len(buf)
+        size, off, end = P.HEADER.size, 0, 0
         handler = self.handler
         assert handler is not None
         try:
+            if got < 0:
+                got = conn.receive()
+                if got == 0:
+                    return False
+                if got < 0:
+                    self._drop(conn, sel)
+                    return False
+            end = len(buf)
             while end - off >= size:  # every whole message; what they took is cut off the buffer once
                 # the fast path acts on what it takes; never before HELLO, nor unless quiet
                 if fast is not None and conn.hello and self._quiet():
@@ -514,14 +513,18 @@ class Session:
         the handler's next request, serial_output and the run's end all take it into ``received``.)"""
         return not (self.logging or self.in_flight)
 
-    def send(self, conn: _Conn, data: bytes) -> None:
+    def send(self, conn: Conn, data: bytes) -> None:
         """A reply to the DUT; what events wrote to its ports is readable before it runs again."""
         if self.in_flight:
             self.deliver_serial()
-        try:
-            conn.sock.sendall(data)
-        except OSError:
-            pass  # the DUT is gone; its exit is handled by the loop
+        conn.send(data)
+
+    def greet(self, conn: Conn, reply: bytes, mailbox: bool) -> None:
+        """The HELLO reply; with the mailbox the process asked for (rig/connection.py) when the fast
+        path serves this session, unless RIG_TRANSPORT=socket keeps every message on the socket."""
+        fast = self.fast
+        if not (mailbox and fast is not None and self._mailboxes and conn.grant(fast, reply)):
+            self.send(conn, reply)
 
     # ---- sim time (rig/scheduler.py) -----------------------------------------------------------
 

@@ -44,9 +44,9 @@ SHIM_DIR = REPO / "rig" / "shim"
 #: the module's source first; the headers it shares with the shim (the wire) and the chip core
 PLANT_C = REPO / "plant" / "c"
 SOURCES = (HERE / "fastpath.c", HERE / "attrs.c", HERE / "imu_feed.c", HERE / "mag_feed.c",
-           HERE / "baro_feed.c", HERE / "pwm_duty.c", HERE / "pump.c", HERE / "events.c", HERE / "i2c_log.c",
-           SHIM_DIR / "protocol.h", native.CHIPS_DIR / "chip_core.h", native.C_DIR / "need_tuple.h",
-           PLANT_C / "plant_steps.c")
+           HERE / "baro_feed.c", HERE / "pwm_duty.c", HERE / "pump.c", HERE / "mailbox.c", HERE / "events.c",
+           HERE / "i2c_log.c", SHIM_DIR / "protocol.h", SHIM_DIR / "ring.h", native.CHIPS_DIR / "chip_core.h",
+           native.C_DIR / "need_tuple.h", PLANT_C / "plant_steps.c")
 MODULE_NAME = "_riglockstep"
 LIB = BUILD / f"{MODULE_NAME}{EXTENSION_SUFFIX}"
 Feed = TypeVar("Feed")
@@ -134,6 +134,29 @@ class FastPath:
         or ``buf`` is too full)."""
         got: int = self._pump(self._state, fd, epoll_fd, buf, ptys, self._spin_ns)
         return got
+
+    # a connection's mailbox (rig/shim/ring.h, mailbox.c; rig/connection.py uses them)
+    def mailbox_open(self, fd: int) -> int:
+        """A memfd holding connection ``fd``'s new mailbox (the caller closes it); -1: none left."""
+        memfd: int = module().mailbox_open(self._state, fd)
+        return memfd
+
+    def mailbox_close(self, fd: int) -> None:
+        module().mailbox_close(self._state, fd)
+
+    def mailbox_take(self, fd: int, buf: bytearray) -> int:
+        """The mailbox's bytes appended to ``buf``: their count; -1 for a broken ring."""
+        got: int = module().mailbox_take(self._state, fd, buf)
+        return got
+
+    def mailbox_put(self, fd: int, data: bytes) -> bool:
+        """A reply into the mailbox, whole; False (nothing written) when it has no room."""
+        return bool(module().mailbox_put(self._state, fd, data))
+
+    def mailbox_ready(self) -> list[int]:
+        """The connections whose mailbox has bytes; from here on a new one rings the socket."""
+        fds: list[int] = module().mailbox_ready(self._state)
+        return fds
 
 
 def _imu_in_c(state: object, world: World) -> bool:

@@ -60,6 +60,8 @@ typedef struct {
     long long settings[RIG_PWM_MAX][4]; /* exported, enabled, period_ns, inversed */
 } pwm_cache;
 
+struct mbox_table; /* (mailbox.c) */
+static void mbox_release(struct mbox_table *t);
 typedef struct mag_feed mag_feed;   /* (mag_feed.c) */
 typedef struct baro_feed baro_feed; /* (baro_feed.c) */
 static void mag_release(mag_feed *f);
@@ -97,7 +99,8 @@ typedef struct {
     uint64_t counts[3]; /* of those: I2C transfers, waits, PWM writes (the handler's counts add them) */
     pwm_cache pwm_seen; /* the channels' settings as last read (pwm_duty.c) */
     unsigned bus;
-    uint8_t *rx; /* pump()'s receive buffer, once it has run (pump.c) */
+    uint8_t *rx;               /* pump()'s receive buffer, once it has run (pump.c) */
+    struct mbox_table *mboxes; /* the connections' mailboxes, once one is open (mailbox.c) */
     uint8_t reply[REPLY_MAX];
 } fast_state;
 
@@ -126,6 +129,7 @@ static void state_free(PyObject *capsule)
     mag_release(s->mag);
     baro_release(s->baro);
     PyMem_Free(s->rx);
+    mbox_release(s->mboxes);
     Py_XDECREF(s->world_advance);
     Py_XDECREF(s->serve);
     Py_XDECREF(s->pwm);
@@ -376,8 +380,13 @@ static int serve(fast_state *s, const chip_need *need)
     return 0;
 }
 
-static int send_all(int fd, const uint8_t *p, size_t n)
+#include "mailbox.c" /* a connection's messages through shared memory in place of its socket */
+
+static int send_all(fast_state *s, int fd, const uint8_t *p, size_t n)
 {
+    mbox_slot *mb = mbox_find(s->mboxes, fd);
+    if (mb)
+        return mbox_put(mb, p, n); /* (no room: a DUT that does not read its replies; it is stalled) */
     while (n) {
         ssize_t k = send(fd, p, n, MSG_NOSIGNAL);
         if (k < 0) {
@@ -491,7 +500,7 @@ static int i2c(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p)
     if (log_transfer(s, t, m, n, data, out, got, status) < 0)
         return -1;
     put_hdr(s->reply, (uint32_t)got, RIG_MSG_I2C, status, t_after);
-    send_all(fd, s->reply, sizeof(struct rig_hdr) + got);
+    send_all(s, fd, s->reply, sizeof(struct rig_hdr) + got);
     return 1;
 }
 
@@ -546,7 +555,7 @@ static int wait(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p
         return -1;
     put_hdr(s->reply, sizeof reason, RIG_MSG_WAIT, 0, target);
     memcpy(s->reply + sizeof(struct rig_hdr), &reason, sizeof reason);
-    send_all(fd, s->reply, sizeof(struct rig_hdr) + sizeof reason);
+    send_all(s, fd, s->reply, sizeof(struct rig_hdr) + sizeof reason);
     return 1;
 }
 
@@ -644,7 +653,7 @@ static PyMethodDef methods[] = {
     { "pump", (PyCFunction)(void (*)(void))fp_pump, METH_FASTCALL, "reads and acts on a connection" },
     { "handled", fp_handled, METH_O, "the messages acted on here so far" },
     { "counts", fp_counts, METH_O, "the I2C transfers, waits and PWM writes acted on here" },
-    { NULL, NULL, 0, NULL },
+    MAILBOX_METHODS{ NULL, NULL, 0, NULL },
 };
 
 static struct PyModuleDef module = {

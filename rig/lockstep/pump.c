@@ -114,10 +114,25 @@ static PyObject *fp_pump(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
     Py_ssize_t got = 0;
     const uint64_t until = mono_ns() + PUMP_BUDGET_NS;
     int readable = 1; /* the loop found fd readable: it is read before anything is waited on */
+    mbox_slot *mb = mbox_find(s->mboxes, fd);
+    if (mb)
+        mbox_set_state(s->mboxes, RIG_SESSION_RUNNING);
     for (;;) {
         if (PyErr_CheckSignals() < 0)
             goto fail;
-        if (!readable) { /* the loop's set first: another connection's message is not passed over */
+        if (!readable && mb) { /* the mailbox's wait (mailbox.c) */
+            int w = mbox_wait(s->mboxes, mb, epfd, fd, ptys, until, spin_ns);
+            if (w < 0)
+                goto fail;
+            if (w == 2 && !got) { /* the end, nothing came: the loop's own read takes it */
+                mbox_set_state(s->mboxes, RIG_SESSION_POLL);
+                if (give_back(buf, s->rx, n) < 0)
+                    return NULL;
+                return PyLong_FromLong(-1);
+            }
+            if (w != 1)
+                break;
+        } else if (!readable) { /* the loop's set first: another connection's message is not passed over */
             uint64_t now = mono_ns();
             if (now >= until)
                 break;
@@ -153,13 +168,18 @@ static PyObject *fp_pump(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
                 continue;
         }
         readable = 0;
-        ssize_t k = recv(fd, s->rx + n, (size_t)(PUMP_RX - n), MSG_DONTWAIT);
+        ssize_t k =
+            mb ? mbox_take(mb, s->rx + n, PUMP_RX - n) : recv(fd, s->rx + n, (size_t)(PUMP_RX - n), MSG_DONTWAIT);
+        if (mb && k == 0)
+            continue; /* nothing yet (a bell): wait (a broken ring, -1, is the end: the loop's read says why) */
         if (k > 0) {
             got += k;
             n += k;
             int r;
             Py_ssize_t off = handle_bytes(s, fd, s->rx, 0, n, &r);
             if (r < 0) {
+                if (mb)
+                    mbox_set_state(s->mboxes, RIG_SESSION_POLL);
                 give_back(buf, s->rx + off, n - off);
                 return NULL;
             }
@@ -169,17 +189,23 @@ static PyObject *fp_pump(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
                 break;
             continue;
         }
-        if (k < 0 && (errno == EINTR || errno == EAGAIN || errno == EWOULDBLOCK))
+        if (!mb && k < 0 && (errno == EINTR || errno == EAGAIN || errno == EWOULDBLOCK))
             continue;
         /* the end: what came before it goes to the loop; nothing came: the loop reads the end itself */
+        if (mb)
+            mbox_set_state(s->mboxes, RIG_SESSION_POLL);
         if (give_back(buf, s->rx, n) < 0)
             return NULL;
         return PyLong_FromSsize_t(got ? got : -1);
     }
+    if (mb)
+        mbox_set_state(s->mboxes, RIG_SESSION_POLL); /* (a message now rings the loop's epoll) */
     if (give_back(buf, s->rx, n) < 0)
         return NULL;
     return PyLong_FromSsize_t(got);
 fail:
+    if (mb)
+        mbox_set_state(s->mboxes, RIG_SESSION_POLL);
     give_back(buf, s->rx, n);
     return NULL;
 }

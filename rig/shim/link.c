@@ -2,8 +2,11 @@
  * The link to the session: one Unix stream socket per process (connected on first use and again in a
  * fork's child), messages of protocol.h sent whole in one sendmsg, requests that wait for their reply
  * and notices that do not, and notes (free text for the run's report). Everything that crosses to the
- * session goes through here. Part of rigshim.c (one translation unit): see its top comment.
+ * session goes through here. In lockstep the session may grant a mailbox at HELLO (ring.h): the same
+ * messages then go through shared memory, and the socket only says that either side is gone and wakes
+ * a session that sleeps in its loop. Part of rigshim.c (one translation unit): see its top comment.
  */
+#include "ring.h"
 
 static char sock_path[108];
 static int ahead; /* lockstep: a sleep moved the clock in a notice the session has not answered yet */
@@ -11,7 +14,11 @@ static int sock = -1;
 static pid_t sock_pid;
 static char held[4096]; /* lockstep: notices not sent yet (hold_msg) */
 static size_t held_len;
-static uint64_t spin_ns; /* RIG_SPIN_NS: how long a request polls for its reply before it sleeps */
+static uint64_t spin_ns;           /* RIG_SPIN_NS: how long a request polls for its reply before it sleeps */
+static struct rig_mailbox *mbox;   /* lockstep: the mailbox the session granted (NULL: the socket) */
+static uint64_t mbox_head;         /* up: the bytes this process wrote */
+static uint64_t mbox_tail;         /* down: the bytes it read */
+#define MBOX_CHECK_NS 100000000ull /* a wait on the mailbox looks at the socket this often: is it gone? */
 
 static void die_session(const char *why)
 {
@@ -37,6 +44,130 @@ static int recv_all(void *buf, size_t n)
 
 static uint64_t now_peek(void) { return __atomic_load_n(&shm->sim_ns, __ATOMIC_SEQ_CST); }
 
+/* The mailbox's side of the shim. The session is gone when its end of the socket closed. */
+static int session_gone(void)
+{
+    char c;
+    ssize_t k = recv(sock, &c, 1, MSG_PEEK | MSG_DONTWAIT);
+    return k == 0 || (k < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR);
+}
+
+static uint64_t mono_now(void)
+{
+    struct timespec ts;
+    LOAD(clock_gettime)(CLOCK_MONOTONIC, &ts);
+    return (uint64_t)ts.tv_sec * 1000000000u + (uint64_t)ts.tv_nsec;
+}
+
+/* What was put in the up ring is there: wake the session as it waits (protocol.h RIG_SESSION_*). */
+static void mbox_wake_session(void)
+{
+    __atomic_fetch_add(&shm->wake_seq, 1, __ATOMIC_SEQ_CST);
+    uint32_t state = __atomic_load_n(&shm->session_state, __ATOMIC_SEQ_CST);
+    if (state == RIG_SESSION_FUTEX) {
+        rig_futex_wake(&shm->wake_seq);
+    } else if (state == RIG_SESSION_POLL) {
+        char bell = 0;
+        (void)send(sock, &bell, 1, MSG_DONTWAIT | MSG_NOSIGNAL); /* (a full socket has bells already) */
+    }
+}
+
+/* The iovecs, whole, into the up ring; waits (rarely: the session empties the ring each time it reads)
+   while it has no room. */
+static void mbox_send_iov(const struct iovec *iov, int n)
+{
+    size_t total = 0;
+    for (int i = 0; i < n; i++)
+        total += iov[i].iov_len;
+    if (total > RIG_RING_SIZE)
+        die_session("a message larger than the mailbox");
+    int64_t room;
+    while ((room = ring_room(&mbox->up, mbox_head)) < (int64_t)total) {
+        if (room < 0)
+            die_session("a broken mailbox");
+        mbox_wake_session();
+        if (session_gone())
+            die_session("the session closed the connection");
+        struct timespec pause = { 0, 50000 };
+        syscall(SYS_clock_nanosleep, CLOCK_MONOTONIC, 0, &pause, NULL); /* (real time, not the DUT's) */
+    }
+    for (int i = 0; i < n; i++) {
+        ring_copy_in(mbox->up_data, mbox_head, iov[i].iov_base, iov[i].iov_len);
+        mbox_head += iov[i].iov_len;
+    }
+    ring_publish(&mbox->up, mbox_head);
+    mbox_wake_session();
+}
+
+/* Blocks until the down ring holds a reply's header: polled for spin_ns first (--spin), then asleep on
+   the ring's futex, looking at the socket every MBOX_CHECK_NS (a session that died wakes no one). */
+static void mbox_await(void)
+{
+    struct rig_ring_ctl *c = &mbox->down;
+    const uint64_t until = spin_ns ? mono_now() + spin_ns : 0;
+    for (;;) {
+        uint32_t seen = __atomic_load_n(&c->seq, __ATOMIC_ACQUIRE);
+        int64_t used = ring_used(c, mbox_tail);
+        if (used < 0)
+            die_session("a broken mailbox");
+        if (used >= (int64_t)sizeof(struct rig_hdr))
+            return;
+        if (until && mono_now() < until)
+            continue;
+        __atomic_store_n(&c->sleeping, 1, __ATOMIC_SEQ_CST);
+        if (ring_used(c, mbox_tail) == used) {
+            long r = rig_futex_wait(&c->seq, seen, MBOX_CHECK_NS);
+            if (r < 0 && errno == ETIMEDOUT && session_gone())
+                die_session("no reply");
+        }
+        __atomic_store_n(&c->sleeping, 0, __ATOMIC_RELAXED);
+    }
+}
+
+/* The reply to a request of this type from the down ring: its payload (at most cap bytes) into out. The
+   session puts a reply in whole, so its header's arrival means all of it is there. */
+static struct rig_hdr mbox_reply(uint16_t type, void *out, uint32_t cap)
+{
+    struct rig_hdr h;
+    mbox_await();
+    ring_copy_out(mbox->down_data, mbox_tail, &h, sizeof h);
+    if (h.type != type || h.len > cap || ring_used(&mbox->down, mbox_tail) < (int64_t)(sizeof h + h.len))
+        die_session("a reply that does not fit the request");
+    ring_copy_out(mbox->down_data, mbox_tail + sizeof h, out, h.len);
+    mbox_tail += sizeof h + h.len;
+    __atomic_store_n(&mbox->down.tail, mbox_tail, __ATOMIC_RELEASE);
+    return h;
+}
+
+/* The HELLO reply's header from the socket, and the mailbox's memfd with it if the session granted one */
+static int recv_hello(struct rig_hdr *h)
+{
+    union {
+        struct cmsghdr align;
+        char buf[CMSG_SPACE(sizeof(int))];
+    } ctl;
+    struct iovec iov = { h, sizeof *h };
+    struct msghdr m = { .msg_iov = &iov, .msg_iovlen = 1, .msg_control = ctl.buf, .msg_controllen = sizeof ctl.buf };
+    ssize_t k;
+    do
+        k = recvmsg(sock, &m, MSG_CMSG_CLOEXEC);
+    while (k < 0 && errno == EINTR);
+    if (k <= 0 || ((size_t)k < sizeof *h && recv_all((char *)h + k, sizeof *h - (size_t)k) < 0))
+        return -1;
+    struct cmsghdr *cm = CMSG_FIRSTHDR(&m);
+    if (!cm || cm->cmsg_level != SOL_SOCKET || cm->cmsg_type != SCM_RIGHTS || cm->cmsg_len != CMSG_LEN(sizeof(int)))
+        return 0;
+    int fd;
+    memcpy(&fd, CMSG_DATA(cm), sizeof fd);
+    void *p = mmap(NULL, sizeof *mbox, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+    LOAD(close)(fd);
+    if (p == MAP_FAILED || ((struct rig_mailbox *)p)->magic != RIG_MAILBOX_MAGIC)
+        die_session("the session's mailbox cannot be mapped");
+    mbox = p;
+    mbox_head = mbox_tail = 0;
+    return 0;
+}
+
 static void send_msg(uint16_t type, const void *payload, uint32_t len);
 
 /* Connects on first use and again after fork (a child gets its own connection). Caller holds lock. */
@@ -46,17 +177,21 @@ static void ensure_connected(void)
         return;
     if (sock >= 0)
         LOAD(close)(sock); /* the parent's connection, inherited by fork */
-    held_len = 0;          /* (and what the parent held: the parent sends it) */
+    if (mbox)
+        munmap(mbox, sizeof *mbox); /* (and its mailbox) */
+    mbox = NULL;
+    held_len = 0; /* (and what the parent held: the parent sends it) */
     sock = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
     struct sockaddr_un addr = { .sun_family = AF_UNIX };
     strcpy(addr.sun_path, sock_path);
     if (sock < 0 || connect(sock, (struct sockaddr *)&addr, sizeof addr) < 0)
         die_session(strerror(errno));
     sock_pid = self_pid();
-    uint32_t hello[2] = { RIG_PROTOCOL_VERSION, (uint32_t)sock_pid };
-    send_msg(RIG_MSG_HELLO, hello, sizeof hello);
+    /* lockstep: a mailbox asked for (ring.h); a session that keeps to the socket sends no memfd */
+    uint32_t hello[3] = { RIG_PROTOCOL_VERSION, (uint32_t)sock_pid, RIG_HELLO_MAILBOX };
+    send_msg(RIG_MSG_HELLO, hello, lockstep ? sizeof hello : 2 * sizeof hello[0]);
     struct rig_hdr h;
-    if (recv_all(&h, sizeof h) < 0 || h.type != RIG_MSG_HELLO || h.len != 0)
+    if (recv_hello(&h) < 0 || h.type != RIG_MSG_HELLO || h.len != 0)
         die_session("no HELLO reply");
     if (h.status)
         die_session("the session refused this shim's protocol version");
@@ -65,6 +200,10 @@ static void ensure_connected(void)
 /* The iovecs whole, across signals and short writes. */
 static void send_iov(struct iovec *iov, int n)
 {
+    if (mbox) {
+        mbox_send_iov(iov, n);
+        return;
+    }
     while (n) {
         struct msghdr m = { .msg_iov = iov, .msg_iovlen = (size_t)n };
         ssize_t k = sendmsg(sock, &m, MSG_NOSIGNAL);
@@ -171,6 +310,11 @@ static struct rig_hdr request(uint16_t type, const void *payload, uint32_t len, 
     ensure_connected();
     send_msg(type, payload, len);
     struct rig_hdr h;
+    if (mbox) {
+        h = mbox_reply(type, out, cap);
+        __atomic_store_n(&ahead, 0, __ATOMIC_RELEASE); /* (as below) */
+        return h;
+    }
     struct iovec iov[2] = { { &h, sizeof h }, { out, cap } };
     struct msghdr m = { .msg_iov = iov, .msg_iovlen = cap ? 2 : 1 };
     ssize_t k = spin_ns ? recv_spinning(&m) : -1;

@@ -5,7 +5,9 @@
  * Transport: one Unix stream socket connection per DUT process. Every message is a 16-byte header
  * and `len` bytes of payload, little-endian. Requests that need an answer (HELLO, I2C, WAIT) get
  * exactly one reply of the same type; notices (PWM, NOTE) get none, so they cost the DUT no round
- * trip. Clock reads cost no message at all: the session publishes sim time in a shared page.
+ * trip. Clock reads cost no message at all: the session publishes sim time in a shared page. In
+ * lockstep a connection's messages after HELLO may go through a mailbox in shared memory instead
+ * (ring.h): the same bytes, through two byte rings and a futex.
  */
 #ifndef RIG_PROTOCOL_H
 #define RIG_PROTOCOL_H
@@ -23,7 +25,8 @@ struct rig_hdr {
 };
 
 enum {
-    RIG_MSG_HELLO = 1, /* payload: u32 version, u32 pid. Reply: status only */
+    RIG_MSG_HELLO = 1, /* payload: u32 version, u32 pid[, u32 RIG_HELLO_MAILBOX]. Reply: status only; with
+                          the flag, and if the session grants it, the mailbox's memfd (SCM_RIGHTS) */
     RIG_MSG_I2C = 2,   /* payload: u16 bus, u16 nmsgs, nmsgs x rig_i2c_msg, then the write bytes.
                           Reply: status; payload: the bytes of each read message in order (a
                           RECV_LEN read gives its count byte, then count bytes) */
@@ -50,6 +53,8 @@ struct rig_pwm_msg {
     uint16_t reserved;
     uint64_t value; /* ns for period/duty; 0/1 for enable; 1 = inversed for polarity */
 };
+
+#define RIG_HELLO_MAILBOX 1u /* HELLO's third word: this process would take a mailbox (ring.h) */
 
 #define RIG_WAIT_FOREVER UINT64_MAX
 /* AHEAD: a sleep that nothing can cut short, so the shim moves the clock itself and tells the session
@@ -81,9 +86,16 @@ struct rig_shm {
     uint64_t epoch_ns;     /* CLOCK_REALTIME at sim time 0 */
     uint64_t mono_base_ns; /* CLOCK_MONOTONIC at sim time 0 */
     struct rig_pwm_state pwm[RIG_PWM_MAX];
-    uint64_t limit_ns; /* lockstep: the run ends here (--duration or --sim-timeout); a clock read
-                              that reaches it asks the session, which ends the run */
+    uint64_t limit_ns;      /* lockstep: the run ends here (--duration or --sim-timeout); a clock read
+                               that reaches it asks the session, which ends the run */
+    uint32_t wake_seq;      /* mailboxes (ring.h): bumped by every message a DUT process puts in one;
+                               the session sleeps on it (a futex) */
+    uint32_t session_state; /* RIG_SESSION_*: how a process that put a message wakes the session */
 };
 #define RIG_SHM_LIMIT_OFFSET 560 /* offsetof(struct rig_shm, limit_ns), for the Python side */
+#define RIG_SHM_WAKE_OFFSET 568  /* offsetof(struct rig_shm, wake_seq) */
+/* POLL (0, the page's first state): in its loop's epoll, woken by a byte on the connection's socket;
+   RUNNING: it looks at every mailbox before it sleeps; FUTEX: asleep on wake_seq */
+enum { RIG_SESSION_POLL = 0, RIG_SESSION_RUNNING = 1, RIG_SESSION_FUTEX = 2 };
 
 #endif

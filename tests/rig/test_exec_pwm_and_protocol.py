@@ -77,10 +77,13 @@ def test_protocol_numbers_agree_between_c_and_python() -> None:
     assert layout("rig_i2c_msg") == P.I2C_MSG.format
     assert layout("rig_pwm_msg") == P.PWM_MSG.format
     assert layout("rig_pwm_state") == P.SHM_PWM.format
-    # the head, the PWM array (not matched: an array), then the run's limit
-    assert layout("rig_shm") == P.SHM_HEAD.format + "Q"
+    # the head, the PWM array (not matched: an array), then the run's limit, the mailboxes' futex word
+    # and the session's state
+    assert layout("rig_shm") == P.SHM_HEAD.format + "QII"
     limit_at = P.SHM_HEAD.size + P.PWM_MAX * P.SHM_PWM.size
     assert P.SHM_LIMIT_OFFSET == defines["RIG_SHM_LIMIT_OFFSET"] == limit_at
+    assert P.SHM_WAKE_OFFSET == defines["RIG_SHM_WAKE_OFFSET"] == limit_at + 8
+    assert defines["RIG_HELLO_MAILBOX"] == P.HELLO_MAILBOX
     assert P.SHM_HEAD.size + P.PWM_MAX * P.SHM_PWM.size <= P.SHM_SIZE
 
 

@@ -23,7 +23,8 @@ import rig.protocol as P
 from emulators import native
 from emulators.chips.board import CHIP_HMC
 from rig import lockstep
-from rig.session import Session, SessionConfig, _Conn, _pending_input, _Pty
+from rig.connection import Conn
+from rig.session import Session, SessionConfig, _pending_input, _Pty
 from rig.world import World
 
 CYCLE_NS = 4_000_000
@@ -142,7 +143,7 @@ def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_h
     session.at(0.2, lambda s: s.world.set_input("wind_n", 2.0))  # an event between two cycles
     seen, readable = _ticking(session, fail_at) if events else ([], [])
     ours, dut = socket.socketpair()
-    conn = _Conn(ours, 1)
+    conn = Conn(ours, 1)
     received = bytearray()
     sel = selectors.EpollSelector()
     pumped: list[int] = []  # what each pump call received
@@ -441,7 +442,7 @@ def test_pump_reads_the_duts_ptys_in_the_loops_place(monkeypatch: pytest.MonkeyP
                     handler = session.handler
                     assert handler is not None
                     hdr = P.Header.parse(cycle, 0)
-                    handler.handle(_Conn(ours, 1, hello=True), hdr, cycle[P.HEADER.size:])
+                    handler.handle(Conn(ours, 1, hello=True), hdr, cycle[P.HEADER.size:])
                 else:
                     buf = bytearray()
                     # the cycle's bytes, and the line read in C: pump returned for neither

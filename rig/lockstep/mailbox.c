@@ -1,0 +1,296 @@
+/*
+ * The session's side of the mailboxes (rig/shim/ring.h: why, and the layout): a lockstep connection's
+ * messages through shared memory, its socket kept for the ends and for waking the session's loop.
+ * Included by fastpath.c (after fast_state); pump.c reads and waits through it, send_all replies
+ * through it, and rig/session.py opens, reads, writes and closes them (the mailbox_* calls below).
+ *
+ * The session's waits: in pump (mbox_wait) it sleeps on the page's wake_seq, a futex every DUT process
+ * bumps after it puts a message, with session_state = FUTEX; before each sleep it looks, without
+ * waiting, at the loop's epoll set (the keeper, the listener, the ptys, another socket), and it sleeps
+ * at most MBOX_SLICE_NS at a time, so that a DUT that ended (nothing bumps the word then) is seen
+ * within a slice. Out of pump the state is POLL: a process that puts a message then also sends a byte on
+ * its socket, which wakes the loop's epoll, and the loop looks at every mailbox before it sleeps
+ * (mailbox_ready).
+ */
+#include <sys/epoll.h>
+#include <sys/mman.h>
+
+#include "ring.h"
+
+#define MBOX_MAX 64              /* connections with a mailbox at once; more keep their socket */
+#define MBOX_SLICE_NS 2000000ull /* the longest futex sleep in pump: how late an ended DUT is seen */
+
+typedef struct {
+    int fd;                /* the connection's socket */
+    struct rig_mailbox *m; /* mapped */
+    uint64_t tail;         /* up: read so far (the session's own count: the shared one is only told) */
+    uint64_t head;         /* down: written so far */
+} mbox_slot;
+
+struct mbox_table {
+    struct rig_shm *page;
+    int n;
+    mbox_slot slot[MBOX_MAX];
+};
+
+static void mbox_release(struct mbox_table *t)
+{
+    if (!t)
+        return;
+    for (int i = 0; i < t->n; i++)
+        munmap(t->slot[i].m, sizeof *t->slot[i].m);
+    PyMem_Free(t);
+}
+
+static mbox_slot *mbox_find(struct mbox_table *t, int fd)
+{
+    for (int i = 0; t && i < t->n; i++)
+        if (t->slot[i].fd == fd)
+            return &t->slot[i];
+    return NULL;
+}
+
+static void mbox_set_state(struct mbox_table *t, uint32_t state)
+{
+    __atomic_store_n(&t->page->session_state, state, __ATOMIC_SEQ_CST);
+}
+
+/* The up ring's bytes (at most room) into out: their count, or -1 for a broken ring */
+static Py_ssize_t mbox_take(mbox_slot *mb, uint8_t *out, Py_ssize_t room)
+{
+    int64_t used = ring_used(&mb->m->up, mb->tail);
+    if (used <= 0)
+        return used;
+    Py_ssize_t n = used < room ? (Py_ssize_t)used : room;
+    ring_copy_out(mb->m->up_data, mb->tail, out, (size_t)n);
+    mb->tail += (uint64_t)n;
+    __atomic_store_n(&mb->m->up.tail, mb->tail, __ATOMIC_RELEASE);
+    return n;
+}
+
+/* A reply, whole, into the down ring; the DUT woken if it sleeps. 0: no room (a DUT that does not read
+   its replies), nothing written */
+static int mbox_put(mbox_slot *mb, const uint8_t *p, size_t n)
+{
+    int64_t room = ring_room(&mb->m->down, mb->head);
+    if (room < (int64_t)n)
+        return 0;
+    ring_copy_in(mb->m->down_data, mb->head, p, n);
+    mb->head += n;
+    ring_publish(&mb->m->down, mb->head);
+    if (__atomic_load_n(&mb->m->down.sleeping, __ATOMIC_SEQ_CST))
+        rig_futex_wake(&mb->m->down.seq);
+    return 1;
+}
+
+/* 1: mb has bytes (or is broken: its reader says so); 2: another mailbox has; 0: none has */
+static int mbox_any(struct mbox_table *t, mbox_slot *mb)
+{
+    if (ring_used(&mb->m->up, mb->tail) != 0)
+        return 1;
+    for (int i = 0; i < t->n; i++)
+        if (&t->slot[i] != mb && ring_used(&t->slot[i].m->up, t->slot[i].tail) != 0)
+            return 2;
+    return 0;
+}
+
+static uint64_t mono_ns(void); /* (events.c) */
+static int read_pty(PyObject *pair);
+static PyObject *pty_of(PyObject *ptys, int fd);
+
+/* The loop's epoll set looked at without waiting: a pty's bytes are read (as pump does); 1 when fd's
+   socket has bells (drained), 0 when nothing else is ready, 2 when the loop's turn has come (another
+   descriptor is ready, or fd's socket ended), -1 a Python error */
+static int mbox_glance(int epfd, int fd, PyObject *ptys)
+{
+    struct epoll_event ev[8];
+    int ready = epoll_wait(epfd, ev, 8, 0), r = 0;
+    for (int i = 0; i < ready; i++) {
+        PyObject *pty = ev[i].data.fd == fd ? NULL : pty_of(ptys, ev[i].data.fd);
+        if (pty) {
+            if (read_pty(pty) < 0)
+                return -1;
+        } else if (ev[i].data.fd != fd) {
+            r = 2;
+        } else if (r != 2) {
+            char bells[256];
+            ssize_t k = recv(fd, bells, sizeof bells, MSG_DONTWAIT);
+            r = k == 0 || (k < 0 && errno != EAGAIN && errno != EINTR) ? 2 : 1;
+        }
+    }
+    return r;
+}
+
+/* pump's wait for fd's next message: 1 when its mailbox has bytes; 0 when the loop's turn has come
+   (another connection's message, another descriptor ready, until reached); 2 when fd's socket ended;
+   -1 a Python error. spin_ns: polled that long before it sleeps (--spin) */
+static int mbox_wait(struct mbox_table *t, mbox_slot *mb, int epfd, int fd, PyObject *ptys, uint64_t until,
+                     uint64_t spin_ns)
+{
+    uint32_t *word = &t->page->wake_seq;
+    uint64_t spin_until = spin_ns ? mono_ns() + spin_ns : 0;
+    for (;;) {
+        if (PyErr_CheckSignals() < 0)
+            return -1;
+        uint32_t seen = __atomic_load_n(word, __ATOMIC_ACQUIRE);
+        int any = mbox_any(t, mb);
+        if (any)
+            return any == 1;
+        uint64_t now = mono_ns();
+        if (now >= until)
+            return 0;
+        if (spin_until && now < spin_until)
+            continue;
+        spin_until = 0;
+        int glance = mbox_glance(epfd, fd, ptys);
+        if (glance < 0)
+            return -1;
+        if (glance == 2) {
+            char c;
+            ssize_t k = recv(fd, &c, 1, MSG_PEEK | MSG_DONTWAIT);
+            return k == 0 || (k < 0 && errno != EAGAIN && errno != EINTR) ? 2 : 0;
+        }
+        mbox_set_state(t, RIG_SESSION_FUTEX);
+        if (!mbox_any(t, mb)) {
+            uint64_t slice = until - now < MBOX_SLICE_NS ? until - now : MBOX_SLICE_NS;
+            PyThreadState *saved = PyEval_SaveThread(); /* (other Python threads run while it waits) */
+            rig_futex_wait(word, seen, slice);
+            PyEval_RestoreThread(saved);
+        }
+        mbox_set_state(t, RIG_SESSION_RUNNING);
+    }
+}
+
+/* ---- the calls rig/session.py makes ---- */
+
+static struct mbox_table *mbox_table_of(PyObject *capsule)
+{
+    fast_state *s = PyCapsule_GetPointer(capsule, "rig.lockstep");
+    if (!s)
+        return NULL;
+    if (!s->mboxes) {
+        if (!(s->mboxes = PyMem_Calloc(1, sizeof *s->mboxes)))
+            return (void *)PyErr_NoMemory();
+        s->mboxes->page = (struct rig_shm *)s->page.buf;
+    }
+    return s->mboxes;
+}
+
+/* mailbox_open(state, fd) -> a memfd holding connection fd's new mailbox, for its HELLO reply (the
+   caller closes it); -1 when MBOX_MAX are open (the connection keeps its socket) */
+static PyObject *fp_mailbox_open(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 2)
+        return PyErr_Format(PyExc_TypeError, "mailbox_open takes 2 arguments");
+    struct mbox_table *t = mbox_table_of(a[0]);
+    int fd = (int)PyLong_AsLong(a[1]);
+    if (!t || PyErr_Occurred())
+        return NULL;
+    if (t->n == MBOX_MAX || mbox_find(t, fd))
+        return PyLong_FromLong(-1);
+    int mfd = memfd_create("rig-mailbox", MFD_CLOEXEC);
+    if (mfd < 0 || ftruncate(mfd, sizeof(struct rig_mailbox)) < 0) {
+        PyErr_SetFromErrno(PyExc_OSError);
+        if (mfd >= 0)
+            close(mfd);
+        return NULL;
+    }
+    struct rig_mailbox *m = mmap(NULL, sizeof *m, PROT_READ | PROT_WRITE, MAP_SHARED, mfd, 0);
+    if (m == MAP_FAILED) {
+        close(mfd);
+        return PyErr_SetFromErrno(PyExc_OSError);
+    }
+    m->magic = RIG_MAILBOX_MAGIC;
+    t->slot[t->n++] = (mbox_slot){ .fd = fd, .m = m };
+    return PyLong_FromLong(mfd);
+}
+
+/* mailbox_close(state, fd): connection fd's mailbox unmapped (its connection is dropped) */
+static PyObject *fp_mailbox_close(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 2)
+        return PyErr_Format(PyExc_TypeError, "mailbox_close takes 2 arguments");
+    struct mbox_table *t = mbox_table_of(a[0]);
+    int fd = (int)PyLong_AsLong(a[1]);
+    if (!t || PyErr_Occurred())
+        return NULL;
+    mbox_slot *mb = mbox_find(t, fd);
+    if (mb) {
+        munmap(mb->m, sizeof *mb->m);
+        *mb = t->slot[--t->n];
+    }
+    Py_RETURN_NONE;
+}
+
+/* mailbox_take(state, fd, buf) -> the bytes of fd's mailbox appended to buf; -1 for a broken ring */
+static PyObject *fp_mailbox_take(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 3 || !PyByteArray_Check(a[2]))
+        return PyErr_Format(PyExc_TypeError, "mailbox_take takes (state, fd, bytearray)");
+    struct mbox_table *t = mbox_table_of(a[0]);
+    int fd = (int)PyLong_AsLong(a[1]);
+    if (!t || PyErr_Occurred())
+        return NULL;
+    mbox_slot *mb = mbox_find(t, fd);
+    if (!mb)
+        return PyErr_Format(PyExc_ValueError, "connection %d has no mailbox", fd);
+    int64_t used = ring_used(&mb->m->up, mb->tail);
+    if (used <= 0)
+        return PyLong_FromLongLong(used);
+    Py_ssize_t had = PyByteArray_GET_SIZE(a[2]);
+    if (PyByteArray_Resize(a[2], had + (Py_ssize_t)used) < 0)
+        return NULL;
+    return PyLong_FromSsize_t(mbox_take(mb, (uint8_t *)PyByteArray_AS_STRING(a[2]) + had, (Py_ssize_t)used));
+}
+
+/* mailbox_put(state, fd, data) -> False when fd's down ring has no room for data (nothing written) */
+static PyObject *fp_mailbox_put(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 3)
+        return PyErr_Format(PyExc_TypeError, "mailbox_put takes (state, fd, data)");
+    struct mbox_table *t = mbox_table_of(a[0]);
+    int fd = (int)PyLong_AsLong(a[1]);
+    if (!t || PyErr_Occurred())
+        return NULL;
+    mbox_slot *mb = mbox_find(t, fd);
+    if (!mb)
+        return PyErr_Format(PyExc_ValueError, "connection %d has no mailbox", fd);
+    Py_buffer data;
+    if (PyObject_GetBuffer(a[2], &data, PyBUF_SIMPLE) < 0)
+        return NULL;
+    int ok = mbox_put(mb, data.buf, (size_t)data.len);
+    PyBuffer_Release(&data);
+    return PyBool_FromLong(ok);
+}
+
+/* mailbox_ready(state) -> the connections whose mailbox has bytes (or is broken), after the session's
+   state is POLL: the loop calls it before it sleeps in its epoll, which a byte on a socket then wakes */
+static PyObject *fp_mailbox_ready(PyObject *self, PyObject *state)
+{
+    (void)self;
+    struct mbox_table *t = mbox_table_of(state);
+    if (!t)
+        return NULL;
+    mbox_set_state(t, RIG_SESSION_POLL);
+    PyObject *fds = PyList_New(0);
+    for (int i = 0; fds && i < t->n; i++) {
+        if (ring_used(&t->slot[i].m->up, t->slot[i].tail) == 0)
+            continue;
+        PyObject *fd = PyLong_FromLong(t->slot[i].fd);
+        if (!fd || PyList_Append(fds, fd) < 0)
+            Py_CLEAR(fds);
+        Py_XDECREF(fd);
+    }
+    return fds;
+}
+
+#define MAILBOX_METHODS                                                                                        \
+    { "mailbox_open", (PyCFunction)(void (*)(void))fp_mailbox_open, METH_FASTCALL, "a connection's mailbox" }, \
+        { "mailbox_close", (PyCFunction)(void (*)(void))fp_mailbox_close, METH_FASTCALL, "its end" },          \
+        { "mailbox_take", (PyCFunction)(void (*)(void))fp_mailbox_take, METH_FASTCALL, "its bytes" },          \
+        { "mailbox_put", (PyCFunction)(void (*)(void))fp_mailbox_put, METH_FASTCALL, "a reply into it" },      \
+        { "mailbox_ready", fp_mailbox_ready, METH_O, "the mailboxes with bytes" },
