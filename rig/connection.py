@@ -18,6 +18,7 @@ from rig import protocol as P
 from rig.lockstep import FastPath
 
 RECV_MAX = 1 << 18
+BELLS_MAX = 4096
 
 
 # eq=False: compared by identity. The loop compares each woken key's data with "listen" and "keeper",
@@ -36,7 +37,10 @@ class Conn:
         """Sends the HELLO ``reply`` with a new mailbox's memfd; False when no mailbox is left (the caller
         sends the reply as it is, and the connection keeps its socket)."""
         fd = self.sock.fileno()
-        memfd = fast.mailbox_open(fd)
+        try:
+            memfd = fast.mailbox_open(fd)
+        except OSError:  # (no memfd or mapping to be had: the socket serves, as without a mailbox)
+            return False
         if memfd < 0:
             return False
         try:
@@ -72,21 +76,26 @@ class Conn:
                 chunk = b""
             self.buf += chunk
             return len(chunk) if chunk else -1
-        ended = False
-        while not ended:  # the bells (each a byte that woke the loop), or the end
-            try:
-                ended = not self.sock.recv(4096, socket.MSG_DONTWAIT)
-            except BlockingIOError:
-                break
-            except OSError:
-                ended = True
+        try:  # the bells (each a zero byte that woke the loop; as many as a read takes), or the end
+            bells: bytes | None = self.sock.recv(BELLS_MAX, socket.MSG_DONTWAIT)
+        except BlockingIOError:
+            bells = None
+        except OSError:
+            bells = b""
+        if bells and bells.count(0) != len(bells):
+            raise P.Malformed("bytes other than bells on the socket of a connection with a mailbox")
+        ended = bells == b""
         got = self.mailbox.mailbox_take(self.sock.fileno(), self.buf)
         if got < 0:
             raise P.Malformed("its mailbox is broken (a ring's head beyond the ring)")
         return -1 if ended and not got else got
 
-    def close(self) -> None:
+    def release(self) -> None:
+        """The mailbox unmapped (the session's run is over, or the connection is)."""
         if self.mailbox is not None:
             self.mailbox.mailbox_close(self.sock.fileno())
             self.mailbox = None
+
+    def close(self) -> None:
+        self.release()
         self.sock.close()

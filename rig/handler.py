@@ -55,8 +55,7 @@ class Handler:
             status = 0 if version == P.PROTOCOL_VERSION else errno.EPROTO
             if status:
                 self.notes.append(f"pid {pid}: shim protocol {version}, session speaks {P.PROTOCOL_VERSION}")
-            self.session.greet(conn, P.reply(P.MSG_HELLO, self.session.now_ns, status=status),
-                               not status and bool(flags & P.HELLO_MAILBOX))
+            self.session.greet(conn, status, not status and bool(flags & P.HELLO_MAILBOX))
         elif hdr.type == P.MSG_I2C:
             self._i2c(conn, hdr, payload)
         elif hdr.type == P.MSG_PWM:

@@ -24,6 +24,7 @@ REQUESTS = frozenset({MSG_HELLO, MSG_I2C, MSG_WAIT})
 HELLO_MSG = struct.Struct("<II")       # version, pid
 HELLO_FLAGS_MSG = struct.Struct("<III")  # version, pid, flags
 HELLO_MAILBOX: Final = 1               # flags: the process would take a mailbox (rig/shim/ring.h)
+HELLO_GRANTED = struct.Struct("<I")    # the reply's payload when a mailbox comes with it: HELLO_MAILBOX
 I2C_HEAD = struct.Struct("<HH")        # bus, nmsgs
 I2C_MSG = struct.Struct("<HHHH")       # addr, flags, len, reserved
 I2C_M_RD: Final = 0x0001

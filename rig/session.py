@@ -299,6 +299,8 @@ class Session:
             returncode = self._loop(sel, listener, keeper, wall0)
         finally:
             self._running = False
+            for conn in self._conns:
+                conn.release()
             self._pump_fd = -1
             self._pump_ptys = ()
             self._rt_host.stop()
@@ -519,12 +521,15 @@ class Session:
             self.deliver_serial()
         conn.send(data)
 
-    def greet(self, conn: Conn, reply: bytes, mailbox: bool) -> None:
+    def greet(self, conn: Conn, status: int, mailbox: bool) -> None:
         """The HELLO reply; with the mailbox the process asked for (rig/connection.py) when the fast
         path serves this session, unless RIG_TRANSPORT=socket keeps every message on the socket."""
         fast = self.fast
-        if not (mailbox and fast is not None and self._mailboxes and conn.grant(fast, reply)):
-            self.send(conn, reply)
+        if self.in_flight:
+            self.deliver_serial()
+        granted = P.reply(P.MSG_HELLO, self.now_ns, P.HELLO_GRANTED.pack(P.HELLO_MAILBOX), status)
+        if not (mailbox and fast is not None and self._mailboxes and conn.grant(fast, granted)):
+            conn.send(P.reply(P.MSG_HELLO, self.now_ns, status=status))
 
     # ---- sim time (rig/scheduler.py) -----------------------------------------------------------
 

@@ -12,6 +12,7 @@
  * its socket, which wakes the loop's epoll, and the loop looks at every mailbox before it sleeps
  * (mailbox_ready).
  */
+#include <fcntl.h>
 #include <sys/epoll.h>
 #include <sys/mman.h>
 
@@ -19,6 +20,7 @@
 
 #define MBOX_MAX 64              /* connections with a mailbox at once; more keep their socket */
 #define MBOX_SLICE_NS 2000000ull /* the longest futex sleep in pump: how late an ended DUT is seen */
+#define MBOX_GLANCE_NS 100000ull /* the loop's other descriptors are looked at this often while messages come */
 
 typedef struct {
     int fd;                /* the connection's socket */
@@ -50,17 +52,20 @@ static mbox_slot *mbox_find(struct mbox_table *t, int fd)
     return NULL;
 }
 
+/* (the fence: the rings' heads are read after this store on every architecture, not only x86's) */
 static void mbox_set_state(struct mbox_table *t, uint32_t state)
 {
     __atomic_store_n(&t->page->session_state, state, __ATOMIC_SEQ_CST);
+    __atomic_thread_fence(__ATOMIC_SEQ_CST);
 }
 
-/* The up ring's bytes (at most room) into out: their count, or -1 for a broken ring */
+/* The up ring's bytes (at most room) into out: their count, or -1 for a broken ring. The head is read
+   once: the DUT may move it meanwhile, and only what it said at that read is taken. */
 static Py_ssize_t mbox_take(mbox_slot *mb, uint8_t *out, Py_ssize_t room)
 {
     int64_t used = ring_used(&mb->m->up, mb->tail);
     if (used <= 0)
-        return used;
+        return (Py_ssize_t)used;
     Py_ssize_t n = used < room ? (Py_ssize_t)used : room;
     ring_copy_out(mb->m->up_data, mb->tail, out, (size_t)n);
     mb->tail += (uint64_t)n;
@@ -83,73 +88,67 @@ static int mbox_put(mbox_slot *mb, const uint8_t *p, size_t n)
     return 1;
 }
 
-/* 1: mb has bytes (or is broken: its reader says so); 2: another mailbox has; 0: none has */
+/* 2: another mailbox has bytes (it goes first, as the loop would take it: one connection does not
+   starve another); 1: mb has (or is broken: its reader says so); 0: none has */
 static int mbox_any(struct mbox_table *t, mbox_slot *mb)
 {
-    if (ring_used(&mb->m->up, mb->tail) != 0)
-        return 1;
     for (int i = 0; i < t->n; i++)
         if (&t->slot[i] != mb && ring_used(&t->slot[i].m->up, t->slot[i].tail) != 0)
             return 2;
-    return 0;
+    return ring_used(&mb->m->up, mb->tail) != 0;
 }
 
 static uint64_t mono_ns(void); /* (events.c) */
 static int read_pty(PyObject *pair);
 static PyObject *pty_of(PyObject *ptys, int fd);
 
-/* The loop's epoll set looked at without waiting: a pty's bytes are read (as pump does); 1 when fd's
-   socket has bells (drained), 0 when nothing else is ready, 2 when the loop's turn has come (another
-   descriptor is ready, or fd's socket ended), -1 a Python error */
+/* The loop's epoll set looked at without waiting: a pty's bytes are read (as pump does); 1 when
+   another descriptor is ready, else 2 when fd's socket is (bells, which the loop's read takes and
+   checks, or its end), 0 when nothing is, -1 a Python error */
 static int mbox_glance(int epfd, int fd, PyObject *ptys)
 {
     struct epoll_event ev[8];
     int ready = epoll_wait(epfd, ev, 8, 0), r = 0;
     for (int i = 0; i < ready; i++) {
         PyObject *pty = ev[i].data.fd == fd ? NULL : pty_of(ptys, ev[i].data.fd);
-        if (pty) {
-            if (read_pty(pty) < 0)
-                return -1;
-        } else if (ev[i].data.fd != fd) {
-            r = 2;
-        } else if (r != 2) {
-            char bells[256];
-            ssize_t k = recv(fd, bells, sizeof bells, MSG_DONTWAIT);
-            r = k == 0 || (k < 0 && errno != EAGAIN && errno != EINTR) ? 2 : 1;
-        }
+        if (pty && read_pty(pty) < 0)
+            return -1;
+        if (!pty)
+            r = ev[i].data.fd != fd || r == 1 ? 1 : 2;
     }
     return r;
 }
 
 /* pump's wait for fd's next message: 1 when its mailbox has bytes; 0 when the loop's turn has come
-   (another connection's message, another descriptor ready, until reached); 2 when fd's socket ended;
-   -1 a Python error. spin_ns: polled that long before it sleeps (--spin) */
+   (another connection's message, another descriptor ready, until reached); 2 when fd's socket is
+   ready (bells or its end: the loop's read); -1 a Python error. spin_ns: polled that long before it
+   sleeps (--spin). The loop's other descriptors are looked at before each sleep, and at least every
+   MBOX_GLANCE_NS while messages keep coming (a DUT on a core of its own may never let the session
+   sleep). */
 static int mbox_wait(struct mbox_table *t, mbox_slot *mb, int epfd, int fd, PyObject *ptys, uint64_t until,
-                     uint64_t spin_ns)
+                     uint64_t spin_ns, uint64_t *glanced)
 {
     uint32_t *word = &t->page->wake_seq;
     uint64_t spin_until = spin_ns ? mono_ns() + spin_ns : 0;
     for (;;) {
         if (PyErr_CheckSignals() < 0)
             return -1;
-        uint32_t seen = __atomic_load_n(word, __ATOMIC_ACQUIRE);
+        uint32_t seen = __atomic_load_n(word, __ATOMIC_SEQ_CST);
         int any = mbox_any(t, mb);
-        if (any)
-            return any == 1;
         uint64_t now = mono_ns();
-        if (now >= until)
+        if (now >= until || any == 2)
             return 0;
-        if (spin_until && now < spin_until)
+        if (any == 1 && now - *glanced < MBOX_GLANCE_NS)
+            return 1;
+        if (!any && spin_until && now < spin_until)
             continue;
         spin_until = 0;
         int glance = mbox_glance(epfd, fd, ptys);
-        if (glance < 0)
-            return -1;
-        if (glance == 2) {
-            char c;
-            ssize_t k = recv(fd, &c, 1, MSG_PEEK | MSG_DONTWAIT);
-            return k == 0 || (k < 0 && errno != EAGAIN && errno != EINTR) ? 2 : 0;
-        }
+        *glanced = now;
+        if (glance)
+            return glance == 1 ? 0 : glance;
+        if (any)
+            return 1;
         mbox_set_state(t, RIG_SESSION_FUTEX);
         if (!mbox_any(t, mb)) {
             uint64_t slice = until - now < MBOX_SLICE_NS ? until - now : MBOX_SLICE_NS;
@@ -189,8 +188,10 @@ static PyObject *fp_mailbox_open(PyObject *self, PyObject *const *a, Py_ssize_t 
         return NULL;
     if (t->n == MBOX_MAX || mbox_find(t, fd))
         return PyLong_FromLong(-1);
-    int mfd = memfd_create("rig-mailbox", MFD_CLOEXEC);
-    if (mfd < 0 || ftruncate(mfd, sizeof(struct rig_mailbox)) < 0) {
+    /* sealed at its size: a DUT that shrank it would make the session's next look a SIGBUS */
+    int mfd = memfd_create("rig-mailbox", MFD_CLOEXEC | MFD_ALLOW_SEALING);
+    if (mfd < 0 || ftruncate(mfd, sizeof(struct rig_mailbox)) < 0 ||
+        fcntl(mfd, F_ADD_SEALS, F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_SEAL) < 0) {
         PyErr_SetFromErrno(PyExc_OSError);
         if (mfd >= 0)
             close(mfd);
@@ -202,6 +203,7 @@ static PyObject *fp_mailbox_open(PyObject *self, PyObject *const *a, Py_ssize_t 
         return PyErr_SetFromErrno(PyExc_OSError);
     }
     m->magic = RIG_MAILBOX_MAGIC;
+    m->ring_size = RIG_RING_SIZE;
     t->slot[t->n++] = (mbox_slot){ .fd = fd, .m = m };
     return PyLong_FromLong(mfd);
 }
@@ -243,7 +245,11 @@ static PyObject *fp_mailbox_take(PyObject *self, PyObject *const *a, Py_ssize_t 
     Py_ssize_t had = PyByteArray_GET_SIZE(a[2]);
     if (PyByteArray_Resize(a[2], had + (Py_ssize_t)used) < 0)
         return NULL;
-    return PyLong_FromSsize_t(mbox_take(mb, (uint8_t *)PyByteArray_AS_STRING(a[2]) + had, (Py_ssize_t)used));
+    /* (what the head says now, at most what it said above: the rest of the room is given back) */
+    Py_ssize_t n = mbox_take(mb, (uint8_t *)PyByteArray_AS_STRING(a[2]) + had, (Py_ssize_t)used);
+    if (PyByteArray_Resize(a[2], had + (n > 0 ? n : 0)) < 0)
+        return NULL;
+    return PyLong_FromSsize_t(n);
 }
 
 /* mailbox_put(state, fd, data) -> False when fd's down ring has no room for data (nothing written) */

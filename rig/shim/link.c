@@ -59,16 +59,19 @@ static uint64_t mono_now(void)
     return (uint64_t)ts.tv_sec * 1000000000u + (uint64_t)ts.tv_nsec;
 }
 
-/* What was put in the up ring is there: wake the session as it waits (protocol.h RIG_SESSION_*). */
-static void mbox_wake_session(void)
+/* Something for the session is there: wake it as it waits (protocol.h RIG_SESSION_*). ``bell``: a byte
+   on the socket if it waits in its loop's epoll (what was sent on the socket rings that itself). A
+   session asleep in pump on a mailbox wakes for a message on any socket too, so a process without a
+   mailbox (a new one's HELLO) is not left for its slice. */
+static void wake_session(int bell)
 {
     __atomic_fetch_add(&shm->wake_seq, 1, __ATOMIC_SEQ_CST);
     uint32_t state = __atomic_load_n(&shm->session_state, __ATOMIC_SEQ_CST);
     if (state == RIG_SESSION_FUTEX) {
         rig_futex_wake(&shm->wake_seq);
-    } else if (state == RIG_SESSION_POLL) {
-        char bell = 0;
-        (void)send(sock, &bell, 1, MSG_DONTWAIT | MSG_NOSIGNAL); /* (a full socket has bells already) */
+    } else if (state == RIG_SESSION_POLL && bell) {
+        char zero = 0;
+        (void)send(sock, &zero, 1, MSG_DONTWAIT | MSG_NOSIGNAL); /* (a full socket has bells already) */
     }
 }
 
@@ -85,7 +88,7 @@ static void mbox_send_iov(const struct iovec *iov, int n)
     while ((room = ring_room(&mbox->up, mbox_head)) < (int64_t)total) {
         if (room < 0)
             die_session("a broken mailbox");
-        mbox_wake_session();
+        wake_session(1);
         if (session_gone())
             die_session("the session closed the connection");
         struct timespec pause = { 0, 50000 };
@@ -96,7 +99,7 @@ static void mbox_send_iov(const struct iovec *iov, int n)
         mbox_head += iov[i].iov_len;
     }
     ring_publish(&mbox->up, mbox_head);
-    mbox_wake_session();
+    wake_session(1);
 }
 
 /* Blocks until the down ring holds a reply's header: polled for spin_ns first (--spin), then asleep on
@@ -105,8 +108,9 @@ static void mbox_await(void)
 {
     struct rig_ring_ctl *c = &mbox->down;
     const uint64_t until = spin_ns ? mono_now() + spin_ns : 0;
+    uint64_t check = 0; /* when to look at the socket next (signals do not put it off) */
     for (;;) {
-        uint32_t seen = __atomic_load_n(&c->seq, __ATOMIC_ACQUIRE);
+        uint32_t seen = __atomic_load_n(&c->seq, __ATOMIC_SEQ_CST);
         int64_t used = ring_used(c, mbox_tail);
         if (used < 0)
             die_session("a broken mailbox");
@@ -115,12 +119,18 @@ static void mbox_await(void)
         if (until && mono_now() < until)
             continue;
         __atomic_store_n(&c->sleeping, 1, __ATOMIC_SEQ_CST);
-        if (ring_used(c, mbox_tail) == used) {
-            long r = rig_futex_wait(&c->seq, seen, MBOX_CHECK_NS);
-            if (r < 0 && errno == ETIMEDOUT && session_gone())
-                die_session("no reply");
-        }
+        __atomic_thread_fence(__ATOMIC_SEQ_CST); /* (the head is read after it, on any architecture) */
+        if (ring_used(c, mbox_tail) == used)
+            rig_futex_wait(&c->seq, seen, MBOX_CHECK_NS);
         __atomic_store_n(&c->sleeping, 0, __ATOMIC_RELAXED);
+        uint64_t now = mono_now();
+        if (!check)
+            check = now + MBOX_CHECK_NS;
+        if (now >= check) {
+            if (session_gone())
+                die_session("no reply");
+            check = now + MBOX_CHECK_NS;
+        }
     }
 }
 
@@ -139,7 +149,9 @@ static struct rig_hdr mbox_reply(uint16_t type, void *out, uint32_t cap)
     return h;
 }
 
-/* The HELLO reply's header from the socket, and the mailbox's memfd with it if the session granted one */
+/* The HELLO reply from the socket: its header, and the mailbox if the session granted one (the reply's
+   payload says so: u32 RIG_HELLO_MAILBOX; its memfd comes with it). -1: no reply; 1: a mailbox granted
+   whose descriptor did not arrive (this connection is of no use: the session reads it as a mailbox's). */
 static int recv_hello(struct rig_hdr *h)
 {
     union {
@@ -154,21 +166,32 @@ static int recv_hello(struct rig_hdr *h)
     while (k < 0 && errno == EINTR);
     if (k <= 0 || ((size_t)k < sizeof *h && recv_all((char *)h + k, sizeof *h - (size_t)k) < 0))
         return -1;
+    int fd = -1;
     struct cmsghdr *cm = CMSG_FIRSTHDR(&m);
-    if (!cm || cm->cmsg_level != SOL_SOCKET || cm->cmsg_type != SCM_RIGHTS || cm->cmsg_len != CMSG_LEN(sizeof(int)))
+    if (cm && cm->cmsg_level == SOL_SOCKET && cm->cmsg_type == SCM_RIGHTS && cm->cmsg_len == CMSG_LEN(sizeof(int)))
+        memcpy(&fd, CMSG_DATA(cm), sizeof fd);
+    uint32_t granted = 0;
+    if (h->len != 0 && (h->len != sizeof granted || recv_all(&granted, sizeof granted) < 0))
+        return -1;
+    if (!(granted & RIG_HELLO_MAILBOX)) {
+        if (fd >= 0)
+            LOAD(close)(fd);
         return 0;
-    int fd;
-    memcpy(&fd, CMSG_DATA(cm), sizeof fd);
+    }
+    if (fd < 0) /* (the kernel drops a descriptor past this process's limit of open files: MSG_CTRUNC) */
+        return 1;
     void *p = mmap(NULL, sizeof *mbox, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
     LOAD(close)(fd);
-    if (p == MAP_FAILED || ((struct rig_mailbox *)p)->magic != RIG_MAILBOX_MAGIC)
-        die_session("the session's mailbox cannot be mapped");
+    if (p == MAP_FAILED || ((struct rig_mailbox *)p)->magic != RIG_MAILBOX_MAGIC ||
+        ((struct rig_mailbox *)p)->ring_size != RIG_RING_SIZE)
+        die_session("the session's mailbox cannot be mapped (a rig of another build?)");
     mbox = p;
     mbox_head = mbox_tail = 0;
     return 0;
 }
 
 static void send_msg(uint16_t type, const void *payload, uint32_t len);
+static void hold_msg(uint16_t type, const void *payload, uint32_t len);
 
 /* Connects on first use and again after fork (a child gets its own connection). Caller holds lock. */
 static void ensure_connected(void)
@@ -181,20 +204,33 @@ static void ensure_connected(void)
         munmap(mbox, sizeof *mbox); /* (and its mailbox) */
     mbox = NULL;
     held_len = 0; /* (and what the parent held: the parent sends it) */
-    sock = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
-    struct sockaddr_un addr = { .sun_family = AF_UNIX };
-    strcpy(addr.sun_path, sock_path);
-    if (sock < 0 || connect(sock, (struct sockaddr *)&addr, sizeof addr) < 0)
-        die_session(strerror(errno));
-    sock_pid = self_pid();
-    /* lockstep: a mailbox asked for (ring.h); a session that keeps to the socket sends no memfd */
-    uint32_t hello[3] = { RIG_PROTOCOL_VERSION, (uint32_t)sock_pid, RIG_HELLO_MAILBOX };
-    send_msg(RIG_MSG_HELLO, hello, lockstep ? sizeof hello : 2 * sizeof hello[0]);
-    struct rig_hdr h;
-    if (recv_hello(&h) < 0 || h.type != RIG_MSG_HELLO || h.len != 0)
-        die_session("no HELLO reply");
-    if (h.status)
-        die_session("the session refused this shim's protocol version");
+    /* lockstep: a mailbox asked for (ring.h); a session that keeps to the socket sends no memfd. One
+       granted whose descriptor did not arrive: connected again without asking, and the run told why */
+    for (int ask = lockstep;; ask = 0) {
+        sock = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+        struct sockaddr_un addr = { .sun_family = AF_UNIX };
+        strcpy(addr.sun_path, sock_path);
+        if (sock < 0 || connect(sock, (struct sockaddr *)&addr, sizeof addr) < 0)
+            die_session(strerror(errno));
+        sock_pid = self_pid();
+        uint32_t hello[3] = { RIG_PROTOCOL_VERSION, (uint32_t)sock_pid, RIG_HELLO_MAILBOX };
+        send_msg(RIG_MSG_HELLO, hello, ask ? sizeof hello : 2 * sizeof hello[0]);
+        struct rig_hdr h;
+        int got = recv_hello(&h);
+        if (got < 0 || h.type != RIG_MSG_HELLO)
+            die_session("no HELLO reply");
+        if (h.status)
+            die_session("the session refused this shim's protocol version");
+        if (got == 0 && ask == lockstep)
+            return;
+        if (got == 0) {
+            static const char why[] = "a mailbox's descriptor did not reach this process (at its limit of open "
+                                      "files?): its messages go through the socket";
+            hold_msg(RIG_MSG_NOTE, why, sizeof why - 1);
+            return;
+        }
+        LOAD(close)(sock);
+    }
 }
 
 /* The iovecs whole, across signals and short writes. */
@@ -219,6 +255,8 @@ static void send_iov(struct iovec *iov, int n)
             iov->iov_len -= done;
         }
     }
+    if (lockstep)
+        wake_session(0); /* (a session asleep on the mailboxes' futex: wake_session) */
 }
 
 /* What is held (hold_msg), then header and payload, in one sendmsg: two sends would wake the session

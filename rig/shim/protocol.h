@@ -25,8 +25,9 @@ struct rig_hdr {
 };
 
 enum {
-    RIG_MSG_HELLO = 1, /* payload: u32 version, u32 pid[, u32 RIG_HELLO_MAILBOX]. Reply: status only; with
-                          the flag, and if the session grants it, the mailbox's memfd (SCM_RIGHTS) */
+    RIG_MSG_HELLO = 1, /* payload: u32 version, u32 pid[, u32 RIG_HELLO_MAILBOX]. Reply: status; when the
+                          session grants the mailbox asked for, payload u32 RIG_HELLO_MAILBOX and the
+                          mailbox's memfd (SCM_RIGHTS) */
     RIG_MSG_I2C = 2,   /* payload: u16 bus, u16 nmsgs, nmsgs x rig_i2c_msg, then the write bytes.
                           Reply: status; payload: the bytes of each read message in order (a
                           RECV_LEN read gives its count byte, then count bytes) */

@@ -44,7 +44,8 @@ struct rig_ring_ctl {
 
 struct rig_mailbox {
     uint64_t magic;
-    uint8_t pad[56];
+    uint64_t ring_size; /* RIG_RING_SIZE of the session's build (the shim checks it is its own) */
+    uint8_t pad[48];
     struct rig_ring_ctl up, down;
     uint8_t up_data[RIG_RING_SIZE];
     uint8_t down_data[RIG_RING_SIZE];

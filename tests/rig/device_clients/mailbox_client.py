@@ -2,7 +2,12 @@
 layout, on a connection of its own beside the shim's.
 
     mailbox_client.py wrap     300 transfers of about 8 KB each way: both rings wrap twice
-    mailbox_client.py broken   a head no ring can have: the session must drop this connection only
+    mailbox_client.py broken   the memfd cannot be shrunk; a head no ring can have: the session must
+                               drop this connection only
+    mailbox_client.py flood    I2C requests put without end, their replies never read, no bell rung:
+                               the session must still end the run by its wall-time watchdog
+    mailbox_client.py nofd     the memfd not taken (as a process at its limit of open files loses it),
+                               then a request on the socket: the session must drop this connection
 
 Prints what it saw, then reads WHO_AM_I through the shim (smbus2) to show the session still serves.
 """
@@ -31,12 +36,22 @@ class Timespec(ctypes.Structure):
     _fields_ = [("tv_sec", ctypes.c_long), ("tv_nsec", ctypes.c_long)]
 
 
+# the shared counters through ctypes: one load or store each (struct's pack_into and unpack_from move
+# them a byte at a time, and the other side would see a counter half written)
 def u64(mm: mmap.mmap, at: int) -> int:
-    return int(struct.unpack_from("<Q", mm, at)[0])
+    return int(ctypes.c_uint64.from_buffer(mm, at).value)
 
 
 def u32(mm: mmap.mmap, at: int) -> int:
-    return int(struct.unpack_from("<I", mm, at)[0])
+    return int(ctypes.c_uint32.from_buffer(mm, at).value)
+
+
+def set64(mm: mmap.mmap, at: int, value: int) -> None:
+    ctypes.c_uint64.from_buffer(mm, at).value = value
+
+
+def set32(mm: mmap.mmap, at: int, value: int) -> None:
+    ctypes.c_uint32.from_buffer(mm, at).value = value
 
 
 def address(mm: mmap.mmap, at: int) -> int:
@@ -49,30 +64,45 @@ os.close(fd)
 sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
 sock.connect(os.environ["RIG_SOCKET"])
 sock.sendall(HEADER.pack(12, 1, 0, u64(page, 16)) + struct.pack("<III", 3, os.getpid(), 1))
-reply, fds, _, _ = socket.recv_fds(sock, HEADER.size, 1)
-assert len(reply) == HEADER.size and len(fds) == 1, (reply, fds)
+if sys.argv[1] == "nofd":
+    reply = sock.recv(HEADER.size + 4)   # (no room for the descriptor: the kernel closes it)
+    assert reply[HEADER.size:] == struct.pack("<I", 1), reply
+    sock.sendall(HEADER.pack(0, 4, 0, 0))
+    print("closed" if sock.recv(1) == b"" else "open")
+    with SMBus(1) as bus:
+        print(hex(bus.read_byte_data(0x68, 0x75)))
+    sys.exit()
+reply, fds, _, _ = socket.recv_fds(sock, HEADER.size + 4, 1)
+assert reply[HEADER.size:] == struct.pack("<I", 1) and len(fds) == 1, (reply, fds)  # granted
 box = mmap.mmap(fds[0], 192 + 2 * RING)
+try:
+    os.ftruncate(fds[0], 0)
+    print("shrunk")
+except PermissionError:
+    print("sealed")
 os.close(fds[0])
-assert box[:8] == b"MAILBOX1"
+assert box[:8] == b"MAILBOX1" and u64(box, 8) == RING
 head = tail = 0
 
 
 def wake_session() -> None:
-    struct.pack_into("<I", page, WAKE_SEQ, (u32(page, WAKE_SEQ) + 1) & 0xFFFFFFFF)
+    set32(page, WAKE_SEQ, (u32(page, WAKE_SEQ) + 1) & 0xFFFFFFFF)
     state = u32(page, SESSION_STATE)
     if state == FUTEX:
         libc.syscall(SYS_FUTEX, ctypes.c_void_p(address(page, WAKE_SEQ)), FUTEX_WAKE, 1, None, None, 0)
-    elif state == POLL:
+    elif state == POLL and sys.argv[1] != "flood":  # (flood: as if the session never slept in its loop)
         sock.send(b"\0")
 
 
 def put(data: bytes) -> None:
     global head
+    while head + len(data) - u64(box, UP + 8) > RING:  # no room: the session has not read enough yet
+        wake_session()
     for i, byte_run in enumerate((data[:RING - head % RING], data[RING - head % RING:])):
         at = UP_DATA + (head % RING if i == 0 else 0)
         box[at:at + len(byte_run)] = byte_run
     head += len(data)
-    struct.pack_into("<Q", box, UP, head)
+    set64(box, UP, head)
     wake_session()
 
 
@@ -80,23 +110,27 @@ def take(n: int) -> bytes:
     global tail
     while u64(box, DOWN) - tail < n:  # asleep on the ring's futex, 10 ms at most at a time
         seen = u32(box, DOWN + 16)
-        struct.pack_into("<I", box, DOWN + 20, 1)
+        set32(box, DOWN + 20, 1)
         if u64(box, DOWN) - tail < n:
             libc.syscall(SYS_FUTEX, ctypes.c_void_p(address(box, DOWN + 16)), FUTEX_WAIT, seen,
                          ctypes.byref(Timespec(0, 10_000_000)), None, 0)
-        struct.pack_into("<I", box, DOWN + 20, 0)
+        set32(box, DOWN + 20, 0)
     at = tail % RING
     data = bytes(box[DOWN_DATA + at:DOWN_DATA + min(at + n, RING)])
     data += bytes(box[DOWN_DATA:DOWN_DATA + n - len(data)])
     tail += n
-    struct.pack_into("<Q", box, DOWN + 8, tail)
+    set64(box, DOWN + 8, tail)
     return data
 
 
-def transfer(msgs: list[tuple[int, int, int]], written: bytes) -> tuple[int, bytes]:
+def request(msgs: list[tuple[int, int, int]], written: bytes) -> bytes:
     payload = struct.pack("<HH", 1, len(msgs))
-    payload += b"".join(struct.pack("<HHHH", a, f, n, 0) for a, f, n in msgs)
-    put(HEADER.pack(len(payload) + len(written), 2, 0, u64(page, 16)) + payload + written)
+    payload += b"".join(struct.pack("<HHHH", a, f, n, 0) for a, f, n in msgs) + written
+    return HEADER.pack(len(payload), 2, 0, u64(page, 16)) + payload
+
+
+def transfer(msgs: list[tuple[int, int, int]], written: bytes) -> tuple[int, bytes]:
+    put(request(msgs, written))
     length, mtype, status, _ = HEADER.unpack(take(HEADER.size))
     assert mtype == 2, mtype
     return status, take(length)
@@ -127,8 +161,12 @@ if sys.argv[1] == "wrap":
         absent_writes += status != 0 and data == b""
     print("reads", good_reads, "absent", absent_writes, "up", head, "down", tail, "across", across_up,
           across_down)
+elif sys.argv[1] == "flood":
+    who_am_i = request([(0x68, 0, 1), (0x68, 1, 1)], b"\x75")
+    while True:
+        put(who_am_i)
 else:
-    struct.pack_into("<Q", box, UP, 1 << 40)
+    set64(box, UP, 1 << 40)
     wake_session()
     print("closed" if sock.recv(1) == b"" else "open")
 with SMBus(1) as bus:
