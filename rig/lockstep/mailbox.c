@@ -102,9 +102,23 @@ static uint64_t mono_ns(void); /* (events.c) */
 static int read_pty(PyObject *pair);
 static PyObject *pty_of(PyObject *ptys, int fd);
 
-/* The loop's epoll set looked at without waiting: a pty's bytes are read (as pump does); 1 when
-   another descriptor is ready, else 2 when fd's socket is (bells, which the loop's read takes and
-   checks, or its end), 0 when nothing is, -1 a Python error */
+/* fd's bells (zero bytes a process sent while the session was in its loop) taken off its socket: 1;
+   0 when anything else is there (other bytes, its end: the loop's read says what) */
+static int mbox_drain_bells(int fd)
+{
+    uint8_t bells[256];
+    ssize_t k = recv(fd, bells, sizeof bells, MSG_PEEK | MSG_DONTWAIT);
+    if (k <= 0)
+        return k < 0 && (errno == EAGAIN || errno == EINTR);
+    for (ssize_t i = 0; i < k; i++)
+        if (bells[i])
+            return 0;
+    return recv(fd, bells, (size_t)k, MSG_DONTWAIT) == k;
+}
+
+/* The loop's epoll set looked at without waiting: a pty's bytes are read and fd's bells taken (as the
+   loop would); 1 when another descriptor is ready, else 2 when fd's socket has anything but bells
+   (its end, other bytes: the loop's read), 0 when nothing is, -1 a Python error */
 static int mbox_glance(int epfd, int fd, PyObject *ptys)
 {
     struct epoll_event ev[8];
@@ -113,7 +127,7 @@ static int mbox_glance(int epfd, int fd, PyObject *ptys)
         PyObject *pty = ev[i].data.fd == fd ? NULL : pty_of(ptys, ev[i].data.fd);
         if (pty && read_pty(pty) < 0)
             return -1;
-        if (!pty)
+        if (!pty && (ev[i].data.fd != fd || !mbox_drain_bells(fd)))
             r = ev[i].data.fd != fd || r == 1 ? 1 : 2;
     }
     return r;
