@@ -20,7 +20,7 @@
 
 #define MBOX_MAX 64              /* connections with a mailbox at once; more keep their socket */
 #define MBOX_SLICE_NS 2000000ull /* the longest futex sleep in pump: how late an ended DUT is seen */
-#define MBOX_GLANCE_NS 100000ull /* the loop's other descriptors are looked at this often while messages come */
+#define MBOX_GLANCE_EVERY 64     /* messages taken without a sleep between looks at the loop's descriptors */
 
 typedef struct {
     int fd;                /* the connection's socket */
@@ -136,11 +136,11 @@ static int mbox_glance(int epfd, int fd, PyObject *ptys)
 /* pump's wait for fd's next message: 1 when its mailbox has bytes; 0 when the loop's turn has come
    (another connection's message, another descriptor ready, until reached); 2 when fd's socket is
    ready (bells or its end: the loop's read); -1 a Python error. spin_ns: polled that long before it
-   sleeps (--spin). The loop's other descriptors are looked at before each sleep, and at least every
-   MBOX_GLANCE_NS while messages keep coming (a DUT on a core of its own may never let the session
+   sleeps (--spin). The loop's other descriptors are looked at before each sleep, and after every
+   MBOX_GLANCE_EVERY messages taken without one (a DUT on a core of its own may never let the session
    sleep). */
 static int mbox_wait(struct mbox_table *t, mbox_slot *mb, int epfd, int fd, PyObject *ptys, uint64_t until,
-                     uint64_t spin_ns, uint64_t *glanced)
+                     uint64_t spin_ns, unsigned *unglanced)
 {
     uint32_t *word = &t->page->wake_seq;
     uint64_t spin_until = spin_ns ? mono_ns() + spin_ns : 0;
@@ -152,13 +152,13 @@ static int mbox_wait(struct mbox_table *t, mbox_slot *mb, int epfd, int fd, PyOb
         uint64_t now = mono_ns();
         if (now >= until || any == 2)
             return 0;
-        if (any == 1 && now - *glanced < MBOX_GLANCE_NS)
+        if (any == 1 && ++*unglanced < MBOX_GLANCE_EVERY)
             return 1;
         if (!any && spin_until && now < spin_until)
             continue;
         spin_until = 0;
         int glance = mbox_glance(epfd, fd, ptys);
-        *glanced = now;
+        *unglanced = 0;
         if (glance)
             return glance == 1 ? 0 : glance;
         if (any)

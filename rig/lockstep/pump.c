@@ -115,14 +115,14 @@ static PyObject *fp_pump(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
     const uint64_t until = mono_ns() + PUMP_BUDGET_NS;
     int readable = 1; /* the loop found fd readable: it is read before anything is waited on */
     mbox_slot *mb = mbox_find(s->mboxes, fd);
-    uint64_t glanced = mono_ns(); /* (mailbox: when the loop's other descriptors were last looked at) */
+    unsigned unglanced = 0; /* (mailbox: messages taken since the loop's descriptors were looked at) */
     if (mb)
         mbox_set_state(s->mboxes, RIG_SESSION_RUNNING);
     for (;;) {
         if (PyErr_CheckSignals() < 0)
             goto fail;
         if (!readable && mb) { /* the mailbox's wait (mailbox.c) */
-            int w = mbox_wait(s->mboxes, mb, epfd, fd, ptys, until, spin_ns, &glanced);
+            int w = mbox_wait(s->mboxes, mb, epfd, fd, ptys, until, spin_ns, &unglanced);
             if (w < 0)
                 goto fail;
             if (w == 2 && !got) { /* its socket (bells, the end), nothing came: the loop's own read */
