@@ -222,21 +222,37 @@ static PyObject *fp_mailbox_open(PyObject *self, PyObject *const *a, Py_ssize_t 
     return PyLong_FromLong(mfd);
 }
 
-/* mailbox_close(state, fd): connection fd's mailbox unmapped (its connection is dropped) */
-static PyObject *fp_mailbox_close(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
+/* A call's connection: a[0] the state, a[1] the connection's fd, nargs as usage says. Its mailbox's
+   slot (and table, in *table); NULL with the error set for a call of another shape or a connection
+   without a mailbox. */
+static mbox_slot *slot_arg(PyObject *const *a, Py_ssize_t nargs, Py_ssize_t want, const char *usage,
+                           struct mbox_table **table)
 {
-    (void)self;
-    if (nargs != 2)
-        return PyErr_Format(PyExc_TypeError, "mailbox_close takes 2 arguments");
+    if (nargs != want) {
+        PyErr_SetString(PyExc_TypeError, usage);
+        return NULL;
+    }
     struct mbox_table *t = mbox_table_of(a[0]);
     int fd = (int)PyLong_AsLong(a[1]);
     if (!t || PyErr_Occurred())
         return NULL;
     mbox_slot *mb = mbox_find(t, fd);
-    if (mb) {
-        munmap(mb->m, sizeof *mb->m);
-        *mb = t->slot[--t->n];
-    }
+    if (!mb)
+        PyErr_Format(PyExc_ValueError, "connection %d has no mailbox", fd);
+    *table = t;
+    return mb;
+}
+
+/* mailbox_close(state, fd): connection fd's mailbox unmapped (its connection is dropped) */
+static PyObject *fp_mailbox_close(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
+{
+    (void)self;
+    struct mbox_table *t;
+    mbox_slot *mb = slot_arg(a, nargs, 2, "mailbox_close takes (state, fd)", &t);
+    if (!mb)
+        return NULL;
+    munmap(mb->m, sizeof *mb->m);
+    *mb = t->slot[--t->n];
     Py_RETURN_NONE;
 }
 
@@ -244,15 +260,12 @@ static PyObject *fp_mailbox_close(PyObject *self, PyObject *const *a, Py_ssize_t
 static PyObject *fp_mailbox_take(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 3 || !PyByteArray_Check(a[2]))
-        return PyErr_Format(PyExc_TypeError, "mailbox_take takes (state, fd, bytearray)");
-    struct mbox_table *t = mbox_table_of(a[0]);
-    int fd = (int)PyLong_AsLong(a[1]);
-    if (!t || PyErr_Occurred())
-        return NULL;
-    mbox_slot *mb = mbox_find(t, fd);
+    struct mbox_table *t;
+    mbox_slot *mb = slot_arg(a, nargs, 3, "mailbox_take takes (state, fd, bytearray)", &t);
     if (!mb)
-        return PyErr_Format(PyExc_ValueError, "connection %d has no mailbox", fd);
+        return NULL;
+    if (!PyByteArray_Check(a[2]))
+        return PyErr_Format(PyExc_TypeError, "mailbox_take takes (state, fd, bytearray)");
     int64_t used = ring_used(&mb->m->up, mb->tail);
     if (used <= 0)
         return PyLong_FromLongLong(used);
@@ -270,15 +283,10 @@ static PyObject *fp_mailbox_take(PyObject *self, PyObject *const *a, Py_ssize_t 
 static PyObject *fp_mailbox_put(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 3)
-        return PyErr_Format(PyExc_TypeError, "mailbox_put takes (state, fd, data)");
-    struct mbox_table *t = mbox_table_of(a[0]);
-    int fd = (int)PyLong_AsLong(a[1]);
-    if (!t || PyErr_Occurred())
-        return NULL;
-    mbox_slot *mb = mbox_find(t, fd);
+    struct mbox_table *t;
+    mbox_slot *mb = slot_arg(a, nargs, 3, "mailbox_put takes (state, fd, data)", &t);
     if (!mb)
-        return PyErr_Format(PyExc_ValueError, "connection %d has no mailbox", fd);
+        return NULL;
     Py_buffer data;
     if (PyObject_GetBuffer(a[2], &data, PyBUF_SIMPLE) < 0)
         return NULL;

@@ -9,6 +9,7 @@ import subprocess
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -50,3 +51,20 @@ def build_client(tmp_path_factory: pytest.TempPathFactory, name: str) -> Path:
     subprocess.run(["gcc", "-std=c11", "-O1", "-Wall", "-Wextra", "-Werror", "-o", str(exe),
                     str(DUTS / f"{name}.c")], check=True)
     return exe
+
+
+def assert_same_flight(a: Any, b: Any) -> None:
+    """Two runs' results (rig.runner.run) equal to the bit: verdict, measurements, every recorded
+    signal, the I2C log and the RC frames (a change of how a run goes, not of what it does)."""
+    import dataclasses
+
+    import numpy as np
+
+    assert a.verdict == b.verdict and a.error is None is b.error
+    assert [dataclasses.astuple(m) for m in a.measurements] == [
+        dataclasses.astuple(m) for m in b.measurements]
+    assert a.signals.keys() == b.signals.keys()
+    for name, values in a.signals.items():
+        assert np.array_equal(values, b.signals[name], equal_nan=True), name
+    assert a.i2c is not None and len(a.i2c) > 1000 and a.i2c == b.i2c
+    assert a.rc_frames == b.rc_frames

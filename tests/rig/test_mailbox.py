@@ -9,12 +9,11 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from rig.scheduler import EXIT_WATCHDOG
 from rig.session import TRANSPORT_ENV
-from tests.rig.helpers import DUTS, PY, rig_exec
+from tests.rig.helpers import DUTS, PY, assert_same_flight, rig_exec
 
 TOUCH_BUS = "from smbus2 import SMBus; b = SMBus(1); b.read_byte_data(0x68, 0x75); "
 MAPPED = TOUCH_BUS + "print('rig-mailbox' in open('/proc/self/maps').read())"
@@ -44,14 +43,7 @@ def test_a_flight_through_the_mailbox_is_the_flight_through_the_socket(
     mailbox = run(sc, ProcessTarget(), seed=1, work_dir=tmp_path / "mailbox")
     monkeypatch.setenv(TRANSPORT_ENV, "socket")
     sock = run(sc, ProcessTarget(), seed=1, work_dir=tmp_path / "socket")
-    assert mailbox.verdict == sock.verdict and mailbox.error is None is sock.error
-    assert [dataclasses.astuple(m) for m in mailbox.measurements] == [
-        dataclasses.astuple(m) for m in sock.measurements]
-    assert mailbox.signals.keys() == sock.signals.keys()
-    for name, values in mailbox.signals.items():
-        assert np.array_equal(values, sock.signals[name], equal_nan=True), name
-    assert mailbox.i2c is not None and len(mailbox.i2c) > 1000 and mailbox.i2c == sock.i2c
-    assert mailbox.rc_frames == sock.rc_frames
+    assert_same_flight(mailbox, sock)
 
 
 def test_a_second_implementation_is_served_across_both_rings_ends(tmp_path: Path) -> None:

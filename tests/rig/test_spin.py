@@ -12,11 +12,10 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from rig.cores import CoresError, placement
-from tests.rig.helpers import PY, build_client, rig_exec
+from tests.rig.helpers import PY, assert_same_flight, build_client, rig_exec
 
 
 @pytest.fixture
@@ -58,14 +57,7 @@ def test_a_flight_with_spin_is_the_flight_without(tmp_path: Path, two_cores: Non
     library = Path(scenarios.__file__).parent / "library"
     sc = dataclasses.replace(load(library / "step_roll.toml"), duration=3.0)
     plain, spun = (run(sc, ProcessTarget(spin=s), seed=1, work_dir=tmp_path / str(s)) for s in (False, True))
-    assert plain.verdict == spun.verdict and plain.error is None is spun.error
-    assert [dataclasses.astuple(m) for m in plain.measurements] == [
-        dataclasses.astuple(m) for m in spun.measurements]
-    assert plain.signals.keys() == spun.signals.keys()
-    for name, values in plain.signals.items():
-        assert np.array_equal(values, spun.signals[name], equal_nan=True), name
-    assert plain.i2c is not None and len(plain.i2c) > 1000 and plain.i2c == spun.i2c
-    assert plain.rc_frames == spun.rc_frames
+    assert_same_flight(plain, spun)
 
 
 def test_a_program_sees_the_same_times_and_runs_on_its_own_core(
