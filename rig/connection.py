@@ -34,8 +34,9 @@ class Conn:
     mailbox: FastPath | None = None
 
     def grant(self, fast: FastPath, reply: bytes) -> bool:
-        """Sends the HELLO ``reply`` with a new mailbox's memfd; False when no mailbox is left (the caller
-        sends the reply as it is, and the connection keeps its socket)."""
+        """Sends the HELLO ``reply`` (the one that says a mailbox comes with it) with a new mailbox's
+        memfd; False when none is to be had (the caller sends the plain reply, and the connection keeps
+        its socket)."""
         fd = self.sock.fileno()
         try:
             memfd = fast.mailbox_open(fd)
