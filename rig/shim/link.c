@@ -326,15 +326,12 @@ static void send_held_now(void)
    sees the reply within a microsecond or two. -1 (errno EAGAIN): none came, sleep for it. */
 static ssize_t recv_spinning(struct msghdr *m)
 {
-    struct timespec ts;
-    LOAD(clock_gettime)(CLOCK_MONOTONIC, &ts);
-    uint64_t until = (uint64_t)ts.tv_sec * 1000000000u + (uint64_t)ts.tv_nsec + spin_ns;
+    const uint64_t until = mono_now() + spin_ns;
     for (;;) {
         ssize_t k = recvmsg(sock, m, MSG_DONTWAIT);
         if (k >= 0 || (errno != EAGAIN && errno != EINTR))
             return k;
-        LOAD(clock_gettime)(CLOCK_MONOTONIC, &ts);
-        if ((uint64_t)ts.tv_sec * 1000000000u + (uint64_t)ts.tv_nsec >= until)
+        if (mono_now() >= until)
             return -1;
     }
 }
