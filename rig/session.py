@@ -24,7 +24,6 @@ import os
 import selectors
 import shutil
 import socket
-import subprocess
 import termios
 import time
 import tty
@@ -37,6 +36,7 @@ from rig import interrupts, scratch
 from rig import protocol as P
 from rig.connection import Conn
 from rig.cores import SPIN_NS, placement
+from rig.dut_process import Keeper, dut_env
 from rig.handler import Handler
 from rig.lockstep import FastPath, attach, pending_input
 from rig.pace import FrozenHeap, PacedSelector, RealtimeHost
@@ -252,9 +252,9 @@ class Session:
         keeper_path = ensure_keeper()
         tmp = scratch.make("session")
         old_affinity = os.sched_getaffinity(0)
-        # (a list, not an Optional: compiled by mypyc, a local narrowed to _Keeper in the try is checked
+        # (a list, not an Optional: compiled by mypyc, a local narrowed to Keeper in the try is checked
         # as one in the finally, and an error before it was set became a TypeError that hid the error)
-        keepers: list[_Keeper] = []
+        keepers: list[Keeper] = []
         # real time: a selector that waits in C for the next event's absolute deadline (rig/pace)
         sel = (selectors.DefaultSelector() if cfg.lockstep
                else PacedSelector(self._deadline_ns, self._realtime_tick))
@@ -288,7 +288,7 @@ class Session:
                 self._rt_host.start()
             else:
                 self._heap.start()
-            keeper = _Keeper(keeper_path, cfg.command, env, cfg.stdout, cfg.stderr, KILL_GRACE_S)
+            keeper = Keeper(keeper_path, cfg.command, env, cfg.stdout, cfg.stderr, KILL_GRACE_S)
             keepers.append(keeper)
             if cores.session is not None:
                 os.sched_setaffinity(0, cores.session)
@@ -340,7 +340,7 @@ class Session:
                                   "the command wrote them with a call the shim does not redirect (a raw "
                                   "syscall, writev, dprintf or a FILE from fdopen)")
 
-    def _loop(self, sel: selectors.BaseSelector, listener: socket.socket, keeper: _Keeper,
+    def _loop(self, sel: selectors.BaseSelector, listener: socket.socket, keeper: Keeper,
               wall0: float) -> int | None:
         """Serves the DUT until its main process has ended; returns its exit status (negative: the
         signal that ended it), or None when it never started."""
@@ -366,7 +366,7 @@ class Session:
         self._collect_serial(self.now_ns)
         return keeper.returncode
 
-    def _serve(self, sel: selectors.BaseSelector, listener: socket.socket, keeper: _Keeper,
+    def _serve(self, sel: selectors.BaseSelector, listener: socket.socket, keeper: Keeper,
                wall0: float) -> None:
         cfg = self.cfg
         last_progress, last_sim = time.perf_counter(), self.now_ns
@@ -525,11 +525,13 @@ class Session:
         """The HELLO reply; with the mailbox the process asked for (rig/connection.py) when the fast
         path serves this session, unless RIG_TRANSPORT=socket keeps every message on the socket."""
         fast = self.fast
-        if self.in_flight:
-            self.deliver_serial()
-        granted = P.reply(P.MSG_HELLO, self.now_ns, P.HELLO_GRANTED.pack(P.HELLO_MAILBOX), status)
-        if not (mailbox and fast is not None and self._mailboxes and conn.grant(fast, granted)):
-            conn.send(P.reply(P.MSG_HELLO, self.now_ns, status=status))
+        if mailbox and fast is not None and self._mailboxes:
+            if self.in_flight:
+                self.deliver_serial()
+            granted = P.HELLO_GRANTED.pack(P.HELLO_MAILBOX)
+            if conn.grant(fast, P.reply(P.MSG_HELLO, self.now_ns, granted, status)):
+                return
+        self.send(conn, P.reply(P.MSG_HELLO, self.now_ns, status=status))
 
     # ---- sim time (rig/scheduler.py) -----------------------------------------------------------
 
@@ -602,100 +604,7 @@ class Session:
                        {} if self.cfg.lockstep else self._rt_host.state.as_dict())
 
 
-def dut_env(base: dict[str, str] | None, shim: Path, socket_path: Path | str, shm: Path | str, lockstep: bool,
-            i2c_bus: int, serial: dict[str, str], fakes: Path, spin_ns: int = 0) -> dict[str, str]:
-    """The DUT's environment: the shim preloaded and told where its session (or a virtual bridge's
-    board side) listens, the clock page, the emulated bus, which pty serves each serial path, and how
-    long a request polls for its reply (``spin_ns``, rig/cores.py; 0: it sleeps at once)."""
-    env = dict(base if base is not None else os.environ)
-    preload = env.get("LD_PRELOAD", "")
-    env.update({
-        "LD_PRELOAD": f"{shim} {preload}".strip(),
-        "RIG_SOCKET": str(socket_path),
-        "RIG_SHM": str(shm),
-        "RIG_LOCKSTEP": "1" if lockstep else "0",
-        "RIG_I2C_BUSES": str(i2c_bus),
-        "RIG_PWM_CHIP": "0",
-        "RIG_SERIAL": ":".join(f"{path}={tty}" for path, tty in serial.items()),
-        "RIG_FAKES": str(fakes.resolve()),
-    })
-    if spin_ns:
-        env["RIG_SPIN_NS"] = str(spin_ns)
-    return env
-
-
 def _pending_input(fd: int) -> int:
     buf = array.array("i", [0])
     fcntl.ioctl(fd, termios.FIONREAD, buf)
     return buf[0]
-
-
-class _Keeper:
-    """The DUT's parent, ``build/rig-keeper`` (rig/shim/keeper.c): a subreaper that ends every process
-    the DUT started, however it detached, when the lifeline closes or the DUT exits; and ends them
-    even when this process dies (the lifeline closes with it). Its status pipe says when the DUT's
-    main process has ended, and how."""
-
-    def __init__(self, path: Path, command: list[str], env: dict[str, str], stdout: IO[str] | int | None,
-                 stderr: IO[str] | int | None, grace_s: float) -> None:
-        status_r, status_w = os.pipe()
-        life_r, self._life = os.pipe()
-        kenv = dict(env)
-        kenv["RIG_KEEPER_PRELOAD"] = kenv.pop("LD_PRELOAD", "")  # the keeper runs without the shim
-        try:
-            self.proc = subprocess.Popen([str(path), str(status_w), str(life_r), str(round(grace_s * 1000)),
-                                          "--", *command], env=kenv, pass_fds=(status_w, life_r),
-                                         start_new_session=True, stdout=stdout, stderr=stderr)
-        except BaseException:
-            for fd in (status_r, self._life):
-                os.close(fd)
-            raise
-        finally:
-            os.close(status_w)
-            os.close(life_r)
-        self.status = status_r
-        os.set_blocking(status_r, False)
-        self.grace_s = grace_s
-        self._buf = b""
-        self.done = False                 # the DUT's main process has ended (or never started)
-        self.returncode: int | None = None
-        self.exec_errno: int | None = None
-
-    def read_status(self) -> None:
-        try:
-            chunk = os.read(self.status, 256)
-        except BlockingIOError:
-            return
-        if not chunk:  # the keeper is gone: whatever it did not say, the DUT is over
-            self.done = True
-            return
-        self._buf += chunk
-        *lines, self._buf = self._buf.split(b"\n")
-        for line in lines:
-            what, _, value = line.decode("ascii", "replace").partition(" ")
-            if what == "exit":
-                self.returncode = os.waitstatus_to_exitcode(int(value))
-                self.done = True
-            elif what == "exec":
-                self.exec_errno = int(value)
-                self.done = True
-
-    def stop(self) -> None:
-        """Closes the lifeline: the keeper sends SIGTERM to the DUT's processes, SIGKILL after grace."""
-        if self._life >= 0:
-            os.close(self._life)
-            self._life = -1
-
-    def finish(self) -> None:
-        """Stops the DUT if it runs, waits until the keeper has ended everything, reads its last words."""
-        self.stop()
-        try:
-            self.proc.wait(timeout=self.grace_s + 5.0)
-        except subprocess.TimeoutExpired:  # (a keeper stuck is a bug of ours; do not hang on it)
-            self.proc.kill()
-            self.proc.wait()
-        while not self.done:
-            self.read_status()
-        if self.status >= 0:
-            os.close(self.status)
-            self.status = -1

@@ -37,9 +37,10 @@ from rig.bridge.port import BridgeError, BridgePort, bridge_id
 from rig.bridge.stream import SampleStream
 from rig.bridge.timesync import ClockMap, Exchange
 from rig.bridge.vbridge import Endpoints, VirtualBridge
+from rig.dut_process import Keeper, dut_env
 from rig.pace import PacedSelector, RealtimeHost
 from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, Stop
-from rig.session import KILL_GRACE_S, Outcome, _Keeper, _Pty, dut_env
+from rig.session import KILL_GRACE_S, Outcome, _Pty
 from rig.world import World
 
 SYNC_PERIOD_S: Final = 0.1
@@ -187,7 +188,7 @@ class BenchSession:
         wall0 = time.perf_counter()
         tmp = scratch.make("bench")
         vbridge: VirtualBridge | None = None
-        keeper: _Keeper | None = None
+        keeper: Keeper | None = None
         # not epoll: epoll_wait counts its timeout in whole milliseconds, which made every event due
         # within the next millisecond up to a millisecond late; the wait is rig.pace's, on absolute deadlines
         sel = PacedSelector(self._deadline_ns, self._run_due)
@@ -222,7 +223,7 @@ class BenchSession:
 
                         (tmp / "fakes").mkdir()
                         env = self._dut_env(cfg.shim_path or ensure_shim(), tmp, vbridge.endpoints)
-                        keeper = _Keeper(ensure_keeper(), cfg.command, env, cfg.stdout, cfg.stderr,
+                        keeper = Keeper(ensure_keeper(), cfg.command, env, cfg.stdout, cfg.stderr,
                                          KILL_GRACE_S)
                         sel.register(keeper.status, selectors.EVENT_READ, "keeper")
                     self.at(0.0, _sync_tick)
@@ -314,7 +315,7 @@ class BenchSession:
             except Stop:
                 pass
 
-    def _serve(self, sel: selectors.BaseSelector, keeper: _Keeper | None, wall0: float) -> None:
+    def _serve(self, sel: selectors.BaseSelector, keeper: Keeper | None, wall0: float) -> None:
         stopping = False
         port = self.port
         assert port is not None
@@ -455,7 +456,7 @@ class BenchSession:
 
     # ---- results --------------------------------------------------------------------------------
 
-    def _outcome(self, returncode: int | None, wall0: float, keeper: _Keeper | None) -> Outcome:
+    def _outcome(self, returncode: int | None, wall0: float, keeper: Keeper | None) -> Outcome:
         sim = self.world.time_ns / NS
         reached = (self.figures.reg_writes > 0 or self.figures.pulses > 0
                    or bool(self.figures.status.get("i2c_acked")))
