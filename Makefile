@@ -98,12 +98,16 @@ avr: avr-toolchain
 # avr-gcc, avr-libc and libsimavr (tools/avr-toolchain.sh), only when missing: the MCU tier and the AVR
 # firmware need them, the demo does not
 avr-toolchain:
+ifndef INSTALLED
 	tools/avr-toolchain.sh
+endif
 
 # what make test needs beyond the demo (tools/test-packages.sh): linters, the ARM and AVR toolchains,
 # QEMU, i2c-tools, poppler; only what is missing
 test-packages: venv
+ifndef INSTALLED
 	tools/test-packages.sh
+endif
 
 # the MCU tier's test firmwares (tests/mcu/firmware, docs/mcu.md), each for both MCUs:
 # build/mcu/test/NAME-atmega328p.elf and NAME-atmega2560.elf; the TWI replayer's trace tables are generated
@@ -142,18 +146,22 @@ C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/linux/*.[ch
 lint: venv test-packages
 	$(MAKE) -s lint-sources
 
-# the checks alone, with what they need installed: make test runs them beside the mypyc build, a core each
-# (mypy's 20 s beside mypyc's 50 s; mypyc's own analysis writes no cache, so the two share nothing)
+# the checks alone, with what they need installed: make test runs them beside the builds, two jobs at a
+# time (mypyc's own analysis writes no cache, so mypy and mypyc share nothing)
 lint-sources:
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/mypy
 	clang-format --dry-run --Werror $(C_SOURCES)
 
-# make test runs the suite on every core (pytest-xdist; each worker holds a core: tests/conftest.py), then
-# the tests paced by the wall clock alone (marker paced: tests/realtime.py). TEST_JOBS=1: one process.
+# make test installs what is missing, then builds what the suite runs against and checks the sources two
+# jobs at a time (INSTALLED=1: that make installs nothing again; the builds write their generated
+# headers and libraries atomically, so two of them may make the same one at once), then runs the suite
+# on every core (pytest-xdist; each worker holds a core: tests/conftest.py), then the tests paced by the
+# wall clock alone (marker paced: tests/realtime.py). TEST_JOBS=1: one process.
 TEST_JOBS ?= $(shell nproc 2>/dev/null || echo 2)
-test: venv test-packages mcu-test-firmware avr $(FMU) $(SHIM) $(NATIVE) $(DUT_BIN) $(VBRIDGE) firmware
-	$(MAKE) -s -j2 lint-sources $(COMPILED)
+TEST_BUILDS := mcu-test-firmware avr $(FMU) $(SHIM) $(NATIVE) $(DUT_BIN) $(VBRIDGE) firmware
+test: venv test-packages
+	$(MAKE) -s -j2 INSTALLED=1 $(COMPILED) lint-sources $(TEST_BUILDS)
 	$(PY) -m pytest -q -m "not slow and not paced" -n $(TEST_JOBS) --durations=25
 	$(PY) -m pytest -q -m "paced and not slow" --durations=5
 

@@ -30,6 +30,18 @@ class NativeBuildError(RuntimeError):
     """The compiler failed or is missing; the message carries its output."""
 
 
+def write_text_if_changed(out: Path, text: str) -> Path:
+    """Writes a generated source ``out`` when its text changed (a build then recompiles only what
+    needs it), atomically and through a temporary file of this process's own: two builds that make the
+    same header at once (``make -j``: the chip library and the virtual bridge) each replace it whole."""
+    if not out.is_file() or out.read_text() != text:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = out.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(text)
+        tmp.replace(out)
+    return out
+
+
 def compile_shared(sources: Sequence[Path], out: Path, what: str, libs: Sequence[str] = (),
                    cc: str | None = None, flags: Sequence[str] = ()) -> Path:
     """Compiles ``sources`` into the shared library ``out``, atomically: a process loading it at the

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from emulators import hmc5883l, mpu6050, ms5611
 from emulators.registers import RegisterMap
+from plant.native_build import write_text_if_changed
 
 REPO = Path(__file__).resolve().parents[2]
 OUT = REPO / "build" / "gen" / "chip_registers.h"
@@ -80,13 +81,7 @@ def header() -> str:
 
 
 def write(out: Path = OUT) -> Path:
-    text = header()
-    if not out.exists() or out.read_text() != text:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = out.with_suffix(".tmp")
-        tmp.write_text(text)
-        tmp.replace(out)
-    return out
+    return write_text_if_changed(out, header())
 
 
 if __name__ == "__main__":

@@ -14,6 +14,7 @@ from pathlib import Path
 
 from emulators.faults import BUS_KINDS, BUS_TARGETS, KINDS, TARGETS
 from emulators.pwm_capture import CanCodec
+from plant.native_build import write_text_if_changed
 from rig.bridge.messages import HOST_SILENT_US, MAX_FRAME, MESSAGES, PROTOCOL_VERSION, TYPES, Field, Message
 
 OUT = Path(__file__).resolve().parents[2] / "build" / "gen" / "bridge_messages.h"
@@ -186,13 +187,7 @@ def header() -> str:
 
 def write(out: Path = OUT) -> Path:
     """Writes the header when its text changed (a build then recompiles only what needs it)."""
-    text = header()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if not out.is_file() or out.read_text() != text:
-        tmp = out.with_suffix(".tmp")
-        tmp.write_text(text)
-        tmp.replace(out)
-    return out
+    return write_text_if_changed(out, header())
 
 
 if __name__ == "__main__":
