@@ -28,10 +28,11 @@ from __future__ import annotations
 
 import json
 import math
+import operator
 import struct
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
-from typing import IO, Any, Final
+from typing import IO, Any, Final, cast
 
 import numpy as np
 
@@ -179,16 +180,37 @@ def _sensor_json(rec: I2CRecord) -> bytes | None:
     return None
 
 
-def _rows(signals: dict[str, np.ndarray], names: Sequence[str]) -> Iterable[tuple[int, dict[str, Any]]]:
-    t = signals["t"].tolist()
-    # (plain lists of floats: indexing a numpy array per sample costs more than the JSON)
-    cols = [(n, signals[n].tolist()) for n in names if n in signals and len(signals[n]) == len(t)]
-    for k, tk in enumerate(t):
-        row: dict[str, Any] = {"t": tk}
-        for n, c in cols:
-            v = c[k]
-            row[n] = None if v != v else v  # (NaN: null)
-        yield round(tk * NS), row
+def _row_dict(t: float, names: Sequence[str], values: Sequence[float]) -> dict[str, Any]:
+    """One recorder row as /attitude's or /motors' message: NaN (not recorded) as null."""
+    row: dict[str, Any] = {"t": t}
+    for n, v in zip(names, values, strict=True):
+        row[n] = None if v != v else v
+    return row
+
+
+def _rows(signals: dict[str, np.ndarray], names: Sequence[str]) -> Iterable[tuple[int, bytes]]:
+    """/attitude's or /motors' messages, one per recorder row: ``_row_dict`` as ``_JSON`` writes it.
+
+    By string formatting, as /i2c's: ``%r`` of a float is JSON's number, and the encoder's dict per
+    row cost about half as much again as the floats' own formatting. A column that is NaN throughout
+    (the bench supply's in lockstep, the FC's estimates when it reports none) is null in the template
+    itself; a row with another NaN or an infinity goes through ``_JSON`` (NaN: null; infinity: its
+    error, as before). tests/scenarios/test_mcap_encoding.py holds the two to the same bytes."""
+    t = np.asarray(signals["t"], dtype=np.float64)
+    cols = [n for n in names if n in signals and len(signals[n]) == len(t)]
+    if not len(t):
+        return
+    block = np.column_stack([t, *(np.asarray(signals[n], dtype=np.float64) for n in cols)])
+    unset = [False, *(bool(np.isnan(block[:, k]).all()) for k in range(1, block.shape[1]))]  # (t: always set)
+    kept = [k for k in range(block.shape[1]) if not unset[k]]
+    template = _template([("t", "%r"), *((n, "null" if unset[k + 1] else "%r") for k, n in enumerate(cols))])
+    values = operator.itemgetter(*kept)
+    plain = cast(list[bool], np.isfinite(block[:, kept]).all(axis=1).tolist())
+    for row, ok in zip(block.tolist(), plain, strict=True):
+        if ok:
+            yield round(row[0] * NS), (template % values(row)).encode()
+        else:
+            yield round(row[0] * NS), _JSON.encode(_row_dict(row[0], cols, row[1:])).encode()
 
 
 def _fault_events(r: RunResult) -> list[tuple[int, dict[str, Any]]]:
@@ -231,29 +253,36 @@ def write(out: IO[bytes] | Path, r: RunResult, i2c: Sequence[I2CRecord] | None,
         ch[topic] = w.register_channel(topic=topic, message_encoding="json", schema_id=sid)
     seq = dict.fromkeys(TOPICS, 0)
 
-    def put(topic: str, t_ns: int, msg: dict[str, Any] | bytes) -> None:
-        t_ns = max(0, t_ns)  # (MCAP times are unsigned)
-        data = msg if isinstance(msg, bytes) else _JSON.encode(msg).encode()
-        w.add_message(channel_id=ch[topic], log_time=t_ns, publish_time=t_ns, sequence=seq[topic], data=data)
-        seq[topic] += 1
+    def messages() -> Iterator[tuple[str, int, bytes]]:
+        """(topic, time, JSON) of every message, in the file's order."""
+        for t_ns, data in _rows(r.signals, ATTITUDE):
+            yield "/attitude", t_ns, data
+        for t_ns, data in _rows(r.signals, MOTORS_GROUP + BENCH):
+            yield "/motors", t_ns, data
+        for rec in i2c or ():
+            yield "/i2c", rec.t_ns, _i2c_json(rec)
+            reading = _sensor_json(rec)
+            if reading is not None:
+                yield "/sensors", rec.t_ns, reading
+        for frame in rc or ():
+            yield "/rc", frame.t_ns, _JSON.encode({"channels": list(frame.channels),
+                                                   "failsafe": frame.failsafe}).encode()
+        for t_ns, ev in _fault_events(r):
+            yield "/faults", t_ns, _JSON.encode(ev).encode()
+        t = r.signals.get("t", np.zeros(0))
+        end = round(float(t[-1]) * NS) if len(t) else 0
+        measurements = result_json.to_dict(r)["measurements"]
+        criteria = {"verdict": r.verdict, "error": r.error, "measurements": measurements}
+        yield "/criteria", end, _JSON.encode(criteria).encode()
 
-    for t_ns, row in _rows(r.signals, ATTITUDE):
-        put("/attitude", t_ns, row)
-    for t_ns, row in _rows(r.signals, MOTORS_GROUP + BENCH):
-        put("/motors", t_ns, row)
-    for rec in i2c or ():
-        put("/i2c", rec.t_ns, _i2c_json(rec))
-        reading = _sensor_json(rec)
-        if reading is not None:
-            put("/sensors", rec.t_ns, reading)
-    for frame in rc or ():
-        put("/rc", frame.t_ns, {"channels": list(frame.channels), "failsafe": frame.failsafe})
-    for t_ns, ev in _fault_events(r):
-        put("/faults", t_ns, ev)
-    t = r.signals.get("t", np.zeros(0))
-    end = round(float(t[-1]) * NS) if len(t) else 0
-    doc = result_json.to_dict(r)
-    put("/criteria", end, {"verdict": r.verdict, "error": r.error, "measurements": doc["measurements"]})
+    def numbered() -> Iterator[tuple[int, int, bytes, int, int]]:
+        """The container's (channel, log time, data, publish time, sequence) of each message."""
+        for topic, t_ns, data in messages():
+            t_ns = max(0, t_ns)  # (MCAP times are unsigned)
+            yield ch[topic], t_ns, data, t_ns, seq[topic]
+            seq[topic] += 1
+
+    w.add_messages(numbered())
     w.add_metadata("result", {str(k): json.dumps(v, allow_nan=False) for k, v in r.metadata.items()})
     w.add_metadata("run", {"scenario": r.scenario.stem, "verdict": r.verdict, "error": r.error or "",
                            "notes": json.dumps(r.notes), "format": result_json.FORMAT})

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import struct
 import zlib
+from collections.abc import Iterable
 from typing import IO, Final
 
 import zstandard
@@ -49,12 +50,6 @@ def _record(record: McapRecord) -> bytes:
     builder = RecordBuilder()
     record.write(builder)
     return builder.end()
-
-
-def _widened(times: tuple[int, int], t: int, first: bool) -> tuple[int, int]:
-    """(start, end) message times with ``t``: as the package keeps them (the end starts at 0, the start
-    at the first message's time)."""
-    return (t if first else min(times[0], t), max(times[1], t))
 
 
 class ContainerWriter:
@@ -107,13 +102,36 @@ class ContainerWriter:
 
     def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
                     sequence: int) -> None:
-        self._times = _widened(self._times, log_time, not self._counts)
-        self._counts[channel_id] = self._counts.get(channel_id, 0) + 1
-        self._chunk_times = _widened(self._chunk_times, log_time, not self._index)
-        self._index.setdefault(channel_id, []).extend((log_time, self._chunk_len))
-        head = _MESSAGE.pack(Opcode.MESSAGE, _MESSAGE_BODY + len(data), channel_id, sequence, log_time,
-                             publish_time)
-        self._to_chunk(head + data)
+        self.add_messages(((channel_id, log_time, data, publish_time, sequence),))
+
+    def add_messages(self, messages: Iterable[tuple[int, int, bytes, int, int]]) -> None:
+        """``add_message`` for each (channel id, log time, data, publish time, sequence), in one loop:
+        a call per message, with its two time windows widened by a function each, was about half of
+        the container's cost."""
+        pack, opcode, limit = _MESSAGE.pack, Opcode.MESSAGE, self._chunk_size
+        counts = self._counts
+        for channel_id, t, data, published, sequence in messages:
+            if counts:
+                start, end = self._times
+                self._times = (t if t < start else start, t if t > end else end)
+            else:
+                self._times = (t, t if t > self._times[1] else self._times[1])
+            counts[channel_id] = counts.get(channel_id, 0) + 1
+            index = self._index
+            if index:
+                start, end = self._chunk_times
+                self._chunk_times = (t if t < start else start, t if t > end else end)
+            else:
+                self._chunk_times = (t, t if t > self._chunk_times[1] else self._chunk_times[1])
+            pairs = index.get(channel_id)
+            if pairs is None:
+                pairs = index[channel_id] = []
+            pairs += (t, self._chunk_len)
+            record = pack(opcode, _MESSAGE_BODY + len(data), channel_id, sequence, t, published) + data
+            self._chunk.append(record)
+            self._chunk_len += len(record)
+            if self._chunk_len > limit:
+                self._finish_chunk()
 
     def _finish_chunk(self) -> None:
         if not self._index:  # (no message: its schemas and channels wait for one, as the package's do)

@@ -1,7 +1,8 @@
 """reports/mcap_container.py against the ``mcap`` package's own ``Writer`` (the second implementation):
-the same calls on both give the same bytes, over one chunk and many, schemas and channels that fill a
-chunk before any message, metadata between messages, times out of order and at the ends of their range,
-and empty messages; and the package's reader reads the file back with its CRCs checked."""
+the same calls on both give the same bytes (ours also with its messages added many to a call), over
+one chunk and many, schemas and channels that fill a chunk before any message, metadata between
+messages, times out of order and at the ends of their range, and empty messages; and the package's
+reader reads the file back with its CRCs checked."""
 
 from __future__ import annotations
 
@@ -40,6 +41,21 @@ def _calls(seed: int, messages: int, big: bool) -> list[Call]:
     return calls
 
 
+def _batched(calls: list[Call], seed: int) -> list[Call]:
+    """The same calls with runs of ``add_message`` made as ``add_messages`` of random lengths (1-500)."""
+    rng = random.Random(seed)
+    out: list[Call] = []
+    for name, args in calls:
+        open_batch = out and out[-1][0] == "add_messages" and len(out[-1][1][0]) < rng.randint(1, 500)
+        if name == "add_message" and open_batch:
+            out[-1][1][0].append(args)
+        elif name == "add_message":
+            out.append(("add_messages", ([args],)))
+        else:
+            out.append((name, args))
+    return out
+
+
 def _write(make: Callable[[io.BytesIO], Any], calls: list[Call]) -> bytes:
     out = io.BytesIO()
     w = make(out)
@@ -60,6 +76,10 @@ def test_the_container_is_the_package_writer_s_byte_for_byte(seed: int, messages
     ours = _write(lambda out: ContainerWriter(out, chunk_size=chunk_size), calls)
     theirs = _write(lambda out: Writer(out, chunk_size=chunk_size), calls)
     assert ours == theirs
+    batched = _batched(calls, seed)
+    batches = sum(name == "add_messages" for name, _ in batched)
+    assert batches < messages or messages == 1
+    assert _write(lambda out: ContainerWriter(out, chunk_size=chunk_size), batched) == theirs
     reader = make_reader(io.BytesIO(ours), validate_crcs=True)
     summary = reader.get_summary()
     assert summary is not None and summary.statistics is not None

@@ -1,15 +1,18 @@
-"""run.mcap's /i2c and /sensors messages, written by bytes formatting (reports/mcap.py), against the
-standard library's ``json.dumps`` of the same message built as a dict, and the sensors' words decoded
-here a second way, from the datasheets' layouts (MPU-6050 register map: ACCEL_XOUT_H at 0x3B, seven
-big-endian signed words, accel x y z, temperature, gyro x y z; HMC5883L: data output X, Z, Y from 0x03;
-MS5611: a 24-bit ADC result after command 0x00), byte by byte with ``int.from_bytes``."""
+"""run.mcap's /i2c, /sensors, /attitude and /motors messages, written by string formatting
+(reports/mcap.py), against the standard library's ``json.dumps`` of the same message built as a dict,
+and the sensors' words decoded here a second way, from the datasheets' layouts (MPU-6050 register
+map: ACCEL_XOUT_H at 0x3B, seven big-endian signed words, accel x y z, temperature, gyro x y z;
+HMC5883L: data output X, Z, Y from 0x03; MS5611: a 24-bit ADC result after command 0x00), byte by
+byte with ``int.from_bytes``."""
 
 from __future__ import annotations
 
 import json
+import math
 import random
 from typing import Any
 
+import numpy as np
 import pytest
 
 from reports import mcap
@@ -89,3 +92,43 @@ def test_an_mpu_burst_from_int_status_is_decoded_from_the_next_byte(read: bytes)
     assert values["gz"] == int.from_bytes(read[13:15], "big", signed=True)
     assert list(values) == list(MPU)
     assert mcap._sensor_json(rec._replace(read=read[:14])) is None  # (one byte short of gz)
+
+
+def _signals(rng: np.random.Generator, n: int, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """Recorder columns as odd as a run's can be: every float's magnitude, -0.0, NaN here and there, a
+    column NaN throughout, one shorter than the time (left out)."""
+    signals = {"t": np.arange(n) * 0.01}
+    for k, name in enumerate(names):
+        col = rng.standard_normal(n) * 10.0 ** rng.integers(-30, 30, n)
+        col[rng.random(n) < 0.05] = -0.0
+        if k % 5 == 1:
+            col[rng.random(n) < 0.1] = np.nan
+        if k % 5 == 2:
+            col[:] = np.nan
+        if k % 7 == 3:
+            col = col[:-1]
+        signals[name] = col
+    return signals
+
+
+@pytest.mark.parametrize("group", [mcap.ATTITUDE, mcap.MOTORS_GROUP + mcap.BENCH])
+def test_the_formatted_rows_are_json_dumps_of_the_rows(group: tuple[str, ...]) -> None:
+    signals = _signals(np.random.default_rng(3), 400, group)
+    got = list(mcap._rows(signals, group))
+    assert len(got) == 400
+    for k, (t_ns, data) in enumerate(got):
+        want = {"t": signals["t"][k].item()}
+        for name in group:
+            if name in signals and len(signals[name]) == 400:
+                v = signals[name][k].item()
+                want[name] = None if math.isnan(v) else v
+        assert t_ns == round(want["t"] * 1e9) and data == _compact(want), (k, data)
+    assert any(b"null" in d for _, d in got) and any(b"e-" in d for _, d in got)
+
+
+def test_an_infinite_row_is_refused_as_the_json_encoder_refuses_it() -> None:
+    signals = _signals(np.random.default_rng(4), 10, mcap.ATTITUDE)
+    signals[mcap.ATTITUDE[0]][7] = np.inf
+    with pytest.raises(ValueError, match="not JSON compliant"):
+        list(mcap._rows(signals, mcap.ATTITUDE))
+    assert list(mcap._rows({"t": np.zeros(0)}, mcap.ATTITUDE)) == []
