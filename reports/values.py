@@ -165,6 +165,7 @@ META: dict[str, tuple[str, Callable[[object], str]]] = {
     "bus_transactions": ("I2C transfers", lambda v: f"{v:,}" if isinstance(v, int) else str(v)),
     "capture_stats": ("capture statistics", _dict),
     "realtime_lateness": ("real-time lateness", _lateness),
+    "transport": ("lockstep transport", _dict),
 }
 #: keys shown elsewhere or folded into another row
 HIDDEN = {"scenario", "scenario_name", "lockstep", "fc_config", "dut_returncode", "bridge"}

@@ -271,6 +271,8 @@ def run(
         dut_clock_base_s=session.dut_clock_base_s,
         bus_transactions=outcome.transactions,
     )
+    if outcome.transport:
+        metadata["transport"] = outcome.transport
     if target.realtime:
         metadata["realtime_lateness"] = {
             "events": outcome.events_run,

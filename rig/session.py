@@ -111,6 +111,9 @@ class Outcome:
     p50_lateness_s: float = 0.0
     #: real time only: how the loop ran (rig.pace.HostState.as_dict: SCHED_FIFO, mlockall, why not)
     host_state: dict[str, object] = field(default_factory=dict)
+    #: lockstep only: how the DUT's messages came (the connections, how many of them had a mailbox,
+    #: whether both sides spun): the results are the same either way, the speed is not
+    transport: dict[str, object] = field(default_factory=dict)
 
 
 @dataclass
@@ -154,6 +157,7 @@ class Session:
         self.logging = False
         self._conns: list[Conn] = []
         self._n_conns = 0
+        self._n_mailboxes = 0  # (connections granted a mailbox)
         self._rt_t0 = 0.0
         self._rt_host = RealtimeHost()  # real time: SCHED_FIFO and mlockall where permitted (rig/pace)
         self._heap = FrozenHeap()  # lockstep: the collector walks what the run makes, not the rig (rig/pace)
@@ -530,6 +534,7 @@ class Session:
                 self.deliver_serial()
             granted = P.HELLO_GRANTED.pack(P.HELLO_MAILBOX)
             if conn.grant(fast, P.reply(P.MSG_HELLO, self.now_ns, granted, status)):
+                self._n_mailboxes += 1
                 return
         self.send(conn, P.reply(P.MSG_HELLO, self.now_ns, status=status))
 
@@ -601,7 +606,9 @@ class Session:
         return Outcome(verdict, code, error, returncode, sim, self.world.time_ns / NS,
                        time.perf_counter() - wall0, counts[0], counts[1], self._n_conns, notes,
                        self.malformed, self.world.outputs(), counts[2], events, late, worst, p99, p50,
-                       {} if self.cfg.lockstep else self._rt_host.state.as_dict())
+                       {} if self.cfg.lockstep else self._rt_host.state.as_dict(),
+                       {"connections": self._n_conns, "mailboxes": self._n_mailboxes, "spin": self.cfg.spin}
+                       if self.cfg.lockstep else {})
 
 
 def _pending_input(fd: int) -> int:

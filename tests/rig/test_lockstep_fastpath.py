@@ -476,6 +476,9 @@ def test_a_flight_is_the_same_either_way(monkeypatch: pytest.MonkeyPatch, tmp_pa
         assert (went_fast == 0) if py_path else (went_fast > 1000)
         results.append((_result(r.run_dir), (r.run_dir / "telemetry.csv").read_bytes()))
     (py_json, py_csv), (fast_json, fast_csv) = results
+    # how the messages came differs, and says so: only the fast path serves a mailbox
+    py_way, fast_way = py_json["metadata"].pop("transport"), fast_json["metadata"].pop("transport")
+    assert (py_way["mailboxes"], fast_way["mailboxes"]) == (0, fast_way["connections"])
     for data in (py_json, fast_json):  # (the folders differ by name)
         meta = data["metadata"]
         data["metadata"] = {k: v for k, v in meta.items() if not isinstance(v, str) or "/py" not in v}

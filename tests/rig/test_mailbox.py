@@ -44,6 +44,11 @@ def test_a_flight_through_the_mailbox_is_the_flight_through_the_socket(
     monkeypatch.setenv(TRANSPORT_ENV, "socket")
     sock = run(sc, ProcessTarget(), seed=1, work_dir=tmp_path / "socket")
     assert_same_flight(mailbox, sock)
+    # result.json says which it was: every connection of the FC had a mailbox, or none
+    used, kept = mailbox.metadata["transport"], sock.metadata["transport"]
+    assert used["connections"] == kept["connections"] >= 1
+    assert (used["mailboxes"], kept["mailboxes"]) == (used["connections"], 0)
+    assert used["spin"] is kept["spin"] is False
 
 
 def test_a_second_implementation_is_served_across_both_rings_ends(tmp_path: Path) -> None:

@@ -58,6 +58,7 @@ def test_a_flight_with_spin_is_the_flight_without(tmp_path: Path, two_cores: Non
     sc = dataclasses.replace(load(library / "step_roll.toml"), duration=3.0)
     plain, spun = (run(sc, ProcessTarget(spin=s), seed=1, work_dir=tmp_path / str(s)) for s in (False, True))
     assert_same_flight(plain, spun)
+    assert (plain.metadata["transport"]["spin"], spun.metadata["transport"]["spin"]) == (False, True)
 
 
 def test_a_program_sees_the_same_times_and_runs_on_its_own_core(
