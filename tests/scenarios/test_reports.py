@@ -4,7 +4,9 @@ uPlot as its README pins it, and a report folder read back."""
 
 from __future__ import annotations
 
+import csv
 import hashlib
+import io
 import json
 import math
 import re
@@ -268,3 +270,28 @@ def test_a_plots_samples_are_those_a_bucket_by_bucket_reading_keeps() -> None:
             want = _extremes_bucket_by_bucket(v, buckets)
             got = extremes(v, buckets)
             assert got.dtype == want.dtype and np.array_equal(got, want), (n, buckets)
+
+
+def test_telemetry_csv_is_the_csv_module_s_writing_of_its_rows() -> None:
+    """telemetry.csv's rows are written by hand: the same text as the csv module's writer of the same
+    fields (``%.6g``, NaN empty), over every magnitude, -0.0, infinities and NaN here and throughout."""
+    rng = np.random.default_rng(5)
+    n = 500
+    signals = {"t": np.arange(n) * 0.01}
+    for k, name in enumerate(n for n in SIGNALS if n != "t"):
+        col = rng.standard_normal(n) * 10.0 ** rng.integers(-12, 12, n)
+        col[rng.random(n) < 0.05] = [-0.0, np.inf, -np.inf, np.nan][k % 4]
+        if k % 6 == 5:
+            col[:] = np.nan
+        signals[name] = col
+    want = io.StringIO()
+    writer = csv.writer(want, lineterminator="\n")
+    writer.writerow(["t[s]"] + [f"{n}[{SIGNALS[n].units}]" for n in signals if n != "t"])
+    for k in range(n):
+        values = [float(signals[s][k]) for s in signals]
+        writer.writerow(["" if math.isnan(v) else format(v, ".6g") for v in values])
+    text = telemetry.render(signals)
+    assert text == want.getvalue()
+    assert ",," in text and "inf" in text and "-0," in text and "e-" in text
+    with pytest.raises(ValueError):
+        telemetry.render({**signals, "roll": signals["roll"][:-1]})
