@@ -32,24 +32,24 @@ def crc16(data: bytes) -> int:
 def pack(name: str, seq: int, **values: object) -> bytes:
     """The message's raw frame (type, seq, body, CRC) before COBS."""
     msg = BY_NAME[name]
+    if not values.keys() <= msg.field_names:
+        raise ValueError(f"{name} has no field(s) {sorted(set(values) - msg.field_names)}")
     flat: list[object] = []
     for f in msg.fields:
-        v = values.get(f.name, [0] * f.count if f.count > 1 else 0)
-        if f.count > 1:
-            if isinstance(v, str):
-                v = v.encode()
-            if not isinstance(v, bytes | list | tuple):
-                raise ValueError(f"{name}.{f.name}: expected {f.count} values, got {v!r}")
-            seq_v = list(v)
-            if len(seq_v) > f.count:
-                raise ValueError(f"{name}.{f.name}: {len(seq_v)} values, at most {f.count}")
-            flat += seq_v + [0] * (f.count - len(seq_v))
-        else:
-            flat.append(v)
-    unknown = set(values) - {f.name for f in msg.fields}
-    if unknown:
-        raise ValueError(f"{name} has no field(s) {sorted(unknown)}")
-    raw = bytes([msg.id, seq & 0xFF]) + msg.layout.pack(*flat)
+        if f.count == 1:
+            flat.append(values.get(f.name, 0))
+            continue
+        v = values.get(f.name, ())
+        if isinstance(v, str):
+            v = v.encode()
+        if not isinstance(v, bytes | list | tuple):
+            raise ValueError(f"{name}.{f.name}: expected {f.count} values, got {v!r}")
+        if len(v) > f.count:
+            raise ValueError(f"{name}.{f.name}: {len(v)} values, at most {f.count}")
+        flat += v
+        if len(v) < f.count:
+            flat += [0] * (f.count - len(v))
+    raw = bytes((msg.id, seq & 0xFF)) + msg.layout.pack(*flat)
     return raw + CRC.pack(crc16(raw))
 
 

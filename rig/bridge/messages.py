@@ -13,6 +13,7 @@ host maps its own time onto it (TIME_SYNC).
 
 from __future__ import annotations
 
+import functools
 import struct
 from dataclasses import dataclass
 from typing import Literal
@@ -44,9 +45,13 @@ class Message:
     fields: tuple[Field, ...]
     doc: str
 
-    @property
+    @functools.cached_property
+    def field_names(self) -> frozenset[str]:
+        return frozenset(f.name for f in self.fields)
+
+    @functools.cached_property
     def layout(self) -> struct.Struct:
-        """The body's bytes (after type and seq, before the CRC)."""
+        """The body's bytes (after type and seq, before the CRC). Kept: every frame packs through it."""
         codes = (f"{f.count}{TYPES[f.type][0]}" if f.count > 1 else TYPES[f.type][0] for f in self.fields)
         return struct.Struct("<" + "".join(codes))
 
