@@ -54,7 +54,8 @@ def _record(record: McapRecord) -> bytes:
 
 class ContainerWriter:
     """``mcap.writer.Writer``'s ``start``, ``register_schema``, ``register_channel``, ``add_message``,
-    ``add_metadata`` and ``finish`` with its default options: the same file, byte for byte."""
+    ``add_metadata`` and ``finish`` with its default options: the same file, byte for byte; and
+    ``add_messages``, many ``add_message`` calls in one."""
 
     def __init__(self, out: IO[bytes], chunk_size: int = CHUNK_SIZE) -> None:
         self._out = out
