@@ -5,15 +5,19 @@ frame shows as a sequence gap. The frames are the DBC's, made by the lockstep ca
 
 from __future__ import annotations
 
+import contextlib
 import os
+import random
 import time
 import tty
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
+import can
 import pytest
+from can.interfaces.slcan import slcanBus
 
 from emulators.pwm_capture import CanCodec
-from rig.bridge.can_capture import CanPulses, parse
+from rig.bridge.can_capture import BatchedSlcan, CanPulses, parse
 from rig.bridge.esc import ESC_PROTOCOLS
 from rig.bridge.port import BridgeError
 from rig.world import World
@@ -99,3 +103,70 @@ def test_a_capture_interface_that_cannot_open_is_a_clear_error(tmp_path: pytest.
         CanPulses("slcan", "/nonexistent/ttyCAN")
     with pytest.raises(ValueError, match="INTERFACE:CHANNEL"):
         parse("can0")
+
+
+def _read_all(bus: can.BusABC, want: int) -> list[object]:
+    """What ``want`` reads of ``bus`` gave: (id, data) of each frame, or the error's type (bounded wait)."""
+    got: list[object] = []
+    deadline = time.monotonic() + BOUND_S
+    while len(got) < want and time.monotonic() < deadline:
+        try:
+            msg = bus.recv(timeout=0.0)
+        except can.CanError as e:
+            got.append(type(e).__name__)
+            continue
+        if msg is not None:
+            got.append((msg.arbitration_id, bytes(msg.data), msg.is_extended_id, msg.is_remote_frame))
+    return got
+
+
+def _pty_bus(make: Callable[[str], can.BusABC]) -> Iterator[tuple[int, can.BusABC]]:
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    bus = make(os.ttyname(slave))
+    try:
+        yield master, bus
+    finally:
+        bus.shutdown()
+        os.close(master)
+        os.close(slave)
+
+
+def _batched(name: str) -> can.BusABC:
+    return BatchedSlcan(channel=name, sleep_after_open=0.0, timeout=0.0)
+
+
+def test_the_batched_slcan_reader_reads_what_python_cans_own_reads() -> None:
+    """BatchedSlcan reads the port a batch at a time (the interface's own read took a byte per call, and
+    waited 1 ms for a line not yet whole); python-can's own slcanBus, the second implementation, reads
+    the same bytes, written in pieces that cut lines anywhere: the same frames, the same errors."""
+    rng = random.Random(11)
+    codec = CanCodec()
+    lines = [slcan(f, d) for s in range(40) for f, d in codec.encode(s, [1000.0 + 10 * s] * 4)]
+    lines += [b"T1234567F4DEADBEEF\r", b"r1230\r", b"\a", b"t1FF0\r", b"t0018" + b"00" * 8 + b"\r"]
+    rng.shuffle(lines)
+    stream = b"".join(lines)
+    cuts = sorted(rng.sample(range(1, len(stream)), 60))
+    pieces = [stream[a:b] for a, b in zip([0, *cuts], [*cuts, len(stream)], strict=True)]
+    results = []
+    for make in (_batched, lambda name: slcanBus(channel=name, sleep_after_open=0.0)):
+        with contextlib.contextmanager(_pty_bus)(make) as (master, bus):
+            got: list[object] = []
+            for piece in pieces:  # (each piece read before the next: a line cut anywhere)
+                os.write(master, piece)
+                got += _read_all(bus, piece.count(b"\r"))  # (a BEL line is an error reply, no frame)
+            results.append(got)
+    ours, theirs = results
+    assert ours == theirs
+    assert len(ours) == len(lines) - 1  # (every line but the BEL)
+    ids = {f for f, _ in codec.encode(0, [1000.0] * 4)}
+    assert sum(isinstance(r, tuple) and r[0] in ids for r in ours) == 80
+
+
+def test_a_line_that_is_not_text_costs_only_itself() -> None:
+    """A line of bytes that are not UTF-8 is an error, and the next line is read as it is (python-can's
+    own read kept such bytes in its buffer, and the next line failed with them)."""
+    fid, data = CanCodec().encode(3, [1200.0] * 4)[0]
+    with contextlib.contextmanager(_pty_bus)(_batched) as (master, bus):
+        os.write(master, b"t10\xff\xfe2\r" + slcan(fid, bytes(data)))
+        assert _read_all(bus, 2) == ["CanOperationError", (fid, bytes(data), False, False)]
