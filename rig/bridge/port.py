@@ -109,6 +109,7 @@ class BridgePort:
 
     def close(self) -> None:
         self._ser.close()
+        self._fd = -1  # (send writes to it directly: never to a number the process has reused since)
 
     def figures(self) -> dict[str, object]:
         return {"frames_sent": self.sent, "frames_received": self.rx.ok, "frames_bad": self.rx.bad,

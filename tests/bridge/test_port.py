@@ -118,3 +118,23 @@ def test_a_bridge_that_hangs_up_is_an_error_at_once() -> None:
 def test_a_port_that_does_not_exist() -> None:
     with pytest.raises(BridgeError, match="cannot open the bridge's port /dev/no-such-tty"):
         BridgePort("/dev/no-such-tty")
+
+
+def test_a_send_after_close_is_an_error_and_writes_nowhere(wire: tuple[int, str]) -> None:
+    """send writes to the port's descriptor itself: once the port is closed that number may be another
+    file's (here a pipe's, put there after), and a frame sent then must not reach it."""
+    _, name = wire
+    port = BridgePort(name)
+    fd = port.fileno()
+    r, w = os.pipe()
+    port.close()
+    os.dup2(w, fd)  # (the number the port had, now the pipe's writing end)
+    try:
+        with pytest.raises(BridgeError, match="failed sending IMU_SAMPLE"):
+            port.send("IMU_SAMPLE", valid_us=1)
+        os.set_blocking(r, False)
+        with pytest.raises(BlockingIOError):
+            os.read(r, 100)
+    finally:
+        for k in (r, w, fd):
+            os.close(k)
