@@ -124,10 +124,15 @@ def _dict(v: object) -> str:
 def _lateness(v: object) -> str:
     if not isinstance(v, dict):
         return str(v)
-    return (
+    said = (
         f"{v.get('late_over_1ms')} of {v.get('events')} scheduled events over 1 ms late; worst "
         f"{float(v.get('max_s') or 0) * 1000:.2f} ms, p99 {float(v.get('p99_s') or 0) * 1000:.2f} ms"
     )
+    if "wait_p99_s" in v:  # the host's share (rig.pace.HostState): how late the loop's waits woke
+        said += f"; the loop's waits woke p99 {float(v['wait_p99_s'] or 0) * 1000:.2f} ms late"
+    if "steal_s" in v:
+        said += f"; the hypervisor took {float(v['steal_s'] or 0):.2f} s of the host's CPUs"
+    return said
 
 
 #: key -> (label, formatter of the value); the order is the order of the run table

@@ -261,7 +261,7 @@ class Session:
         keepers: list[Keeper] = []
         # real time: a selector that waits in C for the next event's absolute deadline (rig/pace)
         sel = (selectors.DefaultSelector() if cfg.lockstep
-               else PacedSelector(self._deadline_ns, self._realtime_tick))
+               else PacedSelector(self._deadline_ns, self._realtime_tick, host=self._rt_host.state))
         wall0 = time.perf_counter()
         returncode: int | None = None
         self._running = True

@@ -9,6 +9,11 @@ flown again.
 Every such test carries the ``paced`` marker: ``make test`` runs them alone, after the rest of the suite
 has run on every core, so the suite's own load does not starve them.
 
+Each run's figures say the host's side too, where it has them: how late the loop's paced waits woke
+(``wait_p99_s``) and the CPU time the hypervisor took meanwhile (``steal_s``). An inconclusive test
+quotes them: events late while the waits woke on time and nothing was taken point at the rig's own
+loop, not the host.
+
 "Starved" is a property of the host, not of the DUT, so the threshold lives here and not in a scenario:
 the bench tolerances (tests/bridge/bench_tolerance.json) were derived with the bridge streaming its
 samples 3 ms ahead (BenchConfig.lead_s) on a host whose lateness p99 was 0.5-0.6 ms. A run is starved
@@ -44,8 +49,22 @@ def starved(name: str, lateness: Mapping[str, Any]) -> str | None:
     worst, p99 = float(lateness.get("max_s", 0.0)), float(lateness.get("p99_s", 0.0))
     if events and (p99 > STARVED_P99_S or worst >= STARVED_MAX_S):
         return (f"{name}: {late} of {events} events over 1 ms late, p99 {p99 * 1e3:.1f} ms, worst "
-                f"{worst * 1e3:.1f} ms")
+                f"{worst * 1e3:.1f} ms" + _host_said(lateness))
     return None
+
+
+def _host_said(lateness: Mapping[str, Any]) -> str:
+    """The host's own figures, where the run has them (rig.pace.HostState): how late its paced waits
+    woke and what the hypervisor took. Read beside the events' lateness they say whose it was: waits
+    that woke on time on a host that took nothing, under late events, mean the loop made itself late
+    (as the slcan capture's reads once did, 1 ms at a time), which a flight again does not mend."""
+    said = ""
+    if "wait_p99_s" in lateness:
+        said += (f"; its waits woke p99 {float(lateness['wait_p99_s']) * 1e3:.2f} ms late, worst "
+                 f"{float(lateness.get('wait_max_s', 0.0)) * 1e3:.1f} ms")
+    if "steal_s" in lateness:
+        said += f"; the hypervisor took {float(lateness['steal_s']):.2f} s of the machine's CPUs"
+    return said
 
 
 def of_outcome(outcome: Any) -> dict[str, Any]:

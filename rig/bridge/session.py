@@ -191,7 +191,7 @@ class BenchSession:
         keeper: Keeper | None = None
         # not epoll: epoll_wait counts its timeout in whole milliseconds, which made every event due
         # within the next millisecond up to a millisecond late; the wait is rig.pace's, on absolute deadlines
-        sel = PacedSelector(self._deadline_ns, self._run_due)
+        sel = PacedSelector(self._deadline_ns, self._run_due, host=self._rt_host.state)
         returncode: int | None = None
         policy = self._raise_priority()
         try:

@@ -77,14 +77,17 @@ class PacedSelector(selectors.SelectSelector):
     VMs, most of the lateness that was left)."""
 
     def __init__(self, deadline: Callable[[], int | None], on_due: Callable[[], object] | None = None,
-                 spin_ns: int = SPIN_NS) -> None:
+                 spin_ns: int = SPIN_NS, host: HostState | None = None) -> None:
         super().__init__()
         self._deadline = deadline
         self._on_due = on_due
         self.spin_ns = spin_ns
         self._fds: tuple[int, ...] | None = None
         self._wait = native().wait
+        self._now = native().now
         self.wakes = 0  # calls that returned (for the bench)
+        #: how late each wait that ran to its deadline returned (ns), into ``host`` when given
+        self._woke_late = host.woke_late_ns if host is not None else None
 
     def register(self, fileobj: Any, events: int, data: Any = None) -> selectors.SelectorKey:
         if events != selectors.EVENT_READ:
@@ -106,6 +109,8 @@ class PacedSelector(selectors.SelectSelector):
         ready = self._wait(due if paced else limit, self._fds, self.spin_ns if paced else 0)
         self.wakes += 1
         if not ready:
+            if paced and self._woke_late is not None and due is not None:
+                self._woke_late.append(self._now() - due)
             if paced and self._on_due is not None:
                 self._on_due()
             return []
@@ -120,9 +125,37 @@ class HostState:
     sched_fifo: bool = False
     mlockall: bool = False
     not_taken: list[str] = field(default_factory=list)
+    #: how late the paced waits that ran to their deadline woke (ns; PacedSelector fills it)
+    woke_late_ns: list[int] = field(default_factory=list)
+    #: the CPU time the hypervisor took from this machine's CPUs while the loop ran (s), or None where
+    #: /proc/stat does not say
+    steal_s: float | None = None
 
     def as_dict(self) -> dict[str, object]:
-        return {"sched_fifo": self.sched_fifo, "mlockall": self.mlockall, "not_taken": list(self.not_taken)}
+        """For result.json's ``realtime_lateness``: how the loop ran, and the host's own figures beside
+        the events' lateness (a late event whose waits woke on time, on a host that took nothing, was
+        made late by the loop's own work, not by the host)."""
+        out: dict[str, object] = {"sched_fifo": self.sched_fifo, "mlockall": self.mlockall,
+                                  "not_taken": list(self.not_taken)}
+        if self.woke_late_ns:
+            late = sorted(self.woke_late_ns)
+            out.update(waits=len(late), wait_p99_s=late[int(0.99 * (len(late) - 1))] / NS,
+                       wait_max_s=late[-1] / NS)
+        if self.steal_s is not None:
+            out["steal_s"] = self.steal_s
+        return out
+
+
+def steal_ticks(stat: Path = Path("/proc/stat")) -> int | None:
+    """The machine's steal time so far (all CPUs, in clock ticks: /proc/stat's eighth "cpu" column): time
+    the hypervisor gave to something else while a CPU of this machine had work. None where it is not
+    there (not Linux, an old kernel)."""
+    try:
+        with stat.open() as f:
+            fields = f.readline().split()
+        return int(fields[8]) if fields[0] == "cpu" and len(fields) > 8 else None
+    except (OSError, ValueError, IndexError):
+        return None
 
 
 class FrozenHeap:
@@ -162,12 +195,14 @@ class RealtimeHost:
         self._started = False
         self._heap = FrozenHeap()
         self._gc_was_enabled = True
+        self._steal0: int | None = None
 
     def start(self, fifo: bool = True) -> HostState:
         """Everything; with ``fifo`` False all but SCHED_FIFO (``take_fifo()`` later: processes started
         in between still inherit the thread's class as it was)."""
         pace = native()
         self._started = True
+        self._steal0 = steal_ticks()
         self._heap.start()
         self._gc_was_enabled = gc.isenabled()
         gc.disable()
@@ -211,6 +246,9 @@ class RealtimeHost:
         if not self._started:
             return
         self._started = False
+        steal = steal_ticks()
+        if steal is not None and self._steal0 is not None:
+            self.state.steal_s = (steal - self._steal0) / os.sysconf("SC_CLK_TCK")
         pace = native()
         if self._policy is not None:
             os.sched_setscheduler(0, *self._policy)

@@ -138,8 +138,12 @@ def test_a_paced_session_runs_its_events_in_order_none_before_its_time() -> None
     assert [due for due, _ in ran] == sorted(due for due, _ in ran) and len(ran) == 60
     assert all(wall >= due for due, wall in ran)
     state = outcome.host_state
-    assert set(state) == {"sched_fifo", "mlockall", "not_taken"}
+    assert {"sched_fifo", "mlockall", "not_taken"} <= set(state)
+    host_figures = {"waits", "wait_p99_s", "wait_max_s", "steal_s"}
+    assert set(state) - {"sched_fifo", "mlockall", "not_taken"} <= host_figures
     assert state["sched_fifo"] or state["not_taken"]
+    waits = state["waits"]
+    assert isinstance(waits, int) and 0 < waits <= 60  # (events due at one instant share a wait)
 
 
 @pytest.mark.skipif(shutil.which("setpriv") is None, reason="needs setpriv (util-linux) to drop capabilities")
@@ -161,3 +165,53 @@ def test_where_not_permitted_the_loop_runs_as_it_is_and_says_why() -> None:
     state, policy = json.loads(done.stdout)
     assert (state["sched_fifo"], state["mlockall"], policy) == (False, False, os.SCHED_OTHER)
     assert [w.split(":")[0] for w in state["not_taken"]] == ["mlockall", "SCHED_FIFO"]
+
+
+def test_the_waits_that_reach_their_deadline_say_how_late_they_woke() -> None:
+    """Only a wait ended by its deadline is counted (not one a readable descriptor ended), each at least
+    0 late (the wait never returns before its deadline), and result.json's figures are their p99 and
+    worst."""
+    a, b = socket.socketpair()
+    state = pace.HostState()
+    deadlines: list[int] = []
+    sel = pace.PacedSelector(lambda: deadlines[-1], host=state)
+    try:
+        sel.register(a, selectors.EVENT_READ, "a")
+        for _ in range(30):
+            deadlines.append(pace.now_ns() + 1_000_000)
+            assert sel.select(1.0) == []
+        b.send(b"x")
+        deadlines.append(pace.now_ns() + 3600 * NS)
+        assert [k.data for k, _ in sel.select(3600.0)] == ["a"]  # woken by the socket: not counted
+    finally:
+        sel.close()
+        a.close()
+        b.close()
+    assert len(state.woke_late_ns) == 30 and min(state.woke_late_ns) >= 0
+    figures = state.as_dict()
+    late = sorted(state.woke_late_ns)
+    assert figures["waits"] == 30 and figures["wait_max_s"] == late[-1] / NS
+    assert figures["wait_p99_s"] == late[28] / NS  # the 99th percentile of 30, as the events' (index 28)
+    assert "waits" not in pace.HostState().as_dict()  # no paced wait, no figures
+
+
+def test_steal_time_is_read_from_proc_stat_and_anything_else_is_none(tmp_path: Path) -> None:
+    stat = tmp_path / "stat"
+    stat.write_text("cpu  3277246 6280 561886 3828482 20254 0 11620 53522 0 0\ncpu0 1 2 3 4 5 6 7 8 9 10\n")
+    assert pace.steal_ticks(stat) == 53522  # the eighth value after "cpu" (proc(5): steal)
+    for bad in ("cpu  1 2 3 4 5 6 7\n", "cpu0 1 2 3 4 5 6 7 8 9\n", "cpu  1 2 3 4 5 6 7 x\n", ""):
+        stat.write_text(bad)
+        assert pace.steal_ticks(stat) is None
+    assert pace.steal_ticks(tmp_path / "none") is None
+    if Path("/proc/stat").is_file():  # this machine's: a count that never goes back
+        first = pace.steal_ticks()
+        assert first is not None and 0 <= first <= (pace.steal_ticks() or 0)
+
+
+def test_a_host_run_says_its_steal_time() -> None:
+    host = pace.RealtimeHost()
+    with host as state:
+        pass
+    if pace.steal_ticks() is not None:
+        assert state.steal_s is not None and state.steal_s >= 0.0
+        assert state.as_dict()["steal_s"] == state.steal_s

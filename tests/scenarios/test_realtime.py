@@ -43,4 +43,8 @@ def test_a_real_time_run_flies_and_reports_its_lateness(tmp_path: Path) -> None:
     # how the paced loop ran (rig/pace): SCHED_FIFO and mlockall, or why not
     assert late["sched_fifo"] or any(w.startswith("SCHED_FIFO") for w in late["not_taken"])
     assert late["mlockall"] or any(w.startswith("mlockall") for w in late["not_taken"])
+    # the host's own figures beside the events': the waits that ran to their deadline, how late they
+    # woke (never before it), and the machine's steal time over the run
+    assert 0 < late["waits"] and 0.0 <= late["wait_p99_s"] <= late["wait_max_s"]
+    assert late.get("steal_s", 0.0) >= 0.0
     assert r.signals["armed"][-1] == 1 and r.signals["pwm1"][-1] > 1100

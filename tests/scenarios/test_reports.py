@@ -19,7 +19,7 @@ import pytest
 
 from reports import acceptance, html_report, junit, pdf, result_json, telemetry
 from reports.load import read_folder
-from reports.values import fmt_margin, mode_text, returncode_text, sim_times_in
+from reports.values import META, fmt_margin, mode_text, returncode_text, sim_times_in
 from scenarios.criteria import Measurement, margin_pct, measure
 from scenarios.result import RunResult
 from scenarios.schema import load
@@ -188,6 +188,14 @@ def test_the_metadata_reads_in_words() -> None:
     assert mode_text({"mode": "bridge"}) == "bridge"
     assert sim_times_in("fc: RC lost at t=1006.495: failsafe", 1000.0) == (
         "fc: RC lost at t=1006.495 [sim 6.495 s]: failsafe"
+    )
+    label, lateness = META["realtime_lateness"]
+    late = {"events": 1719, "late_over_1ms": 24, "max_s": 0.0048583, "p99_s": 0.00107594}
+    assert lateness(late) == "24 of 1719 scheduled events over 1 ms late; worst 4.86 ms, p99 1.08 ms"
+    host = {"waits": 1153, "wait_p99_s": 0.000187, "wait_max_s": 0.0016, "steal_s": 0.97}
+    assert label == "real-time lateness" and lateness({**late, **host}) == (
+        "24 of 1719 scheduled events over 1 ms late; worst 4.86 ms, p99 1.08 ms; the loop's waits woke p99 "
+        "0.19 ms late; the hypervisor took 0.97 s of the host's CPUs"
     )
 
 
