@@ -132,6 +132,9 @@ def _lateness(v: object) -> str:
         said += f"; the loop's waits woke p99 {float(v['wait_p99_s'] or 0) * 1000:.2f} ms late"
     if "steal_s" in v:
         said += f"; the hypervisor took {float(v['steal_s'] or 0):.2f} s of the host's CPUs"
+    causes = v.get("late_causes")
+    if isinstance(causes, dict) and any(causes.values()):
+        said += "; late by cause: " + ", ".join(f"{k.replace('_', ' ')} {n}" for k, n in causes.items() if n)
     return said
 
 

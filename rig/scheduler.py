@@ -95,6 +95,9 @@ class Scheduler:
         # without a getattr (fastpath.c's clear_until: 7 reads per FC cycle, ~150 instructions each)
         self.over_byte = bytearray(1)
         self.lateness_ns: list[int] = []   # real time: wall clock minus due time, per event
+        #: real time: told the lateness of each event that runs over LATE_NS late, as it starts (the
+        #: paced loop's judge of whose lateness it was: rig/pace/late.py)
+        self.on_late: Callable[[int], object] | None = None
 
     def at(self, t: float, fn: Event) -> None:
         """Runs ``fn(host)`` at sim time ``t`` seconds (before any DUT request at or after it)."""
@@ -139,7 +142,10 @@ class Scheduler:
         (rig/lockstep/events.c), so an event runs alike whichever path reached it."""
         te, _, fn = heappop(self.events)
         if self._wall_now is not None:
-            self.lateness_ns.append(max(0, self._wall_now() - te))
+            late = max(0, self._wall_now() - te)
+            self.lateness_ns.append(late)
+            if late > LATE_NS and self.on_late is not None:
+                self.on_late(late)
         world = self.world
         te = max(te, world.time_ns)
         world.advance_to(te)

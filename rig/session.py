@@ -262,6 +262,8 @@ class Session:
         # real time: a selector that waits in C for the next event's absolute deadline (rig/pace)
         sel = (selectors.DefaultSelector() if cfg.lockstep
                else PacedSelector(self._deadline_ns, self._realtime_tick, host=self._rt_host.state))
+        if not cfg.lockstep:  # (each event over 1 ms late judged as it starts: rig/pace/late.py)
+            self.sched.on_late = self._rt_host.state.causes.late
         wall0 = time.perf_counter()
         returncode: int | None = None
         self._running = True

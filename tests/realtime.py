@@ -10,9 +10,10 @@ Every such test carries the ``paced`` marker: ``make test`` runs them alone, aft
 has run on every core, so the suite's own load does not starve them.
 
 Each run's figures say the host's side too, where it has them: how late the loop's paced waits woke
-(``wait_p99_s``) and the CPU time the hypervisor took meanwhile (``steal_s``). An inconclusive test
-quotes them: events late while the waits woke on time and nothing was taken point at the rig's own
-loop, not the host.
+(``wait_p99_s``), the CPU time the hypervisor took meanwhile (``steal_s``), and each event over 1 ms
+late put down to the host or to the loop itself (``late_causes``, rig/pace/late.py). An inconclusive
+test quotes them: late events the loop made late (``loop_busy``, ``loop_blocked``) are the rig's to
+mend, and flying again does not.
 
 "Starved" is a property of the host, not of the DUT, so the threshold lives here and not in a scenario:
 the bench tolerances (tests/bridge/bench_tolerance.json) were derived with the bridge streaming its
@@ -64,6 +65,9 @@ def _host_said(lateness: Mapping[str, Any]) -> str:
                  f"{float(lateness.get('wait_max_s', 0.0)) * 1e3:.1f} ms")
     if "steal_s" in lateness:
         said += f"; the hypervisor took {float(lateness['steal_s']):.2f} s of the machine's CPUs"
+    causes = lateness.get("late_causes")
+    if isinstance(causes, Mapping) and any(causes.values()):
+        said += "; late events by cause: " + ", ".join(f"{k} {v}" for k, v in causes.items() if v)
     return said
 
 
@@ -71,7 +75,7 @@ def of_outcome(outcome: Any) -> dict[str, Any]:
     """A session Outcome's lateness in result.json's shape."""
     return {"events": outcome.events_run, "late_over_1ms": outcome.events_late,
             "max_s": outcome.max_lateness_s, "p99_s": outcome.p99_lateness_s,
-            "p50_s": outcome.p50_lateness_s}
+            "p50_s": outcome.p50_lateness_s, **outcome.host_state}
 
 
 def of_results(folder: Path, names: Iterable[str]) -> Callable[[Any], dict[str, dict[str, Any]]]:

@@ -24,10 +24,13 @@ def test_starved_is_a_p99_beyond_the_lead_or_one_long_stall() -> None:
 
 
 def test_a_starved_run_quotes_the_hosts_own_figures_where_it_has_them() -> None:
-    host = {"waits": 9000, "wait_p99_s": 0.00004, "wait_max_s": 0.0021, "steal_s": 0.0}
+    causes = {"host_woke_late": 0, "host_preempted": 2, "loop_busy": 0, "loop_blocked": 2398,
+              "unattributed": 0}
+    host = {"waits": 9000, "wait_p99_s": 0.00004, "wait_max_s": 0.0021, "steal_s": 0.0, "late_causes": causes}
     assert starved("step_roll", {**STARVED, **host}) == (
         "step_roll: 2400 of 10000 events over 1 ms late, p99 12.0 ms, worst 31.0 ms; its waits woke p99 "
-        "0.04 ms late, worst 2.1 ms; the hypervisor took 0.00 s of the machine's CPUs")
+        "0.04 ms late, worst 2.1 ms; the hypervisor took 0.00 s of the machine's CPUs; late events by "
+        "cause: host_preempted 2, loop_blocked 2398")
     assert starved("a", {**KEPT, **host}) is None  # the figures judge nothing by themselves
 
 

@@ -192,6 +192,7 @@ class BenchSession:
         # not epoll: epoll_wait counts its timeout in whole milliseconds, which made every event due
         # within the next millisecond up to a millisecond late; the wait is rig.pace's, on absolute deadlines
         sel = PacedSelector(self._deadline_ns, self._run_due, host=self._rt_host.state)
+        self.sched.on_late = self._rt_host.state.causes.late  # (whose lateness: rig/pace/late.py)
         returncode: int | None = None
         policy = self._raise_priority()
         try:

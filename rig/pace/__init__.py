@@ -36,6 +36,7 @@ from types import ModuleType, TracebackType
 from typing import Any, Final
 
 from plant.native_build import BUILD, EXTENSION_SUFFIX, compile_extension, is_stale, load_extension
+from rig.pace.late import LateCauses
 
 SOURCE: Final = Path(__file__).resolve().with_name("pace.c")
 LIB: Final = BUILD / f"_rigpace{EXTENSION_SUFFIX}"
@@ -86,8 +87,10 @@ class PacedSelector(selectors.SelectSelector):
         self._wait = native().wait
         self._now = native().now
         self.wakes = 0  # calls that returned (for the bench)
-        #: how late each wait that ran to its deadline returned (ns), into ``host`` when given
+        #: how late each wait that ran to its deadline returned (ns), and the loop's thread at each
+        #: wait's start and return (rig/pace/late.py), into ``host`` when given
         self._woke_late = host.woke_late_ns if host is not None else None
+        self._causes = host.causes if host is not None else None
 
     def register(self, fileobj: Any, events: int, data: Any = None) -> selectors.SelectorKey:
         if events != selectors.EVENT_READ:
@@ -106,7 +109,12 @@ class PacedSelector(selectors.SelectSelector):
         limit = native().now() + round(max(0.0, 3600.0 if timeout is None else timeout) * NS)
         due = self._deadline()
         paced = due is not None and due <= limit
+        causes = self._causes
+        if causes is not None:
+            causes.entering(due if paced else None)
         ready = self._wait(due if paced else limit, self._fds, self.spin_ns if paced else 0)
+        if causes is not None:
+            causes.returned()
         self.wakes += 1
         if not ready:
             if paced and self._woke_late is not None and due is not None:
@@ -130,6 +138,8 @@ class HostState:
     #: the CPU time the hypervisor took from this machine's CPUs while the loop ran (s), or None where
     #: /proc/stat does not say
     steal_s: float | None = None
+    #: why the events over 1 ms late were late (the scheduler reports them: Scheduler.on_late)
+    causes: LateCauses = field(default_factory=LateCauses)
 
     def as_dict(self) -> dict[str, object]:
         """For result.json's ``realtime_lateness``: how the loop ran, and the host's own figures beside
@@ -140,7 +150,7 @@ class HostState:
         if self.woke_late_ns:
             late = sorted(self.woke_late_ns)
             out.update(waits=len(late), wait_p99_s=late[int(0.99 * (len(late) - 1))] / NS,
-                       wait_max_s=late[-1] / NS)
+                       wait_max_s=late[-1] / NS, late_causes=dict(self.causes.counts))
         if self.steal_s is not None:
             out["steal_s"] = self.steal_s
         return out

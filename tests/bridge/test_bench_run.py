@@ -158,6 +158,8 @@ def test_result_json_carries_the_bridge_and_the_links_figures(runs: dict[str, An
     assert meta["realtime_lateness"]["events"] > 10_000
     # the host loop waits to a deadline before most of its events (about 1.8 k a second)
     assert meta["realtime_lateness"]["waits"] > 5_000
+    late = meta["realtime_lateness"]
+    assert sum(late["late_causes"].values()) == late["late_over_1ms"]  # each late event has a cause
     assert meta["bus_transactions"] == status["i2c_acked"]
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import gc
 import json
 import os
+import select
 import selectors
 import shutil
 import socket
@@ -139,7 +140,7 @@ def test_a_paced_session_runs_its_events_in_order_none_before_its_time() -> None
     assert all(wall >= due for due, wall in ran)
     state = outcome.host_state
     assert {"sched_fifo", "mlockall", "not_taken"} <= set(state)
-    host_figures = {"waits", "wait_p99_s", "wait_max_s", "steal_s"}
+    host_figures = {"waits", "wait_p99_s", "wait_max_s", "steal_s", "late_causes"}
     assert set(state) - {"sched_fifo", "mlockall", "not_taken"} <= host_figures
     assert state["sched_fifo"] or state["not_taken"]
     waits = state["waits"]
@@ -215,3 +216,38 @@ def test_a_host_run_says_its_steal_time() -> None:
     if pace.steal_ticks() is not None:
         assert state.steal_s is not None and state.steal_s >= 0.0
         assert state.as_dict()["steal_s"] == state.steal_s
+
+
+@pytest.mark.paced
+def test_a_late_event_is_put_down_to_the_loop_when_the_loop_made_it_late() -> None:
+    """Events that block in a call of their own (a read that waits 2.5 ms) or compute for 2.5 ms of CPU
+    make the events due meanwhile late: result.json's late_causes puts those to the loop, not the host.
+    (2.5 ms: within the lateness a paced test takes for its host's, tests/realtime.py.)"""
+    r, w = os.pipe()
+
+    def block(_: Session) -> None:
+        select.select([r], [], [], 0.0025)  # nothing comes: the loop sleeps in a call of its own
+
+    def compute(_: Session) -> None:
+        end = time.thread_time_ns() + 2_500_000  # (this thread's CPU time, not the wall clock)
+        while time.thread_time_ns() < end:
+            pass
+
+    def fly() -> Outcome:
+        cfg = SessionConfig(command=["sleep", "5"], lockstep=False, duration=0.5, allow_no_devices=True)
+        session = Session(cfg, World.at_rest(noise=False))
+        for k in range(1000):  # at 2 kHz, each held up when it comes during one of the eight below
+            session.at(k * 0.0005, lambda s: None)
+        for k in range(8):
+            session.at(0.05 * (k + 1) + 0.0002, block if k % 2 else compute)
+        return session.run()
+
+    try:
+        outcome = realtime(fly, lambda got: {"paced": of_outcome(got)})
+    finally:
+        os.close(r)
+        os.close(w)
+    assert outcome.verdict == "ok", outcome.error
+    causes = outcome.host_state["late_causes"]
+    assert isinstance(causes, dict) and sum(causes.values()) == outcome.events_late >= 8
+    assert causes["loop_blocked"] >= 2 and causes["loop_busy"] >= 2, causes

@@ -47,4 +47,5 @@ def test_a_real_time_run_flies_and_reports_its_lateness(tmp_path: Path) -> None:
     # woke (never before it), and the machine's steal time over the run
     assert 0 < late["waits"] and 0.0 <= late["wait_p99_s"] <= late["wait_max_s"]
     assert late.get("steal_s", 0.0) >= 0.0
+    assert sum(late["late_causes"].values()) == late["late_over_1ms"]  # each late event has a cause
     assert r.signals["armed"][-1] == 1 and r.signals["pwm1"][-1] > 1100

@@ -197,6 +197,10 @@ def test_the_metadata_reads_in_words() -> None:
         "24 of 1719 scheduled events over 1 ms late; worst 4.86 ms, p99 1.08 ms; the loop's waits woke p99 "
         "0.19 ms late; the hypervisor took 0.97 s of the host's CPUs"
     )
+    causes = {"host_woke_late": 5, "host_preempted": 1, "loop_busy": 2, "loop_blocked": 0, "unattributed": 0}
+    assert lateness({**late, **host, "late_causes": causes}).endswith(
+        "; late by cause: host woke late 5, host preempted 1, loop busy 2"
+    )
 
 
 def test_the_vendored_uplot_is_the_pinned_one_and_inlined() -> None:
