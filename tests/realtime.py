@@ -12,8 +12,9 @@ has run on every core, so the suite's own load does not starve them.
 Each run's figures say the host's side too, where it has them: how late the loop's paced waits woke
 (``wait_p99_s``), the CPU time the hypervisor took meanwhile (``steal_s``), and each event over 1 ms
 late put down to the host or to the loop itself (``late_causes``, rig/pace/late.py). An inconclusive
-test quotes them: late events the loop made late (``loop_busy``, ``loop_blocked``) are the rig's to
-mend, and flying again does not.
+test quotes them. A starved run most of whose late events the loop made late (``loop_busy``,
+``loop_blocked``) is not the host's: the test fails at once, saying so (flying again would not mend
+it, and a skip would hide a fault of the rig).
 
 "Starved" is a property of the host, not of the DUT, so the threshold lives here and not in a scenario:
 the bench tolerances (tests/bridge/bench_tolerance.json) were derived with the bridge streaming its
@@ -93,6 +94,30 @@ def of_results(folder: Path, names: Iterable[str]) -> Callable[[Any], dict[str, 
     return read
 
 
+def made_late_by_the_loop(name: str, lateness: Mapping[str, Any]) -> str | None:
+    """For a starved run: the figures in words when most of its late events were the loop's own doing
+    (``late_causes``: ``loop_busy``, ``loop_blocked``), else None. Such a run is not the host's to
+    excuse: flown again it is late again (the slcan capture's reads that slept 1 ms at a time were
+    skipped as inconclusive three times), so the test fails and says so."""
+    causes = lateness.get("late_causes")
+    if not isinstance(causes, Mapping):
+        return None
+    total = sum(int(v) for v in causes.values())
+    own = int(causes.get("loop_busy", 0)) + int(causes.get("loop_blocked", 0))
+    if total == 0 or 2 * own <= total:
+        return None
+    return (f"{name}: {own} of its {total} events over 1 ms late were the loop's own doing (busy "
+            f"{causes.get('loop_busy', 0)}, blocked in a call {causes.get('loop_blocked', 0)})")
+
+
+def _fail_if_the_loop_did_it(late: Mapping[str, Mapping[str, Any]], names: Iterable[str]) -> None:
+    """Fails the test when a starved run was made late by the rig's own loop, not by the host."""
+    said = [s for n in names if starved(n, late.get(n, {})) and (s := made_late_by_the_loop(n, late[n]))]
+    if said:
+        pytest.fail("not the host: the rig's real-time loop made the run late (" + "; ".join(said) + ")",
+                    pytrace=False)
+
+
 def _inconclusive(tries: list[str]) -> NoReturn:
     """Skips the test as inconclusive, with each try's starved runs in words."""
     pytest.skip("inconclusive: the host could not keep real time (starved twice: "
@@ -114,6 +139,7 @@ def realtime_each(names: list[str], fly: Callable[[list[str], int], T],
     for attempt in range(2):
         got = fly(todo, attempt)
         late = lateness(got)
+        _fail_if_the_loop_did_it(late, todo)
         figures = {n: s for n in todo if (s := starved(n, late.get(n, {})))}
         flights.append((got, [n for n in todo if n not in figures]))
         if not figures:
@@ -129,7 +155,9 @@ def realtime(fly: Callable[[], T], lateness: Callable[[T], Mapping[str, Mapping[
     tries: list[str] = []
     for _ in range(2):
         got = fly()
-        figures = [s for name, late in lateness(got).items() if (s := starved(name, late))]
+        late_of = lateness(got)
+        _fail_if_the_loop_did_it(late_of, late_of)
+        figures = [s for name, late in late_of.items() if (s := starved(name, late))]
         if not figures:
             return got
         tries.append("; ".join(figures))

@@ -7,7 +7,14 @@ from typing import Any
 
 import pytest
 
-from tests.realtime import STARVED_MAX_S, STARVED_P99_S, realtime, realtime_each, starved
+from tests.realtime import (
+    STARVED_MAX_S,
+    STARVED_P99_S,
+    made_late_by_the_loop,
+    realtime,
+    realtime_each,
+    starved,
+)
 
 KEPT = {"events": 10_000, "late_over_1ms": 3, "max_s": 0.004, "p99_s": 0.0006}
 STARVED = {"events": 10_000, "late_over_1ms": 2_400, "max_s": 0.031, "p99_s": 0.012}
@@ -95,3 +102,39 @@ def test_a_run_starved_twice_is_inconclusive_whatever_the_others_did() -> None:
     said = str(e.value)
     assert said.startswith("inconclusive: the host could not keep real time")
     assert "a: 2400 of 10000" in said and "then c: 2400 of 10000" in said and "then a" not in said
+
+
+def causes(busy: int, blocked: int, host: int) -> dict[str, int]:
+    return {"host_woke_late": host, "host_preempted": 0, "loop_busy": busy, "loop_blocked": blocked,
+            "unattributed": 0}
+
+
+def test_a_starved_run_the_loop_made_late_fails_at_once_and_is_not_flown_again() -> None:
+    mine = {**STARVED, "late_causes": causes(busy=100, blocked=2200, host=100)}
+    flown, fly, late = flights(mine, KEPT)
+    with pytest.raises(pytest.fail.Exception) as e:
+        realtime(fly, late)
+    assert flown == [0]  # (flying again would not mend it)
+    assert str(e.value) == (
+        "not the host: the rig's real-time loop made the run late (run: 2300 of its 2400 events over 1 ms "
+        "late were the loop's own doing (busy 100, blocked in a call 2200))")
+    flights_of_each, fly_each, late_each = each({"a": KEPT, "b": mine})
+    with pytest.raises(pytest.fail.Exception):
+        realtime_each(["a", "b"], fly_each, late_each)
+    assert len(flights_of_each) == 1
+
+
+def test_the_host_is_excused_only_when_it_made_most_of_the_lateness() -> None:
+    assert made_late_by_the_loop("r", {"late_causes": causes(busy=600, blocked=0, host=600)}) is None  # half
+    assert made_late_by_the_loop("r", {"late_causes": causes(busy=0, blocked=601, host=600)}) is not None
+    assert made_late_by_the_loop("r", {"late_causes": causes(0, 0, 0)}) is None
+    assert made_late_by_the_loop("r", {}) is None  # (a run with no causes: as before)
+    # a run that kept pace is judged whatever its few late events were
+    flown, fly, late = flights({**KEPT, "late_causes": causes(busy=3, blocked=0, host=0)})
+    assert realtime(fly, late) == 0
+    # starved by the host: flown again, then inconclusive, as before
+    host_made = {**STARVED, "late_causes": causes(busy=100, blocked=0, host=2300)}
+    flown, fly, late = flights(host_made, host_made)
+    with pytest.raises(pytest.skip.Exception):
+        realtime(fly, late)
+    assert flown == [0, 1]
