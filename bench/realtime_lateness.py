@@ -6,7 +6,9 @@ step_roll and hover_turbulence) is run as the user runs it, in a process of its 
 it is and then beside ``--load CMD`` (a CPU hog, or a ``make test``; started once in a session of its
 own and ended after the last run). From each run's result.json (``realtime_lateness``): the events run,
 the median, 99th percentile and worst lateness, how many were over 1 ms late, and how the loop ran
-(SCHED_FIFO, mlockall) where the tree records it.
+(SCHED_FIFO, mlockall) where the tree records it, and the host's own figures beside them: how late
+the loop's paced waits woke, the hypervisor's steal time, and whose the events over 1 ms late were
+(the host's, or the loop's own: result.json's ``late_causes``).
 
 These VMs change speed from one minute to the next: before each run two calibration figures say which
 kind of minute it came from: the CPU time of a fixed Python loop (bench/scenario_rates.py's) and how
@@ -126,6 +128,13 @@ def line(mode: str, scenario: str, condition: str, calib: tuple[float, float, fl
     how = ""
     if "sched_fifo" in lat:
         how = f" fifo={'yes' if lat['sched_fifo'] else 'no'} mlockall={'yes' if lat['mlockall'] else 'no'}"
+    if "wait_p99_s" in lat:  # the host's side, where the tree records it (rig/pace/late.py)
+        how += f" waits p99 {lat['wait_p99_s'] * 1e6:.0f} us, steal {lat.get('steal_s', 0):.2f} s"
+    causes = lat.get("late_causes") or {}
+    if any(causes.values()):  # whose the events over 1 ms late were: the host's or the loop's own
+        host = causes.get("host_woke_late", 0) + causes.get("host_preempted", 0)
+        loop = causes.get("loop_busy", 0) + causes.get("loop_blocked", 0)
+        how += f"; >1ms: host {host}, loop {loop}, ? {causes.get('unattributed', 0)}"
     return (f"{mode:8} {scenario:17} {condition:6} {lat.get('events', 0):6d} {p50} "
             f"{lat.get('p99_s', 0) * 1e6:7.0f} {lat.get('max_s', 0) * 1e3:8.2f} "
             f"{lat.get('late_over_1ms', 0):6d}   {calib[0]:5.0f} {calib[1]:5.0f} {calib[2]:6.0f}  "
