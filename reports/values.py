@@ -128,12 +128,21 @@ def _lateness(v: object) -> str:
         f"{v.get('late_over_1ms')} of {v.get('events')} scheduled events over 1 ms late; worst "
         f"{float(v.get('max_s') or 0) * 1000:.2f} ms, p99 {float(v.get('p99_s') or 0) * 1000:.2f} ms"
     )
-    if "wait_p99_s" in v:  # the host's share (rig.pace.HostState): how late the loop's waits woke
-        said += f"; the loop's waits woke p99 {float(v['wait_p99_s'] or 0) * 1000:.2f} ms late"
+    return said + host_said(v)
+
+
+def host_said(v: Mapping[str, Any]) -> str:
+    """The host's own figures in a run's ``realtime_lateness``, where it has them (rig.pace.HostState):
+    how late the loop's paced waits woke, what the hypervisor took, whose each event over 1 ms late was.
+    Beside the events' lateness they say whose it was (the report's line, and a paced test's words)."""
+    said = ""
+    if "wait_p99_s" in v:
+        said += (f"; the loop's waits woke p99 {float(v['wait_p99_s'] or 0) * 1000:.2f} ms late, worst "
+                 f"{float(v.get('wait_max_s') or 0) * 1000:.1f} ms")
     if "steal_s" in v:
         said += f"; the hypervisor took {float(v['steal_s'] or 0):.2f} s of the host's CPUs"
     causes = v.get("late_causes")
-    if isinstance(causes, dict) and any(causes.values()):
+    if isinstance(causes, Mapping) and any(causes.values()):
         said += "; late by cause: " + ", ".join(f"{k.replace('_', ' ')} {n}" for k, n in causes.items() if n)
     return said
 

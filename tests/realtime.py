@@ -36,6 +36,8 @@ from typing import Any, NoReturn, TypeVar
 
 import pytest
 
+from reports.values import host_said
+
 #: lateness p99 (s) above which a run is starved: the bridge's lead
 STARVED_P99_S = 0.003
 #: one event this late (s) starves the run
@@ -51,25 +53,8 @@ def starved(name: str, lateness: Mapping[str, Any]) -> str | None:
     worst, p99 = float(lateness.get("max_s", 0.0)), float(lateness.get("p99_s", 0.0))
     if events and (p99 > STARVED_P99_S or worst >= STARVED_MAX_S):
         return (f"{name}: {late} of {events} events over 1 ms late, p99 {p99 * 1e3:.1f} ms, worst "
-                f"{worst * 1e3:.1f} ms" + _host_said(lateness))
+                f"{worst * 1e3:.1f} ms" + host_said(lateness))
     return None
-
-
-def _host_said(lateness: Mapping[str, Any]) -> str:
-    """The host's own figures, where the run has them (rig.pace.HostState): how late its paced waits
-    woke and what the hypervisor took. Read beside the events' lateness they say whose it was: waits
-    that woke on time on a host that took nothing, under late events, mean the loop made itself late
-    (as the slcan capture's reads once did, 1 ms at a time), which a flight again does not mend."""
-    said = ""
-    if "wait_p99_s" in lateness:
-        said += (f"; its waits woke p99 {float(lateness['wait_p99_s']) * 1e3:.2f} ms late, worst "
-                 f"{float(lateness.get('wait_max_s', 0.0)) * 1e3:.1f} ms")
-    if "steal_s" in lateness:
-        said += f"; the hypervisor took {float(lateness['steal_s']):.2f} s of the machine's CPUs"
-    causes = lateness.get("late_causes")
-    if isinstance(causes, Mapping) and any(causes.values()):
-        said += "; late events by cause: " + ", ".join(f"{k} {v}" for k, v in causes.items() if v)
-    return said
 
 
 def of_outcome(outcome: Any) -> dict[str, Any]:

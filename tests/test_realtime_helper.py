@@ -35,9 +35,9 @@ def test_a_starved_run_quotes_the_hosts_own_figures_where_it_has_them() -> None:
               "unattributed": 0}
     host = {"waits": 9000, "wait_p99_s": 0.00004, "wait_max_s": 0.0021, "steal_s": 0.0, "late_causes": causes}
     assert starved("step_roll", {**STARVED, **host}) == (
-        "step_roll: 2400 of 10000 events over 1 ms late, p99 12.0 ms, worst 31.0 ms; its waits woke p99 "
-        "0.04 ms late, worst 2.1 ms; the hypervisor took 0.00 s of the machine's CPUs; late events by "
-        "cause: host_preempted 2, loop_blocked 2398")
+        "step_roll: 2400 of 10000 events over 1 ms late, p99 12.0 ms, worst 31.0 ms; the loop's waits woke "
+        "p99 0.04 ms late, worst 2.1 ms; the hypervisor took 0.00 s of the host's CPUs; late by cause: host "
+        "preempted 2, loop blocked 2398")
     assert starved("a", {**KEPT, **host}) is None  # the figures judge nothing by themselves
 
 

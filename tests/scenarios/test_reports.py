@@ -195,7 +195,7 @@ def test_the_metadata_reads_in_words() -> None:
     host = {"waits": 1153, "wait_p99_s": 0.000187, "wait_max_s": 0.0016, "steal_s": 0.97}
     assert label == "real-time lateness" and lateness({**late, **host}) == (
         "24 of 1719 scheduled events over 1 ms late; worst 4.86 ms, p99 1.08 ms; the loop's waits woke p99 "
-        "0.19 ms late; the hypervisor took 0.97 s of the host's CPUs"
+        "0.19 ms late, worst 1.6 ms; the hypervisor took 0.97 s of the host's CPUs"
     )
     causes = {"host_woke_late": 5, "host_preempted": 1, "loop_busy": 2, "loop_blocked": 0, "unattributed": 0}
     assert lateness({**late, **host, "late_causes": causes}).endswith(
