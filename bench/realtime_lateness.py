@@ -129,7 +129,9 @@ def line(mode: str, scenario: str, condition: str, calib: tuple[float, float, fl
     if "sched_fifo" in lat:
         how = f" fifo={'yes' if lat['sched_fifo'] else 'no'} mlockall={'yes' if lat['mlockall'] else 'no'}"
     if "wait_p99_s" in lat:  # the host's side, where the tree records it (rig/pace/late.py)
-        how += f" waits p99 {lat['wait_p99_s'] * 1e6:.0f} us, steal {lat.get('steal_s', 0):.2f} s"
+        how += f" waits p99 {lat['wait_p99_s'] * 1e6:.0f} us"
+    if "steal_s" in lat:
+        how += f", steal {lat['steal_s']:.2f} s"
     causes = lat.get("late_causes") or {}
     if any(causes.values()):  # whose the events over 1 ms late were: the host's or the loop's own
         host = causes.get("host_woke_late", 0) + causes.get("host_preempted", 0)

@@ -113,12 +113,14 @@ class PacedSelector(selectors.SelectSelector):
         if causes is not None:
             causes.entering(due if paced else None)
         ready = self._wait(due if paced else limit, self._fds, self.spin_ns if paced else 0)
+        woke = self._now()
         if causes is not None:
             causes.returned()
         self.wakes += 1
         if not ready:
-            if paced and self._woke_late is not None and due is not None:
-                self._woke_late.append(self._now() - due)
+            # (a signal ends the wait early, with nothing ready: not a wake at the deadline)
+            if paced and self._woke_late is not None and due is not None and woke >= due:
+                self._woke_late.append(woke - due)
             if paced and self._on_due is not None:
                 self._on_due()
             return []
@@ -150,7 +152,9 @@ class HostState:
         if self.woke_late_ns:
             late = sorted(self.woke_late_ns)
             out.update(waits=len(late), wait_p99_s=late[int(0.99 * (len(late) - 1))] / NS,
-                       wait_max_s=late[-1] / NS, late_causes=dict(self.causes.counts))
+                       wait_max_s=late[-1] / NS)
+        if self.woke_late_ns or any(self.causes.counts.values()):  # (a paced loop ran)
+            out["late_causes"] = dict(self.causes.counts)
         if self.steal_s is not None:
             out["steal_s"] = self.steal_s
         return out

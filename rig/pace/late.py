@@ -21,6 +21,11 @@ side of it:
   higher priority (``host_preempted``);
 * what the window reaches before the work before the last wait is ``unattributed``.
 
+Events already due when the loop woke run one after another; the first of them over 1 ms late is
+judged as above and the others that follow it are put down to the same cause: their lateness is mostly
+the queue behind it (after a host's stall of 10 ms, the last events of the catch-up would otherwise
+read as the loop's busy work).
+
 The event counts under the cause with the largest share of its window. Nothing is judged from these:
 they stand beside the lateness in result.json, and an inconclusive paced test quotes them.
 """
@@ -83,6 +88,7 @@ class LateCauses:
     _entered: Stamp | None = None     # the last wait's start
     _deadline_ns: int | None = None   # ... what it waited for (None: a descriptor or a timeout only)
     _returned: Stamp | None = None    # ... its return
+    _backlog: tuple[Stamp, str] | None = None  # the last wait's return and the cause of its first late event
 
     def entering(self, deadline_ns: int | None, at: Stamp | None = None) -> None:
         """The loop enters a wait for ``deadline_ns`` (CLOCK_MONOTONIC; None: no event due), now or
@@ -97,6 +103,12 @@ class LateCauses:
         """An event runs ``lateness_ns`` after its due time (now): counted under its cause, returned."""
         now = now or mark()
         lo, hi = now.wall_ns - lateness_ns, now.wall_ns
+        backlog = self._backlog
+        if backlog is not None and backlog[0] is self._returned and lo < backlog[0][0]:
+            # due before the loop woke, judged after another late event of that wake: queued behind it,
+            # its catch-up is the first one's doing (else a host's stall read as the loop's busy work)
+            self.counts[backlog[1]] += 1
+            return backlog[1]
         share = dict.fromkeys(CAUSES, 0.0)
         if self._entered is not None and self._returned is not None:
             entered, returned = Mark._make(self._entered), Mark._make(self._returned)
@@ -108,4 +120,6 @@ class LateCauses:
         share["unattributed"] = max(0.0, lateness_ns - sum(share.values()))
         cause = max(CAUSES, key=lambda c: share[c])
         self.counts[cause] += 1
+        if self._returned is not None and lo < self._returned[0]:  # the first of the wake's backlog
+            self._backlog = (self._returned, cause)
         return cause

@@ -243,7 +243,9 @@ def test_a_late_event_is_put_down_to_the_loop_when_the_loop_made_it_late() -> No
         return session.run()
 
     try:
-        outcome = realtime(fly, lambda got: {"paced": of_outcome(got)})
+        # (judged as the host's without its causes: the late events made here on purpose are the loop's)
+        outcome = realtime(fly, lambda got: {"paced": {k: v for k, v in of_outcome(got).items()
+                                                       if k != "late_causes"}})
     finally:
         os.close(r)
         os.close(w)

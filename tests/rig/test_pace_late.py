@@ -64,3 +64,21 @@ def test_nothing_known_is_unattributed_and_a_real_mark_is_the_threads() -> None:
         x += k
     b = mark()
     assert b.wall_ns >= a.wall_ns and b.cpu_ns >= a.cpu_ns and b.voluntary >= a.voluntary and x > 0
+
+
+def test_the_events_queued_behind_a_late_one_share_its_cause() -> None:
+    # the wait for 10 ms returned at 20 ms (a host's stall); events due at 10, 19.5 and 20.5 ms follow
+    causes = LateCauses()
+    causes.returned(Mark(-5 * MS, 0, 7))
+    causes.entering(10 * MS, Mark(0, 5 * MS, 7))
+    causes.returned(Mark(20 * MS, 5 * MS, 8))
+    assert causes.late(10 * MS, Mark(20 * MS, 5 * MS, 8)) == "host_woke_late"
+    # due at 19.5 ms, run at 21.5 ms after 1.5 ms of catch-up on the CPU: the queue behind the stall
+    assert causes.late(2 * MS, Mark(round(21.5 * MS), round(6.5 * MS), 8)) == "host_woke_late"
+    # due at 20.5 ms, after the loop woke: its own lateness, judged on its own (the CPU's, here)
+    assert causes.late(round(1.2 * MS), Mark(round(21.7 * MS), round(6.7 * MS), 8)) == "loop_busy"
+    assert causes.counts == {**dict.fromkeys(CAUSES, 0), "host_woke_late": 2, "loop_busy": 1}
+    # a new wake starts a new queue
+    causes.entering(22 * MS, Mark(22 * MS, 7 * MS, 8))
+    causes.returned(Mark(22 * MS, 7 * MS, 9))
+    assert causes.late(round(1.5 * MS), Mark(round(23.5 * MS), round(8.5 * MS), 9)) == "loop_busy"
