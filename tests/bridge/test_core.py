@@ -1,8 +1,8 @@
 """The bridge core (bridge/core: bridge.c, pwm_capture.c, sbus_out.c) through its test harness
-(bridge/tests/bridge_tool.c: a HAL whose clock the script sets): ESC pulse capture with counter wrap and
-glitches, SBUS frames byte for byte against emulators/sbus.py, every down message's dispatch, the
-version rule, host silence, register images that never tear a burst, and fuzzed frames that are
-rejected, counted and never acted on.
+(bridge/tests/bridge_tool.c: a HAL whose clock the script sets): ESC pulse capture with counter wrap,
+glitches and its frames over CAN, SBUS frames byte for byte against emulators/sbus.py, every down
+message's dispatch, the version rule, host silence, register images that never tear a burst, and
+fuzzed frames that are rejected, counted and never acted on.
 
 Every test runs twice: on the host, and on a Cortex-M4 (the STM32G431's core, cross-built with
 arm-none-eabi-gcc for the hard-float ABI) under QEMU's mps2-an386 with semihosting, where each script's
@@ -158,6 +158,29 @@ def test_glitches_are_filtered_and_counted(tool: Tool) -> None:
     assert [int(x) for x in r.tagged("pulse")] == [0, 1, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0]
     assert r.tagged("pwm")[-1] == "3 6"  # 3 good pulses, 6 glitches
     assert r.tagged("widths") == ["6000 0 0 0", "0 0 0 0"]  # the last good one; stale 100 ms later
+
+
+def test_can_capture_frames_agree_byte_for_byte_with_the_dbc_codec(tool: Tool) -> None:
+    """With a CAN port the core sends the DBC's two capture frames with each PULSES (the firmware's
+    capture-only mode is only that): each equal to what emulators/pwm_capture.py's CanCodec encodes from
+    the same widths and the frame's sequence, which counts up one per pair."""
+    rng = random.Random(19)
+    s = Script().t(0).hello().cmd("poll")
+    for k in range(40):  # 400 Hz, 10 MHz counter, widths 1000..2000 us to the 0.1 us
+        t0 = 2500 * k + 10
+        for ch in range(4):
+            w = rng.randrange(10000, 20001)
+            s.cmd(f"edge {ch} 1 {t0 * 10} {t0}", f"edge {ch} 0 {t0 * 10 + w} {t0 + w // 10}")
+        s.t(t0 + 2300).cmd("poll")
+    r = run(tool, s.lines)
+    pulses = [list(m["width_tenth_us"]) for m in r.named("PULSES")]  # type: ignore[call-overload]
+    can = [tuple(line.split()) for line in r.tagged("can")]
+    codec = pwm_capture.CanCodec()
+    assert len(can) == 2 * len(pulses) and len(pulses) > 30
+    want = [(f"{fid:03x}", data.hex()) for seq, w in enumerate(pulses)
+            for fid, data in codec.encode(seq % 256, [x * pwm_capture.UNIT_US for x in w])]
+    assert can == want
+    assert codec.decode(0x211, bytes.fromhex(can[-1][1]))[1] == (len(pulses) - 1) % 256
 
 
 # ---------------------------------------------------------------- SBUS
@@ -674,29 +697,3 @@ def test_fuzzed_frames_are_rejected_counted_and_nothing_of_them_is_applied(tool:
     assert sa["ok"] == sb["ok"] and sa["refused"] == sb["refused"] > 10
     assert len(a.named("TIME_SYNC_REPLY")) > 5 and len(a.tagged("sbus")) > 5
 
-
-
-# ---------------------------------------------------------------- CAN capture frames
-
-
-def test_can_capture_frames_agree_byte_for_byte_with_the_dbc_codec(tool: Tool) -> None:
-    """With a CAN port the core sends the DBC's two capture frames with each PULSES (the firmware's
-    capture-only mode is only that): each equal to what emulators/pwm_capture.py's CanCodec encodes from
-    the same widths and the frame's sequence, which counts up one per pair."""
-    rng = random.Random(19)
-    s = Script().t(0).hello().cmd("poll")
-    for k in range(40):  # 400 Hz, 10 MHz counter, widths 1000..2000 us to the 0.1 us
-        t0 = 2500 * k + 10
-        for ch in range(4):
-            w = rng.randrange(10000, 20001)
-            s.cmd(f"edge {ch} 1 {t0 * 10} {t0}", f"edge {ch} 0 {t0 * 10 + w} {t0 + w // 10}")
-        s.t(t0 + 2300).cmd("poll")
-    r = run(tool, s.lines)
-    pulses = [list(m["width_tenth_us"]) for m in r.named("PULSES")]  # type: ignore[call-overload]
-    can = [tuple(line.split()) for line in r.tagged("can")]
-    codec = pwm_capture.CanCodec()
-    assert len(can) == 2 * len(pulses) and len(pulses) > 30
-    want = [(f"{fid:03x}", data.hex()) for seq, w in enumerate(pulses)
-            for fid, data in codec.encode(seq % 256, [x * pwm_capture.UNIT_US for x in w])]
-    assert can == want
-    assert codec.decode(0x211, bytes.fromhex(can[-1][1]))[1] == (len(pulses) - 1) % 256
