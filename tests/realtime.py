@@ -95,12 +95,15 @@ def made_late_by_the_loop(name: str, lateness: Mapping[str, Any]) -> str | None:
             f"{causes.get('loop_busy', 0)}, blocked in a call {causes.get('loop_blocked', 0)})")
 
 
-def _fail_if_the_loop_did_it(late: Mapping[str, Mapping[str, Any]], names: Iterable[str]) -> None:
-    """Fails the test when a starved run was made late by the rig's own loop, not by the host."""
-    said = [s for n in names if starved(n, late.get(n, {})) and (s := made_late_by_the_loop(n, late[n]))]
+def _starved_runs(late: Mapping[str, Mapping[str, Any]], names: Iterable[str]) -> dict[str, str]:
+    """The named runs the host starved, each with its figures in words; fails the test at once when a
+    starved run was made late by the rig's own loop, not by the host."""
+    figures = {n: s for n in names if (s := starved(n, late.get(n, {})))}
+    said = [s for n in figures if (s := made_late_by_the_loop(n, late[n]))]
     if said:
         pytest.fail("not the host: the rig's real-time loop made the run late (" + "; ".join(said) + ")",
                     pytrace=False)
+    return figures
 
 
 def _inconclusive(tries: list[str]) -> NoReturn:
@@ -123,9 +126,7 @@ def realtime_each(names: list[str], fly: Callable[[list[str], int], T],
     todo, tries = list(names), []
     for attempt in range(2):
         got = fly(todo, attempt)
-        late = lateness(got)
-        _fail_if_the_loop_did_it(late, todo)
-        figures = {n: s for n in todo if (s := starved(n, late.get(n, {})))}
+        figures = _starved_runs(lateness(got), todo)
         flights.append((got, [n for n in todo if n not in figures]))
         if not figures:
             return flights
@@ -140,10 +141,9 @@ def realtime(fly: Callable[[], T], lateness: Callable[[T], Mapping[str, Mapping[
     tries: list[str] = []
     for _ in range(2):
         got = fly()
-        late_of = lateness(got)
-        _fail_if_the_loop_did_it(late_of, late_of)
-        figures = [s for name, late in late_of.items() if (s := starved(name, late))]
+        late = lateness(got)
+        figures = _starved_runs(late, late)
         if not figures:
             return got
-        tries.append("; ".join(figures))
+        tries.append("; ".join(figures.values()))
     _inconclusive(tries)
