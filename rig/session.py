@@ -39,7 +39,7 @@ from rig.cores import SPIN_NS, placement
 from rig.dut_process import Keeper, dut_env
 from rig.handler import Handler
 from rig.lockstep import FastPath, attach, pending_input
-from rig.pace import FrozenHeap, PacedSelector, RealtimeHost
+from rig.pace import FrozenHeap, RealtimeHost
 from rig.scheduler import (
     EXIT_WATCHDOG,
     MONO_BASE_NS,
@@ -261,9 +261,7 @@ class Session:
         keepers: list[Keeper] = []
         # real time: a selector that waits in C for the next event's absolute deadline (rig/pace)
         sel = (selectors.DefaultSelector() if cfg.lockstep
-               else PacedSelector(self._deadline_ns, self._realtime_tick, host=self._rt_host.state))
-        if not cfg.lockstep:  # (each event over 1 ms late judged as it starts: rig/pace/late.py)
-            self.sched.on_late = self._rt_host.state.causes.late
+               else self._rt_host.selector(self._deadline_ns, self._realtime_tick, self.sched))
         wall0 = time.perf_counter()
         returncode: int | None = None
         self._running = True

@@ -38,7 +38,7 @@ from rig.bridge.stream import SampleStream
 from rig.bridge.timesync import ClockMap, Exchange
 from rig.bridge.vbridge import Endpoints, VirtualBridge
 from rig.dut_process import Keeper, dut_env
-from rig.pace import PacedSelector, RealtimeHost
+from rig.pace import RealtimeHost
 from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, Stop
 from rig.session import KILL_GRACE_S, Outcome, _Pty
 from rig.world import World
@@ -191,8 +191,7 @@ class BenchSession:
         keeper: Keeper | None = None
         # not epoll: epoll_wait counts its timeout in whole milliseconds, which made every event due
         # within the next millisecond up to a millisecond late; the wait is rig.pace's, on absolute deadlines
-        sel = PacedSelector(self._deadline_ns, self._run_due, host=self._rt_host.state)
-        self.sched.on_late = self._rt_host.state.causes.late  # (whose lateness: rig/pace/late.py)
+        sel = self._rt_host.selector(self._deadline_ns, self._run_due, self.sched)
         returncode: int | None = None
         policy = self._raise_priority()
         try:

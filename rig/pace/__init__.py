@@ -33,7 +33,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType, TracebackType
-from typing import Any, Final
+from typing import Any, Final, Protocol
 
 from plant.native_build import BUILD, EXTENSION_SUFFIX, compile_extension, is_stale, load_extension
 from rig.pace.late import LateCauses
@@ -87,10 +87,9 @@ class PacedSelector(selectors.SelectSelector):
         self._wait = native().wait
         self._now = native().now
         self.wakes = 0  # calls that returned (for the bench)
-        #: how late each wait that ran to its deadline returned (ns), and the loop's thread at each
-        #: wait's start and return (rig/pace/late.py), into ``host`` when given
-        self._woke_late = host.woke_late_ns if host is not None else None
-        self._causes = host.causes if host is not None else None
+        #: where it notes how late each wait that ran to its deadline returned, and the loop's thread
+        #: at each wait's start and return (rig/pace/late.py)
+        self._host = host
 
     def register(self, fileobj: Any, events: int, data: Any = None) -> selectors.SelectorKey:
         if events != selectors.EVENT_READ:
@@ -106,26 +105,32 @@ class PacedSelector(selectors.SelectSelector):
         keys: Mapping[Any, selectors.SelectorKey] = self.get_map()
         if self._fds is None:
             self._fds = tuple(key.fd for key in keys.values())
-        limit = native().now() + round(max(0.0, 3600.0 if timeout is None else timeout) * NS)
+        limit = self._now() + round(max(0.0, 3600.0 if timeout is None else timeout) * NS)
         due = self._deadline()
         paced = due is not None and due <= limit
-        causes = self._causes
-        if causes is not None:
-            causes.entering(due if paced else None)
+        host = self._host
+        if host is not None:
+            host.causes.entering(due if paced else None)
         ready = self._wait(due if paced else limit, self._fds, self.spin_ns if paced else 0)
         woke = self._now()
-        if causes is not None:
-            causes.returned()
+        if host is not None:
+            host.causes.returned()
         self.wakes += 1
         if not ready:
             # (a signal ends the wait early, with nothing ready: not a wake at the deadline)
-            if paced and self._woke_late is not None and due is not None and woke >= due:
-                self._woke_late.append(woke - due)
+            if paced and host is not None and due is not None and woke >= due:
+                host.woke_late_ns.append(woke - due)
             if paced and self._on_due is not None:
                 self._on_due()
             return []
         by_fd = {key.fd: key for key in keys.values()}
         return [(by_fd[fd], selectors.EVENT_READ) for fd in ready if fd in by_fd]
+
+
+class Judged(Protocol):
+    """A scheduler that tells a callable of each event it runs over 1 ms late (rig.scheduler.Scheduler)."""
+
+    on_late: Callable[[int], object] | None
 
 
 @dataclass
@@ -232,6 +237,13 @@ class RealtimeHost:
 
     def __enter__(self) -> HostState:
         return self.start()
+
+    def selector(self, deadline: Callable[[], int | None], on_due: Callable[[], object],
+                 scheduler: Judged) -> PacedSelector:
+        """The paced loop's selector, noting its waits into ``state``, with ``scheduler`` telling
+        ``state`` each event that runs over 1 ms late (whose lateness it was: rig/pace/late.py)."""
+        scheduler.on_late = self.state.causes.late
+        return PacedSelector(deadline, on_due, host=self.state)
 
     def take_fifo(self) -> None:
         try:
