@@ -120,6 +120,7 @@ def _read_all(bus: can.BusABC, want: int) -> list[object]:
     return got
 
 
+@contextlib.contextmanager
 def _pty_bus(make: Callable[[str], can.BusABC]) -> Iterator[tuple[int, can.BusABC]]:
     master, slave = os.openpty()
     tty.setraw(slave)
@@ -150,7 +151,7 @@ def test_the_batched_slcan_reader_reads_what_python_cans_own_reads() -> None:
     pieces = [stream[a:b] for a, b in zip([0, *cuts], [*cuts, len(stream)], strict=True)]
     results = []
     for make in (_batched, lambda name: slcanBus(channel=name, sleep_after_open=0.0)):
-        with contextlib.contextmanager(_pty_bus)(make) as (master, bus):
+        with _pty_bus(make) as (master, bus):
             got: list[object] = []
             for piece in pieces:  # (each piece read before the next: a line cut anywhere)
                 os.write(master, piece)
@@ -167,6 +168,6 @@ def test_a_line_that_is_not_text_costs_only_itself() -> None:
     """A line of bytes that are not UTF-8 is an error, and the next line is read as it is (python-can's
     own read kept such bytes in its buffer, and the next line failed with them)."""
     fid, data = CanCodec().encode(3, [1200.0] * 4)[0]
-    with contextlib.contextmanager(_pty_bus)(_batched) as (master, bus):
+    with _pty_bus(_batched) as (master, bus):
         os.write(master, b"t10\xff\xfe2\r" + slcan(fid, bytes(data)))
         assert _read_all(bus, 2) == ["CanOperationError", (fid, bytes(data), False, False)]
