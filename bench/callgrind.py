@@ -125,6 +125,13 @@ def part_of(function: str, where: str, parts: list[tuple[str, str]]) -> str | No
     return None
 
 
+def inclusive(prof: Profile, function: str) -> int:
+    """The instructions in calls to the functions named ``function`` (any object), from their callers
+    other than themselves: callgrind's inclusive cost of them."""
+    return sum(cost for caller, out in prof.calls.items() for callee, cost in out.items()
+               if callee.split(":", 1)[-1] == function and caller != callee)
+
+
 def split(prof: Profile, parts: list[tuple[str, str]] | None = None) -> dict[str, float]:
     """The profile's instructions by part (see the module's docstring); they sum to its total.
 

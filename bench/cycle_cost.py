@@ -14,9 +14,11 @@ and range are printed. Prints; asserts nothing.
     python bench/cycle_cost.py --instructions --breakdown [--parts FILE.json]
                                                 # and by part, from callgrind (bench/callgrind.py)
 
-``--breakdown`` profiles the same two run lengths under callgrind and subtracts each part's
-instructions (message handling, plant, samples, chip core, scheduler; "other" is the harness's own
-DUT side and what no part reaches). ``--parts`` replaces callgrind.PARTS with a JSON list of
+``--breakdown`` profiles the same two run lengths under callgrind, counting only inside the session's
+entry (``Session._on_readable``: the harness's socket calls are not in it), and subtracts each part's
+instructions (message handling, plant, samples, chip core, scheduler; "other" is what no part
+reaches). It also prints the fast path's own share (``handle_bytes``): a flight reaches it from
+pump.c, without the bench's ``Conn.receive`` and ``FastPath.handle``. ``--parts`` replaces callgrind.PARTS with a JSON list of
 [part, pattern] pairs, for a per-cycle path in new files.
 """
 
@@ -31,6 +33,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -139,24 +142,49 @@ def _instructions(n: int, built: int) -> int:
     return instructions([__file__, "--child"], {"RIG_CYCLES": str(n), "RIG_BUILT": str(built)})
 
 
-def _by_part(n: int, built: int, parts: list[tuple[str, str]] | None) -> dict[str, float]:
+#: What the breakdown counts: the session's entry as the harness calls it (mypyc's wrapper of
+#: ``Session._on_readable``), everything under it and nothing else. Profiled from the start, the import
+#: and set-up's hundreds of millions of instructions ran through the same interpreter functions as the
+#: cycles (a call cycle through ``_PyEval_EvalFrameDefault``), so the split (which shares a function's
+#: cost among its callers by their totals) charged the two run lengths differently and the subtraction
+#: printed negative parts.
+SESSION_ENTRY = "CPyPy_session___Session____on_readable"
+#: ... and within it, the fast path's work on the messages (``handle_bytes``, as pump.c calls it in a
+#: flight; the bench reaches it through ``Conn.receive`` and ``FastPath.handle``, which a flight does not)
+FAST_PATH = "handle_bytes"
+
+
+def _profile(n: int, built: int) -> Any:
+    """callgrind's profile (bench/callgrind.py) of ``n`` cycles, under the session's entry only."""
     import callgrind
 
     env = {**os.environ, "PYTHONHASHSEED": "0", "OPENBLAS_NUM_THREADS": "1", "RIG_CYCLES": str(n),
            "RIG_BUILT": str(built)}
     with tempfile.TemporaryDirectory(prefix="rig-callgrind-") as tmp:
         out = Path(tmp) / "callgrind.out"
-        cmd = ["setarch", "-R", "valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", sys.executable,
-               __file__, "--child"]
+        cmd = ["setarch", "-R", "valgrind", "--tool=callgrind", f"--callgrind-out-file={out}",
+               "--collect-atstart=no", f"--toggle-collect={SESSION_ENTRY}",
+               sys.executable, __file__, "--child"]
         subprocess.run(cmd, capture_output=True, text=True, env=env, check=True)
-        return callgrind.split(callgrind.parse(out.read_text()), parts)
+        return callgrind.parse(out.read_text())
 
 
 def breakdown(short: int, long: int, parts: list[tuple[str, str]] | None) -> None:
-    a, b = _by_part(short, long, parts), _by_part(long, long, parts)
-    per = {p: (b.get(p, 0) - a.get(p, 0)) / (long - short) for p in dict.fromkeys([*b, *a])}
+    import callgrind
+
+    if status() != "hot modules compiled (build/mypyc)":
+        sys.exit("--breakdown counts from the compiled session's entry: build it (make compiled), "
+                 "without RIG_PURE_PYTHON")
+    a, b = _profile(short, long), _profile(long, long)
+    if not b.total:
+        sys.exit(f"--breakdown: callgrind counted nothing under {SESSION_ENTRY}")
+    sa, sb = callgrind.split(a, parts), callgrind.split(b, parts)
+    per = {p: (sb.get(p, 0) - sa.get(p, 0)) / (long - short) for p in dict.fromkeys([*sb, *sa])}
     total = sum(per.values())
-    print(f"by part (callgrind, {long} - {short} cycles): {total / 1000:.1f} k instructions per cycle")
+    fast = (callgrind.inclusive(b, FAST_PATH) - callgrind.inclusive(a, FAST_PATH)) / (long - short)
+    print(f"by part (callgrind, {long} - {short} cycles, under Session._on_readable): {total / 1000:.1f} k "
+          f"instructions per cycle; the fast path's ({FAST_PATH}, a flight's per-cycle path) "
+          f"{fast / 1000:.1f} k")
     for part, cost in sorted(per.items(), key=lambda kv: -kv[1]):
         print(f"  {part:18} {cost / 1000:7.1f} k ({cost / total * 100:5.1f} %)")
 

@@ -69,3 +69,10 @@ def test_an_unnamed_function_is_charged_to_its_callers_parts() -> None:
     # named by its function instead, helper keeps all of its own
     by_part = cg.split(cg.parse(PROFILE), [("plant", r"/plant/c/"), ("help", r":helper$")])
     assert by_part == {"other": pytest.approx(15), "plant": pytest.approx(30), "help": pytest.approx(55)}
+
+
+def test_inclusive_sums_the_calls_into_a_function_from_every_caller() -> None:
+    prof = cg.parse(PROFILE)
+    assert cg.inclusive(prof, "helper") == 55  # 35 from main, 20 from plant_step
+    assert cg.inclusive(prof, "plant_step") == 50
+    assert cg.inclusive(prof, "main") == 0  # called by nothing
