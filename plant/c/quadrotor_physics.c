@@ -243,15 +243,22 @@ static void arm_coordinates(const qr_params *p, double x[4], double y[4])
     memcpy(y, memo.y, sizeof memo.y);
 }
 
-static void make_ctx(const qr_params *p, const qr_inputs *in, ctx_t *c)
+/* What rotor_loads and free_accel read: the parameters, the inputs, the arms and the rotors' health
+ * (the outputs need no more; the ESC commands were about a third of make_ctx's instructions there) */
+static void loads_ctx(const qr_params *p, const qr_inputs *in, ctx_t *c)
 {
     c->par = p;
     c->in = in;
     arm_coordinates(p, c->arm_x, c->arm_y);
-    for (int i = 0; i < 4; i++) {
-        c->omega_cmd[i] = qr_esc_omega_cmd(p, i, in->pwm_us[i]);
+    for (int i = 0; i < 4; i++)
         c->health[i] = isfinite(in->motor_health[i]) && in->motor_health[i] > 0 ? in->motor_health[i] : 0.0;
-    }
+}
+
+static void make_ctx(const qr_params *p, const qr_inputs *in, ctx_t *c)
+{
+    loads_ctx(p, in, c);
+    for (int i = 0; i < 4; i++)
+        c->omega_cmd[i] = qr_esc_omega_cmd(p, i, in->pwm_us[i]);
     c->mode = p->stand;
     /* Axis of a single-axis stand in body axes (constant, since the other two angles are held):
      * roll turns about body x; pitch about the intermediate y axis, which is (0, cos r0, -sin r0) in
@@ -357,7 +364,7 @@ int qr_advance(const qr_params *p, const qr_inputs *in, qr_state *s, double dt)
 void qr_outputs_from(const qr_params *p, const qr_inputs *in, const qr_state *s, qr_outputs *o)
 {
     ctx_t c;
-    make_ctx(p, in, &c);
+    loads_ctx(p, in, &c);
     const double *y = s->y;
     const double *q = y + QR_QW;
     double R[3][3];
