@@ -18,8 +18,8 @@ and range are printed. Prints; asserts nothing.
 entry (``Session._on_readable``: the harness's socket calls are not in it), and subtracts each part's
 instructions (message handling, plant, samples, chip core, scheduler; "other" is what no part
 reaches). It also prints the fast path's own share (``handle_bytes``): a flight reaches it from
-pump.c, without the bench's ``Conn.receive`` and ``FastPath.handle``. ``--parts`` replaces callgrind.PARTS with a JSON list of
-[part, pattern] pairs, for a per-cycle path in new files.
+pump.c, without the bench's ``Conn.receive`` and ``FastPath.handle``. ``--parts`` replaces
+callgrind.PARTS with a JSON list of [part, pattern] pairs, for a per-cycle path in new files.
 """
 
 from __future__ import annotations
