@@ -67,6 +67,19 @@ class Malformed(ValueError):
     """Bytes on the socket that are not a message of this protocol."""
 
 
+#: How long a reply may wait for room on the DUT's socket (its SO_SNDTIMEO). A process under the shim
+#: reads each reply before it asks again, so a send waits at all only once a socket buffer (about 200
+#: KiB) of replies lies unread: a process that writes requests and never reads, which would otherwise
+#: hold the session's loop in send for good (no watchdog, no signal could end the rig).
+REPLY_TIMEOUT_S: Final = 2.0
+REPLIES_UNREAD: Final = (f"it left a socket buffer of replies unread for {REPLY_TIMEOUT_S:g} s (requests "
+                         "written, replies never read)")
+
+
+class RepliesUnread(Malformed):
+    """A connection whose process does not take its replies; closed as a malformed one's is."""
+
+
 class Header:
     """One message's header. A plain class, not a NamedTuple: one is built per message, and compiled
     (rig/compiled.py) a plain class is a native one, built without a Python-level ``__new__``; a

@@ -10,7 +10,8 @@ real time the session follows the wall clock and the shim leaves the clocks alon
 
 The session is a single-threaded select loop over the shim connections, the ptys and the status pipe
 of the DUT's keeper (its parent process, which ends everything the DUT started).
-It never trusts what arrives: a malformed message costs only the connection it came on, a DUT that
+It never trusts what arrives: a malformed message costs only the connection it came on (as does one
+that leaves its replies unread: protocol.REPLY_TIMEOUT_S), a DUT that
 crashes, hangs or never shows up ends the run with an error verdict, and watchdogs on sim time, wall
 time and wall time without progress bound every run.
 """
@@ -24,6 +25,7 @@ import os
 import selectors
 import shutil
 import socket
+import struct
 import termios
 import time
 import tty
@@ -445,6 +447,8 @@ class Session:
         except BlockingIOError:
             return
         sock.setblocking(True)
+        whole, frac = divmod(P.REPLY_TIMEOUT_S, 1)  # (a DUT that never reads must not hold the loop)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDTIMEO, struct.pack("ll", int(whole), int(frac * 1e6)))
         self._n_conns += 1
         conn = Conn(sock, self._n_conns)
         self._conns.append(conn)
@@ -469,6 +473,9 @@ class Session:
                 got = fast.pump(fd, self._pump_fd, buf, self._pump_ptys)
             except Stop:
                 buf.clear()
+                return True
+            except P.Malformed as e:  # (its replies not taken: pump's send shut the connection)
+                self._close_for(conn, sel, e)
                 return True
             finally:
                 self._unstamped |= bool(self._pump_ptys)  # (pump may have read a pty into its pending)
@@ -500,17 +507,22 @@ class Session:
                 off = stop
                 handler.handle(conn, hdr, payload)  # (a native call, compiled)
         except P.Malformed as e:
-            why = f"malformed message on connection {conn.index} (pid {conn.pid or '?'}): {e}; " \
-                  "connection closed, session continues"
-            self.malformed.append(why)
-            self.log(self.now_ns, f"c{conn.index} malformed: {e}")
-            self._drop(conn, sel)
+            self._close_for(conn, sel, e)
             return True
         except Stop:
             buf.clear()
             return True
         del buf[:off]
         return True
+
+    def _close_for(self, conn: Conn, sel: selectors.BaseSelector, e: P.Malformed) -> None:
+        """A connection that broke the protocol costs only itself: reported, then closed."""
+        what = "replies not taken" if isinstance(e, P.RepliesUnread) else "malformed message"
+        why = f"{what} on connection {conn.index} (pid {conn.pid or '?'}): {e}; " \
+              "connection closed, session continues"
+        self.malformed.append(why)
+        self.log(self.now_ns, f"c{conn.index} malformed: {e}")
+        self._drop(conn, sel)
 
     def _quiet(self) -> bool:
         """Nothing for the handler or the session to do between messages: no log to write, no serial

@@ -45,8 +45,8 @@ SHIM_DIR = REPO / "rig" / "shim"
 PLANT_C = REPO / "plant" / "c"
 SOURCES = (HERE / "fastpath.c", HERE / "attrs.c", HERE / "imu_feed.c", HERE / "mag_feed.c",
            HERE / "baro_feed.c", HERE / "pwm_duty.c", HERE / "pump.c", HERE / "mailbox.c", HERE / "events.c",
-           HERE / "i2c_log.c", SHIM_DIR / "protocol.h", SHIM_DIR / "ring.h", native.CHIPS_DIR / "chip_core.h",
-           native.C_DIR / "need_tuple.h", PLANT_C / "plant_steps.c")
+           HERE / "i2c_log.c", HERE / "reply.c", SHIM_DIR / "protocol.h", SHIM_DIR / "ring.h",
+           native.CHIPS_DIR / "chip_core.h", native.C_DIR / "need_tuple.h", PLANT_C / "plant_steps.c")
 MODULE_NAME = "_riglockstep"
 LIB = BUILD / f"{MODULE_NAME}{EXTENSION_SUFFIX}"
 Feed = TypeVar("Feed")

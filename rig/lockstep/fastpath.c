@@ -382,22 +382,7 @@ static int serve(fast_state *s, const chip_need *need)
 
 #include "mailbox.c" /* a connection's messages through shared memory in place of its socket */
 
-static int send_all(fast_state *s, int fd, const uint8_t *p, size_t n)
-{
-    mbox_slot *mb = mbox_find(s->mboxes, fd);
-    if (mb)
-        return mbox_put(mb, p, n); /* (no room: a DUT that does not read its replies; it is stalled) */
-    while (n) {
-        ssize_t k = send(fd, p, n, MSG_NOSIGNAL);
-        if (k < 0) {
-            if (errno == EINTR)
-                continue;
-            return 0; /* the DUT is gone; the loop sees its exit (Session.send) */
-        }
-        p += k, n -= (size_t)k;
-    }
-    return 1;
-}
+#include "reply.c" /* send_all: a reply through the mailbox or the socket */
 
 static void put_hdr(uint8_t *out, uint32_t len, uint16_t type, uint16_t status, uint64_t t)
 {
@@ -500,8 +485,7 @@ static int i2c(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p)
     if (log_transfer(s, t, m, n, data, out, got, status) < 0)
         return -1;
     put_hdr(s->reply, (uint32_t)got, RIG_MSG_I2C, status, t_after);
-    send_all(s, fd, s->reply, sizeof(struct rig_hdr) + got);
-    return 1;
+    return send_all(s, fd, s->reply, sizeof(struct rig_hdr) + got) < 0 ? -1 : 1;
 }
 
 #include "events.c"
@@ -555,8 +539,7 @@ static int wait(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p
         return -1;
     put_hdr(s->reply, sizeof reason, RIG_MSG_WAIT, 0, target);
     memcpy(s->reply + sizeof(struct rig_hdr), &reason, sizeof reason);
-    send_all(s, fd, s->reply, sizeof(struct rig_hdr) + sizeof reason);
-    return 1;
+    return send_all(s, fd, s->reply, sizeof(struct rig_hdr) + sizeof reason) < 0 ? -1 : 1;
 }
 
 /* Acts on the whole messages in buf[off:end] for as long as each is one the fast path takes; *r: 1 when

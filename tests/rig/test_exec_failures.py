@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG
 from rig.session import EXIT_NOT_FOUND
 from tests.rig.helpers import DUTS, PY, rig_exec
@@ -92,3 +94,17 @@ def test_the_wall_time_watchdog_ends_a_dut_the_fast_path_keeps_busy(tmp_path: Pa
     assert run.returncode == EXIT_WATCHDOG, run.stderr
     assert "wall-time watchdog" in run.stderr
     assert run.summary["sim_time"] < 3600
+
+
+@pytest.mark.parametrize("path", ["fast path", "handler"])
+def test_a_connection_that_never_reads_its_replies_is_closed_alone(tmp_path: Path, path: str) -> None:
+    # the replies fill the socket; the session's send waits REPLY_TIMEOUT_S for room (it waited for
+    # good, in C where no signal's handler ran: the rig could not even be stopped), then closes that
+    # connection. Sent from C (rig/lockstep/fastpath.c) or, with a log written, from Conn.send.
+    options = ("--log", str(tmp_path / "log")) if path == "handler" else ()
+    run = rig_exec(tmp_path, PY, str(DUTS / "replies_unread.py"), options=options)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() == "0x68"  # the process's own bus connection went on working
+    [why] = run.summary["malformed"]
+    assert why.startswith("replies not taken on connection 1 ")
+    assert "replies unread for 2 s" in why
