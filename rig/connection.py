@@ -10,6 +10,7 @@ rig/lockstep/mailbox.c)."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import socket
 from dataclasses import dataclass, field
@@ -64,7 +65,8 @@ class Conn:
         try:
             self.sock.sendall(data)
         except BlockingIOError:
-            self.sock.shutdown(socket.SHUT_RDWR)
+            with contextlib.suppress(OSError):  # (gone meanwhile: it is closed either way)
+                self.sock.shutdown(socket.SHUT_RDWR)
             raise P.RepliesUnread(P.REPLIES_UNREAD) from None
         except OSError:
             pass
