@@ -27,8 +27,11 @@ C_SOURCES = ("quadrotor_physics.c", "quadrotor_fmi2.c")
 #: the same, errno is not read): they let the step's functions inline into each other (an exported function
 #: may otherwise be replaced at load time) and sqrt be one instruction. 15.4 k -> 13.0 k instructions per
 #: FC cycle for the plant (bench/cycle_cost.py --breakdown); the library at seeds 0-4 unchanged.
-CFLAGS = ["-std=c11", "-O3", "-fno-semantic-interposition", "-fno-math-errno", "-Wall", "-Wextra", "-Werror",
-          "-fPIC", "-fvisibility=default"]
+#: -ffp-contract=off and -fno-tree-slp-vectorize keep it so where the compiler may fuse multiply-adds
+#: (a CC with -mfma or -march=native, a GNU dialect, aarch64): the inlined derivatives otherwise became
+#: vectorized fmaddsub instructions there, a last-bit change to the attitude.
+CFLAGS = ["-std=c11", "-O3", "-fno-semantic-interposition", "-fno-math-errno", "-ffp-contract=off",
+          "-fno-tree-slp-vectorize", "-Wall", "-Wextra", "-Werror", "-fPIC", "-fvisibility=default"]
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 
 

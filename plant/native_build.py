@@ -21,10 +21,11 @@ from types import ModuleType
 REPO_ROOT = Path(__file__).resolve().parent.parent
 BUILD = REPO_ROOT / "build"
 #: -ffp-contract=off: no fused multiply-adds, so C arithmetic rounds as the Python it replaced did.
-#: -O3, -fno-semantic-interposition and -fno-math-errno change no result (the plant's build says why):
-#: the samples' and the chip core's share of an FC cycle 7.4 k -> 6.7 k (bench/cycle_cost.py --breakdown).
+#: -O3, -fno-semantic-interposition and -fno-math-errno change no result (the plant's build says why, and
+#: why -fno-tree-slp-vectorize): the samples' and the chip core's share of an FC cycle 7.4 k -> 6.7 k
+#: (bench/cycle_cost.py --breakdown).
 CFLAGS = ("-std=c11", "-O3", "-fno-semantic-interposition", "-fno-math-errno", "-Wall", "-Wextra", "-Werror",
-          "-ffp-contract=off")
+          "-ffp-contract=off", "-fno-tree-slp-vectorize")
 SHARED = ("-fPIC", "-shared", "-fvisibility=hidden")
 EXTENSION_SUFFIX = importlib.machinery.EXTENSION_SUFFIXES[0]
 
