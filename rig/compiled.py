@@ -104,10 +104,20 @@ def _built_from(module: str, digest: str) -> bool:
 _SUFFIX = importlib.machinery.EXTENSION_SUFFIXES[0]
 
 
+def _compiled() -> list[str]:
+    """The hot modules this process runs compiled (importing them)."""
+    loaded = [importlib.import_module(m) for m in MODULES]
+    return [m.__name__ for m in loaded if Path(m.__file__ or "").is_relative_to(OUT)]
+
+
+def all_compiled() -> bool:
+    """Every hot module runs compiled in this process (what a benchmark of the compiled session needs)."""
+    return len(_compiled()) == len(MODULES)
+
+
 def status() -> str:
     """Which implementation of the hot modules this process runs, for benchmarks to print."""
-    loaded = [importlib.import_module(m) for m in MODULES]
-    compiled = [m.__name__ for m in loaded if Path(m.__file__ or "").is_relative_to(OUT)]
+    compiled = _compiled()
     if len(compiled) == len(MODULES):
         return "hot modules compiled (build/mypyc)"
     why = "RIG_PURE_PYTHON=1" if os.environ.get("RIG_PURE_PYTHON") == "1" else "build/mypyc missing or stale"
