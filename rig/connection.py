@@ -58,7 +58,7 @@ class Conn:
         """A reply. A DUT that does not take its replies (a full mailbox) or is gone gets nothing more:
         the loop sees its end, or the stall watchdog its silence. On the socket, a send that found no
         room for REPLY_TIMEOUT_S (its SO_SNDTIMEO, set at accept) shuts the connection and raises
-        RepliesUnread, as the fast path's send does (rig/lockstep/fastpath.c, send_all)."""
+        RepliesUnread, as the fast path's send does (rig/lockstep/reply.c, send_all)."""
         if self.mailbox is not None:
             self.mailbox.mailbox_put(self.sock.fileno(), data)
             return

@@ -100,7 +100,7 @@ def test_the_wall_time_watchdog_ends_a_dut_the_fast_path_keeps_busy(tmp_path: Pa
 def test_a_connection_that_never_reads_its_replies_is_closed_alone(tmp_path: Path, path: str) -> None:
     # the replies fill the socket; the session's send waits REPLY_TIMEOUT_S for room (it waited for
     # good, in C where no signal's handler ran: the rig could not even be stopped), then closes that
-    # connection. Sent from C (rig/lockstep/fastpath.c) or, with a log written, from Conn.send.
+    # connection. Sent from C (rig/lockstep/reply.c) or, with a log written, from Conn.send.
     options = ("--log", str(tmp_path / "log")) if path == "handler" else ()
     run = rig_exec(tmp_path, PY, str(DUTS / "replies_unread.py"), options=options)
     assert run.returncode == 0, run.stderr
