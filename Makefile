@@ -14,7 +14,7 @@ SHIM   := build/librigshim.so
 # interpreter's suffix
 EXT := $(shell $(PYTHON) -c 'import importlib.machinery as m; print(m.EXTENSION_SUFFIXES[0])')
 NATIVE := build/_rignative$(EXT) build/_plantsteps$(EXT) build/_rigpace$(EXT) build/_riglockstep$(EXT) \
-	build/_rigtelemetry$(EXT)
+	build/_rigtelemetry$(EXT) build/_rigevents$(EXT)
 # the modules rig/compiled.py compiles with mypyc (its MODULES, read from there)
 COMPILED := build/mypyc/manifest.json
 COMPILED_SOURCES := $(shell $(PYTHON) rig/compiled.py --sources)
@@ -64,8 +64,11 @@ build/_rigtelemetry$(EXT): rig/telemetry/lines.c rig/telemetry/__init__.py plant
 # the lockstep fast path (rig/lockstep): the wire's header is the shim's, the chip core's and the need's
 # headers the emulators'
 build/_riglockstep$(EXT): $(wildcard rig/lockstep/*.c) rig/lockstep/__init__.py rig/shim/protocol.h emulators/chips/chip_core.h \
-	emulators/c/need_tuple.h plant/c/plant_steps.c plant/native_build.py | venv
+	emulators/c/need_tuple.h plant/c/plant_steps.c rig/event_queue/queue.h plant/native_build.py | venv
 	$(PY) -m rig.lockstep
+# the scheduler's event queue (rig/event_queue; also built on first use)
+build/_rigevents$(EXT): rig/event_queue/queue.c rig/event_queue/queue.h rig/event_queue/__init__.py plant/native_build.py | venv
+	$(PY) -c 'import rig.event_queue; rig.event_queue.build()'
 build/_plantsteps$(EXT): plant/c/steps_module.c plant/c/plant_steps.c plant/steps.py plant/native_build.py | venv
 	$(PY) -m plant.steps
 

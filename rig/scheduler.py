@@ -14,12 +14,12 @@ import mmap
 import os
 import signal
 from collections.abc import Callable
-from heapq import heappop, heappush
 from pathlib import Path
 from typing import Any, Final
 
 from rig import interrupts
 from rig import protocol as P
+from rig.event_queue import EventQueue, new_queue
 from rig.world import World
 
 NS: Final = 1_000_000_000
@@ -82,10 +82,8 @@ class Scheduler:
         self.duration, self.sim_timeout = duration, sim_timeout
         self.limit_ns = round((duration if duration is not None else sim_timeout) * NS)
         self._wall_now = wall_now
-        self.events: list[tuple[int, int, Event]] = []
-        # ties in time run in the order they were scheduled (an int: next() on an itertools.count looked
-        # up the builtin and called it, 600 instructions of each event's 1.8 k scheduling)
-        self._seq = 0
+        #: by time, ties in the order scheduled (a heap in C: the fast path reads its first event's time)
+        self.events: EventQueue = new_queue()
         self.event_ns: int | None = None   # inside an event: its time
         self.event_output = False          # the running event sent the DUT data
         self.error: tuple[int, str] | None = None
@@ -101,9 +99,7 @@ class Scheduler:
 
     def at(self, t: float, fn: Event) -> None:
         """Runs ``fn(host)`` at sim time ``t`` seconds (before any DUT request at or after it)."""
-        seq = self._seq
-        self._seq = seq + 1
-        heappush(self.events, (round_half_even(t * NS), seq, fn))
+        self.events.push(round_half_even(t * NS), fn)
 
     def fail(self, code: int, message: str) -> None:
         """Ends the run with this error (the first one stands)."""
@@ -129,7 +125,7 @@ class Scheduler:
                                          f"{self.sim_timeout:g} s of sim time")
             raise Stop
         events = self.events
-        while events and events[0][0] <= t_ns:
+        while (first := events.first_ns()) is not None and first <= t_ns:
             te = self.run_next()
             if stop_on_output and self.event_output:
                 return te
@@ -140,7 +136,7 @@ class Scheduler:
         """Runs the first event, the world stepped to its time first; returns that time. One step of
         advance(), and what the lockstep fast path calls for each event a wait crosses
         (rig/lockstep/events.c), so an event runs alike whichever path reached it."""
-        te, _, fn = heappop(self.events)
+        te, fn = self.events.pop()
         if self._wall_now is not None:
             late = max(0, self._wall_now() - te)
             self.lateness_ns.append(late)
@@ -166,7 +162,7 @@ class Scheduler:
         """The next event's due time, or None: none is left, or the run is over (nothing runs any more;
         a paced loop that kept waking for a past event once the run was over spun at SCHED_FIFO and
         starved, on a one-core host, the DUT it was stopping: the run never ended)."""
-        return self.events[0][0] if self.events and not self.over else None
+        return None if self.over else self.events.first_ns()
 
     def verdict(self, returncode: int | None, sim_s: float, reached: bool, allow_no_devices: bool,
                 interrupted: bool) -> tuple[str, int, str | None]:

@@ -30,6 +30,7 @@ from emulators.sensor_models import BaroModel, ImuModel, MagModel, no_disturbanc
 from plant.fmu import _STEP_CALLS
 from plant.native_build import BUILD, EXTENSION_SUFFIX, compile_extension, is_stale, load_extension
 from plant.variables import MOTORS
+from rig import event_queue
 from rig.cores import SPIN_NS
 from rig.world import HISTORY, World, _WorldTruth
 from scenarios.result import I2CRecord
@@ -46,7 +47,8 @@ PLANT_C = REPO / "plant" / "c"
 SOURCES = (HERE / "fastpath.c", HERE / "attrs.c", HERE / "imu_feed.c", HERE / "mag_feed.c",
            HERE / "baro_feed.c", HERE / "pwm_duty.c", HERE / "pump.c", HERE / "mailbox.c", HERE / "events.c",
            HERE / "i2c_log.c", HERE / "reply.c", SHIM_DIR / "protocol.h", SHIM_DIR / "ring.h",
-           native.CHIPS_DIR / "chip_core.h", native.C_DIR / "need_tuple.h", PLANT_C / "plant_steps.c")
+           native.CHIPS_DIR / "chip_core.h", native.C_DIR / "need_tuple.h", PLANT_C / "plant_steps.c",
+           event_queue.HERE / "queue.h")
 MODULE_NAME = "_riglockstep"
 LIB = BUILD / f"{MODULE_NAME}{EXTENSION_SUFFIX}"
 Feed = TypeVar("Feed")
@@ -58,7 +60,7 @@ PY_PATH_ENV = "RIG_PY_PATH"
 def build() -> Path:
     return compile_extension(SOURCES[:1], LIB, "the lockstep fast path",
                              flags=(f"-I{SHIM_DIR}", f"-I{native.CHIPS_DIR}", f"-I{native.C_DIR}",
-                                    f"-I{PLANT_C}"))
+                                    f"-I{PLANT_C}", f"-I{event_queue.HERE}"))
 
 
 @functools.cache

@@ -19,31 +19,14 @@
 
 static PyObject *s_event_output;
 
-/* The scheduler's first event's time (0 for one at or before 0, UINT64_MAX past 2^63 ns): 1, or 0 when
- * there is none; -1: error (raised). clear_until (fastpath.c) and run_due both read it here, ~8 times a
- * cycle; the heap's first tuple changes about once, so its time is kept with it (the int's conversion
- * was 100 instructions a read). */
+/* The scheduler's first event's time (0 for one at or before 0): 1, or 0 when there is none. clear_until
+ * (fastpath.c) and run_due read it ~8 times a cycle, from the queue's struct (rig/event_queue/queue.h) */
 static int first_event_ns(fast_state *s, uint64_t *t)
 {
-    if (PyList_GET_SIZE(s->events) == 0)
+    if (s->events->n == 0)
         return 0;
-    PyObject *first = PyList_GET_ITEM(s->events, 0);
-    if (first == s->first) { /* (held: no other object can be at its address) */
-        *t = s->first_ns;
-        return 1;
-    }
-    if (!PyTuple_Check(first) || PyTuple_GET_SIZE(first) < 1) {
-        PyErr_SetString(PyExc_TypeError, "the scheduler's events are (t_ns, seq, fn) tuples");
-        return -1;
-    }
-    int overflow = 0;
-    long long v = PyLong_AsLongLongAndOverflow(PyTuple_GET_ITEM(first, 0), &overflow);
-    if (v == -1 && PyErr_Occurred())
-        return -1;
-    *t = overflow > 0 ? UINT64_MAX : overflow < 0 || v <= 0 ? 0 : (uint64_t)v;
-    Py_INCREF(first); /* a tuple: its time stays what it is */
-    Py_XSETREF(s->first, first);
-    s->first_ns = *t;
+    int64_t first = s->events->heap[0].t_ns;
+    *t = first <= 0 ? 0 : (uint64_t)first;
     return 1;
 }
 

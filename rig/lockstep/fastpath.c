@@ -34,6 +34,7 @@
 #include "need_tuple.h"
 #include "plant_steps.c" /* rig_plant_steps: the plant's steps, the plant's own code */
 #include "protocol.h"
+#include "queue.h" /* the scheduler's events (rig/event_queue) */
 
 #define MAX_MSGS 42      /* rig/protocol.py I2C_RDWR_MAX_MSGS */
 #define I2C_MAX_LEN 8192 /* rig/protocol.py I2C_MAX_LEN */
@@ -74,7 +75,7 @@ typedef struct {
     PyObject *world_advance;        /* World.advance_to */
     PyObject *serve;                /* ChipBoard.serve */
     PyObject *pwm;                  /* World.pwm: the PwmChannel list */
-    PyObject *events;               /* Scheduler.events: the heap of (t_ns, seq, fn) */
+    event_queue *events;            /* Scheduler.events (rig/event_queue: its first event read here) */
     PyObject *sched;                /* Scheduler */
     PyObject *over;                 /* Scheduler.over_byte: its ``over`` as a bytearray's byte */
     PyObject *i2c_log;              /* Handler.i2c_log */
@@ -88,8 +89,6 @@ typedef struct {
     Py_ssize_t motors;
     PyObject *step_calls;           /* plant.fmu._STEP_CALLS: a failed call's name */
     PyObject *run_next, *in_flight; /* the events a wait crosses (events.c) */
-    PyObject *first;                /* the scheduler's first event as last read (held), and its time */
-    uint64_t first_ns;
     Py_buffer page;
     chip_board *board;
     transfer_fn transfer;
@@ -135,7 +134,6 @@ static void state_free(PyObject *capsule)
     Py_XDECREF(s->pwm);
     Py_XDECREF(s->events);
     Py_XDECREF(s->sched);
-    Py_XDECREF(s->first);
     Py_XDECREF(s->over);
     Py_XDECREF(s->i2c_log);
     Py_XDECREF(s->record);
@@ -160,8 +158,10 @@ static PyObject *fp_setup(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
     (void)self;
     if (nargs != 16)
         return PyErr_Format(PyExc_TypeError, "setup takes 16 arguments (%zd given)", nargs);
-    if (!PyList_Check(a[2]) || !PyList_Check(a[3]) || !PyList_Check(a[5]))
-        return PyErr_Format(PyExc_TypeError, "setup: pwm, events and i2c_log are lists");
+    if (!PyList_Check(a[2]) || !PyList_Check(a[5]))
+        return PyErr_Format(PyExc_TypeError, "setup: pwm and i2c_log are lists");
+    if (!event_queue_check(a[3]))
+        return PyErr_Format(PyExc_TypeError, "setup: the events are an EventQueue (rig/event_queue)");
     fast_state *s = PyMem_Calloc(1, sizeof *s);
     if (!s)
         return PyErr_NoMemory();
@@ -170,7 +170,8 @@ static PyObject *fp_setup(PyObject *self, PyObject *const *a, Py_ssize_t nargs)
         PyMem_Free(s);
         return NULL;
     }
-    PyObject **refs[] = { &s->world_advance, &s->serve, &s->pwm, &s->events, &s->sched, &s->i2c_log, &s->handler };
+    PyObject **refs[] = { &s->world_advance, &s->serve,   &s->pwm,    (PyObject **)&s->events,
+                          &s->sched,         &s->i2c_log, &s->handler };
     for (int i = 0; i < 7; i++) {
         Py_INCREF(a[i]);
         *refs[i] = a[i];
