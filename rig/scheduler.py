@@ -84,6 +84,9 @@ class Scheduler:
         self._wall_now = wall_now
         #: by time, ties in the order scheduled (a heap in C: the fast path reads its first event's time)
         self.events: EventQueue = new_queue()
+        # (push and pop bound once: a method called by name from compiled code is looked up at every call)
+        self._push: Callable[[int, Event], None] = self.events.push
+        self._pop: Callable[[], tuple[int, Event]] = self.events.pop
         self.event_ns: int | None = None   # inside an event: its time
         self.event_output = False          # the running event sent the DUT data
         self.error: tuple[int, str] | None = None
@@ -99,7 +102,7 @@ class Scheduler:
 
     def at(self, t: float, fn: Event) -> None:
         """Runs ``fn(host)`` at sim time ``t`` seconds (before any DUT request at or after it)."""
-        self.events.push(round_half_even(t * NS), fn)
+        self._push(round_half_even(t * NS), fn)
 
     def fail(self, code: int, message: str) -> None:
         """Ends the run with this error (the first one stands)."""
@@ -136,7 +139,7 @@ class Scheduler:
         """Runs the first event, the world stepped to its time first; returns that time. One step of
         advance(), and what the lockstep fast path calls for each event a wait crosses
         (rig/lockstep/events.c), so an event runs alike whichever path reached it."""
-        te, fn = self.events.pop()
+        te, fn = self._pop()
         if self._wall_now is not None:
             late = max(0, self._wall_now() - te)
             self.lateness_ns.append(late)

@@ -190,15 +190,14 @@ class Session:
         if len(data) > room:
             self._overflow(pty, len(data) - room)
             data = data[:room]
-        view = memoryview(data)
-        while view:
+        sent = 0  # (one write takes it all but for a full kernel buffer: no view and slices made for that)
+        while sent < len(data):
             try:
-                k = os.write(pty.master, view)
+                sent += os.write(pty.master, data[sent:] if sent else data)
             except BlockingIOError:  # (real time: the kernel's own buffers are full too)
-                self._overflow(pty, len(view))
-                data = data[:len(data) - len(view)]
+                self._overflow(pty, len(data) - sent)
+                data = data[:sent]
                 break
-            view = view[k:]
         if self.cfg.lockstep:  # delivered before the DUT next runs (see deliver_serial)
             self.in_flight[pty.slave] = before + len(data)
         self.sched.event_output = True
