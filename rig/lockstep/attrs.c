@@ -10,7 +10,8 @@
  * __dict__ when mypyc is off; a type with its own __getattr__) takes PyObject_GetAttr, as before: the
  * result is the same either way, only the route differs. */
 
-#define ATTR_CACHE 64 /* entries: (type, name) pairs a session meets, a few dozen */
+#define ATTR_CACHE_BITS 9 /* 512 entries for the few dozen (type, name) pairs a session meets: with 64, a few */
+#define ATTR_CACHE (1 << ATTR_CACHE_BITS) /* hot pairs evicted each other every cycle (~130 instructions) */
 
 typedef struct {
     PyTypeObject *type; /* (both held: neither's address can be another's while it is here) */
@@ -25,7 +26,8 @@ static attr_entry attr_cache[ATTR_CACHE];
 static PyGetSetDef *getset_of(PyObject *o, PyObject *name)
 {
     PyTypeObject *t = Py_TYPE(o);
-    attr_entry *e = &attr_cache[(((uintptr_t)t >> 4) ^ ((uintptr_t)name >> 4)) % ATTR_CACHE];
+    uint64_t key = ((uint64_t)(uintptr_t)t >> 4) ^ ((uint64_t)(uintptr_t)name >> 4);
+    attr_entry *e = &attr_cache[(key * 0x9E3779B97F4A7C15u) >> (64 - ATTR_CACHE_BITS)]; /* (Fibonacci hashing) */
     int valid = PyType_HasFeature(t, Py_TPFLAGS_VALID_VERSION_TAG);
     if (valid && e->type == t && e->name == name && e->version == t->tp_version_tag)
         return e->gs;
