@@ -14,17 +14,29 @@ and range are printed. Prints; asserts nothing.
     python bench/cycle_cost.py --instructions --breakdown [--parts FILE.json]
                                                 # and by part, from callgrind (bench/callgrind.py)
 
+Three routes into the session, each printed (``ROUTES``):
+
+* ``peer``: as in a flight. The DUT's side is another process (this file with ``--peer``: it sends a
+  cycle's messages, waits for the burst read's reply, sends the next), and the session reads and acts
+  on them in C (``FastPath.pump``, rig/lockstep/pump.c) from the loop's epoll set, returning to Python
+  only when pump's time budget is spent. Counted in the session's process alone: the session's cost.
+* ``pump``: the DUT's side in this process, the session entered once per cycle through pump (its epoll
+  set holds a pipe that is always readable, so pump returns after each cycle's messages): the harness's
+  socket calls (about 3.5 k) and the loop's entry into pump (about 3.5 k) per cycle are counted too.
+* ``handler``: as ``pump`` but without it (``Conn.receive`` and ``FastPath.handle`` from Python, what
+  the loop does for a connection pump declines): how the figures before pump.c were counted.
+
 ``--breakdown`` profiles the same two run lengths under callgrind, counting only inside the session's
 entry (``Session._on_readable``: the harness's socket calls are not in it), and subtracts each part's
 instructions (message handling, plant, samples, chip core, scheduler; "other" is what no part
-reaches). It also prints the fast path's own share (``handle_bytes``): a flight reaches it from
-pump.c, without the bench's ``Conn.receive`` and ``FastPath.handle``. ``--parts`` replaces
+reaches). It also prints the fast path's own share (``handle_bytes``). ``--parts`` replaces
 callgrind.PARTS with a JSON list of [part, pattern] pairs, for a per-cycle path in new files.
 """
 
 from __future__ import annotations
 
 import os
+import select
 import shutil
 import socket
 import struct
@@ -94,12 +106,21 @@ class _Cycles:
 _U64 = struct.Struct("<Q")
 
 
-def run_cycles(n: int, built: int | None = None) -> float:
+#: how the session is entered (module docstring)
+ROUTES = ("peer", "pump", "handler")
+ROUTE_WORDS = {
+    "peer": "as in a flight (the DUT's side in its own process, pump.c reading; the session's process alone)",
+    "pump": "entered once per cycle through pump.c (the harness's socket calls, ~3.5 k, counted too)",
+    "handler": "entered once per cycle without pump.c (the route of the figures before it; harness too)",
+}
+
+
+def run_cycles(n: int, built: int | None = None, route: str = "pump") -> float:
     """Runs ``n`` cycles; returns CPU seconds per cycle. The messages of ``built`` cycles (at least
     ``n``) are made before the first: two counts of different lengths that make the same number
     subtract it away, so what is left per cycle is the session's and this loop's: its socket calls
     (``sendall`` of a cycle's messages, ``recv_into`` of the replies) and its turn, about 3.5 k
-    instructions of 31 k (callgrind: ``Session._on_readable`` 27.5 k inclusive). Made in the loop,
+    instructions of 31 k on the ``handler`` route (the ``peer`` route's are in the peer). Made in the loop,
     the messages were 12 k more of the count."""
     session = Session(SessionConfig(command=["true"], duration=1e6), World.at_rest())
     with tempfile.TemporaryDirectory(prefix="rig-cycle-") as tmp:
@@ -119,12 +140,58 @@ def run_cycles(n: int, built: int | None = None) -> float:
     assert cycles.at(t) == _cycle(t) and cycles.at(t + CYCLE_NS) == _cycle(t + CYCLE_NS)
     sent = [bytes(cycles.at(t + k * CYCLE_NS)) for k in range(max(n, built or 0))]
     replies = bytearray(65536)
+    if route == "peer":
+        return _run_with_peer(session, conn, dut, t, n, built or n)
+    if route == "pump":  # the loop's epoll set, with something else always ready in it (see above)
+        loop_set, (ready, wakes) = select.epoll(), os.pipe()
+        os.write(wakes, b"!")
+        loop_set.register(ready, select.EPOLLIN)
+        session._pump_fd = loop_set.fileno()
     c0 = time.process_time()
     for k in range(n):
         dut.sendall(sent[k])
         session._on_readable(conn, None)  # type: ignore[arg-type]
         dut.recv_into(replies)
     return (time.process_time() - c0) / n
+
+
+def _run_with_peer(session: Session, conn: Conn, dut: socket.socket, t: int, n: int, built: int) -> float:
+    """The ``peer`` route (module docstring): ``n`` cycles from another process; CPU s per cycle."""
+    loop_set = select.epoll()
+    loop_set.register(conn.sock.fileno(), select.EPOLLIN)
+    session._pump_fd = loop_set.fileno()
+    fast = session.fast
+    assert fast is not None
+    args = [str(dut.fileno()), str(t), str(n), str(built)]
+    peer = subprocess.Popen([sys.executable, __file__, "--peer", *args], pass_fds=[dut.fileno()])
+    dut.close()
+    transfers = fast.counts[0] + n
+    c0 = time.process_time()
+    while fast.counts[0] < transfers:
+        session._on_readable(conn, None)  # type: ignore[arg-type]
+    cpu = time.process_time() - c0
+    conn.sock.close()  # (the peer waits for this end)
+    if peer.wait(timeout=60):
+        sys.exit(f"the peer failed (status {peer.returncode})")
+    return cpu / n
+
+
+def _peer(fd: int, t: int, n: int, built: int) -> None:
+    """The DUT's side of the ``peer`` route: a cycle's messages, then the burst read's reply, ``n`` times
+    (the messages of ``built`` cycles made first, as run_cycles makes them), then the session's close."""
+    sock = socket.socket(fileno=fd)
+    cycles = _Cycles()
+    sent = [bytes(cycles.at(t + k * CYCLE_NS)) for k in range(built)]
+    reply = P.HEADER.size + 14
+    for k in range(n):
+        sock.sendall(sent[k])
+        got = 0
+        while got < reply:
+            chunk = sock.recv(reply - got)
+            if not chunk:
+                sys.exit(f"the session closed at cycle {k}")
+            got += len(chunk)
+    sock.recv(1)  # (the session's close: its count is done)
 
 
 def instructions(argv: list[str], env: dict[str, str]) -> int:
@@ -138,8 +205,9 @@ def instructions(argv: list[str], env: dict[str, str]) -> int:
     return int(line.split()[-1].replace(",", ""))
 
 
-def _instructions(n: int, built: int) -> int:
-    return instructions([__file__, "--child"], {"RIG_CYCLES": str(n), "RIG_BUILT": str(built)})
+def _instructions(n: int, built: int, route: str) -> int:
+    env = {"RIG_CYCLES": str(n), "RIG_BUILT": str(built), "RIG_ROUTE": route}
+    return instructions([__file__, "--child"], env)
 
 
 #: What the breakdown counts: the session's entry as the harness calls it (mypyc's wrapper of
@@ -149,8 +217,8 @@ def _instructions(n: int, built: int) -> int:
 #: cost among its callers by their totals) charged the two run lengths differently and the subtraction
 #: printed negative parts.
 SESSION_ENTRY = "CPyPy_session___Session____on_readable"
-#: ... and within it, the fast path's work on the messages (``handle_bytes``, as pump.c calls it in a
-#: flight; the bench reaches it through ``Conn.receive`` and ``FastPath.handle``, which a flight does not)
+#: ... and within it, the fast path's work on the messages (``handle_bytes``, as pump.c calls it). The
+#: breakdown profiles the ``peer`` route: what is under the entry is then what a flight's session does.
 FAST_PATH = "handle_bytes"
 
 
@@ -159,7 +227,7 @@ def _profile(n: int, built: int) -> Any:
     import callgrind
 
     env = {**os.environ, "PYTHONHASHSEED": "0", "OPENBLAS_NUM_THREADS": "1", "RIG_CYCLES": str(n),
-           "RIG_BUILT": str(built)}
+           "RIG_BUILT": str(built), "RIG_ROUTE": "peer"}
     with tempfile.TemporaryDirectory(prefix="rig-callgrind-") as tmp:
         out = Path(tmp) / "callgrind.out"
         cmd = ["setarch", "-R", "valgrind", "--tool=callgrind", f"--callgrind-out-file={out}",
@@ -190,18 +258,23 @@ def breakdown(short: int, long: int, parts: list[tuple[str, str]] | None) -> Non
 
 
 def main() -> None:
+    if "--peer" in sys.argv:
+        _peer(*(int(a) for a in sys.argv[sys.argv.index("--peer") + 1:][:4]))
+        return
     if "--child" in sys.argv:
-        run_cycles(int(os.environ["RIG_CYCLES"]), int(os.environ.get("RIG_BUILT", "0")))
+        run_cycles(int(os.environ["RIG_CYCLES"]), int(os.environ.get("RIG_BUILT", "0")),
+                   os.environ.get("RIG_ROUTE", "pump"))
         return
     print(status())
     if "--instructions" in sys.argv:
         if not shutil.which("valgrind") or not shutil.which("setarch"):
             sys.exit("--instructions needs valgrind and setarch (apt-get install valgrind util-linux)")
         short, long = 300, 900
-        per = sorted((_instructions(long, long) - _instructions(short, long)) / (long - short) / 1000
-                     for _ in range(3))
-        print(f"session cost of one FC cycle: {per[1]:.0f} k instructions "
-              f"(median of 3; {per[0]:.0f}-{per[2]:.0f}; the harness's socket calls about 3.5 k of it)")
+        for route in ROUTES:
+            per = sorted((_instructions(long, long, route) - _instructions(short, long, route))
+                         / (long - short) / 1000 for _ in range(3))
+            print(f"session cost of one FC cycle, {ROUTE_WORDS[route]}: {per[1]:.1f} k instructions "
+                  f"(median of 3; {per[0]:.1f}-{per[2]:.1f})")
         if "--breakdown" in sys.argv:
             parts = None
             if "--parts" in sys.argv:
@@ -213,9 +286,10 @@ def main() -> None:
                 parts = [(str(p), str(pat)) for p, pat in raw]
             breakdown(short, long, parts)
     else:
-        runs = sorted(run_cycles(2500) * 1e6 for _ in range(3))
-        print(f"session cost of one FC cycle: {runs[1]:.0f} us CPU (median of 3; best {runs[0]:.0f}); "
-              f"{CYCLE_NS / 1e3 / runs[1]:.0f}x real time for this part alone")
+        for route in ROUTES:
+            runs = sorted(run_cycles(2500, route=route) * 1e6 for _ in range(3))
+            print(f"session cost of one FC cycle ({route}): {runs[1]:.0f} us CPU (median of 3; best "
+                  f"{runs[0]:.0f}); {CYCLE_NS / 1e3 / runs[1]:.0f}x real time for this part alone")
 
 
 if __name__ == "__main__":
