@@ -14,7 +14,7 @@ import importlib.util
 import os
 import subprocess
 import sysconfig
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import ModuleType
 
@@ -91,3 +91,13 @@ def load_extension(name: str, path: Path) -> ModuleType:
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+def built_extension(name: str, path: Path, sources: Sequence[Path],
+                    build: Callable[[], object]) -> ModuleType:
+    """The extension module ``name`` from ``path``, made first by ``build`` when it is missing or one of
+    ``sources`` is newer: every extension of the rig is built on first use, so a fresh clone needs no
+    separate step."""
+    if is_stale(path, sources):
+        build()
+    return load_extension(name, path)

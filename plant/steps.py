@@ -14,9 +14,8 @@ from plant.native_build import (
     BUILD,
     EXTENSION_SUFFIX,
     NativeBuildError,
+    built_extension,
     compile_extension,
-    is_stale,
-    load_extension,
 )
 
 C_DIR = Path(__file__).resolve().parent / "c"
@@ -31,9 +30,7 @@ def build() -> Path:
 
 @functools.cache
 def _module() -> ModuleType:
-    if is_stale(LIB, SOURCES):
-        build()
-    return load_extension(MODULE_NAME, LIB)
+    return built_extension(MODULE_NAME, LIB, SOURCES, build)
 
 
 def plant_steps() -> Callable[[int, int, float, int, int], int]:

@@ -16,7 +16,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any, Final, Protocol
 
-from plant.native_build import BUILD, EXTENSION_SUFFIX, compile_extension, is_stale, load_extension
+from plant.native_build import BUILD, EXTENSION_SUFFIX, built_extension, compile_extension
 
 HERE: Final = Path(__file__).resolve().parent
 SOURCES: Final = (HERE / "queue.c", HERE / "queue.h")
@@ -42,9 +42,7 @@ def build() -> Path:
 
 @functools.cache
 def native() -> ModuleType:
-    if is_stale(LIB, SOURCES):
-        build()
-    return load_extension("_rigevents", LIB)
+    return built_extension("_rigevents", LIB, SOURCES, build)
 
 
 def new_queue() -> EventQueue:

@@ -28,7 +28,7 @@ from emulators.dlpf import DLPF
 from emulators.mpu6050 import CONFIG, SMPLRT_DIV
 from emulators.sensor_models import BaroModel, ImuModel, MagModel, no_disturbance
 from plant.fmu import _STEP_CALLS
-from plant.native_build import BUILD, EXTENSION_SUFFIX, compile_extension, is_stale, load_extension
+from plant.native_build import BUILD, EXTENSION_SUFFIX, built_extension, compile_extension
 from plant.variables import MOTORS
 from rig import event_queue
 from rig.cores import SPIN_NS
@@ -65,9 +65,7 @@ def build() -> Path:
 
 @functools.cache
 def module() -> ModuleType:
-    if is_stale(LIB, SOURCES):
-        build()
-    return load_extension(MODULE_NAME, LIB)
+    return built_extension(MODULE_NAME, LIB, SOURCES, build)
 
 
 def enabled() -> bool:

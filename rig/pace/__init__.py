@@ -35,7 +35,7 @@ from pathlib import Path
 from types import ModuleType, TracebackType
 from typing import Any, Final, Protocol
 
-from plant.native_build import BUILD, EXTENSION_SUFFIX, compile_extension, is_stale, load_extension
+from plant.native_build import BUILD, EXTENSION_SUFFIX, built_extension, compile_extension
 from rig.pace.late import LateCauses
 
 SOURCE: Final = Path(__file__).resolve().with_name("pace.c")
@@ -56,9 +56,8 @@ RT_RUNTIME: Final = Path("/proc/sys/kernel/sched_rt_runtime_us")
 @functools.cache
 def native() -> ModuleType:
     """The C side (pace.c), built on first use and again when its source is newer."""
-    if is_stale(LIB, [SOURCE]):
-        compile_extension([SOURCE], LIB, "the real-time loop's wait (rig/pace/pace.c)")
-    return load_extension("_rigpace", LIB)
+    what = "the real-time loop's wait (rig/pace/pace.c)"
+    return built_extension("_rigpace", LIB, [SOURCE], lambda: compile_extension([SOURCE], LIB, what))
 
 
 def now_ns() -> int:

@@ -26,7 +26,7 @@ from typing import Final
 
 import numpy as np
 
-from plant.native_build import BUILD, EXTENSION_SUFFIX, compile_extension, is_stale, load_extension
+from plant.native_build import BUILD, EXTENSION_SUFFIX, built_extension, compile_extension
 
 SOURCE: Final = Path(__file__).resolve().with_name("lines.c")
 LIB: Final = BUILD / f"_rigtelemetry{EXTENSION_SUFFIX}"
@@ -35,9 +35,8 @@ LIB: Final = BUILD / f"_rigtelemetry{EXTENSION_SUFFIX}"
 @functools.cache
 def native() -> ModuleType:
     """The C side (lines.c), built on first use and again when its source is newer."""
-    if is_stale(LIB, [SOURCE]):
-        compile_extension([SOURCE], LIB, "the telemetry's reader (rig/telemetry/lines.c)")
-    return load_extension("_rigtelemetry", LIB)
+    what = "the telemetry's reader (rig/telemetry/lines.c)"
+    return built_extension("_rigtelemetry", LIB, [SOURCE], lambda: compile_extension([SOURCE], LIB, what))
 
 
 def read_columns(text: bytes | bytearray | memoryview, clock_base_s: float, keys: Sequence[str]
