@@ -49,4 +49,3 @@ def new_queue() -> EventQueue:
     """An empty queue."""
     q: EventQueue = native().EventQueue()
     return q
-

@@ -34,10 +34,9 @@ static int first_event_ns(fast_state *s, uint64_t *t)
  * first event that wrote to the DUT ends it: *woke is its time. 1: done; -1: error (an event's Stop) */
 static int run_due(fast_state *s, uint64_t t, int stop_on_output, uint64_t *woke)
 {
-    int due;
     *woke = t;
     uint64_t first;
-    while ((due = first_event_ns(s, &first)) > 0 && first <= t) {
+    while (first_event_ns(s, &first) && first <= t) {
         if (first > 0 && world_to(s, first) < 0)
             return -1;
         PyObject *te = PyObject_CallNoArgs(s->run_next);
@@ -59,7 +58,7 @@ static int run_due(fast_state *s, uint64_t t, int stop_on_output, uint64_t *woke
             }
         }
     }
-    return due < 0 ? -1 : 1;
+    return 1;
 }
 
 /* the wall clock for a wait's deadline (here and pump.c's budget) */

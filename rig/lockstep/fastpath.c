@@ -269,7 +269,7 @@ static int first_event_ns(fast_state *s, uint64_t *t); /* (events.c) */
 
 /* 1: nothing the scheduler does stands between now and t (no event at or before t, the limit not
  * passed, the run not over; with runs_events, events due are the caller's to run: events.c);
- * 0: the Python handler must act; -1: error */
+ * 0: the Python handler must act */
 static int clear_until(fast_state *s, uint64_t t, int runs_events)
 {
     if (t > s->limit_ns)
@@ -279,8 +279,7 @@ static int clear_until(fast_state *s, uint64_t t, int runs_events)
     if (runs_events && s->run_next)
         return 1;
     uint64_t first;
-    int some = first_event_ns(s, &first);
-    return some <= 0 ? (some < 0 ? -1 : 1) : first > t;
+    return !first_event_ns(s, &first) || first > t;
 }
 
 /* the plant's step struct, once Plant.step_many has made it with the world's history as its ring */
