@@ -136,12 +136,12 @@ def run_cycles(n: int, built: int | None = None, route: str = "pump") -> float:
     session._on_readable(conn, None)  # type: ignore[arg-type]  # (the selector is not used here)
     dut.recv(1 << 20)
     t = 10_000_000
+    if route == "peer":  # (the peer makes the cycles' messages)
+        return _run_with_peer(session, conn, dut, t, n, max(n, built or 0))
     cycles = _Cycles()
     assert cycles.at(t) == _cycle(t) and cycles.at(t + CYCLE_NS) == _cycle(t + CYCLE_NS)
     sent = [bytes(cycles.at(t + k * CYCLE_NS)) for k in range(max(n, built or 0))]
     replies = bytearray(65536)
-    if route == "peer":
-        return _run_with_peer(session, conn, dut, t, n, built or n)
     if route == "pump":  # the loop's epoll set, with something else always ready in it (see above)
         loop_set, (ready, wakes) = select.epoll(), os.pipe()
         os.write(wakes, b"!")
