@@ -121,6 +121,11 @@ class World:
     direct_pwm: bool = True
 
     def __post_init__(self) -> None:
+        # the plant steps taken (``_k``), in a cell C reads and moves in place (rig/lockstep: the fast
+        # path steps the plant and its samples' producers read the count every FC cycle; as an attribute
+        # each read made and dropped an int object, about 0.5 k instructions per cycle)
+        self._steps = np.zeros(1, dtype=np.int64)
+        self.k_addr: int = self._steps.ctypes.data
         self._k = round(self.plant.time * 1e9 / self.step_ns)
         # a ring of output rows that C reads (the IMU's sampling chain): a TruthTable
         self._hist = np.zeros((HISTORY, len(self.plant.y)))
@@ -185,6 +190,15 @@ class World:
         return world
 
     # ---- time ------------------------------------------------------------------------------
+
+    @property
+    def _k(self) -> int:
+        """The plant steps taken since time 0 (the world's time in steps)."""
+        return int(self._steps[0])
+
+    @_k.setter
+    def _k(self, k: int) -> None:
+        self._steps[0] = k
 
     @property
     def time_ns(self) -> int:

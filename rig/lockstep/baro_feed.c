@@ -186,9 +186,9 @@ static int baro_serve(baro_feed *f, chip_board *b, const chip_need *need)
         return fits;
     double offset, drift;
     long long k;
-    if (attr_double(f->model, s_offset_pa, &offset) < 0 || attr_double(f->model, s_drift, &drift) < 0 ||
-        attr_ll(f->world, s_k, &k) < 0)
+    if (attr_double(f->model, s_offset_pa, &offset) < 0 || attr_double(f->model, s_drift, &drift) < 0)
         return -1;
+    k = *f->ring.k;
     /* BaroFeed.serve's instant, World._slots' row, BaroModel.__call__, BaroFeed.words' clamps */
     double t = (double)need->anchor_ns * 1e-9 + f->conversion[max][need->osr];
     const double *row = ring_row(&f->ring, k, t);
@@ -243,7 +243,7 @@ static PyObject *fp_setup_baro(PyObject *self, PyObject *const *a, Py_ssize_t na
         Py_INCREF(a[1 + i]);
         *refs[i] = a[1 + i];
     }
-    ring_read(&f->ring, a + 5);
+    ring_read(&f->ring, f->world, a + 5);
     PyObject *cols = PySequence_Fast(a[10], "setup_baro: cols is a sequence");
     PyObject *conv = PySequence_Fast(a[11], "setup_baro: conversion is a sequence");
     if (cols && conv && (PySequence_Fast_GET_SIZE(cols) != 2 || PySequence_Fast_GET_SIZE(conv) != 10))

@@ -85,6 +85,7 @@ typedef struct {
     PyObject *world, *plant, *hist; /* for the plant's steps in C (World.advance_to's) */
     struct rig_plant_steps *steps;  /* the plant's, once it has stepped into the world's history */
     double *u;                      /* the plant's inputs (Plant.u) */
+    int64_t *k;                     /* World._k's cell (World.k_addr) */
     int64_t u_pwm[RIG_PWM_MAX];     /* World._u_pwm: the input of motor channel i */
     Py_ssize_t motors;
     PyObject *step_calls;           /* plant.fmu._STEP_CALLS: a failed call's name */
@@ -242,14 +243,15 @@ static PyObject *fp_setup_world(PyObject *self, PyObject *const *a, Py_ssize_t n
         return PyErr_Format(PyExc_TypeError, "setup_world: u_pwm is a list of at most %d, step_calls a dict",
                             RIG_PWM_MAX);
     double *u = PyLong_AsVoidPtr(a[4]);
+    int64_t *k = world_steps(a[1]);
     Py_ssize_t motors = PyLong_AsSsize_t(a[6]);
     int64_t idx[RIG_PWM_MAX];
     for (Py_ssize_t i = 0; i < PyList_GET_SIZE(a[5]) && !PyErr_Occurred(); i++)
         idx[i] = PyLong_AsLongLong(PyList_GET_ITEM(a[5], i));
     if (PyErr_Occurred())
         return NULL;
-    if (!u || motors < 0 || motors > PyList_GET_SIZE(a[5]))
-        return PyErr_Format(PyExc_ValueError, "setup_world: an input address and at most %zd motors",
+    if (!u || !k || motors < 0 || motors > PyList_GET_SIZE(a[5]))
+        return PyErr_Format(PyExc_ValueError, "setup_world: input and step-count addresses and at most %zd motors",
                             PyList_GET_SIZE(a[5]));
     PyObject **refs[] = { &s->world, &s->plant, &s->hist, &s->step_calls };
     PyObject *objs[] = { a[1], a[2], a[3], a[7] };
@@ -258,6 +260,7 @@ static PyObject *fp_setup_world(PyObject *self, PyObject *const *a, Py_ssize_t n
         Py_XSETREF(*refs[i], objs[i]);
     }
     s->u = u;
+    s->k = k;
     s->motors = motors;
     memcpy(s->u_pwm, idx, sizeof(int64_t) * (size_t)motors);
     Py_RETURN_NONE;
@@ -310,14 +313,7 @@ static int world_to(fast_state *s, uint64_t t)
         return 0;
     struct rig_plant_steps *steps = plant_steps_of(s);
     if (steps) {
-        long long k;
-        PyObject *kv = attr_get(s->world, s_k);
-        if (!kv)
-            return -1;
-        k = PyLong_AsLongLong(kv);
-        Py_DECREF(kv);
-        if (k == -1 && PyErr_Occurred())
-            return -1;
+        int64_t k = *s->k;
         long long n = (long long)(t / s->step_ns) - k;
         if (n > 0) {
             int32_t done = rig_plant_steps(steps, (int32_t)n, (double)s->step_ns * 1e-9, 1, k + 1);
@@ -335,13 +331,7 @@ static int world_to(fast_state *s, uint64_t t)
                     PyErr_SetString(PyExc_RuntimeError, "the plant's step failed");
                 return -1;
             }
-            PyObject *kn = PyLong_FromLongLong(k + n);
-            if (!kn)
-                return -1;
-            int bad = attr_set(s->world, s_k, kn);
-            Py_DECREF(kn);
-            if (bad)
-                return -1;
+            *s->k = k + n;
         }
     } else {
         PyObject *arg = PyLong_FromUnsignedLongLong(t);
@@ -658,10 +648,10 @@ PyMODINIT_FUNC PyInit__riglockstep(void)
     s_pwm_config_changes = PyUnicode_InternFromString("pwm_config_changes");
     PyObject **names[] = { &s_steps_at, &s_ring,    &s_direct_pwm, &s_exported, &s_enabled, &s_period_ns,
                            &s_inversed, &s_epoch,   &s_anchor,     &s_cfg,      &s_div,     &s_period,
-                           &s_next_t,   &s_accel_f, &s_gyro_f,     &s_addr,     &s_k,       &s_refill };
+                           &s_next_t,   &s_accel_f, &s_gyro_f,     &s_addr,     &s_refill };
     const char *texts[] = { "_steps_at", "_ring",    "direct_pwm", "exported", "enabled", "period_ns",
                             "inversed",  "_epoch",   "_anchor",    "_cfg",     "_div",    "_period",
-                            "next_t",    "_accel_f", "_gyro_f",    "_addr",    "_k",      "refill" };
+                            "next_t",    "_accel_f", "_gyro_f",    "_addr",    "refill" };
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
         if (!(*names[i] = PyUnicode_InternFromString(texts[i])))
             return NULL;

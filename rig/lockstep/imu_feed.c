@@ -25,8 +25,21 @@ typedef uint8_t (*peek_fn)(const chip_board *b, uint8_t chip, uint8_t reg);
 /* The world's history of plant-output rows (World._hist), as the samples' producers here read it */
 typedef struct {
     char *hist;
+    const int64_t *k;                        /* World._k's cell: the steps taken (World.k_addr) */
     int64_t k0, history, row_bytes, step_ns; /* World._k0, HISTORY, the row's bytes, World.step_ns */
 } truth_ring;
+
+/* World._k's cell (World.k_addr), or NULL: not a world (the caller's check says so) */
+static int64_t *world_steps(PyObject *world)
+{
+    if (PyErr_Occurred())
+        return NULL; /* (an earlier argument's error stands) */
+    PyObject *a = PyObject_GetAttrString(world, "k_addr");
+    int64_t *k = a ? PyLong_AsVoidPtr(a) : NULL;
+    Py_XDECREF(a);
+    PyErr_Clear();
+    return k;
+}
 
 /* World._slots and its row for sim time t (seconds) with the world at step k: the last step at or before
  * t, clamped to the history kept (one copy of this arithmetic for every producer in C) */
@@ -39,9 +52,11 @@ static const double *ring_row(const truth_ring *r, int64_t k, double t)
     return (const double *)(r->hist + (slot % r->history) * r->row_bytes);
 }
 
-/* a[0..4]: k0, history, hist_addr, row_bytes, step_ns into r (errors: raised, checked by the caller) */
-static void ring_read(truth_ring *r, PyObject *const *a)
+/* world's cell and a[0..4]: k0, history, hist_addr, row_bytes, step_ns into r (errors: raised, checked by
+ * the caller) */
+static void ring_read(truth_ring *r, PyObject *world, PyObject *const *a)
 {
+    r->k = world_steps(world);
     r->k0 = PyLong_AsLongLong(a[0]);
     r->history = PyLong_AsLongLong(a[1]);
     r->hist = PyLong_AsVoidPtr(a[2]);
@@ -49,7 +64,10 @@ static void ring_read(truth_ring *r, PyObject *const *a)
     r->step_ns = PyLong_AsLongLong(a[4]);
 }
 
-static int ring_ok(const truth_ring *r) { return r->hist && r->history > 0 && r->row_bytes > 0 && r->step_ns > 0; }
+static int ring_ok(const truth_ring *r)
+{
+    return r->hist && r->k && r->history > 0 && r->row_bytes > 0 && r->step_ns > 0;
+}
 
 typedef struct {
     int on;
@@ -68,8 +86,7 @@ typedef struct {
     peek_fn peek;
 } imu_feed;
 
-static PyObject *s_epoch, *s_anchor, *s_cfg, *s_div, *s_period, *s_next_t, *s_accel_f, *s_gyro_f, *s_addr, *s_k,
-    *s_refill;
+static PyObject *s_epoch, *s_anchor, *s_cfg, *s_div, *s_period, *s_next_t, *s_accel_f, *s_gyro_f, *s_addr, *s_refill;
 
 static void imu_free(imu_feed *f)
 {
@@ -123,9 +140,9 @@ static int imu_serve(imu_feed *f, chip_board *b, const chip_need *need)
     double period, next_t;
     void *accel_f, *gyro_f;
     if (attr_double(f->feed, s_period, &period) < 0 || attr_double(f->sampler, s_next_t, &next_t) < 0 ||
-        filter_addr(f->sampler, s_accel_f, &accel_f) < 0 || filter_addr(f->sampler, s_gyro_f, &gyro_f) < 0 ||
-        attr_ll(f->world, s_k, &k) < 0)
+        filter_addr(f->sampler, s_accel_f, &accel_f) < 0 || filter_addr(f->sampler, s_gyro_f, &gyro_f) < 0)
         return -1;
+    k = *f->ring.k;
     const double *dl = f->dlpf[cfg & 0x07];
     int32_t a_depth = depth_of(dl[1], period), g_depth = depth_of(dl[3], period);
     if (a_depth > f->max_depth || g_depth > f->max_depth)
@@ -188,7 +205,7 @@ static PyObject *imu_setup(imu_feed *f, PyObject *const *a)
     f->die_offset = PyFloat_AsDouble(a[9]);
     f->block = PyLong_AsVoidPtr(a[10]);
     PyObject *const ring_args[] = { a[11], a[12], a[13], a[14], a[16] };
-    ring_read(&f->ring, ring_args);
+    ring_read(&f->ring, f->world, ring_args);
     f->max_depth = PyLong_AsLongLong(a[15]);
     f->reg_config = (uint8_t)PyLong_AsLong(a[17]);
     f->reg_smplrt_div = (uint8_t)PyLong_AsLong(a[18]);

@@ -64,8 +64,9 @@ static int mag_serve(mag_feed *f, chip_board *b, const chip_need *need)
     long long anchor, index, k;
     double next_t;
     if (attr_ll(f->feed, s_anchor, &anchor) < 0 || attr_ll(f->feed, s_mag_index, &index) < 0 ||
-        attr_double(f->feed, s_mag_next_t, &next_t) < 0 || attr_ll(f->world, s_k, &k) < 0)
+        attr_double(f->feed, s_mag_next_t, &next_t) < 0)
         return -1;
+    k = *f->ring.k;
     if (anchor != (long long)need->anchor)
         return 0;
     double period = 1.0 / f->rates_hz[(f->peek(b, CHIP_HMC, f->reg_cra) >> 2) & 0x7];
@@ -121,7 +122,7 @@ static PyObject *mag_setup(mag_feed *f, PyObject *const *a)
         f->channel_addr = PyLong_AsVoidPtr(addr);
         Py_DECREF(addr);
     }
-    ring_read(&f->ring, a + 5);
+    ring_read(&f->ring, f->world, a + 5);
     f->reg_cra = (uint8_t)PyLong_AsLong(a[10]);
     double *into[] = { f->rates_hz, f->dist };
     Py_ssize_t sizes[] = { 8, 3 }, cols = 3;
