@@ -86,14 +86,24 @@ class ImuSampler:
     """``source`` (an ImuModel, whose ``sample_block`` takes a block at once, or any function of time
     giving an ImuSample) at the sample instants, through the DLPF when ``dlpf``: a block of up to BLOCK
     samples at a time into the rows of ``block`` (accel xyz, gyro xyz, die °C). The instants are a
-    running sum of the period from ``next_t``, the float time of the next one."""
+    running sum of the period from ``next_t``, the float time of the next one. ``next_t`` lives in a cell
+    (``next_t_addr``) that the lockstep fast path (rig/lockstep/imu_feed.c) reads and moves in place."""
 
     def __init__(self, source: Callable[[float], ImuSample], dlpf: bool = True) -> None:
         self.source, self.dlpf = source, dlpf
         self.block = np.zeros((BLOCK, 7))
         self.block_addr: int = self.block.ctypes.data
-        self.next_t = 0.0
+        self._next = np.zeros(1)
+        self.next_t_addr: int = self._next.ctypes.data
         self._accel_f, self._gyro_f = LowPass(), LowPass()
+
+    @property
+    def next_t(self) -> float:
+        return float(self._next[0])
+
+    @next_t.setter
+    def next_t(self, t: float) -> None:
+        self._next[0] = t
 
     def reset_filters(self) -> None:
         """DEVICE_RESET / power-on: the filters start again."""
@@ -118,9 +128,11 @@ class ImuSampler:
                 self._gyro_f.catch_up(self.block_addr + 24, g_bw, skip * period)
         m = min(n, BLOCK)
         times = []
+        t = self.next_t
         for _ in range(m):
-            times.append(self.next_t)
-            self.next_t += period
+            times.append(t)
+            t += period
+        self.next_t = t
         self._take(times)
         if self.dlpf:
             self._accel_f.run(self.block_addr, m, 7, a_bw, a_delay, period)

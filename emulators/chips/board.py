@@ -67,6 +67,11 @@ class ImuFeed:
         self._cfg, self._div, self._period = -1, -1, 0.0  # the registers the sample period is for
         #: the float times of recent instants every one of which was encoded: (first_ns, period_ns, times)
         self._recent: list[tuple[int, int, list[float]]] = []
+        #: serve()'s calls, in a cell the lockstep fast path reads (rig/lockstep/imu_feed.c): what it keeps
+        #: of this feed (epoch, anchor, registers, period, the sampler's filters) changes only in serve(),
+        #: so while the count stands it need not read them again
+        self._serves = np.zeros(1, dtype=np.int64)
+        self.serves_addr: int = self._serves.ctypes.data
 
     def float_at(self, t_ns: int) -> float:
         """The float time this feed gave the sample instant at ``t_ns`` (the aux master's instants)."""
@@ -77,6 +82,7 @@ class ImuFeed:
         return t_ns * 1e-9
 
     def serve(self, board: ChipBoard, need: Need) -> None:
+        self._serves[0] += 1
         keeps_all, count, anchor, epoch = need[1], need[6], need[7], need[8]
         t_ns, period_ns, anchor_ns = need[9], need[10], need[11]
         sampler = self._sampler

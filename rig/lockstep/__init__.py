@@ -115,10 +115,11 @@ class FastPath:
         return int(i2c), int(waits), int(pwm)
 
     @property
-    def made_here(self) -> tuple[int, int]:
-        """The magnetometer's measurements and the barometer's conversions made in C so far."""
-        mag, baro = module().made_here(self._state)
-        return int(mag), int(baro)
+    def made_here(self) -> tuple[int, int, int]:
+        """The magnetometer's measurements, the barometer's conversions and the IMU's blocks of samples
+        made in C so far."""
+        mag, baro, imu = module().made_here(self._state)
+        return int(mag), int(baro), int(imu)
 
     def handle(self, fd: int, buf: bytearray, off: int) -> int:
         off_after: int = self._handle(self._state, fd, buf, off)

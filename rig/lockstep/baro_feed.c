@@ -269,13 +269,13 @@ static PyObject *fp_setup_baro(PyObject *self, PyObject *const *a, Py_ssize_t na
     Py_RETURN_NONE;
 }
 
-/* made_here(state): (the magnetometer's measurements, the barometer's conversions) made here so far: a
- * test's evidence that C made them */
+/* made_here(state): (the magnetometer's measurements, the barometer's conversions, the IMU's blocks of
+ * samples) made here so far: a test's evidence that C made them */
 static PyObject *fp_made_here(PyObject *self, PyObject *state)
 {
     (void)self;
     fast_state *s = PyCapsule_GetPointer(state, "rig.lockstep");
-    return s ? Py_BuildValue("(KK)", (unsigned long long)(s->mag ? s->mag->served : 0),
-                             (unsigned long long)(s->baro ? s->baro->served : 0))
+    return s ? Py_BuildValue("(KKK)", (unsigned long long)(s->mag ? s->mag->served : 0),
+                             (unsigned long long)(s->baro ? s->baro->served : 0), (unsigned long long)s->imu.served)
              : NULL;
 }

@@ -646,12 +646,12 @@ PyMODINIT_FUNC PyInit__riglockstep(void)
     s_over_byte = PyUnicode_InternFromString("over_byte");
     s_duty_ns = PyUnicode_InternFromString("duty_ns");
     s_pwm_config_changes = PyUnicode_InternFromString("pwm_config_changes");
-    PyObject **names[] = { &s_steps_at, &s_ring,    &s_direct_pwm, &s_exported, &s_enabled, &s_period_ns,
-                           &s_inversed, &s_epoch,   &s_anchor,     &s_cfg,      &s_div,     &s_period,
-                           &s_next_t,   &s_accel_f, &s_gyro_f,     &s_addr,     &s_refill };
-    const char *texts[] = { "_steps_at", "_ring",    "direct_pwm", "exported", "enabled", "period_ns",
-                            "inversed",  "_epoch",   "_anchor",    "_cfg",     "_div",    "_period",
-                            "next_t",    "_accel_f", "_gyro_f",    "_addr",    "refill" };
+    PyObject **names[] = { &s_steps_at, &s_ring,   &s_direct_pwm, &s_exported, &s_enabled, &s_period_ns,
+                           &s_inversed, &s_epoch,  &s_anchor,     &s_cfg,      &s_div,     &s_period,
+                           &s_accel_f,  &s_gyro_f, &s_addr,       &s_refill };
+    const char *texts[] = { "_steps_at", "_ring",   "direct_pwm", "exported", "enabled", "period_ns",
+                            "inversed",  "_epoch",  "_anchor",    "_cfg",     "_div",    "_period",
+                            "_accel_f",  "_gyro_f", "_addr",      "refill" };
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
         if (!(*names[i] = PyUnicode_InternFromString(texts[i])))
             return NULL;

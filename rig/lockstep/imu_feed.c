@@ -12,6 +12,11 @@
  * state: a reset or a wake-up (its epoch or anchor moved), a new sample rate, the FIFO or the aux
  * master keeping every sample, a wait long enough to skip samples, and signal faults on accel or gyro.
  * Every case is decided before anything moves, so the Python producer takes over from the same state.
+ *
+ * The state shared with Python is read in place: next_t and World._k are cells (their addresses given
+ * at setup). The feed's epoch, anchor, registers, period and filters change only in ImuFeed.serve, which
+ * counts its calls in another cell; they are read again only when that count has moved (as attributes
+ * every cycle they were about 1.5 k instructions of a 21 k cycle).
  */
 
 typedef int32_t (*imu_measure_fn)(void *accel, void *gyro, int32_t n, const double *t, const double *const *rows,
@@ -80,13 +85,21 @@ typedef struct {
     int64_t max_depth;
     uint8_t reg_config, reg_smplrt_div;
     double dlpf[8][4]; /* emulators.dlpf.DLPF: accel bw, accel delay, gyro bw, gyro delay */
+    double *next_t;    /* the sampler's next_t (ImuSampler.next_t_addr) */
+    /* what is kept of the feed, read after each of its Python serves (ImuFeed.serves_addr's count) */
+    const int64_t *serves;
+    int64_t serves_seen; /* -1: nothing read yet */
+    long long epoch, anchor, cfg, div;
+    double period;
+    void *accel_f, *gyro_f; /* the sampler's filters' C state (new after a reset) */
+    uint64_t served;        /* blocks of samples made here */
     imu_measure_fn measure;
     lowpass_run_fn lowpass;
     push_imu_fn push;
     peek_fn peek;
 } imu_feed;
 
-static PyObject *s_epoch, *s_anchor, *s_cfg, *s_div, *s_period, *s_next_t, *s_accel_f, *s_gyro_f, *s_addr, *s_refill;
+static PyObject *s_epoch, *s_anchor, *s_cfg, *s_div, *s_period, *s_accel_f, *s_gyro_f, *s_addr, *s_refill;
 
 static void imu_free(imu_feed *f)
 {
@@ -130,19 +143,22 @@ static int imu_serve(imu_feed *f, chip_board *b, const chip_need *need)
     if (!f->on || need->keeps_all || n == 0 || n > IMU_BLOCK || PyList_GET_SIZE(f->accel_faults) ||
         PyList_GET_SIZE(f->gyro_faults))
         return 0;
-    long long epoch, anchor, cfg, div, k;
-    if (attr_ll(f->feed, s_epoch, &epoch) < 0 || attr_ll(f->feed, s_anchor, &anchor) < 0 ||
-        attr_ll(f->feed, s_cfg, &cfg) < 0 || attr_ll(f->feed, s_div, &div) < 0)
-        return -1;
-    if (epoch != need->epoch || anchor != need->anchor || cfg != f->peek(b, CHIP_MPU, f->reg_config) ||
-        div != f->peek(b, CHIP_MPU, f->reg_smplrt_div))
+    if (*f->serves != f->serves_seen) { /* (the Python producer ran: read again what it may have moved) */
+        if (attr_ll(f->feed, s_epoch, &f->epoch) < 0 || attr_ll(f->feed, s_anchor, &f->anchor) < 0 ||
+            attr_ll(f->feed, s_cfg, &f->cfg) < 0 || attr_ll(f->feed, s_div, &f->div) < 0 ||
+            attr_double(f->feed, s_period, &f->period) < 0 || filter_addr(f->sampler, s_accel_f, &f->accel_f) < 0 ||
+            filter_addr(f->sampler, s_gyro_f, &f->gyro_f) < 0) {
+            f->serves_seen = -1;
+            return -1;
+        }
+        f->serves_seen = *f->serves;
+    }
+    long long cfg = f->cfg;
+    if (f->epoch != need->epoch || f->anchor != need->anchor || cfg != f->peek(b, CHIP_MPU, f->reg_config) ||
+        f->div != f->peek(b, CHIP_MPU, f->reg_smplrt_div))
         return 0;
-    double period, next_t;
-    void *accel_f, *gyro_f;
-    if (attr_double(f->feed, s_period, &period) < 0 || attr_double(f->sampler, s_next_t, &next_t) < 0 ||
-        filter_addr(f->sampler, s_accel_f, &accel_f) < 0 || filter_addr(f->sampler, s_gyro_f, &gyro_f) < 0)
-        return -1;
-    k = *f->ring.k;
+    double period = f->period, next_t = *f->next_t;
+    int64_t k = *f->ring.k;
     const double *dl = f->dlpf[cfg & 0x07];
     int32_t a_depth = depth_of(dl[1], period), g_depth = depth_of(dl[3], period);
     if (a_depth > f->max_depth || g_depth > f->max_depth)
@@ -155,13 +171,7 @@ static int imu_serve(imu_feed *f, chip_board *b, const chip_need *need)
         next_t += period;
         rows[i] = ring_row(&f->ring, k, t[i]);
     }
-    PyObject *v = PyFloat_FromDouble(next_t);
-    if (!v)
-        return -1;
-    int bad = attr_set(f->sampler, s_next_t, v);
-    Py_DECREF(v);
-    if (bad)
-        return -1;
+    *f->next_t = next_t;
     /* ImuModel.sample_block: the model, refilling a channel's normals when it runs short */
     int32_t short_of;
     while (
@@ -176,10 +186,11 @@ static int imu_serve(imu_feed *f, chip_board *b, const chip_need *need)
         Py_DECREF(r);
     }
     /* the DLPF */
-    f->lowpass(accel_f, (int32_t)n, f->block, 7, gain_of(dl[0], period), a_depth);
-    f->lowpass(gyro_f, (int32_t)n, f->block + 3, 7, gain_of(dl[2], period), g_depth);
+    f->lowpass(f->accel_f, (int32_t)n, f->block, 7, gain_of(dl[0], period), a_depth);
+    f->lowpass(f->gyro_f, (int32_t)n, f->block + 3, 7, gain_of(dl[2], period), g_depth);
     /* only the last instant's sample is encoded */
     f->push(b, need->t_ns + (uint64_t)(n - 1) * need->period_ns, f->block + 7 * (n - 1));
+    f->served++;
     return 1;
 }
 
@@ -194,13 +205,15 @@ static PyObject *imu_setup(imu_feed *f, PyObject *const *a)
         Py_INCREF(a[1 + i]);
         *refs[i] = a[1 + i];
     }
-    PyObject *addr_a = PyObject_GetAttrString(a[3], "addr"), *addr_g = PyObject_GetAttrString(a[4], "addr");
-    if (addr_a && addr_g) {
-        f->accel_addr = PyLong_AsVoidPtr(addr_a);
-        f->gyro_addr = PyLong_AsVoidPtr(addr_g);
+    void **addrs[] = { &f->accel_addr, &f->gyro_addr, (void **)&f->next_t, (void **)&f->serves };
+    PyObject *owners[] = { a[3], a[4], a[2], a[1] };
+    const char *names[] = { "addr", "addr", "next_t_addr", "serves_addr" };
+    for (int i = 0; i < 4 && !PyErr_Occurred(); i++) {
+        PyObject *v = PyObject_GetAttrString(owners[i], names[i]);
+        *addrs[i] = v ? PyLong_AsVoidPtr(v) : NULL;
+        Py_XDECREF(v);
     }
-    Py_XDECREF(addr_a);
-    Py_XDECREF(addr_g);
+    f->serves_seen = -1;
     f->cols = PyLong_AsVoidPtr(a[8]);
     f->die_offset = PyFloat_AsDouble(a[9]);
     f->block = PyLong_AsVoidPtr(a[10]);
@@ -231,8 +244,8 @@ static PyObject *imu_setup(imu_feed *f, PyObject *const *a)
         imu_free(f);
         return NULL;
     }
-    if (!f->accel_addr || !f->gyro_addr || !f->cols || !f->block || !ring_ok(&f->ring) || !f->measure || !f->lowpass ||
-        !f->push || !f->peek) {
+    if (!f->accel_addr || !f->gyro_addr || !f->next_t || !f->serves || !f->cols || !f->block || !ring_ok(&f->ring) ||
+        !f->measure || !f->lowpass || !f->push || !f->peek) {
         imu_free(f);
         return PyErr_Format(PyExc_ValueError, "setup_imu: addresses, history, rows and step must be set");
     }

@@ -51,7 +51,8 @@ def _script() -> list[bytes]:
     """A flight controller's set-up and cycles, with the cases the fast path must get right or leave
     to the handler: a NACK, another bus, a block read with an impossible count, a 10-bit address, every
     kind of wait, other PWM attributes (a channel unexported and exported again among them: the fast path
-    keeps the channels' settings), an event due mid-cycle, and a malformed message at the end."""
+    keeps the channels' settings), the MPU's rate changed, reset and woken (the fast path keeps what it
+    read of the IMU's producer), an event due mid-cycle, and a malformed message at the end."""
     rd = P.I2C_M_RD
     out = [_msg(0, P.HELLO_MSG.pack(P.PROTOCOL_VERSION, 1234), P.MSG_HELLO)]
     out += [_i2c(0, [(0x68, 0, 2, bytes(rv))]) for rv in ((0x6B, 0x00), (0x1A, 0x03), (0x19, 0x00))]
@@ -68,6 +69,11 @@ def _script() -> list[bytes]:
             out.append(_i2c(t + 40, [(0x68, P.I2C_M_TEN, 1, b"\x00")]))               # 10-bit: nobody
             out.append(_i2c(t + 50, [(0x77, 0, 1, b"\x48")]))                         # baro: convert D1
         out += [_pwm(t + 1000, ch, P.PWM_DUTY, 1_100_000 + 10_000 * k + 1000 * ch) for ch in range(4)]
+        # the IMU's producer moved by Python between C's cycles: a new sample rate and back, a reset (new
+        # filters, 8 kHz) and a wake-up (a new sample clock): C must not go on with what it kept before
+        writes = {20: (0x19, 0x01), 24: (0x19, 0x00), 25: (0x6B, 0x80), 26: (0x6B, 0x00), 28: (0x1A, 0x03)}
+        if k in writes:
+            out.append(_i2c(t + 1200, [(0x68, 0, 2, bytes(writes[k]))]))
         if k == 30:
             out.append(_pwm(t + 1500, 0, P.PWM_POLARITY, 0))  # (the handler's)
         if k == 40:  # channel 1 inversed, channel 2 off: the duty writes after it act differently
@@ -203,7 +209,7 @@ def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_h
             "board": ctypes.string_at(board.addr, native.chips().rig_chip_board_size()),
             "block": sampler.block.tobytes(), "next_t": sampler.next_t,
             "mag": tuple(getattr(board.feeds[CHIP_HMC], a) for a in ("_anchor", "_index", "_next_t")),
-            "made_here": session.fast.made_here if session.fast else (0, 0)}
+            "made_here": session.fast.made_here if session.fast else (0, 0, 0)}
 
 
 @pytest.mark.parametrize("clock_hz", [0, 400_000])
@@ -221,6 +227,9 @@ def test_the_fast_path_answers_as_the_handler_does(monkeypatch: pytest.MonkeyPat
     assert all(r.register == (r.wrote[0] if r.wrote else None) for r in fast["log"])
     _same(py, fast)
     assert (fast["pumped"] > len(b"".join(_script())) // 2) == pump  # pump read most of it
+    # the IMU's samples made in C in most of the 60 cycles, after the rate change, the reset and the
+    # wake-up too (54 and 64 blocks by the two clocks; a producer's state read once and kept makes none)
+    assert fast["made_here"][2] > 45
 
 
 def test_pump_takes_messages_in_pieces_and_leaves_the_handlers(monkeypatch: pytest.MonkeyPatch,
@@ -371,7 +380,7 @@ def test_the_entry_points_refuse_wrong_arguments(tmp_path: Path) -> None:
                     0.0, 0.0, 1, 1, 1)
     with pytest.raises(ValueError, match="PyCapsule"):
         m.made_here(object())
-    assert m.made_here(state) == (0, 0)  # (nothing read yet)
+    assert m.made_here(state) == (0, 0, 0)  # (nothing read yet)
     a, b = socket.socketpair()
     with a, b:
         b.close()  # the connection ended before anything came: the loop's own read takes it

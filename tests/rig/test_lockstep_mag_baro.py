@@ -106,7 +106,7 @@ def test_the_samples_made_in_c_read_as_from_python(monkeypatch: pytest.MonkeyPat
     assert len(baro) == 130 and len(set(baro)) > 20  # D1 and D2 changed as it climbed
     # samples made in C (20 of the 50 magnetometer reads found a new one; each new anchor's first is
     # Python's) and every conversion
-    made_mag, made_baro = fast["made_here"]
+    made_mag, made_baro, _ = fast["made_here"]
     assert made_mag >= 15 and made_baro >= 120
     assert py["mag"][0] >= 3  # the clock was anchored anew (the rate, single, continuous again)
     _same(py, fast)
@@ -131,7 +131,7 @@ def test_what_c_does_not_make_stays_python(monkeypatch: pytest.MonkeyPatch, tmp_
                                            world: object) -> None:
     py = _fly(monkeypatch, tmp_path, True, 0, script=_script(), world=world)  # type: ignore[arg-type]
     fast = _fly(monkeypatch, tmp_path, False, 0, script=_script(), world=world)  # type: ignore[arg-type]
-    made_mag, made_baro = fast["made_here"]
+    made_mag, made_baro, _ = fast["made_here"]
     assert made_baro == 0 and (made_mag == 0) == (world is _python_only)
     _same(py, fast)
 
@@ -155,7 +155,7 @@ def test_a_model_replaced_after_set_up_is_served_by_python(monkeypatch: pytest.M
     py = _fly(monkeypatch, tmp_path, True, 0, script=_script(), world=world, prepare=_new_models)
     fast = _fly(monkeypatch, tmp_path, False, 0, script=_script(), world=world, prepare=_new_models)
     plain = _fly(monkeypatch, tmp_path, False, 0, script=_script(), world=world)
-    made_mag, made_baro = fast["made_here"]
+    made_mag, made_baro, _ = fast["made_here"]
     assert 0 < made_mag < plain["made_here"][0] and 0 < made_baro < plain["made_here"][1]
     assert fast["log"] != plain["log"]  # (the new models read differently)
     _same(py, fast)
