@@ -41,15 +41,28 @@ G0: Final = 9.80665
 DATASHEET_NOISE = {"accel": 400e-6 * G0, "gyro": math.radians(0.005), "mag": 0.002 / math.sqrt(7.5)}
 
 
-@dataclass
 class PwmChannel:
-    """One sysfs PWM channel as the DUT left it (the session's mirror of the shim's state)."""
+    """One sysfs PWM channel as the DUT left it (the session's mirror of the shim's state). The duty is a
+    cell (``duty_addr``) that the lockstep fast path writes in place: four writes an FC cycle, each an
+    int object made and an attribute set when it was a field."""
 
-    exported: bool = False
-    period_ns: int = 0
-    duty_ns: int = 0
-    enabled: bool = False
-    inversed: bool = False
+    def __init__(self, exported: bool = False, period_ns: int = 0, duty_ns: int = 0, enabled: bool = False,
+                 inversed: bool = False) -> None:
+        self.exported, self.period_ns, self.enabled, self.inversed = exported, period_ns, enabled, inversed
+        self._duty = np.array([duty_ns], dtype=np.uint64)  # (the shim's 64-bit value, whatever it is)
+        self.duty_addr: int = self._duty.ctypes.data
+
+    @property
+    def duty_ns(self) -> int:
+        return int(self._duty[0])
+
+    @duty_ns.setter
+    def duty_ns(self, ns: int) -> None:
+        self._duty[0] = ns
+
+    def __repr__(self) -> str:
+        return (f"PwmChannel(exported={self.exported}, period_ns={self.period_ns}, duty_ns={self.duty_ns}, "
+                f"enabled={self.enabled}, inversed={self.inversed})")
 
     def pulse_us(self) -> float:
         """The high time an ESC measures per period; 0 when no pulses come out."""

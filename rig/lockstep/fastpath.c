@@ -59,6 +59,8 @@ typedef struct {
     int is_direct;                      /* World.direct_pwm */
     uint8_t known[RIG_PWM_MAX];         /* settings[i] read since the last change */
     long long settings[RIG_PWM_MAX][4]; /* exported, enabled, period_ns, inversed */
+    PyObject *channel[RIG_PWM_MAX];     /* the PwmChannel they were read from (held: its duty cell) */
+    uint64_t *duty[RIG_PWM_MAX];        /* its duty_ns cell (PwmChannel.duty_addr) */
 } pwm_cache;
 
 struct mbox_table; /* (mailbox.c) */
@@ -107,7 +109,7 @@ typedef struct {
 static uint64_t handled_total; /* messages acted on here by every session of this process */
 
 static PyObject *s_steps_at, *s_ring, *s_direct_pwm, *s_exported, *s_enabled, *s_period_ns, *s_inversed;
-static PyObject *s_over_byte, *s_duty_ns, *s_pwm_config_changes;
+static PyObject *s_over_byte, *s_duty_addr, *s_pwm_config_changes;
 
 static volatile uint64_t *sim_ns(fast_state *s)
 {
@@ -126,6 +128,8 @@ static void state_free(PyObject *capsule)
     if (!s)
         return;
     imu_free(&s->imu);
+    for (int i = 0; i < RIG_PWM_MAX; i++)
+        Py_XDECREF(s->pwm_seen.channel[i]);
     mag_release(s->mag);
     baro_release(s->baro);
     PyMem_Free(s->rx);
@@ -644,7 +648,7 @@ static struct PyModuleDef module = {
 PyMODINIT_FUNC PyInit__riglockstep(void)
 {
     s_over_byte = PyUnicode_InternFromString("over_byte");
-    s_duty_ns = PyUnicode_InternFromString("duty_ns");
+    s_duty_addr = PyUnicode_InternFromString("duty_addr");
     s_pwm_config_changes = PyUnicode_InternFromString("pwm_config_changes");
     PyObject **names[] = { &s_steps_at, &s_ring,   &s_direct_pwm, &s_exported, &s_enabled, &s_period_ns,
                            &s_inversed, &s_epoch,  &s_anchor,     &s_cfg,      &s_div,     &s_period,
@@ -655,7 +659,7 @@ PyMODINIT_FUNC PyInit__riglockstep(void)
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
         if (!(*names[i] = PyUnicode_InternFromString(texts[i])))
             return NULL;
-    if (!s_over_byte || !s_duty_ns || !s_pwm_config_changes)
+    if (!s_over_byte || !s_duty_addr || !s_pwm_config_changes)
         return NULL;
     return PyModule_Create(&module);
 }

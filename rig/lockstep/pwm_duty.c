@@ -6,8 +6,9 @@
  * never the fast path's), so they are read from the Python channel objects once and kept here until
  * the handler says it changed one (Handler.pwm_config_changes, looked at once per handle() call, at
  * its first duty write). Reading them at every write, with World.direct_pwm, was about a tenth of an
- * FC cycle's instructions (bench/cycle_cost.py --breakdown). The duty itself still goes to the channel
- * object (its duty_ns), as the handler writes it: the Python side reads the mirror as before.
+ * FC cycle's instructions (bench/cycle_cost.py --breakdown). The duty goes into the channel's duty_ns
+ * cell (PwmChannel.duty_addr, found with the settings; the channel is held while kept), where the
+ * handler's writes go too: the Python side reads the mirror as before.
  */
 
 /* a PwmChannel attribute as an int64 (0: it did not fit, the handler takes the message) */
@@ -63,6 +64,15 @@ static int pwm_settings(fast_state *s, Py_ssize_t i, long long v[4])
             if (r <= 0)
                 return r;
         }
+        PyObject *addr = attr_get(ch, s_duty_addr);
+        if (!addr)
+            return -1;
+        c->duty[i] = PyLong_AsVoidPtr(addr);
+        Py_DECREF(addr);
+        if (!c->duty[i])
+            return PyErr_Occurred() ? -1 : 0;
+        Py_INCREF(ch);
+        Py_XSETREF(c->channel[i], ch);
         c->known[i] = 1;
     }
     memcpy(v, c->settings[i], sizeof c->settings[i]);
@@ -91,13 +101,7 @@ static int pwm(fast_state *s, const struct rig_hdr *h, const uint8_t *p)
     /* acting from here on: Scheduler.advance, then the handler's PWM notice */
     if (world_to(s, h->t_ns) < 0)
         return -1;
-    PyObject *value = PyLong_FromUnsignedLongLong(m.value);
-    if (!value)
-        return -1;
-    int bad = attr_set(PyList_GET_ITEM(s->pwm, m.channel), s_duty_ns, value);
-    Py_DECREF(value);
-    if (bad)
-        return -1;
+    *s->pwm_seen.duty[m.channel] = m.value;
     if (m.channel < s->motors && s->pwm_seen.is_direct) { /* World.apply_pwm */
         double pulse = 0.0;
         long long period = set[2];

@@ -3,10 +3,12 @@ world reaches into the plant's input buffer)."""
 
 from __future__ import annotations
 
+import ctypes
+
 import pytest
 
 from plant.variables import MOTORS, PWM_INPUTS, SCENARIO_INPUTS
-from rig.world import World
+from rig.world import PwmChannel, World
 
 
 def test_scenario_inputs_act_by_name_and_others_are_refused() -> None:
@@ -38,3 +40,19 @@ def test_a_probe_reads_outputs_then_motors() -> None:
         assert probe.count == 5
     finally:
         world.close()
+
+
+def test_a_pwm_channel_keeps_any_duty_the_shim_can_send_in_its_cell() -> None:
+    """The duty is a 64-bit cell the fast path writes in place; the shim's field is unsigned 64-bit, so
+    every value it can send is kept as sent, and the pulse an ESC sees is clamped to the period."""
+    ch = PwmChannel(exported=True, period_ns=2_500_000, enabled=True)
+    cell = (ctypes.c_uint64 * 1).from_address(ch.duty_addr)
+    for duty, pulse in ((1_500_000, 1500.0), (2**63, 2500.0), (2**64 - 1, 2500.0), (0, 0.0)):
+        ch.duty_ns = duty
+        assert ch.duty_ns == duty == int(cell[0])
+        assert ch.pulse_us() == pulse
+    ch.inversed = True
+    assert ch.pulse_us() == 2500.0  # (duty 0, inversed: high all period)
+    cell[0] = 1_000_000  # as C writes it
+    assert ch.duty_ns == 1_000_000 and ch.pulse_us() == 1500.0
+    assert "duty_ns=1000000" in repr(ch)
