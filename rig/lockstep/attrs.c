@@ -1,5 +1,7 @@
-/* The Python attributes the fast path reads and writes every FC cycle (World._k, the IMU feed's epoch,
- * the sampler's next time, the filters' addresses, ...), through their type's getset descriptor.
+/* The Python attributes the fast path reads and writes (the PWM channels' settings, the magnetometer's
+ * and barometer's producers' state, the IMU producer's after its Python serve ran, ...), through their
+ * type's getset descriptor. (What both sides touch every cycle, the world's step count, the IMU's next
+ * sample time and the PWM duties, are cells read in place: no attribute at all.)
  *
  * Why: PyObject_GetAttr on a mypyc-compiled object walks the type's MRO for the name, finds the getset
  * descriptor mypyc made for the attribute, checks it and calls its getter: about 200 instructions, 21
