@@ -7,6 +7,7 @@ behaviour is the chip's."""
 
 from __future__ import annotations
 
+import array
 import math
 from collections.abc import Callable, Sequence
 from typing import Final, Protocol
@@ -93,13 +94,13 @@ class ImuSampler:
         self.source, self.dlpf = source, dlpf
         self.block = np.zeros((BLOCK, 7))
         self.block_addr: int = self.block.ctypes.data
-        self._next = np.zeros(1)
-        self.next_t_addr: int = self._next.ctypes.data
+        self._next = array.array("d", [0.0])
+        self.next_t_addr: int = self._next.buffer_info()[0]
         self._accel_f, self._gyro_f = LowPass(), LowPass()
 
     @property
     def next_t(self) -> float:
-        return float(self._next[0])
+        return self._next[0]
 
     @next_t.setter
     def next_t(self, t: float) -> None:

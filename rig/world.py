@@ -9,6 +9,7 @@ sample instant, not only the newest one; sample instants between two plant steps
 
 from __future__ import annotations
 
+import array
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -49,12 +50,12 @@ class PwmChannel:
     def __init__(self, exported: bool = False, period_ns: int = 0, duty_ns: int = 0, enabled: bool = False,
                  inversed: bool = False) -> None:
         self.exported, self.period_ns, self.enabled, self.inversed = exported, period_ns, enabled, inversed
-        self._duty = np.array([duty_ns], dtype=np.uint64)  # (the shim's 64-bit value, whatever it is)
-        self.duty_addr: int = self._duty.ctypes.data
+        self._duty = array.array("Q", [duty_ns])  # (the shim's unsigned 64-bit value, whatever it is)
+        self.duty_addr: int = self._duty.buffer_info()[0]
 
     @property
     def duty_ns(self) -> int:
-        return int(self._duty[0])
+        return self._duty[0]
 
     @duty_ns.setter
     def duty_ns(self, ns: int) -> None:
@@ -137,8 +138,8 @@ class World:
         # the plant steps taken (``_k``), in a cell C reads and moves in place (rig/lockstep: the fast
         # path steps the plant and its samples' producers read the count every FC cycle; as an attribute
         # each read made and dropped an int object, about 0.5 k instructions per cycle)
-        self._steps = np.zeros(1, dtype=np.int64)
-        self.k_addr: int = self._steps.ctypes.data
+        self._steps = array.array("q", [0])  # (array, not numpy: a Python read is a fifth of numpy's)
+        self.k_addr: int = self._steps.buffer_info()[0]
         self._k = round(self.plant.time * 1e9 / self.step_ns)
         # a ring of output rows that C reads (the IMU's sampling chain): a TruthTable
         self._hist = np.zeros((HISTORY, len(self.plant.y)))
@@ -207,7 +208,7 @@ class World:
     @property
     def _k(self) -> int:
         """The plant steps taken since time 0 (the world's time in steps)."""
-        return int(self._steps[0])
+        return self._steps[0]
 
     @_k.setter
     def _k(self, k: int) -> None:

@@ -16,6 +16,7 @@ I2CNack / I2CProtocolError, ``mpu.bypass``, ``baro.prom``, the topology.
 
 from __future__ import annotations
 
+import array
 import ctypes
 import math
 from collections.abc import Callable, Mapping, Sequence
@@ -70,8 +71,8 @@ class ImuFeed:
         #: serve()'s calls, in a cell the lockstep fast path reads (rig/lockstep/imu_feed.c): what it keeps
         #: of this feed (epoch, anchor, registers, period, the sampler's filters) changes only in serve(),
         #: so while the count stands it need not read them again
-        self._serves = np.zeros(1, dtype=np.int64)
-        self.serves_addr: int = self._serves.ctypes.data
+        self._serves = array.array("q", [0])
+        self.serves_addr: int = self._serves.buffer_info()[0]
 
     def float_at(self, t_ns: int) -> float:
         """The float time this feed gave the sample instant at ``t_ns`` (the aux master's instants)."""
