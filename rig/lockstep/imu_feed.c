@@ -91,8 +91,9 @@ typedef struct {
     int64_t serves_seen; /* -1: nothing read yet */
     long long epoch, anchor, cfg, div;
     double period;
-    void *accel_f, *gyro_f; /* the sampler's filters' C state (new after a reset) */
-    uint64_t served;        /* blocks of samples made here */
+    void *accel_f, *gyro_f;           /* the sampler's filters' C state (new after a reset) */
+    PyObject *accel_held, *gyro_held; /* owned: those filters (their state stays while kept here) */
+    uint64_t served;                  /* blocks of samples made here */
     imu_measure_fn measure;
     lowpass_run_fn lowpass;
     push_imu_fn push;
@@ -103,20 +104,22 @@ static PyObject *s_epoch, *s_anchor, *s_cfg, *s_div, *s_period, *s_accel_f, *s_g
 
 static void imu_free(imu_feed *f)
 {
-    PyObject *refs[] = { f->feed, f->sampler, f->accel, f->gyro, f->accel_faults, f->gyro_faults, f->world };
+    PyObject *refs[] = { f->feed,         f->sampler,     f->world,      f->accel,    f->gyro,
+                         f->accel_faults, f->gyro_faults, f->accel_held, f->gyro_held };
     for (size_t i = 0; i < sizeof refs / sizeof refs[0]; i++)
         Py_XDECREF(refs[i]);
     memset(f, 0, sizeof *f);
 }
 
-/* the address of a LowPass's C state (sampler._accel_f._addr): the filters are new after a reset */
-static int filter_addr(PyObject *sampler, PyObject *name, void **out)
+/* the address of a LowPass's C state (sampler._accel_f._addr): the filters are new after a reset. The
+ * filter is held in *held while its address is kept, so the state stays where the address says. */
+static int filter_addr(PyObject *sampler, PyObject *name, void **out, PyObject **held)
 {
     PyObject *f = attr_get(sampler, name);
     if (!f)
         return -1;
     PyObject *a = attr_get(f, s_addr);
-    Py_DECREF(f);
+    Py_XSETREF(*held, f);
     if (!a)
         return -1;
     *out = PyLong_AsVoidPtr(a);
@@ -146,8 +149,9 @@ static int imu_serve(imu_feed *f, chip_board *b, const chip_need *need)
     if (*f->serves != f->serves_seen) { /* (the Python producer ran: read again what it may have moved) */
         if (attr_ll(f->feed, s_epoch, &f->epoch) < 0 || attr_ll(f->feed, s_anchor, &f->anchor) < 0 ||
             attr_ll(f->feed, s_cfg, &f->cfg) < 0 || attr_ll(f->feed, s_div, &f->div) < 0 ||
-            attr_double(f->feed, s_period, &f->period) < 0 || filter_addr(f->sampler, s_accel_f, &f->accel_f) < 0 ||
-            filter_addr(f->sampler, s_gyro_f, &f->gyro_f) < 0) {
+            attr_double(f->feed, s_period, &f->period) < 0 ||
+            filter_addr(f->sampler, s_accel_f, &f->accel_f, &f->accel_held) < 0 ||
+            filter_addr(f->sampler, s_gyro_f, &f->gyro_f, &f->gyro_held) < 0) {
             f->serves_seen = -1;
             return -1;
         }
