@@ -85,6 +85,16 @@ static int attr_double(PyObject *o, PyObject *name, double *out)
     return *out == -1.0 && PyErr_Occurred() ? -1 : 0;
 }
 
+/* o.<name> as an address (a cell's or a C state's address attribute), read by name at set-up: the
+ * address, or NULL (raised, or the attribute is 0) */
+static void *address_attr(PyObject *o, const char *name)
+{
+    PyObject *v = PyObject_GetAttrString(o, name);
+    void *p = v ? PyLong_AsVoidPtr(v) : NULL;
+    Py_XDECREF(v);
+    return p;
+}
+
 /* attribute `name` of o is true: 1, false: 0, -1: error */
 static int attr_true(PyObject *o, PyObject *name)
 {

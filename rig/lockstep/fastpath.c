@@ -109,7 +109,7 @@ typedef struct {
 static uint64_t handled_total; /* messages acted on here by every session of this process */
 
 static PyObject *s_steps_at, *s_ring, *s_direct_pwm, *s_exported, *s_enabled, *s_period_ns, *s_inversed;
-static PyObject *s_over_byte, *s_duty_addr, *s_pwm_config_changes;
+static PyObject *s_over_byte, *s_pwm_config_changes;
 
 static volatile uint64_t *sim_ns(fast_state *s)
 {
@@ -648,7 +648,6 @@ static struct PyModuleDef module = {
 PyMODINIT_FUNC PyInit__riglockstep(void)
 {
     s_over_byte = PyUnicode_InternFromString("over_byte");
-    s_duty_addr = PyUnicode_InternFromString("duty_addr");
     s_pwm_config_changes = PyUnicode_InternFromString("pwm_config_changes");
     PyObject **names[] = { &s_steps_at, &s_ring,   &s_direct_pwm, &s_exported, &s_enabled, &s_period_ns,
                            &s_inversed, &s_epoch,  &s_anchor,     &s_cfg,      &s_div,     &s_period,
@@ -659,7 +658,7 @@ PyMODINIT_FUNC PyInit__riglockstep(void)
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
         if (!(*names[i] = PyUnicode_InternFromString(texts[i])))
             return NULL;
-    if (!s_over_byte || !s_duty_addr || !s_pwm_config_changes)
+    if (!s_over_byte || !s_pwm_config_changes)
         return NULL;
     return PyModule_Create(&module);
 }

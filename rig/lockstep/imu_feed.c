@@ -39,9 +39,7 @@ static int64_t *world_steps(PyObject *world)
 {
     if (PyErr_Occurred())
         return NULL; /* (an earlier argument's error stands) */
-    PyObject *a = PyObject_GetAttrString(world, "k_addr");
-    int64_t *k = a ? PyLong_AsVoidPtr(a) : NULL;
-    Py_XDECREF(a);
+    int64_t *k = address_attr(world, "k_addr");
     PyErr_Clear();
     return k;
 }
@@ -212,11 +210,8 @@ static PyObject *imu_setup(imu_feed *f, PyObject *const *a)
     void **addrs[] = { &f->accel_addr, &f->gyro_addr, (void **)&f->next_t, (void **)&f->serves };
     PyObject *owners[] = { a[3], a[4], a[2], a[1] };
     const char *names[] = { "addr", "addr", "next_t_addr", "serves_addr" };
-    for (int i = 0; i < 4 && !PyErr_Occurred(); i++) {
-        PyObject *v = PyObject_GetAttrString(owners[i], names[i]);
-        *addrs[i] = v ? PyLong_AsVoidPtr(v) : NULL;
-        Py_XDECREF(v);
-    }
+    for (int i = 0; i < 4 && !PyErr_Occurred(); i++)
+        *addrs[i] = address_attr(owners[i], names[i]);
     f->serves_seen = -1;
     f->cols = PyLong_AsVoidPtr(a[8]);
     f->die_offset = PyFloat_AsDouble(a[9]);

@@ -117,11 +117,7 @@ static PyObject *mag_setup(mag_feed *f, PyObject *const *a)
     }
     f->model = attr_get(f->feed, s_source);
     f->disturbance = f->model ? attr_get(f->model, s_disturbance) : NULL;
-    PyObject *addr = PyObject_GetAttrString(a[2], "addr");
-    if (addr) {
-        f->channel_addr = PyLong_AsVoidPtr(addr);
-        Py_DECREF(addr);
-    }
+    f->channel_addr = address_attr(a[2], "addr");
     ring_read(&f->ring, f->world, a + 5);
     f->reg_cra = (uint8_t)PyLong_AsLong(a[10]);
     double *into[] = { f->rates_hz, f->dist };

@@ -64,11 +64,7 @@ static int pwm_settings(fast_state *s, Py_ssize_t i, long long v[4])
             if (r <= 0)
                 return r;
         }
-        PyObject *addr = attr_get(ch, s_duty_addr);
-        if (!addr)
-            return -1;
-        c->duty[i] = PyLong_AsVoidPtr(addr);
-        Py_DECREF(addr);
+        c->duty[i] = address_attr(ch, "duty_addr");
         if (!c->duty[i])
             return PyErr_Occurred() ? -1 : 0;
         Py_INCREF(ch);
