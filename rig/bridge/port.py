@@ -14,12 +14,12 @@ import os
 import secrets
 import select
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import serial
 
-from rig.bridge.link import Decoded, Receiver, encode
-from rig.bridge.messages import PROTOCOL_VERSION
+from rig.bridge.link import Decoded, Receiver, encode, encode_flat
+from rig.bridge.messages import PROTOCOL_VERSION, Message
 
 BAUDRATE = 2_000_000
 SILENT_AFTER_S = 0.5
@@ -51,7 +51,13 @@ class BridgePort:
         return int(self._ser.fileno())
 
     def send(self, name: str, **values: object) -> None:
-        frame = encode(name, self._seq, **values)
+        self._write(name, encode(name, self._seq, **values))
+
+    def send_flat(self, msg: Message, flat: Sequence[object]) -> None:
+        """``send`` from the field values in table order, arrays spread (link.encode_flat)."""
+        self._write(msg.name, encode_flat(msg, self._seq, flat))
+
+    def _write(self, name: str, frame: bytes) -> None:
         self._seq = (self._seq + 1) & 0xFF
         try:
             # straight to the descriptor (pyserial opened it non-blocking): pyserial's write waits for

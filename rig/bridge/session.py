@@ -25,7 +25,7 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Final
+from typing import IO, Final, NoReturn
 
 from emulators import sbus
 from emulators.faults import BUS_TARGETS, KINDS, TARGETS, FaultSet
@@ -33,6 +33,7 @@ from plant.variables import MOTORS
 from rig import interrupts, scratch
 from rig.bridge.can_capture import VBRIDGE_CHANNEL, CanPulses, parse
 from rig.bridge.esc import esc_protocol
+from rig.bridge.messages import Message
 from rig.bridge.port import BridgeError, BridgePort, bridge_id
 from rig.bridge.stream import SampleStream
 from rig.bridge.timesync import ClockMap, Exchange
@@ -173,12 +174,18 @@ class BenchSession:
         """The sim instant at which the bridge's clock reads ``bridge_us``."""
         return round(self.clock.to_host_ns(bridge_us)) - self._t0_ns
 
-    def send_sample(self, name: str, valid_sim_ns: int, **values: object) -> None:
-        """A sensor sample valid from sim time ``valid_sim_ns``; counted late when that instant has
-        already passed on the bridge (the board may have read the previous one instead)."""
+    def send_sample(self, msg: Message, valid_sim_ns: int, values: list[float]) -> None:
+        """A sensor sample valid from sim time ``valid_sim_ns``, ``values`` its fields after ``valid_us``
+        in table order, arrays spread; counted late when that instant has already passed on the bridge
+        (the board may have read the previous one instead)."""
         if valid_sim_ns < self._wall_ns():
             self.figures.samples_late += 1
-        self._send(name, valid_us=self.to_bridge_us(valid_sim_ns), **values)
+        if self.port is not None:
+            values.insert(0, self.to_bridge_us(valid_sim_ns))
+            try:
+                self.port.send_flat(msg, values)
+            except BridgeError as e:
+                self._link_failed(e)
         self.figures.samples_sent += 1
 
     # ---- running --------------------------------------------------------------------------------
@@ -363,8 +370,11 @@ class BenchSession:
         try:
             self.port.send(name, **values)
         except BridgeError as e:
-            self.sched.fail(EXIT_RIG_ERROR, f"bridge: {e}")
-            raise Stop from e
+            self._link_failed(e)
+
+    def _link_failed(self, e: BridgeError) -> NoReturn:
+        self.sched.fail(EXIT_RIG_ERROR, f"bridge: {e}")
+        raise Stop from e
 
     def _probe(self) -> None:
         assert self.port is not None

@@ -36,6 +36,7 @@ from emulators import ms5611
 from emulators.chips.board import BaroFeed
 from emulators.dlpf import DLPF, LowPass, take_samples
 from emulators.mpu6050 import CONFIG, SMPLRT_DIV
+from rig.bridge.messages import BY_NAME
 
 if TYPE_CHECKING:
     from rig.bridge.session import BenchSession
@@ -49,6 +50,7 @@ ASLEEP_PERIOD_S: Final = 0.01  # while the MPU sleeps: a fresh sample this often
 MAG_PERIOD_S: Final = 0.005
 BARO_PERIOD_S: Final = 0.002
 NS: Final = 1_000_000_000
+IMU_SAMPLE, MAG_SAMPLE, BARO_SAMPLE = BY_NAME["IMU_SAMPLE"], BY_NAME["MAG_SAMPLE"], BY_NAME["BARO_SAMPLE"]
 
 
 def mpu_period_us(config: int, smplrt_div: int) -> int:
@@ -97,6 +99,36 @@ class MpuClock:
         return self.anchor_us + ((t_us - self.anchor_us) // p + 1) * p
 
 
+@dataclass(frozen=True)
+class ImuPlan:
+    """What every IMU sample of one configuration needs (served step, lead, the DLPF's part not covered
+    by the lead), worked out when the board writes the MPU's registers rather than a thousand times a
+    second on the real-time loop."""
+
+    cfg: int          # DLPF_CFG
+    step_us: int      # the instants the host serves: every one, or every n-th above MAX_IMU_HZ
+    lead: int         # Δ in samples of the served step (at least one)
+    period_s: float   # step_us in seconds
+    a_bw: float
+    a_hold_s: float   # the accelerometer's DLPF delay left after the lead (the filter's own delay line)
+    g_bw: float
+    g_hold_s: float
+    short: int        # samples the DLPF's delay does not cover (the input's truth held over them)
+    g_delay_s: float
+
+    @classmethod
+    def of(cls, clock: MpuClock, lead_s: float) -> ImuPlan:
+        p = clock.period_us
+        step_us = p * max(1, math.ceil(1e6 / MAX_IMU_HZ / p - 1e-9))
+        period = step_us * 1e-6
+        lead = max(1, math.ceil(lead_s * 1e6 / step_us - 1e-9))
+        cfg = clock.config & 0x07
+        a_bw, a_delay, g_bw, g_delay = DLPF[cfg]
+        a_depth, g_depth = round(a_delay / period), round(g_delay / period)
+        return cls(cfg, step_us, lead, period, a_bw, max(0, a_depth - lead) * period, g_bw,
+                   max(0, g_depth - lead) * period, max(lead - a_depth, lead - g_depth, 0), g_delay)
+
+
 @dataclass
 class StreamFigures:
     imu: int = 0
@@ -118,8 +150,10 @@ class SampleStream:
         self.baro: BaroFeed = board.baro.feed
         self.lead_s = session.cfg.lead_s
         self.clock = MpuClock()
+        self.plan = ImuPlan.of(self.clock, self.lead_s)
         self.figures = StreamFigures()
         self._block = np.zeros((1, 7))
+        self._block_addr: int = self._block.ctypes.data
         self._accel_f, self._gyro_f = LowPass(), LowPass()
         self._next_c = 0       # the next instant the IMU chain serves (bridge µs); 0: asleep
         self._imu_epoch = 0    # bumped when the clock is re-anchored: events of an old chain stop
@@ -137,6 +171,7 @@ class SampleStream:
         was_asleep, anchor, period = self.clock.asleep, self.clock.anchor_us, self.clock.period_us
         self.clock.write(t_us, reg, value)
         c = self.clock
+        self.plan = ImuPlan.of(c, self.lead_s)
         if reg == PWR_MGMT_1 and value & 0x80:  # DEVICE_RESET: the DLPF starts again (as ImuFeed's)
             self._accel_f, self._gyro_f = LowPass(), LowPass()
         if c.asleep:
@@ -164,18 +199,10 @@ class SampleStream:
         self._next_c = first_instant_us
         s.at(max(self._event_ns(first_instant_us), s.now_ns, 0) / NS, lambda sess: self._imu_tick(epoch))
 
-    def _step_us(self) -> int:
-        """The instants the host serves: every one, or every n-th above MAX_IMU_HZ."""
-        p = self.clock.period_us
-        return p * max(1, math.ceil(1e6 / MAX_IMU_HZ / p - 1e-9))
-
-    def _lead(self) -> int:
-        """Δ in samples of the served period (at least one)."""
-        return max(1, math.ceil(self.lead_s * 1e6 / self._step_us() - 1e-9))
-
     def _event_ns(self, instant_us: int) -> int:
         """The sim time at which the sample for this instant is made and sent."""
-        return self.session.to_sim_ns(instant_us) - self._lead() * self._step_us() * 1000
+        plan = self.plan
+        return self.session.to_sim_ns(instant_us) - plan.lead * plan.step_us * 1000
 
     # ---- the IMU ------------------------------------------------------------------------------
 
@@ -185,7 +212,7 @@ class SampleStream:
         s = self.session
         t_ns = s.now_ns
         take_samples(self.imu_source, (t_ns / NS,), self._block)
-        s.send_sample("IMU_SAMPLE", t_ns + round(self.lead_s * NS), **self._values(self._block[0].tolist()))
+        s.send_sample(IMU_SAMPLE, t_ns + round(self.lead_s * NS), self._block[0].tolist())
         self.figures.imu += 1
         s.at(t_ns / NS + ASLEEP_PERIOD_S, lambda sess: self._asleep_tick(epoch))
 
@@ -194,48 +221,41 @@ class SampleStream:
             return
         s = self.session
         c_us = self._next_c
-        step_us = self._step_us()
-        period = step_us * 1e-6
-        lead = self._lead()
-        cfg = self.clock.config & 0x07
-        a_bw, a_delay, g_bw, g_delay = DLPF[cfg]
-        a_depth, g_depth = round(a_delay / period), round(g_delay / period)
-        short = max(lead - a_depth, lead - g_depth, 0)  # samples the DLPF's delay does not cover
+        plan = self.plan
         # the input's instant; past the world's newest step its truth is held (world.truth clamps), while
         # its noise and faults are those of their own instant
-        take_samples(self.imu_source, (s.now_ns / NS + short * period,), self._block)
-        addr = self._block.ctypes.data
-        self._accel_f.run(addr, 1, 7, a_bw, max(0, a_depth - lead) * period, period)
-        self._gyro_f.run(addr + 24, 1, 7, g_bw, max(0, g_depth - lead) * period, period)
-        v = self._block[0].tolist()
-        if short:
-            self.figures.imu_extrapolated += 1
-            if self._extrapolating != cfg:
-                self._extrapolating = cfg
-                self.figures.notes.append(
-                    f"bridge: DLPF_CFG={cfg} delays the gyro {g_delay * 1e3:.2f} ms, less than the lead Δ "
-                    f"{self.lead_s * 1e3:.1f} ms: the IMU's truth was held over up to {short} sample(s) of "
-                    f"{step_us} µs (a lag lockstep does not have)")
-        s.send_sample("IMU_SAMPLE", s.to_sim_ns(c_us - MARGIN_US), **self._values(v))
+        now_ns = s.now_ns
+        take_samples(self.imu_source, (now_ns / NS + plan.short * plan.period_s,), self._block)
+        addr = self._block_addr
+        self._accel_f.run(addr, 1, 7, plan.a_bw, plan.a_hold_s, plan.period_s)
+        self._gyro_f.run(addr + 24, 1, 7, plan.g_bw, plan.g_hold_s, plan.period_s)
+        if plan.short:
+            self._note_extrapolated(plan)
+        s.send_sample(IMU_SAMPLE, s.to_sim_ns(c_us - MARGIN_US), self._block[0].tolist())
         self.figures.imu += 1
-        self._next_c = c_us + step_us
-        s.at(max(self._event_ns(self._next_c), s.now_ns) / NS, lambda sess: self._imu_tick(epoch))
+        self._next_c = c_us + plan.step_us
+        s.at(max(self._event_ns(self._next_c), now_ns) / NS, lambda sess: self._imu_tick(epoch))
 
-    @staticmethod
-    def _values(v: list[float]) -> dict[str, object]:
-        return {"accel": v[0:3], "gyro": v[3:6], "temp_c": v[6]}
+    def _note_extrapolated(self, plan: ImuPlan) -> None:
+        self.figures.imu_extrapolated += 1
+        if self._extrapolating != plan.cfg:
+            self._extrapolating = plan.cfg
+            self.figures.notes.append(
+                f"bridge: DLPF_CFG={plan.cfg} delays the gyro {plan.g_delay_s * 1e3:.2f} ms, less than the "
+                f"lead Δ {self.lead_s * 1e3:.1f} ms: the IMU's truth was held over up to {plan.short} "
+                f"sample(s) of {plan.step_us} µs (a lag lockstep does not have)")
 
     # ---- magnetometer and barometer -----------------------------------------------------------
 
     def _mag_tick(self, s: BenchSession) -> None:
         t_ns = s.now_ns
-        s.send_sample("MAG_SAMPLE", t_ns + round(self.lead_s * NS), field=list(self.mag_source(t_ns / NS)))
+        s.send_sample(MAG_SAMPLE, t_ns + round(self.lead_s * NS), list(self.mag_source(t_ns / NS)))
         self.figures.mag += 1
         s.at(t_ns / NS + MAG_PERIOD_S, self._mag_tick)
 
     def _baro_tick(self, s: BenchSession) -> None:
         t_ns = s.now_ns
         d1, d2 = self.baro.words(t_ns / NS, self._osr)
-        s.send_sample("BARO_SAMPLE", t_ns + round(self.lead_s * NS), d1=d1, d2=d2)
+        s.send_sample(BARO_SAMPLE, t_ns + round(self.lead_s * NS), [d1, d2])
         self.figures.baro += 1
         s.at(t_ns / NS + BARO_PERIOD_S, self._baro_tick)

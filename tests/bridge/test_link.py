@@ -13,7 +13,7 @@ import struct
 
 import pytest
 
-from rig.bridge.link import Receiver, crc16, encode
+from rig.bridge.link import Receiver, crc16, encode, encode_flat
 from rig.bridge.messages import MESSAGES, Direction, Message
 from tests.bridge.tools import Tool, link_tools
 
@@ -54,6 +54,19 @@ def random_values(msg: Message, rng: random.Random) -> dict[str, object]:
 
 def test_the_crc_is_ccitt_false() -> None:
     assert crc16(b"123456789") == 0x29B1
+
+
+def test_the_flat_encoder_makes_the_same_bytes_and_refuses_a_short_sample() -> None:
+    """The stream's samples skip ``encode``'s checks by name (link.encode_flat): the same frames."""
+    rng = random.Random(20261129)
+    for msg in MESSAGES:
+        for seq in (0, 7, 255, 300):
+            values = random_values(msg, rng)
+            flat = [x for f in msg.fields for x in (values[f.name] if f.count > 1 else [values[f.name]])]
+            assert encode_flat(msg, seq, flat) == encode(msg.name, seq, **values), msg.name
+    imu = next(m for m in MESSAGES if m.name == "IMU_SAMPLE")
+    with pytest.raises(struct.error):
+        encode_flat(imu, 0, [1, 0.0, 0.0, 9.8, 0.0, 0.0])  # no gyro z, no temperature
 
 
 @pytest.mark.parametrize("direction", ["down", "up"])
