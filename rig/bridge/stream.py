@@ -19,7 +19,10 @@ MAX_IMU_HZ (8 kHz without the DLPF) gets every n-th instant: the others hold (co
 
 **Magnetometer and barometer.** Their samples are streamed on the host's grid, MAG_PERIOD_S and
 BARO_PERIOD_S apart, valid Δ after the instant their values were taken (their readings lag by Δ; the
-field and the pressure change far slower than that). A chip that measures only now and then (the
+field and the pressure change far slower than that). The two grids start MAG_PHASE_S and BARO_PHASE_S
+after sim time 0, off the whole milliseconds on which the recorder, the wind and the sticks run and off
+each other's: events due at one instant run one after another, and the last of a stack ran its own
+work that much late. A chip that measures only now and then (the
 HMC5883L idle, the MS5611 between commands) finds the newest: the bridge's queues keep the newest when
 full.
 """
@@ -49,6 +52,8 @@ MAX_IMU_HZ: Final = 1000.0   # the most IMU samples a second the host streams
 ASLEEP_PERIOD_S: Final = 0.01  # while the MPU sleeps: a fresh sample this often, for the instant it wakes
 MAG_PERIOD_S: Final = 0.005
 BARO_PERIOD_S: Final = 0.002
+MAG_PHASE_S: Final = 0.00125   # (never on the barometer's grid, 0.5 ms + 2 ms k, nor a whole ms)
+BARO_PHASE_S: Final = 0.0005
 NS: Final = 1_000_000_000
 IMU_SAMPLE, MAG_SAMPLE, BARO_SAMPLE = BY_NAME["IMU_SAMPLE"], BY_NAME["MAG_SAMPLE"], BY_NAME["BARO_SAMPLE"]
 
@@ -185,8 +190,8 @@ class SampleStream:
 
     def start(self) -> None:
         s = self.session
-        s.at(0.0, self._mag_tick)
-        s.at(0.0, self._baro_tick)
+        s.at(MAG_PHASE_S, self._mag_tick)
+        s.at(BARO_PHASE_S, self._baro_tick)
         self._restart_imu(None)
 
     def _restart_imu(self, first_instant_us: int | None) -> None:

@@ -62,7 +62,10 @@ def test_the_flat_encoder_makes_the_same_bytes_and_refuses_a_short_sample() -> N
     for msg in MESSAGES:
         for seq in (0, 7, 255, 300):
             values = random_values(msg, rng)
-            flat = [x for f in msg.fields for x in (values[f.name] if f.count > 1 else [values[f.name]])]
+            flat: list[object] = []
+            for f in msg.fields:
+                v = values[f.name]
+                flat += v if isinstance(v, list) else [v]
             assert encode_flat(msg, seq, flat) == encode(msg.name, seq, **values), msg.name
     imu = next(m for m in MESSAGES if m.name == "IMU_SAMPLE")
     with pytest.raises(struct.error):
