@@ -39,6 +39,45 @@ def test_a_child_detached_with_setsid_ends_with_the_run(tmp_path: Path) -> None:
     assert wait_gone(int(pid_file.read_text()), timeout=0)  # gone when rig exec returned
 
 
+#: a DUT whose second thread starts a child in a session of its own (a fork from a thread: the kernel
+#: lists the child under that thread, not under the process's main thread), waits until the child has
+#: its SIGTERM handler, then sleeps past the run's end; the child (without the shim, whose calls would wait
+#: for the ended session) writes "term" when SIGTERM comes
+THREAD_FORKS = """
+import os, subprocess, sys, threading, time
+CHILD = ("import signal, sys\\n"
+         "def term(*_):\\n    open(sys.argv[1], 'w').write('term'); sys.exit(0)\\n"
+         "signal.signal(signal.SIGTERM, term); print(flush=True); signal.pause()")
+def spawn():
+    env = {k: v for k, v in os.environ.items() if k != "LD_PRELOAD"}  # (a plain process: the shim's
+    child = subprocess.Popen([sys.executable, "-c", CHILD, sys.argv[1]], start_new_session=True,  # calls
+                             stdout=subprocess.PIPE, env=env)  # wait for a session that has ended)
+    child.stdout.readline()
+    open(sys.argv[2], "w").write(str(child.pid))
+    ready.set()
+    time.sleep(30)
+ready = threading.Event()
+threading.Thread(target=spawn).start()
+ready.wait()
+time.sleep(30)
+"""
+
+
+@pytest.mark.parametrize("scan", ["lists", "proc"])
+def test_a_child_a_thread_started_gets_sigterm_when_the_run_ends(tmp_path: Path, scan: str,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """The keeper finds the DUT's processes through the kernel's children lists, every thread's (or by
+    reading every process in /proc, RIG_KEEPER_FULL_SCAN=1): a child it missed would get only the
+    SIGKILL after the grace, and never write "term"."""
+    if scan == "proc":
+        monkeypatch.setenv("RIG_KEEPER_FULL_SCAN", "1")
+    said, pid_file = tmp_path / "said", tmp_path / "pid"
+    run = rig_exec(tmp_path, PY, "-c", THREAD_FORKS, str(said), str(pid_file), options=("--duration", "1"))
+    assert run.returncode == 0, run.stderr
+    assert wait_gone(int(pid_file.read_text()), timeout=0)
+    assert said.read_text() == "term"
+
+
 @pytest.mark.parametrize("how", [signal.SIGTERM, signal.SIGINT, signal.SIGKILL])
 def test_a_dut_that_ignores_sigterm_ends_however_rig_exec_is_stopped(tmp_path: Path, how: int) -> None:
     """`timeout rig exec …` (SIGTERM), Ctrl-C, or rig exec killed outright: the DUT, which ignores
