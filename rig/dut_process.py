@@ -89,17 +89,17 @@ class Keeper:
             os.close(self._life)
             self._life = -1
 
-    def _exited_within(self, timeout_s: float) -> bool:
+    def _ended_within(self, timeout_s: float) -> bool | None:
         """Waits for the keeper's end on a pidfd: True once it has ended (or was reaped already), False
-        when it has not within ``timeout_s`` or no pidfd could be had (Linux before 5.3). Popen.wait with a
-        timeout looks with sleeps of 0.5 ms, 1 ms, 2 ms...: one or two milliseconds of every run's wall
-        time, a tenth of a short lockstep run's. (Not reaped yet, its pid cannot be another's.)"""
+        when it has not within ``timeout_s``, None when no pidfd could be had (Linux before 5.3). Popen.wait
+        with a timeout looks with sleeps of 0.5 ms, 1 ms, 2 ms...: one or two milliseconds of every run's
+        wall time, a tenth of a short lockstep run's. (Not reaped yet, its pid cannot be another's.)"""
         if self.proc.poll() is not None:
             return True
         try:
             fd = os.pidfd_open(self.proc.pid)
         except OSError:
-            return False
+            return None
         try:
             return bool(select.select([fd], [], [], timeout_s)[0])
         finally:
@@ -108,8 +108,10 @@ class Keeper:
     def finish(self) -> None:
         """Stops the DUT if it runs, waits until the keeper has ended everything, reads its last words."""
         self.stop()
+        limit = self.grace_s + 5.0
+        ended = self._ended_within(limit)
         try:
-            self.proc.wait(timeout=0 if self._exited_within(self.grace_s + 5.0) else self.grace_s + 5.0)
+            self.proc.wait(timeout=limit if ended is None else 0)
         except subprocess.TimeoutExpired:  # (a keeper stuck is a bug of ours; do not hang on it)
             self.proc.kill()
             self.proc.wait()

@@ -176,8 +176,8 @@ class BenchSession:
 
     def send_sample(self, msg: Message, valid_sim_ns: int, values: list[float]) -> None:
         """A sensor sample valid from sim time ``valid_sim_ns``, ``values`` its fields after ``valid_us``
-        in table order, arrays spread; counted late when that instant has already passed on the bridge
-        (the board may have read the previous one instead)."""
+        in table order, arrays spread (the list is taken: the bridge time goes in front); counted late
+        when that instant has already passed on the bridge (the board may have read the previous one)."""
         if valid_sim_ns < self._wall_ns():
             self.figures.samples_late += 1
         if self.port is not None:

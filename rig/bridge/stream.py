@@ -21,10 +21,9 @@ MAX_IMU_HZ (8 kHz without the DLPF) gets every n-th instant: the others hold (co
 BARO_PERIOD_S apart, valid Δ after the instant their values were taken (their readings lag by Δ; the
 field and the pressure change far slower than that). The two grids start MAG_PHASE_S and BARO_PHASE_S
 after sim time 0, off the whole milliseconds on which the recorder, the wind and the sticks run and off
-each other's: events due at one instant run one after another, and the last of a stack ran its own
-work that much late. A chip that measures only now and then (the
-HMC5883L idle, the MS5611 between commands) finds the newest: the bridge's queues keep the newest when
-full.
+each other's: events due at one instant run one after another, the last of a stack late by the others'
+work. A chip that measures only now and then (the HMC5883L idle, the MS5611 between commands) finds the
+newest: the bridge's queues keep the newest when full.
 """
 
 from __future__ import annotations

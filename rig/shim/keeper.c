@@ -53,9 +53,9 @@ static long now_ms(void)
     return ts.tv_sec * 1000L + ts.tv_nsec / 1000000L;
 }
 
-/* The pids of the keeper's subtree (excluding the keeper), read from every /proc/PID/stat (where the kernel
-   keeps no children lists, subtree_walk); zombies left out (they are
-   dead already and only wait for their parent's waitpid). Returns how many. */
+/* The pids of the keeper's subtree (excluding the keeper), read from every /proc/PID/stat: where the
+   kernel keeps no children lists (subtree_walk). Zombies left out (they are dead already and only wait
+   for their parent's waitpid). Returns how many. */
 static int subtree(pid_t root, pid_t *out, int cap)
 {
     static pid_t pid[MAX_PROCS], ppid[MAX_PROCS];
