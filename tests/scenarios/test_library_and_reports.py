@@ -5,6 +5,7 @@ the same seed is identical."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import re
@@ -19,7 +20,7 @@ import pytest
 
 from reports.telemetry import read
 from rig.runner import run
-from scenarios.schema import load
+from scenarios.schema import Gust, load
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
 
@@ -74,6 +75,22 @@ def test_a_repeated_run_with_the_same_seed_is_identical(tmp_path: Path) -> None:
     for k in a.signals:
         np.testing.assert_array_equal(a.signals[k], b.signals[k])
     assert not np.array_equal(a.signals["roll"], c.signals["roll"])  # the seed matters
+
+
+def test_the_recorded_wind_is_the_steady_wind_and_the_gust_of_its_instant(tmp_path: Path) -> None:
+    """The wind reaches the plant as stores scheduled a second ahead (rig/runner.py's _Wind), which the
+    fast path writes in C; the recorder reads back what the plant has. Against the 1-cosine formula at
+    each row's time (no turbulence: nothing random), over a chunk's edge (1 s) and the gust's ends."""
+    gust = Gust(start=0.75, duration=0.5, peak=(0.0, -6.0, 2.0))
+    sc = dataclasses.replace(load(LIB / "step_roll.toml"), duration=1.6, wind=(1.0, 0.5, 0.0),
+                             turbulence=0.0, gusts=(gust,), criteria=())
+    r = run(sc, seed=0, work_dir=tmp_path)
+    t = r.signals["t"]
+    inside = (t >= gust.start - 1e-9) & (t <= gust.start + gust.duration + 1e-9)
+    shape = np.where(inside, 0.5 * (1 - np.cos(2 * np.pi * (t - gust.start) / gust.duration)), 0.0)
+    expected = np.hypot(np.hypot(1.0 + 0 * shape, 0.5 - 6.0 * shape), 2.0 * shape)
+    assert len(t) == 161 and shape.max() == pytest.approx(1.0)
+    np.testing.assert_allclose(r.signals["wind"], expected, rtol=1e-9, atol=1e-12)
 
 
 def test_a_reader_that_goes_away_ends_rig_list_quietly() -> None:
