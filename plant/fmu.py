@@ -157,8 +157,6 @@ class Plant:
         #: of a numpy array's 2.1 k instructions (the wind writes three at 100 Hz). Cast through bytes:
         #: the ctypes buffer's "<d" is not a format a memoryview assigns to.
         self.u_cells = memoryview(self._u_buf).cast("B").cast("d")
-        #: where ``u`` is (a scheduled store writes an input there: rig/event_queue)
-        self.u_address: int = ctypes.addressof(self._u_buf)
         #: Outputs (in ``output_names`` order); refreshed after every step.
         self.y = np.ctypeslib.as_array(self._y_buf)
         self.u_index = {n: i for i, n in enumerate(self.input_names)}

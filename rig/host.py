@@ -20,9 +20,6 @@ class Host(Protocol):
     def at(self, t: float, fn: Callable[[Host], None]) -> None:
         """Runs ``fn(host)`` at sim time ``t`` seconds."""
 
-    def store_at(self, t: float, address: int, value: float) -> None:
-        """Writes ``value`` into a plant input's cell (World.input_address) at sim time ``t``."""
-
     def serial_write(self, path: str, data: bytes) -> None:
         """Bytes to the DUT on a serial path (the RC port's SBUS frames, on a bench the bridge's)."""
 

@@ -37,7 +37,6 @@ from scenarios.schema import Event, Scenario
 from scenarios.signals import BENCH_SIGNALS, RECORD_PERIOD, SIGNALS
 
 WIND_PERIOD: Final = 0.01
-WIND_CHUNK: Final = 100  # the wind's ticks scheduled at once (one second)
 TELEMETRY_KEYS = {
     "roll": "est_roll",
     "pitch": "est_pitch",
@@ -48,67 +47,26 @@ TELEMETRY_KEYS = {
 
 
 class _Wind:
-    """Steady wind + turbulence + gusts, the plant's wind inputs every WIND_PERIOD: worked out WIND_CHUNK
-    ticks ahead and scheduled as stores (Host.store_at), which the lockstep fast path writes without a
-    call into Python (a Python event every 10 ms cost a flight about 2 k instructions per FC cycle).
-
-    The stores keep the order the wind's events had among the others at one instant: after the sticks'
-    frame, before the recorder (which records the new wind), after a timeline event (whose wind input
-    they overwrite), except at 0, where the timeline's events came last. So ``first`` schedules tick 0
-    before the recorder is started, and ``follow`` the rest once the timeline is scheduled."""
+    """Steady wind + turbulence + gusts, written into the plant's wind inputs every WIND_PERIOD."""
 
     def __init__(self, scenario: Scenario, seed: int) -> None:
         self.sc = scenario
         self.normals = Normals(np.random.default_rng(seed + 101))
         self.turb: tuple[float, float, float] = (0.0, 0.0, 0.0)
         self.a = math.exp(-WIND_PERIOD / scenario.turbulence_tau)
+        self.now = tuple(scenario.wind)
         # the scenario's numbers, read once (a Scenario is plain Python: 7 attribute lookups a tick)
         self._steady = scenario.wind
         self._turbulence = scenario.turbulence
         self._s = scenario.turbulence * math.sqrt(1 - self.a**2)
         self._gusts = tuple(scenario.gusts)
-        self._t = 0.0  # the next tick's time (a sum of WIND_PERIODs, as the events' times were)
-        self._cells: tuple[int, int, int] = (0, 0, 0)
-        self._world: World | None = None
 
     def active(self) -> bool:
         return any(self.sc.wind) or self.sc.turbulence > 0 or bool(self.sc.gusts)
 
-    def now(self) -> tuple[float, float, float]:
-        """The wind the plant has now (the steady wind when none is modelled)."""
-        world = self._world
-        if world is None:
-            return (self._steady[0], self._steady[1], self._steady[2])
-        return (world.input("wind_n"), world.input("wind_e"), world.input("wind_d"))
-
-    def first(self, session: Host) -> None:
-        """Tick 0's wind, scheduled (before the recorder's first row)."""
-        self._world = world = session.world
-        self._cells = (world.input_address("wind_n"), world.input_address("wind_e"),
-                       world.input_address("wind_d"))
-        self._store(session, 1)
-
-    def follow(self, session: Host) -> None:
-        """The next WIND_CHUNK ticks scheduled, and this again at the last of them (after its stores)."""
-        last = self._store(session, WIND_CHUNK)
-        session.at(last, self.follow)
-
-    def _store(self, session: Host, ticks: int) -> float:
-        """The next ``ticks`` ticks' winds as stores; returns the last one's time."""
-        t = last = self._t
-        cn, ce, cd = self._cells
-        for _ in range(ticks):
-            wn, we, wd = self._tick(t)
-            session.store_at(t, cn, wn)
-            session.store_at(t, ce, we)
-            session.store_at(t, cd, wd)
-            last, t = t, t + WIND_PERIOD
-        self._t = t
-        return last
-
-    def _tick(self, t: float) -> tuple[float, float, float]:
-        # three scalars, not sequences, zips and numpy calls (the same float operations in the same
-        # order as per-axis sequences would do them)
+    def tick(self, session: Host, t: float) -> None:
+        # three scalars, not sequences, zips and numpy calls: this runs a hundred times a second (the
+        # same float operations in the same order as per-axis sequences would do them)
         tn, te, td = self.turb
         if self._turbulence > 0:
             a, s = self.a, self._s
@@ -121,7 +79,13 @@ class _Wind:
             if g.start <= t <= g.start + g.duration:
                 shape = 0.5 * (1 - math.cos(2 * math.pi * (t - g.start) / g.duration))
                 wn, we, wd = wn + g.peak[0] * shape, we + g.peak[1] * shape, wd + g.peak[2] * shape
-        return wn, we, wd
+        world = session.world
+        world.set_input("wind_n", wn)
+        world.set_input("wind_e", we)
+        world.set_input("wind_d", wd)
+        self.now = (wn, we, wd)
+        nxt = t + WIND_PERIOD
+        session.at(nxt, lambda s: self.tick(s, nxt))
 
 
 #: The plant outputs the recorder reads, before the motors' pulse widths (World.probe)
@@ -159,7 +123,7 @@ class _Recorder:
         faulted = self._mag_from <= t < self._mag_to
         for f in self.faults:
             faulted = faulted or f.active(t)
-        wn, we, wd = self.wind.now()
+        wn, we, wd = self.wind.now
         angle = self._angle_scale
         self._probe.record((
             t, float(self.world.on_ground), st.roll * angle, st.pitch * angle,
@@ -274,13 +238,11 @@ def run(
                 rc.start(session)
                 wind = _Wind(scenario, seed)
                 if wind.active():
-                    wind.first(session)
+                    session.at(0.0, lambda s: wind.tick(s, 0.0))
                 rec = _Recorder(scenario, world, rc, wind, [f.fault for f in scenario.faults])
                 session.at(0.0, rec.tick)
                 for ev in scenario.timeline:
                     session.at(ev.t, _apply_event(rc, ev))
-                if wind.active():
-                    wind.follow(session)
                 outcome = session.run()
                 signals = rec.signals()
                 metadata.update(target_run.figures(outcome))

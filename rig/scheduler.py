@@ -86,7 +86,6 @@ class Scheduler:
         self.events: EventQueue = new_queue()
         # (push and pop bound once: a method called by name from compiled code is looked up at every call)
         self._push: Callable[[int, Event], None] = self.events.push
-        self._push_store: Callable[[int, int, float], None] = self.events.push_store
         self._pop: Callable[[], tuple[int, Event]] = self.events.pop
         self.event_ns: int | None = None   # inside an event: its time
         self.event_output = False          # the running event sent the DUT data
@@ -104,12 +103,6 @@ class Scheduler:
     def at(self, t: float, fn: Event) -> None:
         """Runs ``fn(host)`` at sim time ``t`` seconds (before any DUT request at or after it)."""
         self._push(round_half_even(t * NS), fn)
-
-    def store_at(self, t: float, address: int, value: float) -> None:
-        """Writes ``value`` into the double at ``address`` (World.input_address) at sim time ``t``, in
-        its place among the events as ``at``'s would run: without a call into Python on the lockstep
-        fast path (rig/lockstep/events.c)."""
-        self._push_store(round_half_even(t * NS), address, value)
 
     def fail(self, code: int, message: str) -> None:
         """Ends the run with this error (the first one stands)."""

@@ -173,9 +173,6 @@ class Session:
         """Runs ``fn(session)`` at sim time ``t`` seconds (before any DUT request at or after it)."""
         self.sched.at(t, fn)
 
-    def store_at(self, t: float, address: int, value: float) -> None:
-        self.sched.store_at(t, address, value)
-
     def serial_silence(self, path: str) -> None:
         """The device behind ``path`` sends nothing for now (a lost RC link): on a pty that is no bytes,
         nothing to do (a bench bridge has to be told, rig/bridge/session.py)."""

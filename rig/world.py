@@ -263,22 +263,10 @@ class World:
     def set_input(self, name: str, value: float) -> None:
         """One of the plant's scenario inputs by name (plant.variables.SCENARIO_INPUTS: wind, external
         force and torque, motor health); it acts from the next plant step."""
-        self._u_cells[self._input_index(name)] = value
-
-    def input(self, name: str) -> float:
-        """A scenario input's value now (as set_input or a scheduled store left it)."""
-        return float(self._u_cells[self._input_index(name)])
-
-    def input_address(self, name: str) -> int:
-        """Where a scenario input's double is, for a store scheduled to write it (Scheduler.store_at); valid
-        as long as this world's plant."""
-        return int(self.plant.u_address) + 8 * self._input_index(name)
-
-    def _input_index(self, name: str) -> int:
         index = self._u_named.get(name)
         if index is None:
             raise KeyError(f"{name!r} is not an input of the world; known: {', '.join(self._u_named)}")
-        return index
+        self._u_cells[index] = value
 
     def probe(self, outputs: Sequence[str], extras: int = 0, rows: int = 1024) -> Probe:
         """A table of rows of the named plant outputs, the motors' pulse widths and ``extras`` more values

@@ -125,9 +125,6 @@ class BenchSession:
     def at(self, t: float, fn: Callable[[BenchSession], None]) -> None:
         self.sched.at(t, fn)
 
-    def store_at(self, t: float, address: int, value: float) -> None:
-        self.sched.store_at(t, address, value)
-
     @property
     def now_ns(self) -> int:
         event_ns = self.sched.event_ns

@@ -27,13 +27,8 @@ class EventQueue(Protocol):
     def push(self, t_ns: int, fn: Callable[[Any], None], /) -> None:
         """``fn`` scheduled at ``t_ns`` (ties run in the order pushed)."""
 
-    def push_store(self, t_ns: int, address: int, value: float, /) -> None:
-        """``value`` written at ``t_ns`` into the double at ``address`` (a plant input's cell, which must
-        outlive the queue's hold on it): an event the lockstep fast path runs without Python."""
-
     def pop(self) -> tuple[int, Callable[[Any], None]]:
-        """The first event, taken off (IndexError when there is none); a store comes as a function that
-        writes its value."""
+        """The first event, taken off (IndexError when there is none)."""
 
     def first_ns(self) -> int | None:
         """The first event's time, or None."""

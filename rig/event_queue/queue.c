@@ -12,12 +12,18 @@
 #define PY_SSIZE_T_CLEAN
 #include "queue.h"
 
+/* a before b */
+static inline int earlier(const event_entry *a, const event_entry *b)
+{
+    return a->t_ns < b->t_ns || (a->t_ns == b->t_ns && a->seq < b->seq);
+}
+
 static void sift_up(event_entry *h, Py_ssize_t i)
 {
     event_entry e = h[i];
     while (i > 0) {
         Py_ssize_t parent = (i - 1) / 2;
-        if (!event_earlier(&e, &h[parent]))
+        if (!earlier(&e, &h[parent]))
             break;
         h[i] = h[parent];
         i = parent;
@@ -25,27 +31,22 @@ static void sift_up(event_entry *h, Py_ssize_t i)
     h[i] = e;
 }
 
-/* Store: a store taken off the queue from Python (Scheduler.run_next's path), a function of the host as
- * every event is: called, it writes its value into its cell */
-typedef struct {
-    PyObject_HEAD double *cell;
-    double value;
-} store_event;
-
-static PyObject *store_call(store_event *self, PyObject *args, PyObject *kwds)
+static void sift_down(event_entry *h, Py_ssize_t n, Py_ssize_t i)
 {
-    (void)args, (void)kwds;
-    *self->cell = self->value;
-    Py_RETURN_NONE;
+    event_entry e = h[i];
+    for (;;) {
+        Py_ssize_t c = 2 * i + 1;
+        if (c >= n)
+            break;
+        if (c + 1 < n && earlier(&h[c + 1], &h[c]))
+            c++;
+        if (!earlier(&h[c], &e))
+            break;
+        h[i] = h[c];
+        i = c;
+    }
+    h[i] = e;
 }
-
-static PyTypeObject StoreType = {
-    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "_rigevents.Store",
-    .tp_basicsize = sizeof(store_event),
-    .tp_flags = Py_TPFLAGS_DEFAULT,
-    .tp_doc = "A scheduled store taken off the queue: called, it writes its value into its cell",
-    .tp_call = (ternaryfunc)store_call,
-};
 
 static PyObject *eq_new(PyTypeObject *type, PyObject *args, PyObject *kwds)
 {
@@ -60,7 +61,7 @@ static PyObject *eq_new(PyTypeObject *type, PyObject *args, PyObject *kwds)
 static int eq_traverse(event_queue *q, visitproc visit, void *arg)
 {
     for (Py_ssize_t i = 0; i < q->n; i++)
-        Py_VISIT(q->heap[i].fn); /* (NULL for a store: skipped) */
+        Py_VISIT(q->heap[i].fn);
     return 0;
 }
 
@@ -68,7 +69,7 @@ static int eq_clear(event_queue *q)
 {
     while (q->n > 0) { /* (one at a time: a function's release may run code that looks at the queue) */
         PyObject *fn = q->heap[--q->n].fn;
-        Py_XDECREF(fn);
+        Py_DECREF(fn);
     }
     return 0;
 }
@@ -81,73 +82,31 @@ static void eq_dealloc(event_queue *q)
     Py_TYPE(q)->tp_free((PyObject *)q);
 }
 
-/* a time argument (int, ns; one past the 64-bit range is kept at its end): 0, or -1 with the error set */
-static int time_arg(PyObject *arg, long long *t)
+/* push(t_ns, fn): schedules fn at t_ns (an int; one past the 64-bit range is kept at its end) */
+static PyObject *eq_push(event_queue *q, PyObject *const *a, Py_ssize_t nargs)
 {
+    if (nargs != 2 || !PyLong_Check(a[0]))
+        return PyErr_Format(PyExc_TypeError, "push takes a time (int, ns) and a function");
     int overflow = 0;
-    *t = PyLong_AsLongLongAndOverflow(arg, &overflow);
-    if (*t == -1 && PyErr_Occurred())
-        return -1;
+    long long t = PyLong_AsLongLongAndOverflow(a[0], &overflow);
+    if (t == -1 && PyErr_Occurred())
+        return NULL;
     if (overflow)
-        *t = overflow > 0 ? INT64_MAX : INT64_MIN;
-    return 0;
-}
-
-/* e at its place in the heap, its sequence number given here: 0, or -1 (no memory) */
-static int insert(event_queue *q, event_entry e)
-{
+        t = overflow > 0 ? INT64_MAX : INT64_MIN;
     if (q->n == q->cap) {
         Py_ssize_t cap = q->cap ? 2 * q->cap : 16;
         event_entry *h = PyMem_Realloc(q->heap, (size_t)cap * sizeof *h);
-        if (!h) {
-            PyErr_NoMemory();
-            return -1;
-        }
+        if (!h)
+            return PyErr_NoMemory();
         q->heap = h;
         q->cap = cap;
     }
-    e.seq = q->next_seq++;
-    q->heap[q->n] = e;
+    q->heap[q->n] = (event_entry){ .t_ns = t, .seq = q->next_seq++, .fn = Py_NewRef(a[1]) };
     sift_up(q->heap, q->n++);
-    return 0;
-}
-
-/* push(t_ns, fn): schedules fn at t_ns */
-static PyObject *eq_push(event_queue *q, PyObject *const *a, Py_ssize_t nargs)
-{
-    long long t;
-    if (nargs != 2 || !PyLong_Check(a[0]))
-        return PyErr_Format(PyExc_TypeError, "push takes a time (int, ns) and a function");
-    if (time_arg(a[0], &t) < 0)
-        return NULL;
-    if (insert(q, (event_entry){ .t_ns = t, .fn = Py_NewRef(a[1]) }) < 0) {
-        Py_DECREF(a[1]);
-        return NULL;
-    }
     Py_RETURN_NONE;
 }
 
-/* push_store(t_ns, address, value): value written at t_ns into the double at address (a cell the caller
- * keeps alive as long as the queue holds the store: a plant input's, World.input_address) */
-static PyObject *eq_push_store(event_queue *q, PyObject *const *a, Py_ssize_t nargs)
-{
-    long long t;
-    if (nargs != 3 || !PyLong_Check(a[0]) || !PyLong_Check(a[1]))
-        return PyErr_Format(PyExc_TypeError, "push_store takes a time (int, ns), an address (int) and a value");
-    if (time_arg(a[0], &t) < 0)
-        return NULL;
-    void *cell = PyLong_AsVoidPtr(a[1]);
-    double value = PyFloat_AsDouble(a[2]);
-    if (PyErr_Occurred())
-        return NULL;
-    if (!cell || (uintptr_t)cell % _Alignof(double))
-        return PyErr_Format(PyExc_ValueError, "push_store: %zu is not the address of a double", (size_t)cell);
-    if (insert(q, (event_entry){ .t_ns = t, .cell = cell, .value = value }) < 0)
-        return NULL;
-    Py_RETURN_NONE;
-}
-
-/* pop() -> (t_ns, fn): the first event, taken off (a store as a Store); IndexError when there is none */
+/* pop() -> (t_ns, fn): the first event, taken off; IndexError when there is none */
 static PyObject *eq_pop(event_queue *q, PyObject *unused)
 {
     (void)unused;
@@ -155,26 +114,18 @@ static PyObject *eq_pop(event_queue *q, PyObject *unused)
         PyErr_SetString(PyExc_IndexError, "pop from an empty event queue");
         return NULL;
     }
-    event_entry *e = &q->heap[0];
-    PyObject *fn = e->fn;
-    if (!fn) { /* a store: its function made now */
-        store_event *st = PyObject_New(store_event, &StoreType);
-        if (!st)
-            return NULL;
-        st->cell = e->cell, st->value = e->value;
-        fn = (PyObject *)st;
-    }
-    PyObject *t = PyLong_FromLongLong(e->t_ns);
+    PyObject *t = PyLong_FromLongLong(q->heap[0].t_ns);
     PyObject *out = t ? PyTuple_New(2) : NULL;
     if (!out) {
         Py_XDECREF(t);
-        if (!e->fn)
-            Py_DECREF(fn);
         return NULL;
     }
     PyTuple_SET_ITEM(out, 0, t);
-    PyTuple_SET_ITEM(out, 1, fn); /* (the queue's reference, or the store's new one: now the tuple's) */
-    event_take_first(q);
+    PyTuple_SET_ITEM(out, 1, q->heap[0].fn); /* (the queue's reference, now the tuple's) */
+    if (--q->n > 0) {
+        q->heap[0] = q->heap[q->n];
+        sift_down(q->heap, q->n, 0);
+    }
     return out;
 }
 
@@ -192,8 +143,6 @@ static Py_ssize_t eq_len(event_queue *q) { return q->n; }
 static PyMethodDef eq_methods[] = {
     { "push", (PyCFunction)(void (*)(void))eq_push, METH_FASTCALL,
       "push(t_ns, fn): fn scheduled at t_ns (ties run in the order pushed)" },
-    { "push_store", (PyCFunction)(void (*)(void))eq_push_store, METH_FASTCALL,
-      "push_store(t_ns, address, value): value written into the double at address at t_ns" },
     { "pop", (PyCFunction)eq_pop, METH_NOARGS, "pop() -> (t_ns, fn): the first event, taken off" },
     { "first_ns", (PyCFunction)eq_first_ns, METH_NOARGS, "first_ns() -> the first event's time, or None" },
     { NULL, NULL, 0, NULL },
@@ -228,7 +177,7 @@ static struct PyModuleDef module = {
 
 PyMODINIT_FUNC PyInit__rigevents(void)
 {
-    if (PyType_Ready(&EventQueueType) < 0 || PyType_Ready(&StoreType) < 0)
+    if (PyType_Ready(&EventQueueType) < 0)
         return NULL;
     PyObject *m = PyModule_Create(&module);
     if (m && PyModule_AddObjectRef(m, "EventQueue", (PyObject *)&EventQueueType) < 0)

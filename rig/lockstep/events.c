@@ -7,9 +7,7 @@
  *
  * How: a wait the fast path takes runs the events due before its time as Scheduler.advance does, one
  * Scheduler.run_next each (the same Python step, so an event runs alike on both paths), the world stepped
- * to each event's time here first, in C, so that run_next's own step finds nothing left to do. A store
- * (the wind's next values, scheduled ahead: rig/event_queue/queue.h) is written here, as the Store that
- * run_next would call writes it. A polling
+ * to each event's time here first, in C, so that run_next's own step finds nothing left to do. A polling
  * wait ends at the first event that wrote to the DUT, as Scheduler.advance(stop_on_output) ends it. What
  * the events wrote to the DUT's ports is handed over (as Session.deliver_serial does) before the DUT runs again.
  * A wait with an event due is taken only once it is checked completely: once an event has run, the wait
@@ -41,11 +39,6 @@ static int run_due(fast_state *s, uint64_t t, int stop_on_output, uint64_t *woke
     while (first_event_ns(s, &first) && first <= t) {
         if (first > 0 && world_to(s, first) < 0)
             return -1;
-        if (!s->events->heap[0].fn) { /* a store (a plant input's next value): written here, no Python */
-            event_entry e = event_take_first(s->events);
-            *e.cell = e.value;
-            continue;
-        }
         PyObject *te = PyObject_CallNoArgs(s->run_next);
         if (!te)
             return -1;

@@ -106,9 +106,6 @@ class McuSession:
     def at(self, t: float, fn: Callable[[McuSession], None]) -> None:
         self.sched.at(t, fn)
 
-    def store_at(self, t: float, address: int, value: float) -> None:
-        self.sched.store_at(t, address, value)
-
     def serial_write(self, path: str, data: bytes) -> None:
         """The RC port's SBUS frames go to the board's RC input as its protocol has them: SBUS bytes
         into the USART, or the same channels as a PPM sum on the pin or an MSP SET_RAW_RC frame."""

@@ -4,7 +4,6 @@ a function holding the queue is freed with it (the garbage collector sees into t
 
 from __future__ import annotations
 
-import ctypes
 import gc
 import heapq
 import random
@@ -84,43 +83,3 @@ def test_the_fast_path_refuses_events_that_are_not_a_queue() -> None:
 
     with pytest.raises(TypeError, match="EventQueue"):
         module().setup(*[None] * 2, [], [], None, [], *[None] * 10)
-
-
-@pytest.mark.parametrize("seed", range(3))
-def test_stores_take_their_place_among_the_events_and_write_when_called(seed: int) -> None:
-    """A store (push_store) pops in its turn as heapq orders it, as a function that writes its value
-    into its double; the others come back as they were pushed."""
-    rng = random.Random(seed)
-    q: Any = new_queue()
-    cells = (ctypes.c_double * 4)()
-    ref: list[tuple[int, int, Any]] = []
-    for seq in range(500):
-        t = rng.randrange(0, 40) * 1_000_000
-        if rng.random() < 0.5:
-            i, value = rng.randrange(4), rng.uniform(-10, 10)
-            q.push_store(t, ctypes.addressof(cells) + 8 * i, value)
-            heapq.heappush(ref, (t, seq, (i, value)))
-        else:
-            q.push(t, f"e{seq}")
-            heapq.heappush(ref, (t, seq, f"e{seq}"))
-    while ref:
-        t, _, want = heapq.heappop(ref)
-        got_t, fn = q.pop()
-        assert got_t == t
-        if isinstance(want, str):
-            assert fn == want
-        else:
-            i, value = want
-            fn(None)
-            assert cells[i] == value
-    assert len(q) == 0
-
-
-def test_a_store_refuses_what_is_not_a_doubles_address_or_a_number() -> None:
-    q: Any = new_queue()
-    cell = ctypes.c_double()
-    for address, value, error in ((0, 1.0, ValueError), (ctypes.addressof(cell) + 1, 1.0, ValueError),
-                                  (ctypes.addressof(cell), "2", TypeError), (1.5, 1.0, TypeError)):
-        with pytest.raises(error):
-            q.push_store(1, address, value)
-    assert len(q) == 0

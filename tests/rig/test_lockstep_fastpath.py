@@ -130,10 +130,6 @@ def _ticking(session: Session, fail_at: float | None) -> tuple[list[tuple[Any, .
     return seen, readable
 
 
-#: (time, input, value) stored during the script: at a cycle's edge, inside one, two at one instant
-STORES = ((0.05, "wind_e", 3.0), (0.1013, "wind_e", -1.5), (0.15, "wind_d", 0.5), (0.15, "wind_d", 0.25))
-
-
 def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_hz: int,
          script: list[bytes] | None = None, pump: bool = False, events: bool = False,
          fail_at: float | None = None, world: Callable[[], World] = lambda: World.at_rest(seed=3),
@@ -151,8 +147,6 @@ def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_h
     assert (session.fast is None) == py_path
     assert session.fast is None or session.fast.imu_in_c  # the MPU's samples made in C too
     session.at(0.2, lambda s: s.world.set_input("wind_n", 2.0))  # an event between two cycles
-    for t, name, value in STORES:  # stores, as the wind schedules them (C writes them on the fast path)
-        session.store_at(t, session.world.input_address(name), value)
     seen, readable = _ticking(session, fail_at) if events else ([], [])
     ours, dut = socket.socketpair()
     conn = Conn(ours, 1)
@@ -215,8 +209,7 @@ def _fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, py_path: bool, clock_h
             "board": ctypes.string_at(board.addr, native.chips().rig_chip_board_size()),
             "block": sampler.block.tobytes(), "next_t": sampler.next_t,
             "mag": tuple(getattr(board.feeds[CHIP_HMC], a) for a in ("_anchor", "_index", "_next_t")),
-            "made_here": session.fast.made_here if session.fast else (0, 0, 0),
-            "inputs": tuple(session.world.input(name) for name in ("wind_n", "wind_e", "wind_d"))}
+            "made_here": session.fast.made_here if session.fast else (0, 0, 0)}
 
 
 @pytest.mark.parametrize("clock_hz", [0, 400_000])
@@ -297,7 +290,6 @@ def test_events_a_wait_crosses_run_as_the_handler_runs_them(monkeypatch: pytest.
     assert P.WAKE_EVENT in _wake_reasons(py["received"])  # a polling wait woke at a frame
     _same(py, fast)
     assert fast["fast_waits"] == 60
-    assert fast["inputs"] == (2.0, -1.5, 0.25)  # the event's and the stores' (the later of two at 0.15)
 
 
 def test_an_event_that_fails_in_a_fast_wait_ends_the_run_as_in_the_handler(monkeypatch: pytest.MonkeyPatch,

@@ -30,9 +30,6 @@ class _Port:
     def at(self, t: float, fn: Callable[[Host], None]) -> None:
         self.sched.at(t, fn)
 
-    def store_at(self, t: float, address: int, value: float) -> None:
-        self.sched.store_at(t, address, value)
-
     def serial_write(self, path: str, data: bytes) -> None:
         self.sent.append((self.now_ns, data))
 

@@ -78,9 +78,9 @@ def test_a_repeated_run_with_the_same_seed_is_identical(tmp_path: Path) -> None:
 
 
 def test_the_recorded_wind_is_the_steady_wind_and_the_gust_of_its_instant(tmp_path: Path) -> None:
-    """The wind reaches the plant as stores scheduled a second ahead (rig/runner.py's _Wind), which the
-    fast path writes in C; the recorder reads back what the plant has. Against the 1-cosine formula at
-    each row's time (no turbulence: nothing random), over a chunk's edge (1 s) and the gust's ends."""
+    """The wind the runner gives the plant every 10 ms (rig/runner.py's _Wind), as the recorder has it,
+    against the 1-cosine formula at each row's time (no turbulence: nothing random), over the gust's
+    ends and its peak."""
     gust = Gust(start=0.75, duration=0.5, peak=(0.0, -6.0, 2.0))
     sc = dataclasses.replace(load(LIB / "step_roll.toml"), duration=1.6, wind=(1.0, 0.5, 0.0),
                              turbulence=0.0, gusts=(gust,), criteria=())
