@@ -33,6 +33,21 @@ def dut_env(base: dict[str, str] | None, shim: Path, socket_path: Path | str, sh
     return env
 
 
+def ended_within(pid: int, timeout_s: float) -> bool | None:
+    """Waits on a pidfd for process ``pid`` to end: True once it has (or it is gone), False when it has
+    not within ``timeout_s``, None when the kernel gives no pidfds (Linux before 5.3)."""
+    try:
+        fd = os.pidfd_open(pid)
+    except ProcessLookupError:
+        return True
+    except OSError:
+        return None
+    try:
+        return bool(select.select([fd], [], [], timeout_s)[0])
+    finally:
+        os.close(fd)
+
+
 class Keeper:
     """The DUT's parent, ``build/rig-keeper`` (rig/shim/keeper.c): a subreaper that ends every process
     the DUT started, however it detached, when the lifeline closes or the DUT exits; and ends them
@@ -90,20 +105,10 @@ class Keeper:
             self._life = -1
 
     def _ended_within(self, timeout_s: float) -> bool | None:
-        """Waits for the keeper's end on a pidfd: True once it has ended (or was reaped already), False
-        when it has not within ``timeout_s``, None when no pidfd could be had (Linux before 5.3). Popen.wait
-        with a timeout looks with sleeps of 0.5 ms, 1 ms, 2 ms...: one or two milliseconds of every run's
-        wall time, a tenth of a short lockstep run's. (Not reaped yet, its pid cannot be another's.)"""
-        if self.proc.poll() is not None:
-            return True
-        try:
-            fd = os.pidfd_open(self.proc.pid)
-        except OSError:
-            return None
-        try:
-            return bool(select.select([fd], [], [], timeout_s)[0])
-        finally:
-            os.close(fd)
+        """The keeper's end waited for on a pidfd (ended_within). Popen.wait with a timeout looks with
+        sleeps of 0.5 ms, 1 ms, 2 ms...: one or two milliseconds of every run's wall time, a tenth of a
+        short lockstep run's. (Not reaped yet, its pid cannot be another's.)"""
+        return True if self.proc.poll() is not None else ended_within(self.proc.pid, timeout_s)
 
     def finish(self) -> None:
         """Stops the DUT if it runs, waits until the keeper has ended everything, reads its last words."""
