@@ -257,6 +257,9 @@ def breakdown(short: int, long: int, parts: list[tuple[str, str]] | None) -> Non
         print(f"  {part:18} {cost / 1000:7.1f} k ({cost / total * 100:5.1f} %)")
 
 
+OPTIONS = ("--instructions", "--breakdown", "--parts")
+
+
 def main() -> None:
     if "--peer" in sys.argv:
         _peer(*(int(a) for a in sys.argv[sys.argv.index("--peer") + 1:][:4]))
@@ -265,6 +268,12 @@ def main() -> None:
         run_cycles(int(os.environ["RIG_CYCLES"]), int(os.environ.get("RIG_BUILT", "0")),
                    os.environ.get("RIG_ROUTE", "pump"))
         return
+    if {"-h", "--help"} & set(sys.argv):
+        print(__doc__)
+        return
+    unknown = [a for a in sys.argv[1:] if a.startswith("-") and a not in OPTIONS]
+    if unknown:
+        sys.exit(f"cycle_cost.py: unknown option {unknown[0]} (--help: the options)")
     print(status())
     if "--instructions" in sys.argv:
         if not shutil.which("valgrind") or not shutil.which("setarch"):
