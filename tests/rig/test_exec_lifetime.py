@@ -49,9 +49,9 @@ CHILD = ("import signal, sys\\n"
          "def term(*_):\\n    open(sys.argv[1], 'w').write('term'); sys.exit(0)\\n"
          "signal.signal(signal.SIGTERM, term); print(flush=True); signal.pause()")
 def spawn():
-    env = {k: v for k, v in os.environ.items() if k != "LD_PRELOAD"}  # (a plain process: the shim's
-    child = subprocess.Popen([sys.executable, "-c", CHILD, sys.argv[1]], start_new_session=True,  # calls
-                             stdout=subprocess.PIPE, env=env)  # wait for a session that has ended)
+    env = {k: v for k, v in os.environ.items() if k != "LD_PRELOAD"}  # (a plain process)
+    child = subprocess.Popen([sys.executable, "-c", CHILD, sys.argv[1]], start_new_session=True,
+                             stdout=subprocess.PIPE, env=env)
     child.stdout.readline()
     open(sys.argv[2], "w").write(str(child.pid))
     ready.set()
