@@ -3,8 +3,8 @@ notices, waits and notes, each acted on at its sim time.
 
 This is the session's second job, kept apart from the process and transport loop (rig/session.py) and
 from sim time (rig/scheduler.py). A request (HELLO, I2C, a WAIT that is not AHEAD) gets exactly one
-reply; a notice (PWM, WAIT AHEAD, NOTE) gets none, so it costs the DUT no round trip. Every message is
-checked: a malformed one raises ``protocol.Malformed`` and costs only its connection.
+reply; a notice (PWM, WAIT AHEAD, NOTE, I2C_WRITE) gets none, so it costs the DUT no round trip. Every
+message is checked: a malformed one raises ``protocol.Malformed`` and costs only its connection.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Final
 
 from emulators.i2c_bus import I2CNack, I2CProtocolError, Msg
 from rig import protocol as P
-from rig.scheduler import NS, Scheduler, SharedPage, Stop, fmt
+from rig.scheduler import EXIT_RIG_ERROR, NS, Scheduler, SharedPage, Stop, fmt
 from rig.world import PwmChannel, World
 from scenarios.result import I2CRecord
 
@@ -25,6 +25,8 @@ if TYPE_CHECKING:
 
 FOREVER_SLICE_NS: Final = 10_000_000  # a wait with no deadline lets 10 ms pass, then the DUT looks again
 I2C_LOG_CAP: Final = 1_000_000  # transfers kept for run.mcap (TargetRun.transactions)
+#: the run's error when a promised write (I2C_WRITE) was not acknowledged (rig/lockstep/fastpath.c's too)
+BROKEN_PROMISE: Final = "a write the rig told the DUT was acknowledged was not (a rig bug): the run is void"
 
 
 class Handler:
@@ -36,6 +38,7 @@ class Handler:
         self.session, self.cfg, self.sched, self.world, self.page = session, cfg, sched, world, page
         self.lockstep = cfg.lockstep  # in real time the page holds PWM states, not the clock
         self.transactions = self.waits = self.pwm_writes = 0
+        self.promised_writes = 0  # I2C_WRITE notices (among the transactions)
         #: PWM notices other than duty acted on here: the fast path keeps the channels' settings until
         #: this changes (rig/lockstep/pwm_duty.c)
         self.pwm_config_changes = 0
@@ -58,6 +61,8 @@ class Handler:
             self.session.greet(conn, status, not status and bool(flags & P.HELLO_MAILBOX))
         elif hdr.type == P.MSG_I2C:
             self._i2c(conn, hdr, payload)
+        elif hdr.type == P.MSG_I2C_WRITE:
+            self._i2c(conn, hdr, payload, promised=True)
         elif hdr.type == P.MSG_PWM:
             self._pwm(conn, hdr, payload)
         elif hdr.type == P.MSG_WAIT:
@@ -79,9 +84,18 @@ class Handler:
         (after a WAIT AHEAD it runs ahead of what the session has read)."""
         return hdr.t_ns if self.lockstep else self.session.now_ns
 
-    def _i2c(self, conn: Conn, hdr: P.Header, payload: bytes) -> None:
-        bus, msgs = P.parse_i2c(payload)
-        t = self._request_time(hdr)
+    def _i2c(self, conn: Conn, hdr: P.Header, payload: bytes, promised: bool = False) -> None:
+        """A transfer, answered; ``promised``: an I2C_WRITE notice, a write the shim has already told the
+        DUT was acknowledged (the session's promise in the clock page), done at its own time, unanswered."""
+        if promised:
+            bus, msgs = P.parse_promised_write(payload)
+            t = hdr.t_ns
+            if not (self.lockstep and self.page.promised(bus, msgs[0].addr, t)):
+                raise P.Malformed(f"I2C_WRITE notice to 0x{msgs[0].addr:02x} on bus {bus} at {fmt(t)}, "
+                                  "which the session did not promise to acknowledge")
+        else:
+            bus, msgs = P.parse_i2c(payload)
+            t = self._request_time(hdr)
         session = self.session
         session.advance(t)
         status, results = 0, []
@@ -107,9 +121,15 @@ class Handler:
             self.i2c_log.append(I2CRecord(t, msgs[0].addr if msgs else 0, wrote[0] if wrote else None, wrote,
                                           b"".join(results), status == 0))
         if session.logging:
-            session.log(t, f"c{conn.index} i2c-{bus} {describe(msgs, results)} "
-                           f"{'ok' if not status else errno.errorcode[status]}")
-        session.send(conn, P.reply(P.MSG_I2C, t_after, b"".join(results), status))
+            outcome = "ok" if not status else errno.errorcode[status]
+            session.log(t, f"c{conn.index} i2c-{bus} {describe(msgs, results)} {outcome}"
+                           f"{' promised' if promised else ''}")
+        if not promised:
+            session.send(conn, P.reply(P.MSG_I2C, t_after, b"".join(results), status))
+        elif status:
+            self.sched.fail(EXIT_RIG_ERROR, BROKEN_PROMISE)
+        else:
+            self.promised_writes += 1
 
     def _bus_time_ns(self, msgs: list[P.I2CMessage], results: list[bytes]) -> int:
         """START + address + ACK per message, 9 bits per data byte, one STOP: the wire time of a transfer."""

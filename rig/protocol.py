@@ -8,7 +8,7 @@ from __future__ import annotations
 import struct
 from typing import Final
 
-PROTOCOL_VERSION: Final = 3
+PROTOCOL_VERSION: Final = 4
 MAX_PAYLOAD: Final = 65536
 
 HEADER = struct.Struct("<IHHQ")  # len, type, status, t_ns
@@ -17,7 +17,9 @@ MSG_I2C: Final = 2
 MSG_PWM: Final = 3
 MSG_WAIT: Final = 4
 MSG_NOTE: Final = 5
-MSG_NAMES = {MSG_HELLO: "HELLO", MSG_I2C: "I2C", MSG_PWM: "PWM", MSG_WAIT: "WAIT", MSG_NOTE: "NOTE"}
+MSG_I2C_WRITE: Final = 6  # notice: a write the session promised to acknowledge (SHM_ACK)
+MSG_NAMES = {MSG_HELLO: "HELLO", MSG_I2C: "I2C", MSG_PWM: "PWM", MSG_WAIT: "WAIT", MSG_NOTE: "NOTE",
+             MSG_I2C_WRITE: "I2C_WRITE"}
 #: Requests get one reply; notices get none.
 REQUESTS = frozenset({MSG_HELLO, MSG_I2C, MSG_WAIT})
 
@@ -53,6 +55,10 @@ WAKE_EVENT: Final = 1
 WAKE_SLICE: Final = 2
 
 SHM_MAGIC: Final = 0x31304D4853474952  # "RIGSHM01"
+#: the session's promises in the clock page: a write of one message to addr on bus before until_ns is
+#: acknowledged (protocol.h struct rig_ack), ACK_MAX of them from SHM_ACKS_OFFSET
+SHM_ACK = struct.Struct("<HHIQ")  # bus, addr, reserved, until_ns
+ACK_MAX: Final = 4
 PWM_MAX: Final = 16
 # magic, version, npwm, sim_ns, quantum_ns, epoch_ns, mono_base_ns
 SHM_HEAD = struct.Struct("<QIIQQQQ")
@@ -61,6 +67,7 @@ SHM_SIZE: Final = 4096
 SIM_NS_OFFSET: Final = 16
 SHM_LIMIT_OFFSET: Final = 560  # limit_ns, after the PWM states
 SHM_WAKE_OFFSET: Final = 568  # wake_seq, then session_state (the mailboxes' futex, rig/shim/ring.h)
+SHM_ACKS_OFFSET: Final = 576  # the promises (SHM_ACK)
 
 
 class Malformed(ValueError):
@@ -143,6 +150,15 @@ def parse_i2c(payload: bytes) -> tuple[int, list[I2CMessage]]:
         msgs.append(I2CMessage(addr, flags, length, data))
     if at != len(payload):
         raise Malformed(f"I2C request has {len(payload) - at} bytes after its last message")
+    return bus, msgs
+
+
+def parse_promised_write(payload: bytes) -> tuple[int, list[I2CMessage]]:
+    """An I2C_WRITE notice: a transfer as parse_i2c's, which must be what a promise covers (one plain
+    write of a byte or more)."""
+    bus, msgs = parse_i2c(payload)
+    if len(msgs) != 1 or msgs[0].flags or not msgs[0].length:
+        raise Malformed("I2C_WRITE notice that is not one plain write of a byte or more")
     return bus, msgs
 
 

@@ -69,6 +69,22 @@ class SharedPage:
         if t_ns > self._words[P.SIM_NS_OFFSET // 8]:
             self._words[P.SIM_NS_OFFSET // 8] = t_ns
 
+    def promise_acks(self, bus: int, acks: list[tuple[int, int]]) -> None:
+        """The session's promises (protocol.h struct rig_ack): a write of one message to each address on
+        ``bus`` that starts before its time (ns) is acknowledged; the shim sends those as notices."""
+        if len(acks) > P.ACK_MAX:
+            raise ValueError(f"{len(acks)} promises; the page holds {P.ACK_MAX}")
+        for i, (addr, until_ns) in enumerate(acks):
+            P.SHM_ACK.pack_into(self._mm, P.SHM_ACKS_OFFSET + i * P.SHM_ACK.size, bus, addr, 0, until_ns)
+
+    def promised(self, bus: int, addr: int, t_ns: int) -> bool:
+        """A write to ``addr`` on ``bus`` starting at ``t_ns`` is one the page promises to acknowledge."""
+        for i in range(P.ACK_MAX):
+            b, a, _, until = P.SHM_ACK.unpack_from(self._mm, P.SHM_ACKS_OFFSET + i * P.SHM_ACK.size)
+            if b == bus and a == addr and t_ns < until:
+                return True
+        return False
+
 
 class Scheduler:
     """Runs the scheduled events and the world forward in sim time, and knows when the run is over.

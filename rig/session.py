@@ -416,13 +416,15 @@ class Session:
                 keeper.stop()  # SIGTERM to the DUT and all it started; SIGKILL after the grace
                 stopping = True
 
-    def message_counts(self) -> tuple[int, int, int]:
-        """The I2C transfers, waits and PWM writes the DUT made: the handler's and the fast path's."""
+    def message_counts(self) -> tuple[int, int, int, int]:
+        """The I2C transfers, waits, PWM writes and promised writes (transfers the shim answered itself:
+        rig/shim/protocol.h RIG_MSG_I2C_WRITE) the DUT made: the handler's and the fast path's."""
         handler, fast = self.handler, self.fast
         if handler is None:
-            return 0, 0, 0
-        i2c, waits, pwm = fast.counts if fast is not None else (0, 0, 0)
-        return handler.transactions + i2c, handler.waits + waits, handler.pwm_writes + pwm
+            return 0, 0, 0, 0
+        i2c, waits, pwm, promised = fast.counts if fast is not None else (0, 0, 0, 0)
+        return (handler.transactions + i2c, handler.waits + waits, handler.pwm_writes + pwm,
+                handler.promised_writes + promised)
 
     def _deadline_ns(self) -> int | None:
         """Real time: the next event's due time on CLOCK_MONOTONIC (ns), or None."""
@@ -555,6 +557,8 @@ class Session:
         """Creates the clock page the DUT's shim maps, and the handler that answers the DUT."""
         self.page = SharedPage(path, len(self.world.pwm), self.world.time_ns, self.cfg.quantum_ns,
                                self.sched.limit_ns)
+        if self.cfg.lockstep and not self.cfg.i2c_clock_hz:  # (a write's bus time is the session's to say)
+            self.page.promise_acks(self.cfg.i2c_bus, self.world.board.write_acks())
         self.handler = Handler(self, self.cfg, self.sched, self.world, self.page)
         self.fast = attach(self.handler)
         if self.fast is not None:
@@ -618,7 +622,8 @@ class Session:
                        time.perf_counter() - wall0, counts[0], counts[1], self._n_conns, notes,
                        self.malformed, self.world.outputs(), counts[2], events, late, worst, p99, p50,
                        {} if self.cfg.lockstep else self._rt_host.state.as_dict(),
-                       {"connections": self._n_conns, "mailboxes": self._n_mailboxes, "spin": self.cfg.spin}
+                       {"connections": self._n_conns, "mailboxes": self._n_mailboxes, "spin": self.cfg.spin,
+                        "promised_writes": counts[3]}
                        if self.cfg.lockstep else {})
 
 

@@ -24,7 +24,7 @@ from typing import Any, Final
 
 import numpy as np
 
-from emulators import hmc5883l, ms5611, native
+from emulators import hmc5883l, mpu6050, ms5611, native
 from emulators.dlpf import ImuSampler, sample_rate
 from emulators.faults import FaultSet
 from emulators.i2c_bus import I2CNack, I2CProtocolError, Msg
@@ -289,6 +289,8 @@ class ChipBoard:
         self.lib.chip_ms5611_max_timing(self.addr, baro.timing == "max")
         self.bus = ChipBus(self)
         self._peek = native.fast().chip_peek  # (every block the IMU producer serves)
+        #: per chip, the first instant (ns) a bus fault may keep it from answering (write_acks)
+        self._silent_from: dict[int, int] = {}
 
     def serve(self, need: Any) -> None:
         """Makes and pushes the sample the core needs (demand mode)."""
@@ -306,6 +308,18 @@ class ChipBoard:
     def count(self, name: str) -> int:
         return int(self.lib.chip_count(self.addr, COUNTERS.index(name)))
 
+    def write_acks(self) -> list[tuple[int, int]]:
+        """(address, until ns): every write to that address that starts before ``until`` is acknowledged,
+        whatever the DUT does meanwhile. The chip core acknowledges every byte written to a chip that
+        answers its address, so that holds up to the first bus fault that may silence the chip (off,
+        intermittent), for the chips found at their address alone: the MPU-6050 and the MS5611, and
+        the HMC5883L wired directly (on a GY-86 it answers only while the MPU's bypass is on, which
+        the DUT switches)."""
+        chips = [(CHIP_MPU, mpu6050.ADDRESS), (CHIP_BARO, ms5611.ADDRESS)]
+        if self.topology == "direct":
+            chips.append((CHIP_HMC, hmc5883l.ADDRESS))
+        return [(addr, self._silent_from.get(chip, _NEVER)) for chip, addr in chips]
+
     def add_bus_faults(self, chip: int, faults: FaultSet) -> None:
         """The bus faults (off, intermittent, garbage) of ``faults`` on ``chip``, scheduled in ns."""
         self.lib.chip_bus_fault_seed(self.addr, chip, faults.seed & _NEVER)
@@ -315,6 +329,8 @@ class ChipBoard:
                 continue
             end = _NEVER if math.isinf(f.end) else round(f.end * 1e9)
             period = round(f.period * 1e9)
+            if f.kind != "garbage":  # (garbage changes the bytes read, never the acknowledgement)
+                self._silent_from[chip] = min(self._silent_from.get(chip, _NEVER), round(f.start * 1e9))
             if not self.lib.chip_bus_fault_add(self.addr, chip, kind, round(f.start * 1e9), end, period,
                                                round(f.duty * f.period * 1e9)):
                 raise ValueError(f"the chip core takes 4 bus faults per chip at most (or a bad {f.kind})")

@@ -109,10 +109,11 @@ class FastPath:
         return n
 
     @property
-    def counts(self) -> tuple[int, int, int]:
-        """The I2C transfers, waits and PWM writes acted on here (the handler counts the rest)."""
-        i2c, waits, pwm = module().counts(self._state)
-        return int(i2c), int(waits), int(pwm)
+    def counts(self) -> tuple[int, int, int, int]:
+        """The I2C transfers, waits, PWM writes and promised writes (I2C_WRITE notices, among the
+        transfers) acted on here (the handler counts the rest)."""
+        i2c, waits, pwm, promised = module().counts(self._state)
+        return int(i2c), int(waits), int(pwm), int(promised)
 
     @property
     def made_here(self) -> tuple[int, int, int]:

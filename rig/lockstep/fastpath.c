@@ -45,6 +45,8 @@
 #define FOREVER_SLICE_NS 10000000ull /* rig/handler.py FOREVER_SLICE_NS */
 #define I2C_LOG_CAP 1000000          /* rig/handler.py I2C_LOG_CAP */
 #define REPLY_MAX (sizeof(struct rig_hdr) + MAX_MSGS * (I2C_MAX_LEN + 1))
+#define BROKEN_PROMISE \
+    "a write the rig told the DUT was acknowledged was not (a rig bug): the run is void" /* (handler.py) */
 
 typedef int (*transfer_fn)(chip_board *, uint64_t, chip_msg *, uint32_t, chip_need *, uint32_t *);
 typedef chip_need (*advance_fn)(chip_board *, uint64_t);
@@ -98,7 +100,7 @@ typedef struct {
     advance_fn advance;
     uint64_t step_ns, stepped_to, limit_ns, i2c_clock_hz;
     uint64_t handled;   /* messages acted on here (the rest went to the Python handler) */
-    uint64_t counts[3]; /* of those: I2C transfers, waits, PWM writes (the handler's counts add them) */
+    uint64_t counts[4]; /* of those: I2C transfers, waits, PWM writes, promised writes (+ the handler's) */
     pwm_cache pwm_seen; /* the channels' settings as last read (pwm_duty.c) */
     unsigned bus;
     uint8_t *rx;               /* pump()'s receive buffer, once it has run (pump.c) */
@@ -388,7 +390,30 @@ static void put_hdr(uint8_t *out, uint32_t len, uint16_t type, uint16_t status, 
 
 #include "i2c_log.c"
 
-static int i2c(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p)
+/* A write the clock page promises to acknowledge (struct rig_ack; SharedPage.promised) */
+static int promised(fast_state *s, uint16_t bus, const struct rig_i2c_msg *m, uint64_t t)
+{
+    if (m->flags || m->len == 0)
+        return 0;
+    const struct rig_ack *acks = (const struct rig_ack *)((char *)s->page.buf + offsetof(struct rig_shm, acks));
+    for (int i = 0; i < RIG_ACK_MAX; i++)
+        if (acks[i].bus == bus && acks[i].addr == m->addr && t < acks[i].until_ns)
+            return 1;
+    return 0;
+}
+
+/* A promised write (RIG_MSG_I2C_WRITE) that was not acknowledged: the DUT was told it was, so the run is
+ * void (Scheduler.fail: the session stops answering) */
+static int promise_broken(fast_state *s)
+{
+    PyObject *r = PyObject_CallMethod(s->sched, "fail", "is", 125, BROKEN_PROMISE);
+    Py_XDECREF(r);
+    return r ? 1 : -1;
+}
+
+/* RIG_MSG_I2C (a request: the reply is sent) and RIG_MSG_I2C_WRITE (notice: one write message, at its own
+ * time as the shim stamped it, no reply; Handler._i2c) */
+static int i2c(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p, int notice)
 {
     uint16_t head[2];
     if (h->len < sizeof head)
@@ -415,7 +440,9 @@ static int i2c(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p)
     }
     if (at != h->len)
         return 0;
-    uint64_t now = *sim_ns(s), t = h->t_ns > now ? h->t_ns : now;
+    if (notice && (n != 1 || !promised(s, head[0], &m[0], h->t_ns)))
+        return 0; /* (not what the session promised: the handler says why) */
+    uint64_t now = *sim_ns(s), t = notice || h->t_ns > now ? h->t_ns : now;
     int clear = clear_until(s, t, 0);
     if (clear <= 0)
         return clear;
@@ -478,6 +505,8 @@ static int i2c(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p)
     page_set(s, t_after);
     if (log_transfer(s, t, m, n, data, out, got, status) < 0)
         return -1;
+    if (notice)
+        return status ? promise_broken(s) : (s->counts[3]++, 1);
     put_hdr(s->reply, (uint32_t)got, RIG_MSG_I2C, status, t_after);
     return send_all(s, fd, s->reply, sizeof(struct rig_hdr) + got) < 0 ? -1 : 1;
 }
@@ -551,8 +580,8 @@ static Py_ssize_t handle_bytes(fast_state *s, int fd, const uint8_t *buf, Py_ssi
             break;
         const uint8_t *p = buf + off + sizeof h;
         int k;
-        if (h.type == RIG_MSG_I2C)
-            k = i2c(s, fd, &h, p), counts[0] += k > 0;
+        if (h.type == RIG_MSG_I2C || h.type == RIG_MSG_I2C_WRITE)
+            k = i2c(s, fd, &h, p, h.type == RIG_MSG_I2C_WRITE), counts[0] += k > 0;
         else if (h.type == RIG_MSG_PWM)
             k = pwm(s, &h, p), counts[2] += k > 0;
         else if (h.type == RIG_MSG_WAIT)
@@ -604,15 +633,15 @@ static PyObject *fp_handled(PyObject *self, PyObject *state)
     return s ? PyLong_FromUnsignedLongLong(s->handled) : NULL;
 }
 
-/* counts(state) -> (transactions, waits, pwm_writes) acted on here: the run's outcome adds them to the
+/* counts(state) -> (transactions, waits, pwm_writes, promised_writes) acted on here: the run's outcome adds them to the
  * handler's (kept here, not added to the handler's attributes at each call: that was 2 k instructions
  * of an FC cycle) */
 static PyObject *fp_counts(PyObject *self, PyObject *state)
 {
     (void)self;
     fast_state *s = PyCapsule_GetPointer(state, "rig.lockstep");
-    return s ? Py_BuildValue("(KKK)", (unsigned long long)s->counts[0], (unsigned long long)s->counts[1],
-                             (unsigned long long)s->counts[2])
+    return s ? Py_BuildValue("(KKKK)", (unsigned long long)s->counts[0], (unsigned long long)s->counts[1],
+                             (unsigned long long)s->counts[2], (unsigned long long)s->counts[3])
              : NULL;
 }
 
@@ -629,7 +658,7 @@ static PyMethodDef methods[] = {
     { "handle", (PyCFunction)(void (*)(void))fp_handle, METH_FASTCALL, "acts on the messages it takes" },
     { "pump", (PyCFunction)(void (*)(void))fp_pump, METH_FASTCALL, "reads and acts on a connection" },
     { "handled", fp_handled, METH_O, "the messages acted on here so far" },
-    { "counts", fp_counts, METH_O, "the I2C transfers, waits and PWM writes acted on here" },
+    { "counts", fp_counts, METH_O, "the I2C transfers, waits, PWM writes and promised writes acted on here" },
     MAILBOX_METHODS{ NULL, NULL, 0, NULL },
 };
 

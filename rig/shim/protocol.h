@@ -14,7 +14,7 @@
 
 #include <stdint.h>
 
-#define RIG_PROTOCOL_VERSION 3u
+#define RIG_PROTOCOL_VERSION 4u
 #define RIG_MAX_PAYLOAD 65536u
 
 struct rig_hdr {
@@ -36,6 +36,10 @@ enum {
                           Reply: t_ns = the new time; payload u32 RIG_WAKE_*. Kind RIG_WAIT_AHEAD is
                           a notice (no reply): the shim has already moved the clock to wake_ns */
     RIG_MSG_NOTE = 5,  /* notice; payload: text the session reports (an unsupported call, say) */
+    /* notice; payload as RIG_MSG_I2C: one write message of a byte or more to an address the session has
+       promised acknowledges (rig_shm.acks). The shim has answered the DUT itself (success, no bus time);
+       the session transfers it at its time, and a promise broken ends the run in an error. */
+    RIG_MSG_I2C_WRITE = 6,
 };
 
 struct rig_i2c_msg {
@@ -78,6 +82,19 @@ struct rig_pwm_state {
     uint32_t reserved;
 };
 
+/* A promise in the shared page: a transfer of one write message (a byte or more) to addr on bus that
+   starts before until_ns is acknowledged. The session makes it for a chip that answers every write (no
+   bus fault can silence it before until_ns) when transfers take no bus time; the shim then sends such a
+   write as a notice (RIG_MSG_I2C_WRITE) and answers the DUT at once: a round trip fewer for each write
+   that only starts something (the MS5611's conversions: 0.3 per FC cycle of the reference FC). */
+#define RIG_ACK_MAX 4
+struct rig_ack {
+    uint16_t bus;
+    uint16_t addr;
+    uint32_t reserved;
+    uint64_t until_ns;
+};
+
 struct rig_shm {
     uint64_t magic;
     uint32_t version;
@@ -92,9 +109,12 @@ struct rig_shm {
     uint32_t wake_seq;      /* mailboxes (ring.h): bumped by every message a DUT process puts in one;
                                the session sleeps on it (a futex) */
     uint32_t session_state; /* RIG_SESSION_*: how a process that put a message wakes the session */
+    /* lockstep: the session's promises (an entry unused: until_ns 0) */
+    struct rig_ack acks[RIG_ACK_MAX];
 };
 #define RIG_SHM_LIMIT_OFFSET 560 /* offsetof(struct rig_shm, limit_ns), for the Python side */
 #define RIG_SHM_WAKE_OFFSET 568  /* offsetof(struct rig_shm, wake_seq) */
+#define RIG_SHM_ACKS_OFFSET 576  /* offsetof(struct rig_shm, acks) */
 /* POLL (0, the page's first state): in its loop's epoll, woken by a byte on the connection's socket;
    RUNNING: it looks at every mailbox before it sleeps; FUTEX: asleep on wake_seq */
 enum { RIG_SESSION_POLL = 0, RIG_SESSION_RUNNING = 1, RIG_SESSION_FUTEX = 2 };

@@ -42,6 +42,7 @@ static int64_t clock_base(clockid_t id)
 static uint32_t wait_until(uint64_t wake_ns, uint32_t kind);
 
 _Static_assert(offsetof(struct rig_shm, limit_ns) == RIG_SHM_LIMIT_OFFSET, "RIG_SHM_LIMIT_OFFSET is wrong");
+_Static_assert(offsetof(struct rig_shm, acks) == RIG_SHM_ACKS_OFFSET, "RIG_SHM_ACKS_OFFSET is wrong");
 
 /* A clock read: the program ran a little, so time moves a quantum (busy loops still advance). Time
    moved by clock reads counts like any other: the read that reaches the run's end asks the session,

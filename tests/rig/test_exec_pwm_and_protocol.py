@@ -61,7 +61,8 @@ def test_protocol_numbers_agree_between_c_and_python() -> None:
     assert defines["RIG_MAX_PAYLOAD"] == P.MAX_PAYLOAD
     assert defines["RIG_SHM_MAGIC"] == P.SHM_MAGIC
     assert defines["RIG_PWM_MAX"] == P.PWM_MAX
-    for name in ("MSG_HELLO", "MSG_I2C", "MSG_PWM", "MSG_WAIT", "MSG_NOTE", "PWM_EXPORT", "PWM_UNEXPORT",
+    for name in ("MSG_HELLO", "MSG_I2C", "MSG_PWM", "MSG_WAIT", "MSG_NOTE", "MSG_I2C_WRITE", "PWM_EXPORT",
+                 "PWM_UNEXPORT",
                  "PWM_PERIOD", "PWM_DUTY", "PWM_ENABLE", "PWM_POLARITY", "WAIT_SLEEP", "WAIT_POLL",
                  "WAIT_AHEAD", "WAKE_DEADLINE", "WAKE_EVENT", "WAKE_SLICE"):
         assert enums[f"RIG_{name}"] == getattr(P, name), name
@@ -77,12 +78,16 @@ def test_protocol_numbers_agree_between_c_and_python() -> None:
     assert layout("rig_i2c_msg") == P.I2C_MSG.format
     assert layout("rig_pwm_msg") == P.PWM_MSG.format
     assert layout("rig_pwm_state") == P.SHM_PWM.format
+    assert layout("rig_ack") == P.SHM_ACK.format
     # the head, the PWM array (not matched: an array), then the run's limit, the mailboxes' futex word
-    # and the session's state
+    # and the session's state, then the promises (an array too)
     assert layout("rig_shm") == P.SHM_HEAD.format + "QII"
     limit_at = P.SHM_HEAD.size + P.PWM_MAX * P.SHM_PWM.size
     assert P.SHM_LIMIT_OFFSET == defines["RIG_SHM_LIMIT_OFFSET"] == limit_at
     assert P.SHM_WAKE_OFFSET == defines["RIG_SHM_WAKE_OFFSET"] == limit_at + 8
+    assert P.SHM_ACKS_OFFSET == defines["RIG_SHM_ACKS_OFFSET"] == limit_at + 16
+    assert defines["RIG_ACK_MAX"] == P.ACK_MAX
+    assert P.SHM_ACKS_OFFSET + P.ACK_MAX * P.SHM_ACK.size <= P.SHM_SIZE
     assert defines["RIG_HELLO_MAILBOX"] == P.HELLO_MAILBOX
     assert P.SHM_HEAD.size + P.PWM_MAX * P.SHM_PWM.size <= P.SHM_SIZE
 

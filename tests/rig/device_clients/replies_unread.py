@@ -9,7 +9,7 @@ from smbus2 import SMBus
 HEADER = struct.Struct("<IHHQ")
 s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
 s.connect(os.environ["RIG_SOCKET"])
-s.sendall(HEADER.pack(8, 1, 0, 0) + struct.pack("<II", 3, os.getpid()))  # HELLO, protocol 3
+s.sendall(HEADER.pack(8, 1, 0, 0) + struct.pack("<II", 4, os.getpid()))  # HELLO, protocol 4
 parts = struct.pack("<HHHH", 0x68, 0, 1, 0) + struct.pack("<HHHH", 0x68, 1, 14, 0)  # write 0x3B, read 14
 burst = struct.pack("<HH", 1, 2) + parts + b"\x3b"
 requests = (HEADER.pack(len(burst), 2, 0, 0) + burst) * 256
