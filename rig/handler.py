@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 
 FOREVER_SLICE_NS: Final = 10_000_000  # a wait with no deadline lets 10 ms pass, then the DUT looks again
 I2C_LOG_CAP: Final = 1_000_000  # transfers kept for run.mcap (TargetRun.transactions)
-#: the run's error when a promised write (I2C_WRITE) was not acknowledged (rig/lockstep/fastpath.c's too)
+#: the run's error when a promised write (I2C_WRITE) was not acknowledged
 BROKEN_PROMISE: Final = "a write the rig told the DUT was acknowledged was not (a rig bug): the run is void"
 
 
@@ -127,9 +127,14 @@ class Handler:
         if not promised:
             session.send(conn, P.reply(P.MSG_I2C, t_after, b"".join(results), status))
         elif status:
-            self.sched.fail(EXIT_RIG_ERROR, BROKEN_PROMISE)
+            self.promise_broken()
         else:
             self.promised_writes += 1
+
+    def promise_broken(self) -> None:
+        """A promised write was not acknowledged: the DUT was told otherwise, so nothing it did after it can
+        be judged (a rig bug; the fast path calls this too)."""
+        self.sched.fail(EXIT_RIG_ERROR, BROKEN_PROMISE)
 
     def _bus_time_ns(self, msgs: list[P.I2CMessage], results: list[bytes]) -> int:
         """START + address + ACK per message, 9 bits per data byte, one STOP: the wire time of a transfer."""

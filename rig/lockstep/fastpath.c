@@ -45,8 +45,6 @@
 #define FOREVER_SLICE_NS 10000000ull /* rig/handler.py FOREVER_SLICE_NS */
 #define I2C_LOG_CAP 1000000          /* rig/handler.py I2C_LOG_CAP */
 #define REPLY_MAX (sizeof(struct rig_hdr) + MAX_MSGS * (I2C_MAX_LEN + 1))
-#define BROKEN_PROMISE \
-    "a write the rig told the DUT was acknowledged was not (a rig bug): the run is void" /* (handler.py) */
 
 typedef int (*transfer_fn)(chip_board *, uint64_t, chip_msg *, uint32_t, chip_need *, uint32_t *);
 typedef chip_need (*advance_fn)(chip_board *, uint64_t);
@@ -403,10 +401,10 @@ static int promised(fast_state *s, uint16_t bus, const struct rig_i2c_msg *m, ui
 }
 
 /* A promised write (RIG_MSG_I2C_WRITE) that was not acknowledged: the DUT was told it was, so the run is
- * void (Scheduler.fail: the session stops answering) */
+ * void (Handler.promise_broken) */
 static int promise_broken(fast_state *s)
 {
-    PyObject *r = PyObject_CallMethod(s->sched, "fail", "is", 125, BROKEN_PROMISE);
+    PyObject *r = PyObject_CallMethod(s->handler, "promise_broken", NULL);
     Py_XDECREF(r);
     return r ? 1 : -1;
 }

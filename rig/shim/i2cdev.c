@@ -57,11 +57,10 @@ static FILE *i2c_fopen(const char *path, const struct target *t, const char *mod
 
 /* A transfer the session has promised to acknowledge (rig_shm.acks, protocol.h): one plain write of a
    byte or more to a promised address, starting before the promise ends. */
-static int promised_write(const struct fake *f, const struct i2c_msg *msgs, unsigned n)
+static int promised_write(const struct fake *f, const struct i2c_msg *msgs, unsigned n, uint64_t now)
 {
     if (!lockstep || n != 1 || msgs[0].flags || msgs[0].len == 0)
         return 0;
-    uint64_t now = now_peek();
     for (int i = 0; i < RIG_ACK_MAX; i++) {
         const struct rig_ack *a = &shm->acks[i];
         if (a->bus == f->t.bus && a->addr == msgs[0].addr && now < __atomic_load_n(&a->until_ns, __ATOMIC_ACQUIRE))
@@ -103,9 +102,10 @@ static int i2c_transfer(struct fake *f, struct i2c_msg *msgs, unsigned n)
         }
     }
     pthread_mutex_lock(&lock);
-    if (promised_write(f, msgs, n)) { /* a notice, held with the others: no round trip */
+    uint64_t now = now_peek();
+    if (promised_write(f, msgs, n, now)) { /* a notice, held with the others: no round trip */
         ensure_connected();
-        hold_msg(RIG_MSG_I2C_WRITE, out, (uint32_t)(data - out));
+        hold_msg_at(RIG_MSG_I2C_WRITE, out, (uint32_t)(data - out), now);
         pthread_mutex_unlock(&lock);
         return 0;
     }

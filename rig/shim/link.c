@@ -262,19 +262,18 @@ static void send_iov(struct iovec *iov, int n)
 /* What is held (hold_msg), then header and payload, in one sendmsg: two sends would wake the session
    twice per message (once for a header it cannot act on yet), which in lockstep costs as much as the
    work itself. */
-/* A message's header, stamped now (lockstep: the DUT's sim time; real time: 0). */
-static struct rig_hdr header(uint16_t type, uint32_t len)
-{
-    return (struct rig_hdr){ .len = len, .type = type, .status = 0, .t_ns = lockstep ? now_peek() : 0 };
-}
+/* A message's stamp: now (lockstep: the DUT's sim time; real time: 0). */
+static uint64_t stamp_now(void) { return lockstep ? now_peek() : 0; }
 
-static void send_msg(uint16_t type, const void *payload, uint32_t len)
+static void send_msg_at(uint16_t type, const void *payload, uint32_t len, uint64_t t_ns)
 {
-    struct rig_hdr h = header(type, len);
+    struct rig_hdr h = { .len = len, .type = type, .status = 0, .t_ns = t_ns };
     struct iovec iov[3] = { { held, held_len }, { &h, sizeof h }, { (void *)payload, len } };
     held_len = 0;
     send_iov(iov[0].iov_len ? iov : iov + 1, (iov[0].iov_len ? 3 : 2) - (len ? 0 : 1));
 }
+
+static void send_msg(uint16_t type, const void *payload, uint32_t len) { send_msg_at(type, payload, len, stamp_now()); }
 
 /* Sends what is held (hold_msg), if anything. Caller holds lock. */
 static void send_held(void)
@@ -293,20 +292,23 @@ static void send_held(void)
    wake-up is on the run's critical path. The session sees the same messages in the same order; none
    of them needs an answer, and nothing in the session moves on before the DUT's next message. They
    also go before the DUT looks at the outside world (catch_up), before a fork (the child starts with
-   none) and at exit. In real time a notice goes at once. Caller holds lock. */
-static void hold_msg(uint16_t type, const void *payload, uint32_t len)
+   none) and at exit. In real time a notice goes at once. Caller holds lock. hold_msg_at: stamped t_ns
+   (a promised write: the time its promise was checked at, which another thread may have moved on). */
+static void hold_msg_at(uint16_t type, const void *payload, uint32_t len, uint64_t t_ns)
 {
     if (!lockstep || sizeof(struct rig_hdr) + len > sizeof held) {
-        send_msg(type, payload, len);
+        send_msg_at(type, payload, len, t_ns);
         return;
     }
-    struct rig_hdr h = header(type, len);
+    struct rig_hdr h = { .len = len, .type = type, .status = 0, .t_ns = t_ns };
     if (held_len + sizeof h + len > sizeof held)
         send_held();
     memcpy(held + held_len, &h, sizeof h);
     memcpy(held + held_len + sizeof h, payload, len);
     held_len += sizeof h + len;
 }
+
+static void hold_msg(uint16_t type, const void *payload, uint32_t len) { hold_msg_at(type, payload, len, stamp_now()); }
 
 /* send_held where the lock is not held yet: before the DUT looks outside, at fork, at the process's end.
    It only tries the lock: these calls may come from a signal handler (waitpid in SIGCHLD's, _exit)
