@@ -24,7 +24,6 @@ import struct
 from dataclasses import dataclass
 from pathlib import Path
 
-import cantools
 from cobs import cobs
 
 DBC_PATH = Path(__file__).with_name("pwm_capture.dbc")
@@ -107,6 +106,8 @@ class CanCodec:
     """The DBC's two messages; the CRC covers what cantools leaves to the application."""
 
     def __init__(self, dbc: Path = DBC_PATH) -> None:
+        import cantools  # (here: cantools is a tenth of a second of every rig command's start)
+
         db = cantools.database.load_file(str(dbc))
         assert isinstance(db, cantools.database.can.Database)  # (a DBC file is a CAN database)
         self.db = db

@@ -28,7 +28,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, ClassVar
 
-import can
 import serial
 
 from emulators.pwm_capture import (
@@ -42,6 +41,8 @@ from emulators.pwm_capture import (
 from plant.variables import MOTORS
 
 if TYPE_CHECKING:
+    import can
+
     from rig.session import Session
     from scenarios.schema import Capture
 
@@ -102,13 +103,16 @@ class CanTransport(CaptureTransport):
     name = "can"
 
     def __init__(self, capture: Capture) -> None:
+        import can  # (here, as the other CAN modules: python-can is a tenth of every rig command's start)
+
         self.codec = CanCodec()
         self.tx, self.rx = _open_can_pair(capture.can_interface, capture.can_channel)
+        self._message = can.Message
 
     def send(self, seq: int, widths: list[float], corrupt: Callable[[bytes], bytes]) -> int:
         frames = self.codec.encode(seq, widths)
         for fid, data in frames:
-            self.tx.send(can.Message(arbitration_id=fid, data=corrupt(data), is_extended_id=False))
+            self.tx.send(self._message(arbitration_id=fid, data=corrupt(data), is_extended_id=False))
         return len(frames)
 
     def receive(self, expect: int, reject: Callable[[str], None]) -> list[Report]:
@@ -243,6 +247,8 @@ def _open_can_pair(interface: str, channel: str) -> tuple[can.BusABC, can.BusABC
     is named, so parallel runs never hear each other; any other python-can interface (``socketcan`` on a
     bench) uses the channel given. An interface that cannot open is a clear ValueError, not a traceback
     from deep inside python-can."""
+    import can
+
     if interface == "virtual" and not channel:
         channel = f"rig-capture-{uuid.uuid4().hex}"
     opened: list[can.BusABC] = []

@@ -25,13 +25,12 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Final, NoReturn
+from typing import IO, TYPE_CHECKING, Final, NoReturn
 
 from emulators import sbus
 from emulators.faults import BUS_TARGETS, KINDS, TARGETS, FaultSet
 from plant.variables import MOTORS
 from rig import interrupts, scratch
-from rig.bridge.can_capture import VBRIDGE_CHANNEL, CanPulses, parse
 from rig.bridge.esc import esc_protocol
 from rig.bridge.messages import Message
 from rig.bridge.port import BridgeError, BridgePort, bridge_id
@@ -43,6 +42,9 @@ from rig.pace import RealtimeHost
 from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, Stop
 from rig.session import KILL_GRACE_S, Outcome, _Pty
 from rig.world import World
+
+if TYPE_CHECKING:
+    from rig.bridge.can_capture import CanPulses
 
 SYNC_PERIOD_S: Final = 0.1
 RT_PRIORITY: Final = 10  # SCHED_RR: the virtual bridge and its DUT, above other work (the loop: rig.pace)
@@ -415,6 +417,9 @@ class BenchSession:
 
     @staticmethod
     def _open_can(spec: str, vbridge: VirtualBridge | None) -> CanPulses:
+        # (here, not at the top: python-can is a tenth of a second of every rig command's start)
+        from rig.bridge.can_capture import VBRIDGE_CHANNEL, CanPulses, parse
+
         try:
             interface, channel = parse(spec)
         except ValueError as e:
