@@ -89,7 +89,7 @@ class Handler:
         DUT was acknowledged (the session's promise in the clock page), done at its own time, unanswered."""
         if promised:
             bus, msgs = P.parse_promised_write(payload)
-            t = hdr.t_ns
+            t = self._notice_time(hdr)
             if not (self.lockstep and self.page.promised(bus, msgs[0].addr, t)):
                 raise P.Malformed(f"I2C_WRITE notice to 0x{msgs[0].addr:02x} on bus {bus} at {fmt(t)}, "
                                   "which the session did not promise to acknowledge")

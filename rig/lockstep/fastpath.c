@@ -388,18 +388,6 @@ static void put_hdr(uint8_t *out, uint32_t len, uint16_t type, uint16_t status, 
 
 #include "i2c_log.c"
 
-/* A write the clock page promises to acknowledge (struct rig_ack; SharedPage.promised) */
-static int promised(fast_state *s, uint16_t bus, const struct rig_i2c_msg *m, uint64_t t)
-{
-    if (m->flags || m->len == 0)
-        return 0;
-    const struct rig_ack *acks = (const struct rig_ack *)((char *)s->page.buf + offsetof(struct rig_shm, acks));
-    for (int i = 0; i < RIG_ACK_MAX; i++)
-        if (acks[i].bus == bus && acks[i].addr == m->addr && t < acks[i].until_ns)
-            return 1;
-    return 0;
-}
-
 /* A promised write (RIG_MSG_I2C_WRITE) that was not acknowledged: the DUT was told it was, so the run is
  * void (Handler.promise_broken) */
 static int promise_broken(fast_state *s)
@@ -438,7 +426,8 @@ static int i2c(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p,
     }
     if (at != h->len)
         return 0;
-    if (notice && (n != 1 || !promised(s, head[0], &m[0], h->t_ns)))
+    const struct rig_ack *acks = (const struct rig_ack *)((char *)s->page.buf + offsetof(struct rig_shm, acks));
+    if (notice && !rig_ack_promised(acks, head[0], n, m[0].addr, m[0].flags, m[0].len, h->t_ns))
         return 0; /* (not what the session promised: the handler says why) */
     uint64_t now = *sim_ns(s), t = notice || h->t_ns > now ? h->t_ns : now;
     int clear = clear_until(s, t, 0);
@@ -503,8 +492,12 @@ static int i2c(fast_state *s, int fd, const struct rig_hdr *h, const uint8_t *p,
     page_set(s, t_after);
     if (log_transfer(s, t, m, n, data, out, got, status) < 0)
         return -1;
-    if (notice)
-        return status ? promise_broken(s) : (s->counts[3]++, 1);
+    if (notice && status)
+        return promise_broken(s);
+    if (notice) {
+        s->counts[3]++;
+        return 1;
+    }
     put_hdr(s->reply, (uint32_t)got, RIG_MSG_I2C, status, t_after);
     return send_all(s, fd, s->reply, sizeof(struct rig_hdr) + got) < 0 ? -1 : 1;
 }

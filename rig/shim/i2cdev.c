@@ -55,20 +55,6 @@ static FILE *i2c_fopen(const char *path, const struct target *t, const char *mod
     return real(path, mode);
 }
 
-/* A transfer the session has promised to acknowledge (rig_shm.acks, protocol.h): one plain write of a
-   byte or more to a promised address, starting before the promise ends. */
-static int promised_write(const struct fake *f, const struct i2c_msg *msgs, unsigned n, uint64_t now)
-{
-    if (!lockstep || n != 1 || msgs[0].flags || msgs[0].len == 0)
-        return 0;
-    for (int i = 0; i < RIG_ACK_MAX; i++) {
-        const struct rig_ack *a = &shm->acks[i];
-        if (a->bus == f->t.bus && a->addr == msgs[0].addr && now < __atomic_load_n(&a->until_ns, __ATOMIC_ACQUIRE))
-            return 1;
-    }
-    return 0;
-}
-
 /* One transfer of messages whose buffers are the shim's (copied from the caller, or to be copied back):
    the read bytes land in them, and a RECV_LEN message's len becomes what it received (its count byte
    and the count), as the bus driver sets it. Returns 0 or an errno. */
@@ -103,7 +89,8 @@ static int i2c_transfer(struct fake *f, struct i2c_msg *msgs, unsigned n)
     }
     pthread_mutex_lock(&lock);
     uint64_t now = now_peek();
-    if (promised_write(f, msgs, n, now)) { /* a notice, held with the others: no round trip */
+    if (lockstep && rig_ack_promised(shm->acks, (uint16_t)f->t.bus, n, msgs[0].addr, msgs[0].flags, msgs[0].len,
+                                     now)) { /* a promised write: a notice, held with the others, no round trip */
         ensure_connected();
         hold_msg_at(RIG_MSG_I2C_WRITE, out, (uint32_t)(data - out), now);
         pthread_mutex_unlock(&lock);

@@ -95,6 +95,20 @@ struct rig_ack {
     uint64_t until_ns;
 };
 
+/* Whether acks[RIG_ACK_MAX] promise a transfer of n messages, the first of flags and len to addr on bus,
+   starting at t_ns: one plain write of a byte or more, to a promised address, before its promise ends.
+   The shim asks before it answers a write itself; the session asks of every such notice it takes. */
+static inline int rig_ack_promised(const struct rig_ack *acks, uint16_t bus, unsigned n, uint16_t addr, uint16_t flags,
+                                   uint16_t len, uint64_t t_ns)
+{
+    if (n != 1 || flags || len == 0)
+        return 0;
+    for (int i = 0; i < RIG_ACK_MAX; i++)
+        if (acks[i].bus == bus && acks[i].addr == addr && t_ns < acks[i].until_ns)
+            return 1;
+    return 0;
+}
+
 struct rig_shm {
     uint64_t magic;
     uint32_t version;
