@@ -382,6 +382,16 @@ MCU_API uint64_t mcu_figure(const mcu_engine *e, int which)
         return e->avr->pc;
     case 9:
         return e->avr->data[R_SPL] | e->avr->data[R_SPH] << 8;
+    case 10:
+        return t->data_nacks;
+    case 11:
+        return t->ignored;
+    case 12:
+        return t->abandoned;
+    case 13:
+        return t->bus_errors;
+    case 14:
+        return t->arbitration_lost;
     default:
         return 0;
     }
