@@ -40,7 +40,13 @@ LIB: Final = BUILD / "librigmcu.so"
 STOPS: Final = ("reached", "need", "crashed", "sleeping", "watchdog", "hung", "unanswered")
 #: mcu_figure's counters, by index
 FIGURES: Final = ("cycles", "instructions", "twi_transactions", "twi_bytes", "twi_nacks", "twi_collisions",
-                  "resets", "watchdog_resets", "pc", "sp")
+                  "resets", "watchdog_resets", "pc", "sp", "twi_data_nacks", "twi_ignored", "twi_abandoned",
+                  "twi_bus_errors", "twi_arbitration_lost")
+#: what the firmware saw go wrong on its TWI (result.json's ``bus_problems``), from figures()' names
+BUS_PROBLEMS: Final = {"address_nacks": "twi_nacks", "data_nacks": "twi_data_nacks",
+                       "ignored_requests": "twi_ignored", "abandoned_waits": "twi_abandoned",
+                       "write_collisions": "twi_collisions", "bus_errors": "twi_bus_errors",
+                       "arbitration_lost": "twi_arbitration_lost"}
 
 #: per MCU: timer n -> (16-bit, TCCRnA, TCCRnB, TCNTn, ICRn, OCRnA, OCRnB, OCRnC) data-space addresses
 _T16_2560: Final = {3: 0x90, 4: 0xA0, 5: 0x120}

@@ -53,10 +53,11 @@ def test_a_start_asked_during_a_stop_follows_it(mcu: str, together: bool) -> Non
     by a START condition will be transmitted and TWSTO Flag will be reset" (Table 24-3). Written as two
     writes (STOP, then START at once: MultiWii's i2c_stop(); i2c_rep_start();) or one, each of the 100
     STARTs sets TWINT with 0x08, a START on a free bus, and no wait is given up."""
-    out, records, _ = run_case(1 if together else 0, mcu)
+    out, records, figures = run_case(1 if together else 0, mcu)
     starts, reads = out[:ROUNDS], out[ROUNDS:]
     assert list(starts) == [TW_START] * ROUNDS
     assert list(reads) == [WHO_AM_I] * ROUNDS
+    assert figures["twi_abandoned"] == figures["twi_ignored"] == 0
     # on the bus: each round a transfer of its own, STOP then START
     assert "".join(r.kind for r in records) == "S" + "AWSARPS" * ROUNDS + "P"
 
@@ -85,16 +86,18 @@ def test_a_stop_asked_during_a_stop_is_one_stop(mcu: str) -> None:
 def test_a_start_asked_while_a_byte_is_on_the_bus_is_ignored(mcu: str) -> None:
     """TWINT: "Writing a one to TWINT clears the flag. The TWI will then commence executing whatever
     operation was specified": while the address byte is on the bus the flag is already clear, so a
-    second write starts nothing; the byte ends with its own status."""
-    out, records, _ = run_case(4, mcu)
+    second write starts nothing; the byte ends with its own status. The rig counts the request."""
+    out, records, figures = run_case(4, mcu)
     assert list(out) == [TW_MT_SLA_ACK, TW_MT_DATA_ACK]
     assert "".join(r.kind for r in records) == "SAWP"
+    assert figures["twi_ignored"] == 1 and figures["twi_abandoned"] == 0
 
 
 @pytest.mark.parametrize("mcu", MCUS)
 def test_a_start_given_up_before_twint_is_counted_and_the_bus_recovers(mcu: str) -> None:
     """TWEN: "If this bit is written to zero, the TWI is switched off and all TWI transmissions are
-    terminated, regardless of any ongoing operation": after a START then TWCR = 0 before TWINT (a wait
-    the firmware gave up on) the next START is a START on a free bus."""
-    out, _, _ = run_case(5, mcu)
+    terminated, regardless of any ongoing operation": a START then TWCR = 0 before TWINT is a wait the
+    firmware gave up on, counted; the next START is a START on a free bus."""
+    out, _, figures = run_case(5, mcu)
     assert list(out) == [TW_START]
+    assert figures["twi_abandoned"] == 1 and figures["twi_ignored"] == 0
