@@ -38,6 +38,10 @@ LIB: Final = BUILD / "librigmcu.so"
 
 #: mcu_run's results (glue.h MCU_*)
 STOPS: Final = ("reached", "need", "crashed", "sleeping", "watchdog", "hung", "unanswered")
+#: each error stop in words that follow "the firmware " (Stop.describe)
+HEADLINES: Final = {"crashed": "crashed", "sleeping": "fell asleep for good", "hung": "hung",
+                    "watchdog": "was reset by its watchdog in a loop",
+                    "unanswered": "talks to a bus no chip answers"}
 #: mcu_figure's counters, by index
 FIGURES: Final = ("cycles", "instructions", "twi_transactions", "twi_bytes", "twi_nacks", "twi_collisions",
                   "resets", "watchdog_resets", "pc", "sp", "twi_data_nacks", "twi_ignored", "twi_abandoned",
@@ -199,8 +203,9 @@ class Stop:
         return self.kind not in ("reached", "need")
 
     def describe(self) -> str:
-        """One line: what happened, where and when (the last TWI transaction when there was one)."""
-        text = f"{self.kind}: {self.what} (pc 0x{self.pc:05x}, cycle {self.cycle})"
+        """One line: what happened, where and when (the last TWI transaction when there was one), to
+        follow "the firmware ": "hung: no TWI transaction and no motor pulse for 1000 ms (pc ...)"."""
+        text = f"{HEADLINES.get(self.kind, self.kind)}: {self.what} (pc 0x{self.pc:05x}, cycle {self.cycle})"
         return f"{text}; last TWI transaction: {self.last_twi}" if self.last_twi else text
 
 

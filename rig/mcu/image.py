@@ -46,6 +46,9 @@ class _Elf:
     device_from: str  #: that section's name
 
 
+#: e_machine values a firmware file is likely to carry by mistake (the System V ABI's registry)
+ELF_MACHINES: Final = {3: "x86", 8: "MIPS", 20: "PowerPC", 21: "PowerPC64", 40: "ARM", 62: "x86-64",
+                       83: "AVR", 94: "Xtensa", 183: "AArch64", 243: "RISC-V"}
 #: e_flags' architecture bits (binutils' include/elf/avr.h EF_AVR_MACH)
 EF_AVR_MACH: Final = 0x7F
 SHT_NOBITS: Final = 8
@@ -55,11 +58,11 @@ MMCU_TAG_NAME: Final = 1
 
 
 def _elf(path: Path, data: bytes) -> _Elf:
-    if len(data) < 52 or data[4] != 1 or data[5] != 1:
-        raise FirmwareError(f"{path}: an ELF, but not AVR's kind (32-bit little-endian)")
-    machine = struct.unpack_from("<H", data, 18)[0]
-    if machine != EM_AVR:
-        raise FirmwareError(f"{path}: an ELF for machine {machine}, not AVR's ({EM_AVR})")
+    if len(data) < 52:
+        raise FirmwareError(f"{path}: cut short: an ELF header is 52 bytes, the file has {len(data)}")
+    if data[4] != 1 or data[5] != 1 or struct.unpack_from("<H", data, 18)[0] != EM_AVR:
+        raise FirmwareError(f"{path}: an ELF for {_elf_kind(data)}; an AVR image is for AVR (machine "
+                            f"{EM_AVR}), 32-bit little-endian")
     phoff, = struct.unpack_from("<I", data, 28)
     flags, = struct.unpack_from("<I", data, 36)
     phentsize, phnum = struct.unpack_from("<HH", data, 42)
@@ -87,6 +90,14 @@ def _elf(path: Path, data: bytes) -> _Elf:
             device_from = name
             break
     return _Elf(flash, eeprom, flags & EF_AVR_MACH, device, device_from)
+
+
+def _elf_kind(data: bytes) -> str:
+    """What an ELF header says it is for: "x86-64 (machine 62), 64-bit little-endian"."""
+    width = {1: "32-bit", 2: "64-bit"}.get(data[4], f"ELF class {data[4]}")
+    order = {1: "little-endian", 2: "big-endian"}.get(data[5], f"data encoding {data[5]}")
+    machine = struct.unpack_from("<H" if data[5] != 2 else ">H", data, 18)[0]
+    return f"{ELF_MACHINES.get(machine, 'an unknown machine')} (machine {machine}), {width} {order}"
 
 
 def _sections(path: Path, data: bytes) -> dict[str, bytes]:

@@ -7,6 +7,7 @@ before anything runs."""
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -76,14 +77,16 @@ def test_the_same_seed_gives_the_same_bytes(avr_fc: Path, tmp_path: Path) -> Non
 
 
 @pytest.mark.parametrize(
-    ("name", "kind"),
-    [("busy", "hung"), ("watchdog", "watchdog"), ("wild_jump", "crashed"), ("bad_opcode", "crashed")],
+    ("name", "words"),
+    [("busy", "hung: no TWI transaction and no motor pulse for 1000 ms"),
+     ("watchdog", "was reset by its watchdog in a loop: 3 times"),
+     ("wild_jump", "crashed: jump outside the program"), ("bad_opcode", "crashed: invalid opcode")],
 )
-def test_bad_firmware_ends_its_run_with_a_named_error(tmp_path: Path, name: str, kind: str) -> None:
+def test_bad_firmware_ends_its_run_with_a_named_error(tmp_path: Path, name: str, words: str) -> None:
     sc = load(LIB / "step_roll.toml")
     r = run(sc, McuTarget("mega2560-gy86", firmware(name, "atmega2560")), 0, tmp_path)
     assert r.verdict == "error"
-    assert r.error is not None and f"the firmware {kind}:" in r.error
+    assert r.error is not None and r.error.startswith(f"the firmware {words}")
     assert "pc 0x" in r.error and "cycle" in r.error
     assert all(m.outcome == "not judged" for m in r.measurements)
     print(f"{name}: {r.error} ({r.metadata['wall_time']:.2f} s wall)")
@@ -94,6 +97,8 @@ def test_a_suite_goes_on_after_a_bad_firmware(tmp_path: Path) -> None:
                    "seed000_roll_stand", "--out", tmp_path)
     assert done.returncode == 3, done.stderr
     assert "[2/2] seed000_roll_stand" in done.stderr and done.stderr.count("ERROR") == 2
+    # each run's speed with one decimal, as the report's real-time factor ("1.3x", never "1x" or "0x")
+    assert len(re.findall(r"ERROR \(\d+\.\d s wall, \d+\.\dx\)", done.stderr)) == 2
 
 
 @pytest.mark.parametrize(
