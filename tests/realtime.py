@@ -42,6 +42,8 @@ from reports.values import host_said
 STARVED_P99_S = 0.003
 #: one event this late (s) starves the run
 STARVED_MAX_S = 0.1
+#: how an inconclusive test's skip reason begins: tests/suite_rules.py counts them by it
+INCONCLUSIVE = "inconclusive: "
 
 T = TypeVar("T")
 
@@ -108,7 +110,7 @@ def _starved_runs(late: Mapping[str, Mapping[str, Any]], names: Iterable[str]) -
 
 def _inconclusive(tries: list[str]) -> NoReturn:
     """Skips the test as inconclusive, with each try's starved runs in words."""
-    pytest.skip("inconclusive: the host could not keep real time (starved twice: "
+    pytest.skip(f"{INCONCLUSIVE}the host could not keep real time (starved twice: "
                 + " | then ".join(tries) + ")")
 
 
