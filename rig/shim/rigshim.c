@@ -167,6 +167,7 @@ static const struct kind_ops kinds[N_KINDS] = {
         .read = pwm_attr_read,
         .write = pwm_attr_write,
         .sendfile = 1,
+        .gather = 1,
     },
     [K_PWM_DIR] = {
         .name = pwm_dir_name,
