@@ -51,8 +51,8 @@ static int record_policy_for(const char *call, const char *whose, const char *th
     int hi = sched_get_priority_max(policy & ~SCHED_RESET_ON_FORK);
     if (param->sched_priority < lo || param->sched_priority > hi)
         return EINVAL;
-    note("priority recorded, not applied (lockstep schedules the threads): %s %s priority %d for %s '%s'", call,
-         name, param->sched_priority, whose, thread);
+    note("priority recorded, not applied (lockstep schedules the threads): %s %s priority %d for %s '%s'", call, name,
+         param->sched_priority, whose, thread);
     return 0;
 }
 
@@ -121,8 +121,8 @@ static int lockstep_attr(const pthread_attr_t *attr, pthread_attr_t *copy)
 {
     int inherit, policy;
     struct sched_param param;
-    if (!recorded_only() || !attr || pthread_attr_getinheritsched(attr, &inherit) || inherit != PTHREAD_EXPLICIT_SCHED ||
-        pthread_attr_getschedpolicy(attr, &policy) || !real_time_policy(policy) ||
+    if (!recorded_only() || !attr || pthread_attr_getinheritsched(attr, &inherit) ||
+        inherit != PTHREAD_EXPLICIT_SCHED || pthread_attr_getschedpolicy(attr, &policy) || !real_time_policy(policy) ||
         pthread_attr_getschedparam(attr, &param))
         return 0;
     char creator[16] = "?";

@@ -183,8 +183,8 @@ static const struct kind_ops kinds[N_KINDS] = {
 };
 
 #include "dispatch.c"
-#include "process_ends.c"
 #include "priorities.c"
+#include "process_ends.c"
 #include "threads.c"
 
 /* ---------------------------------------------------------------- start-up */
