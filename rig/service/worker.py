@@ -70,6 +70,9 @@ def command(run: dict[str, Any], out: Path, store: Store) -> tuple[list[str], di
     cmd = [sys.executable, "-m", "rig.cli", "run", *files, "--seed", str(run["seed"]), "--out", str(out)]
     if run["mode"] == "bridge":
         cmd += ["--bridge", "virtual"]
+    for option in ("pwm_channels", "topology"):  # (a Linux DUT's board: app.dut_of)
+        if run["dut"].get(option):
+            cmd += ["--" + option.replace("_", "-"), run["dut"][option]]
     if run["dut"].get("command"):
         cmd += ["--dut", run["dut"]["command"]]
     elif run["dut"].get("firmware"):
