@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from emulators.topology import TOPOLOGIES
+from rig.emulators.topology import TOPOLOGIES
 from rig import interrupts
 from rig.bridge.esc import ESC_PROTOCOLS
 from rig.scenarios.schema import Scenario, ScenarioError, load

@@ -10,7 +10,7 @@ import shlex
 from pathlib import Path
 from typing import Any
 
-from emulators.topology import TOPOLOGIES
+from rig.emulators.topology import TOPOLOGIES
 from rig import firmware
 from rig.capture import CaptureLink, install_capture
 from rig.scenarios.result import I2CRecord

@@ -12,6 +12,7 @@ import pytest
 from rig.emulators import sbus
 from rig.mcu import board as boards
 from rig.mcu.session import ESC_TIMEOUT_S, McuConfig, McuSession
+from rig.plant.variables import PWM_INPUTS
 from rig.world import World
 from tests.mcu.conftest import firmware
 from tests.mcu.test_rc import echoes
