@@ -25,9 +25,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from rig.emulators.topology import TOPOLOGIES
 from rig import interrupts
 from rig.bridge.esc import ESC_PROTOCOLS
+from rig.emulators.topology import TOPOLOGIES
 from rig.scenarios.schema import Scenario, ScenarioError, load
 
 if TYPE_CHECKING:

@@ -10,9 +10,9 @@ import shlex
 from pathlib import Path
 from typing import Any
 
-from rig.emulators.topology import TOPOLOGIES
 from rig import firmware
 from rig.capture import CaptureLink, install_capture
+from rig.emulators.topology import TOPOLOGIES
 from rig.scenarios.result import I2CRecord
 from rig.scenarios.schema import Scenario
 from rig.session import Outcome, Session, SessionConfig
