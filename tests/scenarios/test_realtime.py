@@ -12,9 +12,9 @@ from pathlib import Path
 import pytest
 
 from rig.runner import run
+from rig.scenarios.result import RunResult
+from rig.scenarios.schema import load
 from rig.targets.process import ProcessTarget
-from scenarios.result import RunResult
-from scenarios.schema import load
 from tests.realtime import of_results, realtime
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
