@@ -26,7 +26,7 @@ from emulators import native
 from emulators.chips.board import ChipBoard
 from plant.native_build import BUILD, compile_shared, is_stale
 from rig.mcu.board import Board
-from rig.mcu.image import FLASH, FirmwareError, load
+from rig.mcu.image import EEPROM, FLASH, FirmwareError, load
 from rig.mcu.mcus import MCUS
 
 __all__ = ["AvrEngine", "EngineConfig", "FirmwareError", "Motor", "Stop", "config_for"]
@@ -114,6 +114,7 @@ _API: Final[dict[str, tuple[Any, list[Any]]]] = {
     "mcu_attach_chips": (None, [_P, _P, ctypes.POINTER(_Calls)]),
     "mcu_figure": (_U64, [_P, ctypes.c_int]),
     "mcu_peek": (_U8, [_P, _U16]),
+    "mcu_eeprom_read": (_U32, [_P, ctypes.POINTER(_U8), _U32]),
     "mcu_stock": (None, [_P, ctypes.c_int]),
     "mcu_fuses": (None, [_P, ctypes.c_bool]),
     "mcu_twi_last": (_U32, [_P, ctypes.POINTER(_Record)]),
@@ -413,6 +414,14 @@ class AvrEngine:
     def peek(self, addr: int) -> int:
         """A byte of the data space (registers, I/O, SRAM) as it is."""
         return int(self._lib.mcu_peek(self._e, addr))
+
+    def eeprom(self) -> bytes:
+        """The EEPROM as the firmware has left it, all of it (what the chip would keep at power-off)."""
+        buf = (_U8 * EEPROM[self.cfg.mcu])()
+        n = self._lib.mcu_eeprom_read(self._e, buf, len(buf))
+        if n != len(buf):
+            raise RuntimeError(f"simavr gave {n} bytes of the {self.cfg.mcu}'s {len(buf)}-byte EEPROM")
+        return ctypes.string_at(buf, n)
 
     def figures(self) -> dict[str, Any]:
         figs: dict[str, Any] = {name: int(self._lib.mcu_figure(self._e, i))
