@@ -124,6 +124,7 @@ _API: Final[dict[str, tuple[Any, list[Any]]]] = {
     "mcu_motor_add": (ctypes.c_bool, [_P, ctypes.c_int8, _U8, ctypes.c_char, _U8, _U16]),
     "mcu_pulses": (_U32, [_P, _U8, ctypes.POINTER(_U64), _U32]),
     "mcu_pulses_all": (_U32, [_P, ctypes.POINTER(_U64), _U32, ctypes.POINTER(_U32)]),
+    "mcu_motor_source": (_U32, [_P, _U8, ctypes.c_int]),
     "mcu_uart_define": (ctypes.c_bool, [_P, _U8, _U16]),
     "mcu_uart_send": (ctypes.c_bool, [_P, _U8, ctypes.c_char_p, _U32, _U32, ctypes.c_char, _U8]),
     "mcu_uart_take": (_U32, [_P, _U8, ctypes.POINTER(_U8), _U32]),
@@ -389,6 +390,13 @@ class AvrEngine:
             if total < 64:
                 return out
 
+    def capture(self) -> list[dict[str, int]]:
+        """Per motor, how its pulses so far were measured: ``timer`` from the compare registers (the
+        compare output driving the pin), ``edges`` from the pin's edges (no timer, or the compare output
+        disconnected: the pin follows PORTx)."""
+        return [{"timer": int(self._lib.mcu_motor_source(self._e, i, 0)),
+                 "edges": int(self._lib.mcu_motor_source(self._e, i, 1))} for i in range(len(self.motors))]
+
     # ---- looking in ----
     def last_twi(self) -> list[TwiRecord]:
         buf = (_Record * 96)()
@@ -429,6 +437,7 @@ class AvrEngine:
         figs["sim_ns"] = self.now_ns
         figs["last_twi"] = format_transaction(self.last_twi())
         figs["uarts"] = {n: self.uart_counts(n) for n in self._uarts}
+        figs["motor_capture"] = self.capture()
         if self._stop is not None:
             figs["stop"] = self._stop.describe()
         return figs

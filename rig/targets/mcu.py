@@ -36,7 +36,10 @@ class McuRun(TargetRun):
         if s.cfg.trace is not None:
             f["trace"] = str(s.cfg.trace)
         problems = {name: int(f.get(key, 0)) for name, key in BUS_PROBLEMS.items()}
-        return {"mcu": f, "bus_problems": problems}
+        out: dict[str, object] = {"mcu": f, "bus_problems": problems}
+        if "motor_capture" in f:
+            out["capture"] = capture_text(s.cfg.board, f["motor_capture"])
+        return out
 
     def transactions(self) -> list[I2CRecord] | None:
         return self.session.transfers.records
@@ -48,6 +51,23 @@ class McuRun(TargetRun):
         if outcome.pwm_writes == 0:
             return "the firmware never drove a motor (no pulse on a motor pin): nothing was flown"
         return None
+
+
+def capture_text(board: boards.Board, counts: list[dict[str, int]] | None = None) -> str:
+    """result.json's ``capture``: how each motor is measured, "m1 PE4: OC3B registers; m2 PE5: pin edges
+    (OC3C disconnected)". Before a run (no ``counts``) the plan: a timer motor's compare output (its pin's
+    edges while that is disconnected), else the pin's edges; after it, the ways its pulses came."""
+    parts = []
+    for i, m in enumerate(board.motors):
+        oc = f"OC{m.timer}{m.channel}"
+        if counts is None:
+            how = f"{oc} registers or, disconnected, pin edges"
+        else:
+            timer, edges = counts[i]["timer"], counts[i]["edges"]
+            ways = [f"{oc} registers"] * bool(timer) + [f"pin edges ({oc} disconnected)"] * bool(edges)
+            how = " and ".join(ways) or "no pulse"
+        parts.append(f"m{m.motor} {m.pin}: {how}")
+    return "; ".join(parts)
 
 
 class McuTarget:
@@ -90,7 +110,7 @@ class McuTarget:
             "board": self.board.name,
             "board_file": str(self.board.path),
             "fc_config": dict(scenario.fc) if fc_eeprom else None,
-            "capture": "timer outputs",
+            "capture": capture_text(self.board),
             "lockstep": True,
             **eeprom,
         }
