@@ -6,8 +6,8 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 
-from reports.values import bus_problems_text, fmt_limits, fmt_margin, fmt_value, mode_text
-from scenarios.result import RunResult
+from rig.reports.values import bus_problems_text, fmt_limits, fmt_margin, fmt_value, mode_text
+from rig.scenarios.result import RunResult
 
 
 def render(results: Sequence[RunResult]) -> str:

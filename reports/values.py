@@ -8,8 +8,8 @@ import signal
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from scenarios.criteria import MARGINAL_PCT, Measurement
-from scenarios.signals import SIGNALS
+from rig.scenarios.criteria import MARGINAL_PCT, Measurement
+from rig.scenarios.signals import SIGNALS
 
 
 def fmt_value(v: float, units: str) -> str:

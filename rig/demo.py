@@ -13,8 +13,8 @@ from __future__ import annotations
 import math
 import time
 
-from plant import Plant
-from plant.variables import G0
+from rig.plant import Plant
+from rig.plant.variables import G0
 
 DT = 1e-3          # plant communication step
 CONTROL_DIV = 4    # stand-in controller at 250 Hz

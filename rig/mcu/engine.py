@@ -22,12 +22,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
-from emulators import native
-from emulators.chips.board import ChipBoard
-from plant.native_build import BUILD, compile_shared, is_stale
+from rig.emulators import native
+from rig.emulators.chips.board import ChipBoard
 from rig.mcu.board import Board
 from rig.mcu.image import EEPROM, FLASH, FirmwareError, load
 from rig.mcu.mcus import MCUS
+from rig.plant.native_build import BUILD, compile_shared, is_stale
 
 __all__ = ["AvrEngine", "EngineConfig", "FirmwareError", "Motor", "Stop", "config_for"]
 

@@ -12,11 +12,11 @@ from typing import TYPE_CHECKING, Any
 from rig.mcu import board as boards
 from rig.mcu.engine import BUS_PROBLEMS
 from rig.mcu.session import McuConfig, McuSession
+from rig.scenarios.result import I2CRecord
+from rig.scenarios.schema import Scenario
 from rig.session import Outcome
 from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, TargetRun
 from rig.targets.process import NO_SUPPLY
-from scenarios.result import I2CRecord
-from scenarios.schema import Scenario
 
 if TYPE_CHECKING:
     from rig.world import World
@@ -133,7 +133,7 @@ class McuTarget:
         if eeprom is None and self.board.eeprom_image is not None:
             eeprom = self.board.eeprom_image.read_bytes()
         elif eeprom is None and self.board.eeprom_from_fc:
-            from scenarios.eeprom import image  # the reference firmware's layout
+            from rig.scenarios.eeprom import image  # the reference firmware's layout
 
             eeprom = image(fc)
         cfg = McuConfig(self.board, self.firmware, duration, RC_PATH, TELEMETRY_PATH, eeprom, wall_timeout,

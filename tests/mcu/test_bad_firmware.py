@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import pytest
 
-from emulators.chips.board import ChipBoard, build_chip_board
-from emulators.mpu6050 import ImuTruth
-from emulators.ms5611 import BaroTruth
+from rig.emulators.chips.board import ChipBoard, build_chip_board
+from rig.emulators.mpu6050 import ImuTruth
+from rig.emulators.ms5611 import BaroTruth
 from rig.mcu.engine import AvrEngine, EngineConfig
 from tests.mcu.conftest import MCUS, firmware
 

@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 
 from rig.runner import run
+from rig.scenarios.schema import load
 from rig.targets.mcu import McuTarget
-from scenarios.schema import load
 from tests.mcu.conftest import REPO, firmware
 from tests.scenarios.test_mcap import read
 
