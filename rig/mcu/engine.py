@@ -181,7 +181,8 @@ class EngineConfig:
 def config_for(board: Board, firmware: Path, eeprom: bytes | None = None, **limits: Any) -> EngineConfig:
     """The engine's configuration for a board file (rig/mcu/board.py): its MCU, clock, motors in the
     plant's order (1..4), fuses; ``limits``: EngineConfig's error limits (hang_ns, ...)."""
-    motors = tuple(Motor(m.pin, m.timer, m.channel) for m in sorted(board.motors, key=lambda m: m.motor))
+    motors = tuple(Motor(m.pin, m.timer, m.channel or "A")
+                   for m in sorted(board.motors, key=lambda m: m.motor))
     return EngineConfig(board.mcu.name, board.clock_hz, firmware, motors, eeprom=eeprom,
                         watchdog_always_on=board.watchdog_always_on, **limits)
 

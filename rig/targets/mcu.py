@@ -60,11 +60,11 @@ def capture_text(board: boards.Board, counts: list[dict[str, int]] | None = None
     parts = []
     for i, m in enumerate(board.motors):
         oc = f"OC{m.timer}{m.channel}"
+        edges = "pin edges" if m.timer is None else f"pin edges ({oc} disconnected)"
         if counts is None:
-            how = f"{oc} registers or, disconnected, pin edges"
+            how = "pin edges" if m.timer is None else f"{oc} registers or, disconnected, pin edges"
         else:
-            timer, edges = counts[i]["timer"], counts[i]["edges"]
-            ways = [f"{oc} registers"] * bool(timer) + [f"pin edges ({oc} disconnected)"] * bool(edges)
+            ways = [f"{oc} registers"] * bool(counts[i]["timer"]) + [edges] * bool(counts[i]["edges"])
             how = " and ".join(ways) or "no pulse"
         parts.append(f"m{m.motor} {m.pin}: {how}")
     return "; ".join(parts)

@@ -53,3 +53,20 @@ def test_the_summary_says_how_each_motor_was_measured(tmp_path: Path) -> None:
     # the pulses ended in 0.1 s, one each 2.5 ms from the start: (100 - 1.5) // 2.5 + 1 = 40 (the banged
     # one, 1.5 ms, ends latest)
     assert said["mcu"]["motor_pulses"] == [40, 40, 0, 0]
+
+
+def test_a_board_motor_without_a_timer_is_measured_from_its_edges(tmp_path: Path) -> None:
+    """The Mega board with its motor 2 named by pin only (PE5, no timer): software PWM."""
+    shipped = (REPO / "rig" / "mcu" / "boards" / "mega2560-gy86.toml").read_text()
+    motor2 = 'pin = "PE5"\ntimer = 3\nchannel = "C"'
+    assert motor2 in shipped
+    board = tmp_path / "soft.toml"
+    board.write_text(shipped.replace(motor2, 'pin = "PE5"'))
+    summary = tmp_path / "s.json"
+    done = subprocess.run([sys.executable, "-m", "rig.cli", "exec", "--mcu", board, "--firmware",
+                           str(firmware("bitbang", "atmega2560")), "--duration", "0.1", "--allow-no-devices",
+                           "--summary", str(summary)], capture_output=True, text=True, cwd=REPO, timeout=120)
+    assert done.returncode == 0, done.stderr
+    said = json.loads(summary.read_text())
+    assert said["capture"].startswith("m1 PE4: OC3B registers; m2 PE5: pin edges; m3 PE3: no pulse")
+    assert said["mcu"]["motor_pulses"] == [40, 40, 0, 0]
