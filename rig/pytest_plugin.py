@@ -7,9 +7,10 @@ rig meets them there, on top of the public API (rig/api.py) and ``rig run``'s re
   pyproject.toml or a sweep spec, are left alone); a file that does not check is a collection error
   naming its key. Nothing is collected that pytest is not already walking (this repository's own
   ``pytest`` walks tests/ only, its testpaths);
-* ``--rig-dut CMD``, ``--rig-mcu BOARD --rig-firmware FILE``, ``--rig-bridge PORT`` choose the DUT
-  (default: the reference FC), ``--rig-pwm-channels N`` and ``--rig-topology gy86|direct`` a Linux
-  DUT's board, ``--rig-seed N`` the seed, ``--rig-out DIR`` where runs are written;
+* ``--rig-dut CMD``, ``--rig-mcu BOARD --rig-firmware FILE`` (``--rig-eeprom FILE``: its EEPROM),
+  ``--rig-bridge PORT`` choose the DUT (default: the reference FC), ``--rig-pwm-channels N`` and
+  ``--rig-topology gy86|direct`` a Linux DUT's board, ``--rig-seed N`` the seed, ``--rig-out DIR``
+  where runs are written;
 * a failing item shows its criteria table (value, limits, margin) and its report's path;
 * the ``rig`` fixture hands the API to a test, with the command line's DUT, seed and a folder of the
   test's own; ``@pytest.mark.rig_scenario(*scenarios, seeds=[...])`` parametrises a test's
@@ -47,6 +48,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     g.addoption("--rig-mcu", metavar="BOARD", help="fly a firmware image under emulation on BOARD "
                 "(a board file or a shipped board's name); needs --rig-firmware")
     g.addoption("--rig-firmware", metavar="FILE", help="with --rig-mcu: the image (.elf or .hex)")
+    g.addoption("--rig-eeprom", metavar="FILE", help="with --rig-mcu: the EEPROM image to start from "
+                "instead of the board's (raw bytes, as a run's eeprom.bin, or Intel HEX named .eep/.hex)")
     g.addoption("--rig-bridge", metavar="PORT", help="a bench bridge's serial port, or 'virtual'")
     g.addoption("--rig-pwm-channels", metavar="N", type=int,
                 help="a Linux DUT's channels of pwmchip0, 1..16 (default 8)")
@@ -73,6 +76,8 @@ def pytest_configure(config: pytest.Config) -> None:
         problems = hardware_problems(pwm_channels, topology)
         if problems:
             raise pytest.UsageError("; ".join(p.replace("--", "--rig-", 1) for p in problems))
+    if config.getoption("rig_eeprom") is not None and board is None:
+        raise pytest.UsageError("--rig-eeprom goes with --rig-mcu BOARD")
 
 
 class Options:
@@ -84,6 +89,7 @@ class Options:
         self.bridge: str | None = opt("rig_bridge")
         board, firmware = opt("rig_mcu"), opt("rig_firmware")  # (paired: pytest_configure)
         self.mcu: tuple[str, str] | None = (board, firmware) if board is not None else None
+        self.eeprom: str | None = opt("rig_eeprom")
         self.seed: int = opt("rig_seed")
         self.pwm_channels: int | None = opt("rig_pwm_channels")
         self.topology: str | None = opt("rig_topology")
@@ -115,7 +121,8 @@ class Options:
     def run(self, scenario: str | os.PathLike[str] | Scenario, out: Path, **kw: Any) -> Result:
         from rig import api
 
-        options: dict[str, Any] = {"dut": self.dut, "mcu": self.mcu, "bridge": self.bridge, "seed": self.seed,
+        options: dict[str, Any] = {"dut": self.dut, "mcu": self.mcu, "eeprom": self.eeprom,
+                                   "bridge": self.bridge, "seed": self.seed,
                                    "pwm_channels": self.pwm_channels, "topology": self.topology}
         return api.run(scenario, **(options | kw), out=out)
 

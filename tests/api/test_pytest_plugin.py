@@ -165,6 +165,22 @@ def test_rig_mcu_without_firmware_stops_pytest(tmp_path):
     assert "--rig-mcu needs --rig-firmware FILE" in done.stderr
 
 
+def test_rig_eeprom_starts_the_image_from_it(tmp_path):
+    """The eeprom_count firmware (tests/mcu/firmware) counts its boots in EEPROM byte 0: started from 9,
+    its run's eeprom.bin holds 10. (It drives no motor: the item fails as hung, the EEPROM is written.)"""
+    shutil.copy(SHORT, tmp_path)
+    (tmp_path / "start.bin").write_bytes(bytes([9]))
+    junit = tmp_path / "junit.xml"
+    done = pytest_run(tmp_path, str(tmp_path), "--rig-mcu", "mega2560-gy86", "--rig-firmware",
+                      str(mcu.firmware("eeprom_count", "atmega2560")), "--rig-eeprom",
+                      str(tmp_path / "start.bin"), f"--junitxml={junit}")
+    assert done.returncode == 1, done.stdout + done.stderr
+    props = {p.get("name"): p.get("value") for p in ET.parse(junit).getroot().iter("property")}
+    assert (Path(props["report"]) / "eeprom.bin").read_bytes()[:6] == bytes([10]) + b"saved"
+    alone = pytest_run(tmp_path, str(tmp_path), "--rig-eeprom", str(tmp_path / "start.bin"))
+    assert alone.returncode == 4 and "--rig-eeprom goes with --rig-mcu BOARD" in alone.stderr
+
+
 def test_ctrl_c_stops_the_dut_and_pytest_and_keeps_the_run(tmp_path):
     fifo = pid_fifo(tmp_path / "pid")
     shutil.copy(SHORT, tmp_path)
