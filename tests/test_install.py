@@ -79,6 +79,11 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return venv / "bin"
 
 
+#: the licences the wheel carries: the rig's, and the notices of what it vendors or is built with
+NOTICES = ("LICENSE", "plant/fmi2/LICENSE.txt", "reports/vendor/uplot/LICENSE",
+           "rig/service/static/htmx/LICENSE")
+
+
 def test_an_installed_wheel_runs_from_anywhere(installed: Path, tmp_path: Path) -> None:
     """(One test, so that pytest-xdist never builds the wheel twice.)"""
     version = tomllib.loads((TREE / "pyproject.toml").read_text())["project"]["version"]
@@ -101,6 +106,10 @@ def test_an_installed_wheel_runs_from_anywhere(installed: Path, tmp_path: Path) 
     # the library's file and the reference FC are the installed package's
     assert Path(result["metadata"]["scenario_file"]).is_relative_to(installed.parent)
     assert result["metadata"]["dut_command"].startswith(str(installed.parent))
+
+    (dist,) = Path(module).parents[1].glob("quadrotor_hil_rig-*.dist-info")
+    assert all((dist / "licenses" / n).read_bytes() == (TREE / n).read_bytes() for n in NOTICES)
+    assert "License-Expression: MIT AND BSD-2-Clause AND 0BSD" in (dist / "METADATA").read_text()
 
     # the plugin, in a project with its own scenarios package that its conftest imports
     project = tmp_path / "fw"
