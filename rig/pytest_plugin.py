@@ -165,6 +165,11 @@ class ScenarioFile(pytest.File):
     """A scenario file: one item, or a collection error naming the file's bad key."""
 
     def collect(self) -> Iterator[ScenarioItem]:
+        from rig import compiled
+
+        # the hot modules compiled (as the CLI runs them) before reading a scenario imports the first of
+        # them: a module imported from source stays so, and the compiled ones then reject its objects
+        compiled.install()
         from rig.api import ScenarioError, load_scenario
 
         try:

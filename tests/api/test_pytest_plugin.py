@@ -123,6 +123,14 @@ def rig_report(out: Path) -> subprocess.CompletedProcess[str]:
                           text=True, timeout=60)
 
 
+def test_a_scenario_with_a_fault_runs_compiled(tmp_path):
+    """Reading a scenario imports the fault classes: before the hot modules ran compiled, the compiled
+    session rejected the source-imported faults ("TargetedFault object expected")."""
+    done = pytest_run(tmp_path, str(LIBRARY / "fault_mag_nack.toml"), "--rig-out", "out")
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "1 passed" in done.stdout
+
+
 def test_a_new_session_removes_the_previous_sessions_runs_with_or_without_workers(tmp_path):
     shutil.copy(SHORT, tmp_path / "a_roll_stand.toml")
     out = tmp_path / "out"
