@@ -33,7 +33,7 @@ from setuptools.command.build_py import build_py
 TREE = Path(__file__).resolve().parent
 sys.path.insert(0, str(TREE))  # the tree's rig, whatever the build environment holds
 
-from rig.plant.artifacts import TREE_COPIES, TREE_FILES  # noqa: E402
+from rig.plant.artifacts import BUILD, INSTALLED_BUILD, PACKAGE, TREE_COPIES, TREE_FILES  # noqa: E402
 
 #: the make targets that build what a run needs (make all but the docs' and tests' builds)
 TARGETS = ("fmu", "shim", "native", "compiled", "dut", "vbridge")
@@ -55,9 +55,9 @@ class BuildWithArtifacts(build_py):
         super().run()
         if getattr(self, "editable_mode", False):
             return
-        build = TREE / "build"
-        self._make(build)
-        out = Path(self.build_lib) / "rig" / "_build"
+        build = BUILD  # (the tree's build/: this is a tree)
+        self._make()
+        out = Path(self.build_lib) / INSTALLED_BUILD.relative_to(PACKAGE.parent)
         shutil.rmtree(out, ignore_errors=True)
         for rel in ARTIFACTS:
             self._copy(build / rel, out / rel)
@@ -79,7 +79,7 @@ class BuildWithArtifacts(build_py):
             z.extractall(fmu.parent / UNZIPPED / hashlib.sha256(fmu.read_bytes()).hexdigest())
 
     @staticmethod
-    def _make(build: Path) -> None:
+    def _make() -> None:
         """The tree's make targets with this interpreter; the virtualenv make would create is skipped
         (-o: this build environment is the one to use, and installs nothing)."""
         python = sys.executable
