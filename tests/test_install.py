@@ -24,8 +24,9 @@ from pathlib import Path
 import pytest
 
 TREE = Path(__file__).resolve().parents[1]
-#: the build's own folders (setuptools') are not copied: only make's artifacts are worth keeping
-SETUPTOOLS_BUILD = ("lib.*", "bdist.*", "temp.*")
+#: build/'s folders that the wheel's make targets write (with the libraries and programs at its top):
+#: copied with their times, make finds them up to date; reports and setuptools' own folders are left
+MADE_FOLDERS = ("plant", "gen", "mypyc", "dut")
 
 
 def clean_env() -> dict[str, str]:
@@ -40,8 +41,8 @@ def run(cmd: list[str], cwd: Path, timeout: float = 600) -> subprocess.Completed
 
 
 def copy_tree(dst: Path) -> None:
-    """The tree's files as git sees them (tracked and new, not ignored), links kept as links, and its
-    make artifacts, all with their times."""
+    """The tree's files as git sees them (tracked and new, not ignored), links kept as links, and what
+    its make targets built, all with their times."""
     listed = subprocess.run(["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"], cwd=TREE,
                             capture_output=True, check=True).stdout.decode().split("\0")
     for rel in filter(None, listed):
@@ -50,9 +51,14 @@ def copy_tree(dst: Path) -> None:
             continue  # (deleted in the work tree, not yet in git)
         (dst / rel).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(src, dst / rel, follow_symlinks=False)
-    if (TREE / "build").is_dir():
-        shutil.copytree(TREE / "build", dst / "build", symlinks=True,
-                        ignore=shutil.ignore_patterns(*SETUPTOOLS_BUILD, ".unzipped", "*.tmp"))
+    build = TREE / "build"
+    for made in sorted(build.iterdir()) if build.is_dir() else []:
+        if made.is_file() and not made.name.endswith(".tmp"):
+            (dst / "build").mkdir(exist_ok=True)
+            shutil.copy2(made, dst / "build" / made.name)
+        elif made.is_dir() and made.name in MADE_FOLDERS:
+            shutil.copytree(made, dst / "build" / made.name, symlinks=True,
+                            ignore=shutil.ignore_patterns(".unzipped", "*.tmp"))
 
 
 @pytest.fixture(scope="session")
