@@ -164,7 +164,8 @@ lint-sources:
 # jobs at a time (INSTALLED=1: that make installs nothing again; the builds write their generated
 # headers and libraries atomically, so two of them may make the same one at once), then runs the suite
 # on every core (pytest-xdist; each worker holds a core: tests/conftest.py), then the tests paced by the
-# wall clock alone (marker paced: tests/realtime.py). TEST_JOBS=1: one process.
+# wall clock alone (marker paced: tests/realtime.py), which ends with the count of those that verified
+# nothing and fails above half of them (tests/suite_rules.py, tests/README.md). TEST_JOBS=1: one process.
 TEST_JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 TEST_BUILDS := mcu-test-firmware avr $(FMU) $(SHIM) $(NATIVE) $(DUT_BIN) $(VBRIDGE) firmware
 test: venv test-packages

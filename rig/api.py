@@ -183,12 +183,16 @@ def run(
     out: str | os.PathLike[str] = "build/reports",
     wall_timeout: float = 600.0,
     spin: bool = False,
+    pwm_channels: int | None = None,
+    topology: str | None = None,
 ) -> Result:
     """Flies one scenario and returns its result; writes ``out/<scenario>/`` as ``rig run`` does.
 
     The DUT is one of: ``dut``, a command line (a string, split as a shell would, or a list; default:
     the reference FC); ``mcu=(board, firmware)``, a firmware image under emulation; ``bridge``, a
     bench bridge's serial port or "virtual". ``spin``: as ``rig run --spin`` (two cores, polling).
+    ``pwm_channels`` (1..16) and ``topology`` ("gy86", "direct"): a Linux DUT's board, as ``rig run
+    --pwm-channels``, ``--topology`` (default: 8 channels on a GY-86).
     Raises RigError for bad options (nothing is run); a DUT that crashes or hangs is a Result with
     verdict "error", as on the command line."""
     import shlex
@@ -214,6 +218,10 @@ def run(
         words += ["--mcu", os.fspath(mcu[0]), "--firmware", os.fspath(mcu[1])]
     if spin:
         words.append("--spin")
+    if pwm_channels is not None:
+        words += ["--pwm-channels", str(int(pwm_channels))]
+    if topology is not None:
+        words += ["--topology", topology]
     args = _options("run", words)
     # Ctrl-C or a CI job's SIGTERM stops the DUT and finishes the run's files, as in rig run, and then
     # reaches the caller as KeyboardInterrupt; (signal handlers can be set from the main thread only)

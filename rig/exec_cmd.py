@@ -32,6 +32,7 @@ from rig.plant.variables import PARAMETERS, check_parameters
 from rig.run_cmd import seconds_option
 from rig.scheduler import EXIT_RIG_ERROR
 from rig.session import Session, SessionConfig
+from rig.targets.process import hardware_problems
 from rig.world import World
 
 CLOCKS = {"0": 0, "100k": 100_000, "400k": 400_000}
@@ -79,7 +80,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="with --bridge: the ESC protocol the bridge captures (default pwm; oneshot125)")
     p.add_argument("--serial", action="append", default=[], metavar="PATH",
                    help="a serial device path the command opens, served by a pty (repeatable)")
-    p.add_argument("--pwm-channels", type=int, default=8, metavar="N", help="channels of pwmchip0 (1..16)")
+    p.add_argument("--pwm-channels", type=int, default=8, metavar="N",
+                   help="channels of pwmchip0 (1..16, default 8)")
     p.add_argument("--i2c-clock", choices=sorted(CLOCKS), default="0",
                    help="each transfer takes its wire time at this SCL clock (default 0: no time)")
     p.add_argument("--quantum-ns", type=int, default=1000, metavar="NS",
@@ -124,8 +126,8 @@ def main(args: argparse.Namespace) -> int:
             parser.error(f"{option} goes with --mcu BOARD")
     if not command:
         parser.error("rig exec needs a command after --")
-    if not 1 <= args.pwm_channels <= 16:
-        parser.error("--pwm-channels must be between 1 and 16")
+    for problem in hardware_problems(args.pwm_channels, args.topology):
+        parser.error(problem)
     if not 0 <= args.bus < 32:
         parser.error("--bus must be between 0 and 31")
     if args.quantum_ns < 0:

@@ -8,7 +8,8 @@ rig meets them there, on top of the public API (rig/api.py) and ``rig run``'s re
   naming its key. Nothing is collected that pytest is not already walking (this repository's own
   ``pytest`` walks tests/ only, its testpaths);
 * ``--rig-dut CMD``, ``--rig-mcu BOARD --rig-firmware FILE``, ``--rig-bridge PORT`` choose the DUT
-  (default: the reference FC), ``--rig-seed N`` the seed, ``--rig-out DIR`` where runs are written;
+  (default: the reference FC), ``--rig-pwm-channels N`` and ``--rig-topology gy86|direct`` a Linux
+  DUT's board, ``--rig-seed N`` the seed, ``--rig-out DIR`` where runs are written;
 * a failing item shows its criteria table (value, limits, margin) and its report's path;
 * the ``rig`` fixture hands the API to a test, with the command line's DUT, seed and a folder of the
   test's own; ``@pytest.mark.rig_scenario(*scenarios, seeds=[...])`` parametrises a test's
@@ -49,6 +50,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                 "(a board file or a shipped board's name); needs --rig-firmware")
     g.addoption("--rig-firmware", metavar="FILE", help="with --rig-mcu: the image (.elf or .hex)")
     g.addoption("--rig-bridge", metavar="PORT", help="a bench bridge's serial port, or 'virtual'")
+    g.addoption("--rig-pwm-channels", metavar="N", type=int,
+                help="a Linux DUT's channels of pwmchip0, 1..16 (default 8)")
+    g.addoption("--rig-topology", metavar="gy86|direct",
+                help="a Linux DUT's I2C wiring (default gy86: the compass behind the MPU-6050's bypass)")
     g.addoption("--rig-seed", metavar="N", type=int, default=0, help="the runs' seed (default 0)")
     g.addoption("--rig-out", metavar="DIR", default=DEFAULT_OUT,
                 help=f"where runs are written (default {DEFAULT_OUT}; under xdist DIR/<worker>)")
@@ -63,6 +68,13 @@ def pytest_configure(config: pytest.Config) -> None:
         raise pytest.UsageError("--rig-firmware goes with --rig-mcu BOARD")
     if board is not None and firmware is None:
         raise pytest.UsageError("--rig-mcu needs --rig-firmware FILE")
+    pwm_channels, topology = config.getoption("rig_pwm_channels"), config.getoption("rig_topology")
+    if pwm_channels is not None or topology is not None:  # (the rig imported only when they are given)
+        from rig.targets.process import hardware_problems
+
+        problems = hardware_problems(pwm_channels, topology)
+        if problems:
+            raise pytest.UsageError("; ".join(p.replace("--", "--rig-", 1) for p in problems))
 
 
 class Options:
@@ -75,6 +87,8 @@ class Options:
         board, firmware = opt("rig_mcu"), opt("rig_firmware")  # (paired: pytest_configure)
         self.mcu: tuple[str, str] | None = (board, firmware) if board is not None else None
         self.seed: int = opt("rig_seed")
+        self.pwm_channels: int | None = opt("rig_pwm_channels")
+        self.topology: str | None = opt("rig_topology")
         out = Path(opt("rig_out"))
         if not out.is_absolute():
             out = Path(config.invocation_params.dir) / out
@@ -107,7 +121,8 @@ class Options:
     def run(self, scenario: str | os.PathLike[str] | Scenario, out: Path, **kw: Any) -> Result:
         from rig import api
 
-        options: dict[str, Any] = {"dut": self.dut, "mcu": self.mcu, "bridge": self.bridge, "seed": self.seed}
+        options: dict[str, Any] = {"dut": self.dut, "mcu": self.mcu, "bridge": self.bridge, "seed": self.seed,
+                                   "pwm_channels": self.pwm_channels, "topology": self.topology}
         return api.run(scenario, **(options | kw), out=out)
 
 

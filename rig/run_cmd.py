@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING
 
 from rig import interrupts
 from rig.bridge.esc import ESC_PROTOCOLS
+from rig.emulators.topology import TOPOLOGIES
 from rig.scenarios import LIBRARY
 from rig.scenarios.schema import Scenario, ScenarioError, load
 
@@ -99,6 +100,18 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="lockstep on two CPU cores: the session and the DUT each on its own, polling for the other's "
         "messages instead of sleeping (1.5-1.7x as fast; the results are the same)",
+    )
+    p.add_argument(
+        "--pwm-channels",
+        type=int,
+        metavar="N",
+        help="a Linux DUT's channels of pwmchip0, 1..16 (default 8; channels 0..3 drive motors 1..4)",
+    )
+    p.add_argument(
+        "--topology",
+        choices=TOPOLOGIES,
+        help="a Linux DUT's I2C wiring: gy86 (default; the HMC5883L behind the MPU-6050's bypass) or "
+        "direct (all three chips on the bus)",
     )
     p.add_argument(
         "--bridge",
@@ -316,6 +329,11 @@ def plan(args: argparse.Namespace) -> Plan:
         if chromium() is None:
             problems.append("--pdf: no chromium on PATH to print the PDF with (Debian: apt-get install "
                             "chromium)")
+    from rig.targets.process import hardware_problems
+
+    problems += hardware_problems(args.pwm_channels, args.topology)
+    if (args.pwm_channels is not None or args.topology is not None) and (args.bridge or args.mcu):
+        problems.append("--pwm-channels and --topology are a Linux DUT's board: not with --bridge or --mcu")
     mcu = _mcu_target(args, problems)
     if problems:
         raise UsageError("\n".join(problems))
@@ -329,7 +347,8 @@ def target_of(args: argparse.Namespace, dut: list[str] | None) -> Target:
 
     if args.bridge is not None:
         return BridgeTarget(args.bridge, dut, args.can, args.esc)
-    return ProcessTarget(dut, args.realtime, spin=args.spin)
+    return ProcessTarget(dut, args.realtime, spin=args.spin, pwm_channels=args.pwm_channels,
+                         topology=args.topology)
 
 
 def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:

@@ -51,7 +51,7 @@ MEGA = board.find("mega2560-gy86").read_text()
         (("baud = 500_000", "baud = 230_400"), "telemetry.baud", "over 3% off"),
         (("clock_hz = 16_000_000", "clock_hz = 16e6"), "board.clock_hz", "expected an integer"),
         (("[rc]", "[rc]\nbaud = 115200"), "rc.baud", "SBUS runs at 100000 baud"),
-        (("[fuses]", "[fuse]"), "", ""),
+        (("[fuses]", "[fuse]"), "fuse", "unknown key; did you mean 'fuses'?"),
         (('format = "text"', 'format = "mavlink"'), "telemetry.format", "expected one of text"),
     ],
 )
@@ -64,8 +64,8 @@ def test_each_mistake_is_refused_naming_the_key(tmp_path: Path, change: tuple[st
     p.write_text(text.replace(old, new, 1))
     with pytest.raises(BoardError) as e:
         board.load(str(p))
-    assert str(e.value).startswith(f"{p}: {key}: " if key else f"{p}: ")
-    assert words in str(e.value)
+    assert str(e.value).startswith(f"{p}: {key}: ")
+    assert words and words in str(e.value)
 
 
 def test_a_ppm_receiver_needs_an_interrupt_pin(tmp_path: Path) -> None:
