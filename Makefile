@@ -17,7 +17,7 @@ NATIVE := build/_rignative$(EXT) build/_plantsteps$(EXT) build/_rigpace$(EXT) bu
 	build/_rigtelemetry$(EXT) build/_rigevents$(EXT)
 # the modules rig/compiled.py compiles with mypyc (its MODULES, read from there)
 COMPILED := build/mypyc/manifest.json
-COMPILED_SOURCES := $(shell $(PYTHON) rig/compiled.py --sources)
+COMPILED_SOURCES := $(shell $(PYTHON) -m rig.compiled --sources)
 
 DUT_BIN := build/dut/fc
 

@@ -18,7 +18,8 @@ rig meets them there, on top of the public API (rig/api.py) and ``rig run``'s re
 * under pytest-xdist each worker writes under ``DIR/<worker>/`` (a report folder is held by one run at
   a time); JUnit properties carry the seed and the scenario's and firmware's SHA-256;
 * the scenario items' folder is a ``rig run`` report folder: ``rig report DIR --pdf`` prints its
-  acceptance PDF, and a new session first removes the runs the previous one wrote there.
+  acceptance PDF, and a new session first removes the runs the previous one wrote there (at the root
+  and in every worker's folder).
 
 The imports of the rig are deferred to the first run: the plugin is loaded into every pytest session
 of an environment the package is installed in, and must cost nothing there.
@@ -28,6 +29,7 @@ from __future__ import annotations
 
 import os
 import re
+import uuid
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -97,19 +99,23 @@ class Options:
         if not out.is_absolute():
             out = Path(config.invocation_params.dir) / out
         worker = os.environ.get("PYTEST_XDIST_WORKER")
+        self.root = out
         self.out = out / worker if worker else out
+        #: this session's identity, shared by its xdist workers (a plain session is one process)
+        self.session = os.environ.get("PYTEST_XDIST_TESTRUNUID") or uuid.uuid4().hex
         self.stems: list[str] | None = None  # the scenario items this process has run, in order
 
     def ran(self, stem: str) -> None:
         """Keeps the folder a report folder as ``rig run`` leaves one (so ``rig report DIR --pdf`` reads
-        it): the first scenario item removes the runs the previous session listed; each one run is
-        added to the list (.rig-run.json)."""
+        it): the first scenario item of the session removes the runs the previous session wrote
+        (``claim``); each one run is added to the list (.rig-run.json)."""
         import json
 
         from rig.run_cmd import ReportFolder
 
         if self.stems is None:
             self.stems = []
+            claim(self.root, self.session)
             with ReportFolder(self.out) as folder:
                 folder.begin([])
         self.stems.append(stem)
@@ -125,6 +131,36 @@ class Options:
                                    "bridge": self.bridge, "seed": self.seed,
                                    "pwm_channels": self.pwm_channels, "topology": self.topology}
         return api.run(scenario, **(options | kw), out=out)
+
+
+SESSION_FILE = ".rig-pytest-session"
+_WORKER_FOLDER = re.compile(r"gw[0-9]+")
+
+
+def claim(root: Path, session: str) -> None:
+    """The first process of a session to run a scenario item removes every run the previous session
+    wrote under ``root``: the root's (a plain session's) and every worker folder's (a ``-n`` session's,
+    whatever its number of workers), so neither ``rig report DIR`` nor a ``DIR/gwN`` shows an older
+    session's run. The workers of one session meet here under a lock; only the first one clears."""
+    import fcntl
+    import shutil
+
+    from rig.run_cmd import ReportFolder
+
+    root.mkdir(parents=True, exist_ok=True)
+    with open(root / f"{SESSION_FILE}.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        marker = root / SESSION_FILE
+        if marker.is_file() and marker.read_text().strip() == session:
+            return
+        workers = sorted(p for p in root.iterdir() if p.is_dir() and _WORKER_FOLDER.fullmatch(p.name))
+        for folder in (root, *workers):
+            with ReportFolder(folder) as report_folder:
+                report_folder.begin([])
+        for folder in workers:  # (a worker folder left with nothing but the rig's own files)
+            if {p.name for p in folder.iterdir()} <= {ReportFolder.LOCK, ReportFolder.MANIFEST}:
+                shutil.rmtree(folder)
+        marker.write_text(session + "\n")
 
 
 def _options(config: pytest.Config) -> Options:
@@ -151,6 +187,11 @@ class ScenarioFile(pytest.File):
     """A scenario file: one item, or a collection error naming the file's bad key."""
 
     def collect(self) -> Iterator[ScenarioItem]:
+        from rig import compiled
+
+        # the hot modules compiled (as the CLI runs them) before reading a scenario imports the first of
+        # them: a module imported from source stays so, and the compiled ones then reject its objects
+        compiled.install()
         from rig.api import ScenarioError, load_scenario
 
         try:

@@ -28,13 +28,13 @@ from typing import TYPE_CHECKING
 from rig import interrupts
 from rig.bridge.esc import ESC_PROTOCOLS
 from rig.emulators.topology import TOPOLOGIES
+from rig.scenarios import LIBRARY
 from rig.scenarios.schema import Scenario, ScenarioError, load
 
 if TYPE_CHECKING:
     from rig.scenarios.result import RunResult
     from rig.targets import Target
 
-LIBRARY = Path(__file__).resolve().parents[1] / "scenarios" / "library"
 EXIT_FAILED, EXIT_USAGE, EXIT_ERROR = 1, 2, 3
 #: seeds are 0..2^31-1, as the service's API takes them (a run queued there is a run of this command)
 SEED_LIMIT = 2**31

@@ -27,7 +27,8 @@ from rig.emulators.chips.board import ChipBoard
 from rig.mcu.board import Board
 from rig.mcu.image import EEPROM, FLASH, FirmwareError, load
 from rig.mcu.mcus import MCUS
-from rig.plant.native_build import BUILD, compile_shared, is_stale
+from rig.plant.artifacts import BUILD
+from rig.plant.native_build import compile_shared, is_stale
 
 __all__ = ["AvrEngine", "EngineConfig", "FirmwareError", "Motor", "Stop", "config_for"]
 

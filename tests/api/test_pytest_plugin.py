@@ -112,6 +112,47 @@ def test_xdist_one_folder_per_worker(tmp_path):
     assert not list((tmp_path / "out").glob("*_roll_stand"))  # nothing outside a worker's folder
 
 
+def stale_run(folder: Path, stem: str) -> Path:
+    """A previous session's run in ``folder``, listed as rig run and the plugin list their runs."""
+    (folder / stem).mkdir(parents=True)
+    (folder / stem / "result.json").write_text("{}")
+    (folder / ".rig-run.json").write_text(json.dumps([stem]))
+    return folder / stem
+
+
+def rig_report(out: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "rig.cli", "report", str(out)], capture_output=True,
+                          text=True, timeout=60)
+
+
+def test_a_scenario_with_a_fault_runs_compiled(tmp_path):
+    """Reading a scenario imports the fault classes: before the hot modules ran compiled, the compiled
+    session rejected the source-imported faults ("TargetedFault object expected")."""
+    done = pytest_run(tmp_path, str(LIBRARY / "fault_mag_nack.toml"), "--rig-out", "out")
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "1 passed" in done.stdout
+
+
+def test_a_new_session_removes_the_previous_sessions_runs_with_or_without_workers(tmp_path):
+    shutil.copy(SHORT, tmp_path / "a_roll_stand.toml")
+    out = tmp_path / "out"
+    plain = stale_run(out, "plain_session_run")  # a plain session's, at the root
+    worker = stale_run(out / "gw3", "worker_run")  # a `-n 4` session's, in a worker's folder
+    done = pytest_run(tmp_path, str(tmp_path), "-n", "2", "--rig-out", "out")
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert not plain.exists() and not worker.parent.exists()
+    (run,) = out.glob("gw*/a_roll_stand/result.json")
+    # rig report indexes no earlier run at the root: this session's runs are in the workers' folders
+    assert rig_report(out).returncode != 0 and not (out / "index.html").exists()
+    assert rig_report(run.parents[1]).returncode == 0
+
+    done = pytest_run(tmp_path, str(tmp_path), "--rig-out", "out")  # and a plain session after it
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert not run.exists() and not list(out.glob("gw*"))
+    assert rig_report(out).returncode == 0
+    assert "a_roll_stand/report.html" in (out / "index.html").read_text()
+
+
 def test_rig_fixture_and_marker(tmp_path):
     (tmp_path / "test_mine.py").write_text('''
 import pytest
