@@ -29,7 +29,7 @@ BRIDGE_CHIPS := emulators/chips
 BRIDGE_CFLAGS := -std=c99 -pedantic -O2 -Wall -Wextra -Werror -ffp-contract=off -Ibuild/gen -I$(BRIDGE_CHIPS) \
 	-Ibridge/core -Irig/shim
 
-.PHONY: all venv fmu shim native chips compiled dut vbridge firmware avr avr-toolchain test-packages mcu-test-firmware demo test test-slow lint lint-sources bench clean docs-images
+.PHONY: all venv fmu shim native chips compiled dut vbridge firmware avr avr-toolchain test-packages mcu-test-firmware stm32-engine demo test test-slow lint lint-sources bench clean docs-images
 
 all: fmu shim native compiled dut vbridge
 
@@ -129,6 +129,13 @@ build/mcu/test/%-atmega328p.elf: $(MCU_FW_DIR)/%.c $(wildcard $(MCU_FW_DIR)/*.h)
 build/mcu/test/%-atmega2560.elf: $(MCU_FW_DIR)/%.c $(wildcard $(MCU_FW_DIR)/*.h) | avr-toolchain
 	@mkdir -p $(@D)
 	avr-gcc -mmcu=atmega2560 $(AVR_CFLAGS) -o $@ $<
+
+# the STM32 tier's engine (docs/mcu.md): qemu-system-arm built from Debian's QEMU 7.2 source package with
+# the models of qemu/ compiled in, cached outside the tree by the SHA-256 of its inputs
+# (~/.cache/rig/stm32-engine/KEY/qemu-system-arm; rig/mcu/stm32_engine.py); again with nothing changed,
+# it builds nothing and prints where the binary is. Installs its build dependencies when missing
+stm32-engine:
+	$(PYTHON) -m rig.mcu.stm32_engine
 
 # the builds two at a time, mypyc's first (the longest): 40-50 s of the demo's 2-3 minutes went to it
 # while everything else waited
