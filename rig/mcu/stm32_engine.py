@@ -171,6 +171,8 @@ def download_source(cache: Path) -> Path:
     (apt / "etc" / "sources.list").write_text("\n".join(lines) + "\n")
     options = [f"-oDir::Etc::SourceList={apt / 'etc' / 'sources.list'}", "-oDir::Etc::SourceParts=/dev/null",
                f"-oDir::State::Lists={apt / 'lists'}", f"-oDir::Cache={apt / 'cache'}", "-qq"]
+    if os.geteuid() == 0:  # (apt's _apt user cannot write into a root-owned cache)
+        options.append("-oAPT::Sandbox::User=root")
     (cache / "src").mkdir(parents=True, exist_ok=True)
     print(f"stm32-engine: downloading QEMU's source package ({', '.join(lines)})", flush=True)
     for args in (["update"], ["source", "--download-only", SOURCE_PACKAGE]):
