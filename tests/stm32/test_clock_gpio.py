@@ -137,3 +137,15 @@ def test_the_machine_is_the_rigs() -> None:
     """QEMU lists the rig's machine beside its own F405 board."""
     done = subprocess.run([str(engine_or_skip()), "-M", "help"], capture_output=True, text=True, timeout=30)
     assert "rig-stm32f405" in done.stdout and "netduinoplus2" in done.stdout
+
+
+def test_the_clock_tree_follows_the_boards_crystal() -> None:
+    """With a 25 MHz crystal (-global rig-stm32f4-rcc.hse-hz) the same PLL settings (M=8, N=336, P=2)
+    make 25/8 x 336/2 = 525 MHz: the loop's cycles scale by that over the HSI's 16 MHz."""
+    crystal = ("-global", "rig-stm32f4-rcc.hse-hz=25000000")
+    done = run_firmware(engine_or_skip(), firmware("clock_gpio"), *crystal)
+    assert done.returncode == 0, done.stderr
+    r = reports(done.stdout)
+    pll_hz = 25_000_000 // 8 * 336 // 2
+    off_by = abs(r["dwt_spin_pll"] * HSI_HZ - r["dwt_spin_hsi"] * pll_hz)
+    assert off_by <= pll_hz + HSI_HZ, (r["dwt_spin_hsi"], r["dwt_spin_pll"])
