@@ -7,6 +7,7 @@
  * source is ready, and later when it becomes ready, as the hardware does; an oscillator that feeds the
  * system clock cannot be stopped. The AHB clock (HCLK = SYSCLK / HPRE) is the "hclk" clock output,
  * which drives the core, SysTick and DWT: a firmware that sets up 168 MHz runs SysTick at 168 MHz.
+ * The reset registers reset the peripherals the machine attached to their bits (GPIO ports, PWR).
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -82,6 +83,25 @@ bool rig_stm32_rcc_enabled(RigStm32RccState *rcc, hwaddr enr_offset, unsigned bi
 {
     int i = rig_register_index(rcc_registers, RIG_RCC_REGISTERS, enr_offset);
     return i >= 0 && (rcc->regs[i] >> bit & 1u);
+}
+
+void rig_stm32_rcc_add_reset(RigStm32RccState *rcc, hwaddr rstr_offset, unsigned bit, DeviceState *dev)
+{
+    assert(rcc->n_resets < RIG_RCC_RESETS);
+    rcc->resets[rcc->n_resets].rstr_offset = rstr_offset;
+    rcc->resets[rcc->n_resets].bit = bit;
+    rcc->resets[rcc->n_resets].dev = dev;
+    rcc->n_resets++;
+}
+
+/* A peripheral whose reset bit is set is held in reset: reset again at each write that leaves it set */
+static void rcc_reset_peripherals(RigStm32RccState *s, hwaddr offset)
+{
+    for (unsigned k = 0; k < s->n_resets; k++) {
+        if (s->resets[k].rstr_offset == offset && rig_stm32_rcc_enabled(s, offset, s->resets[k].bit)) {
+            device_cold_reset(s->resets[k].dev);
+        }
+    }
 }
 
 static bool source_ready(const RigStm32RccState *s, unsigned sw)
@@ -187,6 +207,7 @@ static void rcc_write(void *opaque, hwaddr offset, uint64_t value, unsigned size
     }
     s->regs[i] = (s->regs[i] & ~mask) | ((uint32_t)value & mask);
     rcc_settle(s);
+    rcc_reset_peripherals(s, offset);
 }
 
 static const MemoryRegionOps rcc_ops = {

@@ -30,6 +30,7 @@ int rig_register_index(const RigRegister *table, int count, hwaddr offset);
 #define TYPE_RIG_STM32_RCC "rig-stm32f4-rcc"
 OBJECT_DECLARE_SIMPLE_TYPE(RigStm32RccState, RIG_STM32_RCC)
 #define RIG_RCC_REGISTERS 23
+#define RIG_RCC_RESETS 32
 
 struct RigStm32RccState {
     SysBusDevice parent_obj;
@@ -37,10 +38,20 @@ struct RigStm32RccState {
     uint32_t regs[RIG_RCC_REGISTERS];
     uint32_t hse_hz; /* the board's crystal (property "hse-hz") */
     Clock *hclk;     /* the AHB clock: the core, SysTick, DWT */
+    /* the peripherals the reset registers (AHB1RSTR ... APB2RSTR) reset: register, bit, device */
+    struct {
+        hwaddr rstr_offset;
+        unsigned bit;
+        DeviceState *dev;
+    } resets[RIG_RCC_RESETS];
+    unsigned n_resets;
 };
 
 /* Whether the clock of bit @bit of the enable register at @enr_offset (AHB1ENR, APB1ENR, ...) is on */
 bool rig_stm32_rcc_enabled(RigStm32RccState *rcc, hwaddr enr_offset, unsigned bit);
+
+/* @dev is reset while bit @bit of the reset register at @rstr_offset is set (RM0090 7.3.5-7.3.9) */
+void rig_stm32_rcc_add_reset(RigStm32RccState *rcc, hwaddr rstr_offset, unsigned bit, DeviceState *dev);
 
 /* PWR (RM0090 section 5.4) */
 #define TYPE_RIG_STM32_PWR "rig-stm32f4-pwr"

@@ -21,6 +21,9 @@
 
 /* RM0090 table 10 (register boundary addresses) */
 #define RCC_BASE 0x40023800
+#define RCC_AHB1RSTR 0x10
+#define RCC_APB1RSTR 0x20
+#define APB1RSTR_PWRRST 28
 #define PWR_BASE 0x40007000
 #define FLASH_IF_BASE 0x40023C00
 #define GPIOA_BASE 0x40020000
@@ -57,10 +60,11 @@ static void rig_stm32f405_init(MachineState *machine)
     sysbus_realize_and_unref(SYS_BUS_DEVICE(soc), &error_fatal);
 
     RigStm32RccState *r = RIG_STM32_RCC(rcc);
-    map_device(TYPE_RIG_STM32_PWR, PWR_BASE, r, -1);
+    rig_stm32_rcc_add_reset(r, RCC_APB1RSTR, APB1RSTR_PWRRST, DEVICE(map_device(TYPE_RIG_STM32_PWR, PWR_BASE, r, -1)));
     map_device(TYPE_RIG_STM32_FLASH_IF, FLASH_IF_BASE, NULL, -1);
     for (int port = 0; port < GPIO_PORTS; port++) {
-        map_device(TYPE_RIG_STM32_GPIO, GPIOA_BASE + port * GPIO_STRIDE, r, port);
+        SysBusDevice *gpio = map_device(TYPE_RIG_STM32_GPIO, GPIOA_BASE + port * GPIO_STRIDE, r, port);
+        rig_stm32_rcc_add_reset(r, RCC_AHB1RSTR, port, DEVICE(gpio)); /* GPIOxRST: bit x */
     }
 
     DeviceState *dwt = qdev_new(TYPE_RIG_DWT);

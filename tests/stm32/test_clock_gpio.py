@@ -128,6 +128,13 @@ def test_gpio_lock_freezes_the_locked_pins_configuration(r: dict[str, int]) -> N
     assert r["gpiod_lckr_after_clear"] == (1 << 16) | (1 << 12)
 
 
+def test_the_peripheral_reset_restores_a_port(r: dict[str, int]) -> None:
+    """7.3.5 (AHB1RSTR.GPIODRST) and 8.4.8: the port's reset values again, and the lock released."""
+    assert r["gpiod_moder_after_reset"] == 0
+    assert r["gpiod_odr_after_reset"] == 0
+    assert r["gpiod_lckr_after_reset"] == 0
+
+
 def test_two_runs_are_identical(run: tuple[str, dict[str, int]]) -> None:
     again = run_firmware(engine_or_skip(), firmware("clock_gpio"))
     assert again.stdout == run[0]

@@ -145,6 +145,13 @@ static void gpio(void)
     report("gpiod_moder_locked", GPIO_MODER(PORT_D));
     GPIO_LCKR(PORT_D) = 0;
     report("gpiod_lckr_after_clear", GPIO_LCKR(PORT_D));
+
+    /* the peripheral reset (RCC_AHB1RSTR.GPIODRST) puts the port back to its reset state, lock included */
+    RCC_AHB1RSTR |= 1u << PORT_D;
+    RCC_AHB1RSTR &= ~(1u << PORT_D);
+    report("gpiod_moder_after_reset", GPIO_MODER(PORT_D));
+    report("gpiod_odr_after_reset", GPIO_ODR(PORT_D));
+    report("gpiod_lckr_after_reset", GPIO_LCKR(PORT_D));
 }
 
 int main(void)
