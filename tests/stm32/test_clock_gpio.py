@@ -41,6 +41,11 @@ def test_clock_registers_at_reset(r: dict[str, int]) -> None:
     assert r["dwt_cyccnt_reset"] == 0
 
 
+def test_system_init_leaves_the_reset_state(r: dict[str, int]) -> None:
+    """CMSIS SystemInit writes the reset values back: CR as at reset (HSI on and ready, nothing else)."""
+    assert r["rcc_cr_system_init"] == r["rcc_cr_reset"]
+
+
 def test_pwr_answers_only_with_its_clock(r: dict[str, int]) -> None:
     assert r["pwr_cr_unclocked"] == 0
     assert r["pwr_cr_clocked"] == 0x0000_4000  # 5.4.1: VOS = 1 at reset

@@ -1,5 +1,5 @@
 /* The clock and GPIO test firmware of the STM32 tier: reports the RCC, PWR, FLASH and GPIO registers at
-   reset, sets up 168 MHz from an 8 MHz HSE through the PLL the way ST's CMSIS SystemInit and HAL
+   reset, runs CMSIS SystemInit, sets up 168 MHz from an 8 MHz HSE through the PLL the way ST's CMSIS SystemInit and HAL
    SystemClock_Config do (PWR scale 1, HSE on and ready, PLL M=8 N=336 P=2 Q=7, five flash wait states,
    AHB /1, APB1 /4, APB2 /2, switch to the PLL and wait for SWS), times the same loop with DWT_CYCCNT and
    SysTick before and after, and drives GPIOD (PD12 as a Discovery board's LED). Every value goes out as
@@ -45,6 +45,21 @@ static void clock_at_reset(void)
     report("flash_cr_reset", FLASH_CR);
     report("pwr_cr_unclocked", PWR_CR); /* PWREN is off at reset */
     report("dwt_cyccnt_reset", DWT_CYCCNT);
+}
+
+/* CMSIS SystemInit (system_stm32f4xx.c): the FPU's access, the RCC to its reset state, the vector
+   table in flash */
+static void system_init(void)
+{
+    SCB_CPACR |= (3u << 20) | (3u << 22);
+    RCC_CR |= RCC_CR_HSION;
+    RCC_CFGR = 0;
+    RCC_CR &= 0xFEF6FFFFu; /* HSEON, CSSON, PLLON off */
+    RCC_PLLCFGR = 0x24003010u;
+    RCC_CR &= 0xFFFBFFFFu; /* HSEBYP off */
+    RCC_CIR = 0;
+    SCB_VTOR = 0x08000000u;
+    report("rcc_cr_system_init", RCC_CR);
 }
 
 static void clock_to_168mhz(void)
@@ -157,6 +172,7 @@ static void gpio(void)
 int main(void)
 {
     clock_at_reset();
+    system_init();
     DEMCR |= DEMCR_TRCENA;
     DWT_CYCCNT = 0;
     DWT_CTRL |= 1u; /* CYCCNTENA */
