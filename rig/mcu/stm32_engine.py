@@ -64,6 +64,8 @@ BUILD_DEPENDS = {
     "libfdt-dev": ("file", "/usr/include/libfdt.h"),  # (Debian's ships no .pc file)
     "zlib1g-dev": ("pkg-config", "zlib"),
 }
+#: how many engines (one per set of inputs, e.g. one per branch) the cache keeps
+KEEP_ENGINES = 4
 #: the lines that make QEMU's build see hw/rig (appended once to the unpacked source's files)
 HOOKS = {Path("hw/meson.build"): "subdir('rig')\n", Path("hw/Kconfig"): "source rig/Kconfig\n"}
 
@@ -97,6 +99,14 @@ def inputs_hash(dsc: Path, models: Path = MODELS) -> str:
     h.update("\0".join(CONFIGURE_FLAGS).encode())
     h.update(Path(__file__).read_bytes())
     return h.hexdigest()
+
+
+def prune(cache: Path, keep: int = KEEP_ENGINES) -> None:
+    """Removes all but the ``keep`` engines used last (each is about 9 MB; the work tree stays)."""
+    engines = [d for d in cache.iterdir() if d.is_dir() and re.fullmatch(r"[0-9a-f]{16}", d.name)]
+    engines.sort(key=lambda d: d.stat().st_mtime, reverse=True)
+    for old in engines[keep:]:
+        shutil.rmtree(old, ignore_errors=True)
 
 
 def cached_binary(cache: Path | None = None) -> Path | None:
@@ -259,6 +269,7 @@ def _build_locked(cache: Path, jobs: int | None) -> Path:
     out = cache / key[:16]
     binary = out / BINARY
     if binary.is_file():
+        os.utime(out)  # (used now: pruning keeps it)
         return binary
     missing = _missing_build_depends()
     if missing:
@@ -287,6 +298,7 @@ def _build_locked(cache: Path, jobs: int | None) -> Path:
             "models": [p.relative_to(MODELS).as_posix() for p in model_files()],
             "build_seconds": round(seconds, 1), "build_cpu_seconds": round(cpu, 1), "jobs": jobs}
     (out / "build.json").write_text(json.dumps(info, indent=2) + "\n")
+    prune(cache)
     # (the wall time follows the machine's load, at nice 19; the CPU time much less)
     print(f"stm32-engine: built in {seconds:.0f} s ({cpu:.0f} s of CPU)", flush=True)
     return binary

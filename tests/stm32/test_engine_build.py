@@ -4,6 +4,7 @@ again without building. The build itself is the engine tests' (tests/stm32/test_
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import sys
@@ -56,6 +57,18 @@ def test_the_cached_engine_is_found_without_building(tmp_path: Path) -> None:
     binary.parent.mkdir(parents=True)
     binary.write_bytes(b"\x7fELF")
     assert stm32_engine.cached_binary(cache) == binary
+
+
+def test_the_cache_keeps_the_engines_used_last(tmp_path: Path) -> None:
+    for i in range(6):
+        engine = tmp_path / f"{i:016x}"
+        engine.mkdir()
+        os.utime(engine, (1_000_000 + i, 1_000_000 + i))
+    (tmp_path / "src").mkdir()
+    (tmp_path / "work-7.2").mkdir()
+    stm32_engine.prune(tmp_path, keep=4)
+    newest_four = [f"{i:016x}" for i in range(2, 6)]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [*newest_four, "src", "work-7.2"]
 
 
 def test_the_private_apt_state_takes_the_machines_debian_archives(tmp_path: Path) -> None:
