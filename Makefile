@@ -181,14 +181,15 @@ lint-sources:
 	$(VENV)/bin/mypy
 	clang-format --dry-run --Werror $(C_SOURCES)
 
-# make test installs what is missing, then builds what the suite runs against and checks the sources two
-# jobs at a time (INSTALLED=1: that make installs nothing again; the builds write their generated
+# make test installs what is missing, then builds what the suite runs against (the STM32 engine too:
+# from its cache in a second when its inputs are unchanged, ~3 minutes of two cores when they are not)
+# and checks the sources two jobs at a time (INSTALLED=1: that make installs nothing again; the builds write their generated
 # headers and libraries atomically, so two of them may make the same one at once), then runs the suite
 # on every core (pytest-xdist; each worker holds a core: tests/conftest.py), then the tests paced by the
 # wall clock alone (marker paced: tests/realtime.py), which ends with the count of those that verified
 # nothing and fails above half of them (tests/suite_rules.py, tests/README.md). TEST_JOBS=1: one process.
 TEST_JOBS ?= $(shell nproc 2>/dev/null || echo 2)
-TEST_BUILDS := mcu-test-firmware $(STM32_FW) avr $(FMU) $(SHIM) $(NATIVE) $(DUT_BIN) $(VBRIDGE) firmware
+TEST_BUILDS := stm32-engine mcu-test-firmware $(STM32_FW) avr $(FMU) $(SHIM) $(NATIVE) $(DUT_BIN) $(VBRIDGE) firmware
 test: venv test-packages
 	$(MAKE) -s -j2 INSTALLED=1 $(COMPILED) lint-sources $(TEST_BUILDS)
 	$(PY) -m pytest -q -m "not slow and not paced" -n $(TEST_JOBS) --durations=25

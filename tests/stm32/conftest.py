@@ -1,7 +1,7 @@
 """The STM32 tier's tests run the rig's test firmwares (tests/stm32/firmware, built by make as the MCU
-tier's are) under the engine `make stm32-engine` built (rig/mcu/stm32_engine.py). The engine is never
-built here: it takes many minutes (docs/build.md); a test that needs it skips, naming the command, when
-no engine is cached for the current inputs."""
+tier's are) under the engine `make stm32-engine` built (rig/mcu/stm32_engine.py; `make test` builds it
+first). The engine is never built here: it takes minutes (docs/build.md); run by hand without it, a test
+that needs it skips, naming the command."""
 
 from __future__ import annotations
 
