@@ -47,6 +47,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                 "(a board file or a shipped board's name); needs --rig-firmware")
     g.addoption("--rig-firmware", metavar="FILE", help="with --rig-mcu: the image (.elf or .hex)")
     g.addoption("--rig-bridge", metavar="PORT", help="a bench bridge's serial port, or 'virtual'")
+    g.addoption("--rig-airframe", metavar="NAME|FILE",
+                help="the vehicle flown: a shipped airframe or a file (default: each scenario's own)")
     g.addoption("--rig-seed", metavar="N", type=int, default=0, help="the runs' seed (default 0)")
     g.addoption("--rig-out", metavar="DIR", default=DEFAULT_OUT,
                 help=f"where runs are written (default {DEFAULT_OUT}; under xdist DIR/<worker>)")
@@ -73,6 +75,7 @@ class Options:
         board, firmware = opt("rig_mcu"), opt("rig_firmware")  # (paired: pytest_configure)
         self.mcu: tuple[str, str] | None = (board, firmware) if board is not None else None
         self.seed: int = opt("rig_seed")
+        self.airframe: str | None = opt("rig_airframe")
         out = Path(opt("rig_out"))
         if not out.is_absolute():
             out = Path(config.invocation_params.dir) / out
@@ -101,7 +104,8 @@ class Options:
     def run(self, scenario: str | os.PathLike[str] | Scenario, out: Path, **kw: Any) -> Result:
         from rig import api
 
-        options: dict[str, Any] = {"dut": self.dut, "mcu": self.mcu, "bridge": self.bridge, "seed": self.seed}
+        options: dict[str, Any] = {"dut": self.dut, "mcu": self.mcu, "bridge": self.bridge, "seed": self.seed,
+                                   "airframe": self.airframe}
         return api.run(scenario, **(options | kw), out=out)
 
 
