@@ -93,6 +93,7 @@ def test_a_run_on_the_seeds_airframe_says_it_is_physically_inconsistent(tmp_path
     meta = json.loads((out / "step_roll" / "result.json").read_text())["metadata"]
     assert meta["airframe"].startswith("seed-001") and "physically inconsistent" in meta["airframe"]
     assert "physically inconsistent" in (out / "step_roll" / "report.html").read_text()
+    assert "physically inconsistent" in (out / "index.html").read_text()  # the suite's identity too
 
 
 @pytest.mark.parametrize("command", ["run", "sweep", "exec"])
