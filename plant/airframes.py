@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from plant.variables import PARAMETERS, check_parameters, triangle_broken
+from rig.plant.variables import PARAMETERS, check_parameters, triangle_broken
 
 #: Where the shipped airframe files are
 AIRFRAMES_DIR = Path(__file__).resolve().parent / "airframes"

@@ -23,14 +23,14 @@ import sys
 from dataclasses import asdict
 from pathlib import Path
 
-from emulators.topology import TOPOLOGIES
-from plant import airframes
-from plant.airframes import AirframeError
-from plant.variables import PARAMETERS, check_parameters
 from rig import interrupts
 from rig.bridge.esc import ESC_PROTOCOLS
 from rig.bridge.session import BenchConfig, BenchSession
 from rig.cores import CoresError, allowed_cores, placement
+from rig.emulators.topology import TOPOLOGIES
+from rig.plant import airframes
+from rig.plant.airframes import AirframeError
+from rig.plant.variables import PARAMETERS, check_parameters
 from rig.run_cmd import add_airframe_option, seconds_option
 from rig.scheduler import EXIT_RIG_ERROR
 from rig.session import Session, SessionConfig

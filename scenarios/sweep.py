@@ -30,8 +30,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from plant import airframes
-from scenarios.schema import Scenario, ScenarioError, check
+from rig.plant import airframes
+from rig.scenarios.schema import Scenario, ScenarioError, check
 
 SWEEP_KEYS = {"scenario", "seeds", "mode", "samples", "seed", "vary"}
 VARY_KEYS = {"key", "values", "uniform", "normal"}

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from plant import Plant, PlantError, airframes
-from plant.airframes import AirframeError
+from rig.plant import Plant, PlantError, airframes
+from rig.plant.airframes import AirframeError
 from tests.plant.helpers import DT, IXX, IYY, IZZ, MASS, OMEGA_MAX, G, flying, pwms
 
 SHIPPED = ("f450", "racer-250", "seed-001")

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from scenarios.schema import ScenarioError, load
+from rig.scenarios.schema import ScenarioError, load
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
 PY = sys.executable
