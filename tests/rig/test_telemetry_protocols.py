@@ -50,7 +50,7 @@ def test_replies_decode_by_the_published_layouts():
     assert reader.skipped == 0 and reader.bad == 0
 
 
-def test_garbage_torn_frames_bad_checksums_and_error_frames():
+def test_garbage_torn_frames_bad_checksums_and_error_frames() -> None:
     good = frame(b">", 108, ATTITUDE)
     damaged = bytearray(frame(b">", 101, STATUS))
     damaged[-1] ^= 0xFF
