@@ -17,8 +17,12 @@ MSP_SET_RAW_RC          200   (a request: the RC channels, u16 µs each)
 from __future__ import annotations
 
 import struct
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Final
+from typing import TYPE_CHECKING, Final
+
+if TYPE_CHECKING:
+    from rig.host import Host
 
 MSP_STATUS: Final = 101
 MSP_RAW_IMU: Final = 102
@@ -115,3 +119,34 @@ class ReplyReader:
                 continue
             out.append(Reply(buf[4], bytes(buf[5: 5 + size]), error=direction == ord("!")))
             del buf[: 6 + size]
+
+
+@dataclass
+class MspPoll:
+    """Polls an FC over MSP while a session runs (lockstep, real time, the MCU tier: any Host):
+    ``host.at(t0, poll.tick)`` starts it at t0; every ``period`` seconds of sim time from then it reads
+    what the port sent since its last look and writes the requests for ``commands``. Each reply is kept
+    with the sim time it was read (``rows``): at most one period after the FC sent it."""
+
+    path: str
+    commands: Sequence[int] = (MSP_STATUS, MSP_ATTITUDE, MSP_RAW_IMU, MSP_ALTITUDE)
+    period: float = 0.1
+    reader: ReplyReader = field(default_factory=ReplyReader)
+    rows: list[tuple[float, Reply]] = field(default_factory=list)
+    _seen: int = 0
+    _requests: bytes = b""
+
+    def __post_init__(self) -> None:
+        self._requests = b"".join(request(c) for c in self.commands)
+
+    def tick(self, host: Host) -> None:
+        t = host.now_ns * 1e-9
+        self.read(host, t)
+        host.serial_write(self.path, self._requests)
+        host.at(t + self.period, self.tick)
+
+    def read(self, host: Host, t: float) -> None:
+        """Takes what the port sent since the last look (call it once more after the run ends)."""
+        data = host.serial_output(self.path)
+        new, self._seen = data[self._seen:], len(data)
+        self.rows += [(t, r) for r in self.reader.feed(new)]

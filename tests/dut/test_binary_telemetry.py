@@ -16,6 +16,7 @@ import pytest
 from pymavlink.dialects.v20 import common
 
 from rig.session import Session
+from rig.telemetry.msp import MspPoll
 from tests.dut.test_reference_fc import REPO, run_fc, telemetry
 
 TEL, RC = "/dev/ttyTEL0", "/dev/ttyRC0"
@@ -176,3 +177,22 @@ def test_multiwii_sbus_scale_needs_the_stretch_to_reach_full_yaw(tmp_path: Path,
     rows = telemetry(session, TEL)
     assert all(r["armed"] == 0 for r in rows if r["t"] < 2.9)
     assert rows[-1]["armed"] == 1
+
+
+def test_the_rigs_msp_poll_reads_the_fc_through_a_run(tmp_path: Path, fc: Path) -> None:
+    """rig/telemetry/msp.py's MspPoll against the FC: each poll's replies, with the time they were read."""
+    poll = MspPoll(TEL, period=0.25)
+    conf = f"telemetry_path = {TEL}\ntelemetry_proto = 1\n"
+    session, outcome, _, err = run_fc(tmp_path, fc, conf, duration=3.0, serial=(TEL,),
+                                      events=[(1.5, poll.tick)])
+    assert outcome.verdict == "ok", (outcome.error, err)
+    poll.read(session, 3.0)
+    polls = [round(1.5 + 0.25 * k, 6) for k in range(6)]  # 1.5 .. 2.75: each answered by the next look
+    by_time: dict[float, list[int]] = {}
+    for t, reply in poll.rows:
+        by_time.setdefault(round(t, 6), []).append(reply.command)
+    assert sorted(by_time) == polls[1:] + [3.0]
+    assert all(cmds == [101, 108, 102, 109] for cmds in by_time.values())
+    assert poll.reader.skipped == 0 and poll.reader.bad == 0
+    attitude = [r.fields() for _, r in poll.rows if r.command == 108]
+    assert all(abs(a["roll_decideg"]) < 10 for a in attitude)
