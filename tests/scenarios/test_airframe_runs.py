@@ -120,3 +120,20 @@ def test_the_api_flies_an_airframe(tmp_path):
 
     result = api.run("step_roll", airframe="racer-250", out=tmp_path)
     assert result.metadata["airframe"].startswith("racer-250 (250-class")
+
+
+@pytest.mark.usefixtures("fmu_path")
+def test_a_sweep_flies_every_variant_on_the_airframe(tmp_path):
+    if not REFERENCE_FC.is_file():
+        pytest.skip("the reference FC is not built (make dut)")
+    _scenario(tmp_path, "mass = 1.5")
+    spec = tmp_path / "spec.toml"
+    spec.write_text('[sweep]\nscenario = "on_airframe.toml"\nseeds = 1\n'
+                    '[[sweep.vary]]\nkey = "environment.wind"\nvalues = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]\n')
+    done = rig("sweep", spec, "--airframe", "f450", "--out", tmp_path / "out", "--jobs", "1")
+    assert done.returncode in (0, 1), done.stdout + done.stderr
+    results = sorted((tmp_path / "out" / "runs").glob("*/result.json"))
+    assert len(results) == 2
+    for path in results:
+        meta = json.loads(path.read_text())["metadata"]
+        assert meta["airframe"].startswith("f450")
