@@ -219,7 +219,7 @@ EXPORT unsigned int sleep(unsigned int s)
         return LOAD(sleep)(s);
     uint64_t wake = now_peek() + (uint64_t)s * NS;
     if (sleep_until(wake) && wake > now_peek())
-        return (unsigned)((wake - now_peek() + NS - 1) / NS); /* the seconds left, rounded up as glibc */
+        return (unsigned)((wake - now_peek()) / NS); /* the whole seconds left, as glibc's sleep */
     return 0;
 }
 
