@@ -23,12 +23,12 @@ import sys
 from dataclasses import asdict
 from pathlib import Path
 
-from emulators.topology import TOPOLOGIES
-from plant.variables import PARAMETERS, check_parameters
 from rig import interrupts
 from rig.bridge.esc import ESC_PROTOCOLS
 from rig.bridge.session import BenchConfig, BenchSession
 from rig.cores import CoresError, allowed_cores, placement
+from rig.emulators.topology import TOPOLOGIES
+from rig.plant.variables import PARAMETERS, check_parameters
 from rig.run_cmd import seconds_option
 from rig.scheduler import EXIT_RIG_ERROR
 from rig.session import Session, SessionConfig

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from emulators.sbus import PERIOD_S, Sticks, encode
+from rig.emulators.sbus import PERIOD_S, Sticks, encode
 from rig.scheduler import round_half_even
 
 if TYPE_CHECKING:

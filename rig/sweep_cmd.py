@@ -75,8 +75,8 @@ def add_parser(sub: Any) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    from rig.scenarios.sweep import SweepError, load_sweep
     from rig.sweep.engine import ENV, check_address
-    from scenarios.sweep import SweepError, load_sweep
 
     address = args.engine or os.environ.get(ENV)
     if address:
@@ -272,7 +272,7 @@ def _finish(
     wall: float,
     dut: dict[str, Any],
 ) -> int:
-    from reports import sweep as sweep_report
+    from rig.reports import sweep as sweep_report
     from rig.sweep import store
 
     ordered = [rows[v.id] for v in sweep.variants if v.id in rows]

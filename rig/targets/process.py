@@ -10,9 +10,11 @@ import shlex
 from pathlib import Path
 from typing import Any
 
-from emulators.topology import TOPOLOGIES
 from rig import firmware
 from rig.capture import CaptureLink, install_capture
+from rig.emulators.topology import TOPOLOGIES
+from rig.scenarios.result import I2CRecord
+from rig.scenarios.schema import Scenario
 from rig.session import Outcome, Session, SessionConfig
 from rig.targets import (
     RC_PATH,
@@ -23,8 +25,6 @@ from rig.targets import (
     reference_command,
     reference_config,
 )
-from scenarios.result import I2CRecord
-from scenarios.schema import Scenario
 
 #: channels pwmchip0 can have (rig/shim/protocol.h RIG_PWM_MAX)
 PWM_CHANNELS_MAX = 16
