@@ -4,7 +4,8 @@
 [--bridge virtual] [--priority P] [--wait]`` queues a run and prints its id; with ``--wait`` it follows
 the run (one line per change of status or progress, on stderr) and exits as ``rig run`` would: 0
 passed, 1 failed, 3 error, 130 interrupted or cancelled. ``rig status --server URL [ID]`` prints one
-run, or the latest ones. The token comes from ``--token`` or ``$RIG_TOKEN``. Only the standard library speaks HTTP here.
+run, or the latest ones. The token comes from ``--token`` or ``$RIG_TOKEN``. Only the standard library
+speaks HTTP here.
 """
 
 from __future__ import annotations
