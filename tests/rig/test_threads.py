@@ -11,6 +11,8 @@ from pathlib import Path
 import pytest
 
 from rig.scheduler import EXIT_WATCHDOG, MONO_BASE_NS, NS
+from rig.session import Session, SessionConfig
+from rig.world import World
 from tests.rig.helpers import Run, build_client, rig_exec
 
 SECONDS = 2          # threaded_fc.c's run, in virtual time
@@ -34,9 +36,9 @@ def runs(dut: Path, tmp_path_factory: pytest.TempPathFactory) -> list[tuple[Run,
     return out
 
 
-def tallies(run: Run) -> dict[str, tuple[int, int, int]]:
+def tallies_of(text: str) -> dict[str, tuple[int, int, int]]:
     return {name: (int(n), int(first), int(last))
-            for name, n, first, last in (line.split() for line in run.stdout.splitlines())}
+            for name, n, first, last in (line.split() for line in text.splitlines())}
 
 
 def transfer_times(log: bytes, transfer: str) -> list[int]:
@@ -67,7 +69,7 @@ def test_the_bus_thread_reads_each_sensor_at_its_timers_rate(runs: list[tuple[Ru
 
 
 def test_every_thread_keeps_its_own_time(runs: list[tuple[Run, bytes]]) -> None:
-    got = tallies(runs[0][0])
+    got = tallies_of(runs[0][0].stdout)
     periods = {"main_loop": 2_500_000, "timer": 1_000_000, "imu": 1_000_000, "baro": 10_000_000,
                "compass": 13_333_333, "uart_timer": 20_000_000, "alarm": 50_000_000}
     for name, period in periods.items():
@@ -106,3 +108,17 @@ def test_a_spinning_thread_is_caught_and_named(tmp_path: Path, dut: Path, mode: 
     run = rig_exec(tmp_path, str(dut), mode, options=(*OPTIONS, *options))
     assert run.returncode == EXIT_WATCHDOG
     assert said in run.summary["error"] and "'spinner'" in run.summary["error"], run.summary["error"]
+
+
+def test_the_session_writing_a_pty_wakes_the_thread_that_polls_it(tmp_path: Path, dut: Path) -> None:
+    """The UART thread polls the pty and a timerfd together, with no timeout, while the others run and
+    wait: bytes the session writes at 0.5 s are read then, not at the timer's next tick."""
+    out = tmp_path / "out.txt"
+    with open(out, "w") as f:
+        cfg = SessionConfig(command=[str(dut)], serial=["/dev/ttyRC0"], stdout=f)
+        session = Session(cfg, World.at_rest(topology="direct"))
+        session.at(0.5, lambda s: s.serial_write("/dev/ttyRC0", b"sbus"))
+        outcome = session.run()
+    assert outcome.verdict == "ok", outcome.error
+    n, first, _ = tallies_of(out.read_text())["uart_reads"]
+    assert n == 1 and 0 <= first - MONO_BASE_NS - NS // 2 < 100_000   # within 0.1 ms of the write

@@ -57,7 +57,8 @@ static void count(struct tally *t)
     t->last = now;
 }
 
-static struct tally imu, baro, compass, loops, timer_ticks, uart_ticks, ekf_wakes, ekf_timeouts, logs, alarms;
+static struct tally imu, baro, compass, loops, timer_ticks, uart_ticks, uart_reads, ekf_wakes, ekf_timeouts, logs,
+    alarms;
 static volatile sig_atomic_t alarm_count;
 static pthread_mutex_t bus_lock = PTHREAD_MUTEX_INITIALIZER;
 static pthread_cond_t baro_ready;
@@ -146,8 +147,8 @@ static void *uart_thread(void *arg)
         if (poll(fds, 2, -1) <= 0)
             continue;
         char buf[64];
-        if (fds[0].revents & POLLIN)
-            read(fds[0].fd, buf, sizeof buf);
+        if ((fds[0].revents & POLLIN) && read(fds[0].fd, buf, sizeof buf) > 0)
+            count(&uart_reads);
         if (fds[1].revents & POLLIN) {
             uint64_t ticks;
             read(fds[1].fd, &ticks, sizeof ticks);
@@ -306,6 +307,7 @@ int main(int argc, char **argv)
     report("baro", &baro);
     report("compass", &compass);
     report("uart_timer", &uart_ticks);
+    report("uart_reads", &uart_reads);
     report("ekf_wakes", &ekf_wakes);
     report("ekf_timeouts", &ekf_timeouts);
     report("logger", &logs);
