@@ -13,7 +13,7 @@ import pytest
 from rig.scheduler import EXIT_WATCHDOG, MONO_BASE_NS, NS
 from rig.session import Session, SessionConfig
 from rig.world import World
-from tests.rig.helpers import Run, build_client, rig_exec
+from tests.rig.helpers import DUTS, PY, Run, build_client, rig_exec
 
 SECONDS = 2          # threaded_fc.c's run, in virtual time
 OPTIONS = ("--topology", "direct", "--serial", "/dev/ttyRC0", "--wall-timeout", "120")
@@ -122,3 +122,19 @@ def test_the_session_writing_a_pty_wakes_the_thread_that_polls_it(tmp_path: Path
     assert outcome.verdict == "ok", outcome.error
     n, first, _ = tallies_of(out.read_text())["uart_reads"]
     assert n == 1 and 0 <= first - MONO_BASE_NS - NS // 2 < 100_000   # within 0.1 ms of the write
+
+
+def test_python_threads_keep_virtual_time_through_the_gil(tmp_path: Path) -> None:
+    """CPython hands its GIL over with a mutex and a condition variable with a deadline: under the rule
+    its threads sleep in virtual time and meet through a queue, the same way every run."""
+    logs = []
+    for i in range(2):
+        log = tmp_path / f"log{i}"
+        run = rig_exec(tmp_path, PY, str(DUTS / "python_threads.py"),
+                       options=("--allow-no-devices", "--log", str(log)))
+        assert run.returncode == 0, run.stderr
+        got = run.json_out()
+        assert got["ticks"] == {"fast": 100, "slow": 20} and got["got"] == 120
+        assert NS <= got["elapsed_ns"] < NS + NS // 1000    # 1 s of sleeps, plus clock reads
+        logs.append(log.read_bytes())
+    assert logs[0] == logs[1]
