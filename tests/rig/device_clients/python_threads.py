@@ -18,7 +18,8 @@ def worker(name: str, period: float) -> None:
 
 
 t0 = time.monotonic()
-threads = [threading.Thread(target=worker, args=(name, period)) for name, period in (("fast", 0.01), ("slow", 0.05))]
+periods = {"fast": 0.01, "slow": 0.05}
+threads = [threading.Thread(target=worker, args=item) for item in periods.items()]
 for t in threads:
     t.start()
 got = 0
