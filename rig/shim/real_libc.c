@@ -74,6 +74,7 @@ DECLARE_REAL(int, timerfd_gettime, int, struct itimerspec *);
 DECLARE_REAL(unsigned int, alarm, unsigned int);
 DECLARE_REAL(int, setitimer, __itimer_which_t, const struct itimerval *, struct itimerval *);
 DECLARE_REAL(int, getitimer, __itimer_which_t, struct itimerval *);
+DECLARE_REAL(int, pause, void);
 DECLARE_REAL(ssize_t, sendfile64, int, int, off64_t *, size_t);
 DECLARE_REAL(int, stat, const char *, struct stat *);
 DECLARE_REAL(int, stat64, const char *, struct stat64 *);

@@ -237,3 +237,14 @@ EXPORT unsigned int alarm(unsigned int seconds)
     return (unsigned)old.it_value.tv_sec +
            (old.it_value.tv_usec >= 500000 || (!old.it_value.tv_sec && old.it_value.tv_usec));
 }
+
+/* pause under the rule (a virtual timer armed, or several threads): until a virtual timer's signal runs
+   its handler in this thread (EINTR, as always). Otherwise the kernel's. */
+EXPORT int pause(void)
+{
+    if (!ruled())
+        return LOAD(pause)();
+    while (!rule_wait(RIG_WAIT_FOREVER, NULL, NULL, 0))
+        ;
+    return errno_ret(EINTR);
+}

@@ -33,3 +33,6 @@ def test_timerfd_alarm_and_setitimer_follow_the_virtual_clock(tmp_path_factory, 
     code, err, slept, rem = out["nanosleep_interrupted"]
     assert (code, err, int(slept)) == ("-1", "EINTR", 250 * MS)
     assert 750 * MS <= int(rem) <= 750 * MS + 2 * QUANTUM
+    # pause() ends at the interval's next expiry, 250 ms after the one that ended the nanosleep
+    code, err, paused = out["pause"]
+    assert (code, err) == ("-1", "EINTR") and 250 * MS - 2 * QUANTUM <= int(paused) <= 250 * MS

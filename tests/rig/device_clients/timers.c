@@ -63,7 +63,7 @@ int main(void)
     alarm(1);
     unsigned left = sleep(5);
     printf("alarm_sleep %u %lld\n", left, since() - start);
-    struct itimerval it = { { 0, 0 }, { 0, 250000 } }, got;
+    struct itimerval it = { { 0, 250000 }, { 0, 250000 } }, got; /* every 250 ms */
     setitimer(ITIMER_REAL, &it, NULL);
     getitimer(ITIMER_REAL, &got);
     printf("getitimer %ld %ld\n", (long)got.it_value.tv_sec, (long)got.it_value.tv_usec);
@@ -71,5 +71,8 @@ int main(void)
     struct timespec long_nap = { 2, 0 }, rem;
     int r = nanosleep(&long_nap, &rem);
     printf("nanosleep_interrupted %d %s %lld %ld\n", r, strerrorname_np(errno), since() - start, rem.tv_nsec);
+    start = since();
+    r = pause(); /* the next expiry of the 250 ms interval */
+    printf("pause %d %s %lld\n", r, strerrorname_np(errno), since() - start);
     return 0;
 }
