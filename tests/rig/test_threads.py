@@ -1,7 +1,7 @@
 """Many DUT threads in one virtual time: a C DUT with ArduPilot's shape (tests/rig/device_clients/
 threaded_fc.c: a SCHED_FIFO timer thread, an I2C bus thread on timerfds in epoll_wait, a 400 Hz main
 loop on clock_nanosleep, a UART thread polling a pty and a timerfd, condition variables, a semaphore,
-setitimer, PWM through dprintf) reads its sensors at its timers' rates in virtual time, the same bytes
+epoll_pwait and select with timeouts, a pipe between threads, setitimer, PWM through dprintf) reads its sensors at its timers' rates in virtual time, the same bytes
 every run; a thread that spins is caught and named."""
 
 from __future__ import annotations
@@ -82,6 +82,12 @@ def test_every_thread_keeps_its_own_time(runs: list[tuple[Run, bytes]]) -> None:
     assert got["ekf_wakes"][0] == got["baro"][0] and got["ekf_timeouts"][0] == 0
     # the semaphore posted every 40 main cycles (10 Hz): all but the last post taken before the end
     assert got["logger"][0] == SECONDS * 10 - 1
+    # epoll_pwait's 100 ms timeouts on an empty epoll, back to back: 19 end within the 2 s
+    assert got["watchdog"][0] == SECONDS * 10 - 1
+    # a byte down a pipe every 100 main cycles (0.25 s): select wakes its thread at the cycle that wrote
+    # it (main_loop's first event is cycle 1; all but the last byte read before the end)
+    n, first, _ = got["telemetry"]
+    assert n == SECONDS * 4 - 1 and 0 <= first - (got["main_loop"][1] + 99 * 2_500_000) < 100_000
 
 
 def test_two_runs_are_byte_identical(runs: list[tuple[Run, bytes]]) -> None:
@@ -99,7 +105,7 @@ def test_priorities_are_recorded_not_applied(runs: list[tuple[Run, bytes]]) -> N
 
 
 @pytest.mark.parametrize(("mode", "options", "said"), [
-    ("spin", (), "thread 'spinner' (number 7 in the order the shim saw threads start) spins: it ran on "
+    ("spin", (), "thread 'spinner' (number 9 in the order the shim saw threads start) spins: it ran on "
                  "for 1.000 s of virtual time without a wait the shim knows while thread"),
     ("spin-quiet", ("--stall-timeout", "1"), "the command stopped answering: no request and no clock read"),
 ])

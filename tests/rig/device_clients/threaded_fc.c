@@ -8,6 +8,8 @@
  *   uart       poll(-1) on /dev/ttyRC0 and a 50 Hz timerfd together;
  *   ekf        pthread_cond_timedwait (CLOCK_MONOTONIC, 50 ms) on the barometer's condition;
  *   logger     sem_timedwait (1 s) on the main loop's semaphore;
+ *   watchdog   epoll_pwait with a 100 ms timeout on an epoll with nothing in it;
+ *   telemetry  select (1 s timeout) on a pipe the main loop writes a byte to every 100 cycles;
  * and SIGALRM from setitimer at 20 Hz. After SECONDS of virtual time the main loop prints one
  * "name count first_ns last_ns" line per activity (monotonic times of its first and last event) and
  * exits. `threaded_fc spin` also starts a thread 'spinner' that reads the clock and never waits;
@@ -29,6 +31,7 @@
 #include <sys/epoll.h>
 #include <sys/ioctl.h>
 #include <sys/mman.h>
+#include <sys/select.h>
 #include <sys/time.h>
 #include <sys/timerfd.h>
 #include <time.h>
@@ -58,7 +61,8 @@ static void count(struct tally *t)
 }
 
 static struct tally imu, baro, compass, loops, timer_ticks, uart_ticks, uart_reads, ekf_wakes, ekf_timeouts, logs,
-    alarms;
+    alarms, watchdog, telemetry;
+static int telemetry_pipe[2];
 static volatile sig_atomic_t alarm_count;
 static pthread_mutex_t bus_lock = PTHREAD_MUTEX_INITIALIZER;
 static pthread_cond_t baro_ready;
@@ -197,6 +201,37 @@ static void *logger_thread(void *arg)
     return NULL;
 }
 
+static void *watchdog_thread(void *arg)
+{
+    (void)arg;
+    pthread_setname_np(pthread_self(), "watchdog");
+    int ep = epoll_create1(EPOLL_CLOEXEC);
+    sigset_t none;
+    sigemptyset(&none);
+    for (;;) {
+        struct epoll_event ev;
+        if (epoll_pwait(ep, &ev, 1, 100, &none) == 0)
+            count(&watchdog);
+    }
+    return NULL;
+}
+
+static void *telemetry_thread(void *arg)
+{
+    (void)arg;
+    pthread_setname_np(pthread_self(), "telemetry");
+    for (;;) {
+        fd_set r;
+        FD_ZERO(&r);
+        FD_SET(telemetry_pipe[0], &r);
+        struct timeval second = { 1, 0 };
+        char c;
+        if (select(telemetry_pipe[0] + 1, &r, NULL, NULL, &second) == 1 && read(telemetry_pipe[0], &c, 1) == 1)
+            count(&telemetry);
+    }
+    return NULL;
+}
+
 static void *spinner(void *arg)
 {
     pthread_setname_np(pthread_self(), "spinner");
@@ -276,6 +311,9 @@ int main(int argc, char **argv)
     start("uart", uart_thread, 0, NULL);
     start("ekf", ekf_thread, 0, NULL);
     start("logger", logger_thread, 0, NULL);
+    pipe(telemetry_pipe);
+    start("watchdog", watchdog_thread, 0, NULL);
+    start("telemetry", telemetry_thread, 0, NULL);
     if (argc > 1 && strncmp(argv[1], "spin", 4) == 0)
         start("spinner", spinner, 0, strcmp(argv[1], "spin") == 0 ? (void *)1 : NULL);
 
@@ -300,6 +338,8 @@ int main(int argc, char **argv)
         count(&loops);
         if (cycle % 40 == 0)
             sem_post(&log_sem);
+        if (cycle % 100 == 0)
+            write(telemetry_pipe[1], "t", 1);
     }
     report("main_loop", &loops);
     report("timer", &timer_ticks);
@@ -312,6 +352,8 @@ int main(int argc, char **argv)
     report("ekf_timeouts", &ekf_timeouts);
     report("logger", &logs);
     report("alarm", &alarms);
+    report("watchdog", &watchdog);
+    report("telemetry", &telemetry);
     fflush(stdout);
     exit(0);
 }
