@@ -1,8 +1,9 @@
 """Many DUT threads in one virtual time: a C DUT with ArduPilot's shape (tests/rig/device_clients/
 threaded_fc.c: a SCHED_FIFO timer thread, an I2C bus thread on timerfds in epoll_wait, a 400 Hz main
 loop on clock_nanosleep, a UART thread polling a pty and a timerfd, condition variables, a semaphore,
-epoll_pwait and select with timeouts, a pipe between threads, setitimer, PWM through dprintf) reads its sensors at its timers' rates in virtual time, the same bytes
-every run; a thread that spins is caught and named."""
+epoll_pwait and select with timeouts, a pipe between threads, setitimer, PWM through dprintf) reads
+its sensors at its timers' rates in virtual time, the same bytes every run; a thread that spins is
+caught and named."""
 
 from __future__ import annotations
 
