@@ -4,7 +4,7 @@
  *
  * Transport: one Unix stream socket connection per DUT process. Every message is a 16-byte header
  * and `len` bytes of payload, little-endian. Requests that need an answer (HELLO, I2C, WAIT) get
- * exactly one reply of the same type; notices (PWM, NOTE) get none, so they cost the DUT no round
+ * exactly one reply of the same type; notices (PWM, NOTE, I2C_WRITE, STALL) get none, so they cost the DUT no round
  * trip. Clock reads cost no message at all: the session publishes sim time in a shared page. In
  * lockstep a connection's messages after HELLO may go through a mailbox in shared memory instead
  * (ring.h): the same bytes, through two byte rings and a futex.
