@@ -12,6 +12,8 @@
  * scheduler: the same seed gives the same bytes. A thread that runs on past SPIN_LIMIT_NS of virtual
  * time while another was due is a spinning thread: the run ends naming it (RIG_MSG_STALL).
  *
+ * Barriers are kept here too (the end of this file).
+ *
  * The rule only engages once it is needed: a process with one thread and no virtual timer keeps the
  * single-threaded paths of vtime.c (the sleep that goes ahead, one round trip per wait), so the
  * reference FC runs as fast as before. Part of rigshim.c (one translation unit): see its top comment.
@@ -511,4 +513,73 @@ EXPORT int sem_clockwait(sem_t *s, clockid_t clock, const struct timespec *abs)
     if (!valid_ts(abs) || (clock != CLOCK_REALTIME && clock != CLOCK_MONOTONIC))
         return errno_ret(EINVAL);
     return sem_wait_virtual(s, sim_deadline(clock, abs));
+}
+
+/* Barriers (AP_HAL_Linux's threads meet at one before they start their loops): kept here in lockstep,
+   since a thread blocked in glibc's would hold the turn. The last to arrive goes on with
+   PTHREAD_BARRIER_SERIAL_THREAD, as in glibc; the others when the rule picks them. */
+#define MAX_BARRIERS 16
+static struct {
+    pthread_barrier_t *b;
+    unsigned count, arrived;
+    uint64_t round;
+} barriers[MAX_BARRIERS];
+
+struct barrier_wait {
+    int slot;
+    uint64_t round;
+};
+
+static int barrier_passed(void *w)
+{
+    struct barrier_wait *bw = w;
+    return barriers[bw->slot].round != bw->round;
+}
+
+static int barrier_slot(const pthread_barrier_t *b)
+{
+    for (int i = 0; i < MAX_BARRIERS; i++)
+        if (barriers[i].b == b)
+            return i;
+    return -1;
+}
+
+EXPORT int pthread_barrier_init(pthread_barrier_t *b, const pthread_barrierattr_t *attr, unsigned count)
+{
+    int err = LOAD(pthread_barrier_init)(b, attr, count);
+    if (err || !lockstep || !active)
+        return err;
+    int slot = barrier_slot(b);
+    for (int i = 0; i < MAX_BARRIERS && slot < 0; i++)
+        if (!barriers[i].b)
+            slot = i;
+    if (slot >= 0) { /* (more barriers than slots: the rest are glibc's) */
+        barriers[slot].b = b;
+        barriers[slot].count = count;
+        barriers[slot].arrived = 0;
+    }
+    return 0;
+}
+
+EXPORT int pthread_barrier_destroy(pthread_barrier_t *b)
+{
+    int slot = barrier_slot(b);
+    if (slot >= 0)
+        barriers[slot].b = NULL;
+    return LOAD(pthread_barrier_destroy)(b);
+}
+
+EXPORT int pthread_barrier_wait(pthread_barrier_t *b)
+{
+    int slot = cond_ruled() ? barrier_slot(b) : -1;
+    if (slot < 0)
+        return LOAD(pthread_barrier_wait)(b);
+    if (++barriers[slot].arrived == barriers[slot].count) {
+        barriers[slot].arrived = 0;
+        barriers[slot].round++;
+        return PTHREAD_BARRIER_SERIAL_THREAD;
+    }
+    struct barrier_wait w = { slot, barriers[slot].round };
+    rule_wait(RIG_WAIT_FOREVER, barrier_passed, &w, 0);
+    return 0;
 }

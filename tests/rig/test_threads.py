@@ -79,6 +79,8 @@ def test_every_thread_keeps_its_own_time(runs: list[tuple[Run, bytes]]) -> None:
         assert first - MONO_BASE_NS < period + 100_000, name      # the first event within a period
         # n events a period apart, each late by at most a few clock reads: their span is (n-1) periods
         assert abs((last - first) - (n - 1) * period) < 100_000, name
+    # all eight threads met at a barrier first, and exactly one went on as its serial thread
+    assert got["barrier_serial"][0] == 1
     # the barometer's condition variable wakes the EKF thread once per read, never by its timeout
     assert got["ekf_wakes"][0] == got["baro"][0] and got["ekf_timeouts"][0] == 0
     # the semaphore posted every 40 main cycles (10 Hz): all but the last post taken before the end

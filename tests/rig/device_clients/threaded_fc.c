@@ -10,7 +10,7 @@
  *   logger     sem_timedwait (1 s) on the main loop's semaphore;
  *   watchdog   epoll_pwait with a 100 ms timeout on an epoll with nothing in it;
  *   telemetry  select (1 s timeout) on a pipe the main loop writes a byte to every 100 cycles;
- * and SIGALRM from setitimer at 20 Hz. After SECONDS of virtual time the main loop prints one
+ * and SIGALRM from setitimer at 20 Hz. All eight meet at a barrier before their loops. After SECONDS of virtual time the main loop prints one
  * "name count first_ns last_ns" line per activity (monotonic times of its first and last event) and
  * exits. `threaded_fc spin` also starts a thread 'spinner' that reads the clock and never waits;
  * `threaded_fc spin-quiet` one that never reads it either. */
@@ -63,6 +63,14 @@ static void count(struct tally *t)
 static struct tally imu, baro, compass, loops, timer_ticks, uart_ticks, uart_reads, ekf_wakes, ekf_timeouts, logs,
     alarms, watchdog, telemetry;
 static int telemetry_pipe[2];
+static pthread_barrier_t all_started; /* as AP_HAL_Linux's Scheduler: every thread meets here first */
+static volatile int serial_threads;
+
+static void meet(void)
+{
+    if (pthread_barrier_wait(&all_started) == PTHREAD_BARRIER_SERIAL_THREAD)
+        serial_threads++;
+}
 static volatile sig_atomic_t alarm_count;
 static pthread_mutex_t bus_lock = PTHREAD_MUTEX_INITIALIZER;
 static pthread_cond_t baro_ready;
@@ -95,6 +103,7 @@ static void *bus_thread(void *arg)
 {
     (void)arg;
     pthread_setname_np(pthread_self(), "i2c-bus");
+    meet();
     int timers[3] = { periodic_timer(1000000), periodic_timer(10000000), periodic_timer(13333333) };
     int ep = epoll_create1(EPOLL_CLOEXEC);
     for (int i = 0; i < 3; i++) {
@@ -131,6 +140,7 @@ static void *timer_thread(void *arg)
 {
     (void)arg;
     pthread_setname_np(pthread_self(), "timer");
+    meet();
     struct timespec ms = { 0, 1000000 };
     for (;;) {
         clock_nanosleep(CLOCK_MONOTONIC, 0, &ms, NULL);
@@ -145,6 +155,7 @@ static void *uart_thread(void *arg)
 {
     (void)arg;
     pthread_setname_np(pthread_self(), "uart");
+    meet();
     struct pollfd fds[2] = { { open("/dev/ttyRC0", O_RDWR | O_NOCTTY | O_NONBLOCK), POLLIN, 0 },
                              { periodic_timer(20000000), POLLIN, 0 } };
     for (;;) {
@@ -166,6 +177,7 @@ static void *ekf_thread(void *arg)
 {
     (void)arg;
     pthread_setname_np(pthread_self(), "ekf");
+    meet();
     long seen = 0;
     pthread_mutex_lock(&baro_lock);
     for (;;) {
@@ -191,6 +203,7 @@ static void *logger_thread(void *arg)
 {
     (void)arg;
     pthread_setname_np(pthread_self(), "logger");
+    meet();
     for (;;) {
         struct timespec until;
         clock_gettime(CLOCK_REALTIME, &until);
@@ -205,6 +218,7 @@ static void *watchdog_thread(void *arg)
 {
     (void)arg;
     pthread_setname_np(pthread_self(), "watchdog");
+    meet();
     int ep = epoll_create1(EPOLL_CLOEXEC);
     sigset_t none;
     sigemptyset(&none);
@@ -220,6 +234,7 @@ static void *telemetry_thread(void *arg)
 {
     (void)arg;
     pthread_setname_np(pthread_self(), "telemetry");
+    meet();
     for (;;) {
         fd_set r;
         FD_ZERO(&r);
@@ -302,6 +317,7 @@ int main(int argc, char **argv)
     pthread_condattr_setclock(&ca, CLOCK_MONOTONIC);
     pthread_cond_init(&baro_ready, &ca);
     sem_init(&log_sem, 0, 0);
+    pthread_barrier_init(&all_started, NULL, 8); /* the main loop and its seven threads */
     signal(SIGALRM, on_alarm);
     struct itimerval it = { { 0, 50000 }, { 0, 50000 } };
     setitimer(ITIMER_REAL, &it, NULL);
@@ -317,6 +333,7 @@ int main(int argc, char **argv)
     if (argc > 1 && strncmp(argv[1], "spin", 4) == 0)
         start("spinner", spinner, 0, strcmp(argv[1], "spin") == 0 ? (void *)1 : NULL);
 
+    meet();
     struct timespec next;
     clock_gettime(CLOCK_MONOTONIC, &next);
     long alarms_seen = 0;
@@ -354,6 +371,7 @@ int main(int argc, char **argv)
     report("alarm", &alarms);
     report("watchdog", &watchdog);
     report("telemetry", &telemetry);
+    printf("barrier_serial %d 0 0\n", serial_threads);
     fflush(stdout);
     exit(0);
 }
