@@ -1,7 +1,8 @@
 /*
  * The DUT's threads in one virtual time (lockstep). At most one DUT thread runs at a time: it holds
  * the baton. A thread gives it up only in a wait the shim knows (a sleep, the poll family, a timerfd's
- * read, a condition variable, a semaphore, a contended mutex, pthread_join, sched_yield) or when it
+ * read, a condition variable, a semaphore, a contended mutex or read-write lock, a barrier,
+ * pthread_join, sched_yield) or when it
  * ends; the rule then picks the next: among the threads that can go on (a deadline reached, a
  * descriptor ready, signalled, the mutex free), the earliest key first, ties by creation order. A
  * thread's key is its deadline when that woke it, else the time it was seen able to go on; a thread
@@ -35,10 +36,12 @@ struct vthread {
     int interrupted; /* a virtual timer's signal ran its handler in this thread during the wait */
     pid_t tid;
     pthread_t self;
+    uint64_t born; /* creation order: 1 for the thread that ran main, then each pthread_create */
 };
 
 static struct vthread vthreads[MAX_THREADS];
-static int n_vthreads;           /* slots used, in creation order (0: the thread that ran main) */
+static int n_vthreads;           /* slots used (0: the thread that ran main; an ended thread's is reused) */
+static uint64_t births;          /* threads the rule has known */
 static int threaded;             /* lockstep and a second DUT thread made: the rule schedules */
 static int baton = -1;           /* the slot that runs */
 static uint64_t spin_after = -1; /* (RIG_WAIT_FOREVER) a clock read past this catches a spinner */
@@ -104,7 +107,7 @@ static void spin_caught(uint64_t now)
     int n = snprintf(text, sizeof text,
                      "thread '%s' (number %d in the order the shim saw threads start) spins: it ran on for %.3f s of "
                      "virtual time without a wait the shim knows while thread '%s' was due",
-                     spinner, baton + 1, (double)(now - (spin_after - SPIN_LIMIT_NS)) / 1e9, other);
+                     spinner, (int)vthreads[baton].born, (double)(now - (spin_after - SPIN_LIMIT_NS)) / 1e9, other);
     pthread_mutex_lock(&lock);
     ensure_connected();
     send_msg(RIG_MSG_STALL, text, (uint32_t)n);
@@ -150,7 +153,8 @@ static int pick(uint64_t now)
                 t->key = now;
             }
         }
-        if (t->state == T_READY && (best < 0 || t->key < vthreads[best].key))
+        if (t->state == T_READY && (best < 0 || t->key < vthreads[best].key ||
+                                    (t->key == vthreads[best].key && t->born < vthreads[best].born)))
             best = i;
     }
     return best;
@@ -179,8 +183,9 @@ static void advance(void)
 static void reschedule(void)
 {
     int self = me();
+    const int ending = vthreads[self].state == T_EXITED; /* (its slot may be a new thread's once passed on) */
     for (;;) {
-        if (vthreads[self].state == T_EXITED && !others_alive(self))
+        if (ending && !others_alive(self))
             return; /* (the process ends with this thread) */
         fire_timers();
         int next = pick(now_peek());
@@ -193,7 +198,7 @@ static void reschedule(void)
             break;
         __atomic_store_n(&vthreads[self].go, 0, __ATOMIC_SEQ_CST);
         pass_baton(next);
-        if (vthreads[self].state == T_EXITED)
+        if (ending)
             return;
         await_baton(self);
         break;
@@ -232,7 +237,8 @@ static void interrupted_here(void)
 static void threads_init(void)
 {
     n_vthreads = 1;
-    vthreads[0] = (struct vthread){ .state = T_RUNNING, .go = 1, .tid = gettid(), .self = pthread_self() };
+    births = 1;
+    vthreads[0] = (struct vthread){ .state = T_RUNNING, .go = 1, .tid = gettid(), .self = pthread_self(), .born = 1 };
     baton = 0;
     my_slot = 1;
 }
@@ -283,15 +289,17 @@ EXPORT int pthread_create(pthread_t *thread, const pthread_attr_t *attr, void *(
     pthread_attr_t copy;
     if (lockstep_attr(attr, &copy))
         attr = &copy;
-    if (!lockstep || !active || my_slot <= 0 || n_vthreads >= MAX_THREADS)
+    int slot = 0; /* an ended thread's slot, else a new one */
+    while (slot < n_vthreads && vthreads[slot].state != T_EXITED && vthreads[slot].state != T_FREE)
+        slot++;
+    if (!lockstep || !active || my_slot <= 0 || slot >= MAX_THREADS)
         return LOAD(pthread_create)(thread, attr, start, arg);
     struct start *s = malloc(sizeof *s);
     if (!s)
         return EAGAIN;
-    int slot = n_vthreads;
     *s = (struct start){ start, arg, slot };
     /* ready from now, after every thread already ready (the rule: key, then creation order) */
-    vthreads[slot] = (struct vthread){ .state = T_READY, .key = now_peek() };
+    vthreads[slot] = (struct vthread){ .state = T_READY, .key = now_peek(), .born = births + 1 };
     int err = LOAD(pthread_create)(thread, attr, thread_start, s);
     if (err) {
         vthreads[slot].state = T_FREE;
@@ -299,7 +307,9 @@ EXPORT int pthread_create(pthread_t *thread, const pthread_attr_t *attr, void *(
         return err;
     }
     vthreads[slot].self = *thread;
-    n_vthreads++;
+    births++;
+    if (slot == n_vthreads)
+        n_vthreads++;
     threaded = 1;
     spin_arm();
     return 0;
@@ -312,12 +322,14 @@ EXPORT void pthread_exit(void *r)
     __builtin_unreachable();
 }
 
+/* The slot of thread t: the youngest with its id (glibc gives a joined thread's id to a new thread). */
 static int slot_of(pthread_t t)
 {
+    int found = -1;
     for (int i = 0; i < n_vthreads; i++)
-        if (pthread_equal(vthreads[i].self, t))
-            return i;
-    return -1;
+        if (pthread_equal(vthreads[i].self, t) && (found < 0 || vthreads[i].born > vthreads[found].born))
+            found = i;
+    return found;
 }
 
 static int has_ended(void *slot) { return vthreads[(intptr_t)slot].state == T_EXITED; }
@@ -384,6 +396,65 @@ EXPORT int pthread_mutex_timedlock(pthread_mutex_t *m, const struct timespec *ab
         return EINVAL;
     return mutex_wait(m, sim_deadline(CLOCK_REALTIME, abs));
 }
+
+/* A read-write lock another thread holds: wait until a try would take it (the rule's look takes it and
+   gives it back at once, so the lock's owner is always the thread that holds it), then take it. */
+struct rwlock_look {
+    pthread_rwlock_t *l;
+    int write;
+};
+
+static int rwlock_try(pthread_rwlock_t *l, int write)
+{
+    return write ? LOAD(pthread_rwlock_trywrlock)(l) : LOAD(pthread_rwlock_tryrdlock)(l);
+}
+
+static int rwlock_free(void *p)
+{
+    struct rwlock_look *look = p;
+    if (rwlock_try(look->l, look->write))
+        return 0;
+    LOAD(pthread_rwlock_unlock)(look->l);
+    return 1;
+}
+
+static int rwlock_wait(pthread_rwlock_t *l, int write, uint64_t deadline)
+{
+    struct rwlock_look look = { l, write };
+    for (;;) {
+        int err = rwlock_try(l, write);
+        if (err != EBUSY)
+            return err;
+        if (now_peek() >= deadline)
+            return ETIMEDOUT;
+        rule_wait(deadline, rwlock_free, &look, 0);
+    }
+}
+
+/* The read-write locks are the rule's once several threads run (else glibc's). */
+#define RWLOCK_CALLS(name, write)                                                                                 \
+    EXPORT int pthread_rwlock_##name##lock(pthread_rwlock_t *l)                                                   \
+    {                                                                                                             \
+        if (!threaded || my_slot <= 0 || !lockstep)                                                               \
+            return LOAD(pthread_rwlock_##name##lock)(l);                                                          \
+        return rwlock_wait(l, write, RIG_WAIT_FOREVER);                                                           \
+    }                                                                                                             \
+    EXPORT int pthread_rwlock_timed##name##lock(pthread_rwlock_t *l, const struct timespec *abs)                  \
+    {                                                                                                             \
+        if (!threaded || my_slot <= 0 || !lockstep)                                                               \
+            return LOAD(pthread_rwlock_timed##name##lock)(l, abs);                                                \
+        return valid_ts(abs) ? rwlock_wait(l, write, sim_deadline(CLOCK_REALTIME, abs)) : EINVAL;                 \
+    }                                                                                                             \
+    EXPORT int pthread_rwlock_clock##name##lock(pthread_rwlock_t *l, clockid_t clock, const struct timespec *abs) \
+    {                                                                                                             \
+        if (!threaded || my_slot <= 0 || !lockstep)                                                               \
+            return LOAD(pthread_rwlock_clock##name##lock)(l, clock, abs);                                         \
+        if (!valid_ts(abs) || (clock != CLOCK_REALTIME && clock != CLOCK_MONOTONIC))                              \
+            return EINVAL;                                                                                        \
+        return rwlock_wait(l, write, sim_deadline(clock, abs));                                                   \
+    }
+RWLOCK_CALLS(rd, 0)
+RWLOCK_CALLS(wr, 1)
 
 /* A condition variable: the waiters the rule knows, in the order they began to wait; a signal makes
    the first signalled (it goes on when the rule picks it), a broadcast all. */

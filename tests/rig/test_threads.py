@@ -147,3 +147,17 @@ def test_python_threads_keep_virtual_time_through_the_gil(tmp_path: Path) -> Non
         assert NS <= got["elapsed_ns"] < NS + NS // 1000    # 1 s of sleeps, plus clock reads
         logs.append(log.read_bytes())
     assert logs[0] == logs[1]
+
+
+def test_a_lock_held_across_a_sleep_is_had_when_it_is_let_go(tmp_path_factory: pytest.TempPathFactory,
+                                                              tmp_path: Path) -> None:
+    """A thread takes a mutex or a read-write lock and sleeps; another asks for it 1 ms later and has
+    it when the sleep ends, or gives up at its timed lock's deadline, to the clock read."""
+    locks = build_client(tmp_path_factory, "locks", "-pthread")
+    run = rig_exec(tmp_path, str(locks), options=("--allow-no-devices",))
+    assert run.returncode == 0, run.stderr
+    out = {name: (result, int(ns)) for name, result, ns in (line.split() for line in run.stdout.splitlines())}
+    quantum = 1000
+    assert out == {"mutex": ("0", 10_000_000 + quantum),                 # held for 10 ms
+                   "mutex_timedlock": ("ETIMEDOUT", 5_000_000 + 2 * quantum),  # gives up at 5 ms
+                   "rwlock_read": ("0", 20_000_000 + quantum)}           # written for 20 ms
