@@ -18,8 +18,8 @@
  *   vtime.c      virtual time: the clocks, the sleeps, the poll family's timeouts
  *   priorities.c real-time policies and mlockall: recorded, not applied, in lockstep
  *   vtimers.c    virtual timers: timerfd, alarm and setitimer on the session's clock
- *   threads.c    many threads in one virtual time: the rule that picks who runs, and the waits of
- *                pthreads (condition variables, semaphores, mutexes, join) under it
+ *   threads.c    many threads in one virtual time: the rule that picks who runs; thread lifetimes
+ *   sync.c       mutexes, read-write locks, condition variables, semaphores, barriers under the rule
  *   usermem.c    the caller's memory copied as the kernel copies it (EFAULT, never a crash)
  *   paths.c      what a path names (classify: a target), the shape of a device kind (struct kind_ops)
  *   fdtable.c    fake descriptors: the table, backing files, adoption after exec, close/dup/fcntl, stdio
@@ -122,6 +122,7 @@ static pid_t self_pid(void)
 #include "priorities.c"
 #include "vtimers.c"
 #include "threads.c"
+#include "sync.c"
 #include "usermem.c"
 // clang-format on
 
