@@ -28,13 +28,13 @@ from typing import TYPE_CHECKING
 from rig import interrupts
 from rig.bridge.esc import ESC_PROTOCOLS
 from rig.emulators.topology import TOPOLOGIES
+from rig.scenarios import LIBRARY
 from rig.scenarios.schema import Scenario, ScenarioError, load
 
 if TYPE_CHECKING:
     from rig.scenarios.result import RunResult
     from rig.targets import Target
 
-LIBRARY = Path(__file__).resolve().parents[1] / "scenarios" / "library"
 EXIT_FAILED, EXIT_USAGE, EXIT_ERROR = 1, 2, 3
 #: seeds are 0..2^31-1, as the service's API takes them (a run queued there is a run of this command)
 SEED_LIMIT = 2**31
@@ -152,6 +152,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--trace", type=Path, metavar="DIR",
                    help="with --mcu: write each scenario's TWI transactions and motor pin edges as "
                    "DIR/SCENARIO.vcd (GTKWave, PulseView)")
+    p.add_argument("--eeprom", type=Path, metavar="FILE",
+                   help="with --mcu: the EEPROM image to start from instead of the board's (raw bytes, as "
+                   "a run's eeprom.bin, or Intel HEX named .eep/.hex)")
     add_pdf_options(p)
     v = sub.add_parser("validate", help="check scenario files without running them")
     v.add_argument("scenarios", nargs="+", metavar="SCENARIO")
@@ -355,7 +358,8 @@ def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:
     """``--mcu BOARD --firmware FILE``, both checked (the board file as a scenario is, the image's
     format and size against the board's MCU); None without --mcu."""
     if args.mcu is None:
-        for option, value in (("--firmware", args.firmware), ("--trace", args.trace)):
+        for option, value in (("--firmware", args.firmware), ("--trace", args.trace),
+                              ("--eeprom", args.eeprom)):
             if value is not None:
                 problems.append(f"{option} goes with --mcu BOARD")
         return None
@@ -378,7 +382,7 @@ def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:
             problems.append(f"--trace {args.trace}: {e.strerror}")
             return None
     try:
-        return McuTarget(args.mcu, args.firmware, args.trace)
+        return McuTarget(args.mcu, args.firmware, args.trace, args.eeprom)
     except (BoardError, FirmwareError) as e:
         problems.append(f"--mcu: {e}")
         return None

@@ -350,6 +350,8 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         last = (found["status"] if seen is None else seen, found["progress"])
         while (found["status"], found["progress"]) == last and found["status"] not in TERMINAL \
                 and time.monotonic() < deadline:
+            if workers.stopped.is_set():  # a service stopping answers once its runs have ended (read
+                return db.get(run_id) or found  # after the stop: their end): no long poll holds it up
             time.sleep(WAIT_POLL_S)
             found = db.get(run_id) or found
         return found
@@ -389,6 +391,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         def stream() -> Iterator[str]:
             seen: tuple[object, object] | None = None
             while True:
+                stopping = workers.stopped.is_set()  # (before the read: the runs' end is the last event)
                 found = db.get(run_id)
                 if found is None:
                     return
@@ -396,7 +399,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
                 if now != seen:
                     seen = now
                     yield f"event: run\ndata: {json.dumps(found)}\n\n"
-                if found["status"] in TERMINAL:
+                if found["status"] in TERMINAL or stopping:
                     return
                 time.sleep(WAIT_POLL_S)
 
