@@ -374,7 +374,10 @@ def _last_words(stderr: str) -> str:
 def _apply_event(rc: StickEmulator, ev: Event) -> Callable[[Host], None]:
     def apply(session: Host) -> None:
         for k, v in ev.sticks.items():
-            setattr(rc.sticks, k, v)
+            if k == "alt_hold":  # (the reference FC's altitude-hold switch: its mode channel)
+                rc.sticks.mode = "althold" if v else ""
+            else:
+                setattr(rc.sticks, k, v)
         if ev.link is not None:
             rc.link = ev.link
         for k, v in ev.inputs.items():

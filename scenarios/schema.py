@@ -51,7 +51,7 @@ def _all(problems: list[ScenarioError]) -> ScenarioError:
     if len(problems) == 1:
         return problems[0]
     first = problems[0]
-    err = ScenarioError(first.file, first.key, "")
+    err = type(first)(first.file, first.key, "")  # (a board's or a profile's error stays one)
     err.args = ("\n".join(str(p) for p in problems),)
     err.problems = list(problems)
     return err
@@ -246,7 +246,10 @@ class _Check:
         if not isinstance(v, str):
             raise self.fail(full, f"expected a string, got {_kind(v)}")
         if choices is not None and v not in choices:
-            raise self.fail(full, f"expected one of {', '.join(choices)}, got {v!r}")
+            near = difflib.get_close_matches(v, list(choices), n=1)
+            hint = f"; did you mean {near[0]!r}?" if near else ""
+            said = ", ".join(c or "''" for c in choices)
+            raise self.fail(full, f"expected one of {said}, got {v!r}{hint}")
         return v
 
     def boolean(self, data: dict[str, Any], key: str, path: str, default: bool) -> bool:
