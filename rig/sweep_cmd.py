@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from rig import interrupts, scratch
-from rig.run_cmd import LIBRARY, ReportFolder, UsageError, seconds_option
+from rig.run_cmd import LIBRARY, ReportFolder, UsageError, add_fc_option, load_profile, seconds_option
 
 EXIT_FAIL, EXIT_USAGE, EXIT_ERROR = 1, 2, 3
 #: a local pool whose process died (killed, out of memory) is started again this many times
@@ -65,6 +65,7 @@ def add_parser(sub: Any) -> None:
         help="start afresh: remove the runs DIR holds (needed when they flew another DUT) and fly every run",
     )
     p.add_argument("--dut", help="the DUT command line (default: the reference FC, as rig run)")
+    add_fc_option(p)
     p.add_argument(
         "--wall-timeout",
         type=seconds_option,
@@ -100,6 +101,13 @@ def main(args: argparse.Namespace) -> int:
         if not dut:
             print("rig sweep: --dut is empty", file=sys.stderr)
             return EXIT_USAGE
+    problems: list[str] = []
+    profile = load_profile(args.fc, problems)
+    if profile is None:
+        for line in problems:
+            print(f"rig sweep: {line}", file=sys.stderr)
+        return EXIT_USAGE
+    args.fc = str(profile.path)  # (a worker elsewhere reads the same file)
     try:
         sweep = load_sweep(args.spec, LIBRARY)
     except SweepError as e:
@@ -121,7 +129,7 @@ def _sweep(sweep: Any, args: argparse.Namespace, dut: list[str] | None) -> int:
     from rig.sweep.work import Task, fly, read_row
 
     out: Path = args.out.resolve()
-    ident = store.dut_identity(dut)
+    ident = store.dut_identity(dut, fc=args.fc)
     if args.fresh:
         _remove_runs(out)
     rows: dict[str, dict[str, Any]] = {}
@@ -142,7 +150,7 @@ def _sweep(sweep: Any, args: argparse.Namespace, dut: list[str] | None) -> int:
     tmp = str(scratch.make("sweep")) if local else None
     flown_by = {k: ident[k] for k in store.DUT_KEYS}
     todo = [
-        Task(v, str(sweep.scenario_path), str(out), dut, args.wall_timeout, tmp, **flown_by)
+        Task(v, str(sweep.scenario_path), str(out), dut, args.wall_timeout, tmp, **flown_by, fc=args.fc)
         for v in sweep.variants
         if v.id not in rows
     ]

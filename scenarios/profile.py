@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any, Final
 
 from emulators.sbus import CHANNELS, KNOBS, ChannelMap
-from scenarios.schema import ScenarioError, _Check
+from scenarios.schema import FEATURES, MODES, ScenarioError, _Check
 
 PROFILES: Final = Path(__file__).resolve().parent / "profiles"
 DEFAULT: Final = "reference"
@@ -43,12 +43,8 @@ MOTOR_KEYS: Final = {"frame", "order", "pwm_channels"}
 STARTUP_KEYS: Final = {"seconds", "ready"}
 TELEMETRY_KEYS: Final = {"kind", "port", "baud", "poll_hz"}
 CONFIG_KEYS: Final = {"eeprom", "params", "args"}
-#: flight modes a profile may name and a scenario may ask for
-MODES: Final = ("angle", "horizon", "acro", "rate", "althold", "poshold", "loiter", "land", "rth")
 #: modes whose sticks command rates (rate_dps per full stick), not angles
 RATE_MODES: Final = ("acro", "rate")
-#: what an FC does beyond its modes, which a scenario may need
-FEATURES: Final = ("failsafe",)
 ARMING_METHODS: Final = ("switch", "sticks", "telemetry")
 TELEMETRY_KINDS: Final = ("none", "text", "msp", "mavlink")
 #: the kinds the rig reads today: criteria on the FC's estimates are measured from these only

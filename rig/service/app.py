@@ -42,6 +42,8 @@ class RunRequest(BaseModel):
     scenarios: list[str] = Field(min_length=1, max_length=MAX_SCENARIOS)
     seed: int = Field(default=0, ge=0, lt=2**31)
     dut: dict[str, str] = Field(default_factory=dict)
+    #: the FC's profile, a shipped one's name (docs/profiles.md); None: the reference FC's
+    fc: str | None = None
     mode: Literal["lockstep", "bridge"] = "lockstep"
     priority: int = Field(default=0, ge=-100, le=100)
     #: a bench run's selector: the labels its bench must have (rig serve --engine: docs/farm.md)
@@ -66,6 +68,21 @@ def refusal(status: int, message: str) -> HTTPException:
     return HTTPException(status, {"problems": [message]} if status == 422 else message)
 
 
+def fc_problems(fc: str) -> list[str]:
+    """A requested FC profile's problems: the service flies shipped profiles only (a client's file is
+    not on the service's disk), named as ``rig run --fc`` names them."""
+    import difflib
+
+    from scenarios import profile as profiles
+
+    shipped = profiles.names()
+    if fc in shipped:
+        return []
+    near = difflib.get_close_matches(fc, shipped, n=1)
+    hint = f"; did you mean {near[0]!r}?" if near else ""
+    return [f"fc: no shipped FC profile {fc!r}{hint} (shipped: {', '.join(shipped)})"]
+
+
 def check_run(req: RunRequest, store: Store, scenarios: bool = True) -> tuple[list[str], dict[str, str]]:
     """Every problem of a run request, in words (the validator's for the scenarios; ``scenarios``
     False: only the DUT, for a sweep), and the version of each scenario it names: the one checked
@@ -86,6 +103,8 @@ def check_run(req: RunRequest, store: Store, scenarios: bool = True) -> tuple[li
             load(path)
         except ScenarioError as e:
             problems.append(str(e).replace(str(path), f"{name}.toml"))
+    if req.fc is not None:
+        problems += fc_problems(req.fc)
     kinds = set(req.dut)
     if kinds - {"command", "firmware"} or len(kinds) > 1:
         problems.append("dut: {\"command\": \"...\"} or {\"firmware\": SHA256} (POST /api/firmware first)")
@@ -238,7 +257,8 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         problems += bench_problems(req, workers)
         if problems:
             raise HTTPException(422, {"problems": problems})
-        run_id = db.submit(req.scenarios, req.seed, req.dut, req.mode, req.priority, versions=versions,
+        dut = {**req.dut, "fc": req.fc} if req.fc is not None else req.dut  # (the run's DUT: FC and profile)
+        run_id = db.submit(req.scenarios, req.seed, dut, req.mode, req.priority, versions=versions,
                            bench=req.bench)
         workers.wake()
         return {"id": run_id}

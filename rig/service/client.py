@@ -81,6 +81,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     s.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="library scenario names")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--dut", help="the DUT command line (default: the reference FC)")
+    s.add_argument("--fc", metavar="PROFILE",
+                   help="a shipped FC profile's name (default: the reference FC's; docs/profiles.md)")
     s.add_argument("--bridge", choices=["virtual"], help="run on the service's bench (the virtual bridge)")
     s.add_argument("--bench", metavar="k=v,...",
                    help="run on a farm's bench with these labels (docs/farm.md)")
@@ -127,6 +129,8 @@ def cmd_submit(args: argparse.Namespace) -> int:
             return EXIT_USAGE
     if args.dut:
         body["dut"] = {"command": args.dut}
+    if args.fc:
+        body["fc"] = args.fc
     run_id = None
     try:
         run_id = call(server_url(args.server), "POST", "/api/runs", args.token, body)["id"]

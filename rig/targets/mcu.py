@@ -12,8 +12,9 @@ from typing import TYPE_CHECKING, Any
 from rig.mcu import board as boards
 from rig.mcu.session import McuConfig, McuSession
 from rig.session import Outcome
-from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, TargetRun
+from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, TargetRun, telemetry_path
 from rig.targets.process import NO_SUPPLY
+from scenarios.profile import Profile
 from scenarios.result import I2CRecord
 from scenarios.schema import Scenario
 
@@ -65,7 +66,8 @@ class McuTarget:
         self.firmware_sha256 = hashlib.sha256(self.firmware.read_bytes()).hexdigest()
         self.trace = trace
 
-    def describe(self, scenario: Scenario, work: Path, notes: list[str]) -> dict[str, object]:
+    def describe(self, scenario: Scenario, work: Path, notes: list[str],
+                 profile: Profile | None = None) -> dict[str, object]:
         if scenario.bench.psu is not None:
             notes.append(NO_SUPPLY)
         if scenario.fc and not self.board.eeprom_from_fc:
@@ -84,25 +86,32 @@ class McuTarget:
         }
 
     def world_options(self) -> dict[str, Any]:
-        return {"topology": self.board.topology, "mounting": boards.mounting(self.board.mounting_yaw_deg)}
+        # (the board file wires each motor pin to its plant motor: no output order on top of it)
+        return {"topology": self.board.topology, "mounting": boards.mounting(self.board.mounting_yaw_deg),
+                "motor_order": (1, 2, 3, 4)}
 
     def open(self, ctx: RunContext) -> McuRun:
         trace = None if self.trace is None else self.trace / f"{ctx.scenario.stem}.vcd"
+        eeprom = ctx.profile.config.eeprom if ctx.profile is not None else None
         return McuRun(self.session(ctx.world, ctx.scenario.duration, ctx.scenario.fc, ctx.wall_timeout,
-                                   trace))
+                                   trace, eeprom_image=eeprom, telemetry=telemetry_path(ctx.profile)))
 
     def session(self, world: World, duration: float, fc: Mapping[str, Any], wall_timeout: float,
-                trace: Path | None = None, sim_timeout: float = 600.0) -> McuSession:
+                trace: Path | None = None, sim_timeout: float = 600.0,
+                eeprom_image: Path | None = None, telemetry: str = TELEMETRY_PATH) -> McuSession:
         """The firmware on its board in ``world`` for ``duration`` sim seconds; ``fc``: the [fc] table
-        that becomes the EEPROM on a board that says so (an empty one: the reference FC's defaults)."""
+        that becomes the EEPROM on a board that says so (an empty one: the reference FC's defaults);
+        ``eeprom_image``: the FC profile's, preloaded instead of the board file's."""
         eeprom: bytes | None = None
-        if self.board.eeprom_image is not None:
+        if eeprom_image is not None:
+            eeprom = eeprom_image.read_bytes()
+        elif self.board.eeprom_image is not None:
             eeprom = self.board.eeprom_image.read_bytes()
         elif self.board.eeprom_from_fc:
             from scenarios.eeprom import image  # the reference firmware's layout
 
             eeprom = image(fc)
-        cfg = McuConfig(self.board, self.firmware, duration, RC_PATH, TELEMETRY_PATH, eeprom, wall_timeout,
+        cfg = McuConfig(self.board, self.firmware, duration, RC_PATH, telemetry, eeprom, wall_timeout,
                         sim_timeout, trace)
         return McuSession(cfg, world)
 
