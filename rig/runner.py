@@ -22,6 +22,7 @@ from typing import Final
 import numpy as np
 
 from emulators.faults import Fault, fault_sets
+from emulators.sbus import KNOBS
 from emulators.sensor_models import Normals
 from plant.variables import MOTORS
 from rig import __version__, scratch
@@ -348,8 +349,8 @@ def run(
         measurements = [dataclasses.replace(m, outcome=NOT_JUDGED, reason="the run ended in error",
                                             marginal=False) for m in measurements]
     else:
-        judged = [m for m in measurements if m.outcome != NOT_MEASURED]
-        verdict = "pass" if judged and all(m.outcome == "pass" for m in judged) else "fail"
+        # (not measured is no pass, nor a failure; a scenario with only those was skipped: cannot_fly)
+        verdict = "pass" if all(m.outcome in ("pass", NOT_MEASURED) for m in measurements) else "fail"
     notes += outcome.notes
     assert set(SIGNALS) - set(BENCH_SIGNALS) <= set(signals), set(SIGNALS) - set(signals)
     rc_frames = list(map(functools.partial(tuple.__new__, RcFrame), rc.frames))  # (no Python frame each)
@@ -461,6 +462,9 @@ def cannot_fly(scenario: Scenario, profile: Profile) -> str:
     why = profiles.fly_check(profile, scenario.needs, scenario.stick_terms())
     if why:
         return why
+    knobs = sorted({k for e in scenario.timeline for k in e.sticks if k in KNOBS} - set(profile.rc.extra))
+    if knobs:
+        return f"the FC's profile {profile.name!r} has no {', '.join(knobs)} channel (rc.extra)"
     if not profile.reads_telemetry and all(c.signal in TELEMETRY_SIGNALS for c in scenario.criteria):
         return f"every criterion is on the FC's estimates: {profile.not_measured_reason()}"
     return ""

@@ -266,6 +266,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
     @app.post("/api/sweeps", status_code=201)
     async def submit_sweep(request: Request, priority: int = Query(default=0, ge=-100, le=100),
                            dut: str | None = Query(default=None, description="a DUT command line"),
+                           fc: str | None = Query(default=None, description="a shipped FC profile's name"),
                            ) -> dict[str, Any]:
         """A sweep spec (TOML, the request's body; docs/sweeps.md) whose scenario is a library or an
         uploaded one, every variant checked before it is queued (422 with the checker's words). It
@@ -279,8 +280,8 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
             body += chunk
             if len(body) > MAX_SCENARIO:
                 raise HTTPException(413, f"a sweep spec over {MAX_SCENARIO} bytes")
-        problems, _ = check_run(RunRequest(scenarios=["-"], dut={"command": dut} if dut is not None else {}),
-                                store, scenarios=False)
+        problems, _ = check_run(RunRequest(scenarios=["-"], dut={"command": dut} if dut is not None else {},
+                                           fc=fc), store, scenarios=False)
         if problems:
             raise HTTPException(422, {"problems": problems})
         versions: dict[str, str] = {}
@@ -301,8 +302,8 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
             path, sweep = store.put_sweep(body, check)  # (kept only once checked)
         except UploadError as e:
             raise refusal(e.status, str(e)) from e
-        run_id = db.submit([str(path)], 0, {"command": dut} if dut is not None else {}, "sweep", priority,
-                           versions=versions)
+        flown_by = {**({"command": dut} if dut is not None else {}), **({"fc": fc} if fc is not None else {})}
+        run_id = db.submit([str(path)], 0, flown_by, "sweep", priority, versions=versions)
         workers.wake()
         [(name, sha)] = versions.items()
         return {"id": run_id, "runs": len(sweep.variants), "scenario": name, "sha256": sha}

@@ -183,3 +183,31 @@ def test_a_free_vehicle_given_take_off_throttle_that_stays_down_fails(tmp_path: 
         "sticks = { roll_deg = 10 }", "sticks = { roll_deg = 0 }")
     r = run(load(scenario(tmp_path, idle, "idle")), seed=0)
     assert not any("never left the ground" in m.reason for m in r.measurements)
+
+
+LIBRARY = Path(__file__).resolve().parents[2] / "scenarios" / "library"
+#: what each shipped profile cannot fly of the library, and the words of why (from the FCs' documented
+#: features: MultiWii's stock config.h has no failsafe; neither third-party FC has the reference FC's
+#: altitude-setpoint knob)
+CANNOT = {
+    "reference": {},
+    "multiwii-2.4": {"rc_loss_failsafe": "has no failsafe", "step_altitude": "has no alt_offset channel"},
+    "arducopter-4": {"step_altitude": "has no alt_offset channel"},
+}
+
+
+@pytest.mark.parametrize("name", sorted(CANNOT))
+def test_the_library_states_its_modes_and_each_profile_skips_what_it_cannot_fly(name: str) -> None:
+    from rig.runner import cannot_fly
+
+    fc = profiles.load(name)
+    said = {}
+    for path in sorted(LIBRARY.glob("*.toml")):
+        sc = load(path)
+        assert "angle" in sc.needs, path  # every library scenario says the mode it flies
+        why = cannot_fly(sc, fc)
+        if why:
+            said[path.stem] = why
+    assert set(said) == set(CANNOT[name]), said
+    for stem, words in CANNOT[name].items():
+        assert words in said[stem]
