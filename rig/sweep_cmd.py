@@ -19,10 +19,13 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rig import interrupts, scratch
 from rig.run_cmd import LIBRARY, ReportFolder, UsageError, add_fc_option, load_profile, seconds_option
+
+if TYPE_CHECKING:
+    from scenarios.profile import Profile
 
 EXIT_FAIL, EXIT_USAGE, EXIT_ERROR = 1, 2, 3
 #: a local pool whose process died (killed, out of memory) is started again this many times
@@ -113,6 +116,10 @@ def main(args: argparse.Namespace) -> int:
     except SweepError as e:
         print(f"rig sweep: {args.spec}: {e}", file=sys.stderr)
         return EXIT_USAGE
+    unflyable = _unflyable(sweep, profile)
+    if unflyable:
+        print(f"rig sweep: {args.spec}: {unflyable}", file=sys.stderr)
+        return EXIT_USAGE
     try:
         with ReportFolder(args.out), interrupts.handled():
             return _sweep(sweep, args, dut)
@@ -197,6 +204,19 @@ def _sweep(sweep: Any, args: argparse.Namespace, dut: list[str] | None) -> int:
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
     return _finish(sweep, out, rows, engine_name, stop, time.perf_counter() - t0, ident)
+
+
+def _unflyable(sweep: Any, profile: Profile) -> str:
+    """Why the FC cannot fly a variant of the sweep under its profile (rig run would skip it: a sweep
+    of it measures nothing), or ""."""
+    from rig.runner import cannot_fly
+    from scenarios.schema import check
+
+    for v in sweep.variants:
+        why = cannot_fly(check(v.data, sweep.scenario_path), profile)
+        if why:
+            return f"variant {v.id}: {why}"
+    return ""
 
 
 def _tally(verdict: str) -> str:

@@ -102,3 +102,13 @@ def test_the_service_flies_shipped_profiles_only(tmp_path: Path) -> None:
     finally:
         db.close()
     assert cmd[cmd.index("--fc") + 1] == "multiwii-2.4"
+
+
+def test_a_sweep_the_fc_cannot_fly_is_refused_before_it_runs(tmp_path: Path) -> None:
+    spec = tmp_path / "spec.toml"
+    spec.write_text('[sweep]\nscenario = "rc_loss_failsafe"\nseeds = 2\n')
+    out = tmp_path / "out"
+    done = subprocess.run([PY, "-m", "rig.cli", "sweep", str(spec), "--out", str(out), "--fc",
+                           "multiwii-2.4"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and "has no failsafe" in done.stderr, done.stderr
+    assert not (out / "runs").exists()
