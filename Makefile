@@ -40,7 +40,7 @@ $(VENV)/.installed: pyproject.toml tools/bootstrap.sh
 
 fmu: $(FMU)
 $(FMU): $(PLANT_SOURCES) | venv
-	$(PY) -m plant.build
+	$(PY) -m rig.plant.build
 
 shim: $(SHIM)
 # rigshim.c includes the shim's other .c files (one translation unit); keeper.c is the keeper's
@@ -53,7 +53,7 @@ native: $(NATIVE)
 CHIP_FILES := $(wildcard emulators/chips/*.c emulators/chips/*.h) emulators/chips/gen.py emulators/registers.py \
 	emulators/mpu6050.py emulators/hmc5883l.py emulators/ms5611.py
 build/_rignative$(EXT): emulators/c/fastcalls.c emulators/c/sampling.c emulators/c/need_tuple.h $(CHIP_FILES) emulators/native.py plant/native_build.py | venv
-	$(PY) -m emulators.native
+	$(PY) -m rig.emulators.native
 chips: build/_rignative$(EXT)
 # the real-time loop's wait (rig/pace; also built on first use)
 build/_rigpace$(EXT): rig/pace/pace.c rig/pace/__init__.py plant/native_build.py | venv
@@ -70,7 +70,7 @@ build/_riglockstep$(EXT): $(wildcard rig/lockstep/*.c) rig/lockstep/__init__.py 
 build/_rigevents$(EXT): rig/event_queue/queue.c rig/event_queue/queue.h rig/event_queue/__init__.py plant/native_build.py | venv
 	$(PY) -c 'import rig.event_queue; rig.event_queue.build()'
 build/_plantsteps$(EXT): plant/c/steps_module.c plant/c/plant_steps.c plant/steps.py plant/native_build.py | venv
-	$(PY) -m plant.steps
+	$(PY) -m rig.plant.steps
 
 compiled: $(COMPILED)
 $(COMPILED): $(COMPILED_SOURCES) rig/compiled.py rig/mypyc_build.py | venv
@@ -84,7 +84,7 @@ vbridge: $(VBRIDGE)
 $(VBRIDGE): $(wildcard bridge/core/*.[ch] bridge/posix/*.[ch]) $(CHIP_FILES) rig/shim/protocol.h \
 		rig/bridge/messages.py rig/bridge/gen.py | venv
 	$(PY) -m rig.bridge.gen >/dev/null
-	$(PY) -m emulators.chips.gen >/dev/null
+	$(PY) -m rig.emulators.chips.gen >/dev/null
 	$(CC) $(BRIDGE_CFLAGS) -o $@ bridge/posix/*.c bridge/core/*.c $(BRIDGE_CHIPS)/*.c -lm
 
 # the bridge firmware for the STM32G431 (docs/bridge-firmware.md): build/firmware/bridge.elf, .bin, .map
@@ -153,7 +153,8 @@ lint: venv test-packages
 	$(MAKE) -s lint-sources
 
 # the checks alone, with what they need installed: make test runs them beside the builds, two jobs at a
-# time (mypyc's own analysis writes no cache, so mypy and mypyc share nothing)
+# time (mypyc's analysis keeps its mypy cache in the build's temporary folder, rig/mypyc_build.py, so
+# mypy's SQLite cache in .mypy_cache is this job's alone)
 lint-sources:
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/mypy

@@ -23,8 +23,8 @@ from rig.bridge.port import BridgePort  # noqa: E402
 from rig.bridge.vbridge import VirtualBridge  # noqa: E402
 from rig.run_cmd import resolve  # noqa: E402
 from rig.runner import run  # noqa: E402
+from rig.scenarios.schema import load  # noqa: E402
 from rig.targets.bridge import BridgeTarget  # noqa: E402
-from scenarios.schema import load  # noqa: E402
 
 HOG = "while True: pass"
 

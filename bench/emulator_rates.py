@@ -10,12 +10,12 @@ import time
 from rig.compiled import install, status
 
 install()  # the compiled hot modules, before they are imported
-from emulators.hmc5883l import HMC5883L  # noqa: E402
-from emulators.i2c_bus import I2CBus, read, write  # noqa: E402
-from emulators.mpu6050 import MPU6050  # noqa: E402
-from emulators.ms5611 import MS5611  # noqa: E402
-from emulators.sensor_models import AxisErrors, BaroModel, ImuModel, MagModel  # noqa: E402
-from emulators.topology import build_board  # noqa: E402
+from rig.emulators.hmc5883l import HMC5883L  # noqa: E402
+from rig.emulators.i2c_bus import I2CBus, read, write  # noqa: E402
+from rig.emulators.mpu6050 import MPU6050  # noqa: E402
+from rig.emulators.ms5611 import MS5611  # noqa: E402
+from rig.emulators.sensor_models import AxisErrors, BaroModel, ImuModel, MagModel  # noqa: E402
+from rig.emulators.topology import build_board  # noqa: E402
 
 TRUTH = {"fx": 0.1, "fy": -0.2, "fz": -9.80665, "p": 0.01, "q": -0.02, "r": 0.03, "temperature": 15.0,
          "mag_x": 0.25, "mag_y": 0.0, "mag_z": 0.433, "pressure": 101325.0}

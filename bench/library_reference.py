@@ -158,7 +158,7 @@ def fly(task: tuple[str, int]) -> dict[str, Any]:
     """One library scenario at one seed: its verdict and each criterion's value, limits, verdict."""
     path, seed = task
     from rig.runner import run
-    from scenarios.schema import load
+    from rig.scenarios.schema import load
 
     res = run(load(Path(path)), seed=seed)
     return {

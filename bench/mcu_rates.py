@@ -32,14 +32,14 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from emulators.chips.board import build_chip_board  # noqa: E402
-from emulators.mpu6050 import ImuTruth  # noqa: E402
-from emulators.ms5611 import BaroTruth  # noqa: E402
+from rig.emulators.chips.board import build_chip_board  # noqa: E402
+from rig.emulators.mpu6050 import ImuTruth  # noqa: E402
+from rig.emulators.ms5611 import BaroTruth  # noqa: E402
 from rig.mcu.engine import TIMERS, AvrEngine, EngineConfig, Motor  # noqa: E402
 from rig.mcu.session import McuSession  # noqa: E402
 from rig.runner import run  # noqa: E402
+from rig.scenarios.schema import load  # noqa: E402
 from rig.targets.mcu import McuTarget  # noqa: E402
-from scenarios.schema import load  # noqa: E402
 from tests.mcu.conftest import firmware  # noqa: E402
 
 CLOCK = 16_000_000

@@ -20,7 +20,7 @@ from pathlib import Path
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
-from plant import DEFAULT_FMU, Plant
+from rig.plant import DEFAULT_FMU, Plant
 
 ROOT = Path(__file__).resolve().parent.parent
 HOVER = 1511.0

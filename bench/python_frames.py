@@ -34,9 +34,9 @@ REPO = Path(__file__).resolve().parents[1]
 
 def frames(duration: float) -> collections.Counter[str]:
     """Python frames entered during a hover of ``duration`` sim seconds, by function."""
-    import scenarios
+    from rig import scenarios
     from rig.runner import run
-    from scenarios.schema import load
+    from rig.scenarios.schema import load
 
     seen: collections.Counter[str] = collections.Counter()
 

@@ -34,9 +34,9 @@ def _child(duration: float) -> None:
     from rig.compiled import install
 
     install()  # the compiled hot modules, before they are imported
-    import scenarios
+    from rig import scenarios
     from rig.runner import run
-    from scenarios.schema import load
+    from rig.scenarios.schema import load
 
     sc = load(Path(scenarios.__file__).parent / "library" / "hover_turbulence.toml")
     run(dataclasses.replace(sc, duration=duration))

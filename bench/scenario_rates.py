@@ -37,9 +37,9 @@ def measure(which: str, spin: bool = False) -> dict[str, float]:
     on two cores, polling (rig/cores.py; this tree only)."""
     import dataclasses
 
-    import scenarios
+    from rig import scenarios
     from rig.runner import run
-    from scenarios.schema import load
+    from rig.scenarios.schema import load
 
     lib = Path(scenarios.__file__).parent / "library"
     sc = load(lib / "seed000_roll_stand.toml")

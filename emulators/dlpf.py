@@ -14,7 +14,7 @@ from typing import Final, Protocol
 
 import numpy as np
 
-from emulators import native
+from rig.emulators import native
 
 BLOCK: Final = native.BLOCK
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from emulators.i2c_bus import I2CDevice
+from rig.emulators.i2c_bus import I2CDevice
 
 SIGNAL_KINDS = ("stuck", "noise_burst", "bias_step", "drift", "scale_error", "delay")
 BUS_KINDS = ("off", "intermittent", "garbage")

@@ -7,7 +7,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Final
 
-from emulators.registers import SAME_INSTANT, RegisterMap, RegisterSpec, round_half_away
+from rig.emulators.registers import SAME_INSTANT, RegisterMap, RegisterSpec, round_half_away
 
 ADDRESS: Final = 0x1E
 GAINS = (1370, 1090, 820, 660, 440, 390, 330, 230)  # LSB/Ga by CRB.GN, docs/sensors.md §4.5

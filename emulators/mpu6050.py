@@ -11,10 +11,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Final, NamedTuple
 
-from emulators import native
-from emulators.dlpf import ImuSampler, sample_rate
-from emulators.i2c_bus import I2CDevice
-from emulators.registers import RegisterMap, RegisterSpec
+from rig.emulators import native
+from rig.emulators.dlpf import ImuSampler, sample_rate
+from rig.emulators.i2c_bus import I2CDevice
+from rig.emulators.registers import RegisterMap, RegisterSpec
 
 ADDRESS: Final = 0x68
 G0: Final = 9.80665

@@ -15,7 +15,7 @@ from typing import Final
 
 import numpy as np
 
-from emulators.registers import SAME_INSTANT
+from rig.emulators.registers import SAME_INSTANT
 
 ADDRESS: Final = 0x77  # CSB low; 0x76 with CSB high
 #: docs/sensors.md §5.4/§5.5 recommended default: datasheet coefficients, word 7 = 0x0103 (CRC 0x3, non-zero).

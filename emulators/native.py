@@ -1,6 +1,6 @@
 """The emulators' C library (the sensors' sampling chain): compiled with the system's C compiler on first
 use (and again when a source is newer than the library), so a fresh clone needs no separate build step.
-``python -m emulators.native`` (``make native``) builds it explicitly.
+``python -m rig.emulators.native`` (``make native``) builds it explicitly.
 
 It is one file, a CPython extension module (emulators/c/fastcalls.c, which includes sampling.c): the
 entry points that run every FC cycle are called as the module's functions (``fast()``), at a few
@@ -18,7 +18,7 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
-from plant.native_build import (
+from rig.plant.native_build import (
     BUILD,
     EXTENSION_SUFFIX,
     NativeBuildError,
@@ -81,7 +81,7 @@ _CHIPS: dict[str, tuple[object, list[object]]] = {
 
 
 def build() -> Path:
-    from emulators.chips import gen  # the chip core's generated register tables (build/gen/)
+    from rig.emulators.chips import gen  # the chip core's generated register tables (build/gen/)
 
     header = gen.write()
     return compile_extension((SOURCES[0], *CHIP_SOURCES), LIB, "the emulators' C library", libs=["-lm"],
@@ -89,7 +89,7 @@ def build() -> Path:
 
 
 def _sources() -> tuple[Path, ...]:
-    from emulators.chips import gen
+    from rig.emulators.chips import gen
 
     return (*SOURCES, *gen.SOURCES)
 

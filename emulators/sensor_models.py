@@ -12,10 +12,10 @@ from typing import Protocol
 
 import numpy as np
 
-from emulators import native
-from emulators.faults import FaultSet
-from emulators.mpu6050 import ImuTruth
-from emulators.ms5611 import BaroTruth
+from rig.emulators import native
+from rig.emulators.faults import FaultSet
+from rig.emulators.mpu6050 import ImuTruth
+from rig.emulators.ms5611 import BaroTruth
 
 #: Body FRD -> sensor frame of a board lying flat, component side up: x forward, y left, z up.
 #: A level, resting MPU-6050 then reads +1 g on Z (the plant's specific force is -g on body z).

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from emulators import hmc5883l, mpu6050, ms5611
-from emulators.i2c_bus import I2CBus, I2CDevice
+from rig.emulators import hmc5883l, mpu6050, ms5611
+from rig.emulators.i2c_bus import I2CBus, I2CDevice
 
 TOPOLOGIES = ("gy86", "direct")
 

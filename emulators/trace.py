@@ -14,7 +14,7 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from emulators.i2c_bus import I2CBus, I2CNack, Msg
+from rig.emulators.i2c_bus import I2CBus, I2CNack, Msg
 
 TRACE_DIR = Path(__file__).resolve().parent / "traces"
 

@@ -4,6 +4,6 @@ Open ``plant/variables.py`` for the variable table, ``plant/c/`` for the physics
 ``plant/build.py`` for the reproducible build and ``plant/fmu.py`` for the fast Python stepping API.
 """
 
-from plant.fmu import DEFAULT_FMU, Plant, PlantError, PlantState
+from rig.plant.fmu import DEFAULT_FMU, Plant, PlantError, PlantState
 
 __all__ = ["DEFAULT_FMU", "Plant", "PlantError", "PlantState"]

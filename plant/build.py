@@ -2,7 +2,7 @@
 
 Why a script and not only make rules: the modelDescription and the C header come from one Python table
 (``plant/variables.py``), and the zip must be byte-reproducible (sorted entries, fixed timestamps and
-permissions), which ``zip`` cannot promise. Usage: ``python -m plant.build [--out DIR]``.
+permissions), which ``zip`` cannot promise. Usage: ``python -m rig.plant.build [--out DIR]``.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-from plant import variables
+from rig.plant import variables
 
 PLANT_DIR = Path(__file__).resolve().parent
 REPO_ROOT = PLANT_DIR.parent

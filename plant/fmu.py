@@ -162,7 +162,9 @@ class Plant:
         self.u_index = {n: i for i, n in enumerate(self.input_names)}
         self.y_index = {n: i for i, n in enumerate(self.output_names)}
         self._on_ground_vr = (c_uint * 1)(self.variables["on_ground"].valueReference)
-        from plant.steps import get_boolean  # (here: `python -m plant.steps` must not import itself first)
+        from rig.plant.steps import (
+            get_boolean,  # (here: `python -m rig.plant.steps` must not import itself first)
+        )
 
         #: ``read_on_ground()``: 1 or 0, or minus a failed call's status. A C call bound to this FMU
         #: with no Python frame: the recorder reads on_ground at 100 Hz (through World.on_ground)
@@ -282,7 +284,7 @@ class Plant:
         then ``extras``, written as doubles to ``out_address`` (``out_room`` doubles left there): one C
         call bound to this FMU's buffers (plant/steps.py's gather), for a table's row at 100 Hz (the
         recorder's)."""
-        from plant.steps import gather
+        from rig.plant.steps import gather
 
         for what, idx, n in (("output", outputs, len(self.y)), ("input", inputs, len(self.u))):
             if any(not 0 <= i < n for i in idx):
@@ -359,7 +361,9 @@ class Plant:
                        self._component.value, addressof(self._u_vr), addressof(self._u_buf), len(self.u),
                        addressof(self._y_vr), addressof(self._y_buf), len(self.y), addressof(self._t),
                        None, 0, 0, 0)
-        from plant.steps import plant_steps  # (here: `python -m plant.steps` must not import itself first)
+        from rig.plant.steps import (
+            plant_steps,  # (here: `python -m rig.plant.steps` must not import itself first)
+        )
 
         self._steps_fn = plant_steps()
         self._steps_at = addressof(steps)

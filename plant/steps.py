@@ -1,6 +1,6 @@
 """The plant's steps between two requests in one call into C (plant/c/plant_steps.c, as the extension
 module ``build/_plantsteps*.so``): built on first use, and again when a source is newer, so a fresh clone
-needs no separate step; ``python -m plant.steps`` (part of ``make native``) builds it explicitly."""
+needs no separate step; ``python -m rig.plant.steps`` (part of ``make native``) builds it explicitly."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 
-from plant.native_build import (
+from rig.plant.native_build import (
     BUILD,
     EXTENSION_SUFFIX,
     NativeBuildError,

@@ -10,10 +10,10 @@ import html
 from collections.abc import Sequence
 from pathlib import Path
 
-from reports.html_report import criteria_table, marks_caption, static_plots, suite_identity
-from reports.values import meta_rows, mode_text, sim_times_in
-from scenarios.criteria import MARGINAL_PCT, NOT_MEASURED, SKIPPED
-from scenarios.result import VERDICTS, RunResult
+from rig.reports.html_report import criteria_table, marks_caption, static_plots, suite_identity
+from rig.reports.values import meta_rows, mode_text, sim_times_in
+from rig.scenarios.criteria import MARGINAL_PCT, NOT_MEASURED, SKIPPED
+from rig.scenarios.result import VERDICTS, RunResult
 
 PAGE = """@page{size:A4;margin:16mm 14mm 18mm 14mm;
 @bottom-left{content:"Acceptance test report: TITLE";font:8pt sans-serif;color:#555}

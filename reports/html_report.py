@@ -14,9 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from reports import plots as plotspec
-from reports.svg_plot import COLOURS, plot
-from reports.values import (
+from rig.reports import plots as plotspec
+from rig.reports.svg_plot import COLOURS, plot
+from rig.reports.values import (
     fmt_limits,
     fmt_margin,
     fmt_target,
@@ -27,8 +27,8 @@ from reports.values import (
     outcome_text,
     sim_times_in,
 )
-from scenarios.criteria import METRICS, NOT_MEASURED, SKIPPED, Measurement
-from scenarios.result import VERDICTS, RunResult
+from rig.scenarios.criteria import METRICS, NOT_MEASURED, SKIPPED, Measurement
+from rig.scenarios.result import VERDICTS, RunResult
 
 UPLOT = Path(__file__).resolve().parent / "vendor" / "uplot"
 

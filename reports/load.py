@@ -11,10 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
-from reports import telemetry
-from scenarios.criteria import Measurement
-from scenarios.result import RunResult, ScenarioRecord
-from scenarios.signals import SIGNALS
+from rig.reports import telemetry
+from rig.scenarios.criteria import Measurement
+from rig.scenarios.result import RunResult, ScenarioRecord
+from rig.scenarios.signals import SIGNALS
 
 MANIFEST = ".rig-run.json"  # (rig/run_cmd.py's ReportFolder writes it: the run's scenario folders in order)
 FIELDS = {f.name for f in dataclasses.fields(Measurement)}

@@ -36,11 +36,11 @@ from typing import IO, Any, Final, cast
 
 import numpy as np
 
-from reports import result_json
-from reports.mcap_container import ContainerWriter
-from scenarios.result import I2CRecord, RcFrame, RunResult
-from scenarios.schema import Scenario
-from scenarios.signals import SIGNALS
+from rig.reports import result_json
+from rig.reports.mcap_container import ContainerWriter
+from rig.scenarios.result import I2CRecord, RcFrame, RunResult
+from rig.scenarios.schema import Scenario
+from rig.scenarios.signals import SIGNALS
 
 NS: Final = 1_000_000_000
 PROFILE: Final = ""  # (no ROS profile: plain JSON channels)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from plant.variables import MOTORS
+from rig.plant.variables import MOTORS
 
 
 @dataclass(frozen=True)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import dataclasses
 import json
 
-from reports.values import json_number
-from scenarios.result import RunResult
+from rig.reports.values import json_number
+from rig.scenarios.result import RunResult
 
 FORMAT = "rig-result/1"
 

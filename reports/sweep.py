@@ -11,7 +11,7 @@ import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from typing import Any
 
-from reports.html_report import _page
+from rig.reports.html_report import _page
 
 #: a varied key with more distinct values than this (random mode) is shown in quantile bins
 MAX_LEVELS = 12

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from scenarios.signals import SIGNALS
+from rig.scenarios.signals import SIGNALS
 
 
 def render(signals: dict[str, np.ndarray]) -> str:

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from scenarios.schema import Scenario, ScenarioError
+from rig.scenarios.schema import Scenario, ScenarioError
 
 if TYPE_CHECKING:
     import pyarrow as pa
@@ -90,7 +90,7 @@ class Result:
         """The recorded signals, one column per signal (telemetry.csv's, units in each field's
         metadata), one row per 10 ms of sim time. ``.to_pandas()`` on it needs pandas installed."""
         if self._telemetry is None:  # a Result made by hand: read the run's CSV
-            from reports import telemetry
+            from rig.reports import telemetry
 
             return _table(telemetry.read(self.artifacts["telemetry"].read_text()))
         return self._telemetry
@@ -105,7 +105,7 @@ def load_scenario(scenario: str | os.PathLike[str]) -> Scenario:
 
 
 def _load(path: Path) -> Scenario:
-    from scenarios.schema import load
+    from rig.scenarios.schema import load
 
     return load(path)
 
@@ -124,7 +124,7 @@ def validate(scenario: str | os.PathLike[str]) -> list[str]:
     import tomllib
 
     from rig.run_cmd import resolve
-    from scenarios.schema import check
+    from rig.scenarios.schema import check
 
     path = resolve([os.fspath(scenario)])[0]
     try:
@@ -259,7 +259,7 @@ def _table(signals: Mapping[str, Any]) -> pa.Table:
     """Signals as a pyarrow Table in telemetry.csv's column order, units in each field's metadata."""
     import pyarrow as pa
 
-    from scenarios.signals import SIGNALS
+    from rig.scenarios.signals import SIGNALS
 
     names = ["t"] + [n for n in SIGNALS if n in signals and n != "t"]
     fields = [pa.field(n, pa.float64(), metadata={"units": SIGNALS[n].units if n in SIGNALS else "s"})

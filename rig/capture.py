@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 import serial
 
-from emulators.pwm_capture import (
+from rig.emulators.pwm_capture import (
     CanCodec,
     CaptureDevice,
     CaptureFrameError,
@@ -38,13 +38,13 @@ from emulators.pwm_capture import (
     decode_serial,
     encode_serial,
 )
-from plant.variables import MOTORS
+from rig.plant.variables import MOTORS
 
 if TYPE_CHECKING:
     import can
 
+    from rig.scenarios.schema import Capture
     from rig.session import Session
-    from scenarios.schema import Capture
 
 
 

@@ -44,8 +44,9 @@ GROUP = "rig_hot"  # mypyc's shared runtime library is the extension ``rig_hot__
 #: that feed the core are compiled instead.
 MODULES = ("rig.protocol", "rig.connection", "rig.session", "rig.handler", "rig.scheduler", "rig.world",
            "rig.rc",
-           "emulators.chips.board", "emulators.dlpf", "emulators.sensor_models", "emulators.faults",
-           "emulators.ms5611", "emulators.i2c_bus", "emulators.sbus", "rig.runner")
+           "rig.emulators.chips.board", "rig.emulators.dlpf", "rig.emulators.sensor_models",
+           "rig.emulators.faults", "rig.emulators.ms5611", "rig.emulators.i2c_bus", "rig.emulators.sbus",
+           "rig.runner")
 
 
 def source_of(module: str) -> Path:

@@ -24,12 +24,12 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from emulators.topology import TOPOLOGIES
-from plant.variables import PARAMETERS, check_parameters
 from rig import interrupts
 from rig.bridge.esc import ESC_PROTOCOLS
 from rig.bridge.session import BenchConfig, BenchSession
 from rig.cores import CoresError, allowed_cores, placement
+from rig.emulators.topology import TOPOLOGIES
+from rig.plant.variables import PARAMETERS, check_parameters
 from rig.run_cmd import seconds_option
 from rig.scheduler import EXIT_RIG_ERROR
 from rig.session import Session, SessionConfig
@@ -37,7 +37,7 @@ from rig.targets import telemetry_path
 from rig.world import World
 
 if TYPE_CHECKING:
-    from scenarios.profile import Profile
+    from rig.scenarios.profile import Profile
 
 CLOCKS = {"0": 0, "100k": 100_000, "400k": 400_000}
 

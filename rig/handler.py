@@ -13,11 +13,11 @@ import errno
 import struct
 from typing import TYPE_CHECKING, Final
 
-from emulators.i2c_bus import I2CNack, I2CProtocolError, Msg
 from rig import protocol as P
+from rig.emulators.i2c_bus import I2CNack, I2CProtocolError, Msg
+from rig.scenarios.result import I2CRecord
 from rig.scheduler import EXIT_RIG_ERROR, NS, Scheduler, SharedPage, Stop, fmt
 from rig.world import PwmChannel, World
-from scenarios.result import I2CRecord
 
 if TYPE_CHECKING:
     from rig.connection import Conn

@@ -26,8 +26,7 @@ def build() -> None:
         cwd = os.getcwd()
         os.chdir(REPO)  # mypyc names modules by their paths relative to here
         try:
-            # (modules it imports are read for their types, but their own type errors are not ours here)
-            args = ["--ignore-missing-imports", "--follow-imports=silent"]
+            args = mypyc_options(Path(tmp))
             exts = mypycify([*args, *(str(source_of(m).relative_to(REPO)) for m in MODULES)],
                             group_name=GROUP, target_dir=str(Path(tmp) / "c"), multi_file=True)
             dist = Distribution({"name": "rig-hot", "ext_modules": exts})
@@ -52,6 +51,14 @@ def build() -> None:
                                     "modules": {m: {"file": files[m], "sha256": hashes[m]} for m in MODULES}},
                                    indent=1) + "\n")
     print(f"rig.compiled: {', '.join(MODULES)} compiled into {OUT.relative_to(REPO)}")
+
+
+def mypyc_options(tmp: Path) -> list[str]:
+    """mypy's options for mypyc's analysis. Its cache goes to the build's temporary folder: mypy keeps its
+    cache in SQLite, and `make test` runs the linters' mypy beside this build; sharing `.mypy_cache`,
+    the second to open the database failed with "database is locked" under load. Modules it imports
+    are read for their types, but their own type errors are not ours here."""
+    return ["--ignore-missing-imports", "--follow-imports=silent", "--cache-dir", str(tmp / "mypy-cache")]
 
 
 def _parallel(compiler: Any) -> None:

@@ -17,7 +17,7 @@ from rig.power.supply import (
     power_off,
     power_on,
 )
-from scenarios.bench import parse_psu
+from rig.scenarios.bench import parse_psu
 
 EXIT_USAGE, EXIT_PSU = 2, 3
 

@@ -34,7 +34,7 @@ import pytest
 
 if TYPE_CHECKING:
     from rig.api import Criterion, Result
-    from scenarios.schema import Scenario
+    from rig.scenarios.schema import Scenario
 
 _SCENARIO_TABLE = re.compile(rb"^[ \t]*\[[ \t]*scenario[ \t]*\]", re.MULTILINE)
 DEFAULT_OUT = "build/rig-pytest"

@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from emulators.sbus import PERIOD_S, REFERENCE_MAP, ChannelMap, Setting, Sticks, encode
+from rig.emulators.sbus import PERIOD_S, REFERENCE_MAP, ChannelMap, Setting, Sticks, encode
 from rig.scheduler import round_half_even
 
 if TYPE_CHECKING:

@@ -41,9 +41,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from reports import html_report
-    from reports.load import NotAReportFolder, read_folder
-    from reports.pdf import PdfError, chromium
+    from rig.reports import html_report
+    from rig.reports.load import NotAReportFolder, read_folder
+    from rig.reports.pdf import PdfError, chromium
 
     out: Path = args.dir
     try:
@@ -61,7 +61,7 @@ def main(args: argparse.Namespace) -> int:
             links = [("junit.xml", "JUnit XML for CI")]
             code = 0
             if args.mcap:
-                from reports import mcap
+                from rig.reports import mcap
 
                 for r in results:
                     path = mcap.write_run(out / r.scenario.stem, r, OLD_RUN)

@@ -28,12 +28,12 @@ from typing import TYPE_CHECKING
 
 from rig import interrupts
 from rig.bridge.esc import ESC_PROTOCOLS
-from scenarios.schema import Scenario, ScenarioError, load
+from rig.scenarios.schema import Scenario, ScenarioError, load
 
 if TYPE_CHECKING:
+    from rig.scenarios.profile import Profile
+    from rig.scenarios.result import RunResult
     from rig.targets import Target
-    from scenarios.profile import Profile
-    from scenarios.result import RunResult
 
 LIBRARY = Path(__file__).resolve().parents[1] / "scenarios" / "library"
 EXIT_FAILED, EXIT_USAGE, EXIT_ERROR = 1, 2, 3
@@ -158,8 +158,8 @@ def add_fc_option(p: argparse.ArgumentParser) -> None:
 
 def load_profile(name: str | None, problems: list[str]) -> Profile | None:
     """``--fc``'s profile (the reference FC's without one), or None with the problem said."""
-    from scenarios.profile import DEFAULT, ProfileError
-    from scenarios.profile import load as load_fc
+    from rig.scenarios.profile import DEFAULT, ProfileError
+    from rig.scenarios.profile import load as load_fc
 
     try:
         return load_fc(name or DEFAULT)
@@ -180,7 +180,7 @@ def add_pdf_options(p: argparse.ArgumentParser) -> None:
 
 def write_acceptance(out: Path, results: Sequence[RunResult], not_run: Sequence[str], operator: str) -> Path:
     """OUT/acceptance.html and, printed from it, OUT/acceptance.pdf; returns the PDF's path."""
-    from reports import acceptance, pdf
+    from rig.reports import acceptance, pdf
 
     src, dst = out / "acceptance.html", out / "acceptance.pdf"
     src.write_text(acceptance.render(results, not_run, operator))
@@ -326,7 +326,7 @@ def plan(args: argparse.Namespace) -> Plan:
     if args.esc != "pwm" and args.bridge is None:
         problems.append(f"--esc {args.esc} is what a bridge captures: it goes with --bridge")
     if args.psu is not None:
-        from scenarios.bench import parse_psu
+        from rig.scenarios.bench import parse_psu
 
         if args.bridge is None:
             problems.append("--psu powers a board behind a bridge: it goes with --bridge")
@@ -348,7 +348,7 @@ def plan(args: argparse.Namespace) -> Plan:
         if args.bridge is not None or args.mcu is not None:
             problems.append("--spin is for a Linux program in lockstep: not with --bridge or --mcu")
     if args.pdf:
-        from reports.pdf import chromium
+        from rig.reports.pdf import chromium
 
         if chromium() is None:
             problems.append("--pdf: no chromium on PATH to print the PDF with (Debian: apt-get install "
@@ -405,7 +405,7 @@ def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:
 
 def write_run(run_dir: Path, r: RunResult) -> None:
     """One run's files, as ``rig run`` and ``rig.api.run`` both write them."""
-    from reports import html_report, junit, mcap, result_json, telemetry
+    from rig.reports import html_report, junit, mcap, result_json, telemetry
 
     (run_dir / "junit.xml").write_text(junit.render([r]))
     (run_dir / "result.json").write_text(result_json.render(r))
@@ -426,7 +426,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> int:
-    from reports import html_report, junit
+    from rig.reports import html_report, junit
     from rig.runner import not_run, run
 
     results: list[RunResult] = []
@@ -450,13 +450,14 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
         results.append(r)
         write_run(run_dir, r)
         failed = [m.name for m in r.measurements if m.outcome == "fail"]
-        rate = r.metadata.get("realtime_factor") or 0.0
+        rate = r.metadata.get("realtime_factor")
+        speed = f"{rate:.1f}x" if isinstance(rate, int | float) else "not measured"
         wall = float(r.metadata.get("wall_time") or 0.0)
         if r.verdict in ("error", "interrupted", "skipped"):
             detail = f" {r.verdict}: {r.error}"
         else:
             detail = f" failed: {'; '.join(failed)}" if failed else ""
-        print(f" {r.verdict.upper()} ({wall:.1f} s wall, {rate:.0f}x){detail}", file=sys.stderr)
+        print(f" {r.verdict.upper()} ({wall:.1f} s wall, {speed}){detail}", file=sys.stderr)
         if r.verdict == "interrupted" and r.exit_code is not None:
             stop = r.exit_code
             break
@@ -465,7 +466,7 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
     links = [("junit.xml", "JUnit XML for CI")]
     pdf_error = None
     if args.pdf and results:
-        from reports.pdf import PdfError
+        from rig.reports.pdf import PdfError
 
         t_pdf = time.perf_counter()
         try:

@@ -21,23 +21,23 @@ from typing import Final
 
 import numpy as np
 
-from emulators.faults import Fault, fault_sets
-from emulators.sbus import KNOBS
-from emulators.sensor_models import Normals
-from plant.variables import MOTORS
 from rig import __version__, scratch
+from rig.emulators.faults import Fault, fault_sets
+from rig.emulators.sbus import KNOBS
+from rig.emulators.sensor_models import Normals
 from rig.host import Host
+from rig.plant.variables import MOTORS
 from rig.rc import StickEmulator
+from rig.scenarios import profile as profiles
+from rig.scenarios.criteria import NOT_JUDGED, NOT_MEASURED, SKIPPED, Measurement, measure
+from rig.scenarios.profile import Profile
+from rig.scenarios.result import RcFrame, RunResult
+from rig.scenarios.schema import STICK_TERMS, Event, Scenario
+from rig.scenarios.signals import BENCH_SIGNALS, RECORD_PERIOD, SIGNALS
 from rig.targets import RC_PATH, RunContext, Target, telemetry_path
 from rig.targets.process import ProcessTarget
 from rig.telemetry import read_columns
 from rig.world import World
-from scenarios import profile as profiles
-from scenarios.criteria import NOT_JUDGED, NOT_MEASURED, SKIPPED, Measurement, measure
-from scenarios.profile import Profile
-from scenarios.result import RcFrame, RunResult
-from scenarios.schema import STICK_TERMS, Event, Scenario
-from scenarios.signals import BENCH_SIGNALS, RECORD_PERIOD, SIGNALS
 
 WIND_PERIOD: Final = 0.01
 TELEMETRY_KEYS = {

@@ -25,7 +25,7 @@ from rig import interrupts, scratch
 from rig.run_cmd import LIBRARY, ReportFolder, UsageError, add_fc_option, load_profile, seconds_option
 
 if TYPE_CHECKING:
-    from scenarios.profile import Profile
+    from rig.scenarios.profile import Profile
 
 EXIT_FAIL, EXIT_USAGE, EXIT_ERROR = 1, 2, 3
 #: a local pool whose process died (killed, out of memory) is started again this many times
@@ -79,8 +79,8 @@ def add_parser(sub: Any) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    from rig.scenarios.sweep import SweepError, load_sweep
     from rig.sweep.engine import ENV, check_address
-    from scenarios.sweep import SweepError, load_sweep
 
     address = args.engine or os.environ.get(ENV)
     if address:
@@ -210,7 +210,7 @@ def _unflyable(sweep: Any, profile: Profile) -> str:
     """Why the FC cannot fly a variant of the sweep under its profile (rig run would skip it: a sweep
     of it measures nothing), or ""."""
     from rig.runner import cannot_fly
-    from scenarios.schema import check
+    from rig.scenarios.schema import check
 
     for v in sweep.variants:
         why = cannot_fly(check(v.data, sweep.scenario_path), profile)
@@ -300,7 +300,7 @@ def _finish(
     wall: float,
     dut: dict[str, Any],
 ) -> int:
-    from reports import sweep as sweep_report
+    from rig.reports import sweep as sweep_report
     from rig.sweep import store
 
     ordered = [rows[v.id] for v in sweep.variants if v.id in rows]

@@ -17,11 +17,11 @@ from typing import Final
 
 import numpy as np
 
-from emulators.chips.board import ChipBoard, build_chip_board
-from emulators.faults import TARGETS as FAULT_TARGETS
-from emulators.faults import FaultSet
-from emulators.i2c_bus import Msg
-from emulators.sensor_models import (
+from rig.emulators.chips.board import ChipBoard, build_chip_board
+from rig.emulators.faults import TARGETS as FAULT_TARGETS
+from rig.emulators.faults import FaultSet
+from rig.emulators.i2c_bus import Msg
+from rig.emulators.sensor_models import (
     FLAT_ON_BOARD,
     AxisErrors,
     BaroModel,
@@ -30,8 +30,8 @@ from emulators.sensor_models import (
     TruthRow,
     no_disturbance,
 )
-from plant import Plant
-from plant.variables import MOTORS, PWM_INPUTS, SCENARIO_INPUTS, pwm_input
+from rig.plant import Plant
+from rig.plant.variables import MOTORS, PWM_INPUTS, SCENARIO_INPUTS, pwm_input
 
 STEP_NS: Final = 1_000_000
 HISTORY: Final = 256  # plant steps kept for devices catching up (256 ms at 1 ms)

@@ -8,7 +8,7 @@ Keys absent from the table keep the firmware's defaults (a presence bit per key)
 before the keys; path keys (``i2c_path``, ``rc_path``, ``telemetry_path``) are the Linux FC's and take no
 room. Pure data: nothing here runs a session.
 
-    python -m scenarios.eeprom SCENARIO -o fc.eep [--ihex]
+    python -m rig.scenarios.eeprom SCENARIO -o fc.eep [--ihex]
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Final
 
-from scenarios import fc_keys
+from rig.scenarios import fc_keys
 
 MAGIC: Final = 0x4346  # "FC"
 NO_PROFILE: Final = 0xFF
@@ -107,9 +107,9 @@ def ihex(data: bytes) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from scenarios.schema import ScenarioError, load
+    from rig.scenarios.schema import ScenarioError, load
 
-    ap = argparse.ArgumentParser(prog="python -m scenarios.eeprom", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m rig.scenarios.eeprom", description=__doc__.split("\n\n")[0])
     ap.add_argument("scenario", help="a scenario file, or a name from the library")
     ap.add_argument("-o", "--out", required=True, help="the image file to write")
     ap.add_argument("--ihex", action="store_true", help="write Intel HEX instead of raw bytes")

@@ -28,8 +28,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final
 
-from emulators.sbus import CHANNELS, KNOBS, ChannelMap
-from scenarios.schema import FEATURES, MODES, ScenarioError, _Check
+from rig.emulators.sbus import CHANNELS, KNOBS, ChannelMap
+from rig.scenarios.schema import FEATURES, MODES, ScenarioError, _Check
 
 PROFILES: Final = Path(__file__).resolve().parent / "profiles"
 DEFAULT: Final = "reference"

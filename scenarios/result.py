@@ -9,8 +9,8 @@ from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 
-from scenarios.criteria import Measurement
-from scenarios.schema import Scenario
+from rig.scenarios.criteria import Measurement
+from rig.scenarios.schema import Scenario
 
 
 class ScenarioInfo(Protocol):

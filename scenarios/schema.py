@@ -20,16 +20,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from emulators.faults import KINDS as FAULT_KINDS
-from emulators.faults import TARGETS as FAULT_TARGETS
-from emulators.faults import Fault, TargetedFault
-from emulators.pwm_capture import TRANSPORTS as CAPTURE_TRANSPORTS
-from emulators.sbus import KNOBS
-from plant.variables import SCENARIO_INPUTS, VARIABLES, check_parameters
-from scenarios import fc_keys
-from scenarios.bench import BenchPower, parse_psu
-from scenarios.criteria import MARGINAL_PCT, METRICS
-from scenarios.signals import SIGNALS
+from rig.emulators.faults import KINDS as FAULT_KINDS
+from rig.emulators.faults import TARGETS as FAULT_TARGETS
+from rig.emulators.faults import Fault, TargetedFault
+from rig.emulators.pwm_capture import TRANSPORTS as CAPTURE_TRANSPORTS
+from rig.emulators.sbus import KNOBS
+from rig.plant.variables import SCENARIO_INPUTS, VARIABLES, check_parameters
+from rig.scenarios import fc_keys
+from rig.scenarios.bench import BenchPower, parse_psu
+from rig.scenarios.criteria import MARGINAL_PCT, METRICS
+from rig.scenarios.signals import SIGNALS
 
 #: flight modes a scenario may ask for and a profile may name (scenarios/profile.py)
 MODES = ("angle", "horizon", "acro", "rate", "althold", "poshold", "loiter", "land", "rth")

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from plant.variables import MOTORS
+from rig.plant.variables import MOTORS
 
 RECORD_PERIOD = 0.01  # s: 100 Hz, fine enough for rise times of ~0.1 s
 

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from scenarios.schema import Scenario, ScenarioError, check
+from rig.scenarios.schema import Scenario, ScenarioError, check
 
 SWEEP_KEYS = {"scenario", "seeds", "mode", "samples", "seed", "vary"}
 VARY_KEYS = {"key", "values", "uniform", "normal"}

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from plant import DEFAULT_FMU
 from rig import compiled
+from rig.plant import DEFAULT_FMU
 
 pytest_plugins = ["tests.worker_deaths"]  # (why a pytest-xdist worker died, said in the log)
 
@@ -36,7 +36,7 @@ if _WORKER.startswith("gw") and _WORKER[2:].isdigit():
 @pytest.fixture(scope="session")
 def fmu_path() -> Path:
     if not DEFAULT_FMU.is_file():
-        from plant.build import build
+        from rig.plant.build import build
 
         build()
     return DEFAULT_FMU

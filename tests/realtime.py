@@ -36,7 +36,7 @@ from typing import Any, NoReturn, TypeVar
 
 import pytest
 
-from reports.values import host_said
+from rig.reports.values import host_said
 
 #: lateness p99 (s) above which a run is starved: the bridge's lead
 STARVED_P99_S = 0.003

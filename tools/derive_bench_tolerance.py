@@ -47,8 +47,8 @@ sys.path.insert(0, str(REPO))
 
 from rig.run_cmd import resolve  # noqa: E402
 from rig.runner import run  # noqa: E402
-from scenarios.schema import Scenario, load  # noqa: E402
-from scenarios.signals import RECORD_PERIOD  # noqa: E402
+from rig.scenarios.schema import Scenario, load  # noqa: E402
+from rig.scenarios.signals import RECORD_PERIOD  # noqa: E402
 
 #: (the fault scenarios are not here: their attitudes sit near the FC's latency cliff — lockstep through
 #: the same capture path holds fault_gyro_stuck's tilt at 2.2-2.5 deg up to 4 ms of latency, 3.3 at 6 ms

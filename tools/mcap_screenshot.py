@@ -18,7 +18,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from reports.svg_plot import plot  # noqa: E402
+from rig.reports.svg_plot import plot  # noqa: E402
 from tests.scenarios.test_library_and_reports import CHROMIUM_FLAGS  # noqa: E402
 
 OUT = REPO / "docs" / "mcap-attitude.png"

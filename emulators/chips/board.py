@@ -24,12 +24,12 @@ from typing import Any, Final
 
 import numpy as np
 
-from emulators import hmc5883l, mpu6050, ms5611, native
-from emulators.dlpf import ImuSampler, sample_rate
-from emulators.faults import FaultSet
-from emulators.i2c_bus import I2CNack, I2CProtocolError, Msg
-from emulators.mpu6050 import CONFIG, SMPLRT_DIV, ImuTruth
-from emulators.ms5611 import BaroTruth
+from rig.emulators import hmc5883l, mpu6050, ms5611, native
+from rig.emulators.dlpf import ImuSampler, sample_rate
+from rig.emulators.faults import FaultSet
+from rig.emulators.i2c_bus import I2CNack, I2CProtocolError, Msg
+from rig.emulators.mpu6050 import CONFIG, SMPLRT_DIV, ImuTruth
+from rig.emulators.ms5611 import BaroTruth
 
 BLOCK: Final = native.BLOCK
 TOPOLOGIES: Final = ("gy86", "direct")

@@ -9,7 +9,7 @@
  *
  * The register maps, reset values, access rules and the constants (FS scales, self-test actuation,
  * HMC gains and rates, MS5611 conversion times) come from the Python tables through a generated
- * header (python -m emulators.chips.gen writes build/gen/chip_registers.h); the Python chips of
+ * header (python -m rig.emulators.chips.gen writes build/gen/chip_registers.h); the Python chips of
  * emulators/ are the reference the core is tested against, byte for byte.
  *
  * Physics comes in as samples, each valid from a time on: chip_push_imu (specific force m/s², rate

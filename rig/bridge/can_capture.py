@@ -19,9 +19,9 @@ import can
 import serial
 from can.interfaces.slcan import slcanBus
 
-from emulators.pwm_capture import CanCodec, CaptureFrameError
-from plant.variables import MOTORS
 from rig.bridge.port import BridgeError
+from rig.emulators.pwm_capture import CanCodec, CaptureFrameError
+from rig.plant.variables import MOTORS
 from rig.world import World
 
 

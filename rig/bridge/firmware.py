@@ -18,9 +18,9 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from emulators.chips import gen as chips_gen
-from plant.native_build import NativeBuildError, compile_c
 from rig.bridge import gen
+from rig.emulators.chips import gen as chips_gen
+from rig.plant.native_build import NativeBuildError, compile_c
 
 REPO = Path(__file__).resolve().parents[2]
 OUT = REPO / "build" / "firmware"

@@ -12,10 +12,10 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from emulators.faults import BUS_KINDS, BUS_TARGETS, KINDS, TARGETS
-from emulators.pwm_capture import CanCodec
-from plant.native_build import write_text_if_changed
 from rig.bridge.messages import HOST_SILENT_US, MAX_FRAME, MESSAGES, PROTOCOL_VERSION, TYPES, Field, Message
+from rig.emulators.faults import BUS_KINDS, BUS_TARGETS, KINDS, TARGETS
+from rig.emulators.pwm_capture import CanCodec
+from rig.plant.native_build import write_text_if_changed
 
 OUT = Path(__file__).resolve().parents[2] / "build" / "gen" / "bridge_messages.h"
 SIZES = {"u8": 1, "u16": 2, "u32": 4, "u64": 8, "i16": 2, "i32": 4, "f32": 4}

@@ -27,9 +27,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Final, NoReturn
 
-from emulators import sbus
-from emulators.faults import BUS_TARGETS, KINDS, TARGETS, FaultSet
-from plant.variables import MOTORS
 from rig import interrupts, scratch
 from rig.bridge.esc import esc_protocol
 from rig.bridge.messages import Message
@@ -38,7 +35,10 @@ from rig.bridge.stream import SampleStream
 from rig.bridge.timesync import ClockMap, Exchange
 from rig.bridge.vbridge import Endpoints, VirtualBridge
 from rig.dut_process import Keeper, dut_env
+from rig.emulators import sbus
+from rig.emulators.faults import BUS_TARGETS, KINDS, TARGETS, FaultSet
 from rig.pace import RealtimeHost
+from rig.plant.variables import MOTORS
 from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, Stop
 from rig.session import KILL_GRACE_S, Outcome, _Pty
 from rig.world import World

@@ -34,11 +34,11 @@ from typing import TYPE_CHECKING, Final
 
 import numpy as np
 
-from emulators import ms5611
-from emulators.chips.board import BaroFeed
-from emulators.dlpf import DLPF, LowPass, take_samples
-from emulators.mpu6050 import CONFIG, SMPLRT_DIV
 from rig.bridge.messages import BY_NAME
+from rig.emulators import ms5611
+from rig.emulators.chips.board import BaroFeed
+from rig.emulators.dlpf import DLPF, LowPass, take_samples
+from rig.emulators.mpu6050 import CONFIG, SMPLRT_DIV
 
 if TYPE_CHECKING:
     from rig.bridge.session import BenchSession

@@ -22,19 +22,19 @@ from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING, Any, TypeVar
 
-from emulators import hmc5883l, ms5611, native
-from emulators.chips.board import CHIP_BARO, CHIP_HMC, CHIP_MPU, BaroFeed, ImuFeed, MagFeed
-from emulators.dlpf import DLPF
-from emulators.mpu6050 import CONFIG, SMPLRT_DIV
-from emulators.sensor_models import BaroModel, ImuModel, MagModel, no_disturbance
-from plant.fmu import _STEP_CALLS
-from plant.native_build import BUILD, EXTENSION_SUFFIX, built_extension, compile_extension
-from plant.variables import MOTORS
 from rig import event_queue
 from rig.cores import SPIN_NS
+from rig.emulators import hmc5883l, ms5611, native
+from rig.emulators.chips.board import CHIP_BARO, CHIP_HMC, CHIP_MPU, BaroFeed, ImuFeed, MagFeed
+from rig.emulators.dlpf import DLPF
+from rig.emulators.mpu6050 import CONFIG, SMPLRT_DIV
+from rig.emulators.sensor_models import BaroModel, ImuModel, MagModel, no_disturbance
+from rig.plant.fmu import _STEP_CALLS
+from rig.plant.native_build import BUILD, EXTENSION_SUFFIX, built_extension, compile_extension
+from rig.plant.variables import MOTORS
+from rig.scenarios.result import I2CRecord
+from rig.scenarios.schema import Scenario
 from rig.world import HISTORY, World, _WorldTruth
-from scenarios.result import I2CRecord
-from scenarios.schema import Scenario
 
 if TYPE_CHECKING:
     from rig.handler import Handler

@@ -2,8 +2,8 @@
 
 import sys
 
-from plant.native_build import NativeBuildError
 from rig.lockstep import build
+from rig.plant.native_build import NativeBuildError
 
 try:
     print(build())

@@ -26,10 +26,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
-from emulators.sensor_models import FLAT_ON_BOARD
 from rig.bridge.esc import ESC_PROTOCOLS
+from rig.emulators.sensor_models import FLAT_ON_BOARD
 from rig.mcu.mcus import MCUS, Mcu
-from scenarios.schema import ScenarioError, _Check
+from rig.scenarios.schema import ScenarioError, _Check
 
 BOARDS: Final = Path(__file__).resolve().parent / "boards"
 TOP: Final = {"board", "sensors", "motors", "rc", "telemetry", "eeprom", "fuses"}

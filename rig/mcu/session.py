@@ -28,9 +28,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Final
 
-from emulators import sbus
 from rig import interrupts
 from rig.bridge.esc import esc_protocol
+from rig.emulators import sbus
 from rig.mcu.board import Board
 from rig.mcu.engine import AvrEngine, config_for
 from rig.mcu.twi_log import TwiTransfers

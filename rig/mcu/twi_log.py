@@ -12,7 +12,7 @@ from collections.abc import Iterable
 from typing import Final
 
 from rig.mcu.engine import TwiRecord
-from scenarios.result import I2CRecord
+from rig.scenarios.result import I2CRecord
 
 CAP: Final = 1_000_000
 

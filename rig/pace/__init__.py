@@ -35,8 +35,8 @@ from pathlib import Path
 from types import ModuleType, TracebackType
 from typing import Any, Final, Protocol
 
-from plant.native_build import BUILD, EXTENSION_SUFFIX, built_extension, compile_extension
 from rig.pace.late import LateCauses
+from rig.plant.native_build import BUILD, EXTENSION_SUFFIX, built_extension, compile_extension
 
 SOURCE: Final = Path(__file__).resolve().with_name("pace.c")
 LIB: Final = BUILD / f"_rigpace{EXTENSION_SUFFIX}"

@@ -12,7 +12,7 @@ from typing import Final
 import numpy as np
 
 from rig.power.supply import PsuError, Reading, Supply, open_supply, power_off, power_on
-from scenarios.bench import BenchPower
+from rig.scenarios.bench import BenchPower
 
 POLL_S: Final = 0.1  # 10 Hz asked; a Korad's pauses between commands make it about 8
 

@@ -13,7 +13,7 @@ import time
 from dataclasses import dataclass
 from typing import Protocol
 
-from scenarios.bench import PsuSpec, parse_psu
+from rig.scenarios.bench import PsuSpec, parse_psu
 
 #: after "off", the output is left off this long by default, so the board's capacitors drain
 DEFAULT_OFF_S = 1.0

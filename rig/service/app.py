@@ -73,7 +73,7 @@ def fc_problems(fc: str) -> list[str]:
     not on the service's disk), named as ``rig run --fc`` names them."""
     import difflib
 
-    from scenarios import profile as profiles
+    from rig.scenarios import profile as profiles
 
     shipped = profiles.names()
     if fc in shipped:
@@ -87,7 +87,7 @@ def check_run(req: RunRequest, store: Store, scenarios: bool = True) -> tuple[li
     """Every problem of a run request, in words (the validator's for the scenarios; ``scenarios``
     False: only the DUT, for a sweep), and the version of each scenario it names: the one checked
     here is the one the run records and flies."""
-    from scenarios.schema import ScenarioError, load
+    from rig.scenarios.schema import ScenarioError, load
 
     problems = []
     versions: dict[str, str] = {}
@@ -189,7 +189,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         import hashlib
 
         from rig.run_cmd import resolve
-        from scenarios.schema import ScenarioError, load
+        from rig.scenarios.schema import ScenarioError, load
 
         found: list[tuple[str, str, str, Path | None]] = [
             ("library", p.stem, hashlib.sha256(p.read_bytes()).hexdigest(), p) for p in resolve([])]
@@ -273,7 +273,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         runs as one job of a lockstep slot (``rig sweep --jobs 1``); GET /api/runs/ID follows it and
         its artifacts hold summary.html, runs.parquet and junit.xml."""
         from rig.run_cmd import LIBRARY
-        from scenarios.sweep import Sweep, SweepError, load_sweep
+        from rig.scenarios.sweep import Sweep, SweepError, load_sweep
 
         body = b""
         async for chunk in request.stream():

@@ -291,7 +291,7 @@ def library_names() -> list[str]:
 def unknown_measurements(names: list[str]) -> list[str]:
     """The names no criterion of the library's scenarios has (what a --modbus-measure could never read)."""
     from rig.run_cmd import resolve
-    from scenarios.schema import ScenarioError, load
+    from rig.scenarios.schema import ScenarioError, load
 
     known: set[str] = set()
     for path in resolve([]):

@@ -92,7 +92,7 @@ class Store:
         another version is taken only with ``replace``). UploadError with the validator's words, or
         409. Returns the name, the version, the one it replaced (or None) and whether it is new."""
         from rig.run_cmd import LIBRARY
-        from scenarios.schema import ScenarioError, load
+        from rig.scenarios.schema import ScenarioError, load
 
         if not NAME.fullmatch(name):
             raise UploadError(f"name {name!r}: lower-case letters, digits and _, at most 64")

@@ -90,7 +90,7 @@ def sweep_results(out: Path, scenario: str, sha256: str) -> list[dict[str, Any]]
 
 def count_runs(spec: Path) -> int:
     from rig.run_cmd import LIBRARY
-    from scenarios.sweep import SweepError, load_sweep
+    from rig.scenarios.sweep import SweepError, load_sweep
 
     try:
         return len(load_sweep(spec, LIBRARY).variants)

@@ -12,7 +12,7 @@ import os
 import sys
 from pathlib import Path
 
-from plant.native_build import NativeBuildError, compile_c, compile_shared, is_stale
+from rig.plant.native_build import NativeBuildError, compile_c, compile_shared, is_stale
 
 SHIM_DIR = Path(__file__).resolve().parent
 REPO_ROOT = SHIM_DIR.parent.parent

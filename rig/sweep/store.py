@@ -33,9 +33,9 @@ def dut_identity(dut: list[str] | None, cwd: Path | None = None, fc: str | None 
     (what was hashed, in words) and the FC profile it is flown by (``fc``: its file; None: the
     reference FC's), by name and SHA-256."""
     from rig import firmware
+    from rig.scenarios import profile as profiles
     from rig.targets import REFERENCE_FC
     from rig.targets.process import absolute_command
-    from scenarios import profile as profiles
 
     cwd = cwd or Path.cwd()
     command = list(dut) if dut is not None else [str(REFERENCE_FC)]

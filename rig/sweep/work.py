@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 from rig import compiled
 
 if TYPE_CHECKING:
-    from scenarios.sweep import Variant
+    from rig.scenarios.sweep import Variant
 
 #: the runs' folders (runs/<id>/) and a row's file in each
 RUNS = "runs"
@@ -143,12 +143,12 @@ def fly(task: Task) -> dict[str, Any]:
     # this is a worker's entry point (a local pool's process, a Dask worker): the session's hot modules
     # from build/mypyc must be found before anything below imports them, as the CLI does at its start
     compiled.install()
-    from reports import html_report, mcap, result_json
     from rig import interrupts
+    from rig.reports import html_report, mcap, result_json
     from rig.runner import not_run, run
+    from rig.scenarios import profile as profiles
+    from rig.scenarios.schema import ScenarioError, check
     from rig.targets.process import ProcessTarget
-    from scenarios import profile as profiles
-    from scenarios.schema import ScenarioError, check
 
     out = Path(task.out)
     row: dict[str, Any] = {**task.head(), "host": socket.gethostname(), "pid": os.getpid()}

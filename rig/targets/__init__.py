@@ -24,16 +24,16 @@ from typing import IO, TYPE_CHECKING, Any, Final, Protocol
 
 import numpy as np
 
-from plant.native_build import BUILD
 from rig.host import Host
-from scenarios.result import I2CRecord
+from rig.plant.native_build import BUILD
+from rig.scenarios.result import I2CRecord
 
 if TYPE_CHECKING:
-    from emulators.faults import FaultSet
+    from rig.emulators.faults import FaultSet
+    from rig.scenarios.profile import Profile
+    from rig.scenarios.schema import Scenario
     from rig.session import Outcome
     from rig.world import World
-    from scenarios.profile import Profile
-    from scenarios.schema import Scenario
 
 # (the build folder from a module that is never compiled: the runner may run from build/mypyc,
 # rig/compiled.py, where __file__ is not the source's)

@@ -18,12 +18,12 @@ from rig.bridge.session import BenchConfig, BenchSession
 from rig.host import Host
 from rig.power.bench_run import PsuRun
 from rig.power.supply import PsuError
+from rig.scenarios.profile import Profile
+from rig.scenarios.schema import Scenario
 from rig.scheduler import EXIT_RIG_ERROR
 from rig.session import Outcome
 from rig.targets import RC_PATH, RunContext, TargetRun, telemetry_path
 from rig.targets.process import command_for, describe_command
-from scenarios.profile import Profile
-from scenarios.schema import Scenario
 
 PSU_SAMPLE_S: Final = 0.1  # the bench supply's readings join the run's record at 10 Hz
 

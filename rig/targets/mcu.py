@@ -10,13 +10,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rig.mcu import board as boards
+from rig.mcu.engine import BUS_PROBLEMS
 from rig.mcu.session import McuConfig, McuSession
+from rig.scenarios.profile import Profile
+from rig.scenarios.result import I2CRecord
+from rig.scenarios.schema import Scenario
 from rig.session import Outcome
 from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, TargetRun, telemetry_path
 from rig.targets.process import NO_SUPPLY
-from scenarios.profile import Profile
-from scenarios.result import I2CRecord
-from scenarios.schema import Scenario
 
 if TYPE_CHECKING:
     from rig.world import World
@@ -35,7 +36,8 @@ class McuRun(TargetRun):
         f["rc_bytes"] = s.figures.rc_bytes
         if s.cfg.trace is not None:
             f["trace"] = str(s.cfg.trace)
-        return {"mcu": f}
+        problems = {name: int(f.get(key, 0)) for name, key in BUS_PROBLEMS.items()}
+        return {"mcu": f, "bus_problems": problems}
 
     def transactions(self) -> list[I2CRecord] | None:
         return self.session.transfers.records
@@ -108,7 +110,7 @@ class McuTarget:
         elif self.board.eeprom_image is not None:
             eeprom = self.board.eeprom_image.read_bytes()
         elif self.board.eeprom_from_fc:
-            from scenarios.eeprom import image  # the reference firmware's layout
+            from rig.scenarios.eeprom import image  # the reference firmware's layout
 
             eeprom = image(fc)
         cfg = McuConfig(self.board, self.firmware, duration, RC_PATH, telemetry, eeprom, wall_timeout,

@@ -12,6 +12,9 @@ from typing import Any
 
 from rig import firmware
 from rig.capture import CaptureLink, install_capture
+from rig.scenarios.profile import Profile
+from rig.scenarios.result import I2CRecord
+from rig.scenarios.schema import Scenario
 from rig.session import Outcome, Session, SessionConfig
 from rig.targets import (
     RC_PATH,
@@ -22,9 +25,6 @@ from rig.targets import (
     reference_config,
     telemetry_path,
 )
-from scenarios.profile import Profile
-from scenarios.result import I2CRecord
-from scenarios.schema import Scenario
 
 #: a note for a run whose target has no bench supply to drive
 NO_SUPPLY = "the scenario's [bench] supply powers a board behind a bridge only: not used here"

@@ -46,7 +46,7 @@ def test_run_writes_what_rig_run_writes(tmp_path):
     assert [c.name for c in r.criteria] == [m["name"] for m in doc["measurements"]]
     assert all(c.outcome == "pass" and c.max is not None and c.margin is not None for c in r.criteria)
     # the telemetry table is telemetry.csv's columns, sample for sample
-    from reports import telemetry
+    from rig.reports import telemetry
 
     csv = telemetry.read((b / "telemetry.csv").read_text())
     table = r.telemetry

@@ -24,9 +24,9 @@ import pytest
 
 from rig.bridge.messages import PROTOCOL_VERSION
 from rig.bridge.session import BenchConfig, BenchSession
+from rig.scenarios.schema import load
 from rig.targets import REFERENCE_FC, reference_config
 from rig.world import World
-from scenarios.schema import load
 from tests.bridge.tools import REPO, vbridge
 from tests.realtime import of_outcome, of_results, realtime, realtime_each
 from tests.short_scenario import SHORT_BENCH

@@ -16,10 +16,10 @@ import can
 import pytest
 from can.interfaces.slcan import slcanBus
 
-from emulators.pwm_capture import CanCodec
 from rig.bridge.can_capture import BatchedSlcan, CanPulses, parse
 from rig.bridge.esc import ESC_PROTOCOLS
 from rig.bridge.port import BridgeError
+from rig.emulators.pwm_capture import CanCodec
 from rig.world import World
 from tests.waits import BOUND_S
 

@@ -17,10 +17,10 @@ from dataclasses import dataclass
 
 import pytest
 
-from emulators import pwm_capture, sbus
 from rig.bridge.esc import ESC_PROTOCOLS
 from rig.bridge.link import Decoded, Receiver, encode
 from rig.bridge.messages import HOST_SILENT_US, MESSAGES, PROTOCOL_VERSION
+from rig.emulators import pwm_capture, sbus
 from tests.bridge.tools import Tool, bridge_tools
 
 G = 9.80665

@@ -20,9 +20,9 @@ from pathlib import Path
 import pytest
 import serial
 
-from emulators import sbus
 from rig.bridge.link import Decoded, Receiver, encode
 from rig.bridge.messages import PROTOCOL_VERSION
+from rig.emulators import sbus
 from tests.bridge.tools import REPO, vbridge
 from tests.waits import BOUND_S, wait_gone
 

@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 
 from rig.runner import parse_telemetry
-from scenarios import eeprom
-from scenarios.schema import load
+from rig.scenarios import eeprom
+from rig.scenarios.schema import load
 
 REPO = Path(__file__).resolve().parents[2]
 AVR = REPO / "build" / "avr"

@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
+from rig.scenarios import eeprom
+from rig.scenarios.schema import load
 from rig.targets import reference_config
-from scenarios import eeprom
-from scenarios.schema import load
 
 REPO = Path(__file__).resolve().parents[2]
 DUMP = REPO / "build" / "dut" / "config_dump"

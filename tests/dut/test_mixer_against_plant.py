@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plant.fmu import Plant
+from rig.plant.fmu import Plant
 from tests.plant.helpers import HOVER_PWM, flying
 
 REPO = Path(__file__).resolve().parents[2]

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from emulators.ms5611 import DEFAULT_PROM
+from rig.emulators.ms5611 import DEFAULT_PROM
 from rig.rc import StickEmulator
 from rig.scheduler import MONO_BASE_NS, NS
 from rig.session import Outcome, Session, SessionConfig

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from rig.runner import run
-from scenarios.schema import load
+from rig.scenarios.schema import load
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
 SEEDS = 20

@@ -17,9 +17,9 @@ from pathlib import Path
 import pytest
 
 from rig.runner import run
+from rig.scenarios.schema import load
 from rig.targets import reference_config
 from rig.targets.process import ProcessTarget
-from scenarios.schema import load
 
 REPO = Path(__file__).resolve().parents[2]
 LIB = REPO / "scenarios" / "library"

@@ -7,13 +7,13 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from emulators.chips.board import build_chip_board
-from emulators.faults import FaultSet, FaultyDevice
-from emulators.hmc5883l import HMC5883L
-from emulators.i2c_bus import I2CDevice
-from emulators.mpu6050 import MPU6050, ImuTruth
-from emulators.ms5611 import MS5611, BaroTruth
-from emulators.topology import build_board
+from rig.emulators.chips.board import build_chip_board
+from rig.emulators.faults import FaultSet, FaultyDevice
+from rig.emulators.hmc5883l import HMC5883L
+from rig.emulators.i2c_bus import I2CDevice
+from rig.emulators.mpu6050 import MPU6050, ImuTruth
+from rig.emulators.ms5611 import MS5611, BaroTruth
+from rig.emulators.topology import build_board
 
 IMPLS = ("python", "core")
 IMPL = "python"

@@ -14,12 +14,12 @@ from pathlib import Path
 
 import pytest
 
-from emulators import native
-from emulators.chips import gen
-from emulators.chips.board import CHIP_BARO, CHIP_HMC, CHIP_MPU, ChipBoard, build_chip_board
-from emulators.faults import Fault, FaultSet
-from emulators.i2c_bus import I2CNack, I2CProtocolError, Msg, read, write
-from emulators.sensor_models import AxisErrors, BaroModel, ImuModel, MagModel
+from rig.emulators import native
+from rig.emulators.chips import gen
+from rig.emulators.chips.board import CHIP_BARO, CHIP_HMC, CHIP_MPU, ChipBoard, build_chip_board
+from rig.emulators.faults import Fault, FaultSet
+from rig.emulators.i2c_bus import I2CNack, I2CProtocolError, Msg, read, write
+from rig.emulators.sensor_models import AxisErrors, BaroModel, ImuModel, MagModel
 from tests.emulators import boards
 
 M, H, B = 0x68, 0x1E, 0x77
@@ -240,7 +240,7 @@ def test_the_core_builds_as_strict_c99_with_only_the_allowed_headers(tmp_path) -
 
 
 def test_the_generated_tables_are_the_python_ones() -> None:
-    from emulators import hmc5883l, mpu6050
+    from rig.emulators import hmc5883l, mpu6050
 
     text = gen.header()
     assert f"#define CHIP_MPU_ST_GYRO_DPS {mpu6050.ST_GYRO_DPS.hex()}" in text

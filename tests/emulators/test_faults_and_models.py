@@ -7,9 +7,17 @@ import math
 import numpy as np
 import pytest
 
-from emulators.faults import Fault, FaultSet
-from emulators.i2c_bus import I2CNack, read, write
-from emulators.sensor_models import IMU_TRUTH, AxisErrors, BaroModel, ImuModel, MagModel, Normals, TruthRow
+from rig.emulators.faults import Fault, FaultSet
+from rig.emulators.i2c_bus import I2CNack, read, write
+from rig.emulators.sensor_models import (
+    IMU_TRUTH,
+    AxisErrors,
+    BaroModel,
+    ImuModel,
+    MagModel,
+    Normals,
+    TruthRow,
+)
 from rig.world import World
 from tests.emulators.boards import make_board, s16
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from emulators.hmc5883l import GAINS
-from emulators.i2c_bus import I2CNack, read, write
+from rig.emulators.hmc5883l import GAINS
+from rig.emulators.i2c_bus import I2CNack, read, write
 from tests.emulators.boards import Script, board, s16
 
 A = 0x1E

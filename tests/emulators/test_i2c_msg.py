@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from emulators.i2c_bus import Msg, read, write
+from rig.emulators.i2c_bus import Msg, read, write
 
 
 @pytest.mark.parametrize(("args", "why"), [

@@ -8,8 +8,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from emulators.i2c_bus import read, write
-from emulators.mpu6050 import ACCEL_LSB_PER_G, GYRO_LSB_PER_DPS, ST_ACCEL_G, ST_GYRO_DPS, ImuTruth
+from rig.emulators.i2c_bus import read, write
+from rig.emulators.mpu6050 import ACCEL_LSB_PER_G, GYRO_LSB_PER_DPS, ST_ACCEL_G, ST_GYRO_DPS, ImuTruth
 from tests.emulators.boards import Script, board, s16
 
 M, G0 = 0x68, 9.80665

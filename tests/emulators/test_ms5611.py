@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from emulators.i2c_bus import I2CBus, read, write
-from emulators.ms5611 import DEFAULT_PROM, MS5611, BaroTruth, crc4, encode
+from rig.emulators.i2c_bus import I2CBus, read, write
+from rig.emulators.ms5611 import DEFAULT_PROM, MS5611, BaroTruth, crc4, encode
 from tests.emulators import boards
 from tests.emulators.boards import Script, make_board
 

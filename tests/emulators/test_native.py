@@ -6,8 +6,8 @@ import os
 
 import pytest
 
-from emulators.native import SAMPLING_SOURCE
-from plant.native_build import NativeBuildError, compile_shared, is_stale
+from rig.emulators.native import SAMPLING_SOURCE
+from rig.plant.native_build import NativeBuildError, compile_shared, is_stale
 
 
 def test_a_missing_compiler_is_named(tmp_path) -> None:
@@ -36,7 +36,7 @@ def test_a_library_is_stale_when_missing_or_older_than_a_source(tmp_path) -> Non
 
 
 def test_the_per_cycle_entry_points_refuse_wrong_arguments_with_a_clear_error() -> None:
-    from emulators.native import BLOCK, fast
+    from rig.emulators.native import BLOCK, fast
 
     m = fast()
     with pytest.raises(TypeError, match="lowpass_run takes 6 arguments \\(2 given\\)"):
@@ -54,7 +54,7 @@ def test_the_per_cycle_entry_points_refuse_wrong_arguments_with_a_clear_error() 
 
 
 def test_one_library_serves_both_ctypes_and_the_module() -> None:
-    from emulators.native import LIB, fast, sampling
+    from rig.emulators.native import LIB, fast, sampling
 
     assert fast().__file__ == str(LIB)
     assert sampling()._name == str(LIB)
@@ -62,13 +62,13 @@ def test_one_library_serves_both_ctypes_and_the_module() -> None:
 
 
 def test_the_plant_steps_refuse_wrong_arguments_with_a_clear_error() -> None:
-    from plant.steps import plant_steps
+    from rig.plant.steps import plant_steps
 
     with pytest.raises(TypeError, match="plant_steps takes 5 arguments \\(0 given\\)"):
         plant_steps()()  # type: ignore[call-arg]
     with pytest.raises(TypeError):
         plant_steps()(0, 1, "a step", 1, 0)  # type: ignore[arg-type]
-    from plant.steps import get_boolean
+    from rig.plant.steps import get_boolean
 
     with pytest.raises(TypeError, match="get_boolean takes 3 arguments \\(1 given\\)"):
         get_boolean()(0)  # type: ignore[call-arg]
@@ -81,7 +81,7 @@ def test_on_ground_read_in_c_is_the_fmus_own_answer() -> None:
     ctypes, at rest and in the air."""
     import ctypes
 
-    from plant.fmu import Plant
+    from rig.plant.fmu import Plant
 
     plant = Plant()
     out = (ctypes.c_int * 1)()

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from emulators import hmc5883l, mpu6050
-from emulators.i2c_bus import I2CBus, read, write
+from rig.emulators import hmc5883l, mpu6050
+from rig.emulators.i2c_bus import I2CBus, read, write
 from tests.emulators.boards import Script, board
 
 DEVICES = [(mpu6050.REGISTERS, 0x68), (hmc5883l.REGISTERS, 0x1E)]

@@ -7,7 +7,7 @@ import random
 
 import pytest
 
-from emulators.sbus import FLAG_FAILSAFE, FLAG_FRAME_LOST, decode, encode
+from rig.emulators.sbus import FLAG_FAILSAFE, FLAG_FRAME_LOST, decode, encode
 
 
 @pytest.mark.parametrize("seed", range(20))

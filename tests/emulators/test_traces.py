@@ -7,9 +7,9 @@ import json
 
 import pytest
 
-from emulators.mpu6050 import ImuTruth
-from emulators.ms5611 import BaroTruth
-from emulators.trace import TRACE_DIR, TraceError, load, parse_msg, replay
+from rig.emulators.mpu6050 import ImuTruth
+from rig.emulators.ms5611 import BaroTruth
+from rig.emulators.trace import TRACE_DIR, TraceError, load, parse_msg, replay
 from tests.emulators.boards import make_board
 
 TRACES = sorted(TRACE_DIR.glob("*.json"))

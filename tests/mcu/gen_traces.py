@@ -8,7 +8,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from emulators.trace import TRACE_DIR, load, parse_msg
+from rig.emulators.trace import TRACE_DIR, load, parse_msg
 
 TRACE_NAMES = tuple(sorted(p.stem for p in TRACE_DIR.glob("*.json")))
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from emulators import sbus
+from rig.emulators import sbus
 from rig.mcu.engine import AvrEngine, EngineConfig
 from tests.mcu.conftest import MCUS, firmware
 

@@ -9,10 +9,10 @@ from pathlib import Path
 
 import pytest
 
-from emulators import sbus
-from plant.variables import PWM_INPUTS
+from rig.emulators import sbus
 from rig.mcu import board as boards
 from rig.mcu.session import ESC_TIMEOUT_S, McuConfig, McuSession, sbus_to_us
+from rig.plant.variables import PWM_INPUTS
 from rig.world import World
 from tests.mcu.conftest import firmware
 from tests.mcu.test_rc import echoes

@@ -7,12 +7,12 @@ from __future__ import annotations
 
 import pytest
 
-from emulators.chips.board import ChipBoard, build_chip_board
-from emulators.faults import Fault, FaultSet
-from emulators.i2c_bus import I2CNack, Msg
-from emulators.mpu6050 import ImuTruth
-from emulators.ms5611 import BaroTruth
-from emulators.trace import TRACE_DIR, load, parse_msg
+from rig.emulators.chips.board import ChipBoard, build_chip_board
+from rig.emulators.faults import Fault, FaultSet
+from rig.emulators.i2c_bus import I2CNack, Msg
+from rig.emulators.mpu6050 import ImuTruth
+from rig.emulators.ms5611 import BaroTruth
+from rig.emulators.trace import TRACE_DIR, load, parse_msg
 from rig.mcu.engine import AvrEngine, EngineConfig, Motor, TwiRecord
 from tests.mcu.conftest import firmware
 from tests.mcu.gen_traces import TRACE_NAMES

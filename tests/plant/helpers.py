@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from plant import Plant
+from rig.plant import Plant
 
 G = 9.80665
 MASS, ARM, K_THRUST, K_TORQUE = 1.2, 0.2, 3.13e-5, 7.5e-7        # seed 001 Table 1

@@ -16,8 +16,8 @@ from fmpy.simulation import FMICallException
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from plant import Plant, PlantError
-from plant.variables import PARAMETERS, check_parameters
+from rig.plant import Plant, PlantError
+from rig.plant.variables import PARAMETERS, check_parameters
 from tests.plant.helpers import DT, HOVER_PWM, flying, pwms
 
 WOBBLE = (HOVER_PWM + 5, HOVER_PWM - 3, HOVER_PWM + 1, HOVER_PWM)

@@ -11,7 +11,7 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
-from plant.build import build
+from rig.plant.build import build
 
 INPUTS = ["pwm1_us", "pwm2_us", "pwm3_us", "pwm4_us", "wind_n", "wind_e", "wind_d", "f_ext_n",
           "f_ext_e", "f_ext_d", "tau_ext_x", "tau_ext_y", "tau_ext_z", "motor_health1",

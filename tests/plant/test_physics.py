@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from plant import Plant
+from rig.plant import Plant
 from tests.plant.helpers import (
     ARM,
     DT,

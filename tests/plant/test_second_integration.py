@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from plant import Plant
+from rig.plant import Plant
 from tests.plant.helpers import ARM, HOVER_PWM, IXX, IYY, IZZ, K_THRUST, K_TORQUE, MASS, G
 
 OMEGA_MAX, TAU = 600.0, 0.02

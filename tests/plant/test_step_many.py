@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from plant import PlantError
+from rig.plant import PlantError
 from tests.plant.helpers import DT, HOVER_PWM, flying
 
 WOBBLE = (HOVER_PWM + 40, HOVER_PWM - 30, HOVER_PWM + 10, HOVER_PWM)
@@ -68,7 +68,7 @@ def test_a_reader_gives_the_outputs_and_inputs_numpy_indexing_gives() -> None:
     buffers, as a flight changes them, with the extras after them and the row's neighbours untouched;
     indices outside a buffer and rows longer than their room are refused, by the Python check and by
     the C one."""
-    from plant.steps import gather
+    from rig.plant.steps import gather
 
     with flying(WOBBLE) as a:
         outputs, inputs = [3, 0, len(a.y) - 1, 3], [len(a.u) - 1, 0]

@@ -11,7 +11,7 @@ import pytest
 
 from rig.power.riden import MODELS, RidenSupply, model_of
 from rig.power.supply import PsuError, power_cycle
-from scenarios.bench import parse_psu
+from rig.scenarios.bench import parse_psu
 from tests.power.sim_supplies import SimKorad, SimRiden, crc16_modbus
 
 
@@ -138,7 +138,7 @@ def test_no_such_port_is_a_clear_error() -> None:
 
 
 def test_a_scenarios_bench_table_is_checked(tmp_path: Path) -> None:
-    from scenarios.schema import ScenarioError, load
+    from rig.scenarios.schema import ScenarioError, load
 
     base = ('[scenario]\nname = "x"\nduration = 1.0\n'
             '[[criteria]]\nname = "c"\nmetric = "max"\nsignal = "roll"\nmax = 1\n[bench]\n')

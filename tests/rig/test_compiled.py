@@ -26,7 +26,7 @@ from rig import compiled
 compiled.install()
 import rig.session
 from rig.runner import run
-from scenarios.schema import load
+from rig.scenarios.schema import load
 r = run(load(sys.argv[1]), work_dir=sys.argv[2])
 h = hashlib.sha256(repr(r.measurements).encode())
 for name in sorted(r.signals):
@@ -79,10 +79,10 @@ def test_one_changed_source_sends_every_hot_module_back_to_source(tmp_path: Path
         assert spec is not None and Path(spec.origin or "").is_relative_to(tmp_path / "fresh"), name
     assert fresh.find_spec("rig.capture") is None   # not compiled at all: not this finder's to find
     older = hashlib.sha256(b"an older board.py").hexdigest()
-    stale = CompiledFinder(_build_copy(tmp_path / "stale", {"emulators.chips.board": older}))
-    assert stale.stale == ["emulators.chips.board"]
+    stale = CompiledFinder(_build_copy(tmp_path / "stale", {"rig.emulators.chips.board": older}))
+    assert stale.stale == ["rig.emulators.chips.board"]
     assert [stale.find_spec(name) for name in (*MODULES, stale.runtime)] == [None] * (len(MODULES) + 1)
-    assert "emulators.chips.board" in capsys.readouterr().err
+    assert "rig.emulators.chips.board" in capsys.readouterr().err
 
 
 def test_a_broken_manifest_means_no_compiled_modules(tmp_path: Path) -> None:
@@ -106,7 +106,7 @@ def test_the_makefile_rebuilds_when_any_compiled_source_changes() -> None:
 
 def test_importing_the_packages_installs_no_import_hook() -> None:
     """The hook is the entry points' to install (CLI, tests, benches), not a side effect of an import."""
-    code = ("import sys, plant, emulators, scenarios, reports, rig, rig.session, rig.world\n"
+    code = ("import sys, rig.plant, rig.emulators, rig.scenarios, rig.reports, rig, rig.session, rig.world\n"
             "from rig.compiled import CompiledFinder\n"
             "print(any(isinstance(f, CompiledFinder) for f in sys.meta_path), rig.session.__file__)")
     done = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60)

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from emulators.ms5611 import DEFAULT_PROM
+from rig.emulators.ms5611 import DEFAULT_PROM
 from tests.rig.helpers import rig_exec, tool
 
 #: where the devices are: the session's own, or the virtual bridge's

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from emulators.faults import Fault, FaultSet
+from rig.emulators.faults import Fault, FaultSet
 from rig.scheduler import NS
 from rig.session import Session, SessionConfig
 from rig.world import World
@@ -97,7 +97,7 @@ def test_the_page_promises_what_the_board_says(tmp_path: Path) -> None:
 
 BROKEN = """
 import json, sys
-from emulators.chips.board import ChipBoard
+from rig.emulators.chips.board import ChipBoard
 from rig.session import Session, SessionConfig
 from rig.world import World
 ChipBoard.write_acks = lambda self: [(0x50, 2**64 - 1)]  # a rig bug: a promise for an empty address

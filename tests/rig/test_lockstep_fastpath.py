@@ -20,10 +20,10 @@ from typing import Any
 import pytest
 
 import rig.protocol as P
-from emulators import native
-from emulators.chips.board import CHIP_HMC
 from rig import lockstep
 from rig.connection import Conn
+from rig.emulators import native
+from rig.emulators.chips.board import CHIP_HMC
 from rig.session import Session, SessionConfig, _pending_input, _Pty
 from rig.world import World
 

@@ -16,13 +16,13 @@ from pathlib import Path
 import pytest
 
 import rig.protocol as P
-import scenarios
-from emulators import ms5611
-from emulators.chips.board import CHIP_BARO, CHIP_HMC, BaroFeed, MagFeed
-from emulators.sensor_models import AxisErrors, BaroModel, MagModel
+from rig import scenarios
+from rig.emulators import ms5611
+from rig.emulators.chips.board import CHIP_BARO, CHIP_HMC, BaroFeed, MagFeed
+from rig.emulators.sensor_models import AxisErrors, BaroModel, MagModel
+from rig.scenarios.schema import load
 from rig.session import Session
 from rig.world import World, _WorldTruth
-from scenarios.schema import load
 from tests.rig.test_lockstep_fastpath import CYCLE_NS, _fly, _i2c, _msg, _pwm, _same, _wait
 
 HMC, MPU, BARO = 0x1E, 0x68, 0x77

@@ -33,10 +33,10 @@ def test_a_lockstep_program_has_a_mailbox_unless_told_otherwise(tmp_path: Path,
 
 def test_a_flight_through_the_mailbox_is_the_flight_through_the_socket(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    import scenarios
+    from rig import scenarios
     from rig.runner import run
+    from rig.scenarios.schema import load
     from rig.targets.process import ProcessTarget
-    from scenarios.schema import load
 
     library = Path(scenarios.__file__).parent / "library"
     sc = dataclasses.replace(load(library / "step_roll.toml"), duration=3.0)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from emulators.sbus import FLAG_FAILSAFE, FLAG_FRAME_LOST, PERIOD_S, Sticks, decode
+from rig.emulators.sbus import FLAG_FAILSAFE, FLAG_FRAME_LOST, PERIOD_S, Sticks, decode
 from rig.host import Host
 from rig.rc import StickEmulator
 from rig.scheduler import Scheduler

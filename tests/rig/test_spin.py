@@ -49,10 +49,10 @@ def test_the_placement_of_each_kind_of_run() -> None:
 
 
 def test_a_flight_with_spin_is_the_flight_without(tmp_path: Path, two_cores: None) -> None:
-    import scenarios
+    from rig import scenarios
     from rig.runner import run
+    from rig.scenarios.schema import load
     from rig.targets.process import ProcessTarget
-    from scenarios.schema import load
 
     library = Path(scenarios.__file__).parent / "library"
     sc = dataclasses.replace(load(library / "step_roll.toml"), duration=3.0)

@@ -7,7 +7,7 @@ import ctypes
 
 import pytest
 
-from plant.variables import MOTORS, PWM_INPUTS, SCENARIO_INPUTS
+from rig.plant.variables import MOTORS, PWM_INPUTS, SCENARIO_INPUTS
 from rig.world import PwmChannel, World
 
 

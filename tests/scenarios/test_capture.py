@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from emulators.pwm_capture import (
+from rig.emulators.pwm_capture import (
     CanCodec,
     CaptureFrameError,
     SerialDeframer,
@@ -21,8 +21,8 @@ from emulators.pwm_capture import (
     encode_serial,
 )
 from rig.runner import run
+from rig.scenarios.schema import Capture, load
 from rig.targets.process import ProcessTarget
-from scenarios.schema import Capture, load
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
 
@@ -137,8 +137,8 @@ def test_a_can_interface_that_cannot_open_is_a_clear_usage_error(tmp_path: Path)
 
 
 def test_every_transport_a_scenario_may_name_has_a_registered_class() -> None:
-    from emulators.pwm_capture import TRANSPORTS as NAMED
     from rig.capture import TRANSPORTS, CaptureTransport
+    from rig.emulators.pwm_capture import TRANSPORTS as NAMED
 
     assert set(TRANSPORTS) == set(NAMED)
     assert all(issubclass(cls, CaptureTransport) and cls.name == name for name, cls in TRANSPORTS.items())

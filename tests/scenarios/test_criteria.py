@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from scenarios.criteria import measure
+from rig.scenarios.criteria import measure
 
 
 def second_order(zeta: float, wn: float, t: np.ndarray) -> np.ndarray:

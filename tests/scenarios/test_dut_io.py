@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from rig.runner import parse_telemetry, run
+from rig.scenarios.schema import load
 from rig.targets.process import ProcessTarget
 from rig.telemetry import native, read_columns
-from scenarios.schema import load
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
 #: stand-in firmware, each with the misbehaviour a test needs

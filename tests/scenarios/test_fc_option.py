@@ -14,12 +14,12 @@ from pathlib import Path
 
 from mcap.reader import make_reader
 
+from rig.scenarios import profile as profiles
 from rig.service.app import RunRequest, fc_problems
 from rig.service.db import Db
 from rig.service.store import Store
 from rig.service.worker import command
 from rig.sweep import store
-from scenarios import profile as profiles
 from tests.api import SHORT
 from tests.api.test_pytest_plugin import pytest_run
 

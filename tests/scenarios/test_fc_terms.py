@@ -12,11 +12,11 @@ from pathlib import Path
 
 import pytest
 
-from reports import acceptance, html_report, junit
+from rig.reports import acceptance, html_report, junit
 from rig.run_cmd import write_run
 from rig.runner import run
-from scenarios import profile as profiles
-from scenarios.schema import ScenarioError, load
+from rig.scenarios import profile as profiles
+from rig.scenarios.schema import ScenarioError, load
 
 REFERENCE = (profiles.PROFILES / "reference.toml").read_text()
 

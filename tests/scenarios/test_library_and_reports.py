@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reports.telemetry import read
+from rig.reports.telemetry import read
 from rig.runner import run
-from scenarios.schema import Gust, load
+from rig.scenarios.schema import Gust, load
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
 

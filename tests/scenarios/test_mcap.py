@@ -15,8 +15,8 @@ from typing import Any
 import pytest
 from mcap.reader import make_reader
 
-from reports import mcap as rig_mcap
-from reports import telemetry
+from rig.reports import mcap as rig_mcap
+from rig.reports import telemetry
 
 PY = sys.executable
 SCENARIO = """[scenario]
@@ -159,7 +159,7 @@ def test_rig_report_mcap_writes_it_for_an_old_run(run_dir: Path, tmp_path: Path)
 
 
 def test_a_target_that_cannot_see_the_bus_says_so(run_dir: Path, tmp_path: Path) -> None:
-    from reports.load import read_run
+    from rig.reports.load import read_run
 
     r = read_run(run_dir)  # (i2c and rc_frames None: as a bridge run's result has them)
     r.metadata["mode"] = "bridge"
@@ -171,8 +171,8 @@ def test_a_target_that_cannot_see_the_bus_says_so(run_dir: Path, tmp_path: Path)
 
 
 def test_a_capped_transaction_log_is_said_in_the_metadata(run_dir: Path, tmp_path: Path) -> None:
-    from reports.load import read_run
-    from scenarios.result import I2CRecord
+    from rig.reports.load import read_run
+    from rig.scenarios.result import I2CRecord
 
     r = read_run(run_dir)
     r.i2c = [I2CRecord(1000 * k, 0x68, None, b"", b"\x00", True) for k in range(3)]

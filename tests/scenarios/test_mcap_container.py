@@ -15,7 +15,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap.writer import Writer
 
-from reports.mcap_container import CHUNK_SIZE, ContainerWriter
+from rig.reports.mcap_container import CHUNK_SIZE, ContainerWriter
 
 Call = tuple[str, tuple[Any, ...]]
 

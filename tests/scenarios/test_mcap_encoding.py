@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from reports import mcap
-from scenarios.result import I2CRecord
+from rig.reports import mcap
+from rig.scenarios.result import I2CRecord
 
 MPU = ("ax", "ay", "az", "temp", "gx", "gy", "gz")
 HMC = ("x", "z", "y")

@@ -7,8 +7,8 @@ import dataclasses
 from pathlib import Path
 
 from rig.runner import run
-from scenarios.result import RunResult
-from scenarios.schema import load
+from rig.scenarios.result import RunResult
+from rig.scenarios.schema import load
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
 

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from emulators.sbus import REFERENCE_MAP, Sticks
-from scenarios import profile as P
-from scenarios.profile import ProfileError
+from rig.emulators.sbus import REFERENCE_MAP, Sticks
+from rig.scenarios import profile as P
+from rig.scenarios.profile import ProfileError
 
 FULL = """
 [profile]

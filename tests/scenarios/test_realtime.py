@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 from rig.runner import run
+from rig.scenarios.schema import load
 from rig.targets.process import ProcessTarget
-from scenarios.schema import load
 from tests.realtime import realtime
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"

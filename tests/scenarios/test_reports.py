@@ -17,13 +17,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reports import acceptance, html_report, junit, pdf, result_json, telemetry
-from reports.load import read_folder
-from reports.values import META, fmt_margin, mode_text, returncode_text, sim_times_in
-from scenarios.criteria import Measurement, margin_pct, measure
-from scenarios.result import RunResult
-from scenarios.schema import load
-from scenarios.signals import SIGNALS
+from rig.reports import acceptance, html_report, junit, pdf, result_json, telemetry
+from rig.reports.load import read_folder
+from rig.reports.values import META, fmt_margin, mode_text, returncode_text, sim_times_in
+from rig.scenarios.criteria import Measurement, margin_pct, measure
+from rig.scenarios.result import RunResult
+from rig.scenarios.schema import load
+from rig.scenarios.signals import SIGNALS
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
 UPLOT = Path(__file__).resolve().parents[2] / "reports" / "vendor" / "uplot"
@@ -239,7 +239,7 @@ def test_the_docs_show_a_page_of_the_acceptance_pdf() -> None:
 def test_a_plot_keeps_every_peak_of_a_long_trace() -> None:
     """The SVG draws about one point per pixel column (a long run's PDF stays small) and never drops
     a bucket's extremes: a one-sample spike survives, and so does a gap."""
-    from reports.svg_plot import BUCKETS, extremes
+    from rig.reports.svg_plot import BUCKETS, extremes
 
     v = np.sin(np.arange(6000) * 0.01)
     v[4321], v[100:130] = 9.0, math.nan
@@ -269,7 +269,7 @@ def _extremes_bucket_by_bucket(values: np.ndarray, buckets: int) -> np.ndarray:
 
 def test_a_plots_samples_are_those_a_bucket_by_bucket_reading_keeps() -> None:
     """Random traces with gaps, infinities, ties and lengths that leave the last bucket short."""
-    from reports.svg_plot import extremes
+    from rig.reports.svg_plot import extremes
 
     rng = np.random.default_rng(3)
     for n in (801, 1000, 1013, 4000, 6001, 20011):

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from scenarios.schema import ScenarioError, load
+from rig.scenarios.schema import ScenarioError, load
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
 GOOD = """
@@ -177,8 +177,8 @@ def test_fc_values_reach_the_config_file_as_the_fc_reads_them(tmp_path: Path) ->
 def test_the_fc_key_table_is_the_one_the_fc_compiles(tmp_path: Path) -> None:
     """scenarios/fc_keys.py reads dut/src/config_keys.h; the built FC takes every key it finds there at a
     value inside the table's range, refuses one outside it, and refuses a key the table lacks."""
+    from rig.scenarios import fc_keys
     from rig.targets import REFERENCE_FC
-    from scenarios import fc_keys
 
     keys = fc_keys.keys()
     assert {"estimator", "alpha", "alt_i_band_m", "i2c_path"} <= set(keys) and len(keys) > 40

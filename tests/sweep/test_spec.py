@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from rig.run_cmd import LIBRARY
-from scenarios.sweep import SweepError, load_sweep, parse_key, set_key
+from rig.scenarios.sweep import SweepError, load_sweep, parse_key, set_key
 from tests.sweep import SHOW
 
 

@@ -19,9 +19,9 @@ from typing import Any
 import pytest
 
 from rig.run_cmd import LIBRARY
+from rig.scenarios.sweep import load_sweep
 from rig.sweep import store
 from rig.sweep.work import ROW, row_files, run_dir
-from scenarios.sweep import load_sweep
 from tests.sweep.test_sweep_cli import TIMEOUT_S, same, sweep, table
 from tests.waits import wait_file, wait_gone
 
