@@ -457,7 +457,8 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
             detail = f" {r.verdict}: {r.error}"
         else:
             detail = f" failed: {'; '.join(failed)}" if failed else ""
-        print(f" {r.verdict.upper()} ({wall:.1f} s wall, {speed}){detail}", file=sys.stderr)
+        timing = "" if r.verdict == "skipped" else f" ({wall:.1f} s wall, {speed})"  # (nothing flew)
+        print(f" {r.verdict.upper()}{timing}{detail}", file=sys.stderr)
         if r.verdict == "interrupted" and r.exit_code is not None:
             stop = r.exit_code
             break
