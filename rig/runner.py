@@ -32,8 +32,9 @@ from rig.scenarios import profile as profiles
 from rig.scenarios.criteria import NOT_JUDGED, NOT_MEASURED, SKIPPED, Measurement, measure
 from rig.scenarios.profile import Profile
 from rig.scenarios.result import RcFrame, RunResult
-from rig.scenarios.schema import STICK_TERMS, Event, Scenario
+from rig.scenarios.schema import Event, Scenario
 from rig.scenarios.signals import BENCH_SIGNALS, RECORD_PERIOD, SIGNALS
+from rig.scenarios.terms import STICK_TERMS
 from rig.targets import RC_PATH, RunContext, Target, telemetry_path
 from rig.targets.process import ProcessTarget
 from rig.telemetry import read_columns

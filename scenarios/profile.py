@@ -29,7 +29,8 @@ from pathlib import Path
 from typing import Any, Final
 
 from rig.emulators.sbus import CHANNELS, KNOBS, ChannelMap
-from rig.scenarios.schema import FEATURES, MODES, ScenarioError, _Check
+from rig.scenarios.schema import ScenarioError, _Check
+from rig.scenarios.terms import FEATURES, MODES
 
 PROFILES: Final = Path(__file__).resolve().parent / "profiles"
 DEFAULT: Final = "reference"

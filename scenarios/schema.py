@@ -24,24 +24,13 @@ from rig.emulators.faults import KINDS as FAULT_KINDS
 from rig.emulators.faults import TARGETS as FAULT_TARGETS
 from rig.emulators.faults import Fault, TargetedFault
 from rig.emulators.pwm_capture import TRANSPORTS as CAPTURE_TRANSPORTS
-from rig.emulators.sbus import KNOBS
 from rig.plant.variables import SCENARIO_INPUTS, VARIABLES, check_parameters
 from rig.scenarios import fc_keys
 from rig.scenarios.bench import BenchPower, parse_psu
 from rig.scenarios.criteria import MARGINAL_PCT, METRICS
 from rig.scenarios.signals import SIGNALS
+from rig.scenarios.terms import FEATURES, MODES, STICK_TERMS, STICKS
 
-#: flight modes a scenario may ask for and a profile may name (scenarios/profile.py)
-MODES = ("angle", "horizon", "acro", "rate", "althold", "poshold", "loiter", "land", "rth")
-#: what an FC does beyond its modes, which a scenario may need
-FEATURES = ("failsafe",)
-#: sticks: normalised (-1..1; throttle 0..1), the knobs, or in the FC's terms through its profile
-#: (degrees in an angle mode, degrees per second in a rate mode or for yaw)
-STICK_UNITS = ("roll", "pitch", "yaw", "throttle")
-STICK_TERMS = ("roll_deg", "pitch_deg", "roll_dps", "pitch_dps", "yaw_dps")
-#: the older switch keys of a timeline's sticks, read as the actions they are (arm, mode)
-STICK_SWITCHES = ("arm", "alt_hold")
-STICKS = (*STICK_UNITS, *KNOBS, *STICK_TERMS, *STICK_SWITCHES)
 PLANT_PARAMETERS = {v.name for v in VARIABLES if v.causality == "parameter"}
 PLANT_INPUTS = set(SCENARIO_INPUTS)
 LINK_STATES = ("ok", "lost", "failsafe")
