@@ -118,8 +118,7 @@ class _Recorder:
         # global are a dictionary lookup each, about 1 k instructions a tick of the 100 Hz recorder
         _, self._mag_from, self._mag_to = scenario.mag_disturbance_window
         # (the setpoints the sticks stand for: the scenario's [rc] when it says, else the FC profile's)
-        angle = scenario.max_angle_deg or profile.modes.angle_deg or profile.modes.rate_dps or 0.0
-        self._angle_scale: float = angle
+        self._angle_scale: float = scenario.max_angle_deg or profile.modes.angle_deg or 0.0
         self._yaw_scale: float = scenario.max_yaw_rate_dps or profile.modes.yaw_rate_dps
         self._period: float = RECORD_PERIOD
 
@@ -495,8 +494,10 @@ def why_still(scenario: Scenario, profile: Profile, signals: dict[str, np.ndarra
     if not arms or not len(signals["t"]):
         return ""
     after = signals["t"] >= arms[0]
-    if profile.arming.detect == "telemetry" and profile.reads_telemetry:
-        armed = bool(np.any(np.nan_to_num(signals["armed"][after]) > 0.5))
+    said = signals["armed"][after]
+    # (by its telemetry's flag when it sent any; a DUT that sends none is judged by its motors)
+    if profile.arming.detect == "telemetry" and profile.reads_telemetry and not bool(np.all(np.isnan(said))):
+        armed = bool(np.any(np.nan_to_num(said) > 0.5))
         how = "its telemetry never said armed"
     else:
         armed = bool(np.any(signals["pwm_max"][after] > profile.arming.idle_us))
