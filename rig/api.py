@@ -180,19 +180,26 @@ def run(
     *,
     dut: str | Sequence[str] | None = None,
     mcu: tuple[str | os.PathLike[str], str | os.PathLike[str]] | None = None,
+    eeprom: str | os.PathLike[str] | None = None,
     bridge: str | None = None,
     seed: int = 0,
     out: str | os.PathLike[str] = "build/reports",
     wall_timeout: float = 600.0,
     spin: bool = False,
+    pwm_channels: int | None = None,
+    topology: str | None = None,
     fc: str | os.PathLike[str] | None = None,
 ) -> Result:
     """Flies one scenario and returns its result; writes ``out/<scenario>/`` as ``rig run`` does.
 
     The DUT is one of: ``dut``, a command line (a string, split as a shell would, or a list; default:
-    the reference FC); ``mcu=(board, firmware)``, a firmware image under emulation; ``bridge``, a
-    bench bridge's serial port or "virtual". ``fc``: the FC's profile, a shipped name or a file (default
-    the reference FC's; docs/profiles.md). ``spin``: as ``rig run --spin`` (two cores, polling).
+    the reference FC); ``mcu=(board, firmware)``, a firmware image under emulation (``eeprom``: the
+    EEPROM image it starts from instead of the board's, as ``rig run --eeprom``; the run's folder gets
+    ``eeprom.bin``, the EEPROM as it ended); ``bridge``, a bench bridge's serial port or "virtual".
+    ``fc``: the FC's profile, a shipped name or a file (default the reference FC's; docs/profiles.md).
+    ``spin``: as ``rig run --spin`` (two cores, polling).
+    ``pwm_channels`` (1..16) and ``topology`` ("gy86", "direct"): a Linux DUT's board, as ``rig run
+    --pwm-channels``, ``--topology`` (default: 8 channels on a GY-86).
     Raises RigError for bad options (nothing is run); a DUT that crashes or hangs is a Result with
     verdict "error", as on the command line."""
     import shlex
@@ -216,8 +223,14 @@ def run(
         words += ["--bridge", bridge]
     if mcu is not None:
         words += ["--mcu", os.fspath(mcu[0]), "--firmware", os.fspath(mcu[1])]
+    if eeprom is not None:
+        words += ["--eeprom", os.fspath(eeprom)]
     if spin:
         words.append("--spin")
+    if pwm_channels is not None:
+        words += ["--pwm-channels", str(int(pwm_channels))]
+    if topology is not None:
+        words += ["--topology", topology]
     if fc is not None:
         words += ["--fc", os.fspath(fc)]
     args = _options("run", words)

@@ -34,6 +34,7 @@ from rig.run_cmd import seconds_option
 from rig.scheduler import EXIT_RIG_ERROR
 from rig.session import Session, SessionConfig
 from rig.targets import telemetry_path
+from rig.targets.process import hardware_problems
 from rig.world import World
 
 if TYPE_CHECKING:
@@ -119,6 +120,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--firmware", type=Path, metavar="FILE", help="with --mcu: the image (.elf or .hex)")
     p.add_argument("--trace", type=Path, metavar="DIR",
                    help="with --mcu: write the TWI transactions and motor pin edges as DIR/FIRMWARE.vcd")
+    p.add_argument("--eeprom", type=Path, metavar="FILE",
+                   help="with --mcu: the EEPROM image to start from instead of the board's (raw bytes, or "
+                        "Intel HEX named .eep/.hex)")
+    p.add_argument("--eeprom-out", type=Path, metavar="FILE",
+                   help="with --mcu: write the EEPROM as the firmware left it here (raw bytes)")
     p.add_argument("argv", nargs=argparse.REMAINDER, metavar="-- CMD ARGS", help="the command to run")
     p.set_defaults(exec_parser=p)  # (usage errors found after parsing say "rig exec: error: ...")
 
@@ -128,7 +134,8 @@ def main(args: argparse.Namespace) -> int:
     command = args.argv[1:] if args.argv[:1] == ["--"] else args.argv
     if args.mcu is not None:
         return _exec_mcu(args, parser, command)
-    for option, value in (("--firmware", args.firmware), ("--trace", args.trace)):
+    for option, value in (("--firmware", args.firmware), ("--trace", args.trace), ("--eeprom", args.eeprom),
+                          ("--eeprom-out", args.eeprom_out)):
         if value is not None:
             parser.error(f"{option} goes with --mcu BOARD")
     if not command:
@@ -145,8 +152,8 @@ def main(args: argparse.Namespace) -> int:
             args.serial.append(port)
     if args.pwm_channels is None:
         args.pwm_channels = 8
-    if not 1 <= args.pwm_channels <= 16:
-        parser.error("--pwm-channels must be between 1 and 16")
+    for problem in hardware_problems(args.pwm_channels, args.topology):
+        parser.error(problem)
     if not 0 <= args.bus < 32:
         parser.error("--bus must be between 0 and 31")
     if args.quantum_ns < 0:
@@ -236,8 +243,9 @@ def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command
     if refused:
         parser.error(f"--param: the plant refuses it: {refused}")
     _writable(parser, "--summary", args.summary)
+    _writable(parser, "--eeprom-out", args.eeprom_out)
     try:
-        target = McuTarget(args.mcu, args.firmware)
+        target = McuTarget(args.mcu, args.firmware, eeprom=args.eeprom)
     except (BoardError, FirmwareError) as e:
         parser.error(f"--mcu: {e}")
     trace = None
@@ -252,8 +260,9 @@ def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command
                           **target.world_options())
     try:
         with interrupts.handled():
+            own = profile.config.eeprom if profile is not None else None  # (the FC profile's EEPROM image)
             run = McuRun(target.session(world, args.duration, {}, args.wall_timeout, trace, args.sim_timeout,
-                                        eeprom_image=profile.config.eeprom if profile is not None else None))
+                                        args.eeprom_out, eeprom_image=own))
             outcome = run.session.run()
     finally:
         world.close()

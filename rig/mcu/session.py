@@ -61,6 +61,8 @@ class McuConfig:
     sim_timeout: float = 600.0
     #: write the TWI transactions and the motor pins' edges here as VCD (rig/mcu/vcd.py)
     trace: Path | None = None
+    #: write the EEPROM as the firmware left it here, however the run ended (eeprom.bin)
+    eeprom_out: Path | None = None
 
 
 @dataclass
@@ -191,6 +193,8 @@ class McuSession:
             interrupted = False
         finally:
             self.figures_at_end = engine.figures()
+            if self.cfg.eeprom_out is not None:
+                self.cfg.eeprom_out.write_bytes(engine.eeprom())
             events = engine.twi_take()
             self.transfers.feed(events)
             self.transfers.finish()

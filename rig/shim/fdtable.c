@@ -43,7 +43,7 @@ static int set_fake(int fd, struct fake *f)
    it, and it says what it is across exec, where this table is lost: a shell opens the attribute and
    dup2s it onto 1, then execs echo, whose shim finds the fake again from /proc/self/fd
    (adopt_inherited_fakes). The file keeps the access mode asked for. The shim never writes to it:
-   bytes there came through a call it cannot see (a raw syscall, writev, dprintf), and the session
+   bytes there came through a call it cannot see (a raw syscall, pwritev), and the session
    reports them. Without RIG_FAKES (an older session) the descriptor is onto /dev/null. */
 static void backing_name(const struct target *t, char *buf, size_t n)
 {
@@ -175,6 +175,14 @@ static int cookie_seek(void *c, off64_t *off, int whence)
     return 0;
 }
 static int cookie_close(void *c) { return close((int)(intptr_t)c); }
+
+/* A stream on fake descriptor fd (fopen's, fdopen's): its reads and writes reach the device, and
+   fclose closes fd. */
+static FILE *fake_stream(int fd, const char *mode)
+{
+    cookie_io_functions_t io = { cookie_read, cookie_write, cookie_seek, cookie_close };
+    return fopencookie((void *)(intptr_t)fd, mode, io);
+}
 
 EXPORT int close(int fd)
 {

@@ -26,6 +26,8 @@
  *   kinds[]      (here) the table of the kinds' operations, one row per kind
  *   dispatch.c   the interposed calls on paths and descriptors that may be a device's
  *   process_ends.c  exec, spawn, wait and _exit: the notices link.c holds go first
+ *   priorities.c real-time policies and mlockall: recorded, not applied, in lockstep
+ *   threads.c    the DUT's threads (pthread_create)
  * and ends with the start-up (the constructor), which reads the environment the session set.
  *
  * The device kinds: everything that differs between devices sits in the kind's file and is reached
@@ -54,6 +56,7 @@
 #include <linux/i2c.h>
 #include <poll.h>
 #include <pthread.h>
+#include <sched.h>
 #include <spawn.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -167,6 +170,7 @@ static const struct kind_ops kinds[N_KINDS] = {
         .read = pwm_attr_read,
         .write = pwm_attr_write,
         .sendfile = 1,
+        .gather = 1,
     },
     [K_PWM_DIR] = {
         .name = pwm_dir_name,
@@ -179,7 +183,9 @@ static const struct kind_ops kinds[N_KINDS] = {
 };
 
 #include "dispatch.c"
+#include "priorities.c"
 #include "process_ends.c"
+#include "threads.c"
 
 /* ---------------------------------------------------------------- start-up */
 
