@@ -22,6 +22,7 @@ import json
 import sys
 from dataclasses import asdict
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rig import interrupts
 from rig.bridge.esc import ESC_PROTOCOLS
@@ -34,8 +35,12 @@ from rig.plant.variables import PARAMETERS, check_parameters
 from rig.run_cmd import add_airframe_option, seconds_option
 from rig.scheduler import EXIT_RIG_ERROR
 from rig.session import Session, SessionConfig
+from rig.targets import telemetry_path
 from rig.targets.process import hardware_problems
 from rig.world import World
+
+if TYPE_CHECKING:
+    from rig.scenarios.profile import Profile
 
 CLOCKS = {"0": 0, "100k": 100_000, "400k": 400_000}
 
@@ -96,8 +101,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="with --bridge: the ESC protocol the bridge captures (default pwm; oneshot125)")
     p.add_argument("--serial", action="append", default=[], metavar="PATH",
                    help="a serial device path the command opens, served by a pty (repeatable)")
-    p.add_argument("--pwm-channels", type=int, default=8, metavar="N",
-                   help="channels of pwmchip0 (1..16, default 8)")
+    p.add_argument("--pwm-channels", type=int, default=None, metavar="N",
+                   help="channels of pwmchip0 (1..16; default 8, or as many as --fc's profile opens)")
+    p.add_argument("--fc", metavar="PROFILE",
+                   help="the FC's profile (a file or a shipped name; docs/profiles.md): its PWM channels and "
+                   "motor order, its frame for the plant, its telemetry port, its arguments or EEPROM image")
     p.add_argument("--i2c-clock", choices=sorted(CLOCKS), default="0",
                    help="each transfer takes its wire time at this SCL clock (default 0: no time)")
     p.add_argument("--quantum-ns", type=int, default=1000, metavar="NS",
@@ -149,6 +157,18 @@ def main(args: argparse.Namespace) -> int:
             parser.error(f"{option} goes with --mcu BOARD")
     if not command:
         parser.error("rig exec needs a command after --")
+    profile = _profile(args, parser)
+    motor_order: tuple[int, ...] = (1, 2, 3, 4)
+    if profile is not None:
+        command = [*command, *profile.config.arguments()]
+        motor_order = profile.motors.order
+        if args.pwm_channels is None:
+            args.pwm_channels = max(profile.motors.pwm_channels, 8)
+        port = telemetry_path(profile)
+        if profile.telemetry.kind != "none" and port not in args.serial:
+            args.serial.append(port)
+    if args.pwm_channels is None:
+        args.pwm_channels = 8
     for problem in hardware_problems(args.pwm_channels, args.topology):
         parser.error(problem)
     if not 0 <= args.bus < 32:
@@ -171,7 +191,7 @@ def main(args: argparse.Namespace) -> int:
                         stall_timeout=args.stall_timeout, pin=args.pin, spin=args.spin, log_path=args.log,
                         allow_no_devices=args.allow_no_devices)
     world = World.at_rest(seed=args.seed, topology=args.topology, noise=not args.no_noise,
-                          params=params, pwm_channels=args.pwm_channels)
+                          params=params, pwm_channels=args.pwm_channels, motor_order=motor_order)
     if args.bridge is not None and args.bridge != "virtual":
         parser.error("a command runs against the virtual bridge only (--bridge virtual); behind a real "
                      "bridge the board is the DUT: use rig run --bridge PORT")
@@ -200,6 +220,21 @@ def main(args: argparse.Namespace) -> int:
     return outcome.exit_code
 
 
+def _profile(args: argparse.Namespace, parser: argparse.ArgumentParser) -> Profile | None:
+    """``--fc``'s profile (None without it); its frame becomes the plant's unless --param sets one."""
+    if args.fc is None:
+        return None
+    from rig.run_cmd import load_profile
+
+    problems: list[str] = []
+    profile = load_profile(args.fc, problems)
+    if profile is None:
+        parser.error("; ".join(problems))
+    if not any(name == "frame" for name, _ in args.param):
+        args.param.append(("frame", 1.0 if profile.motors.frame == "x" else 0.0))
+    return profile
+
+
 def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command: list[str]) -> int:
     """A firmware image on its board, the world at rest, for --duration sim seconds: the MCU target's
     session (rig/targets/mcu.py) with no scenario events."""
@@ -218,6 +253,7 @@ def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command
                             ("--serial", args.serial), ("--pin", args.pin), ("--spin", args.spin)) if v]
     if clash:
         parser.error(f"--mcu runs a firmware image in lockstep: not with {', '.join(clash)}")
+    profile = _profile(args, parser)  # (first: its frame joins --param)
     params = _plant_params(args, parser)
     _writable(parser, "--summary", args.summary)
     _writable(parser, "--eeprom-out", args.eeprom_out)
@@ -237,8 +273,9 @@ def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command
                           **target.world_options())
     try:
         with interrupts.handled():
+            own = profile.config.eeprom if profile is not None else None  # (the FC profile's EEPROM image)
             run = McuRun(target.session(world, args.duration, {}, args.wall_timeout, trace, args.sim_timeout,
-                                        args.eeprom_out))
+                                        args.eeprom_out, eeprom_image=own))
             outcome = run.session.run()
     finally:
         world.close()

@@ -5,7 +5,8 @@ suite before anything flies), then runs each scenario in lockstep against the DU
 reference flight controller) and writes, per run, ``OUT/<scenario>/{junit.xml,result.json,
 telemetry.csv,report.html}``, and for the suite ``OUT/junit.xml`` and ``OUT/index.html``. A line per
 scenario shows progress on stderr. Exit status: 0 all passed, 1 a criterion failed, 2 bad usage or a bad
-scenario file, 3 a run ended in error (crash, hang, early exit of the DUT).
+scenario file, 3 a run ended in error (crash, hang, early exit of the DUT). A scenario the FC cannot fly
+(its profile lacks a mode or feature it needs) is skipped with the reason: neither a pass nor a failure.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from rig.scenarios import LIBRARY
 from rig.scenarios.schema import Scenario, ScenarioError, load, with_airframe
 
 if TYPE_CHECKING:
+    from rig.scenarios.profile import Profile
     from rig.scenarios.result import RunResult
     from rig.targets import Target
 
@@ -83,6 +85,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "scenario's [fc] table); it reads SBUS on /dev/ttyRC0 and may write "
         "telemetry lines on /dev/ttyTEL0",
     )
+    add_fc_option(p)
     p.add_argument(
         "--out", type=Path, default=Path("build/reports"), help="report folder (default %(default)s)"
     )
@@ -159,8 +162,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                    help="with --mcu: the EEPROM image to start from instead of the board's (raw bytes, as "
                    "a run's eeprom.bin, or Intel HEX named .eep/.hex)")
     add_pdf_options(p)
-    v = sub.add_parser("validate", help="check scenario files without running them")
-    v.add_argument("scenarios", nargs="+", metavar="SCENARIO")
+    v = sub.add_parser("validate", help="check scenario files (and an FC profile) without running them")
+    v.add_argument("scenarios", nargs="*", metavar="SCENARIO")
+    add_fc_option(v)
     sub.add_parser("list", help="list the scenario library")
 
 
@@ -190,6 +194,25 @@ def flown_on(scenarios: list[Scenario], airframe: str | None, problems: list[str
         except ScenarioError as e:
             problems.append(f"--airframe {airframe}: {e}")
     return flown
+
+
+def add_fc_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--fc", metavar="PROFILE", default=None,
+                   help="the FC's profile: how it is armed, which channel means what, how its telemetry is "
+                   "read (a file, or a shipped name: reference, multiwii-2.4, arducopter-4; default "
+                   "reference; docs/profiles.md)")
+
+
+def load_profile(name: str | None, problems: list[str]) -> Profile | None:
+    """``--fc``'s profile (the reference FC's without one), or None with the problem said."""
+    from rig.scenarios.profile import DEFAULT, ProfileError
+    from rig.scenarios.profile import load as load_fc
+
+    try:
+        return load_fc(name or DEFAULT)
+    except ProfileError as e:
+        problems.extend(f"--fc: {p}" for p in e.problems)
+        return None
 
 
 def add_pdf_options(p: argparse.ArgumentParser) -> None:
@@ -235,8 +258,21 @@ def cmd_list() -> int:
     return 0
 
 
-def cmd_validate(names: list[str]) -> int:
+def cmd_validate(names: list[str], fc: str | None = None) -> int:
     bad = 0
+    if fc is not None:
+        problems: list[str] = []
+        profile = load_profile(fc, problems)
+        for line in problems:
+            print(f"FAIL {line}", file=sys.stderr)
+        if profile is not None:
+            print(f"ok   {profile.path}: profile {profile.name}")
+        bad += bool(problems)
+        if not names:
+            return EXIT_USAGE if bad else 0
+    elif not names:
+        print("rig validate: expected SCENARIO files, --fc PROFILE or both", file=sys.stderr)
+        return EXIT_USAGE
     for p in resolve(names):
         try:
             sc = load(p)
@@ -259,6 +295,7 @@ class Plan:
     scenarios: list[Scenario]
     target: Target
     out: Path
+    profile: Profile
 
 
 def plan(args: argparse.Namespace) -> Plan:
@@ -370,9 +407,10 @@ def plan(args: argparse.Namespace) -> Plan:
     if (args.pwm_channels is not None or args.topology is not None) and (args.bridge or args.mcu):
         problems.append("--pwm-channels and --topology are a Linux DUT's board: not with --bridge or --mcu")
     mcu = _mcu_target(args, problems)
-    if problems:
+    profile = load_profile(args.fc, problems)
+    if problems or profile is None:
         raise UsageError("\n".join(problems))
-    return Plan(scenarios, mcu or target_of(args, dut), args.out)
+    return Plan(scenarios, mcu or target_of(args, dut), args.out, profile)
 
 
 def target_of(args: argparse.Namespace, dut: list[str] | None) -> Target:
@@ -460,21 +498,22 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
         run_dir = folder.scenario_dir(sc.stem)
         print(f"[{i}/{n}] {sc.stem} ({sc.duration:g} s sim) ...", end="", file=sys.stderr, flush=True)
         try:
-            r = run(sc, suite.target, args.seed, run_dir, args.wall_timeout)
+            r = run(sc, suite.target, args.seed, run_dir, args.wall_timeout, profile=suite.profile)
         except Exception as e:  # the rig could not fly it (not the DUT's doing): say so, go on
             r = not_run(sc, args.seed, f"the rig could not run this scenario: {type(e).__name__}: {e}",
-                        suite.target)
+                        suite.target, suite.profile)
         results.append(r)
         write_run(run_dir, r)
         failed = [m.name for m in r.measurements if m.outcome == "fail"]
         rate = r.metadata.get("realtime_factor")
         speed = f"{rate:.1f}x" if isinstance(rate, int | float) else "not measured"
         wall = float(r.metadata.get("wall_time") or 0.0)
-        if r.verdict in ("error", "interrupted"):
+        if r.verdict in ("error", "interrupted", "skipped"):
             detail = f" {r.verdict}: {r.error}"
         else:
             detail = f" failed: {'; '.join(failed)}" if failed else ""
-        print(f" {r.verdict.upper()} ({wall:.1f} s wall, {speed}){detail}", file=sys.stderr)
+        timing = "" if r.verdict == "skipped" else f" ({wall:.1f} s wall, {speed})"  # (nothing flew)
+        print(f" {r.verdict.upper()}{timing}{detail}", file=sys.stderr)
         if r.verdict == "interrupted" and r.exit_code is not None:
             stop = r.exit_code
             break
@@ -497,9 +536,10 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
     (suite.out / "index.html").write_text(
         html_report.render_index(results, [f"{r.scenario.stem}/report.html" for r in results], left, links)
     )
-    counts = {v: sum(r.verdict == v for r in results) for v in ("pass", "fail", "error")}
+    counts = {v: sum(r.verdict == v for r in results) for v in ("pass", "fail", "error", "skipped")}
+    skipped = f", {counts['skipped']} skipped" if counts["skipped"] else ""
     print(
-        f"{counts['pass']} passed, {counts['fail']} failed, {counts['error']} errors in "
+        f"{counts['pass']} passed, {counts['fail']} failed, {counts['error']} errors{skipped} in "
         f"{time.perf_counter() - t_suite:.1f} s; reports in {suite.out}/index.html",
         file=sys.stderr,
     )

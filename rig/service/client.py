@@ -84,6 +84,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--dut", help="the DUT command line (default: the reference FC)")
     s.add_argument("--pwm-channels", type=int, metavar="N", help="a Linux DUT's channels of pwmchip0 (1..16)")
     s.add_argument("--topology", choices=["gy86", "direct"], help="a Linux DUT's I2C wiring (default gy86)")
+    s.add_argument("--fc", metavar="PROFILE",
+                   help="a shipped FC profile's name (default: the reference FC's; docs/profiles.md)")
     s.add_argument("--bridge", choices=["virtual"], help="run on the service's bench (the virtual bridge)")
     s.add_argument("--bench", metavar="k=v,...",
                    help="run on a farm's bench with these labels (docs/farm.md)")
@@ -133,6 +135,8 @@ def cmd_submit(args: argparse.Namespace) -> int:
     for option in ("pwm_channels", "topology"):  # (checked by the service, which says why in a 422)
         if getattr(args, option) is not None:
             body[option] = getattr(args, option)
+    if args.fc:
+        body["fc"] = args.fc
     run_id = None
     try:
         run_id = call(server_url(args.server), "POST", "/api/runs", args.token, body)["id"]

@@ -30,6 +30,7 @@ from rig.scenarios.result import I2CRecord
 
 if TYPE_CHECKING:
     from rig.emulators.faults import FaultSet
+    from rig.scenarios.profile import Profile
     from rig.scenarios.schema import Scenario
     from rig.session import Outcome
     from rig.world import World
@@ -39,6 +40,12 @@ if TYPE_CHECKING:
 REFERENCE_FC: Final = BUILD / "dut" / "fc"
 RC_PATH: Final = "/dev/ttyRC0"
 TELEMETRY_PATH: Final = "/dev/ttyTEL0"
+
+
+def telemetry_path(profile: Profile | None) -> str:
+    """The device the FC's telemetry comes out of: its profile's port when that is a device path."""
+    port = profile.telemetry.port if profile is not None and profile.telemetry.kind != "none" else ""
+    return port if port.startswith("/dev/") else TELEMETRY_PATH
 
 
 def reference_config(scenario: Scenario) -> str:
@@ -71,6 +78,7 @@ class RunContext:
     wall_timeout: float
     stall_timeout: float
     notes: list[str] = field(default_factory=list)  # what the report should say about the run
+    profile: Profile | None = None  # how the FC is flown (None: the reference FC's profile)
 
 
 class TargetSession(Host, Protocol):
@@ -124,10 +132,12 @@ class Target(Protocol):
     #: paced by the wall clock (the report gives the scheduled events' lateness)
     realtime: bool
 
-    def describe(self, scenario: Scenario, work: Path, notes: list[str]) -> dict[str, object]:
+    def describe(self, scenario: Scenario, work: Path, notes: list[str],
+                 profile: Profile | None = None) -> dict[str, object]:
         """The DUT as result.json names it (``dut_command``, its hashes, ``fc_config``, ``capture``);
         may write what the DUT needs into ``work`` (the reference FC's configuration) and add notes.
-        Raises for a DUT that cannot be run at all (a missing build): the run is then not flown."""
+        ``profile``: the FC's (its arguments join a DUT's command line). Raises for a DUT that cannot be
+        run at all (a missing build): the run is then not flown."""
         ...
 
     def world_options(self) -> dict[str, Any]:

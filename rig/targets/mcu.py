@@ -12,10 +12,11 @@ from typing import TYPE_CHECKING, Any
 from rig.mcu import board as boards
 from rig.mcu.engine import BUS_PROBLEMS
 from rig.mcu.session import McuConfig, McuSession
+from rig.scenarios.profile import Profile
 from rig.scenarios.result import I2CRecord
 from rig.scenarios.schema import Scenario
 from rig.session import Outcome
-from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, TargetRun
+from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, TargetRun, telemetry_path
 from rig.targets.process import NO_SUPPLY
 
 if TYPE_CHECKING:
@@ -92,7 +93,8 @@ class McuTarget:
         self.eeprom_file = None if eeprom is None else Path(eeprom).resolve()
         self.eeprom = None if self.eeprom_file is None else load_eeprom(self.eeprom_file, self.board.mcu.name)
 
-    def describe(self, scenario: Scenario, work: Path, notes: list[str]) -> dict[str, object]:
+    def describe(self, scenario: Scenario, work: Path, notes: list[str],
+                 profile: Profile | None = None) -> dict[str, object]:
         if scenario.bench.psu is not None:
             notes.append(NO_SUPPLY)
         fc_eeprom = self.board.eeprom_from_fc and self.eeprom is None
@@ -116,27 +118,35 @@ class McuTarget:
         }
 
     def world_options(self) -> dict[str, Any]:
-        return {"topology": self.board.topology, "mounting": boards.mounting(self.board.mounting_yaw_deg)}
+        # (the board file wires each motor pin to its plant motor: no output order on top of it)
+        return {"topology": self.board.topology, "mounting": boards.mounting(self.board.mounting_yaw_deg),
+                "motor_order": (1, 2, 3, 4)}
 
     def open(self, ctx: RunContext) -> McuRun:
         trace = None if self.trace is None else self.trace / f"{ctx.scenario.stem}.vcd"
+        eeprom = ctx.profile.config.eeprom if ctx.profile is not None else None
         return McuRun(self.session(ctx.world, ctx.scenario.duration, ctx.scenario.fc, ctx.wall_timeout,
-                                   trace, eeprom_out=ctx.work / "eeprom.bin"))
+                                   trace, eeprom_out=ctx.work / "eeprom.bin", eeprom_image=eeprom,
+                                   telemetry=telemetry_path(ctx.profile)))
 
     def session(self, world: World, duration: float, fc: Mapping[str, Any], wall_timeout: float,
                 trace: Path | None = None, sim_timeout: float = 600.0,
-                eeprom_out: Path | None = None) -> McuSession:
+                eeprom_out: Path | None = None, eeprom_image: Path | None = None,
+                telemetry: str = TELEMETRY_PATH) -> McuSession:
         """The firmware on its board in ``world`` for ``duration`` sim seconds; ``fc``: the [fc] table
         that becomes the EEPROM on a board that says so (an empty one: the reference FC's defaults),
-        unless an EEPROM image was given; ``eeprom_out``: where the EEPROM goes at the end."""
+        unless an EEPROM image was given (``--eeprom``, else ``eeprom_image``: the FC profile's, before
+        the board file's); ``eeprom_out``: where the EEPROM goes at the end."""
         eeprom: bytes | None = self.eeprom
+        if eeprom is None and eeprom_image is not None:
+            eeprom = eeprom_image.read_bytes()
         if eeprom is None and self.board.eeprom_image is not None:
             eeprom = self.board.eeprom_image.read_bytes()
         elif eeprom is None and self.board.eeprom_from_fc:
             from rig.scenarios.eeprom import image  # the reference firmware's layout
 
             eeprom = image(fc)
-        cfg = McuConfig(self.board, self.firmware, duration, RC_PATH, TELEMETRY_PATH, eeprom, wall_timeout,
+        cfg = McuConfig(self.board, self.firmware, duration, RC_PATH, telemetry, eeprom, wall_timeout,
                         sim_timeout, trace, eeprom_out)
         return McuSession(cfg, world)
 
