@@ -27,11 +27,12 @@ from rig.emulators.sensor_models import Normals
 from rig.host import Host
 from rig.plant.variables import MOTORS
 from rig.rc import StickEmulator
+from rig.scenarios import serial
 from rig.scenarios.criteria import NOT_JUDGED, Measurement, measure
 from rig.scenarios.result import RcFrame, RunResult
 from rig.scenarios.schema import Event, Scenario
 from rig.scenarios.signals import BENCH_SIGNALS, RECORD_PERIOD, SIGNALS
-from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, Target
+from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, Target, TargetRun
 from rig.targets.process import ProcessTarget
 from rig.telemetry import read_columns
 from rig.world import World
@@ -243,12 +244,14 @@ def run(
                 session.at(0.0, rec.tick)
                 for ev in scenario.timeline:
                     session.at(ev.t, _apply_event(rc, ev))
+                _schedule_sends(scenario, target_run, session, notes)
                 outcome = session.run()
                 signals = rec.signals()
                 metadata.update(target_run.figures(outcome))
                 signals.update(target_run.signals(signals["t"]))
                 idle = target_run.idle(outcome) if outcome.verdict == "ok" else None
                 i2c = target_run.transactions()
+                uarts = target_run.uarts()
             finally:
                 target_run.close()
     finally:
@@ -295,7 +298,7 @@ def run(
     for name in BENCH_SIGNALS:  # a criterion on the supply's signals, in a run without one: NaN, not judged
         signals.setdefault(name, np.full(len(signals["t"]), math.nan))
     measurements = [
-        measure(
+        serial.measure(c, uarts) if c.uart is not None else measure(
             c.name,
             c.metric,
             c.signal,
@@ -369,6 +372,22 @@ def _last_words(stderr: str) -> str:
     """The DUT's last line on stderr (its own reason for stopping, when it gave one), shortened."""
     lines = [line.strip() for line in stderr.splitlines() if line.strip()]
     return lines[-1][:300] if lines else ""
+
+
+def _schedule_sends(scenario: Scenario, target_run: TargetRun, session: Host, notes: list[str]) -> None:
+    """The scenario's [[serial]] sends, each at its time on its USART; a DUT without USARTs gets none
+    (the notes say so)."""
+    for send in scenario.serial:
+        port = target_run.serial_port(send.uart, send.baud)
+        if port is None:
+            notes.append(f"{len(scenario.serial)} [[serial]] send(s) not made: this DUT has no USART "
+                         "the rig reaches (an MCU target's)")
+            return
+        session.at(send.t, functools.partial(_send, port, send.data))
+
+
+def _send(port: str, data: bytes, session: Host) -> None:
+    session.serial_write(port, data)
 
 
 def _apply_event(rc: StickEmulator, ev: Event) -> Callable[[Host], None]:

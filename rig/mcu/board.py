@@ -8,12 +8,13 @@ its timer cannot drive (rig/mcu/mcus.py) is refused before anything runs. The sh
 rig/mcu/boards/; ``--mcu NAME`` finds them by name, ``--mcu path/to/board.toml`` reads any other.
 
     [board]      name, description, mcu ("atmega2560" | "atmega328p"), clock_hz
-    [sensors]    bus ("twi"), topology ("gy86" | "direct"), twi_hz, mounting_yaw_deg (0, 90, 180, 270)
+    [sensors]    bus ("twi"), topology ("gy86" | "direct" | "gy521": the MPU-6050 alone), twi_hz,
+                 mounting_yaw_deg (0, 90, 180, 270), mpu_address (0x68, or 0x69 with AD0 high)
     [[motors]]   motor (1..4: the plant's), pin ("PE4"), timer, channel ("A" | "B" | "C"),
                  protocol ("pwm" | "oneshot125"), label ("D2": the board's silk-screen name); with no
                  timer and channel, any port pin, its pulses measured from its edges
-    [rc]         protocol ("sbus" | "ppm" | "msp"), uart (sbus, msp), baud (msp), pin (ppm)
-    [telemetry]  uart, baud, format ("text": the reference FC's ``T t=… key=value`` lines)
+    [rc]         protocol ("sbus" | "ppm" | "msp"), uart (sbus, msp), baud (msp), pin (ppm); optional
+    [telemetry]  uart, baud, format ("text": the reference FC's ``T t=… key=value`` lines); optional
     [eeprom]     image (a file of raw bytes, relative to the board file), or fc = true: built from the
                  scenario's [fc] table by the reference firmware's layout
     [fuses]      watchdog_always_on (WDTON programmed)
@@ -28,6 +29,8 @@ from pathlib import Path
 from typing import Any, Final
 
 from rig.bridge.esc import ESC_PROTOCOLS
+from rig.emulators.chips.board import TOPOLOGIES
+from rig.emulators.mpu6050 import ADDRESS as MPU_ADDRESS
 from rig.emulators.sensor_models import FLAT_ON_BOARD
 from rig.mcu.mcus import MCUS, Mcu
 from rig.scenarios.schema import ScenarioError, _Check
@@ -35,7 +38,7 @@ from rig.scenarios.schema import ScenarioError, _Check
 BOARDS: Final = Path(__file__).resolve().parent / "boards"
 TOP: Final = {"board", "sensors", "motors", "rc", "telemetry", "eeprom", "fuses"}
 BOARD_KEYS: Final = {"name", "description", "mcu", "clock_hz"}
-SENSOR_KEYS: Final = {"bus", "topology", "twi_hz", "mounting_yaw_deg"}
+SENSOR_KEYS: Final = {"bus", "topology", "twi_hz", "mounting_yaw_deg", "mpu_address"}
 MOTOR_KEYS: Final = {"motor", "pin", "timer", "channel", "protocol", "label"}
 RC_KEYS: Final = {"protocol", "uart", "baud", "pin"}
 TELEMETRY_KEYS: Final = {"uart", "baud", "format"}
@@ -78,11 +81,12 @@ class Board:
     mcu: Mcu
     clock_hz: int
     topology: str
+    mpu_address: int
     twi_hz: int
     mounting_yaw_deg: int
     motors: tuple[MotorOut, ...]
-    rc: RcIn
-    telemetry_uart: int
+    rc: RcIn | None  # None: no receiver wired (a firmware brought up by hand, a sensor board's test)
+    telemetry_uart: int | None  # None: no [telemetry] (a firmware that speaks MSP, or nothing)
     telemetry_baud: int
     eeprom_image: Path | None
     eeprom_from_fc: bool
@@ -122,6 +126,10 @@ def load(name: str | Path) -> Board:
     yaw = c.integer(s, "mounting_yaw_deg", "sensors", 0, 270, default=0)
     if yaw % 90:
         raise c.fail("sensors.mounting_yaw_deg", f"expected 0, 90, 180 or 270, got {yaw}")
+    mpu_address = c.integer(s, "mpu_address", "sensors", 0, 127, default=MPU_ADDRESS)
+    if mpu_address not in (MPU_ADDRESS, MPU_ADDRESS + 1):
+        raise c.fail("sensors.mpu_address", f"an MPU-6050 answers at 0x68 (AD0 low) or 0x69 (AD0 high), "
+                                            f"not {mpu_address:#04x}")
     motors = tuple(_motor(c, mcu, m, k) for k, m in enumerate(c.array(data, "motors")))
     got = sorted(m.motor for m in motors)
     if got != [1, 2, 3, 4]:
@@ -130,14 +138,17 @@ def load(name: str | Path) -> Board:
     for p in pins:
         if pins.count(p) > 1:
             raise c.fail("motors", f"pin {p} drives two motors")
-    rc = _rc(c, mcu, c.table(data.get("rc", {}), "rc", RC_KEYS))
-    t = c.table(data.get("telemetry", {}), "telemetry", TELEMETRY_KEYS)
-    tel_uart = _uart(c, mcu, t, "telemetry")
-    tel_baud = c.integer(t, "baud", "telemetry", 300, 2_000_000)
-    c.string(t, "format", "telemetry", "text", choices=("text",))
-    if baud_error(clock, tel_baud) > BAUD_TOLERANCE:
-        raise c.fail("telemetry.baud", f"{tel_baud} baud is over {BAUD_TOLERANCE:.0%} off anything a USART "
-                                       f"makes at {clock} Hz")
+    rc = _rc(c, mcu, c.table(data["rc"], "rc", RC_KEYS)) if "rc" in data else None
+    tel_uart: int | None = None
+    tel_baud = 0
+    if "telemetry" in data:
+        t = c.table(data["telemetry"], "telemetry", TELEMETRY_KEYS)
+        tel_uart = _uart(c, mcu, t, "telemetry")
+        tel_baud = c.integer(t, "baud", "telemetry", 300, 2_000_000)
+        c.string(t, "format", "telemetry", "text", choices=("text",))
+        if baud_error(clock, tel_baud) > BAUD_TOLERANCE:
+            raise c.fail("telemetry.baud", f"{tel_baud} baud is over {BAUD_TOLERANCE:.0%} off anything a "
+                                           f"USART makes at {clock} Hz")
     # (the RC input and the telemetry may share a USART: RX and TX are separate lines, as a Pro Mini's
     # one USART takes SBUS in and sends telemetry out, and MSP is both on one port)
     e = c.table(data.get("eeprom", {}), "eeprom", EEPROM_KEYS)
@@ -159,7 +170,8 @@ def load(name: str | Path) -> Board:
         description=c.string(b, "description", "board", ""),
         mcu=mcu,
         clock_hz=clock,
-        topology=c.string(s, "topology", "sensors", "gy86", choices=("gy86", "direct")),
+        topology=c.string(s, "topology", "sensors", "gy86", choices=TOPOLOGIES),
+        mpu_address=mpu_address,
         twi_hz=c.integer(s, "twi_hz", "sensors", 10_000, 1_000_000, default=400_000),
         mounting_yaw_deg=yaw,
         motors=tuple(sorted(motors, key=lambda m: m.motor)),
@@ -258,3 +270,12 @@ def mounting(yaw_deg: int) -> tuple[tuple[float, float, float], ...]:
     turned = ((c, s, 0), (-s, c, 0), (0, 0, 1))  # rows: the board's x, y, z axes in body FRD
     rows = [[float(sum(f[k] * turned[k][j] for k in range(3))) for j in range(3)] for f in FLAT_ON_BOARD]
     return tuple((r[0], r[1], r[2]) for r in rows)
+
+
+def uart_baud(board: Board, uart: int) -> int | None:
+    """The baud the board gives a USART: its telemetry's, else its RC link's (None: neither is on it)."""
+    if board.telemetry_uart == uart:
+        return board.telemetry_baud
+    if board.rc is not None and board.rc.uart == uart:
+        return board.rc.baud
+    return None

@@ -31,10 +31,11 @@ from typing import Final
 from rig import interrupts
 from rig.bridge.esc import esc_protocol
 from rig.emulators import sbus
-from rig.mcu.board import Board
+from rig.mcu.board import Board, uart_baud
 from rig.mcu.engine import AvrEngine, config_for
 from rig.mcu.twi_log import TwiTransfers
 from rig.mcu.vcd import McuTrace
+from rig.scenarios.serial import msp_frame
 from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, Stop
 from rig.session import Outcome
 from rig.world import World
@@ -47,6 +48,8 @@ ESC_TIMEOUT_NS: Final = round(ESC_TIMEOUT_S * NS)
 #: PPM sum: frame sync gap and channel pulse (a common receiver's)
 PPM_PULSE_NS: Final = 300_000
 PPM_FRAME_NS: Final = 22_500_000
+#: a [[serial]] send's baud on a USART the board gives none (Arduino's usual serial speed)
+DEFAULT_BAUD: Final = 115_200
 
 
 @dataclass
@@ -63,6 +66,8 @@ class McuConfig:
     trace: Path | None = None
     #: write the EEPROM as the firmware left it here, however the run ended (eeprom.bin)
     eeprom_out: Path | None = None
+    #: USARTs whose output is kept time-stamped (``uart_log``: the criteria on a USART)
+    listen: frozenset[int] = frozenset()
 
 
 @dataclass
@@ -97,6 +102,9 @@ class McuSession:
         self.notes: list[str] = []
         self._ppm_channels: list[int] | None = None
         self._ppm_next_ns = 0
+        #: per listened USART, what the firmware sent: (the step's end in sim ns, the bytes)
+        self.uart_log: dict[int, list[tuple[int, bytes]]] = {n: [] for n in config.listen}
+        self._ports: dict[str, tuple[int, int]] = {}  # serial_port's paths: (USART, baud)
 
     # ---- the Host the scenario's events use ---------------------------------------------------
 
@@ -108,12 +116,28 @@ class McuSession:
     def at(self, t: float, fn: Callable[[McuSession], None]) -> None:
         self.sched.at(t, fn)
 
+    def serial_port(self, uart: int, baud: int | None) -> str:
+        """A path for serial_write that puts bytes on USART ``uart`` at ``baud`` (None: the board's for
+        that USART, else 115200), 8N1."""
+        if uart not in self.cfg.board.mcu.usarts:
+            raise ValueError(f"the {self.cfg.board.mcu.name} has no USART{uart} (it has "
+                             f"{', '.join(map(str, self.cfg.board.mcu.usarts))})")
+        baud = baud or uart_baud(self.cfg.board, uart) or DEFAULT_BAUD
+        path = f"usart{uart}@{baud}"
+        self._ports[path] = (uart, baud)
+        return path
+
     def serial_write(self, path: str, data: bytes) -> None:
-        """The RC port's SBUS frames go to the board's RC input as its protocol has them: SBUS bytes
-        into the USART, or the same channels as a PPM sum on the pin or an MSP SET_RAW_RC frame."""
-        if path != self.cfg.rc_path or self.engine is None:
+        """Bytes for a serial_port go into that USART; the RC port's SBUS frames go to the board's RC
+        input as its protocol has them: SBUS bytes into the USART, or the same channels as a PPM sum on
+        the pin or an MSP SET_RAW_RC frame."""
+        port = self._ports.get(path)
+        if port is not None and self.engine is not None:
+            self.engine.uart_send(port[0], data, port[1])
             return
         rc = self.cfg.board.rc
+        if path != self.cfg.rc_path or self.engine is None or rc is None:
+            return
         self.figures.rc_bytes += len(data)
         if rc.protocol == "sbus":
             assert rc.uart is not None
@@ -154,8 +178,9 @@ class McuSession:
         if self.cfg.trace is not None:
             trace = self._open_trace(self.cfg.trace)
         engine.twi_log(True)  # (the transfers for run.mcap, and the trace's)
-        ppm = self.cfg.board.rc.protocol == "ppm"
+        ppm = self.cfg.board.rc is not None and self.cfg.board.rc.protocol == "ppm"
         telemetry_uart = self.cfg.board.telemetry_uart
+        logs = self.uart_log
         try:
             while not self.sched.over:
                 nxt = min(self._t_ns + TICK_NS - self._t_ns % TICK_NS, self.sched.limit_ns)
@@ -170,7 +195,14 @@ class McuSession:
                     self.sched.fail(EXIT_RIG_ERROR, problem)
                     break
                 self._t_ns = nxt
-                self._telemetry += engine.uart_take(telemetry_uart)
+                for n, log in logs.items():
+                    sent = engine.uart_take(n)
+                    if sent:
+                        log.append((nxt, sent))
+                        if n == telemetry_uart:
+                            self._telemetry += sent
+                if telemetry_uart is not None and telemetry_uart not in logs:
+                    self._telemetry += engine.uart_take(telemetry_uart)
                 trains = engine.pulses()
                 self._motors(trains, nxt)
                 events = engine.twi_take()
@@ -242,7 +274,8 @@ class McuSession:
 
     def _ppm(self, t_ns: int) -> None:
         """A PPM sum on the RC pin: one frame every PPM_FRAME_NS while the link is up."""
-        if self.cfg.board.rc.protocol != "ppm" or self.engine is None:
+        rc = self.cfg.board.rc
+        if rc is None or rc.protocol != "ppm" or self.engine is None:
             return
         while self._ppm_next_ns <= t_ns:
             start = self._ppm_next_ns
@@ -255,9 +288,8 @@ class McuSession:
                 edges += [(t, 0), (t + PPM_PULSE_NS, 1)]
                 t += us * 1000
             edges += [(t, 0), (t + PPM_PULSE_NS, 1)]
-            pin = self.cfg.board.rc.pin
-            assert pin is not None
-            self.engine.pin_drive(pin, edges)
+            assert rc.pin is not None
+            self.engine.pin_drive(rc.pin, edges)
 
 
 def sbus_to_us(raw: int) -> float:
@@ -276,10 +308,5 @@ def _sbus_channels(data: bytes) -> list[int] | None:
 
 
 def msp_set_raw_rc(us: list[int]) -> bytes:
-    """An MSP v1 SET_RAW_RC (200) frame: ``$M<``, size, command, the channels little-endian, XOR."""
-    payload = b"".join(int(min(max(u, 0), 0xFFFF)).to_bytes(2, "little") for u in us)
-    body = bytes([len(payload), 200]) + payload
-    check = 0
-    for b in body:
-        check ^= b
-    return b"$M<" + body + bytes([check])
+    """An MSP v1 SET_RAW_RC (200) frame: the channels' microseconds little-endian."""
+    return msp_frame(200, b"".join(int(min(max(u, 0), 0xFFFF)).to_bytes(2, "little") for u in us))

@@ -14,6 +14,7 @@ from rig.mcu.engine import BUS_PROBLEMS
 from rig.mcu.session import McuConfig, McuSession
 from rig.scenarios.result import I2CRecord
 from rig.scenarios.schema import Scenario
+from rig.scenarios.serial import Chunks
 from rig.session import Outcome
 from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, TargetRun
 from rig.targets.process import NO_SUPPLY
@@ -43,6 +44,12 @@ class McuRun(TargetRun):
 
     def transactions(self) -> list[I2CRecord] | None:
         return self.session.transfers.records
+
+    def serial_port(self, uart: int, baud: int | None) -> str | None:
+        return self.session.serial_port(uart, baud)
+
+    def uarts(self) -> dict[int, Chunks] | None:
+        return dict(self.session.uart_log)
 
     def idle(self, outcome: Outcome) -> str | None:
         if outcome.transactions == 0:
@@ -93,6 +100,11 @@ class McuTarget:
         self.eeprom = None if self.eeprom_file is None else load_eeprom(self.eeprom_file, self.board.mcu.name)
 
     def describe(self, scenario: Scenario, work: Path, notes: list[str]) -> dict[str, object]:
+        mcu = self.board.mcu
+        for uart in sorted({s.uart for s in scenario.serial} | _listened(scenario)):
+            if uart not in mcu.usarts:
+                raise ValueError(f"the scenario talks to USART {uart}; the {mcu.name} has USART "
+                                 f"{', '.join(map(str, mcu.usarts))} only")
         if scenario.bench.psu is not None:
             notes.append(NO_SUPPLY)
         fc_eeprom = self.board.eeprom_from_fc and self.eeprom is None
@@ -116,16 +128,17 @@ class McuTarget:
         }
 
     def world_options(self) -> dict[str, Any]:
-        return {"topology": self.board.topology, "mounting": boards.mounting(self.board.mounting_yaw_deg)}
+        return {"topology": self.board.topology, "mounting": boards.mounting(self.board.mounting_yaw_deg),
+                "mpu_address": self.board.mpu_address}
 
     def open(self, ctx: RunContext) -> McuRun:
         trace = None if self.trace is None else self.trace / f"{ctx.scenario.stem}.vcd"
         return McuRun(self.session(ctx.world, ctx.scenario.duration, ctx.scenario.fc, ctx.wall_timeout,
-                                   trace, eeprom_out=ctx.work / "eeprom.bin"))
+                                   trace, eeprom_out=ctx.work / "eeprom.bin", listen=_listened(ctx.scenario)))
 
     def session(self, world: World, duration: float, fc: Mapping[str, Any], wall_timeout: float,
                 trace: Path | None = None, sim_timeout: float = 600.0,
-                eeprom_out: Path | None = None) -> McuSession:
+                eeprom_out: Path | None = None, listen: frozenset[int] = frozenset()) -> McuSession:
         """The firmware on its board in ``world`` for ``duration`` sim seconds; ``fc``: the [fc] table
         that becomes the EEPROM on a board that says so (an empty one: the reference FC's defaults),
         unless an EEPROM image was given; ``eeprom_out``: where the EEPROM goes at the end."""
@@ -137,8 +150,13 @@ class McuTarget:
 
             eeprom = image(fc)
         cfg = McuConfig(self.board, self.firmware, duration, RC_PATH, TELEMETRY_PATH, eeprom, wall_timeout,
-                        sim_timeout, trace, eeprom_out)
+                        sim_timeout, trace, eeprom_out, listen)
         return McuSession(cfg, world)
 
     def not_run_metadata(self) -> dict[str, object]:
         return {"mode": self.mode, "board": self.board.name}
+
+
+def _listened(scenario: Scenario) -> frozenset[int]:
+    """The USARTs a scenario's criteria judge (their output is kept time-stamped)."""
+    return frozenset(c.uart for c in scenario.criteria if c.uart is not None)
