@@ -155,6 +155,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--eeprom", type=Path, metavar="FILE",
                    help="with --mcu: the EEPROM image to start from instead of the board's (raw bytes, as "
                    "a run's eeprom.bin, or Intel HEX named .eep/.hex)")
+    p.add_argument("--hang-limit", type=float, metavar="S",
+                   help="with --mcu: a firmware with no TWI transaction, motor pulse, USART byte or output "
+                   "pin change for S seconds is hung (default: the board's [limits] hang_s, 1; 0: off)")
     add_pdf_options(p)
     v = sub.add_parser("validate", help="check scenario files without running them")
     v.add_argument("scenarios", nargs="+", metavar="SCENARIO")
@@ -359,7 +362,7 @@ def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:
     format and size against the board's MCU); None without --mcu."""
     if args.mcu is None:
         for option, value in (("--firmware", args.firmware), ("--trace", args.trace),
-                              ("--eeprom", args.eeprom)):
+                              ("--eeprom", args.eeprom), ("--hang-limit", args.hang_limit)):
             if value is not None:
                 problems.append(f"{option} goes with --mcu BOARD")
         return None
@@ -375,6 +378,9 @@ def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:
     from rig.mcu.engine import FirmwareError
     from rig.targets.mcu import McuTarget
 
+    if args.hang_limit is not None and not 0 <= args.hang_limit <= 600:
+        problems.append(f"--hang-limit: expected seconds in 0..600 (0: off), got {args.hang_limit:g}")
+        return None
     if args.trace is not None:
         try:
             args.trace.mkdir(parents=True, exist_ok=True)
@@ -382,7 +388,7 @@ def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:
             problems.append(f"--trace {args.trace}: {e.strerror}")
             return None
     try:
-        return McuTarget(args.mcu, args.firmware, args.trace, args.eeprom)
+        return McuTarget(args.mcu, args.firmware, args.trace, args.eeprom, args.hang_limit)
     except (BoardError, FirmwareError) as e:
         problems.append(f"--mcu: {e}")
         return None

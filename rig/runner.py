@@ -243,7 +243,7 @@ def run(
                 rec = _Recorder(scenario, world, rc, wind, [f.fault for f in scenario.faults])
                 session.at(0.0, rec.tick)
                 for ev in scenario.timeline:
-                    session.at(ev.t, _apply_event(rc, ev))
+                    session.at(ev.t, apply_event(rc, ev))
                 _schedule_sends(scenario, target_run, session, notes)
                 outcome = session.run()
                 signals = rec.signals()
@@ -390,7 +390,8 @@ def _send(port: str, data: bytes, session: Host) -> None:
     session.serial_write(port, data)
 
 
-def _apply_event(rc: StickEmulator, ev: Event) -> Callable[[Host], None]:
+def apply_event(rc: StickEmulator, ev: Event) -> Callable[[Host], None]:
+    """A timeline entry as an event: its sticks, link state and plant inputs (rig exec --sticks too)."""
     def apply(session: Host) -> None:
         for k, v in ev.sticks.items():
             setattr(rc.sticks, k, v)

@@ -431,7 +431,7 @@ def check(data: dict[str, Any], path: Path, sha256: str | None = None) -> Scenar
         entries = c.array(data, "timeline")
         for i, entry in enumerate(entries):
             with c.part():
-                timeline.append(_event(c, entry, f"timeline[{i}]", duration))
+                timeline.append(timeline_event(c, entry, f"timeline[{i}]", duration))
 
     serial = []
     with c.part():
@@ -508,7 +508,8 @@ def check(data: dict[str, Any], path: Path, sha256: str | None = None) -> Scenar
     )
 
 
-def _event(c: _Check, entry: Any, key: str, duration: float) -> Event:
+def timeline_event(c: _Check, entry: Any, key: str, duration: float) -> Event:
+    """One [[timeline]] entry (rig exec --sticks checks its own with this too)."""
     ev = c.table(entry, key, EVENT_KEYS)
     t = c.number(ev, "t", key, low=0, high=duration)
     sticks = c.table(ev.get("sticks", {}), f"{key}.sticks", STICKS)

@@ -18,6 +18,7 @@ rig/mcu/boards/; ``--mcu NAME`` finds them by name, ``--mcu path/to/board.toml``
     [eeprom]     image (a file of raw bytes, relative to the board file), or fc = true: built from the
                  scenario's [fc] table by the reference firmware's layout
     [fuses]      watchdog_always_on (WDTON programmed)
+    [limits]     hang_s (1: no TWI, pulse, USART byte or output pin change for this long is a hang; 0 off)
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ from rig.mcu.mcus import MCUS, Mcu
 from rig.scenarios.schema import ScenarioError, _Check
 
 BOARDS: Final = Path(__file__).resolve().parent / "boards"
-TOP: Final = {"board", "sensors", "motors", "rc", "telemetry", "eeprom", "fuses"}
+TOP: Final = {"board", "sensors", "motors", "rc", "telemetry", "eeprom", "fuses", "limits"}
 BOARD_KEYS: Final = {"name", "description", "mcu", "clock_hz"}
 SENSOR_KEYS: Final = {"bus", "topology", "twi_hz", "mounting_yaw_deg", "mpu_address"}
 MOTOR_KEYS: Final = {"motor", "pin", "timer", "channel", "protocol", "label"}
@@ -44,6 +45,9 @@ RC_KEYS: Final = {"protocol", "uart", "baud", "pin"}
 TELEMETRY_KEYS: Final = {"uart", "baud", "format"}
 EEPROM_KEYS: Final = {"image", "fc"}
 FUSE_KEYS: Final = {"watchdog_always_on"}
+LIMIT_KEYS: Final = {"hang_s"}
+#: a firmware with no bus, pulse, USART byte or output pin change for this long is hung
+HANG_S: Final = 1.0
 RC_PROTOCOLS: Final = ("sbus", "ppm", "msp")
 SBUS_BAUD: Final = 100_000
 #: how far a USART's nearest baud may be from the board's: 115200 at 16 MHz is 2.1 % off (Arduino's
@@ -91,6 +95,7 @@ class Board:
     eeprom_image: Path | None
     eeprom_from_fc: bool
     watchdog_always_on: bool
+    hang_s: float = HANG_S
 
 
 def find(name: str) -> Path:
@@ -164,6 +169,7 @@ def load(name: str | Path) -> Board:
     if image is not None and from_fc:
         raise c.fail("eeprom", "either an image or fc = true, not both")
     f = c.table(data.get("fuses", {}), "fuses", FUSE_KEYS)
+    limits = c.table(data.get("limits", {}), "limits", LIMIT_KEYS)
     return Board(
         path=path.resolve(),
         name=c.string(b, "name", "board", path.stem),
@@ -181,6 +187,7 @@ def load(name: str | Path) -> Board:
         eeprom_image=image,
         eeprom_from_fc=from_fc,
         watchdog_always_on=c.boolean(f, "watchdog_always_on", "fuses", False),
+        hang_s=c.number(limits, "hang_s", "limits", HANG_S, low=0, high=600),
     )
 
 

@@ -323,7 +323,7 @@ MCU_API int mcu_run(mcu_engine *e, uint64_t target_cycle)
         if (r)
             return r;
         if (e->hang_cycles && avr->cycle - e->last_activity >= e->hang_cycles)
-            return stopped(e, MCU_HUNG, avr->pc, "no TWI transaction and no motor pulse for %llu ms",
+            return stopped(e, MCU_HUNG, avr->pc, "no TWI transaction, motor pulse, USART byte sent or output pin change for %llu ms",
                            (unsigned long long)(mcu_ns(e, e->hang_cycles) / 1000000u));
         if (e->unanswered_cycles && e->twi.nack_since_cycle != MCU_NEVER &&
             avr->cycle - e->twi.nack_since_cycle >= e->unanswered_cycles && e->twi.nacks_in_row >= 2)

@@ -163,6 +163,13 @@ typedef struct {
     uint32_t head, len;
 } mcu_pin;
 
+/* an output pin watched for the hang check (any change while its DDR bit is set is activity) */
+typedef struct {
+    mcu_engine *engine;
+    uint16_t ddr;
+    uint8_t bit;
+} mcu_watched_pin;
+
 struct mcu_engine {
     avr_t *avr;
     uint32_t clock_hz;
@@ -186,8 +193,10 @@ struct mcu_engine {
     void *wdt_param;
     uint32_t resets, watchdog_resets, watchdog_limit;
     uint64_t marker; /* the cycle simavr's sleep may not pass */
-    /* hang: no TWI and no motor pulse for hang_cycles */
+    /* hang: no TWI, no motor pulse, no USART byte sent and no output pin changed for hang_cycles */
     uint64_t hang_cycles, last_activity;
+    mcu_watched_pin watched[11 * 8];
+    uint8_t n_watched;
     uint64_t unanswered_cycles;
     uint64_t instructions;
     /* the chip core */

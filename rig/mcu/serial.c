@@ -24,6 +24,7 @@ static void tx_byte(struct avr_irq_t *irq, uint32_t value, void *param)
 {
     (void)irq;
     mcu_uart *u = param;
+    u->engine->last_activity = u->engine->avr->cycle; /* (a firmware that talks is not hung) */
     if (u->n_tx == MCU_TX_BYTES) {
         u->tx_dropped++;
         return;
@@ -246,4 +247,28 @@ void mcu_pcint_attach(mcu_engine *e)
             avr_irq_register_notify(irq, pcint_changed, p);
         }
     }
+}
+
+static void output_changed(struct avr_irq_t *irq, uint32_t value, void *param)
+{
+    mcu_watched_pin *w = param;
+    avr_t *avr = w->engine->avr;
+    if (value != irq->value && (avr->data[w->ddr] >> w->bit & 1))
+        w->engine->last_activity = avr->cycle;
+}
+
+/* the hang check counts a change of any output pin of `port` (DDRx at data address `ddr`) as activity:
+ * a firmware that blinks a LED or bit-bangs anything is running; a pin driven from outside (DDR bit
+ * clear) is not the firmware's doing */
+MCU_API bool mcu_watch_port(mcu_engine *e, char port, uint16_t ddr)
+{
+    for (uint8_t bit = 0; bit < 8; bit++) {
+        avr_irq_t *irq = avr_io_getirq(e->avr, AVR_IOCTL_IOPORT_GETIRQ(port), bit);
+        if (!irq || e->n_watched == sizeof e->watched / sizeof e->watched[0])
+            return false;
+        mcu_watched_pin *w = &e->watched[e->n_watched++];
+        *w = (mcu_watched_pin){ .engine = e, .ddr = ddr, .bit = bit };
+        avr_irq_register_notify(irq, output_changed, w);
+    }
+    return true;
 }

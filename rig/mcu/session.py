@@ -68,6 +68,8 @@ class McuConfig:
     eeprom_out: Path | None = None
     #: USARTs whose output is kept time-stamped (``uart_log``: the criteria on a USART)
     listen: frozenset[int] = frozenset()
+    #: the hang check's limit in seconds instead of the board's (0: off)
+    hang_s: float | None = None
 
 
 @dataclass
@@ -90,7 +92,8 @@ class McuSession:
         self.world = world
         b = config.board
         self.sched = Scheduler(world, self, config.duration, config.sim_timeout)
-        self.engine_config = config_for(b, config.firmware, config.eeprom)
+        limits = {} if config.hang_s is None else {"hang_ns": round(config.hang_s * NS)}
+        self.engine_config = config_for(b, config.firmware, config.eeprom, **limits)
         # per motor: the plant's motor (0-based) and its ESC's pulse us to the plant's PWM us
         self._motor_index = [m.motor - 1 for m in b.motors]
         self._to_us = [esc_protocol(m.protocol).to_pwm_us for m in b.motors]

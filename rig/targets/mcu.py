@@ -82,13 +82,14 @@ class McuTarget:
     anything runs (BoardError, FirmwareError). ``trace``: a folder for each run's VCD trace,
     ``SCENARIO.vcd`` (rig/mcu/vcd.py). ``eeprom``: an EEPROM image preloaded instead of the board's
     (raw bytes, or Intel HEX named .eep/.hex), checked here too. Each run writes the EEPROM as the
-    firmware left it as ``eeprom.bin`` in its folder, so the next run can start from it."""
+    firmware left it as ``eeprom.bin`` in its folder, so the next run can start from it. ``hang_limit``:
+    the hang check's limit (s; 0 off) instead of the board's [limits] hang_s."""
 
     mode = "mcu"
     realtime = False
 
     def __init__(self, board: str | Path, firmware: Path, trace: Path | None = None,
-                 eeprom: Path | None = None) -> None:
+                 eeprom: Path | None = None, hang_limit: float | None = None) -> None:
         from rig.mcu.image import load, load_eeprom
 
         self.board = boards.load(board)
@@ -96,6 +97,7 @@ class McuTarget:
         load(self.firmware, self.board.mcu.name)  # (FirmwareError: not an AVR image, or too big)
         self.firmware_sha256 = hashlib.sha256(self.firmware.read_bytes()).hexdigest()
         self.trace = trace
+        self.hang_limit = hang_limit
         self.eeprom_file = None if eeprom is None else Path(eeprom).resolve()
         self.eeprom = None if self.eeprom_file is None else load_eeprom(self.eeprom_file, self.board.mcu.name)
 
@@ -150,7 +152,7 @@ class McuTarget:
 
             eeprom = image(fc)
         cfg = McuConfig(self.board, self.firmware, duration, RC_PATH, TELEMETRY_PATH, eeprom, wall_timeout,
-                        sim_timeout, trace, eeprom_out, listen)
+                        sim_timeout, trace, eeprom_out, listen, self.hang_limit)
         return McuSession(cfg, world)
 
     def not_run_metadata(self) -> dict[str, object]:
