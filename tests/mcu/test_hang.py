@@ -110,6 +110,6 @@ def test_rig_exec_gives_sticks_constant_or_as_a_timeline(tmp_path: Path) -> None
         done = subprocess.run([sys.executable, "-m", "rig.cli", *map(str, base), "--sticks", sticks],
                               capture_output=True, cwd=REPO, timeout=300)
         assert done.returncode == 2 and words in done.stderr.decode(), done.stderr
-    done = rig("exec", "--mcu", "nano328-gy521", "--firmware", firmware("rc_echo", "atmega328p"), "--duration",
-               "1", "--sticks", "throttle=1")
-    assert done.returncode == 2 and "has no [rc]" in done.stderr
+    refused = rig("exec", "--mcu", "nano328-gy521", "--firmware", firmware("rc_echo", "atmega328p"),
+                  "--duration", "1", "--sticks", "throttle=1")
+    assert refused.returncode == 2 and "has no [rc]" in refused.stderr
