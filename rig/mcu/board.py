@@ -18,6 +18,8 @@ rig/mcu/boards/; ``--mcu NAME`` finds them by name, ``--mcu path/to/board.toml``
     [eeprom]     image (a file of raw bytes, relative to the board file), or fc = true: built from the
                  scenario's [fc] table by the reference firmware's layout
     [fuses]      watchdog_always_on (WDTON programmed)
+    [battery]    pin (an ADC input, "PF0"), divider ([ohms battery->pin, ohms pin->ground]), volts (the
+                 pack's, 12.6 by default: the world has no battery model yet)
     [limits]     hang_s (1: no TWI, pulse, USART byte or output pin change for this long is a hang; 0 off)
 """
 
@@ -37,7 +39,10 @@ from rig.mcu.mcus import MCUS, Mcu
 from rig.scenarios.schema import ScenarioError, _Check
 
 BOARDS: Final = Path(__file__).resolve().parent / "boards"
-TOP: Final = {"board", "sensors", "motors", "rc", "telemetry", "eeprom", "fuses", "limits"}
+TOP: Final = {"board", "sensors", "motors", "rc", "telemetry", "eeprom", "fuses", "limits", "battery"}
+BATTERY_KEYS: Final = {"pin", "divider", "volts"}
+#: a board's supply and ADC reference (AVCC): an Arduino's 5 V; a divided battery above it is clamped
+VCC: Final = 5.0
 BOARD_KEYS: Final = {"name", "description", "mcu", "clock_hz"}
 SENSOR_KEYS: Final = {"bus", "topology", "twi_hz", "mounting_yaw_deg", "mpu_address"}
 MOTOR_KEYS: Final = {"motor", "pin", "timer", "channel", "protocol", "label"}
@@ -78,6 +83,20 @@ class RcIn:
 
 
 @dataclass(frozen=True)
+class Battery:
+    pin: str
+    channel: int  # the ADC channel
+    divider: tuple[float, float]  # ohms: battery to pin, pin to ground
+    volts: float  # the pack's
+
+    @property
+    def pin_volts(self) -> float:
+        """What the ADC pin sees: the pack through the divider, clamped at VCC (the pin's diodes)."""
+        top, bottom = self.divider
+        return min(VCC, self.volts * bottom / (top + bottom))
+
+
+@dataclass(frozen=True)
 class Board:
     path: Path
     name: str
@@ -96,6 +115,7 @@ class Board:
     eeprom_from_fc: bool
     watchdog_always_on: bool
     hang_s: float = HANG_S
+    battery: Battery | None = None
 
 
 def find(name: str) -> Path:
@@ -188,6 +208,7 @@ def load(name: str | Path) -> Board:
         eeprom_from_fc=from_fc,
         watchdog_always_on=c.boolean(f, "watchdog_always_on", "fuses", False),
         hang_s=c.number(limits, "hang_s", "limits", HANG_S, low=0, high=600),
+        battery=_battery(c, mcu, data["battery"]) if "battery" in data else None,
     )
 
 
@@ -242,6 +263,21 @@ def _motor(c: _BoardCheck, mcu: Mcu, data: Any, k: int) -> MotorOut:
         protocol=c.string(m, "protocol", where, "pwm", choices=tuple(ESC_PROTOCOLS)),
         label=c.string(m, "label", where, pin),
     )
+
+
+def _battery(c: _BoardCheck, mcu: Mcu, data: Any) -> Battery:
+    b = c.table(data, "battery", BATTERY_KEYS)
+    pin = c.string(b, "pin", "battery").upper()
+    if pin not in mcu.adc:
+        raise c.fail("battery.pin", f"the {mcu.name}'s analog inputs are {', '.join(mcu.adc)}, not {pin}")
+    divider = b.get("divider", [0, 1])
+    if (not isinstance(divider, list) or len(divider) != 2 or
+            not all(isinstance(r, int | float) and not isinstance(r, bool) and r >= 0 for r in divider) or
+            not divider[1] > 0):
+        raise c.fail("battery.divider", f"expected [ohms from the battery to the pin, ohms from the pin to "
+                                        f"ground], the second > 0, got {divider!r}")
+    volts = c.number(b, "volts", "battery", 12.6, low=0, high=60)
+    return Battery(pin, mcu.adc[pin], (float(divider[0]), float(divider[1])), volts)
 
 
 def _rc(c: _BoardCheck, mcu: Mcu, r: dict[str, Any]) -> RcIn:

@@ -129,6 +129,7 @@ _API: Final[dict[str, tuple[Any, list[Any]]]] = {
     "mcu_motor_source": (_U32, [_P, _U8, ctypes.c_int]),
     "mcu_uart_define": (ctypes.c_bool, [_P, _U8, _U16]),
     "mcu_watch_port": (ctypes.c_bool, [_P, ctypes.c_char, _U16]),
+    "mcu_adc_set": (ctypes.c_bool, [_P, _U8, _U32]),
     "mcu_uart_send": (ctypes.c_bool, [_P, _U8, ctypes.c_char_p, _U32, _U32, ctypes.c_char, _U8]),
     "mcu_uart_take": (_U32, [_P, _U8, ctypes.POINTER(_U8), _U32]),
     "mcu_uart_count": (_U32, [_P, _U8, ctypes.c_int]),
@@ -179,6 +180,8 @@ class EngineConfig:
     unanswered_ns: int = 1_000_000_000
     #: the WDTON fuse programmed: the watchdog always on in system reset mode (a board's [fuses])
     watchdog_always_on: bool = False
+    #: analog inputs: (ADC channel, volts at the pin), e.g. a battery through its divider
+    analog: tuple[tuple[int, float], ...] = ()
 
 
 def config_for(board: Board, firmware: Path, eeprom: bytes | None = None, **limits: Any) -> EngineConfig:
@@ -187,8 +190,9 @@ def config_for(board: Board, firmware: Path, eeprom: bytes | None = None, **limi
     motors = tuple(Motor(m.pin, m.timer, m.channel or "A")
                    for m in sorted(board.motors, key=lambda m: m.motor))
     limits.setdefault("hang_ns", round(board.hang_s * 1e9))
+    analog = () if board.battery is None else ((board.battery.channel, board.battery.pin_volts),)
     return EngineConfig(board.mcu.name, board.clock_hz, firmware, motors, eeprom=eeprom,
-                        watchdog_always_on=board.watchdog_always_on, **limits)
+                        watchdog_always_on=board.watchdog_always_on, analog=analog, **limits)
 
 
 @dataclass(frozen=True)
@@ -284,6 +288,9 @@ class AvrEngine:
         for n, base in UARTS[cfg.mcu].items():
             if self._lib.mcu_uart_define(self._e, n, base):
                 self._uarts[n] = _Uart()
+        for channel, volts in cfg.analog:
+            if not self._lib.mcu_adc_set(self._e, channel, round(volts * 1000)):
+                raise ValueError(f"the {cfg.mcu} has no ADC{channel}")
         for port, pin_addr in PORTS[cfg.mcu].items():
             if not self._lib.mcu_watch_port(self._e, port.encode(), pin_addr + 1):
                 raise ValueError(f"the {cfg.mcu}'s port {port} cannot be watched")

@@ -14,6 +14,7 @@
  * controllers take PWM receivers. */
 #include <string.h>
 
+#include <simavr/avr_adc.h>
 #include <simavr/avr_ioport.h>
 #include <simavr/avr_uart.h>
 #include <simavr/sim_io.h>
@@ -270,5 +271,15 @@ MCU_API bool mcu_watch_port(mcu_engine *e, char port, uint16_t ddr)
         *w = (mcu_watched_pin){ .engine = e, .ddr = ddr, .bit = bit };
         avr_irq_register_notify(irq, output_changed, w);
     }
+    return true;
+}
+
+/* an analog input: ADC channel `channel` at `millivolts` from now on (a battery through its divider) */
+MCU_API bool mcu_adc_set(mcu_engine *e, uint8_t channel, uint32_t millivolts)
+{
+    avr_irq_t *irq = avr_io_getirq(e->avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_ADC0 + channel);
+    if (!irq || channel > ADC_IRQ_ADC15)
+        return false;
+    avr_raise_irq(irq, millivolts);
     return true;
 }
