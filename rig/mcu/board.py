@@ -13,7 +13,8 @@ rig/mcu/boards/; ``--mcu NAME`` finds them by name, ``--mcu path/to/board.toml``
     [[motors]]   motor (1..4: the plant's), pin ("PE4"), timer, channel ("A" | "B" | "C"),
                  protocol ("pwm" | "oneshot125"), label ("D2": the board's silk-screen name); with no
                  timer and channel, any port pin, its pulses measured from its edges
-    [rc]         protocol ("sbus" | "ppm" | "msp"), uart (sbus, msp), baud (msp), pin (ppm); optional
+    [rc]         protocol ("sbus" | "ppm" | "msp" | "pwm"), uart (sbus, msp), baud (msp), pin (ppm: an
+                 INTn or PCINT pin), pins (pwm: 4..8 PCINT or INTn pins, one a channel); optional
     [telemetry]  uart, baud, format ("text": the reference FC's ``T t=… key=value`` lines); optional
     [eeprom]     image (a file of raw bytes, relative to the board file), or fc = true: built from the
                  scenario's [fc] table by the reference firmware's layout
@@ -46,14 +47,16 @@ VCC: Final = 5.0
 BOARD_KEYS: Final = {"name", "description", "mcu", "clock_hz"}
 SENSOR_KEYS: Final = {"bus", "topology", "twi_hz", "mounting_yaw_deg", "mpu_address"}
 MOTOR_KEYS: Final = {"motor", "pin", "timer", "channel", "protocol", "label"}
-RC_KEYS: Final = {"protocol", "uart", "baud", "pin"}
+RC_KEYS: Final = {"protocol", "uart", "baud", "pin", "pins"}
 TELEMETRY_KEYS: Final = {"uart", "baud", "format"}
 EEPROM_KEYS: Final = {"image", "fc"}
 FUSE_KEYS: Final = {"watchdog_always_on"}
 LIMIT_KEYS: Final = {"hang_s"}
 #: a firmware with no bus, pulse, USART byte or output pin change for this long is hung
 HANG_S: Final = 1.0
-RC_PROTOCOLS: Final = ("sbus", "ppm", "msp")
+RC_PROTOCOLS: Final = ("sbus", "ppm", "msp", "pwm")
+#: a parallel PWM receiver's channels
+PWM_CHANNELS: Final = (4, 8)
 SBUS_BAUD: Final = 100_000
 #: how far a USART's nearest baud may be from the board's: 115200 at 16 MHz is 2.1 % off (Arduino's
 #: usual serial speed, read well by USB bridges); beyond 3 % a frame's last bits are misread
@@ -76,10 +79,11 @@ class MotorOut:
 
 @dataclass(frozen=True)
 class RcIn:
-    protocol: str   # "sbus" | "ppm" | "msp"
+    protocol: str   # "sbus" | "ppm" | "msp" | "pwm"
     uart: int | None
     baud: int
     pin: str | None
+    pins: tuple[str, ...] = ()  # pwm: one pin per channel, in channel order (AETR, then aux)
 
 
 @dataclass(frozen=True)
@@ -282,12 +286,27 @@ def _battery(c: _BoardCheck, mcu: Mcu, data: Any) -> Battery:
 
 def _rc(c: _BoardCheck, mcu: Mcu, r: dict[str, Any]) -> RcIn:
     protocol = c.string(r, "protocol", "rc", choices=RC_PROTOCOLS)
+    interrupting = set(mcu.ints.values()) | mcu.pcint
     if protocol == "ppm":
         pin = c.string(r, "pin", "rc").upper()
-        if pin not in mcu.ints.values():
-            raise c.fail("rc.pin", f"a PPM sum needs an external-interrupt pin of the {mcu.name} "
-                                   f"({', '.join(sorted(mcu.ints.values()))}), got {pin}")
+        if pin not in interrupting:
+            raise c.fail("rc.pin", f"a PPM sum needs a pin with an external or pin change interrupt; the "
+                                   f"{mcu.name}'s {pin} has neither")
         return RcIn("ppm", None, 0, pin)
+    if protocol == "pwm":
+        pins = r.get("pins")
+        low, high = PWM_CHANNELS
+        if (not isinstance(pins, list) or not low <= len(pins) <= high or
+                not all(isinstance(p, str) for p in pins)):
+            raise c.fail("rc.pins", f"expected {low} to {high} pins, one a channel in channel order, got "
+                                    f"{pins!r}")
+        names = tuple(p.upper() for p in pins)
+        for p in names:
+            if p not in interrupting:
+                raise c.fail("rc.pins", f"the {mcu.name}'s {p} has no external or pin change interrupt")
+            if names.count(p) > 1:
+                raise c.fail("rc.pins", f"pin {p} is two channels")
+        return RcIn("pwm", None, 0, None, names)
     uart = _uart(c, mcu, r, "rc")
     baud = SBUS_BAUD if protocol == "sbus" else c.integer(r, "baud", "rc", 300, 2_000_000, default=115_200)
     if protocol == "sbus" and r.get("baud", SBUS_BAUD) != SBUS_BAUD:

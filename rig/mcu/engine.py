@@ -393,7 +393,7 @@ class AvrEngine:
         cycles = (_U64 * n)(*(self._lib.mcu_cycle_at(self._e, t) for t, _ in schedule))
         levels = (_U8 * n)(*(1 if v else 0 for _, v in schedule))
         if not self._lib.mcu_pin_drive(self._e, port.encode(), bit, cycles, levels, n):
-            raise ValueError(f"pin {pin}: more than 4096 edges waiting, or more than 4 pins driven")
+            raise ValueError(f"pin {pin}: more than 4096 edges waiting, or more than 9 pins driven")
 
     def pulses(self) -> list[list[tuple[int, int, int]]]:
         """Per motor, the pulses ended since the last call: (rise_ns, width_ns, period_ns)."""

@@ -36,6 +36,8 @@
 #define MCU_RX_BYTES 4096
 #define MCU_TX_BYTES 4096
 #define MCU_PIN_EDGES 4096
+/* input pins the rig drives at once: a parallel PWM receiver's 8 channels, and one more */
+#define MCU_DRIVEN_PINS 9
 #define MCU_TWI_EVENTS 96
 
 typedef struct mcu_engine mcu_engine;
@@ -211,7 +213,7 @@ struct mcu_engine {
     mcu_wrap wraps[12];
     uint8_t n_wraps;
     mcu_uart uarts[MCU_UARTS];
-    mcu_pin pins[4];
+    mcu_pin pins[MCU_DRIVEN_PINS];
     avr_int_vector_t pcint[3]; /* [1] PCINT1, [2] PCINT2 (2560) */
     mcu_pcint_pin pcint_pins[15];
 };

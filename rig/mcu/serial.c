@@ -140,7 +140,7 @@ uint64_t mcu_serial_next(const mcu_engine *e)
     for (int i = 0; i < MCU_UARTS; i++)
         if (e->uarts[i].used && e->uarts[i].len && e->uarts[i].next < next)
             next = e->uarts[i].next;
-    for (int i = 0; i < 4; i++)
+    for (int i = 0; i < MCU_DRIVEN_PINS; i++)
         if (e->pins[i].used && e->pins[i].len && e->pins[i].edges[e->pins[i].head].cycle < next)
             next = e->pins[i].edges[e->pins[i].head].cycle;
     return next;
@@ -164,7 +164,7 @@ void mcu_serial_event(mcu_engine *e)
             u->next += u->frame_cycles;
         }
     }
-    for (int i = 0; i < 4; i++) {
+    for (int i = 0; i < MCU_DRIVEN_PINS; i++) {
         mcu_pin *p = &e->pins[i];
         while (p->used && p->len && p->edges[p->head].cycle <= now) {
             avr_irq_t *irq = avr_io_getirq(e->avr, AVR_IOCTL_IOPORT_GETIRQ(p->port), p->bit);
@@ -196,10 +196,10 @@ MCU_API bool mcu_pin_drive(mcu_engine *e, char port, uint8_t bit, const uint64_t
                            uint32_t n)
 {
     mcu_pin *p = NULL;
-    for (int i = 0; i < 4 && !p; i++)
+    for (int i = 0; i < MCU_DRIVEN_PINS && !p; i++)
         if (e->pins[i].used && e->pins[i].port == (uint8_t)port && e->pins[i].bit == bit)
             p = &e->pins[i];
-    for (int i = 0; i < 4 && !p; i++)
+    for (int i = 0; i < MCU_DRIVEN_PINS && !p; i++)
         if (!e->pins[i].used) {
             p = &e->pins[i];
             *p = (mcu_pin){ .used = true, .port = (uint8_t)port, .bit = bit };

@@ -48,6 +48,8 @@ ESC_TIMEOUT_NS: Final = round(ESC_TIMEOUT_S * NS)
 #: PPM sum: frame sync gap and channel pulse (a common receiver's)
 PPM_PULSE_NS: Final = 300_000
 PPM_FRAME_NS: Final = 22_500_000
+#: a parallel PWM receiver's frame: its channels' pulses every 20 ms (50 Hz, the servo rate)
+PWM_FRAME_NS: Final = 20_000_000
 #: a [[serial]] send's baud on a USART the board gives none (Arduino's usual serial speed)
 DEFAULT_BAUD: Final = 115_200
 
@@ -157,7 +159,7 @@ class McuSession:
             self._ppm_channels = us
 
     def serial_silence(self, path: str) -> None:
-        """A lost RC link: a PPM receiver stops its pulses too (SBUS and MSP simply send nothing)."""
+        """A lost RC link: a PPM or PWM receiver stops its pulses too (SBUS and MSP send nothing)."""
         if path == self.cfg.rc_path:
             self._ppm_channels = None
 
@@ -181,7 +183,7 @@ class McuSession:
         if self.cfg.trace is not None:
             trace = self._open_trace(self.cfg.trace)
         engine.twi_log(True)  # (the transfers for run.mcap, and the trace's)
-        ppm = self.cfg.board.rc is not None and self.cfg.board.rc.protocol == "ppm"
+        ppm = self.cfg.board.rc is not None and self.cfg.board.rc.protocol in ("ppm", "pwm")
         telemetry_uart = self.cfg.board.telemetry_uart
         logs = self.uart_log
         try:
@@ -192,7 +194,7 @@ class McuSession:
                     nxt = ev
                 self.world.advance_to(nxt)
                 if ppm:
-                    self._ppm(nxt)
+                    self._rc_pins(nxt)
                 problem = self._run_mcu(engine, nxt)
                 if problem is not None:
                     self.sched.fail(EXIT_RIG_ERROR, problem)
@@ -275,18 +277,26 @@ class McuSession:
                 state.last_pulse_ns = -1
                 set_motor(motor, 0.0)
 
-    def _ppm(self, t_ns: int) -> None:
-        """A PPM sum on the RC pin: one frame every PPM_FRAME_NS while the link is up."""
+    def _rc_pins(self, t_ns: int) -> None:
+        """A PPM sum on the RC pin, or a parallel PWM receiver's pulses on its pins (each channel's after
+        the one before, as receivers put them out): one frame every PPM_FRAME_NS or PWM_FRAME_NS while
+        the link is up."""
         rc = self.cfg.board.rc
-        if rc is None or rc.protocol != "ppm" or self.engine is None:
+        if rc is None or self.engine is None:
             return
+        period = PPM_FRAME_NS if rc.protocol == "ppm" else PWM_FRAME_NS
         while self._ppm_next_ns <= t_ns:
             start = self._ppm_next_ns
-            self._ppm_next_ns += PPM_FRAME_NS
+            self._ppm_next_ns += period
             if self._ppm_channels is None:
                 continue
-            edges: list[tuple[int, int]] = []
             t = start
+            if rc.protocol == "pwm":
+                for pin, us in zip(rc.pins, self._ppm_channels, strict=False):
+                    self.engine.pin_drive(pin, [(t, 1), (t + us * 1000, 0)])
+                    t += us * 1000
+                continue
+            edges: list[tuple[int, int]] = []
             for us in self._ppm_channels:
                 edges += [(t, 0), (t + PPM_PULSE_NS, 1)]
                 t += us * 1000
