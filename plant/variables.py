@@ -132,6 +132,9 @@ _PARAMETERS: list[Variable] = [
     _v("omega_max", "parameter", 600.0, "rad/s", "rotor speed at full throttle", valid=POSITIVE),
     _v("esc_min_us", "parameter", 1000.0, "us", "pulse width for zero throttle"),
     _v("esc_max_us", "parameter", 2000.0, "us", "pulse width for full throttle"),
+    _v("esc_start_us", "parameter", 0.0, "us",
+       "the ESCs' start threshold: a pulse narrower than this stops the motor (real ESCs ignore "
+       "~1000-1050 us, so idle pulses do not spin it); 0: every pulse counts", valid=NON_NEGATIVE),
     *_four("esc_gain", "parameter", 1.0, "1",
            "ESC curve gain: omega_cmd = omega_max * clamp(gain * u + offset, 0, 1)", "esc_gain"),
     *_four("esc_offset", "parameter", 0.0, "1",

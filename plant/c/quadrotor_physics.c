@@ -116,7 +116,10 @@ static void quat_normalize(double *q)
 
 double qr_esc_omega_cmd(const qr_params *p, int i, double pwm_us)
 {
-    double pw = isfinite(pwm_us) ? clamp(pwm_us, p->esc_min_us, p->esc_max_us) : p->esc_min_us;
+    double given = isfinite(pwm_us) ? pwm_us : p->esc_min_us;
+    if (given < p->esc_start_us) /* under the ESC's start threshold: the motor is stopped */
+        return 0.0;
+    double pw = clamp(given, p->esc_min_us, p->esc_max_us);
     double u = (pw - p->esc_min_us) / (p->esc_max_us - p->esc_min_us);
     return p->omega_max * clamp(p->esc_gain[i] * u + p->esc_offset[i], 0.0, 1.0);
 }
