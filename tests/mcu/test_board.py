@@ -87,9 +87,11 @@ def test_a_motor_without_a_timer_is_any_port_pin(tmp_path: Path) -> None:
 
 
 def test_a_ppm_receiver_needs_an_interrupt_pin(tmp_path: Path) -> None:
+    """Port A of the ATmega2560 has neither INTn nor PCINTn (its datasheet's pin functions)."""
     p = tmp_path / "bad.toml"
-    p.write_text(board.find("promini328-gy86").read_text().replace('pin = "PD2"', 'pin = "PB0"'))
-    with pytest.raises(BoardError, match=r"rc.pin: a PPM sum needs an external-interrupt pin"):
+    sbus = 'protocol = "sbus"    # RX1 D19 (PD2)\nuart = 1'
+    p.write_text(board.find("mega2560-gy86").read_text().replace(sbus, 'protocol = "ppm"\npin = "PA0"'))
+    with pytest.raises(BoardError, match=r"rc.pin: a PPM sum needs a pin with an external or pin change"):
         board.load(str(p))
 
 
