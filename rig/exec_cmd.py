@@ -29,7 +29,7 @@ from rig.bridge.session import BenchConfig, BenchSession
 from rig.cores import CoresError, allowed_cores, placement
 from rig.emulators.topology import TOPOLOGIES
 from rig.plant.variables import PARAMETERS, check_parameters
-from rig.run_cmd import seconds_option
+from rig.run_cmd import add_trace_options, seconds_option, trace_options
 from rig.scenarios.schema import Event, ScenarioError, _Check, timeline_event
 from rig.scheduler import EXIT_RIG_ERROR
 from rig.session import Session, SessionConfig
@@ -122,6 +122,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="with --mcu: sticks on the board's RC input, constant ('throttle=0.2,arm=on') or a "
                         "timeline ('0:arm=off;1.5:arm=on,throttle=0.1'): roll, pitch, yaw (-1..1), "
                         "throttle (0..1), alt_offset (-1..1), arm, alt_hold (on/off)")
+    add_trace_options(p)
     p.add_argument("--hang-limit", type=float, metavar="S",
                    help="with --mcu: a firmware with no TWI transaction, motor pulse, USART byte or output "
                         "pin change for S seconds is hung (default: the board's [limits] hang_s, 1; 0: off)")
@@ -136,7 +137,8 @@ def main(args: argparse.Namespace) -> int:
         return _exec_mcu(args, parser, command)
     for option, value in (("--firmware", args.firmware), ("--trace", args.trace), ("--eeprom", args.eeprom),
                           ("--eeprom-out", args.eeprom_out), ("--hang-limit", args.hang_limit),
-                          ("--sticks", args.sticks)):
+                          ("--sticks", args.sticks), ("--trace-signals", args.trace_signals),
+                          ("--trace-window", args.trace_window), ("--trace-gzip", args.trace_gzip or None)):
         if value is not None:
             parser.error(f"{option} goes with --mcu BOARD")
     if not command:
@@ -221,8 +223,12 @@ def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command
     _writable(parser, "--eeprom-out", args.eeprom_out)
     if args.hang_limit is not None and not 0 <= args.hang_limit <= 600:
         parser.error(f"--hang-limit: expected seconds in 0..600 (0: off), got {args.hang_limit:g}")
+    options = trace_options(args)
+    if isinstance(options, str):
+        parser.error(options)
     try:
-        target = McuTarget(args.mcu, args.firmware, eeprom=args.eeprom, hang_limit=args.hang_limit)
+        target = McuTarget(args.mcu, args.firmware, eeprom=args.eeprom, hang_limit=args.hang_limit,
+                           trace_options=options)
     except (BoardError, FirmwareError) as e:
         parser.error(f"--mcu: {e}")
     sticks: list[Event] = []
@@ -235,7 +241,7 @@ def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command
             parser.error(str(e))
     trace = None
     if args.trace is not None:
-        trace = args.trace / f"{target.firmware.stem}.vcd"
+        trace = args.trace / f"{target.firmware.stem}{options.suffix}"
         try:
             args.trace.mkdir(parents=True, exist_ok=True)
         except OSError as e:

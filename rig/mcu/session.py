@@ -34,7 +34,7 @@ from rig.emulators import sbus
 from rig.mcu.board import Board, uart_baud
 from rig.mcu.engine import AvrEngine, config_for
 from rig.mcu.twi_log import TwiTransfers
-from rig.mcu.vcd import McuTrace
+from rig.mcu.vcd import McuTrace, TraceOptions
 from rig.scenarios.serial import msp_frame
 from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, Stop
 from rig.session import Outcome
@@ -66,6 +66,7 @@ class McuConfig:
     sim_timeout: float = 600.0
     #: write the TWI transactions and the motor pins' edges here as VCD (rig/mcu/vcd.py)
     trace: Path | None = None
+    trace_options: TraceOptions = TraceOptions()
     #: write the EEPROM as the firmware left it here, however the run ended (eeprom.bin)
     eeprom_out: Path | None = None
     #: USARTs whose output is kept time-stamped (``uart_log``: the criteria on a USART)
@@ -250,7 +251,8 @@ class McuSession:
         names = [f"m{m.motor}_{m.pin}" for m in b.motors]
         path.parent.mkdir(parents=True, exist_ok=True)
         return McuTrace(path, names, b.twi_hz,
-                        comment=f"{self.cfg.firmware.name} on {b.name}: TWI and motor outputs, sim time")
+                        comment=f"{self.cfg.firmware.name} on {b.name}: TWI and motor outputs, sim time",
+                        options=self.cfg.trace_options)
 
     def _run_mcu(self, engine: AvrEngine, t_ns: int) -> str | None:
         """Runs the MCU to ``t_ns``, serving the chip core's needs; what went wrong, or None."""

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 from rig.mcu import board as boards
 from rig.mcu.engine import BUS_PROBLEMS
 from rig.mcu.session import McuConfig, McuSession
+from rig.mcu.vcd import TraceOptions
 from rig.scenarios.result import I2CRecord
 from rig.scenarios.schema import Scenario
 from rig.scenarios.serial import Chunks
@@ -83,13 +84,15 @@ class McuTarget:
     ``SCENARIO.vcd`` (rig/mcu/vcd.py). ``eeprom``: an EEPROM image preloaded instead of the board's
     (raw bytes, or Intel HEX named .eep/.hex), checked here too. Each run writes the EEPROM as the
     firmware left it as ``eeprom.bin`` in its folder, so the next run can start from it. ``hang_limit``:
-    the hang check's limit (s; 0 off) instead of the board's [limits] hang_s."""
+    the hang check's limit (s; 0 off) instead of the board's [limits] hang_s; ``trace_options``: the
+    trace's signals, window and compression (a .vcd.gz)."""
 
     mode = "mcu"
     realtime = False
 
     def __init__(self, board: str | Path, firmware: Path, trace: Path | None = None,
-                 eeprom: Path | None = None, hang_limit: float | None = None) -> None:
+                 eeprom: Path | None = None, hang_limit: float | None = None,
+                 trace_options: TraceOptions | None = None) -> None:
         from rig.mcu.image import load, load_eeprom
 
         self.board = boards.load(board)
@@ -98,6 +101,7 @@ class McuTarget:
         self.firmware_sha256 = hashlib.sha256(self.firmware.read_bytes()).hexdigest()
         self.trace = trace
         self.hang_limit = hang_limit
+        self.trace_options = trace_options or TraceOptions()
         self.eeprom_file = None if eeprom is None else Path(eeprom).resolve()
         self.eeprom = None if self.eeprom_file is None else load_eeprom(self.eeprom_file, self.board.mcu.name)
 
@@ -134,7 +138,7 @@ class McuTarget:
                 "mpu_address": self.board.mpu_address}
 
     def open(self, ctx: RunContext) -> McuRun:
-        trace = None if self.trace is None else self.trace / f"{ctx.scenario.stem}.vcd"
+        trace = None if self.trace is None else self.trace / f"{ctx.scenario.stem}{self.trace_options.suffix}"
         return McuRun(self.session(ctx.world, ctx.scenario.duration, ctx.scenario.fc, ctx.wall_timeout,
                                    trace, eeprom_out=ctx.work / "eeprom.bin", listen=_listened(ctx.scenario)))
 
@@ -152,7 +156,7 @@ class McuTarget:
 
             eeprom = image(fc)
         cfg = McuConfig(self.board, self.firmware, duration, RC_PATH, TELEMETRY_PATH, eeprom, wall_timeout,
-                        sim_timeout, trace, eeprom_out, listen, self.hang_limit)
+                        sim_timeout, trace, self.trace_options, eeprom_out, listen, self.hang_limit)
         return McuSession(cfg, world)
 
     def not_run_metadata(self) -> dict[str, object]:
