@@ -21,20 +21,19 @@ from typing import Final
 
 import numpy as np
 
-from rig import __version__, scratch
+from rig import __version__, scratch, uart_criteria
 from rig.emulators.faults import Fault, fault_sets
 from rig.emulators.sensor_models import Normals
 from rig.host import Host
 from rig.plant.variables import MOTORS
 from rig.rc import StickEmulator
-from rig.scenarios import serial
 from rig.scenarios.criteria import NOT_JUDGED, Measurement, measure
 from rig.scenarios.result import RcFrame, RunResult
 from rig.scenarios.schema import Event, Scenario
 from rig.scenarios.signals import BENCH_SIGNALS, RECORD_PERIOD, SIGNALS
 from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, Target, TargetRun
 from rig.targets.process import ProcessTarget
-from rig.telemetry import read_columns
+from rig.telemetry import msp, read_columns
 from rig.world import World
 
 WIND_PERIOD: Final = 0.01
@@ -220,7 +219,7 @@ def run(
     world = World.at_rest(
         seed=seed,
         noise=scenario.noise,
-        params=scenario.plant,
+        params=scenario.plant_params(),
         faults=faults,
         mag_disturbance=scenario.mag_disturbance_at if any(scenario.mag_disturbance) else None,
         baro_noise_pa=scenario.baro_noise_pa,
@@ -298,7 +297,7 @@ def run(
     for name in BENCH_SIGNALS:  # a criterion on the supply's signals, in a run without one: NaN, not judged
         signals.setdefault(name, np.full(len(signals["t"]), math.nan))
     measurements = [
-        serial.measure(c, uarts) if c.uart is not None else measure(
+        uart_criteria.measure(c, uarts) if c.uart is not None else measure(
             c.name,
             c.metric,
             c.signal,
@@ -348,6 +347,9 @@ def identity(scenario: Scenario, seed: int) -> dict[str, object]:
         "scenario_name": scenario.name,
         "scenario_file": str(scenario.path.resolve()),
         "scenario_sha256": scenario.sha256,
+        "airframe": scenario.airframe.describe(),
+        "airframe_file": str(scenario.airframe.path.resolve()),
+        "airframe_sha256": scenario.airframe.sha256,
         "seed": seed,
         "started": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "host": socket.gethostname(),
@@ -383,7 +385,8 @@ def _schedule_sends(scenario: Scenario, target_run: TargetRun, session: Host, no
             notes.append(f"{len(scenario.serial)} [[serial]] send(s) not made: this DUT has no USART "
                          "the rig reaches (an MCU target's)")
             return
-        session.at(send.t, functools.partial(_send, port, send.data))
+        data = send.data if send.msp is None else msp.request(*send.msp)
+        session.at(send.t, functools.partial(_send, port, data))
 
 
 def _send(port: str, data: bytes, session: Host) -> None:

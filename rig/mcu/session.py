@@ -35,9 +35,9 @@ from rig.mcu.board import Board, uart_baud
 from rig.mcu.engine import AvrEngine, config_for
 from rig.mcu.twi_log import TwiTransfers
 from rig.mcu.vcd import McuTrace, TraceOptions
-from rig.scenarios.serial import msp_frame
 from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, Stop
 from rig.session import Outcome
+from rig.telemetry import msp
 from rig.world import World
 
 TICK_NS: Final = 1_000_000
@@ -136,13 +136,22 @@ class McuSession:
     def serial_write(self, path: str, data: bytes) -> None:
         """Bytes for a serial_port go into that USART; the RC port's SBUS frames go to the board's RC
         input as its protocol has them: SBUS bytes into the USART, or the same channels as a PPM sum on
-        the pin or an MSP SET_RAW_RC frame."""
+        the pin or an MSP SET_RAW_RC frame. Bytes for the telemetry port (an MSP poll) go into its USART
+        as they are."""
+        if self.engine is None:
+            return
+        board = self.cfg.board
         port = self._ports.get(path)
-        if port is not None and self.engine is not None:
+        if port is not None:
             self.engine.uart_send(port[0], data, port[1])
             return
-        rc = self.cfg.board.rc
-        if path != self.cfg.rc_path or self.engine is None or rc is None:
+        if path == self.cfg.telemetry_path and board.telemetry_uart is not None:
+            self.engine.uart_send(board.telemetry_uart, data, board.telemetry_baud)
+            return
+        if path != self.cfg.rc_path:
+            return
+        rc = board.rc
+        if rc is None:
             return
         self.figures.rc_bytes += len(data)
         if rc.protocol == "sbus":
@@ -155,7 +164,7 @@ class McuSession:
         us = [round(sbus_to_us(c)) for c in channels[:8]]
         if rc.protocol == "msp":
             assert rc.uart is not None
-            self.engine.uart_send(rc.uart, msp_set_raw_rc(us), rc.baud)
+            self.engine.uart_send(rc.uart, msp.set_raw_rc(us), rc.baud)
         else:
             self._ppm_channels = us
 
@@ -320,8 +329,3 @@ def _sbus_channels(data: bytes) -> list[int] | None:
     except ValueError:
         return None
     return channels
-
-
-def msp_set_raw_rc(us: list[int]) -> bytes:
-    """An MSP v1 SET_RAW_RC (200) frame: the channels' microseconds little-endian."""
-    return msp_frame(200, b"".join(int(min(max(u, 0), 0xFFFF)).to_bytes(2, "little") for u in us))

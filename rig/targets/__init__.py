@@ -31,8 +31,8 @@ from rig.scenarios.result import I2CRecord
 if TYPE_CHECKING:
     from rig.emulators.faults import FaultSet
     from rig.scenarios.schema import Scenario
-    from rig.scenarios.serial import Chunks
     from rig.session import Outcome
+    from rig.uart_criteria import Chunks
     from rig.world import World
 
 # (the build folder from a module that is never compiled: the runner may run from build/mypyc,

@@ -15,10 +15,10 @@ from rig.mcu.session import McuConfig, McuSession
 from rig.mcu.vcd import TraceOptions
 from rig.scenarios.result import I2CRecord
 from rig.scenarios.schema import Scenario
-from rig.scenarios.serial import Chunks
 from rig.session import Outcome
 from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, TargetRun
 from rig.targets.process import NO_SUPPLY
+from rig.uart_criteria import Chunks
 
 if TYPE_CHECKING:
     from rig.world import World

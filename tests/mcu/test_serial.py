@@ -17,7 +17,8 @@ import pytest
 
 from rig.scenarios import schema
 from rig.scenarios.schema import ScenarioError
-from rig.scenarios.serial import matching_lines, msp_frame, replies
+from rig.telemetry.msp import request
+from rig.uart_criteria import matching_lines, replies
 from tests.mcu.conftest import REPO, firmware
 
 #: a Mega 2560 with a GY-86, four ESCs on timers 3 and 4, and neither RC input nor telemetry
@@ -96,8 +97,8 @@ msp_reply = 101
 
 def test_msp_frames_are_multiwiis() -> None:
     """MultiWii's MSP v1: $M<, size, command, payload, XOR of size, command and payload."""
-    assert msp_frame(205) == b"$M<\x00\xcd\xcd"
-    assert msp_frame(200, bytes([0xDC, 0x05])) == b"$M<\x02\xc8\xdc\x05" + bytes([2 ^ 200 ^ 0xDC ^ 0x05])
+    assert request(205) == b"$M<\x00\xcd\xcd"
+    assert request(200, bytes([0xDC, 0x05])) == b"$M<\x02\xc8\xdc\x05" + bytes([2 ^ 200 ^ 0xDC ^ 0x05])
     stream = b"noise$M>\x00\xcd\xcd$M>\x01\x64\x07\x00" + b"$M>\x00\x65\x65"  # (the second: a bad checksum)
     assert replies([(1, stream[:12]), (2, stream[12:])], 205) == [1]
     assert replies([(1, stream)], 100) == [] and replies([(7, stream)], 101) == [7]

@@ -240,16 +240,3 @@ def test_magnetometer_and_accelerometer_truth_rotate_into_the_body():
         got = [plant.output(k) for k in ("fx", "fy", "fz")]
         assert np.allclose(got, (0.0, -G * math.sin(roll), -G * math.cos(roll)), atol=1e-12)
 
-
-@pytest.mark.parametrize(("start_us", "pulse_us", "omega"),
-                         [(0.0, 1000.0, 0.1 * 600.0),            # no threshold: the idle pulse spins it
-                          (1050.0, 1000.0, 0.0), (1050.0, 1049.9, 0.0),
-                          (1050.0, 1050.0, (0.05 + 0.1) * 600.0)])  # from the threshold on: the ESC curve
-def test_an_esc_below_its_start_threshold_does_not_spin_the_motor(start_us, pulse_us, omega):
-    """An ESC whose curve idles at 10 % (esc_offset 0.1) spins its motor at the 1000 us idle pulse,
-    unless that pulse is under its start threshold (esc_start_us): then the motor stays stopped. After
-    50 motor time constants the rotor is at its command to e^-50."""
-    with Plant(params={"esc_offset1": 0.1, "esc_start_us": start_us}) as plant:  # on the ground, stopped
-        plant.set_input("pwm1_us", pulse_us)
-        plant.run(50 * MOTOR_TAU, DT)
-        assert plant.output("omega1") == pytest.approx(omega, rel=1e-9, abs=1e-12)
