@@ -35,6 +35,7 @@ from rig.scenarios import LIBRARY
 from rig.scenarios.schema import Scenario, ScenarioError, load, with_airframe
 
 if TYPE_CHECKING:
+    from rig.mcu.vcd import TraceOptions
     from rig.scenarios.profile import Profile
     from rig.scenarios.result import RunResult
     from rig.targets import Target
@@ -161,6 +162,10 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--eeprom", type=Path, metavar="FILE",
                    help="with --mcu: the EEPROM image to start from instead of the board's (raw bytes, as "
                    "a run's eeprom.bin, or Intel HEX named .eep/.hex)")
+    add_trace_options(p)
+    p.add_argument("--hang-limit", type=float, metavar="S",
+                   help="with --mcu: a firmware with no TWI transaction, motor pulse, USART byte or output "
+                   "pin change for S seconds is hung (default: the board's [limits] hang_s, 1; 0: off)")
     add_pdf_options(p)
     v = sub.add_parser("validate", help="check scenario files (and an FC profile) without running them")
     v.add_argument("scenarios", nargs="*", metavar="SCENARIO")
@@ -424,12 +429,52 @@ def target_of(args: argparse.Namespace, dut: list[str] | None) -> Target:
                          topology=args.topology)
 
 
+def add_trace_options(p: argparse.ArgumentParser) -> None:
+    """--trace-signals, --trace-window, --trace-gzip (rig run and rig exec, with --mcu --trace)."""
+    p.add_argument("--trace-signals", metavar="LIST",
+                   help="with --trace: only these signals, comma-separated: twi, motors, twi.scl, twi.sda, "
+                        "twi.byte, twi.ack, twi.busy, m1..m4 (default: all)")
+    p.add_argument("--trace-window", metavar="START:END",
+                   help="with --trace: only the changes from START to END sim seconds ('2:5'; '2:' to the "
+                        "end)")
+    p.add_argument("--trace-gzip", action="store_true",
+                   help="with --trace: write .vcd.gz (GTKWave opens it; about a tenth of the size)")
+
+
+def trace_options(args: argparse.Namespace) -> TraceOptions | str:
+    """The trace's options from the command line, or what is wrong with them."""
+    from rig.mcu.vcd import TraceOptions, signal_problem
+
+    given = [o for o, v in (("--trace-signals", args.trace_signals), ("--trace-window", args.trace_window),
+                            ("--trace-gzip", args.trace_gzip)) if v]
+    if given and args.trace is None:
+        return f"{', '.join(given)} goes with --trace DIR"
+    signals = tuple(s.strip() for s in (args.trace_signals or "").split(",") if s.strip())
+    problem = signal_problem(signals)
+    if problem:
+        return f"--trace-signals: {problem}"
+    window = None
+    if args.trace_window is not None:
+        start, colon, end = args.trace_window.partition(":")
+        try:
+            lo, hi = float(start or 0), float(end) if end else math.inf
+        except ValueError:
+            lo = hi = math.nan
+        if not colon or not 0 <= lo < hi:
+            return f"--trace-window: expected START:END in sim seconds, START < END ('2:5', '2:'), got " \
+                   f"{args.trace_window!r}"
+        window = (round(lo * 1e9), 2**63 - 1 if math.isinf(hi) else round(hi * 1e9))
+    return TraceOptions(signals, window, bool(args.trace_gzip))
+
+
 def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:
     """``--mcu BOARD --firmware FILE``, both checked (the board file as a scenario is, the image's
     format and size against the board's MCU); None without --mcu."""
     if args.mcu is None:
         for option, value in (("--firmware", args.firmware), ("--trace", args.trace),
-                              ("--eeprom", args.eeprom)):
+                              ("--eeprom", args.eeprom), ("--hang-limit", args.hang_limit),
+                              ("--trace-signals", args.trace_signals), ("--trace-window", args.trace_window),
+                              ("--trace-gzip", args.trace_gzip or None)):
             if value is not None:
                 problems.append(f"{option} goes with --mcu BOARD")
         return None
@@ -445,6 +490,9 @@ def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:
     from rig.mcu.engine import FirmwareError
     from rig.targets.mcu import McuTarget
 
+    if args.hang_limit is not None and not 0 <= args.hang_limit <= 600:
+        problems.append(f"--hang-limit: expected seconds in 0..600 (0: off), got {args.hang_limit:g}")
+        return None
     if args.trace is not None:
         try:
             args.trace.mkdir(parents=True, exist_ok=True)
@@ -452,7 +500,11 @@ def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:
             problems.append(f"--trace {args.trace}: {e.strerror}")
             return None
     try:
-        return McuTarget(args.mcu, args.firmware, args.trace, args.eeprom)
+        options = trace_options(args)
+        if isinstance(options, str):
+            problems.append(options)
+            return None
+        return McuTarget(args.mcu, args.firmware, args.trace, args.eeprom, args.hang_limit, options)
     except (BoardError, FirmwareError) as e:
         problems.append(f"--mcu: {e}")
         return None

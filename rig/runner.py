@@ -21,7 +21,7 @@ from typing import Final
 
 import numpy as np
 
-from rig import __version__, scratch
+from rig import __version__, scratch, uart_criteria
 from rig.emulators.faults import Fault, fault_sets
 from rig.emulators.sbus import KNOBS
 from rig.emulators.sensor_models import Normals
@@ -35,9 +35,9 @@ from rig.scenarios.result import RcFrame, RunResult
 from rig.scenarios.schema import Event, Scenario
 from rig.scenarios.signals import BENCH_SIGNALS, RECORD_PERIOD, SIGNALS
 from rig.scenarios.terms import STICK_TERMS
-from rig.targets import RC_PATH, RunContext, Target, telemetry_path
+from rig.targets import RC_PATH, RunContext, Target, TargetRun, telemetry_path
 from rig.targets.process import ProcessTarget
-from rig.telemetry import read_columns
+from rig.telemetry import msp, read_columns
 from rig.world import World
 
 WIND_PERIOD: Final = 0.01
@@ -261,13 +261,15 @@ def run(
                 rec = _Recorder(scenario, world, rc, wind, [f.fault for f in scenario.faults], profile)
                 session.at(0.0, rec.tick)
                 for ev in scenario.timeline:
-                    session.at(ev.t, _apply_event(rc, ev, profile, notes))
+                    session.at(ev.t, apply_event(rc, ev, profile, notes))
+                _schedule_sends(scenario, target_run, session, notes)
                 outcome = session.run()
                 signals = rec.signals()
                 metadata.update(target_run.figures(outcome))
                 signals.update(target_run.signals(signals["t"]))
                 idle = target_run.idle(outcome) if outcome.verdict == "ok" else None
                 i2c = target_run.transactions()
+                uarts = target_run.uarts()
             finally:
                 target_run.close()
     finally:
@@ -314,7 +316,7 @@ def run(
     for name in BENCH_SIGNALS:  # a criterion on the supply's signals, in a run without one: NaN, not judged
         signals.setdefault(name, np.full(len(signals["t"]), math.nan))
     measurements = [
-        measure(
+        uart_criteria.measure(c, uarts) if c.uart is not None else measure(
             c.name,
             c.metric,
             c.signal,
@@ -416,7 +418,26 @@ def _last_words(stderr: str) -> str:
     return lines[-1][:300] if lines else ""
 
 
-def _apply_event(rc: StickEmulator, ev: Event, profile: Profile, notes: list[str]) -> Callable[[Host], None]:
+def _schedule_sends(scenario: Scenario, target_run: TargetRun, session: Host, notes: list[str]) -> None:
+    """The scenario's [[serial]] sends, each at its time on its USART; a DUT without USARTs gets none
+    (the notes say so)."""
+    for send in scenario.serial:
+        port = target_run.serial_port(send.uart, send.baud)
+        if port is None:
+            notes.append(f"{len(scenario.serial)} [[serial]] send(s) not made: this DUT has no USART "
+                         "the rig reaches (an MCU target's)")
+            return
+        data = send.data if send.msp is None else msp.request(*send.msp)
+        session.at(send.t, functools.partial(_send, port, data))
+
+
+def _send(port: str, data: bytes, session: Host) -> None:
+    session.serial_write(port, data)
+
+
+def apply_event(rc: StickEmulator, ev: Event, profile: Profile, notes: list[str]) -> Callable[[Host], None]:
+    """A timeline entry as an event: its sticks (degrees through the FC's profile), mode, arming, link
+    state and plant inputs (rig exec --sticks too)."""
     def apply(session: Host) -> None:
         for k, v in ev.sticks.items():
             if k in STICK_TERMS:  # degrees or degrees per second: the FC's stick for them

@@ -169,13 +169,15 @@ class World:
         baro_drift_pa_per_s: float = 0.0,
         mounting: tuple[tuple[float, float, float], ...] = FLAT_ON_BOARD,
         motor_order: tuple[int, ...] = (1, 2, 3, 4),
+        mpu_address: int = 0x68,
     ) -> World:
         """The default world of ``rig exec``: the vehicle resting on the ground, motors off, a GY-86.
         ``faults`` by name: signal faults "accel", "gyro", "mag", "baro" act in the sensor models; bus
         faults "mpu", "hmc", "baro_bus" act on the chip on the bus. The barometer's noise and drift
         are its model's (the barometer is exact by default, so a reading can be checked to the pascal).
         ``motor_order``: the plant motor each of the DUT's PWM channels 0..3 drives. ``mounting``: body
-        FRD to the sensors' frame (the board's; its default lies flat, facing forward)."""
+        FRD to the sensors' frame (the board's; its default lies flat, facing forward). ``topology``
+        "gy521" is the MPU-6050 alone, at ``mpu_address`` (0x69: AD0 high)."""
         faults = dict(faults or {})
         unknown = set(faults) - set(FAULT_TARGETS)
         if unknown:
@@ -204,7 +206,8 @@ class World:
                          drift_pa_per_s=baro_drift_pa_per_s)
         # the chips are the chip core in C (emulators/chips/), fed by these models
         bus_faults: dict[str, FaultSet] = {k: faults[k] for k in ("mpu", "hmc", "baro_bus") if k in faults}
-        board = build_chip_board(imu, mag, baro, topology, faults=bus_faults, baro_seed=seed + 3)
+        board = build_chip_board(imu, mag, baro, topology, faults=bus_faults, baro_seed=seed + 3,
+                                 mpu_address=mpu_address)
         world = cls(plant, board, pwm=[PwmChannel() for _ in range(pwm_channels)], motor_order=motor_order)
         truth.world = world
         return world

@@ -30,6 +30,7 @@ from rig.plant.variables import SCENARIO_INPUTS, VARIABLES, check_parameters
 from rig.scenarios import fc_keys
 from rig.scenarios.bench import BenchPower, parse_psu
 from rig.scenarios.criteria import MARGINAL_PCT, METRICS
+from rig.scenarios.serial import SERIAL_CRITERION_KEYS, SerialSend, parse_expect, parse_send
 from rig.scenarios.signals import SIGNALS
 from rig.scenarios.terms import FEATURES, MODES, STICK_TERMS, STICKS
 
@@ -98,6 +99,8 @@ class CriterionSpec:
     units: str
     baseline_at: float | None = None  # target counts from the signal's value at this time
     marginal: float = MARGINAL_PCT  # a pass closer than this (% of the limit) to a limit is marginal
+    uart: int | None = None  # a criterion on a USART's output (rig/scenarios/serial.py), not a signal
+    expect: str | int | None = None  # its line's regular expression, or the MSP command replied to
 
 
 @dataclass(frozen=True)
@@ -144,6 +147,7 @@ class Scenario:
     max_angle_deg: float | None  # None: the FC profile's angle per full stick
     max_yaw_rate_dps: float | None
     sha256: str
+    serial: tuple[SerialSend, ...] = ()
     #: the modes and features the scenario needs (its [scenario] needs and every mode its timeline asks)
     needs: tuple[str, ...] = ()
 
@@ -179,6 +183,7 @@ class Scenario:
                                                                      end=f.fault.end + dt))
                          for f in self.faults),
             gusts=tuple(dataclasses.replace(g, start=g.start + dt) for g in self.gusts),
+            serial=tuple(dataclasses.replace(send, t=send.t + dt) for send in self.serial),
             mag_disturbance_start=self.mag_disturbance_start + dt,
             mag_disturbance_end=self.mag_disturbance_end + dt,
             criteria=tuple(dataclasses.replace(
@@ -376,6 +381,7 @@ TOP = {
     "faults",
     "gusts",
     "criteria",
+    "serial",
 }
 SCENARIO_KEYS = {"name", "description", "seed_paper", "duration", "needs"}
 SENSOR_KEYS = {"noise", "baro_noise_pa", "baro_drift_pa_per_s"}
@@ -394,7 +400,7 @@ EVENT_KEYS = {"t", "sticks", "link", "inputs", "arm", "disarm", "mode"}
 FAULT_KEYS = {"target", "kind", "start", "end", "magnitude", "period", "duty"}
 GUST_KEYS = {"start", "duration", "peak"}
 CRITERION_KEYS = {"name", "metric", "signal", "start", "end", "target", "band", "min", "max", "baseline_at",
-                  "marginal"}
+                  "marginal", *SERIAL_CRITERION_KEYS}
 
 
 def load(path: str | Path) -> Scenario:
@@ -503,7 +509,13 @@ def check(data: dict[str, Any], path: Path, sha256: str | None = None) -> Scenar
         entries = c.array(data, "timeline")
         for i, entry in enumerate(entries):
             with c.part():
-                timeline.append(_event(c, entry, f"timeline[{i}]", duration))
+                timeline.append(timeline_event(c, entry, f"timeline[{i}]", duration))
+
+    serial = []
+    with c.part():
+        for i, entry in enumerate(c.array(data, "serial")):
+            with c.part():
+                serial.append(parse_send(c, entry, f"serial[{i}]", duration))
 
     faults = []
     with c.part():
@@ -569,6 +581,7 @@ def check(data: dict[str, Any], path: Path, sha256: str | None = None) -> Scenar
         gusts=tuple(gusts),
         faults=tuple(faults),
         timeline=tuple(sorted(timeline, key=lambda e: e.t)),
+        serial=tuple(sorted(serial, key=lambda e: e.t)),
         criteria=tuple(criteria),
         capture=capture,
         bench=bench,
@@ -577,7 +590,8 @@ def check(data: dict[str, Any], path: Path, sha256: str | None = None) -> Scenar
     )
 
 
-def _event(c: _Check, entry: Any, key: str, duration: float) -> Event:
+def timeline_event(c: _Check, entry: Any, key: str, duration: float) -> Event:
+    """One [[timeline]] entry (rig exec --sticks checks its own with this too)."""
     ev = c.table(entry, key, EVENT_KEYS)
     t = c.number(ev, "t", key, low=0, high=duration)
     sticks = c.table(ev.get("sticks", {}), f"{key}.sticks", STICKS)
@@ -652,6 +666,8 @@ def _criterion(c: _Check, raw: Any, key: str, duration: float) -> CriterionSpec 
             c.table(raw, key, CRITERION_KEYS)
         return None
     cr = c.lenient(raw, key, CRITERION_KEYS)
+    if "uart" in cr:
+        return _serial_criterion(c, cr, key, duration, before)
     metric = signal = ""
     with c.part():
         metric = c.string(cr, "metric", key, choices=tuple(METRICS))
@@ -661,12 +677,7 @@ def _criterion(c: _Check, raw: Any, key: str, duration: float) -> CriterionSpec 
                 raise c.fail(f"{key}.{need}", f"missing; metric {metric} needs {', '.join(needs)}")
     with c.part():
         signal = c.string(cr, "signal", key, choices=tuple(SIGNALS))
-    start, end = 0.0, duration
-    with c.part():
-        start = c.number(cr, "start", key, 0.0, low=0, high=duration)
-        end = c.number(cr, "end", key, duration, low=0, high=duration)
-        if not end > start:
-            raise c.fail(f"{key}.end", f"expected a time after start ({start:g} s), got {end:g}")
+    start, end = _window(c, cr, key, duration)
     lo = hi = None
     with c.part():
         lo = c.optional(cr, "min", key)
@@ -717,3 +728,32 @@ def _criterion(c: _Check, raw: Any, key: str, duration: float) -> CriterionSpec 
         baseline_at,
         MARGINAL_PCT if marginal is None else marginal,
     )
+
+
+def _window(c: _Check, cr: dict[str, Any], key: str, duration: float) -> tuple[float, float]:
+    """A criterion's window [start, end] (the whole run by default); kept as a problem when bad."""
+    start, end = 0.0, duration
+    with c.part():
+        start = c.number(cr, "start", key, 0.0, low=0, high=duration)
+        end = c.number(cr, "end", key, duration, low=0, high=duration)
+        if not end > start:
+            raise c.fail(f"{key}.end", f"expected a time after start ({start:g} s), got {end:g}")
+    return start, end
+
+
+def _serial_criterion(c: _Check, cr: dict[str, Any], key: str, duration: float,
+                      before: int) -> CriterionSpec | None:
+    """A [[criteria]] table on a USART (uart = n, with line or msp_reply): passes when the firmware
+    sent it inside the window (rig/scenarios/serial.py)."""
+    metric, signal, expect = "", "", None
+    with c.part():
+        metric, signal, expect = parse_expect(c, cr, key)
+    start, end = _window(c, cr, key, duration)
+    name = ""
+    with c.part():
+        what = f"a line matching {expect!r}" if metric == "uart_line" else f"an MSP reply to {expect}"
+        name = c.string(cr, "name", key, f"{what} on {signal.upper()}")
+    if len(c.problems) > before:
+        return None
+    return CriterionSpec(name, metric, signal, start, end, None, None, start, end, "s",
+                         uart=int(signal[5:]), expect=expect)

@@ -33,6 +33,7 @@ if TYPE_CHECKING:
     from rig.scenarios.profile import Profile
     from rig.scenarios.schema import Scenario
     from rig.session import Outcome
+    from rig.uart_criteria import Chunks
     from rig.world import World
 
 # (the build folder from a module that is never compiled: the runner may run from build/mypyc,
@@ -104,6 +105,16 @@ class TargetRun:
     def signals(self, t: np.ndarray) -> dict[str, np.ndarray]:
         """Extra signals on the recorder's grid ``t`` (a bench supply's volts and amps)."""
         return {}
+
+    def serial_port(self, uart: int, baud: int | None) -> str | None:
+        """The Host path that puts bytes on the DUT's USART ``uart`` (a scenario's [[serial]] sends) at
+        ``baud`` (None: the one its board gives that USART), or None when this target has none."""
+        return None
+
+    def uarts(self) -> dict[int, Chunks] | None:
+        """What the DUT sent on each USART, time-stamped (the criteria on a USART), or None when this
+        target has no USARTs the rig reads."""
+        return None
 
     def transactions(self) -> list[I2CRecord] | None:
         """The run's I2C transfers as the chips saw them (run.mcap's /i2c channel), the first million
