@@ -98,10 +98,9 @@ static void schedule(RigStm32I2cState *s, RigI2cPhase phase, int64_t ns)
     timer_mod(s->timer, qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL) + ns);
 }
 
-/* The slave sends the next byte; with POS the ACK bit as it is now decides its acknowledge */
+/* The slave sends the next byte */
 static void receive_next(RigStm32I2cState *s)
 {
-    s->ack_at_start = s->cr1 & CR1_ACK;
     schedule(s, RIG_I2C_RX_BYTE, SCL_CLOCKS_PER_BYTE * scl_period_ns(s));
 }
 
@@ -141,6 +140,7 @@ static void address_done(RigStm32I2cState *s)
         return;
     }
     s->sr1 |= SR1_ADDR;
+    s->ack_next = s->cr1 & CR1_ACK; /* with POS: the first byte's acknowledge */
     if (!read) {
         s->sr2 |= SR2_TRA;
         s->sr1 |= SR1_TXE;
@@ -163,7 +163,10 @@ static void transmit_done(RigStm32I2cState *s)
 static void receive_done(RigStm32I2cState *s)
 {
     uint8_t byte = i2c_recv(s->bus);
-    bool ack = (s->cr1 & CR1_POS) ? s->ack_at_start : (s->cr1 & CR1_ACK);
+    /* POS = 0: ACK decides the byte just received; POS = 1: it decided at the end of the byte before
+     * (or of the address), so RM0090's two-byte sequence clears ACK before the first byte ends */
+    bool ack = (s->cr1 & CR1_POS) ? s->ack_next : (s->cr1 & CR1_ACK);
+    s->ack_next = s->cr1 & CR1_ACK;
     if (!ack) {
         i2c_nack(s->bus);
     }
@@ -228,7 +231,7 @@ static void i2c_clear(RigStm32I2cState *s)
     s->cr1 = s->cr2 = s->oar1 = s->oar2 = s->ccr = s->sr1 = s->sr2 = s->sr1_seen = 0;
     s->trise = i2c_registers[R_TRISE].reset;
     s->dr = s->shift = s->address = 0;
-    s->shift_full = s->receiving = s->ack_at_start = false;
+    s->shift_full = s->receiving = s->ack_next = false;
     s->phase = RIG_I2C_IDLE;
 }
 

@@ -129,7 +129,7 @@ struct RigStm32I2cState {
     uint8_t dr, shift, address;
     bool shift_full;   /* receiver: a byte waits in the shift register behind a full DR (BTF) */
     bool receiving;    /* receiver: the last byte was acknowledged, so the slave sends another */
-    bool ack_at_start; /* CR1.ACK when the byte being received began (POS = 1 decides by it) */
+    bool ack_next;     /* POS = 1: CR1.ACK at the end of the byte (or address) before this one */
 };
 
 /* The GY-86 board (MPU-6050 at 0x68, the HMC5883L behind its bypass, MS5611 at 0x77): the rig's chip
