@@ -14,10 +14,10 @@
 
 #include "qemu/osdep.h"
 
+#include "../chips/chip_core.h"
 #include "qemu/module.h"
 #include "qemu/timer.h"
 #include "rig_stm32f4.h"
-#include "../chips/chip_core.h"
 
 OBJECT_DECLARE_SIMPLE_TYPE(RigGy86State, RIG_GY86)
 

@@ -99,10 +99,7 @@ static void schedule(RigStm32I2cState *s, RigI2cPhase phase, int64_t ns)
 }
 
 /* The slave sends the next byte */
-static void receive_next(RigStm32I2cState *s)
-{
-    schedule(s, RIG_I2C_RX_BYTE, SCL_CLOCKS_PER_BYTE * scl_period_ns(s));
-}
+static void receive_next(RigStm32I2cState *s) { schedule(s, RIG_I2C_RX_BYTE, SCL_CLOCKS_PER_BYTE * scl_period_ns(s)); }
 
 /* With nothing on the wire (a byte done, SCL stretched or the slave silent) a START or STOP asked for
  * goes out; none while ADDR waits to be cleared (the master holds SCL low then) */

@@ -127,9 +127,9 @@ struct RigStm32I2cState {
     uint32_t cr1, cr2, oar1, oar2, ccr, trise, sr1, sr2;
     uint32_t sr1_seen; /* SR1 as last read: the first half of the SB and ADDR clear sequences */
     uint8_t dr, shift, address;
-    bool shift_full;   /* receiver: a byte waits in the shift register behind a full DR (BTF) */
-    bool receiving;    /* receiver: the last byte was acknowledged, so the slave sends another */
-    bool ack_next;     /* POS = 1: CR1.ACK at the end of the byte (or address) before this one */
+    bool shift_full; /* receiver: a byte waits in the shift register behind a full DR (BTF) */
+    bool receiving;  /* receiver: the last byte was acknowledged, so the slave sends another */
+    bool ack_next;   /* POS = 1: CR1.ACK at the end of the byte (or address) before this one */
 };
 
 /* The GY-86 board (MPU-6050 at 0x68, the HMC5883L behind its bypass, MS5611 at 0x77): the rig's chip

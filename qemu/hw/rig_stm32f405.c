@@ -31,7 +31,7 @@
 #define GPIO_STRIDE 0x400
 #define GPIO_PORTS 9
 #define I2C1_BASE 0x40005400
-#define APB1_I2C1 21 /* RCC_APB1ENR.I2C1EN and RCC_APB1RSTR.I2C1RST */
+#define APB1_I2C1 21   /* RCC_APB1ENR.I2C1EN and RCC_APB1RSTR.I2C1RST */
 #define IRQ_I2C1_EV 31 /* RM0090 table 61 (vector table) */
 #define IRQ_I2C1_ER 32
 /* ARMv7-M: the DWT in the private peripheral bus */

@@ -94,10 +94,10 @@ def chip_core_sources(chips: Path = CHIP_CORE) -> dict[str, bytes]:
     return files
 
 
-def engine_sources(models: Path = MODELS) -> dict[str, bytes]:
+def engine_sources(models: Path = MODELS, chips: Path = CHIP_CORE) -> dict[str, bytes]:
     """What goes into hw/rig: the models (qemu/) and the chip core, by their paths there."""
     files = {p.relative_to(models).as_posix(): p.read_bytes() for p in model_files(models)}
-    return files | chip_core_sources()
+    return files | chip_core_sources(chips)
 
 
 def source_dsc(cache: Path) -> Path | None:
@@ -106,13 +106,13 @@ def source_dsc(cache: Path) -> Path | None:
     return found[-1] if found else None
 
 
-def inputs_hash(dsc: Path, models: Path = MODELS) -> str:
+def inputs_hash(dsc: Path, models: Path = MODELS, chips: Path = CHIP_CORE) -> str:
     """SHA-256 of every input of the binary: the source package, the models and the chip core (names and
     contents), the flags, this file. Files' times do not count: a checkout of the same sources finds the
     same engine."""
     h = hashlib.sha256()
     h.update(dsc.name.encode() + b"\0" + dsc.read_bytes())
-    for name, data in sorted(engine_sources(models).items()):
+    for name, data in sorted(engine_sources(models, chips).items()):
         h.update(name.encode() + b"\0" + data)
     h.update("\0".join(CONFIGURE_FLAGS).encode())
     h.update(Path(__file__).read_bytes())

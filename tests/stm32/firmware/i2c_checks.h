@@ -48,20 +48,6 @@ static void i2c1_init(uint32_t ccr, uint32_t trise)
     I2C1_CR1 = I2C_CR1_PE;
 }
 
-/* Waits for any of @mask in SR1 (or AF); the run ends naming @what when it never comes */
-static uint32_t wait_sr1(uint32_t mask, const char *what)
-{
-    for (uint32_t i = 0; i < POLL_LIMIT; i++) {
-        uint32_t sr1 = I2C1_SR1;
-        if (sr1 & (mask | I2C_SR1_AF)) {
-            return sr1;
-        }
-    }
-    report(what, I2C1_SR1);
-    exit_with(4);
-    return 0;
-}
-
 static void wait_bus_free(void)
 {
     for (uint32_t i = 0; i < POLL_LIMIT; i++) {

@@ -4,6 +4,20 @@
    status registers at the first START and address of each direction. */
 #include "i2c_checks.h"
 
+/* Waits for any of @mask in SR1 (or AF); the run ends naming @what when it never comes */
+static uint32_t wait_sr1(uint32_t mask, const char *what)
+{
+    for (uint32_t i = 0; i < POLL_LIMIT; i++) {
+        uint32_t sr1 = I2C1_SR1;
+        if (sr1 & (mask | I2C_SR1_AF)) {
+            return sr1;
+        }
+    }
+    report(what, I2C1_SR1);
+    exit_with(4);
+    return 0;
+}
+
 static uint32_t sr1_start, sr1_addr_write, sr2_addr_write, sr1_addr_read, sr2_addr_read;
 
 static void keep_first(uint32_t *slot, uint32_t value)

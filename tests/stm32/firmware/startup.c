@@ -34,6 +34,7 @@ void fault_handler(void)
 }
 
 #define F fault_handler
+// clang-format off
 /* the core's 16 exceptions, then the STM32F405's interrupts up to I2C1_ER (RM0090 table 61) */
 __attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 33])(void) = {
     (void (*)(void))(uintptr_t)&__stack,
@@ -54,6 +55,7 @@ __attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 3
     fault_handler,
     F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, /* IRQ 0-15 */
     F, F, F, F, F, F, F, F, F, F, F, F, F, F, F,    /* IRQ 16-30 */
-    i2c1_ev_handler,                                /* IRQ 31 */
-    i2c1_er_handler,                                /* IRQ 32 */
+    i2c1_ev_handler, /* IRQ 31 */
+    i2c1_er_handler, /* IRQ 32 */
 };
+// clang-format on
