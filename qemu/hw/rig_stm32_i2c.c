@@ -9,6 +9,14 @@
  * The bus moves in virtual time: a START, an address or data byte (nine SCL periods) and a STOP take the
  * time their SCL clock gives (CCR, with CR2.FREQ as the APB clock), so an interrupt-driven driver meets
  * its events one at a time, as on the chip. The slaves are QEMU I2C devices on the controller's bus.
+ * SCL and SDA as the GPIO pins show them (qdev GPIO inputs "scl-sda" 0 and 1) reach the controller and
+ * the bus, and the bus drives the pins from outside ("scl-sda-drive": the pull-ups, or a slave holding
+ * SDA low), so the pins' IDR shows the lines. A software reset or PE = 0 puts nothing on the wire: a slave that was sending a byte is left
+ * holding SDA low, so SR2.BUSY (set while SCL or SDA is low, with PE) stays set and a START waits for a
+ * free bus, as on the chip. A firmware's bus unstick frees it: nine SCL pulses by GPIO clock the byte
+ * out (the slave gives it and sees it NACKed) and release SDA; SDA rising while SCL is high is a STOP
+ * condition, which ends the transfer on the bus and clears BUSY.
+ *
  * Not modelled: slave mode, SMBus, PEC, DMA requests (DMAEN and LAST are stored), arbitration and bus
  * errors (no other master, no misplaced START or STOP), the TRISE rise-time limit.
  *
@@ -108,7 +116,7 @@ static void kick(RigStm32I2cState *s)
     if (s->phase != RIG_I2C_IDLE || !(s->cr1 & CR1_PE) || (s->sr1 & SR1_ADDR)) {
         return;
     }
-    if (s->cr1 & CR1_START) {
+    if ((s->cr1 & CR1_START) && (!(s->sr2 & SR2_BUSY) || (s->sr2 & SR2_MSL))) {
         schedule(s, RIG_I2C_START, scl_period_ns(s));
     } else if ((s->cr1 & CR1_STOP) && (s->sr2 & SR2_MSL)) {
         schedule(s, RIG_I2C_STOP, scl_period_ns(s));
@@ -127,6 +135,7 @@ static void start_done(RigStm32I2cState *s)
     s->sr2 = (s->sr2 & ~SR2_TRA) | SR2_MSL | SR2_BUSY;
     s->shift_full = false;
     s->receiving = false;
+    s->slave_sends = false;
 }
 
 static void address_done(RigStm32I2cState *s)
@@ -137,6 +146,7 @@ static void address_done(RigStm32I2cState *s)
         return;
     }
     s->sr1 |= SR1_ADDR;
+    s->slave_sends = read;
     s->ack_next = s->cr1 & CR1_ACK; /* with POS: the first byte's acknowledge */
     if (!read) {
         s->sr2 |= SR2_TRA;
@@ -176,6 +186,7 @@ static void receive_done(RigStm32I2cState *s)
         s->sr1 |= SR1_RXNE;
     }
     s->receiving = ack;
+    s->slave_sends = ack;
     if (ack && !s->shift_full && !(s->cr1 & (CR1_START | CR1_STOP))) {
         receive_next(s);
     }
@@ -185,6 +196,7 @@ static void stop_done(RigStm32I2cState *s)
 {
     s->cr1 &= ~CR1_STOP;
     i2c_end_transfer(s->bus);
+    s->slave_sends = false;
     s->sr1 &= ~(SR1_TXE | SR1_BTF);
     s->sr2 &= ~(SR2_MSL | SR2_BUSY | SR2_TRA);
     s->receiving = false;
@@ -218,38 +230,59 @@ static void phase_done(void *opaque)
     update_irqs(s);
 }
 
-/* Everything back to reset; a transfer under way ends on the bus */
+/* Everything back to reset (nothing goes on the wire: the slave of a transfer under way still waits) */
 static void i2c_clear(RigStm32I2cState *s)
 {
     timer_del(s->timer);
-    if (i2c_bus_busy(s->bus)) {
-        i2c_end_transfer(s->bus);
-    }
     s->cr1 = s->cr2 = s->oar1 = s->oar2 = s->ccr = s->sr1 = s->sr2 = s->sr1_seen = 0;
     s->trise = i2c_registers[R_TRISE].reset;
     s->dr = s->shift = s->address = 0;
-    s->shift_full = s->receiving = s->ack_next = false;
+    s->shift_full = s->receiving = s->ack_next = s->slave_sends = false;
     s->phase = RIG_I2C_IDLE;
+}
+
+/* SDA as the controller sees it: the pin, or low while an abandoned slave holds it */
+static bool sda_level(const RigStm32I2cState *s) { return s->sda && !s->sda_held; }
+
+/* What the bus puts on the pins (their outside drivers): the pull-ups, or SDA held low by a slave */
+static void drive_lines(RigStm32I2cState *s)
+{
+    qemu_set_irq(s->line_out[0], 1);
+    qemu_set_irq(s->line_out[1], !s->sda_held);
+}
+
+/* The controller stops without a STOP: a slave in the middle of sending keeps SDA low */
+static void abandon(RigStm32I2cState *s)
+{
+    if (i2c_bus_busy(s->bus) && s->slave_sends) {
+        s->sda_held = true;
+        s->unstick_clocks = 0;
+        drive_lines(s);
+    }
+    s->slave_sends = false;
 }
 
 static void write_cr1(RigStm32I2cState *s, uint32_t value)
 {
+    bool was_enabled = s->cr1 & CR1_PE;
     if (value & CR1_SWRST) { /* held in reset while SWRST is set */
+        abandon(s);
         i2c_clear(s);
         s->cr1 = CR1_SWRST;
         return;
     }
     s->cr1 = value & i2c_registers[R_CR1].writable;
     if (!(s->cr1 & CR1_PE)) { /* 27.6.1: START, STOP, ACK and POS clear with PE; the flags too */
+        abandon(s);
         timer_del(s->timer);
-        if (i2c_bus_busy(s->bus)) {
-            i2c_end_transfer(s->bus);
-        }
         s->cr1 &= ~(CR1_START | CR1_STOP | CR1_ACK | CR1_POS);
         s->sr1 = s->sr2 = s->sr1_seen = 0;
         s->shift_full = s->receiving = false;
         s->phase = RIG_I2C_IDLE;
         return;
+    }
+    if (!was_enabled && (!s->scl || !sda_level(s))) {
+        s->sr2 |= SR2_BUSY;
     }
     kick(s);
 }
@@ -401,10 +434,44 @@ static const MemoryRegionOps i2c_ops = {
     .impl.max_access_size = 4,
 };
 
+/* A line's level from its GPIO pin (0: SCL, 1: SDA). 27.6.7: BUSY is set on SDA or SCL low and cleared
+ * on a STOP condition */
+static void line_changed(void *opaque, int line, int level)
+{
+    RigStm32I2cState *s = opaque;
+    bool sda_before = sda_level(s);
+    if (line == 0) {
+        bool falling = s->scl && !level;
+        s->scl = level;
+        if (falling && s->sda_held && ++s->unstick_clocks == SCL_CLOCKS_PER_BYTE) {
+            (void)i2c_recv(s->bus); /* the slave's byte clocked out, and not acknowledged */
+            i2c_nack(s->bus);
+            s->sda_held = false;
+            drive_lines(s); /* (SCL is low: SDA rising is no STOP) */
+        }
+    } else {
+        s->sda = level;
+    }
+    bool stop = line == 1 && !sda_before && sda_level(s) && s->scl && !(s->sr2 & SR2_MSL);
+    if (stop && i2c_bus_busy(s->bus) && s->phase == RIG_I2C_IDLE) {
+        i2c_end_transfer(s->bus);
+    }
+    if (s->cr1 & CR1_PE) {
+        if (!s->scl || !sda_level(s)) {
+            s->sr2 |= SR2_BUSY;
+        } else if (stop) {
+            s->sr2 &= ~SR2_BUSY;
+            kick(s); /* a START that waited for the bus */
+        }
+    }
+    update_irqs(s);
+}
+
 static void i2c_reset(DeviceState *dev)
 {
     RigStm32I2cState *s = RIG_STM32_I2C(dev);
     i2c_clear(s);
+    drive_lines(s);
     update_irqs(s);
 }
 
@@ -416,6 +483,9 @@ static void i2c_init(Object *obj)
     sysbus_init_irq(SYS_BUS_DEVICE(obj), &s->ev_irq);
     sysbus_init_irq(SYS_BUS_DEVICE(obj), &s->er_irq);
     s->bus = i2c_init_bus(DEVICE(obj), "i2c");
+    s->scl = s->sda = true;
+    qdev_init_gpio_in_named(DEVICE(obj), line_changed, "scl-sda", 2);
+    qdev_init_gpio_out_named(DEVICE(obj), s->line_out, "scl-sda-drive", 2);
     s->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, phase_done, s);
 }
 

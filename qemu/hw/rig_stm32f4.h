@@ -122,14 +122,19 @@ struct RigStm32I2cState {
     uint8_t apb1_bit; /* its clock enable in RCC_APB1ENR (property "apb1-bit": 21 for I2C1) */
     I2CBus *bus;
     qemu_irq ev_irq, er_irq;
+    qemu_irq line_out[2]; /* the bus's drive of SCL and SDA: 1 released (pull-up), 0 held low */
     QEMUTimer *timer;
     RigI2cPhase phase;
     uint32_t cr1, cr2, oar1, oar2, ccr, trise, sr1, sr2;
     uint32_t sr1_seen; /* SR1 as last read: the first half of the SB and ADDR clear sequences */
     uint8_t dr, shift, address;
-    bool shift_full; /* receiver: a byte waits in the shift register behind a full DR (BTF) */
-    bool receiving;  /* receiver: the last byte was acknowledged, so the slave sends another */
-    bool ack_next;   /* POS = 1: CR1.ACK at the end of the byte (or address) before this one */
+    bool shift_full;        /* receiver: a byte waits in the shift register behind a full DR (BTF) */
+    bool receiving;         /* receiver: the last byte was acknowledged, so the slave sends another */
+    bool scl, sda;          /* the lines as the GPIO pins show them (qdev GPIO inputs "scl-sda" 0 and 1) */
+    bool slave_sends;       /* a read under way whose slave has a byte to send */
+    bool sda_held;          /* that slave, abandoned without a STOP, holds SDA low */
+    uint8_t unstick_clocks; /* SCL pulses by GPIO since */
+    bool ack_next;          /* POS = 1: CR1.ACK at the end of the byte (or address) before this one */
 };
 
 /* The GY-86 board (MPU-6050 at 0x68, the HMC5883L behind its bypass, MS5611 at 0x77): the rig's chip

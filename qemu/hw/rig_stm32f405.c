@@ -34,6 +34,7 @@
 #define APB1_I2C1 21   /* RCC_APB1ENR.I2C1EN and RCC_APB1RSTR.I2C1RST */
 #define IRQ_I2C1_EV 31 /* RM0090 table 61 (vector table) */
 #define IRQ_I2C1_ER 32
+#define I2C1_SCL_PIN 6 /* PB6, with SDA on PB7 */
 /* ARMv7-M: the DWT in the private peripheral bus */
 #define DWT_BASE 0xE0001000
 /* the board's own address on QEMU's bus (it answers every address the chip core acknowledges) */
@@ -69,8 +70,10 @@ static void rig_stm32f405_init(MachineState *machine)
     RigStm32RccState *r = RIG_STM32_RCC(rcc);
     rig_stm32_rcc_add_reset(r, RCC_APB1RSTR, APB1RSTR_PWRRST, DEVICE(map_device(TYPE_RIG_STM32_PWR, PWR_BASE, r, -1)));
     map_device(TYPE_RIG_STM32_FLASH_IF, FLASH_IF_BASE, NULL, -1);
+    DeviceState *gpio_ports[GPIO_PORTS];
     for (int port = 0; port < GPIO_PORTS; port++) {
         SysBusDevice *gpio = map_device(TYPE_RIG_STM32_GPIO, GPIOA_BASE + port * GPIO_STRIDE, r, port);
+        gpio_ports[port] = DEVICE(gpio);
         rig_stm32_rcc_add_reset(r, RCC_AHB1RSTR, port, DEVICE(gpio)); /* GPIOxRST: bit x */
     }
 
@@ -80,6 +83,13 @@ static void rig_stm32f405_init(MachineState *machine)
     sysbus_connect_irq(SYS_BUS_DEVICE(i2c1), 1, qdev_get_gpio_in(nvic, IRQ_I2C1_ER));
     rig_stm32_rcc_add_reset(r, RCC_APB1RSTR, APB1_I2C1, i2c1);
     i2c_slave_create_simple(RIG_STM32_I2C(i2c1)->bus, TYPE_RIG_GY86, CHIP_ADDR_MPU_SLAVE);
+    /* PB6 (SCL) and PB7 (SDA): the pins' levels reach the controller, and the bus (its pull-ups, a slave
+     * holding SDA) drives the pins from outside */
+    DeviceState *gpiob = gpio_ports[1];
+    for (int line = 0; line < 2; line++) {
+        qdev_connect_gpio_out(gpiob, I2C1_SCL_PIN + line, qdev_get_gpio_in_named(i2c1, "scl-sda", line));
+        qdev_connect_gpio_out_named(i2c1, "scl-sda-drive", line, qdev_get_gpio_in(gpiob, I2C1_SCL_PIN + line));
+    }
 
     DeviceState *dwt = qdev_new(TYPE_RIG_DWT);
     qdev_connect_clock_in(dwt, "hclk", hclk);

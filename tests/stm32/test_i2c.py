@@ -128,3 +128,20 @@ def test_two_runs_are_byte_identical(name: str) -> None:
     first, second = (run_firmware(engine, firmware(name)) for _ in range(2))
     assert first.returncode == second.returncode == 0
     assert first.stdout == second.stdout
+
+
+def test_an_abandoned_read_holds_the_bus_until_the_unstick() -> None:
+    """A controller reset in the middle of a read leaves the slave holding SDA low: SR2.BUSY stays set
+    (27.6.7: set while SDA or SCL is low), as the F4's stuck-bus erratum describes, and PB7's IDR reads
+    0. INAV's unstick by GPIO frees it: nine SCL pulses clock the byte out and SDA is released, and a STOP
+    made by hand (SDA rising while SCL is high) clears BUSY; then the bus works again."""
+    r = reported("i2c_poll")
+    scl, sda = 1 << 6, 1 << 7
+    assert r["abandoned_bytes"] == 0  # ACCEL_XOUT_H/L of the sample at rest
+    assert r["sr2_after_reset"] == SR2_BUSY
+    assert r["sr2_stuck"] == SR2_BUSY
+    assert r["idr_stuck"] == scl
+    assert r["idr_after_pulses"] == scl | sda
+    assert r["sr2_sda_low"] == SR2_BUSY
+    assert r["sr2_after_stop"] == 0
+    assert r["who_am_i_after_unstick"] == 0x68
