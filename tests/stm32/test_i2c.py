@@ -138,6 +138,8 @@ def test_an_abandoned_read_holds_the_bus_until_the_unstick() -> None:
     r = reported("i2c_poll")
     scl, sda = 1 << 6, 1 << 7
     assert r["abandoned_bytes"] == 0  # ACCEL_XOUT_H/L of the sample at rest
+    # 27.6.1: under SWRST the registers hold their reset values (27.6.9: TRISE resets to 2)
+    assert (r["cr1_in_reset"], r["cr2_in_reset"], r["trise_in_reset"]) == (1 << 15, 0, 0x0002)
     assert r["sr2_after_reset"] == SR2_BUSY
     assert r["sr2_stuck"] == SR2_BUSY
     assert r["idr_stuck"] == scl

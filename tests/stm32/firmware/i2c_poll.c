@@ -139,6 +139,9 @@ static void abandon_a_read(void)
     }
     report("abandoned_bytes", big_endian(bytes, 2));
     I2C1_CR1 = I2C_CR1_SWRST;
+    report("cr1_in_reset", I2C1_CR1);
+    report("cr2_in_reset", I2C1_CR2);
+    report("trise_in_reset", I2C1_TRISE);
     I2C1_CR1 = 0;
 }
 
