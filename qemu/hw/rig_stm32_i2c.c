@@ -470,6 +470,7 @@ static void line_changed(void *opaque, int line, int level)
 static void i2c_reset(DeviceState *dev)
 {
     RigStm32I2cState *s = RIG_STM32_I2C(dev);
+    abandon(s); /* (RCC_APB1RSTR.I2C1RST in the middle of a read: as SWRST) */
     i2c_clear(s);
     drive_lines(s);
     update_irqs(s);
