@@ -1,0 +1,173 @@
+"""The sandbox a DUT runs in when the service starts it (and with ``rig run --sandbox``): the whole
+``rig run`` process is wrapped, because the MCU engines parse an uploaded image inside it and the
+Linux DUT is its keeper's child (rig/dut_process.py).
+
+Made from existing parts, on purpose: bubblewrap (Debian's ``bwrap``) builds the namespaces and the
+mounts, util-linux's ``prlimit`` sets the resource limits inside them, and a pids cgroup bounds the
+process count when the rig runs as root (the kernel exempts root's processes from RLIMIT_NPROC).
+
+Inside: the whole file system read-only; the run folder the only writable place (with a private,
+empty /run as TMPDIR for the session's socket and clock page); the hidden folders (the service's
+data folder: its database, uploads and every run's artifacts) replaced by empty ones, except files
+the command line names under them (the run's firmware); no network (a loopback of its own: the
+session's Unix socket, shared memory and ptys still work); its own pid namespace (the service's
+processes and their command lines are out of sight); no capabilities; the token's variable unset.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import os
+import signal
+import shutil
+import sys
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Final
+
+#: the environment variables a sandboxed run never sees (the service's token)
+SECRET_VARIABLES: Final = ("RIG_TOKEN",)
+#: where the sandbox's private temporary files go (a tmpfs over the host's /run)
+PRIVATE_TMP: Final = "/run"
+PRIVATE_TMP_BYTES: Final = 256 << 20
+#: the pids hierarchy of cgroup v1, and cgroup v2's mount
+CGROUP_V1_PIDS: Final = Path("/sys/fs/cgroup/pids")
+CGROUP_V2: Final = Path("/sys/fs/cgroup")
+NO_BWRAP: Final = ("the sandbox needs bubblewrap (bwrap), which is missing: install the Debian package "
+                   "bubblewrap (make test-packages does)")
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Resource limits of a sandboxed run, each per process except ``processes`` (the whole sandbox):
+    CPU seconds, address space, processes and threads, and the largest file it may write."""
+
+    cpu_s: int = 3600
+    memory_bytes: int = 4 << 30
+    processes: int = 512
+    file_bytes: int = 2 << 30
+
+    def prlimit(self) -> list[str]:
+        return ["prlimit", f"--cpu={self.cpu_s}", f"--as={self.memory_bytes}", f"--nproc={self.processes}",
+                f"--fsize={self.file_bytes}", "--"]
+
+
+class SandboxError(RuntimeError):
+    """The sandbox cannot be made here (no bwrap); the message says what to install."""
+
+
+def available() -> bool:
+    return shutil.which("bwrap") is not None and shutil.which("prlimit") is not None
+
+
+def _under(path: Path, folders: Sequence[Path]) -> bool:
+    return any(path == f or f in path.parents for f in folders)
+
+
+def bwrap_argv(command: Sequence[str], writable: Sequence[Path], hidden: Sequence[Path] = (),
+               limits: Limits = Limits()) -> list[str]:
+    """``command`` wrapped: bwrap's namespaces and mounts, then prlimit's limits. ``writable``: the run
+    folder(s), created if missing; ``hidden``: folders that look empty inside, except the files the
+    command names under them (mounted read-only); a writable folder under a hidden one stays
+    writable."""
+    bwrap = shutil.which("bwrap")
+    if bwrap is None or shutil.which("prlimit") is None:
+        raise SandboxError(NO_BWRAP)
+    hidden = [h.resolve() for h in hidden]
+    argv = [bwrap, "--die-with-parent", "--unshare-all", "--unshare-user", "--cap-drop", "ALL",
+            "--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc", "--size", str(PRIVATE_TMP_BYTES), "--tmpfs", PRIVATE_TMP,
+            "--setenv", "TMPDIR", PRIVATE_TMP]
+    for name in SECRET_VARIABLES:
+        argv += ["--unsetenv", name]
+    for folder in hidden:
+        if folder.is_dir():
+            argv += ["--tmpfs", str(folder)]
+        elif folder.exists():
+            argv += ["--ro-bind", os.devnull, str(folder)]
+    named = {Path(a).resolve() for a in command if a.startswith("/") and Path(a).is_file()}
+    for path in sorted(p for p in named if _under(p, hidden)):
+        argv += ["--ro-bind", str(path), str(path)]
+    for folder in writable:
+        folder.mkdir(parents=True, exist_ok=True)
+        argv += ["--bind", str(folder.resolve()), str(folder.resolve())]
+    for folder in hidden:  # (after the mounts made under them: their empty stand-ins read-only too)
+        if folder.is_dir():
+            argv += ["--remount-ro", str(folder)]
+    return [*argv, "--chdir", os.getcwd(), "--", "env", "--default-signal=INT,TERM", *limits.prlimit(), *command]
+
+
+def _pids_parent() -> Path | None:
+    """The cgroup a child bounding the process count can be made in, or None: cgroup v1's pids
+    hierarchy, or cgroup v2 where this process's cgroup delegates the pids controller."""
+    try:
+        lines = Path("/proc/self/cgroup").read_text().splitlines()
+    except OSError:
+        return None
+    for line in lines:
+        _, controllers, path = line.split(":", 2)
+        if "pids" in controllers.split(",") and CGROUP_V1_PIDS.is_dir():
+            parent = CGROUP_V1_PIDS / path.lstrip("/")
+            return parent if os.access(parent, os.W_OK) else None
+        if controllers == "":
+            parent = CGROUP_V2 / path.lstrip("/")
+            try:
+                delegated = "pids" in (parent / "cgroup.subtree_control").read_text().split()
+            except OSError:
+                delegated = False
+            if delegated and os.access(parent, os.W_OK):
+                return parent
+    return None
+
+
+#: the command's first process: bwrap starts with SIGINT and SIGTERM ignored, so that a Ctrl-C or a
+#: SIGTERM to the process group reaches the rig run inside (which stops its DUT and writes its reports)
+#: instead of ending bwrap, whose end kills everything inside at once; $0 names the pids cgroup to
+#: join first ("-": none)
+LAUNCH: Final = 'trap "" INT TERM; [ "$0" = - ] || echo $$ > "$0/cgroup.procs" || exit 125; exec "$@"'
+
+
+@contextmanager
+def confined(command: Sequence[str], writable: Sequence[Path], hidden: Sequence[Path] = (),
+             limits: Limits = Limits()) -> Iterator[list[str]]:
+    """The command line that runs ``command`` sandboxed (bwrap_argv), for as long as the block lasts.
+    As root, whose processes RLIMIT_NPROC does not count, the process limit is a pids cgroup made for
+    this run (the command joins it as it starts; the cgroup is removed after the block); where none can
+    be made, root's sandbox has no process limit beyond its CPU time, and says so on stderr."""
+    argv = bwrap_argv(command, writable, hidden, limits)
+    parent = _pids_parent() if os.geteuid() == 0 else None
+    if parent is None:
+        if os.geteuid() == 0:
+            print("rig: no pids cgroup to join: the sandbox's process limit does not bind root", file=sys.stderr)
+        yield ["sh", "-c", LAUNCH, "-", *argv]
+        return
+    group = parent / f"rig-sandbox-{os.getpid()}-{next(_serial)}"
+    group.mkdir()
+    try:
+        (group / "pids.max").write_text(str(limits.processes))
+        yield ["sh", "-c", LAUNCH, str(group), *argv]
+    finally:
+        _remove_group(group)
+
+
+_serial = itertools.count()
+
+
+def _remove_group(group: Path) -> None:
+    """Removes the run's pids cgroup, first killing what is left in it (nothing, normally: bwrap's end
+    ends its pid namespace)."""
+    try:
+        group.rmdir()
+        return
+    except OSError:
+        pass
+    try:
+        for pid in (group / "cgroup.procs").read_text().split():
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(int(pid), signal.SIGKILL)
+    except OSError:
+        pass
+    with contextlib.suppress(OSError):
+        group.rmdir()
