@@ -22,6 +22,7 @@ import os
 import signal
 import shutil
 import sys
+import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -156,18 +157,19 @@ _serial = itertools.count()
 
 
 def _remove_group(group: Path) -> None:
-    """Removes the run's pids cgroup, first killing what is left in it (nothing, normally: bwrap's end
-    ends its pid namespace)."""
-    try:
-        group.rmdir()
-        return
-    except OSError:
-        pass
-    try:
-        for pid in (group / "cgroup.procs").read_text().split():
-            with contextlib.suppress(ProcessLookupError):
-                os.kill(int(pid), signal.SIGKILL)
-    except OSError:
-        pass
-    with contextlib.suppress(OSError):
-        group.rmdir()
+    """Removes the run's pids cgroup once it is empty: bwrap's end ends its pid namespace, but the
+    kernel takes a moment to let the last processes go (up to a second here; what is still in it then
+    is killed first)."""
+    for attempt in range(100):
+        try:
+            group.rmdir()
+            return
+        except FileNotFoundError:
+            return
+        except OSError:
+            if attempt == 50:
+                with contextlib.suppress(OSError):
+                    for pid in (group / "cgroup.procs").read_text().split():
+                        with contextlib.suppress(ProcessLookupError):
+                            os.kill(int(pid), signal.SIGKILL)
+            time.sleep(0.01)
