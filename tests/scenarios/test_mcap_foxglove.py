@@ -13,8 +13,10 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
+from rig.reports import foxglove
 from rig.reports import mcap as rig_mcap
 from tests.scenarios.test_mcap import SCENARIO, read
 
@@ -125,26 +127,37 @@ def rotate(q: dict[str, float], v: tuple[float, float, float]) -> tuple[float, .
     return (v[0] + w * tx + y * tz - z * ty, v[1] + w * ty + z * tx - x * tz, v[2] + w * tz + x * ty - y * tx)
 
 
-def test_the_vehicle_frame_points_where_the_attitude_says(run_dir: Path) -> None:
-    """The nose and the left wing in north-west-up, from roll, pitch and yaw (north-east-down, z-y-x):
-    the nose is (cos θ cos ψ, -cos θ sin ψ, sin θ), the right wing in NED (cos ψ sin θ sin φ - sin ψ cos φ,
-    sin ψ sin θ sin φ + cos ψ cos φ, cos θ sin φ), the left wing its opposite with y and z turned."""
+def assert_points_as(q: dict[str, float], roll: float, pitch: float, yaw: float) -> None:
+    """The nose and the left wing in north-west-up, from roll, pitch and yaw (deg; north-east-down,
+    z-y-x): the nose is (cos θ cos ψ, -cos θ sin ψ, sin θ); the right wing in NED is (cos ψ sin θ sin φ -
+    sin ψ cos φ, sin ψ sin θ sin φ + cos ψ cos φ, cos θ sin φ), the left wing in NWU its opposite with y
+    and z turned."""
+    phi, theta, psi = (math.radians(a) for a in (roll, pitch, yaw))
+    nose = (math.cos(theta) * math.cos(psi), -math.cos(theta) * math.sin(psi), math.sin(theta))
+    right = (math.cos(psi) * math.sin(theta) * math.sin(phi) - math.sin(psi) * math.cos(phi),
+             math.sin(psi) * math.sin(theta) * math.sin(phi) + math.cos(psi) * math.cos(phi),
+             math.cos(theta) * math.sin(phi))
+    assert rotate(q, (1, 0, 0)) == pytest.approx(nose, abs=1e-9)
+    assert rotate(q, (0, 1, 0)) == pytest.approx((-right[0], right[1], right[2]), abs=1e-9)
+
+
+def test_the_quaternion_turns_the_body_as_roll_pitch_and_yaw_say() -> None:
+    angles = [(r, p, y) for r in (-170.0, -30.0, 0.0, 45.0) for p in (-80.0, 0.0, 20.0) for y in (-135.0, 0.0, 90.0)]
+    rows = foxglove.quaternion(*(np.array(col) for col in zip(*angles, strict=True)))
+    for (r, p, y), q in zip(angles, rows.tolist(), strict=True):
+        assert_points_as(dict(zip("xyzw", q, strict=True)), r, p, y)
+
+
+def test_the_vehicle_frame_is_the_runs_attitude_and_altitude(run_dir: Path) -> None:
     _, by_topic, _ = read(run_dir / "run.mcap")
     att = {t: m for t, m in by_topic["/attitude"]}
-    moved = 0
     for t_ns, msg in by_topic["/vehicle/transform"]:
         a = att[t_ns]
-        phi, theta, psi = (math.radians(a[k]) for k in ("roll", "pitch", "yaw"))
-        nose = (math.cos(theta) * math.cos(psi), -math.cos(theta) * math.sin(psi), math.sin(theta))
-        right = (math.cos(psi) * math.sin(theta) * math.sin(phi) - math.sin(psi) * math.cos(phi),
-                 math.sin(psi) * math.sin(theta) * math.sin(phi) + math.cos(psi) * math.cos(phi),
-                 math.cos(theta) * math.sin(phi))
-        left = (-right[0], right[1], right[2])
-        assert rotate(msg["rotation"], (1, 0, 0)) == pytest.approx(nose, abs=1e-9)
-        assert rotate(msg["rotation"], (0, 1, 0)) == pytest.approx(left, abs=1e-9)
+        assert_points_as(msg["rotation"], a["roll"], a["pitch"], a["yaw"])
         assert msg["translation"] == {"x": 0.0, "y": 0.0, "z": pytest.approx(a["alt"], abs=1e-12)}
-        moved += abs(a["roll"]) + abs(a["pitch"]) > 0.01
-    assert moved > 0  # (an attitude other than level was checked)
+    for t_ns, msg in by_topic["/vehicle/target"]:
+        a = att[t_ns]
+        assert_points_as(msg["rotation"], a["roll_sp"], a["pitch_sp"], a["yaw"])
 
 
 def test_the_log_holds_the_faults_the_notes_and_the_verdict(run_dir: Path) -> None:
