@@ -81,8 +81,6 @@ def bwrap_argv(command: Sequence[str], writable: Sequence[Path], hidden: Sequenc
     argv = [bwrap, "--die-with-parent", "--unshare-all", "--unshare-user", "--cap-drop", "ALL",
             "--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc", "--size", str(PRIVATE_TMP_BYTES), "--tmpfs", PRIVATE_TMP,
             "--setenv", "TMPDIR", PRIVATE_TMP]
-    for name in SECRET_VARIABLES:
-        argv += ["--unsetenv", name]
     for folder in hidden:
         if folder.is_dir():
             argv += ["--tmpfs", str(folder)]
@@ -126,8 +124,9 @@ def _pids_parent() -> Path | None:
 #: the command's first process: bwrap starts with SIGINT and SIGTERM ignored, so that a Ctrl-C or a
 #: SIGTERM to the process group reaches the rig run inside (which stops its DUT and writes its reports)
 #: instead of ending bwrap, whose end kills everything inside at once; $0 names the pids cgroup to
-#: join first ("-": none)
-LAUNCH: Final = 'trap "" INT TERM; [ "$0" = - ] || echo $$ > "$0/cgroup.procs" || exit 125; exec "$@"'
+#: join first ("-": none). The secrets are unset before bwrap starts: its process inside (pid 1 there)
+#: keeps the environment it was started with, readable in /proc/1/environ
+LAUNCH: Final = f'unset {" ".join(SECRET_VARIABLES)}; trap "" INT TERM; [ "$0" = - ] || echo $$ > "$0/cgroup.procs" || exit 125; exec "$@"'
 
 
 @contextmanager

@@ -66,7 +66,8 @@ def test_a_hostile_dut_reaches_nothing_through_the_service(tmp_path: Path) -> No
     tried = escapes(stdout)
     assert tried["read-database"].startswith("blocked") and (data / "rig.sqlite").stat().st_size > 0
     assert tried["write-database"].startswith("blocked")
-    assert tried["list-data"] == "['runs']"  # (the mount point of its own run folder)
+    # only the mount points of its own run folder and of the scenario version it flies
+    assert tried["list-data"] in ("['runs']", "['runs', 'scenarios']")
     assert tried["list-runs"] == repr([str(body["id"])])  # the first run's folder is out of sight
     assert_nothing_escaped(stdout, outside, net, token)
 
