@@ -26,8 +26,9 @@ TARGET_TOPIC: Final = "/vehicle/target"
 LOG_TOPIC: Final = "/log"
 TOPICS: Final = (TRANSFORM_TOPIC, TARGET_TOPIC, LOG_TOPIC)
 WORLD: Final = "world"
-#: foxglove.LogLevel's values
-INFO, WARNING, ERROR = 2, 3, 4
+#: foxglove.LogLevel's names, by value
+LEVELS: Final = ("UNKNOWN", "DEBUG", "INFO", "WARNING", "ERROR", "FATAL")
+INFO, WARNING, ERROR = (LEVELS.index(n) for n in ("INFO", "WARNING", "ERROR"))
 
 _TIME: Final[dict[str, Any]] = {
     "type": "object", "title": "time",
@@ -61,8 +62,7 @@ LOG: Final[dict[str, Any]] = {
     "properties": {
         "timestamp": {**_TIME, "description": "Timestamp of log message"},
         "level": {"title": "foxglove.LogLevel", "description": "Log level",
-                  "oneOf": [{"title": name, "const": k}
-                            for k, name in enumerate(("UNKNOWN", "DEBUG", "INFO", "WARNING", "ERROR", "FATAL"))]},
+                  "oneOf": [{"title": name, "const": k} for k, name in enumerate(LEVELS)]},
         "message": {"type": "string", "description": "Log message"},
         "name": {"type": "string", "description": "Process or node name"},
         "file": {"type": "string", "description": "Filename"},
@@ -86,7 +86,8 @@ def quaternion(roll_deg: np.ndarray, pitch_deg: np.ndarray, yaw_deg: np.ndarray)
                             cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy])
 
 
-def transforms(signals: dict[str, np.ndarray], child: str, roll: str, pitch: str) -> Iterator[tuple[int, bytes]]:
+def transforms(signals: dict[str, np.ndarray], child: str, roll: str,
+               pitch: str) -> Iterator[tuple[int, bytes]]:
     """(sim time ns, message) of the ``child`` frame at each recorder row where all it needs is known."""
     names = ("t", "alt", roll, pitch, "yaw")
     if any(n not in signals for n in names):

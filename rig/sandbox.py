@@ -19,8 +19,8 @@ from __future__ import annotations
 import contextlib
 import itertools
 import os
-import signal
 import shutil
+import signal
 import sys
 import time
 from collections.abc import Iterator, Sequence
@@ -68,18 +68,30 @@ def _under(path: Path, folders: Sequence[Path]) -> bool:
     return any(path == f or f in path.parents for f in folders)
 
 
+def _devices(command: Sequence[str]) -> list[str]:
+    """The device nodes the command names (an operand, or the part after ``MAKE:``), which the sandbox's
+    own /dev lacks."""
+    found = []
+    for a in command:
+        path = a.rpartition(":")[2]
+        if path.startswith("/dev/") and os.path.exists(path) and not os.path.isdir(path):
+            found.append(path)
+    return sorted(set(found))
+
+
 def bwrap_argv(command: Sequence[str], writable: Sequence[Path], hidden: Sequence[Path] = (),
                limits: Limits = Limits()) -> list[str]:
-    """``command`` wrapped: bwrap's namespaces and mounts, then prlimit's limits. ``writable``: the run
-    folder(s), created if missing; ``hidden``: folders that look empty inside, except the files the
-    command names under them (mounted read-only); a writable folder under a hidden one stays
-    writable."""
+    """``command`` wrapped: bwrap's namespaces and mounts, then prlimit's limits, in the caller's
+    working folder. ``writable``: the run folder(s), created if missing; ``hidden``: folders that look
+    empty inside, except the files the command names under them (mounted read-only); a writable folder
+    under a hidden one stays writable. The device nodes the command names are passed through."""
     bwrap = shutil.which("bwrap")
     if bwrap is None or shutil.which("prlimit") is None:
         raise SandboxError(NO_BWRAP)
     hidden = [h.resolve() for h in hidden]
     argv = [bwrap, "--die-with-parent", "--unshare-all", "--unshare-user", "--cap-drop", "ALL",
-            "--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc", "--size", str(PRIVATE_TMP_BYTES), "--tmpfs", PRIVATE_TMP,
+            "--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc",
+            "--size", str(PRIVATE_TMP_BYTES), "--tmpfs", PRIVATE_TMP,
             "--setenv", "TMPDIR", PRIVATE_TMP]
     for folder in hidden:
         if folder.is_dir():
@@ -89,13 +101,15 @@ def bwrap_argv(command: Sequence[str], writable: Sequence[Path], hidden: Sequenc
     named = {Path(a).resolve() for a in command if a.startswith("/") and Path(a).is_file()}
     for path in sorted(p for p in named if _under(p, hidden)):
         argv += ["--ro-bind", str(path), str(path)]
+    for device in _devices(command):  # (a bench run's bridge and supply: --bridge PORT, --psu MAKE:PORT)
+        argv += ["--dev-bind", device, device]
     for folder in writable:
         folder.mkdir(parents=True, exist_ok=True)
         argv += ["--bind", str(folder.resolve()), str(folder.resolve())]
     for folder in hidden:  # (after the mounts made under them: their empty stand-ins read-only too)
         if folder.is_dir():
             argv += ["--remount-ro", str(folder)]
-    return [*argv, "--chdir", os.getcwd(), "--", "env", "--default-signal=INT,TERM", *limits.prlimit(), *command]
+    return [*argv, "--", "env", "--default-signal=INT,TERM", *limits.prlimit(), *command]
 
 
 def _pids_parent() -> Path | None:
@@ -126,7 +140,8 @@ def _pids_parent() -> Path | None:
 #: instead of ending bwrap, whose end kills everything inside at once; $0 names the pids cgroup to
 #: join first ("-": none). The secrets are unset before bwrap starts: its process inside (pid 1 there)
 #: keeps the environment it was started with, readable in /proc/1/environ
-LAUNCH: Final = f'unset {" ".join(SECRET_VARIABLES)}; trap "" INT TERM; [ "$0" = - ] || echo $$ > "$0/cgroup.procs" || exit 125; exec "$@"'
+LAUNCH: Final = (f'unset {" ".join(SECRET_VARIABLES)}; trap "" INT TERM; '
+                 '[ "$0" = - ] || echo $$ > "$0/cgroup.procs" || exit 125; exec "$@"')
 
 
 @contextmanager
@@ -140,7 +155,8 @@ def confined(command: Sequence[str], writable: Sequence[Path], hidden: Sequence[
     parent = _pids_parent() if os.geteuid() == 0 else None
     if parent is None:
         if os.geteuid() == 0:
-            print("rig: no pids cgroup to join: the sandbox's process limit does not bind root", file=sys.stderr)
+            print("rig: no pids cgroup to join: the sandbox's process limit does not bind root",
+                  file=sys.stderr)
         yield ["sh", "-c", LAUNCH, "-", *argv]
         return
     group = parent / f"rig-sandbox-{os.getpid()}-{next(_serial)}"

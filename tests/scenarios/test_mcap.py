@@ -164,7 +164,8 @@ def test_a_target_that_cannot_see_the_bus_says_so(run_dir: Path, tmp_path: Path)
     r = read_run(run_dir)  # (i2c and rc_frames None: as a bridge run's result has them)
     r.metadata["mode"] = "bridge"
     summary, by_topic, meta = read(rig_mcap.write_run(tmp_path, r))
-    assert len(summary.channels) == len(rig_mcap.TOPICS) and "/i2c" not in by_topic and "/sensors" not in by_topic
+    assert len(summary.channels) == len(rig_mcap.TOPICS)
+    assert "/i2c" not in by_topic and "/sensors" not in by_topic
     assert "this target (bridge) cannot see" in meta["mcap"]["note /i2c"]
     assert meta["mcap"]["messages /i2c"] == "0"
     assert [p.name for p in tmp_path.iterdir()] == ["run.mcap"]  # (no temporary file left)

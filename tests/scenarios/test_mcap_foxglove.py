@@ -34,9 +34,11 @@ PUBLISHED: dict[str, dict[str, Any]] = {
             "parent_frame_id": {"type": "string"},
             "child_frame_id": {"type": "string"},
             "translation": {"title": "foxglove.Vector3", "type": "object",
-                            "properties": {k: {"type": "number"} for k in "xyz"}, "required": ["x", "y", "z"]},
+                            "properties": {k: {"type": "number"} for k in "xyz"},
+                            "required": ["x", "y", "z"]},
             "rotation": {"title": "foxglove.Quaternion", "type": "object",
-                         "properties": {k: {"type": "number"} for k in "xyzw"}, "required": ["x", "y", "z", "w"]},
+                         "properties": {k: {"type": "number"} for k in "xyzw"},
+                         "required": ["x", "y", "z", "w"]},
         },
         "required": ["timestamp", "parent_frame_id", "child_frame_id", "translation", "rotation"],
     },
@@ -55,7 +57,8 @@ PUBLISHED: dict[str, dict[str, Any]] = {
         "required": ["timestamp", "level", "message", "name", "file", "line"],
     },
 }
-PY_TYPES = {"object": dict, "string": str, "integer": int, "number": (int, float)}
+PY_TYPES: dict[str, type | tuple[type, ...]] = {"object": dict, "string": str, "integer": int,
+                                                "number": (int, float)}
 
 
 def problems(value: Any, schema: dict[str, Any], where: str = "") -> list[str]:
@@ -142,7 +145,8 @@ def assert_points_as(q: dict[str, float], roll: float, pitch: float, yaw: float)
 
 
 def test_the_quaternion_turns_the_body_as_roll_pitch_and_yaw_say() -> None:
-    angles = [(r, p, y) for r in (-170.0, -30.0, 0.0, 45.0) for p in (-80.0, 0.0, 20.0) for y in (-135.0, 0.0, 90.0)]
+    angles = [(r, p, y) for r in (-170.0, -30.0, 0.0, 45.0) for p in (-80.0, 0.0, 20.0)
+              for y in (-135.0, 0.0, 90.0)]
     rows = foxglove.quaternion(*(np.array(col) for col in zip(*angles, strict=True)))
     for (r, p, y), q in zip(angles, rows.tolist(), strict=True):
         assert_points_as(dict(zip("xyzw", q, strict=True)), r, p, y)
@@ -174,7 +178,8 @@ def test_the_log_holds_the_faults_the_notes_and_the_verdict(run_dir: Path) -> No
 
 def _message_paths(config: Any) -> list[str]:
     if isinstance(config, dict):
-        found = [v for k, v in config.items() if k in ("value", "topicPath", "topicToRender") and isinstance(v, str)]
+        found = [v for k, v in config.items()
+                 if k in ("value", "topicPath", "topicToRender") and isinstance(v, str)]
         return found + [p for v in config.values() for p in _message_paths(v)]
     if isinstance(config, list):
         return [p for v in config for p in _message_paths(v)]

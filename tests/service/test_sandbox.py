@@ -78,7 +78,8 @@ def test_rig_run_sandbox_passes_a_normal_run_and_blocks_a_hostile_dut(tmp_path: 
     token = f"token-{secrets.token_hex(16)}"
     env = {**os.environ, "RIG_TOKEN": token}
     rig = [sys.executable, "-m", "rig.cli", "run", "--sandbox", "step_roll"]
-    normal = subprocess.run([*rig, "--out", str(tmp_path / "normal")], capture_output=True, text=True, env=env)
+    normal = subprocess.run([*rig, "--out", str(tmp_path / "normal")], capture_output=True, text=True,
+                            env=env)
     assert normal.returncode == 0, normal.stderr
     net = listener()
     command = f"{sys.executable} {HOSTILE} {tmp_path / 'data'} {outside} {net.getsockname()[1]} {FORKS}"
