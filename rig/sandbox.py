@@ -79,12 +79,26 @@ def _devices(command: Sequence[str]) -> list[str]:
     return sorted(set(found))
 
 
+def _linked(folders: Sequence[Path]) -> set[Path]:
+    """The files the links in ``folders`` point at (the service's run folder links the scenario
+    versions it flies: rig/service/store.py's materialize)."""
+    found = set()
+    for folder in folders:
+        for parent, _, files in os.walk(folder):
+            for name in files:
+                path = Path(parent, name)
+                if path.is_symlink() and path.resolve().is_file():
+                    found.add(path.resolve())
+    return found
+
+
 def bwrap_argv(command: Sequence[str], writable: Sequence[Path], hidden: Sequence[Path] = (),
                limits: Limits = Limits()) -> list[str]:
     """``command`` wrapped: bwrap's namespaces and mounts, then prlimit's limits, in the caller's
     working folder. ``writable``: the run folder(s), created if missing; ``hidden``: folders that look
-    empty inside, except the files the command names under them (mounted read-only); a writable folder
-    under a hidden one stays writable. The device nodes the command names are passed through."""
+    empty inside, except the files the command names under them or the writable folders link to
+    (mounted read-only); a writable folder under a hidden one stays writable. The device nodes the
+    command names are passed through."""
     bwrap = shutil.which("bwrap")
     if bwrap is None or shutil.which("prlimit") is None:
         raise SandboxError(NO_BWRAP)
@@ -99,6 +113,7 @@ def bwrap_argv(command: Sequence[str], writable: Sequence[Path], hidden: Sequenc
         elif folder.exists():
             argv += ["--ro-bind", os.devnull, str(folder)]
     named = {Path(a).resolve() for a in command if a.startswith("/") and Path(a).is_file()}
+    named |= _linked(writable)
     for path in sorted(p for p in named if _under(p, hidden)):
         argv += ["--ro-bind", str(path), str(path)]
     for device in _devices(command):  # (a bench run's bridge and supply: --bridge PORT, --psu MAKE:PORT)
