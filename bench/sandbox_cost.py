@@ -1,7 +1,8 @@
-"""What the sandbox (rig/sandbox.py) costs a run, printed, never asserted: ``rig run SCENARIO`` and
-``rig run --sandbox SCENARIO`` alternately, each in a process of its own, N times each; the median and
-best wall time of each and the CPU time of the whole process tree (its children's rusage). The sandbox
-adds a process start (bwrap, then rig run again inside it) and the namespaces and mounts.
+"""What the sandbox (rig/sandbox.py) costs a run, printed, never asserted: ``rig run SCENARIO`` as is,
+wrapped as the service wraps it (bwrap, prlimit, a pids cgroup as root), and as ``rig run --sandbox``
+(which starts rig run a second time, inside), in turn, each in a process of its own, N times each: the
+median and best wall time of each. (Not CPU time: the processes a pid namespace's end reaps are
+counted in nobody's rusage.)
 
 The script runs the tree it lives in (its own folder's parent).
 
@@ -11,7 +12,7 @@ The script runs the tree it lives in (its own folder's parent).
 from __future__ import annotations
 
 import argparse
-import resource
+import contextlib
 import statistics
 import subprocess
 import sys
@@ -20,17 +21,22 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from rig import sandbox  # noqa: E402  (the tree this script lives in)
+
+MODES = ("plain", "service", "--sandbox")
 
 
-def one(sandbox: bool, scenario: str, out: Path) -> tuple[float, float]:
-    """(wall s, CPU s of the tree) of one run."""
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+def one(mode: str, scenario: str, out: Path) -> float:
+    """Wall seconds of one run."""
+    cmd = [sys.executable, "-m", "rig.cli", "run", *(["--sandbox"] if mode == "--sandbox" else []), scenario,
+           "--out", str(out)]
+    wrap = sandbox.confined(cmd, [out]) if mode == "service" else contextlib.nullcontext(cmd)
     start = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "rig.cli", "run", *(["--sandbox"] if sandbox else []), scenario,
-                    "--out", str(out)], cwd=ROOT, check=True, capture_output=True)
-    wall = time.perf_counter() - start
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return wall, after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
+    with wrap as argv:
+        subprocess.run(argv, cwd=ROOT, check=True, capture_output=True)
+    return time.perf_counter() - start
 
 
 def main() -> None:
@@ -38,16 +44,15 @@ def main() -> None:
     p.add_argument("--runs", type=int, default=7)
     p.add_argument("--scenario", default="step_roll")
     args = p.parse_args()
-    figures: dict[bool, list[tuple[float, float]]] = {False: [], True: []}
+    walls: dict[str, list[float]] = {m: [] for m in MODES}
     with tempfile.TemporaryDirectory() as tmp:
-        one(True, args.scenario, Path(tmp) / "warm")  # (the first run fills the page cache)
+        one("service", args.scenario, Path(tmp) / "warm")  # (the first run fills the page cache)
         for _ in range(args.runs):
-            for sandbox in (False, True):
-                figures[sandbox].append(one(sandbox, args.scenario, Path(tmp) / str(sandbox)))
-    for sandbox, runs in figures.items():
-        walls, cpus = [w for w, _ in runs], [c for _, c in runs]
-        print(f"{'--sandbox' if sandbox else 'plain    '}  wall median {statistics.median(walls):.3f} s, "
-              f"best {min(walls):.3f} s; CPU median {statistics.median(cpus):.3f} s ({len(runs)} runs)")
+            for mode in MODES:
+                walls[mode].append(one(mode, args.scenario, Path(tmp) / mode.strip("-")))
+    for mode, runs in walls.items():
+        print(f"{mode:10} wall median {statistics.median(runs):.3f} s, best {min(runs):.3f} s "
+              f"({len(runs)} runs)")
 
 
 if __name__ == "__main__":
