@@ -86,3 +86,14 @@ def test_rig_run_sandbox_passes_a_normal_run_and_blocks_a_hostile_dut(tmp_path: 
     subprocess.run([*rig, "--out", str(tmp_path / "hostile"), "--dut", command], capture_output=True, env=env)
     assert_nothing_escaped((tmp_path / "hostile" / "step_roll" / "dut-stdout.txt").read_text(), outside, net,
                            token)
+
+
+def test_without_bubblewrap_serve_and_run_sandbox_refuse_with_exit_2(tmp_path: Path) -> None:
+    env = {**os.environ, "PATH": str(tmp_path)}  # (no bwrap on it)
+    serve = subprocess.run([sys.executable, "-m", "rig.cli", "serve", "--data", str(tmp_path / "data")],
+                           capture_output=True, text=True, env=env, timeout=60)
+    assert serve.returncode == 2 and "bubblewrap" in serve.stderr and "--no-sandbox" in serve.stderr
+    run = subprocess.run([sys.executable, "-m", "rig.cli", "run", "--sandbox", "step_roll", "--out",
+                          str(tmp_path / "out")], capture_output=True, text=True, env=env, timeout=60)
+    assert run.returncode == 2 and "rig run: --sandbox: the sandbox needs bubblewrap" in run.stderr
+    assert not (tmp_path / "out" / "step_roll").exists()
