@@ -186,6 +186,7 @@ def run(
     spin: bool = False,
     pwm_channels: int | None = None,
     topology: str | None = None,
+    airframe: str | os.PathLike[str] | None = None,
 ) -> Result:
     """Flies one scenario and returns its result; writes ``out/<scenario>/`` as ``rig run`` does.
 
@@ -196,6 +197,8 @@ def run(
     ``spin``: as ``rig run --spin`` (two cores, polling).
     ``pwm_channels`` (1..16) and ``topology`` ("gy86", "direct"): a Linux DUT's board, as ``rig run
     --pwm-channels``, ``--topology`` (default: 8 channels on a GY-86).
+    ``airframe``: as ``rig run --airframe`` (a shipped airframe's name or a file; default the
+    scenario's own).
     Raises RigError for bad options (nothing is run); a DUT that crashes or hangs is a Result with
     verdict "error", as on the command line."""
     import shlex
@@ -204,7 +207,7 @@ def run(
     from rig import compiled, interrupts
 
     compiled.install()  # (an entry point, as the CLI: the hot modules compiled, before they are imported)
-    from rig.run_cmd import ReportFolder, UsageError, plan, write_run
+    from rig.run_cmd import ReportFolder, UsageError, flown_on, plan, write_run
     from rig.runner import not_run
     from rig.runner import run as run_one
 
@@ -227,12 +230,15 @@ def run(
         words += ["--pwm-channels", str(int(pwm_channels))]
     if topology is not None:
         words += ["--topology", topology]
+    if airframe is not None:
+        words += ["--airframe", os.fspath(airframe)]
     args = _options("run", words)
     # Ctrl-C or a CI job's SIGTERM stops the DUT and finishes the run's files, as in rig run, and then
     # reaches the caller as KeyboardInterrupt; (signal handlers can be set from the main thread only)
     main = threading.current_thread() is threading.main_thread()
     try:
         suite = plan(args)
+        sc = flown_on([sc], args.airframe, [])[0]  # (plan has checked it: its problems would have said so)
         with interrupts.handled() if main else contextlib.nullcontext(), ReportFolder(suite.out) as folder:
             run_dir = folder.scenario_dir(sc.stem)
             try:

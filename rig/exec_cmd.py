@@ -28,8 +28,10 @@ from rig.bridge.esc import ESC_PROTOCOLS
 from rig.bridge.session import BenchConfig, BenchSession
 from rig.cores import CoresError, allowed_cores, placement
 from rig.emulators.topology import TOPOLOGIES
+from rig.plant import airframes
+from rig.plant.airframes import AirframeError
 from rig.plant.variables import PARAMETERS, check_parameters
-from rig.run_cmd import seconds_option
+from rig.run_cmd import add_airframe_option, seconds_option
 from rig.scheduler import EXIT_RIG_ERROR
 from rig.session import Session, SessionConfig
 from rig.targets.process import hardware_problems
@@ -52,6 +54,20 @@ def _param(text: str) -> tuple[str, float]:
                 else f"; the plant's parameters: {', '.join(PARAMETERS)}")
         raise argparse.ArgumentTypeError(f"{name!r} is not a plant parameter{hint}")
     return name, number
+
+
+def _plant_params(args: argparse.Namespace, parser: argparse.ArgumentParser) -> dict[str, float]:
+    """The plant's parameters: the airframe's (--airframe, default seed 001's), then each --param;
+    checked by the FMU's own rules before anything starts (exit 2 naming the problem)."""
+    try:
+        airframe = airframes.load(args.airframe or airframes.DEFAULT_AIRFRAME)
+    except AirframeError as e:
+        parser.error(f"--airframe: {e}")
+    params = airframe.params | dict(args.param)
+    refused = check_parameters(params)
+    if refused:
+        parser.error(f"--param/--airframe: the plant refuses it: {refused}")
+    return params
 
 
 def _writable(parser: argparse.ArgumentParser, option: str, path: Path | None) -> None:
@@ -102,6 +118,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-noise", action="store_true", help="exact sensors")
     p.add_argument("--param", type=_param, action="append", default=[], metavar="NAME=VALUE",
                    help="plant parameter (repeatable), e.g. --param stand=1")
+    add_airframe_option(p)
     p.add_argument("--log", type=Path, metavar="FILE", help="write the transaction log here")
     p.add_argument("--summary", type=Path, metavar="FILE", help="write the outcome as JSON here")
     p.add_argument("--allow-no-devices", action="store_true",
@@ -138,9 +155,7 @@ def main(args: argparse.Namespace) -> int:
         parser.error("--bus must be between 0 and 31")
     if args.quantum_ns < 0:
         parser.error("--quantum-ns must not be negative")
-    refused = check_parameters(dict(args.param))  # the FMU's own rules, before anything starts
-    if refused:
-        parser.error(f"--param: the plant refuses it: {refused}")
+    params = _plant_params(args, parser)
     if args.spin:
         if args.bridge is not None:
             parser.error("--spin is for lockstep: not with --bridge")
@@ -156,7 +171,7 @@ def main(args: argparse.Namespace) -> int:
                         stall_timeout=args.stall_timeout, pin=args.pin, spin=args.spin, log_path=args.log,
                         allow_no_devices=args.allow_no_devices)
     world = World.at_rest(seed=args.seed, topology=args.topology, noise=not args.no_noise,
-                          params=dict(args.param), pwm_channels=args.pwm_channels)
+                          params=params, pwm_channels=args.pwm_channels)
     if args.bridge is not None and args.bridge != "virtual":
         parser.error("a command runs against the virtual bridge only (--bridge virtual); behind a real "
                      "bridge the board is the DUT: use rig run --bridge PORT")
@@ -203,9 +218,7 @@ def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command
                             ("--serial", args.serial), ("--pin", args.pin), ("--spin", args.spin)) if v]
     if clash:
         parser.error(f"--mcu runs a firmware image in lockstep: not with {', '.join(clash)}")
-    refused = check_parameters(dict(args.param))
-    if refused:
-        parser.error(f"--param: the plant refuses it: {refused}")
+    params = _plant_params(args, parser)
     _writable(parser, "--summary", args.summary)
     _writable(parser, "--eeprom-out", args.eeprom_out)
     try:
@@ -220,7 +233,7 @@ def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command
         except OSError as e:
             parser.error(f"--trace {args.trace}: {e.strerror}")
         _writable(parser, "--trace", trace)
-    world = World.at_rest(seed=args.seed, noise=not args.no_noise, params=dict(args.param),
+    world = World.at_rest(seed=args.seed, noise=not args.no_noise, params=params,
                           **target.world_options())
     try:
         with interrupts.handled():

@@ -57,6 +57,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                 help="a Linux DUT's channels of pwmchip0, 1..16 (default 8)")
     g.addoption("--rig-topology", metavar="gy86|direct",
                 help="a Linux DUT's I2C wiring (default gy86: the compass behind the MPU-6050's bypass)")
+    g.addoption("--rig-airframe", metavar="NAME|FILE",
+                help="the vehicle flown: a shipped airframe or a file (default: each scenario's own)")
     g.addoption("--rig-seed", metavar="N", type=int, default=0, help="the runs' seed (default 0)")
     g.addoption("--rig-out", metavar="DIR", default=DEFAULT_OUT,
                 help=f"where runs are written (default {DEFAULT_OUT}; under xdist DIR/<worker>)")
@@ -95,6 +97,7 @@ class Options:
         self.seed: int = opt("rig_seed")
         self.pwm_channels: int | None = opt("rig_pwm_channels")
         self.topology: str | None = opt("rig_topology")
+        self.airframe: str | None = opt("rig_airframe")
         out = Path(opt("rig_out"))
         if not out.is_absolute():
             out = Path(config.invocation_params.dir) / out
@@ -129,7 +132,8 @@ class Options:
 
         options: dict[str, Any] = {"dut": self.dut, "mcu": self.mcu, "eeprom": self.eeprom,
                                    "bridge": self.bridge, "seed": self.seed,
-                                   "pwm_channels": self.pwm_channels, "topology": self.topology}
+                                   "pwm_channels": self.pwm_channels, "topology": self.topology,
+                                   "airframe": self.airframe}
         return api.run(scenario, **(options | kw), out=out)
 
 

@@ -28,8 +28,10 @@ from typing import TYPE_CHECKING
 from rig import interrupts
 from rig.bridge.esc import ESC_PROTOCOLS
 from rig.emulators.topology import TOPOLOGIES
+from rig.plant import airframes
+from rig.plant.airframes import AirframeError
 from rig.scenarios import LIBRARY
-from rig.scenarios.schema import Scenario, ScenarioError, load
+from rig.scenarios.schema import Scenario, ScenarioError, load, with_airframe
 
 if TYPE_CHECKING:
     from rig.scenarios.result import RunResult
@@ -152,6 +154,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "board's name (mega2560-gy86, promini328-gy86, ...; docs/mcu.md); needs --firmware",
     )
     p.add_argument("--firmware", type=Path, metavar="FILE", help="with --mcu: the image (.elf or .hex)")
+    add_airframe_option(p)
     p.add_argument("--trace", type=Path, metavar="DIR",
                    help="with --mcu: write each scenario's TWI transactions and motor pin edges as "
                    "DIR/SCENARIO.vcd (GTKWave, PulseView)")
@@ -162,6 +165,34 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     v = sub.add_parser("validate", help="check scenario files without running them")
     v.add_argument("scenarios", nargs="+", metavar="SCENARIO")
     sub.add_parser("list", help="list the scenario library")
+
+
+def add_airframe_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--airframe",
+        metavar="NAME|FILE",
+        help="the vehicle flown: a shipped airframe (seed-001, f450, racer-250) or an airframe file "
+        "(docs/plant.md); default: the scenario's [vehicle] airframe, else seed-001. A scenario's other "
+        "[vehicle] keys still apply on top",
+    )
+
+
+def flown_on(scenarios: list[Scenario], airframe: str | None, problems: list[str]) -> list[Scenario]:
+    """``--airframe``: the scenarios flying that airframe (each problem appended to ``problems``)."""
+    if airframe is None:
+        return scenarios
+    try:
+        chosen = airframes.load(airframe)
+    except AirframeError as e:
+        problems.append(f"--airframe: {e}")
+        return scenarios
+    flown = []
+    for sc in scenarios:
+        try:
+            flown.append(with_airframe(sc, chosen))
+        except ScenarioError as e:
+            problems.append(f"--airframe {airframe}: {e}")
+    return flown
 
 
 def add_pdf_options(p: argparse.ArgumentParser) -> None:
@@ -252,6 +283,7 @@ def plan(args: argparse.Namespace) -> Plan:
             problems.append(str(e))
     if not scenarios and not problems:
         problems.append("no scenarios")
+    scenarios = flown_on(scenarios, args.airframe, problems)
     stems: dict[str, Path] = {}
     for sc in scenarios:
         if sc.stem in stems:
