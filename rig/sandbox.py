@@ -127,6 +127,19 @@ def bwrap_argv(command: Sequence[str], writable: Sequence[Path], hidden: Sequenc
     return [*argv, "--", "env", "--default-signal=INT,TERM", *limits.prlimit(), *command]
 
 
+def build_first_use_parts() -> None:
+    """Compiles now what the rig compiles on its first use (the MCU engine's glue, the real-time wait,
+    the telemetry reader, the event queue), each only when missing or older than its sources: inside
+    the sandbox the tree is read-only. A part that cannot be built is left to the run inside, which
+    says why where it needs it."""
+    from rig import event_queue, pace, telemetry
+    from rig.mcu import engine
+
+    for part in (engine.build, pace.native, telemetry.native, event_queue.native):
+        with contextlib.suppress(Exception):  # (reported by the run that needs it, in its own words)
+            part()
+
+
 def _pids_parent() -> Path | None:
     """The cgroup a child bounding the process count can be made in, or None: cgroup v1's pids
     hierarchy, or cgroup v2 where this process's cgroup delegates the pids controller."""
@@ -167,6 +180,7 @@ def confined(command: Sequence[str], writable: Sequence[Path], hidden: Sequence[
     this run (the command joins it as it starts; the cgroup is removed after the block); where none can
     be made, root's sandbox has no process limit beyond its CPU time, and says so on stderr."""
     argv = bwrap_argv(command, writable, hidden, limits)
+    build_first_use_parts()
     parent = _pids_parent() if os.geteuid() == 0 else None
     if parent is None:
         if os.geteuid() == 0:
