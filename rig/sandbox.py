@@ -46,7 +46,7 @@ class Limits:
     """Resource limits of a sandboxed run, each per process except ``processes`` (the whole sandbox):
     CPU seconds, address space, processes and threads, and the largest file it may write."""
 
-    cpu_s: int = 3600
+    cpu_s: int = 6 * 3600  # (a sweep flies all its runs in one process)
     memory_bytes: int = 4 << 30
     processes: int = 512
     file_bytes: int = 2 << 30

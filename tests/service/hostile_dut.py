@@ -1,5 +1,5 @@
 """A hostile DUT: tries each way out of the sandbox and prints one line per try, ``escape NAME: HOW``
-(``blocked`` or what it got), then everything it can see of other processes' command lines and
+(``blocked`` or what it got), then the limits it runs under, then everything it can see of other processes' command lines and
 environments (where a token would show). Arguments: DATA (the service's data folder), OUTSIDE (a
 folder outside its run folder), PORT (a TCP listener on the host's loopback), FORKS (how many
 processes it tries to start)."""
@@ -46,6 +46,8 @@ def main() -> None:
     attempt("write-database", lambda: (data / "rig.sqlite").write_text("gone"))
     attempt("network", lambda: socket.create_connection(("127.0.0.1", port), timeout=5).getsockname())
     print(f"forks {forks(n)}", flush=True)
+    for line in Path("/proc/self/limits").read_text().splitlines()[1:]:
+        print(f"limit {line}", flush=True)
     for proc in Path("/proc").iterdir():
         for part in ("cmdline", "environ"):
             try:

@@ -46,6 +46,11 @@ def assert_nothing_escaped(stdout: str, outside: Path, net: socket.socket, token
     started = int(re.search(r"^forks (\d+)$", stdout, re.M).group(1))  # type: ignore[union-attr]
     assert 0 < started < Limits().processes
     assert "seen " in stdout and token not in stdout
+    # the limits as the kernel reports them (/proc/self/limits: name, soft limit, hard limit, units)
+    limits = {m[0]: int(m[1]) for m in re.findall(r"^limit (Max [a-z ]+?)\s+(\d+)\s", stdout, re.M)}
+    want = Limits()
+    assert limits["Max cpu time"] == want.cpu_s and limits["Max file size"] == want.file_bytes
+    assert limits["Max address space"] == want.memory_bytes and limits["Max processes"] == want.processes
 
 
 def test_a_hostile_dut_reaches_nothing_through_the_service(tmp_path: Path) -> None:
