@@ -1,8 +1,8 @@
 """A hostile DUT: tries each way out of the sandbox and prints one line per try, ``escape NAME: HOW``
-(``blocked`` or what it got), then the limits it runs under, then everything it can see of other processes' command lines and
-environments (where a token would show). Arguments: DATA (the service's data folder), OUTSIDE (a
-folder outside its run folder), PORT (a TCP listener on the host's loopback), FORKS (how many
-processes it tries to start)."""
+(``blocked`` or what it got), then the limits it runs under, then everything it can see of other
+processes' command lines and environments (where a token would show). Arguments: DATA (the service's
+data folder), OUTSIDE (a folder outside its run folder), PORT (a TCP listener on the host's loopback),
+FORKS (how many processes it tries to start)."""
 
 from __future__ import annotations
 
