@@ -44,16 +44,18 @@ NO_BWRAP: Final = ("the sandbox needs bubblewrap (bwrap), which is missing: inst
 @dataclass(frozen=True)
 class Limits:
     """Resource limits of a sandboxed run, each per process except ``processes`` (the whole sandbox):
-    CPU seconds, address space, processes and threads, and the largest file it may write."""
+    CPU seconds, address space, processes and threads, the largest file it may write, and the CPU time
+    (µs) a task at a real-time priority may take without blocking."""
 
     cpu_s: int = 6 * 3600  # (a sweep flies all its runs in one process)
     memory_bytes: int = 4 << 30
     processes: int = 512
     file_bytes: int = 2 << 30
+    rt_us: int = 1_000_000
 
     def prlimit(self) -> list[str]:
         return ["prlimit", f"--cpu={self.cpu_s}", f"--as={self.memory_bytes}", f"--nproc={self.processes}",
-                f"--fsize={self.file_bytes}", "--"]
+                f"--fsize={self.file_bytes}", f"--rttime={self.rt_us}", "--"]
 
 
 class SandboxError(RuntimeError):
@@ -66,6 +68,23 @@ def available() -> bool:
 
 def _under(path: Path, folders: Sequence[Path]) -> bool:
     return any(path == f or f in path.parents for f in folders)
+
+
+#: what a sandbox started by root keeps: the real-time loop of a bench run takes SCHED_FIFO and
+#: mlockall (rig/pace), as it does outside; RLIMIT_RTTIME (Limits.rt_us) ends a task that holds a
+#: real-time priority without ever blocking
+REAL_TIME_CAPABILITIES: Final = ("CAP_SYS_NICE", "CAP_IPC_LOCK")
+
+
+def _privileges() -> list[str]:
+    """bwrap's options for who the run is. Started by root: root still (a user namespace would map it
+    to root outside anyway, and take away what the real-time loop needs), with every capability but
+    REAL_TIME_CAPABILITIES dropped. Started by another user: a user namespace of its own, without
+    capabilities."""
+    if os.geteuid() != 0:
+        return ["--unshare-user", "--cap-drop", "ALL"]
+    keep = [a for cap in REAL_TIME_CAPABILITIES for a in ("--cap-add", cap)]
+    return ["--cap-drop", "ALL", *keep]
 
 
 def _devices(command: Sequence[str]) -> list[str]:
@@ -103,8 +122,8 @@ def bwrap_argv(command: Sequence[str], writable: Sequence[Path], hidden: Sequenc
     if bwrap is None or shutil.which("prlimit") is None:
         raise SandboxError(NO_BWRAP)
     hidden = [h.resolve() for h in hidden]
-    argv = [bwrap, "--die-with-parent", "--unshare-all", "--unshare-user", "--cap-drop", "ALL",
-            "--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc",
+    argv = [bwrap, "--die-with-parent", "--unshare-ipc", "--unshare-pid", "--unshare-net", "--unshare-uts",
+            "--unshare-cgroup-try", *_privileges(), "--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc",
             "--size", str(PRIVATE_TMP_BYTES), "--tmpfs", PRIVATE_TMP,
             "--setenv", "TMPDIR", PRIVATE_TMP]
     for folder in hidden:

@@ -51,6 +51,7 @@ def assert_nothing_escaped(stdout: str, outside: Path, net: socket.socket, token
     want = Limits()
     assert limits["Max cpu time"] == want.cpu_s and limits["Max file size"] == want.file_bytes
     assert limits["Max address space"] == want.memory_bytes and limits["Max processes"] == want.processes
+    assert limits["Max realtime timeout"] == want.rt_us
 
 
 def test_a_hostile_dut_reaches_nothing_through_the_service(tmp_path: Path) -> None:
