@@ -8,10 +8,12 @@ process count when the rig runs as root (the kernel exempts root's processes fro
 
 Inside: the whole file system read-only; the run folder the only writable place (with a private,
 empty /run as TMPDIR for the session's socket and clock page); the hidden folders (the service's
-data folder: its database, uploads and every run's artifacts) replaced by empty ones, except files
-the command line names under them (the run's firmware); no network (a loopback of its own: the
-session's Unix socket, shared memory and ptys still work); its own pid namespace (the service's
-processes and their command lines are out of sight); no capabilities; the token's variable unset.
+data folder: its database, uploads and every run's artifacts) replaced by empty read-only ones,
+except the files the command line names under them or the run folder links to (its firmware, its
+scenario versions); no network (a loopback of its own: the session's Unix socket, shared memory and
+ptys still work); its own pid namespace (the service's processes and their command lines are out of
+sight); no capabilities but the two a bench run's real-time loop needs when root starts it; the
+token's variable unset. docs/service.md says what is isolated and what is not.
 """
 
 from __future__ import annotations
