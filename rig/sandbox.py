@@ -209,7 +209,8 @@ def confined(command: Sequence[str], writable: Sequence[Path], hidden: Sequence[
                   file=sys.stderr)
         yield ["sh", "-c", LAUNCH, "-", *argv]
         return
-    group = parent / f"rig-sandbox-{os.getpid()}-{next(_serial)}"
+    _remove_stale_groups(parent)
+    group = parent / f"{GROUP_PREFIX}{os.getpid()}-{next(_serial)}"
     group.mkdir()
     try:
         (group / "pids.max").write_text(str(limits.processes))
@@ -219,6 +220,24 @@ def confined(command: Sequence[str], writable: Sequence[Path], hidden: Sequence[
 
 
 _serial = itertools.count()
+GROUP_PREFIX: Final = "rig-sandbox-"
+#: a run's cgroup younger than this (s) is never judged stale: its owner may be starting the run
+STALE_AFTER_S: Final = 60.0
+
+
+def _remove_stale_groups(parent: Path) -> None:
+    """Removes the empty cgroups of rigs that died without removing theirs (a service ended by
+    SIGKILL runs no cleanup): those whose owner (the pid in the name) is gone, and older than
+    STALE_AFTER_S. The kernel removes a cgroup only when it is empty, so a live run's never goes."""
+    for group in parent.glob(f"{GROUP_PREFIX}*"):
+        owner = group.name[len(GROUP_PREFIX):].split("-")[0]
+        try:
+            stale = time.time() - group.stat().st_mtime > STALE_AFTER_S
+        except OSError:
+            continue
+        if stale and owner.isdigit() and not os.path.exists(f"/proc/{owner}"):
+            with contextlib.suppress(OSError):
+                group.rmdir()
 
 
 def _remove_group(group: Path) -> None:
