@@ -60,6 +60,7 @@ _CHIPS: dict[str, tuple[object, list[object]]] = {
     "rig_chip_board_size": (ctypes.c_size_t, []),
     "chip_board_init": (None, [_P, ctypes.c_uint8]),
     "chip_board_demand": (None, [_P, ctypes.c_bool]),
+    "chip_mpu_address": (ctypes.c_bool, [_P, ctypes.c_uint8]),
     "chip_ms5611_prom": (None, [_P, _P]),
     "chip_ms5611_max_timing": (None, [_P, ctypes.c_bool]),
     "chip_hmc_status_wraps": (None, [_P, ctypes.c_bool]),

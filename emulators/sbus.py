@@ -5,9 +5,11 @@ does not model; the bytes are what matters here. A frame is 25 bytes: 0x0F, sixt
 packed LSB first, a flags byte (bit 0 ch17, bit 1 ch18, bit 2 frame lost, bit 3 failsafe), 0x00.
 Channel values run 172..1811 with 992 at centre (the range OpenTX/EdgeTX map to -100..+100 %).
 
-Sticks are given in units: roll, pitch, yaw in -1..1, throttle in 0..1, switches as bool. The channel
-order is AETR (roll, pitch, throttle, yaw), then the arm switch (ch5), the altitude-hold switch (ch6)
-and an altitude-setpoint knob (ch7, -1..1, centre = hold where engaged), as the reference FC reads them.
+Sticks are given in units: roll, pitch, yaw in -1..1, throttle in 0..1, an arm request, a flight mode
+by name and an altitude-setpoint knob (-1..1). Which channel carries which and at what value is a
+ChannelMap: an FC profile makes one from its µs (scenarios/profile.py); the default is the reference
+FC's: AETR (roll, pitch, throttle, yaw), the arm switch on channel 5, the altitude-hold switch on
+channel 6 (mode "althold") and the knob on channel 7, each full stick 819 steps from 992.
 """
 
 from __future__ import annotations
@@ -26,11 +28,8 @@ CHANNELS: Final = 16
 PERIOD_S: Final = 0.014  # SBUS "normal" mode; 7 ms in high-speed mode
 
 STICKS = ("roll", "pitch", "throttle", "yaw", "arm", "alt_hold", "alt_offset")
-
-
-def unit_to_raw(x: float) -> int:
-    """-1..1 to the 11-bit channel value (clamped to what a transmitter sends)."""
-    return max(RAW_MIN, min(RAW_MAX, round(RAW_CENTRE + x * (RAW_MAX - RAW_CENTRE))))
+#: the knobs a ChannelMap may put on extra channels, by name (-1..1 each)
+KNOBS = ("alt_offset",)
 
 
 def encode(channels: list[int], frame_lost: bool = False, failsafe: bool = False) -> bytes:
@@ -55,6 +54,41 @@ def decode(frame: bytes) -> tuple[list[int], int]:
     return [(acc >> (11 * i)) & 0x7FF for i in range(CHANNELS)], frame[23]
 
 
+@dataclass(frozen=True)
+class ChannelMap:
+    """Where an FC reads each control, in SBUS values (an FC profile's µs turned into them). Channel
+    numbers are 0-based here. A stick at x (-1..1) is ``round(centre + x * travel)``, clamped to
+    ``low..high``; a switch or a mode is one value; ``gestures`` hold channels at values while a stick
+    gesture (arming by sticks) lasts."""
+
+    roll: int = 0
+    pitch: int = 1
+    throttle: int = 2
+    yaw: int = 3
+    centre: float = float(RAW_CENTRE)
+    travel: float = float(RAW_MAX - RAW_CENTRE)
+    low: int = RAW_MIN
+    high: int = RAW_MAX
+    rest: int = RAW_CENTRE  # every channel no control uses
+    #: the arm switch: (channel, value on, value off); None: not a switch
+    arm: tuple[int, int, int] | None = (4, RAW_MAX, RAW_MIN)
+    #: the mode channel and each mode's value ((name, value) pairs), the first the default; None: no channel
+    mode_channel: int | None = 5
+    modes: tuple[tuple[str, int], ...] = (("angle", RAW_MIN), ("althold", RAW_MAX))
+    knobs: tuple[tuple[str, int], ...] = (("alt_offset", 6),)
+    gestures: tuple[tuple[str, tuple[tuple[int, int], ...]], ...] = ()
+
+    def stick(self, x: float) -> int:
+        return max(self.low, min(self.high, round(self.centre + x * self.travel)))
+
+
+#: the reference FC's channels (the reference profile's map: a test keeps them equal)
+REFERENCE_MAP: Final = ChannelMap()
+
+#: what a Sticks' channels are made from (Sticks.setting)
+Setting = tuple[float, float, float, float, bool, str, float, str]
+
+
 @dataclass
 class Sticks:
     roll: float = 0.0
@@ -62,19 +96,34 @@ class Sticks:
     throttle: float = 0.0
     yaw: float = 0.0
     arm: bool = False
-    alt_hold: bool = False
+    mode: str = ""  # "": the map's first (default) mode
     alt_offset: float = 0.0
+    gesture: str = ""  # a stick gesture being held ("arm", "disarm"): its channels win
 
-    def setting(self) -> tuple[float, float, float, float, bool, bool, float]:
+    def setting(self) -> Setting:
         """What the channels are made from, to compare with a frame's (an emulator sends the same
         sticks ~70 times a second: comparing these is a seventh of making the channels)."""
-        return self.roll, self.pitch, self.throttle, self.yaw, self.arm, self.alt_hold, self.alt_offset
+        return (self.roll, self.pitch, self.throttle, self.yaw, self.arm, self.mode, self.alt_offset,
+                self.gesture)
 
-    def channels(self) -> list[int]:
-        ch = [RAW_CENTRE] * CHANNELS
-        ch[0], ch[1], ch[3] = unit_to_raw(self.roll), unit_to_raw(self.pitch), unit_to_raw(self.yaw)
-        ch[2] = unit_to_raw(2 * self.throttle - 1)
-        ch[4] = RAW_MAX if self.arm else RAW_MIN
-        ch[5] = RAW_MAX if self.alt_hold else RAW_MIN
-        ch[6] = unit_to_raw(self.alt_offset)
+    def channels(self, cmap: ChannelMap = REFERENCE_MAP) -> list[int]:
+        ch = [cmap.rest] * CHANNELS
+        ch[cmap.roll], ch[cmap.pitch] = cmap.stick(self.roll), cmap.stick(self.pitch)
+        ch[cmap.yaw], ch[cmap.throttle] = cmap.stick(self.yaw), cmap.stick(2 * self.throttle - 1)
+        if cmap.arm is not None:
+            channel, on, off = cmap.arm
+            ch[channel] = on if self.arm else off
+        if cmap.mode_channel is not None and cmap.modes:
+            value = cmap.modes[0][1]
+            for name, v in cmap.modes:
+                if name == self.mode:
+                    value = v
+            ch[cmap.mode_channel] = value
+        for name, channel in cmap.knobs:
+            if name == "alt_offset":
+                ch[channel] = cmap.stick(self.alt_offset)
+        for name, held in cmap.gestures:
+            if name == self.gesture:
+                for channel, v in held:
+                    ch[channel] = v
         return ch

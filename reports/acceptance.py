@@ -12,8 +12,8 @@ from pathlib import Path
 
 from rig.reports.html_report import criteria_table, marks_caption, static_plots, suite_identity
 from rig.reports.values import meta_rows, mode_text, sim_times_in
-from rig.scenarios.criteria import MARGINAL_PCT
-from rig.scenarios.result import RunResult
+from rig.scenarios.criteria import MARGINAL_PCT, NOT_MEASURED, SKIPPED
+from rig.scenarios.result import VERDICTS, RunResult
 
 PAGE = """@page{size:A4;margin:16mm 14mm 18mm 14mm;
 @bottom-left{content:"Acceptance test report: TITLE";font:8pt sans-serif;color:#555}
@@ -24,7 +24,7 @@ table{border-collapse:collapse;width:100%;margin:1mm 0 3mm;font-size:8.5pt}
 td,th{border:0.5pt solid #999;padding:2px 5px;text-align:left;vertical-align:top}
 th{background:#f2f2f2}code,.hash{font-family:"DejaVu Sans Mono",monospace;font-size:8pt}
 td.num{text-align:right;white-space:nowrap}.pass{background:#d9ead3}.fail{background:#f4cccc}
-.marginal{background:#fff2cc}.error,.interrupted{background:#fce5cd}.not-judged{color:#555}
+.marginal{background:#fff2cc}.error,.interrupted{background:#fce5cd}.not-judged,.not-measured,.skipped{color:#555}
 .small{font-size:8pt;color:#333}section.run,.appendix,.summary{break-before:page}
 figure.plot{margin:1mm 0;break-inside:avoid}figure.plot svg{width:100%;height:auto}
 tr{break-inside:avoid}.cover{height:240mm;display:flex;flex-direction:column}
@@ -65,12 +65,15 @@ def render(
     verdict = overall(results, not_run)
     firmware = _firmware_name(results)
     title = title or f"{firmware}"
-    counts = {v: sum(r.verdict == v for r in results) for v in ("pass", "fail", "error", "interrupted")}
+    counts = {v: sum(r.verdict == v for r in results) for v in VERDICTS}
     marginal = sum(m.marginal for r in results for m in r.measurements)
+    unmeasured = sum(m.outcome == NOT_MEASURED for r in results for m in r.measurements)
     count_text = (
         f"{counts['pass']} of {len(results) + len(not_run)} scenarios passed, {counts['fail']} failed, "
         f"{counts['error'] + counts['interrupted']} ended in error"
+        + (f", {counts[SKIPPED]} skipped (the FC cannot fly them)" if counts[SKIPPED] else "")
         + (f", {len(not_run)} not run" if not_run else "")
+        + (f"; {unmeasured} criteria not measured" if unmeasured else "")
         + f"; {marginal} criteria passed within {MARGINAL_PCT:g} % of a limit (marginal)"
     )
     ident = dict(suite_identity(results))
@@ -86,6 +89,8 @@ def render(
                 "firmware",
                 "firmware SHA-256",
                 "DUT command",
+                "FC profile",
+                "FC profile SHA-256",
                 "rig version",
                 "plant FMU SHA-256",
                 "airframe",

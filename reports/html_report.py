@@ -27,15 +27,15 @@ from rig.reports.values import (
     outcome_text,
     sim_times_in,
 )
-from rig.scenarios.criteria import METRICS, Measurement
-from rig.scenarios.result import RunResult
+from rig.scenarios.criteria import METRICS, NOT_MEASURED, SKIPPED, Measurement
+from rig.scenarios.result import VERDICTS, RunResult
 
 UPLOT = Path(__file__).resolve().parent / "vendor" / "uplot"
 
 STYLE = """body{font-family:sans-serif;margin:2em;max-width:62em}table{border-collapse:collapse}
 td,th{border:1px solid #ccc;padding:3px 8px;text-align:left;vertical-align:top}.pass{background:#d9ead3}
 .fail{background:#f4cccc}.marginal{background:#fff2cc}.error,.interrupted{background:#fce5cd}
-.not-judged{color:#666}code{font-size:90%;word-break:break-all}td.num{text-align:right;white-space:nowrap}
+.not-judged,.not-measured,.skipped{color:#666}code{font-size:90%;word-break:break-all}td.num{text-align:right;white-space:nowrap}
 .small{font-size:85%;color:#444}figure.plot{margin:1em 0}.plot.live>.svg{display:none}
 figure.plot svg{max-width:100%;height:auto}.uplot-lane{margin:0}
 @media print{.plot.live>.svg{display:block}.plot>.live-chart{display:none}}"""
@@ -84,6 +84,9 @@ def verdict_line(r: RunResult) -> str:
     e = html.escape
     marginal = sum(m.marginal for m in r.measurements)
     extra = f" ({marginal} marginal)" if marginal and r.verdict == "pass" else ""
+    unmeasured = sum(m.outcome == NOT_MEASURED for m in r.measurements)
+    if unmeasured:  # (never counted as passes: said beside the verdict)
+        extra += f" ({unmeasured} of {len(r.measurements)} criteria not measured)"
     return (
         f'<p>Verdict: <b class="{r.verdict}">{r.verdict.upper()}</b>{e(extra)}'
         f"{' — ' + e(r.error) if r.error else ''}</p>"
@@ -274,6 +277,8 @@ IDENTITY = (
     ("dut_command", "DUT command"),
     ("dut_firmware", "firmware"),
     ("dut_firmware_sha256", "firmware SHA-256"),
+    ("fc_profile", "FC profile"),
+    ("fc_profile_sha256", "FC profile SHA-256"),
     ("seed", "random seed"),
     ("rig_version", "rig version"),
     ("plant_fmu_sha256", "plant FMU SHA-256"),
@@ -313,11 +318,16 @@ def render_index(
     """The suite's page: what was tested and how, one row per run of this suite, and the scenarios an
     interruption left unrun."""
     e = html.escape
-    counts = {v: sum(r.verdict == v for r in results) for v in ("pass", "fail", "error", "interrupted")}
+    counts = {v: sum(r.verdict == v for r in results) for v in VERDICTS}
     marginal = sum(m.marginal for r in results for m in r.measurements)
     summary = f"{counts['pass']} passed, {counts['fail']} failed, {counts['error']} errors of {len(results)}"
+    if counts[SKIPPED]:
+        summary += f"; {counts[SKIPPED]} skipped (the FC cannot fly them)"
     if marginal:
         summary += f"; {marginal} marginal criteria"
+    unmeasured = sum(m.outcome == NOT_MEASURED for r in results for m in r.measurements)
+    if unmeasured:
+        summary += f"; {unmeasured} criteria not measured"
     if counts["interrupted"] or not_run:
         summary += f"; interrupted, {len(not_run)} not run"
     rows = [f"<h1>Scenario suite</h1><p>{summary}.</p>"]

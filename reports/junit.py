@@ -1,5 +1,7 @@
 """JUnit XML for CI: one testsuite per scenario run, one testcase per criterion; a run that ended in
-error is one errored testcase naming the reason (CI systems show it as broken, not as failed)."""
+error is one errored testcase naming the reason (CI systems show it as broken, not as failed); a
+criterion not measured (the FC gives no telemetry the rig reads) and a skipped scenario's criteria are
+skipped testcases with the reason."""
 
 from __future__ import annotations
 
@@ -7,6 +9,7 @@ import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 
 from rig.reports.values import bus_problems_text, fmt_limits, fmt_margin, fmt_value, mode_text
+from rig.scenarios.criteria import NOT_MEASURED, SKIPPED
 from rig.scenarios.result import RunResult
 
 
@@ -14,6 +17,7 @@ def render(results: Sequence[RunResult]) -> str:
     root = ET.Element("testsuites", name="rig")
     for r in results:
         failures = sum(m.outcome == "fail" for m in r.measurements)
+        skipped = sum(m.outcome in (NOT_MEASURED, SKIPPED) for m in r.measurements)
         suite = ET.SubElement(
             root,
             "testsuite",
@@ -21,6 +25,7 @@ def render(results: Sequence[RunResult]) -> str:
             tests=str(len(r.measurements) or 1),
             failures=str(failures if r.verdict not in ("error", "interrupted") else 0),
             errors=str(int(r.verdict in ("error", "interrupted"))),
+            skipped=str(skipped if r.verdict not in ("error", "interrupted") else 0),
             time=f"{float(r.metadata.get('wall_time') or 0.0):.3f}",
             # (JUnit's schema: the local form without a zone; the rig's times are UTC)
             timestamp=str(r.metadata.get("started") or "").removesuffix("+00:00"),
@@ -29,7 +34,8 @@ def render(results: Sequence[RunResult]) -> str:
         props = ET.SubElement(suite, "properties")
         for k in ("seed", "scenario_file", "scenario_sha256", "airframe", "airframe_sha256", "started",
                   "host", "dut_command", "dut_firmware", "dut_firmware_sha256", "dut_program",
-                  "dut_program_sha256", "plant_fmu_sha256", "rig_version"):
+                  "dut_program_sha256", "fc_profile", "fc_profile_file", "fc_profile_sha256",
+                  "plant_fmu_sha256", "rig_version"):
             ET.SubElement(props, "property", name=k, value=str(r.metadata.get(k)))
         ET.SubElement(props, "property", name="mode", value=mode_text(r.metadata))
         if "bus_problems" in r.metadata:  # (the MCU tier: what the firmware saw go wrong on its bus)
@@ -48,6 +54,8 @@ def render(results: Sequence[RunResult]) -> str:
                 ET.SubElement(props, "property", name="marginal", value="true")
             if m.outcome == "fail":
                 ET.SubElement(case, "failure", message=f"{text} ({m.reason})")
+            elif m.outcome in (NOT_MEASURED, SKIPPED):  # (CI shows them as skipped: not passed, not failed)
+                ET.SubElement(case, "skipped", message=f"{m.outcome}: {m.reason}")
             else:
                 ET.SubElement(case, "system-out").text = text
     ET.indent(root)

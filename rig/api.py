@@ -42,7 +42,8 @@ class RigError(Exception):
 class Criterion:
     """One measured criterion: ``value`` in ``units`` against ``min``/``max`` (None: no limit on that
     side); ``margin`` is how far inside the nearer limit the value is, in % (None: no margin, e.g. a
-    one-sided limit at zero); ``outcome`` "pass", "fail" or "not judged" (a run that ended early)."""
+    one-sided limit at zero); ``outcome`` "pass", "fail", "not judged" (a run that ended early), "not
+    measured" (the FC's profile gives no telemetry the rig reads: never a pass) or "skipped"."""
 
     name: str
     metric: str
@@ -58,7 +59,8 @@ class Criterion:
 
 @dataclass(frozen=True)
 class Result:
-    """What one run produced. ``verdict``: "pass", "fail", "error" (the DUT crashed, hung or exited;
+    """What one run produced. ``verdict``: "pass", "fail", "skipped" (the FC's profile cannot fly it:
+    ``error`` says why), "error" (the DUT crashed, hung or exited;
     ``error`` says why) or "interrupted". ``metadata`` is result.json's "metadata" (seed, scenario
     and firmware SHA-256, the DUT, the rig's figures). ``artifacts`` maps a kind ("result",
     "telemetry", "report", "junit", "mcap") to the file the run wrote."""
@@ -187,6 +189,7 @@ def run(
     pwm_channels: int | None = None,
     topology: str | None = None,
     airframe: str | os.PathLike[str] | None = None,
+    fc: str | os.PathLike[str] | None = None,
 ) -> Result:
     """Flies one scenario and returns its result; writes ``out/<scenario>/`` as ``rig run`` does.
 
@@ -194,6 +197,7 @@ def run(
     the reference FC); ``mcu=(board, firmware)``, a firmware image under emulation (``eeprom``: the
     EEPROM image it starts from instead of the board's, as ``rig run --eeprom``; the run's folder gets
     ``eeprom.bin``, the EEPROM as it ended); ``bridge``, a bench bridge's serial port or "virtual".
+    ``fc``: the FC's profile, a shipped name or a file (default the reference FC's; docs/profiles.md).
     ``spin``: as ``rig run --spin`` (two cores, polling).
     ``pwm_channels`` (1..16) and ``topology`` ("gy86", "direct"): a Linux DUT's board, as ``rig run
     --pwm-channels``, ``--topology`` (default: 8 channels on a GY-86).
@@ -232,6 +236,8 @@ def run(
         words += ["--topology", topology]
     if airframe is not None:
         words += ["--airframe", os.fspath(airframe)]
+    if fc is not None:
+        words += ["--fc", os.fspath(fc)]
     args = _options("run", words)
     # Ctrl-C or a CI job's SIGTERM stops the DUT and finishes the run's files, as in rig run, and then
     # reaches the caller as KeyboardInterrupt; (signal handlers can be set from the main thread only)
@@ -242,10 +248,10 @@ def run(
         with interrupts.handled() if main else contextlib.nullcontext(), ReportFolder(suite.out) as folder:
             run_dir = folder.scenario_dir(sc.stem)
             try:
-                r = run_one(sc, suite.target, args.seed, run_dir, args.wall_timeout)
+                r = run_one(sc, suite.target, args.seed, run_dir, args.wall_timeout, profile=suite.profile)
             except Exception as e:  # as rig run: the rig could not fly it, and the result says so
                 r = not_run(sc, args.seed, f"the rig could not run this scenario: {type(e).__name__}: {e}",
-                            suite.target)
+                            suite.target, suite.profile)
             write_run(run_dir, r)
             if r.verdict == "interrupted":
                 raise KeyboardInterrupt(f"{r.error}; the run's files are in {run_dir}")
@@ -289,6 +295,7 @@ def sweep(
     dut: str | None = None,
     fresh: bool = False,
     wall_timeout: float = 600.0,
+    fc: str | os.PathLike[str] | None = None,
 ) -> pa.Table:
     """Runs a sweep spec (docs/sweeps.md) as ``rig sweep`` does into ``out`` (resumable) and returns
     the runs' table (runs.parquet: one row per run, its variation, verdict and measurements).
@@ -307,6 +314,7 @@ def sweep(
     words += ["--jobs", str(jobs)] if jobs is not None else []
     words += ["--engine", engine] if engine is not None else []
     words += ["--dut", dut] if dut is not None else []
+    words += ["--fc", os.fspath(fc)] if fc is not None else []
     words += ["--fresh"] if fresh else []
     args = _options("sweep", words)
     said = io.StringIO()

@@ -93,7 +93,7 @@ def _dispatch(argv: list[str] | None) -> int:
 
         return bench_host.main(args)
     if args.command == "validate":
-        return run_cmd.cmd_validate(args.scenarios)
+        return run_cmd.cmd_validate(args.scenarios, args.fc)
     if args.command == "list":
         return run_cmd.cmd_list()
     if args.command == "demo":

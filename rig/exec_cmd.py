@@ -22,6 +22,7 @@ import json
 import sys
 from dataclasses import asdict
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rig import interrupts
 from rig.bridge.esc import ESC_PROTOCOLS
@@ -31,11 +32,16 @@ from rig.emulators.topology import TOPOLOGIES
 from rig.plant import airframes
 from rig.plant.airframes import AirframeError
 from rig.plant.variables import PARAMETERS, check_parameters
-from rig.run_cmd import add_airframe_option, seconds_option
+from rig.run_cmd import add_airframe_option, add_trace_options, seconds_option, trace_options
+from rig.scenarios.schema import Event, ScenarioError, _Check, timeline_event
 from rig.scheduler import EXIT_RIG_ERROR
 from rig.session import Session, SessionConfig
+from rig.targets import telemetry_path
 from rig.targets.process import hardware_problems
 from rig.world import World
+
+if TYPE_CHECKING:
+    from rig.scenarios.profile import Profile
 
 CLOCKS = {"0": 0, "100k": 100_000, "400k": 400_000}
 
@@ -96,8 +102,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="with --bridge: the ESC protocol the bridge captures (default pwm; oneshot125)")
     p.add_argument("--serial", action="append", default=[], metavar="PATH",
                    help="a serial device path the command opens, served by a pty (repeatable)")
-    p.add_argument("--pwm-channels", type=int, default=8, metavar="N",
-                   help="channels of pwmchip0 (1..16, default 8)")
+    p.add_argument("--pwm-channels", type=int, default=None, metavar="N",
+                   help="channels of pwmchip0 (1..16; default 8, or as many as --fc's profile opens)")
+    p.add_argument("--fc", metavar="PROFILE",
+                   help="the FC's profile (a file or a shipped name; docs/profiles.md): its PWM channels and "
+                   "motor order, its frame for the plant, its telemetry port, its arguments or EEPROM image")
     p.add_argument("--i2c-clock", choices=sorted(CLOCKS), default="0",
                    help="each transfer takes its wire time at this SCL clock (default 0: no time)")
     p.add_argument("--quantum-ns", type=int, default=1000, metavar="NS",
@@ -134,6 +143,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "Intel HEX named .eep/.hex)")
     p.add_argument("--eeprom-out", type=Path, metavar="FILE",
                    help="with --mcu: write the EEPROM as the firmware left it here (raw bytes)")
+    p.add_argument("--sticks", metavar="SPEC",
+                   help="with --mcu: sticks on the board's RC input, constant ('throttle=0.2,arm=on') or a "
+                        "timeline ('0:arm=off;1.5:arm=on,throttle=0.1'): roll, pitch, yaw (-1..1), "
+                        "throttle (0..1), alt_offset (-1..1), arm, alt_hold (on/off)")
+    add_trace_options(p)
+    p.add_argument("--hang-limit", type=float, metavar="S",
+                   help="with --mcu: a firmware with no TWI transaction, motor pulse, USART byte or output "
+                        "pin change for S seconds is hung (default: the board's [limits] hang_s, 1; 0: off)")
     p.add_argument("argv", nargs=argparse.REMAINDER, metavar="-- CMD ARGS", help="the command to run")
     p.set_defaults(exec_parser=p)  # (usage errors found after parsing say "rig exec: error: ...")
 
@@ -144,11 +161,25 @@ def main(args: argparse.Namespace) -> int:
     if args.mcu is not None:
         return _exec_mcu(args, parser, command)
     for option, value in (("--firmware", args.firmware), ("--trace", args.trace), ("--eeprom", args.eeprom),
-                          ("--eeprom-out", args.eeprom_out)):
+                          ("--eeprom-out", args.eeprom_out), ("--hang-limit", args.hang_limit),
+                          ("--sticks", args.sticks), ("--trace-signals", args.trace_signals),
+                          ("--trace-window", args.trace_window), ("--trace-gzip", args.trace_gzip or None)):
         if value is not None:
             parser.error(f"{option} goes with --mcu BOARD")
     if not command:
         parser.error("rig exec needs a command after --")
+    profile = _profile(args, parser)
+    motor_order: tuple[int, ...] = (1, 2, 3, 4)
+    if profile is not None:
+        command = [*command, *profile.config.arguments()]
+        motor_order = profile.motors.order
+        if args.pwm_channels is None:
+            args.pwm_channels = max(profile.motors.pwm_channels, 8)
+        port = telemetry_path(profile)
+        if profile.telemetry.kind != "none" and port not in args.serial:
+            args.serial.append(port)
+    if args.pwm_channels is None:
+        args.pwm_channels = 8
     for problem in hardware_problems(args.pwm_channels, args.topology):
         parser.error(problem)
     if not 0 <= args.bus < 32:
@@ -171,7 +202,7 @@ def main(args: argparse.Namespace) -> int:
                         stall_timeout=args.stall_timeout, pin=args.pin, spin=args.spin, log_path=args.log,
                         allow_no_devices=args.allow_no_devices)
     world = World.at_rest(seed=args.seed, topology=args.topology, noise=not args.no_noise,
-                          params=params, pwm_channels=args.pwm_channels)
+                          params=params, pwm_channels=args.pwm_channels, motor_order=motor_order)
     if args.bridge is not None and args.bridge != "virtual":
         parser.error("a command runs against the virtual bridge only (--bridge virtual); behind a real "
                      "bridge the board is the DUT: use rig run --bridge PORT")
@@ -200,12 +231,30 @@ def main(args: argparse.Namespace) -> int:
     return outcome.exit_code
 
 
+def _profile(args: argparse.Namespace, parser: argparse.ArgumentParser) -> Profile | None:
+    """``--fc``'s profile (None without it); its frame becomes the plant's unless --param sets one."""
+    if args.fc is None:
+        return None
+    from rig.run_cmd import load_profile
+
+    problems: list[str] = []
+    profile = load_profile(args.fc, problems)
+    if profile is None:
+        parser.error("; ".join(problems))
+    if not any(name == "frame" for name, _ in args.param):
+        args.param.append(("frame", 1.0 if profile.motors.frame == "x" else 0.0))
+    return profile
+
+
 def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command: list[str]) -> int:
     """A firmware image on its board, the world at rest, for --duration sim seconds: the MCU target's
-    session (rig/targets/mcu.py) with no scenario events."""
+    session (rig/targets/mcu.py) with no scenario events but ``--sticks``."""
     from rig.mcu.board import BoardError
     from rig.mcu.engine import FirmwareError
-    from rig.targets import TELEMETRY_PATH
+    from rig.rc import StickEmulator
+    from rig.runner import apply_event
+    from rig.scenarios import profile as profiles
+    from rig.targets import RC_PATH, TELEMETRY_PATH
     from rig.targets.mcu import McuRun, McuTarget
 
     if command:
@@ -218,16 +267,31 @@ def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command
                             ("--serial", args.serial), ("--pin", args.pin), ("--spin", args.spin)) if v]
     if clash:
         parser.error(f"--mcu runs a firmware image in lockstep: not with {', '.join(clash)}")
+    profile = _profile(args, parser)  # (first: its frame joins --param)
     params = _plant_params(args, parser)
     _writable(parser, "--summary", args.summary)
     _writable(parser, "--eeprom-out", args.eeprom_out)
+    if args.hang_limit is not None and not 0 <= args.hang_limit <= 600:
+        parser.error(f"--hang-limit: expected seconds in 0..600 (0: off), got {args.hang_limit:g}")
+    options = trace_options(args)
+    if isinstance(options, str):
+        parser.error(options)
     try:
-        target = McuTarget(args.mcu, args.firmware, eeprom=args.eeprom)
+        target = McuTarget(args.mcu, args.firmware, eeprom=args.eeprom, hang_limit=args.hang_limit,
+                           trace_options=options)
     except (BoardError, FirmwareError) as e:
         parser.error(f"--mcu: {e}")
+    sticks: list[Event] = []
+    if args.sticks is not None:
+        if target.board.rc is None:
+            parser.error(f"--sticks: the board {target.board.name} has no [rc]: no receiver to give them to")
+        try:
+            sticks = stick_timeline(args.sticks, args.duration)
+        except ScenarioError as e:
+            parser.error(str(e))
     trace = None
     if args.trace is not None:
-        trace = args.trace / f"{target.firmware.stem}.vcd"
+        trace = args.trace / f"{target.firmware.stem}{options.suffix}"
         try:
             args.trace.mkdir(parents=True, exist_ok=True)
         except OSError as e:
@@ -237,8 +301,14 @@ def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command
                           **target.world_options())
     try:
         with interrupts.handled():
+            own = profile.config.eeprom if profile is not None else None  # (the FC profile's EEPROM image)
             run = McuRun(target.session(world, args.duration, {}, args.wall_timeout, trace, args.sim_timeout,
-                                        args.eeprom_out))
+                                        args.eeprom_out, eeprom_image=own))
+            if sticks:
+                rc = StickEmulator(RC_PATH)
+                for ev in sticks:  # (first: the frame at 0 carries the sticks given for 0)
+                    run.session.at(ev.t, apply_event(rc, ev, profile or profiles.load(), []))
+                rc.start(run.session)
             outcome = run.session.run()
     finally:
         world.close()
@@ -258,3 +328,31 @@ def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command
             summary["trace"] = str(trace)
         args.summary.write_text(json.dumps(summary, indent=2, sort_keys=True) + "\n")
     return outcome.exit_code
+
+
+def stick_timeline(spec: str, duration: float) -> list[Event]:
+    """``--sticks``: "k=v,..." from time 0, or "T:k=v,...;T:..." at sim times T, each checked as a
+    scenario's [[timeline]] sticks are (arm and alt_hold take on/off)."""
+    check = _Check("--sticks")
+    events = []
+    for i, part in enumerate(p.strip() for p in spec.split(";")):
+        when, _, settings = part.rpartition(":")
+        table: dict[str, object] = {}
+        try:
+            table["t"] = float(when) if when else 0.0
+        except ValueError:
+            raise check.fail(f"[{i}]", f"expected a time in seconds before ':', got {when!r}") from None
+        sticks: dict[str, object] = {}
+        for item in filter(None, (s.strip() for s in settings.split(","))):
+            key, eq, value = item.partition("=")
+            if not eq:
+                raise check.fail(f"[{i}]", f"expected stick=value, got {item!r}")
+            flag = {"on": True, "off": False, "true": True, "false": False}.get(value.strip().lower())
+            try:
+                sticks[key.strip()] = flag if flag is not None else float(value)
+            except ValueError:
+                sticks[key.strip()] = value.strip()  # (the check says what it expected)
+        table["sticks"] = sticks
+        events.append(timeline_event(check, table, f"[{i}]", duration))
+    return events
+

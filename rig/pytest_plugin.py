@@ -47,6 +47,8 @@ DEFAULT_OUT = "build/rig-pytest"
 def pytest_addoption(parser: pytest.Parser) -> None:
     g = parser.getgroup("rig", "quadrotor HIL rig (scenario files as tests; docs/pytest.md)")
     g.addoption("--rig-dut", metavar="CMD", help="the DUT's command line (default: the reference FC)")
+    g.addoption("--rig-fc", metavar="PROFILE", help="the FC's profile, a shipped name or a file (default: "
+                "the reference FC's; docs/profiles.md)")
     g.addoption("--rig-mcu", metavar="BOARD", help="fly a firmware image under emulation on BOARD "
                 "(a board file or a shipped board's name); needs --rig-firmware")
     g.addoption("--rig-firmware", metavar="FILE", help="with --rig-mcu: the image (.elf or .hex)")
@@ -90,6 +92,7 @@ class Options:
     def __init__(self, config: pytest.Config) -> None:
         opt = config.getoption
         self.dut: str | None = opt("rig_dut")
+        self.fc: str | None = opt("rig_fc")
         self.bridge: str | None = opt("rig_bridge")
         board, firmware = opt("rig_mcu"), opt("rig_firmware")  # (paired: pytest_configure)
         self.mcu: tuple[str, str] | None = (board, firmware) if board is not None else None
@@ -133,7 +136,7 @@ class Options:
         options: dict[str, Any] = {"dut": self.dut, "mcu": self.mcu, "eeprom": self.eeprom,
                                    "bridge": self.bridge, "seed": self.seed,
                                    "pwm_channels": self.pwm_channels, "topology": self.topology,
-                                   "airframe": self.airframe}
+                                   "airframe": self.airframe, "fc": self.fc}
         return api.run(scenario, **(options | kw), out=out)
 
 
@@ -241,10 +244,12 @@ class ScenarioItem(pytest.Item):
 
 
 def record(props: list[tuple[str, object]], result: Result) -> None:
-    """The run's identity as JUnit properties: seed, scenario and firmware SHA-256 (once each)."""
+    """The run's identity as JUnit properties: seed, scenario, firmware and FC profile SHA-256 (once each)."""
     have = {k for k, _ in props}
     got = {"seed": result.seed, "scenario_sha256": result.metadata.get("scenario_sha256"),
-           "firmware_sha256": result.metadata.get("dut_firmware_sha256"), "report": str(result.run_dir)}
+           "firmware_sha256": result.metadata.get("dut_firmware_sha256"),
+           "fc_profile": result.metadata.get("fc_profile"),
+           "fc_profile_sha256": result.metadata.get("fc_profile_sha256"), "report": str(result.run_dir)}
     props += [(k, v) for k, v in got.items() if k not in have and v is not None]
     for i, (k, v) in enumerate(props):  # (a value recorded before the run is the run's own value)
         if k in got and got[k] is not None and v != got[k]:

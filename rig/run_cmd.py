@@ -5,7 +5,8 @@ suite before anything flies), then runs each scenario in lockstep against the DU
 reference flight controller) and writes, per run, ``OUT/<scenario>/{junit.xml,result.json,
 telemetry.csv,report.html}``, and for the suite ``OUT/junit.xml`` and ``OUT/index.html``. A line per
 scenario shows progress on stderr. Exit status: 0 all passed, 1 a criterion failed, 2 bad usage or a bad
-scenario file, 3 a run ended in error (crash, hang, early exit of the DUT).
+scenario file, 3 a run ended in error (crash, hang, early exit of the DUT). A scenario the FC cannot fly
+(its profile lacks a mode or feature it needs) is skipped with the reason: neither a pass nor a failure.
 """
 
 from __future__ import annotations
@@ -34,6 +35,8 @@ from rig.scenarios import LIBRARY
 from rig.scenarios.schema import Scenario, ScenarioError, load, with_airframe
 
 if TYPE_CHECKING:
+    from rig.mcu.vcd import TraceOptions
+    from rig.scenarios.profile import Profile
     from rig.scenarios.result import RunResult
     from rig.targets import Target
 
@@ -83,6 +86,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "scenario's [fc] table); it reads SBUS on /dev/ttyRC0 and may write "
         "telemetry lines on /dev/ttyTEL0",
     )
+    add_fc_option(p)
     p.add_argument(
         "--out", type=Path, default=Path("build/reports"), help="report folder (default %(default)s)"
     )
@@ -161,9 +165,14 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--eeprom", type=Path, metavar="FILE",
                    help="with --mcu: the EEPROM image to start from instead of the board's (raw bytes, as "
                    "a run's eeprom.bin, or Intel HEX named .eep/.hex)")
+    add_trace_options(p)
+    p.add_argument("--hang-limit", type=float, metavar="S",
+                   help="with --mcu: a firmware with no TWI transaction, motor pulse, USART byte or output "
+                   "pin change for S seconds is hung (default: the board's [limits] hang_s, 1; 0: off)")
     add_pdf_options(p)
-    v = sub.add_parser("validate", help="check scenario files without running them")
-    v.add_argument("scenarios", nargs="+", metavar="SCENARIO")
+    v = sub.add_parser("validate", help="check scenario files (and an FC profile) without running them")
+    v.add_argument("scenarios", nargs="*", metavar="SCENARIO")
+    add_fc_option(v)
     sub.add_parser("list", help="list the scenario library")
 
 
@@ -193,6 +202,25 @@ def flown_on(scenarios: list[Scenario], airframe: str | None, problems: list[str
         except ScenarioError as e:
             problems.append(f"--airframe {airframe}: {e}")
     return flown
+
+
+def add_fc_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--fc", metavar="PROFILE", default=None,
+                   help="the FC's profile: how it is armed, which channel means what, how its telemetry is "
+                   "read (a file, or a shipped name: reference, multiwii-2.4, arducopter-4; default "
+                   "reference; docs/profiles.md)")
+
+
+def load_profile(name: str | None, problems: list[str]) -> Profile | None:
+    """``--fc``'s profile (the reference FC's without one), or None with the problem said."""
+    from rig.scenarios.profile import DEFAULT, ProfileError
+    from rig.scenarios.profile import load as load_fc
+
+    try:
+        return load_fc(name or DEFAULT)
+    except ProfileError as e:
+        problems.extend(f"--fc: {p}" for p in e.problems)
+        return None
 
 
 def add_pdf_options(p: argparse.ArgumentParser) -> None:
@@ -238,8 +266,21 @@ def cmd_list() -> int:
     return 0
 
 
-def cmd_validate(names: list[str]) -> int:
+def cmd_validate(names: list[str], fc: str | None = None) -> int:
     bad = 0
+    if fc is not None:
+        problems: list[str] = []
+        profile = load_profile(fc, problems)
+        for line in problems:
+            print(f"FAIL {line}", file=sys.stderr)
+        if profile is not None:
+            print(f"ok   {profile.path}: profile {profile.name}")
+        bad += bool(problems)
+        if not names:
+            return EXIT_USAGE if bad else 0
+    elif not names:
+        print("rig validate: expected SCENARIO files, --fc PROFILE or both", file=sys.stderr)
+        return EXIT_USAGE
     for p in resolve(names):
         try:
             sc = load(p)
@@ -262,6 +303,7 @@ class Plan:
     scenarios: list[Scenario]
     target: Target
     out: Path
+    profile: Profile
 
 
 def plan(args: argparse.Namespace) -> Plan:
@@ -373,9 +415,10 @@ def plan(args: argparse.Namespace) -> Plan:
     if (args.pwm_channels is not None or args.topology is not None) and (args.bridge or args.mcu):
         problems.append("--pwm-channels and --topology are a Linux DUT's board: not with --bridge or --mcu")
     mcu = _mcu_target(args, problems)
-    if problems:
+    profile = load_profile(args.fc, problems)
+    if problems or profile is None:
         raise UsageError("\n".join(problems))
-    return Plan(scenarios, mcu or target_of(args, dut), args.out)
+    return Plan(scenarios, mcu or target_of(args, dut), args.out, profile)
 
 
 def target_of(args: argparse.Namespace, dut: list[str] | None) -> Target:
@@ -389,12 +432,52 @@ def target_of(args: argparse.Namespace, dut: list[str] | None) -> Target:
                          topology=args.topology)
 
 
+def add_trace_options(p: argparse.ArgumentParser) -> None:
+    """--trace-signals, --trace-window, --trace-gzip (rig run and rig exec, with --mcu --trace)."""
+    p.add_argument("--trace-signals", metavar="LIST",
+                   help="with --trace: only these signals, comma-separated: twi, motors, twi.scl, twi.sda, "
+                        "twi.byte, twi.ack, twi.busy, m1..m4 (default: all)")
+    p.add_argument("--trace-window", metavar="START:END",
+                   help="with --trace: only the changes from START to END sim seconds ('2:5'; '2:' to the "
+                        "end)")
+    p.add_argument("--trace-gzip", action="store_true",
+                   help="with --trace: write .vcd.gz (GTKWave opens it; about a tenth of the size)")
+
+
+def trace_options(args: argparse.Namespace) -> TraceOptions | str:
+    """The trace's options from the command line, or what is wrong with them."""
+    from rig.mcu.vcd import TraceOptions, signal_problem
+
+    given = [o for o, v in (("--trace-signals", args.trace_signals), ("--trace-window", args.trace_window),
+                            ("--trace-gzip", args.trace_gzip)) if v]
+    if given and args.trace is None:
+        return f"{', '.join(given)} goes with --trace DIR"
+    signals = tuple(s.strip() for s in (args.trace_signals or "").split(",") if s.strip())
+    problem = signal_problem(signals)
+    if problem:
+        return f"--trace-signals: {problem}"
+    window = None
+    if args.trace_window is not None:
+        start, colon, end = args.trace_window.partition(":")
+        try:
+            lo, hi = float(start or 0), float(end) if end else math.inf
+        except ValueError:
+            lo = hi = math.nan
+        if not colon or not 0 <= lo < hi:
+            return f"--trace-window: expected START:END in sim seconds, START < END ('2:5', '2:'), got " \
+                   f"{args.trace_window!r}"
+        window = (round(lo * 1e9), 2**63 - 1 if math.isinf(hi) else round(hi * 1e9))
+    return TraceOptions(signals, window, bool(args.trace_gzip))
+
+
 def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:
     """``--mcu BOARD --firmware FILE``, both checked (the board file as a scenario is, the image's
     format and size against the board's MCU); None without --mcu."""
     if args.mcu is None:
         for option, value in (("--firmware", args.firmware), ("--trace", args.trace),
-                              ("--eeprom", args.eeprom)):
+                              ("--eeprom", args.eeprom), ("--hang-limit", args.hang_limit),
+                              ("--trace-signals", args.trace_signals), ("--trace-window", args.trace_window),
+                              ("--trace-gzip", args.trace_gzip or None)):
             if value is not None:
                 problems.append(f"{option} goes with --mcu BOARD")
         return None
@@ -410,6 +493,9 @@ def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:
     from rig.mcu.engine import FirmwareError
     from rig.targets.mcu import McuTarget
 
+    if args.hang_limit is not None and not 0 <= args.hang_limit <= 600:
+        problems.append(f"--hang-limit: expected seconds in 0..600 (0: off), got {args.hang_limit:g}")
+        return None
     if args.trace is not None:
         try:
             args.trace.mkdir(parents=True, exist_ok=True)
@@ -417,7 +503,11 @@ def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:
             problems.append(f"--trace {args.trace}: {e.strerror}")
             return None
     try:
-        return McuTarget(args.mcu, args.firmware, args.trace, args.eeprom)
+        options = trace_options(args)
+        if isinstance(options, str):
+            problems.append(options)
+            return None
+        return McuTarget(args.mcu, args.firmware, args.trace, args.eeprom, args.hang_limit, options)
     except (BoardError, FirmwareError) as e:
         problems.append(f"--mcu: {e}")
         return None
@@ -484,21 +574,22 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
         run_dir = folder.scenario_dir(sc.stem)
         print(f"[{i}/{n}] {sc.stem} ({sc.duration:g} s sim) ...", end="", file=sys.stderr, flush=True)
         try:
-            r = run(sc, suite.target, args.seed, run_dir, args.wall_timeout)
+            r = run(sc, suite.target, args.seed, run_dir, args.wall_timeout, profile=suite.profile)
         except Exception as e:  # the rig could not fly it (not the DUT's doing): say so, go on
             r = not_run(sc, args.seed, f"the rig could not run this scenario: {type(e).__name__}: {e}",
-                        suite.target)
+                        suite.target, suite.profile)
         results.append(r)
         write_run(run_dir, r)
         failed = [m.name for m in r.measurements if m.outcome == "fail"]
         rate = r.metadata.get("realtime_factor")
         speed = f"{rate:.1f}x" if isinstance(rate, int | float) else "not measured"
         wall = float(r.metadata.get("wall_time") or 0.0)
-        if r.verdict in ("error", "interrupted"):
+        if r.verdict in ("error", "interrupted", "skipped"):
             detail = f" {r.verdict}: {r.error}"
         else:
             detail = f" failed: {'; '.join(failed)}" if failed else ""
-        print(f" {r.verdict.upper()} ({wall:.1f} s wall, {speed}){detail}", file=sys.stderr)
+        timing = "" if r.verdict == "skipped" else f" ({wall:.1f} s wall, {speed})"  # (nothing flew)
+        print(f" {r.verdict.upper()}{timing}{detail}", file=sys.stderr)
         if r.verdict == "interrupted" and r.exit_code is not None:
             stop = r.exit_code
             break
@@ -521,9 +612,10 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
     (suite.out / "index.html").write_text(
         html_report.render_index(results, [f"{r.scenario.stem}/report.html" for r in results], left, links)
     )
-    counts = {v: sum(r.verdict == v for r in results) for v in ("pass", "fail", "error")}
+    counts = {v: sum(r.verdict == v for r in results) for v in ("pass", "fail", "error", "skipped")}
+    skipped = f", {counts['skipped']} skipped" if counts["skipped"] else ""
     print(
-        f"{counts['pass']} passed, {counts['fail']} failed, {counts['error']} errors in "
+        f"{counts['pass']} passed, {counts['fail']} failed, {counts['error']} errors{skipped} in "
         f"{time.perf_counter() - t_suite:.1f} s; reports in {suite.out}/index.html",
         file=sys.stderr,
     )

@@ -21,19 +21,23 @@ from typing import Final
 
 import numpy as np
 
-from rig import __version__, scratch
+from rig import __version__, scratch, uart_criteria
 from rig.emulators.faults import Fault, fault_sets
+from rig.emulators.sbus import KNOBS
 from rig.emulators.sensor_models import Normals
 from rig.host import Host
 from rig.plant.variables import MOTORS
 from rig.rc import StickEmulator
-from rig.scenarios.criteria import NOT_JUDGED, Measurement, measure
+from rig.scenarios import profile as profiles
+from rig.scenarios.criteria import NOT_JUDGED, NOT_MEASURED, SKIPPED, Measurement, measure
+from rig.scenarios.profile import Profile
 from rig.scenarios.result import RcFrame, RunResult
 from rig.scenarios.schema import Event, Scenario
 from rig.scenarios.signals import BENCH_SIGNALS, RECORD_PERIOD, SIGNALS
-from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, Target
+from rig.scenarios.terms import STICK_TERMS
+from rig.targets import RC_PATH, RunContext, Target, TargetRun, telemetry_path
 from rig.targets.process import ProcessTarget
-from rig.telemetry import read_columns
+from rig.telemetry import msp, read_columns
 from rig.world import World
 
 WIND_PERIOD: Final = 0.01
@@ -102,7 +106,7 @@ class _Recorder:
     table the world's probe writes in C (the signals derived from them are computed after the run)."""
 
     def __init__(self, scenario: Scenario, world: World, rc: StickEmulator, wind: _Wind,
-                 faults: list[Fault]) -> None:
+                 faults: list[Fault], profile: Profile) -> None:
         self.sc, self.world, self.rc, self.wind, self.faults = scenario, world, rc, wind, faults
         self.k = 0
         # the grid's rows (the table grows by doubling past MAX_ROWS_AT_ONCE)
@@ -113,8 +117,9 @@ class _Recorder:
         # so are the stick scales and the period: a plain dataclass's attribute and another module's
         # global are a dictionary lookup each, about 1 k instructions a tick of the 100 Hz recorder
         _, self._mag_from, self._mag_to = scenario.mag_disturbance_window
-        self._angle_scale: float = scenario.max_angle_deg
-        self._yaw_scale: float = scenario.max_yaw_rate_dps
+        # (the setpoints the sticks stand for: the scenario's [rc] when it says, else the FC profile's)
+        self._angle_scale: float = scenario.max_angle_deg or profile.modes.angle_deg or 0.0
+        self._yaw_scale: float = scenario.max_yaw_rate_dps or profile.modes.yaw_rate_dps
         self._period: float = RECORD_PERIOD
 
     def tick(self, session: Host) -> None:
@@ -196,22 +201,34 @@ def run(
     work_dir: Path | None = None,
     wall_timeout: float = 600.0,
     stall_timeout: float = 30.0,
+    profile: Profile | None = None,
 ) -> RunResult:
     """Runs ``scenario`` against ``target`` (rig/targets: a Linux program in lockstep or real time, a
-    board behind a bridge, a firmware image under emulation; None: the reference FC in lockstep). The
-    DUT's stdout, stderr and telemetry go to ``work_dir`` (with None, to a temporary folder removed
-    afterwards)."""
+    board behind a bridge, a firmware image under emulation; None: the reference FC in lockstep), flown
+    as ``profile`` says that FC is flown (None: the reference FC's). The DUT's stdout, stderr and
+    telemetry go to ``work_dir`` (with None, to a temporary folder removed afterwards)."""
     if target is None:
         target = ProcessTarget()
+    if profile is None:
+        profile = profiles.load()
     if work_dir is None:
         with scratch.folder("run") as tmp:
-            return run(scenario, target, seed, Path(tmp), wall_timeout, stall_timeout)
+            return run(scenario, target, seed, Path(tmp), wall_timeout, stall_timeout, profile)
     work = Path(work_dir)
     work.mkdir(parents=True, exist_ok=True)
+    why_not = cannot_fly(scenario, profile)
+    if why_not:
+        return not_run(scenario, seed, why_not, target, profile, verdict=SKIPPED)
     notes: list[str] = []
+    first = scenario.first_action
+    if first is not None and profile.startup_s > first:
+        notes.append(f"the FC's profile {profile.name!r} needs {profile.startup_s:g} s to start up; the "
+                     f"scenario acts first at {first:g} s, so all of it runs {profile.startup_s - first:g} s "
+                     "later")
+        scenario = scenario.shifted(profile.startup_s - first)
     metadata: dict[str, object] = {
-        **identity(scenario, seed),
-        **target.describe(scenario, work, notes),
+        **identity(scenario, seed, profile),
+        **target.describe(scenario, work, notes, profile),
         "duration": scenario.duration,
         "mode": target.mode,
     }
@@ -219,41 +236,45 @@ def run(
     world = World.at_rest(
         seed=seed,
         noise=scenario.noise,
-        params=scenario.plant_params(),
+        params=plant_params(scenario, profile, notes),
         faults=faults,
         mag_disturbance=scenario.mag_disturbance_at if any(scenario.mag_disturbance) else None,
         baro_noise_pa=scenario.baro_noise_pa,
         baro_drift_pa_per_s=scenario.baro_drift_pa_per_s,
-        **target.world_options(),
+        **{"motor_order": profile.motors.order, "pwm_channels": max(profile.motors.pwm_channels, 8),
+           **target.world_options()},
     )
     stderr_path = work / "dut-stderr.txt"
     try:  # (the world holds the plant, whose instance close() frees)
         metadata["plant_fmu_sha256"] = world.plant.fmu_sha256
         with open(stderr_path, "w") as err, open(work / "dut-stdout.txt", "w") as out:
-            ctx = RunContext(scenario, world, faults, work, out, err, wall_timeout, stall_timeout, notes)
+            ctx = RunContext(scenario, world, faults, work, out, err, wall_timeout, stall_timeout, notes,
+                             profile)
             target_run = target.open(ctx)
             try:
                 session = target_run.session
-                rc = StickEmulator(RC_PATH)
+                rc = StickEmulator(RC_PATH, cmap=profile.channel_map())
                 rc.start(session)
                 wind = _Wind(scenario, seed)
                 if wind.active():
                     session.at(0.0, lambda s: wind.tick(s, 0.0))
-                rec = _Recorder(scenario, world, rc, wind, [f.fault for f in scenario.faults])
+                rec = _Recorder(scenario, world, rc, wind, [f.fault for f in scenario.faults], profile)
                 session.at(0.0, rec.tick)
                 for ev in scenario.timeline:
-                    session.at(ev.t, _apply_event(rc, ev))
+                    session.at(ev.t, apply_event(rc, ev, profile, notes))
+                _schedule_sends(scenario, target_run, session, notes)
                 outcome = session.run()
                 signals = rec.signals()
                 metadata.update(target_run.figures(outcome))
                 signals.update(target_run.signals(signals["t"]))
                 idle = target_run.idle(outcome) if outcome.verdict == "ok" else None
                 i2c = target_run.transactions()
+                uarts = target_run.uarts()
             finally:
                 target_run.close()
     finally:
         world.close()
-    raw_telemetry = session.serial_output(TELEMETRY_PATH)
+    raw_telemetry = session.serial_output(telemetry_path(profile))
     (work / "dut-telemetry.txt").write_bytes(raw_telemetry)  # the DUT's own words, kept as they came
     tel, bad, nonfinite = parse_telemetry(raw_telemetry, session.dut_clock_base_s)
     if bad:
@@ -295,7 +316,7 @@ def run(
     for name in BENCH_SIGNALS:  # a criterion on the supply's signals, in a run without one: NaN, not judged
         signals.setdefault(name, np.full(len(signals["t"]), math.nan))
     measurements = [
-        measure(
+        uart_criteria.measure(c, uarts) if c.uart is not None else measure(
             c.name,
             c.metric,
             c.signal,
@@ -313,6 +334,7 @@ def run(
         )
         for c in scenario.criteria
     ]
+    measurements = judge_flight(scenario, profile, signals, measurements, notes)
     stderr = stderr_path.read_text(errors="replace")
     error = idle
     if error:  # a DUT that never flew passes nothing, however still the vehicle stayed
@@ -329,7 +351,8 @@ def run(
         measurements = [dataclasses.replace(m, outcome=NOT_JUDGED, reason="the run ended in error",
                                             marginal=False) for m in measurements]
     else:
-        verdict = "pass" if all(m.outcome == "pass" for m in measurements) else "fail"
+        # (not measured is no pass, nor a failure; a scenario with only those was skipped: cannot_fly)
+        verdict = "pass" if all(m.outcome in ("pass", NOT_MEASURED) for m in measurements) else "fail"
     notes += outcome.notes
     assert set(SIGNALS) - set(BENCH_SIGNALS) <= set(signals), set(SIGNALS) - set(signals)
     rc_frames = list(map(functools.partial(tuple.__new__, RcFrame), rc.frames))  # (no Python frame each)
@@ -337,9 +360,28 @@ def run(
                      notes, i2c, rc_frames)
 
 
-def identity(scenario: Scenario, seed: int) -> dict[str, object]:
-    """What every result.json says about where and when it was made, errored or not."""
+def plant_params(scenario: Scenario, profile: Profile, notes: list[str]) -> dict[str, float]:
+    """The plant's parameters: the scenario's airframe and [vehicle] table, with the frame the FC's
+    profile flies (the airframe is built for the FC's mixer) unless the scenario sets one itself."""
+    frame = 1.0 if profile.motors.frame == "x" else 0.0
+    params = scenario.plant_params()
+    own = scenario.plant.get("frame")
+    if own is None:
+        params["frame"] = frame
+    elif own != frame:
+        notes.append(f"the scenario's vehicle frame ({own:g}) is not the FC profile's "
+                     f"({profile.motors.frame!r}); the scenario's is flown")
+    return params
+
+
+def identity(scenario: Scenario, seed: int, profile: Profile | None = None) -> dict[str, object]:
+    """What every result.json says about where and when it was made, errored or not, and for which FC."""
+    if profile is None:
+        profile = profiles.load()
     return {
+        "fc_profile": profile.name,
+        "fc_profile_file": str(profile.path),
+        "fc_profile_sha256": profile.sha256,
         "rig_version": __version__,
         "scenario": scenario.stem,
         "scenario_name": scenario.name,
@@ -354,18 +396,20 @@ def identity(scenario: Scenario, seed: int) -> dict[str, object]:
     }
 
 
-def not_run(scenario: Scenario, seed: int, error: str, target: Target | None = None) -> RunResult:
-    """The result of a scenario the rig could not fly at all (an error before the DUT started):
-    nothing recorded, nothing judged."""
+def not_run(scenario: Scenario, seed: int, error: str, target: Target | None = None,
+            profile: Profile | None = None, verdict: str = "error") -> RunResult:
+    """The result of a scenario the rig could not fly at all (an error before the DUT started), or
+    did not fly (``verdict`` SKIPPED: an FC that cannot fly it, ``error`` says why): nothing recorded,
+    nothing judged."""
     empty = {name: np.zeros(0) for name in ("t", *SIGNALS)}
+    outcome, why = (SKIPPED, error) if verdict == SKIPPED else (NOT_JUDGED, "the run did not take place")
     measurements = [
-        Measurement(c.name, c.metric, c.signal, math.nan, c.units, c.min, c.max, c.start, c.end, NOT_JUDGED,
-                    "the run did not take place")
+        Measurement(c.name, c.metric, c.signal, math.nan, c.units, c.min, c.max, c.start, c.end, outcome, why)
         for c in scenario.criteria
     ]
-    metadata: dict[str, object] = {**identity(scenario, seed), "duration": scenario.duration,
+    metadata: dict[str, object] = {**identity(scenario, seed, profile), "duration": scenario.duration,
                                    **(target or ProcessTarget()).not_run_metadata()}
-    return RunResult(scenario, "error", error, measurements, empty, metadata)
+    return RunResult(scenario, verdict, error, measurements, empty, metadata)
 
 
 def _last_words(stderr: str) -> str:
@@ -374,13 +418,127 @@ def _last_words(stderr: str) -> str:
     return lines[-1][:300] if lines else ""
 
 
-def _apply_event(rc: StickEmulator, ev: Event) -> Callable[[Host], None]:
+def _schedule_sends(scenario: Scenario, target_run: TargetRun, session: Host, notes: list[str]) -> None:
+    """The scenario's [[serial]] sends, each at its time on its USART; a DUT without USARTs gets none
+    (the notes say so)."""
+    for send in scenario.serial:
+        port = target_run.serial_port(send.uart, send.baud)
+        if port is None:
+            notes.append(f"{len(scenario.serial)} [[serial]] send(s) not made: this DUT has no USART "
+                         "the rig reaches (an MCU target's)")
+            return
+        data = send.data if send.msp is None else msp.request(*send.msp)
+        session.at(send.t, functools.partial(_send, port, data))
+
+
+def _send(port: str, data: bytes, session: Host) -> None:
+    session.serial_write(port, data)
+
+
+def apply_event(rc: StickEmulator, ev: Event, profile: Profile, notes: list[str]) -> Callable[[Host], None]:
+    """A timeline entry as an event: its sticks (degrees through the FC's profile), mode, arming, link
+    state and plant inputs (rig exec --sticks too)."""
     def apply(session: Host) -> None:
         for k, v in ev.sticks.items():
-            setattr(rc.sticks, k, v)
+            if k in STICK_TERMS:  # degrees or degrees per second: the FC's stick for them
+                axis, x = profiles.stick(profile, k, v)
+                setattr(rc.sticks, axis, x)
+            else:
+                setattr(rc.sticks, k, v)
+        if ev.mode is not None:
+            rc.sticks.mode = ev.mode
+        if ev.arm is not None:
+            _arming(session, rc, ev.arm, ev.t, profile, notes)
         if ev.link is not None:
             rc.link = ev.link
         for k, v in ev.inputs.items():
             session.world.set_input(k, v)
 
     return apply
+
+
+def _arming(session: Host, rc: StickEmulator, arm: bool, t: float, profile: Profile,
+            notes: list[str]) -> None:
+    """Arms or disarms as the FC's profile says: a switch, or a stick gesture held for its time (the
+    scenario's own stick changes meanwhile apply when it ends)."""
+    method = profile.arming.method
+    rc.sticks.arm = arm
+    if method == "sticks":
+        gesture = "arm" if arm else "disarm"
+        rc.sticks.gesture = gesture
+
+        def release(_: Host) -> None:
+            if rc.sticks.gesture == gesture:
+                rc.sticks.gesture = ""
+
+        session.at(t + profile.arming.hold_s, release)
+    elif method == "telemetry":
+        notes.append(f"the FC's profile {profile.name!r} arms by a telemetry command, which this rig does "
+                     f"not send yet: the {'arm' if arm else 'disarm'} at {t:g} s was not done")
+
+
+#: the signals that come from the FC's telemetry (its estimates and its armed flag)
+TELEMETRY_SIGNALS: Final = frozenset({*TELEMETRY_KEYS.values(), "roll_est_error", "pitch_est_error",
+                                      "yaw_est_error", "alt_est_error"})
+
+
+def cannot_fly(scenario: Scenario, profile: Profile) -> str:
+    """Why the FC cannot fly this scenario under its profile (a mode or feature it lacks, more than a
+    full stick, nothing the rig can measure of it), or ""."""
+    why = profiles.fly_check(profile, scenario.needs, scenario.stick_terms())
+    if why:
+        return why
+    knobs = sorted({k for e in scenario.timeline for k in e.sticks if k in KNOBS} - set(profile.rc.extra))
+    if knobs:
+        return f"the FC's profile {profile.name!r} has no {', '.join(knobs)} channel (rc.extra)"
+    if not profile.reads_telemetry and all(c.signal in TELEMETRY_SIGNALS for c in scenario.criteria):
+        return f"every criterion is on the FC's estimates: {profile.not_measured_reason()}"
+    return ""
+
+
+def judge_flight(scenario: Scenario, profile: Profile, signals: dict[str, np.ndarray],
+                 measurements: list[Measurement], notes: list[str]) -> list[Measurement]:
+    """The criteria the FC's telemetry cannot give are not measured; in a scenario that arms, an FC
+    that never armed, or a free vehicle that never left the ground, fails every criterion with that
+    reason (a vehicle that sat still does not pass "holds attitude")."""
+    reason = profile.not_measured_reason()
+    out = [dataclasses.replace(m, value=math.nan, outcome=NOT_MEASURED, reason=reason, margin=None,
+                               marginal=False)
+           if reason and m.signal in TELEMETRY_SIGNALS else m for m in measurements]
+    still = why_still(scenario, profile, signals)
+    if still:
+        notes.append(still)
+        out = [dataclasses.replace(m, outcome="fail", reason=still, marginal=False)
+               if m.outcome in ("pass", "fail") else m for m in out]
+    return out
+
+
+def why_still(scenario: Scenario, profile: Profile, signals: dict[str, np.ndarray]) -> str:
+    """In a scenario that arms: "" when the FC armed (and a free vehicle given take-off throttle lifted
+    off), else what it did not do and how the rig knows."""
+    arms = [e.t for e in scenario.timeline if e.arm]
+    if not arms or not len(signals["t"]):
+        return ""
+    after = signals["t"] >= arms[0]
+    said = signals["armed"][after]
+    # (by its telemetry's flag when it sent any; a DUT that sends none is judged by its motors)
+    if profile.arming.detect == "telemetry" and profile.reads_telemetry and not bool(np.all(np.isnan(said))):
+        armed = bool(np.any(np.nan_to_num(said) > 0.5))
+        how = "its telemetry never said armed"
+    else:
+        armed = bool(np.any(signals["pwm_max"][after] > profile.arming.idle_us))
+        how = f"no motor pulse above {profile.arming.idle_us:g} us"
+    if not armed:
+        return f"the FC never armed ({how} after the arm at {arms[0]:g} s): nothing it did was a flight"
+    climb = [e.t for e in scenario.timeline
+             if e.t >= arms[0] and e.sticks.get("throttle", 0.0) >= LIFT_THROTTLE]
+    if (climb and scenario.plant.get("stand", 0.0) == 0.0
+            and bool(np.all(signals["on_ground"][signals["t"] >= climb[0]] > 0.5))):
+        return (f"the vehicle never left the ground after the throttle went to take-off at {climb[0]:g} s: "
+                "nothing was flown")
+    return ""
+
+
+#: a free vehicle given at least this throttle after arming is expected to leave the ground (the
+#: library's hover is 0.5 to 0.56); below it a scenario may mean to stay on the ground
+LIFT_THROTTLE: Final = 0.5

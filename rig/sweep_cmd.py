@@ -19,10 +19,21 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rig import interrupts, scratch
-from rig.run_cmd import LIBRARY, ReportFolder, UsageError, add_airframe_option, seconds_option
+from rig.run_cmd import (
+    LIBRARY,
+    ReportFolder,
+    UsageError,
+    add_airframe_option,
+    add_fc_option,
+    load_profile,
+    seconds_option,
+)
+
+if TYPE_CHECKING:
+    from rig.scenarios.profile import Profile
 
 EXIT_FAIL, EXIT_USAGE, EXIT_ERROR = 1, 2, 3
 #: a local pool whose process died (killed, out of memory) is started again this many times
@@ -66,6 +77,7 @@ def add_parser(sub: Any) -> None:
     )
     p.add_argument("--dut", help="the DUT command line (default: the reference FC, as rig run)")
     add_airframe_option(p)
+    add_fc_option(p)
     p.add_argument(
         "--wall-timeout",
         type=seconds_option,
@@ -101,10 +113,21 @@ def main(args: argparse.Namespace) -> int:
         if not dut:
             print("rig sweep: --dut is empty", file=sys.stderr)
             return EXIT_USAGE
+    problems: list[str] = []
+    profile = load_profile(args.fc, problems)
+    if profile is None:
+        for line in problems:
+            print(f"rig sweep: {line}", file=sys.stderr)
+        return EXIT_USAGE
+    args.fc = str(profile.path)  # (a worker elsewhere reads the same file)
     try:
         sweep = load_sweep(args.spec, LIBRARY, airframe=args.airframe)
     except SweepError as e:
         print(f"rig sweep: {args.spec}: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    unflyable = _unflyable(sweep, profile)
+    if unflyable:
+        print(f"rig sweep: {args.spec}: {unflyable}", file=sys.stderr)
         return EXIT_USAGE
     try:
         with ReportFolder(args.out), interrupts.handled():
@@ -122,7 +145,7 @@ def _sweep(sweep: Any, args: argparse.Namespace, dut: list[str] | None) -> int:
     from rig.sweep.work import Task, fly, read_row
 
     out: Path = args.out.resolve()
-    ident = store.dut_identity(dut)
+    ident = store.dut_identity(dut, fc=args.fc)
     if args.fresh:
         _remove_runs(out)
     rows: dict[str, dict[str, Any]] = {}
@@ -143,7 +166,7 @@ def _sweep(sweep: Any, args: argparse.Namespace, dut: list[str] | None) -> int:
     tmp = str(scratch.make("sweep")) if local else None
     flown_by = {k: ident[k] for k in store.DUT_KEYS}
     todo = [
-        Task(v, str(sweep.scenario_path), str(out), dut, args.wall_timeout, tmp, **flown_by)
+        Task(v, str(sweep.scenario_path), str(out), dut, args.wall_timeout, tmp, **flown_by, fc=args.fc)
         for v in sweep.variants
         if v.id not in rows
     ]
@@ -190,6 +213,19 @@ def _sweep(sweep: Any, args: argparse.Namespace, dut: list[str] | None) -> int:
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
     return _finish(sweep, out, rows, engine_name, stop, time.perf_counter() - t0, ident)
+
+
+def _unflyable(sweep: Any, profile: Profile) -> str:
+    """Why the FC cannot fly a variant of the sweep under its profile (rig run would skip it: a sweep
+    of it measures nothing), or ""."""
+    from rig.runner import cannot_fly
+    from rig.scenarios.schema import check
+
+    for v in sweep.variants:
+        why = cannot_fly(check(v.data, sweep.scenario_path), profile)
+        if why:
+            return f"variant {v.id}: {why}"
+    return ""
 
 
 def _tally(verdict: str) -> str:

@@ -31,7 +31,7 @@ from rig.emulators.sensor_models import (
     no_disturbance,
 )
 from rig.plant import Plant
-from rig.plant.variables import MOTORS, PWM_INPUTS, SCENARIO_INPUTS
+from rig.plant.variables import MOTORS, PWM_INPUTS, SCENARIO_INPUTS, pwm_input
 
 STEP_NS: Final = 1_000_000
 HISTORY: Final = 256  # plant steps kept for devices catching up (256 ms at 1 ms)
@@ -133,6 +133,8 @@ class World:
     step_ns: int = STEP_NS
     pwm: list[PwmChannel] = field(default_factory=lambda: [PwmChannel() for _ in range(8)])
     direct_pwm: bool = True
+    #: the plant motor (1..4) each of the DUT's first four PWM channels drives (its FC profile's order)
+    motor_order: tuple[int, ...] = (1, 2, 3, 4)
 
     def __post_init__(self) -> None:
         # the plant steps taken (``_k``), in a cell C reads and moves in place (rig/lockstep: the fast
@@ -147,6 +149,8 @@ class World:
         self._k0 = self._k
         self._hist[self._k % HISTORY] = self.plant.y
         self._u_pwm = [self.plant.u_index[name] for name in PWM_INPUTS]
+        # the input each PWM channel 0..MOTORS-1 drives, in the DUT's output order
+        self._u_out = [self.plant.u_index[pwm_input(m)] for m in self.motor_order]
         self._u_named = {name: self.plant.u_index[name] for name in SCENARIO_INPUTS}
         self._u_cells = self.plant.u_cells
         self._read_on_ground = self.plant.read_on_ground
@@ -164,12 +168,16 @@ class World:
         baro_noise_pa: float = 0.0,
         baro_drift_pa_per_s: float = 0.0,
         mounting: tuple[tuple[float, float, float], ...] = FLAT_ON_BOARD,
+        motor_order: tuple[int, ...] = (1, 2, 3, 4),
+        mpu_address: int = 0x68,
     ) -> World:
         """The default world of ``rig exec``: the vehicle resting on the ground, motors off, a GY-86.
         ``faults`` by name: signal faults "accel", "gyro", "mag", "baro" act in the sensor models; bus
         faults "mpu", "hmc", "baro_bus" act on the chip on the bus. The barometer's noise and drift
         are its model's (the barometer is exact by default, so a reading can be checked to the pascal).
-        ``mounting``: body FRD to the sensors' frame (the board's; its default lies flat, facing forward)."""
+        ``motor_order``: the plant motor each of the DUT's PWM channels 0..3 drives. ``mounting``: body
+        FRD to the sensors' frame (the board's; its default lies flat, facing forward). ``topology``
+        "gy521" is the MPU-6050 alone, at ``mpu_address`` (0x69: AD0 high)."""
         faults = dict(faults or {})
         unknown = set(faults) - set(FAULT_TARGETS)
         if unknown:
@@ -198,8 +206,9 @@ class World:
                          drift_pa_per_s=baro_drift_pa_per_s)
         # the chips are the chip core in C (emulators/chips/), fed by these models
         bus_faults: dict[str, FaultSet] = {k: faults[k] for k in ("mpu", "hmc", "baro_bus") if k in faults}
-        board = build_chip_board(imu, mag, baro, topology, faults=bus_faults, baro_seed=seed + 3)
-        world = cls(plant, board, pwm=[PwmChannel() for _ in range(pwm_channels)])
+        board = build_chip_board(imu, mag, baro, topology, faults=bus_faults, baro_seed=seed + 3,
+                                 mpu_address=mpu_address)
+        world = cls(plant, board, pwm=[PwmChannel() for _ in range(pwm_channels)], motor_order=motor_order)
         truth.world = world
         return world
 
@@ -252,13 +261,13 @@ class World:
         """Channels 0..MOTORS-1 drive motors 1..MOTORS at once, unless a capture link (rig/capture.py)
         stands between them and sets ``direct_pwm`` False."""
         if channel < MOTORS and self.direct_pwm:
-            self._u_cells[self._u_pwm[channel]] = self.pwm[channel].pulse_us()
+            self._u_cells[self._u_out[channel]] = self.pwm[channel].pulse_us()
 
     # ---- the scenario's side: what the world accepts from outside, by name ---------------------
 
     def set_motor(self, motor: int, pulse_us: float) -> None:
-        """The ESC pulse of motor ``motor`` (0-based, as the PWM channels) from a capture link."""
-        self._u_cells[self._u_pwm[motor]] = pulse_us
+        """The ESC pulse of the DUT's output ``motor`` (0-based, as the PWM channels) from a capture link."""
+        self._u_cells[self._u_out[motor]] = pulse_us
 
     def set_input(self, name: str, value: float) -> None:
         """One of the plant's scenario inputs by name (plant.variables.SCENARIO_INPUTS: wind, external

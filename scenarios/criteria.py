@@ -127,6 +127,11 @@ METRICS: dict[str, MetricDef] = {
 
 #: A measurement's outcome when its run ended in error: the value may exist, but nothing was judged
 NOT_JUDGED = "not judged"
+#: A measurement's outcome when the FC under test cannot give the signal (no telemetry the rig reads):
+#: shown with the reason, never counted as a pass
+NOT_MEASURED = "not measured"
+#: The outcome (and verdict) of a scenario the FC cannot fly (a mode or feature its profile lacks)
+SKIPPED = "skipped"
 
 #: A pass closer than this to a limit (in % of the limit) is marginal, after OpenHTF's marginal limits
 MARGINAL_PCT = 10.0
@@ -163,7 +168,7 @@ class Measurement:
     max: float | None
     start: float
     end: float
-    outcome: str  # "pass" | "fail" | NOT_JUDGED
+    outcome: str  # "pass" | "fail" | NOT_JUDGED | NOT_MEASURED | SKIPPED
     reason: str = ""
     target: float | None = None  # the target the metric used (after baseline_at), if it has one
     band: float | None = None

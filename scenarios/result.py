@@ -71,10 +71,14 @@ class RcFrame(NamedTuple):
     failsafe: bool
 
 
+#: a run's verdicts: "skipped" is a scenario the FC cannot fly (its profile says why), not a failure
+VERDICTS = ("pass", "fail", "error", "interrupted", "skipped")
+
+
 @dataclass
 class RunResult:
     scenario: ScenarioInfo
-    verdict: str  # "pass" | "fail" | "error" | "interrupted" (a signal stopped the rig mid-run)
+    verdict: str  # VERDICTS: "interrupted" when a signal stopped the rig mid-run
     error: str | None
     measurements: list[Measurement]
     signals: dict[str, np.ndarray]

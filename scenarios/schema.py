@@ -24,14 +24,15 @@ from rig.emulators.faults import KINDS as FAULT_KINDS
 from rig.emulators.faults import TARGETS as FAULT_TARGETS
 from rig.emulators.faults import Fault, TargetedFault
 from rig.emulators.pwm_capture import TRANSPORTS as CAPTURE_TRANSPORTS
-from rig.emulators.sbus import STICKS
 from rig.plant import airframes
 from rig.plant.airframes import Airframe, AirframeError
 from rig.plant.variables import SCENARIO_INPUTS, VARIABLES, check_parameters
 from rig.scenarios import fc_keys
 from rig.scenarios.bench import BenchPower, parse_psu
 from rig.scenarios.criteria import MARGINAL_PCT, METRICS
+from rig.scenarios.serial import SERIAL_CRITERION_KEYS, SerialSend, parse_expect, parse_send
 from rig.scenarios.signals import SIGNALS
+from rig.scenarios.terms import FEATURES, MODES, STICK_TERMS, STICKS
 
 PLANT_PARAMETERS = {v.name for v in VARIABLES if v.causality == "parameter"}
 PLANT_INPUTS = set(SCENARIO_INPUTS)
@@ -55,7 +56,7 @@ def _all(problems: list[ScenarioError]) -> ScenarioError:
     if len(problems) == 1:
         return problems[0]
     first = problems[0]
-    err = ScenarioError(first.file, first.key, "")
+    err = type(first)(first.file, first.key, "")  # (a board's or a profile's error stays one)
     err.args = ("\n".join(str(p) for p in problems),)
     err.problems = list(problems)
     return err
@@ -74,9 +75,14 @@ class Gust:
 @dataclass(frozen=True)
 class Event:
     t: float
-    sticks: dict[str, float | bool] = field(default_factory=dict)
+    sticks: dict[str, float] = field(default_factory=dict)  # STICK_UNITS, KNOBS or STICK_TERMS
     link: str | None = None
     inputs: dict[str, float] = field(default_factory=dict)
+    arm: bool | None = None  # True: arm, False: disarm, as the FC's profile says it is done
+    mode: str | None = None  # a flight mode by name (MODES), on the profile's mode channel
+
+    def shifted(self, dt: float) -> Event:
+        return dataclasses.replace(self, t=self.t + dt)
 
 
 @dataclass(frozen=True)
@@ -93,6 +99,8 @@ class CriterionSpec:
     units: str
     baseline_at: float | None = None  # target counts from the signal's value at this time
     marginal: float = MARGINAL_PCT  # a pass closer than this (% of the limit) to a limit is marginal
+    uart: int | None = None  # a criterion on a USART's output (rig/scenarios/serial.py), not a signal
+    expect: str | int | None = None  # its line's regular expression, or the MSP command replied to
 
 
 @dataclass(frozen=True)
@@ -136,9 +144,52 @@ class Scenario:
     criteria: tuple[CriterionSpec, ...]
     capture: Capture
     bench: BenchPower
-    max_angle_deg: float
-    max_yaw_rate_dps: float
+    max_angle_deg: float | None  # None: the FC profile's angle per full stick
+    max_yaw_rate_dps: float | None
     sha256: str
+    serial: tuple[SerialSend, ...] = ()
+    #: the modes and features the scenario needs (its [scenario] needs and every mode its timeline asks)
+    needs: tuple[str, ...] = ()
+
+    @property
+    def first_action(self) -> float | None:
+        """When the scenario first moves a stick or arms: the FC must be ready by then."""
+        times = [e.t for e in self.timeline if e.sticks or e.arm is not None or e.mode is not None]
+        return min(times) if times else None
+
+    @property
+    def arms(self) -> bool:
+        return any(e.arm for e in self.timeline)
+
+    def stick_terms(self) -> dict[str, float]:
+        """The largest magnitude asked of each stick given in degrees or degrees per second."""
+        out: dict[str, float] = {}
+        for e in self.timeline:
+            for k, v in e.sticks.items():
+                if k in STICK_TERMS:
+                    out[k] = max(out.get(k, 0.0), abs(v))
+        return out
+
+    def shifted(self, dt: float) -> Scenario:
+        """The scenario ``dt`` seconds later: every time in it (timeline, faults, gusts, the magnetic
+        disturbance, criteria windows) and its duration, for an FC that needs longer to start up."""
+        if dt <= 0:
+            return self
+        return dataclasses.replace(
+            self,
+            duration=self.duration + dt,
+            timeline=tuple(e.shifted(dt) for e in self.timeline),
+            faults=tuple(TargetedFault(f.target, dataclasses.replace(f.fault, start=f.fault.start + dt,
+                                                                     end=f.fault.end + dt))
+                         for f in self.faults),
+            gusts=tuple(dataclasses.replace(g, start=g.start + dt) for g in self.gusts),
+            serial=tuple(dataclasses.replace(send, t=send.t + dt) for send in self.serial),
+            mag_disturbance_start=self.mag_disturbance_start + dt,
+            mag_disturbance_end=self.mag_disturbance_end + dt,
+            criteria=tuple(dataclasses.replace(
+                c, start=c.start + dt, end=c.end + dt,
+                baseline_at=None if c.baseline_at is None else c.baseline_at + dt) for c in self.criteria),
+        )
 
     def mag_disturbance_at(self, t: float) -> tuple[float, float, float]:
         """The scheduled disturbance field (body, gauss) at sim time ``t``."""
@@ -267,7 +318,10 @@ class _Check:
         if not isinstance(v, str):
             raise self.fail(full, f"expected a string, got {_kind(v)}")
         if choices is not None and v not in choices:
-            raise self.fail(full, f"expected one of {', '.join(choices)}, got {v!r}")
+            near = difflib.get_close_matches(v, list(choices), n=1)
+            hint = f"; did you mean {near[0]!r}?" if near else ""
+            said = ", ".join(c or "''" for c in choices)
+            raise self.fail(full, f"expected one of {said}, got {v!r}{hint}")
         return v
 
     def boolean(self, data: dict[str, Any], key: str, path: str, default: bool) -> bool:
@@ -327,8 +381,9 @@ TOP = {
     "faults",
     "gusts",
     "criteria",
+    "serial",
 }
-SCENARIO_KEYS = {"name", "description", "seed_paper", "duration"}
+SCENARIO_KEYS = {"name", "description", "seed_paper", "duration", "needs"}
 SENSOR_KEYS = {"noise", "baro_noise_pa", "baro_drift_pa_per_s"}
 ENV_KEYS = {
     "wind",
@@ -341,11 +396,11 @@ ENV_KEYS = {
 RC_KEYS = {"max_angle_deg", "max_yaw_rate_dps"}
 BENCH_KEYS = {"psu", "volts", "current_limit", "max_current", "off_s", "settle_s"}
 CAPTURE_KEYS = {"transport", "resolution_us", "rate_hz", "latency_s", "can_interface", "can_channel"}
-EVENT_KEYS = {"t", "sticks", "link", "inputs"}
+EVENT_KEYS = {"t", "sticks", "link", "inputs", "arm", "disarm", "mode"}
 FAULT_KEYS = {"target", "kind", "start", "end", "magnitude", "period", "duty"}
 GUST_KEYS = {"start", "duration", "peak"}
 CRITERION_KEYS = {"name", "metric", "signal", "start", "end", "target", "band", "min", "max", "baseline_at",
-                  "marginal"}
+                  "marginal", *SERIAL_CRITERION_KEYS}
 
 
 def load(path: str | Path) -> Scenario:
@@ -454,7 +509,13 @@ def check(data: dict[str, Any], path: Path, sha256: str | None = None) -> Scenar
         entries = c.array(data, "timeline")
         for i, entry in enumerate(entries):
             with c.part():
-                timeline.append(_event(c, entry, f"timeline[{i}]", duration))
+                timeline.append(timeline_event(c, entry, f"timeline[{i}]", duration))
+
+    serial = []
+    with c.part():
+        for i, entry in enumerate(c.array(data, "serial")):
+            with c.part():
+                serial.append(parse_send(c, entry, f"serial[{i}]", duration))
 
     faults = []
     with c.part():
@@ -502,8 +563,11 @@ def check(data: dict[str, Any], path: Path, sha256: str | None = None) -> Scenar
         ("mag_disturbance", lambda: c.vector(env, "mag_disturbance", "environment")),
         ("mag_disturbance_start", lambda: c.number(env, "mag_disturbance_start", "environment", 0.0, low=0)),
         ("mag_disturbance_end", lambda: c.number(env, "mag_disturbance_end", "environment", math.inf)),
-        ("max_angle_deg", lambda: c.number(rc, "max_angle_deg", "rc", 30.0, positive=True, high=90)),
-        ("max_yaw_rate_dps", lambda: c.number(rc, "max_yaw_rate_dps", "rc", 90.0, positive=True)),
+        ("max_angle_deg", lambda: c.number(rc, "max_angle_deg", "rc", positive=True, high=90)
+         if "max_angle_deg" in rc else None),
+        ("max_yaw_rate_dps", lambda: c.number(rc, "max_yaw_rate_dps", "rc", positive=True)
+         if "max_yaw_rate_dps" in rc else None),
+        ("needs", lambda: _needs(c, meta, timeline)),
     ):
         with c.part():
             values[name] = read()
@@ -517,6 +581,7 @@ def check(data: dict[str, Any], path: Path, sha256: str | None = None) -> Scenar
         gusts=tuple(gusts),
         faults=tuple(faults),
         timeline=tuple(sorted(timeline, key=lambda e: e.t)),
+        serial=tuple(sorted(serial, key=lambda e: e.t)),
         criteria=tuple(criteria),
         capture=capture,
         bench=bench,
@@ -525,20 +590,55 @@ def check(data: dict[str, Any], path: Path, sha256: str | None = None) -> Scenar
     )
 
 
-def _event(c: _Check, entry: Any, key: str, duration: float) -> Event:
+def timeline_event(c: _Check, entry: Any, key: str, duration: float) -> Event:
+    """One [[timeline]] entry (rig exec --sticks checks its own with this too)."""
     ev = c.table(entry, key, EVENT_KEYS)
     t = c.number(ev, "t", key, low=0, high=duration)
     sticks = c.table(ev.get("sticks", {}), f"{key}.sticks", STICKS)
-    st: dict[str, float | bool] = {}
+    st: dict[str, float] = {}
+    arm: bool | None = None
+    mode: str | None = None
     for k in sticks:
-        if k in ("arm", "alt_hold"):
-            st[k] = c.boolean(sticks, k, f"{key}.sticks", False)
+        if k == "arm":  # (the older form: the arm switch as a stick)
+            arm = c.boolean(sticks, k, f"{key}.sticks", False)
+        elif k == "alt_hold":  # (the older form: the reference FC's altitude-hold switch)
+            mode = "althold" if c.boolean(sticks, k, f"{key}.sticks", False) else ""
+        elif k in STICK_TERMS:
+            st[k] = c.number(sticks, k, f"{key}.sticks", low=-2000, high=2000)
         else:
             st[k] = c.number(sticks, k, f"{key}.sticks", low=0 if k == "throttle" else -1, high=1)
+    for axis in ("roll", "pitch", "yaw"):
+        given = [k for k in sticks if k == axis or k.startswith(f"{axis}_")]
+        if len(given) > 1:
+            raise c.fail(f"{key}.sticks.{given[1]}",
+                         f"{axis} is given twice ({' and '.join(given)}): one of them")
+    for action in ("arm", "disarm"):
+        if action in ev:
+            if not c.boolean(ev, action, key, False):
+                raise c.fail(f"{key}.{action}", f"expected true (the action), or no {action} key")
+            if arm is not None:
+                raise c.fail(f"{key}.{action}", "one arm or disarm per timeline entry")
+            arm = action == "arm"
+    if "mode" in ev:
+        if mode is not None:
+            raise c.fail(f"{key}.mode", "the mode is given twice (mode and sticks.alt_hold): one of them")
+        mode = c.string(ev, "mode", key, choices=MODES)
     link = c.string(ev, "link", key, choices=LINK_STATES) if "link" in ev else None
     inputs_raw = c.table(ev.get("inputs", {}), f"{key}.inputs", PLANT_INPUTS)
     inputs = {k: c.number(inputs_raw, k, f"{key}.inputs") for k in inputs_raw}
-    return Event(t, st, link, inputs)
+    return Event(t, st, link, inputs, arm, mode)
+
+
+def _needs(c: _Check, meta: dict[str, Any], timeline: list[Event]) -> tuple[str, ...]:
+    """[scenario] needs (modes and features), and every mode the timeline asks for."""
+    given = meta.get("needs", [])
+    if not isinstance(given, list) or not all(isinstance(x, str) for x in given):
+        raise c.fail("scenario.needs", f"expected an array of modes and features "
+                                       f"({', '.join(MODES + FEATURES)}), got {given!r}")
+    for k, x in enumerate(given):
+        c.string({f"needs[{k}]": x}, f"needs[{k}]", "scenario", choices=MODES + FEATURES)
+    asked = [e.mode for e in timeline if e.mode]
+    return tuple(dict.fromkeys([*given, *asked]))
 
 
 def _fault(c: _Check, raw: Any, key: str, duration: float) -> TargetedFault:
@@ -566,6 +666,8 @@ def _criterion(c: _Check, raw: Any, key: str, duration: float) -> CriterionSpec 
             c.table(raw, key, CRITERION_KEYS)
         return None
     cr = c.lenient(raw, key, CRITERION_KEYS)
+    if "uart" in cr:
+        return _serial_criterion(c, cr, key, duration, before)
     metric = signal = ""
     with c.part():
         metric = c.string(cr, "metric", key, choices=tuple(METRICS))
@@ -575,12 +677,7 @@ def _criterion(c: _Check, raw: Any, key: str, duration: float) -> CriterionSpec 
                 raise c.fail(f"{key}.{need}", f"missing; metric {metric} needs {', '.join(needs)}")
     with c.part():
         signal = c.string(cr, "signal", key, choices=tuple(SIGNALS))
-    start, end = 0.0, duration
-    with c.part():
-        start = c.number(cr, "start", key, 0.0, low=0, high=duration)
-        end = c.number(cr, "end", key, duration, low=0, high=duration)
-        if not end > start:
-            raise c.fail(f"{key}.end", f"expected a time after start ({start:g} s), got {end:g}")
+    start, end = _window(c, cr, key, duration)
     lo = hi = None
     with c.part():
         lo = c.optional(cr, "min", key)
@@ -631,3 +728,32 @@ def _criterion(c: _Check, raw: Any, key: str, duration: float) -> CriterionSpec 
         baseline_at,
         MARGINAL_PCT if marginal is None else marginal,
     )
+
+
+def _window(c: _Check, cr: dict[str, Any], key: str, duration: float) -> tuple[float, float]:
+    """A criterion's window [start, end] (the whole run by default); kept as a problem when bad."""
+    start, end = 0.0, duration
+    with c.part():
+        start = c.number(cr, "start", key, 0.0, low=0, high=duration)
+        end = c.number(cr, "end", key, duration, low=0, high=duration)
+        if not end > start:
+            raise c.fail(f"{key}.end", f"expected a time after start ({start:g} s), got {end:g}")
+    return start, end
+
+
+def _serial_criterion(c: _Check, cr: dict[str, Any], key: str, duration: float,
+                      before: int) -> CriterionSpec | None:
+    """A [[criteria]] table on a USART (uart = n, with line or msp_reply): passes when the firmware
+    sent it inside the window (rig/scenarios/serial.py)."""
+    metric, signal, expect = "", "", None
+    with c.part():
+        metric, signal, expect = parse_expect(c, cr, key)
+    start, end = _window(c, cr, key, duration)
+    name = ""
+    with c.part():
+        what = f"a line matching {expect!r}" if metric == "uart_line" else f"an MSP reply to {expect}"
+        name = c.string(cr, "name", key, f"{what} on {signal.upper()}")
+    if len(c.problems) > before:
+        return None
+    return CriterionSpec(name, metric, signal, start, end, None, None, start, end, "s",
+                         uart=int(signal[5:]), expect=expect)

@@ -5,7 +5,8 @@
 void chip_board_init(chip_board *b, uint8_t topology)
 {
     memset(b, 0, sizeof *b);
-    b->topology = topology == CHIP_TOPOLOGY_DIRECT ? CHIP_TOPOLOGY_DIRECT : CHIP_TOPOLOGY_GY86;
+    b->topology = topology <= CHIP_TOPOLOGY_MPU_ONLY ? topology : CHIP_TOPOLOGY_GY86;
+    b->mpu_addr = CHIP_ADDR_MPU;
     mpu_reset(&b->mpu);
     mpu_prime(&b->mpu);
     hmc_reset(&b->hmc);
@@ -14,6 +15,14 @@ void chip_board_init(chip_board *b, uint8_t topology)
 }
 
 void chip_board_demand(chip_board *b, bool on) { b->demand = on; }
+
+bool chip_mpu_address(chip_board *b, uint8_t addr)
+{
+    if (addr != CHIP_ADDR_MPU && addr != CHIP_ADDR_MPU + 1)
+        return false;
+    b->mpu_addr = addr;
+    return true;
+}
 
 void chip_ms5611_prom(chip_board *b, const uint16_t words[8]) { memcpy(b->baro.prom, words, sizeof b->baro.prom); }
 
@@ -191,8 +200,10 @@ void chip_prepare(chip_board *b)
 
 static uint8_t resolve(const chip_board *b, uint8_t addr)
 {
-    if (addr == CHIP_ADDR_MPU)
+    if (addr == b->mpu_addr)
         return CHIP_MPU;
+    if (b->topology == CHIP_TOPOLOGY_MPU_ONLY)
+        return CHIP_NONE;
     if (addr == CHIP_ADDR_BARO)
         return CHIP_BARO;
     if (addr == CHIP_ADDR_HMC && (b->topology == CHIP_TOPOLOGY_DIRECT || mpu_bypass(&b->mpu)))

@@ -32,7 +32,8 @@ from rig.emulators.mpu6050 import CONFIG, SMPLRT_DIV, ImuTruth
 from rig.emulators.ms5611 import BaroTruth
 
 BLOCK: Final = native.BLOCK
-TOPOLOGIES: Final = ("gy86", "direct")
+#: the chip core's topologies (chip_core.h CHIP_TOPOLOGY_*): gy521 is the MPU-6050 alone
+TOPOLOGIES: Final = ("gy86", "direct", "gy521")
 CHIP_MPU: Final = 1
 CHIP_HMC: Final = 2
 CHIP_BARO: Final = 3
@@ -273,14 +274,18 @@ class _BaroView:
 class ChipBoard:
     """The three chips in C on one bus, with their producers. ``addr`` is the core's chip_board."""
 
-    def __init__(self, imu: ImuFeed, mag: MagFeed, baro: BaroFeed, topology: str = "gy86") -> None:
+    def __init__(self, imu: ImuFeed, mag: MagFeed, baro: BaroFeed, topology: str = "gy86",
+                 mpu_address: int = mpu6050.ADDRESS) -> None:
         if topology not in TOPOLOGIES:
             raise ValueError(f"unknown topology {topology!r}; choose one of {', '.join(TOPOLOGIES)}")
         self.topology = topology
+        self.mpu_address = mpu_address
         self.lib = native.chips()
         self._mem = ctypes.create_string_buffer(self.lib.rig_chip_board_size())
         self.addr = ctypes.addressof(self._mem)
-        self.lib.chip_board_init(self.addr, 0 if topology == "gy86" else 1)
+        self.lib.chip_board_init(self.addr, TOPOLOGIES.index(topology))
+        if not self.lib.chip_mpu_address(self.addr, mpu_address):
+            raise ValueError(f"an MPU-6050 answers at 0x68 or 0x69 (AD0 high), not {mpu_address:#04x}")
         self.lib.chip_board_demand(self.addr, True)
         self.feeds: dict[int, ImuFeed | MagFeed | BaroFeed] = {CHIP_MPU: imu, CHIP_HMC: mag, CHIP_BARO: baro}
         self._imu, self._mag, self._baro = imu, mag, baro
@@ -315,7 +320,9 @@ class ChipBoard:
         intermittent), for the chips found at their address alone: the MPU-6050 and the MS5611, and
         the HMC5883L wired directly (on a GY-86 it answers only while the MPU's bypass is on, which
         the DUT switches)."""
-        chips = [(CHIP_MPU, mpu6050.ADDRESS), (CHIP_BARO, ms5611.ADDRESS)]
+        chips = [(CHIP_MPU, self.mpu_address)]
+        if self.topology != "gy521":
+            chips.append((CHIP_BARO, ms5611.ADDRESS))
         if self.topology == "direct":
             chips.append((CHIP_HMC, hmc5883l.ADDRESS))
         return [(addr, self._silent_from.get(chip, _NEVER)) for chip, addr in chips]
@@ -345,12 +352,13 @@ def build_chip_board(imu: Callable[[float], ImuTruth], mag: Callable[[float], tu
                      faults: Mapping[str, FaultSet] | None = None,
                      prom: tuple[int, ...] = ms5611.DEFAULT_PROM, timing: str = "typical",
                      encoding: str = "integer", osr_noise: bool = False,
-                     baro_seed: int = 0, status_wraps_to_data: bool = False) -> ChipBoard:
+                     baro_seed: int = 0, status_wraps_to_data: bool = False,
+                     mpu_address: int = mpu6050.ADDRESS) -> ChipBoard:
     """A board of the chip core fed by these sources (what topology.build_board is for the Python chips).
-    ``faults``: bus faults by target ("mpu", "hmc", "baro_bus")."""
+    ``faults``: bus faults by target ("mpu", "hmc", "baro_bus"); ``mpu_address``: 0x69 with AD0 high."""
     imu_feed = ImuFeed(imu, dlpf)
     board = ChipBoard(imu_feed, MagFeed(mag, imu_feed),
-                      BaroFeed(baro, prom, timing, encoding, osr_noise, baro_seed), topology)
+                      BaroFeed(baro, prom, timing, encoding, osr_noise, baro_seed), topology, mpu_address)
     for name, fs in (faults or {}).items():
         board.add_bus_faults(BUS_FAULT_CHIPS[name], fs)
     if status_wraps_to_data:

@@ -38,9 +38,11 @@
 #define CHIP_ADDR_BARO 0x77
 
 /* chip_board_init's topology: the HMC5883L behind the MPU-6050 (0x1E only while in bypass, and on the
- * aux master's bus), or all three on the main bus */
+ * aux master's bus), or all three on the main bus, or the MPU-6050 alone (a GY-521: nothing else on the
+ * bus, nothing on its aux bus) */
 #define CHIP_TOPOLOGY_GY86 0
 #define CHIP_TOPOLOGY_DIRECT 1
+#define CHIP_TOPOLOGY_MPU_ONLY 2
 
 /* the chips, as need.chip and the targets of bus faults */
 #define CHIP_NONE 0
@@ -230,6 +232,7 @@ typedef struct {
 
 typedef struct {
     uint8_t topology;
+    uint8_t mpu_addr; /* CHIP_ADDR_MPU, or 0x69 with AD0 high */
     bool demand;
     uint8_t current; /* the chip addressed since the last START (CHIP_NONE: none) */
     uint64_t now_ns;
@@ -244,6 +247,7 @@ typedef struct {
 /* ---- set-up ---- */
 CHIP_API void chip_board_init(chip_board *b, uint8_t topology); /* power-on state at time 0, demand off */
 CHIP_API void chip_board_demand(chip_board *b, bool on);
+CHIP_API bool chip_mpu_address(chip_board *b, uint8_t addr); /* 0x68, or 0x69 (AD0 high); false otherwise */
 CHIP_API void chip_ms5611_prom(chip_board *b, const uint16_t words[8]);
 CHIP_API void chip_ms5611_max_timing(chip_board *b, bool on); /* the datasheet's maximum conversion times */
 CHIP_API void chip_hmc_status_wraps(chip_board *b, bool on);  /* pointer after STATUS (0x09) goes to 0x03 */

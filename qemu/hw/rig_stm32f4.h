@@ -1,6 +1,7 @@
 /*
  * The rig's STM32F4 device models (RM0090, the STM32F405/415/407/417 reference manual): RCC and PWR,
- * the FLASH interface, GPIO ports and the Cortex-M4's DWT cycle counter.
+ * the FLASH interface, GPIO ports, the I2C controllers, the Cortex-M4's DWT cycle counter, and the
+ * GY-86 sensor board (the rig's chip core) as an I2C slave.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -9,6 +10,7 @@
 #define RIG_STM32F4_H
 
 #include "hw/clock.h"
+#include "hw/i2c/i2c.h"
 #include "hw/sysbus.h"
 #include "qom/object.h"
 
@@ -98,6 +100,46 @@ struct RigStm32GpioState {
 
 /* The pin levels a port shows on its IDR */
 uint16_t rig_stm32_gpio_levels(RigStm32GpioState *s);
+
+/* I2C v1 (RM0090 section 27), master mode */
+#define TYPE_RIG_STM32_I2C "rig-stm32f4-i2c"
+OBJECT_DECLARE_SIMPLE_TYPE(RigStm32I2cState, RIG_STM32_I2C)
+
+/* What the bus is doing (the timer ends it); IDLE: nothing on the wire (idle, or SCL held low) */
+typedef enum {
+    RIG_I2C_IDLE,
+    RIG_I2C_START,
+    RIG_I2C_ADDRESS,
+    RIG_I2C_TX_BYTE,
+    RIG_I2C_RX_BYTE,
+    RIG_I2C_STOP,
+} RigI2cPhase;
+
+struct RigStm32I2cState {
+    SysBusDevice parent_obj;
+    MemoryRegion iomem;
+    RigStm32RccState *rcc;
+    uint8_t apb1_bit; /* its clock enable in RCC_APB1ENR (property "apb1-bit": 21 for I2C1) */
+    I2CBus *bus;
+    qemu_irq ev_irq, er_irq;
+    qemu_irq line_out[2]; /* the bus's drive of SCL and SDA: 1 released (pull-up), 0 held low */
+    QEMUTimer *timer;
+    RigI2cPhase phase;
+    uint32_t cr1, cr2, oar1, oar2, ccr, trise, sr1, sr2;
+    uint32_t sr1_seen; /* SR1 as last read: the first half of the SB and ADDR clear sequences */
+    uint8_t dr, shift, address;
+    bool shift_full;        /* receiver: a byte waits in the shift register behind a full DR (BTF) */
+    bool receiving;         /* receiver: the last byte was acknowledged, so the slave sends another */
+    bool scl, sda;          /* the lines as the GPIO pins show them (qdev GPIO inputs "scl-sda" 0 and 1) */
+    bool slave_sends;       /* a read under way whose slave has a byte to send */
+    bool sda_held;          /* that slave, abandoned without a STOP, holds SDA low */
+    uint8_t unstick_clocks; /* SCL pulses by GPIO since */
+    bool ack_next;          /* POS = 1: CR1.ACK at the end of the byte (or address) before this one */
+};
+
+/* The GY-86 board (MPU-6050 at 0x68, the HMC5883L behind its bypass, MS5611 at 0x77): the rig's chip
+ * core as one I2C slave that answers the addresses the chip core acknowledges */
+#define TYPE_RIG_GY86 "rig-gy86"
 
 /* DWT (ARMv7-M ARM C1.8): CYCCNT counts HCLK cycles in virtual time */
 #define TYPE_RIG_DWT "rig-dwt"

@@ -1,7 +1,8 @@
 /*
  * rig-stm32f405: QEMU's STM32F405 SoC (Cortex-M4F with NVIC and SysTick, its USARTs, TIM2-5, ADCs, SPIs,
  * SYSCFG and EXTI) with the rig's models mapped over the regions that SoC leaves unimplemented: RCC,
- * PWR, the FLASH interface, GPIO A..I (RM0090), and the core's DWT cycle counter. The RCC's AHB clock
+ * PWR, the FLASH interface, GPIO A..I, I2C1 (RM0090) with the GY-86 board (the rig's chip core) on its
+ * bus, and the core's DWT cycle counter. The RCC's AHB clock
  * drives the core, SysTick and DWT, so the machine starts at 16 MHz (HSI) as the chip does, and runs at
  * what the firmware sets up (168 MHz from an 8 MHz crystal: -global rig-stm32f4-rcc.hse-hz=N for another).
  *
@@ -29,8 +30,15 @@
 #define GPIOA_BASE 0x40020000
 #define GPIO_STRIDE 0x400
 #define GPIO_PORTS 9
+#define I2C1_BASE 0x40005400
+#define APB1_I2C1 21   /* RCC_APB1ENR.I2C1EN and RCC_APB1RSTR.I2C1RST */
+#define IRQ_I2C1_EV 31 /* RM0090 table 61 (vector table) */
+#define IRQ_I2C1_ER 32
+#define I2C1_SCL_PIN 6 /* PB6, with SDA on PB7 */
 /* ARMv7-M: the DWT in the private peripheral bus */
 #define DWT_BASE 0xE0001000
+/* the board's own address on QEMU's bus (it answers every address the chip core acknowledges) */
+#define CHIP_ADDR_MPU_SLAVE 0x68
 
 static SysBusDevice *map_device(const char *type, hwaddr base, RigStm32RccState *rcc, int port)
 {
@@ -62,9 +70,25 @@ static void rig_stm32f405_init(MachineState *machine)
     RigStm32RccState *r = RIG_STM32_RCC(rcc);
     rig_stm32_rcc_add_reset(r, RCC_APB1RSTR, APB1RSTR_PWRRST, DEVICE(map_device(TYPE_RIG_STM32_PWR, PWR_BASE, r, -1)));
     map_device(TYPE_RIG_STM32_FLASH_IF, FLASH_IF_BASE, NULL, -1);
+    DeviceState *gpio_ports[GPIO_PORTS];
     for (int port = 0; port < GPIO_PORTS; port++) {
         SysBusDevice *gpio = map_device(TYPE_RIG_STM32_GPIO, GPIOA_BASE + port * GPIO_STRIDE, r, port);
+        gpio_ports[port] = DEVICE(gpio);
         rig_stm32_rcc_add_reset(r, RCC_AHB1RSTR, port, DEVICE(gpio)); /* GPIOxRST: bit x */
+    }
+
+    DeviceState *i2c1 = DEVICE(map_device(TYPE_RIG_STM32_I2C, I2C1_BASE, r, -1));
+    DeviceState *nvic = DEVICE(&STM32F405_SOC(soc)->armv7m);
+    sysbus_connect_irq(SYS_BUS_DEVICE(i2c1), 0, qdev_get_gpio_in(nvic, IRQ_I2C1_EV));
+    sysbus_connect_irq(SYS_BUS_DEVICE(i2c1), 1, qdev_get_gpio_in(nvic, IRQ_I2C1_ER));
+    rig_stm32_rcc_add_reset(r, RCC_APB1RSTR, APB1_I2C1, i2c1);
+    i2c_slave_create_simple(RIG_STM32_I2C(i2c1)->bus, TYPE_RIG_GY86, CHIP_ADDR_MPU_SLAVE);
+    /* PB6 (SCL) and PB7 (SDA): the pins' levels reach the controller, and the bus (its pull-ups, a slave
+     * holding SDA) drives the pins from outside */
+    DeviceState *gpiob = gpio_ports[1];
+    for (int line = 0; line < 2; line++) {
+        qdev_connect_gpio_out(gpiob, I2C1_SCL_PIN + line, qdev_get_gpio_in_named(i2c1, "scl-sda", line));
+        qdev_connect_gpio_out_named(i2c1, "scl-sda-drive", line, qdev_get_gpio_in(gpiob, I2C1_SCL_PIN + line));
     }
 
     DeviceState *dwt = qdev_new(TYPE_RIG_DWT);
@@ -78,7 +102,7 @@ static void rig_stm32f405_init(MachineState *machine)
 
 static void rig_stm32f405_machine_init(MachineClass *mc)
 {
-    mc->desc = "STM32F405 with the rig's RCC, PWR, FLASH, GPIO and DWT models (Cortex-M4)";
+    mc->desc = "STM32F405 with the rig's RCC, PWR, FLASH, GPIO, I2C and DWT models and a GY-86 on I2C1";
     mc->init = rig_stm32f405_init;
 }
 

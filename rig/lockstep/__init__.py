@@ -96,7 +96,7 @@ class FastPath:
             world.step_ns, sched.limit_ns, cfg.i2c_clock_hz, cfg.i2c_bus, I2CRecord)
         plant = world.plant
         module().setup_world(self._state, world, plant, world._hist, plant.u.ctypes.data,
-                             world._u_pwm[:MOTORS], MOTORS, _STEP_CALLS)
+                             world._u_out[:MOTORS], MOTORS, _STEP_CALLS)
         session = handler.session
         module().setup_events(self._state, sched.run_next, session.in_flight)
         self.imu_in_c = _imu_in_c(self._state, world)

@@ -8,15 +8,20 @@ its timer cannot drive (rig/mcu/mcus.py) is refused before anything runs. The sh
 rig/mcu/boards/; ``--mcu NAME`` finds them by name, ``--mcu path/to/board.toml`` reads any other.
 
     [board]      name, description, mcu ("atmega2560" | "atmega328p"), clock_hz
-    [sensors]    bus ("twi"), topology ("gy86" | "direct"), twi_hz, mounting_yaw_deg (0, 90, 180, 270)
+    [sensors]    bus ("twi"), topology ("gy86" | "direct" | "gy521": the MPU-6050 alone), twi_hz,
+                 mounting_yaw_deg (0, 90, 180, 270), mpu_address (0x68, or 0x69 with AD0 high)
     [[motors]]   motor (1..4: the plant's), pin ("PE4"), timer, channel ("A" | "B" | "C"),
                  protocol ("pwm" | "oneshot125"), label ("D2": the board's silk-screen name); with no
                  timer and channel, any port pin, its pulses measured from its edges
-    [rc]         protocol ("sbus" | "ppm" | "msp"), uart (sbus, msp), baud (msp), pin (ppm)
-    [telemetry]  uart, baud, format ("text": the reference FC's ``T t=… key=value`` lines)
+    [rc]         protocol ("sbus" | "ppm" | "msp" | "pwm"), uart (sbus, msp), baud (msp), pin (ppm: an
+                 INTn or PCINT pin), pins (pwm: 4..8 PCINT or INTn pins, one a channel); optional
+    [telemetry]  uart, baud, format ("text": the reference FC's ``T t=… key=value`` lines); optional
     [eeprom]     image (a file of raw bytes, relative to the board file), or fc = true: built from the
                  scenario's [fc] table by the reference firmware's layout
     [fuses]      watchdog_always_on (WDTON programmed)
+    [battery]    pin (an ADC input, "PF0"), divider ([ohms battery->pin, ohms pin->ground]), volts (the
+                 pack's, 12.6 by default: the world has no battery model yet)
+    [limits]     hang_s (1: no TWI, pulse, USART byte or output pin change for this long is a hang; 0 off)
 """
 
 from __future__ import annotations
@@ -28,20 +33,30 @@ from pathlib import Path
 from typing import Any, Final
 
 from rig.bridge.esc import ESC_PROTOCOLS
+from rig.emulators.chips.board import TOPOLOGIES
+from rig.emulators.mpu6050 import ADDRESS as MPU_ADDRESS
 from rig.emulators.sensor_models import FLAT_ON_BOARD
 from rig.mcu.mcus import MCUS, Mcu
 from rig.scenarios.schema import ScenarioError, _Check
 
 BOARDS: Final = Path(__file__).resolve().parent / "boards"
-TOP: Final = {"board", "sensors", "motors", "rc", "telemetry", "eeprom", "fuses"}
+TOP: Final = {"board", "sensors", "motors", "rc", "telemetry", "eeprom", "fuses", "limits", "battery"}
+BATTERY_KEYS: Final = {"pin", "divider", "volts"}
+#: a board's supply and ADC reference (AVCC): an Arduino's 5 V; a divided battery above it is clamped
+VCC: Final = 5.0
 BOARD_KEYS: Final = {"name", "description", "mcu", "clock_hz"}
-SENSOR_KEYS: Final = {"bus", "topology", "twi_hz", "mounting_yaw_deg"}
+SENSOR_KEYS: Final = {"bus", "topology", "twi_hz", "mounting_yaw_deg", "mpu_address"}
 MOTOR_KEYS: Final = {"motor", "pin", "timer", "channel", "protocol", "label"}
-RC_KEYS: Final = {"protocol", "uart", "baud", "pin"}
+RC_KEYS: Final = {"protocol", "uart", "baud", "pin", "pins"}
 TELEMETRY_KEYS: Final = {"uart", "baud", "format"}
 EEPROM_KEYS: Final = {"image", "fc"}
 FUSE_KEYS: Final = {"watchdog_always_on"}
-RC_PROTOCOLS: Final = ("sbus", "ppm", "msp")
+LIMIT_KEYS: Final = {"hang_s"}
+#: a firmware with no bus, pulse, USART byte or output pin change for this long is hung
+HANG_S: Final = 1.0
+RC_PROTOCOLS: Final = ("sbus", "ppm", "msp", "pwm")
+#: a parallel PWM receiver's channels
+PWM_CHANNELS: Final = (4, 8)
 SBUS_BAUD: Final = 100_000
 #: how far a USART's nearest baud may be from the board's: 115200 at 16 MHz is 2.1 % off (Arduino's
 #: usual serial speed, read well by USB bridges); beyond 3 % a frame's last bits are misread
@@ -64,10 +79,25 @@ class MotorOut:
 
 @dataclass(frozen=True)
 class RcIn:
-    protocol: str   # "sbus" | "ppm" | "msp"
+    protocol: str   # "sbus" | "ppm" | "msp" | "pwm"
     uart: int | None
     baud: int
     pin: str | None
+    pins: tuple[str, ...] = ()  # pwm: one pin per channel, in channel order (AETR, then aux)
+
+
+@dataclass(frozen=True)
+class Battery:
+    pin: str
+    channel: int  # the ADC channel
+    divider: tuple[float, float]  # ohms: battery to pin, pin to ground
+    volts: float  # the pack's
+
+    @property
+    def pin_volts(self) -> float:
+        """What the ADC pin sees: the pack through the divider, clamped at VCC (the pin's diodes)."""
+        top, bottom = self.divider
+        return min(VCC, self.volts * bottom / (top + bottom))
 
 
 @dataclass(frozen=True)
@@ -78,15 +108,18 @@ class Board:
     mcu: Mcu
     clock_hz: int
     topology: str
+    mpu_address: int
     twi_hz: int
     mounting_yaw_deg: int
     motors: tuple[MotorOut, ...]
-    rc: RcIn
-    telemetry_uart: int
+    rc: RcIn | None  # None: no receiver wired (a firmware brought up by hand, a sensor board's test)
+    telemetry_uart: int | None  # None: no [telemetry] (a firmware that speaks MSP, or nothing)
     telemetry_baud: int
     eeprom_image: Path | None
     eeprom_from_fc: bool
     watchdog_always_on: bool
+    hang_s: float = HANG_S
+    battery: Battery | None = None
 
 
 def find(name: str) -> Path:
@@ -122,6 +155,10 @@ def load(name: str | Path) -> Board:
     yaw = c.integer(s, "mounting_yaw_deg", "sensors", 0, 270, default=0)
     if yaw % 90:
         raise c.fail("sensors.mounting_yaw_deg", f"expected 0, 90, 180 or 270, got {yaw}")
+    mpu_address = c.integer(s, "mpu_address", "sensors", 0, 127, default=MPU_ADDRESS)
+    if mpu_address not in (MPU_ADDRESS, MPU_ADDRESS + 1):
+        raise c.fail("sensors.mpu_address", f"an MPU-6050 answers at 0x68 (AD0 low) or 0x69 (AD0 high), "
+                                            f"not {mpu_address:#04x}")
     motors = tuple(_motor(c, mcu, m, k) for k, m in enumerate(c.array(data, "motors")))
     got = sorted(m.motor for m in motors)
     if got != [1, 2, 3, 4]:
@@ -130,14 +167,17 @@ def load(name: str | Path) -> Board:
     for p in pins:
         if pins.count(p) > 1:
             raise c.fail("motors", f"pin {p} drives two motors")
-    rc = _rc(c, mcu, c.table(data.get("rc", {}), "rc", RC_KEYS))
-    t = c.table(data.get("telemetry", {}), "telemetry", TELEMETRY_KEYS)
-    tel_uart = _uart(c, mcu, t, "telemetry")
-    tel_baud = c.integer(t, "baud", "telemetry", 300, 2_000_000)
-    c.string(t, "format", "telemetry", "text", choices=("text",))
-    if baud_error(clock, tel_baud) > BAUD_TOLERANCE:
-        raise c.fail("telemetry.baud", f"{tel_baud} baud is over {BAUD_TOLERANCE:.0%} off anything a USART "
-                                       f"makes at {clock} Hz")
+    rc = _rc(c, mcu, c.table(data["rc"], "rc", RC_KEYS)) if "rc" in data else None
+    tel_uart: int | None = None
+    tel_baud = 0
+    if "telemetry" in data:
+        t = c.table(data["telemetry"], "telemetry", TELEMETRY_KEYS)
+        tel_uart = _uart(c, mcu, t, "telemetry")
+        tel_baud = c.integer(t, "baud", "telemetry", 300, 2_000_000)
+        c.string(t, "format", "telemetry", "text", choices=("text",))
+        if baud_error(clock, tel_baud) > BAUD_TOLERANCE:
+            raise c.fail("telemetry.baud", f"{tel_baud} baud is over {BAUD_TOLERANCE:.0%} off anything a "
+                                           f"USART makes at {clock} Hz")
     # (the RC input and the telemetry may share a USART: RX and TX are separate lines, as a Pro Mini's
     # one USART takes SBUS in and sends telemetry out, and MSP is both on one port)
     e = c.table(data.get("eeprom", {}), "eeprom", EEPROM_KEYS)
@@ -153,13 +193,15 @@ def load(name: str | Path) -> Board:
     if image is not None and from_fc:
         raise c.fail("eeprom", "either an image or fc = true, not both")
     f = c.table(data.get("fuses", {}), "fuses", FUSE_KEYS)
+    limits = c.table(data.get("limits", {}), "limits", LIMIT_KEYS)
     return Board(
         path=path.resolve(),
         name=c.string(b, "name", "board", path.stem),
         description=c.string(b, "description", "board", ""),
         mcu=mcu,
         clock_hz=clock,
-        topology=c.string(s, "topology", "sensors", "gy86", choices=("gy86", "direct")),
+        topology=c.string(s, "topology", "sensors", "gy86", choices=TOPOLOGIES),
+        mpu_address=mpu_address,
         twi_hz=c.integer(s, "twi_hz", "sensors", 10_000, 1_000_000, default=400_000),
         mounting_yaw_deg=yaw,
         motors=tuple(sorted(motors, key=lambda m: m.motor)),
@@ -169,6 +211,8 @@ def load(name: str | Path) -> Board:
         eeprom_image=image,
         eeprom_from_fc=from_fc,
         watchdog_always_on=c.boolean(f, "watchdog_always_on", "fuses", False),
+        hang_s=c.number(limits, "hang_s", "limits", HANG_S, low=0, high=600),
+        battery=_battery(c, mcu, data["battery"]) if "battery" in data else None,
     )
 
 
@@ -225,14 +269,44 @@ def _motor(c: _BoardCheck, mcu: Mcu, data: Any, k: int) -> MotorOut:
     )
 
 
+def _battery(c: _BoardCheck, mcu: Mcu, data: Any) -> Battery:
+    b = c.table(data, "battery", BATTERY_KEYS)
+    pin = c.string(b, "pin", "battery").upper()
+    if pin not in mcu.adc:
+        raise c.fail("battery.pin", f"the {mcu.name}'s analog inputs are {', '.join(mcu.adc)}, not {pin}")
+    divider = b.get("divider", [0, 1])
+    if (not isinstance(divider, list) or len(divider) != 2 or
+            not all(isinstance(r, int | float) and not isinstance(r, bool) and r >= 0 for r in divider) or
+            not divider[1] > 0):
+        raise c.fail("battery.divider", f"expected [ohms from the battery to the pin, ohms from the pin to "
+                                        f"ground], the second > 0, got {divider!r}")
+    volts = c.number(b, "volts", "battery", 12.6, low=0, high=60)
+    return Battery(pin, mcu.adc[pin], (float(divider[0]), float(divider[1])), volts)
+
+
 def _rc(c: _BoardCheck, mcu: Mcu, r: dict[str, Any]) -> RcIn:
     protocol = c.string(r, "protocol", "rc", choices=RC_PROTOCOLS)
+    interrupting = set(mcu.ints.values()) | mcu.pcint
     if protocol == "ppm":
         pin = c.string(r, "pin", "rc").upper()
-        if pin not in mcu.ints.values():
-            raise c.fail("rc.pin", f"a PPM sum needs an external-interrupt pin of the {mcu.name} "
-                                   f"({', '.join(sorted(mcu.ints.values()))}), got {pin}")
+        if pin not in interrupting:
+            raise c.fail("rc.pin", f"a PPM sum needs a pin with an external or pin change interrupt; the "
+                                   f"{mcu.name}'s {pin} has neither")
         return RcIn("ppm", None, 0, pin)
+    if protocol == "pwm":
+        pins = r.get("pins")
+        low, high = PWM_CHANNELS
+        if (not isinstance(pins, list) or not low <= len(pins) <= high or
+                not all(isinstance(p, str) for p in pins)):
+            raise c.fail("rc.pins", f"expected {low} to {high} pins, one a channel in channel order, got "
+                                    f"{pins!r}")
+        names = tuple(p.upper() for p in pins)
+        for p in names:
+            if p not in interrupting:
+                raise c.fail("rc.pins", f"the {mcu.name}'s {p} has no external or pin change interrupt")
+            if names.count(p) > 1:
+                raise c.fail("rc.pins", f"pin {p} is two channels")
+        return RcIn("pwm", None, 0, None, names)
     uart = _uart(c, mcu, r, "rc")
     baud = SBUS_BAUD if protocol == "sbus" else c.integer(r, "baud", "rc", 300, 2_000_000, default=115_200)
     if protocol == "sbus" and r.get("baud", SBUS_BAUD) != SBUS_BAUD:
@@ -258,3 +332,12 @@ def mounting(yaw_deg: int) -> tuple[tuple[float, float, float], ...]:
     turned = ((c, s, 0), (-s, c, 0), (0, 0, 1))  # rows: the board's x, y, z axes in body FRD
     rows = [[float(sum(f[k] * turned[k][j] for k in range(3))) for j in range(3)] for f in FLAT_ON_BOARD]
     return tuple((r[0], r[1], r[2]) for r in rows)
+
+
+def uart_baud(board: Board, uart: int) -> int | None:
+    """The baud the board gives a USART: its telemetry's, else its RC link's (None: neither is on it)."""
+    if board.telemetry_uart == uart:
+        return board.telemetry_baud
+    if board.rc is not None and board.rc.uart == uart:
+        return board.rc.baud
+    return None

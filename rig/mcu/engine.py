@@ -25,6 +25,7 @@ from typing import Any, Final
 from rig.emulators import native
 from rig.emulators.chips.board import ChipBoard
 from rig.mcu.board import Board
+from rig.mcu.doing import polling
 from rig.mcu.image import EEPROM, FLASH, FirmwareError, load
 from rig.mcu.mcus import MCUS
 from rig.plant.artifacts import BUILD
@@ -127,6 +128,8 @@ _API: Final[dict[str, tuple[Any, list[Any]]]] = {
     "mcu_pulses_all": (_U32, [_P, ctypes.POINTER(_U64), _U32, ctypes.POINTER(_U32)]),
     "mcu_motor_source": (_U32, [_P, _U8, ctypes.c_int]),
     "mcu_uart_define": (ctypes.c_bool, [_P, _U8, _U16]),
+    "mcu_watch_port": (ctypes.c_bool, [_P, ctypes.c_char, _U16]),
+    "mcu_adc_set": (ctypes.c_bool, [_P, _U8, _U32]),
     "mcu_uart_send": (ctypes.c_bool, [_P, _U8, ctypes.c_char_p, _U32, _U32, ctypes.c_char, _U8]),
     "mcu_uart_take": (_U32, [_P, _U8, ctypes.POINTER(_U8), _U32]),
     "mcu_uart_count": (_U32, [_P, _U8, ctypes.c_int]),
@@ -177,6 +180,8 @@ class EngineConfig:
     unanswered_ns: int = 1_000_000_000
     #: the WDTON fuse programmed: the watchdog always on in system reset mode (a board's [fuses])
     watchdog_always_on: bool = False
+    #: analog inputs: (ADC channel, volts at the pin), e.g. a battery through its divider
+    analog: tuple[tuple[int, float], ...] = ()
 
 
 def config_for(board: Board, firmware: Path, eeprom: bytes | None = None, **limits: Any) -> EngineConfig:
@@ -184,8 +189,10 @@ def config_for(board: Board, firmware: Path, eeprom: bytes | None = None, **limi
     plant's order (1..4), fuses; ``limits``: EngineConfig's error limits (hang_ns, ...)."""
     motors = tuple(Motor(m.pin, m.timer, m.channel or "A")
                    for m in sorted(board.motors, key=lambda m: m.motor))
+    limits.setdefault("hang_ns", round(board.hang_s * 1e9))
+    analog = () if board.battery is None else ((board.battery.channel, board.battery.pin_volts),)
     return EngineConfig(board.mcu.name, board.clock_hz, firmware, motors, eeprom=eeprom,
-                        watchdog_always_on=board.watchdog_always_on, **limits)
+                        watchdog_always_on=board.watchdog_always_on, analog=analog, **limits)
 
 
 @dataclass(frozen=True)
@@ -193,7 +200,8 @@ class Stop:
     """Why run_until returned. kind: "reached" (the time asked), "need" (the chip core lacks a sample:
     ``need`` for ChipBoard.serve), or the firmware's error, final: "crashed" (invalid opcode, jump outside
     the program or flash, bad data address), "sleeping" (asleep with interrupts off), "watchdog" (reset by
-    it in a loop), "hung" (no TWI, no pulses), "unanswered" (a bus no chip answers)."""
+    it in a loop), "hung" (no TWI, pulses, USART bytes sent or output pin changes), "unanswered"
+    (a bus no chip answers)."""
 
     kind: str
     cycle: int
@@ -208,7 +216,8 @@ class Stop:
 
     def describe(self) -> str:
         """One line: what happened, where and when (the last TWI transaction when there was one), to
-        follow "the firmware ": "hung: no TWI transaction and no motor pulse for 1000 ms (pc ...)"."""
+        follow "the firmware ": "hung: no TWI transaction, motor pulse, USART byte sent or output pin
+        change for 1000 ms; it was polling UCSR0A ... (pc ...)"."""
         text = f"{HEADLINES.get(self.kind, self.kind)}: {self.what} (pc 0x{self.pc:05x}, cycle {self.cycle})"
         return f"{text}; last TWI transaction: {self.last_twi}" if self.last_twi else text
 
@@ -252,6 +261,7 @@ class AvrEngine:
         if cfg.clock_hz <= 0 or cfg.clock_hz > 50_000_000:
             raise ValueError(f"clock {cfg.clock_hz} Hz: an AVR runs at 1..50 MHz")
         image = load(Path(cfg.firmware), cfg.mcu)
+        self._flash = image.flash  # (a hang's words: the loop it was in)
         self.cfg = cfg
         self._lib = lib()
         self._mem = ctypes.create_string_buffer(self._lib.mcu_engine_size())
@@ -278,6 +288,12 @@ class AvrEngine:
         for n, base in UARTS[cfg.mcu].items():
             if self._lib.mcu_uart_define(self._e, n, base):
                 self._uarts[n] = _Uart()
+        for channel, volts in cfg.analog:
+            if not self._lib.mcu_adc_set(self._e, channel, round(volts * 1000)):
+                raise ValueError(f"the {cfg.mcu} has no ADC{channel}")
+        for port, pin_addr in PORTS[cfg.mcu].items():
+            if not self._lib.mcu_watch_port(self._e, port.encode(), pin_addr + 1):
+                raise ValueError(f"the {cfg.mcu}'s port {port} cannot be watched")
         self._pulse_buf = (_U64 * (3 * 64))()
         self._pulse_counts = (_U32 * len(cfg.motors))()
         self._uart_buf = (_U8 * 4096)()
@@ -331,8 +347,12 @@ class AvrEngine:
             n = self._need
             c.mcu_need(e, self._need_ref)
             return Stop("need", c.mcu_cycle(e), need=tuple(getattr(n, f) for f in _NEED_FIELDS))
-        self._stop = Stop(kind, int(c.mcu_stop_cycle(e)), int(c.mcu_stop_pc(e)),
-                          c.mcu_what(e).decode(errors="replace"),
+        pc = int(c.mcu_stop_pc(e))
+        what = c.mcu_what(e).decode(errors="replace")
+        if kind == "hung":  # (what it was waiting on: a receiver, the EEPROM, ...)
+            doing = polling(self._flash, pc, self.cfg.mcu)
+            what += f"; {doing}" if doing else ""
+        self._stop = Stop(kind, int(c.mcu_stop_cycle(e)), pc, what,
                           last_twi=format_transaction(self.last_twi()))
         return self._stop
 
@@ -373,7 +393,7 @@ class AvrEngine:
         cycles = (_U64 * n)(*(self._lib.mcu_cycle_at(self._e, t) for t, _ in schedule))
         levels = (_U8 * n)(*(1 if v else 0 for _, v in schedule))
         if not self._lib.mcu_pin_drive(self._e, port.encode(), bit, cycles, levels, n):
-            raise ValueError(f"pin {pin}: more than 4096 edges waiting, or more than 4 pins driven")
+            raise ValueError(f"pin {pin}: more than 4096 edges waiting, or more than 9 pins driven")
 
     def pulses(self) -> list[list[tuple[int, int, int]]]:
         """Per motor, the pulses ended since the last call: (rise_ns, width_ns, period_ns)."""

@@ -172,6 +172,7 @@ MCU_API int mcu_open(mcu_engine *e, const char *mcu, uint32_t clock_hz, const ui
     }
     avr_init(avr);
     avr->frequency = clock_hz;
+    avr->vcc = avr->avcc = avr->aref = 5000; /* mV: a 5 V board (the ADC's AVCC reference) */
     avr->custom.data = e;
     avr->log = LOG_ERROR;
     e->avr = avr;
@@ -323,7 +324,8 @@ MCU_API int mcu_run(mcu_engine *e, uint64_t target_cycle)
         if (r)
             return r;
         if (e->hang_cycles && avr->cycle - e->last_activity >= e->hang_cycles)
-            return stopped(e, MCU_HUNG, avr->pc, "no TWI transaction and no motor pulse for %llu ms",
+            return stopped(e, MCU_HUNG, avr->pc,
+                           "no TWI transaction, motor pulse, USART byte sent or output pin change for %llu ms",
                            (unsigned long long)(mcu_ns(e, e->hang_cycles) / 1000000u));
         if (e->unanswered_cycles && e->twi.nack_since_cycle != MCU_NEVER &&
             avr->cycle - e->twi.nack_since_cycle >= e->unanswered_cycles && e->twi.nacks_in_row >= 2)

@@ -36,6 +36,8 @@
 #define MCU_RX_BYTES 4096
 #define MCU_TX_BYTES 4096
 #define MCU_PIN_EDGES 4096
+/* input pins the rig drives at once: a parallel PWM receiver's 8 channels, and one more */
+#define MCU_DRIVEN_PINS 9
 #define MCU_TWI_EVENTS 96
 
 typedef struct mcu_engine mcu_engine;
@@ -163,6 +165,13 @@ typedef struct {
     uint32_t head, len;
 } mcu_pin;
 
+/* an output pin watched for the hang check (any change while its DDR bit is set is activity) */
+typedef struct {
+    mcu_engine *engine;
+    uint16_t ddr;
+    uint8_t bit;
+} mcu_watched_pin;
+
 struct mcu_engine {
     avr_t *avr;
     uint32_t clock_hz;
@@ -186,8 +195,10 @@ struct mcu_engine {
     void *wdt_param;
     uint32_t resets, watchdog_resets, watchdog_limit;
     uint64_t marker; /* the cycle simavr's sleep may not pass */
-    /* hang: no TWI and no motor pulse for hang_cycles */
+    /* hang: no TWI, no motor pulse, no USART byte sent and no output pin changed for hang_cycles */
     uint64_t hang_cycles, last_activity;
+    mcu_watched_pin watched[11 * 8];
+    uint8_t n_watched;
     uint64_t unanswered_cycles;
     uint64_t instructions;
     /* the chip core */
@@ -202,7 +213,7 @@ struct mcu_engine {
     mcu_wrap wraps[12];
     uint8_t n_wraps;
     mcu_uart uarts[MCU_UARTS];
-    mcu_pin pins[4];
+    mcu_pin pins[MCU_DRIVEN_PINS];
     avr_int_vector_t pcint[3]; /* [1] PCINT1, [2] PCINT2 (2560) */
     mcu_pcint_pin pcint_pins[15];
 };

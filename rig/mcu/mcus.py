@@ -34,6 +34,10 @@ class Mcu:
     vectors: int = 0
     #: the I/O ports' letters (pins "PE4": port E, bit 4)
     ports: str = ""
+    #: pins with a pin change interrupt the engine raises (PCINTn): a PWM receiver's or a PPM sum's
+    pcint: frozenset[str] = frozenset()
+    #: analog input pin -> ADC channel (ADMUX's MUX bits)
+    adc: dict[str, int] = field(default_factory=dict)
 
 
 MCUS: dict[str, Mcu] = {m.name: m for m in (
@@ -49,6 +53,9 @@ MCUS: dict[str, Mcu] = {m.name: m for m in (
         usarts={0: ("PE0", "PE1"), 1: ("PD2", "PD3"), 2: ("PH0", "PH1"), 3: ("PJ0", "PJ1")},
         ints={0: "PD0", 1: "PD1", 2: "PD2", 3: "PD3", 4: "PE4", 5: "PE5", 6: "PE6", 7: "PE7"},
         twi=("PD1", "PD0"), avr_arch=6, vectors=57, ports="ABCDEFGHJKL",
+        adc={**{f"PF{i}": i for i in range(8)}, **{f"PK{i}": 8 + i for i in range(8)}},
+        # (PCINT0-7 on port B, 9-15 on PJ0-6, 16-23 on port K; PCINT8, PE0, is RXD0 and not wired)
+        pcint=frozenset(f"P{port}{i}" for port, n in (("B", 8), ("J", 7), ("K", 8)) for i in range(n)),
     ),
     Mcu(
         "atmega328p", flash=32 * 1024, sram=2 * 1024, eeprom=1024,
@@ -58,5 +65,7 @@ MCUS: dict[str, Mcu] = {m.name: m for m in (
         usarts={0: ("PD0", "PD1")},
         ints={0: "PD2", 1: "PD3"},
         twi=("PC4", "PC5"), avr_arch=5, vectors=26, ports="BCD",
+        adc={f"PC{i}": i for i in range(6)},  # (ADC6 and ADC7 have no port pin: TQFP and QFN only)
+        pcint=frozenset(f"P{port}{i}" for port, n in (("B", 8), ("C", 7), ("D", 8)) for i in range(n)),
     ),
 )}

@@ -14,6 +14,7 @@
  * controllers take PWM receivers. */
 #include <string.h>
 
+#include <simavr/avr_adc.h>
 #include <simavr/avr_ioport.h>
 #include <simavr/avr_uart.h>
 #include <simavr/sim_io.h>
@@ -24,6 +25,7 @@ static void tx_byte(struct avr_irq_t *irq, uint32_t value, void *param)
 {
     (void)irq;
     mcu_uart *u = param;
+    u->engine->last_activity = u->engine->avr->cycle; /* (a firmware that talks is not hung) */
     if (u->n_tx == MCU_TX_BYTES) {
         u->tx_dropped++;
         return;
@@ -138,7 +140,7 @@ uint64_t mcu_serial_next(const mcu_engine *e)
     for (int i = 0; i < MCU_UARTS; i++)
         if (e->uarts[i].used && e->uarts[i].len && e->uarts[i].next < next)
             next = e->uarts[i].next;
-    for (int i = 0; i < 4; i++)
+    for (int i = 0; i < MCU_DRIVEN_PINS; i++)
         if (e->pins[i].used && e->pins[i].len && e->pins[i].edges[e->pins[i].head].cycle < next)
             next = e->pins[i].edges[e->pins[i].head].cycle;
     return next;
@@ -162,7 +164,7 @@ void mcu_serial_event(mcu_engine *e)
             u->next += u->frame_cycles;
         }
     }
-    for (int i = 0; i < 4; i++) {
+    for (int i = 0; i < MCU_DRIVEN_PINS; i++) {
         mcu_pin *p = &e->pins[i];
         while (p->used && p->len && p->edges[p->head].cycle <= now) {
             avr_irq_t *irq = avr_io_getirq(e->avr, AVR_IOCTL_IOPORT_GETIRQ(p->port), p->bit);
@@ -194,10 +196,10 @@ MCU_API bool mcu_pin_drive(mcu_engine *e, char port, uint8_t bit, const uint64_t
                            uint32_t n)
 {
     mcu_pin *p = NULL;
-    for (int i = 0; i < 4 && !p; i++)
+    for (int i = 0; i < MCU_DRIVEN_PINS && !p; i++)
         if (e->pins[i].used && e->pins[i].port == (uint8_t)port && e->pins[i].bit == bit)
             p = &e->pins[i];
-    for (int i = 0; i < 4 && !p; i++)
+    for (int i = 0; i < MCU_DRIVEN_PINS && !p; i++)
         if (!e->pins[i].used) {
             p = &e->pins[i];
             *p = (mcu_pin){ .used = true, .port = (uint8_t)port, .bit = bit };
@@ -246,4 +248,38 @@ void mcu_pcint_attach(mcu_engine *e)
             avr_irq_register_notify(irq, pcint_changed, p);
         }
     }
+}
+
+static void output_changed(struct avr_irq_t *irq, uint32_t value, void *param)
+{
+    mcu_watched_pin *w = param;
+    avr_t *avr = w->engine->avr;
+    if (value != irq->value && (avr->data[w->ddr] >> w->bit & 1))
+        w->engine->last_activity = avr->cycle;
+}
+
+/* the hang check counts a change of any output pin of `port` (DDRx at data address `ddr`) as activity:
+ * a firmware that blinks a LED or bit-bangs anything is running; a pin driven from outside (DDR bit
+ * clear) is not the firmware's doing */
+MCU_API bool mcu_watch_port(mcu_engine *e, char port, uint16_t ddr)
+{
+    for (uint8_t bit = 0; bit < 8; bit++) {
+        avr_irq_t *irq = avr_io_getirq(e->avr, AVR_IOCTL_IOPORT_GETIRQ(port), bit);
+        if (!irq || e->n_watched == sizeof e->watched / sizeof e->watched[0])
+            return false;
+        mcu_watched_pin *w = &e->watched[e->n_watched++];
+        *w = (mcu_watched_pin){ .engine = e, .ddr = ddr, .bit = bit };
+        avr_irq_register_notify(irq, output_changed, w);
+    }
+    return true;
+}
+
+/* an analog input: ADC channel `channel` at `millivolts` from now on (a battery through its divider) */
+MCU_API bool mcu_adc_set(mcu_engine *e, uint8_t channel, uint32_t millivolts)
+{
+    avr_irq_t *irq = avr_io_getirq(e->avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_ADC0 + channel);
+    if (!irq || channel > ADC_IRQ_ADC15)
+        return false;
+    avr_raise_irq(irq, millivolts);
+    return true;
 }

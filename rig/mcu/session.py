@@ -31,10 +31,10 @@ from typing import Final
 from rig import interrupts
 from rig.bridge.esc import esc_protocol
 from rig.emulators import sbus
-from rig.mcu.board import Board
+from rig.mcu.board import Board, uart_baud
 from rig.mcu.engine import AvrEngine, config_for
 from rig.mcu.twi_log import TwiTransfers
-from rig.mcu.vcd import McuTrace
+from rig.mcu.vcd import McuTrace, TraceOptions
 from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, Stop
 from rig.session import Outcome
 from rig.telemetry import msp
@@ -48,6 +48,10 @@ ESC_TIMEOUT_NS: Final = round(ESC_TIMEOUT_S * NS)
 #: PPM sum: frame sync gap and channel pulse (a common receiver's)
 PPM_PULSE_NS: Final = 300_000
 PPM_FRAME_NS: Final = 22_500_000
+#: a parallel PWM receiver's frame: its channels' pulses every 20 ms (50 Hz, the servo rate)
+PWM_FRAME_NS: Final = 20_000_000
+#: a [[serial]] send's baud on a USART the board gives none (Arduino's usual serial speed)
+DEFAULT_BAUD: Final = 115_200
 
 
 @dataclass
@@ -62,8 +66,13 @@ class McuConfig:
     sim_timeout: float = 600.0
     #: write the TWI transactions and the motor pins' edges here as VCD (rig/mcu/vcd.py)
     trace: Path | None = None
+    trace_options: TraceOptions = TraceOptions()
     #: write the EEPROM as the firmware left it here, however the run ended (eeprom.bin)
     eeprom_out: Path | None = None
+    #: USARTs whose output is kept time-stamped (``uart_log``: the criteria on a USART)
+    listen: frozenset[int] = frozenset()
+    #: the hang check's limit in seconds instead of the board's (0: off)
+    hang_s: float | None = None
 
 
 @dataclass
@@ -86,7 +95,8 @@ class McuSession:
         self.world = world
         b = config.board
         self.sched = Scheduler(world, self, config.duration, config.sim_timeout)
-        self.engine_config = config_for(b, config.firmware, config.eeprom)
+        limits = {} if config.hang_s is None else {"hang_ns": round(config.hang_s * NS)}
+        self.engine_config = config_for(b, config.firmware, config.eeprom, **limits)
         # per motor: the plant's motor (0-based) and its ESC's pulse us to the plant's PWM us
         self._motor_index = [m.motor - 1 for m in b.motors]
         self._to_us = [esc_protocol(m.protocol).to_pwm_us for m in b.motors]
@@ -98,6 +108,9 @@ class McuSession:
         self.notes: list[str] = []
         self._ppm_channels: list[int] | None = None
         self._ppm_next_ns = 0
+        #: per listened USART, what the firmware sent: (the step's end in sim ns, the bytes)
+        self.uart_log: dict[int, list[tuple[int, bytes]]] = {n: [] for n in config.listen}
+        self._ports: dict[str, tuple[int, int]] = {}  # serial_port's paths: (USART, baud)
 
     # ---- the Host the scenario's events use ---------------------------------------------------
 
@@ -109,19 +122,37 @@ class McuSession:
     def at(self, t: float, fn: Callable[[McuSession], None]) -> None:
         self.sched.at(t, fn)
 
+    def serial_port(self, uart: int, baud: int | None) -> str:
+        """A path for serial_write that puts bytes on USART ``uart`` at ``baud`` (None: the board's for
+        that USART, else 115200), 8N1."""
+        if uart not in self.cfg.board.mcu.usarts:
+            raise ValueError(f"the {self.cfg.board.mcu.name} has no USART{uart} (it has "
+                             f"{', '.join(map(str, self.cfg.board.mcu.usarts))})")
+        baud = baud or uart_baud(self.cfg.board, uart) or DEFAULT_BAUD
+        path = f"usart{uart}@{baud}"
+        self._ports[path] = (uart, baud)
+        return path
+
     def serial_write(self, path: str, data: bytes) -> None:
-        """The RC port's SBUS frames go to the board's RC input as its protocol has them: SBUS bytes
-        into the USART, or the same channels as a PPM sum on the pin or an MSP SET_RAW_RC frame. Bytes
-        for the telemetry port (an MSP poll) go into its USART as they are."""
+        """Bytes for a serial_port go into that USART; the RC port's SBUS frames go to the board's RC
+        input as its protocol has them: SBUS bytes into the USART, or the same channels as a PPM sum on
+        the pin or an MSP SET_RAW_RC frame. Bytes for the telemetry port (an MSP poll) go into its USART
+        as they are."""
         if self.engine is None:
             return
         board = self.cfg.board
-        if path == self.cfg.telemetry_path:
+        port = self._ports.get(path)
+        if port is not None:
+            self.engine.uart_send(port[0], data, port[1])
+            return
+        if path == self.cfg.telemetry_path and board.telemetry_uart is not None:
             self.engine.uart_send(board.telemetry_uart, data, board.telemetry_baud)
             return
         if path != self.cfg.rc_path:
             return
-        rc = self.cfg.board.rc
+        rc = board.rc
+        if rc is None:
+            return
         self.figures.rc_bytes += len(data)
         if rc.protocol == "sbus":
             assert rc.uart is not None
@@ -138,7 +169,7 @@ class McuSession:
             self._ppm_channels = us
 
     def serial_silence(self, path: str) -> None:
-        """A lost RC link: a PPM receiver stops its pulses too (SBUS and MSP simply send nothing)."""
+        """A lost RC link: a PPM or PWM receiver stops its pulses too (SBUS and MSP send nothing)."""
         if path == self.cfg.rc_path:
             self._ppm_channels = None
 
@@ -162,8 +193,9 @@ class McuSession:
         if self.cfg.trace is not None:
             trace = self._open_trace(self.cfg.trace)
         engine.twi_log(True)  # (the transfers for run.mcap, and the trace's)
-        ppm = self.cfg.board.rc.protocol == "ppm"
+        ppm = self.cfg.board.rc is not None and self.cfg.board.rc.protocol in ("ppm", "pwm")
         telemetry_uart = self.cfg.board.telemetry_uart
+        logs = self.uart_log
         try:
             while not self.sched.over:
                 nxt = min(self._t_ns + TICK_NS - self._t_ns % TICK_NS, self.sched.limit_ns)
@@ -172,13 +204,20 @@ class McuSession:
                     nxt = ev
                 self.world.advance_to(nxt)
                 if ppm:
-                    self._ppm(nxt)
+                    self._rc_pins(nxt)
                 problem = self._run_mcu(engine, nxt)
                 if problem is not None:
                     self.sched.fail(EXIT_RIG_ERROR, problem)
                     break
                 self._t_ns = nxt
-                self._telemetry += engine.uart_take(telemetry_uart)
+                for n, log in logs.items():
+                    sent = engine.uart_take(n)
+                    if sent:
+                        log.append((nxt, sent))
+                        if n == telemetry_uart:
+                            self._telemetry += sent
+                if telemetry_uart is not None and telemetry_uart not in logs:
+                    self._telemetry += engine.uart_take(telemetry_uart)
                 trains = engine.pulses()
                 self._motors(trains, nxt)
                 events = engine.twi_take()
@@ -221,7 +260,8 @@ class McuSession:
         names = [f"m{m.motor}_{m.pin}" for m in b.motors]
         path.parent.mkdir(parents=True, exist_ok=True)
         return McuTrace(path, names, b.twi_hz,
-                        comment=f"{self.cfg.firmware.name} on {b.name}: TWI and motor outputs, sim time")
+                        comment=f"{self.cfg.firmware.name} on {b.name}: TWI and motor outputs, sim time",
+                        options=self.cfg.trace_options)
 
     def _run_mcu(self, engine: AvrEngine, t_ns: int) -> str | None:
         """Runs the MCU to ``t_ns``, serving the chip core's needs; what went wrong, or None."""
@@ -248,24 +288,32 @@ class McuSession:
                 state.last_pulse_ns = -1
                 set_motor(motor, 0.0)
 
-    def _ppm(self, t_ns: int) -> None:
-        """A PPM sum on the RC pin: one frame every PPM_FRAME_NS while the link is up."""
-        if self.cfg.board.rc.protocol != "ppm" or self.engine is None:
+    def _rc_pins(self, t_ns: int) -> None:
+        """A PPM sum on the RC pin, or a parallel PWM receiver's pulses on its pins (each channel's after
+        the one before, as receivers put them out): one frame every PPM_FRAME_NS or PWM_FRAME_NS while
+        the link is up."""
+        rc = self.cfg.board.rc
+        if rc is None or self.engine is None:
             return
+        period = PPM_FRAME_NS if rc.protocol == "ppm" else PWM_FRAME_NS
         while self._ppm_next_ns <= t_ns:
             start = self._ppm_next_ns
-            self._ppm_next_ns += PPM_FRAME_NS
+            self._ppm_next_ns += period
             if self._ppm_channels is None:
                 continue
-            edges: list[tuple[int, int]] = []
             t = start
+            if rc.protocol == "pwm":
+                for pin, us in zip(rc.pins, self._ppm_channels, strict=False):
+                    self.engine.pin_drive(pin, [(t, 1), (t + us * 1000, 0)])
+                    t += us * 1000
+                continue
+            edges: list[tuple[int, int]] = []
             for us in self._ppm_channels:
                 edges += [(t, 0), (t + PPM_PULSE_NS, 1)]
                 t += us * 1000
             edges += [(t, 0), (t + PPM_PULSE_NS, 1)]
-            pin = self.cfg.board.rc.pin
-            assert pin is not None
-            self.engine.pin_drive(pin, edges)
+            assert rc.pin is not None
+            self.engine.pin_drive(rc.pin, edges)
 
 
 def sbus_to_us(raw: int) -> float:
@@ -281,4 +329,3 @@ def _sbus_channels(data: bytes) -> list[int] | None:
     except ValueError:
         return None
     return channels
-

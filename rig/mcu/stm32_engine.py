@@ -32,8 +32,12 @@ import sys
 import time
 from pathlib import Path
 
+from rig.emulators.chips import gen as chip_registers
+
 REPO = Path(__file__).resolve().parents[2]
 MODELS = REPO / "qemu"
+#: the chip core (MIT, ours): compiled into the engine as the slaves on the STM32's I2C, in hw/rig/chips
+CHIP_CORE = REPO / "emulators" / "chips"
 APT_INSTALL = REPO / "tools" / "apt-install.sh"
 SOURCE_PACKAGE = "qemu"
 #: the upstream release this engine is written for (the .dsc's version must start with it)
@@ -83,19 +87,33 @@ def model_files(models: Path = MODELS) -> list[Path]:
     return sorted(p for p in models.rglob("*") if p.is_file())
 
 
+def chip_core_sources(chips: Path = CHIP_CORE) -> dict[str, bytes]:
+    """The chip core's C files and its generated register header, by their path under hw/rig."""
+    files = {f"chips/{p.name}": p.read_bytes() for p in sorted([*chips.glob("*.c"), *chips.glob("*.h")])}
+    files["chips/chip_registers.h"] = chip_registers.header().encode()
+    return files
+
+
+def engine_sources(models: Path = MODELS, chips: Path = CHIP_CORE) -> dict[str, bytes]:
+    """What goes into hw/rig: the models (qemu/) and the chip core, by their paths there."""
+    files = {p.relative_to(models).as_posix(): p.read_bytes() for p in model_files(models)}
+    return files | chip_core_sources(chips)
+
+
 def source_dsc(cache: Path) -> Path | None:
     """The newest QEMU 7.2 source package already downloaded into the cache, if any."""
     found = sorted((cache / "src").glob(f"{SOURCE_PACKAGE}_{UPSTREAM}*.dsc"))
     return found[-1] if found else None
 
 
-def inputs_hash(dsc: Path, models: Path = MODELS) -> str:
-    """SHA-256 of every input of the binary: the source package, the models (names and contents), the
-    flags, this file. Files' times do not count: a checkout of the same sources finds the same engine."""
+def inputs_hash(dsc: Path, models: Path = MODELS, chips: Path = CHIP_CORE) -> str:
+    """SHA-256 of every input of the binary: the source package, the models and the chip core (names and
+    contents), the flags, this file. Files' times do not count: a checkout of the same sources finds the
+    same engine."""
     h = hashlib.sha256()
     h.update(dsc.name.encode() + b"\0" + dsc.read_bytes())
-    for p in model_files(models):
-        h.update(p.relative_to(models).as_posix().encode() + b"\0" + p.read_bytes())
+    for name, data in sorted(engine_sources(models, chips).items()):
+        h.update(name.encode() + b"\0" + data)
     h.update("\0".join(CONFIGURE_FLAGS).encode())
     h.update(Path(__file__).read_bytes())
     return h.hexdigest()
@@ -204,7 +222,8 @@ def _write_if_changed(path: Path, data: bytes) -> None:
 
 
 def prepare_tree(dsc: Path, work: Path) -> Path:
-    """The unpacked source (Debian's patches applied) with hw/rig = qemu/ and its device config."""
+    """The unpacked source (Debian's patches applied) with hw/rig = qemu/ and the chip core, and the
+    device config."""
     src = work / "src"
     if not (src / ".rig-unpacked").is_file():
         shutil.rmtree(src, ignore_errors=True)
@@ -216,9 +235,10 @@ def prepare_tree(dsc: Path, work: Path) -> Path:
         tmp.rename(src)
         (src / ".rig-unpacked").write_text(dsc.name + "\n")
     rig = src / "hw" / "rig"
-    wanted = {p.relative_to(MODELS) for p in model_files()}
-    for p in model_files():
-        _write_if_changed(rig / p.relative_to(MODELS), p.read_bytes())
+    sources = engine_sources()
+    wanted = {Path(name) for name in sources}
+    for name, data in sources.items():
+        _write_if_changed(rig / name, data)
     if rig.is_dir():
         for p in rig.rglob("*"):
             if p.is_file() and p.relative_to(rig) not in wanted:
@@ -295,7 +315,7 @@ def _build_locked(cache: Path, jobs: int | None) -> Path:
     shutil.copy2(work / "build" / BINARY, tmp)
     tmp.rename(binary)
     info = {"inputs_sha256": key, "source_package": dsc.name, "configure_flags": list(CONFIGURE_FLAGS),
-            "models": [p.relative_to(MODELS).as_posix() for p in model_files()],
+            "models": sorted(engine_sources()),
             "build_seconds": round(seconds, 1), "build_cpu_seconds": round(cpu, 1), "jobs": jobs}
     (out / "build.json").write_text(json.dumps(info, indent=2) + "\n")
     prune(cache)

@@ -16,17 +16,24 @@ What the file holds (``mcu_trace``):
   for a viewer without a decoder; ``twi.busy``: 1 from a START to its STOP;
 * ``motors.mN_PIN``: each motor's output pin, rising and falling at its pulses' edges.
 
-Nothing in the file depends on the wall clock or the machine (no ``$date``): two runs of the same
-firmware, scenario and seed give the same bytes.
+A trace a person keeps (``TraceOptions``): only the signals chosen (``twi``, ``motors``, ``twi.scl``,
+``m2``, ...), only the changes inside a time window (the values at the window's start written there),
+and gzip-compressed (``.vcd.gz``, which GTKWave opens as it is): the reference FC's 3.6 MB per sim second
+of VCD compresses about tenfold.
+
+Nothing in the file depends on the wall clock or the machine (no ``$date``, a gzip header with no time
+or name): two runs of the same firmware, scenario and seed give the same bytes.
 """
 
 from __future__ import annotations
 
+import gzip
 import heapq
+import io
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Final, TextIO
+from typing import BinaryIO, Final, TextIO
 
 from rig.mcu.engine import TwiRecord
 
@@ -63,7 +70,8 @@ class VcdWriter:
     later given wins; a change to the value a variable has is left out), ``close`` the rest. A change
     earlier than what is written already is an error (the caller holds its changes back far enough)."""
 
-    def __init__(self, out: TextIO, variables: Sequence[Var], timescale: str = "1 ns", comment: str = ""):
+    def __init__(self, out: TextIO, variables: Sequence[Var], timescale: str = "1 ns", comment: str = "",
+                 window: tuple[int, int] | None = None):
         for v in variables:
             if not v.name or any(c.isspace() for c in v.name + v.scope) or v.width < 1:
                 raise ValueError(f"VCD variable {v.scope}.{v.name!r} (width {v.width}): a name without "
@@ -74,6 +82,10 @@ class VcdWriter:
         self._pending: dict[int, dict[int, int]] = {}
         self._times: list[int] = []  #: the pending times, a heap
         self._written = 0  #: changes before this time are written
+        #: only the changes in [start, end] are written, the values at start written there
+        self._window = window
+        self._shown = list(self._current)  #: the values the file gives now
+        self._opened = window is None or window[0] <= 0
         if comment:
             out.write(f"$comment\n  {comment}\n$end\n")
         out.write(f"$timescale {timescale} $end\n")
@@ -113,19 +125,39 @@ class VcdWriter:
         while heap and (before is None or heap[0] < before):
             times.append(heapq.heappop(heap))
         chunks = []
+        start, end = self._window or (0, None)
         for t in times:
+            changes = self._pending.pop(t)
+            if end is not None and t > end:
+                continue  # (after the window)
+            if not self._opened:
+                if t < start:  # (before the window: kept, to write the values at its start)
+                    self._current = [changes.get(i, v) for i, v in enumerate(self._current)]
+                    continue
+                chunks.append(self._open_window())
             lines = []
-            for i, value in self._pending.pop(t).items():
+            for i, value in changes.items():
                 if self._current[i] != value:
                     self._current[i] = value
                     lines.append(_value(self._vars[i], self._idents[i], value))
             if lines:
                 chunks.append(f"#{t}\n" + "\n".join(lines) + "\n")
+        if not self._opened and (before is None or before > start):
+            chunks.append(self._open_window())
         self._out.write("".join(chunks))
         if times:
             self._written = times[-1] + 1
         if before is not None:
             self._written = max(self._written, before)
+
+
+    def _open_window(self) -> str:
+        """The values at the window's start, where they differ from those the file gives."""
+        assert self._window is not None
+        self._opened = True
+        lines = [_value(v, self._idents[i], self._current[i]) for i, v in enumerate(self._vars)
+                 if self._current[i] != self._shown[i]]
+        return f"#{self._window[0]}\n" + "".join(line + "\n" for line in lines)
 
 
 def write_vcd(out: TextIO, variables: Sequence[Var], changes: Iterable[tuple[int, int, int]],
@@ -142,6 +174,37 @@ def write_vcd(out: TextIO, variables: Sequence[Var], changes: Iterable[tuple[int
 # ---- a firmware run's trace ------------------------------------------------------------------------
 
 SCL, SDA, BYTE, ACK, BUSY = range(5)
+TWI_SIGNALS: Final = ("scl", "sda", "byte", "ack", "busy")
+
+
+@dataclass(frozen=True)
+class TraceOptions:
+    """What a trace keeps: ``signals`` ("twi", "motors", "twi.scl", "m2", ...; empty: all), the sim time
+    ``window_ns`` [start, end] (None: the whole run), and ``gzip`` (a .vcd.gz)."""
+
+    signals: tuple[str, ...] = ()
+    window_ns: tuple[int, int] | None = None
+    gzip: bool = False
+
+    @property
+    def suffix(self) -> str:
+        return ".vcd.gz" if self.gzip else ".vcd"
+
+
+def signal_problem(signals: Iterable[str], motors: int = 4) -> str | None:
+    """Why a trace's signal names are not ones it has (None: they are)."""
+    known = {"twi", "motors", *(f"twi.{s}" for s in TWI_SIGNALS), *(f"m{k}" for k in range(1, motors + 1))}
+    for s in signals:
+        if s not in known:
+            return f"no trace signal {s!r}; the signals: {', '.join(sorted(known))}"
+    return None
+
+
+def _chosen(var: Var, signals: Sequence[str]) -> bool:
+    if not signals:
+        return True
+    short = var.name.split("_")[0] if var.scope == "motors" else var.name
+    return any(s in (var.scope, f"{var.scope}.{var.name}", short) for s in signals)
 
 
 class TwiDrawing:
@@ -191,13 +254,24 @@ class McuTrace:
 
     HOLD_NS: Final = 100_000_000
 
-    def __init__(self, path: Path, motor_names: Sequence[str], twi_hz: int, comment: str = "") -> None:
+    def __init__(self, path: Path, motor_names: Sequence[str], twi_hz: int, comment: str = "",
+                 options: TraceOptions = TraceOptions()) -> None:
         variables = [Var("twi", "scl", 1, 1), Var("twi", "sda", 1, 1), Var("twi", "byte", 8),
                      Var("twi", "ack", 1), Var("twi", "busy", 1, 0)]
         variables += [Var("motors", name, 1, 0) for name in motor_names]
+        kept = [v for v in variables if _chosen(v, options.signals)]
+        #: a variable's index among all -> among those written (None: not written)
+        self._index = [kept.index(v) if v in kept else None for v in variables]
         self._twi = TwiDrawing(max(1, round(1e9 / twi_hz)))
-        self._file = open(path, "w", encoding="ascii", newline="\n")  # noqa: SIM115 (closed by close())
-        self._vcd = VcdWriter(self._file, variables, comment=comment)
+        self._file: TextIO
+        self._gzipped: BinaryIO | None = None  # (GzipFile leaves the file it writes to open)
+        if options.gzip:  # (no name and no time in the header: the same run, the same bytes)
+            self._gzipped = open(path, "wb")  # noqa: SIM115 (closed by close())
+            raw = gzip.GzipFile(filename="", mode="wb", fileobj=self._gzipped, mtime=0)
+            self._file = io.TextIOWrapper(raw, encoding="ascii", newline="\n")
+        else:
+            self._file = open(path, "w", encoding="ascii", newline="\n")  # noqa: SIM115 (closed by close())
+        self._vcd = VcdWriter(self._file, kept, comment=comment, window=options.window_ns)
         self._hold_ns = max(self.HOLD_NS, 20 * self._twi.bit_ns)
 
     def add(self, records: Iterable[TwiRecord], pulses: Sequence[Iterable[tuple[int, int, int]]],
@@ -209,15 +283,19 @@ class McuTrace:
             for rise, width, _period in train:
                 changes += [(rise, index, 1), (rise + width, index, 0)]
                 self._hold_ns = max(self._hold_ns, 2 * width)
-        open_ns = vcd.written
+        open_ns, kept = vcd.written, self._index
         for t, i, value in changes:
-            vcd.change(max(t, open_ns), i, value)
+            written = kept[i]
+            if written is not None:
+                vcd.change(max(t, open_ns), written, value)
         vcd.flush(now_ns - self._hold_ns)
 
     def close(self) -> None:
         if not self._file.closed:
             self._vcd.flush()
             self._file.close()
+            if self._gzipped is not None:
+                self._gzipped.close()
 
 
 def mcu_trace(path: Path, records: Sequence[TwiRecord], pulses: Sequence[Iterable[tuple[int, int, int]]],

@@ -42,6 +42,8 @@ class RunRequest(BaseModel):
     scenarios: list[str] = Field(min_length=1, max_length=MAX_SCENARIOS)
     seed: int = Field(default=0, ge=0, lt=2**31)
     dut: dict[str, str] = Field(default_factory=dict)
+    #: the FC's profile, a shipped one's name (docs/profiles.md); None: the reference FC's
+    fc: str | None = None
     mode: Literal["lockstep", "bridge"] = "lockstep"
     priority: int = Field(default=0, ge=-100, le=100)
     #: a Linux DUT's board (rig run --pwm-channels, --topology; default 8 channels on a GY-86)
@@ -69,6 +71,21 @@ def refusal(status: int, message: str) -> HTTPException:
     return HTTPException(status, {"problems": [message]} if status == 422 else message)
 
 
+def fc_problems(fc: str) -> list[str]:
+    """A requested FC profile's problems: the service flies shipped profiles only (a client's file is
+    not on the service's disk), named as ``rig run --fc`` names them."""
+    import difflib
+
+    from rig.scenarios import profile as profiles
+
+    shipped = profiles.names()
+    if fc in shipped:
+        return []
+    near = difflib.get_close_matches(fc, shipped, n=1)
+    hint = f"; did you mean {near[0]!r}?" if near else ""
+    return [f"fc: no shipped FC profile {fc!r}{hint} (shipped: {', '.join(shipped)})"]
+
+
 def check_run(req: RunRequest, store: Store, scenarios: bool = True) -> tuple[list[str], dict[str, str]]:
     """Every problem of a run request, in words (the validator's for the scenarios; ``scenarios``
     False: only the DUT, for a sweep), and the version of each scenario it names: the one checked
@@ -89,6 +106,8 @@ def check_run(req: RunRequest, store: Store, scenarios: bool = True) -> tuple[li
             load(path)
         except ScenarioError as e:
             problems.append(str(e).replace(str(path), f"{name}.toml"))
+    if req.fc is not None:
+        problems += fc_problems(req.fc)
     kinds = set(req.dut)
     if kinds - {"command", "firmware"} or len(kinds) > 1:
         problems.append("dut: {\"command\": \"...\"} or {\"firmware\": SHA256} (POST /api/firmware first)")
@@ -250,7 +269,10 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         problems += bench_problems(req, workers)
         if problems:
             raise HTTPException(422, {"problems": problems})
-        run_id = db.submit(req.scenarios, req.seed, dut_of(req), req.mode, req.priority, versions=versions,
+        dut = dut_of(req)
+        if req.fc is not None:
+            dut = {**dut, "fc": req.fc}  # (the run's DUT: the FC and how it is flown)
+        run_id = db.submit(req.scenarios, req.seed, dut, req.mode, req.priority, versions=versions,
                            bench=req.bench)
         workers.wake()
         return {"id": run_id}
@@ -258,6 +280,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
     @app.post("/api/sweeps", status_code=201)
     async def submit_sweep(request: Request, priority: int = Query(default=0, ge=-100, le=100),
                            dut: str | None = Query(default=None, description="a DUT command line"),
+                           fc: str | None = Query(default=None, description="a shipped FC profile's name"),
                            ) -> dict[str, Any]:
         """A sweep spec (TOML, the request's body; docs/sweeps.md) whose scenario is a library or an
         uploaded one, every variant checked before it is queued (422 with the checker's words). It
@@ -271,8 +294,8 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
             body += chunk
             if len(body) > MAX_SCENARIO:
                 raise HTTPException(413, f"a sweep spec over {MAX_SCENARIO} bytes")
-        problems, _ = check_run(RunRequest(scenarios=["-"], dut={"command": dut} if dut is not None else {}),
-                                store, scenarios=False)
+        problems, _ = check_run(RunRequest(scenarios=["-"], dut={"command": dut} if dut is not None else {},
+                                           fc=fc), store, scenarios=False)
         if problems:
             raise HTTPException(422, {"problems": problems})
         versions: dict[str, str] = {}
@@ -293,8 +316,8 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
             path, sweep = store.put_sweep(body, check)  # (kept only once checked)
         except UploadError as e:
             raise refusal(e.status, str(e)) from e
-        run_id = db.submit([str(path)], 0, {"command": dut} if dut is not None else {}, "sweep", priority,
-                           versions=versions)
+        flown_by = {**({"command": dut} if dut is not None else {}), **({"fc": fc} if fc is not None else {})}
+        run_id = db.submit([str(path)], 0, flown_by, "sweep", priority, versions=versions)
         workers.wake()
         [(name, sha)] = versions.items()
         return {"id": run_id, "runs": len(sweep.variants), "scenario": name, "sha256": sha}

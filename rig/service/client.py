@@ -1,10 +1,11 @@
 """``rig submit`` and ``rig status``: the command line as a client of ``rig serve`` (docs/service.md).
 
-``rig submit --server URL [SCENARIO…] [--seed N] [--dut CMD] [--bridge virtual] [--priority P]
-[--wait]`` queues a run and prints its id; with ``--wait`` it follows the run (one line per change of
-status or progress, on stderr) and exits as ``rig run`` would: 0 passed, 1 failed, 3 error, 130
-interrupted or cancelled. ``rig status --server URL [ID]`` prints one run, or the latest ones. The token
-comes from ``--token`` or ``$RIG_TOKEN``. Only the standard library speaks HTTP here.
+``rig submit --server URL [SCENARIO…] [--seed N] [--dut CMD] [--pwm-channels N] [--topology T]
+[--bridge virtual] [--priority P] [--wait]`` queues a run and prints its id; with ``--wait`` it follows
+the run (one line per change of status or progress, on stderr) and exits as ``rig run`` would: 0
+passed, 1 failed, 3 error, 130 interrupted or cancelled. ``rig status --server URL [ID]`` prints one
+run, or the latest ones. The token comes from ``--token`` or ``$RIG_TOKEN``. Only the standard library
+speaks HTTP here.
 """
 
 from __future__ import annotations
@@ -81,6 +82,10 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     s.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="library scenario names")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--dut", help="the DUT command line (default: the reference FC)")
+    s.add_argument("--pwm-channels", type=int, metavar="N", help="a Linux DUT's channels of pwmchip0 (1..16)")
+    s.add_argument("--topology", choices=["gy86", "direct"], help="a Linux DUT's I2C wiring (default gy86)")
+    s.add_argument("--fc", metavar="PROFILE",
+                   help="a shipped FC profile's name (default: the reference FC's; docs/profiles.md)")
     s.add_argument("--bridge", choices=["virtual"], help="run on the service's bench (the virtual bridge)")
     s.add_argument("--bench", metavar="k=v,...",
                    help="run on a farm's bench with these labels (docs/farm.md)")
@@ -127,6 +132,11 @@ def cmd_submit(args: argparse.Namespace) -> int:
             return EXIT_USAGE
     if args.dut:
         body["dut"] = {"command": args.dut}
+    for option in ("pwm_channels", "topology"):  # (checked by the service, which says why in a 422)
+        if getattr(args, option) is not None:
+            body[option] = getattr(args, option)
+    if args.fc:
+        body["fc"] = args.fc
     run_id = None
     try:
         run_id = call(server_url(args.server), "POST", "/api/runs", args.token, body)["id"]

@@ -66,6 +66,8 @@ def command(run: dict[str, Any], out: Path, store: Store) -> tuple[list[str], di
         cmd = [sys.executable, "-m", "rig.cli", "sweep", str(spec), "--out", str(out), "--jobs", "1"]
         if run["dut"].get("command"):
             cmd += ["--dut", run["dut"]["command"]]
+        if run["dut"].get("fc"):
+            cmd += ["--fc", run["dut"]["fc"]]
         return cmd, flown
     flown = store.materialize(pinned, run["scenarios"], run["versions"])
     files = [str(pinned / f"{name}.toml") for name in run["scenarios"]]
@@ -82,6 +84,8 @@ def command(run: dict[str, Any], out: Path, store: Store) -> tuple[list[str], di
         if program is None:
             raise LookupError(f"the firmware {run['dut']['firmware']} is no longer there")
         cmd += ["--dut", shlex.quote(str(program))]
+    if run["dut"].get("fc"):
+        cmd += ["--fc", run["dut"]["fc"]]
     return cmd, flown
 
 

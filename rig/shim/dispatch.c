@@ -40,6 +40,9 @@ EXPORT ssize_t read(int fd, void *buf, size_t n)
     struct fake *f = fake_of(fd);
     if (f)
         return fake_read(f, buf, n, &f->pos);
+    struct vtimer *t = vtimer_of(fd);
+    if (t)
+        return timer_read(t, buf, n);
     catch_up();
     return LOAD(read)(fd, buf, n);
 }

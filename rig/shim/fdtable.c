@@ -30,7 +30,7 @@ static int set_fake(int fd, struct fake *f)
         free(f);
         return 0;
     }
-    pthread_mutex_lock(&lock);
+    LOAD(pthread_mutex_lock)(&lock);
     free(fakes[fd]);
     fakes[fd] = f;
     pthread_mutex_unlock(&lock);
@@ -86,7 +86,7 @@ static int open_fake(const struct target *t, int flags)
     if (set_fake(fd, f)) {
         /* Opening an emulated device is touching the devices, even when all that follows is a read or
            a write the kernel refuses (neither sends anything): connect, so the session knows. */
-        pthread_mutex_lock(&lock);
+        LOAD(pthread_mutex_lock)(&lock);
         ensure_connected();
         pthread_mutex_unlock(&lock);
     }
@@ -189,6 +189,7 @@ EXPORT int close(int fd)
     if (active && fd == sock && sock_pid == self_pid())
         return 0; /* a program closing every descriptor must not cut us off from the session */
     drop_fake(fd);
+    timer_closed(fd);
     return LOAD(close)(fd);
 }
 
@@ -350,7 +351,7 @@ static void std_sync(int fd)
         return;
     struct std_stream *s = &stds[fd];
     FILE **var = std_var(fd);
-    pthread_mutex_lock(&std_lock);
+    LOAD(pthread_mutex_lock)(&std_lock);
     if (fake_of(fd) && !s->swapped) {
         FILE *cur = *var; /* only the stream that is on this descriptor (a program may point stdout elsewhere) */
         if (cur && cur != s->cookie && fileno(cur) == fd && (s->cookie || (s->cookie = std_cookie(fd, cur)))) {

@@ -22,16 +22,18 @@ TABLE = "runs.parquet"
 FIXED = ("id", "seed", "verdict", "error", "wall_s", "host", "dut_command", "dut_sha256")
 SWEEP = "sweep.json"
 #: what identifies a DUT (the other keys of sweep.json say it in words)
-DUT_KEYS = ("dut_command", "dut_sha256")
+DUT_KEYS = ("dut_command", "dut_sha256", "fc_profile_sha256")
 #: what a sweep writes in its folder (beside .slots/, gone at its end): --fresh removes these
 WRITTEN = ("runs", TABLE, "summary.html", "junit.xml", SWEEP)
 
 
-def dut_identity(dut: list[str] | None, cwd: Path | None = None) -> dict[str, Any]:
+def dut_identity(dut: list[str] | None, cwd: Path | None = None, fc: str | None = None) -> dict[str, Any]:
     """The DUT a sweep flies: ``dut_command`` (``--dut`` with its relative paths made absolute, or the
-    reference FC's program), ``dut_sha256`` (of its firmware: rig/firmware.py) and ``dut_firmware``
-    (what was hashed, in words)."""
+    reference FC's program), ``dut_sha256`` (of its firmware: rig/firmware.py), ``dut_firmware``
+    (what was hashed, in words) and the FC profile it is flown by (``fc``: its file; None: the
+    reference FC's), by name and SHA-256."""
     from rig import firmware
+    from rig.scenarios import profile as profiles
     from rig.targets import REFERENCE_FC
     from rig.targets.process import absolute_command
 
@@ -39,10 +41,13 @@ def dut_identity(dut: list[str] | None, cwd: Path | None = None) -> dict[str, An
     command = list(dut) if dut is not None else [str(REFERENCE_FC)]
     info = firmware.identify(command, cwd)
     text = shlex.join(absolute_command(command, cwd))
+    fc_profile = profiles.load(fc or profiles.DEFAULT)
     return {
         "dut_command": text if dut is not None else f"reference FC {text}",
         "dut_sha256": info.get("dut_firmware_sha256"),
         "dut_firmware": info.get("dut_firmware"),
+        "fc_profile": fc_profile.name,
+        "fc_profile_sha256": fc_profile.sha256,
     }
 
 

@@ -47,6 +47,9 @@ class Task:
     #: the sweep's DUT (rig/sweep/store.py's dut_identity)
     dut_command: str | None = None
     dut_sha256: str | None = None
+    fc_profile_sha256: str | None = None
+    #: the FC profile's file (None: the reference FC's)
+    fc: str | None = None
 
     def head(self) -> dict[str, Any]:
         """What begins the variant's row: which run it is, and the DUT that flies it."""
@@ -58,6 +61,7 @@ class Task:
             "seed": v.seed,
             "dut_command": self.dut_command,
             "dut_sha256": self.dut_sha256,
+            "fc_profile_sha256": self.fc_profile_sha256,
         }
 
 
@@ -142,6 +146,7 @@ def fly(task: Task) -> dict[str, Any]:
     from rig import interrupts
     from rig.reports import html_report, mcap, result_json
     from rig.runner import not_run, run
+    from rig.scenarios import profile as profiles
     from rig.scenarios.schema import ScenarioError, check
     from rig.targets.process import ProcessTarget
 
@@ -167,7 +172,8 @@ def fly(task: Task) -> dict[str, Any]:
     try:
         with core_slot(out / SLOTS) as cpu:
             try:
-                r = run(scenario, ProcessTarget(task.dut), v.seed, folder, task.wall_timeout)
+                profile = profiles.load(task.fc or profiles.DEFAULT)
+                r = run(scenario, ProcessTarget(task.dut), v.seed, folder, task.wall_timeout, profile=profile)
             except Exception as e:  # the rig could not fly it: an error row, the sweep goes on
                 r = not_run(scenario, v.seed, f"the rig could not run this variant: {type(e).__name__}: {e}")
     except interrupts.Interrupted:  # while it waited for a core

@@ -30,8 +30,10 @@ from rig.scenarios.result import I2CRecord
 
 if TYPE_CHECKING:
     from rig.emulators.faults import FaultSet
+    from rig.scenarios.profile import Profile
     from rig.scenarios.schema import Scenario
     from rig.session import Outcome
+    from rig.uart_criteria import Chunks
     from rig.world import World
 
 # (the build folder from a module that is never compiled: the runner may run from build/mypyc,
@@ -39,6 +41,12 @@ if TYPE_CHECKING:
 REFERENCE_FC: Final = BUILD / "dut" / "fc"
 RC_PATH: Final = "/dev/ttyRC0"
 TELEMETRY_PATH: Final = "/dev/ttyTEL0"
+
+
+def telemetry_path(profile: Profile | None) -> str:
+    """The device the FC's telemetry comes out of: its profile's port when that is a device path."""
+    port = profile.telemetry.port if profile is not None and profile.telemetry.kind != "none" else ""
+    return port if port.startswith("/dev/") else TELEMETRY_PATH
 
 
 def reference_config(scenario: Scenario) -> str:
@@ -71,6 +79,7 @@ class RunContext:
     wall_timeout: float
     stall_timeout: float
     notes: list[str] = field(default_factory=list)  # what the report should say about the run
+    profile: Profile | None = None  # how the FC is flown (None: the reference FC's profile)
 
 
 class TargetSession(Host, Protocol):
@@ -96,6 +105,16 @@ class TargetRun:
     def signals(self, t: np.ndarray) -> dict[str, np.ndarray]:
         """Extra signals on the recorder's grid ``t`` (a bench supply's volts and amps)."""
         return {}
+
+    def serial_port(self, uart: int, baud: int | None) -> str | None:
+        """The Host path that puts bytes on the DUT's USART ``uart`` (a scenario's [[serial]] sends) at
+        ``baud`` (None: the one its board gives that USART), or None when this target has none."""
+        return None
+
+    def uarts(self) -> dict[int, Chunks] | None:
+        """What the DUT sent on each USART, time-stamped (the criteria on a USART), or None when this
+        target has no USARTs the rig reads."""
+        return None
 
     def transactions(self) -> list[I2CRecord] | None:
         """The run's I2C transfers as the chips saw them (run.mcap's /i2c channel), the first million
@@ -124,10 +143,12 @@ class Target(Protocol):
     #: paced by the wall clock (the report gives the scheduled events' lateness)
     realtime: bool
 
-    def describe(self, scenario: Scenario, work: Path, notes: list[str]) -> dict[str, object]:
+    def describe(self, scenario: Scenario, work: Path, notes: list[str],
+                 profile: Profile | None = None) -> dict[str, object]:
         """The DUT as result.json names it (``dut_command``, its hashes, ``fc_config``, ``capture``);
         may write what the DUT needs into ``work`` (the reference FC's configuration) and add notes.
-        Raises for a DUT that cannot be run at all (a missing build): the run is then not flown."""
+        ``profile``: the FC's (its arguments join a DUT's command line). Raises for a DUT that cannot be
+        run at all (a missing build): the run is then not flown."""
         ...
 
     def world_options(self) -> dict[str, Any]:

@@ -18,10 +18,11 @@ from rig.bridge.session import BenchConfig, BenchSession
 from rig.host import Host
 from rig.power.bench_run import PsuRun
 from rig.power.supply import PsuError
+from rig.scenarios.profile import Profile
 from rig.scenarios.schema import Scenario
 from rig.scheduler import EXIT_RIG_ERROR
 from rig.session import Outcome
-from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, TargetRun
+from rig.targets import RC_PATH, RunContext, TargetRun, telemetry_path
 from rig.targets.process import command_for, describe_command
 
 PSU_SAMPLE_S: Final = 0.1  # the bench supply's readings join the run's record at 10 Hz
@@ -80,13 +81,14 @@ class BridgeTarget:
         self.bridge, self.dut, self.can, self.esc = bridge, dut, can, esc
         self._command: list[str] | None = None
 
-    def describe(self, scenario: Scenario, work: Path, notes: list[str]) -> dict[str, object]:
+    def describe(self, scenario: Scenario, work: Path, notes: list[str],
+                 profile: Profile | None = None) -> dict[str, object]:
         if self.board:
             self._command = None
             who: dict[str, object] = {"dut_command": f"the board behind the bridge at {self.bridge}",
                                       "fc_config": None}
         else:
-            self._command = command_for(self.dut, scenario, work, notes)
+            self._command = command_for(self.dut, scenario, work, notes, profile)
             who = describe_command(self._command, scenario, self.dut is None)
         return {**who, "capture": f"can ({self.can})" if self.can else "bridge", "lockstep": False}
 
@@ -97,7 +99,7 @@ class BridgeTarget:
                 _psu_prepare(psu)
             session = BenchSession(BenchConfig(
                 bridge=self.bridge, command=self._command, rc_path=RC_PATH,
-                serial=[] if self.board else [TELEMETRY_PATH], duration=ctx.scenario.duration,
+                serial=[] if self.board else [telemetry_path(ctx.profile)], duration=ctx.scenario.duration,
                 wall_timeout=ctx.wall_timeout, stdout=ctx.stdout, stderr=ctx.stderr, faults=ctx.faults,
                 can=self.can, esc=self.esc, power_on=None if psu is None else _psu_switch_on(psu)), ctx.world)
         except BaseException:

@@ -12,11 +12,14 @@ from typing import TYPE_CHECKING, Any
 from rig.mcu import board as boards
 from rig.mcu.engine import BUS_PROBLEMS
 from rig.mcu.session import McuConfig, McuSession
+from rig.mcu.vcd import TraceOptions
+from rig.scenarios.profile import Profile
 from rig.scenarios.result import I2CRecord
 from rig.scenarios.schema import Scenario
 from rig.session import Outcome
-from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, TargetRun
+from rig.targets import RC_PATH, TELEMETRY_PATH, RunContext, TargetRun, telemetry_path
 from rig.targets.process import NO_SUPPLY
+from rig.uart_criteria import Chunks
 
 if TYPE_CHECKING:
     from rig.world import World
@@ -43,6 +46,12 @@ class McuRun(TargetRun):
 
     def transactions(self) -> list[I2CRecord] | None:
         return self.session.transfers.records
+
+    def serial_port(self, uart: int, baud: int | None) -> str | None:
+        return self.session.serial_port(uart, baud)
+
+    def uarts(self) -> dict[int, Chunks] | None:
+        return dict(self.session.uart_log)
 
     def idle(self, outcome: Outcome) -> str | None:
         if outcome.transactions == 0:
@@ -75,13 +84,16 @@ class McuTarget:
     anything runs (BoardError, FirmwareError). ``trace``: a folder for each run's VCD trace,
     ``SCENARIO.vcd`` (rig/mcu/vcd.py). ``eeprom``: an EEPROM image preloaded instead of the board's
     (raw bytes, or Intel HEX named .eep/.hex), checked here too. Each run writes the EEPROM as the
-    firmware left it as ``eeprom.bin`` in its folder, so the next run can start from it."""
+    firmware left it as ``eeprom.bin`` in its folder, so the next run can start from it. ``hang_limit``:
+    the hang check's limit (s; 0 off) instead of the board's [limits] hang_s; ``trace_options``: the
+    trace's signals, window and compression (a .vcd.gz)."""
 
     mode = "mcu"
     realtime = False
 
     def __init__(self, board: str | Path, firmware: Path, trace: Path | None = None,
-                 eeprom: Path | None = None) -> None:
+                 eeprom: Path | None = None, hang_limit: float | None = None,
+                 trace_options: TraceOptions | None = None) -> None:
         from rig.mcu.image import load, load_eeprom
 
         self.board = boards.load(board)
@@ -89,10 +101,18 @@ class McuTarget:
         load(self.firmware, self.board.mcu.name)  # (FirmwareError: not an AVR image, or too big)
         self.firmware_sha256 = hashlib.sha256(self.firmware.read_bytes()).hexdigest()
         self.trace = trace
+        self.hang_limit = hang_limit
+        self.trace_options = trace_options or TraceOptions()
         self.eeprom_file = None if eeprom is None else Path(eeprom).resolve()
         self.eeprom = None if self.eeprom_file is None else load_eeprom(self.eeprom_file, self.board.mcu.name)
 
-    def describe(self, scenario: Scenario, work: Path, notes: list[str]) -> dict[str, object]:
+    def describe(self, scenario: Scenario, work: Path, notes: list[str],
+                 profile: Profile | None = None) -> dict[str, object]:
+        mcu = self.board.mcu
+        for uart in sorted({s.uart for s in scenario.serial} | _listened(scenario)):
+            if uart not in mcu.usarts:
+                raise ValueError(f"the scenario talks to USART {uart}; the {mcu.name} has USART "
+                                 f"{', '.join(map(str, mcu.usarts))} only")
         if scenario.bench.psu is not None:
             notes.append(NO_SUPPLY)
         fc_eeprom = self.board.eeprom_from_fc and self.eeprom is None
@@ -116,29 +136,42 @@ class McuTarget:
         }
 
     def world_options(self) -> dict[str, Any]:
-        return {"topology": self.board.topology, "mounting": boards.mounting(self.board.mounting_yaw_deg)}
+        # (the board file wires each motor pin to its plant motor: no output order on top of it)
+        return {"topology": self.board.topology, "mounting": boards.mounting(self.board.mounting_yaw_deg),
+                "motor_order": (1, 2, 3, 4), "mpu_address": self.board.mpu_address}
 
     def open(self, ctx: RunContext) -> McuRun:
-        trace = None if self.trace is None else self.trace / f"{ctx.scenario.stem}.vcd"
+        trace = None if self.trace is None else self.trace / f"{ctx.scenario.stem}{self.trace_options.suffix}"
+        eeprom = ctx.profile.config.eeprom if ctx.profile is not None else None
         return McuRun(self.session(ctx.world, ctx.scenario.duration, ctx.scenario.fc, ctx.wall_timeout,
-                                   trace, eeprom_out=ctx.work / "eeprom.bin"))
+                                   trace, eeprom_out=ctx.work / "eeprom.bin", eeprom_image=eeprom,
+                                   telemetry=telemetry_path(ctx.profile), listen=_listened(ctx.scenario)))
 
     def session(self, world: World, duration: float, fc: Mapping[str, Any], wall_timeout: float,
                 trace: Path | None = None, sim_timeout: float = 600.0,
-                eeprom_out: Path | None = None) -> McuSession:
+                eeprom_out: Path | None = None, eeprom_image: Path | None = None,
+                telemetry: str = TELEMETRY_PATH, listen: frozenset[int] = frozenset()) -> McuSession:
         """The firmware on its board in ``world`` for ``duration`` sim seconds; ``fc``: the [fc] table
         that becomes the EEPROM on a board that says so (an empty one: the reference FC's defaults),
-        unless an EEPROM image was given; ``eeprom_out``: where the EEPROM goes at the end."""
+        unless an EEPROM image was given (``--eeprom``, else ``eeprom_image``: the FC profile's, before
+        the board file's); ``eeprom_out``: where the EEPROM goes at the end."""
         eeprom: bytes | None = self.eeprom
+        if eeprom is None and eeprom_image is not None:
+            eeprom = eeprom_image.read_bytes()
         if eeprom is None and self.board.eeprom_image is not None:
             eeprom = self.board.eeprom_image.read_bytes()
         elif eeprom is None and self.board.eeprom_from_fc:
             from rig.scenarios.eeprom import image  # the reference firmware's layout
 
             eeprom = image(fc)
-        cfg = McuConfig(self.board, self.firmware, duration, RC_PATH, TELEMETRY_PATH, eeprom, wall_timeout,
-                        sim_timeout, trace, eeprom_out)
+        cfg = McuConfig(self.board, self.firmware, duration, RC_PATH, telemetry, eeprom, wall_timeout,
+                        sim_timeout, trace, self.trace_options, eeprom_out, listen, self.hang_limit)
         return McuSession(cfg, world)
 
     def not_run_metadata(self) -> dict[str, object]:
         return {"mode": self.mode, "board": self.board.name}
+
+
+def _listened(scenario: Scenario) -> frozenset[int]:
+    """The USARTs a scenario's criteria judge (their output is kept time-stamped)."""
+    return frozenset(c.uart for c in scenario.criteria if c.uart is not None)

@@ -13,17 +13,18 @@ from typing import Any
 from rig import firmware
 from rig.capture import CaptureLink, install_capture
 from rig.emulators.topology import TOPOLOGIES
+from rig.scenarios.profile import Profile
 from rig.scenarios.result import I2CRecord
 from rig.scenarios.schema import Scenario
 from rig.session import Outcome, Session, SessionConfig
 from rig.targets import (
     RC_PATH,
     REFERENCE_FC,
-    TELEMETRY_PATH,
     RunContext,
     TargetRun,
     reference_command,
     reference_config,
+    telemetry_path,
 )
 
 #: channels pwmchip0 can have (rig/shim/protocol.h RIG_PWM_MAX)
@@ -69,13 +70,15 @@ def describe_command(command: list[str], scenario: Scenario, reference: bool) ->
     }
 
 
-def command_for(dut: list[str] | None, scenario: Scenario, work: Path, notes: list[str]) -> list[str]:
-    """The DUT's command line: ``dut``, or the reference FC with its configuration written to ``work``."""
+def command_for(dut: list[str] | None, scenario: Scenario, work: Path, notes: list[str],
+                profile: Profile | None = None) -> list[str]:
+    """The DUT's command line: ``dut`` with its profile's arguments, or the reference FC with its
+    configuration written to ``work``."""
     if dut is None:
         return reference_command(scenario, work)
     if scenario.fc:
         notes.append("the scenario's [fc] table configures the reference FC only; ignored for this DUT")
-    return list(dut)
+    return [*dut, *(profile.config.arguments() if profile is not None else [])]
 
 
 class ProcessRun(TargetRun):
@@ -120,8 +123,9 @@ class ProcessTarget:
         self.corrupt_every = corrupt_every
         self._command: list[str] = []
 
-    def describe(self, scenario: Scenario, work: Path, notes: list[str]) -> dict[str, object]:
-        self._command = command_for(self.dut, scenario, work, notes)
+    def describe(self, scenario: Scenario, work: Path, notes: list[str],
+                 profile: Profile | None = None) -> dict[str, object]:
+        self._command = command_for(self.dut, scenario, work, notes, profile)
         if scenario.bench.psu is not None:
             notes.append(NO_SUPPLY)
         return {**describe_command(self._command, scenario, self.dut is None),
@@ -130,7 +134,7 @@ class ProcessTarget:
     def open(self, ctx: RunContext) -> ProcessRun:
         cfg = SessionConfig(
             command=self._command,
-            serial=[RC_PATH, TELEMETRY_PATH],
+            serial=[RC_PATH, telemetry_path(ctx.profile)],
             duration=ctx.scenario.duration,
             lockstep=not self.realtime,
             spin=self.spin,

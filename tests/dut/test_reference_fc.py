@@ -165,7 +165,7 @@ def at(rows: list[dict[str, float]], t: float) -> dict[str, float]:
 
 def test_arm_fly_hold_altitude_then_rc_loss_levels_descends_and_disarms(tmp_path: Path, fc: Path) -> None:
     plan: list[tuple[float, dict[str, object]]] = [(1.5, {"arm": True}), (2.0, {"throttle": 0.56}),
-                                                   (4.0, {"alt_hold": True}), (8.0, {"link": "lost"})]
+                                                   (4.0, {"mode": "althold"}), (8.0, {"link": "lost"})]
     truth, tel, err = fly_with_sticks(tmp_path, fc, plan, duration=20.0)
     t0 = MONO_BASE_NS / NS                                  # the FC's monotonic clock at sim time 0
     armed_at = min(r["t"] - t0 for r in tel if r["armed"] == 1)

@@ -22,10 +22,11 @@ def test_the_shipped_boards_load_as_their_silk_screens_say() -> None:
     assert mega.mcu.name == "atmega2560" and mega.clock_hz == 16_000_000
     assert {m.label: m.pin for m in mega.motors} == ARDUINO_MEGA
     assert [(m.timer, m.channel) for m in mega.motors] == [(3, "B"), (3, "C"), (3, "A"), (4, "A")]
+    assert mega.rc is not None
     assert mega.rc.protocol == "sbus" and mega.rc.uart == 1 and mega.rc.baud == 100_000
     mini = board.load("promini328-gy86")
     assert {m.label: m.pin for m in mini.motors} == ARDUINO_PRO_MINI
-    assert mini.rc.protocol == "ppm" and mini.rc.pin == "PD2"
+    assert mini.rc is not None and mini.rc.protocol == "ppm" and mini.rc.pin == "PD2"
     assert set(board.names()) >= {"mega2560-gy86", "promini328-gy86"}
 
 
@@ -86,9 +87,11 @@ def test_a_motor_without_a_timer_is_any_port_pin(tmp_path: Path) -> None:
 
 
 def test_a_ppm_receiver_needs_an_interrupt_pin(tmp_path: Path) -> None:
+    """Port A of the ATmega2560 has neither INTn nor PCINTn (its datasheet's pin functions)."""
     p = tmp_path / "bad.toml"
-    p.write_text(board.find("promini328-gy86").read_text().replace('pin = "PD2"', 'pin = "PB0"'))
-    with pytest.raises(BoardError, match=r"rc.pin: a PPM sum needs an external-interrupt pin"):
+    sbus = 'protocol = "sbus"    # RX1 D19 (PD2)\nuart = 1'
+    p.write_text(board.find("mega2560-gy86").read_text().replace(sbus, 'protocol = "ppm"\npin = "PA0"'))
+    with pytest.raises(BoardError, match=r"rc.pin: a PPM sum needs a pin with an external or pin change"):
         board.load(str(p))
 
 

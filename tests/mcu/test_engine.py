@@ -43,7 +43,8 @@ def test_a_firmware_with_no_bus_and_no_pulses_hangs(mcu: str) -> None:
         stop = e.run_until(10_000_000)
         assert stop.kind == "reached"
         stop = e.run_until(30_000_000)
-        assert stop.kind == "hung" and "no TWI transaction and no motor pulse for 20 ms" in stop.what
+        assert stop.kind == "hung"
+        assert "no TWI transaction, motor pulse, USART byte sent or output pin change for 20 ms" in stop.what
         assert e.run_until(40_000_000) == stop  # final
 
 

@@ -78,7 +78,7 @@ def test_the_same_seed_gives_the_same_bytes(avr_fc: Path, tmp_path: Path) -> Non
 
 @pytest.mark.parametrize(
     ("name", "words"),
-    [("busy", "hung: no TWI transaction and no motor pulse for 1000 ms"),
+    [("busy", "hung: no TWI transaction, motor pulse, USART byte sent or output pin change for 1000 ms"),
      ("watchdog", "was reset by its watchdog in a loop: 3 times"),
      ("wild_jump", "crashed: jump outside the program"), ("bad_opcode", "crashed: invalid opcode")],
 )

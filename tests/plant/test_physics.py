@@ -239,3 +239,4 @@ def test_magnetometer_and_accelerometer_truth_rotate_into_the_body():
     with Plant(params={"stand": 1, "roll0": roll}) as plant:
         got = [plant.output(k) for k in ("fx", "fy", "fz")]
         assert np.allclose(got, (0.0, -G * math.sin(roll), -G * math.cos(roll)), atol=1e-12)
+

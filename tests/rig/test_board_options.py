@@ -66,3 +66,16 @@ def test_the_services_run_request_carries_the_board() -> None:
     for bad in ({"pwm_channels": 17}, {"pwm_channels": 0}, {"topology": "star"}):
         with pytest.raises(pydantic.ValidationError):
             RunRequest(scenarios=["step_roll"], **bad)
+
+
+def test_the_services_worker_flies_the_board_it_was_asked_for(tmp_path: Path) -> None:
+    from rig.service.db import Db
+    from rig.service.store import Store
+    from rig.service.worker import command
+
+    db = Db(tmp_path / "rig.sqlite")
+    store = Store(tmp_path, db)
+    req = RunRequest(scenarios=["step_roll"], pwm_channels=14, topology="direct")
+    run = {"mode": "lockstep", "scenarios": ["step_roll"], "seed": 0, "dut": dut_of(req), "versions": {}}
+    cmd, _ = command(run, tmp_path / "out", store)
+    assert cmd[cmd.index("--pwm-channels") + 1] == "14" and cmd[cmd.index("--topology") + 1] == "direct"

@@ -56,8 +56,8 @@ def test_each_frame_carries_the_sticks_and_link_of_its_instant() -> None:
     change(0.2, Sticks(roll=0.5, throttle=0.4, arm=True), "ok")
     change(0.4, None, "failsafe")
     change(0.5, None, "lost")
-    change(0.6, Sticks(yaw=-1.0, throttle=0.7, arm=True, alt_hold=True), "ok")
-    change(0.8, Sticks(yaw=-1.0, throttle=0.7, arm=True, alt_hold=True), "ok")  # equal sticks, a new object
+    change(0.6, Sticks(yaw=-1.0, throttle=0.7, arm=True, mode="althold"), "ok")
+    change(0.8, Sticks(yaw=-1.0, throttle=0.7, arm=True, mode="althold"), "ok")  # equal sticks, a new object
     host.sched.advance(999_000_000)
     assert len(host.sent) + len(host.silent) == int(0.999 / PERIOD_S) + 1
     assert host.silent and all(500_000_000 <= t < 600_000_000 for t in host.silent)

@@ -56,3 +56,19 @@ def test_a_pwm_channel_keeps_any_duty_the_shim_can_send_in_its_cell() -> None:
     cell[0] = 1_000_000  # as C writes it
     assert ch.duty_ns == 1_000_000 and ch.pulse_us() == 1500.0
     assert "duty_ns=1000000" in repr(ch)
+
+
+def test_the_fc_s_output_order_decides_which_motor_a_channel_drives() -> None:
+    # MultiWii's QUADX outputs: rear right, front right, rear left, front left; the plant's X motors are
+    # 1 front-right, 2 front-left, 3 rear-left, 4 rear-right: outputs 1..4 drive motors 4, 1, 3, 2
+    world = World.at_rest(noise=False, params={"frame": 1}, motor_order=(4, 1, 3, 2))
+    try:
+        world.set_motor(0, 1100.0)  # a capture link's output 1
+        world.pwm[1] = PwmChannel(exported=True, period_ns=2_500_000, duty_ns=1_300_000, enabled=True)
+        world.apply_pwm(1)  # the DUT's sysfs channel 1 (its output 2)
+        probe = world.probe([], rows=1)
+        probe.record(())
+        # motors 1..4 in the plant's order: output 2 (front right) is motor 1, output 1 (rear right) motor 4
+        assert probe.rows().tolist() == [[1300.0, 0.0, 0.0, 1100.0]]
+    finally:
+        world.close()

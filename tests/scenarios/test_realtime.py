@@ -33,7 +33,8 @@ def test_a_real_time_run_flies_and_reports_its_lateness(tmp_path: Path) -> None:
     at the library's 1.5 s, so a slow machine does not make the FC miss the arming window."""
     step_roll = load(LIB / "step_roll.toml")
     arm, climb = (ev for ev in step_roll.timeline if ev.t < 6.0)   # arm at 1.2 s; throttle up at 1.5 s
-    assert arm.sticks == {"arm": True, "throttle": 0.0} and climb.sticks == {"throttle": 0.5}
+    assert (arm.arm, arm.mode, arm.sticks) == (True, "angle", {"throttle": 0.0})
+    assert climb.sticks == {"throttle": 0.5}
     sc = dataclasses.replace(step_roll, duration=5.0, criteria=(),
                              timeline=(arm, dataclasses.replace(climb, t=3.0)))
     tries = iter(range(2))

@@ -345,7 +345,8 @@ def test_unknown_fields_and_query_parameters_are_refused_by_name(service: Servic
     status, body = service.call("POST", "/api/runs", {"scenarios": ["step_roll"], "sead": 3})
     assert status == 422, body
     assert body["detail"]["problems"] == [
-        "sead: no such field (known: scenarios, seed, dut, mode, priority, pwm_channels, topology, bench)"]
+        "sead: no such field (known: scenarios, seed, dut, fc, mode, priority, pwm_channels, topology, "
+        "bench)"]
     status, body = service.call("GET", "/api/runs?stauts=passed")
     assert status == 422 and "stauts: no such query parameter" in body["detail"]["problems"][0], body
     # pydantic's own refusals come in the same shape: sentences naming the field

@@ -1,5 +1,5 @@
 /* Start-up of the STM32 tier's test firmwares on the STM32F405: .data copied from flash, .bss cleared,
-   then main; a fault of any kind reports its name and the fault status registers through semihosting and
+   then main; a fault or an interrupt nobody handles reports its name and the fault status registers through semihosting and
    ends the run with status 3, so QEMU always exits. */
 #include "semihost.h"
 #include <stdint.h>
@@ -8,6 +8,9 @@ extern uint32_t __stack, __data_start, __data_end, __data_load, __bss_start, __b
 int main(void);
 void reset_handler(void);
 void fault_handler(void);
+/* I2C1's event and error interrupts (NVIC lines 31 and 32): a firmware that enables them defines these */
+void i2c1_ev_handler(void) __attribute__((weak, alias("fault_handler")));
+void i2c1_er_handler(void) __attribute__((weak, alias("fault_handler")));
 
 #define CFSR (*(volatile uint32_t *)0xE000ED28u)
 #define HFSR (*(volatile uint32_t *)0xE000ED2Cu)
@@ -30,7 +33,10 @@ void fault_handler(void)
     exit_with(3);
 }
 
-__attribute__((section(".isr_vector"), used)) static void (*const vectors[16])(void) = {
+#define F fault_handler
+// clang-format off
+/* the core's 16 exceptions, then the STM32F405's interrupts up to I2C1_ER (RM0090 table 61) */
+__attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 33])(void) = {
     (void (*)(void))(uintptr_t)&__stack,
     reset_handler,
     fault_handler,
@@ -47,4 +53,9 @@ __attribute__((section(".isr_vector"), used)) static void (*const vectors[16])(v
     0,
     fault_handler,
     fault_handler,
+    F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, /* IRQ 0-15 */
+    F, F, F, F, F, F, F, F, F, F, F, F, F, F, F,    /* IRQ 16-30 */
+    i2c1_ev_handler, /* IRQ 31 */
+    i2c1_er_handler, /* IRQ 32 */
 };
+// clang-format on

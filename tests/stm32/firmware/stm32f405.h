@@ -32,6 +32,8 @@
 #define RCC_CFGR_PPRE2_DIV2 (0x4u << 13)
 #define RCC_PLLCFGR_PLLSRC_HSE (1u << 22)
 #define RCC_APB1ENR_PWREN (1u << 28)
+#define RCC_APB1ENR_I2C1EN (1u << 21)
+#define RCC_AHB1ENR_GPIOBEN (1u << 1)
 
 #define PWR_CR REG(0x40007000u)
 #define PWR_CR_VOS (1u << 14)
@@ -58,6 +60,41 @@
 #define PORT_A 0u
 #define PORT_B 1u
 #define PORT_D 3u
+
+/* I2C1 (RM0090 27.6, table 133) */
+#define I2C1_BASE 0x40005400u
+#define I2C1_CR1 REG(I2C1_BASE + 0x00u)
+#define I2C1_CR2 REG(I2C1_BASE + 0x04u)
+#define I2C1_OAR1 REG(I2C1_BASE + 0x08u)
+#define I2C1_DR REG(I2C1_BASE + 0x10u)
+#define I2C1_SR1 REG(I2C1_BASE + 0x14u)
+#define I2C1_SR2 REG(I2C1_BASE + 0x18u)
+#define I2C1_CCR REG(I2C1_BASE + 0x1Cu)
+#define I2C1_TRISE REG(I2C1_BASE + 0x20u)
+#define I2C_CR1_PE (1u << 0)
+#define I2C_CR1_START (1u << 8)
+#define I2C_CR1_STOP (1u << 9)
+#define I2C_CR1_ACK (1u << 10)
+#define I2C_CR1_POS (1u << 11)
+#define I2C_CR1_SWRST (1u << 15)
+#define I2C_CR2_ITERREN (1u << 8)
+#define I2C_CR2_ITEVTEN (1u << 9)
+#define I2C_CR2_ITBUFEN (1u << 10)
+#define I2C_SR1_SB (1u << 0)
+#define I2C_SR1_ADDR (1u << 1)
+#define I2C_SR1_BTF (1u << 2)
+#define I2C_SR1_RXNE (1u << 6)
+#define I2C_SR1_TXE (1u << 7)
+#define I2C_SR1_AF (1u << 10)
+#define I2C_SR2_MSL (1u << 0)
+#define I2C_SR2_BUSY (1u << 1)
+#define I2C_SR2_TRA (1u << 2)
+#define I2C_CCR_FS (1u << 15)
+#define I2C1_EV_IRQ 31u
+#define I2C1_ER_IRQ 32u
+
+#define NVIC_ISER(n) REG(0xE000E100u + 4u * (n))
+#define NVIC_ICER(n) REG(0xE000E180u + 4u * (n))
 
 #define SCB_VTOR REG(0xE000ED08u)
 #define SCB_CPACR REG(0xE000ED88u)

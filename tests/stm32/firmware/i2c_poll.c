@@ -1,0 +1,185 @@
+/* The I2C test firmware driving I2C1 by polling, with the sequences of ST's HAL (HAL_I2C_Mem_Read and
+   _Write of the STM32F4 HAL: 1 byte with ACK cleared before ADDR is, 2 bytes with POS, N bytes with the
+   last three taken at BTF), at 400 kHz (fast mode). Besides i2c_checks.h's transfers it reports the
+   status registers at the first START and address of each direction. */
+#include "i2c_checks.h"
+
+/* Waits for any of @mask in SR1 (or AF); the run ends naming @what when it never comes */
+static uint32_t wait_sr1(uint32_t mask, const char *what)
+{
+    for (uint32_t i = 0; i < POLL_LIMIT; i++) {
+        uint32_t sr1 = I2C1_SR1;
+        if (sr1 & (mask | I2C_SR1_AF)) {
+            return sr1;
+        }
+    }
+    report(what, I2C1_SR1);
+    exit_with(4);
+    return 0;
+}
+
+static uint32_t sr1_start, sr1_addr_write, sr2_addr_write, sr1_addr_read, sr2_addr_read;
+
+static void keep_first(uint32_t *slot, uint32_t value)
+{
+    if (*slot == 0) {
+        *slot = value;
+    }
+}
+
+/* START, then the address byte: 0, or -1 (STOP sent, AF cleared) on a NACK. ADDR is left set. */
+static int address(uint8_t byte)
+{
+    I2C1_CR1 |= I2C_CR1_START;
+    keep_first(&sr1_start, wait_sr1(I2C_SR1_SB, "stuck_sb"));
+    I2C1_DR = byte; /* SR1 read, then DR written: SB clears */
+    uint32_t sr1 = wait_sr1(I2C_SR1_ADDR, "stuck_addr");
+    if (sr1 & I2C_SR1_AF) {
+        I2C1_CR1 |= I2C_CR1_STOP;
+        I2C1_SR1 = ~I2C_SR1_AF;
+        nack_sr1 = sr1;
+        nacks++;
+        return -1;
+    }
+    return 0;
+}
+
+/* SR1 read, then SR2 read: ADDR clears */
+static uint32_t clear_addr(uint32_t *sr1_slot, uint32_t *sr2_slot)
+{
+    uint32_t sr1 = I2C1_SR1;
+    uint32_t sr2 = I2C1_SR2;
+    keep_first(sr1_slot, sr1);
+    keep_first(sr2_slot, sr2);
+    return sr2;
+}
+
+static void receive(uint8_t *rx, unsigned n)
+{
+    if (n == 1) {
+        I2C1_CR1 &= ~I2C_CR1_ACK;
+        clear_addr(&sr1_addr_read, &sr2_addr_read);
+        I2C1_CR1 |= I2C_CR1_STOP;
+        wait_sr1(I2C_SR1_RXNE, "stuck_rxne_1");
+        rx[0] = (uint8_t)I2C1_DR;
+    } else if (n == 2) {
+        I2C1_CR1 &= ~I2C_CR1_ACK;
+        I2C1_CR1 |= I2C_CR1_POS;
+        clear_addr(&sr1_addr_read, &sr2_addr_read);
+        wait_sr1(I2C_SR1_BTF, "stuck_btf_2");
+        I2C1_CR1 |= I2C_CR1_STOP;
+        rx[0] = (uint8_t)I2C1_DR;
+        rx[1] = (uint8_t)I2C1_DR;
+    } else {
+        unsigned i = 0;
+        clear_addr(&sr1_addr_read, &sr2_addr_read);
+        while (n - i > 3) {
+            wait_sr1(I2C_SR1_RXNE, "stuck_rxne_n");
+            rx[i++] = (uint8_t)I2C1_DR;
+        }
+        wait_sr1(I2C_SR1_BTF, "stuck_btf_n3"); /* N-2 in DR, N-1 in the shift register */
+        I2C1_CR1 &= ~I2C_CR1_ACK;
+        rx[i++] = (uint8_t)I2C1_DR; /* N comes in, NACKed */
+        wait_sr1(I2C_SR1_BTF, "stuck_btf_n2");
+        I2C1_CR1 |= I2C_CR1_STOP;
+        rx[i++] = (uint8_t)I2C1_DR;
+        rx[i++] = (uint8_t)I2C1_DR;
+    }
+}
+
+static int xfer(uint8_t addr, const uint8_t *tx, unsigned n_tx, uint8_t *rx, unsigned n_rx)
+{
+    wait_bus_free();
+    I2C1_CR1 &= ~I2C_CR1_POS;
+    if (n_tx > 0) {
+        if (address((uint8_t)(addr << 1)) != 0) {
+            return -1;
+        }
+        clear_addr(&sr1_addr_write, &sr2_addr_write);
+        for (unsigned i = 0; i < n_tx; i++) {
+            wait_sr1(I2C_SR1_TXE, "stuck_txe");
+            I2C1_DR = tx[i];
+        }
+        wait_sr1(I2C_SR1_BTF, "stuck_btf_write");
+        if (n_rx == 0) {
+            I2C1_CR1 |= I2C_CR1_STOP;
+            return 0;
+        }
+    }
+    I2C1_CR1 |= I2C_CR1_ACK;
+    if (address((uint8_t)(addr << 1 | 1u)) != 0) {
+        return -1;
+    }
+    receive(rx, n_rx);
+    return 0;
+}
+
+#define SCL_PIN 6u
+#define SDA_PIN 7u
+#define I2C_PINS ((1u << SCL_PIN) | (1u << SDA_PIN))
+
+/* A burst read left after two bytes: the controller reset in the middle, as by a watchdog, no STOP */
+static void abandon_a_read(void)
+{
+    const uint8_t first = MPU_ACCEL_XOUT_H;
+    uint8_t bytes[2];
+    wait_bus_free();
+    I2C1_CR1 &= ~I2C_CR1_POS;
+    address(MPU_ADDR << 1);
+    clear_addr(&sr1_addr_write, &sr2_addr_write);
+    wait_sr1(I2C_SR1_TXE, "stuck_txe_abandon");
+    I2C1_DR = first;
+    wait_sr1(I2C_SR1_BTF, "stuck_btf_abandon");
+    I2C1_CR1 |= I2C_CR1_ACK;
+    address(MPU_ADDR << 1 | 1u);
+    clear_addr(&sr1_addr_read, &sr2_addr_read);
+    for (unsigned i = 0; i < 2; i++) {
+        wait_sr1(I2C_SR1_RXNE, "stuck_rxne_abandon");
+        bytes[i] = (uint8_t)I2C1_DR;
+    }
+    report("abandoned_bytes", big_endian(bytes, 2));
+    I2C1_CR1 = I2C_CR1_SWRST;
+    report("cr1_in_reset", I2C1_CR1);
+    report("cr2_in_reset", I2C1_CR2);
+    report("trise_in_reset", I2C1_TRISE);
+    I2C1_CR1 = 0;
+}
+
+/* INAV's bus unstick (i2cUnstick): SCL and SDA as open-drain outputs, released; nine SCL pulses; then a
+   STOP made by hand (SDA low, SCL high, SDA high); then the pins back to I2C1 */
+static void unstick(void)
+{
+    GPIO_BSRR(PORT_B) = I2C_PINS;
+    GPIO_MODER(PORT_B) = (GPIO_MODER(PORT_B) & ~(0xFu << 12)) | (0x5u << 12);
+    report("sr2_stuck", I2C1_SR2);
+    report("idr_stuck", GPIO_IDR(PORT_B) & I2C_PINS);
+    for (unsigned pulse = 0; pulse < 9; pulse++) {
+        GPIO_BSRR(PORT_B) = 1u << (SCL_PIN + 16);
+        GPIO_BSRR(PORT_B) = 1u << SCL_PIN;
+    }
+    report("idr_after_pulses", GPIO_IDR(PORT_B) & I2C_PINS);
+    GPIO_BSRR(PORT_B) = 1u << (SDA_PIN + 16);
+    report("sr2_sda_low", I2C1_SR2);
+    GPIO_BSRR(PORT_B) = 1u << SDA_PIN; /* SDA rises with SCL high: STOP */
+    report("sr2_after_stop", I2C1_SR2);
+    GPIO_MODER(PORT_B) = (GPIO_MODER(PORT_B) & ~(0xFu << 12)) | (0xAu << 12);
+}
+
+int main(void)
+{
+    i2c1_init(I2C_CCR_FS | 14u, 6u); /* 16 MHz / (3 * 14): 381 kHz; 300 ns rise: 16 * 0.3 + 1 */
+    run_checks();
+    report("sr1_start", sr1_start);
+    report("sr1_addr_write", sr1_addr_write);
+    report("sr2_addr_write", sr2_addr_write);
+    report("sr1_addr_read", sr1_addr_read);
+    report("sr2_addr_read", sr2_addr_read);
+
+    abandon_a_read();
+    i2c1_init(I2C_CCR_FS | 14u, 6u);
+    report("sr2_after_reset", I2C1_SR2);
+    unstick();
+    report("who_am_i_after_unstick", read_reg(MPU_ADDR, MPU_WHO_AM_I));
+    put_text("done\n");
+    return 0;
+}
