@@ -36,7 +36,7 @@ from typing import IO, Any, Final, cast
 
 import numpy as np
 
-from rig.reports import result_json
+from rig.reports import foxglove, result_json
 from rig.reports.mcap_container import ContainerWriter
 from rig.scenarios.result import I2CRecord, RcFrame, RunResult
 from rig.scenarios.schema import Scenario
@@ -48,7 +48,9 @@ PROFILE: Final = ""  # (no ROS profile: plain JSON channels)
 ATTITUDE: Final = tuple(n for n in SIGNALS if not n.startswith("pwm") and n not in ("psu_volts", "psu_amps"))
 MOTORS_GROUP: Final = tuple(n for n in SIGNALS if n.startswith("pwm"))
 BENCH: Final = ("psu_volts", "psu_amps")
-TOPICS: Final = ("/attitude", "/motors", "/sensors", "/i2c", "/rc", "/faults", "/criteria")
+#: the rig's own channels (plot-only JSON), then those in Foxglove's well-known schemas (reports/foxglove.py)
+RIG_TOPICS: Final = ("/attitude", "/motors", "/sensors", "/i2c", "/rc", "/faults", "/criteria")
+TOPICS: Final = RIG_TOPICS + foxglove.TOPICS
 
 
 def _number_schema(names: Iterable[str]) -> dict[str, Any]:
@@ -115,6 +117,7 @@ SCHEMAS: Final[dict[str, dict[str, Any]]] = {
         },
         "required": ["verdict", "error", "measurements"],
     },
+    **foxglove.SCHEMAS,
 }
 
 # the chips' data registers (emulators/chips): (addresses, first data register, chip, struct format,
@@ -247,10 +250,13 @@ def write(out: IO[bytes] | Path, r: RunResult, i2c: Sequence[I2CRecord] | None,
     w = ContainerWriter(out)
     w.start(profile=PROFILE, library="rig reports/mcap.py")
     ch: dict[str, int] = {}
+    schema_ids: dict[str, int] = {}
     for topic in TOPICS:
-        sid = w.register_schema(name=SCHEMAS[topic]["title"], encoding="jsonschema",
-                                data=json.dumps(SCHEMAS[topic]).encode())
-        ch[topic] = w.register_channel(topic=topic, message_encoding="json", schema_id=sid)
+        title = SCHEMAS[topic]["title"]
+        if title not in schema_ids:  # (the two transforms' channels share foxglove.FrameTransform)
+            schema_ids[title] = w.register_schema(name=title, encoding="jsonschema",
+                                                  data=json.dumps(SCHEMAS[topic]).encode())
+        ch[topic] = w.register_channel(topic=topic, message_encoding="json", schema_id=schema_ids[title])
     seq = dict.fromkeys(TOPICS, 0)
 
     def messages() -> Iterator[tuple[str, int, bytes]]:
@@ -267,10 +273,17 @@ def write(out: IO[bytes] | Path, r: RunResult, i2c: Sequence[I2CRecord] | None,
         for frame in rc or ():
             yield "/rc", frame.t_ns, _JSON.encode({"channels": list(frame.channels),
                                                    "failsafe": frame.failsafe}).encode()
-        for t_ns, ev in _fault_events(r):
+        faults = _fault_events(r)
+        for t_ns, ev in faults:
             yield "/faults", t_ns, _JSON.encode(ev).encode()
+        for t_ns, data in foxglove.transforms(r.signals, "vehicle", "roll", "pitch"):
+            yield foxglove.TRANSFORM_TOPIC, t_ns, data
+        for t_ns, data in foxglove.transforms(r.signals, "target", "roll_sp", "pitch_sp"):
+            yield foxglove.TARGET_TOPIC, t_ns, data
         t = r.signals.get("t", np.zeros(0))
         end = round(float(t[-1]) * NS) if len(t) else 0
+        for t_ns, entry in foxglove.logs(end, r.notes, faults, r.stderr, r.verdict, r.error):
+            yield foxglove.LOG_TOPIC, t_ns, _JSON.encode(entry).encode()
         measurements = result_json.to_dict(r)["measurements"]
         criteria = {"verdict": r.verdict, "error": r.error, "measurements": measurements}
         yield "/criteria", end, _JSON.encode(criteria).encode()
@@ -319,4 +332,4 @@ def write_run(folder: Path, r: RunResult, why_empty: dict[str, str] | None = Non
     return path
 
 
-__all__ = ["FILE", "SCHEMAS", "TOPICS", "write", "write_run"]
+__all__ = ["FILE", "RIG_TOPICS", "SCHEMAS", "TOPICS", "write", "write_run"]

@@ -71,7 +71,7 @@ def _dispatch(argv: list[str] | None) -> int:
     if args.command == "exec":
         return exec_cmd.main(args)
     if args.command == "run":
-        return run_cmd.cmd_run(args)
+        return run_cmd.cmd_run(args, sys.argv[1:] if argv is None else argv)
     if args.command == "report":
         return report_cmd.main(args)
     if args.command == "bridge":

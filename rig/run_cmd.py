@@ -92,6 +92,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--seed", type=seed_option, default=0,
                    help="random seed for noise, turbulence and faults (0..2^31-1)")
+    p.add_argument("--sandbox", action="store_true",
+                   help="run in a sandbox, as the service runs every DUT: --out the only writable folder, "
+                   "no network, resource limits (needs bwrap; docs/service.md)")
     p.add_argument(
         "--wall-timeout", type=seconds_option, default=600.0, help="wall seconds per run before it is ended"
     )
@@ -521,15 +524,36 @@ def write_run(run_dir: Path, r: RunResult) -> None:
     mcap.write_run(run_dir, r)
 
 
-def cmd_run(args: argparse.Namespace) -> int:
+def cmd_run(args: argparse.Namespace, argv: Sequence[str] = ()) -> int:
+    """``argv``: the command line's words after ``rig`` (--sandbox runs them again in the sandbox)."""
     try:
         suite = plan(args)
+        if args.sandbox and os.environ.get(SANDBOXED) != "1":
+            return _sandboxed(suite, argv)
         with interrupts.handled(), ReportFolder(suite.out) as folder:
             return _run_suite(args, suite, folder)
     except UsageError as e:
         for line in str(e).splitlines():
             print(f"rig run: {line}", file=sys.stderr)
         return EXIT_USAGE
+
+
+#: set in the sandbox's environment: the rig run inside it does not wrap itself again
+SANDBOXED = "RIG_SANDBOXED"
+
+
+def _sandboxed(suite: Plan, argv: Sequence[str]) -> int:
+    """The same command line run again inside the sandbox (rig/sandbox.py), its output folder the one
+    writable place; its exit status. Ctrl-C and SIGTERM reach that rig run too (same process group)."""
+    import subprocess
+
+    from rig import sandbox
+
+    try:
+        with sandbox.confined([sys.executable, "-m", "rig.cli", *argv], [suite.out]) as cmd:
+            return subprocess.run(cmd, env={**os.environ, SANDBOXED: "1"}).returncode
+    except sandbox.SandboxError as e:
+        raise UsageError(f"--sandbox: {e}") from None
 
 
 def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> int:

@@ -30,9 +30,25 @@ def read_pid(fifo: Path, timeout: float = BOUND_S) -> int:
             ready, _, _ = select.select([fd], [], [], timeout)
             assert ready, f"no pid came through {fifo} in {timeout:g} s"
             data += os.read(fd, 64)
-        return int(data)
+        return host_pid(int(data), str(fifo))
     finally:
         os.close(fd)
+
+
+def host_pid(pid: int, marker: str) -> int:
+    """``pid`` as this process sees it: a DUT in a pid namespace of its own (the service's sandbox,
+    rig/sandbox.py) writes the pid it has there. It is the process whose innermost pid is ``pid`` and
+    whose command line names ``marker``; ``pid`` itself when there is none."""
+    for proc in Path("/proc").iterdir():
+        try:
+            status = (proc / "status").read_text()
+            named = marker.encode() in (proc / "cmdline").read_bytes()
+        except OSError:
+            continue
+        inner = next((line.split()[-1] for line in status.splitlines() if line.startswith("NSpid:")), None)
+        if named and inner == str(pid):
+            return int(proc.name)
+    return pid
 
 
 def wait_gone(pid: int, timeout: float = BOUND_S) -> bool:

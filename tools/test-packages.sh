@@ -12,6 +12,7 @@
 #                 compute must agree byte for byte
 #   iproute2      ip netns and veth: the farm's test across hosts makes network namespaces
 #   openssl       the farm's TLS test makes a self-signed certificate with it
+#   bubblewrap    bwrap: the sandbox the service runs every DUT in (rig/sandbox.py, docs/service.md)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MISSING=()
@@ -23,6 +24,7 @@ if [ ! -e /usr/lib/arm-none-eabi/newlib/thumb/v7e-m+fp/hard/librdimon.a ]; then 
 if ! command -v qemu-system-arm >/dev/null; then MISSING+=(qemu-system-arm); fi
 if ! PATH="$PATH:/usr/sbin:/sbin" command -v ip >/dev/null; then MISSING+=(iproute2); fi
 if ! command -v openssl >/dev/null; then MISSING+=(openssl); fi
+if ! command -v bwrap >/dev/null; then MISSING+=(bubblewrap); fi
 tools/apt-install.sh test-packages "${MISSING[@]}"
 tools/avr-toolchain.sh
 # the test suite's Python packages (pyproject.toml's [test] extra) into the virtualenv bootstrap.sh made

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final
 
-from rig import scratch
+from rig import sandbox, scratch
 from rig.service.db import Db
 from rig.service.store import SWEEP_SPEC, Store
 from rig.service.worker import (
@@ -109,7 +109,9 @@ def fly(job: Job) -> dict[str, Any]:
         argv = [sys.executable if a == PYTHON else a.replace(OUT, str(out)) for a in job.argv]
         if BRIDGE in argv:
             argv = _on_the_bench(argv, job.run_id)
-        with open(out / "rig-run.log", "wb") as log:
+        # the sandbox (rig/sandbox.py): the run's folder writable, this host's other runs out of sight
+        with open(out / "rig-run.log", "wb") as log, \
+                sandbox.confined(argv, [out], [Path(tmp).parent]) as argv:
             proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                     cwd=tmp, start_new_session=True, preexec_fn=_die_with_parent)
             code = _watch(proc, job, out)

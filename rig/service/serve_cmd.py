@@ -61,6 +61,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="the database and every run's artifacts (default %(default)s)")
     p.add_argument("--token", default=os.environ.get("RIG_TOKEN"),
                    help="every request must carry it (Authorization: Bearer TOKEN); default $RIG_TOKEN")
+    p.add_argument("--no-sandbox", dest="sandbox", action="store_false",
+                   help="run the DUTs without the sandbox (docs/service.md): only for DUTs you trust")
     p.add_argument("--slots", type=int, default=os.cpu_count() or 1,
                    help="lockstep runs at once (default: one per core, %(default)s)")
     p.add_argument("--engine", metavar="tcp://HOST:PORT",
@@ -114,6 +116,10 @@ def main(args: argparse.Namespace) -> int:
         print("rig serve: --slots is 1..256 and --port 0..65535", file=sys.stderr)
         return 2
     problem = _data_problem(args.data)
+    if problem is None and args.sandbox and args.engine is None:
+        from rig import sandbox
+
+        problem = None if sandbox.available() else f"{sandbox.NO_BWRAP}; or give --no-sandbox"
     if problem is None and args.engine is not None:
         from rig.sweep.engine import check_address
 
@@ -176,7 +182,7 @@ def main(args: argparse.Namespace) -> int:
         farm = Farm(db, args.data / "runs", store, args.engine, security, stale=stale)
         print(f"rig serve: lockstep runs and sweeps go to the Dask scheduler at {args.engine}",
               file=sys.stderr, flush=True)
-    workers = Workers(db, args.data / "runs", store, args.slots, farm)
+    workers = Workers(db, args.data / "runs", store, args.slots, farm, sandbox=args.sandbox)
     plc_server = None
     if args.modbus is not None:
         from rig.service.plc import Plc, PlcServer, library_names

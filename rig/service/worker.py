@@ -10,6 +10,7 @@ interrupted (Db.interrupt_running).
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import json
 import os
@@ -23,6 +24,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
+from rig import sandbox
 from rig.service.db import TERMINAL, Db
 from rig.service.store import SWEEP_SPEC, Store
 from rig.sweep.work import row_files
@@ -134,8 +136,9 @@ class Workers:
     (rig/service/farm.py): lockstep runs and sweeps to its workers, bench runs to its bench hosts."""
 
     def __init__(self, db: Db, artifacts: Path, store: Store, lockstep_slots: int,
-                 farm: Farm | None = None) -> None:
+                 farm: Farm | None = None, sandbox: bool = True) -> None:
         self.db, self.artifacts, self.store, self.farm = db, artifacts, store, farm
+        self.sandbox = sandbox
         benches = 1 if farm is None else 0
         if farm is not None:
             lockstep_slots = 0
@@ -216,6 +219,13 @@ class Workers:
             if leased:
                 self.db.release(BENCH, holder)
 
+    def _confined(self, cmd: list[str], out: Path) -> contextlib.AbstractContextManager[list[str]]:
+        """The run's command in the sandbox (rig/sandbox.py): its folder the only writable one, the
+        service's data folder (its database, uploads, the other runs) hidden; as given without."""
+        if not self.sandbox:
+            return contextlib.nullcontext(cmd)
+        return sandbox.confined(cmd, [out], [self.artifacts.parent])
+
     def _run(self, run: dict[str, Any], lease_holder: str | None = None) -> None:
         out = self.artifacts / str(run["id"])
         out.mkdir(parents=True, exist_ok=True)
@@ -229,7 +239,7 @@ class Workers:
             return
         if flown != run["versions"]:  # (a run queued before runs recorded versions: pinned now)
             self.db.update(run["id"], versions=flown)
-        with open(out / "rig-run.log", "wb") as log:
+        with open(out / "rig-run.log", "wb") as log, self._confined(cmd, out) as cmd:
             try:
                 proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                         start_new_session=True, preexec_fn=_die_with_parent)

@@ -67,7 +67,7 @@ def test_every_group_has_its_channel_with_a_json_schema(run_dir: Path) -> None:
     summary, by_topic, _ = read(run_dir / "run.mcap")
     channels = summary.channels.values()
     assert sorted(c.topic for c in channels) == sorted(rig_mcap.TOPICS)
-    assert len(summary.schemas) == 7
+    assert len(summary.schemas) == len({s["title"] for s in rig_mcap.SCHEMAS.values()}) == 9
     for c in channels:
         schema = summary.schemas[c.schema_id]
         assert c.message_encoding == "json" and schema.encoding == "jsonschema"
@@ -164,7 +164,8 @@ def test_a_target_that_cannot_see_the_bus_says_so(run_dir: Path, tmp_path: Path)
     r = read_run(run_dir)  # (i2c and rc_frames None: as a bridge run's result has them)
     r.metadata["mode"] = "bridge"
     summary, by_topic, meta = read(rig_mcap.write_run(tmp_path, r))
-    assert len(summary.channels) == 7 and "/i2c" not in by_topic and "/sensors" not in by_topic
+    assert len(summary.channels) == len(rig_mcap.TOPICS)
+    assert "/i2c" not in by_topic and "/sensors" not in by_topic
     assert "this target (bridge) cannot see" in meta["mcap"]["note /i2c"]
     assert meta["mcap"]["messages /i2c"] == "0"
     assert [p.name for p in tmp_path.iterdir()] == ["run.mcap"]  # (no temporary file left)
