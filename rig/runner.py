@@ -289,8 +289,8 @@ def run(
         if bad:
             notes.append(f"{bad} telemetry line(s) from the DUT did not parse and were skipped")
         for key, since in nonfinite.items():
-            notes.append(f"the DUT reported {key} as not a number from sim t={since:.3f} s on (its telemetry, "
-                         "dut-telemetry.txt)")
+            notes.append(f"the DUT reported {key} as not a number from sim t={since:.3f} s on (its "
+                         "telemetry, dut-telemetry.txt)")
     else:
         tel = watch.columns()
         metadata["telemetry"] = telemetry_figures(watch)

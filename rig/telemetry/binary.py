@@ -52,7 +52,8 @@ def _msp_values(reply: msp.Reply) -> dict[str, float]:
     except ValueError:
         return {}
     if reply.command == msp.MSP_ATTITUDE:
-        return {"roll": f["roll_decideg"] / 10, "pitch": f["pitch_decideg"] / 10, "yaw": float(f["heading_deg"])}
+        return {"roll": f["roll_decideg"] / 10, "pitch": f["pitch_decideg"] / 10,
+                "yaw": float(f["heading_deg"])}
     if reply.command == msp.MSP_ALTITUDE:
         return {"alt": f["alt_cm"] / 100}
     return {"armed": float(bool(f["flags"] & msp.FLAG_ARMED))}

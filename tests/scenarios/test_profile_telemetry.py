@@ -22,14 +22,15 @@ from rig.scenarios import profile as profiles
 from rig.scenarios.criteria import NOT_MEASURED
 from rig.scenarios.result import RunResult
 from rig.scenarios.schema import load
+from rig.targets import Target
 
 REPO = Path(__file__).resolve().parents[2]
 BINARY = ("reference-msp", "reference-mavlink", "reference-sticks")
 SCENARIOS = ("step_roll", "hover_turbulence", "mag_disturbance")
 
 
-def flown(name: str, fc: str, seed: int = 0, target: object = None) -> RunResult:
-    return run(load(LIBRARY / f"{name}.toml"), target, seed=seed, profile=profiles.load(fc))  # type: ignore[arg-type]
+def flown(name: str, fc: str, seed: int = 0, target: Target | None = None) -> RunResult:
+    return run(load(LIBRARY / f"{name}.toml"), target, seed=seed, profile=profiles.load(fc))
 
 
 def verdicts(r: RunResult) -> dict[str, str]:
@@ -42,8 +43,8 @@ def reference() -> dict[str, RunResult]:
 
 
 @pytest.mark.parametrize("fc", BINARY)
-def test_each_profile_flies_as_the_reference_and_measures_the_estimates(fc: str,
-                                                                          reference: dict[str, RunResult]) -> None:
+def test_each_profile_flies_as_the_reference_and_measures_the_estimates(
+        fc: str, reference: dict[str, RunResult]) -> None:
     for name in SCENARIOS:
         r, ref = flown(name, fc), reference[name]
         assert r.verdict == ref.verdict == "pass", (name, r.error, r.notes, verdicts(r))

@@ -147,7 +147,8 @@ def test_arducopter_maps_sbus_as_ardupilot_does() -> None:
 
 
 def test_every_shipped_profile_loads_and_a_bad_name_gets_a_suggestion() -> None:
-    assert P.names() == ["arducopter-4", "multiwii-2.4", "reference"]
+    assert P.names() == ["arducopter-4", "multiwii-2.4", "reference", "reference-mavlink", "reference-msp",
+                         "reference-sticks"]
     with pytest.raises(ProfileError, match="did you mean 'multiwii-2.4'"):
         P.load("multiwii-24")
 
