@@ -108,3 +108,22 @@ def test_the_avr_flies_msp_and_stick_arming(tmp_path: Path) -> None:
         assert isinstance(tel, dict) and tel["messages"]["MSP_ATTITUDE"] > 100
         assert all(m.outcome != NOT_MEASURED for m in r.measurements if m.signal.endswith("_est_error"))
         assert not any("never" in n for n in r.notes), r.notes
+
+
+def test_an_fc_acting_before_its_first_reply_is_noted(tmp_path: Path) -> None:
+    # the reference FC answers its first MSP poll after its 1 s calibration (first_valid_s ~1.1);
+    # a scenario that arms at 0.6 s under a profile claiming no start-up time acts before that
+    text = (LIBRARY / "step_roll.toml").read_text()
+    assert "t = 1.2\narm = true" in text
+    early = tmp_path / "early.toml"
+    early.write_text(text.replace("t = 1.2\narm = true", "t = 0.6\narm = true"))
+    fc = tmp_path / "fc.toml"
+    shipped = (profiles.PROFILES / "reference-msp.toml").read_text()
+    fc.write_text(shipped.replace("seconds = 1.2", "seconds = 0"))
+    r = run(load(early), seed=0, profile=profiles.load(fc))
+    tel = r.metadata["telemetry"]
+    assert isinstance(tel, dict) and isinstance(tel["first_valid_s"], float) and tel["first_valid_s"] > 0.6
+    assert any("after the scenario's first action at 0.6 s" in n for n in r.notes), r.notes
+    # the same under the shipped profile: shifted to its 1.2 s start-up, no such note
+    r = run(load(early), seed=0, profile=profiles.load("reference-msp"))
+    assert not any("first action" in n and "MSP reply" in n for n in r.notes), r.notes
