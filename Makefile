@@ -134,8 +134,8 @@ build/mcu/test/%-atmega2560.elf: $(MCU_FW_DIR)/%.c $(wildcard $(MCU_FW_DIR)/*.h)
 # the models of qemu/ compiled in, cached outside the tree by the SHA-256 of its inputs
 # (~/.cache/rig/stm32-engine/KEY/qemu-system-arm; rig/mcu/stm32_engine.py); again with nothing changed,
 # it builds nothing and prints where the binary is. Installs its build dependencies when missing
-stm32-engine:
-	$(PYTHON) -m rig.mcu.stm32_engine
+stm32-engine: venv
+	$(PY) -m rig.mcu.stm32_engine
 
 # the STM32 tier's test firmwares (tests/stm32/firmware, docs/mcu.md): build/stm32/test/NAME.elf for the
 # STM32F405, freestanding (their own start-up; semihosting to report), with Debian's arm-none-eabi-gcc

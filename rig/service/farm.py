@@ -21,6 +21,7 @@ order, which stays the database's.
 from __future__ import annotations
 
 import io
+import logging
 import secrets
 import socket
 import subprocess
@@ -270,6 +271,15 @@ def labels_text(labels: dict[str, str]) -> str:
     return ",".join(f"{k}={v}" for k, v in sorted(labels.items())) or "no labels"
 
 
+class OwnReconnects(logging.Filter):
+    """Drops Dask's "Failed to reconnect to scheduler ..., closing client": the farm then connects a new
+    client itself and says so (health, the page, its own lines), so the line told an operator the
+    service had given up while it was reconnecting."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not record.getMessage().startswith("Failed to reconnect to scheduler")
+
+
 class Farm:
     """Dispatches lockstep runs and sweeps to the Dask scheduler at ``address``'s workers, and bench runs
     to its bench hosts (one thread of its own), and brings their folders back into ``artifacts``."""
@@ -294,6 +304,9 @@ class Farm:
         self._tried = threading.Event()  # set once the first connection has been tried
 
     def start(self) -> None:
+        client_log = logging.getLogger("distributed.client")
+        if not any(isinstance(f, OwnReconnects) for f in client_log.filters):
+            client_log.addFilter(OwnReconnects())
         self._thread.start()
 
     def wake(self) -> None:

@@ -216,4 +216,7 @@ def main(args: argparse.Namespace) -> int:
             plc_server.stop()
         workers.stop()
         db.close()
+    if server.why:  # a signal that uvicorn re-raised into an ignored handler: a background job's SIGINT
+        print(f"rig serve: stopped ({server.why})", file=sys.stderr)
+        return EXIT_INTERRUPTED if server.why == "Ctrl-C" else 128 + signal.Signals[server.why].value
     return 0
