@@ -38,6 +38,7 @@ from rig.scenarios.terms import STICK_TERMS
 from rig.targets import RC_PATH, RunContext, Target, TargetRun, telemetry_path
 from rig.targets.process import ProcessTarget
 from rig.telemetry import msp, read_columns
+from rig.telemetry.binary import MAVLINK_WATCH_PERIOD, Watch
 from rig.world import World
 
 WIND_PERIOD: Final = 0.01
@@ -226,6 +227,8 @@ def run(
                      f"scenario acts first at {first:g} s, so all of it runs {profile.startup_s - first:g} s "
                      "later")
         scenario = scenario.shifted(profile.startup_s - first)
+    if profile.config.fc:  # (the reference FC made to fly as the profile says; the scenario's [fc] on top)
+        scenario = dataclasses.replace(scenario, fc={**dict(profile.config.fc), **scenario.fc})
     metadata: dict[str, object] = {
         **identity(scenario, seed, profile),
         **target.describe(scenario, work, notes, profile),
@@ -263,7 +266,12 @@ def run(
                 for ev in scenario.timeline:
                     session.at(ev.t, apply_event(rc, ev, profile, notes))
                 _schedule_sends(scenario, target_run, session, notes)
+                watch = _watch(profile)
+                if watch is not None:
+                    session.at(0.0, watch.tick)
                 outcome = session.run()
+                if watch is not None:
+                    watch.finish(session, outcome.sim_time)
                 signals = rec.signals()
                 metadata.update(target_run.figures(outcome))
                 signals.update(target_run.signals(signals["t"]))
@@ -276,12 +284,19 @@ def run(
         world.close()
     raw_telemetry = session.serial_output(telemetry_path(profile))
     (work / "dut-telemetry.txt").write_bytes(raw_telemetry)  # the DUT's own words, kept as they came
-    tel, bad, nonfinite = parse_telemetry(raw_telemetry, session.dut_clock_base_s)
-    if bad:
-        notes.append(f"{bad} telemetry line(s) from the DUT did not parse and were skipped")
-    for key, since in nonfinite.items():
-        notes.append(f"the DUT reported {key} as not a number from sim t={since:.3f} s on (its telemetry, "
-                     "dut-telemetry.txt)")
+    if watch is None:
+        tel, bad, nonfinite = parse_telemetry(raw_telemetry, session.dut_clock_base_s)
+        if bad:
+            notes.append(f"{bad} telemetry line(s) from the DUT did not parse and were skipped")
+        for key, since in nonfinite.items():
+            notes.append(f"the DUT reported {key} as not a number from sim t={since:.3f} s on (its "
+                         "telemetry, dut-telemetry.txt)")
+    else:
+        tel = watch.columns()
+        metadata["telemetry"] = telemetry_figures(watch)
+        unready = why_unready(scenario, profile, watch)
+        if unready:
+            notes.append(unready)
     for k, name in TELEMETRY_KEYS.items():
         signals[name] = (
             _hold(signals["t"], tel["t"], tel[k]) if len(tel["t"]) else np.full(len(signals["t"]), math.nan)
@@ -358,6 +373,38 @@ def run(
     rc_frames = list(map(functools.partial(tuple.__new__, RcFrame), rc.frames))  # (no Python frame each)
     return RunResult(scenario, verdict, error, measurements, signals, metadata, outcome.exit_code, stderr,
                      notes, i2c, rc_frames)
+
+
+def _watch(profile: Profile) -> Watch | None:
+    """The reader of the FC's MSP or MAVLink telemetry through the run (None: text lines, read after,
+    or none)."""
+    kind = profile.telemetry.kind
+    if kind not in ("msp", "mavlink"):
+        return None
+    period = 1 / profile.telemetry.poll_hz if kind == "msp" else MAVLINK_WATCH_PERIOD
+    return Watch(telemetry_path(profile), kind, period)
+
+
+def telemetry_figures(watch: Watch) -> dict[str, object]:
+    """result.json's account of the FC's binary telemetry: what came, what was refused, when it first
+    answered."""
+    return {"kind": watch.kind, "messages": dict(sorted(watch.counts.items())), "bad_frames": watch.bad,
+            "first_valid_s": watch.ready_s}
+
+
+def why_unready(scenario: Scenario, profile: Profile, watch: Watch) -> str:
+    """With ``startup.ready = "telemetry"``: "" when the FC's first valid reply (MSP) or heartbeat
+    (MAVLink) came before the scenario's first action, else what it did not say, and when."""
+    first = scenario.first_action
+    if profile.ready != "telemetry" or first is None:
+        return ""
+    what = "reply" if watch.kind == "msp" else "heartbeat"
+    if watch.ready_s is None:
+        return f"the FC never gave a valid {watch.kind.upper()} {what}: it never said it was ready"
+    if watch.ready_s > first:
+        return (f"the FC's first valid {watch.kind.upper()} {what} came at {watch.ready_s:.2f} s, after the "
+                f"scenario's first action at {first:g} s: it acted before the FC was ready")
+    return ""
 
 
 def plant_params(scenario: Scenario, profile: Profile, notes: list[str]) -> dict[str, float]:

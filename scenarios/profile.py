@@ -15,7 +15,7 @@ every key.
     [motors]     frame ("+" | "x"), order (the FC's outputs -> the plant's motors), pwm_channels
     [startup]    seconds, ready ("telemetry")
     [telemetry]  kind ("none" | "text" | "msp" | "mavlink"), port, baud, poll_hz
-    [config]     eeprom, params (files, relative to the profile), args
+    [config]     eeprom, params (files, relative to the profile), args, fc (the reference FC's keys)
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any, Final
 
 from rig.emulators.sbus import CHANNELS, KNOBS, ChannelMap
+from rig.scenarios import fc_keys
 from rig.scenarios.schema import ScenarioError, _Check
 from rig.scenarios.terms import FEATURES, MODES
 
@@ -43,13 +44,13 @@ MODE_KEYS: Final = {"channel", "default", "positions", "angle_deg", "rate_dps", 
 MOTOR_KEYS: Final = {"frame", "order", "pwm_channels"}
 STARTUP_KEYS: Final = {"seconds", "ready"}
 TELEMETRY_KEYS: Final = {"kind", "port", "baud", "poll_hz"}
-CONFIG_KEYS: Final = {"eeprom", "params", "args"}
+CONFIG_KEYS: Final = {"eeprom", "params", "args", "fc"}
 #: modes whose sticks command rates (rate_dps per full stick), not angles
 RATE_MODES: Final = ("acro", "rate")
 ARMING_METHODS: Final = ("switch", "sticks", "telemetry")
 TELEMETRY_KINDS: Final = ("none", "text", "msp", "mavlink")
 #: the kinds the rig reads today: criteria on the FC's estimates are measured from these only
-TELEMETRY_READ: Final = ("text",)
+TELEMETRY_READ: Final = ("text", "msp", "mavlink")
 STICK_POSITIONS: Final = ("low", "centre", "high")
 GESTURE_STICKS: Final = ("roll", "pitch", "throttle", "yaw")
 #: the SBUS value's µs: (raw * us_per_step + offset - 1500) * stretch + 1500
@@ -130,6 +131,9 @@ class Config:
     eeprom: Path | None
     params: Path | None
     args: tuple[str, ...]
+    #: the reference FC's configuration keys (dut/src/config_keys.h) this profile sets, before a
+    #: scenario's own [fc] table: how the rig's own FC is made to fly as a third-party one does
+    fc: tuple[tuple[str, str], ...] = ()
 
     def arguments(self) -> list[str]:
         """The FC's extra arguments, ``{params}`` in them replaced by the parameter file's path."""
@@ -199,10 +203,25 @@ class Profile:
         kind = self.telemetry.kind
         if kind in TELEMETRY_READ:
             return ""
-        if kind == "none":
-            return f"the FC's profile {self.name!r} has no telemetry (telemetry.kind = \"none\")"
-        return (f"the FC's profile {self.name!r} speaks {kind.upper()} telemetry, which this rig does not "
-                "read yet")
+        return f"the FC's profile {self.name!r} has no telemetry (telemetry.kind = \"{kind}\")"
+
+
+def _reference_keys(c: _Check, table: object) -> tuple[tuple[str, str], ...]:
+    """config.fc: the reference FC's keys, each checked against its own table as a scenario's [fc] is."""
+    if not isinstance(table, dict):
+        raise c.fail("config.fc", f"expected a table of the reference FC's keys, got {table!r}")
+    known = fc_keys.keys()
+    out: list[tuple[str, str]] = []
+    for k, v in table.items():
+        if k not in known:
+            close = difflib.get_close_matches(k, known, n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise c.fail(f"config.fc.{k}", f"not a key of the reference FC (dut/src/config_keys.h){hint}")
+        text, why = known[k].check(v)
+        if why:
+            raise c.fail(f"config.fc.{k}", why)
+        out.append((k, text))
+    return tuple(out)
 
 
 # ---- finding and loading -----------------------------------------------------------------------------
@@ -298,7 +317,7 @@ def check(data: dict[str, Any], path: Path, sha256: str) -> Profile:
         if any("{params}" in a for a in args) and "params" not in cf:
             raise c.fail("config.args", "{params} stands for config.params, which is missing")
         config = Config(c.beside(cf, "eeprom", "config", path), c.beside(cf, "params", "config", path),
-                        tuple(args))
+                        tuple(args), _reference_keys(c, cf.get("fc", {})))
     c.done()
     return Profile(path.resolve(), name, description, source, features, rc, arming, modes, motors, startup_s,
                    ready, telemetry, config, sha256)

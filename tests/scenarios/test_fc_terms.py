@@ -108,11 +108,11 @@ def test_criteria_on_estimates_are_not_measured_without_telemetry(tmp_path: Path
 
 
 def test_only_estimates_to_judge_and_no_telemetry_is_a_skip(tmp_path: Path) -> None:
-    fc = profile(tmp_path, ('kind = "text"', 'kind = "msp"'), ('detect = "telemetry"', 'detect = "motors"'))
+    fc = profile(tmp_path, ('kind = "text"', 'kind = "none"'), ('detect = "telemetry"', 'detect = "motors"'))
     text = NEUTRAL[:NEUTRAL.index("[[criteria]]\nname = \"rolled\"")] + NEUTRAL[NEUTRAL.index(
         "[[criteria]]\nname = \"estimate follows\""):]
     r = run(load(scenario(tmp_path, text)), seed=0, profile=fc)
-    assert r.verdict == "skipped" and "MSP telemetry" in (r.error or "")
+    assert r.verdict == "skipped" and "has no telemetry" in (r.error or "")
     assert all(m.outcome == "skipped" for m in r.measurements)
 
 

@@ -134,7 +134,7 @@ def test_multiwii_s_sbus_stretch_is_inverted() -> None:
     assert held[2:4] == [224, 1824]
     assert Sticks(throttle=0.6, yaw=-0.2, gesture="disarm").channels(cmap)[2:4] == [224, 224]
     assert p.motors.frame == "x" and p.arming.method == "sticks"
-    assert "MSP" in p.not_measured_reason()
+    assert p.reads_telemetry and p.not_measured_reason() == ""  # MSP, polled
 
 
 def test_arducopter_maps_sbus_as_ardupilot_does() -> None:
@@ -147,7 +147,8 @@ def test_arducopter_maps_sbus_as_ardupilot_does() -> None:
 
 
 def test_every_shipped_profile_loads_and_a_bad_name_gets_a_suggestion() -> None:
-    assert P.names() == ["arducopter-4", "multiwii-2.4", "reference"]
+    assert P.names() == ["arducopter-4", "multiwii-2.4", "reference", "reference-mavlink", "reference-msp",
+                         "reference-sticks"]
     with pytest.raises(ProfileError, match="did you mean 'multiwii-2.4'"):
         P.load("multiwii-24")
 
@@ -169,6 +170,10 @@ def test_every_shipped_profile_loads_and_a_bad_name_gets_a_suggestion() -> None:
     (('params = "fc.parm"', 'params = "gone.parm"'), "config.params", "no such file"),
     (('features = ["failsafe"]', 'features = ["failsave"]'), "profile.features", "did you mean 'failsafe'"),
     (("idle_us = 1080", "idle_us = 5"), "arming.idle_us", "900..1500"),
+    (('args = [', 'fc = { telemetry_prot = 1 }\nargs = ['), "config.fc.telemetry_prot",
+     "did you mean 'telemetry_proto'"),
+    (('args = [', 'fc = { telemetry_proto = 3 }\nargs = ['), "config.fc.telemetry_proto", "3 is outside"),
+    (('args = [', 'fc = 1\nargs = ['), "config.fc", "a table of the reference FC's keys"),
 ])
 def test_each_mistake_is_refused_naming_the_key(tmp_path: Path, change: tuple[str, str], key: str,
                                                 words: str) -> None:
