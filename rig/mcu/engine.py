@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
@@ -34,8 +35,9 @@ from rig.plant.native_build import compile_shared, is_stale
 __all__ = ["AvrEngine", "EngineConfig", "FirmwareError", "Motor", "Stop", "config_for"]
 
 HERE: Final = Path(__file__).resolve().parent
-SOURCES: Final = tuple(HERE / f for f in ("glue.c", "twi.c", "pwm.c", "serial.c"))
-HEADERS: Final = (HERE / "glue.h", native.CHIPS_DIR / "chip_core.h")
+SOURCES: Final = tuple(HERE / f for f in ("glue.c", "twi.c", "pwm.c", "serial.c", "timer_modes.c",
+                                          "polling.c", "loop_eval.c", "loop_values.c"))
+HEADERS: Final = (HERE / "glue.h", HERE / "polling.h", native.CHIPS_DIR / "chip_core.h")
 LIB: Final = BUILD / "librigmcu.so"
 
 #: mcu_run's results (glue.h MCU_*)
@@ -118,6 +120,8 @@ _API: Final[dict[str, tuple[Any, list[Any]]]] = {
     "mcu_peek": (_U8, [_P, _U16]),
     "mcu_eeprom_read": (_U32, [_P, ctypes.POINTER(_U8), _U32]),
     "mcu_stock": (None, [_P, ctypes.c_int]),
+    "mcu_poll_enable": (None, [_P, ctypes.c_bool]),
+    "mcu_poll_figure": (_U64, [_P, ctypes.c_int]),
     "mcu_fuses": (None, [_P, ctypes.c_bool]),
     "mcu_twi_last": (_U32, [_P, ctypes.POINTER(_Record)]),
     "mcu_twi_log": (None, [_P, ctypes.c_bool]),
@@ -182,6 +186,23 @@ class EngineConfig:
     watchdog_always_on: bool = False
     #: analog inputs: (ADC channel, volts at the pin), e.g. a battery through its divider
     analog: tuple[tuple[int, float], ...] = ()
+    #: the polling-loop skip (rig/mcu/polling.c): None follows RIG_MCU_POLL_SKIP (on unless "0")
+    poll_skip: bool | None = None
+
+
+#: the environment variable that turns the polling-loop skip off ("0") for a whole process: the rig's
+#: commands and sessions build their engines from board files, so a comparison of runs with it on and
+#: off needs no option threaded through them
+POLL_SKIP_ENV: Final = "RIG_MCU_POLL_SKIP"
+#: mcu_poll_figure's counters, by index
+POLL_FIGURES: Final = ("skipped_cycles", "skips", "refused", "mismatches")
+
+
+def poll_skip_on(cfg: EngineConfig) -> bool:
+    """Whether an engine of ``cfg`` skips polling loops: its own setting, else the environment's."""
+    if cfg.poll_skip is not None:
+        return cfg.poll_skip
+    return os.environ.get(POLL_SKIP_ENV, "1") != "0"
 
 
 def config_for(board: Board, firmware: Path, eeprom: bytes | None = None, **limits: Any) -> EngineConfig:
@@ -275,6 +296,7 @@ class AvrEngine:
         self._open = True
         self._lib.mcu_limits(self._e, cfg.watchdog_resets, cfg.hang_ns, cfg.unanswered_ns)
         self._lib.mcu_fuses(self._e, cfg.watchdog_always_on)
+        self._lib.mcu_poll_enable(self._e, poll_skip_on(cfg))
         self.chips = chips if cfg.twi else None
         if self.chips is not None:
             so = native.chips()
@@ -440,6 +462,12 @@ class AvrEngine:
         """simavr 1.6's own behaviour back, for bench/mcu_rates.py to measure what the glue's fixes save:
         the per-cycle poll of an INTx pin held low, a usleep(1) per poll of an idle USART."""
         self._lib.mcu_stock(self._e, (1 if extint_poll else 0) | (2 if uart_poll_sleep else 0))
+
+    def poll_figures(self) -> dict[str, int]:
+        """What the polling-loop skip did: the cycles it jumped over, in how many jumps, the loops it
+        tried and could not prove, and its predictions simavr did not confirm (0: any is a defect, and
+        that loop is then run). Not part of figures(): result.json is the same with it on and off."""
+        return {name: int(self._lib.mcu_poll_figure(self._e, i)) for i, name in enumerate(POLL_FIGURES)}
 
     def peek(self, addr: int) -> int:
         """A byte of the data space (registers, I/O, SRAM) as it is."""

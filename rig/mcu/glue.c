@@ -211,6 +211,7 @@ MCU_API int mcu_open(mcu_engine *e, const char *mcu, uint32_t clock_hz, const ui
     e->twi.nack_since_cycle = MCU_NEVER;
     mcu_twi_attach(e);
     mcu_pcint_attach(e);
+    mcu_timer_modes_attach(e);
     return 0;
 }
 
@@ -223,6 +224,8 @@ MCU_API void mcu_close(mcu_engine *e)
     avr->custom.data = NULL;
     free(avr);
     free(e->twi.log);
+    mcu_poll_free(e);
+    free(e->timer_wraps);
     e->avr = NULL;
 }
 
@@ -292,8 +295,11 @@ static int run_to(mcu_engine *e)
         }
         if (avr->cycle >= e->stop_at)
             return MCU_REACHED;
+        uint32_t pc_before = avr->pc;
         int state = avr_run(avr);
         e->instructions++;
+        if (e->poll && (avr->pc < pc_before || e->poll_watch))
+            mcu_poll_step(e, pc_before);
         if (e->next_event < e->marker) /* an instruction started a glue event: a sleep may not pass it */
             set_marker(e, e->stop_at);
         if (state != cpu_Running || avr->pc >= code_end || e->bad_opcode || e->reset_seen) {

@@ -41,6 +41,7 @@
 #define MCU_TWI_EVENTS 96
 
 typedef struct mcu_engine mcu_engine;
+typedef struct mcu_poll mcu_poll;
 
 /* the chip core's byte-level entry points, taken from the rig's library (one copy of the core) */
 typedef struct {
@@ -216,6 +217,9 @@ struct mcu_engine {
     mcu_pin pins[MCU_DRIVEN_PINS];
     avr_int_vector_t pcint[3]; /* [1] PCINT1, [2] PCINT2 (2560) */
     mcu_pcint_pin pcint_pins[15];
+    struct mcu_timer_wraps *timer_wraps; /* timer_modes.c */
+    mcu_poll *poll;                      /* the polling-loop skip (polling.c; NULL: off) */
+    bool poll_watch;                     /* it follows every instruction (a loop recorded or checked) */
 };
 
 /* glue.c */
@@ -235,5 +239,10 @@ uint64_t mcu_pwm_next(const mcu_engine *e);
 void mcu_serial_event(mcu_engine *e);
 uint64_t mcu_serial_next(const mcu_engine *e);
 void mcu_pcint_attach(mcu_engine *e);
+/* timer_modes.c */
+void mcu_timer_modes_attach(mcu_engine *e);
+/* polling.c */
+void mcu_poll_step(mcu_engine *e, uint32_t pc_before);
+void mcu_poll_free(mcu_engine *e);
 
 #endif

@@ -1,0 +1,350 @@
+/* The polling-loop skip's driver (polling.h): finds loops, records one iteration as it runs, proves the
+ * iterations up to the next thing that can change what the loop reads, runs one of them for real to check
+ * the proof's prediction, and jumps the clock over the rest.
+ *
+ * A loop head is an address a backward jump (or a return) reaches twice within LOOP_CLOSE cycles. Its
+ * iteration is recorded once (each instruction's address and the cycle it ended at: the period, and
+ * when in it the timer counter is read, are simavr's own). At the head, with no interrupt pending:
+ *  1. the window: the earliest of simavr's next cycle timer (the timers' compare and overflow, the
+ *     glue's marker), the glue's next event and the run's stop; nothing the loop reads changes before it;
+ *  2. the abstract run of the next iteration (iteration 0) from the real state, giving its end state E1
+ *     (each byte known or a function of what the timer counter reads);
+ *  3. the abstract run of iterations 1..m from E1 with its V-dependent bytes unknown: every branch the
+ *     same for every counter value those iterations read, the end state E1's form again (so by
+ *     induction every iteration up to m does the same);
+ *  4. iteration 0 runs for real; at the head again, the machine must be E1 at iteration 0's counter
+ *     value, byte for byte (else the loop is never skipped again: the proof and simavr disagree);
+ *  5. the clock jumps m periods and the machine becomes E1's form at iteration m's counter value: the
+ *     registers, flags and stores iteration m leaves, as running the m iterations would.
+ * The instructions figure counts the skipped iterations' instructions: the same figures either way. */
+#include <stdlib.h>
+#include <string.h>
+
+#include <simavr/sim_interrupts.h>
+
+#include "polling.h"
+
+#define LOOPS 64
+#define SEEN 256
+#define LOOP_CLOSE 1024 /* cycles */
+#define MIN_SKIP 3      /* iterations: fewer is not worth the proof */
+#define GIVE_UP 6       /* failures in a row: the loop is never tried again */
+
+typedef struct {
+    loop_trace t;
+    bool have, dead;
+    uint16_t fails;
+    uint64_t retry_at; /* the cycle before which it is not tried (after a failure) */
+    uint64_t seen;     /* the last cycle it was reached at */
+} loop_head;
+
+struct mcu_poll {
+    struct {
+        uint32_t pc;
+        uint64_t cycle;
+        loop_head *head; /* (its entry, or NULL) */
+    } seen[SEEN];
+    loop_io io;
+    loop_head loops[LOOPS];
+    uint8_t n_loops;
+    loop_head *rec;
+    uint64_t rec_begin;
+    loop_head *armed;
+    uint64_t armed_start, armed_m, v0, vm;
+    uint16_t armed_n;
+    int8_t armed_istate;
+    uint32_t armed_resets;
+    loop_state e1, e2;
+    uint64_t skipped, skips, refused, mismatches;
+};
+
+MCU_API void mcu_poll_enable(mcu_engine *e, bool on)
+{
+    if (on && !e->poll) {
+        e->poll = calloc(1, sizeof *e->poll);
+        if (e->poll)
+            loop_io_find(e->avr, &e->poll->io);
+    }
+    if (!on)
+        mcu_poll_free(e);
+}
+
+void mcu_poll_free(mcu_engine *e)
+{
+    free(e->poll);
+    e->poll = NULL;
+    e->poll_watch = false;
+}
+
+/* 0 cycles skipped, 1 skips, 2 loops proved and skipped at least once... (engine.py POLL_FIGURES) */
+MCU_API uint64_t mcu_poll_figure(const mcu_engine *e, int which)
+{
+    const mcu_poll *p = e->poll;
+    if (!p)
+        return 0;
+    switch (which) {
+    case 0:
+        return p->skipped;
+    case 1:
+        return p->skips;
+    case 2:
+        return p->refused;
+    case 3:
+        return p->mismatches;
+    default:
+        return 0;
+    }
+}
+
+static void state_from_avr(loop_state *s, const avr_t *avr)
+{
+    memset(s, 0, sizeof *s);
+    for (int i = 0; i < 32; i++)
+        s->r[i].val = avr->data[i];
+    for (int i = 0; i < 8; i++)
+        s->f[i].val = avr->sreg[i];
+    s->sp = (uint16_t)(avr->data[R_SPL] | avr->data[R_SPH] << 8);
+}
+
+static bool has_unknown(const loop_state *s)
+{
+    for (int i = 0; i < 32; i++)
+        if (s->r[i].opq)
+            return true;
+    for (int i = 0; i < 8; i++)
+        if (s->f[i].kind == FLAG_UNKNOWN)
+            return true;
+    for (int i = 0; i < s->n_stores; i++)
+        if (s->store[i].opq)
+            return true;
+    return false;
+}
+
+/* E1 as the start of the later iterations: what depends on the counter becomes unknown */
+static void forget_v(loop_state *s)
+{
+    for (int i = 0; i < 32 + LOOP_STORES; i++) {
+        loop_val *b = i < 32 ? &s->r[i] : &s->store[i - 32];
+        if (b->sym)
+            *b = (loop_val){ .opq = 0xFF };
+        b->opq |= b->fsym;
+        b->fsym = 0;
+    }
+    for (int i = 0; i < 8; i++)
+        if (s->f[i].kind == FLAG_CHAIN)
+            s->f[i].kind = FLAG_UNKNOWN;
+    s->n_chains = 0;
+}
+
+static bool matches(const avr_t *avr, const loop_state *s, uint64_t v)
+{
+    for (int i = 0; i < 32; i++)
+        if (avr->data[i] != loop_byte_value(s, &s->r[i], v))
+            return false;
+    for (int i = 0; i < 8; i++)
+        if (avr->sreg[i] != loop_flag_value(s, i, v))
+            return false;
+    for (int i = 0; i < s->n_stores; i++)
+        if (avr->data[s->store_at[i]] != loop_byte_value(s, &s->store[i], v))
+            return false;
+    return (avr->data[R_SPL] | avr->data[R_SPH] << 8) == s->sp;
+}
+
+static void become(avr_t *avr, const loop_state *s, uint64_t v)
+{
+    for (int i = 0; i < 32; i++)
+        avr->data[i] = loop_byte_value(s, &s->r[i], v);
+    for (int i = 0; i < 8; i++)
+        avr->sreg[i] = loop_flag_value(s, i, v);
+    for (int i = 0; i < s->n_stores; i++)
+        avr->data[s->store_at[i]] = loop_byte_value(s, &s->store[i], v);
+}
+
+/* the first cycle at which something the loop reads may change */
+static uint64_t window_end(const mcu_engine *e)
+{
+    uint64_t w = e->stop_at < e->next_event ? e->stop_at : e->next_event;
+    const avr_cycle_timer_slot_t *t = e->avr->cycle_timers.timer;
+    return t && t->when < w ? t->when : w;
+}
+
+/* iterations 1..m proved from E1's form (x->s on entry: E1 with the counter's bytes unknown) */
+static bool prove(loop_run *x, const loop_state *star, const loop_state *e1, uint64_t m)
+{
+    x->s = *star;
+    x->j_first = 1;
+    x->j_last = m;
+    return loop_eval(x) && !has_unknown(&x->s) && loop_same(&x->s, e1);
+}
+
+/* not provable now: recorded again later (the path may have been another one's), and after GIVE_UP
+ * failures in a row never tried again (a loop that computes, not one that waits) */
+static void refuse(mcu_poll *p, loop_head *lp, uint64_t now)
+{
+    p->refused++;
+    lp->have = false;
+    lp->dead = ++lp->fails >= GIVE_UP;
+    lp->retry_at = now + ((uint64_t)lp->t.period << (4 + lp->fails));
+}
+
+static void try_arm(mcu_engine *e, mcu_poll *p, loop_head *lp)
+{
+    avr_t *avr = e->avr;
+    uint64_t c = avr->cycle, period = lp->t.period, w = window_end(e);
+    if (avr->state != cpu_Running || avr_has_pending_interrupts(avr) || !period || w <= c + 1)
+        return;
+    uint64_t room = (w - 1 - c) / period; /* whole iterations that end before w */
+    if (room < MIN_SKIP + 1)
+        return;
+    loop_run x = { .avr = avr, .io = &p->io, .t = &lp->t, .start = c };
+    state_from_avr(&x.s, avr);
+    if (!loop_eval(&x)) {
+        refuse(p, lp, c);
+        return;
+    }
+    loop_state e1 = x.s, star = x.s;
+    uint64_t v0 = x.v_lo;
+    forget_v(&star);
+    uint64_t m = room - 1;
+    if (!prove(&x, &star, &e1, m)) { /* the largest m that proves (a smaller range proves if a larger does) */
+        if (!prove(&x, &star, &e1, MIN_SKIP)) {
+            if (x.range_limited)
+                lp->retry_at = c + MIN_SKIP * period; /* (the loop ends within a few iterations) */
+            else
+                refuse(p, lp, c);
+            return;
+        }
+        uint64_t good = MIN_SKIP, bad = m;
+        while (bad - good > 1) {
+            uint64_t mid = good + (bad - good) / 2;
+            if (prove(&x, &star, &e1, mid))
+                good = mid;
+            else
+                bad = mid;
+        }
+        m = good;
+        prove(&x, &star, &e1, m);
+    }
+    lp->fails = 0;
+    p->armed = lp;
+    p->armed_start = c;
+    p->armed_m = m;
+    p->armed_n = 0;
+    p->armed_istate = avr->interrupt_state;
+    p->armed_resets = e->resets;
+    p->e1 = e1;
+    p->e2 = x.s;
+    p->v0 = v0;
+    p->vm = x.v_hi;
+    e->poll_watch = true;
+}
+
+static void record(mcu_engine *e, mcu_poll *p, uint32_t pc_before)
+{
+    loop_head *lp = p->rec;
+    loop_trace *t = &lp->t;
+    avr_t *avr = e->avr;
+    if (t->n >= LOOP_TRACE || avr->state != cpu_Running) {
+        p->rec = NULL;
+        e->poll_watch = false;
+        refuse(p, lp, avr->cycle);
+        return;
+    }
+    t->pc[t->n] = pc_before;
+    t->end[t->n++] = avr->cycle;
+    if (avr->pc != t->head)
+        return;
+    t->period = (uint32_t)(avr->cycle - p->rec_begin);
+    lp->have = true;
+    p->rec = NULL;
+    e->poll_watch = false;
+    try_arm(e, p, lp);
+}
+
+static void check_armed(mcu_engine *e, mcu_poll *p)
+{
+    loop_head *lp = p->armed;
+    avr_t *avr = e->avr;
+    p->armed_n++;
+    if (avr->pc != lp->t.head && p->armed_n < lp->t.n)
+        return;
+    p->armed = NULL;
+    e->poll_watch = false;
+    uint64_t period = lp->t.period;
+    if (avr->pc != lp->t.head || p->armed_n != lp->t.n || avr->cycle != p->armed_start + period ||
+        avr->interrupt_state != p->armed_istate || e->resets != p->armed_resets)
+        return; /* (something else happened: nothing was changed) */
+    if (!matches(avr, &p->e1, p->v0)) {
+        p->mismatches++;
+        lp->dead = true;
+        return;
+    }
+    become(avr, &p->e2, p->vm);
+    avr->cycle += p->armed_m * period;
+    e->instructions += p->armed_m * lp->t.n;
+    p->skipped += p->armed_m * period;
+    p->skips++;
+}
+
+/* the loop at pc; a new one takes the place of the one reached longest ago when all are taken */
+static loop_head *head_at(mcu_poll *p, uint32_t pc, uint64_t now)
+{
+    loop_head *oldest = &p->loops[0];
+    for (int i = 0; i < p->n_loops; i++) {
+        if (p->loops[i].t.head == pc)
+            return &p->loops[i];
+        if (p->loops[i].seen < oldest->seen)
+            oldest = &p->loops[i];
+    }
+    loop_head *lp = p->n_loops < LOOPS ? &p->loops[p->n_loops++] : oldest;
+    if (lp == p->armed || lp == p->rec)
+        return NULL;
+    for (int i = 0; i < SEEN; i++) /* (the cache's pointers to what it was) */
+        if (p->seen[i].head == lp)
+            p->seen[i].head = NULL;
+    memset(lp, 0, sizeof *lp);
+    lp->t.head = pc;
+    lp->seen = now;
+    return lp;
+}
+
+/* after each instruction that jumped backward, and each while a loop is recorded or checked */
+void mcu_poll_step(mcu_engine *e, uint32_t pc_before)
+{
+    mcu_poll *p = e->poll;
+    avr_t *avr = e->avr;
+    if (p->rec) {
+        record(e, p, pc_before);
+        return;
+    }
+    if (p->armed) {
+        check_armed(e, p);
+        return;
+    }
+    uint16_t w = (uint16_t)(avr->flash[pc_before] | avr->flash[pc_before + 1] << 8);
+    if (w == 0x9508 || w == 0x9518) /* a return: the loop's head is where its jump goes */
+        return;
+    uint32_t h = (avr->pc >> 1) % SEEN;
+    uint64_t now = avr->cycle;
+    if (p->seen[h].pc != avr->pc || now - p->seen[h].cycle >= LOOP_CLOSE) {
+        p->seen[h].pc = avr->pc;
+        p->seen[h].cycle = now;
+        p->seen[h].head = NULL;
+        return;
+    }
+    p->seen[h].cycle = now;
+    loop_head *lp = p->seen[h].head;
+    if (!lp && !(lp = p->seen[h].head = head_at(p, avr->pc, now)))
+        return;
+    lp->seen = now;
+    if (lp->dead || now < lp->retry_at)
+        return;
+    if (!lp->have) {
+        lp->t.n = 0;
+        p->rec = lp;
+        p->rec_begin = now;
+        e->poll_watch = true;
+        return;
+    }
+    try_arm(e, p, lp);
+}
