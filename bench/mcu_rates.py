@@ -10,20 +10,26 @@ this process's CPU time, best of three: the machine is shared, wall time measure
   imu + escs     a flight controller's skeleton (imu_reader): the MPU-6050 read every 1 ms at 400 kHz
                  from the chip core in demand mode (a sample served each ms), two ESC outputs at 400 Hz,
                  run in 1 ms ticks with the pulses taken each tick, as the session does
+  polling loops  the poll_loops firmware waiting on a flag in RAM its timer interrupt sets every 5 ms, and
+                 on Timer2's overflow flag: with the polling-loop skip (rig/mcu/polling.c) and without
   reference FC   the AVR reference FC (build/avr/fc.elf, `make avr`) flying a library scenario through
                  the MCU target (rig/targets/mcu.py: the runner, the world, the session), whole run; then
                  the same split: the engine (time inside run_until: the firmware's instructions, its TWI
                  and timers) and the rest, per 1 ms plant tick (the world's step, the needs served, the
-                 pulses and telemetry taken, the events and the recorder)
+                 pulses and telemetry taken, the events and the recorder). With the polling-loop skip
+                 (and the share of cycles it jumped), without it, and without it and with simavr's timers
+                 in the modes it lacks overflowing every prescaler period (stock: before timer_modes.c)
 
-Each runs with the glue's fixes, then with simavr's own behaviour back (AvrEngine.stock). The goal is
-2x real time; the anchor is ArduPilot's AVR build under Renode: 0.03-0.2x.
+Each runs with the glue's fixes, then with simavr's own behaviour back (AvrEngine.stock), without the
+polling-loop skip (it would hide what the fixes measure) but where said. The goal is 2x real time;
+the anchor is ArduPilot's AVR build under Renode: 0.03-0.2x.
 
     .venv/bin/python bench/mcu_rates.py
 """
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from collections.abc import Callable
@@ -35,7 +41,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from rig.emulators.chips.board import build_chip_board  # noqa: E402
 from rig.emulators.mpu6050 import ImuTruth  # noqa: E402
 from rig.emulators.ms5611 import BaroTruth  # noqa: E402
-from rig.mcu.engine import TIMERS, AvrEngine, EngineConfig, Motor  # noqa: E402
+from rig.mcu.engine import POLL_SKIP_ENV, TIMERS, AvrEngine, EngineConfig, Motor  # noqa: E402
 from rig.mcu.session import McuSession  # noqa: E402
 from rig.runner import run  # noqa: E402
 from rig.scenarios.schema import load  # noqa: E402
@@ -83,15 +89,15 @@ def call_cost_us(cfg: EngineConfig) -> float:
         return (time.process_time() - t0) / 100_000 * 1e6
 
 
-def imu_rate(mcu: str) -> float:
+def imu_rate(mcu: str, skip: bool) -> float:
     """imu_reader in 1 ms ticks, needs served, pulses taken: the best of three."""
     best = 0.0
     for _ in range(3):
         board = build_chip_board(lambda t: ImuTruth((0.0, 0.0, 9.81), (0.0, 0.0, 0.0), 25.0),
                                  lambda t: (0.2, 0.0, 0.4), lambda t: BaroTruth(101325.0, 25.0))
         pins = ("PB1", "PB2") if mcu == "atmega328p" else ("PB5", "PB6")
-        cfg = EngineConfig(mcu, CLOCK, firmware("imu_reader", mcu), motors=(Motor(pins[0], 1, "A"),
-                                                                            Motor(pins[1], 1, "B")))
+        cfg = EngineConfig(mcu, CLOCK, firmware("imu_reader", mcu), poll_skip=skip,
+                           motors=(Motor(pins[0], 1, "A"), Motor(pins[1], 1, "B")))
         with AvrEngine(cfg, board) as e:
             t0 = time.process_time()
             for k in range(1, 1001):
@@ -101,16 +107,18 @@ def imu_rate(mcu: str) -> float:
     return best
 
 
-def fc_rate(scenario: str = "step_roll") -> tuple[float, float, float, float]:
+def fc_rate(scenario: str = "step_roll", skip: bool = True,
+            stock_timers: bool = False) -> tuple[float, float, float, float, float]:
     """The reference FC through the target, best of three: (sim s per CPU s of the whole run, the same
     of the engine alone: time inside run_until, the session's loop per plant tick beyond the engine in
-    us, the engine per tick in us). run_until and the session's run are timed by wrappers of this
-    bench's own (process time)."""
+    us, the engine per tick in us, the share of cycles the polling-loop skip jumped). run_until and the
+    session's run are timed by wrappers of this bench's own (process time); ``skip`` is set through
+    the environment variable the engine reads, ``stock_timers`` by AvrEngine.stock on each engine."""
     fc = Path(__file__).resolve().parents[1] / "build" / "avr" / "fc.elf"
     if not fc.is_file():
         raise SystemExit(f"{fc} is not built: make avr")
     sc = load(Path(__file__).resolve().parents[1] / "scenarios" / "library" / f"{scenario}.toml")
-    spent = {"engine": 0.0, "session": 0.0}
+    spent = {"engine": 0.0, "session": 0.0, "skipped": 0.0, "cycles": 0.0}
 
     def timed(fn: Callable[..., Any], key: str) -> Callable[..., Any]:
         def wrapper(*args: Any) -> Any:
@@ -121,13 +129,29 @@ def fc_rate(scenario: str = "step_roll") -> tuple[float, float, float, float]:
                 spent[key] += time.process_time() - t0
         return wrapper
 
-    best: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    def opened(self: AvrEngine, *args: Any) -> None:
+        engine_init(self, *args)
+        if stock_timers:
+            self.stock(timer_modes=True)
+
+    def closed(self: AvrEngine) -> None:
+        if getattr(self, "_open", False):
+            spent["skipped"] += self.poll_figures()["skipped_cycles"]
+            spent["cycles"] += self.cycle
+        engine_close(self)
+
+    best: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
     run_until, session_run = AvrEngine.run_until, McuSession.run
+    engine_init, engine_close = AvrEngine.__init__, AvrEngine.close
+    was = os.environ.get(POLL_SKIP_ENV)
+    os.environ[POLL_SKIP_ENV] = "1" if skip else "0"
     AvrEngine.run_until = timed(run_until, "engine")  # type: ignore[method-assign]
     McuSession.run = timed(session_run, "session")  # type: ignore[method-assign]
+    AvrEngine.__init__ = opened  # type: ignore[method-assign,assignment]
+    AvrEngine.close = closed  # type: ignore[method-assign]
     try:
         for _ in range(3):
-            spent.update(engine=0.0, session=0.0)
+            spent.update(engine=0.0, session=0.0, skipped=0.0, cycles=0.0)
             t0 = time.process_time()
             r = run(sc, McuTarget("mega2560-gy86", fc), 0)
             whole = time.process_time() - t0
@@ -135,9 +159,14 @@ def fc_rate(scenario: str = "step_roll") -> tuple[float, float, float, float]:
             ticks = sc.duration * 1000
             loop_us = (spent["session"] - spent["engine"]) / ticks * 1e6
             best = max(best, (sc.duration / whole, sc.duration / spent["engine"], loop_us,
-                              spent["engine"] / ticks * 1e6))
+                              spent["engine"] / ticks * 1e6, spent["skipped"] / max(spent["cycles"], 1.0)))
     finally:
         AvrEngine.run_until, McuSession.run = run_until, session_run  # type: ignore[method-assign]
+        AvrEngine.__init__, AvrEngine.close = engine_init, engine_close  # type: ignore[method-assign]
+        if was is None:
+            del os.environ[POLL_SKIP_ENV]
+        else:
+            os.environ[POLL_SKIP_ENV] = was
     return best
 
 
@@ -150,30 +179,45 @@ def pwm_script() -> bytes:
 def main() -> int:
     print(f"simulated s per CPU s at 16 MHz (goal >= 2x; {ANCHOR})")
     for mcu in ("atmega2560", "atmega328p"):
-        busy = EngineConfig(mcu, CLOCK, firmware("busy", mcu), hang_ns=0)
+        busy = EngineConfig(mcu, CLOCK, firmware("busy", mcu), hang_ns=0, poll_skip=False)
         one = rate(busy, 2.0)
         ticks = rate(busy, 2.0, 0.001)
         cost = call_cost_us(busy)
         print(f"{mcu:11s} busy          {one:6.2f}x in one call, {ticks:6.2f}x in 1 ms calls; a call "
               f"costs {cost:.1f} us: {cost * one / 10:.1f} % of a 1 ms tick")
     pwm = EngineConfig("atmega2560", CLOCK, firmware("regscript", "atmega2560"), eeprom=pwm_script(),
-                       hang_ns=0)
+                       hang_ns=0, poll_skip=False)
     fixed, stock = rate(pwm, 1.0), rate(pwm, 0.2, stock={"extint_poll": True})
     print(f"atmega2560  pwm int4/5     {fixed:6.2f}x fixed, {stock:6.2f}x stock simavr 1.6 "
           f"({fixed / stock:.1f} times)")
     for mcu in ("atmega2560", "atmega328p"):
-        rc = EngineConfig(mcu, CLOCK, firmware("rc_echo", mcu), hang_ns=0)
+        rc = EngineConfig(mcu, CLOCK, firmware("rc_echo", mcu), hang_ns=0, poll_skip=False)
         wall = time.perf_counter  # (stock simavr sleeps: wall time)
         fixed, stock = rate(rc, 1.0, clock=wall), rate(rc, 0.01, stock={"uart_poll_sleep": True}, clock=wall)
         print(f"{mcu:11s} usart poll     {fixed:6.2f}x fixed, {stock:6.3f}x stock simavr 1.6 "
               f"({fixed / stock:.0f} times; wall time)")
     for mcu in ("atmega2560", "atmega328p"):
-        print(f"{mcu:11s} imu + escs     {imu_rate(mcu):6.2f}x in 1 ms ticks, a sample served each")
-    whole, engine, rest_us, engine_us = fc_rate()
+        on, off = imu_rate(mcu, True), imu_rate(mcu, False)
+        print(f"{mcu:11s} imu + escs     {off:6.2f}x in 1 ms ticks, a sample served each; {on:6.2f}x with "
+              f"the polling-loop skip")
+    for mode, what in ((2, "a RAM flag its ISR sets"), (0, "Timer2's overflow flag")):
+        loops = [EngineConfig("atmega2560", CLOCK, firmware("poll_loops", "atmega2560"), eeprom=bytes([mode]),
+                              hang_ns=0, poll_skip=skip) for skip in (True, False)]
+        on, off = rate(loops[0], 1.0), rate(loops[1], 1.0)
+        print(f"atmega2560  polling loops  {on:6.2f}x with the polling-loop skip, {off:6.2f}x without "
+              f"({on / off:.1f} times): {what}")
+    whole, engine, rest_us, engine_us, share = fc_rate()
+    fc_plain = fc_rate(skip=False)
+    fc_stock = fc_rate(skip=False, stock_timers=True)
     print(f"atmega2560  reference FC   {whole:6.2f}x step_roll through the target, the whole run (set-up and "
           f"criteria included); {ANCHOR}: {whole / 0.2:.0f}-{whole / 0.03:.0f} times that\n"
           f"{'':27s}{engine:6.2f}x the engine alone: {engine_us:.0f} us of CPU a 1 ms plant tick; the "
-          f"session's loop adds {rest_us:.0f} us a tick (world, needs served, pulses, telemetry, events)")
+          f"session's loop adds {rest_us:.0f} us a tick (world, needs served, pulses, telemetry, events)\n"
+          f"{'':27s}the polling-loop skip jumped {share:.0%} of the cycles; without it "
+          f"{fc_plain[0]:6.2f}x the whole run, {fc_plain[1]:6.2f}x the engine ({whole / fc_plain[0]:.2f} and "
+          f"{engine / fc_plain[1]:.2f} times)\n"
+          f"{'':27s}without it and with simavr's timers in the modes it lacks (stock 1.6): "
+          f"{fc_stock[0]:6.2f}x the whole run, {fc_stock[1]:6.2f}x the engine")
     return 0
 
 

@@ -458,10 +458,13 @@ class AvrEngine:
             out += [TwiRecord(r.t_ns, chr(r.kind), r.value, bool(r.ack)) for r in buf[:n]]
         return out
 
-    def stock(self, extint_poll: bool = False, uart_poll_sleep: bool = False) -> None:
+    def stock(self, extint_poll: bool = False, uart_poll_sleep: bool = False,
+              timer_modes: bool = False) -> None:
         """simavr 1.6's own behaviour back, for bench/mcu_rates.py to measure what the glue's fixes save:
-        the per-cycle poll of an INTx pin held low, a usleep(1) per poll of an idle USART."""
-        self._lib.mcu_stock(self._e, (1 if extint_poll else 0) | (2 if uart_poll_sleep else 0))
+        the per-cycle poll of an INTx pin held low, a usleep(1) per poll of an idle USART, a timer in a
+        mode simavr lacks overflowing every prescaler period (rig/mcu/timer_modes.c)."""
+        self._lib.mcu_stock(self._e, (1 if extint_poll else 0) | (2 if uart_poll_sleep else 0)
+                            | (4 if timer_modes else 0))
 
     def poll_figures(self) -> dict[str, int]:
         """What the polling-loop skip did: the cycles it jumped over, in how many jumps, the loops it

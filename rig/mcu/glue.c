@@ -404,11 +404,13 @@ MCU_API uint64_t mcu_figure(const mcu_engine *e, int which)
     }
 }
 
-/* bench/mcu_rates.py only: simavr's own behaviour back (1: the INTx level poll, 2: the UART poll sleep) */
+/* bench/mcu_rates.py only: simavr's own behaviour back (1: the INTx level poll, 2: the UART poll sleep,
+ * 4: the timer modes it lacks run with TOP 0) */
 MCU_API void mcu_stock(mcu_engine *e, int which)
 {
     e->stock_extint = which & 1;
     extint_fix(e->avr);
+    mcu_timer_modes_stock(e, which & 4);
     if (which & 2) {
         uint32_t flags = AVR_UART_FLAG_POLL_SLEEP;
         for (char n = '0'; n <= '3'; n++)

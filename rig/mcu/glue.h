@@ -241,6 +241,7 @@ uint64_t mcu_serial_next(const mcu_engine *e);
 void mcu_pcint_attach(mcu_engine *e);
 /* timer_modes.c */
 void mcu_timer_modes_attach(mcu_engine *e);
+void mcu_timer_modes_stock(mcu_engine *e, bool stock);
 /* polling.c */
 void mcu_poll_step(mcu_engine *e, uint32_t pc_before);
 void mcu_poll_free(mcu_engine *e);

@@ -172,16 +172,19 @@ void loop_nzs(loop_run *x, uint8_t r, bool v)
     loop_set_flag(x, S_S, (r >> 7) ^ v);
 }
 
-void loop_put(loop_run *x, uint16_t addr, loop_val v)
+bool loop_put(loop_run *x, uint16_t addr, loop_val v)
 {
     loop_state *s = &x->s;
     for (int i = 0; i < s->n_stores; i++)
         if (s->store_at[i] == addr) {
             s->store[i] = v;
-            return;
+            return true;
         }
+    if (s->n_stores >= LOOP_STORES)
+        return loop_fail(x, "too many stores");
     s->store_at[s->n_stores] = addr;
     s->store[s->n_stores++] = v;
+    return true;
 }
 
 static bool read_v(loop_run *x, avr_timer_t *tm, uint32_t offset, loop_val *out)
@@ -202,12 +205,10 @@ static bool read_v(loop_run *x, avr_timer_t *tm, uint32_t offset, loop_val *out)
         return loop_out_of_range(x, "the timer counter wraps");
     loop_val v = { .sym = true, .sign = 1 };
     *out = v;
-    loop_put(x, tm->r_tcnt, v); /* (simavr latches the high byte) */
-    if (tm->r_tcnth) {
-        v.byte = 1;
-        loop_put(x, tm->r_tcnth, v);
-    }
-    return true;
+    if (!loop_put(x, tm->r_tcnt, v)) /* (simavr keeps the count in data[], the high byte latched) */
+        return false;
+    v.byte = 1;
+    return !tm->r_tcnth || loop_put(x, tm->r_tcnth, v);
 }
 
 bool loop_load(loop_run *x, uint16_t addr, uint32_t offset, loop_val *out)
@@ -221,11 +222,6 @@ bool loop_load(loop_run *x, uint16_t addr, uint32_t offset, loop_val *out)
     avr_timer_t *tm = timer_at(x->io, addr); /* (read again at each read, whatever was latched) */
     if (tm)
         return read_v(x, tm, offset, out);
-    for (int i = 0; i < s->n_stores; i++)
-        if (s->store_at[i] == addr) {
-            *out = s->store[i];
-            return true;
-        }
     if (addr == R_SREG) {
         loop_val b = { 0 };
         int chain = -1;
@@ -242,8 +238,13 @@ bool loop_load(loop_run *x, uint16_t addr, uint32_t offset, loop_val *out)
         }
         b.chain = (uint8_t)(chain < 0 ? 0 : chain);
         *out = b;
-        return true;
+        return loop_put(x, R_SREG, b); /* (simavr keeps the image it read in data[]) */
     }
+    for (int i = 0; i < s->n_stores; i++)
+        if (s->store_at[i] == addr) {
+            *out = s->store[i];
+            return true;
+        }
     if (addr == R_SPL || addr == R_SPH) {
         *out = loop_known((uint8_t)(addr == R_SPL ? s->sp : s->sp >> 8));
         return true;
@@ -275,14 +276,11 @@ bool loop_store(loop_run *x, uint16_t addr, loop_val v)
                                      : v.fsym >> i & 1 ? FLAG_CHAIN
                                                        : FLAG_KNOWN,
                                      (uint8_t)(v.val >> i & 1), v.chain };
-        return true;
+        return loop_put(x, R_SREG, v); /* (and the byte written, in data[]) */
     }
     if (addr <= avr->ioend || addr > avr->ramend)
         return loop_fail(x, "a store to an I/O register");
-    if (x->s.n_stores >= LOOP_STORES)
-        return loop_fail(x, "too many stores");
-    loop_put(x, addr, v);
-    return true;
+    return loop_put(x, addr, v);
 }
 
 bool loop_push(loop_run *x, loop_val v)

@@ -104,7 +104,7 @@ bool loop_bit_get(loop_run *x, const loop_val *b, int bit, bool *out);
 void loop_set_flag(loop_run *x, int which, bool v);
 void loop_unknown_flag(loop_run *x, int which);
 void loop_nzs(loop_run *x, uint8_t r, bool v);
-void loop_put(loop_run *x, uint16_t addr, loop_val v);
+bool loop_put(loop_run *x, uint16_t addr, loop_val v);
 bool loop_load(loop_run *x, uint16_t addr, uint32_t offset, loop_val *out);
 bool loop_store(loop_run *x, uint16_t addr, loop_val v);
 bool loop_push(loop_run *x, loop_val v);

@@ -24,6 +24,7 @@ typedef struct {
 struct mcu_timer_wraps {
     stopped_wrap w[WRAPS];
     int n;
+    bool stock; /* simavr's own behaviour back (bench/mcu_rates.py measures what this saves) */
 };
 
 /* simavr's cycle timers of this timer cancelled (its overflow and its compare matches) */
@@ -48,11 +49,12 @@ static void stop_in_simavr(avr_t *avr, avr_timer_t *p)
 static void wrapped(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
 {
     stopped_wrap *w = param;
+    const struct mcu_timer_wraps *all = ((mcu_engine *)avr->custom.data)->timer_wraps;
     if (w->c)
         w->c(avr, addr, v, w->param);
     else
         avr->data[addr] = v;
-    if (w->timer->mode.kind == avr_timer_wgm_none)
+    if (w->timer->mode.kind == avr_timer_wgm_none && !all->stock)
         stop_in_simavr(avr, w->timer);
 }
 
@@ -69,6 +71,12 @@ static void wrap(mcu_engine *e, avr_timer_t *p, avr_io_addr_t addr)
     *w = (stopped_wrap){ p, e->avr->io[io].w.c, e->avr->io[io].w.param };
     e->avr->io[io].w.c = wrapped;
     e->avr->io[io].w.param = w;
+}
+
+void mcu_timer_modes_stock(mcu_engine *e, bool stock)
+{
+    if (e->timer_wraps)
+        e->timer_wraps->stock = stock;
 }
 
 void mcu_timer_modes_attach(mcu_engine *e)
