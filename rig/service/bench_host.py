@@ -28,6 +28,10 @@ NAME: Final = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 RETRY_S: Final = 1.0
 
 
+class NameTaken(Exception):
+    """Another worker of the scheduler has this bench's name (two bench hosts, one --name)."""
+
+
 def resource(name: str) -> str:
     return RESOURCE + name
 
@@ -99,6 +103,10 @@ def main(args: argparse.Namespace) -> int:
              "labels": labels, "bridge_id": found.bridge_id, "firmware_sha256": found.firmware_sha256}
     try:
         asyncio.run(_serve(args.engine, BENCH, args.host, security))
+    except NameTaken:
+        print(f"rig bench-host: the scheduler at {args.engine} has a bench named {args.name!r} already "
+              "(another rig bench-host): give this one another --name", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("rig bench-host: stopped (Ctrl-C)", file=sys.stderr)
         return 130
@@ -119,6 +127,10 @@ async def _serve(address: str, bench: dict[str, Any], host: str | None, security
             worker = Worker(address, nthreads=1, resources={resource(name): 1}, name=f"bench-{name}",
                             host=host, dashboard=False, security=security)
             await worker
+        except ValueError as e:  # (Dask's answer to a worker's name that another worker holds)
+            if "name taken" in str(e):
+                raise NameTaken(name) from None
+            raise
         except (OSError, TimeoutError) as e:
             print(f"rig bench-host: no scheduler at {address} ({e}): trying again", file=sys.stderr,
                   flush=True)

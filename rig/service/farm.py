@@ -55,8 +55,10 @@ OUT: Final = "\0out\0"
 PYTHON: Final = "\0python\0"
 #: stands for the bench host's bridge in a bench run's command line (rig bench-host --bridge)
 BRIDGE: Final = "\0bridge\0"
-#: in the run's folder on the worker: the firmware it flies (hidden, not sent back)
+#: in the run's folder on the worker: the firmware it flies and an uploaded board file (hidden, not
+#: sent back)
 FIRMWARE: Final = ".firmware"
+BOARD: Final = ".board"
 #: how long a connection to the scheduler is tried before the service says it is unreachable
 CONNECT_S: Final = 5.0
 #: how often an unreachable scheduler is tried again
@@ -220,14 +222,20 @@ def job_for(run: dict[str, Any], out: Path, store: Store) -> tuple[Job, dict[str
     cmd, flown = command(run, out, store)
     files = {f"{PINNED}/{p.name}": p.read_bytes() for p in sorted((out / PINNED).iterdir()) if p.is_file()}
     program = store.firmware(run["dut"]["firmware"]) if run["dut"].get("firmware") else None
+    board = store.board(run["dut"]["board"]) if run["dut"].get("board") else None
+    # the service's files the command names, as the worker's copies in the run's folder (a shipped
+    # board's name stays a name: the worker has the same rig)
+    inputs = {str(p): f"{where}/{p.name}" for p, where in ((program, FIRMWARE), (board, BOARD))
+              if isinstance(p, Path)}
     argv = []
     for k, arg in enumerate(cmd):
         if k == 0 and arg == sys.executable:
             argv.append(PYTHON)
             continue
-        if program is not None and str(program) in arg:
-            files[f"{FIRMWARE}/{program.name}"] = program.read_bytes()
-            arg = arg.replace(str(program), f"{OUT}/{FIRMWARE}/{program.name}")
+        for path, rel in inputs.items():
+            if path in arg:
+                files[rel] = Path(path).read_bytes()
+                arg = arg.replace(path, f"{OUT}/{rel}")
         argv.append(arg.replace(str(out), OUT))
     if run["mode"] == "bridge":  # (command gives the service's own bench: the virtual bridge)
         argv[argv.index("--bridge") + 1] = BRIDGE
@@ -306,15 +314,18 @@ class Farm:
 
     def benches(self) -> list[dict[str, Any]]:
         """Every bench the scheduler knows: its labels, host, bridge and state (free, busy with a run,
-        offline: its host is not connected, maintenance: disabled here)."""
+        offline: its host is not connected, maintenance: disabled here; unknown while the scheduler
+        cannot be reached, with the ``problem``: what was last seen of it is no news of it now)."""
         disabled = self.db.disabled_benches()
         running = {f.bench: f.run["id"] for f in list(self._flights.values()) if f.bench}
+        state_now = dict(self._state)
         out = []
         for name, b in sorted(self._benches.items()):
-            state = ("maintenance" if name in disabled else "offline" if not b.get("worker")
-                     else "busy" if name in running else "free")
+            state = ("maintenance" if name in disabled else "unknown" if not state_now["connected"]
+                     else "offline" if not b.get("worker") else "busy" if name in running else "free")
             out.append({"name": name, "state": state, "run": running.get(name), "labels": b.get("labels", {}),
-                        **{k: b.get(k) for k in ("host", "bridge", "psu", "bridge_id", "firmware_sha256")}})
+                        **{k: b.get(k) for k in ("host", "bridge", "psu", "bridge_id", "firmware_sha256")},
+                        **({"problem": state_now["problem"]} if state == "unknown" else {})})
         return out
 
     def refuse(self, selector: dict[str, str]) -> str | None:

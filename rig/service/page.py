@@ -61,6 +61,7 @@ def register(app: FastAPI, db: Db, workers: Workers, store: Store) -> None:
     def index(request: Request) -> HTMLResponse:
         queue = [r for status in ("running", "queued") for r in db.list(status=status, limit=100)]
         return page(request, "index.html", queue=queue, runs=db.list(limit=50), scenarios=scenario_names(),
+                    firmware=store.firmware_list(), boards=store.board_list(),
                     statuses=STATUSES, engine=workers.farm.state() if workers.farm is not None else None,
                     benches=workers.farm.benches() if workers.farm is not None else [])
 
@@ -76,8 +77,9 @@ def register(app: FastAPI, db: Db, workers: Workers, store: Store) -> None:
             return refused(["the form is too large"], 413)
         form = urllib.parse.parse_qs(body.decode("utf-8", "replace"))
         try:
+            dut = {k: v for k in ("firmware", "board") if (v := (form.get(k) or [""])[0])}
             req = RunRequest(scenarios=form.get("scenarios", []), seed=_whole(form, "seed"),
-                             priority=_whole(form, "priority"),
+                             priority=_whole(form, "priority"), dut=dut,
                              mode=form.get("mode", ["lockstep"])[0])  # type: ignore[arg-type]
         except ValidationError as e:
             return refused(problems_of(list(e.errors())))

@@ -70,7 +70,13 @@ def command(run: dict[str, Any], out: Path, store: Store) -> tuple[list[str], di
         program = store.firmware(run["dut"]["firmware"])
         if program is None:
             raise LookupError(f"the firmware {run['dut']['firmware']} is no longer there")
-        cmd += ["--dut", shlex.quote(str(program))]
+        if run["dut"].get("board"):  # an AVR image on its board, under emulation (checked when queued)
+            board = store.board(run["dut"]["board"])
+            if board is None:
+                raise LookupError(f"the board {run['dut']['board']} is no longer there")
+            cmd += ["--mcu", str(board), "--firmware", str(program)]
+        else:
+            cmd += ["--dut", shlex.quote(str(program))]
     return cmd, flown
 
 

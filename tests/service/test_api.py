@@ -273,7 +273,8 @@ def test_uploads_are_checked_stored_once_and_run(service: Service, tmp_path: Pat
 
     program = b"#!/bin/sh\necho 'a firmware that will not fly' >&2\nexit 3\n"
     status, fw = post_bytes(service, "/api/firmware", program)
-    assert status == 201 and fw == {"sha256": hashlib.sha256(program).hexdigest(), "size": len(program)}
+    assert status == 201 and fw == {"sha256": hashlib.sha256(program).hexdigest(), "size": len(program),
+                                    "kind": "script"}
     assert post_bytes(service, "/api/firmware", program)[1] == fw  # stored once
     assert post_bytes(service, "/api/firmware", b"")[0] == 422
     assert [f["sha256"] for f in service.call("GET", "/api/firmware")[1]] == [fw["sha256"]]
