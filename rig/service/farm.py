@@ -39,14 +39,15 @@ from rig.service.worker import (
     PINNED,
     POLL_S,
     STATUS_BY_EXIT,
+    RealtimeProgress,
     _die_with_parent,
     _end,
     command,
     count_runs,
-    ended,
     results,
     sweep_progress,
     sweep_results,
+    why,
 )
 
 #: stands for the run's folder on the worker in a task's command line (a NUL is in no real argument)
@@ -114,7 +115,8 @@ def fly(job: Job) -> dict[str, Any]:
                                     cwd=tmp, start_new_session=True, preexec_fn=_die_with_parent)
             code = _watch(proc, job, out)
         inputs = {Path(rel).parts[0] for rel in job.files}
-        return {"exit_code": code, "archive": _pack(out, inputs), "host": socket.gethostname()}
+        return {"exit_code": code, "archive": _pack(out, inputs), "host": socket.gethostname(),
+                "folder": str(out)}
 
 
 def _on_the_bench(argv: list[str], run_id: int) -> list[str]:
@@ -155,6 +157,7 @@ def _watch(proc: subprocess.Popen[bytes], job: Job, out: Path) -> int:
         pass
     looked = time.monotonic()
     progress = 0.0
+    realtime = RealtimeProgress(out / "rig-run.log") if "--bridge" in job.argv else None
     while True:
         try:
             return proc.wait(timeout=POLL_S)
@@ -165,6 +168,7 @@ def _watch(proc: subprocess.Popen[bytes], job: Job, out: Path) -> int:
         looked = time.monotonic()
         done = sum((out / r).is_file() for r in job.results)
         now = (sweep_progress(out, job.sweep_total) if job.sweep_total
+               else realtime(done, len(job.results)) if realtime is not None
                else round(100.0 * done / max(len(job.results), 1), 1))
         try:
             if now != progress:
@@ -599,8 +603,10 @@ class Farm:
             self.db.finish(run["id"], status, pid=None, error=f"{what} on the Dask cluster: {name}: {e}")
             return
         status = STATUS_BY_EXIT.get(code, "error")
-        error = None if status in ("passed", "failed") else ended(what, code, out / "rig-run.log")
         found = (sweep_results(out, *next(iter(flight.flown.items()))) if sweep
                  else results(out, run["scenarios"]))
+        error = None if status in ("passed", "failed") else why(what, code, out / "rig-run.log", found)
+        if error is not None and isinstance(answer.get("folder"), str) and answer["folder"]:
+            error = error.replace(answer["folder"], str(out))  # (the worker's folder is gone: this is it)
         self.db.finish(run["id"], status, exit_code=code, error=error, progress=100.0, pid=None,
                        results=found)

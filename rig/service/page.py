@@ -21,7 +21,7 @@ from fastapi.templating import Jinja2Templates
 from pydantic import ValidationError
 
 from rig import __version__
-from rig.service.db import STATUSES, Db
+from rig.service.db import STATUSES, TERMINAL, Db
 from rig.service.store import MAX_SCENARIO, Store
 from rig.service.worker import Workers
 
@@ -57,13 +57,52 @@ def register(app: FastAPI, db: Db, workers: Workers, store: Store) -> None:
     def page(request: Request, name: str, **context: Any) -> HTMLResponse:
         return templates.TemplateResponse(request, name, {"version": __version__, **context})
 
+    def live() -> dict[str, Any]:
+        """What changes on the front page while it is open: the cluster, the benches, the queue (each
+        queued bench run with what it waits for)."""
+        benches = workers.farm.benches() if workers.farm is not None else []
+        queue = [r for status in ("running", "queued") for r in db.list(status=status, limit=100)]
+        for r in queue:
+            r["waits"] = waits_for(r, benches)
+        return {"queue": queue, "benches": benches,
+                "engine": workers.farm.state() if workers.farm is not None else None}
+
+    def waits_for(run: dict[str, Any], benches: list[dict[str, Any]]) -> str:
+        """What a queued bench run waits for, in words: the benches its selector matches and their
+        states (a farm's), or the service's own bench and its holder."""
+        if run["status"] != "queued" or run["mode"] != "bridge":
+            return ""
+        if workers.farm is None:
+            holder = db.lease("bench")
+            return "the service's bench" + (f" (held by {holder['holder']})" if holder else "")
+        from rig.service.farm import matches
+
+        found = [f"{b['name']} ({b['state']}" + (f", run {b['run']})" if b.get("run") else ")")
+                 for b in benches if matches(b, run["bench"] or {})]
+        return ("a bench: " + ", ".join(found)) if found else "a bench with its labels (none known now)"
+
+    def run_view(run: dict[str, Any]) -> dict[str, Any]:
+        """A run's page's parts: its DUT in words, the artifacts that are there to link (a queued or
+        interrupted run has no index.html), what a queued bench run waits for, whether it has ended."""
+        folder = workers.artifacts / str(run["id"])
+        names = (("summary.html", "runs.parquet", "junit.xml") if run["mode"] == "sweep"
+                 else ("index.html", "junit.xml"))
+        dut = run["dut"]
+        text = dut.get("command") or dut.get("firmware") or "the reference FC"
+        if dut.get("board"):
+            text += f" on the board {dut['board']}"
+        benches = workers.farm.benches() if workers.farm is not None and run["status"] == "queued" else []
+        return {"run": run, "dut": text, "present": [n for n in names if (folder / n).is_file()],
+                "waits": waits_for(run, benches), "ended": run["status"] in TERMINAL}
+
     @app.get("/", response_class=HTMLResponse, include_in_schema=False)
     def index(request: Request) -> HTMLResponse:
-        queue = [r for status in ("running", "queued") for r in db.list(status=status, limit=100)]
-        return page(request, "index.html", queue=queue, runs=db.list(limit=50), scenarios=scenario_names(),
-                    firmware=store.firmware_list(), boards=store.board_list(),
-                    statuses=STATUSES, engine=workers.farm.state() if workers.farm is not None else None,
-                    benches=workers.farm.benches() if workers.farm is not None else [])
+        return page(request, "index.html", runs=db.list(limit=50), scenarios=scenario_names(),
+                    firmware=store.firmware_list(), boards=store.board_list(), statuses=STATUSES, **live())
+
+    @app.get("/ui/live", response_class=HTMLResponse, include_in_schema=False)
+    def live_part(request: Request) -> HTMLResponse:
+        return page(request, "live.html", **live())
 
     @app.get("/ui/runs", response_class=HTMLResponse, include_in_schema=False)
     def runs_table(request: Request, status: str = "", scenario: str = "") -> HTMLResponse:
@@ -123,7 +162,15 @@ def register(app: FastAPI, db: Db, workers: Workers, store: Store) -> None:
         run = db.get(run_id)
         if run is None:
             raise HTTPException(404, f"no run {run_id}")
-        return page(request, "run.html", run=run)
+        return page(request, "run.html", **run_view(run))
+
+    @app.get("/ui/runs/{run_id}", response_class=HTMLResponse, include_in_schema=False)
+    def run_part(request: Request, run_id: int) -> HTMLResponse:
+        """The run's page's body, which the open page swaps in every second until the run has ended."""
+        run = db.get(run_id)
+        if run is None:
+            raise HTTPException(404, f"no run {run_id}")
+        return page(request, "run_view.html", **run_view(run))
 
 
 def _measured(run: dict[str, Any], scenario: str) -> dict[str, Any] | None:

@@ -226,7 +226,8 @@ def test_rig_submit_waits_and_exits_with_rig_runs_codes(service: Service) -> Non
     done = rig("submit", "--server", service.url, "step_roll", "--dut", "true", "--wait")
     assert done.returncode == 3, done.stderr
     status = rig("status", "--server", service.url, done.stdout.split()[0])
-    assert "rig run exited with status 3: 0 passed, 0 failed, 1 errors" in status.stdout  # as written
+    # why: the scenario's reason, as its result.json gives it (not rig run's summary line)
+    assert "— step_roll: the command exited without touching the emulated devices" in status.stdout
     bad = rig("submit", "--server", service.url, "no_such_scenario")
     assert bad.returncode == 2 and "no library scenario of that name" in bad.stderr
     assert rig("status", "--server", service.url, "999").returncode == 2
