@@ -114,6 +114,17 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
+async def _taken(address: str, worker_name: str, security: Any) -> bool:
+    """Whether a worker of the scheduler has this name already (asked before joining: Dask's own refusal
+    comes as a traceback after a page of its log)."""
+    from distributed import Client
+
+    async with Client(address, asynchronous=True, security=security, timeout=RETRY_S * 10,
+                      set_as_default=False) as client:
+        workers = (await client.scheduler.identity(n_workers=-1)).get("workers", {})
+    return any(w.get("name") == worker_name for w in workers.values())
+
+
 async def _serve(address: str, bench: dict[str, Any], host: str | None, security: Any) -> None:
     """The worker, joined again whenever its scheduler comes back, until SIGTERM or Ctrl-C."""
     from distributed import Worker
@@ -124,11 +135,13 @@ async def _serve(address: str, bench: dict[str, Any], host: str | None, security
     name = bench["name"]
     while not stopping.is_set():
         try:
+            if await _taken(address, f"bench-{name}", security):
+                raise NameTaken(name)
             worker = Worker(address, nthreads=1, resources={resource(name): 1}, name=f"bench-{name}",
                             host=host, dashboard=False, security=security)
             await worker
-        except ValueError as e:  # (Dask's answer to a worker's name that another worker holds)
-            if "name taken" in str(e):
+        except (ValueError, RuntimeError) as e:  # (Dask's answer to a name another worker took meanwhile)
+            if "name taken" in f"{e} {e.__cause__}":
                 raise NameTaken(name) from None
             raise
         except (OSError, TimeoutError) as e:

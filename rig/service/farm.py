@@ -587,6 +587,17 @@ class Farm:
         except Exception:  # (not published, or the scheduler is gone: nothing to forget)
             pass
 
+    def _here(self, text: str, folder: str, run: dict[str, Any], out: Path) -> str:
+        """Words from a worker with its temporary run folder (gone now) named as the service's: its
+        copies of the inputs as the store's files, the rest as the run's folder here."""
+        dut = run["dut"]
+        program = self.store.firmware(dut["firmware"]) if dut.get("firmware") else None
+        board = self.store.board(dut["board"]) if dut.get("board") else None
+        for path, where in ((program, FIRMWARE), (board, BOARD)):
+            if isinstance(path, Path):
+                text = text.replace(f"{folder}/{where}/{path.name}", str(path))
+        return text.replace(folder, str(out))
+
     def _land(self, flight: Flight) -> None:
         """A run's task has ended: its folder into the data folder, its status as rig run's exit says."""
         run, out = flight.run, self.artifacts / str(flight.run["id"])
@@ -605,8 +616,12 @@ class Farm:
         status = STATUS_BY_EXIT.get(code, "error")
         found = (sweep_results(out, *next(iter(flight.flown.items()))) if sweep
                  else results(out, run["scenarios"]))
+        folder = answer.get("folder")
+        for r in found if isinstance(folder, str) and folder else []:
+            if r.get("error"):
+                r["error"] = self._here(r["error"], folder, run, out)
         error = None if status in ("passed", "failed") else why(what, code, out / "rig-run.log", found)
-        if error is not None and isinstance(answer.get("folder"), str) and answer["folder"]:
-            error = error.replace(answer["folder"], str(out))  # (the worker's folder is gone: this is it)
+        if error is not None and isinstance(folder, str) and folder:
+            error = self._here(error, folder, run, out)
         self.db.finish(run["id"], status, exit_code=code, error=error, progress=100.0, pid=None,
                        results=found)

@@ -106,6 +106,11 @@ def test_selectors_maintenance_and_a_bench_host_killed_mid_run(farm: Farm) -> No
     with urllib.request.urlopen(svc.url + "/", timeout=30) as page:
         html = page.read().decode()
     assert "<td>a</td><td class=\"\">maintenance" in html and "put back" in html
+    # its page: its place, its selector, and the bench it waits for with that bench's state
+    with urllib.request.urlopen(f"{svc.url}/runs/{waits['id']}", timeout=30) as page:
+        html = page.read().decode()
+    assert "position 1 in the bench queue" in html and '<code id="selector">site=x</code>' in html
+    assert 'waits for <span id="waits">a bench: a (maintenance)</span>' in html
     assert rig("bench", "--server", svc.url, "enable", "a").returncode == 0
     back = svc.follow(waits["id"])
     assert back["status"] == "passed" and back["bench_name"] == "a", back
@@ -121,3 +126,22 @@ def test_selectors_maintenance_and_a_bench_host_killed_mid_run(farm: Farm) -> No
     assert svc.follow(other["id"])["status"] == "passed"
     benches = {b["name"]: b["state"] for b in svc.call("GET", "/api/benches")[1]}
     assert benches == {"a": "offline", "b": "free"}
+    # a second bench host under a name taken: one line naming the clash and --name, exit 2
+    clash = rig("bench-host", "--engine", farm.address, "--bridge", "virtual", "--name", "b")
+    assert clash.returncode == 2 and clash.stderr.count("\n") == 1, clash.stderr
+    assert "a bench named 'b' already" in clash.stderr and "--name" in clash.stderr
+    # the scheduler dies: what was seen of the benches is no news of them now
+    _, last = svc.call("POST", "/api/runs", {"scenarios": ["step_roll"], "mode": "bridge",
+                                             "bench": {"site": "y"}})
+    svc.until(last["id"], "running")
+    farm.procs[0].send_signal(signal.SIGKILL)
+    assert svc.follow(last["id"])["status"] == "interrupted"
+    assert svc.call("GET", "/api/health")[1]["status"] == "degraded"
+    benches = {b["name"]: b["state"] for b in svc.call("GET", "/api/benches")[1]}
+    assert benches == {"a": "unknown", "b": "unknown"}
+    listed = rig("bench", "--server", svc.url, "list")
+    assert listed.returncode == 0 and [line.split(":")[1].split()[0] for line in listed.stdout.splitlines()] \
+        == ["unknown", "unknown"] and "free" not in listed.stdout, listed.stdout
+    with urllib.request.urlopen(svc.url + "/", timeout=30) as page:
+        html = page.read().decode()
+    assert ">unknown<" in html.replace("\n", "") and ">free<" not in html.replace("\n", "")

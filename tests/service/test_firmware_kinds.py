@@ -22,12 +22,17 @@ REPO = Path(__file__).resolve().parents[2]
 BOARD = REPO / "rig" / "mcu" / "boards" / "mega2560-gy86.toml"
 
 
-@pytest.fixture(scope="module")
-def avr_fc() -> Path:
+def avr_image() -> Path:
+    """build/avr/fc.elf, the AVR reference FC, brought up to date by make."""
     done = subprocess.run(["make", "-s", "--no-print-directory", "avr"], cwd=REPO, capture_output=True,
                           text=True)
     assert done.returncode == 0, done.stderr
     return REPO / "build" / "avr" / "fc.elf"
+
+
+@pytest.fixture(scope="module")
+def avr_fc() -> Path:
+    return avr_image()
 
 
 @pytest.fixture
