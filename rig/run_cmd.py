@@ -441,9 +441,10 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
     (suite.out / "index.html").write_text(
         html_report.render_index(results, [f"{r.scenario.stem}/report.html" for r in results], left, links)
     )
-    counts = {v: sum(r.verdict == v for r in results) for v in ("pass", "fail", "error")}
+    counts = {v: sum(r.verdict == v for r in results) for v in ("pass", "fail", "error", "interrupted")}
+    stopped = f", {counts['interrupted']} interrupted" if counts["interrupted"] else ""
     print(
-        f"{counts['pass']} passed, {counts['fail']} failed, {counts['error']} errors in "
+        f"{counts['pass']} passed, {counts['fail']} failed, {counts['error']} errors{stopped} in "
         f"{time.perf_counter() - t_suite:.1f} s; reports in {suite.out}/index.html",
         file=sys.stderr,
     )
