@@ -152,6 +152,17 @@ def bench_problems(req: RunRequest, workers: Workers) -> list[str]:
     return [] if problem is None else [problem]
 
 
+async def small_body(request: Request, what: str) -> bytes:
+    """A request's body of a text file (a scenario, a board file, a sweep spec), refused (413) as soon as
+    it grows over MAX_SCENARIO bytes, before the rest is read."""
+    body = b""
+    async for chunk in request.stream():
+        body += chunk
+        if len(body) > MAX_SCENARIO:
+            raise HTTPException(413, f"{what} over {MAX_SCENARIO} bytes")
+    return body
+
+
 def _query_names(dependant: Dependant) -> set[str]:
     """The query parameters a route (and its dependencies) take."""
     names = {p.alias for p in dependant.query_params}
@@ -237,11 +248,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         (its words returned as they are, 422), stored once under its SHA-256 and NAME pointed at it:
         201 a new version of NAME, 200 the version NAME points at already, 409 NAME points at another
         version (``?replace=true`` points it at this one; runs queued already keep theirs)."""
-        body = b""
-        async for chunk in request.stream():
-            body += chunk
-            if len(body) > MAX_SCENARIO:
-                raise HTTPException(413, f"a scenario over {MAX_SCENARIO} bytes")
+        body = await small_body(request, "a scenario")
         try:
             stored = store.put_scenario(name, body, replace)
         except UploadError as e:
@@ -277,11 +284,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
     async def upload_board(request: Request) -> dict[str, Any]:
         """A board file (TOML, the request's body; docs/mcu.md), checked as ``rig run --mcu`` checks
         one and stored once under its SHA-256, which a run names as ``dut.board``."""
-        body = b""
-        async for chunk in request.stream():
-            body += chunk
-            if len(body) > MAX_SCENARIO:
-                raise HTTPException(413, f"a board file over {MAX_SCENARIO} bytes")
+        body = await small_body(request, "a board file")
         try:
             return store.put_board(body)
         except UploadError as e:
@@ -315,11 +318,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         from rig.run_cmd import LIBRARY
         from rig.scenarios.sweep import Sweep, SweepError, load_sweep
 
-        body = b""
-        async for chunk in request.stream():
-            body += chunk
-            if len(body) > MAX_SCENARIO:
-                raise HTTPException(413, f"a sweep spec over {MAX_SCENARIO} bytes")
+        body = await small_body(request, "a sweep spec")
         problems, _ = check_run(RunRequest(scenarios=["-"], dut={"command": dut} if dut is not None else {}),
                                 store, scenarios=False)
         if problems:

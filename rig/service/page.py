@@ -81,9 +81,12 @@ def register(app: FastAPI, db: Db, workers: Workers, store: Store) -> None:
                  for b in benches if matches(b, run["bench"] or {})]
         return ("a bench: " + ", ".join(found)) if found else "a bench with its labels (none known now)"
 
-    def run_view(run: dict[str, Any]) -> dict[str, Any]:
+    def run_view(run_id: int) -> dict[str, Any]:
         """A run's page's parts: its DUT in words, the artifacts that are there to link (a queued or
         interrupted run has no index.html), what a queued bench run waits for, whether it has ended."""
+        run = db.get(run_id)
+        if run is None:
+            raise HTTPException(404, f"no run {run_id}")
         folder = workers.artifacts / str(run["id"])
         names = (("summary.html", "runs.parquet", "junit.xml") if run["mode"] == "sweep"
                  else ("index.html", "junit.xml"))
@@ -164,18 +167,12 @@ def register(app: FastAPI, db: Db, workers: Workers, store: Store) -> None:
 
     @app.get("/runs/{run_id}", response_class=HTMLResponse, include_in_schema=False)
     def run_page(request: Request, run_id: int) -> HTMLResponse:
-        run = db.get(run_id)
-        if run is None:
-            raise HTTPException(404, f"no run {run_id}")
-        return page(request, "run.html", **run_view(run))
+        return page(request, "run.html", **run_view(run_id))
 
     @app.get("/ui/runs/{run_id}", response_class=HTMLResponse, include_in_schema=False)
     def run_part(request: Request, run_id: int) -> HTMLResponse:
         """The run's page's body, which the open page swaps in every second until the run has ended."""
-        run = db.get(run_id)
-        if run is None:
-            raise HTTPException(404, f"no run {run_id}")
-        return page(request, "run_view.html", **run_view(run))
+        return page(request, "run_view.html", **run_view(run_id))
 
 
 def _measured(run: dict[str, Any], scenario: str) -> dict[str, Any] | None:

@@ -187,16 +187,14 @@ def test_an_avr_image_on_an_uploaded_board_and_an_errors_words_on_the_cluster(cl
                                                                              tmp_path: Path) -> None:
     import hashlib
 
-    from tests.service.test_firmware_kinds import BOARD, avr_image
+    from tests.service.test_firmware_kinds import avr_image, board_and_image
     from tests.short_scenario import SHORT_BENCH
 
     image = avr_image()
     svc = start(tmp_path / "data", "--engine", cluster.address)
     try:
         assert post_bytes(svc, "/api/scenarios?name=short", SHORT_BENCH.encode())[0] == 201
-        mine = BOARD.read_text().replace('name = "', 'name = "my ', 1).encode()
-        board = post_bytes(svc, "/api/boards", mine)[1]["sha256"]
-        fw = post_bytes(svc, "/api/firmware", image.read_bytes())[1]["sha256"]
+        board, fw = board_and_image(svc, image)
         _, body = svc.call("POST", "/api/runs", {"scenarios": ["short"],
                                                  "dut": {"firmware": fw, "board": board}})
         # a program whose interpreter is nowhere: the reason names the service's copy, not the worker's

@@ -47,6 +47,17 @@ def elf_header(machine: int, kind: int = 2) -> bytes:
     return b"\x7fELF\x01\x01\x01" + bytes(9) + struct.pack("<HH", kind, machine) + bytes(32)
 
 
+def board_and_image(svc: Service, image: Path) -> tuple[str, str]:
+    """A board file of our own (the shipped mega2560-gy86's, renamed "my …") and the image, uploaded:
+    their SHA-256s, as a run names them."""
+    mine = BOARD.read_text().replace('name = "', 'name = "my ', 1).encode()
+    status, board = post_bytes(svc, "/api/boards", mine)
+    assert status == 201 and board["sha256"] == hashlib.sha256(mine).hexdigest(), board
+    status, fw = post_bytes(svc, "/api/firmware", image.read_bytes())
+    assert status == 201 and fw["kind"] == "avr-elf", fw
+    return board["sha256"], fw["sha256"]
+
+
 def problems(answer: object) -> str:
     assert isinstance(answer, dict)
     return " ".join(answer["detail"]["problems"])
@@ -110,9 +121,7 @@ def test_boards_are_shipped_or_uploaded_and_checked(service: Service) -> None:
 def test_an_avr_image_flies_on_an_uploaded_board_and_through_rig_submit(service: Service, avr_fc: Path,
                                                                        tmp_path: Path) -> None:
     assert post_bytes(service, "/api/scenarios?name=short", SHORT_BENCH.encode())[0] == 201
-    mine = BOARD.read_text().replace('name = "', 'name = "my ', 1).encode()
-    board = post_bytes(service, "/api/boards", mine)[1]["sha256"]
-    image = post_bytes(service, "/api/firmware", avr_fc.read_bytes())[1]["sha256"]
+    board, image = board_and_image(service, avr_fc)
     status, body = service.call("POST", "/api/runs", {"scenarios": ["short"],
                                                       "dut": {"firmware": image, "board": board}})
     assert status == 201
@@ -123,7 +132,7 @@ def test_an_avr_image_flies_on_an_uploaded_board_and_through_rig_submit(service:
     assert result["metadata"]["board"].startswith("my ")
     # the command line: the image uploaded, a shipped board by name, the run followed to its end
     board_file = tmp_path / "board.toml"
-    board_file.write_bytes(mine)
+    board_file.write_text(BOARD.read_text().replace('name = "', 'name = "my ', 1))
     for given in ("mega2560-gy86", str(board_file)):
         done = subprocess.run([sys.executable, "-m", "rig.cli", "submit", "--server", service.url, "short",
                                "--firmware", str(avr_fc), "--board", given, "--wait"],
@@ -133,3 +142,39 @@ def test_an_avr_image_flies_on_an_uploaded_board_and_through_rig_submit(service:
     done = subprocess.run([sys.executable, "-m", "rig.cli", "submit", "--server", service.url, "short",
                            "--firmware", str(avr_fc)], capture_output=True, text=True)
     assert done.returncode == 2 and "it flies on a board" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_the_page_uploads_an_image_and_a_board_and_flies_them(service: Service, avr_fc: Path,
+                                                              tmp_path: Path) -> None:
+    from playwright.sync_api import expect, sync_playwright
+
+    from tests.scenarios.test_library_and_reports import CHROMIUM_FLAGS
+
+    assert post_bytes(service, "/api/scenarios?name=short", SHORT_BENCH.encode())[0] == 201
+    (tmp_path / "picture.png").write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(20))
+    (tmp_path / "board.toml").write_text(BOARD.read_text().replace('name = "', 'name = "my ', 1))
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_FLAGS)
+        page = browser.new_page()
+        errors: list[str] = []
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(service.url + "/")
+        page.set_input_files("#upload-firmware", str(tmp_path / "picture.png"))
+        refused = page.locator("#upload-refused")
+        expect(refused).to_contain_text("picture.png not uploaded: the upload is a PNG image")
+        page.set_input_files("#upload-firmware", str(avr_fc))
+        expect(page.locator("#upload-done")).to_contain_text("(avr-elf, ")
+        page.set_input_files("#upload-board", str(tmp_path / "board.toml"))
+        expect(page.locator("#upload-done")).to_contain_text("my ")
+        image = hashlib.sha256(avr_fc.read_bytes()).hexdigest()
+        board = hashlib.sha256((tmp_path / "board.toml").read_bytes()).hexdigest()
+        assert page.locator("#start select[name=firmware]").input_value() == image  # (chosen)
+        assert page.locator("#start select[name=board]").input_value() == board
+        page.select_option("#start select[name=scenarios]", ["short"])
+        page.click("#start button")
+        expect(page.locator("#started")).to_contain_text("queued run")
+        started = int(page.locator("#started a").inner_text().split()[-1])
+        assert not errors, errors
+        browser.close()
+    run = service.follow(started)
+    assert run["dut"] == {"firmware": image, "board": board} and run["status"] == "passed", run
