@@ -6,7 +6,7 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 
-from rig.reports.values import fmt_limits, fmt_margin, fmt_value, mode_text
+from rig.reports.values import bus_problems_text, fmt_limits, fmt_margin, fmt_value, mode_text
 from rig.scenarios.result import RunResult
 
 
@@ -32,6 +32,9 @@ def render(results: Sequence[RunResult]) -> str:
                   "plant_fmu_sha256", "rig_version"):
             ET.SubElement(props, "property", name=k, value=str(r.metadata.get(k)))
         ET.SubElement(props, "property", name="mode", value=mode_text(r.metadata))
+        if "bus_problems" in r.metadata:  # (the MCU tier: what the firmware saw go wrong on its bus)
+            ET.SubElement(props, "property", name="bus_problems",
+                          value=bus_problems_text(r.metadata["bus_problems"]))
         if r.verdict in ("error", "interrupted"):
             case = ET.SubElement(suite, "testcase", classname=r.scenario.stem, name="run")
             ET.SubElement(case, "error", message=r.error or "error").text = r.stderr[-4000:]

@@ -133,6 +133,18 @@ def _dict(v: object) -> str:
     return ", ".join(f"{k} {val:.4g}" if isinstance(val, float) else f"{k} {val}" for k, val in v.items())
 
 
+def bus_problems_text(v: object) -> str:
+    """result.json's ``bus_problems`` (the MCU tier's counts of what the firmware saw go wrong on its
+    bus) as words, the kinds with a count only: "none", or "3: address NACKs 2, abandoned waits 1"."""
+    if not isinstance(v, Mapping):
+        return str(v)
+    total = sum(int(n) for n in v.values())
+    if total == 0:
+        return "none"
+    words = [f"{str(k).replace('_', ' ').replace('nacks', 'NACKs')} {n}" for k, n in v.items() if n]
+    return f"{total}: " + ", ".join(words)
+
+
 def _lateness(v: object) -> str:
     if not isinstance(v, dict):
         return str(v)
@@ -192,6 +204,7 @@ META: dict[str, tuple[str, Callable[[object], str]]] = {
         ),
     ),
     "bus_transactions": ("I2C transfers", lambda v: f"{v:,}" if isinstance(v, int) else str(v)),
+    "bus_problems": ("I2C problems the firmware saw", bus_problems_text),
     "capture_stats": ("capture statistics", _dict),
     "realtime_lateness": ("real-time lateness", _lateness),
     "transport": ("lockstep transport", _dict),
@@ -230,5 +243,5 @@ def sim_times_in(text: str, clock_base_s: float | None) -> str:
     return _DUT_TIME.sub(add, text)
 
 
-__all__ = ["MARGINAL_PCT", "fmt_limits", "fmt_margin", "fmt_target", "fmt_value", "from_json_number",
-           "json_number", "meta_rows"]
+__all__ = ["MARGINAL_PCT", "bus_problems_text", "fmt_limits", "fmt_margin", "fmt_target", "fmt_value",
+           "from_json_number", "json_number", "meta_rows"]

@@ -84,7 +84,7 @@ def main() -> int:
     print(f"  same with motor 2's ESC 1 pct weak:\n"
           f"    altitude change {weak['altitude_change_m']:+.1f} m, roll {weak['roll_deg']:+.1f} deg, "
           f"on ground: {bool(weak['on_ground'])}")
-    print(f"  25 s of flight simulated in {wall:.2f} s wall ({25 / wall:.0f}x real time)")
+    print(f"  25 s of flight simulated in {wall:.2f} s wall ({25 / wall:.1f}x real time)")
     return 0
 
 

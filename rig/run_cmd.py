@@ -412,13 +412,14 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
         results.append(r)
         write_run(run_dir, r)
         failed = [m.name for m in r.measurements if m.outcome == "fail"]
-        rate = r.metadata.get("realtime_factor") or 0.0
+        rate = r.metadata.get("realtime_factor")
+        speed = f"{rate:.1f}x" if isinstance(rate, int | float) else "not measured"
         wall = float(r.metadata.get("wall_time") or 0.0)
         if r.verdict in ("error", "interrupted"):
             detail = f" {r.verdict}: {r.error}"
         else:
             detail = f" failed: {'; '.join(failed)}" if failed else ""
-        print(f" {r.verdict.upper()} ({wall:.1f} s wall, {rate:.0f}x){detail}", file=sys.stderr)
+        print(f" {r.verdict.upper()} ({wall:.1f} s wall, {speed}){detail}", file=sys.stderr)
         if r.verdict == "interrupted" and r.exit_code is not None:
             stop = r.exit_code
             break

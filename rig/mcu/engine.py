@@ -38,9 +38,19 @@ LIB: Final = BUILD / "librigmcu.so"
 
 #: mcu_run's results (glue.h MCU_*)
 STOPS: Final = ("reached", "need", "crashed", "sleeping", "watchdog", "hung", "unanswered")
+#: each error stop in words that follow "the firmware " (Stop.describe)
+HEADLINES: Final = {"crashed": "crashed", "sleeping": "fell asleep for good", "hung": "hung",
+                    "watchdog": "was reset by its watchdog in a loop",
+                    "unanswered": "talks to a bus no chip answers"}
 #: mcu_figure's counters, by index
 FIGURES: Final = ("cycles", "instructions", "twi_transactions", "twi_bytes", "twi_nacks", "twi_collisions",
-                  "resets", "watchdog_resets", "pc", "sp")
+                  "resets", "watchdog_resets", "pc", "sp", "twi_data_nacks", "twi_ignored", "twi_abandoned",
+                  "twi_bus_errors", "twi_arbitration_lost")
+#: what the firmware saw go wrong on its TWI (result.json's ``bus_problems``), from figures()' names
+BUS_PROBLEMS: Final = {"address_nacks": "twi_nacks", "data_nacks": "twi_data_nacks",
+                       "ignored_requests": "twi_ignored", "abandoned_waits": "twi_abandoned",
+                       "write_collisions": "twi_collisions", "bus_errors": "twi_bus_errors",
+                       "arbitration_lost": "twi_arbitration_lost"}
 
 #: per MCU: timer n -> (16-bit, TCCRnA, TCCRnB, TCNTn, ICRn, OCRnA, OCRnB, OCRnC) data-space addresses
 _T16_2560: Final = {3: 0x90, 4: 0xA0, 5: 0x120}
@@ -193,8 +203,9 @@ class Stop:
         return self.kind not in ("reached", "need")
 
     def describe(self) -> str:
-        """One line: what happened, where and when (the last TWI transaction when there was one)."""
-        text = f"{self.kind}: {self.what} (pc 0x{self.pc:05x}, cycle {self.cycle})"
+        """One line: what happened, where and when (the last TWI transaction when there was one), to
+        follow "the firmware ": "hung: no TWI transaction and no motor pulse for 1000 ms (pc ...)"."""
+        text = f"{HEADLINES.get(self.kind, self.kind)}: {self.what} (pc 0x{self.pc:05x}, cycle {self.cycle})"
         return f"{text}; last TWI transaction: {self.last_twi}" if self.last_twi else text
 
 

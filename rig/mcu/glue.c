@@ -250,7 +250,7 @@ static int check(mcu_engine *e)
         return stopped(e, MCU_CRASHED, avr->pc, "%s", e->last_error[0] ? e->last_error : "simavr stopped");
     }
     if (avr->state == cpu_Done)
-        return stopped(e, MCU_SLEEPING, avr->pc, "sleep with interrupts off at pc 0x%05x: it never wakes", avr->pc);
+        return stopped(e, MCU_SLEEPING, avr->pc, "sleep with interrupts off: it never wakes");
     if (e->reset_seen) {
         e->reset_seen = false;
         e->resets++;
@@ -263,7 +263,7 @@ static int check(mcu_engine *e)
         if (avr_regbit_get(avr, avr->reset_flags.wdrf)) {
             e->watchdog_resets++;
             if (e->watchdog_resets >= e->watchdog_limit)
-                return stopped(e, MCU_WATCHDOG, avr->pc, "reset by its watchdog %u times", e->watchdog_resets);
+                return stopped(e, MCU_WATCHDOG, avr->pc, "%u times", e->watchdog_resets);
         }
     }
     if (avr->pc >= e->code_end)
@@ -327,8 +327,7 @@ MCU_API int mcu_run(mcu_engine *e, uint64_t target_cycle)
                            (unsigned long long)(mcu_ns(e, e->hang_cycles) / 1000000u));
         if (e->unanswered_cycles && e->twi.nack_since_cycle != MCU_NEVER &&
             avr->cycle - e->twi.nack_since_cycle >= e->unanswered_cycles && e->twi.nacks_in_row >= 2)
-            return stopped(e, MCU_UNANSWERED, avr->pc,
-                           "a bus no chip answers: %u addresses in a row not acknowledged over %llu ms",
+            return stopped(e, MCU_UNANSWERED, avr->pc, "%u addresses in a row not acknowledged over %llu ms",
                            e->twi.nacks_in_row, (unsigned long long)(mcu_ns(e, e->unanswered_cycles) / 1000000u));
         if (avr->cycle >= target_cycle)
             return MCU_REACHED;
@@ -382,6 +381,16 @@ MCU_API uint64_t mcu_figure(const mcu_engine *e, int which)
         return e->avr->pc;
     case 9:
         return e->avr->data[R_SPL] | e->avr->data[R_SPH] << 8;
+    case 10:
+        return t->data_nacks;
+    case 11:
+        return t->ignored;
+    case 12:
+        return t->abandoned;
+    case 13:
+        return t->bus_errors;
+    case 14:
+        return t->arbitration_lost;
     default:
         return 0;
     }

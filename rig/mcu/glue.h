@@ -69,7 +69,13 @@ typedef struct {
     uint64_t start_ns;         /* the first START of the transfer: the chip core's time for all of it */
     uint64_t nack_since_cycle; /* first address NACK since the last ACK (MCU_NEVER: none) */
     uint32_t nacks_in_row;
+    bool awaiting; /* an operation that ends in TWINT is under way or asked for */
     uint32_t transactions, bytes, nacks, collisions;
+    /* what the firmware saw go wrong, beyond address NACKs (nacks) and TWDR write collisions:
+     * data bytes NACKed; TWCR writes asking for an operation the unit did not start (twi.c busy_write);
+     * waits given up (TWEN cleared while an operation that ends in TWINT was under way); the statuses
+     * 0x00 (bus error) and arbitration lost (0x38, 0x68, 0x78, 0xB0) */
+    uint32_t data_nacks, ignored, abandoned, bus_errors, arbitration_lost;
     mcu_twi_record cur[MCU_TWI_EVENTS], last[MCU_TWI_EVENTS];
     uint16_t n_cur, n_last;
     bool log_on;

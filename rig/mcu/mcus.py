@@ -3,8 +3,10 @@ timer's output-compare channel drives, the USARTs' pins and the external-interru
 (rig/mcu/board.py) is checked against these, so a motor on a pin its timer cannot drive is refused
 before anything runs.
 
-Sources: ATmega640/1280/1281/2560/2561 datasheet (2549Q), §13 "I/O-Ports" alternate functions and
-§7 memories; ATmega48A/PA/88A/PA/168A/PA/328/P datasheet (DS40002061), §14.3 and §8."""
+Sources: ATmega640/1280/1281/2560/2561 datasheet (2549Q), §13 "I/O-Ports" alternate functions, §7
+memories and the "Reset and Interrupt Vectors" table (57); ATmega48A/PA/88A/PA/168A/PA/328/P datasheet
+(DS40002061), §14.3, §8 and its vector table (26 for the 328P); avr-gcc's "AVR Options" (-mmcu): the
+ATmega328P is avr5, the ATmega2560 avr6."""
 
 from __future__ import annotations
 
@@ -26,6 +28,10 @@ class Mcu:
     #: INTn -> pin
     ints: dict[int, str] = field(default_factory=dict)
     twi: tuple[str, str] = ("", "")  # (SDA, SCL)
+    #: avr-gcc's architecture for -mmcu=<name>: an ELF's e_flags say it ("avr:6")
+    avr_arch: int = 0
+    #: the reset and interrupt vectors, each a 2-word JMP in avr-gcc's table
+    vectors: int = 0
 
 
 MCUS: dict[str, Mcu] = {m.name: m for m in (
@@ -40,7 +46,7 @@ MCUS: dict[str, Mcu] = {m.name: m for m in (
         timers16=frozenset({1, 3, 4, 5}),
         usarts={0: ("PE0", "PE1"), 1: ("PD2", "PD3"), 2: ("PH0", "PH1"), 3: ("PJ0", "PJ1")},
         ints={0: "PD0", 1: "PD1", 2: "PD2", 3: "PD3", 4: "PE4", 5: "PE5", 6: "PE6", 7: "PE7"},
-        twi=("PD1", "PD0"),
+        twi=("PD1", "PD0"), avr_arch=6, vectors=57,
     ),
     Mcu(
         "atmega328p", flash=32 * 1024, sram=2 * 1024, eeprom=1024,
@@ -49,6 +55,6 @@ MCUS: dict[str, Mcu] = {m.name: m for m in (
         timers16=frozenset({1}),
         usarts={0: ("PD0", "PD1")},
         ints={0: "PD2", 1: "PD3"},
-        twi=("PC4", "PC5"),
+        twi=("PC4", "PC5"), avr_arch=5, vectors=26,
     ),
 )}

@@ -78,16 +78,53 @@ static void end_transfer(mcu_engine *e)
 static void status(mcu_engine *e, uint8_t code, bool interrupt)
 {
     avr_t *avr = e->avr;
+    mcu_twi *t = &e->twi;
     avr->data[TWSR] = (uint8_t)((avr->data[TWSR] & 3) | code);
-    if (interrupt)
-        avr_raise_interrupt(avr, e->twi_vector);
+    if (!interrupt)
+        return;
+    avr_raise_interrupt(avr, e->twi_vector);
+    t->awaiting = false;
+    if (code == 0x00)
+        t->bus_errors++;
+    else if (code == 0x38 || code == 0x68 || code == 0x78 || code == 0xB0)
+        t->arbitration_lost++;
 }
 
 static void schedule(mcu_engine *e, uint8_t event, uint64_t bits)
 {
+    if (event != EV_STOP)
+        e->twi.awaiting = true;
     e->twi.event = event;
     e->twi.event_cycle = e->avr->cycle + bits * bit_cycles(e->avr);
     mcu_reschedule(e);
+}
+
+/* A TWCR write while the unit is busy (TWINT clear, an operation on the bus), per the datasheet's words
+ * (ATmega2560 2549Q and ATmega328P, "2-wire Serial Interface", TWCR):
+ * - TWSTA during a STOP: "if the bus is not free, the TWI waits until a STOP condition is detected, and
+ *   then generates a new START condition": the START is kept and follows the STOP (MultiWii's
+ *   i2c_stop(); i2c_rep_start(); writes exactly this);
+ * - TWSTO during a STOP: "When the STOP condition is executed on the bus, the TWSTO bit is cleared
+ *   automatically": the request joins the STOP under way, one STOP on the bus;
+ * - TWEA at any time: the bit only; "the ACK pulse is generated ... if ... A data byte has been received
+ *   in Master Receiver ... mode", so a received byte's ACK is the bit when the byte ends (EV_READ);
+ * - anything else with TWINT written during a START or a byte: "Writing a one to TWINT clears the flag.
+ *   The TWI will then commence executing whatever operation was specified": the flag is already clear,
+ *   nothing new starts; the rig counts the request as ignored. */
+static void busy_write(mcu_engine *e, uint8_t v, uint8_t old)
+{
+    mcu_twi *t = &e->twi;
+    bool start = (v & TWSTA) && ((v & TWINT) || !(old & TWSTA));
+    if (t->event == EV_STOP) {
+        e->avr->data[TWCR] |= TWSTO; /* (cleared when the STOP is executed) */
+        if (start)
+            t->start_after = t->awaiting = true;
+        else if ((v & TWINT) && !(v & TWSTO))
+            t->ignored++; /* a byte asked for while the bus is being let go */
+        return;
+    }
+    if ((v & TWINT) || start)
+        t->ignored++;
 }
 
 static void twcr_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
@@ -96,27 +133,38 @@ static void twcr_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
     mcu_twi *t = &e->twi;
     uint8_t old = avr->data[addr];
     avr->data[addr] = (uint8_t)((v & ~(TWINT | TWWC)) | (old & (TWINT | TWWC)));
-    if (!(v & TWEN)) { /* off: the bus is let go */
+    if (!(v & TWEN)) { /* off: "all TWI transmissions are terminated, regardless of any ongoing operation" */
         if (t->in_transfer)
             end_transfer(e);
         avr_clear_interrupt(avr, e->twi_vector);
         avr->data[addr] &= (uint8_t)~TWINT;
+        if (t->awaiting) /* a wait for TWINT given up (MultiWii: TWCR = 0 after 255 polls) */
+            t->abandoned++;
+        t->awaiting = false;
         t->state = IDLE;
         t->event = EV_NONE;
+        t->start_after = false;
         status(e, 0xF8, false);
         return;
     }
     if ((v & TWIE) && !(old & TWIE) && (old & TWINT))
         avr_raise_interrupt(avr, e->twi_vector);
+    if (t->event != EV_NONE) {
+        busy_write(e, v, old);
+        return;
+    }
     bool go = (v & TWINT) || (t->state == IDLE && (v & TWSTA) && !(old & TWSTA));
-    if (!go || t->event != EV_NONE)
+    if (!go)
         return;
     avr_clear_interrupt(avr, e->twi_vector); /* (TWINT is a sticky flag to simavr: cleared here) */
     avr->data[addr] &= (uint8_t) ~(TWINT | TWWC);
+    /* "The TWSR only contains relevant status information when the TWI Interrupt Flag is asserted. At all
+     * other times, the TWSR contains a special status code": 0xF8 */
+    status(e, 0xF8, false);
     if (v & TWSTO) {
         end_transfer(e);
         t->state = IDLE;
-        t->start_after = (v & TWSTA) != 0;
+        t->start_after = t->awaiting = (v & TWSTA) != 0;
         schedule(e, EV_STOP, 1);
     } else if (v & TWSTA) {
         schedule(e, EV_START, 1);
@@ -127,6 +175,8 @@ static void twcr_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
         schedule(e, EV_WRITE, 9);
     } else if (t->state == READING) {
         schedule(e, EV_READ, 9);
+    } else {
+        t->ignored++; /* a byte with no START: no bus to send it on */
     }
 }
 
@@ -170,6 +220,7 @@ void mcu_twi_reset(mcu_engine *e)
         end_transfer(e);
     t->state = IDLE;
     t->event = EV_NONE;
+    t->start_after = t->awaiting = false;
     e->avr->data[TWSR] = 0xF8;
     e->avr->data[TWDR] = 0xFF;
 }
@@ -226,6 +277,8 @@ int mcu_twi_event(mcu_engine *e)
         if (ack && e->board)
             e->chip.write_byte(e->board, byte);
         t->bytes++;
+        if (!ack)
+            t->data_nacks++;
         record(e, 'W', byte, ack);
         status(e, ack ? 0x28 : 0x30, true);
         break;

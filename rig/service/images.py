@@ -14,13 +14,10 @@ import sys
 from pathlib import Path
 from typing import Final
 
-from rig.mcu.image import EM_AVR
+from rig.mcu.image import ELF_MACHINES, EM_AVR
 
 #: how many bytes of an upload are looked at
 HEAD: Final = 4096
-#: e_machine values (the ELF specification's registry) named for a person
-MACHINES: Final = {3: "x86 (32-bit)", 8: "MIPS", 20: "PowerPC", 40: "ARM (32-bit)", 62: "x86-64", 83: "AVR",
-                   183: "AArch64", 243: "RISC-V"}
 ET_EXEC, ET_DYN = 2, 3
 #: kinds: what the service does with each
 LINUX: Final = ("linux-elf", "script")
@@ -36,7 +33,7 @@ class ImageKindError(ValueError):
 
 
 def machine_name(machine: int) -> str:
-    return MACHINES.get(machine, f"machine {machine}")
+    return ELF_MACHINES.get(machine, f"machine {machine}")
 
 
 def host_machine() -> int:

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rig.mcu import board as boards
+from rig.mcu.engine import BUS_PROBLEMS
 from rig.mcu.session import McuConfig, McuSession
 from rig.scenarios.result import I2CRecord
 from rig.scenarios.schema import Scenario
@@ -34,7 +35,8 @@ class McuRun(TargetRun):
         f["rc_bytes"] = s.figures.rc_bytes
         if s.cfg.trace is not None:
             f["trace"] = str(s.cfg.trace)
-        return {"mcu": f}
+        problems = {name: int(f.get(key, 0)) for name, key in BUS_PROBLEMS.items()}
+        return {"mcu": f, "bus_problems": problems}
 
     def transactions(self) -> list[I2CRecord] | None:
         return self.session.transfers.records

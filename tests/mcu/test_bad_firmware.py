@@ -26,7 +26,8 @@ def test_a_bus_no_chip_answers_ends_the_run_naming_the_transaction(mcu: str) -> 
     with AvrEngine(cfg, board()) as e:
         stop = e.run_served(1_000_000_000)
         figures = e.figures()
-    assert stop.kind == "unanswered" and "a bus no chip answers" in stop.what
+    assert stop.kind == "unanswered" and "addresses in a row not acknowledged" in stop.what
+    assert stop.describe().startswith("talks to a bus no chip answers: ")
     assert 30_000_000 <= stop.cycle * 10**9 // CLOCK < 32_000_000
     assert "50W-" in stop.last_twi and stop.last_twi.endswith("P")  # 0x50, write, not acknowledged
     assert "last TWI transaction" in stop.describe()

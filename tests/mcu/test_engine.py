@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -51,6 +52,8 @@ def test_sleep_with_interrupts_off_never_wakes(mcu: str) -> None:
     with engine("sleep_cli", mcu) as e:
         stop = e.run_until(5_000_000)
         assert stop.kind == "sleeping" and stop.cycle < 100 and "never wakes" in stop.what
+        assert stop.describe().startswith("fell asleep for good: sleep with interrupts off: it never wakes "
+                                          "(pc 0x")
 
 
 @pytest.mark.parametrize("mcu", MCUS)
@@ -76,6 +79,7 @@ def test_a_watchdog_reset_loop_ends_the_run(mcu: str) -> None:
         stop = e.run_until(1_000_000_000)
         figures = e.figures()
     assert stop.kind == "watchdog" and "3 times" in stop.what
+    assert stop.describe().startswith("was reset by its watchdog in a loop: 3 times (pc 0x")
     # WDTO_15MS is 2048 cycles of the 128 kHz oscillator: 16 ms, three times
     assert 47_000_000 < stop.cycle * 10**9 // CLOCK < 50_000_000
     assert figures["watchdog_resets"] == 3
@@ -86,8 +90,15 @@ def test_files_that_are_not_avr_firmware_are_refused(tmp_path: Path) -> None:
     text.write_text("hello\n")
     with pytest.raises(FirmwareError, match="neither an AVR ELF nor an Intel HEX"):
         engine_for(text)
-    with pytest.raises(FirmwareError, match="not AVR"):
-        engine_for(Path("/bin/true"))
+    # ELF headers of other machines (the System V ABI's e_machine: 62 x86-64, 40 ARM) say what they are
+    for name, width, machine, words in (("x86.elf", 2, 62, "x86-64 (machine 62), 64-bit little-endian"),
+                                        ("arm.elf", 1, 40, "ARM (machine 40), 32-bit little-endian")):
+        other = tmp_path / name
+        other.write_bytes(b"\x7fELF" + bytes([width, 1, 1]) + bytes(9) + (2).to_bytes(2, "little")
+                          + machine.to_bytes(2, "little") + bytes(44))
+        with pytest.raises(FirmwareError, match=re.escape(f"an ELF for {words}; an AVR image is for AVR "
+                                                          "(machine 83), 32-bit little-endian")):
+            engine_for(other)
     bad = tmp_path / "bad.hex"
     bad.write_text(":100000000C9434000C943E000C943E000C943E0000\n")
     with pytest.raises(FirmwareError, match="checksum"):

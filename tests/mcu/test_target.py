@@ -7,6 +7,7 @@ before anything runs."""
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -76,14 +77,16 @@ def test_the_same_seed_gives_the_same_bytes(avr_fc: Path, tmp_path: Path) -> Non
 
 
 @pytest.mark.parametrize(
-    ("name", "kind"),
-    [("busy", "hung"), ("watchdog", "watchdog"), ("wild_jump", "crashed"), ("bad_opcode", "crashed")],
+    ("name", "words"),
+    [("busy", "hung: no TWI transaction and no motor pulse for 1000 ms"),
+     ("watchdog", "was reset by its watchdog in a loop: 3 times"),
+     ("wild_jump", "crashed: jump outside the program"), ("bad_opcode", "crashed: invalid opcode")],
 )
-def test_bad_firmware_ends_its_run_with_a_named_error(tmp_path: Path, name: str, kind: str) -> None:
+def test_bad_firmware_ends_its_run_with_a_named_error(tmp_path: Path, name: str, words: str) -> None:
     sc = load(LIB / "step_roll.toml")
     r = run(sc, McuTarget("mega2560-gy86", firmware(name, "atmega2560")), 0, tmp_path)
     assert r.verdict == "error"
-    assert r.error is not None and f"the firmware {kind}:" in r.error
+    assert r.error is not None and r.error.startswith(f"the firmware {words}")
     assert "pc 0x" in r.error and "cycle" in r.error
     assert all(m.outcome == "not judged" for m in r.measurements)
     print(f"{name}: {r.error} ({r.metadata['wall_time']:.2f} s wall)")
@@ -94,6 +97,8 @@ def test_a_suite_goes_on_after_a_bad_firmware(tmp_path: Path) -> None:
                    "seed000_roll_stand", "--out", tmp_path)
     assert done.returncode == 3, done.stderr
     assert "[2/2] seed000_roll_stand" in done.stderr and done.stderr.count("ERROR") == 2
+    # each run's speed with one decimal, as the report's real-time factor ("1.3x", never "1x" or "0x")
+    assert len(re.findall(r"ERROR \(\d+\.\d s wall, \d+\.\dx\)", done.stderr)) == 2
 
 
 @pytest.mark.parametrize(
@@ -131,3 +136,27 @@ def test_an_image_bigger_than_the_mcus_flash_is_refused(tmp_path: Path) -> None:
     big.write_text("\n".join([*lines, ":00000001FF"]) + "\n")
     done = rig_run("--mcu", "promini328-gy86", "--firmware", big, "step_roll", "--out", tmp_path / "out")
     assert done.returncode == 2 and "the flash image is 40960 bytes; the MCU has 32768" in done.stderr
+
+
+def test_what_the_firmware_saw_go_wrong_on_its_bus_is_in_every_report(tmp_path: Path) -> None:
+    """twi_busy's case 5 (EEPROM byte 0, a board file of ours preloading it) gives up one wait for TWINT
+    and then runs a clean transfer; it never pulses a motor, so the run ends as hung, and its reports
+    still say what went wrong on the bus: result.json, report.html's run table, the JUnit properties and
+    run.mcap's metadata."""
+    shipped = (REPO / "rig" / "mcu" / "boards" / "mega2560-gy86.toml").read_text()
+    (tmp_path / "case5.eep").write_bytes(bytes([5]))
+    board = tmp_path / "busy-board.toml"
+    board.write_text(shipped.replace("fc = true", 'image = "case5.eep"'))
+    done = rig_run("--mcu", board, "--firmware", firmware("twi_busy", "atmega2560"), "step_roll",
+                   "--out", tmp_path / "out")
+    assert done.returncode == 3, done.stderr
+    run_dir = tmp_path / "out" / "step_roll"
+    meta = json.loads((run_dir / "result.json").read_text())["metadata"]
+    want = {"address_nacks": 0, "data_nacks": 0, "ignored_requests": 0, "abandoned_waits": 1,
+            "write_collisions": 0, "bus_errors": 0, "arbitration_lost": 0}
+    assert meta["bus_problems"] == want
+    html = (run_dir / "report.html").read_text()
+    assert "I2C problems the firmware saw</th><td><code>1: abandoned waits 1</code>" in html
+    assert 'name="bus_problems" value="1: abandoned waits 1"' in (run_dir / "junit.xml").read_text()
+    _, _, records = read(run_dir / "run.mcap")
+    assert json.loads(records["result"]["bus_problems"]) == want

@@ -66,7 +66,7 @@ def problems(answer: object) -> str:
 def test_uploads_are_told_apart_and_the_rest_refused_by_what_they_are(service: Service, avr_fc: Path,
                                                                       tmp_path: Path) -> None:
     for data, words in ((b"\x89PNG\r\n\x1a\n" + bytes(20), "a PNG image"),
-                        (elf_header(40), "an ELF for ARM (32-bit)"),
+                        (elf_header(40), "an ELF for ARM: neither an AVR image nor a program this host"),
                         (b"hello, I am a text file\n", "text without a #! line"),
                         (bytes([0, 1, 2, 250, 251]), "binary data beginning 00 01 02 fa fb")):
         status, answer = post_bytes(service, "/api/firmware", data)
@@ -89,7 +89,8 @@ def test_uploads_are_told_apart_and_the_rest_refused_by_what_they_are(service: S
                        ({"firmware": kinds["avr-elf"], "board": "no-such-board"},
                         "no shipped board 'no-such-board'"),
                        ({"board": "mega2560-gy86"}, "dut: "),
-                       ({"firmware": kinds["avr-elf"], "board": "promini328-gy86"}, "the MCU has 32768")):
+                       ({"firmware": kinds["avr-elf"], "board": "promini328-gy86"},
+                        "bytes; the MCU has 32768")):  # (the ATmega328P: 32 KiB of flash)
         status, answer = service.call("POST", "/api/runs", {"scenarios": ["step_roll"], "dut": dut})
         assert status == 422 and words in problems(answer), (dut, answer)
     status, answer = service.call("POST", "/api/runs", {"scenarios": ["step_roll"], "mode": "bridge",
