@@ -17,7 +17,7 @@ NATIVE := build/_rignative$(EXT) build/_plantsteps$(EXT) build/_rigpace$(EXT) bu
 	build/_rigtelemetry$(EXT) build/_rigevents$(EXT)
 # the modules rig/compiled.py compiles with mypyc (its MODULES, read from there)
 COMPILED := build/mypyc/manifest.json
-COMPILED_SOURCES := $(shell $(PYTHON) rig/compiled.py --sources)
+COMPILED_SOURCES := $(shell $(PYTHON) -m rig.compiled --sources)
 
 DUT_BIN := build/dut/fc
 
@@ -29,7 +29,7 @@ BRIDGE_CHIPS := emulators/chips
 BRIDGE_CFLAGS := -std=c99 -pedantic -O2 -Wall -Wextra -Werror -ffp-contract=off -Ibuild/gen -I$(BRIDGE_CHIPS) \
 	-Ibridge/core -Irig/shim
 
-.PHONY: all venv fmu shim native chips compiled dut vbridge firmware avr avr-toolchain test-packages mcu-test-firmware demo test test-slow lint lint-sources bench clean docs-images
+.PHONY: all venv fmu shim native chips compiled dut vbridge firmware avr avr-toolchain test-packages mcu-test-firmware stm32-engine stm32-test-firmware demo test test-slow lint lint-sources bench clean docs-images
 
 all: fmu shim native compiled dut vbridge
 
@@ -130,6 +130,26 @@ build/mcu/test/%-atmega2560.elf: $(MCU_FW_DIR)/%.c $(wildcard $(MCU_FW_DIR)/*.h)
 	@mkdir -p $(@D)
 	avr-gcc -mmcu=atmega2560 $(AVR_CFLAGS) -o $@ $<
 
+# the STM32 tier's engine (docs/mcu.md): qemu-system-arm built from Debian's QEMU 7.2 source package with
+# the models of qemu/ compiled in, cached outside the tree by the SHA-256 of its inputs
+# (~/.cache/rig/stm32-engine/KEY/qemu-system-arm; rig/mcu/stm32_engine.py); again with nothing changed,
+# it builds nothing and prints where the binary is. Installs its build dependencies when missing
+stm32-engine:
+	$(PYTHON) -m rig.mcu.stm32_engine
+
+# the STM32 tier's test firmwares (tests/stm32/firmware, docs/mcu.md): build/stm32/test/NAME.elf for the
+# STM32F405, freestanding (their own start-up; semihosting to report), with Debian's arm-none-eabi-gcc
+STM32_FW_DIR := tests/stm32/firmware
+STM32_FW_NAMES := $(filter-out startup,$(basename $(notdir $(wildcard $(STM32_FW_DIR)/*.c))))
+STM32_FW := $(foreach n,$(STM32_FW_NAMES),build/stm32/test/$(n).elf)
+STM32_CFLAGS := -mcpu=cortex-m4 -mthumb -mfloat-abi=soft -std=c11 -O2 -g -Wall -Wextra -Werror -ffreestanding \
+	-nostdlib -nostartfiles -T$(STM32_FW_DIR)/stm32f405.ld
+stm32-test-firmware: test-packages $(STM32_FW)
+build/stm32/test/%.elf: $(STM32_FW_DIR)/%.c $(STM32_FW_DIR)/startup.c $(wildcard $(STM32_FW_DIR)/*.h) \
+		$(STM32_FW_DIR)/stm32f405.ld
+	@mkdir -p $(@D)
+	arm-none-eabi-gcc $(STM32_CFLAGS) -o $@ $< $(STM32_FW_DIR)/startup.c
+
 # the builds two at a time, mypyc's first (the longest): 40-50 s of the demo's 2-3 minutes went to it
 # while everything else waited
 demo: venv
@@ -147,7 +167,8 @@ docs-images: venv fmu shim native compiled dut
 
 # our C, in one style (.clang-format); the FMI headers are vendored as they came
 C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/linux/*.[ch] dut/avr/*.[ch] dut/tests/*.c emulators/c/*.[ch] rig/lockstep/*.c rig/telemetry/*.c rig/pace/*.c emulators/chips/*.[ch] plant/c/*.[ch] \
-	rig/shim/*.[ch] bridge/*/*.[ch] bench/*.c tests/rig/device_clients/*.c rig/mcu/*.[ch] tests/mcu/firmware/*.c))
+	rig/shim/*.[ch] bridge/*/*.[ch] bench/*.c tests/rig/device_clients/*.c rig/mcu/*.[ch] tests/mcu/firmware/*.c \
+	tests/stm32/firmware/*.[ch] qemu/hw/*.[ch]))
 
 lint: venv test-packages
 	$(MAKE) -s lint-sources
@@ -160,13 +181,15 @@ lint-sources:
 	$(VENV)/bin/mypy
 	clang-format --dry-run --Werror $(C_SOURCES)
 
-# make test installs what is missing, then builds what the suite runs against and checks the sources two
-# jobs at a time (INSTALLED=1: that make installs nothing again; the builds write their generated
+# make test installs what is missing, then builds what the suite runs against (the STM32 engine too:
+# from its cache in a second when its inputs are unchanged, ~3 minutes of two cores when they are not)
+# and checks the sources two jobs at a time (INSTALLED=1: that make installs nothing again; the builds write their generated
 # headers and libraries atomically, so two of them may make the same one at once), then runs the suite
 # on every core (pytest-xdist; each worker holds a core: tests/conftest.py), then the tests paced by the
-# wall clock alone (marker paced: tests/realtime.py). TEST_JOBS=1: one process.
+# wall clock alone (marker paced: tests/realtime.py), which ends with the count of those that verified
+# nothing and fails above half of them (tests/suite_rules.py, tests/README.md). TEST_JOBS=1: one process.
 TEST_JOBS ?= $(shell nproc 2>/dev/null || echo 2)
-TEST_BUILDS := mcu-test-firmware avr $(FMU) $(SHIM) $(NATIVE) $(DUT_BIN) $(VBRIDGE) firmware
+TEST_BUILDS := stm32-engine mcu-test-firmware $(STM32_FW) avr $(FMU) $(SHIM) $(NATIVE) $(DUT_BIN) $(VBRIDGE) firmware
 test: venv test-packages
 	$(MAKE) -s -j2 INSTALLED=1 $(COMPILED) lint-sources $(TEST_BUILDS)
 	$(PY) -m pytest -q -m "not slow and not paced" -n $(TEST_JOBS) --durations=25

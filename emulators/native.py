@@ -18,8 +18,8 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
+from rig.plant.artifacts import BUILD
 from rig.plant.native_build import (
-    BUILD,
     EXTENSION_SUFFIX,
     NativeBuildError,
     compile_extension,

@@ -18,10 +18,10 @@ import zipfile
 from pathlib import Path
 
 from rig.plant import variables
+from rig.plant.artifacts import BUILD
 
 PLANT_DIR = Path(__file__).resolve().parent
-REPO_ROOT = PLANT_DIR.parent
-DEFAULT_OUT = REPO_ROOT / "build" / "plant"
+DEFAULT_OUT = BUILD / "plant"
 C_SOURCES = ("quadrotor_physics.c", "quadrotor_fmi2.c")
 #: -O3 and the two -fno flags change no result (no -ffast-math: the arithmetic's order and rounding are
 #: the same, errno is not read): they let the step's functions inline into each other (an exported function

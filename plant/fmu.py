@@ -46,10 +46,10 @@ from fmpy.fmi2 import (
 from fmpy.fmi2 import calloc as _calloc
 from fmpy.fmi2 import free as _free
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
+from rig.plant.artifacts import BUILD
 
-#: Where ``make fmu`` puts the plant; ``RIG_PLANT_FMU`` overrides it.
-DEFAULT_FMU = Path(os.environ.get("RIG_PLANT_FMU", REPO_ROOT / "build" / "plant" / "quadrotor.fmu"))
+#: Where ``make fmu`` puts the plant (an installed package: its own copy); ``RIG_PLANT_FMU`` overrides it.
+DEFAULT_FMU = Path(os.environ.get("RIG_PLANT_FMU", BUILD / "plant" / "quadrotor.fmu"))
 
 _STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
 

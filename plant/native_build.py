@@ -2,9 +2,10 @@
 compiler, atomically (a process loading a library at the same moment never sees half a file), and
 with a clear message for a missing compiler, missing Python headers or a compile error.
 
-It imports nothing of ours, so every layer uses it: the plant's stepping (plant/steps.py), the sensors'
-sampling chain (emulators/native.py), the DUT's shim and keeper (rig/shim/build.py). It lives with the
-plant because the plant is the bottom layer (docs/design.md §2).
+It imports nothing of ours but where the artifacts go (plant/artifacts.py), so every layer uses it:
+the plant's stepping (plant/steps.py), the sensors' sampling chain (emulators/native.py), the DUT's
+shim and keeper (rig/shim/build.py). It lives with the plant because the plant is the bottom layer
+(docs/design.md §2).
 """
 
 from __future__ import annotations
@@ -18,8 +19,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import ModuleType
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
-BUILD = REPO_ROOT / "build"
+from rig.plant.artifacts import INSTALLED
+
 #: -ffp-contract=off: no fused multiply-adds, so C arithmetic rounds as the Python it replaced did.
 #: -O3, -fno-semantic-interposition and -fno-math-errno change no result (the plant's build says why, and
 #: why -fno-tree-slp-vectorize): the samples' and the chip core's share of an FC cycle 7.4 k -> 6.7 k
@@ -72,7 +73,12 @@ def compile_c(sources: Sequence[Path], out: Path, what: str, libs: Sequence[str]
 
 
 def is_stale(out: Path, sources: Sequence[Path]) -> bool:
-    return not out.is_file() or out.stat().st_mtime < max(s.stat().st_mtime for s in sources)
+    """``out`` is missing, or (in a source tree) older than one of ``sources``. An installed package's
+    artifacts are never stale: they were built with the wheel from the sources beside them, whose times
+    are the unpacking's (rig/plant/artifacts.py)."""
+    if INSTALLED or not out.is_file():
+        return not out.is_file()
+    return out.stat().st_mtime < max(s.stat().st_mtime for s in sources)
 
 
 def compile_extension(sources: Sequence[Path], out: Path, what: str, libs: Sequence[str] = (),

@@ -10,8 +10,8 @@ from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 
+from rig.plant.artifacts import BUILD
 from rig.plant.native_build import (
-    BUILD,
     EXTENSION_SUFFIX,
     NativeBuildError,
     built_extension,

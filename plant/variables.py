@@ -132,6 +132,9 @@ _PARAMETERS: list[Variable] = [
     _v("omega_max", "parameter", 600.0, "rad/s", "rotor speed at full throttle", valid=POSITIVE),
     _v("esc_min_us", "parameter", 1000.0, "us", "pulse width for zero throttle"),
     _v("esc_max_us", "parameter", 2000.0, "us", "pulse width for full throttle"),
+    _v("esc_start_us", "parameter", 1000.0, "us",
+       "ESC start threshold: below this pulse width the motor does not spin (commanded speed 0); "
+       "at and above it the ESC curve applies"),
     *_four("esc_gain", "parameter", 1.0, "1",
            "ESC curve gain: omega_cmd = omega_max * clamp(gain * u + offset, 0, 1)", "esc_gain"),
     *_four("esc_offset", "parameter", 0.0, "1",
@@ -195,6 +198,34 @@ PWM_INPUTS = tuple(pwm_input(m) for m in range(1, MOTORS + 1))
 SCENARIO_INPUTS = tuple(v.name for v in VARIABLES if v.causality == "input" and v.name not in PWM_INPUTS)
 
 
+#: Seed 001's Table 1 inertia, the plant's default (plant/airframes/seed-001.toml): Izz exceeds
+#: Ixx + Iyy, which no rigid body can have. It alone is exempt from the triangle rule, so that the seed
+#: scenarios keep flying the seed's vehicle; every report that flies it says so.
+SEED_INERTIA: tuple[float, float, float] = (PARAMETERS["Ixx"].start, PARAMETERS["Iyy"].start,
+                                            PARAMETERS["Izz"].start)
+#: Relative slack of the triangle rule: a flat plate has Izz = Ixx + Iyy exactly, up to rounding
+TRIANGLE_SLACK = 1e-9
+
+
+def triangle_broken(ixx: float, iyy: float, izz: float) -> str | None:
+    """Why principal moments of inertia cannot belong to a rigid body, or None. Each must be at most
+    the sum of the other two (Izz = integral of x^2 + y^2 dm = Ixx + Iyy - 2 integral of z^2 dm, and so
+    for every axis). The FMU applies the same rule, in the same words (qr_check_params)."""
+    moments = {"Ixx": ixx, "Iyy": iyy, "Izz": izz}
+    for name, value in moments.items():
+        a, b = (n for n in moments if n != name)
+        if value > (moments[a] + moments[b]) * (1 + TRIANGLE_SLACK):
+            return (f"{name} must be <= {a} + {b} (the triangle inequality of a rigid body's principal "
+                    "moments of inertia)")
+    return None
+
+
+def inertia_refused(ixx: float, iyy: float, izz: float) -> str | None:
+    """The plant's rule: :func:`triangle_broken`, except for seed 001's inertia (kept for the seed
+    scenarios)."""
+    return None if (ixx, iyy, izz) == SEED_INERTIA else triangle_broken(ixx, iyy, izz)
+
+
 def check_parameters(values: Mapping[str, float]) -> str | None:
     """Why the FMU would refuse these parameter values at initialisation (its words), or None. The
     names must be parameters; the others keep their start values. The same rules as the FMU's own
@@ -208,6 +239,9 @@ def check_parameters(values: Mapping[str, float]) -> str | None:
             return f"{name} takes a whole number"
     if not p["esc_max_us"] > p["esc_min_us"]:
         return "esc_max_us must be > esc_min_us"
+    refused = inertia_refused(p["Ixx"], p["Iyy"], p["Izz"])
+    if refused:
+        return refused
     if p["stand"] == 0 and p["pd0"] > 0:
         return "pd0 must be <= 0 in free flight (the ground is at pd = 0)"
     return None
@@ -291,7 +325,10 @@ def c_header() -> str:
             f"{_c_number(v.valid.high)}, {int(v.valid.high_open)}, "
             f'"{v.name} must be {v.valid.says()}") \\'
             for v in PARAMETERS.values()]
-    out += ["", "#endif", ""]
+    out += ["", "/* Seed 001's inertia, the one exempt from the triangle rule (plant/variables.py) */",
+            f"#define QR_SEED_IXX {SEED_INERTIA[0]!r}", f"#define QR_SEED_IYY {SEED_INERTIA[1]!r}",
+            f"#define QR_SEED_IZZ {SEED_INERTIA[2]!r}", f"#define QR_TRIANGLE_SLACK {TRIANGLE_SLACK!r}",
+            "", "#endif", ""]
     return "\n".join(out)
 
 

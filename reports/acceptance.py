@@ -88,6 +88,7 @@ def render(
                 "DUT command",
                 "rig version",
                 "plant FMU SHA-256",
+                "airframe",
                 "mode",
                 "started (UTC)",
                 "host",

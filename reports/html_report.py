@@ -277,6 +277,7 @@ IDENTITY = (
     ("seed", "random seed"),
     ("rig_version", "rig version"),
     ("plant_fmu_sha256", "plant FMU SHA-256"),
+    ("airframe", "airframe"),
 )
 
 

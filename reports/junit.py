@@ -27,9 +27,9 @@ def render(results: Sequence[RunResult]) -> str:
             hostname=str(r.metadata.get("host") or ""),
         )
         props = ET.SubElement(suite, "properties")
-        for k in ("seed", "scenario_file", "scenario_sha256", "started", "host", "dut_command",
-                  "dut_firmware", "dut_firmware_sha256", "dut_program", "dut_program_sha256",
-                  "plant_fmu_sha256", "rig_version"):
+        for k in ("seed", "scenario_file", "scenario_sha256", "airframe", "airframe_sha256", "started",
+                  "host", "dut_command", "dut_firmware", "dut_firmware_sha256", "dut_program",
+                  "dut_program_sha256", "plant_fmu_sha256", "rig_version"):
             ET.SubElement(props, "property", name=k, value=str(r.metadata.get(k)))
         ET.SubElement(props, "property", name="mode", value=mode_text(r.metadata))
         if "bus_problems" in r.metadata:  # (the MCU tier: what the firmware saw go wrong on its bus)

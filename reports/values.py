@@ -180,6 +180,8 @@ META: dict[str, tuple[str, Callable[[object], str]]] = {
     "plant_fmu_sha256": ("plant FMU SHA-256", str),
     "scenario_file": ("scenario file", str),
     "scenario_sha256": ("scenario SHA-256", str),
+    "airframe": ("airframe", str),
+    "airframe_sha256": ("airframe SHA-256", str),
     "seed": ("random seed", str),
     "dut_command": ("DUT command", str),
     "dut_firmware": ("firmware", str),

@@ -191,17 +191,27 @@ def run(
     *,
     dut: str | Sequence[str] | None = None,
     mcu: tuple[str | os.PathLike[str], str | os.PathLike[str]] | None = None,
+    eeprom: str | os.PathLike[str] | None = None,
     bridge: str | None = None,
     seed: int = 0,
     out: str | os.PathLike[str] = "build/reports",
     wall_timeout: float = 600.0,
     spin: bool = False,
+    pwm_channels: int | None = None,
+    topology: str | None = None,
+    airframe: str | os.PathLike[str] | None = None,
 ) -> Result:
     """Flies one scenario and returns its result; writes ``out/<scenario>/`` as ``rig run`` does.
 
     The DUT is one of: ``dut``, a command line (a string, split as a shell would, or a list; default:
-    the reference FC); ``mcu=(board, firmware)``, a firmware image under emulation; ``bridge``, a
-    bench bridge's serial port or "virtual". ``spin``: as ``rig run --spin`` (two cores, polling).
+    the reference FC); ``mcu=(board, firmware)``, a firmware image under emulation (``eeprom``: the
+    EEPROM image it starts from instead of the board's, as ``rig run --eeprom``; the run's folder gets
+    ``eeprom.bin``, the EEPROM as it ended); ``bridge``, a bench bridge's serial port or "virtual".
+    ``spin``: as ``rig run --spin`` (two cores, polling).
+    ``pwm_channels`` (1..16) and ``topology`` ("gy86", "direct"): a Linux DUT's board, as ``rig run
+    --pwm-channels``, ``--topology`` (default: 8 channels on a GY-86).
+    ``airframe``: as ``rig run --airframe`` (a shipped airframe's name or a file; default the
+    scenario's own).
     Raises RigError for bad options (nothing is run); a DUT that crashes or hangs is a Result with
     verdict "error", as on the command line."""
     import shlex
@@ -210,7 +220,7 @@ def run(
     from rig import compiled, interrupts
 
     compiled.install()  # (an entry point, as the CLI: the hot modules compiled, before they are imported)
-    from rig.run_cmd import ReportFolder, UsageError, plan, write_run
+    from rig.run_cmd import ReportFolder, UsageError, flown_on, plan, write_run
     from rig.runner import not_run
     from rig.runner import run as run_one
 
@@ -225,14 +235,23 @@ def run(
         words += ["--bridge", bridge]
     if mcu is not None:
         words += ["--mcu", os.fspath(mcu[0]), "--firmware", os.fspath(mcu[1])]
+    if eeprom is not None:
+        words += ["--eeprom", os.fspath(eeprom)]
     if spin:
         words.append("--spin")
+    if pwm_channels is not None:
+        words += ["--pwm-channels", str(int(pwm_channels))]
+    if topology is not None:
+        words += ["--topology", topology]
+    if airframe is not None:
+        words += ["--airframe", os.fspath(airframe)]
     args = _options("run", words)
     # Ctrl-C or a CI job's SIGTERM stops the DUT and finishes the run's files, as in rig run, and then
     # reaches the caller as KeyboardInterrupt; (signal handlers can be set from the main thread only)
     main = threading.current_thread() is threading.main_thread()
     try:
         suite = plan(args)
+        sc = flown_on([sc], args.airframe, [])[0]  # (plan has checked it: its problems would have said so)
         with interrupts.handled() if main else contextlib.nullcontext(), ReportFolder(suite.out) as folder:
             run_dir = folder.scenario_dir(sc.stem)
             try:

@@ -8,15 +8,15 @@ same source stays the reference and still runs as plain Python.
 
 Why an import hook and not extensions next to the sources: an extension beside ``session.py`` would be
 imported instead of it even after the source is edited, and the edit would silently do nothing. The
-compiled modules live in ``build/mypyc/`` with the sha256 of each source they came from; they are
-loaded from there only while every source's hash matches, else all run from source and one line on
-stderr says so. ``RIG_PURE_PYTHON=1`` turns the compiled modules off (a second implementation to compare
-against, and plain tracebacks).
+compiled modules live in ``build/mypyc/`` (installed: the package's copy, plant/artifacts.py) with the
+sha256 of each source they came from; they are loaded from there only while every source's hash matches,
+else all run from source and one line on stderr says so. ``RIG_PURE_PYTHON=1`` turns the compiled
+modules off (a second implementation to compare against, and plain tracebacks).
 
-Built by ``python -m rig.mypyc_build`` (``make compiled``; part of make all, demo, test and bench).
-The entry points (rig/cli.py, tests/conftest.py, bench/) call ``install()`` before they import a hot
-module; importing a package installs nothing. This module imports only the standard library, so the
-Makefile reads the list from it (``python3 rig/compiled.py --sources``).
+Built by ``python -m rig.mypyc_build`` (``make compiled``; part of make all, demo, test and bench). The
+entry points (rig/cli.py, tests/conftest.py, bench/) call ``install()`` before they import a hot module;
+importing a package installs nothing. This module imports only the standard library and where the build
+is (plant/artifacts.py), so the Makefile reads the list from it (``python3 -m rig.compiled --sources``).
 """
 
 from __future__ import annotations
@@ -33,8 +33,11 @@ from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
 
-REPO = Path(__file__).resolve().parents[1]
-OUT = REPO / "build" / "mypyc"
+from rig.plant.artifacts import BUILD, PACKAGE
+
+#: the folder the modules are named from (the tree's root, or site-packages), and the build's
+REPO = PACKAGE.parent
+OUT = BUILD / "mypyc"
 MANIFEST = OUT / "manifest.json"
 GROUP = "rig_hot"  # mypyc's shared runtime library is the extension ``rig_hot__mypyc``
 

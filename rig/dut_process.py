@@ -33,6 +33,27 @@ def dut_env(base: dict[str, str] | None, shim: Path, socket_path: Path | str, sh
     return env
 
 
+def running_threads(pids: list[int]) -> list[str]:
+    """The threads of these processes that the kernel has running or ready to run (state R), named as
+    the program named them: which one spins when a DUT stops answering (/proc/PID/task/TID/stat)."""
+    out = []
+    for pid in pids:
+        try:
+            tids = sorted(os.listdir(f"/proc/{pid}/task"), key=int)
+        except OSError:
+            continue
+        for tid in tids:
+            try:
+                with open(f"/proc/{pid}/task/{tid}/stat") as f:
+                    stat = f.read()
+            except OSError:
+                continue
+            name, state = stat[stat.index("(") + 1:stat.rindex(")")], stat[stat.rindex(")") + 2]
+            if state == "R":
+                out.append(f"'{name}' (pid {pid}, thread {tid})")
+    return out
+
+
 def ended_within(pid: int, timeout_s: float) -> bool | None:
     """Waits on a pidfd for process ``pid`` to end: True once it has (or it is gone), False when it has
     not within ``timeout_s``, None when the kernel gives no pidfds (Linux before 5.3)."""

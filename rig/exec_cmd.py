@@ -28,10 +28,13 @@ from rig.bridge.esc import ESC_PROTOCOLS
 from rig.bridge.session import BenchConfig, BenchSession
 from rig.cores import CoresError, allowed_cores, placement
 from rig.emulators.topology import TOPOLOGIES
+from rig.plant import airframes
+from rig.plant.airframes import AirframeError
 from rig.plant.variables import PARAMETERS, check_parameters
-from rig.run_cmd import seconds_option
+from rig.run_cmd import add_airframe_option, seconds_option
 from rig.scheduler import EXIT_RIG_ERROR
 from rig.session import Session, SessionConfig
+from rig.targets.process import hardware_problems
 from rig.world import World
 
 CLOCKS = {"0": 0, "100k": 100_000, "400k": 400_000}
@@ -51,6 +54,20 @@ def _param(text: str) -> tuple[str, float]:
                 else f"; the plant's parameters: {', '.join(PARAMETERS)}")
         raise argparse.ArgumentTypeError(f"{name!r} is not a plant parameter{hint}")
     return name, number
+
+
+def _plant_params(args: argparse.Namespace, parser: argparse.ArgumentParser) -> dict[str, float]:
+    """The plant's parameters: the airframe's (--airframe, default seed 001's), then each --param;
+    checked by the FMU's own rules before anything starts (exit 2 naming the problem)."""
+    try:
+        airframe = airframes.load(args.airframe or airframes.DEFAULT_AIRFRAME)
+    except AirframeError as e:
+        parser.error(f"--airframe: {e}")
+    params = airframe.params | dict(args.param)
+    refused = check_parameters(params)
+    if refused:
+        parser.error(f"--param/--airframe: the plant refuses it: {refused}")
+    return params
 
 
 def _writable(parser: argparse.ArgumentParser, option: str, path: Path | None) -> None:
@@ -79,7 +96,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="with --bridge: the ESC protocol the bridge captures (default pwm; oneshot125)")
     p.add_argument("--serial", action="append", default=[], metavar="PATH",
                    help="a serial device path the command opens, served by a pty (repeatable)")
-    p.add_argument("--pwm-channels", type=int, default=8, metavar="N", help="channels of pwmchip0 (1..16)")
+    p.add_argument("--pwm-channels", type=int, default=8, metavar="N",
+                   help="channels of pwmchip0 (1..16, default 8)")
     p.add_argument("--i2c-clock", choices=sorted(CLOCKS), default="0",
                    help="each transfer takes its wire time at this SCL clock (default 0: no time)")
     p.add_argument("--quantum-ns", type=int, default=1000, metavar="NS",
@@ -100,6 +118,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-noise", action="store_true", help="exact sensors")
     p.add_argument("--param", type=_param, action="append", default=[], metavar="NAME=VALUE",
                    help="plant parameter (repeatable), e.g. --param stand=1")
+    add_airframe_option(p)
     p.add_argument("--log", type=Path, metavar="FILE", help="write the transaction log here")
     p.add_argument("--summary", type=Path, metavar="FILE", help="write the outcome as JSON here")
     p.add_argument("--allow-no-devices", action="store_true",
@@ -110,6 +129,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--firmware", type=Path, metavar="FILE", help="with --mcu: the image (.elf or .hex)")
     p.add_argument("--trace", type=Path, metavar="DIR",
                    help="with --mcu: write the TWI transactions and motor pin edges as DIR/FIRMWARE.vcd")
+    p.add_argument("--eeprom", type=Path, metavar="FILE",
+                   help="with --mcu: the EEPROM image to start from instead of the board's (raw bytes, or "
+                        "Intel HEX named .eep/.hex)")
+    p.add_argument("--eeprom-out", type=Path, metavar="FILE",
+                   help="with --mcu: write the EEPROM as the firmware left it here (raw bytes)")
     p.add_argument("argv", nargs=argparse.REMAINDER, metavar="-- CMD ARGS", help="the command to run")
     p.set_defaults(exec_parser=p)  # (usage errors found after parsing say "rig exec: error: ...")
 
@@ -119,20 +143,19 @@ def main(args: argparse.Namespace) -> int:
     command = args.argv[1:] if args.argv[:1] == ["--"] else args.argv
     if args.mcu is not None:
         return _exec_mcu(args, parser, command)
-    for option, value in (("--firmware", args.firmware), ("--trace", args.trace)):
+    for option, value in (("--firmware", args.firmware), ("--trace", args.trace), ("--eeprom", args.eeprom),
+                          ("--eeprom-out", args.eeprom_out)):
         if value is not None:
             parser.error(f"{option} goes with --mcu BOARD")
     if not command:
         parser.error("rig exec needs a command after --")
-    if not 1 <= args.pwm_channels <= 16:
-        parser.error("--pwm-channels must be between 1 and 16")
+    for problem in hardware_problems(args.pwm_channels, args.topology):
+        parser.error(problem)
     if not 0 <= args.bus < 32:
         parser.error("--bus must be between 0 and 31")
     if args.quantum_ns < 0:
         parser.error("--quantum-ns must not be negative")
-    refused = check_parameters(dict(args.param))  # the FMU's own rules, before anything starts
-    if refused:
-        parser.error(f"--param: the plant refuses it: {refused}")
+    params = _plant_params(args, parser)
     if args.spin:
         if args.bridge is not None:
             parser.error("--spin is for lockstep: not with --bridge")
@@ -148,7 +171,7 @@ def main(args: argparse.Namespace) -> int:
                         stall_timeout=args.stall_timeout, pin=args.pin, spin=args.spin, log_path=args.log,
                         allow_no_devices=args.allow_no_devices)
     world = World.at_rest(seed=args.seed, topology=args.topology, noise=not args.no_noise,
-                          params=dict(args.param), pwm_channels=args.pwm_channels)
+                          params=params, pwm_channels=args.pwm_channels)
     if args.bridge is not None and args.bridge != "virtual":
         parser.error("a command runs against the virtual bridge only (--bridge virtual); behind a real "
                      "bridge the board is the DUT: use rig run --bridge PORT")
@@ -195,12 +218,11 @@ def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command
                             ("--serial", args.serial), ("--pin", args.pin), ("--spin", args.spin)) if v]
     if clash:
         parser.error(f"--mcu runs a firmware image in lockstep: not with {', '.join(clash)}")
-    refused = check_parameters(dict(args.param))
-    if refused:
-        parser.error(f"--param: the plant refuses it: {refused}")
+    params = _plant_params(args, parser)
     _writable(parser, "--summary", args.summary)
+    _writable(parser, "--eeprom-out", args.eeprom_out)
     try:
-        target = McuTarget(args.mcu, args.firmware)
+        target = McuTarget(args.mcu, args.firmware, eeprom=args.eeprom)
     except (BoardError, FirmwareError) as e:
         parser.error(f"--mcu: {e}")
     trace = None
@@ -211,11 +233,12 @@ def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command
         except OSError as e:
             parser.error(f"--trace {args.trace}: {e.strerror}")
         _writable(parser, "--trace", trace)
-    world = World.at_rest(seed=args.seed, noise=not args.no_noise, params=dict(args.param),
+    world = World.at_rest(seed=args.seed, noise=not args.no_noise, params=params,
                           **target.world_options())
     try:
         with interrupts.handled():
-            run = McuRun(target.session(world, args.duration, {}, args.wall_timeout, trace, args.sim_timeout))
+            run = McuRun(target.session(world, args.duration, {}, args.wall_timeout, trace, args.sim_timeout,
+                                        args.eeprom_out))
             outcome = run.session.run()
     finally:
         world.close()

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Final
 from rig import protocol as P
 from rig.emulators.i2c_bus import I2CNack, I2CProtocolError, Msg
 from rig.scenarios.result import I2CRecord
-from rig.scheduler import EXIT_RIG_ERROR, NS, Scheduler, SharedPage, Stop, fmt
+from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, SharedPage, Stop, fmt
 from rig.world import PwmChannel, World
 
 if TYPE_CHECKING:
@@ -67,6 +67,10 @@ class Handler:
             self._pwm(conn, hdr, payload)
         elif hdr.type == P.MSG_WAIT:
             self._wait(conn, hdr, payload)
+        elif hdr.type == P.MSG_STALL:  # a DUT thread spins (rig/shim/threads.c): as the stall watchdog
+            text = payload.decode("utf-8", "replace")[:300]
+            self.session.log(self._notice_time(hdr), f"c{conn.index} stall: {text}")
+            self.sched.fail(EXIT_WATCHDOG, f"the command stalled: {text}")
         else:
             text = payload.decode("utf-8", "replace")[:300]
             if text not in self.notes:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import struct
 from typing import Final
 
-PROTOCOL_VERSION: Final = 4
+PROTOCOL_VERSION: Final = 5
 MAX_PAYLOAD: Final = 65536
 
 HEADER = struct.Struct("<IHHQ")  # len, type, status, t_ns
@@ -18,8 +18,9 @@ MSG_PWM: Final = 3
 MSG_WAIT: Final = 4
 MSG_NOTE: Final = 5
 MSG_I2C_WRITE: Final = 6  # notice: a write the session promised to acknowledge (SHM_ACK)
+MSG_STALL: Final = 7  # notice: text naming a DUT thread that spins; the run ends as a stall does
 MSG_NAMES = {MSG_HELLO: "HELLO", MSG_I2C: "I2C", MSG_PWM: "PWM", MSG_WAIT: "WAIT", MSG_NOTE: "NOTE",
-             MSG_I2C_WRITE: "I2C_WRITE"}
+             MSG_I2C_WRITE: "I2C_WRITE", MSG_STALL: "STALL"}
 #: Requests get one reply; notices get none.
 REQUESTS = frozenset({MSG_HELLO, MSG_I2C, MSG_WAIT})
 

@@ -7,8 +7,10 @@ rig meets them there, on top of the public API (rig/api.py) and ``rig run``'s re
   pyproject.toml or a sweep spec, are left alone); a file that does not check is a collection error
   naming its key. Nothing is collected that pytest is not already walking (this repository's own
   ``pytest`` walks tests/ only, its testpaths);
-* ``--rig-dut CMD``, ``--rig-mcu BOARD --rig-firmware FILE``, ``--rig-bridge PORT`` choose the DUT
-  (default: the reference FC), ``--rig-seed N`` the seed, ``--rig-out DIR`` where runs are written;
+* ``--rig-dut CMD``, ``--rig-mcu BOARD --rig-firmware FILE`` (``--rig-eeprom FILE``: its EEPROM),
+  ``--rig-bridge PORT`` choose the DUT (default: the reference FC), ``--rig-pwm-channels N`` and
+  ``--rig-topology gy86|direct`` a Linux DUT's board, ``--rig-seed N`` the seed, ``--rig-out DIR``
+  where runs are written;
 * a failing item shows its criteria table (value, limits, margin) and its report's path;
 * the ``rig`` fixture hands the API to a test, with the command line's DUT, seed and a folder of the
   test's own; ``@pytest.mark.rig_scenario(*scenarios, seeds=[...])`` parametrises a test's
@@ -16,7 +18,8 @@ rig meets them there, on top of the public API (rig/api.py) and ``rig run``'s re
 * under pytest-xdist each worker writes under ``DIR/<worker>/`` (a report folder is held by one run at
   a time); JUnit properties carry the seed and the scenario's and firmware's SHA-256;
 * the scenario items' folder is a ``rig run`` report folder: ``rig report DIR --pdf`` prints its
-  acceptance PDF, and a new session first removes the runs the previous one wrote there.
+  acceptance PDF, and a new session first removes the runs the previous one wrote there (at the root
+  and in every worker's folder).
 
 The imports of the rig are deferred to the first run: the plugin is loaded into every pytest session
 of an environment the package is installed in, and must cost nothing there.
@@ -26,6 +29,7 @@ from __future__ import annotations
 
 import os
 import re
+import uuid
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -46,7 +50,15 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     g.addoption("--rig-mcu", metavar="BOARD", help="fly a firmware image under emulation on BOARD "
                 "(a board file or a shipped board's name); needs --rig-firmware")
     g.addoption("--rig-firmware", metavar="FILE", help="with --rig-mcu: the image (.elf or .hex)")
+    g.addoption("--rig-eeprom", metavar="FILE", help="with --rig-mcu: the EEPROM image to start from "
+                "instead of the board's (raw bytes, as a run's eeprom.bin, or Intel HEX named .eep/.hex)")
     g.addoption("--rig-bridge", metavar="PORT", help="a bench bridge's serial port, or 'virtual'")
+    g.addoption("--rig-pwm-channels", metavar="N", type=int,
+                help="a Linux DUT's channels of pwmchip0, 1..16 (default 8)")
+    g.addoption("--rig-topology", metavar="gy86|direct",
+                help="a Linux DUT's I2C wiring (default gy86: the compass behind the MPU-6050's bypass)")
+    g.addoption("--rig-airframe", metavar="NAME|FILE",
+                help="the vehicle flown: a shipped airframe or a file (default: each scenario's own)")
     g.addoption("--rig-seed", metavar="N", type=int, default=0, help="the runs' seed (default 0)")
     g.addoption("--rig-out", metavar="DIR", default=DEFAULT_OUT,
                 help=f"where runs are written (default {DEFAULT_OUT}; under xdist DIR/<worker>)")
@@ -61,6 +73,15 @@ def pytest_configure(config: pytest.Config) -> None:
         raise pytest.UsageError("--rig-firmware goes with --rig-mcu BOARD")
     if board is not None and firmware is None:
         raise pytest.UsageError("--rig-mcu needs --rig-firmware FILE")
+    pwm_channels, topology = config.getoption("rig_pwm_channels"), config.getoption("rig_topology")
+    if pwm_channels is not None or topology is not None:  # (the rig imported only when they are given)
+        from rig.targets.process import hardware_problems
+
+        problems = hardware_problems(pwm_channels, topology)
+        if problems:
+            raise pytest.UsageError("; ".join(p.replace("--", "--rig-", 1) for p in problems))
+    if config.getoption("rig_eeprom") is not None and board is None:
+        raise pytest.UsageError("--rig-eeprom goes with --rig-mcu BOARD")
 
 
 class Options:
@@ -72,24 +93,32 @@ class Options:
         self.bridge: str | None = opt("rig_bridge")
         board, firmware = opt("rig_mcu"), opt("rig_firmware")  # (paired: pytest_configure)
         self.mcu: tuple[str, str] | None = (board, firmware) if board is not None else None
+        self.eeprom: str | None = opt("rig_eeprom")
         self.seed: int = opt("rig_seed")
+        self.pwm_channels: int | None = opt("rig_pwm_channels")
+        self.topology: str | None = opt("rig_topology")
+        self.airframe: str | None = opt("rig_airframe")
         out = Path(opt("rig_out"))
         if not out.is_absolute():
             out = Path(config.invocation_params.dir) / out
         worker = os.environ.get("PYTEST_XDIST_WORKER")
+        self.root = out
         self.out = out / worker if worker else out
+        #: this session's identity, shared by its xdist workers (a plain session is one process)
+        self.session = os.environ.get("PYTEST_XDIST_TESTRUNUID") or uuid.uuid4().hex
         self.stems: list[str] | None = None  # the scenario items this process has run, in order
 
     def ran(self, stem: str) -> None:
         """Keeps the folder a report folder as ``rig run`` leaves one (so ``rig report DIR --pdf`` reads
-        it): the first scenario item removes the runs the previous session listed; each one run is
-        added to the list (.rig-run.json)."""
+        it): the first scenario item of the session removes the runs the previous session wrote
+        (``claim``); each one run is added to the list (.rig-run.json)."""
         import json
 
         from rig.run_cmd import ReportFolder
 
         if self.stems is None:
             self.stems = []
+            claim(self.root, self.session)
             with ReportFolder(self.out) as folder:
                 folder.begin([])
         self.stems.append(stem)
@@ -101,8 +130,41 @@ class Options:
     def run(self, scenario: str | os.PathLike[str] | Scenario, out: Path, **kw: Any) -> Result:
         from rig import api
 
-        options: dict[str, Any] = {"dut": self.dut, "mcu": self.mcu, "bridge": self.bridge, "seed": self.seed}
+        options: dict[str, Any] = {"dut": self.dut, "mcu": self.mcu, "eeprom": self.eeprom,
+                                   "bridge": self.bridge, "seed": self.seed,
+                                   "pwm_channels": self.pwm_channels, "topology": self.topology,
+                                   "airframe": self.airframe}
         return api.run(scenario, **(options | kw), out=out)
+
+
+SESSION_FILE = ".rig-pytest-session"
+_WORKER_FOLDER = re.compile(r"gw[0-9]+")
+
+
+def claim(root: Path, session: str) -> None:
+    """The first process of a session to run a scenario item removes every run the previous session
+    wrote under ``root``: the root's (a plain session's) and every worker folder's (a ``-n`` session's,
+    whatever its number of workers), so neither ``rig report DIR`` nor a ``DIR/gwN`` shows an older
+    session's run. The workers of one session meet here under a lock; only the first one clears."""
+    import fcntl
+    import shutil
+
+    from rig.run_cmd import ReportFolder
+
+    root.mkdir(parents=True, exist_ok=True)
+    with open(root / f"{SESSION_FILE}.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        marker = root / SESSION_FILE
+        if marker.is_file() and marker.read_text().strip() == session:
+            return
+        workers = sorted(p for p in root.iterdir() if p.is_dir() and _WORKER_FOLDER.fullmatch(p.name))
+        for folder in (root, *workers):
+            with ReportFolder(folder) as report_folder:
+                report_folder.begin([])
+        for folder in workers:  # (a worker folder left with nothing but the rig's own files)
+            if {p.name for p in folder.iterdir()} <= {ReportFolder.LOCK, ReportFolder.MANIFEST}:
+                shutil.rmtree(folder)
+        marker.write_text(session + "\n")
 
 
 def _options(config: pytest.Config) -> Options:
@@ -129,6 +191,11 @@ class ScenarioFile(pytest.File):
     """A scenario file: one item, or a collection error naming the file's bad key."""
 
     def collect(self) -> Iterator[ScenarioItem]:
+        from rig import compiled
+
+        # the hot modules compiled (as the CLI runs them) before reading a scenario imports the first of
+        # them: a module imported from source stays so, and the compiled ones then reject its objects
+        compiled.install()
         from rig.api import ScenarioError, load_scenario
 
         try:

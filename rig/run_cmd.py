@@ -27,13 +27,16 @@ from typing import TYPE_CHECKING
 
 from rig import interrupts
 from rig.bridge.esc import ESC_PROTOCOLS
-from rig.scenarios.schema import Scenario, ScenarioError, load
+from rig.emulators.topology import TOPOLOGIES
+from rig.plant import airframes
+from rig.plant.airframes import AirframeError
+from rig.scenarios import LIBRARY
+from rig.scenarios.schema import Scenario, ScenarioError, load, with_airframe
 
 if TYPE_CHECKING:
     from rig.scenarios.result import RunResult
     from rig.targets import Target
 
-LIBRARY = Path(__file__).resolve().parents[1] / "scenarios" / "library"
 EXIT_FAILED, EXIT_USAGE, EXIT_ERROR = 1, 2, 3
 #: seeds are 0..2^31-1, as the service's API takes them (a run queued there is a run of this command)
 SEED_LIMIT = 2**31
@@ -101,6 +104,18 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "messages instead of sleeping (1.5-1.7x as fast; the results are the same)",
     )
     p.add_argument(
+        "--pwm-channels",
+        type=int,
+        metavar="N",
+        help="a Linux DUT's channels of pwmchip0, 1..16 (default 8; channels 0..3 drive motors 1..4)",
+    )
+    p.add_argument(
+        "--topology",
+        choices=TOPOLOGIES,
+        help="a Linux DUT's I2C wiring: gy86 (default; the HMC5883L behind the MPU-6050's bypass) or "
+        "direct (all three chips on the bus)",
+    )
+    p.add_argument(
         "--bridge",
         metavar="PORT|virtual",
         help="run in real time through a bench bridge: PORT is the serial port of a bridge wired to a "
@@ -136,13 +151,45 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "board's name (mega2560-gy86, promini328-gy86, ...; docs/mcu.md); needs --firmware",
     )
     p.add_argument("--firmware", type=Path, metavar="FILE", help="with --mcu: the image (.elf or .hex)")
+    add_airframe_option(p)
     p.add_argument("--trace", type=Path, metavar="DIR",
                    help="with --mcu: write each scenario's TWI transactions and motor pin edges as "
                    "DIR/SCENARIO.vcd (GTKWave, PulseView)")
+    p.add_argument("--eeprom", type=Path, metavar="FILE",
+                   help="with --mcu: the EEPROM image to start from instead of the board's (raw bytes, as "
+                   "a run's eeprom.bin, or Intel HEX named .eep/.hex)")
     add_pdf_options(p)
     v = sub.add_parser("validate", help="check scenario files without running them")
     v.add_argument("scenarios", nargs="+", metavar="SCENARIO")
     sub.add_parser("list", help="list the scenario library")
+
+
+def add_airframe_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--airframe",
+        metavar="NAME|FILE",
+        help="the vehicle flown: a shipped airframe (seed-001, f450, racer-250) or an airframe file "
+        "(docs/plant.md); default: the scenario's [vehicle] airframe, else seed-001. A scenario's other "
+        "[vehicle] keys still apply on top",
+    )
+
+
+def flown_on(scenarios: list[Scenario], airframe: str | None, problems: list[str]) -> list[Scenario]:
+    """``--airframe``: the scenarios flying that airframe (each problem appended to ``problems``)."""
+    if airframe is None:
+        return scenarios
+    try:
+        chosen = airframes.load(airframe)
+    except AirframeError as e:
+        problems.append(f"--airframe: {e}")
+        return scenarios
+    flown = []
+    for sc in scenarios:
+        try:
+            flown.append(with_airframe(sc, chosen))
+        except ScenarioError as e:
+            problems.append(f"--airframe {airframe}: {e}")
+    return flown
 
 
 def add_pdf_options(p: argparse.ArgumentParser) -> None:
@@ -233,6 +280,7 @@ def plan(args: argparse.Namespace) -> Plan:
             problems.append(str(e))
     if not scenarios and not problems:
         problems.append("no scenarios")
+    scenarios = flown_on(scenarios, args.airframe, problems)
     stems: dict[str, Path] = {}
     for sc in scenarios:
         if sc.stem in stems:
@@ -316,6 +364,11 @@ def plan(args: argparse.Namespace) -> Plan:
         if chromium() is None:
             problems.append("--pdf: no chromium on PATH to print the PDF with (Debian: apt-get install "
                             "chromium)")
+    from rig.targets.process import hardware_problems
+
+    problems += hardware_problems(args.pwm_channels, args.topology)
+    if (args.pwm_channels is not None or args.topology is not None) and (args.bridge or args.mcu):
+        problems.append("--pwm-channels and --topology are a Linux DUT's board: not with --bridge or --mcu")
     mcu = _mcu_target(args, problems)
     if problems:
         raise UsageError("\n".join(problems))
@@ -329,14 +382,16 @@ def target_of(args: argparse.Namespace, dut: list[str] | None) -> Target:
 
     if args.bridge is not None:
         return BridgeTarget(args.bridge, dut, args.can, args.esc)
-    return ProcessTarget(dut, args.realtime, spin=args.spin)
+    return ProcessTarget(dut, args.realtime, spin=args.spin, pwm_channels=args.pwm_channels,
+                         topology=args.topology)
 
 
 def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:
     """``--mcu BOARD --firmware FILE``, both checked (the board file as a scenario is, the image's
     format and size against the board's MCU); None without --mcu."""
     if args.mcu is None:
-        for option, value in (("--firmware", args.firmware), ("--trace", args.trace)):
+        for option, value in (("--firmware", args.firmware), ("--trace", args.trace),
+                              ("--eeprom", args.eeprom)):
             if value is not None:
                 problems.append(f"{option} goes with --mcu BOARD")
         return None
@@ -359,7 +414,7 @@ def _mcu_target(args: argparse.Namespace, problems: list[str]) -> Target | None:
             problems.append(f"--trace {args.trace}: {e.strerror}")
             return None
     try:
-        return McuTarget(args.mcu, args.firmware, args.trace)
+        return McuTarget(args.mcu, args.firmware, args.trace, args.eeprom)
     except (BoardError, FirmwareError) as e:
         problems.append(f"--mcu: {e}")
         return None

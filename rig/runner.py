@@ -219,7 +219,7 @@ def run(
     world = World.at_rest(
         seed=seed,
         noise=scenario.noise,
-        params=scenario.plant,
+        params=scenario.plant_params(),
         faults=faults,
         mag_disturbance=scenario.mag_disturbance_at if any(scenario.mag_disturbance) else None,
         baro_noise_pa=scenario.baro_noise_pa,
@@ -345,6 +345,9 @@ def identity(scenario: Scenario, seed: int) -> dict[str, object]:
         "scenario_name": scenario.name,
         "scenario_file": str(scenario.path.resolve()),
         "scenario_sha256": scenario.sha256,
+        "airframe": scenario.airframe.describe(),
+        "airframe_file": str(scenario.airframe.path.resolve()),
+        "airframe_sha256": scenario.airframe.sha256,
         "seed": seed,
         "started": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "host": socket.gethostname(),

@@ -38,7 +38,7 @@ from rig import interrupts, scratch
 from rig import protocol as P
 from rig.connection import Conn
 from rig.cores import SPIN_NS, placement
-from rig.dut_process import Keeper, dut_env
+from rig.dut_process import Keeper, dut_env, running_threads
 from rig.handler import Handler
 from rig.lockstep import FastPath, attach, pending_input
 from rig.pace import FrozenHeap, RealtimeHost
@@ -408,10 +408,12 @@ class Session:
                     self.sched.fail(EXIT_WATCHDOG, f"wall-time watchdog: still running after "
                                               f"{cfg.wall_timeout:g} s of wall time (sim t={sim / NS:.3f} s)")
                 elif cfg.lockstep and now_wall - last_progress > cfg.stall_timeout:
+                    running = running_threads([c.pid for c in self._conns if c.pid])
                     self.sched.fail(EXIT_WATCHDOG, "the command stopped answering: no request and no clock "
                                               f"read for {cfg.stall_timeout:g} s of wall time at sim "
                                               f"t={sim / NS:.3f} s (spinning without reading a clock, "
-                                              "or blocked outside the emulated devices)")
+                                              "or blocked outside the emulated devices)"
+                                              + (f"; running: {', '.join(running)}" if running else ""))
             if not stopping and self.sched.over:
                 keeper.stop()  # SIGTERM to the DUT and all it started; SIGKILL after the grace
                 stopping = True

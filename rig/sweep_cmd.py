@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from rig import interrupts, scratch
-from rig.run_cmd import LIBRARY, ReportFolder, UsageError, seconds_option
+from rig.run_cmd import LIBRARY, ReportFolder, UsageError, add_airframe_option, seconds_option
 
 EXIT_FAIL, EXIT_USAGE, EXIT_ERROR = 1, 2, 3
 #: a local pool whose process died (killed, out of memory) is started again this many times
@@ -65,6 +65,7 @@ def add_parser(sub: Any) -> None:
         help="start afresh: remove the runs DIR holds (needed when they flew another DUT) and fly every run",
     )
     p.add_argument("--dut", help="the DUT command line (default: the reference FC, as rig run)")
+    add_airframe_option(p)
     p.add_argument(
         "--wall-timeout",
         type=seconds_option,
@@ -101,7 +102,7 @@ def main(args: argparse.Namespace) -> int:
             print("rig sweep: --dut is empty", file=sys.stderr)
             return EXIT_USAGE
     try:
-        sweep = load_sweep(args.spec, LIBRARY)
+        sweep = load_sweep(args.spec, LIBRARY, airframe=args.airframe)
     except SweepError as e:
         print(f"rig sweep: {args.spec}: {e}", file=sys.stderr)
         return EXIT_USAGE

@@ -20,7 +20,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Final
 
-from rig.scenarios import fc_keys
+from rig.scenarios import LIBRARY, fc_keys
 
 MAGIC: Final = 0x4346  # "FC"
 NO_PROFILE: Final = 0xFF
@@ -116,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     path = Path(a.scenario)
     if not path.exists():
-        path = Path(__file__).resolve().parent / "library" / f"{a.scenario}.toml"
+        path = LIBRARY / f"{a.scenario}.toml"
     try:
         data = image(load(path).fc)
     except (ScenarioError, EepromError, OSError) as e:

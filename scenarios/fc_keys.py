@@ -10,9 +10,10 @@ import math
 import re
 from dataclasses import dataclass
 from functools import cache
-from pathlib import Path
 
-TABLE = Path(__file__).resolve().parents[1] / "dut" / "src" / "config_keys.h"
+from rig.plant.artifacts import tree_file
+
+TABLE = tree_file("dut/src/config_keys.h")
 
 
 @dataclass(frozen=True)

@@ -8,6 +8,7 @@ reads one line and knows what to fix. The format, key by key, is in the README (
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import hashlib
 import json
@@ -24,6 +25,8 @@ from rig.emulators.faults import TARGETS as FAULT_TARGETS
 from rig.emulators.faults import Fault, TargetedFault
 from rig.emulators.pwm_capture import TRANSPORTS as CAPTURE_TRANSPORTS
 from rig.emulators.sbus import STICKS
+from rig.plant import airframes
+from rig.plant.airframes import Airframe, AirframeError
 from rig.plant.variables import SCENARIO_INPUTS, VARIABLES, check_parameters
 from rig.scenarios import fc_keys
 from rig.scenarios.bench import BenchPower, parse_psu
@@ -32,6 +35,7 @@ from rig.scenarios.signals import SIGNALS
 
 PLANT_PARAMETERS = {v.name for v in VARIABLES if v.causality == "parameter"}
 PLANT_INPUTS = set(SCENARIO_INPUTS)
+VEHICLE_KEYS = PLANT_PARAMETERS | {"airframe"}
 LINK_STATES = ("ok", "lost", "failsafe")
 CAPTURES = ("direct", *CAPTURE_TRANSPORTS)  # direct: the DUT's PWM drives the plant with no link
 
@@ -112,7 +116,10 @@ class Scenario:
     description: str
     seed_paper: str
     duration: float
+    #: the [vehicle] table's own parameters, which apply over the airframe's (plant_params)
     plant: dict[str, float]
+    #: the vehicle flown: [vehicle] airframe = NAME|FILE, else seed 001's (plant/airframes.py)
+    airframe: Airframe
     fc: dict[str, str]
     noise: bool
     baro_noise_pa: float
@@ -151,6 +158,20 @@ class Scenario:
     @property
     def stem(self) -> str:
         return self.path.stem
+
+    def plant_params(self) -> dict[str, float]:
+        """The plant's parameters for this scenario: the airframe's, then the [vehicle] table's."""
+        return self.airframe.params | self.plant
+
+
+def with_airframe(scenario: Scenario, airframe: Airframe) -> Scenario:
+    """The scenario flying another airframe (``--airframe``): its [vehicle] keys still apply on top.
+    Raises ScenarioError when the plant refuses the combination."""
+    refused = check_parameters(airframe.params | scenario.plant)
+    if refused:
+        raise ScenarioError(str(scenario.path), f"vehicle.{refused.split()[0]}",
+                            f"the plant refuses it on airframe {airframe.name}: {refused}")
+    return dataclasses.replace(scenario, airframe=airframe)
 
 
 # ---- the checker -----------------------------------------------------------------------------------
@@ -359,10 +380,17 @@ def check(data: dict[str, Any], path: Path, sha256: str | None = None) -> Scenar
             duration = c.number(meta, "duration", "scenario", positive=True, high=3600)
 
     plant: dict[str, float] = {}
+    airframe = airframes.load()
     with c.part():
-        vehicle = c.table(data.get("vehicle", {}), "vehicle", PLANT_PARAMETERS)
-        plant = {k: c.number(vehicle, k, "vehicle") for k in vehicle}
-        refused = check_parameters(plant)  # the FMU's own rules, before it is asked
+        vehicle = c.table(data.get("vehicle", {}), "vehicle", VEHICLE_KEYS)
+        if "airframe" in vehicle:
+            named = c.string(vehicle, "airframe", "vehicle")
+            try:  # (a file named relative to the scenario's folder, as a person writing it means)
+                airframe = airframes.load(path.parent / named if named.endswith(".toml") else named)
+            except AirframeError as e:
+                raise c.fail("vehicle.airframe", str(e)) from None
+        plant = {k: c.number(vehicle, k, "vehicle") for k in vehicle if k != "airframe"}
+        refused = check_parameters(airframe.params | plant)  # the FMU's own rules, before it is asked
         if refused:
             raise c.fail(f"vehicle.{refused.split()[0]}", f"the plant refuses it: {refused}")
 
@@ -484,6 +512,7 @@ def check(data: dict[str, Any], path: Path, sha256: str | None = None) -> Scenar
         path=path,
         duration=duration,
         plant=plant,
+        airframe=airframe,
         fc=fc,
         gusts=tuple(gusts),
         faults=tuple(faults),

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from rig.plant import airframes
 from rig.scenarios.schema import Scenario, ScenarioError, check
 
 SWEEP_KEYS = {"scenario", "seeds", "mode", "samples", "seed", "vary"}
@@ -214,11 +215,13 @@ def _draw(v: Vary, rng: random.Random) -> Any:
     return rng.choice(v.values)
 
 
-def load_sweep(path: str | Path, library: Path, resolve: Callable[[str], Path | None] | None = None) -> Sweep:
+def load_sweep(path: str | Path, library: Path, resolve: Callable[[str], Path | None] | None = None,
+               airframe: str | None = None) -> Sweep:
     """Reads a spec, expands its variants and checks each one; SweepError names the first problem
     (a variant's is the scenario checker's message with the values that made it). ``resolve`` finds
     a scenario by name instead of ``library`` (the service's: the library and the uploads), and then
-    a file path is not accepted (a spec from a request names no file)."""
+    a file path is not accepted (a spec from a request names no file). ``airframe`` (``--airframe``)
+    replaces the scenario's [vehicle] airframe in every variant (a file: its absolute path)."""
     path = Path(path)
     try:
         raw = path.read_bytes()
@@ -277,6 +280,10 @@ def load_sweep(path: str | Path, library: Path, resolve: Callable[[str], Path | 
     try:
         nominal_raw = scenario_path.read_bytes()
         nominal = tomllib.loads(nominal_raw.decode("utf-8"))
+        if airframe is not None:  # (part of what the runs are: their ids and the sweep's hash change)
+            flown = airframe if airframe in airframes.shipped() else str(Path(airframe).resolve())
+            nominal.setdefault("vehicle", {})["airframe"] = flown
+            nominal_raw += b"\0airframe=" + flown.encode()
         scenario = check(nominal, scenario_path, hashlib.sha256(nominal_raw).hexdigest())
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
         raise SweepError("sweep.scenario", f"{scenario_path}: {e}") from None

@@ -13,7 +13,9 @@ import pytest
 from rig import compiled
 from rig.plant import DEFAULT_FMU
 
-pytest_plugins = ["tests.worker_deaths"]  # (why a pytest-xdist worker died, said in the log)
+# why a pytest-xdist worker died, said in the log; the suite's rules (slow markers, inconclusive tests
+# counted at the end of the run)
+pytest_plugins = ["tests.worker_deaths", "tests.suite_rules"]
 
 compiled.install()  # (plant is not among the hot modules; nothing hot is imported before this)
 

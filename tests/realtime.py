@@ -5,7 +5,9 @@ starved run is flown again once; starved twice, the test ends inconclusive with 
 figures (pytest's ``-ra`` summary lists it), never passed silently and never failed as the DUT's fault.
 On a loaded VM such runs failed with 18-35 deg of tilt and thousands of events over 1 ms late.
 Several runs of one test are judged each on its own (``realtime_each``): only the starved ones are
-flown again.
+flown again. Runs a module's tests share are flown by its fixture with ``fly_each``, which skips
+nothing: each test calls ``inconclusive_if_starved`` with the runs it judges, so one run starved twice
+makes inconclusive only the tests that judge it.
 Every such test carries the ``paced`` marker: ``make test`` runs them alone, after the rest of the suite
 has run on every core, so the suite's own load does not starve them.
 
@@ -42,6 +44,8 @@ from rig.reports.values import host_said
 STARVED_P99_S = 0.003
 #: one event this late (s) starves the run
 STARVED_MAX_S = 0.1
+#: how an inconclusive test's skip reason begins: tests/suite_rules.py counts them by it
+INCONCLUSIVE = "inconclusive: "
 
 T = TypeVar("T")
 
@@ -108,31 +112,51 @@ def _starved_runs(late: Mapping[str, Mapping[str, Any]], names: Iterable[str]) -
 
 def _inconclusive(tries: list[str]) -> NoReturn:
     """Skips the test as inconclusive, with each try's starved runs in words."""
-    pytest.skip("inconclusive: the host could not keep real time (starved twice: "
+    pytest.skip(f"{INCONCLUSIVE}the host could not keep real time (starved twice: "
                 + " | then ".join(tries) + ")")
 
 
-def realtime_each(names: list[str], fly: Callable[[list[str], int], T],
-                  lateness: Callable[[T], Mapping[str, Mapping[str, Any]]]) -> list[tuple[T, list[str]]]:
+def fly_each(names: list[str], fly: Callable[[list[str], int], T],
+             lateness: Callable[[T], Mapping[str, Mapping[str, Any]]]
+             ) -> tuple[list[tuple[T, list[str]]], dict[str, list[str]]]:
     """Several runs judged each on its own: ``fly(names, attempt)`` flies the named runs (attempt 0, then 1)
     and ``lateness`` reads each one's figures from what it returned. The runs the host starved are flown
-    again, alone; one starved twice makes the test inconclusive (``pytest.skip`` with both tries'
-    figures). Returns each flight with the names it holds the judged runs of (a run kept from the first
-    flight is not in the second).
+    again, alone. Returns each flight with the names it holds the judged runs of (a run kept from the
+    first flight is not in the second), and the runs starved twice, each with both tries' figures: a
+    test that judges one of them is inconclusive (``inconclusive_if_starved``), the others are not.
 
     Why not ``realtime`` over all of them: on these VMs one run in six was often starved on each try, a
     different one each time, so flying all again left most tests inconclusive after twice the time."""
     flights: list[tuple[T, list[str]]] = []
-    todo, tries = list(names), []
+    todo: list[str] = list(names)
+    said: dict[str, list[str]] = {}
     for attempt in range(2):
         got = fly(todo, attempt)
         figures = _starved_runs(lateness(got), todo)
         flights.append((got, [n for n in todo if n not in figures]))
-        if not figures:
-            return flights
-        tries.append("; ".join(figures.values()))
+        for name, words in figures.items():
+            said.setdefault(name, []).append(words)
         todo = [n for n in todo if n in figures]
-    _inconclusive(tries)
+        if not todo:
+            break
+    return flights, {name: said[name] for name in todo}
+
+
+def inconclusive_if_starved(starved_twice: Mapping[str, list[str]], *names: str) -> None:
+    """Skips the test as inconclusive when a run it judges (``names``) was starved twice (``fly_each``)."""
+    mine = [name for name in names if name in starved_twice]
+    if mine:
+        tries = [starved_twice[name] for name in mine]
+        _inconclusive(["; ".join(t[k] for t in tries) for k in range(2)])
+
+
+def realtime_each(names: list[str], fly: Callable[[list[str], int], T],
+                  lateness: Callable[[T], Mapping[str, Mapping[str, Any]]]) -> list[tuple[T, list[str]]]:
+    """``fly_each`` for a test that judges every one of the runs: one run starved twice makes the test
+    inconclusive (``pytest.skip`` with both tries' figures)."""
+    flights, starved_twice = fly_each(names, fly, lateness)
+    inconclusive_if_starved(starved_twice, *names)
+    return flights
 
 
 def realtime(fly: Callable[[], T], lateness: Callable[[T], Mapping[str, Mapping[str, Any]]]) -> T:

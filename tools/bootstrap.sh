@@ -31,5 +31,6 @@ if [ ! -x "$VENV/bin/python" ]; then
   "$PYTHON" -m venv "$VENV"
 fi
 "$VENV/bin/python" -m pip install -q --upgrade pip
-"$VENV/bin/python" -m pip install -q -e .
+# the rig, editable, with pytest and pytest-xdist for its plugin (the README's pytest line runs here)
+"$VENV/bin/python" -m pip install -q -e '.[pytest]'
 echo "bootstrap: $VENV ready ($("$VENV/bin/python" --version))"

@@ -14,6 +14,7 @@
 #include <avr/wdt.h>
 #include <string.h>
 
+#include "binary_telemetry.h"
 #include "board.h"
 #include "clock.h"
 #include "config_image.h"
@@ -76,9 +77,36 @@ static void halt(const char *why)
 static uint16_t wraps; /* the 32-bit clock's wraps (every 2147 s), for the telemetry's t */
 static uint32_t last_ticks;
 
-static void telemetry(uint32_t loop_ticks, uint32_t max_ticks, uint32_t overruns)
+static tel_link link; /* MSP's request parser, MAVLink's sequence */
+
+static tel_snapshot snapshot(double t0, uint32_t loop_ticks)
+{
+    uint16_t errors = twi_counters.nacks + twi_counters.timeouts + twi_counters.bus_errors;
+    tel_snapshot s = { (uint32_t)(t0 * 1000), (uint16_t)(loop_ticks / 2), errors, &fl };
+    return s;
+}
+
+/* MSP (each outer slot): the requests received, answered at once */
+static void msp_serve(double t0, uint32_t loop_ticks)
+{
+    uint8_t in[32], out[TEL_OUT_MAX];
+    uint8_t n = uart0_take(in, sizeof in);
+    if (n == 0)
+        return;
+    tel_snapshot s = snapshot(t0, loop_ticks);
+    uint16_t m = tel_msp_serve(&link, &s, in, n, out, sizeof out);
+    if (m > 0)
+        uart0_line((const char *)out, (uint8_t)m);
+}
+
+static void telemetry(uint32_t loop_ticks, uint32_t max_ticks, uint32_t overruns, double t0)
 {
     char buf[TELEMETRY_LINE];
+    if (cfg.telemetry_proto == FC_TEL_MAVLINK) {
+        tel_snapshot s = snapshot(t0, loop_ticks);
+        uart0_line(buf, (uint8_t)tel_mavlink_burst(&link, &s, (uint8_t *)buf, TEL_OUT_MAX));
+        return;
+    }
     tel_counters k = { loop_ticks, max_ticks, overruns, cfg_why, twi_counters, sbus_rx_counters(), uart0_dropped() };
     uint32_t now = clock_ticks();
     if (now < last_ticks)
@@ -122,6 +150,9 @@ int main(void)
             cfg.telemetry_every = 1;
         say("est_rate_hz is over what the AVR fits: the loop runs at ", AVR_RATE_TEXT " Hz");
     }
+    tel_link_init(&link);
+    if (cfg.telemetry_proto == FC_TEL_MSP)
+        uart0_listen();
     if (cfg.estimator == 2)
         halt("estimator 2 (the EKF) is not built for the AVR: it does not fit the cycle budget");
     baro_addr = (uint8_t)cfg.baro_addr;
@@ -233,8 +264,10 @@ int main(void)
                 tel_due = 1;
             /* a line and a barometer pair together overrun the slot: the line waits for the next
                outer slot (the pairs come every other one) */
-            if (tel_due && !baro_now) {
-                telemetry(loop_ticks, max_ticks, overruns);
+            if (cfg.telemetry_proto == FC_TEL_MSP)
+                msp_serve(t0 - t_start, loop_ticks);
+            else if (tel_due && !baro_now) {
+                telemetry(loop_ticks, max_ticks, overruns, t0 - t_start);
                 tel_due = 0;
             }
             cycles++;

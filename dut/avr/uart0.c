@@ -56,6 +56,34 @@ int uart0_line(const char *s, uint8_t n)
 
 uint16_t uart0_dropped(void) { return dropped; }
 
+/* What the telemetry port receives (MSP requests): a ring the receive interrupt fills; bytes that find it
+   full are lost (the requester asks again) */
+#define RXBUF 64
+static uint8_t rx[RXBUF];
+static volatile uint8_t rx_head, rx_tail;
+
+ISR(USART0_RX_vect)
+{
+    uint8_t b = UDR0;
+    uint8_t next = (uint8_t)((rx_head + 1) % RXBUF);
+    if (next != rx_tail) {
+        rx[rx_head] = b;
+        rx_head = next;
+    }
+}
+
+void uart0_listen(void) { UCSR0B |= _BV(RXEN0) | _BV(RXCIE0); }
+
+uint8_t uart0_take(uint8_t *buf, uint8_t cap)
+{
+    uint8_t n = 0;
+    while (n < cap && rx_tail != rx_head) {
+        buf[n++] = rx[rx_tail];
+        rx_tail = (uint8_t)((rx_tail + 1) % RXBUF);
+    }
+    return n;
+}
+
 void uart0_flush(void)
 {
     while (head != tail)

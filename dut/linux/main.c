@@ -12,6 +12,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "binary_telemetry.h"
 #include "config.h"
 #include "drivers.h"
 #include "flight.h"
@@ -30,6 +31,23 @@ static void ts_add(struct timespec *t, long ns)
         t->tv_nsec -= 1000000000L;
         t->tv_sec++;
     }
+}
+
+/* MSP: answers the requests that came since the last cycle; MAVLink: every telemetry_every cycles, a burst */
+static void binary_telemetry(const fc_config *c, int fd, tel_link *link, const tel_snapshot *snap, unsigned long cycles)
+{
+    uint8_t out[TEL_OUT_MAX];
+    uint16_t n = 0;
+    if (c->telemetry_proto == FC_TEL_MSP) {
+        uint8_t in[64];
+        ssize_t got;
+        while ((got = read(fd, in, sizeof in)) > 0)
+            n += tel_msp_serve(link, snap, in, (uint16_t)got, out + n, (uint16_t)(sizeof out - n));
+    } else if (cycles % (unsigned long)c->telemetry_every == 0) {
+        n = tel_mavlink_burst(link, snap, out, sizeof out);
+    }
+    if (n > 0 && write(fd, out, n) < 0 && errno != EAGAIN)
+        perror("fc: telemetry");
 }
 
 int main(int argc, char **argv)
@@ -54,11 +72,18 @@ int main(int argc, char **argv)
         fprintf(stderr, "fc: %s; no motor output\n", err);
         return 2;
     }
-    FILE *tel = NULL;
-    if (c.telemetry_path[0] && !(tel = fopen(c.telemetry_path, "w"))) {
+    FILE *tel = NULL; /* text lines */
+    int tel_fd = -1;  /* MSP (read and written) or MAVLink */
+    if (c.telemetry_path[0] && c.telemetry_proto == FC_TEL_TEXT)
+        tel = fopen(c.telemetry_path, "w");
+    else if (c.telemetry_path[0])
+        tel_fd = open(c.telemetry_path, O_RDWR | O_NONBLOCK | O_NOCTTY);
+    if (c.telemetry_path[0] && !tel && tel_fd < 0) {
         fprintf(stderr, "fc: cannot open telemetry %s: %s\n", c.telemetry_path, strerror(errno));
         return 2;
     }
+    tel_link link;
+    tel_link_init(&link);
     int rc = -1;
     if (c.rc_path[0] && (rc = open(c.rc_path, O_RDONLY | O_NONBLOCK | O_NOCTTY)) < 0) {
         fprintf(stderr, "fc: cannot open RC input %s: %s\n", c.rc_path, strerror(errno));
@@ -150,6 +175,10 @@ int main(int argc, char **argv)
                 pwm_write_us(c.pwm_chip, i, fl.out[i]);
         double loop_us = (now_s() - t0) * 1e6;
         loop_max_us = fmax(loop_max_us, loop_us);
+        if (tel_fd >= 0) {
+            tel_snapshot snap = { (uint32_t)((t0 - t_start) * 1000), (uint16_t)fmin(loop_us, 65535), 0, &fl };
+            binary_telemetry(&c, tel_fd, &link, &snap, cycles);
+        }
         if (tel && cycles % (unsigned long)c.telemetry_every == 0) {
             fprintf(
                 tel,

@@ -80,6 +80,7 @@ void config_defaults(fc_config *c)
         c->mag_scale[i] = 1;
     }
     c->telemetry_every = 5;
+    c->arm_hold_s = 1.0;
 }
 
 int config_check(const fc_config *c) { return c->ctrl_rate_hz > c->est_rate_hz ? -1 : 0; }

@@ -37,7 +37,21 @@ typedef struct {
     real alpha[4], beta[4]; /* eq. 16 */
     real acc_offset[3], acc_scale[3], mag_offset[3], mag_scale[3];
     int telemetry_every;
+    int telemetry_proto; /* FC_TEL_*: what the telemetry port speaks */
+    int arming;          /* FC_ARM_*: how the pilot arms */
+    real arm_hold_s;     /* FC_ARM_STICKS: how long the gesture is held */
+    int sbus_map;        /* FC_SBUS_*: how SBUS values become stick positions */
 } fc_config;
+
+/* telemetry_proto: text lines (dut/linux/main.c, dut/avr/telemetry.c); MSP v1, answering requests;
+   MAVLink v2, streaming (src/binary_telemetry.c) */
+enum { FC_TEL_TEXT = 0, FC_TEL_MSP = 1, FC_TEL_MAVLINK = 2 };
+/* arming: channel 5 high with throttle low; or MultiWii's gesture, throttle low and yaw right held
+   arm_hold_s (throttle low and yaw left held disarms) */
+enum { FC_ARM_SWITCH = 0, FC_ARM_STICKS = 1 };
+/* sbus_map: the standard scale (172..1811 -> -1..1); or MultiWii 2.4's (raw / 2 + 988 us, 1000..2000 us ->
+   -1..1), which a transmitter fills only when its SBUS values are stretched x1.25 about the centre */
+enum { FC_SBUS_STANDARD = 0, FC_SBUS_MULTIWII = 1 };
 
 void config_defaults(fc_config *c);
 /* The gain profiles, FC_PROFILES order (0 "default", 1 "seed002"): sets their gains; -1 when there is no

@@ -175,6 +175,7 @@ typedef struct {
 void sbus_parser_init(sbus_parser *p);
 /* Feeds bytes; returns 1 and fills *out when the last byte completed a valid frame (the newest wins). */
 int sbus_feed(sbus_parser *p, const uint8_t *data, size_t n, sbus_frame *out);
-real sbus_to_unit(uint16_t raw); /* 172..1811 -> -1..1 */
+real sbus_to_unit(uint16_t raw);          /* 172..1811 -> -1..1 */
+real sbus_to_unit_multiwii(uint16_t raw); /* as MultiWii 2.4 reads it: 1024 +- 1000 -> -1..1 */
 
 #endif

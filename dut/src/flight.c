@@ -166,22 +166,50 @@ void flight_rc(flight *f, const sbus_frame *frame, double t0)
     f->had_rc = 1;
 }
 
+/* A channel's stick position, -1..1, by the configured scale (config.h FC_SBUS_*) */
+static real stick(const flight *f, int ch)
+{
+    uint16_t raw = f->sticks.ch[ch];
+    return f->c->sbus_map == FC_SBUS_MULTIWII ? sbus_to_unit_multiwii(raw) : sbus_to_unit(raw);
+}
+
+/* MultiWii's arming gesture: throttle low and yaw right (its MINCHECK 1100 and MAXCHECK 1900 us: -0.8 and
+   0.8 of the stick) held arm_hold_s arms; throttle low and yaw left held as long disarms */
+static void arm_by_sticks(flight *f, double t0)
+{
+    real yaw = stick(f, 3);
+    int gesture = stick(f, 2) >= -0.8 ? 0 : yaw > 0.8 ? 1 : yaw < -0.8 ? -1 : 0;
+    if (gesture != f->gesture) {
+        f->gesture = gesture;
+        f->gesture_since = t0;
+    }
+    if (gesture == 0 || t0 - f->gesture_since < f->c->arm_hold_s)
+        return;
+    if (gesture > 0 && !f->c->defect_never_arm)
+        f->armed = 1;
+    if (gesture < 0)
+        f->armed = 0;
+}
+
 int flight_outer(flight *f, double t0)
 {
     const fc_config *c = f->c;
-    const sbus_frame *sticks = &f->sticks;
     int events = f->events;
     f->events = 0;
     int rc_ok = f->rc_ok = f->had_rc && t0 - f->last_rc < FLIGHT_RC_TIMEOUT_S;
-    real thr = (sbus_to_unit(sticks->ch[2]) + 1) / 2; /* 0..1 */
+    real thr = (stick(f, 2) + 1) / 2; /* 0..1 */
     if (rc_ok) {
         f->failsafe_since = -1;
-        int arm_switch = sbus_to_unit(sticks->ch[4]) > 0.5;
-        if (!f->armed && arm_switch && thr < 0.05 && !c->defect_never_arm)
-            f->armed = 1;
-        if (!arm_switch)
-            f->armed = 0;
-        f->alt_hold = sbus_to_unit(sticks->ch[5]) > 0.5;
+        if (c->arming == FC_ARM_STICKS) {
+            arm_by_sticks(f, t0);
+        } else {
+            int arm_switch = stick(f, 4) > 0.5;
+            if (!f->armed && arm_switch && thr < 0.05 && !c->defect_never_arm)
+                f->armed = 1;
+            if (!arm_switch)
+                f->armed = 0;
+        }
+        f->alt_hold = stick(f, 5) > 0.5;
     } else if (f->armed) {
         if (f->failsafe_since < 0) {
             f->failsafe_since = t0;
@@ -198,7 +226,7 @@ int flight_outer(flight *f, double t0)
     if (control_now)
         f->ctrl_phase -= 1.0;
     /* alt hold setpoint: the altitude where hold engaged, moved by RC ch7 (centre: no offset) */
-    real alt_offset = rc_ok ? sbus_to_unit(sticks->ch[6]) * c->alt_sp_range_m : 0;
+    real alt_offset = rc_ok ? stick(f, 6) * c->alt_sp_range_m : 0;
     if (rc_ok && f->alt_hold)
         f->alt_target = f->alt_base + alt_offset;
     const alt_filter *altf = &f->altf;
@@ -210,9 +238,11 @@ int flight_outer(flight *f, double t0)
         f->alt_target = altf->h;
         f->alt_base = altf->h - alt_offset; /* after recovery, hold where the descent ended */
     } else if (control_now && f->armed) {
-        real sp_roll = rc_ok ? sbus_to_unit(sticks->ch[0]) * c->max_angle_deg * M_PI / 180 : 0;
-        real sp_pitch = rc_ok ? sbus_to_unit(sticks->ch[1]) * c->max_angle_deg * M_PI / 180 : 0;
-        f->rate_sp[2] = rc_ok ? sbus_to_unit(sticks->ch[3]) * c->max_yaw_rate_dps * M_PI / 180 : 0;
+        real sp_roll = rc_ok ? stick(f, 0) * c->max_angle_deg * M_PI / 180 : 0;
+        real sp_pitch = rc_ok ? stick(f, 1) * c->max_angle_deg * M_PI / 180 : 0;
+        /* (the arming gesture's yaw is not a yaw command: with the throttle low, as MultiWii, none) */
+        int gesture_yaw = c->arming == FC_ARM_STICKS && f->gesture != 0;
+        f->rate_sp[2] = rc_ok && !gesture_yaw ? stick(f, 3) * c->max_yaw_rate_dps * M_PI / 180 : 0;
         f->rate_sp[0] = pid_step(&f->angle[0], sp_roll - f->att.roll, f->Tc); /* eq. 9 */
         f->rate_sp[1] = pid_step(&f->angle[1], sp_pitch - f->att.pitch, f->Tc);
         if (f->alt_hold) { /* eqs. 11-12, limited (eq. 14), in percent of the throttle range */

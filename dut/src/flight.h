@@ -49,6 +49,8 @@ typedef struct {
     vec3 last_gyro;
     real rate_sp[3], throttle; /* the outer loops' set points for the rate loop (rad/s) and throttle (us) */
     int inner_on;              /* armed, the gyro sound, set points computed: the rate loop runs */
+    int gesture;               /* FC_ARM_STICKS: the stick gesture held (1 arm, -1 disarm, 0 none) */
+    double gesture_since;      /* clock second it began */
     real out[4];
 } flight;
 

@@ -74,3 +74,7 @@ int sbus_feed(sbus_parser *p, const uint8_t *data, size_t n, sbus_frame *out)
 }
 
 real sbus_to_unit(uint16_t raw) { return clampd((raw - 992.0) / 819.5, -1.0, 1.0); }
+
+/* MultiWii 2.4's reading of an SBUS value (RX.cpp readSBus: ((raw) & 0x07FF) / 2 + SBUS_MID_OFFSET, the
+   offset 988 in its config.h, "SBUS Mid-Point at 1500"), then its 1000..2000 us as -1..1 */
+real sbus_to_unit_multiwii(uint16_t raw) { return clampd(((raw & 0x7FF) / 2 + 988 - 1500) / 500.0, -1.0, 1.0); }

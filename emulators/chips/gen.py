@@ -13,10 +13,11 @@ from pathlib import Path
 
 from rig.emulators import hmc5883l, mpu6050, ms5611
 from rig.emulators.registers import RegisterMap
+from rig.plant.artifacts import BUILD
 from rig.plant.native_build import write_text_if_changed
 
 REPO = Path(__file__).resolve().parents[2]
-OUT = REPO / "build" / "gen" / "chip_registers.h"
+OUT = BUILD / "gen" / "chip_registers.h"
 #: what the generated header is made from: it is rewritten when any of these changes
 SOURCES = (Path(__file__), REPO / "emulators" / "registers.py", REPO / "emulators" / "mpu6050.py",
            REPO / "emulators" / "hmc5883l.py", REPO / "emulators" / "ms5611.py")

@@ -49,6 +49,19 @@ const char *qr_check_params(const qr_params *p)
 #undef QR_CHECK
     if (!(p->esc_max_us > p->esc_min_us))
         return "esc_max_us must be > esc_min_us";
+    if (!(p->Ixx == QR_SEED_IXX && p->Iyy == QR_SEED_IYY && p->Izz == QR_SEED_IZZ)) {
+        /* a rigid body's principal moments: each at most the sum of the other two (seed 001's
+           Table 1 alone is exempt, see plant/variables.py) */
+        if (p->Ixx > (p->Iyy + p->Izz) * (1 + QR_TRIANGLE_SLACK))
+            return "Ixx must be <= Iyy + Izz (the triangle inequality of a rigid body's principal "
+                   "moments of inertia)";
+        if (p->Iyy > (p->Ixx + p->Izz) * (1 + QR_TRIANGLE_SLACK))
+            return "Iyy must be <= Ixx + Izz (the triangle inequality of a rigid body's principal "
+                   "moments of inertia)";
+        if (p->Izz > (p->Ixx + p->Iyy) * (1 + QR_TRIANGLE_SLACK))
+            return "Izz must be <= Ixx + Iyy (the triangle inequality of a rigid body's principal "
+                   "moments of inertia)";
+    }
     if (p->stand == QR_STAND_FREE && p->pd0 > 0)
         return "pd0 must be <= 0 in free flight (the ground is at pd = 0)";
     return NULL;
@@ -117,6 +130,8 @@ static void quat_normalize(double *q)
 double qr_esc_omega_cmd(const qr_params *p, int i, double pwm_us)
 {
     double pw = isfinite(pwm_us) ? clamp(pwm_us, p->esc_min_us, p->esc_max_us) : p->esc_min_us;
+    if (pw < p->esc_start_us)
+        return 0.0; /* below the ESC's start threshold the motor stands still */
     double u = (pw - p->esc_min_us) / (p->esc_max_us - p->esc_min_us);
     return p->omega_max * clamp(p->esc_gain[i] * u + p->esc_offset[i], 0.0, 1.0);
 }

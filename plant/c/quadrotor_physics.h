@@ -36,7 +36,8 @@ const char *qr_check_params(const qr_params *par);
 void qr_init_state(const qr_params *par, const qr_inputs *in, qr_state *s);
 
 /* Rotor speed the ESC commands for a pulse width: pulse widths are clamped into
- * [esc_min_us, esc_max_us] (as an ESC saturates); non-finite ones count as esc_min_us. */
+ * [esc_min_us, esc_max_us] (as an ESC saturates); non-finite ones count as esc_min_us. Below
+ * esc_start_us the ESC does not start the motor: the command is 0. */
 double qr_esc_omega_cmd(const qr_params *par, int motor, double pwm_us);
 
 /* Advances the state by dt (> 0) with RK4 sub-steps no longer than h_max_step; inputs are held

@@ -20,10 +20,11 @@ from pathlib import Path
 
 from rig.bridge import gen
 from rig.emulators.chips import gen as chips_gen
+from rig.plant.artifacts import BUILD
 from rig.plant.native_build import NativeBuildError, compile_c
 
 REPO = Path(__file__).resolve().parents[2]
-OUT = REPO / "build" / "firmware"
+OUT = BUILD / "firmware"
 ELF = OUT / "bridge.elf"
 SOURCES_DIRS = (REPO / "bridge" / "stm32g4", REPO / "bridge" / "core", REPO / "emulators" / "chips")
 LINKER_SCRIPT = REPO / "bridge" / "stm32g4" / "stm32g431.ld"

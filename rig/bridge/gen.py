@@ -15,9 +15,10 @@ from pathlib import Path
 from rig.bridge.messages import HOST_SILENT_US, MAX_FRAME, MESSAGES, PROTOCOL_VERSION, TYPES, Field, Message
 from rig.emulators.faults import BUS_KINDS, BUS_TARGETS, KINDS, TARGETS
 from rig.emulators.pwm_capture import CanCodec
+from rig.plant.artifacts import BUILD
 from rig.plant.native_build import write_text_if_changed
 
-OUT = Path(__file__).resolve().parents[2] / "build" / "gen" / "bridge_messages.h"
+OUT = BUILD / "gen" / "bridge_messages.h"
 SIZES = {"u8": 1, "u16": 2, "u32": 4, "u64": 8, "i16": 2, "i32": 4, "f32": 4}
 PRINTF = {"u8": "%u", "u16": "%u", "u32": "%lu", "u64": "%llu", "i16": "%d", "i32": "%ld", "f32": "%.9g"}
 CAST = {"u8": "unsigned", "u16": "unsigned", "u32": "unsigned long", "u64": "unsigned long long",

@@ -22,9 +22,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rig.bridge.port import BridgeError
+from rig.plant.artifacts import BUILD
 
-REPO = Path(__file__).resolve().parents[2]
-VBRIDGE = REPO / "build" / "vbridge"
+VBRIDGE = BUILD / "vbridge"
 KEYS = ("link", "board", "shm", "rc")
 
 

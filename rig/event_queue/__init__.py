@@ -16,7 +16,8 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any, Final, Protocol
 
-from rig.plant.native_build import BUILD, EXTENSION_SUFFIX, built_extension, compile_extension
+from rig.plant.artifacts import BUILD
+from rig.plant.native_build import EXTENSION_SUFFIX, built_extension, compile_extension
 
 HERE: Final = Path(__file__).resolve().parent
 SOURCES: Final = (HERE / "queue.c", HERE / "queue.h")

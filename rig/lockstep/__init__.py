@@ -29,8 +29,9 @@ from rig.emulators.chips.board import CHIP_BARO, CHIP_HMC, CHIP_MPU, BaroFeed, I
 from rig.emulators.dlpf import DLPF
 from rig.emulators.mpu6050 import CONFIG, SMPLRT_DIV
 from rig.emulators.sensor_models import BaroModel, ImuModel, MagModel, no_disturbance
+from rig.plant.artifacts import BUILD
 from rig.plant.fmu import _STEP_CALLS
-from rig.plant.native_build import BUILD, EXTENSION_SUFFIX, built_extension, compile_extension
+from rig.plant.native_build import EXTENSION_SUFFIX, built_extension, compile_extension
 from rig.plant.variables import MOTORS
 from rig.scenarios.result import I2CRecord
 from rig.scenarios.schema import Scenario

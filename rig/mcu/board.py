@@ -10,7 +10,8 @@ rig/mcu/boards/; ``--mcu NAME`` finds them by name, ``--mcu path/to/board.toml``
     [board]      name, description, mcu ("atmega2560" | "atmega328p"), clock_hz
     [sensors]    bus ("twi"), topology ("gy86" | "direct"), twi_hz, mounting_yaw_deg (0, 90, 180, 270)
     [[motors]]   motor (1..4: the plant's), pin ("PE4"), timer, channel ("A" | "B" | "C"),
-                 protocol ("pwm" | "oneshot125"), label ("D2": the board's silk-screen name)
+                 protocol ("pwm" | "oneshot125"), label ("D2": the board's silk-screen name); with no
+                 timer and channel, any port pin, its pulses measured from its edges
     [rc]         protocol ("sbus" | "ppm" | "msp"), uart (sbus, msp), baud (msp), pin (ppm)
     [telemetry]  uart, baud, format ("text": the reference FC's ``T t=… key=value`` lines)
     [eeprom]     image (a file of raw bytes, relative to the board file), or fc = true: built from the
@@ -55,8 +56,8 @@ class BoardError(ScenarioError):
 class MotorOut:
     motor: int      # 1..4, the plant's motor
     pin: str        # "PE4"
-    timer: int
-    channel: str    # "A" | "B" | "C"
+    timer: int | None  # None: measured from the pin's edges (software PWM on any port pin)
+    channel: str    # "A" | "B" | "C" ("" without a timer)
     protocol: str   # rig/bridge/esc.py ESC_PROTOCOLS
     label: str
 
@@ -200,14 +201,20 @@ def _uart(c: _BoardCheck, mcu: Mcu, data: dict[str, Any], path: str) -> int:
 def _motor(c: _BoardCheck, mcu: Mcu, data: Any, k: int) -> MotorOut:
     where = f"motors[{k}]"
     m = c.table(data, where, MOTOR_KEYS)
-    timer = c.integer(m, "timer", where, 0, 5)
-    channel = c.string(m, "channel", where, choices=("A", "B", "C"))
     pin = c.string(m, "pin", where).upper()
-    oc = mcu.oc_pins.get((timer, channel))
-    if oc is None:
-        raise c.fail(f"{where}.channel", f"the {mcu.name} has no OC{timer}{channel}")
-    if pin != oc:
-        raise c.fail(f"{where}.pin", f"OC{timer}{channel} of the {mcu.name} drives {oc}, not {pin}")
+    timer: int | None = None
+    channel = ""
+    if "timer" in m or "channel" in m:
+        timer = c.integer(m, "timer", where, 0, 5)
+        channel = c.string(m, "channel", where, choices=("A", "B", "C"))
+        oc = mcu.oc_pins.get((timer, channel))
+        if oc is None:
+            raise c.fail(f"{where}.channel", f"the {mcu.name} has no OC{timer}{channel}")
+        if pin != oc:
+            raise c.fail(f"{where}.pin", f"OC{timer}{channel} of the {mcu.name} drives {oc}, not {pin}")
+    elif len(pin) != 3 or pin[0] != "P" or pin[1] not in mcu.ports or pin[2] not in "01234567":
+        raise c.fail(f"{where}.pin", f"the {mcu.name} has no pin {pin}: P, a port letter ({mcu.ports}) and "
+                                     "a bit 0..7")
     return MotorOut(
         motor=c.integer(m, "motor", where, 1, 4),
         pin=pin,

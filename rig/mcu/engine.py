@@ -25,9 +25,10 @@ from typing import Any, Final
 from rig.emulators import native
 from rig.emulators.chips.board import ChipBoard
 from rig.mcu.board import Board
-from rig.mcu.image import FLASH, FirmwareError, load
+from rig.mcu.image import EEPROM, FLASH, FirmwareError, load
 from rig.mcu.mcus import MCUS
-from rig.plant.native_build import BUILD, compile_shared, is_stale
+from rig.plant.artifacts import BUILD
+from rig.plant.native_build import compile_shared, is_stale
 
 __all__ = ["AvrEngine", "EngineConfig", "FirmwareError", "Motor", "Stop", "config_for"]
 
@@ -114,6 +115,7 @@ _API: Final[dict[str, tuple[Any, list[Any]]]] = {
     "mcu_attach_chips": (None, [_P, _P, ctypes.POINTER(_Calls)]),
     "mcu_figure": (_U64, [_P, ctypes.c_int]),
     "mcu_peek": (_U8, [_P, _U16]),
+    "mcu_eeprom_read": (_U32, [_P, ctypes.POINTER(_U8), _U32]),
     "mcu_stock": (None, [_P, ctypes.c_int]),
     "mcu_fuses": (None, [_P, ctypes.c_bool]),
     "mcu_twi_last": (_U32, [_P, ctypes.POINTER(_Record)]),
@@ -123,6 +125,7 @@ _API: Final[dict[str, tuple[Any, list[Any]]]] = {
     "mcu_motor_add": (ctypes.c_bool, [_P, ctypes.c_int8, _U8, ctypes.c_char, _U8, _U16]),
     "mcu_pulses": (_U32, [_P, _U8, ctypes.POINTER(_U64), _U32]),
     "mcu_pulses_all": (_U32, [_P, ctypes.POINTER(_U64), _U32, ctypes.POINTER(_U32)]),
+    "mcu_motor_source": (_U32, [_P, _U8, ctypes.c_int]),
     "mcu_uart_define": (ctypes.c_bool, [_P, _U8, _U16]),
     "mcu_uart_send": (ctypes.c_bool, [_P, _U8, ctypes.c_char_p, _U32, _U32, ctypes.c_char, _U8]),
     "mcu_uart_take": (_U32, [_P, _U8, ctypes.POINTER(_U8), _U32]),
@@ -179,7 +182,8 @@ class EngineConfig:
 def config_for(board: Board, firmware: Path, eeprom: bytes | None = None, **limits: Any) -> EngineConfig:
     """The engine's configuration for a board file (rig/mcu/board.py): its MCU, clock, motors in the
     plant's order (1..4), fuses; ``limits``: EngineConfig's error limits (hang_ns, ...)."""
-    motors = tuple(Motor(m.pin, m.timer, m.channel) for m in sorted(board.motors, key=lambda m: m.motor))
+    motors = tuple(Motor(m.pin, m.timer, m.channel or "A")
+                   for m in sorted(board.motors, key=lambda m: m.motor))
     return EngineConfig(board.mcu.name, board.clock_hz, firmware, motors, eeprom=eeprom,
                         watchdog_always_on=board.watchdog_always_on, **limits)
 
@@ -388,6 +392,13 @@ class AvrEngine:
             if total < 64:
                 return out
 
+    def capture(self) -> list[dict[str, int]]:
+        """Per motor, how its pulses so far were measured: ``timer`` from the compare registers (the
+        compare output driving the pin), ``edges`` from the pin's edges (no timer, or the compare output
+        disconnected: the pin follows PORTx)."""
+        return [{"timer": int(self._lib.mcu_motor_source(self._e, i, 0)),
+                 "edges": int(self._lib.mcu_motor_source(self._e, i, 1))} for i in range(len(self.motors))]
+
     # ---- looking in ----
     def last_twi(self) -> list[TwiRecord]:
         buf = (_Record * 96)()
@@ -414,12 +425,21 @@ class AvrEngine:
         """A byte of the data space (registers, I/O, SRAM) as it is."""
         return int(self._lib.mcu_peek(self._e, addr))
 
+    def eeprom(self) -> bytes:
+        """The EEPROM as the firmware has left it, all of it (what the chip would keep at power-off)."""
+        buf = (_U8 * EEPROM[self.cfg.mcu])()
+        n = self._lib.mcu_eeprom_read(self._e, buf, len(buf))
+        if n != len(buf):
+            raise RuntimeError(f"simavr gave {n} bytes of the {self.cfg.mcu}'s {len(buf)}-byte EEPROM")
+        return ctypes.string_at(buf, n)
+
     def figures(self) -> dict[str, Any]:
         figs: dict[str, Any] = {name: int(self._lib.mcu_figure(self._e, i))
                                    for i, name in enumerate(FIGURES)}
         figs["sim_ns"] = self.now_ns
         figs["last_twi"] = format_transaction(self.last_twi())
         figs["uarts"] = {n: self.uart_counts(n) for n in self._uarts}
+        figs["motor_capture"] = self.capture()
         if self._stop is not None:
             figs["stop"] = self._stop.describe()
         return figs

@@ -409,3 +409,17 @@ MCU_API void mcu_stock(mcu_engine *e, int which)
 }
 
 MCU_API uint8_t mcu_peek(const mcu_engine *e, uint16_t addr) { return e->avr->data[addr]; }
+
+/* the EEPROM as the firmware left it, up to max bytes into out; returns how many (the MCU's EEPROM size,
+ * or less when max is; 0 when simavr would not give it) */
+MCU_API uint32_t mcu_eeprom_read(mcu_engine *e, uint8_t *out, uint32_t max)
+{
+    uint32_t size = e->avr->e2end + 1u < max ? e->avr->e2end + 1u : max;
+    /* (asked with no buffer, simavr 1.6 points ee at its own; its GET returns -1 even when it worked) */
+    avr_eeprom_desc_t d = { .ee = NULL, .offset = 0, .size = size };
+    avr_ioctl(e->avr, AVR_IOCTL_EEPROM_GET, &d);
+    if (!size || !d.ee)
+        return 0;
+    memcpy(out, d.ee, size);
+    return size;
+}

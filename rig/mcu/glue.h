@@ -101,6 +101,7 @@ typedef struct {
     mcu_pulse out[MCU_PULSES];
     uint16_t n_out;
     uint32_t dropped;
+    uint32_t from_timer, from_edges; /* pulses measured each way (pwm.c) */
 } mcu_motor;
 
 typedef struct {

@@ -248,3 +248,22 @@ def load(path: Path, mcu: str) -> Image:
         raise FirmwareError(f"{path}: no bytes for flash")
     _for_this_mcu(path, elf, image, mcu)
     return Image(image, _flatten(path, eeprom, EEPROM[mcu], "EEPROM") if eeprom else None)
+
+
+def load_eeprom(path: Path, mcu: str) -> bytes:
+    """An EEPROM image to preload: Intel HEX when the file is named so (avr-objcopy's ``.eep``, ``.hex``),
+    else raw bytes (as the run's eeprom.bin: a raw image may start with ':'), no bigger than the MCU's
+    EEPROM; raises FirmwareError."""
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise FirmwareError(f"{path}: cannot read it ({exc.strerror})") from None
+    if path.suffix.lower() in (".eep", ".hex", ".ihex"):
+        try:
+            chunks = _hex(path, data.decode("ascii"))
+        except UnicodeDecodeError:
+            raise FirmwareError(f"{path}: starts like Intel HEX but is not ASCII") from None
+        data = _flatten(path, chunks, EEPROM[mcu], "EEPROM")
+    elif len(data) > EEPROM[mcu]:
+        raise FirmwareError(f"{path}: the EEPROM image is {len(data)} bytes; the {mcu} has {EEPROM[mcu]}")
+    return data

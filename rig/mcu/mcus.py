@@ -32,6 +32,8 @@ class Mcu:
     avr_arch: int = 0
     #: the reset and interrupt vectors, each a 2-word JMP in avr-gcc's table
     vectors: int = 0
+    #: the I/O ports' letters (pins "PE4": port E, bit 4)
+    ports: str = ""
 
 
 MCUS: dict[str, Mcu] = {m.name: m for m in (
@@ -46,7 +48,7 @@ MCUS: dict[str, Mcu] = {m.name: m for m in (
         timers16=frozenset({1, 3, 4, 5}),
         usarts={0: ("PE0", "PE1"), 1: ("PD2", "PD3"), 2: ("PH0", "PH1"), 3: ("PJ0", "PJ1")},
         ints={0: "PD0", 1: "PD1", 2: "PD2", 3: "PD3", 4: "PE4", 5: "PE5", 6: "PE6", 7: "PE7"},
-        twi=("PD1", "PD0"), avr_arch=6, vectors=57,
+        twi=("PD1", "PD0"), avr_arch=6, vectors=57, ports="ABCDEFGHJKL",
     ),
     Mcu(
         "atmega328p", flash=32 * 1024, sram=2 * 1024, eeprom=1024,
@@ -55,6 +57,6 @@ MCUS: dict[str, Mcu] = {m.name: m for m in (
         timers16=frozenset({1}),
         usarts={0: ("PD0", "PD1")},
         ints={0: "PD2", 1: "PD3"},
-        twi=("PC4", "PC5"), avr_arch=5, vectors=26,
+        twi=("PC4", "PC5"), avr_arch=5, vectors=26, ports="BCD",
     ),
 )}

@@ -1,5 +1,5 @@
-/* Motor pulses as the pin shows them (glue.h). A motor on a timer's compare output gets its pulse from the
- * timer's registers as the hardware latches them: at BOTTOM in fast PWM and phase and frequency correct
+/* Motor pulses as the pin shows them (glue.h). A motor on a timer's compare output, while the compare unit
+ * drives the pin, gets its pulse from the timer's registers as the hardware latches them: at BOTTOM in fast PWM and phase and frequency correct
  * PWM, at TOP in phase correct PWM (the datasheets' "Update of OCRnx at"), by a glue event at each latch
  * point, so a compare value written between two latches lands exactly where the hardware puts it. simavr
  * 1.6 is not used for this: it lacks the phase correct modes and drives no pin edges in the modes it has as
@@ -7,8 +7,10 @@
  *   fast PWM, non-inverting: (OCR + 1) P, period (TOP + 1) P; inverting: (TOP - OCR) P
  *   phase correct, non-inverting: 2 OCR P centred on BOTTOM, period 2 TOP P
  *   phase and frequency correct, non-inverting: (OCR before BOTTOM + OCR after) P, period 2 TOP P
- * A pin that is not an output (its DDR bit clear) or a compare output disconnected (COM 0 or 1) gives no
- * pulse. A motor without a timer is measured from its pin's edges (software PWM). */
+ * A pin that is not an output (its DDR bit clear) gives no timer pulse. With its compare output
+ * disconnected (COMnx = 0, or 1 outside the toggle modes) the datasheets' words are "normal port operation,
+ * OCnx disconnected": the pin follows PORTx, and the motor is measured from its edges, as a motor without
+ * a timer always is (software PWM). */
 #include <string.h>
 
 #include <simavr/avr_ioport.h>
@@ -71,6 +73,7 @@ static void flush(mcu_engine *e, mcu_motor *m, uint64_t now, bool drop)
     if (!m->has_pending)
         return;
     if (m->pending.rise + m->pending.width <= now) {
+        m->from_timer++;
         push(e, m, m->pending);
         m->has_pending = false;
     } else if (drop) {
@@ -192,21 +195,44 @@ MCU_API void mcu_timer_define(mcu_engine *e, uint8_t n, bool wide, uint16_t tccr
     reconfigure(e, tm);
 }
 
+/* the compare unit drives the motor's pin (else the port does). The COMnx bits, as the timer chapters'
+ * "Compare Output Mode" tables give them (2549Q; the 328P's alike): 0 "normal port operation, OCnx
+ * disconnected"; 2, 3 the compare output in every mode; 1 toggles OCnx in the non-PWM modes, and in the
+ * PWM modes only OCnA's, with WGM 14, 15 (fast PWM), 9, 11 (phase correct) on a 16-bit timer, WGMn2 = 1
+ * on an 8-bit one (TOP = OCRnA) */
+static bool compare_drives(const mcu_engine *e, const mcu_motor *m)
+{
+    const mcu_timer *tm = &e->timers[m->timer];
+    uint8_t com = (uint8_t)(e->avr->data[tm->tccra] >> (6 - 2 * m->channel) & 3);
+    mode_t_ md = mode_of(tm);
+    if (com != 1)
+        return com != 0;
+    if (md.kind == NONE)
+        return true;
+    return m->channel == 0 && (md.top_from == OCRA || (md.kind == FAST && md.top_from == ICR));
+}
+
 static void pin_changed(struct avr_irq_t *irq, uint32_t value, void *param)
 {
     mcu_motor *m = param;
     mcu_engine *e = m->engine;
     uint64_t now = e->avr->cycle;
+    if (m->timer >= 0 && compare_drives(e, m)) { /* its pulses are the registers' */
+        m->edge_rise = m->edge_prev_rise = MCU_NEVER;
+        return;
+    }
     if (value && !irq->value) {
         m->edge_prev_rise = m->edge_rise;
         m->edge_rise = now;
     } else if (!value && irq->value && m->edge_rise != MCU_NEVER) {
         uint64_t period = m->edge_prev_rise == MCU_NEVER ? 0 : m->edge_rise - m->edge_prev_rise;
+        m->from_edges++;
         push(e, m, (mcu_pulse){ m->edge_rise, now - m->edge_rise, period });
     }
 }
 
-/* a motor: on timer `timer` channel 0..2, or (timer -1) on the pin's edges; false when there is no room */
+/* a motor: on timer `timer` channel 0..2 (its pin's edges while the compare output is disconnected), or
+ * (timer -1) on the pin's edges; false when there is no room */
 MCU_API bool mcu_motor_add(mcu_engine *e, int8_t timer, uint8_t channel, char port, uint8_t bit, uint16_t ddr)
 {
     if (e->n_motors == MCU_MOTORS)
@@ -220,14 +246,19 @@ MCU_API bool mcu_motor_add(mcu_engine *e, int8_t timer, uint8_t channel, char po
                       .ddr = ddr,
                       .edge_rise = MCU_NEVER,
                       .edge_prev_rise = MCU_NEVER };
-    if (timer < 0) {
-        avr_irq_t *irq = avr_io_getirq(e->avr, AVR_IOCTL_IOPORT_GETIRQ(port), bit);
-        if (!irq)
-            return false;
-        avr_irq_register_notify(irq, pin_changed, m);
-    }
+    avr_irq_t *irq = avr_io_getirq(e->avr, AVR_IOCTL_IOPORT_GETIRQ(port), bit);
+    if (!irq)
+        return false;
+    avr_irq_register_notify(irq, pin_changed, m);
     e->n_motors++;
     return true;
+}
+
+/* how many of the motor's pulses came from the timer's registers (0) or from its pin's edges (1) */
+MCU_API uint32_t mcu_motor_source(const mcu_engine *e, uint8_t motor, int edges)
+{
+    const mcu_motor *m = &e->motors[motor];
+    return edges ? m->from_edges : m->from_timer;
 }
 
 uint64_t mcu_pwm_next(const mcu_engine *e)

@@ -37,6 +37,7 @@ from rig.mcu.twi_log import TwiTransfers
 from rig.mcu.vcd import McuTrace
 from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, Stop
 from rig.session import Outcome
+from rig.telemetry import msp
 from rig.world import World
 
 TICK_NS: Final = 1_000_000
@@ -61,6 +62,8 @@ class McuConfig:
     sim_timeout: float = 600.0
     #: write the TWI transactions and the motor pins' edges here as VCD (rig/mcu/vcd.py)
     trace: Path | None = None
+    #: write the EEPROM as the firmware left it here, however the run ended (eeprom.bin)
+    eeprom_out: Path | None = None
 
 
 @dataclass
@@ -108,8 +111,15 @@ class McuSession:
 
     def serial_write(self, path: str, data: bytes) -> None:
         """The RC port's SBUS frames go to the board's RC input as its protocol has them: SBUS bytes
-        into the USART, or the same channels as a PPM sum on the pin or an MSP SET_RAW_RC frame."""
-        if path != self.cfg.rc_path or self.engine is None:
+        into the USART, or the same channels as a PPM sum on the pin or an MSP SET_RAW_RC frame. Bytes
+        for the telemetry port (an MSP poll) go into its USART as they are."""
+        if self.engine is None:
+            return
+        board = self.cfg.board
+        if path == self.cfg.telemetry_path:
+            self.engine.uart_send(board.telemetry_uart, data, board.telemetry_baud)
+            return
+        if path != self.cfg.rc_path:
             return
         rc = self.cfg.board.rc
         self.figures.rc_bytes += len(data)
@@ -123,7 +133,7 @@ class McuSession:
         us = [round(sbus_to_us(c)) for c in channels[:8]]
         if rc.protocol == "msp":
             assert rc.uart is not None
-            self.engine.uart_send(rc.uart, msp_set_raw_rc(us), rc.baud)
+            self.engine.uart_send(rc.uart, msp.set_raw_rc(us), rc.baud)
         else:
             self._ppm_channels = us
 
@@ -191,6 +201,8 @@ class McuSession:
             interrupted = False
         finally:
             self.figures_at_end = engine.figures()
+            if self.cfg.eeprom_out is not None:
+                self.cfg.eeprom_out.write_bytes(engine.eeprom())
             events = engine.twi_take()
             self.transfers.feed(events)
             self.transfers.finish()
@@ -270,12 +282,3 @@ def _sbus_channels(data: bytes) -> list[int] | None:
         return None
     return channels
 
-
-def msp_set_raw_rc(us: list[int]) -> bytes:
-    """An MSP v1 SET_RAW_RC (200) frame: ``$M<``, size, command, the channels little-endian, XOR."""
-    payload = b"".join(int(min(max(u, 0), 0xFFFF)).to_bytes(2, "little") for u in us)
-    body = bytes([len(payload), 200]) + payload
-    check = 0
-    for b in body:
-        check ^= b
-    return b"$M<" + body + bytes([check])

@@ -36,7 +36,8 @@ from types import ModuleType, TracebackType
 from typing import Any, Final, Protocol
 
 from rig.pace.late import LateCauses
-from rig.plant.native_build import BUILD, EXTENSION_SUFFIX, built_extension, compile_extension
+from rig.plant.artifacts import BUILD
+from rig.plant.native_build import EXTENSION_SUFFIX, built_extension, compile_extension
 
 SOURCE: Final = Path(__file__).resolve().with_name("pace.c")
 LIB: Final = BUILD / f"_rigpace{EXTENSION_SUFFIX}"

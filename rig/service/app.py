@@ -45,6 +45,9 @@ class RunRequest(BaseModel):
     dut: dict[str, str] = Field(default_factory=dict)
     mode: Literal["lockstep", "bridge"] = "lockstep"
     priority: int = Field(default=0, ge=-100, le=100)
+    #: a Linux DUT's board (rig run --pwm-channels, --topology; default 8 channels on a GY-86)
+    pwm_channels: int | None = Field(default=None, ge=1, le=16)
+    topology: Literal["gy86", "direct"] | None = None
     #: a bench run's selector: the labels its bench must have (rig serve --engine: docs/farm.md)
     bench: dict[str, str] | None = None
 
@@ -101,6 +104,11 @@ def check_run(req: RunRequest, store: Store, scenarios: bool = True) -> tuple[li
                 problems.append("dut.command is empty")
         except ValueError as e:
             problems.append(f"dut.command: {e}")
+    if req.mode == "bridge" and (req.pwm_channels is not None or req.topology is not None):
+        problems.append("pwm_channels and topology are a Linux DUT's board: not with mode bridge")
+    elif "board" in req.dut and (req.pwm_channels is not None or req.topology is not None):
+        problems.append("pwm_channels and topology are a Linux DUT's board: an AVR image's board file "
+                        "says them (dut.board)")
     return problems, versions
 
 
@@ -137,6 +145,13 @@ def firmware_problems(dut: dict[str, str], mode: str, store: Store) -> list[str]
     except FirmwareError as e:
         return [f"dut.firmware: {str(e).replace(str(path), sha[:12])}"]
     return []
+
+
+def dut_of(req: RunRequest) -> dict[str, str]:
+    """The DUT as the queue stores it: its program (command or firmware) and the board it sees."""
+    board = {k: str(v) for k, v in (("pwm_channels", req.pwm_channels), ("topology", req.topology))
+             if v is not None}
+    return {**req.dut, **board}
 
 
 def bench_problems(req: RunRequest, workers: Workers) -> list[str]:
@@ -302,7 +317,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         problems += bench_problems(req, workers)
         if problems:
             raise HTTPException(422, {"problems": problems})
-        run_id = db.submit(req.scenarios, req.seed, req.dut, req.mode, req.priority, versions=versions,
+        run_id = db.submit(req.scenarios, req.seed, dut_of(req), req.mode, req.priority, versions=versions,
                            bench=req.bench)
         workers.wake()
         return {"id": run_id}
@@ -398,6 +413,8 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         last = (found["status"] if seen is None else seen, found["progress"])
         while (found["status"], found["progress"]) == last and found["status"] not in TERMINAL \
                 and time.monotonic() < deadline:
+            if workers.stopped.is_set():  # a service stopping answers once its runs have ended (read
+                return db.get(run_id) or found  # after the stop: their end): no long poll holds it up
             time.sleep(WAIT_POLL_S)
             found = db.get(run_id) or found
         return found
@@ -437,6 +454,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         def stream() -> Iterator[str]:
             seen: tuple[object, object] | None = None
             while True:
+                stopping = workers.stopped.is_set()  # (before the read: the runs' end is the last event)
                 found = db.get(run_id)
                 if found is None:
                     return
@@ -444,7 +462,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
                 if now != seen:
                     seen = now
                     yield f"event: run\ndata: {json.dumps(found)}\n\n"
-                if found["status"] in TERMINAL:
+                if found["status"] in TERMINAL or stopping:
                     return
                 time.sleep(WAIT_POLL_S)
 

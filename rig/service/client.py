@@ -1,11 +1,11 @@
 """``rig submit`` and ``rig status``: the command line as a client of ``rig serve`` (docs/service.md).
 
 ``rig submit --server URL [SCENARIO…] [--seed N] [--dut CMD | --firmware FILE [--board BOARD]]
-[--bridge virtual] [--priority P] [--wait]`` queues a run and prints its id; with ``--wait`` it
-follows the run (one line per change of status or progress, on stderr) and exits as ``rig run``
-would: 0 passed, 1 failed, 3 error, 130 interrupted or cancelled. ``rig status --server URL [ID]``
-prints one run, or the latest ones. The token comes from ``--token`` or ``$RIG_TOKEN``. Only the
-standard library speaks HTTP here.
+[--pwm-channels N] [--topology T] [--bridge virtual] [--priority P] [--wait]`` queues a run and prints
+its id; with ``--wait`` it follows the run (one line per change of status or progress, on stderr) and
+exits as ``rig run`` would: 0 passed, 1 failed, 3 error, 130 interrupted or cancelled. ``rig status
+--server URL [ID]`` prints one run, or the latest ones. The token comes from ``--token`` or
+``$RIG_TOKEN``. Only the standard library speaks HTTP here.
 """
 
 from __future__ import annotations
@@ -89,6 +89,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--board", metavar="BOARD",
                    help="with --firmware: a shipped board's name (mega2560-gy86, ...) or a board file "
                    "(uploaded)")
+    s.add_argument("--pwm-channels", type=int, metavar="N", help="a Linux DUT's channels of pwmchip0 (1..16)")
+    s.add_argument("--topology", choices=["gy86", "direct"], help="a Linux DUT's I2C wiring (default gy86)")
     s.add_argument("--bridge", choices=["virtual"], help="run on the service's bench (the virtual bridge)")
     s.add_argument("--bench", metavar="k=v,...",
                    help="run on a farm's bench with these labels (docs/farm.md)")
@@ -139,6 +141,9 @@ def cmd_submit(args: argparse.Namespace) -> int:
     if problem is not None:
         print(f"rig submit: {problem}", file=sys.stderr)
         return EXIT_USAGE
+    for option in ("pwm_channels", "topology"):  # (checked by the service, which says why in a 422)
+        if getattr(args, option) is not None:
+            body[option] = getattr(args, option)
     run_id = None
     try:
         server_url(args.server)

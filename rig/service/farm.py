@@ -45,6 +45,7 @@ from rig.service.worker import (
     command,
     count_runs,
     results,
+    stopped_while_running,
     sweep_progress,
     sweep_results,
     why,
@@ -368,8 +369,9 @@ class Farm:
         except Exception:  # (the scheduler went away: the run is interrupted with it)
             pass
 
-    def stop(self) -> None:
-        """The service is stopping: the runs in flight are stopped on their workers and interrupted."""
+    def stop(self, why: str = "") -> None:
+        """The service is stopping (``why``: what stopped it, in words): the runs in flight are stopped on
+        their workers and interrupted."""
         self._stop = True
         for run_id in list(self._flights):
             self.cancel(run_id)
@@ -378,8 +380,7 @@ class Farm:
         for run_id in list(self._flights):
             self._flights.pop(run_id)
             self._forget(run_id)
-            self.db.finish(run_id, "interrupted", pid=None,
-                           error="the service stopped while this run was running")
+            self.db.finish(run_id, "interrupted", pid=None, error=stopped_while_running(why))
         if self._client is not None:
             try:
                 self._client.close(timeout=CONNECT_S)
@@ -470,8 +471,7 @@ class Farm:
                 except Exception:  # (KeyError: not published, i.e. not on the cluster any more)
                     self._set(run_id)
             if future is None:
-                self.db.finish(run_id, "interrupted", pid=None,
-                               error="the service stopped while this run was running")
+                self.db.finish(run_id, "interrupted", pid=None, error=stopped_while_running())
                 continue
             bench = run.get("bench_name")
             future.add_done_callback(lambda _: self.wake())

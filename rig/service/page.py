@@ -21,12 +21,12 @@ from fastapi.templating import Jinja2Templates
 from pydantic import ValidationError
 
 from rig import __version__
+from rig.reports.html_report import UPLOT  # the reports' copy: vendored once
 from rig.service.db import STATUSES, TERMINAL, Db
 from rig.service.store import MAX_SCENARIO, Store
 from rig.service.worker import Workers
 
 HERE = Path(__file__).resolve().parent
-UPLOT = HERE.parents[1] / "reports" / "vendor" / "uplot"  # the reports' copy: vendored once
 
 
 def _utc(t: float) -> str:

@@ -5,18 +5,50 @@ from __future__ import annotations
 import argparse
 import ipaddress
 import os
+import signal
 import sys
 import threading
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from rig.service.worker import Workers
 
 DEFAULT_PORT = 8300
 EXIT_INTERRUPTED = 130
+#: how long uvicorn waits, once the runs have ended, for its requests under way before it cancels them
+SHUTDOWN_GRACE_S = 3
 
 
 def authority(host: str, port: int) -> str:
     """HOST:PORT as a URL writes it: an IPv6 address in brackets (``[::1]:8300``)."""
     return f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
+
+
+def stopping_server(config: Any, workers: Workers) -> Any:
+    """uvicorn's server, whose first Ctrl-C (or SIGTERM) stops the runs at once, then shuts uvicorn down:
+    uvicorn alone first waited for its connections, a client's ``?wait=30`` long poll among them, and
+    only then were the runs stopped (a DUT was still alive 5 s after the Ctrl-C). The long polls answer
+    once the runs have ended (app.py); a request still under way SHUTDOWN_GRACE_S later is cancelled."""
+    import asyncio
+
+    import uvicorn
+
+    class Server(uvicorn.Server):
+        why = ""
+
+        def handle_exit(self, sig: int, frame: Any) -> None:
+            if not self.should_exit:  # (in the signal handler: the runs are stopped in a thread)
+                self.why = "Ctrl-C" if sig == signal.SIGINT else signal.Signals(sig).name
+                threading.Thread(target=workers.stop, args=(self.why,), name="stop-runs", daemon=True).start()
+            super().handle_exit(sig, frame)
+
+        async def shutdown(self, sockets: Any = None) -> None:
+            await asyncio.to_thread(workers.stop, self.why)  # (the runs' end first; waits for the above)
+            await super().shutdown(sockets)
+
+    return Server(config)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -162,8 +194,9 @@ def main(args: argparse.Namespace) -> int:
               file=sys.stderr, flush=True)
     workers.start()
     app = create_app(db, workers, args.token, store, args.data / "runs")
-    config = uvicorn.Config(app, host=args.host, port=args.port, log_level="warning")
-    server = uvicorn.Server(config)
+    config = uvicorn.Config(app, host=args.host, port=args.port, log_level="warning",
+                            timeout_graceful_shutdown=SHUTDOWN_GRACE_S)
+    server = stopping_server(config, workers)
 
     def announce() -> None:  # the line a test or a supervisor waits for, once the socket listens
         while not server.started and not server.should_exit:

@@ -45,6 +45,12 @@ PINNED: Final = ".scenarios"
 STATUS_BY_EXIT: Final = {0: "passed", 1: "failed", 130: "interrupted", 143: "interrupted"}
 
 
+def stopped_while_running(why: str = "") -> str:
+    """A run's error when the service stopped under it; ``why``: what stopped it ("Ctrl-C", "SIGTERM")."""
+    return f"the service was stopped ({why}) while this run was running" if why else \
+        "the service stopped while this run was running"
+
+
 def _die_with_parent() -> None:  # (runs in the child between fork and exec)
     ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
 
@@ -65,6 +71,9 @@ def command(run: dict[str, Any], out: Path, store: Store) -> tuple[list[str], di
     cmd = [sys.executable, "-m", "rig.cli", "run", *files, "--seed", str(run["seed"]), "--out", str(out)]
     if run["mode"] == "bridge":
         cmd += ["--bridge", "virtual"]
+    for option in ("pwm_channels", "topology"):  # (a Linux DUT's board: app.dut_of)
+        if run["dut"].get(option):
+            cmd += ["--" + option.replace("_", "-"), run["dut"][option]]
     if run["dut"].get("command"):
         cmd += ["--dut", run["dut"]["command"]]
     elif run["dut"].get("firmware"):
@@ -177,6 +186,10 @@ class Workers:
             lockstep_slots = 0
         self._wake = threading.Condition()
         self._stop = False
+        self._why = ""
+        self._stopping = threading.Lock()
+        #: set once stop() has ended every run under way (the API's long polls and event streams end then)
+        self.stopped = threading.Event()
         self._procs: dict[int, subprocess.Popen[bytes]] = {}
         self._threads = [threading.Thread(target=self._loop, args=(mode,), daemon=True, name=f"{mode}-{k}")
                          for mode, n in (("lockstep", lockstep_slots), ("bridge", benches)) for k in range(n)]
@@ -193,16 +206,22 @@ class Workers:
         if self.farm is not None:
             self.farm.wake()
 
-    def stop(self) -> None:
-        """The service is stopping: the runs under way end (interrupted, as at a restart)."""
-        self._stop = True
-        for proc in list(self._procs.values()):
-            _end(proc)
-        self.wake()
-        for t in self._threads:
-            t.join(timeout=KILL_GRACE_S + 1)
-        if self.farm is not None:
-            self.farm.stop()
+    def stop(self, why: str = "") -> None:
+        """The service is stopping (``why``: what stopped it, in words, for the runs' errors): the runs
+        under way end at once, interrupted as at a restart (every rig run asked together, SIGKILLed after
+        a grace), then ``stopped`` is set. ``rig serve`` calls it on the signal, before uvicorn waits for
+        its connections; a second call waits for the first."""
+        with self._stopping:
+            if self.stopped.is_set():
+                return
+            self._why, self._stop = why, True
+            _end(*list(self._procs.values()))
+            self.wake()
+            for t in self._threads:
+                t.join(timeout=KILL_GRACE_S + 1)
+            if self.farm is not None:
+                self.farm.stop(why)
+            self.stopped.set()
 
     def cancel(self, run_id: int) -> None:
         proc = self._procs.get(run_id)
@@ -297,20 +316,28 @@ class Workers:
         found = sweep_results(out, *next(iter(flown.items()))) if sweep else results(out, run["scenarios"])
         error = None if status in ("passed", "failed") else why(what, code, out / "rig-run.log", found)
         if self._stop:
-            status, error = "interrupted", "the service stopped while this run was running"
+            status, error = "interrupted", stopped_while_running(self._why)
         self.db.finish(run["id"], status, exit_code=code, error=error, progress=100.0, pid=None,
                        results=found)
 
 
-def _end(proc: subprocess.Popen[bytes]) -> None:
-    """SIGTERM to the run's session (rig run stops its DUT and writes its reports), SIGKILL after a grace."""
-    try:
-        os.killpg(proc.pid, signal.SIGTERM)
-        proc.wait(timeout=KILL_GRACE_S)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-    except ProcessLookupError:
-        pass
+def _end(*procs: subprocess.Popen[bytes]) -> None:
+    """SIGTERM to each run's session (rig run stops its DUT and writes its reports), all at once; SIGKILL
+    to those still there after a grace."""
+    for proc in procs:
+        try:
+            os.killpg(proc.pid, signal.SIGTERM)
+        except ProcessLookupError:
+            pass
+    deadline = time.monotonic() + KILL_GRACE_S
+    for proc in procs:
+        try:
+            proc.wait(timeout=max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
 
 
 def ended(what: str, code: int, log: Path) -> str:

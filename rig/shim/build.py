@@ -12,17 +12,17 @@ import os
 import sys
 from pathlib import Path
 
+from rig.plant.artifacts import BUILD
 from rig.plant.native_build import NativeBuildError, compile_c, compile_shared, is_stale
 
 SHIM_DIR = Path(__file__).resolve().parent
-REPO_ROOT = SHIM_DIR.parent.parent
 KEEPER_SOURCE = SHIM_DIR / "keeper.c"
 #: The shim's sources, the one file compiled first: rigshim.c includes every other .c here but the
 #: keeper's (one translation unit), and protocol.h. All of them decide whether the library is stale.
 SOURCES = (SHIM_DIR / "rigshim.c",
            *sorted(p for p in SHIM_DIR.glob("*.[ch]") if p.name not in ("rigshim.c", KEEPER_SOURCE.name)))
-DEFAULT_OUT = REPO_ROOT / "build" / "librigshim.so"
-KEEPER = REPO_ROOT / "build" / "rig-keeper"
+DEFAULT_OUT = BUILD / "librigshim.so"
+KEEPER = BUILD / "rig-keeper"
 
 
 def build(out: Path = DEFAULT_OUT, cc: str | None = None) -> Path:

@@ -40,6 +40,9 @@ EXPORT ssize_t read(int fd, void *buf, size_t n)
     struct fake *f = fake_of(fd);
     if (f)
         return fake_read(f, buf, n, &f->pos);
+    struct vtimer *t = vtimer_of(fd);
+    if (t)
+        return timer_read(t, buf, n);
     catch_up();
     return LOAD(read)(fd, buf, n);
 }
@@ -168,6 +171,122 @@ EXPORT ssize_t sendfile64(int out, int in, off64_t *off, size_t count)
     return LOAD(sendfile64)(out, in, off, count);
 }
 
+/* ---------------------------------------------------------------- writes through libc's other doors */
+
+/* writev: the iovec array copied in as the kernel copies it (EINVAL for a count outside 0..IOV_MAX,
+   EFAULT for an array it cannot read); then the kind's gather decides: one write of the pieces joined
+   (sysfs: a page at most, as kernfs's write_iter), or one write per piece up to the first short or
+   failed one (the VFS's loop for a driver with only .write, i2c-dev: each piece its own message). */
+#define IOV_LIMIT 1024 /* UIO_MAXIOV */
+static ssize_t fake_writev(struct fake *f, const struct iovec *uiov, int n)
+{
+    static __thread struct iovec iov[IOV_LIMIT];
+    if (n < 0 || n > IOV_LIMIT)
+        return errno_ret(EINVAL);
+    if (n && copy_in(iov, uiov, (size_t)n * sizeof *iov))
+        return errno_ret(EFAULT);
+    if (kinds[f->t.kind].gather) {
+        char joined[SYSFS_PAGE];
+        size_t len = 0;
+        for (int i = 0; i < n && len < sizeof joined; i++) {
+            size_t k = iov[i].iov_len < sizeof joined - len ? iov[i].iov_len : sizeof joined - len;
+            if (k && copy_in(joined + len, iov[i].iov_base, k))
+                return errno_ret(EFAULT);
+            len += k;
+        }
+        return fake_write(f, joined, len);
+    }
+    ssize_t total = 0;
+    for (int i = 0; i < n; i++) {
+        if (!iov[i].iov_len)
+            continue;
+        ssize_t k = fake_write(f, iov[i].iov_base, iov[i].iov_len);
+        if (k < 0)
+            return total ? total : -1;
+        total += k;
+        if ((size_t)k < iov[i].iov_len)
+            break;
+    }
+    return total;
+}
+
+EXPORT ssize_t writev(int fd, const struct iovec *iov, int n)
+{
+    struct fake *f = fake_of(fd);
+    return f ? fake_writev(f, iov, n) : LOAD(writev)(fd, iov, n);
+}
+
+/* dprintf and vdprintf (and their fortified forms): the text formatted, then written as glibc's
+   vdprintf writes it (whole, again after a short write); -1 with the device's errno on an error. */
+static int fake_vdprintf(struct fake *f, const char *fmt, va_list ap)
+{
+    char small[256], *text = small;
+    va_list again;
+    va_copy(again, ap);
+    int n = vsnprintf(small, sizeof small, fmt, ap);
+    if (n >= (int)sizeof small && vasprintf(&text, fmt, again) < 0)
+        n = -1;
+    va_end(again);
+    for (int done = 0; n >= 0 && done < n;) {
+        ssize_t k = fake_write(f, text + done, (size_t)(n - done));
+        if (k <= 0)
+            n = -1;
+        else
+            done += (int)k;
+    }
+    if (text != small) {
+        int saved = errno;
+        free(text);
+        errno = saved;
+    }
+    return n;
+}
+
+EXPORT int vdprintf(int fd, const char *fmt, va_list ap)
+{
+    struct fake *f = fake_of(fd);
+    return f ? fake_vdprintf(f, fmt, ap) : LOAD(vdprintf)(fd, fmt, ap);
+}
+
+EXPORT int dprintf(int fd, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vdprintf(fd, fmt, ap);
+    va_end(ap);
+    return n;
+}
+
+EXPORT int __vdprintf_chk(int fd, int flag, const char *fmt, va_list ap)
+{
+    struct fake *f = fake_of(fd);
+    return f ? fake_vdprintf(f, fmt, ap) : LOAD(__vdprintf_chk)(fd, flag, fmt, ap);
+}
+
+EXPORT int __dprintf_chk(int fd, int flag, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    int n = __vdprintf_chk(fd, flag, fmt, ap);
+    va_end(ap);
+    return n;
+}
+
+/* fdopen on a fake descriptor: a stream through the shim (fake_stream), refused as glibc refuses a mode
+   the descriptor's access mode does not allow (EINVAL). */
+EXPORT FILE *fdopen(int fd, const char *mode)
+{
+    if (!fake_of(fd))
+        return LOAD(fdopen)(fd, mode);
+    int acc = LOAD(fcntl)(fd, F_GETFL) & O_ACCMODE;
+    int wants_read = mode[0] == 'r' || strchr(mode, '+'), wants_write = mode[0] != 'r' || strchr(mode, '+');
+    if ((wants_read && acc == O_WRONLY) || (wants_write && acc == O_RDONLY)) {
+        errno = EINVAL;
+        return NULL;
+    }
+    return fake_stream(fd, mode);
+}
+
 /* ---------------------------------------------------------------- open and fopen */
 
 #define OPEN_MODE(flags, mode)                   \
@@ -258,8 +377,7 @@ static FILE *kind_fopen(const char *path, const struct target *t, const char *mo
     int fd = kind_open(t, flags, 0);
     if (fd < 0)
         return NULL;
-    cookie_io_functions_t io = { cookie_read, cookie_write, cookie_seek, cookie_close };
-    FILE *fp = fopencookie((void *)(intptr_t)fd, mode, io);
+    FILE *fp = fake_stream(fd, mode);
     if (!fp)
         close(fd);
     return fp;

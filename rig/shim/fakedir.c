@@ -22,7 +22,7 @@ static struct fake_dir *fake_dir_of(DIR *d)
 {
     if (!__atomic_load_n(&n_fake_dirs, __ATOMIC_ACQUIRE))
         return NULL;
-    pthread_mutex_lock(&lock);
+    LOAD(pthread_mutex_lock)(&lock);
     struct fake_dir *p = fake_dirs;
     while (p && (DIR *)p != d)
         p = p->next;
@@ -47,7 +47,7 @@ static DIR *dir_open(int fd, const struct target *t)
     d->fd = fd;
     d->t = *t;
     dir_rewind(d);
-    pthread_mutex_lock(&lock);
+    LOAD(pthread_mutex_lock)(&lock);
     d->next = fake_dirs;
     fake_dirs = d;
     __atomic_add_fetch(&n_fake_dirs, 1, __ATOMIC_RELEASE);
@@ -80,7 +80,7 @@ EXPORT int closedir(DIR *dir)
     struct fake_dir *d = fake_dir_of(dir);
     if (!d)
         return LOAD(closedir)(dir);
-    pthread_mutex_lock(&lock);
+    LOAD(pthread_mutex_lock)(&lock);
     for (struct fake_dir **p = &fake_dirs; *p; p = &(*p)->next)
         if (*p == d) {
             *p = d->next;

@@ -30,7 +30,7 @@ static int set_fake(int fd, struct fake *f)
         free(f);
         return 0;
     }
-    pthread_mutex_lock(&lock);
+    LOAD(pthread_mutex_lock)(&lock);
     free(fakes[fd]);
     fakes[fd] = f;
     pthread_mutex_unlock(&lock);
@@ -43,7 +43,7 @@ static int set_fake(int fd, struct fake *f)
    it, and it says what it is across exec, where this table is lost: a shell opens the attribute and
    dup2s it onto 1, then execs echo, whose shim finds the fake again from /proc/self/fd
    (adopt_inherited_fakes). The file keeps the access mode asked for. The shim never writes to it:
-   bytes there came through a call it cannot see (a raw syscall, writev, dprintf), and the session
+   bytes there came through a call it cannot see (a raw syscall, pwritev), and the session
    reports them. Without RIG_FAKES (an older session) the descriptor is onto /dev/null. */
 static void backing_name(const struct target *t, char *buf, size_t n)
 {
@@ -86,7 +86,7 @@ static int open_fake(const struct target *t, int flags)
     if (set_fake(fd, f)) {
         /* Opening an emulated device is touching the devices, even when all that follows is a read or
            a write the kernel refuses (neither sends anything): connect, so the session knows. */
-        pthread_mutex_lock(&lock);
+        LOAD(pthread_mutex_lock)(&lock);
         ensure_connected();
         pthread_mutex_unlock(&lock);
     }
@@ -176,11 +176,20 @@ static int cookie_seek(void *c, off64_t *off, int whence)
 }
 static int cookie_close(void *c) { return close((int)(intptr_t)c); }
 
+/* A stream on fake descriptor fd (fopen's, fdopen's): its reads and writes reach the device, and
+   fclose closes fd. */
+static FILE *fake_stream(int fd, const char *mode)
+{
+    cookie_io_functions_t io = { cookie_read, cookie_write, cookie_seek, cookie_close };
+    return fopencookie((void *)(intptr_t)fd, mode, io);
+}
+
 EXPORT int close(int fd)
 {
     if (active && fd == sock && sock_pid == self_pid())
         return 0; /* a program closing every descriptor must not cut us off from the session */
     drop_fake(fd);
+    timer_closed(fd);
     return LOAD(close)(fd);
 }
 
@@ -342,7 +351,7 @@ static void std_sync(int fd)
         return;
     struct std_stream *s = &stds[fd];
     FILE **var = std_var(fd);
-    pthread_mutex_lock(&std_lock);
+    LOAD(pthread_mutex_lock)(&std_lock);
     if (fake_of(fd) && !s->swapped) {
         FILE *cur = *var; /* only the stream that is on this descriptor (a program may point stdout elsewhere) */
         if (cur && cur != s->cookie && fileno(cur) == fd && (s->cookie || (s->cookie = std_cookie(fd, cur)))) {

@@ -87,7 +87,7 @@ static int i2c_transfer(struct fake *f, struct i2c_msg *msgs, unsigned n)
             data += msgs[i].len;
         }
     }
-    pthread_mutex_lock(&lock);
+    LOAD(pthread_mutex_lock)(&lock);
     uint64_t now = now_peek();
     if (lockstep && rig_ack_promised(shm->acks, (uint16_t)f->t.bus, n, msgs[0].addr, msgs[0].flags, msgs[0].len,
                                      now)) { /* a promised write: a notice, held with the others, no round trip */

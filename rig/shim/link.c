@@ -372,7 +372,7 @@ static struct rig_hdr request(uint16_t type, const void *payload, uint32_t len, 
 
 static void notice(uint16_t type, const void *payload, uint32_t len)
 {
-    pthread_mutex_lock(&lock);
+    LOAD(pthread_mutex_lock)(&lock);
     ensure_connected();
     hold_msg(type, payload, len);
     pthread_mutex_unlock(&lock);

@@ -59,6 +59,8 @@ struct kind_ops {
     off_t (*seek)(struct fake *f, off_t off, int whence);                    /* moves the read position */
     int (*ioctl)(struct fake *f, unsigned long req, unsigned long arg);      /* ENOTTY */
     int sendfile; /* 1: sendfile copies to and from it through read and write (0: EINVAL, as i2c-dev) */
+    int gather;   /* 1: writev is one write of its pieces joined (kernfs's write_iter, a page at most);
+                     0: one write per piece, as the VFS does for a driver with only .write (i2c-dev) */
 
     /* A directory's listing: the state it starts from, taken when a stream opens or rewinds, and its
        entry i in that state (0: past the end). NULL dir_entry: not a directory. */

@@ -4,7 +4,7 @@
  *
  * Transport: one Unix stream socket connection per DUT process. Every message is a 16-byte header
  * and `len` bytes of payload, little-endian. Requests that need an answer (HELLO, I2C, WAIT) get
- * exactly one reply of the same type; notices (PWM, NOTE) get none, so they cost the DUT no round
+ * exactly one reply of the same type; notices (PWM, NOTE, I2C_WRITE, STALL) get none, so they cost the DUT no round
  * trip. Clock reads cost no message at all: the session publishes sim time in a shared page. In
  * lockstep a connection's messages after HELLO may go through a mailbox in shared memory instead
  * (ring.h): the same bytes, through two byte rings and a futex.
@@ -14,7 +14,7 @@
 
 #include <stdint.h>
 
-#define RIG_PROTOCOL_VERSION 4u
+#define RIG_PROTOCOL_VERSION 5u
 #define RIG_MAX_PAYLOAD 65536u
 
 struct rig_hdr {
@@ -40,6 +40,10 @@ enum {
        promised acknowledges (rig_shm.acks). The shim has answered the DUT itself (success, no bus time);
        the session transfers it at its time, and a promise broken ends the run in an error. */
     RIG_MSG_I2C_WRITE = 6,
+    /* notice; payload: text naming a DUT thread that spins (threads.c): it ran on past a second of
+       virtual time without a wait the shim knows while another thread was due. The session ends the
+       run as its stall watchdog does, with this text. */
+    RIG_MSG_STALL = 7,
 };
 
 struct rig_i2c_msg {

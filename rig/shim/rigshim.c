@@ -16,6 +16,10 @@
  *   real_libc.c  the real functions behind the interposed ones (LOAD), errno_ret
  *   link.c       the socket to the session: connect, send, request, notice (held in lockstep), note
  *   vtime.c      virtual time: the clocks, the sleeps, the poll family's timeouts
+ *   priorities.c real-time policies and mlockall: recorded, not applied, in lockstep
+ *   vtimers.c    virtual timers: timerfd, alarm and setitimer on the session's clock
+ *   threads.c    many threads in one virtual time: the rule that picks who runs; thread lifetimes
+ *   sync.c       mutexes, read-write locks, condition variables, semaphores, barriers under the rule
  *   usermem.c    the caller's memory copied as the kernel copies it (EFAULT, never a crash)
  *   paths.c      what a path names (classify: a target), the shape of a device kind (struct kind_ops)
  *   fdtable.c    fake descriptors: the table, backing files, adoption after exec, close/dup/fcntl, stdio
@@ -54,6 +58,9 @@
 #include <linux/i2c.h>
 #include <poll.h>
 #include <pthread.h>
+#include <sched.h>
+#include <semaphore.h>
+#include <signal.h>
 #include <spawn.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -63,6 +70,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/epoll.h>
+#include <sys/eventfd.h>
 #include <sys/mman.h>
 #include <sys/select.h>
 #include <sys/sendfile.h>
@@ -71,6 +79,7 @@
 #include <sys/syscall.h>
 #include <sys/sysmacros.h>
 #include <sys/time.h>
+#include <sys/timerfd.h>
 #include <sys/uio.h>
 #include <sys/un.h>
 #include <sys/wait.h>
@@ -110,6 +119,10 @@ static pid_t self_pid(void)
 #include "real_libc.c"
 #include "link.c"
 #include "vtime.c"
+#include "priorities.c"
+#include "vtimers.c"
+#include "threads.c"
+#include "sync.c"
 #include "usermem.c"
 // clang-format on
 
@@ -167,6 +180,7 @@ static const struct kind_ops kinds[N_KINDS] = {
         .read = pwm_attr_read,
         .write = pwm_attr_write,
         .sendfile = 1,
+        .gather = 1,
     },
     [K_PWM_DIR] = {
         .name = pwm_dir_name,
@@ -191,6 +205,7 @@ static void after_fork_child(void)
 {
     own_pid = getpid();
     reset_std_lock();
+    threads_after_fork();
 }
 
 __attribute__((constructor)) static void shim_init(void)
@@ -226,6 +241,7 @@ __attribute__((constructor)) static void shim_init(void)
     if (fk && fk[0] == '/' && strlen(fk) < sizeof fakes_dir - 64)
         strcpy(fakes_dir, fk);
     own_pid = getpid();
+    threads_init();
     pthread_atfork(send_held_now, NULL, after_fork_child);
     active = 1;
     adopt_inherited_fakes();

@@ -191,7 +191,7 @@ static ssize_t pwm_attr_write(struct fake *f, const void *buf, size_t n)
     const char *s = (const char *)xfer_buf;
     uint64_t v = 0;
     struct rig_pwm_msg msg = { .chip = (uint16_t)pwm_chip, .channel = (uint16_t)(f->t.channel < 0 ? 0 : f->t.channel) };
-    pthread_mutex_lock(&lock);
+    LOAD(pthread_mutex_lock)(&lock);
     int err = 0;
     struct rig_pwm_state *p = f->t.channel >= 0 ? &shm->pwm[f->t.channel] : NULL;
     switch ((enum pwm_attr)f->t.attr) {

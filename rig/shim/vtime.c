@@ -41,6 +41,20 @@ static int64_t clock_base(clockid_t id)
 
 static uint32_t wait_until(uint64_t wake_ns, uint32_t kind);
 
+/* A time on a static clock (ns since its epoch) as sim time (0: at or before sim time 0). */
+static uint64_t sim_time_on(clockid_t id, uint64_t abs_ns)
+{
+    int64_t base = clock_base(id);
+    return base >= 0 && abs_ns > (uint64_t)base ? abs_ns - (uint64_t)base : 0;
+}
+
+/* threads.c and vtimers.c, included after this part: the rule for many threads and virtual timers */
+static int ruled(void);
+static int rule_wait(uint64_t deadline, int (*can_go)(void *), void *arg, int outside);
+static void spin_check(uint64_t now);
+static void fire_timers(void);
+static uint64_t timers_due;
+
 _Static_assert(offsetof(struct rig_shm, limit_ns) == RIG_SHM_LIMIT_OFFSET, "RIG_SHM_LIMIT_OFFSET is wrong");
 _Static_assert(offsetof(struct rig_shm, acks) == RIG_SHM_ACKS_OFFSET, "RIG_SHM_ACKS_OFFSET is wrong");
 
@@ -54,6 +68,9 @@ static uint64_t now_tick(void)
     uint64_t limit = __atomic_load_n(&shm->limit_ns, __ATOMIC_RELAXED);
     if (limit && t >= limit)
         wait_until(t, RIG_WAIT_SLEEP);
+    if (t >= timers_due)
+        fire_timers(); /* (a virtual timer due: its count, or its signal in this thread) */
+    spin_check(t);
     return t;
 }
 
@@ -76,7 +93,7 @@ static uint32_t wait_until(uint64_t wake_ns, uint32_t kind)
 {
     struct wait_req req = { wake_ns, kind, 0 };
     uint32_t reason = RIG_WAKE_DEADLINE;
-    pthread_mutex_lock(&lock);
+    LOAD(pthread_mutex_lock)(&lock);
     struct rig_hdr h = request(RIG_MSG_WAIT, &req, sizeof req, &reason, sizeof reason);
     clock_advance_to(h.t_ns);
     pthread_mutex_unlock(&lock);
@@ -88,11 +105,11 @@ static uint32_t wait_until(uint64_t wake_ns, uint32_t kind)
    round trip, which in a control loop (read sensors, write motors, sleep) is one of two per cycle.
    A second sleep in a row waits for the session as before, so a DUT that only sleeps cannot run ahead
    of it. Whatever the DUT looks at next syncs first (catch_up). */
-static void sleep_until(uint64_t wake_ns)
+static void sleep_session(uint64_t wake_ns)
 {
     if (now_peek() < wake_ns && !__atomic_load_n(&ahead, __ATOMIC_ACQUIRE)) {
         struct wait_req req = { wake_ns, RIG_WAIT_AHEAD, 0 };
-        pthread_mutex_lock(&lock);
+        LOAD(pthread_mutex_lock)(&lock);
         ensure_connected();
         hold_msg(RIG_MSG_WAIT, &req, sizeof req); /* stamped with the time the sleep began */
         clock_advance_to(wake_ns);
@@ -102,6 +119,16 @@ static void sleep_until(uint64_t wake_ns)
     }
     while (now_peek() < wake_ns)
         wait_until(wake_ns, RIG_WAIT_SLEEP);
+}
+
+/* A sleep of this thread: under the rule (threads.c) when it schedules; 1: a virtual timer's signal
+   ended it early (EINTR). */
+static int sleep_until(uint64_t wake_ns)
+{
+    if (ruled())
+        return rule_wait(wake_ns, NULL, NULL, 0);
+    sleep_session(wake_ns);
+    return 0;
 }
 
 /* Before the DUT looks at anything outside the shim (a pty, a pipe, a file) after a sleep that went
@@ -156,14 +183,12 @@ EXPORT int clock_nanosleep(clockid_t id, int flags, const struct timespec *req, 
         return EINVAL; /* as Linux */
     if (!valid_ts(req))
         return EINVAL;
-    uint64_t wake;
-    if (flags & TIMER_ABSTIME) {
-        uint64_t abs = ts_ns(req), base = (uint64_t)clock_base(id);
-        wake = abs > base ? abs - base : 0;
-    } else {
-        wake = now_peek() + ts_ns(req);
+    uint64_t wake = flags & TIMER_ABSTIME ? sim_time_on(id, ts_ns(req)) : now_peek() + ts_ns(req);
+    if (sleep_until(wake)) {
+        if (rem && !(flags & TIMER_ABSTIME))
+            ns_ts(wake > now_peek() ? wake - now_peek() : 0, rem);
+        return EINTR;
     }
-    sleep_until(wake);
     if (rem && !(flags & TIMER_ABSTIME))
         rem->tv_sec = rem->tv_nsec = 0;
     return 0;
@@ -185,15 +210,16 @@ EXPORT int usleep(useconds_t us)
 {
     if (!virtual_clock(CLOCK_MONOTONIC))
         return LOAD(usleep)(us);
-    sleep_until(now_peek() + (uint64_t)us * 1000u);
-    return 0;
+    return sleep_until(now_peek() + (uint64_t)us * 1000u) ? errno_ret(EINTR) : 0;
 }
 
 EXPORT unsigned int sleep(unsigned int s)
 {
     if (!virtual_clock(CLOCK_MONOTONIC))
         return LOAD(sleep)(s);
-    sleep_until(now_peek() + (uint64_t)s * NS);
+    uint64_t wake = now_peek() + (uint64_t)s * NS;
+    if (sleep_until(wake) && wake > now_peek())
+        return (unsigned)((wake - now_peek()) / NS); /* the whole seconds left, as glibc's sleep */
     return 0;
 }
 
@@ -204,12 +230,55 @@ static uint64_t deadline_ms(int timeout_ms)
     return timeout_ms < 0 ? RIG_WAIT_FOREVER : now_peek() + (uint64_t)timeout_ms * 1000000u;
 }
 
-static int wait_done(uint64_t deadline)
+/* After a look that found nothing ready: 1 when the deadline has passed (the call returns 0), 0 to look
+   again once time moved or the session woke it (a pty written), -1 when a virtual timer's signal ended
+   the wait (EINTR). Under the rule the thread waits until can_go(arg) says a look would find something. */
+static int wait_more(uint64_t deadline, int (*can_go)(void *), void *arg)
 {
     if (deadline != RIG_WAIT_FOREVER && now_peek() >= deadline)
         return 1;
+    if (ruled())
+        return rule_wait(deadline, can_go, arg, 1) ? -1 : 0;
     wait_until(deadline, RIG_WAIT_POLL);
     return 0;
+}
+
+/* The result of a poll-family call that found nothing: 0 at its deadline, -1 EINTR. */
+static int nothing_ready(int more) { return more > 0 ? 0 : errno_ret(EINTR); }
+
+/* What the rule asks of a thread waiting in poll, select or epoll: would a look find something? */
+struct poll_look {
+    struct pollfd *fds;
+    nfds_t n;
+};
+static int poll_can_go(void *p)
+{
+    struct poll_look *l = p;
+    return LOAD(poll)(l->fds, l->n, 0) != 0;
+}
+
+struct select_look {
+    int nfds;
+    const fd_set *r, *w, *e; /* the sets asked for (copies are looked at) */
+};
+static int select_can_go(void *p)
+{
+    struct select_look *l = p;
+    fd_set r, w, e;
+    if (l->r)
+        r = *l->r;
+    if (l->w)
+        w = *l->w;
+    if (l->e)
+        e = *l->e;
+    struct timeval zero = { 0, 0 };
+    return LOAD(select)(l->nfds, l->r ? &r : NULL, l->w ? &w : NULL, l->e ? &e : NULL, &zero) != 0;
+}
+
+static int epoll_can_go(void *epfd)
+{
+    struct pollfd p = { .fd = (int)(intptr_t)epfd, .events = POLLIN };
+    return LOAD(poll)(&p, 1, 0) != 0;
 }
 
 EXPORT int poll(struct pollfd *fds, nfds_t n, int timeout)
@@ -218,10 +287,14 @@ EXPORT int poll(struct pollfd *fds, nfds_t n, int timeout)
     if (!virtual_clock(CLOCK_MONOTONIC) || timeout == 0)
         return LOAD(poll)(fds, n, timeout);
     uint64_t deadline = deadline_ms(timeout);
+    struct poll_look look = { fds, n };
     for (;;) {
         int r = LOAD(poll)(fds, n, 0);
-        if (r != 0 || wait_done(deadline))
+        if (r != 0)
             return r;
+        int more = wait_more(deadline, poll_can_go, &look);
+        if (more)
+            return nothing_ready(more);
     }
 }
 
@@ -242,10 +315,14 @@ EXPORT int ppoll(struct pollfd *fds, nfds_t n, const struct timespec *tmo, const
         return -1;
     }
     uint64_t deadline = tmo ? now_peek() + ts_ns(tmo) : RIG_WAIT_FOREVER;
+    struct poll_look look = { fds, n };
     for (;;) {
         int r = LOAD(ppoll)(fds, n, &zero, mask);
-        if (r != 0 || wait_done(deadline))
+        if (r != 0)
             return r;
+        int more = wait_more(deadline, poll_can_go, &look);
+        if (more)
+            return nothing_ready(more);
     }
 }
 
@@ -259,6 +336,7 @@ static int select_virtual(int nfds, fd_set *r, fd_set *w, fd_set *e, uint64_t de
         w0 = *w;
     if (e)
         e0 = *e;
+    struct select_look look = { nfds, r ? &r0 : NULL, w ? &w0 : NULL, e ? &e0 : NULL };
     for (;;) {
         if (r)
             *r = r0;
@@ -274,8 +352,18 @@ static int select_virtual(int nfds, fd_set *r, fd_set *w, fd_set *e, uint64_t de
             struct timeval zero = { 0, 0 };
             res = LOAD(select)(nfds, r, w, e, &zero);
         }
-        if (res != 0 || wait_done(deadline))
+        if (res != 0)
             return res;
+        int more = wait_more(deadline, select_can_go, &look);
+        if (more) {
+            if (r) /* (nothing ready: every set comes back empty) */
+                FD_ZERO(r);
+            if (w)
+                FD_ZERO(w);
+            if (e)
+                FD_ZERO(e);
+            return nothing_ready(more);
+        }
     }
 }
 
@@ -316,8 +404,11 @@ EXPORT int epoll_wait(int epfd, struct epoll_event *ev, int max, int timeout)
     uint64_t deadline = deadline_ms(timeout);
     for (;;) {
         int r = LOAD(epoll_wait)(epfd, ev, max, 0);
-        if (r != 0 || wait_done(deadline))
+        if (r != 0)
             return r;
+        int more = wait_more(deadline, epoll_can_go, (void *)(intptr_t)epfd);
+        if (more)
+            return nothing_ready(more);
     }
 }
 
@@ -329,7 +420,10 @@ EXPORT int epoll_pwait(int epfd, struct epoll_event *ev, int max, int timeout, c
     uint64_t deadline = deadline_ms(timeout);
     for (;;) {
         int r = LOAD(epoll_pwait)(epfd, ev, max, 0, mask);
-        if (r != 0 || wait_done(deadline))
+        if (r != 0)
             return r;
+        int more = wait_more(deadline, epoll_can_go, (void *)(intptr_t)epfd);
+        if (more)
+            return nothing_ready(more);
     }
 }

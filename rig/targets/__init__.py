@@ -25,7 +25,7 @@ from typing import IO, TYPE_CHECKING, Any, Final, Protocol
 import numpy as np
 
 from rig.host import Host
-from rig.plant.native_build import BUILD
+from rig.plant.artifacts import BUILD
 from rig.scenarios.result import I2CRecord
 
 if TYPE_CHECKING:

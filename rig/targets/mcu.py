@@ -36,7 +36,10 @@ class McuRun(TargetRun):
         if s.cfg.trace is not None:
             f["trace"] = str(s.cfg.trace)
         problems = {name: int(f.get(key, 0)) for name, key in BUS_PROBLEMS.items()}
-        return {"mcu": f, "bus_problems": problems}
+        out: dict[str, object] = {"mcu": f, "bus_problems": problems}
+        if "motor_capture" in f:
+            out["capture"] = capture_text(s.cfg.board, f["motor_capture"])
+        return out
 
     def transactions(self) -> list[I2CRecord] | None:
         return self.session.transfers.records
@@ -50,29 +53,55 @@ class McuRun(TargetRun):
         return None
 
 
+def capture_text(board: boards.Board, counts: list[dict[str, int]] | None = None) -> str:
+    """result.json's ``capture``: how each motor is measured, "m1 PE4: OC3B registers; m2 PE5: pin edges
+    (OC3C disconnected)". Before a run (no ``counts``) the plan: a timer motor's compare output (its pin's
+    edges while that is disconnected), else the pin's edges; after it, the ways its pulses came."""
+    parts = []
+    for i, m in enumerate(board.motors):
+        oc = f"OC{m.timer}{m.channel}"
+        edges = "pin edges" if m.timer is None else f"pin edges ({oc} disconnected)"
+        if counts is None:
+            how = "pin edges" if m.timer is None else f"{oc} registers or, disconnected, pin edges"
+        else:
+            ways = [f"{oc} registers"] * bool(counts[i]["timer"]) + [edges] * bool(counts[i]["edges"])
+            how = " and ".join(ways) or "no pulse"
+        parts.append(f"m{m.motor} {m.pin}: {how}")
+    return "; ".join(parts)
+
+
 class McuTarget:
     """``board``: a board file's name or path; ``firmware``: the image. Both are checked here, before
     anything runs (BoardError, FirmwareError). ``trace``: a folder for each run's VCD trace,
-    ``SCENARIO.vcd`` (rig/mcu/vcd.py)."""
+    ``SCENARIO.vcd`` (rig/mcu/vcd.py). ``eeprom``: an EEPROM image preloaded instead of the board's
+    (raw bytes, or Intel HEX named .eep/.hex), checked here too. Each run writes the EEPROM as the
+    firmware left it as ``eeprom.bin`` in its folder, so the next run can start from it."""
 
     mode = "mcu"
     realtime = False
 
-    def __init__(self, board: str | Path, firmware: Path, trace: Path | None = None) -> None:
-        from rig.mcu.image import load
+    def __init__(self, board: str | Path, firmware: Path, trace: Path | None = None,
+                 eeprom: Path | None = None) -> None:
+        from rig.mcu.image import load, load_eeprom
 
         self.board = boards.load(board)
         self.firmware = Path(firmware).resolve()
         load(self.firmware, self.board.mcu.name)  # (FirmwareError: not an AVR image, or too big)
         self.firmware_sha256 = hashlib.sha256(self.firmware.read_bytes()).hexdigest()
         self.trace = trace
+        self.eeprom_file = None if eeprom is None else Path(eeprom).resolve()
+        self.eeprom = None if self.eeprom_file is None else load_eeprom(self.eeprom_file, self.board.mcu.name)
 
     def describe(self, scenario: Scenario, work: Path, notes: list[str]) -> dict[str, object]:
         if scenario.bench.psu is not None:
             notes.append(NO_SUPPLY)
-        if scenario.fc and not self.board.eeprom_from_fc:
+        fc_eeprom = self.board.eeprom_from_fc and self.eeprom is None
+        if scenario.fc and not fc_eeprom:
             notes.append("the scenario's [fc] table configures the reference FC only; this board's "
-                         "firmware keeps its own configuration")
+                         "firmware keeps its own configuration" if self.eeprom is None else
+                         f"the scenario's [fc] table is not used: the EEPROM is {self.eeprom_file}'s")
+        eeprom = {} if self.eeprom is None else {
+            "eeprom_file": str(self.eeprom_file), "eeprom_sha256": hashlib.sha256(self.eeprom).hexdigest()}
         return {
             "dut_command": f"{self.firmware} on {self.board.name} ({self.board.mcu.name} at "
                            f"{self.board.clock_hz / 1e6:g} MHz)",
@@ -80,9 +109,10 @@ class McuTarget:
             "dut_firmware_sha256": self.firmware_sha256,
             "board": self.board.name,
             "board_file": str(self.board.path),
-            "fc_config": dict(scenario.fc) if self.board.eeprom_from_fc else None,
-            "capture": "timer outputs",
+            "fc_config": dict(scenario.fc) if fc_eeprom else None,
+            "capture": capture_text(self.board),
             "lockstep": True,
+            **eeprom,
         }
 
     def world_options(self) -> dict[str, Any]:
@@ -91,21 +121,23 @@ class McuTarget:
     def open(self, ctx: RunContext) -> McuRun:
         trace = None if self.trace is None else self.trace / f"{ctx.scenario.stem}.vcd"
         return McuRun(self.session(ctx.world, ctx.scenario.duration, ctx.scenario.fc, ctx.wall_timeout,
-                                   trace))
+                                   trace, eeprom_out=ctx.work / "eeprom.bin"))
 
     def session(self, world: World, duration: float, fc: Mapping[str, Any], wall_timeout: float,
-                trace: Path | None = None, sim_timeout: float = 600.0) -> McuSession:
+                trace: Path | None = None, sim_timeout: float = 600.0,
+                eeprom_out: Path | None = None) -> McuSession:
         """The firmware on its board in ``world`` for ``duration`` sim seconds; ``fc``: the [fc] table
-        that becomes the EEPROM on a board that says so (an empty one: the reference FC's defaults)."""
-        eeprom: bytes | None = None
-        if self.board.eeprom_image is not None:
+        that becomes the EEPROM on a board that says so (an empty one: the reference FC's defaults),
+        unless an EEPROM image was given; ``eeprom_out``: where the EEPROM goes at the end."""
+        eeprom: bytes | None = self.eeprom
+        if eeprom is None and self.board.eeprom_image is not None:
             eeprom = self.board.eeprom_image.read_bytes()
-        elif self.board.eeprom_from_fc:
+        elif eeprom is None and self.board.eeprom_from_fc:
             from rig.scenarios.eeprom import image  # the reference firmware's layout
 
             eeprom = image(fc)
         cfg = McuConfig(self.board, self.firmware, duration, RC_PATH, TELEMETRY_PATH, eeprom, wall_timeout,
-                        sim_timeout, trace)
+                        sim_timeout, trace, eeprom_out)
         return McuSession(cfg, world)
 
     def not_run_metadata(self) -> dict[str, object]:

@@ -12,6 +12,7 @@ from typing import Any
 
 from rig import firmware
 from rig.capture import CaptureLink, install_capture
+from rig.emulators.topology import TOPOLOGIES
 from rig.scenarios.result import I2CRecord
 from rig.scenarios.schema import Scenario
 from rig.session import Outcome, Session, SessionConfig
@@ -24,6 +25,22 @@ from rig.targets import (
     reference_command,
     reference_config,
 )
+
+#: channels pwmchip0 can have (rig/shim/protocol.h RIG_PWM_MAX)
+PWM_CHANNELS_MAX = 16
+
+
+def hardware_problems(pwm_channels: int | None, topology: str | None) -> list[str]:
+    """What is wrong with a Linux DUT's hardware as asked for (None: the default, 8 channels on a
+    GY-86), in words naming the option; the CLI, the API, the pytest plugin and the service say the
+    same."""
+    problems = []
+    if pwm_channels is not None and not 1 <= pwm_channels <= PWM_CHANNELS_MAX:
+        problems.append(f"--pwm-channels must be between 1 and {PWM_CHANNELS_MAX}, got {pwm_channels}")
+    if topology is not None and topology not in TOPOLOGIES:
+        problems.append(f"--topology must be one of {', '.join(TOPOLOGIES)}, got {topology!r}")
+    return problems
+
 
 #: a note for a run whose target has no bench supply to drive
 NO_SUPPLY = "the scenario's [bench] supply powers a board behind a bridge only: not used here"
@@ -85,10 +102,17 @@ class ProcessRun(TargetRun):
 class ProcessTarget:
     """A Linux program (``dut``: its command line; None: the reference FC) in lockstep or real time.
     ``corrupt_every``: the capture link corrupts every Nth frame (the link's own tests). ``spin``: the
-    session and the DUT on a core each, polling (rig/cores.py)."""
+    session and the DUT on a core each, polling (rig/cores.py). ``pwm_channels`` (1..16) and
+    ``topology`` ("gy86", "direct"): the board the DUT sees (None: 8 channels on a GY-86); a stack that
+    opens 14 channels, or never sets the MPU-6050's bypass, needs them. Raises ValueError for others."""
 
     def __init__(self, dut: list[str] | None = None, realtime: bool = False, corrupt_every: int = 0,
-                 spin: bool = False) -> None:
+                 spin: bool = False, pwm_channels: int | None = None, topology: str | None = None) -> None:
+        problems = hardware_problems(pwm_channels, topology)
+        if problems:
+            raise ValueError("; ".join(problems))
+        self.hardware = {k: v for k, v in (("pwm_channels", pwm_channels), ("topology", topology))
+                         if v is not None}
         self.dut = dut
         self.realtime = realtime
         self.spin = spin
@@ -101,7 +125,7 @@ class ProcessTarget:
         if scenario.bench.psu is not None:
             notes.append(NO_SUPPLY)
         return {**describe_command(self._command, scenario, self.dut is None),
-                "capture": scenario.capture.transport, "lockstep": not self.realtime}
+                "capture": scenario.capture.transport, "lockstep": not self.realtime, **self.hardware}
 
     def open(self, ctx: RunContext) -> ProcessRun:
         cfg = SessionConfig(
@@ -119,10 +143,11 @@ class ProcessTarget:
         return ProcessRun(session, install_capture(session, ctx.scenario.capture, self.corrupt_every))
 
     def world_options(self) -> dict[str, Any]:
-        return {}
+        return dict(self.hardware)
 
     def not_run_metadata(self) -> dict[str, object]:
         return {"mode": self.mode}
 
 
-__all__ = ["REFERENCE_FC", "ProcessTarget", "absolute_command", "command_for", "describe_command"]
+__all__ = ["PWM_CHANNELS_MAX", "REFERENCE_FC", "ProcessTarget", "absolute_command", "command_for",
+           "describe_command", "hardware_problems"]

@@ -26,7 +26,8 @@ from typing import Final
 
 import numpy as np
 
-from rig.plant.native_build import BUILD, EXTENSION_SUFFIX, built_extension, compile_extension
+from rig.plant.artifacts import BUILD
+from rig.plant.native_build import EXTENSION_SUFFIX, built_extension, compile_extension
 
 SOURCE: Final = Path(__file__).resolve().with_name("lines.c")
 LIB: Final = BUILD / f"_rigtelemetry{EXTENSION_SUFFIX}"

@@ -15,6 +15,7 @@ import xml.etree.ElementTree as ET
 from importlib.metadata import entry_points
 from pathlib import Path
 
+from rig.targets import REFERENCE_FC
 from tests.api import LIBRARY, SHORT, failing_copy
 from tests.mcu import conftest as mcu
 from tests.waits import pid_fifo, read_pid, wait_gone
@@ -80,13 +81,14 @@ def test_passing_and_failing_items_with_junit_properties(tmp_path):
     # --junitxml: seed, scenario and firmware SHA-256 as properties of each test case
     cases = {c.get("name"): c for c in ET.parse(junit).getroot().iter("testcase")}
     assert set(cases) == {"seed000_roll_stand", "roll_stand_too_strict"}
-    from rig import api
-
+    # (the hashes of the bytes, taken here: the scenario files as written, the reference FC the items fly)
+    fc = hashlib.sha256(REFERENCE_FC.read_bytes()).hexdigest()
     for name, case in cases.items():
         props = {p.get("name"): p.get("value") for p in case.iter("property")}
         assert props["seed"] == "5"
-        assert props["scenario_sha256"] == api.load_scenario(tmp_path / f"{name}.toml").sha256
-        assert len(props["firmware_sha256"]) == 64
+        written = (tmp_path / f"{name}.toml").read_bytes()
+        assert props["scenario_sha256"] == hashlib.sha256(written).hexdigest()
+        assert props["firmware_sha256"] == fc
     assert cases["roll_stand_too_strict"].find("failure") is not None
     assert cases["seed000_roll_stand"].find("failure") is None
     # the items' folder is a report folder of this session's runs only: rig report reads it
@@ -108,6 +110,47 @@ def test_xdist_one_folder_per_worker(tmp_path):
     assert sorted(p.parent.name for p in runs) == ["a_roll_stand", "b_roll_stand"]
     assert {p.parents[1].name for p in runs} <= {"gw0", "gw1"}
     assert not list((tmp_path / "out").glob("*_roll_stand"))  # nothing outside a worker's folder
+
+
+def stale_run(folder: Path, stem: str) -> Path:
+    """A previous session's run in ``folder``, listed as rig run and the plugin list their runs."""
+    (folder / stem).mkdir(parents=True)
+    (folder / stem / "result.json").write_text("{}")
+    (folder / ".rig-run.json").write_text(json.dumps([stem]))
+    return folder / stem
+
+
+def rig_report(out: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "rig.cli", "report", str(out)], capture_output=True,
+                          text=True, timeout=60)
+
+
+def test_a_scenario_with_a_fault_runs_compiled(tmp_path):
+    """Reading a scenario imports the fault classes: before the hot modules ran compiled, the compiled
+    session rejected the source-imported faults ("TargetedFault object expected")."""
+    done = pytest_run(tmp_path, str(LIBRARY / "fault_mag_nack.toml"), "--rig-out", "out")
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "1 passed" in done.stdout
+
+
+def test_a_new_session_removes_the_previous_sessions_runs_with_or_without_workers(tmp_path):
+    shutil.copy(SHORT, tmp_path / "a_roll_stand.toml")
+    out = tmp_path / "out"
+    plain = stale_run(out, "plain_session_run")  # a plain session's, at the root
+    worker = stale_run(out / "gw3", "worker_run")  # a `-n 4` session's, in a worker's folder
+    done = pytest_run(tmp_path, str(tmp_path), "-n", "2", "--rig-out", "out")
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert not plain.exists() and not worker.parent.exists()
+    (run,) = out.glob("gw*/a_roll_stand/result.json")
+    # rig report indexes no earlier run at the root: this session's runs are in the workers' folders
+    assert rig_report(out).returncode != 0 and not (out / "index.html").exists()
+    assert rig_report(run.parents[1]).returncode == 0
+
+    done = pytest_run(tmp_path, str(tmp_path), "--rig-out", "out")  # and a plain session after it
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert not run.exists() and not list(out.glob("gw*"))
+    assert rig_report(out).returncode == 0
+    assert "a_roll_stand/report.html" in (out / "index.html").read_text()
 
 
 def test_rig_fixture_and_marker(tmp_path):
@@ -173,6 +216,22 @@ def test_rig_mcu_without_firmware_stops_pytest(tmp_path):
     done = pytest_run(tmp_path, str(tmp_path), "--rig-mcu", "mega2560-gy86")
     assert done.returncode == 4, done.stdout + done.stderr  # pytest's usage error
     assert "--rig-mcu needs --rig-firmware FILE" in done.stderr
+
+
+def test_rig_eeprom_starts_the_image_from_it(tmp_path):
+    """The eeprom_count firmware (tests/mcu/firmware) counts its boots in EEPROM byte 0: started from 9,
+    its run's eeprom.bin holds 10. (It drives no motor: the item fails as hung, the EEPROM is written.)"""
+    shutil.copy(SHORT, tmp_path)
+    (tmp_path / "start.bin").write_bytes(bytes([9]))
+    junit = tmp_path / "junit.xml"
+    done = pytest_run(tmp_path, str(tmp_path), "--rig-mcu", "mega2560-gy86", "--rig-firmware",
+                      str(mcu.firmware("eeprom_count", "atmega2560")), "--rig-eeprom",
+                      str(tmp_path / "start.bin"), f"--junitxml={junit}")
+    assert done.returncode == 1, done.stdout + done.stderr
+    props = {p.get("name"): p.get("value") for p in ET.parse(junit).getroot().iter("property")}
+    assert (Path(props["report"]) / "eeprom.bin").read_bytes()[:6] == bytes([10]) + b"saved"
+    alone = pytest_run(tmp_path, str(tmp_path), "--rig-eeprom", str(tmp_path / "start.bin"))
+    assert alone.returncode == 4 and "--rig-eeprom goes with --rig-mcu BOARD" in alone.stderr
 
 
 def test_ctrl_c_stops_the_dut_and_pytest_and_keeps_the_run(tmp_path):

@@ -14,7 +14,8 @@ from rig.bridge import gen
 from rig.bridge.firmware import CC as ARM_CC
 from rig.bridge.firmware import M4_FLAGS
 from rig.emulators.chips import gen as chips_gen
-from rig.plant.native_build import BUILD, compile_c, is_stale
+from rig.plant.artifacts import BUILD
+from rig.plant.native_build import compile_c, is_stale
 
 REPO = Path(__file__).resolve().parents[2]
 CORE = REPO / "bridge" / "core"

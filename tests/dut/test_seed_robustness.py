@@ -41,7 +41,8 @@ def test_an_altitude_hold_engaged_while_climbing_does_not_wind_up(tmp_path: Path
     assert r.verdict == "pass"
 
 
-@pytest.mark.slow
+@pytest.mark.slow(reason="a soak: 20 seeds of what the default run flies at one, "
+                  "tests/scenarios/test_library_and_reports.py::test_rig_run_passes_the_library_and_writes_every_report")
 @pytest.mark.parametrize("name", sorted(p.stem for p in LIB.glob("*.toml")))
 def test_the_library_passes_at_every_seed(name: str) -> None:
     """`make test-slow` (or `pytest -m slow tests/dut/test_seed_robustness.py`): each scenario of the

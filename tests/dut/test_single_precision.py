@@ -53,7 +53,8 @@ def test_float_at_250_hz_passes(fc32: Path, name: str, tmp_path: Path) -> None:
     fly(fc32, name, 250, tmp_path)
 
 
-@pytest.mark.slow
+@pytest.mark.slow(reason="the whole library of what the default run flies in part, "
+                  "tests/dut/test_single_precision.py::test_float_at_a_slow_rate_passes and at 250 Hz")
 @pytest.mark.parametrize("rate", [250, SLOW_RATE])
 @pytest.mark.parametrize("name", sorted(p.stem for p in LIB.glob("*.toml")))
 def test_the_library_passes_in_float(fc32: Path, name: str, rate: int, tmp_path: Path) -> None:

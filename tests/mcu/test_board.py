@@ -51,7 +51,7 @@ MEGA = board.find("mega2560-gy86").read_text()
         (("baud = 500_000", "baud = 230_400"), "telemetry.baud", "over 3% off"),
         (("clock_hz = 16_000_000", "clock_hz = 16e6"), "board.clock_hz", "expected an integer"),
         (("[rc]", "[rc]\nbaud = 115200"), "rc.baud", "SBUS runs at 100000 baud"),
-        (("[fuses]", "[fuse]"), "", ""),
+        (("[fuses]", "[fuse]"), "fuse", "unknown key; did you mean 'fuses'?"),
         (('format = "text"', 'format = "mavlink"'), "telemetry.format", "expected one of text"),
     ],
 )
@@ -64,8 +64,25 @@ def test_each_mistake_is_refused_naming_the_key(tmp_path: Path, change: tuple[st
     p.write_text(text.replace(old, new, 1))
     with pytest.raises(BoardError) as e:
         board.load(str(p))
-    assert str(e.value).startswith(f"{p}: {key}: " if key else f"{p}: ")
-    assert words in str(e.value)
+    assert str(e.value).startswith(f"{p}: {key}: ")
+    assert words and words in str(e.value)
+
+
+def test_a_motor_without_a_timer_is_any_port_pin(tmp_path: Path) -> None:
+    """Software PWM: no timer and no channel, any pin of the MCU's ports (the 2560's A-L without I; the
+    328P's B, C, D)."""
+    motor2 = 'pin = "PE5"\ntimer = 3\nchannel = "C"'
+    assert motor2 in MEGA
+    p = tmp_path / "bitbang.toml"
+    p.write_text(MEGA.replace(motor2, 'pin = "PA0"'))
+    assert [(m.pin, m.timer, m.channel) for m in board.load(str(p)).motors][1] == ("PA0", None, "")
+    for pin, words in (("PI0", "the atmega2560 has no pin PI0"), ("PA8", "the atmega2560 has no pin PA8")):
+        p.write_text(MEGA.replace(motor2, f'pin = "{pin}"'))
+        with pytest.raises(BoardError, match=rf"motors\[1\]\.pin: {words}"):
+            board.load(str(p))
+    p.write_text(MEGA.replace(motor2, 'pin = "PE5"\nchannel = "C"'))
+    with pytest.raises(BoardError, match=r"motors\[1\]\.timer"):
+        board.load(str(p))
 
 
 def test_a_ppm_receiver_needs_an_interrupt_pin(tmp_path: Path) -> None:

@@ -113,13 +113,11 @@ def test_a_firmware_bigger_than_flash_is_refused(tmp_path: Path) -> None:
     for addr in range(0, 0x8010, 16):  # 32 KB + 16: one record past the ATmega328P's flash
         rec = bytes([16, (addr >> 8) & 0xFF, addr & 0xFF, 0]) + bytes(16)
         if addr == 0:
-            lines.append(":020000040000FA")
-        if addr == 0x8000:
-            pass
+            lines.append(":020000040000FA")  # (an extended linear address record: upper 16 bits 0)
         lines.append(":" + (rec + bytes([-sum(rec) & 0xFF])).hex().upper())
     lines.append(":00000001FF")
     big.write_text("\n".join(lines) + "\n")
-    with pytest.raises(FirmwareError, match="32784 bytes; the MCU has 32768"):
+    with pytest.raises(FirmwareError, match=f"{0x8010} bytes; the MCU has {32 * 1024}"):
         engine_for(big)
     AvrEngine(EngineConfig("atmega2560", CLOCK, big), None).close()  # 256 KB: it fits
 

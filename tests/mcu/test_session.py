@@ -11,7 +11,7 @@ import pytest
 
 from rig.emulators import sbus
 from rig.mcu import board as boards
-from rig.mcu.session import ESC_TIMEOUT_S, McuConfig, McuSession, sbus_to_us
+from rig.mcu.session import ESC_TIMEOUT_S, McuConfig, McuSession
 from rig.plant.variables import PWM_INPUTS
 from rig.world import World
 from tests.mcu.conftest import firmware
@@ -87,7 +87,8 @@ def test_the_scenarios_rc_frames_reach_the_boards_rc_input(tmp_path: Path, rc: s
     if source == 0:  # SBUS: the raw 11-bit values as they were sent
         assert got[0] == CHANNELS
     else:  # MSP and PPM: microseconds, as a receiver maps SBUS (172 -> 1000, 1811 -> 2000)
-        want = [round(sbus_to_us(c)) for c in CHANNELS[:8]]
+        # the receiver's line through its two ends, written here: 172 -> 1000 us, 1811 -> 2000 us
+        want = [round(1000 + (c - 172) * (2000 - 1000) / (1811 - 172)) for c in CHANNELS[:8]]
         slack = 1 if source == 2 else 0  # (PPM: timed by the firmware's 0.5 us timer)
         for g in got:
             assert len(g) == 8 and all(abs(a - b) <= slack for a, b in zip(g, want, strict=True)), (got, want)

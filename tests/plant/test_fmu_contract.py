@@ -20,7 +20,7 @@ PARAMETERS = ["mass", "arm_length", "k_thrust", "k_torque", "Ixx", "Iyy", "Izz",
               "omega_max", "esc_min_us", "esc_max_us", "drag_n", "drag_e", "drag_d", "gravity", "stand",
               "roll0", "pitch0", "yaw0", "pn0", "pe0", "pd0", "mag_n", "mag_e", "mag_d", "p_ground",
               "t_ground", "h_max_step"] + [f"esc_{k}{i}" for k in ("gain", "offset") for i in range(1, 5)]
-ADDITIONS = ["stand_damping"]  # beyond docs/design.md's "at least" list, documented in docs/plant.md
+ADDITIONS = ["stand_damping", "esc_start_us"]  # beyond docs/design.md's "at least" list, in docs/plant.md
 OUTPUTS = ["pn", "pe", "pd", "vn", "ve", "vd", "qw", "qx", "qy", "qz", "roll", "pitch", "yaw", "p", "q",
            "r", "fx", "fy", "fz", "mag_x", "mag_y", "mag_z", "pressure", "temperature", "omega1",
            "omega2", "omega3", "omega4", "thrust1", "thrust2", "thrust3", "thrust4", "on_ground"]

@@ -45,10 +45,11 @@ def tool(name: str) -> str:
     return found
 
 
-def build_client(tmp_path_factory: pytest.TempPathFactory, name: str) -> Path:
-    """device_clients/NAME.c compiled as a user would build a C program, warnings as errors."""
+def build_client(tmp_path_factory: pytest.TempPathFactory, name: str, *flags: str) -> Path:
+    """device_clients/NAME.c compiled as a user would build a C program, warnings as errors (flags:
+    more of gcc's, -pthread say)."""
     exe = tmp_path_factory.mktemp("dut") / name
-    subprocess.run(["gcc", "-std=c11", "-O1", "-Wall", "-Wextra", "-Werror", "-o", str(exe),
+    subprocess.run(["gcc", "-std=c11", "-O1", "-Wall", "-Wextra", "-Werror", *flags, "-o", str(exe),
                     str(DUTS / f"{name}.c")], check=True)
     return exe
 

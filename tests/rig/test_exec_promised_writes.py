@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from rig import lockstep
 from rig.emulators.faults import Fault, FaultSet
 from rig.scheduler import NS
 from rig.session import Session, SessionConfig
@@ -23,19 +24,32 @@ CLIENT = str(DUTS / "promised_writes.py")
 @pytest.mark.parametrize("path", ["fast path", "handler"])
 def test_writes_to_chips_that_always_acknowledge_are_answered_by_the_shim(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, path: str) -> None:
-    if path == "handler":
-        monkeypatch.setenv("RIG_PY_PATH", "1")
-    run = rig_exec(tmp_path, PY, CLIENT)
-    assert run.returncode == 0, run.stderr
-    out = run.json_out()
+    monkeypatch.setenv(lockstep.PY_PATH_ENV, "1" if path == "handler" else "0")
+    printed = tmp_path / "out.json"
+    with open(printed, "w") as f:
+        session = Session(SessionConfig(command=[PY, CLIENT], stdout=f), World.at_rest())
+        outcome = session.run()
+    assert outcome.verdict == "ok", outcome.error
+    out = json.loads(printed.read_text())
     # the MPU-6050's and the MS5611's writes succeed; the conversion ran from the write's time on: the
     # ADC holds a result 10 ms later (a conversion never started reads 0); the HMC5883L behind the MPU
     # (bypass off) and an empty address NACK as before
     assert {k: out[k] for k in ("mpu_wake", "convert", "adc_command", "hmc_behind_mpu", "nobody")} == {
         "mpu_wake": 2, "convert": 1, "adc_command": 1, "hmc_behind_mpu": "ENXIO", "nobody": "ENXIO"}
     assert int(out["adc"], 16) > 0
-    assert run.summary["transport"]["promised_writes"] == 3
-    assert run.summary["transactions"] == 6  # every transfer counted, promised or not
+    assert outcome.transport["promised_writes"] == 3
+    assert outcome.transactions == 6  # every transfer counted, promised or not
+    # which side served them: the fast path took the three promised writes' notices (and the other
+    # transfers: none went to the handler), or, turned off, the handler took them all
+    handler = session.handler
+    assert handler is not None
+    if path == "fast path":
+        assert session.fast is not None
+        i2c, _, _, promised = session.fast.counts
+        assert (promised, i2c) == (3, 6) and (handler.promised_writes, handler.transactions) == (0, 0)
+    else:
+        assert session.fast is None
+        assert (handler.promised_writes, handler.transactions) == (3, 6)
 
 
 def test_the_log_marks_the_writes_the_shim_answered(tmp_path: Path) -> None:
@@ -101,8 +115,10 @@ from rig.emulators.chips.board import ChipBoard
 from rig.session import Session, SessionConfig
 from rig.world import World
 ChipBoard.write_acks = lambda self: [(0x50, 2**64 - 1)]  # a rig bug: a promise for an empty address
-outcome = Session(SessionConfig(command=sys.argv[1:]), World.at_rest()).run()
-print(json.dumps([outcome.verdict, outcome.exit_code, outcome.error]))
+session = Session(SessionConfig(command=sys.argv[1:]), World.at_rest())
+outcome = session.run()
+fast = session.fast.counts if session.fast is not None else None
+print(json.dumps([outcome.verdict, outcome.exit_code, outcome.error, fast]))
 """
 
 
@@ -118,6 +134,9 @@ def test_a_broken_promise_voids_the_run(tmp_path: Path, path: str) -> None:
              "print(os.write(fd, b'\\x00')); import time; time.sleep(1)"
     done = subprocess.run([PY, "-c", BROKEN, PY, "-c", client], capture_output=True, text=True, env=env,
                           timeout=120)
-    verdict, code, error = json.loads(done.stdout.strip().splitlines()[-1])
+    verdict, code, error, fast = json.loads(done.stdout.strip().splitlines()[-1])
     assert (verdict, code) == ("error", 125), done.stderr
     assert "acknowledged was not (a rig bug)" in error
+    # the side under test saw the write: the fast path took its notice (its counts: I2C transfers,
+    # waits, PWM writes, promised writes kept), or, turned off, there was none
+    assert fast == ([1, 0, 0, 0] if path == "fast path" else None), fast

@@ -7,6 +7,7 @@ a token is required when set; a bad scenario is refused in the validator's words
 from __future__ import annotations
 
 import contextlib
+import http.client
 import json
 import os
 import select
@@ -26,6 +27,7 @@ from typing import Any
 
 import pytest
 
+from tests.realtime import INCONCLUSIVE
 from tests.short_scenario import SHORT_BENCH
 from tests.waits import BOUND_S, pid_fifo, read_pid, wait_gone
 
@@ -345,7 +347,7 @@ def test_unknown_fields_and_query_parameters_are_refused_by_name(service: Servic
     status, body = service.call("POST", "/api/runs", {"scenarios": ["step_roll"], "sead": 3})
     assert status == 422, body
     assert body["detail"]["problems"] == [
-        "sead: no such field (known: scenarios, seed, dut, mode, priority, bench)"]
+        "sead: no such field (known: scenarios, seed, dut, mode, priority, pwm_channels, topology, bench)"]
     status, body = service.call("GET", "/api/runs?stauts=passed")
     assert status == 422 and "stauts: no such query parameter" in body["detail"]["problems"][0], body
     # pydantic's own refusals come in the same shape: sentences naming the field
@@ -398,6 +400,9 @@ def test_a_bearer_tokens_scheme_is_case_insensitive(tmp_path: Path) -> None:
 STARTED_IN_TIME_S = 10.0
 
 
+# paced: the stall watchdog is wall-clock time, so an attempt can be inconclusive (make test runs the
+# paced tests alone, and counts the inconclusive ones)
+@pytest.mark.paced
 def test_ctrl_c_ends_rig_serve_and_rig_submit_wait_without_a_traceback(tmp_path: Path) -> None:
     """Paced by the wall clock (the stall watchdog): an attempt on a host too starved to start the run
     in time is inconclusive, flown once more, then skipped with the figure; never a pass or a failure.
@@ -409,8 +414,37 @@ def test_ctrl_c_ends_rig_serve_and_rig_submit_wait_without_a_traceback(tmp_path:
         if took is None:
             return
         late.append(f"{took:.1f} s")
-    pytest.skip(f"inconclusive: the host took over {STARTED_IN_TIME_S:g} s to start the run's DUT (took "
+    pytest.skip(f"{INCONCLUSIVE}the host took over {STARTED_IN_TIME_S:g} s to start the run's DUT (took "
                 f"{', then '.join(late)})")
+
+
+def long_poll(svc: Service, path: str) -> http.client.HTTPConnection:
+    """A GET sent (its answer is read later with ``getresponse``): the service has it in its socket's
+    queue before anything the caller does next."""
+    conn = http.client.HTTPConnection(svc.url.removeprefix("http://"), timeout=BOUND_S)
+    conn.request("GET", path)
+    return conn
+
+
+def answer(conn: http.client.HTTPConnection) -> dict[str, Any]:
+    try:
+        r = conn.getresponse()
+        assert r.status == 200, r.status
+        found: dict[str, Any] = json.loads(r.read())
+        return found
+    finally:
+        conn.close()
+
+
+def events(conn: http.client.HTTPConnection) -> list[dict[str, Any]]:
+    """A run's server-sent events, to the end of the stream."""
+    try:
+        r = conn.getresponse()
+        assert r.status == 200, r.status
+        lines = r.read().decode().splitlines()
+        return [json.loads(x[len("data: "):]) for x in lines if x.startswith("data: ")]
+    finally:
+        conn.close()
 
 
 def _ctrl_c_serve_and_submit(tmp_path: Path) -> float | None:
@@ -418,6 +452,7 @@ def _ctrl_c_serve_and_submit(tmp_path: Path) -> float | None:
     tmp_path.mkdir()
     svc = start(tmp_path / "data", "--slots", "1")
     command, fifo = blocked_dut(tmp_path)
+    ctrl_c = False
     try:
         submitted = time.monotonic()
         waiting = subprocess.Popen([sys.executable, "-m", "rig.cli", "submit", "--server", svc.url,
@@ -436,13 +471,28 @@ def _ctrl_c_serve_and_submit(tmp_path: Path) -> float | None:
         status = svc.call("GET", f"/api/runs/{run_id}")[1]["status"]
         assert waiting.returncode == 130 and "Traceback" not in err, err
         assert f"interrupted: run {run_id} goes on" in err
-        assert status == "running"  # only the waiting stopped
-    finally:
+        assert status == "running"  # only the waiting stopped (its long poll is still pending in the service)
+        _, queued = svc.call("POST", "/api/runs", {"scenarios": ["step_roll"]})
+        # pending when the Ctrl-C comes: the running run's events, and a long poll on the queued one (which
+        # nothing will change; 60 s is the longest wait the API takes)
+        on_running = long_poll(svc, f"/api/runs/{run_id}/events")
+        on_queued = long_poll(svc, f"/api/runs/{queued['id']}?wait=60&seen=queued")
         os.killpg(svc.proc.pid, signal.SIGINT)  # Ctrl-C at the service's terminal
-        _, err = svc.proc.communicate(timeout=BOUND_S)
+        ctrl_c = True
+    finally:
+        if not ctrl_c:
+            stop(svc)
+    # the runs are stopped first: the running run's events end with its end, and by then (the order of
+    # events, not a time) its DUT is gone; the queued run stays queued for the next start
+    ended = events(on_running)[-1]
+    assert ended["status"] == "interrupted", ended
+    assert ended["error"] == "the service was stopped (Ctrl-C) while this run was running", ended
+    assert wait_gone(dut, timeout=0), "the run was marked ended while its DUT was still there"
+    assert answer(on_queued)["status"] == "queued"  # answered at the stop, not held to its 60 s
+    # (the bound is half the long poll's wait: a service held by it would fail here, not hang)
+    _, err = svc.proc.communicate(timeout=BOUND_S / 2)
     assert svc.proc.returncode == 130 and "Traceback" not in err, err
     assert "rig serve: stopped (Ctrl-C)" in err
-    assert wait_gone(dut)
     return None
 
 

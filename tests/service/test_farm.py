@@ -68,12 +68,26 @@ def page(svc: Service) -> str:
         return str(r.read().decode())
 
 
-@pytest.mark.slow  # (~30 s on 2 shared cores)
-def test_lockstep_runs_fly_on_the_cluster_and_their_folders_come_back(cluster: Cluster,
-                                                                      tmp_path: Path) -> None:
+def test_a_service_killed_mid_run_re_attaches_and_the_clusters_results_equal_a_plain_run(
+    cluster: Cluster, tmp_path: Path
+) -> None:
+    """One service killed outright while its run flies on the cluster; the next one re-attaches to it.
+    What comes back equals a plain ``rig run`` of the same seed (lockstep: the same values), and a sweep
+    submitted to the restarted service flies on the same cluster."""
     svc = start(tmp_path / "data", "--engine", cluster.address)
     try:
         _, body = svc.call("POST", "/api/runs", {"scenarios": ["seed000_roll_stand", "step_roll"], "seed": 3})
+        svc.until(body["id"], "running")
+        # "running" is written when the run is claimed, before it is submitted and published on the
+        # cluster; a progress report comes from the worker's flight, after both: killed before then, the
+        # run is rightly interrupted (its future died with the service's client)
+        for _ in range(100):
+            if svc.call("GET", f"/api/runs/{body['id']}?wait=30")[1]["progress"] > 0:
+                break
+    finally:
+        stop(svc, signal.SIGKILL)  # the service dies outright; the run flies on
+    svc = start(tmp_path / "data", "--engine", cluster.address)
+    try:
         _, sweep = post_bytes(svc, "/api/sweeps", b'[sweep]\nscenario = "step_roll"\nseeds = [0, 1]\n')
         seen = []  # the progress it showed, each change (the long poll answers at each)
         for _ in range(100):
@@ -81,9 +95,8 @@ def test_lockstep_runs_fly_on_the_cluster_and_their_folders_come_back(cluster: C
             seen.append(run["progress"])
             if run["status"] not in ("queued", "running"):
                 break
-        assert run["status"] == "passed" and run["exit_code"] == 0, run
-        assert seen == sorted(seen) and seen[-1] == 100.0, seen  # (50 % lasts as long as step_roll flies:
-        # seen here most times, but not always; test_farm_bytes.py checks the report is taken)
+        assert run["status"] == "passed" and [r["verdict"] for r in run["results"]] == ["pass", "pass"], run
+        assert seen == sorted(seen) and seen[-1] == 100.0, seen
         folder = tmp_path / "data" / "runs" / str(body["id"])
         result = json.loads((folder / "step_roll" / "result.json").read_text())
         # flown in the worker's temporary folder, not here: no file system is shared
@@ -128,7 +141,6 @@ def test_a_cancelled_run_stops_its_dut_on_the_worker(cluster: Cluster, tmp_path:
         stop(svc)
 
 
-@pytest.mark.slow  # (~25 s: schedulers and workers started twice)
 def test_a_scheduler_gone_stops_dispatch_and_the_queue_waits_across_a_restart(
     cluster: Cluster, tmp_path: Path
 ) -> None:
@@ -161,23 +173,6 @@ def test_a_scheduler_gone_stops_dispatch_and_the_queue_waits_across_a_restart(
         cluster.worker("w1")
         assert svc.follow(second["id"])["status"] == "passed"  # re-attached: the queue went on
         assert svc.call("GET", "/api/health")[1]["status"] == "ok"
-    finally:
-        stop(svc)
-
-
-@pytest.mark.slow  # (~20 s: the service started twice, a run of two scenarios)
-def test_a_service_killed_mid_run_re_attaches_to_it_on_the_cluster(cluster: Cluster, tmp_path: Path) -> None:
-    svc = start(tmp_path / "data", "--engine", cluster.address)
-    try:
-        _, body = svc.call("POST", "/api/runs", {"scenarios": ["seed000_roll_stand", "step_roll"], "seed": 3})
-        svc.until(body["id"], "running")
-    finally:
-        stop(svc, signal.SIGKILL)  # the service dies outright; the run flies on
-    svc = start(tmp_path / "data", "--engine", cluster.address)
-    try:
-        run = svc.follow(body["id"])
-        assert run["status"] == "passed" and [r["verdict"] for r in run["results"]] == ["pass", "pass"], run
-        assert (tmp_path / "data" / "runs" / str(body["id"]) / "step_roll" / "result.json").is_file()
     finally:
         stop(svc)
 

@@ -23,9 +23,8 @@ from pathlib import Path
 
 import pytest
 
-from tests.realtime import realtime
 from tests.service.test_api import Service, start, stop, until_line
-from tests.service.test_benches import drain
+from tests.service.test_benches import drain, judged_bench_run
 from tests.sweep.test_sweep_cli import DASK, scheduler_file_written
 from tests.waits import wait_file
 
@@ -167,25 +166,6 @@ def flown_in(svc: Service, run_id: int, scenario: str) -> Path:
     return Path(result["metadata"]["scenario_file"]).parents[3]
 
 
-def on_bench_b(svc: Service, first: int | None = None) -> dict[str, object]:
-    """A gust_rejection bench run on b, followed to its end, judged only when the host kept pace
-    (tests/realtime.py): ``first`` is a run already queued, flown again if it was starved."""
-    queued = [] if first is None else [first]
-    body = {"scenarios": ["gust_rejection"], "mode": "bridge", "bench": {"site": "b"}}
-
-    def fly() -> dict[str, object]:
-        run_id = queued.pop() if queued else svc.call("POST", "/api/runs", body)[1]["id"]
-        return svc.follow(run_id)
-
-    def lateness(run: dict[str, object]) -> dict[str, dict[str, object]]:
-        f = svc.data / "runs" / str(run["id"]) / "gust_rejection" / "result.json"
-        if not f.is_file():
-            return {}  # no result: the assertions below say what the run did
-        return {f"bench run {run['id']}": json.loads(f.read_text())["metadata"].get("realtime_lateness", {})}
-
-    return realtime(fly, lateness)
-
-
 # paced: its bench runs fly in real time, so it runs in make test's second part, alone; a bench run
 # starved by the host (twice) makes the test inconclusive, never a failure of the run
 @pytest.mark.paced
@@ -206,9 +186,9 @@ def test_benches_and_lockstep_runs_across_namespaces(hosts: Hosts) -> None:
     hosts.bench_hosts["a"].send_signal(signal.SIGKILL)  # (its run has 10 s of flight in real time)
     gone = svc.follow(on_a["id"])
     assert gone["status"] == "interrupted" and gone["bench_name"] == "a" and "not run again" in gone["error"]
-    done = on_bench_b(svc, on_b["id"])
+    done = judged_bench_run(svc, "gust_rejection", {"site": "b"}, on_b["id"])
     assert done["status"] == "passed" and done["bench_name"] == "b", done
     assert flown_in(svc, int(str(done["id"])), "gust_rejection") == hosts.tmp[3]
     benches = {b["name"]: b["state"] for b in svc.call("GET", "/api/benches")[1]}
     assert benches == {"a": "offline", "b": "free"}
-    assert on_bench_b(svc)["status"] == "passed"  # b goes on
+    assert judged_bench_run(svc, "gust_rejection", {"site": "b"})["status"] == "passed"  # b goes on

@@ -63,7 +63,7 @@ page = mmap.mmap(fd, 4096)
 os.close(fd)
 sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
 sock.connect(os.environ["RIG_SOCKET"])
-sock.sendall(HEADER.pack(12, 1, 0, u64(page, 16)) + struct.pack("<III", 4, os.getpid(), 1))
+sock.sendall(HEADER.pack(12, 1, 0, u64(page, 16)) + struct.pack("<III", 5, os.getpid(), 1))
 if sys.argv[1] == "nofd":
     reply = sock.recv(HEADER.size + 4)   # (no room for the descriptor: the kernel closes it)
     assert reply[HEADER.size:] == struct.pack("<I", 1), reply

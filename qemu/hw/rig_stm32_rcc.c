@@ -1,0 +1,261 @@
+/*
+ * The STM32F405's reset and clock control (RCC), RM0090 section 7.3.
+ *
+ * What start-up code waits for: each oscillator's ready flag follows its enable (HSIRDY after HSION,
+ * HSERDY after HSEON, PLLRDY after PLLON, PLLI2SRDY, LSERDY, LSIRDY), at once: the ready time of a
+ * real crystal is not modelled. The system clock switch (CFGR.SWS) follows CFGR.SW when the selected
+ * source is ready, and later when it becomes ready, as the hardware does; an oscillator that feeds the
+ * system clock cannot be stopped. The AHB clock (HCLK = SYSCLK / HPRE) is the "hclk" clock output,
+ * which drives the core, SysTick and DWT: a firmware that sets up 168 MHz runs SysTick at 168 MHz.
+ * The reset registers reset the peripherals the machine attached to their bits (GPIO ports, PWR).
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+
+#include "qemu/osdep.h"
+
+#include "hw/qdev-clock.h"
+#include "hw/qdev-properties.h"
+#include "qemu/log.h"
+#include "qemu/module.h"
+#include "rig_stm32f4.h"
+
+#define HSI_HZ 16000000u
+
+/* RCC_CR */
+#define CR_HSION (1u << 0)
+#define CR_HSIRDY (1u << 1)
+#define CR_HSEON (1u << 16)
+#define CR_HSERDY (1u << 17)
+#define CR_PLLON (1u << 24)
+#define CR_PLLRDY (1u << 25)
+#define CR_PLLI2SON (1u << 26)
+#define CR_PLLI2SRDY (1u << 27)
+/* RCC_CFGR */
+#define CFGR_SW_MASK 0x3u
+#define CFGR_SWS_SHIFT 2
+#define CFGR_SWS_MASK (0x3u << CFGR_SWS_SHIFT)
+#define SW_HSI 0u
+#define SW_HSE 1u
+#define SW_PLL 2u
+/* RCC_PLLCFGR */
+#define PLLCFGR_SRC_HSE (1u << 22)
+/* RCC_BDCR, RCC_CSR */
+#define BDCR_LSEON (1u << 0)
+#define BDCR_LSERDY (1u << 1)
+#define CSR_LSION (1u << 0)
+#define CSR_LSIRDY (1u << 1)
+#define CSR_RMVF (1u << 24)
+#define CSR_RESET_FLAGS 0xFE000000u
+
+/*
+ * RM0090 rev 19, table 34 (RCC register map and reset values) for the STM32F405/407; the writable
+ * masks are the bits each register's description marks rw.
+ */
+static const RigRegister rcc_registers[RIG_RCC_REGISTERS] = {
+    { 0x00, "CR", 0x00000083, 0x050D00F9 }, /* HSITRIM = 16, HSION, HSIRDY */
+    { 0x04, "PLLCFGR", 0x24003010, 0x0F437FFF },   { 0x08, "CFGR", 0x00000000, 0xFFFFFCF3 },
+    { 0x0C, "CIR", 0x00000000, 0x00003F00 },       { 0x10, "AHB1RSTR", 0x00000000, 0x226011FF },
+    { 0x14, "AHB2RSTR", 0x00000000, 0x000000F1 },  { 0x18, "AHB3RSTR", 0x00000000, 0x00000001 },
+    { 0x20, "APB1RSTR", 0x00000000, 0x36FEC9FF },  { 0x24, "APB2RSTR", 0x00000000, 0x00075933 },
+    { 0x30, "AHB1ENR", 0x00100000, 0x7E7411FF },   { 0x34, "AHB2ENR", 0x00000000, 0x000000F1 },
+    { 0x38, "AHB3ENR", 0x00000000, 0x00000001 },   { 0x40, "APB1ENR", 0x00000000, 0x36FEC9FF },
+    { 0x44, "APB2ENR", 0x00000000, 0x00075F33 },   { 0x50, "AHB1LPENR", 0x7E6791FF, 0x7E6791FF },
+    { 0x54, "AHB2LPENR", 0x000000F1, 0x000000F1 }, { 0x58, "AHB3LPENR", 0x00000001, 0x00000001 },
+    { 0x60, "APB1LPENR", 0x36FEC9FF, 0x36FEC9FF }, { 0x64, "APB2LPENR", 0x00075F33, 0x00075F33 },
+    { 0x70, "BDCR", 0x00000000, 0x00018305 },      { 0x74, "CSR", 0x0E000000, 0x00000001 },
+    { 0x80, "SSCGR", 0x00000000, 0xCFFFFFFF },     { 0x84, "PLLI2SCFGR", 0x20003000, 0x70007FC0 },
+};
+
+enum { R_CR = 0, R_PLLCFGR = 1, R_CFGR = 2, R_BDCR = 19, R_CSR = 20 };
+
+int rig_register_index(const RigRegister *table, int count, hwaddr offset)
+{
+    for (int i = 0; i < count; i++) {
+        if (table[i].offset == offset) {
+            return i;
+        }
+    }
+    return -1;
+}
+
+bool rig_stm32_rcc_enabled(RigStm32RccState *rcc, hwaddr enr_offset, unsigned bit)
+{
+    int i = rig_register_index(rcc_registers, RIG_RCC_REGISTERS, enr_offset);
+    return i >= 0 && (rcc->regs[i] >> bit & 1u);
+}
+
+void rig_stm32_rcc_add_reset(RigStm32RccState *rcc, hwaddr rstr_offset, unsigned bit, DeviceState *dev)
+{
+    assert(rcc->n_resets < RIG_RCC_RESETS);
+    rcc->resets[rcc->n_resets].rstr_offset = rstr_offset;
+    rcc->resets[rcc->n_resets].bit = bit;
+    rcc->resets[rcc->n_resets].dev = dev;
+    rcc->n_resets++;
+}
+
+/* A peripheral whose reset bit is set is held in reset: reset again at each write that leaves it set */
+static void rcc_reset_peripherals(RigStm32RccState *s, hwaddr offset)
+{
+    for (unsigned k = 0; k < s->n_resets; k++) {
+        if (s->resets[k].rstr_offset == offset && rig_stm32_rcc_enabled(s, offset, s->resets[k].bit)) {
+            device_cold_reset(s->resets[k].dev);
+        }
+    }
+}
+
+static bool source_ready(const RigStm32RccState *s, unsigned sw)
+{
+    uint32_t cr = s->regs[R_CR];
+    switch (sw) {
+    case SW_HSI:
+        return cr & CR_HSIRDY;
+    case SW_HSE:
+        return cr & CR_HSERDY;
+    case SW_PLL:
+        return cr & CR_PLLRDY;
+    default: /* 11: not allowed */
+        return false;
+    }
+}
+
+static uint64_t pll_hz(const RigStm32RccState *s)
+{
+    uint32_t cfg = s->regs[R_PLLCFGR];
+    uint32_t m = cfg & 0x3F, n = cfg >> 6 & 0x1FF, p = 2 * ((cfg >> 16 & 0x3) + 1);
+    uint64_t in = (cfg & PLLCFGR_SRC_HSE) ? s->hse_hz : HSI_HZ;
+    if (m < 2 || n < 2) { /* PLLM and PLLN below 2 are wrong configurations: no output */
+        return 0;
+    }
+    return in / m * n / p;
+}
+
+static uint64_t sysclk_hz(const RigStm32RccState *s)
+{
+    switch (s->regs[R_CFGR] >> CFGR_SWS_SHIFT & 0x3) {
+    case SW_HSE:
+        return s->hse_hz;
+    case SW_PLL:
+        return pll_hz(s);
+    default:
+        return HSI_HZ;
+    }
+}
+
+static uint64_t hclk_hz(const RigStm32RccState *s)
+{
+    /* HPRE: 0xxx: /1; 1000..1111: /2, /4, /8, /16, /64, /128, /256, /512 */
+    static const unsigned shift[8] = { 1, 2, 3, 4, 6, 7, 8, 9 };
+    unsigned hpre = s->regs[R_CFGR] >> 4 & 0xF;
+    uint64_t hz = sysclk_hz(s);
+    return (hpre & 0x8) ? hz >> shift[hpre & 0x7] : hz;
+}
+
+/* The hardware's side of CR, BDCR, CSR and CFGR.SWS after a write */
+static void rcc_settle(RigStm32RccState *s)
+{
+    uint32_t cr = s->regs[R_CR];
+    unsigned sws = s->regs[R_CFGR] >> CFGR_SWS_SHIFT & 0x3;
+    /* an oscillator that clocks the system cannot be stopped (RM0090 7.3.1) */
+    if (sws == SW_HSI || (sws == SW_PLL && !(s->regs[R_PLLCFGR] & PLLCFGR_SRC_HSE))) {
+        cr |= CR_HSION;
+    }
+    if (sws == SW_HSE || (sws == SW_PLL && (s->regs[R_PLLCFGR] & PLLCFGR_SRC_HSE))) {
+        cr |= CR_HSEON;
+    }
+    if (sws == SW_PLL) {
+        cr |= CR_PLLON;
+    }
+    cr = (cr & ~(CR_HSIRDY | CR_HSERDY | CR_PLLRDY | CR_PLLI2SRDY)) | (cr & CR_HSION ? CR_HSIRDY : 0) |
+         (cr & CR_HSEON ? CR_HSERDY : 0) | (cr & CR_PLLON ? CR_PLLRDY : 0) | (cr & CR_PLLI2SON ? CR_PLLI2SRDY : 0);
+    s->regs[R_CR] = cr;
+    s->regs[R_BDCR] = (s->regs[R_BDCR] & ~BDCR_LSERDY) | (s->regs[R_BDCR] & BDCR_LSEON ? BDCR_LSERDY : 0);
+    s->regs[R_CSR] = (s->regs[R_CSR] & ~CSR_LSIRDY) | (s->regs[R_CSR] & CSR_LSION ? CSR_LSIRDY : 0);
+
+    unsigned sw = s->regs[R_CFGR] & CFGR_SW_MASK;
+    if (sw != sws && source_ready(s, sw)) {
+        s->regs[R_CFGR] = (s->regs[R_CFGR] & ~CFGR_SWS_MASK) | sw << CFGR_SWS_SHIFT;
+    }
+    uint64_t hz = hclk_hz(s);
+    if (hz != clock_get_hz(s->hclk)) {
+        clock_update_hz(s->hclk, hz);
+    }
+}
+
+static uint64_t rcc_read(void *opaque, hwaddr offset, unsigned size)
+{
+    RigStm32RccState *s = opaque;
+    int i = rig_register_index(rcc_registers, RIG_RCC_REGISTERS, offset);
+    if (i < 0) {
+        qemu_log_mask(LOG_GUEST_ERROR, "rig-stm32f4-rcc: read of reserved offset 0x%" HWADDR_PRIx "\n", offset);
+        return 0;
+    }
+    return s->regs[i];
+}
+
+static void rcc_write(void *opaque, hwaddr offset, uint64_t value, unsigned size)
+{
+    RigStm32RccState *s = opaque;
+    int i = rig_register_index(rcc_registers, RIG_RCC_REGISTERS, offset);
+    if (i < 0) {
+        qemu_log_mask(LOG_GUEST_ERROR, "rig-stm32f4-rcc: write of reserved offset 0x%" HWADDR_PRIx "\n", offset);
+        return;
+    }
+    uint32_t mask = rcc_registers[i].writable;
+    if (i == R_CSR && (value & CSR_RMVF)) { /* RMVF clears the reset flags */
+        s->regs[i] &= ~CSR_RESET_FLAGS;
+    }
+    s->regs[i] = (s->regs[i] & ~mask) | ((uint32_t)value & mask);
+    rcc_settle(s);
+    rcc_reset_peripherals(s, offset);
+}
+
+static const MemoryRegionOps rcc_ops = {
+    .read = rcc_read,
+    .write = rcc_write,
+    .endianness = DEVICE_NATIVE_ENDIAN,
+    .impl.min_access_size = 4,
+    .impl.max_access_size = 4,
+};
+
+static void rcc_reset(DeviceState *dev)
+{
+    RigStm32RccState *s = RIG_STM32_RCC(dev);
+    for (int i = 0; i < RIG_RCC_REGISTERS; i++) {
+        s->regs[i] = rcc_registers[i].reset;
+    }
+    rcc_settle(s);
+}
+
+static void rcc_init(Object *obj)
+{
+    RigStm32RccState *s = RIG_STM32_RCC(obj);
+    memory_region_init_io(&s->iomem, obj, &rcc_ops, s, TYPE_RIG_STM32_RCC, 0x400);
+    sysbus_init_mmio(SYS_BUS_DEVICE(obj), &s->iomem);
+    s->hclk = qdev_init_clock_out(DEVICE(obj), "hclk");
+    clock_set_hz(s->hclk, HSI_HZ);
+}
+
+static Property rcc_properties[] = {
+    DEFINE_PROP_UINT32("hse-hz", RigStm32RccState, hse_hz, 8000000),
+    DEFINE_PROP_END_OF_LIST(),
+};
+
+static void rcc_class_init(ObjectClass *klass, void *data)
+{
+    DeviceClass *dc = DEVICE_CLASS(klass);
+    dc->reset = rcc_reset;
+    device_class_set_props(dc, rcc_properties);
+}
+
+static const TypeInfo rcc_info = {
+    .name = TYPE_RIG_STM32_RCC,
+    .parent = TYPE_SYS_BUS_DEVICE,
+    .instance_size = sizeof(RigStm32RccState),
+    .instance_init = rcc_init,
+    .class_init = rcc_class_init,
+};
+
+static void rcc_register_types(void) { type_register_static(&rcc_info); }
+
+type_init(rcc_register_types)

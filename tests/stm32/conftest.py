@@ -1,0 +1,55 @@
+"""The STM32 tier's tests run the rig's test firmwares (tests/stm32/firmware, built by make as the MCU
+tier's are) under the engine `make stm32-engine` built (rig/mcu/stm32_engine.py; `make test` builds it
+first). The engine is never built here: it takes minutes (docs/build.md); run by hand without it, a test
+that needs it skips, naming the command."""
+
+from __future__ import annotations
+
+import functools
+import re
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from rig.mcu import stm32_engine
+
+REPO = Path(__file__).resolve().parents[2]
+#: the instruction count's period under -icount: 2**3 ns, 125 M instructions per virtual second
+ICOUNT_SHIFT = 3
+#: a safety net against a firmware that never ends (a test fails, QEMU is killed and reaped): not a
+#: timing threshold, these firmwares end in well under a second
+RUN_TIMEOUT_S = 60.0
+REPORT_LINE = re.compile(r"([a-z0-9_]+)=0x([0-9a-f]{8})")
+
+
+def engine_or_skip() -> Path:
+    binary = stm32_engine.cached_binary()
+    if binary is None:
+        pytest.skip("the STM32 engine is not built for the current sources: `make stm32-engine` builds it "
+                    "(QEMU from source, many minutes on 2 cores; docs/build.md)")
+    return binary
+
+
+@functools.cache
+def firmware(name: str) -> Path:
+    target = f"build/stm32/test/{name}.elf"
+    done = subprocess.run(["make", "-s", "--no-print-directory", "INSTALLED=1", target], cwd=REPO,
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    return REPO / target
+
+
+def run_firmware(engine: Path, elf: Path, *qemu_args: str) -> subprocess.CompletedProcess[str]:
+    """``elf`` on the rig-stm32f405 machine, in icount time, its semihosting on QEMU's standard output;
+    no display, monitor or serial port."""
+    cmd = [str(engine), "-M", "rig-stm32f405", "-nodefaults", "-display", "none",
+           "-chardev", "stdio,id=semi", "-semihosting-config", "enable=on,target=native,chardev=semi",
+           "-icount", f"shift={ICOUNT_SHIFT},sleep=off", *qemu_args, "-kernel", str(elf)]
+    return subprocess.run(cmd, stdin=subprocess.DEVNULL, capture_output=True, text=True,
+                          timeout=RUN_TIMEOUT_S)
+
+
+def reports(stdout: str) -> dict[str, int]:
+    """The NAME=0xVALUE lines a test firmware wrote."""
+    return {m.group(1): int(m.group(2), 16) for m in REPORT_LINE.finditer(stdout)}
