@@ -174,12 +174,8 @@ def test_a_bench_host_killed_mid_run_interrupts_its_run_and_the_other_bench_pass
     assert benches == {"a": "offline", "b": "free"}
 
 
-def test_a_name_taken_is_one_line_and_a_scheduler_gone_leaves_the_benches_unknown(farm: Farm) -> None:
+def test_a_scheduler_gone_leaves_the_benches_unknown(farm: Farm) -> None:
     svc = farm.svc
-    # a second bench host under a name taken: one line naming the clash and --name, exit 2
-    clash = rig("bench-host", "--engine", farm.address, "--bridge", "virtual", "--name", "b")
-    assert clash.returncode == 2 and clash.stderr.count("\n") == 1, clash.stderr
-    assert "a bench named 'b' already" in clash.stderr and "--name" in clash.stderr
     # the scheduler dies: what was seen of the benches is no news of them now
     _, last = svc.call("POST", "/api/runs", {"scenarios": ["step_roll"], "mode": "bridge",
                                              "bench": {"site": "y"}})  # (10 s of flight in real time)
@@ -195,3 +191,12 @@ def test_a_name_taken_is_one_line_and_a_scheduler_gone_leaves_the_benches_unknow
     with urllib.request.urlopen(svc.url + "/", timeout=30) as page:
         html = page.read().decode()
     assert ">unknown<" in html.replace("\n", "") and ">free<" not in html.replace("\n", "")
+
+
+def test_a_bench_name_taken_is_one_line(farm: Farm) -> None:
+    """(Last in its test: under pytest the scheduler has been seen gone after this refusal, and the
+    service's next run then waits; not seen from a shell. Under investigation.)"""
+    # a second bench host under a name taken: one line naming the clash and --name, exit 2
+    clash = rig("bench-host", "--engine", farm.address, "--bridge", "virtual", "--name", "b")
+    assert clash.returncode == 2 and clash.stderr.count("\n") == 1, clash.stderr
+    assert "a bench named 'b' already" in clash.stderr and "--name" in clash.stderr
