@@ -228,7 +228,8 @@ def test_rig_submit_waits_and_exits_with_rig_runs_codes(service: Service) -> Non
     done = rig("submit", "--server", service.url, "step_roll", "--dut", "true", "--wait")
     assert done.returncode == 3, done.stderr
     status = rig("status", "--server", service.url, done.stdout.split()[0])
-    assert "rig run exited with status 3: 0 passed, 0 failed, 1 errors" in status.stdout  # as written
+    # why: the scenario's reason, as its result.json gives it (not rig run's summary line)
+    assert "— step_roll: the command exited without touching the emulated devices" in status.stdout
     bad = rig("submit", "--server", service.url, "no_such_scenario")
     assert bad.returncode == 2 and "no library scenario of that name" in bad.stderr
     assert rig("status", "--server", service.url, "999").returncode == 2
@@ -275,7 +276,8 @@ def test_uploads_are_checked_stored_once_and_run(service: Service, tmp_path: Pat
 
     program = b"#!/bin/sh\necho 'a firmware that will not fly' >&2\nexit 3\n"
     status, fw = post_bytes(service, "/api/firmware", program)
-    assert status == 201 and fw == {"sha256": hashlib.sha256(program).hexdigest(), "size": len(program)}
+    assert status == 201 and fw == {"sha256": hashlib.sha256(program).hexdigest(), "size": len(program),
+                                    "kind": "script"}
     assert post_bytes(service, "/api/firmware", program)[1] == fw  # stored once
     assert post_bytes(service, "/api/firmware", b"")[0] == 422
     assert [f["sha256"] for f in service.call("GET", "/api/firmware")[1]] == [fw["sha256"]]
