@@ -43,7 +43,9 @@ class RigError(Exception):
 #: (``dut=""`` is "dut is empty"; the command line keeps "--dut is empty")
 API_NAMES: Final = {"--dut": "dut", "--mcu": "mcu", "--firmware": "mcu's firmware", "--bridge": "bridge",
                     "--spin": "spin", "--seed": "seed", "--wall-timeout": "wall_timeout", "--out": "out",
-                    "--jobs": "jobs", "--engine": "engine", "--fresh": "fresh"}
+                    "--jobs": "jobs", "--engine": "engine", "--fresh": "fresh", "--eeprom": "eeprom",
+                    "--pwm-channels": "pwm_channels", "--topology": "topology", "--airframe": "airframe",
+                    "--fc": "fc"}
 
 
 def api_words(message: str) -> str:
