@@ -200,3 +200,7 @@ def test_a_bench_name_taken_is_one_line(farm: Farm) -> None:
     clash = rig("bench-host", "--engine", farm.address, "--bridge", "virtual", "--name", "b")
     assert clash.returncode == 2 and clash.stderr.count("\n") == 1, clash.stderr
     assert "a bench named 'b' already" in clash.stderr and "--name" in clash.stderr
+    # and the farm is as it was: the scheduler answers, both benches are there and free
+    health = farm.svc.call("GET", "/api/health")[1]
+    assert health["status"] == "ok", health
+    assert {b["name"]: b["state"] for b in farm.svc.call("GET", "/api/benches")[1]} == {"a": "free", "b": "free"}

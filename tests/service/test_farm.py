@@ -177,7 +177,6 @@ def test_a_scheduler_gone_stops_dispatch_and_the_queue_waits_across_a_restart(
         stop(svc)
 
 
-@pytest.mark.slow  # (~40 s: an AVR image flies under emulation on the worker)
 def test_an_avr_image_on_an_uploaded_board_and_an_errors_words_on_the_cluster(cluster: Cluster,
                                                                              tmp_path: Path) -> None:
     import hashlib
