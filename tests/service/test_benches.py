@@ -204,4 +204,5 @@ def test_a_bench_name_taken_is_one_line(farm: Farm) -> None:
     # and the farm is as it was: the scheduler answers, both benches are there and free
     health = farm.svc.call("GET", "/api/health")[1]
     assert health["status"] == "ok", health
-    assert {b["name"]: b["state"] for b in farm.svc.call("GET", "/api/benches")[1]} == {"a": "free", "b": "free"}
+    benches = {b["name"]: b["state"] for b in farm.svc.call("GET", "/api/benches")[1]}
+    assert benches == {"a": "free", "b": "free"}, benches
