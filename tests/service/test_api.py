@@ -75,6 +75,18 @@ class Service:
                 return run
         raise AssertionError(f"run {run_id} did not end: {run}")
 
+    def flying(self, run_id: int) -> dict[str, Any]:
+        """The run once it flies on its worker or bench: "running" is written when the service claims
+        it, before it is submitted to the cluster; a progress report comes from the flight itself. A
+        test that kills a part of the farm mid-run waits for this (killed between the claim and the
+        submission, the run is rightly queued again, or interrupted)."""
+        run = self.until(run_id, "running")
+        for _ in range(100):
+            if run["progress"] > 0 or run["status"] != "running":
+                return run
+            run = self.call("GET", f"/api/runs/{run_id}?wait=30")[1]
+        raise AssertionError(f"run {run_id} never reported progress: {run}")
+
     def until(self, run_id: int, status: str) -> dict[str, Any]:
         """The run once it has this status (through the long poll, from the status last seen: a
         status held between two calls is never missed)."""

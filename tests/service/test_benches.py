@@ -164,7 +164,7 @@ def test_a_bench_host_killed_mid_run_interrupts_its_run_and_the_other_bench_pass
     _, doomed = svc.call("POST", "/api/runs", {"scenarios": ["step_roll"], "mode": "bridge",
                                                "bench": {"site": "x"}})
     _, other = svc.call("POST", "/api/runs", {"scenarios": [QUICK], "mode": "bridge", "bench": {"site": "y"}})
-    svc.until(doomed["id"], "running")
+    svc.flying(doomed["id"])
     farm.hosts["a"].send_signal(signal.SIGKILL)  # (its run has 10 s of flight in real time)
     gone = svc.follow(doomed["id"])
     assert gone["status"] == "interrupted" and "not run again" in gone["error"], gone
@@ -179,7 +179,7 @@ def test_a_scheduler_gone_leaves_the_benches_unknown(farm: Farm) -> None:
     # the scheduler dies: what was seen of the benches is no news of them now
     _, last = svc.call("POST", "/api/runs", {"scenarios": ["step_roll"], "mode": "bridge",
                                              "bench": {"site": "y"}})  # (10 s of flight in real time)
-    svc.until(last["id"], "running")
+    svc.flying(last["id"])
     farm.procs[0].send_signal(signal.SIGKILL)
     assert svc.follow(last["id"])["status"] == "interrupted"
     assert svc.call("GET", "/api/health")[1]["status"] == "degraded"

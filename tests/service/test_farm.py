@@ -77,13 +77,7 @@ def test_a_service_killed_mid_run_re_attaches_and_the_clusters_results_equal_a_p
     svc = start(tmp_path / "data", "--engine", cluster.address)
     try:
         _, body = svc.call("POST", "/api/runs", {"scenarios": ["seed000_roll_stand", "step_roll"], "seed": 3})
-        svc.until(body["id"], "running")
-        # "running" is written when the run is claimed, before it is submitted and published on the
-        # cluster; a progress report comes from the worker's flight, after both: killed before then, the
-        # run is rightly interrupted (its future died with the service's client)
-        for _ in range(100):
-            if svc.call("GET", f"/api/runs/{body['id']}?wait=30")[1]["progress"] > 0:
-                break
+        svc.flying(body["id"])  # (published on the cluster: a restart can re-attach to it)
     finally:
         stop(svc, signal.SIGKILL)  # the service dies outright; the run flies on
     svc = start(tmp_path / "data", "--engine", cluster.address)
