@@ -142,9 +142,9 @@ def check_pdf_against_results(pdf: Path, results: list[dict]) -> str:
         assert f"Verdict: {result['verdict'].upper()}" in flat, r
         assert result["metadata"]["scenario_sha256"] in sec, r
         for m in result["measurements"]:
-            v = m["value"]
-            shown = "not measured" if v == "nan" else ("never" if v == "inf" and m["units"] == "s" else
-                                                        f"{v:.4g}")
+            v, why = m["value"], m.get("value_reason")
+            shown = "not measured" if why == "nan" else ("never" if why == "inf" and m["units"] == "s" else
+                                                          f"{v:.4g}")
             assert shown in flat, (r, m["name"], shown)
             if m["margin"] is not None:
                 assert f"{m['margin']:.1f} %" in flat, (r, m["name"])

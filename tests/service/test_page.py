@@ -87,6 +87,12 @@ def test_two_runs_overlaid_and_a_measurements_trend(service: Service) -> None:
     assert [(p["run"], p["value"], p["firmware"]) for p in points] == \
         [(a, values[0], "reference FC"), (b, values[1], "reference FC")]
     assert values[0] != values[1]  # two seeds: two flights
+    # what sets a series apart, in each point: the seed, the mode, the DUT, the version and its number
+    assert [(p["seed"], p["mode"], p["version_number"]) for p in points] == \
+        [(0, "lockstep", 1), (1, "lockstep", 1)]
+    assert len({p["series"] for p in points}) == 2  # two seeds: never one line
+    _, one = service.call("GET", "/api/trend?scenario=step_roll&measurement=overshoot%20of%20roll&seed=1")
+    assert [p["run"] for p in one] == [b]
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_FLAGS)
         page = browser.new_page(viewport={"width": 1100, "height": 1000})
@@ -100,7 +106,15 @@ def test_two_runs_overlaid_and_a_measurements_trend(service: Service) -> None:
         expect(page.locator("table.criteria")).to_contain_text("overshoot of roll")
         page.goto(f"{service.url}/trend?scenario=step_roll&measurement=overshoot%20of%20roll")
         expect(page.locator("tr.point")).to_have_count(2)
-        expect(page.locator("#trend[data-points='2'] canvas").first).to_be_visible()
+        expect(page.locator("#trend[data-points='2'][data-series='2'] canvas").first).to_be_visible()
+        assert page.locator("tr.point td:nth-child(6)").all_inner_texts()[0].startswith("v1 ")
+        # the x axis: run numbers, whole (the labels uPlot drew at the first axis's ticks, on its canvas)
+        ticks = page.evaluate("document.getElementById('trend').uplot.axes[0]._values")
+        assert ticks and all(t == "" or t.isdigit() for t in ticks) and f"{b}" in ticks, ticks
+        # a filter keeps one seed (a form the page submits)
+        page.select_option("#trend-filters select[name=seed]", "1")
+        expect(page.locator("tr.point")).to_have_count(1)
+        expect(page.locator("tr.point td").first).to_have_text(str(b))
         assert not errors, errors
         browser.close()
     assert service.call("GET", f"/compare?a={a}&b=999&scenario=step_roll")[0] == 404
