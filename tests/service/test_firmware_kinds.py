@@ -148,19 +148,14 @@ def test_an_avr_image_flies_on_an_uploaded_board_and_through_rig_submit(service:
 
 def test_the_page_uploads_an_image_and_a_board_and_flies_them(service: Service, avr_fc: Path,
                                                               tmp_path: Path) -> None:
-    from playwright.sync_api import expect, sync_playwright
+    from playwright.sync_api import expect
 
-    from tests.scenarios.test_library_and_reports import CHROMIUM_FLAGS
+    from tests.browser import chromium_page
 
     assert post_bytes(service, "/api/scenarios?name=short", SHORT_BENCH.encode())[0] == 201
     (tmp_path / "picture.png").write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(20))
     (tmp_path / "board.toml").write_text(BOARD.read_text().replace('name = "', 'name = "my ', 1))
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_FLAGS)
-        page = browser.new_page()
-        errors: list[str] = []
-        page.on("pageerror", lambda e: errors.append(str(e)))
-        page.goto(service.url + "/")
+    with chromium_page(service.url + "/") as (page, errors):
         page.set_input_files("#upload-firmware", str(tmp_path / "picture.png"))
         refused = page.locator("#upload-refused")
         expect(refused).to_contain_text("picture.png not uploaded: the upload is a PNG image")
@@ -177,6 +172,5 @@ def test_the_page_uploads_an_image_and_a_board_and_flies_them(service: Service, 
         expect(page.locator("#started")).to_contain_text("queued run")
         started = int(page.locator("#started a").inner_text().split()[-1])
         assert not errors, errors
-        browser.close()
     run = service.follow(started)
     assert run["dut"] == {"firmware": image, "board": board} and run["status"] == "passed", run

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.scenarios.test_library_and_reports import CHROMIUM_FLAGS
+from tests.browser import chromium_page
 from tests.service.test_api import Service, blocked_dut, post_bytes, start, stop
 from tests.short_scenario import SHORT_BENCH
 from tests.waits import BOUND_S, read_pid
@@ -28,16 +28,12 @@ def service(tmp_path: Path) -> Iterator[Service]:
 
 
 def test_a_bench_runs_progress_moves_on_an_open_page(service: Service) -> None:
-    from playwright.sync_api import expect, sync_playwright
+    from playwright.sync_api import expect
 
     assert post_bytes(service, "/api/scenarios?name=short", SHORT_BENCH.encode())[0] == 201
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_FLAGS)
-        front, page = browser.new_page(), browser.new_page()
-        errors: list[str] = []
-        for tab in (front, page):
-            tab.on("pageerror", lambda e: errors.append(str(e)))
-        front.goto(service.url + "/")
+    with chromium_page(service.url + "/") as (front, errors):
+        page = front.context.new_page()
+        page.on("pageerror", lambda e: errors.append(str(e)))
         expect(front.locator("#history")).to_contain_text("no runs")
         _, body = service.call("POST", "/api/runs", {"scenarios": ["short"], "mode": "bridge"})
         page.goto(f"{service.url}/runs/{body['id']}")
@@ -59,7 +55,6 @@ def test_a_bench_runs_progress_moves_on_an_open_page(service: Service) -> None:
         for tab in (front, page):
             assert tab.evaluate("window.stillThisPage") is True
         assert not errors, errors
-        browser.close()
 
 
 def html(svc: Service, path: str) -> str:
