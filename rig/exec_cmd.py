@@ -326,6 +326,7 @@ def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command
                        **run.figures(outcome))
         if trace is not None:
             summary["trace"] = str(trace)
+        summary["poll_skip"] = run.session.poll_at_end  # (a figure of the engine's speed: not in result.json)
         args.summary.write_text(json.dumps(summary, indent=2, sort_keys=True) + "\n")
     return outcome.exit_code
 

@@ -111,6 +111,8 @@ class McuSession:
         #: per listened USART, what the firmware sent: (the step's end in sim ns, the bytes)
         self.uart_log: dict[int, list[tuple[int, bytes]]] = {n: [] for n in config.listen}
         self._ports: dict[str, tuple[int, int]] = {}  # serial_port's paths: (USART, baud)
+        #: what the polling-loop skip did (AvrEngine.poll_figures), once run: rig exec's summary has it
+        self.poll_at_end: dict[str, int] = {}
 
     # ---- the Host the scenario's events use ---------------------------------------------------
 
@@ -240,6 +242,7 @@ class McuSession:
             interrupted = False
         finally:
             self.figures_at_end = engine.figures()
+            self.poll_at_end = engine.poll_figures()
             if self.cfg.eeprom_out is not None:
                 self.cfg.eeprom_out.write_bytes(engine.eeprom())
             events = engine.twi_take()

@@ -2,9 +2,10 @@
 waiting in each kind of polling loop (a timer's overflow flag, a 16-bit and an 8-bit timer counter, a flag
 in RAM an interrupt sets, TWINT, UDRE, RXC) gives, with the skip on and off, the same USART bytes in the
 same 1 ms steps, the same figures (cycles, instructions, program counter, stack pointer) and the same data
-space, byte for byte, at the end; with it on, the loops were skipped. The reference FC flying a scenario
-writes the same trace, EEPROM and result.json either way (but its wall-clock fields: when it started, how
-long it took, the real-time factor). The expected times are the datasheet's timer periods."""
+space, byte for byte, at the end; with it on, the loops were skipped (and rig exec's summary says how
+much). The reference FC flying a scenario writes the same trace, EEPROM and result.json either way (but
+its wall-clock fields: when it started, how long it took, the real-time factor). The expected times are
+the datasheet's timer periods."""
 
 from __future__ import annotations
 
@@ -108,3 +109,12 @@ def test_the_reference_fc_flies_the_same_bytes_with_the_skip_on_and_off(avr_fc: 
         shutil.rmtree(traces)
     assert kept["0"] == kept["1"]
     assert kept["1"][0]["verdict"] == "pass"
+
+
+def test_exec_summary_says_what_the_skip_did(avr_fc: Path, tmp_path: Path) -> None:
+    done = subprocess.run([sys.executable, "-m", "rig.cli", "exec", "--mcu", "mega2560-gy86", "--firmware",
+                           avr_fc, "--duration", "1.5", "--summary", tmp_path / "s.json"],
+                          capture_output=True, timeout=600, cwd=REPO, env={**os.environ, POLL_SKIP_ENV: "1"})
+    assert done.returncode == 0, done.stderr
+    skip = json.loads((tmp_path / "s.json").read_text())["poll_skip"]
+    assert skip["skipped_cycles"] > 0 and skip["skips"] > 0 and skip["mismatches"] == 0
