@@ -473,7 +473,7 @@ class AvrEngine:
         return {name: int(self._lib.mcu_poll_figure(self._e, i)) for i, name in enumerate(POLL_FIGURES)}
 
     def peek(self, addr: int) -> int:
-        """A byte of the data space (registers, I/O, SRAM) as it is."""
+        """A byte of the data space (registers, I/O, SRAM) as it is; SREG (0x5F) as its flags are."""
         return int(self._lib.mcu_peek(self._e, addr))
 
     def eeprom(self) -> bytes:

@@ -418,7 +418,17 @@ MCU_API void mcu_stock(mcu_engine *e, int which)
     }
 }
 
-MCU_API uint8_t mcu_peek(const mcu_engine *e, uint16_t addr) { return e->avr->data[addr]; }
+/* a byte of the data space; SREG as its flags are (simavr keeps them apart and its data[] copy is only
+ * brought up to date when the firmware reads or writes SREG) */
+MCU_API uint8_t mcu_peek(const mcu_engine *e, uint16_t addr)
+{
+    if (addr != R_SREG)
+        return e->avr->data[addr];
+    uint8_t sreg = 0;
+    for (int i = 0; i < 8; i++)
+        sreg |= (uint8_t)((e->avr->sreg[i] ? 1u : 0u) << i);
+    return sreg;
+}
 
 /* the EEPROM as the firmware left it, up to max bytes into out; returns how many (the MCU's EEPROM size,
  * or less when max is; 0 when simavr would not give it) */

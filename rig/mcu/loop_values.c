@@ -238,7 +238,7 @@ bool loop_load(loop_run *x, uint16_t addr, uint32_t offset, loop_val *out)
         }
         b.chain = (uint8_t)(chain < 0 ? 0 : chain);
         *out = b;
-        return loop_put(x, R_SREG, b); /* (simavr keeps the image it read in data[]) */
+        return true;
     }
     for (int i = 0; i < s->n_stores; i++)
         if (s->store_at[i] == addr) {
@@ -276,7 +276,7 @@ bool loop_store(loop_run *x, uint16_t addr, loop_val v)
                                      : v.fsym >> i & 1 ? FLAG_CHAIN
                                                        : FLAG_KNOWN,
                                      (uint8_t)(v.val >> i & 1), v.chain };
-        return loop_put(x, R_SREG, v); /* (and the byte written, in data[]) */
+        return true;
     }
     if (addr <= avr->ioend || addr > avr->ramend)
         return loop_fail(x, "a store to an I/O register");

@@ -28,11 +28,11 @@
 #define SEEN 256
 #define LOOP_CLOSE 1024 /* cycles */
 #define MIN_SKIP 3      /* iterations: fewer is not worth the proof */
-#define GIVE_UP 6       /* failures in a row: the loop is never tried again */
+#define BACK_OFF 16     /* a loop that failed is tried again after up to 2^16 of its periods */
 
 typedef struct {
     loop_trace t;
-    bool have, dead;
+    bool have, dead; /* (dead: a prediction simavr did not confirm) */
     uint16_t fails;
     uint64_t retry_at; /* the cycle before which it is not tried (after a failure) */
     uint64_t seen;     /* the last cycle it was reached at */
@@ -177,14 +177,16 @@ static bool prove(loop_run *x, const loop_state *star, const loop_state *e1, uin
     return loop_eval(x) && !has_unknown(&x->s) && loop_same(&x->s, e1);
 }
 
-/* not provable now: recorded again later (the path may have been another one's), and after GIVE_UP
- * failures in a row never tried again (a loop that computes, not one that waits) */
+/* not provable now: recorded again later (the path may have been another one's, or the loop was not
+ * waiting yet), after twice as long for each failure in a row (a loop that computes, not one that
+ * waits, is soon tried rarely enough to cost nothing) */
 static void refuse(mcu_poll *p, loop_head *lp, uint64_t now)
 {
     p->refused++;
     lp->have = false;
-    lp->dead = ++lp->fails >= GIVE_UP;
-    lp->retry_at = now + ((uint64_t)lp->t.period << (4 + lp->fails));
+    if (lp->fails < BACK_OFF - 4)
+        lp->fails++;
+    lp->retry_at = now + ((uint64_t)(lp->t.period ? lp->t.period : 1) << (4 + lp->fails));
 }
 
 static void try_arm(mcu_engine *e, mcu_poll *p, loop_head *lp)
@@ -322,7 +324,9 @@ void mcu_poll_step(mcu_engine *e, uint32_t pc_before)
         return;
     }
     uint16_t w = (uint16_t)(avr->flash[pc_before] | avr->flash[pc_before + 1] << 8);
-    if (w == 0x9508 || w == 0x9518) /* a return: the loop's head is where its jump goes */
+    /* a loop closes with RJMP, BRBS/BRBC (both 11110...), JMP, IJMP or EIJMP; not a return, a call or an
+     * interrupt's entry */
+    if ((w & 0xF000) != 0xC000 && (w & 0xF800) != 0xF000 && (w & 0xFE0E) != 0x940C && (w & 0xFFEF) != 0x9409)
         return;
     uint32_t h = (avr->pc >> 1) % SEEN;
     uint64_t now = avr->cycle;
