@@ -1,0 +1,699 @@
+/*
+ * The STM32F405's timers, RM0090 sections 17 (advanced TIM1/TIM8), 18 (TIM2-TIM5), 19 (TIM9-TIM14) and
+ * 20 (basic TIM6/TIM7): one model, each timer's registers and bits a table of data.
+ *
+ * The counter runs in virtual time on the RCC's APB timer clock (x2 when the APB prescaler is not 1),
+ * divided by the prescaler: up, down or center-aligned (CR1.DIR, CMS), with the auto-reload register
+ * preloaded under ARPE, PSC taken at each update event (UEV), the repetition counter of the advanced
+ * timers, one-pulse mode, UDIS and URS, and EGR.UG. Channels: output compare (frozen, active, inactive,
+ * toggle on match, forced levels, PWM modes 1 and 2) with CCRx preloaded under OCxPE, CCxE and CCxP,
+ * BDTR.MOE gating the advanced timers' outputs; input capture (CCxS = 01, 10: the channel's own input or
+ * its pair's; CCxP/CCxNP pick rising, falling or both edges; ICxPSC; ICxF is ignored, the edges are
+ * clean) with the overcapture flag. SR's flags are cleared by writing 0; DIER's interrupt enables raise
+ * the NVIC lines, the advanced timers' four (BRK, UP, TRG_COM, CC), the others' one; the DMA request
+ * enables are stored (DMA is not modelled). The registers answer only with the timer's RCC enable bit on
+ * (reads 0, writes lost) and the RCC's reset bit resets the timer.
+ *
+ * Nothing runs per tick: a QEMU timer is armed for the next event (a compare match of a channel in use,
+ * the end of the period), and reads of CNT compute it from the virtual time: a 490 Hz PWM costs two
+ * events per period. The outputs go to the GPIO pins whose AFR selects the timer ("channel-out" lines,
+ * four pins per channel), and the pins' levels come back as the channels' inputs ("channel-in").
+ *
+ * For the rig, each channel's pulse is latched at the start of each period (at the UEV: the CCR, ARR and
+ * PSC then in force, in timer-clock ticks), as the AVR tier reads motor pulses from its compare
+ * registers: "pulse-ns" GPIO output lines carry each channel's high time in ns when it changes, and with
+ * -global rig-stm32f4-timer.trace-pulses=on each change prints a line on stderr:
+ *   rig-stm32f4-timer: t_ns=T TIMn chC high_ticks=H period_ticks=P clock_hz=F
+ *
+ * Not modelled: the slave mode controller and trigger chaining (SMCR, TRGO, ITRx), external clocks and
+ * ETR, encoder and hall-sensor modes, complementary outputs and dead time, break inputs, COM events, the
+ * DMA burst registers' transfers (DCR is stored, DMAR reads 0), the input filters and OCxFE/OCxCE.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+
+#include "qemu/osdep.h"
+
+#include "hw/irq.h"
+#include "hw/qdev-clock.h"
+#include "hw/qdev-properties.h"
+#include "qapi/error.h"
+#include "qemu/host-utils.h"
+#include "qemu/log.h"
+#include "qemu/module.h"
+#include "rig_stm32f4.h"
+
+/* The kinds of timer */
+enum { ADVANCED, GENERAL32, GENERAL16, TWO_CHANNEL, ONE_CHANNEL, BASIC, KINDS };
+typedef struct RigTimerKind {
+    uint8_t kind;
+    uint8_t channels;
+    bool wide;     /* 32-bit CNT, ARR and CCRx (TIM2, TIM5) */
+    bool advanced; /* TIM1, TIM8: RCR, BDTR, four interrupt lines */
+} RigTimerKind;
+static const RigTimerKind kinds[KINDS] = {
+    [ADVANCED] = { ADVANCED, 4, false, true },        [GENERAL32] = { GENERAL32, 4, true, false },
+    [GENERAL16] = { GENERAL16, 4, false, false },     [TWO_CHANNEL] = { TWO_CHANNEL, 2, false, false },
+    [ONE_CHANNEL] = { ONE_CHANNEL, 1, false, false }, [BASIC] = { BASIC, 0, false, false },
+};
+
+/*
+ * The registers: offset, and the bits software can write on each kind of timer (0: that kind has no such
+ * register), from the register descriptions of RM0090 rev 19: TIM1/TIM8 17.4, TIM2-TIM5 18.4 (TIM2 and
+ * TIM5 32-bit), TIM9/TIM12 19.4, TIM10/TIM11/TIM13/TIM14 19.5, TIM6/TIM7 20.4. Every register resets
+ * to 0. SR's bits are cleared by writing 0 (rc_w0); EGR reads 0.
+ */
+#define C16 0xFFFFu
+#define C32 0xFFFFFFFFu
+// clang-format off
+enum { CR1, CR2, SMCR, DIER, SR, EGR, CCMR1, CCMR2, CCER, CNT, PSC, ARR, RCR, CCR1, CCR2, CCR3, CCR4, BDTR, DCR, DMAR,
+       OR };
+static const struct {
+    uint16_t offset;
+    uint32_t writable[KINDS]; /* ADVANCED, GENERAL32, GENERAL16, TWO_CHANNEL, ONE_CHANNEL, BASIC */
+} registers[RIG_TIM_REGS] = {
+    [CR1] =   { 0x00, { 0x3FF,  0x3FF,  0x3FF,  0x38F,  0x387, 0x8F } },
+    [CR2] =   { 0x04, { 0x7FFD, 0xF8,   0xF8,   0,      0,     0x70 } },
+    [SMCR] =  { 0x08, { 0xFFF7, 0xFFF7, 0xFFF7, 0xF7,   0,     0 } },
+    [DIER] =  { 0x0C, { 0x7FFF, 0x5F5F, 0x5F5F, 0x47,   0x3,   0x101 } },
+    [SR] =    { 0x10, { 0x1EFF, 0x1E5F, 0x1E5F, 0x647,  0x203, 0x1 } },
+    [EGR] =   { 0x14, { 0xFF,   0x5F,   0x5F,   0x47,   0x3,   0x1 } },
+    [CCMR1] = { 0x18, { 0xFFFF, 0xFFFF, 0xFFFF, 0x7F7F, 0x7F,  0 } },
+    [CCMR2] = { 0x1C, { 0xFFFF, 0xFFFF, 0xFFFF, 0,      0,     0 } },
+    [CCER] =  { 0x20, { 0x3FFF, 0xBBBB, 0xBBBB, 0xBB,   0xB,   0 } },
+    [CNT] =   { 0x24, { C16,    C32,    C16,    C16,    C16,   C16 } },
+    [PSC] =   { 0x28, { C16,    C16,    C16,    C16,    C16,   C16 } },
+    [ARR] =   { 0x2C, { C16,    C32,    C16,    C16,    C16,   C16 } },
+    [RCR] =   { 0x30, { 0xFF,   0,      0,      0,      0,     0 } },
+    [CCR1] =  { 0x34, { C16,    C32,    C16,    C16,    C16,   0 } },
+    [CCR2] =  { 0x38, { C16,    C32,    C16,    C16,    0,     0 } },
+    [CCR3] =  { 0x3C, { C16,    C32,    C16,    0,      0,     0 } },
+    [CCR4] =  { 0x40, { C16,    C32,    C16,    0,      0,     0 } },
+    [BDTR] =  { 0x44, { 0xFFFF, 0,      0,      0,      0,     0 } },
+    [DCR] =   { 0x48, { 0x1F1F, 0x1F1F, 0x1F1F, 0,      0,     0 } },
+    [DMAR] =  { 0x4C, { C16,    C16,    C16,    0,      0,     0 } },
+    [OR] =    { 0x50, { 0,      0xCC0,  0,      0,      0x3,   0 } }, /* TIM2/TIM5, TIM11: remaps */
+};
+// clang-format on
+
+/* TIMn: its kind, its APB (1 or 2) and its bit in RCC_APBxENR/APBxRSTR (RM0090 7.3.13, 7.3.14) */
+static const struct {
+    uint8_t kind, apb, enable_bit;
+} timers[15] = {
+    [1] = { ADVANCED, 2, 0 },      [2] = { GENERAL32, 1, 0 },     [3] = { GENERAL16, 1, 1 },
+    [4] = { GENERAL16, 1, 2 },     [5] = { GENERAL32, 1, 3 },     [6] = { BASIC, 1, 4 },
+    [7] = { BASIC, 1, 5 },         [8] = { ADVANCED, 2, 1 },      [9] = { TWO_CHANNEL, 2, 16 },
+    [10] = { ONE_CHANNEL, 2, 17 }, [11] = { ONE_CHANNEL, 2, 18 }, [12] = { TWO_CHANNEL, 1, 6 },
+    [13] = { ONE_CHANNEL, 1, 7 },  [14] = { ONE_CHANNEL, 1, 8 },
+};
+
+#define APB1ENR 0x40
+#define APB2ENR 0x44
+
+/* CR1 */
+#define CR1_CEN (1u << 0)
+#define CR1_UDIS (1u << 1)
+#define CR1_URS (1u << 2)
+#define CR1_OPM (1u << 3)
+#define CR1_DIR (1u << 4)
+#define CR1_CMS_SHIFT 5
+#define CR1_ARPE (1u << 7)
+/* SR, DIER, EGR */
+#define SR_UIF (1u << 0)
+#define SR_CCIF(ch) (1u << (1 + (ch)))
+#define SR_COMIF (1u << 5)
+#define SR_TIF (1u << 6)
+#define SR_BIF (1u << 7)
+#define SR_CCOF(ch) (1u << (9 + (ch)))
+#define EGR_UG (1u << 0)
+#define EGR_CCG(ch) (1u << (1 + (ch)))
+/* CCMRx: a byte per channel */
+#define CCS_OUTPUT 0u
+#define CCMR_OCPE (1u << 3)
+#define OCM_ACTIVE 1u
+#define OCM_INACTIVE 2u
+#define OCM_TOGGLE 3u
+#define OCM_FORCE_LOW 4u
+#define OCM_FORCE_HIGH 5u
+#define OCM_PWM1 6u
+#define OCM_PWM2 7u
+/* CCER: a nibble per channel */
+#define CCER_E 1u
+#define CCER_P 2u
+#define CCER_NP 8u
+#define BDTR_MOE (1u << 15)
+
+static bool clocked(RigStm32TimerState *s)
+{
+    return s->rcc == NULL ||
+           rig_stm32_rcc_enabled(s->rcc, timers[s->index].apb == 1 ? APB1ENR : APB2ENR, timers[s->index].enable_bit);
+}
+
+/* The timer clock now (the RCC's exact rate; its Clock only tells of changes) */
+static uint64_t timer_hz(RigStm32TimerState *s)
+{
+    return s->rcc ? rig_stm32_rcc_timer_hz(s->rcc, timers[s->index].apb) : clock_get_hz(s->clk);
+}
+
+static uint32_t counter_mask(const RigStm32TimerState *s) { return s->kind->wide ? 0xFFFFFFFFu : C16; }
+
+static unsigned ccmr(const RigStm32TimerState *s, unsigned ch)
+{
+    return s->regs[ch < 2 ? CCMR1 : CCMR2] >> (8 * (ch % 2)) & 0xFF;
+}
+
+static unsigned ccer(const RigStm32TimerState *s, unsigned ch) { return s->regs[CCER] >> (4 * ch) & 0xF; }
+static unsigned oc_mode(const RigStm32TimerState *s, unsigned ch) { return ccmr(s, ch) >> 4 & 0x7; }
+static bool is_output(const RigStm32TimerState *s, unsigned ch) { return (ccmr(s, ch) & 3) == CCS_OUTPUT; }
+static unsigned cms(const RigStm32TimerState *s) { return s->regs[CR1] >> CR1_CMS_SHIFT & 3; }
+
+/* OCxREF of a PWM mode as a function of the counter (RM0090 17.3.10): mode 1 active while CNT < CCR
+ * counting up, while CNT <= CCR counting down; mode 2 the opposite */
+static bool pwm_ref(const RigStm32TimerState *s, unsigned ch)
+{
+    uint32_t cnt = s->regs[CNT], ccr = s->ccr[ch];
+    bool active = s->down ? cnt <= ccr : cnt < ccr;
+    return oc_mode(s, ch) == OCM_PWM1 ? active : !active;
+}
+
+/* The pins follow each channel's output: OCxREF through CCxP while CCxE (and, on TIM1/TIM8, BDTR.MOE)
+ * enable it; a disabled output drives low */
+static void drive_outputs(RigStm32TimerState *s)
+{
+    for (unsigned ch = 0; ch < s->kind->channels; ch++) {
+        unsigned mode = oc_mode(s, ch);
+        if (is_output(s, ch)) {
+            if (mode == OCM_PWM1 || mode == OCM_PWM2) {
+                s->ref[ch] = pwm_ref(s, ch);
+            } else if (mode == OCM_FORCE_LOW || mode == OCM_FORCE_HIGH) {
+                s->ref[ch] = mode == OCM_FORCE_HIGH;
+            }
+        }
+        bool enabled = is_output(s, ch) && (ccer(s, ch) & CCER_E) && (!s->kind->advanced || (s->regs[BDTR] & BDTR_MOE));
+        int level = enabled ? s->ref[ch] ^ !!(ccer(s, ch) & CCER_P) : 0;
+        if (level != s->out[ch]) {
+            s->out[ch] = level;
+            for (unsigned pin = 0; pin < RIG_TIM_PINS_PER_CHANNEL; pin++) {
+                qemu_set_irq(s->channel_out[ch * RIG_TIM_PINS_PER_CHANNEL + pin], level);
+            }
+        }
+    }
+}
+
+static void update_irqs(RigStm32TimerState *s)
+{
+    uint32_t pending = s->regs[SR] & s->regs[DIER] & 0xFF;
+    bool line[RIG_TIM_IRQS] = {
+        [RIG_TIM_IRQ_BRK] = pending & SR_BIF,
+        [RIG_TIM_IRQ_UP] = pending & SR_UIF,
+        [RIG_TIM_IRQ_TRG_COM] = pending & (SR_TIF | SR_COMIF),
+        [RIG_TIM_IRQ_CC] = pending & 0x1E,
+    };
+    if (s->kind->advanced) {
+        for (unsigned k = 0; k < RIG_TIM_IRQS; k++) {
+            qemu_set_irq(s->irq[k], line[k]);
+        }
+    } else {
+        qemu_set_irq(s->irq[0], pending != 0);
+    }
+}
+
+/* Active ticks of the timer clock per period for a channel in PWM mode, at the pin (CCxP inverts) */
+static uint32_t pulse_ticks(const RigStm32TimerState *s, unsigned ch, uint32_t period)
+{
+    uint64_t arr = s->arr, ccr = s->ccr[ch], active;
+    unsigned mode = oc_mode(s, ch);
+    bool enabled = is_output(s, ch) && (ccer(s, ch) & CCER_E) && (!s->kind->advanced || (s->regs[BDTR] & BDTR_MOE));
+    if (!enabled || (mode != OCM_PWM1 && mode != OCM_PWM2)) {
+        return 0;
+    }
+    if (cms(s)) {
+        active = 2 * MIN(ccr, arr);
+    } else if (s->down) {
+        active = MIN(ccr, arr) + 1;
+    } else {
+        active = MIN(ccr, arr + 1);
+    }
+    uint64_t counts = cms(s) ? 2 * arr : arr + 1;
+    active = mode == OCM_PWM1 ? active : counts - active;
+    active *= (uint64_t)s->psc + 1;
+    return (ccer(s, ch) & CCER_P) ? period - (uint32_t)active : (uint32_t)active;
+}
+
+/* The pulses for the rig: latched at the start of each period, sent and traced when they change */
+static void latch_pulses(RigStm32TimerState *s)
+{
+    uint64_t counts = cms(s) ? 2 * (uint64_t)s->arr : (uint64_t)s->arr + 1;
+    uint32_t period = (uint32_t)MIN(counts * ((uint64_t)s->psc + 1), UINT32_MAX);
+    uint64_t hz = s->hz;
+    for (unsigned ch = 0; ch < s->kind->channels; ch++) {
+        uint32_t high = pulse_ticks(s, ch, period);
+        /* (a channel without pulses stays silent while only the period changes) */
+        if (high == s->pulse_ticks[ch] && (period == s->period_ticks || high == 0)) {
+            continue;
+        }
+        s->pulse_ticks[ch] = high;
+        qemu_set_irq(s->pulse_ns[ch], hz ? (int)muldiv64(high, NANOSECONDS_PER_SECOND, hz) : 0);
+        if (s->trace_pulses) {
+            fprintf(stderr,
+                    "rig-stm32f4-timer: t_ns=%" PRId64 " TIM%u ch%u high_ticks=%" PRIu32 " period_ticks=%" PRIu32
+                    " clock_hz=%" PRIu64 "\n",
+                    qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL), s->index, ch + 1, high, period, hz);
+        }
+    }
+    s->period_ticks = period;
+}
+
+/* The update event: the shadow registers take the preloads, UIF unless only software asked and URS
+ * says so (RM0090 17.3.1, 17.4.1) */
+static void update_event(RigStm32TimerState *s, bool by_software)
+{
+    if (s->regs[CR1] & CR1_UDIS) {
+        return;
+    }
+    s->arr = s->regs[ARR];
+    s->psc = s->regs[PSC];
+    for (unsigned ch = 0; ch < s->kind->channels; ch++) {
+        if (is_output(s, ch)) {
+            s->ccr[ch] = s->regs[CCR1 + ch];
+        }
+    }
+    if (s->kind->advanced) {
+        s->repetition = s->regs[RCR];
+    }
+    if (!(by_software && (s->regs[CR1] & CR1_URS))) {
+        s->regs[SR] |= SR_UIF;
+    }
+    latch_pulses(s);
+}
+
+/* A compare match: CCxIF, and the levels of the match modes (RM0090 17.3.8) */
+static void compare_match(RigStm32TimerState *s, unsigned ch)
+{
+    unsigned mode = oc_mode(s, ch), center = cms(s);
+    if (center == 1 && !s->down) { /* CMS 01: flags while counting down only, 10: up only */
+        return;
+    }
+    if (center == 2 && s->down) {
+        return;
+    }
+    s->regs[SR] |= SR_CCIF(ch);
+    if (mode == OCM_ACTIVE || mode == OCM_INACTIVE) {
+        s->ref[ch] = mode == OCM_ACTIVE;
+    } else if (mode == OCM_TOGGLE) {
+        s->ref[ch] = !s->ref[ch];
+    }
+}
+
+/* Counter steps to the next boundary (overflow or underflow) from CNT, in the current direction */
+static uint64_t steps_to_boundary(const RigStm32TimerState *s)
+{
+    uint64_t cnt = s->regs[CNT], arr = s->arr;
+    if (cms(s)) {
+        return s->down ? (cnt ? cnt : 1) : (arr > cnt ? arr - cnt : 1);
+    }
+    return s->down ? cnt + 1 : (arr >= cnt ? arr - cnt + 1 : (uint64_t)counter_mask(s) - cnt + 1 + arr + 1);
+}
+
+/* Counter steps to the next compare match of a channel in use, or to the boundary if sooner */
+static uint64_t steps_to_event(const RigStm32TimerState *s)
+{
+    uint64_t best = steps_to_boundary(s), cnt = s->regs[CNT];
+    for (unsigned ch = 0; ch < s->kind->channels; ch++) {
+        uint64_t ccr = s->ccr[ch];
+        if (!is_output(s, ch)) {
+            continue;
+        }
+        uint64_t d = s->down ? (cnt > ccr ? cnt - ccr : 0) : (ccr > cnt ? ccr - cnt : 0);
+        if (d > 0 && d < best) {
+            best = d;
+        }
+    }
+    return best;
+}
+
+/* The end of a counting period: the repetition counter, then the UEV; one-pulse mode stops there */
+static void boundary(RigStm32TimerState *s)
+{
+    if (s->kind->advanced && s->repetition > 0) {
+        s->repetition--;
+        return;
+    }
+    update_event(s, false);
+    if (s->regs[CR1] & CR1_OPM) {
+        s->regs[CR1] &= ~CR1_CEN;
+    }
+}
+
+/* @steps counter steps from the current state, every match and boundary on the way taken in order */
+static void count(RigStm32TimerState *s, uint64_t steps)
+{
+    uint32_t mask = counter_mask(s);
+    while (steps > 0 && (s->regs[CR1] & CR1_CEN) && s->arr != 0) {
+        uint64_t d = steps_to_event(s), to_boundary = steps_to_boundary(s);
+        if (steps < d) {
+            s->regs[CNT] = (s->down ? s->regs[CNT] - steps : s->regs[CNT] + steps) & mask;
+            return;
+        }
+        steps -= d;
+        bool at_boundary = d == to_boundary;
+        if (cms(s)) {
+            s->regs[CNT] = s->down ? s->regs[CNT] - d : s->regs[CNT] + d;
+            if (at_boundary) {
+                s->down = !s->down; /* at ARR it turns down (overflow), at 0 up (underflow) */
+            }
+        } else if (at_boundary) {
+            s->regs[CNT] = s->down ? s->arr : 0;
+        } else {
+            s->regs[CNT] = (s->down ? s->regs[CNT] - d : s->regs[CNT] + d) & mask;
+        }
+        if (at_boundary) {
+            boundary(s);
+        }
+        for (unsigned ch = 0; ch < s->kind->channels; ch++) {
+            if (is_output(s, ch) && s->regs[CNT] == s->ccr[ch]) {
+                compare_match(s, ch);
+            }
+        }
+    }
+}
+
+/* Brings the counter to the present: the timer-clock ticks since the last sync, through the prescaler */
+static void catch_up(RigStm32TimerState *s)
+{
+    if (!s->counting) {
+        return;
+    }
+    int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    uint64_t total = muldiv64(now - s->base_ns, (uint32_t)s->hz, NANOSECONDS_PER_SECOND);
+    uint64_t ticks = total - s->ticks_done;
+    s->ticks_done = total;
+    while (ticks > 0 && (s->regs[CR1] & CR1_CEN) && s->arr != 0) { /* a null ARR blocks the counter */
+        uint64_t div = (uint64_t)s->psc + 1, to_step = div - s->prescaler;
+        if (ticks < to_step) {
+            s->prescaler += ticks;
+            break;
+        }
+        ticks -= to_step;
+        s->prescaler = 0;
+        /* this step and the whole steps that fit before the next event (where PSC may change) */
+        uint64_t more = MIN(ticks / div, steps_to_event(s) - 1);
+        ticks -= more * div;
+        count(s, 1 + more);
+    }
+    if (!(s->regs[CR1] & CR1_CEN)) {
+        s->counting = false;
+    }
+}
+
+/* Arms the QEMU timer for the next event, when the counter runs */
+static void schedule(RigStm32TimerState *s)
+{
+    if (!s->counting || s->arr == 0 || s->hz == 0) {
+        timer_del(s->timer);
+        return;
+    }
+    uint64_t div = (uint64_t)s->psc + 1;
+    unsigned __int128 ticks = s->ticks_done + (div - s->prescaler) + (steps_to_event(s) - 1) * div;
+    /* the first virtual ns at which catch_up() counts that many ticks */
+    unsigned __int128 ns = (ticks * NANOSECONDS_PER_SECOND + s->hz - 1) / s->hz;
+    timer_mod(s->timer, s->base_ns + (int64_t)MIN(ns, (unsigned __int128)INT64_MAX / 2));
+}
+
+static void settle(RigStm32TimerState *s)
+{
+    drive_outputs(s);
+    update_irqs(s);
+    schedule(s);
+}
+
+static void tim_event(void *opaque)
+{
+    RigStm32TimerState *s = opaque;
+    catch_up(s);
+    settle(s);
+}
+
+/* Starts counting from now (CEN set, or a new clock) */
+static void start_counting(RigStm32TimerState *s)
+{
+    s->counting = (s->regs[CR1] & CR1_CEN) && s->hz > 0;
+    s->base_ns = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    s->ticks_done = 0;
+}
+
+/* Input capture on channel @ch (RM0090 17.3.5): CNT into CCRx, CCxIF, CCxOF if CCxIF was still set */
+static void capture(RigStm32TimerState *s, unsigned ch)
+{
+    unsigned psc = ccmr(s, ch) >> 2 & 3;
+    if (++s->capture_count[ch] < (1u << psc)) {
+        return;
+    }
+    s->capture_count[ch] = 0;
+    if (s->regs[SR] & SR_CCIF(ch)) {
+        s->regs[SR] |= SR_CCOF(ch);
+    }
+    s->regs[CCR1 + ch] = s->regs[CNT];
+    s->regs[SR] |= SR_CCIF(ch);
+}
+
+/* A channel's pin changed (line: channel): the channels that take it as their input capture an edge
+ * of the polarity CCxP/CCxNP select (00 rising, 01 falling, 11 both) */
+static void channel_input(void *opaque, int line, int level)
+{
+    RigStm32TimerState *s = opaque;
+    if (line >= s->kind->channels || s->input[line] == (level != 0)) {
+        return;
+    }
+    s->input[line] = level != 0;
+    catch_up(s);
+    for (unsigned ch = 0; ch < s->kind->channels; ch++) {
+        unsigned ccs = ccmr(s, ch) & 3, source = ccs == 1 ? ch : (ch ^ 1);
+        unsigned edge = (ccer(s, ch) & CCER_P ? 1 : 0) | (ccer(s, ch) & CCER_NP ? 2 : 0);
+        if (ccs == 0 || ccs == 3 || source != (unsigned)line || !(ccer(s, ch) & CCER_E)) {
+            continue;
+        }
+        if (edge == 3 || (edge == 0 && level) || (edge == 1 && !level)) {
+            capture(s, ch);
+        }
+    }
+    settle(s);
+}
+
+static void clock_changes(void *opaque, ClockEvent event)
+{
+    RigStm32TimerState *s = opaque;
+    if (event == ClockPreUpdate) {
+        catch_up(s); /* the ticks at the old rate */
+    } else {
+        s->hz = timer_hz(s);
+        if (s->counting || (s->regs[CR1] & CR1_CEN)) {
+            start_counting(s);
+        }
+        schedule(s);
+    }
+}
+
+/* Software's update (EGR.UG): the counter and prescaler restart, then the UEV (RM0090 17.3.1) */
+static void software_update(RigStm32TimerState *s)
+{
+    s->prescaler = 0;
+    s->down = !cms(s) && (s->regs[CR1] & CR1_DIR);
+    if (s->kind->advanced) {
+        s->repetition = s->regs[RCR];
+    }
+    update_event(s, true);
+    s->regs[CNT] = s->down ? s->arr : 0;
+    if (s->counting) {
+        start_counting(s);
+    }
+}
+
+static void event_generation(RigStm32TimerState *s, uint32_t egr)
+{
+    if (egr & EGR_UG) {
+        software_update(s);
+    }
+    for (unsigned ch = 0; ch < s->kind->channels; ch++) {
+        if (egr & EGR_CCG(ch)) {
+            if (is_output(s, ch)) {
+                s->regs[SR] |= SR_CCIF(ch);
+            } else {
+                capture(s, ch);
+            }
+        }
+    }
+    s->regs[SR] |= egr & (SR_COMIF | SR_TIF | SR_BIF);
+}
+
+static uint32_t writable(const RigStm32TimerState *s, int reg) { return registers[reg].writable[s->kind->kind]; }
+
+static int register_at(const RigStm32TimerState *s, hwaddr offset)
+{
+    for (int i = 0; i < RIG_TIM_REGS; i++) {
+        if (registers[i].offset == offset && writable(s, i)) {
+            return i;
+        }
+    }
+    return -1;
+}
+
+static uint64_t tim_read(void *opaque, hwaddr offset, unsigned size)
+{
+    RigStm32TimerState *s = opaque;
+    int i = register_at(s, offset);
+    if (!clocked(s)) {
+        return 0;
+    }
+    if (i < 0) {
+        qemu_log_mask(LOG_GUEST_ERROR, "rig-stm32f4-timer: TIM%u: read of reserved offset 0x%" HWADDR_PRIx "\n",
+                      s->index, offset);
+        return 0;
+    }
+    catch_up(s);
+    if (i >= CCR1 && i <= CCR4 && !is_output(s, i - CCR1)) {
+        s->regs[SR] &= ~SR_CCIF(i - CCR1); /* reading a capture clears its flag */
+        settle(s);
+    }
+    if (i == CR1) { /* DIR: as the counter goes (read-only when center-aligned) */
+        return (s->regs[CR1] & ~CR1_DIR) | (s->down ? CR1_DIR : 0);
+    }
+    return i == EGR || i == DMAR ? 0 : s->regs[i];
+}
+
+static void tim_write(void *opaque, hwaddr offset, uint64_t value, unsigned size)
+{
+    RigStm32TimerState *s = opaque;
+    int i = register_at(s, offset);
+    uint32_t v = (uint32_t)value & (i >= 0 ? writable(s, i) : 0);
+    if (!clocked(s)) {
+        return;
+    }
+    if (i < 0) {
+        qemu_log_mask(LOG_GUEST_ERROR, "rig-stm32f4-timer: TIM%u: write of reserved offset 0x%" HWADDR_PRIx "\n",
+                      s->index, offset);
+        return;
+    }
+    catch_up(s);
+    bool was_enabled = s->regs[CR1] & CR1_CEN;
+    switch (i) {
+    case SR: /* rc_w0: writing 0 clears a flag, 1 leaves it */
+        s->regs[SR] &= v | ~writable(s, SR);
+        break;
+    case EGR:
+        event_generation(s, v);
+        break;
+    case CR1:
+        s->regs[CR1] = v;
+        if (!cms(s)) {
+            s->down = v & CR1_DIR;
+        }
+        if (!(v & CR1_CEN)) {
+            s->counting = false;
+        } else if (!was_enabled) {
+            start_counting(s);
+            latch_pulses(s);
+        }
+        break;
+    case ARR:
+        s->regs[ARR] = v;
+        if (!(s->regs[CR1] & CR1_ARPE)) {
+            s->arr = v;
+        }
+        break;
+    case CCR1:
+    case CCR2:
+    case CCR3:
+    case CCR4:
+        if (is_output(s, i - CCR1)) { /* read-only in input capture mode */
+            s->regs[i] = v;
+            if (!(ccmr(s, i - CCR1) & CCMR_OCPE)) {
+                s->ccr[i - CCR1] = v;
+            }
+        }
+        break;
+    case DMAR:
+        qemu_log_mask(LOG_UNIMP, "rig-stm32f4-timer: TIM%u: DMA burst (DMAR) not modelled\n", s->index);
+        break;
+    default:
+        s->regs[i] = v;
+    }
+    settle(s);
+}
+
+static const MemoryRegionOps tim_ops = {
+    .read = tim_read,
+    .write = tim_write,
+    .endianness = DEVICE_NATIVE_ENDIAN,
+    .impl.min_access_size = 4,
+    .impl.max_access_size = 4,
+};
+
+static void tim_reset(DeviceState *dev)
+{
+    RigStm32TimerState *s = RIG_STM32_TIMER(dev);
+    memset(s->regs, 0, sizeof(s->regs));
+    memset(s->ccr, 0, sizeof(s->ccr));
+    memset(s->ref, 0, sizeof(s->ref));
+    memset(s->capture_count, 0, sizeof(s->capture_count));
+    memset(s->pulse_ticks, 0, sizeof(s->pulse_ticks));
+    memset(s->out, -1, sizeof(s->out));
+    s->arr = s->psc = s->prescaler = s->repetition = s->period_ticks = 0;
+    s->down = s->counting = false;
+    s->hz = timer_hz(s);
+    timer_del(s->timer);
+    drive_outputs(s);
+    update_irqs(s);
+}
+
+static void tim_realize(DeviceState *dev, Error **errp)
+{
+    RigStm32TimerState *s = RIG_STM32_TIMER(dev);
+    if (s->index < 1 || s->index > 14) {
+        error_setg(errp, "rig-stm32f4-timer: index must be 1..14 (TIM1..TIM14), not %u", s->index);
+        return;
+    }
+    s->kind = &kinds[timers[s->index].kind];
+    s->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, tim_event, s);
+}
+
+static void tim_instance_init(Object *obj)
+{
+    RigStm32TimerState *s = RIG_STM32_TIMER(obj);
+    memory_region_init_io(&s->iomem, obj, &tim_ops, s, TYPE_RIG_STM32_TIMER, 0x400);
+    sysbus_init_mmio(SYS_BUS_DEVICE(obj), &s->iomem);
+    for (unsigned k = 0; k < RIG_TIM_IRQS; k++) {
+        sysbus_init_irq(SYS_BUS_DEVICE(obj), &s->irq[k]);
+    }
+    s->clk = qdev_init_clock_in(DEVICE(obj), "clk", clock_changes, s, ClockPreUpdate | ClockUpdate);
+    qdev_init_gpio_out_named(DEVICE(obj), s->channel_out, "channel-out", RIG_TIM_CHANNELS * RIG_TIM_PINS_PER_CHANNEL);
+    qdev_init_gpio_in_named(DEVICE(obj), channel_input, "channel-in", RIG_TIM_CHANNELS);
+    qdev_init_gpio_out_named(DEVICE(obj), s->pulse_ns, "pulse-ns", RIG_TIM_CHANNELS);
+}
+
+static Property tim_properties[] = {
+    DEFINE_PROP_UINT8("index", RigStm32TimerState, index, 0),
+    DEFINE_PROP_BOOL("trace-pulses", RigStm32TimerState, trace_pulses, false),
+    DEFINE_PROP_LINK("rcc", RigStm32TimerState, rcc, TYPE_RIG_STM32_RCC, RigStm32RccState *),
+    DEFINE_PROP_END_OF_LIST(),
+};
+
+static void tim_class_init(ObjectClass *klass, void *data)
+{
+    DeviceClass *dc = DEVICE_CLASS(klass);
+    dc->reset = tim_reset;
+    dc->realize = tim_realize;
+    device_class_set_props(dc, tim_properties);
+}
+
+static const TypeInfo tim_info = {
+    .name = TYPE_RIG_STM32_TIMER,
+    .parent = TYPE_SYS_BUS_DEVICE,
+    .instance_size = sizeof(RigStm32TimerState),
+    .instance_init = tim_instance_init,
+    .class_init = tim_class_init,
+};
+
+static void tim_register_types(void) { type_register_static(&tim_info); }
+
+type_init(tim_register_types)

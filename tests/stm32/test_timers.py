@@ -1,0 +1,163 @@
+"""The rig's STM32F405 timers (qemu/hw/rig_stm32_timer.c) against RM0090 sections 17-20: the test
+firmware tests/stm32/firmware/timers_pwm.c reports register values, pin pulses it measured with DWT_CYCCNT
+and interrupt counts; the engine's pulse trace (-global rig-stm32f4-timer.trace-pulses=on) gives each
+channel's pulse as latched at the start of a period. Expected values are RM0090's register descriptions
+and its formulas, written here: f_timer = PCLK x 2 when the APB prescaler is not 1 (7.2), a counter tick
+(PSC + 1) / f_timer, an edge-aligned period (ARR + 1) ticks, a center-aligned one 2 x ARR."""
+
+from __future__ import annotations
+
+import functools
+import re
+import subprocess
+
+import pytest
+
+from tests.stm32.conftest import engine_or_skip, firmware, reports, run_firmware
+
+CORE_HZ = 168_000_000
+#: ST's 168 MHz set-up: APB1 = HCLK / 4, APB2 = HCLK / 2, so each timer clock is twice its bus's
+APB1_TIMER_HZ = 2 * CORE_HZ // 4
+APB2_TIMER_HZ = 2 * CORE_HZ // 2
+#: the firmware's set-ups (timers_pwm.c)
+PWM = {"psc": 83, "arr": 2040, "ccr": 1500}  # TIM4 CH1: 1 us ticks, 490 Hz
+ONESHOT = {"psc": 20, "arr": 3999, "ccr": 1500}  # TIM1 CH1: 8 MHz ticks, 2 kHz, 187.5 us
+WINDOW_S = 0.1
+#: the firmware's polling loop (an IDR read, a compare, a branch, a DWT read): how late it can see an edge
+POLL_CYCLES = 16
+TRACE = re.compile(r"rig-stm32f4-timer: t_ns=(\d+) TIM(\d+) ch(\d) high_ticks=(\d+) period_ticks=(\d+) "
+                   r"clock_hz=(\d+)")
+NO_EDGE = 0xFFFF_FFFF
+TRACE_PULSES = ("-global", "rig-stm32f4-timer.trace-pulses=on")
+
+
+def period_s(timer_hz: int, psc: int, arr: int) -> float:
+    """RM0090 17.3.1/18.3.1: the counter counts (PSC + 1) timer clocks per step, ARR + 1 steps."""
+    return (psc + 1) * (arr + 1) / timer_hz
+
+
+def cycles(seconds: float) -> int:
+    return round(seconds * CORE_HZ)
+
+
+@functools.cache
+def traced_run() -> subprocess.CompletedProcess[str]:
+    done = run_firmware(engine_or_skip(), firmware("timers_pwm"), *TRACE_PULSES)
+    assert done.returncode == 0, f"status {done.returncode}\n{done.stdout}\n{done.stderr}"
+    assert done.stdout.endswith("done\n"), done.stdout
+    return done
+
+
+@pytest.fixture(scope="module")
+def r() -> dict[str, int]:
+    return reports(traced_run().stdout)
+
+
+def pulses(timer: int, channel: int) -> list[tuple[int, int, int]]:
+    """(high ticks, period ticks, timer clock) each time the channel's latched pulse changed"""
+    return [(int(m[4]), int(m[5]), int(m[6])) for m in TRACE.finditer(traced_run().stderr)
+            if int(m[2]) == timer and int(m[3]) == channel]
+
+
+def test_registers_reset_to_zero(r: dict[str, int]) -> None:
+    """RM0090 17.4-20.4: every timer register resets to 0 (ARR included, as the manual's register
+    descriptions give it); with its RCC clock off a timer drops writes and reads 0."""
+    assert r["tim4_cr1_unclocked"] == 0
+    for t in range(1, 15):
+        assert r[f"tim{t}_or_of_registers"] == 0, t
+
+
+#: RM0090's writable bits: DIER (17.4.4, 18.4.4, 19.4.4, 19.5.2, 20.4.3), CR1 less CEN (DIR reads 0:
+#: read-only in center-aligned mode, which CMS = 11 selects), CCER (17.4.9, 18.4.9, 19.4.8, 19.5.6)
+WRITABLE = {
+    "advanced": (0x7FFF, 0x3EE, 0x3FFF, 0xFFFF),
+    "general32": (0x5F5F, 0x3EE, 0xBBBB, 0xFFFF_FFFF),
+    "general16": (0x5F5F, 0x3EE, 0xBBBB, 0xFFFF),
+    "two_channel": (0x47, 0x38E, 0xBB, 0xFFFF),
+    "one_channel": (0x03, 0x386, 0x0B, 0xFFFF),
+    "basic": (0x101, 0x08E, 0, 0xFFFF),
+}
+KINDS = {1: "advanced", 8: "advanced", 2: "general32", 5: "general32", 3: "general16", 4: "general16",
+         9: "two_channel", 12: "two_channel", 10: "one_channel", 11: "one_channel", 13: "one_channel",
+         14: "one_channel", 6: "basic", 7: "basic"}
+
+
+@pytest.mark.parametrize("timer", sorted(KINDS))
+def test_writable_bits(r: dict[str, int], timer: int) -> None:
+    dier, cr1, ccer, arr = WRITABLE[KINDS[timer]]
+    assert r[f"tim{timer}_dier_ones"] == dier
+    assert r[f"tim{timer}_cr1_ones"] == cr1
+    assert r[f"tim{timer}_ccer_ones"] == ccer
+    assert r[f"tim{timer}_arr_ones"] == arr  # 32-bit on TIM2 and TIM5 only
+
+
+def test_ug_sets_the_update_flag(r: dict[str, int]) -> None:
+    assert r["tim4_sr_after_ug"] == 1  # UIF (URS = 0)
+
+
+def test_tim4_pwm_at_490_hz_on_its_pin(r: dict[str, int]) -> None:
+    """PD12 (AF2) follows TIM4 CH1 in PWM mode 1: high for CCR1 ticks of each ARR + 1."""
+    assert (r["tim4_psc"], r["tim4_arr"], r["tim4_ccr1"]) == (PWM["psc"], PWM["arr"], PWM["ccr"])
+    period = period_s(APB1_TIMER_HZ, PWM["psc"], PWM["arr"])
+    assert round(1 / period) == 490
+    high = PWM["ccr"] * (PWM["psc"] + 1) / APB1_TIMER_HZ
+    assert abs(r["tim4_high_cycles"] - cycles(high)) <= POLL_CYCLES
+    assert abs(r["tim4_period_cycles"] - cycles(period)) <= POLL_CYCLES
+
+
+def test_tim4_latched_pulse(r: dict[str, int]) -> None:
+    """The pulse the rig reads: latched at the first period, in timer-clock ticks."""
+    ticks = PWM["psc"] + 1
+    assert pulses(4, 1) == [(PWM["ccr"] * ticks, (PWM["arr"] + 1) * ticks, APB1_TIMER_HZ)]
+
+
+def test_tim1_oneshot125_only_with_moe(r: dict[str, int]) -> None:
+    """17.4.18: TIM1's outputs stay off until BDTR.MOE; then PA8 (AF1) carries a 187.5 us pulse every
+    500 us, on the 168 MHz APB2 timer clock."""
+    assert r["tim1_high_without_moe"] == NO_EDGE
+    assert r["tim1_bdtr"] == 1 << 15
+    high = ONESHOT["ccr"] * (ONESHOT["psc"] + 1) / APB2_TIMER_HZ
+    assert 125e-6 <= high <= 250e-6  # OneShot125's range
+    assert abs(r["tim1_high_cycles"] - cycles(high)) <= POLL_CYCLES
+    period = period_s(APB2_TIMER_HZ, ONESHOT["psc"], ONESHOT["arr"])
+    assert abs(r["tim1_period_cycles"] - cycles(period)) <= POLL_CYCLES
+    ticks = ONESHOT["psc"] + 1
+    assert pulses(1, 1) == [(ONESHOT["ccr"] * ticks, (ONESHOT["arr"] + 1) * ticks, APB2_TIMER_HZ)]
+
+
+def test_update_and_compare_interrupts_per_period(r: dict[str, int]) -> None:
+    """One update and one CC1 interrupt per period over a 100 ms window (TIM4 on NVIC 30, TIM1's UP on 25
+    and CC on 27): the window holds WINDOW / period periods, give or take the one under way."""
+    for timer, hz, setup in (("tim4", APB1_TIMER_HZ, PWM), ("tim1", APB2_TIMER_HZ, ONESHOT)):
+        expected = WINDOW_S / period_s(hz, setup["psc"], setup["arr"])
+        for kind in ("update", "compare"):
+            assert abs(r[f"{timer}_{kind}_interrupts"] - expected) <= 1, (timer, kind, expected)
+
+
+def test_ccr_preload(r: dict[str, int]) -> None:
+    """18.3.9: with OC2PE a CCR2 written mid-period (CNT 500, CCR2 1000 -> 200) waits for the update:
+    PD13 stays high; without it the new value acts at once (CNT > 200: low). Reads give the written
+    value both ways; the next period is 200 us high."""
+    assert r["preload_pin_after_write"] == 1
+    assert r["direct_pin_after_write"] == 0
+    assert r["preload_ccr_read"] == r["direct_ccr_read"] == 200
+    for name in ("preload_high_next", "direct_high_next"):
+        assert abs(r[name] - cycles(200e-6)) <= POLL_CYCLES, name
+
+
+def test_center_aligned_pwm(r: dict[str, int]) -> None:
+    """18.3.9 (center-aligned PWM): up to ARR and down again, 2 x ARR ticks a period, PWM mode 1 high
+    while CNT < CCR3 both ways: 2 x CCR3 ticks (TIM3 CH3 on PB0, ARR 1000, CCR3 250, 1 us ticks)."""
+    assert abs(r["tim3_center_high_cycles"] - cycles(2 * 250e-6)) <= POLL_CYCLES
+    assert abs(r["tim3_center_period_cycles"] - cycles(2 * 1000e-6)) <= POLL_CYCLES
+    assert pulses(3, 3) == [(2 * 250 * 84, 2 * 1000 * 84, APB1_TIMER_HZ)]
+
+
+def test_the_rcc_reset_restores_a_timer(r: dict[str, int]) -> None:
+    """7.3.7 (APB1RSTR.TIM4RST): back to the reset values."""
+    assert (r["tim4_arr_after_reset"], r["tim4_cr1_after_reset"], r["tim4_ccer_after_reset"]) == (0, 0, 0)
+
+
+def test_two_runs_are_identical() -> None:
+    again = run_firmware(engine_or_skip(), firmware("timers_pwm"), *TRACE_PULSES)
+    assert (again.stdout, again.stderr) == (traced_run().stdout, traced_run().stderr)
