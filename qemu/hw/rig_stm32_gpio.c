@@ -89,11 +89,14 @@ static void gpio_update(RigStm32GpioState *s)
     }
     /* a pin in AF mode gives its level to the AF it selects, once per change of either */
     for (unsigned pin = 0; pin < RIG_GPIO_PINS; pin++) {
-        bool level = levels >> pin & 1;
-        int af = (s->moder >> (2 * pin) & 3) == MODE_AF ? (int)(s->afr[pin / 8] >> (4 * (pin % 8)) & 0xF) : -1;
-        if (af != s->af_input_sent[pin] || (af >= 0 && level != (bool)(s->af_input_level >> pin & 1))) {
-            s->af_input_sent[pin] = af;
-            s->af_input_level = (s->af_input_level & ~(1u << pin)) | (uint16_t)(level ? 1u << pin : 0);
+        int level = levels >> pin & 1;
+        int af = -1;
+        if ((s->moder >> (2 * pin) & 3) == MODE_AF) {
+            af = (int)(s->afr[pin / 8] >> (4 * (pin % 8)) & 0xF);
+        }
+        if (af != s->af_input_sent[pin] || level != s->af_input_level[pin]) {
+            s->af_input_sent[pin] = (int8_t)af;
+            s->af_input_level[pin] = (int8_t)level;
             if (af >= 0) {
                 qemu_set_irq(s->af_input[RIG_GPIO_AF_LINE(pin, af)], level);
             }
@@ -241,12 +244,13 @@ static void gpio_drive(void *opaque, int pin, int level)
     gpio_update(s);
 }
 
-/* A peripheral's output on @line (pin * 16 + AF): what the pin shows while it selects that AF */
+/* A peripheral's output on @line (pin * 16 + AF): what the pin shows while it selects that AF, unless
+ * the peripheral released it (RIG_GPIO_AF_RELEASED) */
 static void gpio_af_drive(void *opaque, int line, int level)
 {
     RigStm32GpioState *s = opaque;
     unsigned pin = line / RIG_GPIO_AFS, af = line % RIG_GPIO_AFS;
-    s->af_driven[af] |= 1u << pin;
+    s->af_driven[af] = (s->af_driven[af] & ~(1u << pin)) | (level == RIG_GPIO_AF_RELEASED ? 0 : 1u << pin);
     s->af_level[af] = (s->af_level[af] & ~(1u << pin)) | (uint16_t)(level ? 1u << pin : 0);
     gpio_update(s);
 }
@@ -266,6 +270,7 @@ static void gpio_reset(DeviceState *dev)
     s->lock_try = 0;
     for (unsigned pin = 0; pin < RIG_GPIO_PINS; pin++) {
         s->af_input_sent[pin] = -1;
+        s->af_input_level[pin] = -1;
     }
     gpio_update(s);
 }

@@ -177,7 +177,7 @@ static bool pwm_ref(const RigStm32TimerState *s, unsigned ch)
 }
 
 /* The pins follow each channel's output: OCxREF through CCxP while CCxE (and, on TIM1/TIM8, BDTR.MOE)
- * enable it; a disabled output drives low */
+ * enable it; a disabled output or an input lets go of its pins (RM0090 18.4.9: OCx_EN = 0) */
 static void drive_outputs(RigStm32TimerState *s)
 {
     for (unsigned ch = 0; ch < s->kind->channels; ch++) {
@@ -190,7 +190,7 @@ static void drive_outputs(RigStm32TimerState *s)
             }
         }
         bool enabled = is_output(s, ch) && (ccer(s, ch) & CCER_E) && (!s->kind->advanced || (s->regs[BDTR] & BDTR_MOE));
-        int level = enabled ? s->ref[ch] ^ !!(ccer(s, ch) & CCER_P) : 0;
+        int level = enabled ? s->ref[ch] ^ !!(ccer(s, ch) & CCER_P) : RIG_GPIO_AF_RELEASED;
         if (level != s->out[ch]) {
             s->out[ch] = level;
             for (unsigned pin = 0; pin < RIG_TIM_PINS_PER_CHANNEL; pin++) {
@@ -637,7 +637,7 @@ static void tim_reset(DeviceState *dev)
     memset(s->ref, 0, sizeof(s->ref));
     memset(s->capture_count, 0, sizeof(s->capture_count));
     memset(s->pulse_ticks, 0, sizeof(s->pulse_ticks));
-    memset(s->out, -1, sizeof(s->out));
+    memset(s->out, -2, sizeof(s->out));
     s->arr = s->psc = s->prescaler = s->repetition = s->period_ticks = 0;
     s->down = s->counting = false;
     s->hz = timer_hz(s);

@@ -92,6 +92,8 @@ OBJECT_DECLARE_SIMPLE_TYPE(RigStm32GpioState, RIG_STM32_GPIO)
 #define RIG_GPIO_AFS 16
 /* a pin's alternate function lines (qdev GPIO "af-drive" in and "af-input" out): pin * 16 + AF number */
 #define RIG_GPIO_AF_LINE(pin, af) ((pin)*RIG_GPIO_AFS + (af))
+/* the "af-drive" level of a peripheral that lets go of the pin (an input, a disabled output): Hi-Z */
+#define RIG_GPIO_AF_RELEASED (-1)
 
 struct RigStm32GpioState {
     SysBusDevice parent_obj;
@@ -111,8 +113,8 @@ struct RigStm32GpioState {
     uint16_t af_level[RIG_GPIO_AFS];
     /* the peripherals' inputs: a pin in AF mode sends its level to the AF it selects */
     qemu_irq af_input[RIG_GPIO_PINS * RIG_GPIO_AFS];
-    int8_t af_input_sent[RIG_GPIO_PINS]; /* the AF each pin last sent to (-1: none) */
-    uint16_t af_input_level;             /* and the level it sent */
+    int8_t af_input_sent[RIG_GPIO_PINS];  /* the AF each pin last sent to (-1: none) */
+    int8_t af_input_level[RIG_GPIO_PINS]; /* and the level it sent */
 };
 
 /* The pin levels a port shows on its IDR */

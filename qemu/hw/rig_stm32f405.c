@@ -8,7 +8,7 @@
  * what the firmware sets up (168 MHz from an 8 MHz crystal: -global rig-stm32f4-rcc.hse-hz=N for another).
  * The machine's "wires" property joins pins as a board's traces or a test's jumper wires do: -M
  * rig-stm32f405,wires=PD12-PA0 drives PA0 from outside with PD12's level (a PWM output into an input
- * capture); several pairs go comma-separated.
+ * capture); several pairs go joined by "+".
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -103,7 +103,7 @@ static unsigned timer_af(unsigned timer)
     }
 }
 
-/* The machine's "wires" property: pairs of pins joined, "PD12-PA0,PB0-PC1" */
+/* The machine's "wires" property: pairs of pins joined, "PD12-PA0+PB0-PC1" */
 static char *wires_spec;
 
 /* ARMv7-M: the DWT in the private peripheral bus */
@@ -199,7 +199,7 @@ static void wire_pins(DeviceState **gpio_ports)
     if (wires_spec == NULL || wires_spec[0] == '\0') {
         return;
     }
-    g_auto(GStrv) pairs = g_strsplit(wires_spec, ",", -1);
+    g_auto(GStrv) pairs = g_strsplit(wires_spec, "+", -1);
     for (char **pair = pairs; *pair != NULL; pair++) {
         g_auto(GStrv) ends = g_strsplit(*pair, "-", -1);
         unsigned from_port, from_pin, to_port, to_pin;
@@ -278,7 +278,7 @@ static void rig_stm32f405_machine_init(MachineClass *mc)
     mc->init = rig_stm32f405_init;
     object_class_property_add_str(OBJECT_CLASS(mc), "wires", get_wires, set_wires);
     object_class_property_set_description(OBJECT_CLASS(mc), "wires",
-                                          "pins joined, each pair driver-driven: PD12-PA0[,PB0-PC1...]");
+                                          "pins joined, each pair driver-driven: PD12-PA0[+PB0-PC1...]");
 }
 
 DEFINE_MACHINE("rig-stm32f405", rig_stm32f405_machine_init)

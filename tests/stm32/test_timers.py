@@ -159,5 +159,74 @@ def test_the_rcc_reset_restores_a_timer(r: dict[str, int]) -> None:
 
 
 def test_two_runs_are_identical() -> None:
+    """The same image: the same reports and the same pulse trace, byte for byte."""
     again = run_firmware(engine_or_skip(), firmware("timers_pwm"), *TRACE_PULSES)
     assert (again.stdout, again.stderr) == (traced_run().stdout, traced_run().stderr)
+
+
+#: timer_capture.c's wiring: TIM4 CH1 (PD12) into TIM2 CH1 (PA0), TIM4 CH2 (PD13) into TIM3 CH1 (PA6), the
+#: firmware's own PD1 into TIM3 CH2 (PA7)
+WIRES = ("-M", "rig-stm32f405,wires=PD12-PA0+PD13-PA6+PD1-PA7")
+PPM_US = (1000, 1500, 2000, 1200)
+PPM_PERIOD_US = 2041
+
+
+@functools.cache
+def capture_run() -> subprocess.CompletedProcess[str]:
+    done = run_firmware(engine_or_skip(), firmware("timer_capture"), *WIRES)
+    assert done.returncode == 0, f"status {done.returncode}\n{done.stdout}\n{done.stderr}"
+    assert done.stdout.endswith("done\n"), done.stdout
+    return done
+
+
+@pytest.fixture(scope="module")
+def c() -> dict[str, int]:
+    return reports(capture_run().stdout)
+
+
+def test_ppm_pulses_captured_by_tim2(c: dict[str, int]) -> None:
+    """18.3.5/18.3.6: TIM2 CH1 captures PA0's rising edges, CH2 (CC2S = 10: TI1) its falling ones, in
+    84 MHz ticks. TIM4's update interrupt writes the next width into the preloaded CCR1, so period k
+    (k >= 1) carries the width written at the update before it, PPM_US[k - 1] (the first pulse began
+    when CC1E was set, just before CEN: not compared)."""
+    us = APB1_TIMER_HZ // 1_000_000
+    assert c["ppm_captures"] >= 10
+    for k in range(1, 10):
+        assert c[f"ppm_width_{k}"] == PPM_US[(k - 1) % 4] * us, k
+    for k in range(1, 10):
+        assert c[f"ppm_period_{k}"] == PPM_PERIOD_US * us, k
+
+
+def test_both_edges_and_reading_clears_the_flag(c: dict[str, int]) -> None:
+    """CC1P = CC1NP = 1 captures both edges: TIM4 CH2's 700 us high and 2041 - 700 us low, alternating,
+    in TIM3's 1 us ticks; reading CCR1 clears CC1IF (18.4.5)."""
+    assert c["tim3_sr_after_ccr_read"] == 0
+    intervals = [c[f"edge_interval_{k}"] for k in range(1, 5)]
+    assert sorted(intervals) == sorted([700, PPM_PERIOD_US - 700] * 2)
+    assert intervals[0] != intervals[1]
+
+
+def test_a_pin_the_firmware_toggles_is_captured(c: dict[str, int]) -> None:
+    """PD1 set every 500 us by DWT_CYCCNT: TIM3 CH2 (1 us ticks) sees the rising edges 500 ticks apart."""
+    assert c["toggle_interval_us"] == 500
+
+
+def test_unread_captures_set_overcapture(c: dict[str, int]) -> None:
+    """18.4.5: a capture while CCxIF is still set sets CCxOF: CC1IF, CC2IF, CC1OF, CC2OF."""
+    assert c["tim2_sr_unread"] == (1 << 1) | (1 << 2) | (1 << 9) | (1 << 10)
+
+
+def test_captures_are_deterministic() -> None:
+    again = run_firmware(engine_or_skip(), firmware("timer_capture"), *WIRES)
+    assert again.stdout == capture_run().stdout
+
+
+def test_a_bad_wire_is_refused() -> None:
+    """A wire that names no pin, or a pin that already drives something (PB6: I2C1's SCL), stops the
+    machine with a message naming it."""
+    engine = engine_or_skip()
+    for spec, words in (("PD12-PZ1", "not a pair of pins"), ("PB6-PA0", "already drives")):
+        done = subprocess.run([str(engine), "-M", f"rig-stm32f405,wires={spec}", "-nodefaults", "-display",
+                               "none", "-kernel", str(firmware("timer_capture"))],
+                              stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=30)
+        assert done.returncode == 1 and words in done.stderr, (spec, done.stderr)
