@@ -1,6 +1,7 @@
 /*
  * The STM32F405's timers, RM0090 sections 17 (advanced TIM1/TIM8), 18 (TIM2-TIM5), 19 (TIM9-TIM14) and
- * 20 (basic TIM6/TIM7): one model, each timer's registers and bits a table of data.
+ * 20 (basic TIM6/TIM7): one model, the registers and bits of each kind of timer a table of data
+ * (rig_stm32_timer_regs.h).
  *
  * The counter runs in virtual time on the RCC's APB timer clock (x2 when the APB prescaler is not 1),
  * divided by the prescaler: up, down or center-aligned (CR1.DIR, CMS), with the auto-reload register
@@ -11,12 +12,11 @@
  * its pair's; CCxP/CCxNP pick rising, falling or both edges; ICxPSC; ICxF is ignored, the edges are
  * clean) with the overcapture flag. SR's flags are cleared by writing 0; DIER's interrupt enables raise
  * the NVIC lines, the advanced timers' four (BRK, UP, TRG_COM, CC), the others' one; the DMA request
- * enables are stored (DMA is not modelled). The registers answer only with the timer's RCC enable bit on
- * (reads 0, writes lost) and the RCC's reset bit resets the timer.
+ * enables are stored (DMA is not modelled). The registers answer only with the timer's RCC enable bit
+ * (properties "apb" 1 or 2 and "rcc-bit": APBxENR, APBxRSTR) on; the RCC's reset bit resets the timer.
  *
- * Nothing runs per tick: a QEMU timer is armed for the next event (a compare match of a channel in use,
- * the end of the period), and reads of CNT compute it from the virtual time: a 490 Hz PWM costs two
- * events per period. The outputs go to the GPIO pins whose AFR selects the timer ("channel-out" lines,
+ * Nothing runs per tick: a QEMU timer is armed for the next event (a compare match, the end of the
+ * period), and reads of CNT compute it from the virtual time: a 490 Hz PWM costs two events a period. The outputs go to the GPIO pins whose AFR selects the timer ("channel-out" lines,
  * four pins per channel), and the pins' levels come back as the channels' inputs ("channel-in").
  *
  * For the rig, each channel's pulse is latched at the start of each period (at the UEV: the CCR, ARR and
@@ -25,9 +25,8 @@
  * -global rig-stm32f4-timer.trace-pulses=on each change prints a line on stderr:
  *   rig-stm32f4-timer: t_ns=T TIMn chC high_ticks=H period_ticks=P clock_hz=F
  *
- * Not modelled: the slave mode controller and trigger chaining (SMCR, TRGO, ITRx), external clocks and
- * ETR, encoder and hall-sensor modes, complementary outputs and dead time, break inputs, COM events, the
- * DMA burst registers' transfers (DCR is stored, DMAR reads 0), the input filters and OCxFE/OCxCE.
+ * Not modelled: the slave mode controller and timer chaining, external clocks, encoder and hall-sensor
+ * modes, complementary outputs, dead time, break, COM, DMA bursts (DMAR reads 0), ICxF, OCxFE, OCxCE.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -41,118 +40,17 @@
 #include "qemu/host-utils.h"
 #include "qemu/log.h"
 #include "qemu/module.h"
-#include "rig_stm32f4.h"
-
-/* The kinds of timer */
-enum { ADVANCED, GENERAL32, GENERAL16, TWO_CHANNEL, ONE_CHANNEL, BASIC, KINDS };
-typedef struct RigTimerKind {
-    uint8_t kind;
-    uint8_t channels;
-    bool wide;     /* 32-bit CNT, ARR and CCRx (TIM2, TIM5) */
-    bool advanced; /* TIM1, TIM8: RCR, BDTR, four interrupt lines */
-} RigTimerKind;
-static const RigTimerKind kinds[KINDS] = {
-    [ADVANCED] = { ADVANCED, 4, false, true },        [GENERAL32] = { GENERAL32, 4, true, false },
-    [GENERAL16] = { GENERAL16, 4, false, false },     [TWO_CHANNEL] = { TWO_CHANNEL, 2, false, false },
-    [ONE_CHANNEL] = { ONE_CHANNEL, 1, false, false }, [BASIC] = { BASIC, 0, false, false },
-};
-
-/*
- * The registers: offset, and the bits software can write on each kind of timer (0: that kind has no such
- * register), from the register descriptions of RM0090 rev 19: TIM1/TIM8 17.4, TIM2-TIM5 18.4 (TIM2 and
- * TIM5 32-bit), TIM9/TIM12 19.4, TIM10/TIM11/TIM13/TIM14 19.5, TIM6/TIM7 20.4. Every register resets
- * to 0. SR's bits are cleared by writing 0 (rc_w0); EGR reads 0.
- */
-#define C16 0xFFFFu
-#define C32 0xFFFFFFFFu
-// clang-format off
-enum { CR1, CR2, SMCR, DIER, SR, EGR, CCMR1, CCMR2, CCER, CNT, PSC, ARR, RCR, CCR1, CCR2, CCR3, CCR4, BDTR, DCR, DMAR,
-       OR };
-static const struct {
-    uint16_t offset;
-    uint32_t writable[KINDS]; /* ADVANCED, GENERAL32, GENERAL16, TWO_CHANNEL, ONE_CHANNEL, BASIC */
-} registers[RIG_TIM_REGS] = {
-    [CR1] =   { 0x00, { 0x3FF,  0x3FF,  0x3FF,  0x38F,  0x387, 0x8F } },
-    [CR2] =   { 0x04, { 0x7FFD, 0xF8,   0xF8,   0,      0,     0x70 } },
-    [SMCR] =  { 0x08, { 0xFFF7, 0xFFF7, 0xFFF7, 0xF7,   0,     0 } },
-    [DIER] =  { 0x0C, { 0x7FFF, 0x5F5F, 0x5F5F, 0x47,   0x3,   0x101 } },
-    [SR] =    { 0x10, { 0x1EFF, 0x1E5F, 0x1E5F, 0x647,  0x203, 0x1 } },
-    [EGR] =   { 0x14, { 0xFF,   0x5F,   0x5F,   0x47,   0x3,   0x1 } },
-    [CCMR1] = { 0x18, { 0xFFFF, 0xFFFF, 0xFFFF, 0x7F7F, 0x7F,  0 } },
-    [CCMR2] = { 0x1C, { 0xFFFF, 0xFFFF, 0xFFFF, 0,      0,     0 } },
-    [CCER] =  { 0x20, { 0x3FFF, 0xBBBB, 0xBBBB, 0xBB,   0xB,   0 } },
-    [CNT] =   { 0x24, { C16,    C32,    C16,    C16,    C16,   C16 } },
-    [PSC] =   { 0x28, { C16,    C16,    C16,    C16,    C16,   C16 } },
-    [ARR] =   { 0x2C, { C16,    C32,    C16,    C16,    C16,   C16 } },
-    [RCR] =   { 0x30, { 0xFF,   0,      0,      0,      0,     0 } },
-    [CCR1] =  { 0x34, { C16,    C32,    C16,    C16,    C16,   0 } },
-    [CCR2] =  { 0x38, { C16,    C32,    C16,    C16,    0,     0 } },
-    [CCR3] =  { 0x3C, { C16,    C32,    C16,    0,      0,     0 } },
-    [CCR4] =  { 0x40, { C16,    C32,    C16,    0,      0,     0 } },
-    [BDTR] =  { 0x44, { 0xFFFF, 0,      0,      0,      0,     0 } },
-    [DCR] =   { 0x48, { 0x1F1F, 0x1F1F, 0x1F1F, 0,      0,     0 } },
-    [DMAR] =  { 0x4C, { C16,    C16,    C16,    0,      0,     0 } },
-    [OR] =    { 0x50, { 0,      0xCC0,  0,      0,      0x3,   0 } }, /* TIM2/TIM5, TIM11: remaps */
-};
-// clang-format on
-
-/* TIMn: its kind, its APB (1 or 2) and its bit in RCC_APBxENR/APBxRSTR (RM0090 7.3.13, 7.3.14) */
-static const struct {
-    uint8_t kind, apb, enable_bit;
-} timers[15] = {
-    [1] = { ADVANCED, 2, 0 },      [2] = { GENERAL32, 1, 0 },     [3] = { GENERAL16, 1, 1 },
-    [4] = { GENERAL16, 1, 2 },     [5] = { GENERAL32, 1, 3 },     [6] = { BASIC, 1, 4 },
-    [7] = { BASIC, 1, 5 },         [8] = { ADVANCED, 2, 1 },      [9] = { TWO_CHANNEL, 2, 16 },
-    [10] = { ONE_CHANNEL, 2, 17 }, [11] = { ONE_CHANNEL, 2, 18 }, [12] = { TWO_CHANNEL, 1, 6 },
-    [13] = { ONE_CHANNEL, 1, 7 },  [14] = { ONE_CHANNEL, 1, 8 },
-};
-
-#define APB1ENR 0x40
-#define APB2ENR 0x44
-
-/* CR1 */
-#define CR1_CEN (1u << 0)
-#define CR1_UDIS (1u << 1)
-#define CR1_URS (1u << 2)
-#define CR1_OPM (1u << 3)
-#define CR1_DIR (1u << 4)
-#define CR1_CMS_SHIFT 5
-#define CR1_ARPE (1u << 7)
-/* SR, DIER, EGR */
-#define SR_UIF (1u << 0)
-#define SR_CCIF(ch) (1u << (1 + (ch)))
-#define SR_COMIF (1u << 5)
-#define SR_TIF (1u << 6)
-#define SR_BIF (1u << 7)
-#define SR_CCOF(ch) (1u << (9 + (ch)))
-#define EGR_UG (1u << 0)
-#define EGR_CCG(ch) (1u << (1 + (ch)))
-/* CCMRx: a byte per channel */
-#define CCS_OUTPUT 0u
-#define CCMR_OCPE (1u << 3)
-#define OCM_ACTIVE 1u
-#define OCM_INACTIVE 2u
-#define OCM_TOGGLE 3u
-#define OCM_FORCE_LOW 4u
-#define OCM_FORCE_HIGH 5u
-#define OCM_PWM1 6u
-#define OCM_PWM2 7u
-/* CCER: a nibble per channel */
-#define CCER_E 1u
-#define CCER_P 2u
-#define CCER_NP 8u
-#define BDTR_MOE (1u << 15)
+#include "rig_stm32_timer_regs.h"
 
 static bool clocked(RigStm32TimerState *s)
 {
-    return s->rcc == NULL ||
-           rig_stm32_rcc_enabled(s->rcc, timers[s->index].apb == 1 ? APB1ENR : APB2ENR, timers[s->index].enable_bit);
+    return s->rcc == NULL || rig_stm32_rcc_enabled(s->rcc, s->apb == 1 ? APB1ENR : APB2ENR, s->rcc_bit);
 }
 
 /* The timer clock now (the RCC's exact rate; its Clock only tells of changes) */
 static uint64_t timer_hz(RigStm32TimerState *s)
 {
-    return s->rcc ? rig_stm32_rcc_timer_hz(s->rcc, timers[s->index].apb) : clock_get_hz(s->clk);
+    return s->rcc ? rig_stm32_rcc_timer_hz(s->rcc, s->apb) : clock_get_hz(s->clk);
 }
 
 static uint32_t counter_mask(const RigStm32TimerState *s) { return s->kind->wide ? 0xFFFFFFFFu : C16; }
@@ -176,8 +74,14 @@ static bool pwm_ref(const RigStm32TimerState *s, unsigned ch)
     return oc_mode(s, ch) == OCM_PWM1 ? active : !active;
 }
 
-/* The pins follow each channel's output: OCxREF through CCxP while CCxE (and, on TIM1/TIM8, BDTR.MOE)
- * enable it; a disabled output or an input lets go of its pins (RM0090 18.4.9: OCx_EN = 0) */
+/* Whether channel @ch drives its pins: an output with CCxE (and, on TIM1/TIM8, BDTR.MOE) */
+static bool output_enabled(const RigStm32TimerState *s, unsigned ch)
+{
+    return is_output(s, ch) && (ccer(s, ch) & CCER_E) && (!s->kind->advanced || (s->regs[BDTR] & BDTR_MOE));
+}
+
+/* The pins follow each channel's output, OCxREF through CCxP; a disabled output or an input lets go of
+ * its pins (RM0090 18.4.9: OCx_EN = 0) */
 static void drive_outputs(RigStm32TimerState *s)
 {
     for (unsigned ch = 0; ch < s->kind->channels; ch++) {
@@ -189,8 +93,7 @@ static void drive_outputs(RigStm32TimerState *s)
                 s->ref[ch] = mode == OCM_FORCE_HIGH;
             }
         }
-        bool enabled = is_output(s, ch) && (ccer(s, ch) & CCER_E) && (!s->kind->advanced || (s->regs[BDTR] & BDTR_MOE));
-        int level = enabled ? s->ref[ch] ^ !!(ccer(s, ch) & CCER_P) : RIG_GPIO_AF_RELEASED;
+        int level = output_enabled(s, ch) ? s->ref[ch] ^ !!(ccer(s, ch) & CCER_P) : RIG_GPIO_AF_RELEASED;
         if (level != s->out[ch]) {
             s->out[ch] = level;
             for (unsigned pin = 0; pin < RIG_TIM_PINS_PER_CHANNEL; pin++) {
@@ -223,8 +126,7 @@ static uint32_t pulse_ticks(const RigStm32TimerState *s, unsigned ch, uint32_t p
 {
     uint64_t arr = s->arr, ccr = s->ccr[ch], active;
     unsigned mode = oc_mode(s, ch);
-    bool enabled = is_output(s, ch) && (ccer(s, ch) & CCER_E) && (!s->kind->advanced || (s->regs[BDTR] & BDTR_MOE));
-    if (!enabled || (mode != OCM_PWM1 && mode != OCM_PWM2)) {
+    if (!output_enabled(s, ch) || (mode != OCM_PWM1 && mode != OCM_PWM2)) {
         return 0;
     }
     if (cms(s)) {
@@ -245,7 +147,6 @@ static void latch_pulses(RigStm32TimerState *s)
 {
     uint64_t counts = cms(s) ? 2 * (uint64_t)s->arr : (uint64_t)s->arr + 1;
     uint32_t period = (uint32_t)MIN(counts * ((uint64_t)s->psc + 1), UINT32_MAX);
-    uint64_t hz = s->hz;
     for (unsigned ch = 0; ch < s->kind->channels; ch++) {
         uint32_t high = pulse_ticks(s, ch, period);
         /* (a channel without pulses stays silent while only the period changes) */
@@ -253,12 +154,12 @@ static void latch_pulses(RigStm32TimerState *s)
             continue;
         }
         s->pulse_ticks[ch] = high;
-        qemu_set_irq(s->pulse_ns[ch], hz ? (int)muldiv64(high, NANOSECONDS_PER_SECOND, hz) : 0);
+        qemu_set_irq(s->pulse_ns[ch], s->hz ? (int)muldiv64(high, NANOSECONDS_PER_SECOND, s->hz) : 0);
         if (s->trace_pulses) {
             fprintf(stderr,
                     "rig-stm32f4-timer: t_ns=%" PRId64 " TIM%u ch%u high_ticks=%" PRIu32 " period_ticks=%" PRIu32
                     " clock_hz=%" PRIu64 "\n",
-                    qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL), s->index, ch + 1, high, period, hz);
+                    qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL), s->index, ch + 1, high, period, s->hz);
         }
     }
     s->period_ticks = period;
@@ -291,10 +192,7 @@ static void update_event(RigStm32TimerState *s, bool by_software)
 static void compare_match(RigStm32TimerState *s, unsigned ch)
 {
     unsigned mode = oc_mode(s, ch), center = cms(s);
-    if (center == 1 && !s->down) { /* CMS 01: flags while counting down only, 10: up only */
-        return;
-    }
-    if (center == 2 && s->down) {
+    if ((center == 1 && !s->down) || (center == 2 && s->down)) { /* CMS 01: flags counting down only */
         return;
     }
     s->regs[SR] |= SR_CCIF(ch);
@@ -345,29 +243,28 @@ static void boundary(RigStm32TimerState *s)
     }
 }
 
-/* @steps counter steps from the current state, every match and boundary on the way taken in order */
-static void count(RigStm32TimerState *s, uint64_t steps)
+/* @steps counter steps from the current state, every match and boundary on the way taken in order:
+ * whether there was any */
+static bool count(RigStm32TimerState *s, uint64_t steps)
 {
     uint32_t mask = counter_mask(s);
+    bool events = false;
     while (steps > 0 && (s->regs[CR1] & CR1_CEN) && s->arr != 0) {
-        uint64_t d = steps_to_event(s), to_boundary = steps_to_boundary(s);
+        uint64_t d = steps_to_event(s);
         if (steps < d) {
             s->regs[CNT] = (s->down ? s->regs[CNT] - steps : s->regs[CNT] + steps) & mask;
-            return;
+            return events;
         }
+        bool at_boundary = d == steps_to_boundary(s);
         steps -= d;
-        bool at_boundary = d == to_boundary;
-        if (cms(s)) {
-            s->regs[CNT] = s->down ? s->regs[CNT] - d : s->regs[CNT] + d;
-            if (at_boundary) {
-                s->down = !s->down; /* at ARR it turns down (overflow), at 0 up (underflow) */
-            }
-        } else if (at_boundary) {
-            s->regs[CNT] = s->down ? s->arr : 0;
-        } else {
-            s->regs[CNT] = (s->down ? s->regs[CNT] - d : s->regs[CNT] + d) & mask;
-        }
+        events = true;
+        s->regs[CNT] = (s->down ? s->regs[CNT] - d : s->regs[CNT] + d) & mask;
         if (at_boundary) {
+            if (cms(s)) {
+                s->down = !s->down; /* at ARR it turns down (overflow), at 0 up (underflow) */
+            } else {
+                s->regs[CNT] = s->down ? s->arr : 0;
+            }
             boundary(s);
         }
         for (unsigned ch = 0; ch < s->kind->channels; ch++) {
@@ -376,13 +273,16 @@ static void count(RigStm32TimerState *s, uint64_t steps)
             }
         }
     }
+    return events;
 }
 
-/* Brings the counter to the present: the timer-clock ticks since the last sync, through the prescaler */
-static void catch_up(RigStm32TimerState *s)
+/* Brings the counter to the present: the timer-clock ticks since the last sync, through the prescaler;
+ * whether an event (a match, a boundary) came on the way */
+static bool catch_up(RigStm32TimerState *s)
 {
+    bool events = false;
     if (!s->counting) {
-        return;
+        return false;
     }
     int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
     uint64_t total = muldiv64(now - s->base_ns, (uint32_t)s->hz, NANOSECONDS_PER_SECOND);
@@ -399,11 +299,12 @@ static void catch_up(RigStm32TimerState *s)
         /* this step and the whole steps that fit before the next event (where PSC may change) */
         uint64_t more = MIN(ticks / div, steps_to_event(s) - 1);
         ticks -= more * div;
-        count(s, 1 + more);
+        events |= count(s, 1 + more);
     }
     if (!(s->regs[CR1] & CR1_CEN)) {
         s->counting = false;
     }
+    return events;
 }
 
 /* Arms the QEMU timer for the next event, when the counter runs */
@@ -550,9 +451,12 @@ static uint64_t tim_read(void *opaque, hwaddr offset, unsigned size)
                       s->index, offset);
         return 0;
     }
-    catch_up(s);
+    bool changed = catch_up(s); /* (a poll may come before the event's timer: the pins follow now) */
     if (i >= CCR1 && i <= CCR4 && !is_output(s, i - CCR1)) {
         s->regs[SR] &= ~SR_CCIF(i - CCR1); /* reading a capture clears its flag */
+        changed = true;
+    }
+    if (changed) {
         settle(s);
     }
     if (i == CR1) { /* DIR: as the counter goes (read-only when center-aligned) */
@@ -649,11 +553,11 @@ static void tim_reset(DeviceState *dev)
 static void tim_realize(DeviceState *dev, Error **errp)
 {
     RigStm32TimerState *s = RIG_STM32_TIMER(dev);
-    if (s->index < 1 || s->index > 14) {
-        error_setg(errp, "rig-stm32f4-timer: index must be 1..14 (TIM1..TIM14), not %u", s->index);
+    if (s->index < 1 || s->index > 14 || s->apb < 1 || s->apb > 2) {
+        error_setg(errp, "rig-stm32f4-timer: index is 1..14 (TIMn), apb 1 or 2; not %u and %u", s->index, s->apb);
         return;
     }
-    s->kind = &kinds[timers[s->index].kind];
+    s->kind = &kinds[kind_of[s->index]];
     s->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, tim_event, s);
 }
 
@@ -673,6 +577,8 @@ static void tim_instance_init(Object *obj)
 
 static Property tim_properties[] = {
     DEFINE_PROP_UINT8("index", RigStm32TimerState, index, 0),
+    DEFINE_PROP_UINT8("apb", RigStm32TimerState, apb, 0),
+    DEFINE_PROP_UINT8("rcc-bit", RigStm32TimerState, rcc_bit, 0),
     DEFINE_PROP_BOOL("trace-pulses", RigStm32TimerState, trace_pulses, false),
     DEFINE_PROP_LINK("rcc", RigStm32TimerState, rcc, TYPE_RIG_STM32_RCC, RigStm32RccState *),
     DEFINE_PROP_END_OF_LIST(),

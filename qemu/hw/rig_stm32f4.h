@@ -176,8 +176,9 @@ struct RigStm32TimerState {
     SysBusDevice parent_obj;
     MemoryRegion iomem;
     RigStm32RccState *rcc;
-    uint8_t index;     /* 1..14 (property "index"): TIMn */
-    bool trace_pulses; /* property "trace-pulses": each latched pulse on stderr */
+    uint8_t index;        /* 1..14 (property "index"): TIMn */
+    uint8_t apb, rcc_bit; /* its bus (1, 2) and bit in RCC_APBxENR/APBxRSTR (properties "apb", "rcc-bit") */
+    bool trace_pulses;    /* property "trace-pulses": each latched pulse on stderr */
     const struct RigTimerKind *kind;
     Clock *clk;                               /* the APB timer clock (RCC "apb1-tim" or "apb2-tim"): its changes */
     uint64_t hz;                              /* its rate while the counter counted since base_ns */

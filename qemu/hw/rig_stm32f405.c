@@ -45,7 +45,8 @@
 /* the NVIC's inputs (QEMU's STM32F405 SoC has 96) */
 #define NVIC_LINES 96
 
-/* The timers: base (RM0090 table 10), APB and reset bit (7.3.13, 7.3.14), NVIC lines (table 61): the
+/* The timers: base (RM0090 table 10), APB and their bit in APBxENR and APBxRSTR (7.3.7, 7.3.8, 7.3.11,
+ * 7.3.12), NVIC lines (table 61): the
  * advanced timers' BRK, UP, TRG_COM and CC, the others' one global line (-1: none) */
 static const struct {
     hwaddr base;
@@ -143,6 +144,8 @@ static void map_timers(RigStm32RccState *rcc, DeviceState *nvic, DeviceState **g
     for (unsigned t = 1; t <= 14; t++) {
         DeviceState *dev = qdev_new(TYPE_RIG_STM32_TIMER);
         qdev_prop_set_uint8(dev, "index", t);
+        qdev_prop_set_uint8(dev, "apb", timer_map[t].apb);
+        qdev_prop_set_uint8(dev, "rcc-bit", timer_map[t].reset_bit);
         object_property_set_link(OBJECT(dev), "rcc", OBJECT(rcc), &error_fatal);
         qdev_connect_clock_in(dev, "clk",
                               qdev_get_clock_out(DEVICE(rcc), timer_map[t].apb == 1 ? "apb1-tim" : "apb2-tim"));
