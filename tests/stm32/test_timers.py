@@ -41,11 +41,16 @@ def cycles(seconds: float) -> int:
 
 
 @functools.cache
-def traced_run() -> subprocess.CompletedProcess[str]:
-    done = run_firmware(engine_or_skip(), firmware("timers_pwm"), *TRACE_PULSES)
+def checked_run(name: str, *qemu_args: str) -> subprocess.CompletedProcess[str]:
+    """A test firmware's run (once per test session), which must have reported to its end."""
+    done = run_firmware(engine_or_skip(), firmware(name), *qemu_args)
     assert done.returncode == 0, f"status {done.returncode}\n{done.stdout}\n{done.stderr}"
     assert done.stdout.endswith("done\n"), done.stdout
     return done
+
+
+def traced_run() -> subprocess.CompletedProcess[str]:
+    return checked_run("timers_pwm", *TRACE_PULSES)
 
 
 @pytest.fixture(scope="module")
@@ -171,12 +176,8 @@ PPM_US = (1000, 1500, 2000, 1200)
 PPM_PERIOD_US = 2041
 
 
-@functools.cache
 def capture_run() -> subprocess.CompletedProcess[str]:
-    done = run_firmware(engine_or_skip(), firmware("timer_capture"), *WIRES)
-    assert done.returncode == 0, f"status {done.returncode}\n{done.stdout}\n{done.stderr}"
-    assert done.stdout.endswith("done\n"), done.stdout
-    return done
+    return checked_run("timer_capture", *WIRES)
 
 
 @pytest.fixture(scope="module")

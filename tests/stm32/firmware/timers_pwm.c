@@ -66,16 +66,23 @@ static void reset_values(void)
     }
 }
 
+/* Channel 1 of the timer at @base in PWM mode 1, PSC, ARR (under ARPE) and CCR1 (under OC1PE) taken by
+   UG into the shadow registers, the output enabled */
+static void pwm_channel1(uint32_t base, uint32_t psc, uint32_t arr, uint32_t ccr)
+{
+    TIM_PSC(base) = psc;
+    TIM_ARR(base) = arr;
+    TIM_CCR(base, 1) = ccr;
+    TIM_CCMR1(base) = TIM_CCMR_PWM1 | TIM_CCMR_OCPE;
+    TIM_CCER(base) = TIM_CCER_E(1);
+    TIM_CR1(base) = TIM_CR1_ARPE;
+    TIM_EGR(base) = TIM_EGR_UG;
+}
+
 static void tim4_pwm(void)
 {
     pin_af(PORT_D, 12, 2);
-    TIM_PSC(TIM4_BASE) = PWM_PSC;
-    TIM_ARR(TIM4_BASE) = PWM_ARR;
-    TIM_CCR(TIM4_BASE, 1) = PWM_CCR;
-    TIM_CCMR1(TIM4_BASE) = TIM_CCMR_PWM1 | TIM_CCMR_OCPE;
-    TIM_CCER(TIM4_BASE) = TIM_CCER_E(1);
-    TIM_CR1(TIM4_BASE) = TIM_CR1_ARPE;
-    TIM_EGR(TIM4_BASE) = TIM_EGR_UG; /* the preloads into the shadow registers */
+    pwm_channel1(TIM4_BASE, PWM_PSC, PWM_ARR, PWM_CCR);
     report("tim4_sr_after_ug", TIM_SR(TIM4_BASE));
     TIM_SR(TIM4_BASE) = 0;
     TIM_CR1(TIM4_BASE) |= TIM_CR1_CEN;
@@ -91,13 +98,7 @@ static void tim4_pwm(void)
 static void tim1_oneshot125(void)
 {
     pin_af(PORT_A, 8, 1);
-    TIM_PSC(TIM1_BASE) = ONESHOT_PSC;
-    TIM_ARR(TIM1_BASE) = ONESHOT_ARR;
-    TIM_CCR(TIM1_BASE, 1) = ONESHOT_CCR;
-    TIM_CCMR1(TIM1_BASE) = TIM_CCMR_PWM1 | TIM_CCMR_OCPE;
-    TIM_CCER(TIM1_BASE) = TIM_CCER_E(1);
-    TIM_CR1(TIM1_BASE) = TIM_CR1_ARPE;
-    TIM_EGR(TIM1_BASE) = TIM_EGR_UG;
+    pwm_channel1(TIM1_BASE, ONESHOT_PSC, ONESHOT_ARR, ONESHOT_CCR);
     TIM_CR1(TIM1_BASE) |= TIM_CR1_CEN;
     uint32_t high, period;
     measure_pulse(PORT_A, 8, CORE_HZ / 500u, &high, &period); /* no MOE: the output stays off */
