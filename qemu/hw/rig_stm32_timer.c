@@ -149,8 +149,8 @@ static void latch_pulses(RigStm32TimerState *s)
     uint32_t period = (uint32_t)MIN(counts * ((uint64_t)s->psc + 1), UINT32_MAX);
     for (unsigned ch = 0; ch < s->kind->channels; ch++) {
         uint32_t high = pulse_ticks(s, ch, period);
-        /* (a channel without pulses stays silent while only the period changes) */
-        if (high == s->pulse_ticks[ch] && (period == s->period_ticks || high == 0)) {
+        /* (a channel without pulses stays silent while only the period or the clock changes) */
+        if (high == s->pulse_ticks[ch] && ((period == s->period_ticks && s->hz == s->latched_hz) || high == 0)) {
             continue;
         }
         s->pulse_ticks[ch] = high;
@@ -163,6 +163,7 @@ static void latch_pulses(RigStm32TimerState *s)
         }
     }
     s->period_ticks = period;
+    s->latched_hz = s->hz;
 }
 
 /* The update event: the shadow registers take the preloads, UIF unless only software asked and URS
@@ -542,7 +543,7 @@ static void tim_reset(DeviceState *dev)
     memset(s->capture_count, 0, sizeof(s->capture_count));
     memset(s->pulse_ticks, 0, sizeof(s->pulse_ticks));
     memset(s->out, -2, sizeof(s->out));
-    s->arr = s->psc = s->prescaler = s->repetition = s->period_ticks = 0;
+    s->arr = s->psc = s->prescaler = s->repetition = s->period_ticks = s->latched_hz = 0;
     s->down = s->counting = false;
     s->hz = timer_hz(s);
     timer_del(s->timer);

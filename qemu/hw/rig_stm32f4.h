@@ -196,6 +196,7 @@ struct RigStm32TimerState {
     bool input[RIG_TIM_CHANNELS];             /* TIx: the level of each channel's input pin */
     uint8_t capture_count[RIG_TIM_CHANNELS];  /* edges since the last capture (ICxPSC) */
     uint32_t pulse_ticks[RIG_TIM_CHANNELS], period_ticks; /* the pulses latched at the last update */
+    uint64_t latched_hz;                                  /* the timer clock then */
     qemu_irq irq[RIG_TIM_IRQS];
     qemu_irq channel_out[RIG_TIM_CHANNELS * RIG_TIM_PINS_PER_CHANNEL];
     qemu_irq pulse_ns[RIG_TIM_CHANNELS]; /* "pulse-ns": each channel's latched high time in ns */

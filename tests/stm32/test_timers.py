@@ -58,10 +58,12 @@ def r() -> dict[str, int]:
     return reports(traced_run().stdout)
 
 
-def pulses(timer: int, channel: int) -> list[tuple[int, int, int]]:
-    """(high ticks, period ticks, timer clock) each time the channel's latched pulse changed"""
-    return [(int(m[4]), int(m[5]), int(m[6])) for m in TRACE.finditer(traced_run().stderr)
-            if int(m[2]) == timer and int(m[3]) == channel]
+def pulses(timer: int, channel: int, name: str = "timers_pwm") -> list[tuple[int, int, int]]:
+    """(high ticks, period ticks, timer clock) each time the channel's latched pulse changed in the
+    traced run of the test firmware @name"""
+    trace = checked_run(name, *TRACE_PULSES).stderr
+    return [(int(m[4]), int(m[5]), int(m[6])) for m in TRACE.finditer(trace)
+            if (int(m[2]), int(m[3])) == (timer, channel)]
 
 
 def test_registers_reset_to_zero(r: dict[str, int]) -> None:
@@ -231,3 +233,78 @@ def test_a_bad_wire_is_refused() -> None:
                                "none", "-kernel", str(firmware("timer_capture"))],
                               stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=30)
         assert done.returncode == 1 and words in done.stderr, (spec, done.stderr)
+
+
+@pytest.fixture(scope="module")
+def m() -> dict[str, int]:
+    return reports(checked_run("timer_modes", *TRACE_PULSES).stdout)
+
+
+def test_advanced_timer_counting_down_with_repetitions(m: dict[str, int]) -> None:
+    """17.3.2/17.3.3: TIM8 counts down from ARR 999 at 1 us (PSC 167 on 168 MHz), DIR reads back set;
+    PWM mode 1 counting down is high while CNT <= CCR1: 301 of 1000 ticks; with RCR 2 the update event
+    comes every third underflow: 10 in 30 ms."""
+    assert m["tim8_cr1"] & (1 << 4)
+    us = APB2_TIMER_HZ // (167 + 1)
+    assert abs(m["tim8_down_high_cycles"] - cycles(301 / us)) <= POLL_CYCLES
+    assert abs(m["tim8_down_period_cycles"] - cycles(1000 / us)) <= POLL_CYCLES
+    assert abs(m["tim8_updates_30ms"] - 0.030 / (3 * 1000 / us)) <= 1
+    assert pulses(8, 1, "timer_modes") == [(301 * 168, 1000 * 168, APB2_TIMER_HZ)]
+
+
+@pytest.mark.parametrize(("name", "arr"), [("direct", 500), ("preload", 1000)])
+def test_arr_written_mid_period(m: dict[str, int], name: str, arr: int) -> None:
+    """18.3.1: without ARPE a new ARR (500, written at CNT >= 100 of ARR 1000) ends this very period;
+    with ARPE the period runs to the old ARR. The update comes after ARR - CNT + 1 ticks of 1 us, less
+    the part of the tick the counter was into when CNT was read."""
+    at = m[f"arr_{name}_cnt"]
+    expected = cycles((arr - at + 1) * 1e-6)
+    assert expected - cycles(1e-6) - POLL_CYCLES <= m[f"arr_{name}_cycles"] <= expected + POLL_CYCLES
+
+
+def test_update_request_source_disable_and_one_pulse(m: dict[str, int]) -> None:
+    """20.4.1 (TIM7): UG sets UIF unless URS; UDIS stops update events (500 us at ARR 99 with no UIF),
+    clearing it lets them come; in one-pulse mode the counter stops at the update: CEN cleared, CNT 0."""
+    assert m["tim7_sr_ug_with_urs"] == 0
+    assert m["tim7_sr_ug"] == 1
+    assert m["tim7_sr_udis"] == 0
+    assert m["tim7_sr_counting"] == 1
+    assert m["tim7_cr1_one_pulse"] == 1 << 3  # OPM left, CEN cleared
+    assert m["tim7_cnt_one_pulse"] == 0
+    assert m["tim7_sr_one_pulse"] == 1
+
+
+def test_pwm_mode_2_and_an_inverted_output(m: dict[str, int]) -> None:
+    """18.4.7: PWM mode 2 is inactive while CNT < CCR3 (high 2041 - 500 us); 18.4.9: CC4P inverts PWM
+    mode 1 (high 2041 - 300 us). The latched pulses say the same in ticks."""
+    period = 2041
+    assert abs(m["pwm2_high_cycles"] - cycles((period - 500) * 1e-6)) <= POLL_CYCLES
+    assert abs(m["inverted_high_cycles"] - cycles((period - 300) * 1e-6)) <= POLL_CYCLES
+    for name in ("pwm2_period_cycles", "inverted_period_cycles"):
+        assert abs(m[name] - cycles(period * 1e-6)) <= POLL_CYCLES
+    assert pulses(4, 3, "timer_modes")[0] == ((period - 500) * 84, period * 84, APB1_TIMER_HZ)
+    assert pulses(4, 4, "timer_modes")[0] == ((period - 300) * 84, period * 84, APB1_TIMER_HZ)
+
+
+def test_the_timer_clock_follows_the_apb_prescaler(m: dict[str, int]) -> None:
+    """7.2: APB1 at HCLK / 8 makes the timer clock 2 x 21 = 42 MHz: the same ticks last twice as long,
+    and the latched pulse is the same ticks at the new clock."""
+    slow_hz = 2 * CORE_HZ // 8
+    assert abs(m["pwm2_slow_high_cycles"] - cycles(1541 * 84 / slow_hz)) <= POLL_CYCLES
+    assert abs(m["pwm2_slow_period_cycles"] - cycles(2041 * 84 / slow_hz)) <= POLL_CYCLES
+    assert pulses(4, 3, "timer_modes")[1:] == [(1541 * 84, 2041 * 84, slow_hz)]
+
+
+def test_toggle_on_match_and_forced_levels(m: dict[str, int]) -> None:
+    """19.4.7 (TIM9): toggle on match flips PE5 once a period (500 us at ARR 499): high one period, low
+    the next; forced active and inactive levels reach PE6 at once."""
+    assert abs(m["toggle_high_cycles"] - cycles(500e-6)) <= POLL_CYCLES
+    assert abs(m["toggle_period_cycles"] - cycles(1000e-6)) <= POLL_CYCLES
+    assert (m["forced_high_pin"], m["forced_low_pin"]) == (1, 0)
+
+
+def test_two_timers_share_an_interrupt_line(m: dict[str, int]) -> None:
+    """Table 61: TIM1's update and TIM10's global interrupt are one NVIC line (25); neither hides the
+    other's: 30 ms hold 60 periods of 500 us and 100 of 300 us."""
+    assert abs(m["tim1_updates_30ms"] - 60) <= 1
+    assert abs(m["tim10_updates_30ms"] - 100) <= 1

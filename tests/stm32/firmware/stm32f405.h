@@ -31,6 +31,8 @@
 #define RCC_CFGR_SWS 0xCu
 #define RCC_CFGR_SWS_PLL 0x8u
 #define RCC_CFGR_PPRE1_DIV4 (0x5u << 10)
+#define RCC_CFGR_PPRE1_DIV8 (0x6u << 10)
+#define RCC_CFGR_PPRE1 (0x7u << 10)
 #define RCC_CFGR_PPRE2_DIV2 (0x4u << 13)
 #define RCC_PLLCFGR_PLLSRC_HSE (1u << 22)
 #define RCC_APB1ENR_PWREN (1u << 28)
@@ -63,6 +65,7 @@
 #define PORT_B 1u
 #define PORT_D 3u
 #define PORT_E 4u
+#define PORT_C 2u
 
 /* I2C1 (RM0090 27.6, table 133) */
 #define I2C1_BASE 0x40005400u
@@ -137,6 +140,11 @@
 #define TIM_DIER_UIE (1u << 0)
 #define TIM_DIER_CCIE(ch) (1u << (ch))
 #define TIM_EGR_UG (1u << 0)
+#define TIM_CR1_UDIS (1u << 1)
+#define TIM_CR1_URS (1u << 2)
+#define TIM_CCMR_TOGGLE (3u << 4)
+#define TIM_CCMR_FORCE_LOW (4u << 4)
+#define TIM_CCMR_FORCE_HIGH (5u << 4)
 #define TIM_CCMR_PWM1 (6u << 4)
 #define TIM_CCMR_PWM2 (7u << 4)
 #define TIM_CCMR_OCPE (1u << 3)
@@ -149,6 +157,7 @@
 #define TIM1_UP_TIM10_IRQ 25u
 #define TIM1_CC_IRQ 27u
 #define TIM4_IRQ 30u
+#define TIM8_UP_TIM13_IRQ 44u
 #define GPIO_MODE_AF 2u
 
 #define NVIC_ISER(n) REG(0xE000E100u + 4u * (n))
