@@ -87,7 +87,9 @@ static void gpio_update(RigStm32GpioState *s)
             qemu_set_irq(s->out[pin], levels >> pin & 1);
         }
     }
-    /* a pin in AF mode gives its level to the AF it selects, once per change of either */
+    /* a pin in AF mode gives its level to the AF it selects, once per change of either (kept per pin in
+     * bytes: the same test on a bit of a uint16_t, a bool != (bool)(x >> pin & 1), is miscompiled by
+     * Debian 12's GCC 12.2 at -O2, whose jump threading drops the level's half of it) */
     for (unsigned pin = 0; pin < RIG_GPIO_PINS; pin++) {
         int level = levels >> pin & 1;
         int af = -1;
