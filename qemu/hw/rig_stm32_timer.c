@@ -517,6 +517,14 @@ static void tim_write(void *opaque, hwaddr offset, uint64_t value, unsigned size
             }
         }
         break;
+    case CCER:
+        for (unsigned ch = 0; ch < s->kind->channels; ch++) {
+            if (!(v >> (4 * ch) & CCER_E)) {
+                s->capture_count[ch] = 0; /* the input prescaler restarts while the capture is off */
+            }
+        }
+        s->regs[CCER] = v;
+        break;
     case DMAR:
         qemu_log_mask(LOG_UNIMP, "rig-stm32f4-timer: TIM%u: DMA burst (DMAR) not modelled\n", s->index);
         break;

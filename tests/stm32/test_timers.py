@@ -210,8 +210,11 @@ def test_both_edges_and_reading_clears_the_flag(c: dict[str, int]) -> None:
 
 
 def test_a_pin_the_firmware_toggles_is_captured(c: dict[str, int]) -> None:
-    """PD1 set every 500 us by DWT_CYCCNT: TIM3 CH2 (1 us ticks) sees the rising edges 500 ticks apart."""
+    """PD1 set every 500 us by DWT_CYCCNT: TIM3 CH2 (1 us ticks) sees the rising edges 500 ticks apart;
+    with IC2PSC = 01 (18.4.7: a capture every 2 events) 1000 apart, and one more edge captures nothing."""
     assert c["toggle_interval_us"] == 500
+    assert c["toggle_interval_div2_us"] == 1000
+    assert c["toggle_one_more_edge_us"] == 1000
 
 
 def test_unread_captures_set_overcapture(c: dict[str, int]) -> None:

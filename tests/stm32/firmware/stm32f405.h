@@ -148,6 +148,7 @@
 #define TIM_CCMR_PWM1 (6u << 4)
 #define TIM_CCMR_PWM2 (7u << 4)
 #define TIM_CCMR_OCPE (1u << 3)
+#define TIM_CCMR_ICPSC_DIV2 (1u << 2)
 #define TIM_CCMR_IC_TI_OWN 1u   /* CCxS = 01: ICx on its own TIx */
 #define TIM_CCMR_IC_TI_OTHER 2u /* CCxS = 10: ICx on the pair's other TI */
 #define TIM_CCER_E(ch) (1u << (4u * ((ch)-1u)))

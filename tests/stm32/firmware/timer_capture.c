@@ -6,7 +6,8 @@
      (CC2S = 10, CC2P = 1), in its interrupt;
    * both edges: TIM3 channel 1 (1 us ticks) captures TIM4 channel 2's 700 us pulses on PA6 with
      CC1P = CC1NP = 1;
-   * a pin the firmware toggles itself (PD1, every 250 us by DWT) captured by TIM3 channel 2 on PA7;
+   * a pin the firmware toggles itself (PD1, a rising edge every 500 us by DWT) captured by TIM3 channel 2
+     on PA7, each edge and then every second one (IC2PSC);
    * overcapture: edges left unread set CCxOF.
    Values go out as NAME=0xVALUE lines through semihosting. */
 #include "timer_checks.h"
@@ -116,22 +117,33 @@ static void both_edges(void)
     }
 }
 
-/* TIM3 channel 2 captures PD1's rising edges, which the firmware makes every 500 us */
-static void toggled_pin(void)
+/* @count rising edges on PD1, one every 500 us (by DWT), then TIM3's last capture on channel 2 */
+static uint32_t rising_edges(unsigned count)
 {
-    uint32_t captures[2];
-    TIM_SR(TIM3_BASE) = ~TIM_SR_CCIF(2);
-    for (unsigned i = 0; i < 2; i++) {
+    for (unsigned i = 0; i < count; i++) {
         uint32_t start = DWT_CYCCNT;
         GPIO_BSRR(PORT_D) = 1u << 1;
         while (DWT_CYCCNT - start < CORE_HZ / 4000u) { /* 250 us */
         }
-        captures[i] = TIM_CCR(TIM3_BASE, 2);
         GPIO_BSRR(PORT_D) = 1u << (16 + 1);
         while (DWT_CYCCNT - start < CORE_HZ / 2000u) {
         }
     }
-    report("toggle_interval_us", (captures[1] - captures[0]) & 0xFFFFu);
+    return TIM_CCR(TIM3_BASE, 2);
+}
+
+/* TIM3 channel 2 captures PD1's rising edges, which the firmware makes: each one, then (IC2PSC = 01,
+   set while CC2E is off) every second one */
+static void toggled_pin(void)
+{
+    uint32_t first = rising_edges(1);
+    report("toggle_interval_us", (rising_edges(1) - first) & 0xFFFFu);
+    TIM_CCER(TIM3_BASE) &= ~TIM_CCER_E(2);
+    TIM_CCMR1(TIM3_BASE) |= TIM_CCMR_ICPSC_DIV2 << 8;
+    TIM_CCER(TIM3_BASE) |= TIM_CCER_E(2);
+    first = rising_edges(2);
+    report("toggle_interval_div2_us", (rising_edges(2) - first) & 0xFFFFu);
+    report("toggle_one_more_edge_us", (rising_edges(1) - first) & 0xFFFFu);
 }
 
 /* Three TIM4 periods with TIM2's flags unread: each channel captured again over its set flag */
