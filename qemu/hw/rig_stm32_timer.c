@@ -428,7 +428,10 @@ static void event_generation(RigStm32TimerState *s, uint32_t egr)
     s->regs[SR] |= egr & (SR_COMIF | SR_TIF | SR_BIF);
 }
 
-static uint32_t writable(const RigStm32TimerState *s, int reg) { return registers[reg].writable[s->kind->kind]; }
+static uint32_t writable(const RigStm32TimerState *s, int reg)
+{
+    return registers[reg].writable[s->kind->kind] & (reg == OR ? or_writable[s->index] : 0xFFFFFFFFu);
+}
 
 static int register_at(const RigStm32TimerState *s, hwaddr offset)
 {

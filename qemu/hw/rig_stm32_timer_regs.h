@@ -40,7 +40,7 @@ static const struct {
     uint32_t writable[KINDS]; /* ADVANCED, GENERAL32, GENERAL16, TWO_CHANNEL, ONE_CHANNEL, BASIC */
 } registers[RIG_TIM_REGS] = {
     [CR1] =   { 0x00, { 0x3FF,  0x3FF,  0x3FF,  0x38F,  0x387, 0x8F } },
-    [CR2] =   { 0x04, { 0x7FFD, 0xF8,   0xF8,   0,      0,     0x70 } },
+    [CR2] =   { 0x04, { 0x7FFD, 0xF8,   0xF8,   0x70,   0,     0x70 } },
     [SMCR] =  { 0x08, { 0xFFF7, 0xFFF7, 0xFFF7, 0xF7,   0,     0 } },
     [DIER] =  { 0x0C, { 0x7FFF, 0x5F5F, 0x5F5F, 0x47,   0x3,   0x101 } },
     [SR] =    { 0x10, { 0x1EFF, 0x1E5F, 0x1E5F, 0x647,  0x203, 0x1 } },
@@ -59,9 +59,12 @@ static const struct {
     [BDTR] =  { 0x44, { 0xFFFF, 0,      0,      0,      0,     0 } },
     [DCR] =   { 0x48, { 0x1F1F, 0x1F1F, 0x1F1F, 0,      0,     0 } },
     [DMAR] =  { 0x4C, { C16,    C16,    C16,    0,      0,     0 } },
-    [OR] =    { 0x50, { 0,      0xCC0,  0,      0,      0x3,   0 } }, /* TIM2/TIM5, TIM11: remaps */
+    [OR] =    { 0x50, { 0,      C32,    0,      0,      C32,   0 } }, /* or_writable below */
 };
 // clang-format on
+/* The option registers' remap bits: TIM2's ITR1_RMP, TIM5's TI4_RMP, TIM11's TI1_RMP (18.4.19, 18.4.20,
+ * 19.5.12); the other timers of a kind that has OR have none */
+static const uint32_t or_writable[15] = { [2] = 0xC00, [5] = 0xC0, [11] = 0x3 };
 
 /* TIMn's kind */
 static const uint8_t kind_of[15] = {

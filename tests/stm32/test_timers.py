@@ -89,6 +89,13 @@ KINDS = {1: "advanced", 8: "advanced", 2: "general32", 5: "general32", 3: "gener
          14: "one_channel", 6: "basic", 7: "basic"}
 
 
+#: CR2 (17.4.2: OIS, MMS, CCDS, CCUS, CCPC; 18.4.2: TI1S, MMS, CCDS; TIM9/12 and 20.4.2: MMS; none on
+#: TIM10/11/13/14) and OR, the remap bits of TIM2 (ITR1_RMP), TIM5 (TI4_RMP) and TIM11 (TI1_RMP) only
+CR2_WRITABLE = {"advanced": 0x7FFD, "general32": 0xF8, "general16": 0xF8, "two_channel": 0x70,
+                "one_channel": 0, "basic": 0x70}
+OR_WRITABLE = {2: 0xC00, 5: 0xC0, 11: 0x3}
+
+
 @pytest.mark.parametrize("timer", sorted(KINDS))
 def test_writable_bits(r: dict[str, int], timer: int) -> None:
     dier, cr1, ccer, arr = WRITABLE[KINDS[timer]]
@@ -96,6 +103,8 @@ def test_writable_bits(r: dict[str, int], timer: int) -> None:
     assert r[f"tim{timer}_cr1_ones"] == cr1
     assert r[f"tim{timer}_ccer_ones"] == ccer
     assert r[f"tim{timer}_arr_ones"] == arr  # 32-bit on TIM2 and TIM5 only
+    assert r[f"tim{timer}_cr2_ones"] == CR2_WRITABLE[KINDS[timer]]
+    assert r[f"tim{timer}_or_ones"] == OR_WRITABLE.get(timer, 0)
 
 
 def test_ug_sets_the_update_flag(r: dict[str, int]) -> None:

@@ -63,6 +63,12 @@ static void reset_values(void)
         TIM_ARR(base) = 0xFFFFFFFFu;
         report_indexed("tim", t, "_arr_ones", TIM_ARR(base));
         TIM_ARR(base) = 0;
+        TIM_CR2(base) = 0xFFFFFFFFu;
+        report_indexed("tim", t, "_cr2_ones", TIM_CR2(base));
+        TIM_CR2(base) = 0;
+        REG(base + 0x50u) = 0xFFFFFFFFu; /* OR */
+        report_indexed("tim", t, "_or_ones", REG(base + 0x50u));
+        REG(base + 0x50u) = 0;
     }
 }
 
