@@ -21,7 +21,9 @@
  *
  * For the rig, each channel's pulse is latched at the start of each period (at the UEV: the CCR, ARR and
  * PSC then in force, in timer-clock ticks), as the AVR tier reads motor pulses from its compare
- * registers: "pulse-ns" GPIO output lines carry each channel's high time in ns when it changes, and with
+ * registers: "pulse-ns" GPIO output lines carry each channel's high time in ns when it changes, the
+ * read-only QOM properties chC-high-ticks, period-ticks and clock-hz hold them (the machine names the
+ * timers /machine/tim1 .. /machine/tim14), and with
  * -global rig-stm32f4-timer.trace-pulses=on each change prints a line on stderr:
  *   rig-stm32f4-timer: t_ns=T TIMn chC high_ticks=H period_ticks=P clock_hz=F
  *
@@ -585,6 +587,14 @@ static void tim_instance_init(Object *obj)
     qdev_init_gpio_out_named(DEVICE(obj), s->channel_out, "channel-out", RIG_TIM_CHANNELS * RIG_TIM_PINS_PER_CHANNEL);
     qdev_init_gpio_in_named(DEVICE(obj), channel_input, "channel-in", RIG_TIM_CHANNELS);
     qdev_init_gpio_out_named(DEVICE(obj), s->pulse_ns, "pulse-ns", RIG_TIM_CHANNELS);
+    /* the latched pulses as read-only QOM properties too (QMP qom-get /machine/timN chC-high-ticks) */
+    static const char *const high_names[RIG_TIM_CHANNELS] = { "ch1-high-ticks", "ch2-high-ticks", "ch3-high-ticks",
+                                                              "ch4-high-ticks" };
+    for (unsigned ch = 0; ch < RIG_TIM_CHANNELS; ch++) {
+        object_property_add_uint32_ptr(obj, high_names[ch], &s->pulse_ticks[ch], OBJ_PROP_FLAG_READ);
+    }
+    object_property_add_uint32_ptr(obj, "period-ticks", &s->period_ticks, OBJ_PROP_FLAG_READ);
+    object_property_add_uint64_ptr(obj, "clock-hz", &s->latched_hz, OBJ_PROP_FLAG_READ);
 }
 
 static Property tim_properties[] = {

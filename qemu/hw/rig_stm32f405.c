@@ -143,6 +143,8 @@ static void map_timers(RigStm32RccState *rcc, DeviceState *nvic, DeviceState **g
     }
     for (unsigned t = 1; t <= 14; t++) {
         DeviceState *dev = qdev_new(TYPE_RIG_STM32_TIMER);
+        g_autofree char *name = g_strdup_printf("tim%u", t);
+        object_property_add_child(qdev_get_machine(), name, OBJECT(dev)); /* /machine/timN */
         qdev_prop_set_uint8(dev, "index", t);
         qdev_prop_set_uint8(dev, "apb", timer_map[t].apb);
         qdev_prop_set_uint8(dev, "rcc-bit", timer_map[t].reset_bit);

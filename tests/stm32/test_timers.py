@@ -8,12 +8,16 @@ and its formulas, written here: f_timer = PCLK x 2 when the APB prescaler is not
 from __future__ import annotations
 
 import functools
+import json
 import re
+import select
+import socket
 import subprocess
+from pathlib import Path
 
 import pytest
 
-from tests.stm32.conftest import engine_or_skip, firmware, reports, run_firmware
+from tests.stm32.conftest import ICOUNT_SHIFT, RUN_TIMEOUT_S, engine_or_skip, firmware, reports, run_firmware
 
 CORE_HZ = 168_000_000
 #: ST's 168 MHz set-up: APB1 = HCLK / 4, APB2 = HCLK / 2, so each timer clock is twice its bus's
@@ -320,3 +324,50 @@ def test_two_timers_share_an_interrupt_line(m: dict[str, int]) -> None:
     other's: 30 ms hold 60 periods of 500 us and 100 of 300 us."""
     assert abs(m["tim1_updates_30ms"] - 60) <= 1
     assert abs(m["tim10_updates_30ms"] - 100) <= 1
+
+
+def qom_get(qmp_socket: Path, requests: list[tuple[str, str]]) -> list[int]:
+    """QMP's qom-get for each (path, property), over QEMU's QMP socket."""
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
+        sock.settimeout(RUN_TIMEOUT_S)
+        sock.connect(str(qmp_socket))
+        stream = sock.makefile("rw")
+        json.loads(stream.readline())  # the greeting
+        values = []
+        for command in [{"execute": "qmp_capabilities"},
+                        *({"execute": "qom-get", "arguments": {"path": path, "property": prop}}
+                          for path, prop in requests)]:
+            stream.write(json.dumps(command) + "\n")
+            stream.flush()
+            reply = json.loads(stream.readline())
+            assert "return" in reply, reply
+            values.append(reply["return"])
+        return values[1:]
+
+
+def test_latched_pulses_read_from_outside_over_qmp(tmp_path: Path) -> None:
+    """What a session reads, without semihosting: each timer is /machine/timN, its channels' latched
+    pulses its read-only properties. pwm_hold.c leaves four motors' pulses on TIM4 (1000, 1250, 1500,
+    2000 us at 490 Hz, 1 us ticks from 84 MHz) and OneShot125 on TIM1 CH1 (1500 ticks of 8 MHz)."""
+    qmp = tmp_path / "qmp.sock"
+    cmd = [str(engine_or_skip()), "-M", "rig-stm32f405", "-nodefaults", "-display", "none", "-chardev",
+           "stdio,id=semi", "-semihosting-config", "enable=on,target=native,chardev=semi", "-icount",
+           f"shift={ICOUNT_SHIFT},sleep=off", "-qmp", f"unix:{qmp},server=on,wait=off", "-kernel",
+           str(firmware("pwm_hold"))]
+    with subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                          text=True) as qemu:
+        try:
+            assert qemu.stdout is not None
+            assert select.select([qemu.stdout], [], [], RUN_TIMEOUT_S)[0], "no 'ready' from the firmware"
+            assert qemu.stdout.readline() == "ready\n"
+            tim4 = [("/machine/tim4", f"ch{ch}-high-ticks") for ch in range(1, 5)]
+            rest = [("/machine/tim4", "period-ticks"), ("/machine/tim4", "clock-hz"),
+                    ("/machine/tim1", "ch1-high-ticks"), ("/machine/tim1", "period-ticks"),
+                    ("/machine/tim1", "clock-hz")]
+            values = qom_get(qmp, tim4 + rest)
+        finally:
+            qemu.kill()
+    us = APB1_TIMER_HZ // 1_000_000
+    assert values[:4] == [w * us for w in (1000, 1250, 1500, 2000)]
+    assert values[4:6] == [2041 * us, APB1_TIMER_HZ]
+    assert values[6:] == [1500 * 21, 4000 * 21, APB2_TIMER_HZ]
