@@ -311,6 +311,12 @@ def test_the_timer_clock_follows_the_apb_prescaler(m: dict[str, int]) -> None:
     assert pulses(4, 3, "timer_modes")[1:] == [(1541 * 84, 2041 * 84, slow_hz)]
 
 
+def test_an_undivided_apb_clock_is_not_doubled(m: dict[str, int]) -> None:
+    """7.2: the timer clock is twice PCLK only when the APB prescaler is not 1: with PPRE1 = /1 TIM6
+    (PSC 167, ARR 999) takes 168 x 1000 / 168 MHz = 1000 us a period."""
+    assert abs(m["apb1_undivided_period_cycles"] - cycles(168 * 1000 / CORE_HZ)) <= POLL_CYCLES
+
+
 def test_toggle_on_match_and_forced_levels(m: dict[str, int]) -> None:
     """19.4.7 (TIM9): toggle on match flips PE5 once a period (500 us at ARR 499): high one period, low
     the next; forced active and inactive levels reach PE6 at once."""

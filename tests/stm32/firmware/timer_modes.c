@@ -2,7 +2,8 @@
    against RM0090): TIM8 counting down with a repetition counter and MOE (PC6); ARR written mid-period
    with and without ARPE (TIM6); URS, UDIS and one-pulse mode (TIM7); PWM mode 2 and an inverted output
    (TIM4 channels 3 and 4 on PD14, PD15), through a change of the APB1 clock; toggle on match and forced
-   levels (TIM9 on PE5, PE6); TIM1's and TIM10's update interrupts sharing NVIC line 25. */
+   levels (TIM9 on PE5, PE6); the timer clock with APB1 undivided (TIM6); TIM1's and TIM10's update
+   interrupts sharing NVIC line 25. */
 #include "timer_checks.h"
 
 #define US(n) ((n) * (CORE_HZ / 1000000u)) /* core cycles */
@@ -148,6 +149,29 @@ static void toggle_and_forced(void)
     TIM_CR1(TIM9_BASE) = 0;
 }
 
+/* APB1 undivided (PPRE1 = /1, out of the chip's ratings but a valid setting): the timer clock is PCLK1
+   itself, 168 MHz, not twice it; TIM6 at PSC 167 and ARR 999 then overflows every 1000 us */
+static void apb_prescaler_one(void)
+{
+    RCC_CFGR &= ~RCC_CFGR_PPRE1;
+    TIM_PSC(TIM6_BASE) = 167u;
+    TIM_ARR(TIM6_BASE) = 999u;
+    TIM_CR1(TIM6_BASE) = 0;
+    TIM_EGR(TIM6_BASE) = TIM_EGR_UG;
+    TIM_SR(TIM6_BASE) = 0;
+    TIM_CR1(TIM6_BASE) = TIM_CR1_CEN;
+    uint32_t start = 0;
+    for (unsigned i = 0; i < 2; i++) {
+        while (!(TIM_SR(TIM6_BASE) & TIM_SR_UIF)) {
+        }
+        TIM_SR(TIM6_BASE) = 0;
+        start = i == 0 ? DWT_CYCCNT : DWT_CYCCNT - start;
+    }
+    report("apb1_undivided_period_cycles", start);
+    TIM_CR1(TIM6_BASE) = 0;
+    RCC_CFGR |= RCC_CFGR_PPRE1_DIV4;
+}
+
 void tim1_up_tim10_handler(void)
 {
     if (TIM_SR(TIM1_BASE) & TIM_SR_UIF) {
@@ -193,6 +217,7 @@ int main(void)
     update_control();
     pwm2_polarity_and_clock();
     toggle_and_forced();
+    apb_prescaler_one();
     shared_interrupt_line();
     put_text("done\n");
     return 0;
