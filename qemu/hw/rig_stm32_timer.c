@@ -394,7 +394,7 @@ static void clock_changes(void *opaque, ClockEvent event)
         if (s->counting || (s->regs[CR1] & CR1_CEN)) {
             start_counting(s);
         }
-        schedule(s);
+        settle(s); /* (what the old rate's last ticks changed, and the next event at the new rate) */
     }
 }
 
