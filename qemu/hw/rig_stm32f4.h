@@ -192,7 +192,7 @@ struct RigStm32TimerState {
     int64_t base_ns;                          /* virtual time of timer-clock tick 0 */
     uint64_t ticks_done;                      /* timer-clock ticks accounted since base_ns */
     bool ref[RIG_TIM_CHANNELS];               /* OCxREF */
-    int8_t out[RIG_TIM_CHANNELS];             /* the level last sent to the pins (-1 none yet) */
+    int8_t out[RIG_TIM_CHANNELS];             /* last sent to the pins: 0, 1, released, -2 at reset */
     bool input[RIG_TIM_CHANNELS];             /* TIx: the level of each channel's input pin */
     uint8_t capture_count[RIG_TIM_CHANNELS];  /* edges since the last capture (ICxPSC) */
     uint32_t pulse_ticks[RIG_TIM_CHANNELS], period_ticks; /* the pulses latched at the last update */
