@@ -10,25 +10,29 @@
  * toggle on match, forced levels, PWM modes 1 and 2) with CCRx preloaded under OCxPE, CCxE and CCxP,
  * BDTR.MOE gating the advanced timers' outputs; input capture (CCxS = 01, 10: the channel's own input or
  * its pair's; CCxP/CCxNP pick rising, falling or both edges; ICxPSC; ICxF is ignored, the edges are
- * clean) with the overcapture flag. SR's flags are cleared by writing 0; DIER's interrupt enables raise
- * the NVIC lines, the advanced timers' four (BRK, UP, TRG_COM, CC), the others' one; the DMA request
- * enables are stored (DMA is not modelled). The registers answer only with the timer's RCC enable bit
- * (properties "apb" 1 or 2 and "rcc-bit": APBxENR, APBxRSTR) on; the RCC's reset bit resets the timer.
+ * clean) with the overcapture flag; the slave mode controller's reset and trigger modes on TI1FP1 and
+ * TI2FP2 (PWM input mode: a rising edge captured and restarting the counter). SR's flags are cleared by
+ * writing 0; DIER's interrupt enables raise the NVIC lines, the advanced timers' four (BRK, UP, TRG_COM,
+ * CC), the others' one; the DMA request enables are stored (DMA is not modelled). The registers answer
+ * only with the timer's RCC enable bit on (properties "apb", 1 or 2, and "rcc-bit": APBxENR, APBxRSTR);
+ * the RCC's reset bit resets the timer.
  *
  * Nothing runs per tick: a QEMU timer is armed for the next event (a compare match, the end of the
- * period), and reads of CNT compute it from the virtual time: a 490 Hz PWM costs two events a period. The outputs go to the GPIO pins whose AFR selects the timer ("channel-out" lines,
- * four pins per channel), and the pins' levels come back as the channels' inputs ("channel-in").
+ * period), and reads of CNT compute it from the virtual time: a 490 Hz PWM costs two events a period.
+ * The outputs go to the GPIO pins whose AFR selects the timer ("channel-out" lines, four pins per
+ * channel), and the pins' levels come back as the channels' inputs ("channel-in").
  *
  * For the rig, each channel's pulse is latched at the start of each period (at the UEV: the CCR, ARR and
  * PSC then in force, in timer-clock ticks), as the AVR tier reads motor pulses from its compare
  * registers: "pulse-ns" GPIO output lines carry each channel's high time in ns when it changes, the
  * read-only QOM properties chC-high-ticks, period-ticks and clock-hz hold them (the machine names the
- * timers /machine/tim1 .. /machine/tim14), and with
- * -global rig-stm32f4-timer.trace-pulses=on each change prints a line on stderr:
+ * timers /machine/tim1 .. /machine/tim14), and with -global rig-stm32f4-timer.trace-pulses=on each
+ * change prints a line on stderr:
  *   rig-stm32f4-timer: t_ns=T TIMn chC high_ticks=H period_ticks=P clock_hz=F
  *
- * Not modelled: the slave mode controller and timer chaining, external clocks, encoder and hall-sensor
- * modes, complementary outputs, dead time, break, COM, DMA bursts (DMAR reads 0), ICxF, OCxFE, OCxCE.
+ * Not modelled: the other slave modes (gated, encoder, external clock) and triggers (ITRx: timer
+ * chaining, TI1F_ED, ETR), hall-sensor mode, complementary outputs, dead time, break, COM, DMA bursts
+ * (DMAR reads 0), ICxF, OCxFE, OCxCE.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -361,8 +365,50 @@ static void capture(RigStm32TimerState *s, unsigned ch)
     s->regs[SR] |= SR_CCIF(ch);
 }
 
-/* A channel's pin changed (line: channel): the channels that take it as their input capture an edge
- * of the polarity CCxP/CCxNP select (00 rising, 01 falling, 11 both) */
+/* EGR.UG, or a reset trigger: the counter and prescaler restart, then the UEV (RM0090 17.3.1) */
+static void reinitialize(RigStm32TimerState *s)
+{
+    s->prescaler = 0;
+    s->down = !cms(s) && (s->regs[CR1] & CR1_DIR);
+    if (s->kind->advanced) {
+        s->repetition = s->regs[RCR];
+    }
+    update_event(s, true);
+    s->regs[CNT] = s->down ? s->arr : 0;
+    if (s->counting) {
+        start_counting(s);
+    }
+}
+
+/* Whether CCxP/CCxNP of channel @ch (00 rising, 01 falling, 11 both) select the edge to @level: for its
+ * capture, and for TIxFPx as the slave mode controller's trigger */
+static bool edge_selected(const RigStm32TimerState *s, unsigned ch, int level)
+{
+    unsigned edge = (ccer(s, ch) & CCER_P ? 1 : 0) | (ccer(s, ch) & CCER_NP ? 2 : 0);
+    return edge == 3 || (edge == 0 && level) || (edge == 1 && !level);
+}
+
+/* The slave mode controller on TI1FP1 or TI2FP2 (RM0090 18.3.14, SMCR.TS 101 and 110): reset mode
+ * reinitializes the counter with an update of the registers (the PWM input mode of 18.3.6), trigger
+ * mode starts it; both set TIF */
+static void trigger_input(RigStm32TimerState *s, unsigned line, int level)
+{
+    unsigned sms = s->regs[SMCR] & 7, ts = s->regs[SMCR] >> 4 & 7;
+    if ((sms != SMS_RESET && sms != SMS_TRIGGER) || line > 1 || ts != TS_TI1FP1 + line ||
+        !edge_selected(s, line, level)) {
+        return;
+    }
+    s->regs[SR] |= SR_TIF;
+    if (sms == SMS_RESET) {
+        reinitialize(s);
+    } else if (!(s->regs[CR1] & CR1_CEN)) {
+        s->regs[CR1] |= CR1_CEN;
+        start_counting(s);
+    }
+}
+
+/* A channel's pin changed (line: channel): the channels that take it as their input capture the edges
+ * they select, then the slave mode controller sees it */
 static void channel_input(void *opaque, int line, int level)
 {
     RigStm32TimerState *s = opaque;
@@ -373,14 +419,11 @@ static void channel_input(void *opaque, int line, int level)
     catch_up(s);
     for (unsigned ch = 0; ch < s->kind->channels; ch++) {
         unsigned ccs = ccmr(s, ch) & 3, source = ccs == 1 ? ch : (ch ^ 1);
-        unsigned edge = (ccer(s, ch) & CCER_P ? 1 : 0) | (ccer(s, ch) & CCER_NP ? 2 : 0);
-        if (ccs == 0 || ccs == 3 || source != (unsigned)line || !(ccer(s, ch) & CCER_E)) {
-            continue;
-        }
-        if (edge == 3 || (edge == 0 && level) || (edge == 1 && !level)) {
+        if (ccs != 0 && ccs != 3 && source == (unsigned)line && (ccer(s, ch) & CCER_E) && edge_selected(s, ch, level)) {
             capture(s, ch);
         }
     }
+    trigger_input(s, line, level);
     settle(s);
 }
 
@@ -398,25 +441,10 @@ static void clock_changes(void *opaque, ClockEvent event)
     }
 }
 
-/* Software's update (EGR.UG): the counter and prescaler restart, then the UEV (RM0090 17.3.1) */
-static void software_update(RigStm32TimerState *s)
-{
-    s->prescaler = 0;
-    s->down = !cms(s) && (s->regs[CR1] & CR1_DIR);
-    if (s->kind->advanced) {
-        s->repetition = s->regs[RCR];
-    }
-    update_event(s, true);
-    s->regs[CNT] = s->down ? s->arr : 0;
-    if (s->counting) {
-        start_counting(s);
-    }
-}
-
 static void event_generation(RigStm32TimerState *s, uint32_t egr)
 {
     if (egr & EGR_UG) {
-        software_update(s);
+        reinitialize(s);
     }
     for (unsigned ch = 0; ch < s->kind->channels; ch++) {
         if (egr & EGR_CCG(ch)) {

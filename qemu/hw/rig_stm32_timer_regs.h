@@ -108,5 +108,9 @@ static const uint8_t kind_of[15] = {
 #define CCER_P 2u
 #define CCER_NP 8u
 #define BDTR_MOE (1u << 15)
+/* SMCR: the slave modes and trigger inputs modelled */
+#define SMS_RESET 4u
+#define SMS_TRIGGER 6u
+#define TS_TI1FP1 5u
 
 #endif

@@ -230,6 +230,16 @@ def test_a_pin_the_firmware_toggles_is_captured(c: dict[str, int]) -> None:
     assert c["toggle_one_more_edge_us"] == 1000
 
 
+def test_pwm_input_mode(c: dict[str, int]) -> None:
+    """18.3.6: IC1 on TI1's rising edges, IC2 on its falling ones and the slave mode controller resetting
+    the counter on TI1FP1 (reset mode, 18.3.14, which sets TIF): CCR1 reads the period and CCR2 the high
+    time of TIM4 CH2's pulses in TIM3's 1 us ticks (the manual's timing figure captures the count before
+    the reset's own tick: within one)."""
+    assert abs(c["pwm_input_period_us"] - PPM_PERIOD_US) <= 1
+    assert abs(c["pwm_input_high_us"] - 700) <= 1
+    assert c["pwm_input_sr"] == 1 << 6
+
+
 def test_unread_captures_set_overcapture(c: dict[str, int]) -> None:
     """18.4.5: a capture while CCxIF is still set sets CCxOF: CC1IF, CC2IF, CC1OF, CC2OF."""
     assert c["tim2_sr_unread"] == (1 << 1) | (1 << 2) | (1 << 9) | (1 << 10)

@@ -135,6 +135,7 @@
 #define TIM_CR1_CMS_CENTER1 (1u << 5)
 #define TIM_CR1_ARPE (1u << 7)
 #define TIM_SR_UIF (1u << 0)
+#define TIM_SR_TIF (1u << 6)
 #define TIM_SR_CCIF(ch) (1u << (ch))        /* ch 1..4 */
 #define TIM_SR_CCOF(ch) (1u << (8u + (ch))) /* ch 1..4 */
 #define TIM_DIER_UIE (1u << 0)

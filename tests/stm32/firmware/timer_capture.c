@@ -8,6 +8,7 @@
      CC1P = CC1NP = 1;
    * a pin the firmware toggles itself (PD1, a rising edge every 500 us by DWT) captured by TIM3 channel 2
      on PA7, each edge and then every second one (IC2PSC);
+   * PWM input mode: TIM3 reset by TI1's rising edges, CCR1 the period and CCR2 the high time;
    * overcapture: edges left unread set CCxOF.
    Values go out as NAME=0xVALUE lines through semihosting. */
 #include "timer_checks.h"
@@ -146,6 +147,29 @@ static void toggled_pin(void)
     report("toggle_one_more_edge_us", (rising_edges(1) - first) & 0xFFFFu);
 }
 
+/* TIM3 in the PWM input mode of RM0090 18.3.6 on PA6 (TIM4 CH2's 700 us of 2041): IC1 on TI1's rising
+   edges, IC2 on its falling ones, and TI1FP1 resetting the counter (SMCR: TS = 101, SMS = 100), so CCR1
+   is the period and CCR2 the high time */
+static void pwm_input_mode(void)
+{
+    TIM_CCER(TIM3_BASE) = 0;
+    TIM_CCMR1(TIM3_BASE) = TIM_CCMR_IC_TI_OWN | (TIM_CCMR_IC_TI_OTHER << 8);
+    TIM_CCER(TIM3_BASE) = TIM_CCER_E(1) | TIM_CCER_E(2) | TIM_CCER_P(2);
+    TIM_SMCR(TIM3_BASE) = (5u << 4) | 4u;
+    TIM_SR(TIM3_BASE) = 0;
+    uint32_t period = 0;
+    for (unsigned i = 0; i < 3; i++) { /* (the first capture ends a period the reset did not start) */
+        uint32_t start = DWT_CYCCNT;
+        while (!(TIM_SR(TIM3_BASE) & TIM_SR_CCIF(1)) && DWT_CYCCNT - start < LIMIT) {
+        }
+        period = TIM_CCR(TIM3_BASE, 1);
+    }
+    report("pwm_input_period_us", period);
+    report("pwm_input_high_us", TIM_CCR(TIM3_BASE, 2));
+    report("pwm_input_sr", TIM_SR(TIM3_BASE) & TIM_SR_TIF);
+    TIM_SMCR(TIM3_BASE) = 0;
+}
+
 /* Three TIM4 periods with TIM2's flags unread: each channel captured again over its set flag */
 static void overcapture(void)
 {
@@ -163,6 +187,7 @@ int main(void)
     ppm();
     both_edges();
     toggled_pin();
+    pwm_input_mode();
     overcapture();
     put_text("done\n");
     return 0;
