@@ -240,6 +240,14 @@ def test_pwm_input_mode(c: dict[str, int]) -> None:
     assert c["pwm_input_sr"] == 1 << 6
 
 
+def test_trigger_mode_starts_the_counter(c: dict[str, int]) -> None:
+    """18.3.14 (trigger mode, SMS = 110): the counter starts at TI1FP1's rising edge: CEN set by the
+    hardware, TIF with it."""
+    assert c["trigger_cr1_before"] & 1 == 0
+    assert c["trigger_cr1_after"] & 1 == 1
+    assert c["trigger_sr"] == 1 << 6
+
+
 def test_unread_captures_set_overcapture(c: dict[str, int]) -> None:
     """18.4.5: a capture while CCxIF is still set sets CCxOF: CC1IF, CC2IF, CC1OF, CC2OF."""
     assert c["tim2_sr_unread"] == (1 << 1) | (1 << 2) | (1 << 9) | (1 << 10)

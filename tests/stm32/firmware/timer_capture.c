@@ -9,6 +9,7 @@
    * a pin the firmware toggles itself (PD1, a rising edge every 500 us by DWT) captured by TIM3 channel 2
      on PA7, each edge and then every second one (IC2PSC);
    * PWM input mode: TIM3 reset by TI1's rising edges, CCR1 the period and CCR2 the high time;
+   * trigger mode: TIM2 started by PA0's rising edge;
    * overcapture: edges left unread set CCxOF.
    Values go out as NAME=0xVALUE lines through semihosting. */
 #include "timer_checks.h"
@@ -170,6 +171,22 @@ static void pwm_input_mode(void)
     TIM_SMCR(TIM3_BASE) = 0;
 }
 
+/* TIM2 stopped, in trigger mode on TI1FP1 (SMCR: TS = 101, SMS = 110): PA0's next rising edge starts it */
+static void trigger_mode(void)
+{
+    TIM_CR1(TIM2_BASE) = 0;
+    TIM_CNT(TIM2_BASE) = 0;
+    TIM_SMCR(TIM2_BASE) = (5u << 4) | 6u;
+    TIM_SR(TIM2_BASE) = 0;
+    report("trigger_cr1_before", TIM_CR1(TIM2_BASE));
+    uint32_t start = DWT_CYCCNT;
+    while (!(TIM_CR1(TIM2_BASE) & TIM_CR1_CEN) && DWT_CYCCNT - start < LIMIT) {
+    }
+    report("trigger_cr1_after", TIM_CR1(TIM2_BASE));
+    report("trigger_sr", TIM_SR(TIM2_BASE) & TIM_SR_TIF);
+    TIM_SMCR(TIM2_BASE) = 0;
+}
+
 /* Three TIM4 periods with TIM2's flags unread: each channel captured again over its set flag */
 static void overcapture(void)
 {
@@ -188,6 +205,7 @@ int main(void)
     both_edges();
     toggled_pin();
     pwm_input_mode();
+    trigger_mode();
     overcapture();
     put_text("done\n");
     return 0;
