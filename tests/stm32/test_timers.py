@@ -296,6 +296,16 @@ def test_arr_written_mid_period(m: dict[str, int], name: str, arr: int) -> None:
     assert expected - cycles(1e-6) - POLL_CYCLES <= m[f"arr_{name}_cycles"] <= expected + POLL_CYCLES
 
 
+def test_the_prescaler_changes_at_the_update(m: dict[str, int]) -> None:
+    """18.3.1 (figure 'prescaler division change'): PSC written mid-period (83 -> 167) is taken at the
+    next update event: the period under way ends at the old rate (1000 - CNT ticks of 1 us), the ones
+    after it are 1000 ticks of 2 us, 2 ms."""
+    rest = cycles((1000 - m["psc_cnt_at_write"]) * 1e-6)
+    assert rest - cycles(1e-6) - POLL_CYCLES <= m["psc_rest_of_period_cycles"] <= rest + POLL_CYCLES
+    for name in ("psc_first_period_cycles", "psc_second_period_cycles"):
+        assert abs(m[name] - cycles(2000e-6)) <= POLL_CYCLES, name
+
+
 def test_update_request_source_disable_and_one_pulse(m: dict[str, int]) -> None:
     """20.4.1 (TIM7): UG sets UIF unless URS; UDIS stops update events (500 us at ARR 99 with no UIF),
     clearing it lets them come; in one-pulse mode the counter stops at the update: CEN cleared, CNT 0."""

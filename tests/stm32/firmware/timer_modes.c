@@ -1,6 +1,6 @@
 /* The timer modes test firmware of the STM32 tier (tests/stm32/test_timers.py judges its reports
    against RM0090): TIM8 counting down with a repetition counter and MOE (PC6); ARR written mid-period
-   with and without ARPE (TIM6); URS, UDIS and one-pulse mode (TIM7); PWM mode 2 and an inverted output
+   with and without ARPE, and PSC, which waits for the update (TIM6); URS, UDIS and one-pulse mode (TIM7); PWM mode 2 and an inverted output
    (TIM4 channels 3 and 4 on PD14, PD15), through a change of the APB1 clock; toggle on match and forced
    levels (TIM9 on PE5, PE6); the timer clock with APB1 undivided (TIM6); TIM1's and TIM10's update
    interrupts sharing NVIC line 25. */
@@ -77,6 +77,34 @@ static void arr_written_mid_period(uint32_t arpe, const char *cnt_name, const ch
     TIM_CR1(TIM6_BASE) = 0;
     report(cnt_name, at);
     report(cycles_name, cycles);
+}
+
+/* TIM6 at 1 us ticks (PSC 83), ARR 999: PSC written as 167 in the middle of a period; the cycles from
+   that update to the next two */
+static void psc_preload(void)
+{
+    TIM_PSC(TIM6_BASE) = 83u;
+    TIM_ARR(TIM6_BASE) = 999u;
+    TIM_CR1(TIM6_BASE) = 0;
+    TIM_EGR(TIM6_BASE) = TIM_EGR_UG;
+    TIM_SR(TIM6_BASE) = 0;
+    TIM_CR1(TIM6_BASE) = TIM_CR1_CEN;
+    while (TIM_CNT(TIM6_BASE) < 500u) {
+    }
+    uint32_t at = TIM_CNT(TIM6_BASE), written = DWT_CYCCNT;
+    TIM_PSC(TIM6_BASE) = 167u;
+    uint32_t updates[3];
+    for (unsigned i = 0; i < 3; i++) {
+        while (!(TIM_SR(TIM6_BASE) & TIM_SR_UIF)) {
+        }
+        TIM_SR(TIM6_BASE) = 0;
+        updates[i] = DWT_CYCCNT;
+    }
+    TIM_CR1(TIM6_BASE) = 0;
+    report("psc_cnt_at_write", at);
+    report("psc_rest_of_period_cycles", updates[0] - written);
+    report("psc_first_period_cycles", updates[1] - updates[0]);
+    report("psc_second_period_cycles", updates[2] - updates[1]);
 }
 
 /* TIM7, 1 us ticks, ARR 99 */
@@ -214,6 +242,7 @@ int main(void)
     advanced_down();
     arr_written_mid_period(0, "arr_direct_cnt", "arr_direct_cycles");
     arr_written_mid_period(TIM_CR1_ARPE, "arr_preload_cnt", "arr_preload_cycles");
+    psc_preload();
     update_control();
     pwm2_polarity_and_clock();
     toggle_and_forced();
