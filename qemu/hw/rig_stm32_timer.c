@@ -8,9 +8,9 @@
  * preloaded under ARPE, PSC taken at each update event (UEV), the repetition counter of the advanced
  * timers, one-pulse mode, UDIS and URS, and EGR.UG. Channels: output compare (frozen, active, inactive,
  * toggle on match, forced levels, PWM modes 1 and 2) with CCRx preloaded under OCxPE, CCxE and CCxP,
- * BDTR.MOE gating the advanced timers' outputs; input capture (CCxS = 01, 10: the channel's own input or
- * its pair's; CCxP/CCxNP pick rising, falling or both edges; ICxPSC; ICxF is ignored, the edges are
- * clean) with the overcapture flag; the slave mode controller's reset and trigger modes on TI1FP1 and
+ * the advanced timers' complementary outputs (CCxNE, CCxNP; no dead time), BDTR.MOE gating their
+ * outputs; input capture (CCxS = 01, 10: the channel's own input or its pair's; CCxP/CCxNP pick rising,
+ * falling or both edges; ICxPSC; ICxF is ignored, the edges are clean) with the overcapture flag; the slave mode controller's reset and trigger modes on TI1FP1 and
  * TI2FP2 (PWM input mode: a rising edge captured and restarting the counter). SR's flags are cleared by
  * writing 0; DIER's interrupt enables raise the NVIC lines, the advanced timers' four (BRK, UP, TRG_COM,
  * CC), the others' one; the DMA request enables are stored (DMA is not modelled). The registers answer
@@ -25,13 +25,13 @@
  * For the rig, each channel's pulse is latched at the start of each period (at the UEV: the CCR, ARR and
  * PSC then in force, in timer-clock ticks), as the AVR tier reads motor pulses from its compare
  * registers: "pulse-ns" GPIO output lines carry each channel's high time in ns when it changes, the
- * read-only QOM properties chC-high-ticks, period-ticks and clock-hz hold them (the machine names the
+ * read-only QOM properties chC-high-ticks (chCn- for CHxN), period-ticks and clock-hz hold them (the machine names the
  * timers /machine/tim1 .. /machine/tim14), and with -global rig-stm32f4-timer.trace-pulses=on each
  * change prints a line on stderr:
  *   rig-stm32f4-timer: t_ns=T TIMn chC high_ticks=H period_ticks=P clock_hz=F
  *
  * Not modelled: the other slave modes (gated, encoder, external clock) and triggers (ITRx: timer
- * chaining, TI1F_ED, ETR), hall-sensor mode, complementary outputs, dead time, break, COM, DMA bursts
+ * chaining, TI1F_ED, ETR), hall-sensor mode, dead time, break, COM, DMA bursts
  * (DMAR reads 0), ICxF, OCxFE, OCxCE.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
@@ -80,14 +80,27 @@ static bool pwm_ref(const RigStm32TimerState *s, unsigned ch)
     return oc_mode(s, ch) == OCM_PWM1 ? active : !active;
 }
 
-/* Whether channel @ch drives its pins: an output with CCxE (and, on TIM1/TIM8, BDTR.MOE) */
-static bool output_enabled(const RigStm32TimerState *s, unsigned ch)
+/* Whether output @o (OC1..OC4 as 0..3, the advanced timers' OC1N..OC3N as 4..6) exists */
+static bool has_output(const RigStm32TimerState *s, unsigned o)
 {
-    return is_output(s, ch) && (ccer(s, ch) & CCER_E) && (!s->kind->advanced || (s->regs[BDTR] & BDTR_MOE));
+    return o < s->kind->channels || (s->kind->advanced && o < RIG_TIM_OUTPUTS);
 }
 
-/* The pins follow each channel's output, OCxREF through CCxP; a disabled output or an input lets go of
- * its pins (RM0090 18.4.9: OCx_EN = 0) */
+/* Output @o's level for OCxREF = @ref: OCx drives with CCxE, through CCxP; OCxN with CCxNE, through CCxNP, the
+ * complement of OCxREF while OCx is on too (RM0090 17.3.11, dead time taken as 0); on TIM1/TIM8 only
+ * with BDTR.MOE. Off, an output lets go of its pins (18.4.9: OCx_EN = 0): RIG_GPIO_AF_RELEASED */
+static int output_level(const RigStm32TimerState *s, unsigned o, bool ref)
+{
+    unsigned ch = o % RIG_TIM_CHANNELS, bits = ccer(s, ch);
+    bool n = o >= RIG_TIM_CHANNELS;
+    if (!is_output(s, ch) || !(bits & (n ? CCER_NE : CCER_E)) || (s->kind->advanced && !(s->regs[BDTR] & BDTR_MOE))) {
+        return RIG_GPIO_AF_RELEASED;
+    }
+    bool invert = n ? !!(bits & CCER_NP) ^ !!(bits & CCER_E) : !!(bits & CCER_P);
+    return ref ^ invert;
+}
+
+/* The pins follow each output */
 static void drive_outputs(RigStm32TimerState *s)
 {
     for (unsigned ch = 0; ch < s->kind->channels; ch++) {
@@ -99,11 +112,13 @@ static void drive_outputs(RigStm32TimerState *s)
                 s->ref[ch] = mode == OCM_FORCE_HIGH;
             }
         }
-        int level = output_enabled(s, ch) ? s->ref[ch] ^ !!(ccer(s, ch) & CCER_P) : RIG_GPIO_AF_RELEASED;
-        if (level != s->out[ch]) {
-            s->out[ch] = level;
+    }
+    for (unsigned o = 0; o < RIG_TIM_OUTPUTS; o++) {
+        int level = has_output(s, o) ? output_level(s, o, s->ref[o % RIG_TIM_CHANNELS]) : RIG_GPIO_AF_RELEASED;
+        if (level != s->out[o]) {
+            s->out[o] = level;
             for (unsigned pin = 0; pin < RIG_TIM_PINS_PER_CHANNEL; pin++) {
-                qemu_set_irq(s->channel_out[ch * RIG_TIM_PINS_PER_CHANNEL + pin], level);
+                qemu_set_irq(s->channel_out[o * RIG_TIM_PINS_PER_CHANNEL + pin], level);
             }
         }
     }
@@ -127,12 +142,13 @@ static void update_irqs(RigStm32TimerState *s)
     }
 }
 
-/* Active ticks of the timer clock per period for a channel in PWM mode, at the pin (CCxP inverts) */
-static uint32_t pulse_ticks(const RigStm32TimerState *s, unsigned ch, uint32_t period)
+/* High ticks of the timer clock per period at output @o's pins, for a channel in PWM mode (0 otherwise) */
+static uint32_t pulse_ticks(const RigStm32TimerState *s, unsigned o, uint32_t period)
 {
+    unsigned ch = o % RIG_TIM_CHANNELS, mode = oc_mode(s, ch);
     uint64_t arr = s->arr, ccr = s->ccr[ch], active;
-    unsigned mode = oc_mode(s, ch);
-    if (!output_enabled(s, ch) || (mode != OCM_PWM1 && mode != OCM_PWM2)) {
+    int level_while_active = output_level(s, o, true);
+    if ((mode != OCM_PWM1 && mode != OCM_PWM2) || level_while_active == RIG_GPIO_AF_RELEASED) {
         return 0;
     }
     if (cms(s)) {
@@ -143,9 +159,8 @@ static uint32_t pulse_ticks(const RigStm32TimerState *s, unsigned ch, uint32_t p
         active = MIN(ccr, arr + 1);
     }
     uint64_t counts = cms(s) ? 2 * arr : arr + 1;
-    active = mode == OCM_PWM1 ? active : counts - active;
-    active *= (uint64_t)s->psc + 1;
-    return (ccer(s, ch) & CCER_P) ? period - (uint32_t)active : (uint32_t)active;
+    active = (mode == OCM_PWM1 ? active : counts - active) * ((uint64_t)s->psc + 1);
+    return level_while_active ? (uint32_t)active : period - (uint32_t)active;
 }
 
 /* The pulses for the rig: latched at the start of each period, sent and traced when they change */
@@ -153,19 +168,20 @@ static void latch_pulses(RigStm32TimerState *s)
 {
     uint64_t counts = cms(s) ? 2 * (uint64_t)s->arr : (uint64_t)s->arr + 1;
     uint32_t period = (uint32_t)MIN(counts * ((uint64_t)s->psc + 1), UINT32_MAX);
-    for (unsigned ch = 0; ch < s->kind->channels; ch++) {
-        uint32_t high = pulse_ticks(s, ch, period);
-        /* (a channel without pulses stays silent while only the period or the clock changes) */
-        if (high == s->pulse_ticks[ch] && ((period == s->period_ticks && s->hz == s->latched_hz) || high == 0)) {
+    for (unsigned o = 0; o < RIG_TIM_OUTPUTS; o++) {
+        uint32_t high = has_output(s, o) ? pulse_ticks(s, o, period) : 0;
+        /* (an output without pulses stays silent while only the period or the clock changes) */
+        if (high == s->pulse_ticks[o] && ((period == s->period_ticks && s->hz == s->latched_hz) || high == 0)) {
             continue;
         }
-        s->pulse_ticks[ch] = high;
-        qemu_set_irq(s->pulse_ns[ch], s->hz ? (int)muldiv64(high, NANOSECONDS_PER_SECOND, s->hz) : 0);
+        s->pulse_ticks[o] = high;
+        qemu_set_irq(s->pulse_ns[o], s->hz ? (int)muldiv64(high, NANOSECONDS_PER_SECOND, s->hz) : 0);
         if (s->trace_pulses) {
             fprintf(stderr,
-                    "rig-stm32f4-timer: t_ns=%" PRId64 " TIM%u ch%u high_ticks=%" PRIu32 " period_ticks=%" PRIu32
+                    "rig-stm32f4-timer: t_ns=%" PRId64 " TIM%u ch%u%s high_ticks=%" PRIu32 " period_ticks=%" PRIu32
                     " clock_hz=%" PRIu64 "\n",
-                    qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL), s->index, ch + 1, high, period, s->hz);
+                    qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL), s->index, o % RIG_TIM_CHANNELS + 1,
+                    o >= RIG_TIM_CHANNELS ? "n" : "", high, period, s->hz);
         }
     }
     s->period_ticks = period;
@@ -612,14 +628,16 @@ static void tim_instance_init(Object *obj)
         sysbus_init_irq(SYS_BUS_DEVICE(obj), &s->irq[k]);
     }
     s->clk = qdev_init_clock_in(DEVICE(obj), "clk", clock_changes, s, ClockPreUpdate | ClockUpdate);
-    qdev_init_gpio_out_named(DEVICE(obj), s->channel_out, "channel-out", RIG_TIM_CHANNELS * RIG_TIM_PINS_PER_CHANNEL);
+    qdev_init_gpio_out_named(DEVICE(obj), s->channel_out, "channel-out", RIG_TIM_OUTPUTS * RIG_TIM_PINS_PER_CHANNEL);
     qdev_init_gpio_in_named(DEVICE(obj), channel_input, "channel-in", RIG_TIM_CHANNELS);
-    qdev_init_gpio_out_named(DEVICE(obj), s->pulse_ns, "pulse-ns", RIG_TIM_CHANNELS);
+    qdev_init_gpio_out_named(DEVICE(obj), s->pulse_ns, "pulse-ns", RIG_TIM_OUTPUTS);
     /* the latched pulses as read-only QOM properties too (QMP qom-get /machine/timN chC-high-ticks) */
-    static const char *const high_names[RIG_TIM_CHANNELS] = { "ch1-high-ticks", "ch2-high-ticks", "ch3-high-ticks",
-                                                              "ch4-high-ticks" };
-    for (unsigned ch = 0; ch < RIG_TIM_CHANNELS; ch++) {
-        object_property_add_uint32_ptr(obj, high_names[ch], &s->pulse_ticks[ch], OBJ_PROP_FLAG_READ);
+    static const char *const high_names[RIG_TIM_OUTPUTS] = {
+        "ch1-high-ticks",  "ch2-high-ticks",  "ch3-high-ticks",  "ch4-high-ticks",
+        "ch1n-high-ticks", "ch2n-high-ticks", "ch3n-high-ticks",
+    };
+    for (unsigned o = 0; o < RIG_TIM_OUTPUTS; o++) {
+        object_property_add_uint32_ptr(obj, high_names[o], &s->pulse_ticks[o], OBJ_PROP_FLAG_READ);
     }
     object_property_add_uint32_ptr(obj, "period-ticks", &s->period_ticks, OBJ_PROP_FLAG_READ);
     object_property_add_uint64_ptr(obj, "clock-hz", &s->latched_hz, OBJ_PROP_FLAG_READ);

@@ -106,6 +106,7 @@ static const uint8_t kind_of[15] = {
 /* CCER: a nibble per channel */
 #define CCER_E 1u
 #define CCER_P 2u
+#define CCER_NE 4u /* (TIM1/TIM8) */
 #define CCER_NP 8u
 #define BDTR_MOE (1u << 15)
 /* SMCR: the slave modes and trigger inputs modelled */

@@ -161,7 +161,8 @@ struct RigStm32I2cState {
 #define TYPE_RIG_STM32_TIMER "rig-stm32f4-timer"
 OBJECT_DECLARE_SIMPLE_TYPE(RigStm32TimerState, RIG_STM32_TIMER)
 #define RIG_TIM_CHANNELS 4
-#define RIG_TIM_PINS_PER_CHANNEL 4 /* "channel-out" line = channel * 4 + the n-th pin it reaches */
+#define RIG_TIM_OUTPUTS 7          /* OC1..OC4, and TIM1/TIM8's complementary OC1N..OC3N */
+#define RIG_TIM_PINS_PER_CHANNEL 4 /* "channel-out" line = output * 4 + the n-th pin it reaches */
 #define RIG_TIM_REGS 21
 
 typedef enum {
@@ -192,14 +193,14 @@ struct RigStm32TimerState {
     int64_t base_ns;                          /* virtual time of timer-clock tick 0 */
     uint64_t ticks_done;                      /* timer-clock ticks accounted since base_ns */
     bool ref[RIG_TIM_CHANNELS];               /* OCxREF */
-    int8_t out[RIG_TIM_CHANNELS];             /* last sent to the pins: 0, 1, released, -2 at reset */
+    int8_t out[RIG_TIM_OUTPUTS];              /* last sent to the pins: 0, 1, released, -2 at reset */
     bool input[RIG_TIM_CHANNELS];             /* TIx: the level of each channel's input pin */
     uint8_t capture_count[RIG_TIM_CHANNELS];  /* edges since the last capture (ICxPSC) */
-    uint32_t pulse_ticks[RIG_TIM_CHANNELS], period_ticks; /* the pulses latched at the last update */
-    uint64_t latched_hz;                                  /* the timer clock then */
+    uint32_t pulse_ticks[RIG_TIM_OUTPUTS], period_ticks; /* the pulses latched at the last update */
+    uint64_t latched_hz;                                 /* the timer clock then */
     qemu_irq irq[RIG_TIM_IRQS];
-    qemu_irq channel_out[RIG_TIM_CHANNELS * RIG_TIM_PINS_PER_CHANNEL];
-    qemu_irq pulse_ns[RIG_TIM_CHANNELS]; /* "pulse-ns": each channel's latched high time in ns */
+    qemu_irq channel_out[RIG_TIM_OUTPUTS * RIG_TIM_PINS_PER_CHANNEL];
+    qemu_irq pulse_ns[RIG_TIM_OUTPUTS]; /* "pulse-ns": each output's latched high time in ns */
 };
 
 /* The GY-86 board (MPU-6050 at 0x68, the HMC5883L behind its bypass, MS5611 at 0x77): the rig's chip

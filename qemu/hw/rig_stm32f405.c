@@ -63,26 +63,37 @@ static const struct {
 };
 
 /* The timer channels' pins (DS8626, the STM32F405xx datasheet, table 9: alternate function mapping):
- * AF1 TIM1/TIM2, AF2 TIM3/TIM4/TIM5, AF3 TIM8..TIM11, AF9 TIM12..TIM14. Complementary outputs, ETR and
- * BKIN are not listed (not modelled). */
+ * AF1 TIM1/TIM2, AF2 TIM3/TIM4/TIM5, AF3 TIM8..TIM11, AF9 TIM12..TIM14; the complementary outputs CH1N..
+ * CH3N of TIM1/TIM8 (output only) after the channels. ETR and BKIN are not listed (not modelled). */
 typedef struct {
     uint8_t timer, channel; /* channel 1..4 */
     char port;
     uint8_t pin;
+    bool complementary; /* CHxN */
 } TimerPin;
 static const TimerPin timer_pins[] = {
-    { 1, 1, 'A', 8 },  { 1, 1, 'E', 9 },   { 1, 2, 'A', 9 },  { 1, 2, 'E', 11 }, { 1, 3, 'A', 10 }, { 1, 3, 'E', 13 },
-    { 1, 4, 'A', 11 }, { 1, 4, 'E', 14 },  { 2, 1, 'A', 0 },  { 2, 1, 'A', 5 },  { 2, 1, 'A', 15 }, { 2, 2, 'A', 1 },
-    { 2, 2, 'B', 3 },  { 2, 3, 'A', 2 },   { 2, 3, 'B', 10 }, { 2, 4, 'A', 3 },  { 2, 4, 'B', 11 }, { 3, 1, 'A', 6 },
-    { 3, 1, 'B', 4 },  { 3, 1, 'C', 6 },   { 3, 2, 'A', 7 },  { 3, 2, 'B', 5 },  { 3, 2, 'C', 7 },  { 3, 3, 'B', 0 },
-    { 3, 3, 'C', 8 },  { 3, 4, 'B', 1 },   { 3, 4, 'C', 9 },  { 4, 1, 'B', 6 },  { 4, 1, 'D', 12 }, { 4, 2, 'B', 7 },
-    { 4, 2, 'D', 13 }, { 4, 3, 'B', 8 },   { 4, 3, 'D', 14 }, { 4, 4, 'B', 9 },  { 4, 4, 'D', 15 }, { 5, 1, 'A', 0 },
-    { 5, 1, 'H', 10 }, { 5, 2, 'A', 1 },   { 5, 2, 'H', 11 }, { 5, 3, 'A', 2 },  { 5, 3, 'H', 12 }, { 5, 4, 'A', 3 },
-    { 5, 4, 'I', 0 },  { 8, 1, 'C', 6 },   { 8, 1, 'I', 5 },  { 8, 2, 'C', 7 },  { 8, 2, 'I', 6 },  { 8, 3, 'C', 8 },
-    { 8, 3, 'I', 7 },  { 8, 4, 'C', 9 },   { 8, 4, 'I', 2 },  { 9, 1, 'A', 2 },  { 9, 1, 'E', 5 },  { 9, 2, 'A', 3 },
-    { 9, 2, 'E', 6 },  { 10, 1, 'B', 8 },  { 10, 1, 'F', 6 }, { 11, 1, 'B', 9 }, { 11, 1, 'F', 7 }, { 12, 1, 'B', 14 },
-    { 12, 1, 'H', 6 }, { 12, 2, 'B', 15 }, { 12, 2, 'H', 9 }, { 13, 1, 'A', 6 }, { 13, 1, 'F', 8 }, { 14, 1, 'A', 7 },
-    { 14, 1, 'F', 9 },
+    { 1, 1, 'A', 8 },        { 1, 1, 'E', 9 },        { 1, 2, 'A', 9 },        { 1, 2, 'E', 11 },
+    { 1, 3, 'A', 10 },       { 1, 3, 'E', 13 },       { 1, 4, 'A', 11 },       { 1, 4, 'E', 14 },
+    { 2, 1, 'A', 0 },        { 2, 1, 'A', 5 },        { 2, 1, 'A', 15 },       { 2, 2, 'A', 1 },
+    { 2, 2, 'B', 3 },        { 2, 3, 'A', 2 },        { 2, 3, 'B', 10 },       { 2, 4, 'A', 3 },
+    { 2, 4, 'B', 11 },       { 3, 1, 'A', 6 },        { 3, 1, 'B', 4 },        { 3, 1, 'C', 6 },
+    { 3, 2, 'A', 7 },        { 3, 2, 'B', 5 },        { 3, 2, 'C', 7 },        { 3, 3, 'B', 0 },
+    { 3, 3, 'C', 8 },        { 3, 4, 'B', 1 },        { 3, 4, 'C', 9 },        { 4, 1, 'B', 6 },
+    { 4, 1, 'D', 12 },       { 4, 2, 'B', 7 },        { 4, 2, 'D', 13 },       { 4, 3, 'B', 8 },
+    { 4, 3, 'D', 14 },       { 4, 4, 'B', 9 },        { 4, 4, 'D', 15 },       { 5, 1, 'A', 0 },
+    { 5, 1, 'H', 10 },       { 5, 2, 'A', 1 },        { 5, 2, 'H', 11 },       { 5, 3, 'A', 2 },
+    { 5, 3, 'H', 12 },       { 5, 4, 'A', 3 },        { 5, 4, 'I', 0 },        { 8, 1, 'C', 6 },
+    { 8, 1, 'I', 5 },        { 8, 2, 'C', 7 },        { 8, 2, 'I', 6 },        { 8, 3, 'C', 8 },
+    { 8, 3, 'I', 7 },        { 8, 4, 'C', 9 },        { 8, 4, 'I', 2 },        { 9, 1, 'A', 2 },
+    { 9, 1, 'E', 5 },        { 9, 2, 'A', 3 },        { 9, 2, 'E', 6 },        { 10, 1, 'B', 8 },
+    { 10, 1, 'F', 6 },       { 11, 1, 'B', 9 },       { 11, 1, 'F', 7 },       { 12, 1, 'B', 14 },
+    { 12, 1, 'H', 6 },       { 12, 2, 'B', 15 },      { 12, 2, 'H', 9 },       { 13, 1, 'A', 6 },
+    { 13, 1, 'F', 8 },       { 14, 1, 'A', 7 },       { 14, 1, 'F', 9 },       { 1, 1, 'A', 7, true },
+    { 1, 1, 'B', 13, true }, { 1, 1, 'E', 8, true },  { 1, 2, 'B', 0, true },  { 1, 2, 'B', 14, true },
+    { 1, 2, 'E', 10, true }, { 1, 3, 'B', 1, true },  { 1, 3, 'B', 15, true }, { 1, 3, 'E', 12, true },
+    { 8, 1, 'A', 5, true },  { 8, 1, 'A', 7, true },  { 8, 1, 'H', 13, true }, { 8, 2, 'B', 0, true },
+    { 8, 2, 'B', 14, true }, { 8, 2, 'H', 14, true }, { 8, 3, 'B', 1, true },  { 8, 3, 'B', 15, true },
+    { 8, 3, 'H', 15, true },
 };
 
 static unsigned timer_af(unsigned timer)
@@ -173,15 +184,20 @@ static void map_timers(RigStm32RccState *rcc, DeviceState *nvic, DeviceState **g
         }
         tim[t] = dev;
     }
-    unsigned slot[15][RIG_TIM_CHANNELS] = { { 0 } };
+    unsigned slot[15][RIG_TIM_OUTPUTS] = { { 0 } };
     for (unsigned i = 0; i < ARRAY_SIZE(timer_pins); i++) {
         const TimerPin *p = &timer_pins[i];
         DeviceState *port = gpio_ports[p->port - 'A'];
         unsigned line = RIG_GPIO_AF_LINE(p->pin, timer_af(p->timer)), ch = p->channel - 1;
-        assert(slot[p->timer][ch] < RIG_TIM_PINS_PER_CHANNEL);
-        qdev_connect_gpio_out_named(tim[p->timer], "channel-out", ch * RIG_TIM_PINS_PER_CHANNEL + slot[p->timer][ch]++,
+        unsigned output = p->complementary ? RIG_TIM_CHANNELS + ch : ch;
+        assert(slot[p->timer][output] < RIG_TIM_PINS_PER_CHANNEL);
+        qdev_connect_gpio_out_named(tim[p->timer], "channel-out",
+                                    output * RIG_TIM_PINS_PER_CHANNEL + slot[p->timer][output]++,
                                     qdev_get_gpio_in_named(port, "af-drive", line));
-        qdev_connect_gpio_out_named(port, "af-input", line, qdev_get_gpio_in_named(tim[p->timer], "channel-in", ch));
+        if (!p->complementary) {
+            qdev_connect_gpio_out_named(port, "af-input", line,
+                                        qdev_get_gpio_in_named(tim[p->timer], "channel-in", ch));
+        }
     }
 }
 

@@ -353,6 +353,18 @@ def test_toggle_on_match_and_forced_levels(m: dict[str, int]) -> None:
     assert (m["forced_high_pin"], m["forced_low_pin"]) == (1, 0)
 
 
+def test_complementary_outputs(m: dict[str, int]) -> None:
+    """17.3.11 (dead time 0): CH2N alone (CC2NE) is OC2REF through CC2NP, 300 of 1000 us on PB0; with
+    CH3 and CH3N both on, CH3N is the complement: 400 us high on PA10, 600 us on PB1. Their pulses are
+    latched as ch2n and ch3n."""
+    for name, high_us in (("ch2n", 300), ("ch3", 400), ("ch3n", 600)):
+        assert abs(m[f"{name}_high_cycles"] - cycles(high_us * 1e-6)) <= POLL_CYCLES, name
+        assert abs(m[f"{name}_period_cycles"] - cycles(1000e-6)) <= POLL_CYCLES, name
+    trace = checked_run("timer_modes", *TRACE_PULSES).stderr
+    assert "TIM1 ch2n high_ticks=50400 period_ticks=168000 clock_hz=168000000" in trace
+    assert "TIM1 ch3n high_ticks=100800 period_ticks=168000 clock_hz=168000000" in trace
+
+
 def test_two_timers_share_an_interrupt_line(m: dict[str, int]) -> None:
     """Table 61: TIM1's update and TIM10's global interrupt are one NVIC line (25); neither hides the
     other's: 30 ms hold 60 periods of 500 us and 100 of 300 us."""

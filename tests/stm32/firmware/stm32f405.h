@@ -154,6 +154,7 @@
 #define TIM_CCMR_IC_TI_OTHER 2u /* CCxS = 10: ICx on the pair's other TI */
 #define TIM_CCER_E(ch) (1u << (4u * ((ch)-1u)))
 #define TIM_CCER_P(ch) (2u << (4u * ((ch)-1u)))
+#define TIM_CCER_NE(ch) (4u << (4u * ((ch)-1u)))
 #define TIM_BDTR_MOE (1u << 15)
 /* NVIC lines (RM0090 table 61) */
 #define TIM1_UP_TIM10_IRQ 25u

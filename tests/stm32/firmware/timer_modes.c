@@ -2,7 +2,7 @@
    against RM0090): TIM8 counting down with a repetition counter and MOE (PC6); ARR written mid-period
    with and without ARPE, and PSC, which waits for the update (TIM6); URS, UDIS and one-pulse mode (TIM7); PWM mode 2 and an inverted output
    (TIM4 channels 3 and 4 on PD14, PD15), through a change of the APB1 clock; toggle on match and forced
-   levels (TIM9 on PE5, PE6); the timer clock with APB1 undivided (TIM6); TIM1's and TIM10's update
+   levels (TIM9 on PE5, PE6); TIM1's complementary outputs (CH2N alone, CH3 with CH3N); the timer clock with APB1 undivided (TIM6); TIM1's and TIM10's update
    interrupts sharing NVIC line 25. */
 #include "timer_checks.h"
 
@@ -200,6 +200,32 @@ static void apb_prescaler_one(void)
     RCC_CFGR |= RCC_CFGR_PPRE1_DIV4;
 }
 
+/* TIM1, 1 us ticks from 168 MHz, ARR 999, MOE: CH2N alone on PB0 (CC2NE, PWM mode 1, CCR2 300) and CH3
+   with CH3N (PA10, PB1; CC3E and CC3NE, CCR3 400) */
+static void complementary_outputs(void)
+{
+    pin_af(PORT_B, 0, 1);
+    pin_af(PORT_B, 1, 1);
+    pin_af(PORT_A, 10, 1);
+    TIM_PSC(TIM1_BASE) = 167u;
+    TIM_ARR(TIM1_BASE) = 999u;
+    TIM_CCR(TIM1_BASE, 2) = 300u;
+    TIM_CCR(TIM1_BASE, 3) = 400u;
+    TIM_CCMR1(TIM1_BASE) = (TIM_CCMR_PWM1 | TIM_CCMR_OCPE) << 8;
+    TIM_CCMR2(TIM1_BASE) = TIM_CCMR_PWM1 | TIM_CCMR_OCPE;
+    TIM_CCER(TIM1_BASE) = TIM_CCER_NE(2) | TIM_CCER_E(3) | TIM_CCER_NE(3);
+    TIM_BDTR(TIM1_BASE) = TIM_BDTR_MOE;
+    TIM_CR1(TIM1_BASE) = TIM_CR1_ARPE;
+    TIM_EGR(TIM1_BASE) = TIM_EGR_UG;
+    TIM_CR1(TIM1_BASE) |= TIM_CR1_CEN;
+    report_pulse(PORT_B, 0, "ch2n_high_cycles", "ch2n_period_cycles");
+    report_pulse(PORT_A, 10, "ch3_high_cycles", "ch3_period_cycles");
+    report_pulse(PORT_B, 1, "ch3n_high_cycles", "ch3n_period_cycles");
+    TIM_CR1(TIM1_BASE) = 0;
+    TIM_CCER(TIM1_BASE) = 0;
+    TIM_BDTR(TIM1_BASE) = 0;
+}
+
 void tim1_up_tim10_handler(void)
 {
     if (TIM_SR(TIM1_BASE) & TIM_SR_UIF) {
@@ -247,6 +273,7 @@ int main(void)
     pwm2_polarity_and_clock();
     toggle_and_forced();
     apb_prescaler_one();
+    complementary_outputs();
     shared_interrupt_line();
     put_text("done\n");
     return 0;
