@@ -10,9 +10,9 @@
  * toggle on match, forced levels, PWM modes 1 and 2) with CCRx preloaded under OCxPE, CCxE and CCxP,
  * the advanced timers' complementary outputs (CCxNE, CCxNP; no dead time), BDTR.MOE gating their
  * outputs; input capture (CCxS = 01, 10: the channel's own input or its pair's; CCxP/CCxNP pick rising,
- * falling or both edges; ICxPSC; ICxF is ignored, the edges are clean) with the overcapture flag; the slave mode controller's reset and trigger modes on TI1FP1 and
- * TI2FP2 (PWM input mode: a rising edge captured and restarting the counter). SR's flags are cleared by
- * writing 0; DIER's interrupt enables raise the NVIC lines, the advanced timers' four (BRK, UP, TRG_COM,
+ * falling or both edges; ICxPSC; ICxF is ignored, the edges are clean) with the overcapture flag; the
+ * slave mode controller's reset and trigger modes on TI1FP1 and TI2FP2 (PWM input mode: a rising edge
+ * captured and restarting the counter). SR's flags are cleared by writing 0; DIER's interrupt enables raise the NVIC lines, the advanced timers' four (BRK, UP, TRG_COM,
  * CC), the others' one; the DMA request enables are stored (DMA is not modelled). The registers answer
  * only with the timer's RCC enable bit on (properties "apb", 1 or 2, and "rcc-bit": APBxENR, APBxRSTR);
  * the RCC's reset bit resets the timer.

@@ -1,8 +1,9 @@
 /* The timer modes test firmware of the STM32 tier (tests/stm32/test_timers.py judges its reports
    against RM0090): TIM8 counting down with a repetition counter and MOE (PC6); ARR written mid-period
-   with and without ARPE, and PSC, which waits for the update (TIM6); URS, UDIS and one-pulse mode (TIM7); PWM mode 2 and an inverted output
-   (TIM4 channels 3 and 4 on PD14, PD15), through a change of the APB1 clock; toggle on match and forced
-   levels (TIM9 on PE5, PE6); TIM1's complementary outputs (CH2N alone, CH3 with CH3N); the timer clock with APB1 undivided (TIM6); TIM1's and TIM10's update
+   with and without ARPE, and PSC, which waits for the update (TIM6); URS, UDIS and one-pulse mode
+   (TIM7); PWM mode 2 and an inverted output (TIM4 channels 3 and 4 on PD14, PD15), through a change of
+   the APB1 clock; toggle on match and forced levels (TIM9 on PE5, PE6); the timer clock with APB1
+   undivided (TIM6); TIM1's complementary outputs (CH2N alone, CH3 with CH3N); TIM1's and TIM10's update
    interrupts sharing NVIC line 25. */
 #include "timer_checks.h"
 
