@@ -15,25 +15,17 @@ int main(void)
         pin_af(PORT_D, 11 + ch, 2);
         TIM_CCR(TIM4_BASE, ch) = motor_us[ch - 1];
     }
-    TIM_PSC(TIM4_BASE) = 83u;
-    TIM_ARR(TIM4_BASE) = 2040u;
     TIM_CCMR1(TIM4_BASE) = (TIM_CCMR_PWM1 | TIM_CCMR_OCPE) * 0x0101u;
     TIM_CCMR2(TIM4_BASE) = (TIM_CCMR_PWM1 | TIM_CCMR_OCPE) * 0x0101u;
     TIM_CCER(TIM4_BASE) = TIM_CCER_E(1) | TIM_CCER_E(2) | TIM_CCER_E(3) | TIM_CCER_E(4);
-    TIM_CR1(TIM4_BASE) = TIM_CR1_ARPE;
-    TIM_EGR(TIM4_BASE) = TIM_EGR_UG;
-    TIM_CR1(TIM4_BASE) |= TIM_CR1_CEN;
+    timer_start(TIM4_BASE, 83u, 2040u, TIM_CR1_ARPE);
 
     pin_af(PORT_A, 8, 1);
-    TIM_PSC(TIM1_BASE) = 20u;
-    TIM_ARR(TIM1_BASE) = 3999u;
     TIM_CCR(TIM1_BASE, 1) = 1500u;
     TIM_CCMR1(TIM1_BASE) = TIM_CCMR_PWM1 | TIM_CCMR_OCPE;
     TIM_CCER(TIM1_BASE) = TIM_CCER_E(1);
     TIM_BDTR(TIM1_BASE) = TIM_BDTR_MOE;
-    TIM_CR1(TIM1_BASE) = TIM_CR1_ARPE;
-    TIM_EGR(TIM1_BASE) = TIM_EGR_UG;
-    TIM_CR1(TIM1_BASE) |= TIM_CR1_CEN;
+    timer_start(TIM1_BASE, 20u, 3999u, TIM_CR1_ARPE);
 
     put_text("ready\n");
     for (;;) {

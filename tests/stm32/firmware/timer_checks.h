@@ -43,6 +43,18 @@ static inline void pin_af(uint32_t port, unsigned pin, unsigned af)
     }
 }
 
+/* Starts the timer at @base: PSC and ARR (with @cr1's other bits, ARPE among them), taken with the CCRx and
+   CCMRx written before by UG into the shadow registers, UIF cleared, then CEN */
+static inline void timer_start(uint32_t base, uint32_t psc, uint32_t arr, uint32_t cr1)
+{
+    TIM_PSC(base) = psc;
+    TIM_ARR(base) = arr;
+    TIM_CR1(base) = cr1;
+    TIM_EGR(base) = TIM_EGR_UG;
+    TIM_SR(base) = 0;
+    TIM_CR1(base) = cr1 | TIM_CR1_CEN;
+}
+
 static inline unsigned pin_level(uint32_t port, unsigned pin) { return GPIO_IDR(port) >> pin & 1u; }
 
 /* Waits (at most @limit cycles) for the pin to read @level: 1 and the cycle count then in @at, or 0 */

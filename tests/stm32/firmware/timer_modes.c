@@ -38,18 +38,13 @@ void tim8_up_tim13_handler(void)
 static void advanced_down(void)
 {
     pin_af(PORT_C, 6, 3);
-    TIM_PSC(TIM8_BASE) = 167u;
-    TIM_ARR(TIM8_BASE) = 999u;
     TIM_RCR(TIM8_BASE) = 2u;
     TIM_CCR(TIM8_BASE, 1) = 300u;
     TIM_CCMR1(TIM8_BASE) = TIM_CCMR_PWM1 | TIM_CCMR_OCPE;
     TIM_CCER(TIM8_BASE) = TIM_CCER_E(1);
     TIM_BDTR(TIM8_BASE) = TIM_BDTR_MOE;
-    TIM_CR1(TIM8_BASE) = TIM_CR1_ARPE | TIM_CR1_DIR;
-    TIM_EGR(TIM8_BASE) = TIM_EGR_UG;
-    TIM_SR(TIM8_BASE) = 0;
+    timer_start(TIM8_BASE, 167u, 999u, TIM_CR1_ARPE | TIM_CR1_DIR);
     TIM_DIER(TIM8_BASE) = TIM_DIER_UIE;
-    TIM_CR1(TIM8_BASE) |= TIM_CR1_CEN;
     report_pulse(PORT_C, 6, "tim8_down_high_cycles", "tim8_down_period_cycles");
     report("tim8_cr1", TIM_CR1(TIM8_BASE));
     NVIC_ISER(1) = 1u << (TIM8_UP_TIM13_IRQ - 32u);
@@ -62,12 +57,7 @@ static void advanced_down(void)
 /* TIM6, 1 us ticks, ARR 1000: at CNT 100..199 ARR becomes 500; the cycles until the update */
 static void arr_written_mid_period(uint32_t arpe, const char *cnt_name, const char *cycles_name)
 {
-    TIM_PSC(TIM6_BASE) = 83u;
-    TIM_ARR(TIM6_BASE) = 1000u;
-    TIM_CR1(TIM6_BASE) = arpe;
-    TIM_EGR(TIM6_BASE) = TIM_EGR_UG;
-    TIM_SR(TIM6_BASE) = 0;
-    TIM_CR1(TIM6_BASE) |= TIM_CR1_CEN;
+    timer_start(TIM6_BASE, 83u, 1000u, arpe);
     while (TIM_CNT(TIM6_BASE) < 100u) {
     }
     uint32_t at = TIM_CNT(TIM6_BASE), start = DWT_CYCCNT;
@@ -84,12 +74,7 @@ static void arr_written_mid_period(uint32_t arpe, const char *cnt_name, const ch
    that update to the next two */
 static void psc_preload(void)
 {
-    TIM_PSC(TIM6_BASE) = 83u;
-    TIM_ARR(TIM6_BASE) = 999u;
-    TIM_CR1(TIM6_BASE) = 0;
-    TIM_EGR(TIM6_BASE) = TIM_EGR_UG;
-    TIM_SR(TIM6_BASE) = 0;
-    TIM_CR1(TIM6_BASE) = TIM_CR1_CEN;
+    timer_start(TIM6_BASE, 83u, 999u, 0);
     while (TIM_CNT(TIM6_BASE) < 500u) {
     }
     uint32_t at = TIM_CNT(TIM6_BASE), written = DWT_CYCCNT;
@@ -142,15 +127,11 @@ static void pwm2_polarity_and_clock(void)
 {
     pin_af(PORT_D, 14, 2);
     pin_af(PORT_D, 15, 2);
-    TIM_PSC(TIM4_BASE) = 83u;
-    TIM_ARR(TIM4_BASE) = 2040u;
     TIM_CCR(TIM4_BASE, 3) = 500u;
     TIM_CCR(TIM4_BASE, 4) = 300u;
     TIM_CCMR2(TIM4_BASE) = (TIM_CCMR_PWM2 | TIM_CCMR_OCPE) | ((TIM_CCMR_PWM1 | TIM_CCMR_OCPE) << 8);
     TIM_CCER(TIM4_BASE) = TIM_CCER_E(3) | TIM_CCER_E(4) | TIM_CCER_P(4);
-    TIM_CR1(TIM4_BASE) = TIM_CR1_ARPE;
-    TIM_EGR(TIM4_BASE) = TIM_EGR_UG;
-    TIM_CR1(TIM4_BASE) |= TIM_CR1_CEN;
+    timer_start(TIM4_BASE, 83u, 2040u, TIM_CR1_ARPE);
     report_pulse(PORT_D, 14, "pwm2_high_cycles", "pwm2_period_cycles");
     report_pulse(PORT_D, 15, "inverted_high_cycles", "inverted_period_cycles");
     RCC_CFGR = (RCC_CFGR & ~RCC_CFGR_PPRE1) | RCC_CFGR_PPRE1_DIV8;
@@ -164,13 +145,10 @@ static void toggle_and_forced(void)
 {
     pin_af(PORT_E, 5, 3);
     pin_af(PORT_E, 6, 3);
-    TIM_PSC(TIM9_BASE) = 167u;
-    TIM_ARR(TIM9_BASE) = 499u;
     TIM_CCR(TIM9_BASE, 1) = 100u;
     TIM_CCMR1(TIM9_BASE) = TIM_CCMR_TOGGLE | (TIM_CCMR_FORCE_HIGH << 8);
     TIM_CCER(TIM9_BASE) = TIM_CCER_E(1) | TIM_CCER_E(2);
-    TIM_EGR(TIM9_BASE) = TIM_EGR_UG;
-    TIM_CR1(TIM9_BASE) = TIM_CR1_CEN;
+    timer_start(TIM9_BASE, 167u, 499u, 0);
     report_pulse(PORT_E, 5, "toggle_high_cycles", "toggle_period_cycles");
     report("forced_high_pin", pin_level(PORT_E, 6));
     TIM_CCMR1(TIM9_BASE) = TIM_CCMR_TOGGLE | (TIM_CCMR_FORCE_LOW << 8);
@@ -183,12 +161,7 @@ static void toggle_and_forced(void)
 static void apb_prescaler_one(void)
 {
     RCC_CFGR &= ~RCC_CFGR_PPRE1;
-    TIM_PSC(TIM6_BASE) = 167u;
-    TIM_ARR(TIM6_BASE) = 999u;
-    TIM_CR1(TIM6_BASE) = 0;
-    TIM_EGR(TIM6_BASE) = TIM_EGR_UG;
-    TIM_SR(TIM6_BASE) = 0;
-    TIM_CR1(TIM6_BASE) = TIM_CR1_CEN;
+    timer_start(TIM6_BASE, 167u, 999u, 0);
     uint32_t start = 0;
     for (unsigned i = 0; i < 2; i++) {
         while (!(TIM_SR(TIM6_BASE) & TIM_SR_UIF)) {
@@ -208,17 +181,13 @@ static void complementary_outputs(void)
     pin_af(PORT_B, 0, 1);
     pin_af(PORT_B, 1, 1);
     pin_af(PORT_A, 10, 1);
-    TIM_PSC(TIM1_BASE) = 167u;
-    TIM_ARR(TIM1_BASE) = 999u;
     TIM_CCR(TIM1_BASE, 2) = 300u;
     TIM_CCR(TIM1_BASE, 3) = 400u;
     TIM_CCMR1(TIM1_BASE) = (TIM_CCMR_PWM1 | TIM_CCMR_OCPE) << 8;
     TIM_CCMR2(TIM1_BASE) = TIM_CCMR_PWM1 | TIM_CCMR_OCPE;
     TIM_CCER(TIM1_BASE) = TIM_CCER_NE(2) | TIM_CCER_E(3) | TIM_CCER_NE(3);
     TIM_BDTR(TIM1_BASE) = TIM_BDTR_MOE;
-    TIM_CR1(TIM1_BASE) = TIM_CR1_ARPE;
-    TIM_EGR(TIM1_BASE) = TIM_EGR_UG;
-    TIM_CR1(TIM1_BASE) |= TIM_CR1_CEN;
+    timer_start(TIM1_BASE, 167u, 999u, TIM_CR1_ARPE);
     report_pulse(PORT_B, 0, "ch2n_high_cycles", "ch2n_period_cycles");
     report_pulse(PORT_A, 10, "ch3_high_cycles", "ch3_period_cycles");
     report_pulse(PORT_B, 1, "ch3n_high_cycles", "ch3n_period_cycles");
@@ -242,18 +211,10 @@ void tim1_up_tim10_handler(void)
 /* TIM1 every 500 us and TIM10 every 300 us (1 us ticks from 168 MHz), both on NVIC line 25, for 30 ms */
 static void shared_interrupt_line(void)
 {
-    TIM_PSC(TIM1_BASE) = 167u;
-    TIM_ARR(TIM1_BASE) = 499u;
-    TIM_PSC(TIM10_BASE) = 167u;
-    TIM_ARR(TIM10_BASE) = 299u;
-    TIM_EGR(TIM1_BASE) = TIM_EGR_UG;
-    TIM_EGR(TIM10_BASE) = TIM_EGR_UG;
-    TIM_SR(TIM1_BASE) = 0;
-    TIM_SR(TIM10_BASE) = 0;
+    timer_start(TIM1_BASE, 167u, 499u, 0);
+    timer_start(TIM10_BASE, 167u, 299u, 0);
     TIM_DIER(TIM1_BASE) = TIM_DIER_UIE;
     TIM_DIER(TIM10_BASE) = TIM_DIER_UIE;
-    TIM_CR1(TIM1_BASE) = TIM_CR1_CEN;
-    TIM_CR1(TIM10_BASE) = TIM_CR1_CEN;
     NVIC_ISER(0) = 1u << TIM1_UP_TIM10_IRQ;
     wait_cycles(US(30000u));
     NVIC_ICER(0) = 1u << TIM1_UP_TIM10_IRQ;
