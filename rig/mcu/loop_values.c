@@ -4,6 +4,7 @@
  * too: a flag or a bit that is the same for every V the iterations read. */
 #include <string.h>
 
+#include <simavr/avr_ioport.h>
 #include <simavr/avr_uart.h>
 
 #include "polling.h"
@@ -30,10 +31,12 @@ void loop_io_find(avr_t *avr, loop_io *io)
             io->timer[io->n_timers] = (avr_timer_t *)port;
             io->timer_at[io->n_timers++] = ((avr_timer_t *)port)->r_tcnt;
         }
-        if (!strcmp(port->kind, "uart") && io->n_status < 7) {
-            io->status_at[io->n_status++] = ((avr_uart_t *)port)->rxc.raised.reg;
-            io->status_at[io->n_status++] = ((avr_uart_t *)port)->fe.reg;
+        if (!strcmp(port->kind, "uart") && io->n_plain < 22) {
+            io->plain_at[io->n_plain++] = ((avr_uart_t *)port)->rxc.raised.reg;
+            io->plain_at[io->n_plain++] = ((avr_uart_t *)port)->fe.reg;
         }
+        if (!strcmp(port->kind, "port") && io->n_plain < 23)
+            io->plain_at[io->n_plain++] = ((avr_ioport_t *)port)->r_pin;
     }
 }
 
@@ -45,10 +48,10 @@ static avr_timer_t *timer_at(const loop_io *io, uint16_t addr)
     return NULL;
 }
 
-static bool uart_status(const loop_io *io, uint16_t addr)
+static bool plain_read(const loop_io *io, uint16_t addr)
 {
-    for (int i = 0; i < io->n_status; i++)
-        if (io->status_at[i] == addr)
+    for (int i = 0; i < io->n_plain; i++)
+        if (io->plain_at[i] == addr)
             return true;
     return false;
 }
@@ -250,7 +253,7 @@ bool loop_load(loop_run *x, uint16_t addr, uint32_t offset, loop_val *out)
         return true;
     }
     if (addr < 31 + MAX_IOs && avr->io[AVR_DATA_TO_IO(addr)].r.c) {
-        if (!uart_status(x->io, addr))
+        if (!plain_read(x->io, addr))
             return loop_fail(x, "a read with side effects");
         *out = loop_known(avr->io[AVR_DATA_TO_IO(addr)].r.c(avr, addr, avr->io[AVR_DATA_TO_IO(addr)].r.param));
         return true;

@@ -65,11 +65,12 @@ typedef struct {
     uint64_t end[LOOP_TRACE];
 } loop_trace;
 
-/* the I/O registers a loop may read that simavr computes when read: the timer counters (TCNTn, low byte)
- * and the USARTs' status registers (their read only refreshes FE from the input queue) */
+/* the I/O registers a loop may read that simavr computes when read: the timer counters (TCNTn, low byte,
+ * V), and those whose read only recomputes a value from what the window keeps: the USARTs' status
+ * registers (FE from the input queue) and the ports' PINx (the driven pins and the outputs) */
 typedef struct {
-    uint8_t n_timers, n_status;
-    uint16_t timer_at[8], status_at[8];
+    uint8_t n_timers, n_plain;
+    uint16_t timer_at[8], plain_at[24];
     avr_timer_t *timer[8];
 } loop_io;
 

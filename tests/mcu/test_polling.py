@@ -1,11 +1,11 @@
 """The polling-loop skip (rig/mcu/polling.c) changes nothing but the engine's speed: a firmware of ours
 waiting in each kind of polling loop (a timer's overflow flag, a 16-bit and an 8-bit timer counter, a flag
-in RAM an interrupt sets, TWINT, UDRE, RXC) gives, with the skip on and off, the same USART bytes in the
-same 1 ms steps, the same figures (cycles, instructions, program counter, stack pointer) and the same data
-space, byte for byte, at the end; with it on, the loops were skipped (and rig exec's summary says how
-much). The reference FC flying a scenario writes the same trace, EEPROM and result.json either way (but
-its wall-clock fields: when it started, how long it took, the real-time factor). The expected times are
-the datasheet's timer periods."""
+in RAM an interrupt sets, TWINT, UDRE, RXC, an input pin) gives, with the skip on and off, the same USART
+bytes in the same 1 ms steps, the same figures (cycles, instructions, program counter, stack pointer) and
+the same data space, byte for byte, at the end; with it on, the loops were skipped (and rig exec's
+summary says how much). The reference FC flying a scenario writes the same trace, EEPROM and result.json
+either way (but its wall-clock fields: when it started, how long it took, the real-time factor). The
+expected times are the datasheet's timer periods and the pin's edges."""
 
 from __future__ import annotations
 
@@ -30,12 +30,19 @@ MS = 1_000_000
 Run = tuple[list[bytes], dict[str, object], bytes, dict[str, int]]
 
 
+#: mode 5's pin: PD3 high at 10.5 ms, low at 20.25 ms, high at 40 ms
+EDGES = [(10_500_000, 1), (20_250_000, 0), (40_000_000, 1)]
+
+
 def fly(mcu: str, mode: int, skip: bool, ms: int = 60, sends: tuple[tuple[int, bytes], ...] = ()) -> Run:
     """poll_loops in ``mode`` for ``ms`` 1 ms steps: the USART0 bytes of each step, the figures, the data
-    space at the end, what the skip did. ``sends``: (step, bytes) into USART0 at that step's start."""
+    space at the end, what the skip did. ``sends``: (step, bytes) into USART0 at that step's start; mode
+    5 has EDGES on PD3."""
     cfg = EngineConfig(mcu, CLOCK, firmware("poll_loops", mcu), eeprom=bytes([mode]), poll_skip=skip,
                        hang_ns=0)
     with AvrEngine(cfg, None) as e:
+        if mode == 5:
+            e.pin_drive("PD3", EDGES)
         steps = []
         for k in range(ms):
             for at, data in sends:
@@ -53,7 +60,7 @@ def steps_with(steps: list[bytes], marker: bytes) -> list[int]:
 
 
 @pytest.mark.parametrize("mcu", MCUS)
-@pytest.mark.parametrize("mode", [0, 1, 2, 3, 4])
+@pytest.mark.parametrize("mode", [0, 1, 2, 3, 4, 5])
 def test_a_polling_loop_skipped_is_the_same_run(mcu: str, mode: int) -> None:
     sends = ((5, b"ab"), (20, b"xyz")) if mode == 4 else ()
     on = fly(mcu, mode, True, sends=sends)
@@ -74,8 +81,10 @@ def test_a_polling_loop_skipped_is_the_same_run(mcu: str, mode: int) -> None:
         assert steps_with(steps, b"F") == list(range(5, 60, 5))
     elif mode == 3:  # SLA+W not acknowledged: status 0x20 (datasheet, master transmitter)
         assert len(steps_with(steps, b"W\x20")) > 10
-    else:
+    elif mode == 4:
         assert b"".join(steps[5:25]) == b"ab" + b"xyz"
+    else:  # each edge answered in the step it falls in
+        assert steps_with(steps, b"P") == [10, 40] and steps_with(steps, b"p") == [20]
 
 
 def test_the_skip_is_off_with_the_environment_variable(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -8,7 +8,8 @@
  *   2 flag:  a byte in RAM set by Timer1's compare A interrupt (CTC, clk/8, OCR1A 9999: 5 ms), 'F';
  *   3 TWINT: a START and an address nobody answers on the TWI at 100 kHz, TWINT polled after each, 'W'
  *            with the address status (0x20: SLA+W not acknowledged), then a STOP;
- *   4 UCSR0A: a wait for a byte on USART0 (RXC0), echoed back.
+ *   4 UCSR0A: a wait for a byte on USART0 (RXC0), echoed back;
+ *   5 PIND:  a wait for PD3 high ('P'), then low ('p'), the pin driven by the test.
  * Any other value: an empty loop (a hang). */
 #include <avr/eeprom.h>
 #include <avr/interrupt.h>
@@ -100,6 +101,16 @@ int main(void)
             while (!(UCSR0A & _BV(RXC0)))
                 ;
             send(UDR0);
+        }
+    }
+    if (mode == 5) {
+        for (;;) {
+            while (!(PIND & _BV(PD3)))
+                ;
+            send('P');
+            while (PIND & _BV(PD3))
+                ;
+            send('p');
         }
     }
     for (;;)
