@@ -299,7 +299,7 @@ def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command
             parser.error(f"--trace {args.trace}: {e.strerror}")
         _writable(parser, "--trace", trace)
     world = World.at_rest(seed=args.seed, noise=not args.no_noise, params=params,
-                          **target.world_options())
+                          **target.world_options(profile))
     try:
         with interrupts.handled():
             own = profile.config.eeprom if profile is not None else None  # (the FC profile's EEPROM image)

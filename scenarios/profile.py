@@ -12,7 +12,9 @@ every key.
     [arming]     method ("switch" | "sticks" | "telemetry"), channel, on_us, off_us, arm, disarm
                  (sticks -> "low" | "centre" | "high"), hold_s, detect ("telemetry" | "motors"), idle_us
     [modes]      channel, default, positions (mode -> µs), angle_deg, rate_dps, yaw_rate_dps
-    [motors]     frame ("+" | "x"), order (the FC's outputs -> the plant's motors), pwm_channels
+    [motors]     frame ("+" | "x"), order (the FC's outputs -> the plant's motors), pwm_channels, pins
+                 (an MCU's: the pin of each output)
+    [sensors]    mounting_yaw_deg (an MCU's: the sensor board turned as the firmware expects it)
     [startup]    seconds, ready ("telemetry")
     [telemetry]  kind ("none" | "text" | "msp" | "mavlink"), port, baud, poll_hz
     [config]     eeprom, params (files, relative to the profile), args, fc (the reference FC's keys)
@@ -23,6 +25,7 @@ from __future__ import annotations
 import difflib
 import hashlib
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,14 +38,15 @@ from rig.scenarios.terms import FEATURES, MODES
 
 PROFILES: Final = Path(__file__).resolve().parent / "profiles"
 DEFAULT: Final = "reference"
-TOP: Final = {"profile", "rc", "arming", "modes", "motors", "startup", "telemetry", "config"}
+TOP: Final = {"profile", "rc", "arming", "modes", "motors", "sensors", "startup", "telemetry", "config"}
 PROFILE_KEYS: Final = {"name", "description", "source", "features"}
 RC_KEYS: Final = {"order", "centre_us", "travel_us", "min_us", "max_us", "sbus_us_per_step", "sbus_offset_us",
                   "sbus_stretch", "extra"}
 ARMING_KEYS: Final = {"method", "channel", "on_us", "off_us", "arm", "disarm", "hold_s", "detect", "idle_us"}
 MODE_KEYS: Final = {"channel", "default", "positions", "angle_deg", "rate_dps", "yaw_rate_dps"}
-MOTOR_KEYS: Final = {"frame", "order", "pwm_channels"}
+MOTOR_KEYS: Final = {"frame", "order", "pwm_channels", "pins"}
 STARTUP_KEYS: Final = {"seconds", "ready"}
+SENSOR_KEYS: Final = {"mounting_yaw_deg"}
 TELEMETRY_KEYS: Final = {"kind", "port", "baud", "poll_hz"}
 CONFIG_KEYS: Final = {"eeprom", "params", "args", "fc"}
 #: modes whose sticks command rates (rate_dps per full stick), not angles
@@ -116,6 +120,9 @@ class Motors:
     frame: str  # "+" | "x"
     order: tuple[int, ...]  # output k (0-based) drives plant motor order[k] (1..4)
     pwm_channels: int
+    #: an MCU's: the pin of each of the FC's outputs 1..4, as its firmware drives them ("PE5"); () the
+    #: board file's motor pins as they are
+    pins: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -156,6 +163,9 @@ class Profile:
     telemetry: Telemetry
     config: Config
     sha256: str
+    #: an MCU's: how the FC's firmware expects its sensor board turned (clockwise from above, from facing
+    #: forward), replacing the board file's; None: the board file's
+    mounting_yaw_deg: int | None = None
 
     @property
     def mode_names(self) -> tuple[str, ...]:
@@ -263,8 +273,8 @@ def check(data: dict[str, Any], path: Path, sha256: str) -> Profile:
     c.table(data, "", TOP)
     t = {k: c.lenient(data.get(k, {}), k, known) for k, known in (
         ("profile", PROFILE_KEYS), ("rc", RC_KEYS), ("arming", ARMING_KEYS), ("modes", MODE_KEYS),
-        ("motors", MOTOR_KEYS), ("startup", STARTUP_KEYS), ("telemetry", TELEMETRY_KEYS),
-        ("config", CONFIG_KEYS))}
+        ("motors", MOTOR_KEYS), ("sensors", SENSOR_KEYS), ("startup", STARTUP_KEYS),
+        ("telemetry", TELEMETRY_KEYS), ("config", CONFIG_KEYS))}
     p = t["profile"]
     name, description, source = path.stem, "", ""
     features: tuple[str, ...] = ()
@@ -284,8 +294,19 @@ def check(data: dict[str, Any], path: Path, sha256: str) -> Profile:
                 or any(isinstance(x, bool) for x in order)):
             raise c.fail("motors.order", f"expected the plant's motors 1..4, each once, in the order of the "
                                          f"FC's outputs (e.g. [4, 1, 3, 2]), got {order!r}")
+        pins = m.get("pins", [])
+        if (not isinstance(pins, list) or len(pins) not in (0, 4) or len(set(map(str, pins))) != len(pins)
+                or not all(isinstance(x, str) and re.fullmatch(r"P[A-L][0-7]", x) for x in pins)):
+            raise c.fail("motors.pins", f"expected the four pins of the FC's outputs 1..4, each once (e.g. "
+                                        f"[\"PE5\", \"PE3\", \"PH3\", \"PE4\"]), got {pins!r}")
         motors = Motors(c.string(m, "frame", "motors", "+", choices=("+", "x")), tuple(order),
-                        c.integer(m, "pwm_channels", "motors", 4, 16, default=8))
+                        c.integer(m, "pwm_channels", "motors", 4, 16, default=8), tuple(pins))
+    mounting: int | None = None
+    with c.part():
+        if "mounting_yaw_deg" in t["sensors"]:
+            mounting = c.integer(t["sensors"], "mounting_yaw_deg", "sensors", 0, 270)
+            if mounting % 90:
+                raise c.fail("sensors.mounting_yaw_deg", f"expected 0, 90, 180 or 270, got {mounting}")
     startup_s, ready = 0.0, ""
     with c.part():
         s = t["startup"]
@@ -320,7 +341,7 @@ def check(data: dict[str, Any], path: Path, sha256: str) -> Profile:
                         tuple(args), _reference_keys(c, cf.get("fc", {})))
     c.done()
     return Profile(path.resolve(), name, description, source, features, rc, arming, modes, motors, startup_s,
-                   ready, telemetry, config, sha256)
+                   ready, telemetry, config, sha256, mounting)
 
 
 # ---- the tables ----------------------------------------------------------------------------------

@@ -82,13 +82,36 @@ def capture_text(board: boards.Board, counts: list[dict[str, int]] | None = None
 
 
 def profile_board(board: boards.Board, profile: Profile | None) -> boards.Board:
-    """The board as the FC of ``profile`` uses it: a profile whose telemetry port names one of the MCU's
-    USARTs (``usart0``) has the FC's telemetry there at the profile's baud, whatever the board file
-    wires for the reference FC: the firmware, not the board, chooses its serial speed (MultiWii's
-    SERIAL0_COM_SPEED 115200 on a board whose file gives the reference FC's 500000), and the rig's
-    polls must reach it at that speed. A device path (a Linux DUT's) leaves the board as it is.
-    BoardError: a USART the MCU lacks, or a baud its USARTs cannot make at the board's clock."""
-    if profile is None or profile.telemetry.kind == "none":
+    """The board as the FC of ``profile`` uses it. The firmware, not the board, chooses which pin carries
+    which output and which USART talks at what speed; a board file gives them as the reference FC does.
+
+    * ``[motors] pins``: the pin of each of the FC's outputs 1..4 (MultiWii's Mega PWM_PIN D3, D5, D6,
+      D2: rear right, front right, rear left, front left); output k's pin drives plant motor
+      ``order[k]``, with the timer the board file gives that pin;
+    * ``[sensors] mounting_yaw_deg``: the sensor board turned as the firmware expects it (MultiWii's
+      GY_86 reads the MPU-6050's X axis as the vehicle's right: the GY-86 turned 90°);
+    * a telemetry port naming one of the MCU's USARTs (``usart0``): the FC's telemetry is there at the
+      profile's baud (MultiWii's SERIAL0_COM_SPEED 115200 on a board whose file gives the reference
+      FC's 500000), and the rig's polls reach it at that speed. A device path (a Linux DUT's) leaves
+      the board's.
+
+    BoardError: a pin that is not one of the board's motor pins, a USART the MCU lacks, or a baud its
+    USARTs cannot make at the board's clock."""
+    if profile is None:
+        return board
+    if profile.motors.pins:
+        by_pin = {m.pin: m for m in board.motors}
+        for pin in profile.motors.pins:
+            if pin not in by_pin:
+                raise boards.BoardError(str(profile.path), "motors.pins",
+                                        f"{pin} is not one of the board {board.name}'s motor pins "
+                                        f"({', '.join(by_pin)})")
+        motors = (dataclasses.replace(by_pin[pin], motor=profile.motors.order[k])
+                  for k, pin in enumerate(profile.motors.pins))
+        board = dataclasses.replace(board, motors=tuple(sorted(motors, key=lambda m: m.motor)))
+    if profile.mounting_yaw_deg is not None:
+        board = dataclasses.replace(board, mounting_yaw_deg=profile.mounting_yaw_deg)
+    if profile.telemetry.kind == "none":
         return board
     match = re.fullmatch(r"usart(\d)", profile.telemetry.port)
     if match is None:
@@ -134,7 +157,7 @@ class McuTarget:
     def describe(self, scenario: Scenario, work: Path, notes: list[str],
                  profile: Profile | None = None) -> dict[str, object]:
         mcu = self.board.mcu
-        profile_board(self.board, profile)  # (BoardError before anything runs)
+        board = profile_board(self.board, profile)  # (BoardError before anything runs)
         for uart in sorted({s.uart for s in scenario.serial} | _listened(scenario)):
             if uart not in mcu.usarts:
                 raise ValueError(f"the scenario talks to USART {uart}; the {mcu.name} has USART "
@@ -156,15 +179,17 @@ class McuTarget:
             "board": self.board.name,
             "board_file": str(self.board.path),
             "fc_config": dict(scenario.fc) if fc_eeprom else None,
-            "capture": capture_text(self.board),
+            "capture": capture_text(board),
             "lockstep": True,
             **eeprom,
         }
 
-    def world_options(self) -> dict[str, Any]:
-        # (the board file wires each motor pin to its plant motor: no output order on top of it)
-        return {"topology": self.board.topology, "mounting": boards.mounting(self.board.mounting_yaw_deg),
-                "motor_order": (1, 2, 3, 4), "mpu_address": self.board.mpu_address}
+    def world_options(self, profile: Profile | None = None) -> dict[str, Any]:
+        # (the board file, or the profile's pins, wire each motor pin to its plant motor: no output order
+        # on top of it)
+        board = profile_board(self.board, profile)
+        return {"topology": board.topology, "mounting": boards.mounting(board.mounting_yaw_deg),
+                "motor_order": (1, 2, 3, 4), "mpu_address": board.mpu_address}
 
     def open(self, ctx: RunContext) -> McuRun:
         trace = None if self.trace is None else self.trace / f"{ctx.scenario.stem}{self.trace_options.suffix}"

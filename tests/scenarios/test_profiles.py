@@ -51,6 +51,10 @@ yaw_rate_dps = 180
 frame = "x"
 order = [4, 1, 3, 2]
 pwm_channels = 6
+pins = ["PE5", "PE3", "PH3", "PE4"]
+
+[sensors]
+mounting_yaw_deg = 90
 
 [startup]
 seconds = 2.5
@@ -89,6 +93,7 @@ def test_every_key_is_read_as_written(tmp_path: Path) -> None:
     assert (m.channel, m.default, m.angle_deg, m.rate_dps, m.yaw_rate_dps) == (5, "angle", 45, 500, 180)
     assert m.positions == {"acro": 1000, "angle": 1500, "althold": 2000}
     assert (p.motors.frame, p.motors.order, p.motors.pwm_channels) == ("x", (4, 1, 3, 2), 6)
+    assert p.motors.pins == ("PE5", "PE3", "PH3", "PE4") and p.mounting_yaw_deg == 90
     assert p.startup_s == 2.5
     assert (p.telemetry.kind, p.telemetry.port, p.telemetry.baud, p.telemetry.poll_hz) == (
         "text", "/dev/ttyTEL0", 57600, 20)
@@ -166,6 +171,9 @@ def test_every_shipped_profile_loads_and_a_bad_name_gets_a_suggestion() -> None:
     (("order = [4, 1, 3, 2]", "order = [1, 1, 3, 2]"), "motors.order", "each once"),
     (('frame = "x"', 'frame = "h"'), "motors.frame", "expected one of"),
     (("pwm_channels = 6", "pwm_channels = 40"), "motors.pwm_channels", "4..16"),
+    (('pins = ["PE5", "PE3"', 'pins = ["PE5", "PE5"'), "motors.pins", "each once"),
+    (('pins = ["PE5", "PE3"', 'pins = ["PE5", "D3"'), "motors.pins", "the four pins"),
+    (("mounting_yaw_deg = 90", "mounting_yaw_deg = 45"), "sensors.mounting_yaw_deg", "0, 90, 180 or 270"),
     (('kind = "text"', 'kind = "mavlnk"'), "telemetry.kind", "did you mean 'mavlink'"),
     (('params = "fc.parm"', 'params = "gone.parm"'), "config.params", "no such file"),
     (('features = ["failsafe"]', 'features = ["failsave"]'), "profile.features", "did you mean 'failsafe'"),
