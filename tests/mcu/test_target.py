@@ -178,12 +178,12 @@ def test_a_profile_wires_the_motors_and_the_sensor_board_as_its_firmware_expects
     options = target.world_options(multiwii)
     assert options["mounting"] == ((0.0, 1.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, -1.0))
     assert target.world_options()["mounting"] == ((1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (0.0, 0.0, -1.0))
+    seen: list[float] = []
+
+    def look(s: McuSession) -> None:
+        seen[:] = [s.world.plant.u[s.world.plant.u_index[n]] for n in PWM_INPUTS[:4]]
+
     for profile, motor in ((multiwii, 2), (None, 1)):
-        seen: list[float] = []
-
-        def look(s: McuSession) -> None:
-            seen.extend(s.world.plant.u[s.world.plant.u_index[n]] for n in PWM_INPUTS[:4])
-
         world = World.at_rest(seed=0, **target.world_options(profile))
         session = target.session(world, 0.4, {}, 60.0, profile=profile)
         session.at(0.3, look)

@@ -211,10 +211,11 @@ def test_detecting_arming_by_telemetry_needs_telemetry(tmp_path: Path) -> None:
         P.load(write(tmp_path, text))
 
 
-def test_what_a_profile_cannot_fly_is_said() -> None:
-    mw, ref = P.load("multiwii-2.4"), P.load("reference")
+def test_what_a_profile_cannot_fly_is_said(tmp_path: Path) -> None:
+    ref = P.load("reference")
+    plain = P.load(write(tmp_path, FULL.replace('features = ["failsafe"]', "features = []")))
     assert P.fly_check(ref, ("angle", "althold", "failsafe"), {}) == ""
-    assert "has no failsafe" in P.fly_check(mw, ("angle", "failsafe"), {})
+    assert "has no failsafe" in P.fly_check(plain, ("angle", "failsafe"), {})
     assert "has no acro" in P.fly_check(ref, ("acro",), {})
     assert "more than a full stick" in P.fly_check(ref, ("angle",), {"roll_deg": 31.0})
     assert P.stick(ref, "roll_deg", 10.0) == ("roll", pytest.approx(1 / 3))
