@@ -8,7 +8,7 @@ every key.
 
     [profile]    name, description, source, features ("failsafe": lands on RC loss)
     [rc]         order ("AETR"...), centre_us, travel_us, min_us, max_us, sbus_us_per_step,
-                 sbus_offset_us, sbus_stretch, extra (knob name -> channel)
+                 sbus_offset_us, sbus_stretch, extra (knob name -> channel), reverse (sticks)
     [arming]     method ("switch" | "sticks" | "telemetry"), channel, on_us, off_us, arm, disarm
                  (sticks -> "low" | "centre" | "high"), hold_s, detect ("telemetry" | "motors"), idle_us
     [modes]      channel, default, positions (mode -> µs), angle_deg, rate_dps, yaw_rate_dps
@@ -41,7 +41,7 @@ DEFAULT: Final = "reference"
 TOP: Final = {"profile", "rc", "arming", "modes", "motors", "sensors", "startup", "telemetry", "config"}
 PROFILE_KEYS: Final = {"name", "description", "source", "features"}
 RC_KEYS: Final = {"order", "centre_us", "travel_us", "min_us", "max_us", "sbus_us_per_step", "sbus_offset_us",
-                  "sbus_stretch", "extra"}
+                  "sbus_stretch", "extra", "reverse"}
 ARMING_KEYS: Final = {"method", "channel", "on_us", "off_us", "arm", "disarm", "hold_s", "detect", "idle_us"}
 MODE_KEYS: Final = {"channel", "default", "positions", "angle_deg", "rate_dps", "yaw_rate_dps"}
 MOTOR_KEYS: Final = {"frame", "order", "pwm_channels", "pins"}
@@ -76,6 +76,9 @@ class Rc:
     sbus_offset_us: float
     sbus_stretch: float
     extra: dict[str, int]  # knob -> channel (1-based)
+    #: the sticks the FC reads the other way round from the rig ("pitch": its channel above the centre
+    #: is nose down, where the rig's positive pitch is nose up)
+    reverse: tuple[str, ...] = ()
 
     def raw(self, us: float) -> float:
         """The SBUS value the FC reads as ``us`` (the inverse of its mapping; not rounded)."""
@@ -197,6 +200,7 @@ class Profile:
             low=value(rc.min_us), high=value(rc.max_us), rest=value(rc.centre_us), arm=arm,
             mode_channel=None if self.modes.channel is None else self.modes.channel - 1, modes=default_first,
             knobs=tuple((k, c - 1) for k, c in rc.extra.items()), gestures=tuple(gestures),
+            reversed_sticks=rc.reverse,
         )
 
     def stick_us(self, position: str) -> float:
@@ -369,7 +373,8 @@ def _rc(c: _ProfileCheck, r: dict[str, Any]) -> Rc:
         rc = Rc(order, centre, travel, lo, hi,
                 c.number(r, "sbus_us_per_step", "rc", 0.625, positive=True, high=10),
                 c.number(r, "sbus_offset_us", "rc", 880.0, low=-5000, high=5000),
-                c.number(r, "sbus_stretch", "rc", 1.0, positive=True, high=10), extra)
+                c.number(r, "sbus_stretch", "rc", 1.0, positive=True, high=10), extra,
+                tuple(c.words(r, "reverse", "rc", ("roll", "pitch", "yaw"))))
         for key, us in (("min_us", lo), ("max_us", hi)):
             if not 0 <= round(rc.raw(us)) <= 2047:
                 raise c.fail(f"rc.{key}", f"{us:g} us is SBUS value {rc.raw(us):.0f} by this mapping: "

@@ -30,6 +30,7 @@ sbus_us_per_step = 0.625
 sbus_offset_us = 880
 sbus_stretch = 1.0
 extra = { alt_offset = 8 }
+reverse = ["pitch"]
 
 [arming]
 method = "switch"
@@ -85,7 +86,7 @@ def test_every_key_is_read_as_written(tmp_path: Path) -> None:
     assert p.sha256 == hashlib.sha256(path.read_bytes()).hexdigest()
     assert (p.rc.order, p.rc.centre_us, p.rc.travel_us, p.rc.min_us, p.rc.max_us) == ("TAER", 1500, 500, 1000,
                                                                                       2000)
-    assert p.rc.extra == {"alt_offset": 8}
+    assert p.rc.extra == {"alt_offset": 8} and p.rc.reverse == ("pitch",)
     a = p.arming
     assert (a.method, a.channel, a.on_us, a.off_us) == ("switch", 6, 1900, 1100)
     assert (a.detect, a.idle_us) == ("motors", 1080)
@@ -108,7 +109,7 @@ def test_the_channels_follow_the_order_and_the_standard_sbus_mapping(tmp_path: P
     ch = sticks.channels(cmap)
     assert ch[0] == 192  # T (TAER): throttle 0 is the bottom of its travel, 1000 us
     assert ch[1] == 1792  # A: roll full right, 2000 us
-    assert ch[2] == 192  # E: pitch full down
+    assert ch[2] == 1792  # E: pitch full nose down, on a reversed channel (reverse = ["pitch"]): 2000 us
     assert ch[3] == round((1750 - 880) / 0.625)  # R: yaw half right, 1750 us
     assert ch[4] == 192  # channel 5: acro at 1000 us
     assert ch[5] == round((1900 - 880) / 0.625)  # channel 6: the arm switch on, 1900 us
@@ -134,6 +135,8 @@ def test_multiwii_s_sbus_stretch_is_inverted() -> None:
     assert p.rc.us(1024) == pytest.approx(1500)
     cmap = p.channel_map()
     assert Sticks(throttle=0.0, yaw=1.0).channels(cmap)[2:4] == [224, 1824]
+    # its QUADX mixer pitches nose down for a channel above 1500 us: the rig's nose up is 1000 us
+    assert Sticks(roll=1.0, pitch=1.0).channels(cmap)[:2] == [1824, 224]
     # arming by sticks: throttle low + yaw right held as the gesture, whatever the sticks were
     held = Sticks(throttle=0.6, yaw=-0.2, gesture="arm").channels(cmap)
     assert held[2:4] == [224, 1824]
@@ -172,6 +175,7 @@ def test_every_shipped_profile_loads_and_a_bad_name_gets_a_suggestion() -> None:
     (('frame = "x"', 'frame = "h"'), "motors.frame", "expected one of"),
     (("pwm_channels = 6", "pwm_channels = 40"), "motors.pwm_channels", "4..16"),
     (('pins = ["PE5", "PE3"', 'pins = ["PE5", "PE5"'), "motors.pins", "each once"),
+    (('reverse = ["pitch"]', 'reverse = ["throttle"]'), "rc.reverse", "expected one of"),
     (('pins = ["PE5", "PE3"', 'pins = ["PE5", "D3"'), "motors.pins", "the four pins"),
     (("mounting_yaw_deg = 90", "mounting_yaw_deg = 45"), "sensors.mounting_yaw_deg", "0, 90, 180 or 270"),
     (('kind = "text"', 'kind = "mavlnk"'), "telemetry.kind", "did you mean 'mavlink'"),
