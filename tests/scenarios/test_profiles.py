@@ -5,6 +5,7 @@ them. Expected SBUS values come from each FC's published mapping, written out he
 from __future__ import annotations
 
 import hashlib
+import struct
 from pathlib import Path
 
 import pytest
@@ -224,3 +225,22 @@ def test_what_a_profile_cannot_fly_is_said(tmp_path: Path) -> None:
     assert "more than a full stick" in P.fly_check(ref, ("angle",), {"roll_deg": 31.0})
     assert P.stick(ref, "roll_deg", 10.0) == ("roll", pytest.approx(1 / 3))
     assert P.stick(ref, "yaw_dps", -45.0) == ("yaw", pytest.approx(-0.5))
+
+
+def test_the_multiwii_set_up_sends_what_multiwii_2_4_reads() -> None:
+    """docs/examples/multiwii-setup.toml, the set-up docs/multiwii.md runs: each MSP request has the
+    payload size MultiWii 2.4's Protocol.cpp reads for it (MSP_SET_BOX: CHECKBOXITEMS u16, 5 boxes for
+    QUADX + GY_86: ARM, ANGLE, HORIZON, BARO, MAG; MSP_SET_RC_TUNING: 7 bytes from rcRate8;
+    MSP_SET_PID: 3 x PIDITEMS (10); MSP_ACC_CALIBRATION and MSP_EEPROM_WRITE: none), in that order, and
+    the modes it sets are the profile's: ANGLE at AUX1 middle and high (bits 1, 2), BARO at high."""
+    from rig.scenarios.schema import load
+
+    sc = load(Path(__file__).resolve().parents[2] / "docs" / "examples" / "multiwii-setup.toml")
+    sends = [s.msp for s in sorted(sc.serial, key=lambda s: s.t) if s.msp is not None]
+    assert [(cmd, len(payload)) for cmd, payload in sends] == [
+        (203, 10), (204, 7), (202, 30), (205, 0), (250, 0)]
+    boxes = struct.unpack("<5H", sends[0][1])
+    assert boxes == (0, 0b110, 0, 0b100, 0)
+    mw = P.load("multiwii-2.4")
+    assert mw.modes.positions == {"acro": 1000, "angle": 1500, "althold": 2000}
+    assert sends[1][1][1] == 0  # rcExpo 0: the profile's angle_deg is linear in the stick
