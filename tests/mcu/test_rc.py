@@ -49,8 +49,9 @@ def test_an_sbus_frame_arrives_whole_after_its_25_frame_times(mcu: str) -> None:
 
 
 def test_a_byte_before_the_receiver_is_set_up_is_lost() -> None:
-    """A byte that arrives while RXEN is clear is lost, and is no frame error (the receiver read nothing):
-    MultiWii opens its SBUS USART 2.4 s after reset, and the frames before were 4348 "frame errors"."""
+    """A byte that arrives while RXEN is clear is lost, and is no frame error: the receiver read nothing.
+    (Bytes on another frame than an enabled receiver's are frame errors: MultiWii opens USART1 at 115200
+    8N1 first and at SBUS's 100000 8E2 2.4 s later, and the SBUS frames between are.)"""
     with rc_engine("atmega2560") as e:
         e.uart_send(1, sbus.encode([1000] * 16), 100_000, "E", 2)  # at 0: the firmware has not started
         e.run_until(12_000_000)
