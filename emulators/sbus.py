@@ -77,6 +77,10 @@ class ChannelMap:
     modes: tuple[tuple[str, int], ...] = (("angle", RAW_MIN), ("althold", RAW_MAX))
     knobs: tuple[tuple[str, int], ...] = (("alt_offset", 6),)
     gestures: tuple[tuple[str, tuple[tuple[int, int], ...]], ...] = ()
+    #: the sticks ("roll", "pitch", "yaw") whose channel falls as the stick rises: the FC reads them the
+    #: other way round from the rig (positive pitch nose up: MultiWii reads a pitch channel above its
+    #: centre as nose down)
+    reversed_sticks: tuple[str, ...] = ()
 
     def stick(self, x: float) -> int:
         return max(self.low, min(self.high, round(self.centre + x * self.travel)))
@@ -108,8 +112,11 @@ class Sticks:
 
     def channels(self, cmap: ChannelMap = REFERENCE_MAP) -> list[int]:
         ch = [cmap.rest] * CHANNELS
-        ch[cmap.roll], ch[cmap.pitch] = cmap.stick(self.roll), cmap.stick(self.pitch)
-        ch[cmap.yaw], ch[cmap.throttle] = cmap.stick(self.yaw), cmap.stick(2 * self.throttle - 1)
+        back = cmap.reversed_sticks
+        ch[cmap.roll] = cmap.stick(-self.roll if "roll" in back else self.roll)
+        ch[cmap.pitch] = cmap.stick(-self.pitch if "pitch" in back else self.pitch)
+        ch[cmap.yaw] = cmap.stick(-self.yaw if "yaw" in back else self.yaw)
+        ch[cmap.throttle] = cmap.stick(2 * self.throttle - 1)
         if cmap.arm is not None:
             channel, on, off = cmap.arm
             ch[channel] = on if self.arm else off

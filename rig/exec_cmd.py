@@ -255,7 +255,7 @@ def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command
     from rig.runner import apply_event
     from rig.scenarios import profile as profiles
     from rig.targets import RC_PATH, TELEMETRY_PATH
-    from rig.targets.mcu import McuRun, McuTarget
+    from rig.targets.mcu import McuRun, McuTarget, profile_board
 
     if command:
         parser.error("--mcu runs a firmware image, not a command: nothing goes after --")
@@ -279,6 +279,7 @@ def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command
     try:
         target = McuTarget(args.mcu, args.firmware, eeprom=args.eeprom, hang_limit=args.hang_limit,
                            trace_options=options)
+        profile_board(target.board, profile)
     except (BoardError, FirmwareError) as e:
         parser.error(f"--mcu: {e}")
     sticks: list[Event] = []
@@ -298,12 +299,12 @@ def _exec_mcu(args: argparse.Namespace, parser: argparse.ArgumentParser, command
             parser.error(f"--trace {args.trace}: {e.strerror}")
         _writable(parser, "--trace", trace)
     world = World.at_rest(seed=args.seed, noise=not args.no_noise, params=params,
-                          **target.world_options())
+                          **target.world_options(profile))
     try:
         with interrupts.handled():
             own = profile.config.eeprom if profile is not None else None  # (the FC profile's EEPROM image)
             run = McuRun(target.session(world, args.duration, {}, args.wall_timeout, trace, args.sim_timeout,
-                                        args.eeprom_out, eeprom_image=own))
+                                        args.eeprom_out, eeprom_image=own, profile=profile))
             if sticks:
                 rc = StickEmulator(RC_PATH)
                 for ev in sticks:  # (first: the frame at 0 carries the sticks given for 0)

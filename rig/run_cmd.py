@@ -416,6 +416,15 @@ def plan(args: argparse.Namespace) -> Plan:
         problems.append("--pwm-channels and --topology are a Linux DUT's board: not with --bridge or --mcu")
     mcu = _mcu_target(args, problems)
     profile = load_profile(args.fc, problems)
+    if mcu is not None and profile is not None:
+        from rig.mcu.board import BoardError
+        from rig.targets.mcu import McuTarget, profile_board
+
+        assert isinstance(mcu, McuTarget)
+        try:
+            profile_board(mcu.board, profile)
+        except BoardError as e:
+            problems.append(f"--fc: {e}")
     if problems or profile is None:
         raise UsageError("\n".join(problems))
     return Plan(scenarios, mcu or target_of(args, dut), args.out, profile)

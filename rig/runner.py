@@ -245,7 +245,7 @@ def run(
         baro_noise_pa=scenario.baro_noise_pa,
         baro_drift_pa_per_s=scenario.baro_drift_pa_per_s,
         **{"motor_order": profile.motors.order, "pwm_channels": max(profile.motors.pwm_channels, 8),
-           **target.world_options()},
+           **target.world_options(profile)},
     )
     stderr_path = work / "dut-stderr.txt"
     try:  # (the world holds the plant, whose instance close() frees)

@@ -8,11 +8,13 @@ every key.
 
     [profile]    name, description, source, features ("failsafe": lands on RC loss)
     [rc]         order ("AETR"...), centre_us, travel_us, min_us, max_us, sbus_us_per_step,
-                 sbus_offset_us, sbus_stretch, extra (knob name -> channel)
+                 sbus_offset_us, sbus_stretch, extra (knob name -> channel), reverse (sticks)
     [arming]     method ("switch" | "sticks" | "telemetry"), channel, on_us, off_us, arm, disarm
                  (sticks -> "low" | "centre" | "high"), hold_s, detect ("telemetry" | "motors"), idle_us
     [modes]      channel, default, positions (mode -> µs), angle_deg, rate_dps, yaw_rate_dps
-    [motors]     frame ("+" | "x"), order (the FC's outputs -> the plant's motors), pwm_channels
+    [motors]     frame ("+" | "x"), order (the FC's outputs -> the plant's motors), pwm_channels, pins
+                 (an MCU's: the pin of each output)
+    [sensors]    mounting_yaw_deg (an MCU's: the sensor board turned as the firmware expects it)
     [startup]    seconds, ready ("telemetry")
     [telemetry]  kind ("none" | "text" | "msp" | "mavlink"), port, baud, poll_hz
     [config]     eeprom, params (files, relative to the profile), args, fc (the reference FC's keys)
@@ -22,6 +24,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final
@@ -34,14 +37,15 @@ from rig.scenarios.terms import FEATURES, MODES
 
 PROFILES: Final = Path(__file__).resolve().parent / "profiles"
 DEFAULT: Final = "reference"
-TOP: Final = {"profile", "rc", "arming", "modes", "motors", "startup", "telemetry", "config"}
+TOP: Final = {"profile", "rc", "arming", "modes", "motors", "sensors", "startup", "telemetry", "config"}
 PROFILE_KEYS: Final = {"name", "description", "source", "features"}
 RC_KEYS: Final = {"order", "centre_us", "travel_us", "min_us", "max_us", "sbus_us_per_step", "sbus_offset_us",
-                  "sbus_stretch", "extra"}
+                  "sbus_stretch", "extra", "reverse"}
 ARMING_KEYS: Final = {"method", "channel", "on_us", "off_us", "arm", "disarm", "hold_s", "detect", "idle_us"}
 MODE_KEYS: Final = {"channel", "default", "positions", "angle_deg", "rate_dps", "yaw_rate_dps"}
-MOTOR_KEYS: Final = {"frame", "order", "pwm_channels"}
+MOTOR_KEYS: Final = {"frame", "order", "pwm_channels", "pins"}
 STARTUP_KEYS: Final = {"seconds", "ready"}
+SENSOR_KEYS: Final = {"mounting_yaw_deg"}
 TELEMETRY_KEYS: Final = {"kind", "port", "baud", "poll_hz"}
 CONFIG_KEYS: Final = {"eeprom", "params", "args", "fc"}
 #: modes whose sticks command rates (rate_dps per full stick), not angles
@@ -71,6 +75,9 @@ class Rc:
     sbus_offset_us: float
     sbus_stretch: float
     extra: dict[str, int]  # knob -> channel (1-based)
+    #: the sticks the FC reads the other way round from the rig ("pitch": its channel above the centre
+    #: is nose down, where the rig's positive pitch is nose up)
+    reverse: tuple[str, ...] = ()
 
     def raw(self, us: float) -> float:
         """The SBUS value the FC reads as ``us`` (the inverse of its mapping; not rounded)."""
@@ -115,6 +122,9 @@ class Motors:
     frame: str  # "+" | "x"
     order: tuple[int, ...]  # output k (0-based) drives plant motor order[k] (1..4)
     pwm_channels: int
+    #: an MCU's: the pin of each of the FC's outputs 1..4, as its firmware drives them ("PE5"); () the
+    #: board file's motor pins as they are
+    pins: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -155,6 +165,9 @@ class Profile:
     telemetry: Telemetry
     config: Config
     sha256: str
+    #: an MCU's: how the FC's firmware expects its sensor board turned (clockwise from above, from facing
+    #: forward), replacing the board file's; None: the board file's
+    mounting_yaw_deg: int | None = None
 
     @property
     def mode_names(self) -> tuple[str, ...]:
@@ -186,6 +199,7 @@ class Profile:
             low=value(rc.min_us), high=value(rc.max_us), rest=value(rc.centre_us), arm=arm,
             mode_channel=None if self.modes.channel is None else self.modes.channel - 1, modes=default_first,
             knobs=tuple((k, c - 1) for k, c in rc.extra.items()), gestures=tuple(gestures),
+            reversed_sticks=rc.reverse,
         )
 
     def stick_us(self, position: str) -> float:
@@ -261,8 +275,8 @@ def check(data: dict[str, Any], path: Path, sha256: str) -> Profile:
     c.table(data, "", TOP)
     t = {k: c.lenient(data.get(k, {}), k, known) for k, known in (
         ("profile", PROFILE_KEYS), ("rc", RC_KEYS), ("arming", ARMING_KEYS), ("modes", MODE_KEYS),
-        ("motors", MOTOR_KEYS), ("startup", STARTUP_KEYS), ("telemetry", TELEMETRY_KEYS),
-        ("config", CONFIG_KEYS))}
+        ("motors", MOTOR_KEYS), ("sensors", SENSOR_KEYS), ("startup", STARTUP_KEYS),
+        ("telemetry", TELEMETRY_KEYS), ("config", CONFIG_KEYS))}
     p = t["profile"]
     name, description, source = path.stem, "", ""
     features: tuple[str, ...] = ()
@@ -282,8 +296,19 @@ def check(data: dict[str, Any], path: Path, sha256: str) -> Profile:
                 or any(isinstance(x, bool) for x in order)):
             raise c.fail("motors.order", f"expected the plant's motors 1..4, each once, in the order of the "
                                          f"FC's outputs (e.g. [4, 1, 3, 2]), got {order!r}")
+        pins = m.get("pins", [])
+        if (not isinstance(pins, list) or len(pins) not in (0, 4) or len(set(map(str, pins))) != len(pins)
+                or not all(isinstance(x, str) and re.fullmatch(r"P[A-L][0-7]", x) for x in pins)):
+            raise c.fail("motors.pins", f"expected the four pins of the FC's outputs 1..4, each once (e.g. "
+                                        f"[\"PE5\", \"PE3\", \"PH3\", \"PE4\"]), got {pins!r}")
         motors = Motors(c.string(m, "frame", "motors", "+", choices=("+", "x")), tuple(order),
-                        c.integer(m, "pwm_channels", "motors", 4, 16, default=8))
+                        c.integer(m, "pwm_channels", "motors", 4, 16, default=8), tuple(pins))
+    mounting: int | None = None
+    with c.part():
+        if "mounting_yaw_deg" in t["sensors"]:
+            mounting = c.integer(t["sensors"], "mounting_yaw_deg", "sensors", 0, 270)
+            if mounting % 90:
+                raise c.fail("sensors.mounting_yaw_deg", f"expected 0, 90, 180 or 270, got {mounting}")
     startup_s, ready = 0.0, ""
     with c.part():
         s = t["startup"]
@@ -318,7 +343,7 @@ def check(data: dict[str, Any], path: Path, sha256: str) -> Profile:
                         tuple(args), _reference_keys(c, cf.get("fc", {})))
     c.done()
     return Profile(path.resolve(), name, description, source, features, rc, arming, modes, motors, startup_s,
-                   ready, telemetry, config, sha256)
+                   ready, telemetry, config, sha256, mounting)
 
 
 # ---- the tables ----------------------------------------------------------------------------------
@@ -346,7 +371,8 @@ def _rc(c: _ProfileCheck, r: dict[str, Any]) -> Rc:
         rc = Rc(order, centre, travel, lo, hi,
                 c.number(r, "sbus_us_per_step", "rc", 0.625, positive=True, high=10),
                 c.number(r, "sbus_offset_us", "rc", 880.0, low=-5000, high=5000),
-                c.number(r, "sbus_stretch", "rc", 1.0, positive=True, high=10), extra)
+                c.number(r, "sbus_stretch", "rc", 1.0, positive=True, high=10), extra,
+                tuple(c.words(r, "reverse", "rc", ("roll", "pitch", "yaw"))))
         for key, us in (("min_us", lo), ("max_us", hi)):
             if not 0 <= round(rc.raw(us)) <= 2047:
                 raise c.fail(f"rc.{key}", f"{us:g} us is SBUS value {rc.raw(us):.0f} by this mapping: "

@@ -68,9 +68,10 @@ static uint8_t msp_payload(uint8_t cmd, const tel_snapshot *s, uint8_t *p)
         }
         return 18;
     }
-    case MSP_ATTITUDE: /* roll right wing down +, pitch nose up + (0.1 deg); heading (deg) */
+    case MSP_ATTITUDE: /* as MultiWii's att.angle: roll right wing down +, pitch nose DOWN + (0.1 deg);
+                          heading (deg) */
         put16(p, round_i(f->att.roll * DEG * 10));
-        put16(p + 2, round_i(f->att.pitch * DEG * 10));
+        put16(p + 2, round_i(-f->att.pitch * DEG * 10));
         put16(p + 4, heading_deg(f, 1));
         return 6;
     case MSP_ALTITUDE: /* the fused altitude above the start (cm) and its rate, up + (cm/s) */

@@ -49,8 +49,8 @@ enum { FC_TEL_TEXT = 0, FC_TEL_MSP = 1, FC_TEL_MAVLINK = 2 };
 /* arming: channel 5 high with throttle low; or MultiWii's gesture, throttle low and yaw right held
    arm_hold_s (throttle low and yaw left held disarms) */
 enum { FC_ARM_SWITCH = 0, FC_ARM_STICKS = 1 };
-/* sbus_map: the standard scale (172..1811 -> -1..1); or MultiWii 2.4's (raw / 2 + 988 us, 1000..2000 us ->
-   -1..1), which a transmitter fills only when its SBUS values are stretched x1.25 about the centre */
+/* sbus_map: the standard scale (172..1811 -> -1..1); or MultiWii 2.4's (raw / 2 + 988 us stretched x1.25
+   about 1500 us, 1000..2000 us -> -1..1: a transmitter's 172..1811 reaches 968..1991 us) */
 enum { FC_SBUS_STANDARD = 0, FC_SBUS_MULTIWII = 1 };
 
 void config_defaults(fc_config *c);

@@ -75,12 +75,15 @@ int sbus_feed(sbus_parser *p, const uint8_t *data, size_t n, sbus_frame *out)
 
 real sbus_to_unit(uint16_t raw) { return clampd((raw - 992.0) / 819.5, -1.0, 1.0); }
 
-/* MultiWii 2.4's reading of an SBUS value (RX.cpp readSBus: ((raw) & 0x07FF) / 2 + SBUS_MID_OFFSET, the
-   offset 988 in its config.h, "SBUS Mid-Point at 1500"), then its 1000..2000 us as -1..1. Signed 32-bit
-   on purpose: where int is 16 bits (the AVR) a uint16_t promotes to unsigned, and a value under 1024
-   would wrap to a stick at full travel the other way. */
+/* MultiWii 2.4's reading of an SBUS value (RX.cpp readSerial_RX: (raw & 0x07FF) / 2 + SBUS_MID_OFFSET,
+   the offset 988 in its config.h, "SBUS Mid-Point at 1500"; then, "the SBUS data provides only about 75%
+   of the actual RX output pulse width", each value moved a quarter further from MIDRC 1500, in integer
+   steps), then its 1000..2000 us as -1..1. Signed 32-bit on purpose: where int is 16 bits (the AVR) a
+   uint16_t promotes to unsigned, and a value under 1024 would wrap to a stick at full travel the other
+   way. */
 real sbus_to_unit_multiwii(uint16_t raw)
 {
     int32_t us = (int32_t)(raw & 0x7FF) / 2 + 988;
+    us = us < 1500 ? us - (1500 - us) / 4 : us + (us - 1500) / 4;
     return clampd((us - 1500) / 500.0, -1.0, 1.0);
 }

@@ -404,7 +404,7 @@ class AvrEngine:
         return ctypes.string_at(buf, n) if n else b""
 
     def uart_counts(self, uart: int) -> dict[str, int]:
-        names = ("delivered", "frame_errors", "waiting", "tx_dropped")
+        names = ("delivered", "frame_errors", "waiting", "tx_dropped", "receiver_off")
         return {k: int(self._lib.mcu_uart_count(self._e, uart, i)) for i, k in enumerate(names)}
 
     def pin_drive(self, pin: str, schedule: list[tuple[int, int]]) -> None:

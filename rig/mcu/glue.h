@@ -142,6 +142,7 @@ typedef struct {
     uint32_t baud;
     uint8_t parity, stop_bits; /* 'N' 'E' 'O' */
     uint32_t delivered, frame_errors;
+    uint32_t receiver_off; /* bytes that arrived while RXEN was clear: lost, as on the hardware */
     uint8_t tx[MCU_TX_BYTES];
     uint32_t n_tx;
     uint32_t tx_dropped;

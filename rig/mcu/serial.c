@@ -6,7 +6,8 @@
  * frame, so a byte is read when its last stop bit ends. The receiver takes it when its set-up reads
  * the line's frame: the rate within the receiver's tolerance (UBRR, U2X), the same parity (the second
  * stop bit the receiver never checks, as the hardware); otherwise the byte is a frame error on the
- * real line, counted, and not delivered.
+ * real line, counted, and not delivered. A byte that arrives while the receiver is disabled (RXEN
+ * clear: a firmware not yet set up) is lost without a trace on the hardware: counted apart.
  *
  * A pin schedule drives an input pin to given levels at given cycles (a PPM sum): an edge on an INTx or
  * PCINT pin interrupts as on the hardware. simavr 1.6's ATmega2560 has pin change interrupts on port B
@@ -155,7 +156,9 @@ void mcu_serial_event(mcu_engine *e)
             uint8_t byte = u->bytes[u->head];
             u->head = (u->head + 1) % MCU_RX_BYTES;
             u->len--;
-            if (same_frame(e, u)) {
+            if (!(e->avr->data[u->base + 1] & 0x10)) { /* UCSRnB's RXENn */
+                u->receiver_off++;
+            } else if (same_frame(e, u)) {
                 avr_raise_irq((avr_irq_t *)u->irq, byte);
                 u->delivered++;
             } else {
@@ -188,7 +191,11 @@ MCU_API uint32_t mcu_uart_take(mcu_engine *e, uint8_t n, uint8_t *out, uint32_t 
 MCU_API uint32_t mcu_uart_count(const mcu_engine *e, uint8_t n, int which)
 {
     const mcu_uart *u = &e->uarts[n];
-    return which == 0 ? u->delivered : which == 1 ? u->frame_errors : which == 2 ? u->len : u->tx_dropped;
+    return which == 0   ? u->delivered
+           : which == 1 ? u->frame_errors
+           : which == 2 ? u->len
+           : which == 3 ? u->tx_dropped
+                        : u->receiver_off;
 }
 
 /* levels at cycles (ascending, from now on) on an input pin; slot 0..3 per pin; false when full */

@@ -151,8 +151,9 @@ class Target(Protocol):
         run at all (a missing build): the run is then not flown."""
         ...
 
-    def world_options(self) -> dict[str, Any]:
-        """What the DUT's hardware makes of the world (World.at_rest's ``topology``, ``mounting``)."""
+    def world_options(self, profile: Profile | None = None) -> dict[str, Any]:
+        """What the DUT's hardware makes of the world (World.at_rest's ``topology``, ``mounting``), as
+        the FC of ``profile`` has it wired (an MCU's motor pins and sensor mounting)."""
         ...
 
     def open(self, ctx: RunContext) -> TargetRun:

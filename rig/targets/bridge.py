@@ -110,7 +110,7 @@ class BridgeTarget:
             session.at(0.0, _psu_sampler(psu, session))
         return BridgeRun(session, psu, self.esc)
 
-    def world_options(self) -> dict[str, Any]:
+    def world_options(self, profile: Profile | None = None) -> dict[str, Any]:
         return {}
 
     def not_run_metadata(self) -> dict[str, object]:

@@ -4,7 +4,9 @@ motors, the sticks arrive on its RC input as its board file wires it (rig/mcu/bo
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
+import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -79,6 +81,52 @@ def capture_text(board: boards.Board, counts: list[dict[str, int]] | None = None
     return "; ".join(parts)
 
 
+def profile_board(board: boards.Board, profile: Profile | None) -> boards.Board:
+    """The board as the FC of ``profile`` uses it. The firmware, not the board, chooses which pin carries
+    which output and which USART talks at what speed; a board file gives them as the reference FC does.
+
+    * ``[motors] pins``: the pin of each of the FC's outputs 1..4 (MultiWii's Mega PWM_PIN D3, D5, D6,
+      D2: rear right, front right, rear left, front left); output k's pin drives plant motor
+      ``order[k]``, with the timer the board file gives that pin;
+    * ``[sensors] mounting_yaw_deg``: the sensor board turned as the firmware expects it (MultiWii's
+      GY_86 reads the MPU-6050's X axis as the vehicle's right: the GY-86 turned 90°);
+    * a telemetry port naming one of the MCU's USARTs (``usart0``): the FC's telemetry is there at the
+      profile's baud (MultiWii's SERIAL0_COM_SPEED 115200 on a board whose file gives the reference
+      FC's 500000), and the rig's polls reach it at that speed. A device path (a Linux DUT's) leaves
+      the board's.
+
+    BoardError: a pin that is not one of the board's motor pins, a USART the MCU lacks, or a baud its
+    USARTs cannot make at the board's clock."""
+    if profile is None:
+        return board
+    if profile.motors.pins:
+        by_pin = {m.pin: m for m in board.motors}
+        for pin in profile.motors.pins:
+            if pin not in by_pin:
+                raise boards.BoardError(str(profile.path), "motors.pins",
+                                        f"{pin} is not one of the board {board.name}'s motor pins "
+                                        f"({', '.join(by_pin)})")
+        motors = (dataclasses.replace(by_pin[pin], motor=profile.motors.order[k])
+                  for k, pin in enumerate(profile.motors.pins))
+        board = dataclasses.replace(board, motors=tuple(sorted(motors, key=lambda m: m.motor)))
+    if profile.mounting_yaw_deg is not None:
+        board = dataclasses.replace(board, mounting_yaw_deg=profile.mounting_yaw_deg)
+    if profile.telemetry.kind == "none":
+        return board
+    match = re.fullmatch(r"usart(\d)", profile.telemetry.port)
+    if match is None:
+        return board
+    uart, baud = int(match.group(1)), profile.telemetry.baud
+    if uart not in board.mcu.usarts:
+        raise boards.BoardError(str(profile.path), "telemetry.port", f"the {board.mcu.name} has USART "
+                                f"{', '.join(map(str, board.mcu.usarts))} only, not {uart}")
+    if boards.baud_error(board.clock_hz, baud) > boards.BAUD_TOLERANCE:
+        raise boards.BoardError(str(profile.path), "telemetry.baud",
+                                f"{baud} baud is over {boards.BAUD_TOLERANCE:.0%} off anything a USART "
+                                f"makes at {board.clock_hz} Hz")
+    return dataclasses.replace(board, telemetry_uart=uart, telemetry_baud=baud)
+
+
 class McuTarget:
     """``board``: a board file's name or path; ``firmware``: the image. Both are checked here, before
     anything runs (BoardError, FirmwareError). ``trace``: a folder for each run's VCD trace,
@@ -109,6 +157,7 @@ class McuTarget:
     def describe(self, scenario: Scenario, work: Path, notes: list[str],
                  profile: Profile | None = None) -> dict[str, object]:
         mcu = self.board.mcu
+        board = profile_board(self.board, profile)  # (BoardError before anything runs)
         for uart in sorted({s.uart for s in scenario.serial} | _listened(scenario)):
             if uart not in mcu.usarts:
                 raise ValueError(f"the scenario talks to USART {uart}; the {mcu.name} has USART "
@@ -130,31 +179,36 @@ class McuTarget:
             "board": self.board.name,
             "board_file": str(self.board.path),
             "fc_config": dict(scenario.fc) if fc_eeprom else None,
-            "capture": capture_text(self.board),
+            "capture": capture_text(board),
             "lockstep": True,
             **eeprom,
         }
 
-    def world_options(self) -> dict[str, Any]:
-        # (the board file wires each motor pin to its plant motor: no output order on top of it)
-        return {"topology": self.board.topology, "mounting": boards.mounting(self.board.mounting_yaw_deg),
-                "motor_order": (1, 2, 3, 4), "mpu_address": self.board.mpu_address}
+    def world_options(self, profile: Profile | None = None) -> dict[str, Any]:
+        # (the board file, or the profile's pins, wire each motor pin to its plant motor: no output order
+        # on top of it)
+        board = profile_board(self.board, profile)
+        return {"topology": board.topology, "mounting": boards.mounting(board.mounting_yaw_deg),
+                "motor_order": (1, 2, 3, 4), "mpu_address": board.mpu_address}
 
     def open(self, ctx: RunContext) -> McuRun:
         trace = None if self.trace is None else self.trace / f"{ctx.scenario.stem}{self.trace_options.suffix}"
         eeprom = ctx.profile.config.eeprom if ctx.profile is not None else None
         return McuRun(self.session(ctx.world, ctx.scenario.duration, ctx.scenario.fc, ctx.wall_timeout,
                                    trace, eeprom_out=ctx.work / "eeprom.bin", eeprom_image=eeprom,
-                                   telemetry=telemetry_path(ctx.profile), listen=_listened(ctx.scenario)))
+                                   telemetry=telemetry_path(ctx.profile), listen=_listened(ctx.scenario),
+                                   profile=ctx.profile))
 
     def session(self, world: World, duration: float, fc: Mapping[str, Any], wall_timeout: float,
                 trace: Path | None = None, sim_timeout: float = 600.0,
                 eeprom_out: Path | None = None, eeprom_image: Path | None = None,
-                telemetry: str = TELEMETRY_PATH, listen: frozenset[int] = frozenset()) -> McuSession:
+                telemetry: str = TELEMETRY_PATH, listen: frozenset[int] = frozenset(),
+                profile: Profile | None = None) -> McuSession:
         """The firmware on its board in ``world`` for ``duration`` sim seconds; ``fc``: the [fc] table
         that becomes the EEPROM on a board that says so (an empty one: the reference FC's defaults),
         unless an EEPROM image was given (``--eeprom``, else ``eeprom_image``: the FC profile's, before
-        the board file's); ``eeprom_out``: where the EEPROM goes at the end."""
+        the board file's); ``eeprom_out``: where the EEPROM goes at the end; ``profile``: the FC's,
+        whose telemetry USART and baud replace the board's (profile_board)."""
         eeprom: bytes | None = self.eeprom
         if eeprom is None and eeprom_image is not None:
             eeprom = eeprom_image.read_bytes()
@@ -164,8 +218,9 @@ class McuTarget:
             from rig.scenarios.eeprom import image  # the reference firmware's layout
 
             eeprom = image(fc)
-        cfg = McuConfig(self.board, self.firmware, duration, RC_PATH, telemetry, eeprom, wall_timeout,
-                        sim_timeout, trace, self.trace_options, eeprom_out, listen, self.hang_limit)
+        board = profile_board(self.board, profile)
+        cfg = McuConfig(board, self.firmware, duration, RC_PATH, telemetry, eeprom, wall_timeout, sim_timeout,
+                        trace, self.trace_options, eeprom_out, listen, self.hang_limit)
         return McuSession(cfg, world)
 
     def not_run_metadata(self) -> dict[str, object]:

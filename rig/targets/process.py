@@ -146,7 +146,7 @@ class ProcessTarget:
         session = Session(cfg, ctx.world)
         return ProcessRun(session, install_capture(session, ctx.scenario.capture, self.corrupt_every))
 
-    def world_options(self) -> dict[str, Any]:
+    def world_options(self, profile: Profile | None = None) -> dict[str, Any]:
         return dict(self.hardware)
 
     def not_run_metadata(self) -> dict[str, object]:

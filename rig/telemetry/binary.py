@@ -51,8 +51,8 @@ def _msp_values(reply: msp.Reply) -> dict[str, float]:
         f = reply.fields()
     except ValueError:
         return {}
-    if reply.command == msp.MSP_ATTITUDE:
-        return {"roll": f["roll_decideg"] / 10, "pitch": f["pitch_decideg"] / 10,
+    if reply.command == msp.MSP_ATTITUDE:  # (MultiWii's angle[PITCH] is nose down +: the column's nose up +)
+        return {"roll": f["roll_decideg"] / 10, "pitch": -f["pitch_decideg"] / 10,
                 "yaw": float(f["heading_deg"])}
     if reply.command == msp.MSP_ALTITUDE:
         return {"alt": f["alt_cm"] / 100}

@@ -161,17 +161,19 @@ def test_mavlink_stream_decodes_with_pymavlink(tmp_path: Path, fc: Path) -> None
     assert all((b - a) % 256 == 1 for a, b in zip(seqs, seqs[1:], strict=False))
 
 
-def test_multiwii_sbus_scale_needs_the_stretch_to_reach_full_yaw(tmp_path: Path, fc: Path) -> None:
-    """MultiWii 2.4 reads SBUS as raw / 2 + 988 us: a transmitter's full right yaw (raw 1811) is 1893 us,
-    short of its 1900 us arming threshold; stretched x1.25 about the centre (raw = 2 (us - 988): 2024 for
-    2000 us) it arms."""
-    def mw_raw(us: float) -> int:
-        return round(2 * (us - 988))
+def test_multiwii_sbus_scale_is_its_rx_cpps(tmp_path: Path, fc: Path) -> None:
+    """MultiWii 2.4's RX.cpp reads SBUS as raw / 2 + 988 us, then moves it a quarter further from 1500
+    (integer steps): right yaw at raw 1660 is 1818 + 79 = 1897 us, short of its 1900 us arming
+    threshold (MAXCHECK), so the gesture never arms; a transmitter's full right yaw, 1811, is 1893 + 98 =
+    1991 us, and it arms."""
+    def mw_us(raw: int) -> int:  # RX.cpp, written out
+        us = raw // 2 + 988
+        return us - (1500 - us) // 4 if us < 1500 else us + (us - 1500) // 4
 
-    assert 1811 // 2 + 988 < 1900 and mw_raw(2000) // 2 + 988 == 2000
+    assert mw_us(1660) == 1897 and mw_us(1811) == 1991 and mw_us(172) == 968 < 1100
     conf = f"rc_path = {RC}\ntelemetry_path = {TEL}\nsbus_map = 1\narming = 1\narm_hold_s = 0.5\n"
-    plan = frames(1.1, 2.5, lambda t: sticks(standard_raw(-1), 1811))    # unstretched: never arms
-    plan += frames(2.5, 3.5, lambda t: sticks(mw_raw(1000), mw_raw(2000)))  # stretched: arms at 3.0
+    plan = frames(1.1, 2.5, lambda t: sticks(standard_raw(-1), 1660))    # 1897 us: never arms
+    plan += frames(2.5, 3.5, lambda t: sticks(standard_raw(-1), 1811))   # 1991 us: arms at 3.0
     session, outcome, _, err = run_fc(tmp_path, fc, conf, duration=3.5, serial=(RC, TEL), events=plan)
     assert outcome.verdict == "ok", (outcome.error, err)
     rows = telemetry(session, TEL)

@@ -145,3 +145,49 @@ def test_bad_serial_tables_name_the_key(tmp_path: Path, table: str, words: str) 
                     + table)
     with pytest.raises(ScenarioError, match=re.escape(words)):
         schema.load(path)
+
+
+PROFILE_BAUD_SCENARIO = """
+[scenario]
+name = "msp at the profile's baud"
+duration = 0.5
+[sensors]
+noise = false
+[[serial]]
+t = 0.3
+uart = 0
+msp = 100
+[[criteria]]
+uart = 0
+msp_reply = 100
+start = 0.3
+"""
+
+
+def test_a_profiles_telemetry_usart_and_baud_replace_the_boards(tmp_path: Path) -> None:
+    """The board file wires USART0 for the reference FC's 500000 baud; the FC flown (msp_calib, as
+    MultiWii, at 115200) is described by a profile whose telemetry is "usart0" at 115200: the scenario's
+    MSP request (sent at the USART's baud) gets its reply, and no byte is a frame error."""
+    board = tmp_path / "mega-tel.toml"
+    board.write_text(BOARD + '[telemetry]\nuart = 0\nbaud = 500_000\nformat = "text"\n')
+    profile = tmp_path / "mw.toml"
+    profile.write_text((REPO / "scenarios" / "profiles" / "multiwii-2.4.toml").read_text())
+    scenario = tmp_path / "baud.toml"
+    scenario.write_text(PROFILE_BAUD_SCENARIO)
+    done = subprocess.run([sys.executable, "-m", "rig.cli", "run", "--mcu", str(board), "--firmware",
+                           str(firmware("msp_calib", "atmega2560")), "--fc", str(profile), str(scenario),
+                           "--out", str(tmp_path / "out")],
+                          capture_output=True, text=True, cwd=REPO, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    result = json.loads((tmp_path / "out" / "baud" / "result.json").read_text())
+    assert result["metadata"]["mcu"]["uarts"]["0"]["frame_errors"] == 0
+    # a USART the MCU lacks, or a baud no USART makes at 16 MHz, is the profile's error before the run
+    for key, bad, words in (("port", '"usart7"', "has USART 0, 1, 2, 3 only, not 7"),
+                            ("baud", "3_000_000", "telemetry.baud: 3000000 baud is over 3% off")):
+        profile.write_text(re.sub(rf"(?m)^{key} = .*$", f"{key} = {bad}", profile.read_text(), count=1))
+        done = subprocess.run([sys.executable, "-m", "rig.cli", "run", "--mcu", str(board), "--firmware",
+                               str(firmware("msp_calib", "atmega2560")), "--fc", str(profile),
+                               str(scenario), "--out", str(tmp_path / "out")],
+                              capture_output=True, text=True, cwd=REPO, timeout=300)
+        assert done.returncode == 2 and words in done.stderr, done.stderr
+        profile.write_text((REPO / "scenarios" / "profiles" / "multiwii-2.4.toml").read_text())

@@ -160,3 +160,34 @@ def test_what_the_firmware_saw_go_wrong_on_its_bus_is_in_every_report(tmp_path: 
     assert 'name="bus_problems" value="1: abandoned waits 1"' in (run_dir / "junit.xml").read_text()
     _, _, records = read(run_dir / "run.mcap")
     assert json.loads(records["result"]["bus_problems"]) == want
+
+
+def test_a_profile_wires_the_motors_and_the_sensor_board_as_its_firmware_expects() -> None:
+    """MultiWii 2.4 on a Mega drives its QUADX outputs (rear right, front right, rear left, front left)
+    on D3, D5, D6, D2 (Output.cpp PWM_PIN) and reads the GY-86's MPU-6050 X axis as the vehicle's
+    right (def.h GY_86: roll = -X, pitch = -Y). pulse_stop pulses D2 (PE4) only: under the multiwii-2.4
+    profile that is the front-left motor, the plant's X motor 2; the board file alone gives it motor 1.
+    The sensors' frame is the board turned 90°: chip x = body right, y = forward, z = up (FRD rows)."""
+    from rig.mcu.session import McuSession
+    from rig.plant.variables import PWM_INPUTS
+    from rig.scenarios import profile as profiles
+    from rig.world import World
+
+    target = McuTarget("mega2560-gy86", firmware("pulse_stop", "atmega2560"))
+    multiwii = profiles.load("multiwii-2.4")
+    options = target.world_options(multiwii)
+    assert options["mounting"] == ((0.0, 1.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, -1.0))
+    assert target.world_options()["mounting"] == ((1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (0.0, 0.0, -1.0))
+    seen: list[float] = []
+
+    def look(s: McuSession) -> None:
+        seen[:] = [s.world.plant.u[s.world.plant.u_index[n]] for n in PWM_INPUTS[:4]]
+
+    for profile, motor in ((multiwii, 2), (None, 1)):
+        world = World.at_rest(seed=0, **target.world_options(profile))
+        session = target.session(world, 0.4, {}, 60.0, profile=profile)
+        session.at(0.3, look)
+        outcome = session.run()
+        world.close()
+        assert outcome.verdict == "ok", outcome.error
+        assert seen == [1500.0 if k == motor else 0.0 for k in (1, 2, 3, 4)]

@@ -87,3 +87,14 @@ def test_the_mavlink_reader_takes_pymavlinks_frames_through_garbage():
     assert [m.get_type() for m in got] == ["HEARTBEAT", "ATTITUDE"]
     assert armed(got[0]) and got[1].time_boot_ms == 1234 and got[1].pitch == pytest.approx(-0.2)
     assert reader.bad >= 1
+
+
+def test_msp_attitude_becomes_the_columns_signs() -> None:
+    """MultiWii 2.4's MSP_ATTITUDE sends its att.angle: angle[PITCH] = atan2(EstG.Y, ...) with the
+    accelerometer's pitch axis pointing backwards (def.h GY_86: accADC[PITCH] = -Y, the chip's Y
+    forward), so a nose-down attitude is positive, as its mixer's pitch (front motors - pitch) is. The
+    columns' est_pitch is nose up +: 4.5 deg nose down (45 in 0.1 deg) is -4.5; roll keeps its sign."""
+    from rig.telemetry.binary import _msp_values
+
+    reply = msp.ReplyReader().feed(frame(b">", 108, ATTITUDE))[0]
+    assert _msp_values(reply) == {"roll": -12.3, "pitch": -4.5, "yaw": -170.0}

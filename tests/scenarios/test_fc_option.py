@@ -106,22 +106,23 @@ def test_the_service_flies_shipped_profiles_only(tmp_path: Path) -> None:
 
 def test_a_sweep_the_fc_cannot_fly_is_refused_before_it_runs(tmp_path: Path) -> None:
     spec = tmp_path / "spec.toml"
-    spec.write_text('[sweep]\nscenario = "rc_loss_failsafe"\nseeds = 2\n')
+    spec.write_text('[sweep]\nscenario = "step_altitude"\nseeds = 2\n')
     out = tmp_path / "out"
     done = subprocess.run([PY, "-m", "rig.cli", "sweep", str(spec), "--out", str(out), "--fc",
                            "multiwii-2.4"], capture_output=True, text=True, timeout=120)
-    assert done.returncode == 2 and "has no failsafe" in done.stderr, done.stderr
+    assert done.returncode == 2 and "has no alt_offset channel" in done.stderr, done.stderr
     assert not (out / "runs").exists()
 
 
 def test_a_scenario_the_fc_cannot_fly_is_skipped_not_failed(tmp_path: Path) -> None:
     out = tmp_path / "out"
-    done = subprocess.run([PY, "-m", "rig.cli", "run", "rc_loss_failsafe", "--fc", "multiwii-2.4", "--out",
+    done = subprocess.run([PY, "-m", "rig.cli", "run", "step_altitude", "--fc", "multiwii-2.4", "--out",
                            str(out)], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr  # neither a pass nor a failure
-    assert "SKIPPED" in done.stderr and "has no failsafe" in done.stderr and "1 skipped" in done.stderr
-    result = json.loads((out / "rc_loss_failsafe" / "result.json").read_text())
-    assert result["verdict"] == "skipped" and "has no failsafe" in result["error"]
+    assert "SKIPPED" in done.stderr and "1 skipped" in done.stderr
+    assert "has no alt_offset channel" in done.stderr
+    result = json.loads((out / "step_altitude" / "result.json").read_text())
+    assert result["verdict"] == "skipped" and "has no alt_offset channel" in result["error"]
     suite = ET.parse(out / "junit.xml").getroot().find("testsuite")
     assert suite is not None and suite.get("skipped") == str(len(result["measurements"]))
     assert suite.get("failures") == "0" and suite.get("errors") == "0"

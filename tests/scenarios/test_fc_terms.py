@@ -187,11 +187,10 @@ def test_a_free_vehicle_given_take_off_throttle_that_stays_down_fails(tmp_path: 
 
 LIBRARY = Path(__file__).resolve().parents[2] / "scenarios" / "library"
 #: what each shipped profile cannot fly of the library, and the words of why (from the FCs' documented
-#: features: MultiWii's stock config.h has no failsafe; neither third-party FC has the reference FC's
-#: altitude-setpoint knob)
+#: features: neither third-party FC has the reference FC's altitude-setpoint knob)
 CANNOT = {
     "reference": {},
-    "multiwii-2.4": {"rc_loss_failsafe": "has no failsafe", "step_altitude": "has no alt_offset channel"},
+    "multiwii-2.4": {"step_altitude": "has no alt_offset channel"},
     "arducopter-4": {"step_altitude": "has no alt_offset channel"},
 }
 

@@ -5,6 +5,7 @@ them. Expected SBUS values come from each FC's published mapping, written out he
 from __future__ import annotations
 
 import hashlib
+import struct
 from pathlib import Path
 
 import pytest
@@ -30,6 +31,7 @@ sbus_us_per_step = 0.625
 sbus_offset_us = 880
 sbus_stretch = 1.0
 extra = { alt_offset = 8 }
+reverse = ["pitch"]
 
 [arming]
 method = "switch"
@@ -51,6 +53,10 @@ yaw_rate_dps = 180
 frame = "x"
 order = [4, 1, 3, 2]
 pwm_channels = 6
+pins = ["PE5", "PE3", "PH3", "PE4"]
+
+[sensors]
+mounting_yaw_deg = 90
 
 [startup]
 seconds = 2.5
@@ -81,7 +87,7 @@ def test_every_key_is_read_as_written(tmp_path: Path) -> None:
     assert p.sha256 == hashlib.sha256(path.read_bytes()).hexdigest()
     assert (p.rc.order, p.rc.centre_us, p.rc.travel_us, p.rc.min_us, p.rc.max_us) == ("TAER", 1500, 500, 1000,
                                                                                       2000)
-    assert p.rc.extra == {"alt_offset": 8}
+    assert p.rc.extra == {"alt_offset": 8} and p.rc.reverse == ("pitch",)
     a = p.arming
     assert (a.method, a.channel, a.on_us, a.off_us) == ("switch", 6, 1900, 1100)
     assert (a.detect, a.idle_us) == ("motors", 1080)
@@ -89,6 +95,7 @@ def test_every_key_is_read_as_written(tmp_path: Path) -> None:
     assert (m.channel, m.default, m.angle_deg, m.rate_dps, m.yaw_rate_dps) == (5, "angle", 45, 500, 180)
     assert m.positions == {"acro": 1000, "angle": 1500, "althold": 2000}
     assert (p.motors.frame, p.motors.order, p.motors.pwm_channels) == ("x", (4, 1, 3, 2), 6)
+    assert p.motors.pins == ("PE5", "PE3", "PH3", "PE4") and p.mounting_yaw_deg == 90
     assert p.startup_s == 2.5
     assert (p.telemetry.kind, p.telemetry.port, p.telemetry.baud, p.telemetry.poll_hz) == (
         "text", "/dev/ttyTEL0", 57600, 20)
@@ -103,7 +110,7 @@ def test_the_channels_follow_the_order_and_the_standard_sbus_mapping(tmp_path: P
     ch = sticks.channels(cmap)
     assert ch[0] == 192  # T (TAER): throttle 0 is the bottom of its travel, 1000 us
     assert ch[1] == 1792  # A: roll full right, 2000 us
-    assert ch[2] == 192  # E: pitch full down
+    assert ch[2] == 1792  # E: pitch full nose down, on a reversed channel (reverse = ["pitch"]): 2000 us
     assert ch[3] == round((1750 - 880) / 0.625)  # R: yaw half right, 1750 us
     assert ch[4] == 192  # channel 5: acro at 1000 us
     assert ch[5] == round((1900 - 880) / 0.625)  # channel 6: the arm switch on, 1900 us
@@ -129,6 +136,8 @@ def test_multiwii_s_sbus_stretch_is_inverted() -> None:
     assert p.rc.us(1024) == pytest.approx(1500)
     cmap = p.channel_map()
     assert Sticks(throttle=0.0, yaw=1.0).channels(cmap)[2:4] == [224, 1824]
+    # its QUADX mixer pitches nose down for a channel above 1500 us: the rig's nose up is 1000 us
+    assert Sticks(roll=1.0, pitch=1.0).channels(cmap)[:2] == [1824, 224]
     # arming by sticks: throttle low + yaw right held as the gesture, whatever the sticks were
     held = Sticks(throttle=0.6, yaw=-0.2, gesture="arm").channels(cmap)
     assert held[2:4] == [224, 1824]
@@ -166,6 +175,10 @@ def test_every_shipped_profile_loads_and_a_bad_name_gets_a_suggestion() -> None:
     (("order = [4, 1, 3, 2]", "order = [1, 1, 3, 2]"), "motors.order", "each once"),
     (('frame = "x"', 'frame = "h"'), "motors.frame", "expected one of"),
     (("pwm_channels = 6", "pwm_channels = 40"), "motors.pwm_channels", "4..16"),
+    (('pins = ["PE5", "PE3"', 'pins = ["PE5", "PE5"'), "motors.pins", "each once"),
+    (('reverse = ["pitch"]', 'reverse = ["throttle"]'), "rc.reverse", "expected one of"),
+    (('pins = ["PE5", "PE3"', 'pins = ["PE5", "D3"'), "motors.pins", "the four pins"),
+    (("mounting_yaw_deg = 90", "mounting_yaw_deg = 45"), "sensors.mounting_yaw_deg", "0, 90, 180 or 270"),
     (('kind = "text"', 'kind = "mavlnk"'), "telemetry.kind", "did you mean 'mavlink'"),
     (('params = "fc.parm"', 'params = "gone.parm"'), "config.params", "no such file"),
     (('features = ["failsafe"]', 'features = ["failsave"]'), "profile.features", "did you mean 'failsafe'"),
@@ -203,11 +216,31 @@ def test_detecting_arming_by_telemetry_needs_telemetry(tmp_path: Path) -> None:
         P.load(write(tmp_path, text))
 
 
-def test_what_a_profile_cannot_fly_is_said() -> None:
-    mw, ref = P.load("multiwii-2.4"), P.load("reference")
+def test_what_a_profile_cannot_fly_is_said(tmp_path: Path) -> None:
+    ref = P.load("reference")
+    plain = P.load(write(tmp_path, FULL.replace('features = ["failsafe"]', "features = []")))
     assert P.fly_check(ref, ("angle", "althold", "failsafe"), {}) == ""
-    assert "has no failsafe" in P.fly_check(mw, ("angle", "failsafe"), {})
+    assert "has no failsafe" in P.fly_check(plain, ("angle", "failsafe"), {})
     assert "has no acro" in P.fly_check(ref, ("acro",), {})
     assert "more than a full stick" in P.fly_check(ref, ("angle",), {"roll_deg": 31.0})
     assert P.stick(ref, "roll_deg", 10.0) == ("roll", pytest.approx(1 / 3))
     assert P.stick(ref, "yaw_dps", -45.0) == ("yaw", pytest.approx(-0.5))
+
+
+def test_the_multiwii_set_up_sends_what_multiwii_2_4_reads() -> None:
+    """docs/examples/multiwii-setup.toml, the set-up docs/multiwii.md runs: each MSP request has the
+    payload size MultiWii 2.4's Protocol.cpp reads for it (MSP_SET_BOX: CHECKBOXITEMS u16, 5 boxes for
+    QUADX + GY_86: ARM, ANGLE, HORIZON, BARO, MAG; MSP_SET_RC_TUNING: 7 bytes from rcRate8;
+    MSP_SET_PID: 3 x PIDITEMS (10); MSP_ACC_CALIBRATION and MSP_EEPROM_WRITE: none), in that order, and
+    the modes it sets are the profile's: ANGLE at AUX1 middle and high (bits 1, 2), BARO at high."""
+    from rig.scenarios.schema import load
+
+    sc = load(Path(__file__).resolve().parents[2] / "docs" / "examples" / "multiwii-setup.toml")
+    sends = [s.msp for s in sorted(sc.serial, key=lambda s: s.t) if s.msp is not None]
+    assert [(cmd, len(payload)) for cmd, payload in sends] == [
+        (203, 10), (204, 7), (202, 30), (205, 0), (250, 0)]
+    boxes = struct.unpack("<5H", sends[0][1])
+    assert boxes == (0, 0b110, 0, 0b100, 0)
+    mw = P.load("multiwii-2.4")
+    assert mw.modes.positions == {"acro": 1000, "angle": 1500, "althold": 2000}
+    assert sends[1][1][1] == 0  # rcExpo 0: the profile's angle_deg is linear in the stick
