@@ -206,8 +206,10 @@ class World:
                          drift_pa_per_s=baro_drift_pa_per_s)
         # the chips are the chip core in C (emulators/chips/), fed by these models
         bus_faults: dict[str, FaultSet] = {k: faults[k] for k in ("mpu", "hmc", "baro_bus") if k in faults}
-        board = build_chip_board(imu, mag, baro, topology, faults=bus_faults, baro_seed=seed + 3,
-                                 mpu_address=mpu_address)
+        # (with noise, the MS5611 adds its datasheet RMS noise for the OSR asked: a real one never
+        # reads the same twice, and drivers that judge a constant reading stuck rely on that)
+        board = build_chip_board(imu, mag, baro, topology, faults=bus_faults, osr_noise=noise,
+                                 baro_seed=seed + 3, mpu_address=mpu_address)
         world = cls(plant, board, pwm=[PwmChannel() for _ in range(pwm_channels)], motor_order=motor_order)
         truth.world = world
         return world
