@@ -15,7 +15,8 @@ every key.
     [motors]     frame ("+" | "x"), order (the FC's outputs -> the plant's motors), pwm_channels
     [startup]    seconds, ready ("telemetry")
     [telemetry]  kind ("none" | "text" | "msp" | "mavlink"), port, baud, poll_hz
-    [config]     eeprom, params (files, relative to the profile), args, fc (the reference FC's keys)
+    [config]     eeprom, params (files, relative to the profile), args ({params}, {state}), fc (the
+                 reference FC's keys)
 """
 
 from __future__ import annotations
@@ -45,6 +46,8 @@ MOTOR_KEYS: Final = {"frame", "order", "pwm_channels"}
 STARTUP_KEYS: Final = {"seconds", "ready"}
 TELEMETRY_KEYS: Final = {"kind", "port", "baud", "poll_hz"}
 CONFIG_KEYS: Final = {"eeprom", "params", "args", "fc"}
+#: in config.args: the folder of the FC's own files, fresh for every run
+STATE: Final = "{state}"
 #: modes whose sticks command rates (rate_dps per full stick), not angles
 RATE_MODES: Final = ("acro", "rate")
 ARMING_METHODS: Final = ("switch", "sticks", "telemetry")
@@ -135,9 +138,19 @@ class Config:
     #: scenario's own [fc] table: how the rig's own FC is made to fly as a third-party one does
     fc: tuple[tuple[str, str], ...] = ()
 
-    def arguments(self) -> list[str]:
-        """The FC's extra arguments, ``{params}`` in them replaced by the parameter file's path."""
-        return [a.replace("{params}", str(self.params or "")) for a in self.args]
+    @property
+    def keeps_state(self) -> bool:
+        """Whether the FC's arguments name a folder for its own files (``{state}``)."""
+        return any(STATE in a for a in self.args)
+
+    def arguments(self, state: Path | None = None) -> list[str]:
+        """The FC's extra arguments, ``{params}`` in them replaced by the parameter file's path and
+        ``{state}`` by ``state``: a folder, empty at the start of the run, for the files an FC keeps
+        between boots (ArduPilot's parameter storage): without it they would land in the caller's
+        folder and the next run would start from what this one saved."""
+        if self.keeps_state and state is None:
+            raise ValueError("the FC's arguments name {state}: a folder for its files is needed")
+        return [a.replace("{params}", str(self.params or "")).replace(STATE, str(state)) for a in self.args]
 
 
 @dataclass(frozen=True)
