@@ -51,9 +51,10 @@ def test_a_run_into_the_same_folder_starts_from_an_empty_state(tmp_path: Path) -
 
 def test_exec_gives_an_empty_folder_and_removes_it_after(tmp_path: Path) -> None:
     # the command reports what it found in the folder, then leaves a file there
-    script = "import json, os, sys; d = sys.argv[-1]; print(json.dumps([d, os.listdir(d)])); open(d + '/x', 'w')"
-    done = subprocess.run([PY, "-m", "rig.cli", "exec", "--fc", str(state_profile(tmp_path)), "--allow-no-devices",
-                           "--wall-timeout", "60", "--", PY, "-c", script],
+    script = ("import json, os, sys; d = sys.argv[-1]; print(json.dumps([d, os.listdir(d)])); "
+              "open(d + '/x', 'w')")
+    done = subprocess.run([PY, "-m", "rig.cli", "exec", "--fc", str(state_profile(tmp_path)),
+                           "--allow-no-devices", "--wall-timeout", "60", "--", PY, "-c", script],
                           capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     folder, found = json.loads(done.stdout.splitlines()[-1])
