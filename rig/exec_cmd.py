@@ -198,7 +198,8 @@ def main(args: argparse.Namespace) -> int:
     _writable(parser, "--log", args.log)
     _writable(parser, "--summary", args.summary)
     world = World.at_rest(seed=args.seed, topology=args.topology, noise=not args.no_noise,
-                          params=params, pwm_channels=args.pwm_channels, motor_order=motor_order)
+                          params=params, pwm_channels=args.pwm_channels, motor_order=motor_order,
+                          baro_osr_noise=profile is not None and profile.baro_noise)
     if args.bridge is not None and args.bridge != "virtual":
         world.close()
         parser.error("a command runs against the virtual bridge only (--bridge virtual); behind a real "

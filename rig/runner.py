@@ -244,6 +244,7 @@ def run(
         mag_disturbance=scenario.mag_disturbance_at if any(scenario.mag_disturbance) else None,
         baro_noise_pa=scenario.baro_noise_pa,
         baro_drift_pa_per_s=scenario.baro_drift_pa_per_s,
+        baro_osr_noise=profile.baro_noise,
         **{"motor_order": profile.motors.order, "pwm_channels": max(profile.motors.pwm_channels, 8),
            **target.world_options()},
     )

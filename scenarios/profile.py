@@ -13,7 +13,7 @@ every key.
                  (sticks -> "low" | "centre" | "high"), hold_s, detect ("telemetry" | "motors"), idle_us
     [modes]      channel, default, positions (mode -> µs), angle_deg, rate_dps, yaw_rate_dps
     [motors]     frame ("+" | "x"), order (the FC's outputs -> the plant's motors), pwm_channels
-    [startup]    seconds, ready ("telemetry")
+    [startup]    seconds, ready ("telemetry"), baro_noise
     [telemetry]  kind ("none" | "text" | "msp" | "mavlink"), port, baud, poll_hz
     [config]     eeprom, params (files, relative to the profile), args ({params}, {state}), fc (the
                  reference FC's keys)
@@ -43,7 +43,7 @@ RC_KEYS: Final = {"order", "centre_us", "travel_us", "min_us", "max_us", "sbus_u
 ARMING_KEYS: Final = {"method", "channel", "on_us", "off_us", "arm", "disarm", "hold_s", "detect", "idle_us"}
 MODE_KEYS: Final = {"channel", "default", "positions", "angle_deg", "rate_dps", "yaw_rate_dps"}
 MOTOR_KEYS: Final = {"frame", "order", "pwm_channels"}
-STARTUP_KEYS: Final = {"seconds", "ready"}
+STARTUP_KEYS: Final = {"seconds", "ready", "baro_noise"}
 TELEMETRY_KEYS: Final = {"kind", "port", "baud", "poll_hz"}
 CONFIG_KEYS: Final = {"eeprom", "params", "args", "fc"}
 #: in config.args: the folder of the FC's own files, fresh for every run
@@ -169,6 +169,9 @@ class Profile:
     telemetry: Telemetry
     config: Config
     sha256: str
+    #: the MS5611 reads its datasheet noise: the FC's start-up wants a barometer whose reading moves
+    #: (ArduPilot: a pressure unchanged for 2 s is a stuck barometer), and a plant at rest holds one
+    baro_noise: bool = False
 
     @property
     def mode_names(self) -> tuple[str, ...]:
@@ -299,11 +302,12 @@ def check(data: dict[str, Any], path: Path, sha256: str) -> Profile:
                                          f"FC's outputs (e.g. [4, 1, 3, 2]), got {order!r}")
         motors = Motors(c.string(m, "frame", "motors", "+", choices=("+", "x")), tuple(order),
                         c.integer(m, "pwm_channels", "motors", 4, 16, default=8))
-    startup_s, ready = 0.0, ""
+    startup_s, ready, baro_noise = 0.0, "", False
     with c.part():
         s = t["startup"]
         startup_s = c.number(s, "seconds", "startup", 0.0, low=0, high=600)
         ready = c.string(s, "ready", "startup", "", choices=("", "telemetry"))
+        baro_noise = c.boolean(s, "baro_noise", "startup", False)
     telemetry = Telemetry("none", "", 0, 0.0)
     with c.part():
         tel = t["telemetry"]
@@ -333,7 +337,7 @@ def check(data: dict[str, Any], path: Path, sha256: str) -> Profile:
                         tuple(args), _reference_keys(c, cf.get("fc", {})))
     c.done()
     return Profile(path.resolve(), name, description, source, features, rc, arming, modes, motors, startup_s,
-                   ready, telemetry, config, sha256)
+                   ready, telemetry, config, sha256, baro_noise)
 
 
 # ---- the tables ----------------------------------------------------------------------------------

@@ -147,6 +147,16 @@ def test_arducopter_maps_sbus_as_ardupilot_does() -> None:
     assert args[args.index("--defaults") + 1] == str(p.config.params)
     assert args[args.index("--storage-directory") + 1] == "/run/fc-state"  # its storage starts empty
     assert args[args.index("--serial2") + 1] == "/dev/ttyRC0"  # SBUS, SERIAL2_PROTOCOL 23
+    assert p.baro_noise  # (AP_Baro: a pressure unchanged for 2 s is unhealthy)
+
+
+def test_the_barometer_s_noise_is_asked_for_by_the_profile(tmp_path: Path) -> None:
+    assert not P.load(write(tmp_path, FULL)).baro_noise  # the default: an exact barometer
+    on = write(tmp_path, FULL.replace("seconds = 2.5", "seconds = 2.5\nbaro_noise = true"), "on.toml")
+    assert P.load(on).baro_noise
+    bad = write(tmp_path, FULL.replace("seconds = 2.5", 'seconds = 2.5\nbaro_noise = "yes"'), "bad.toml")
+    with pytest.raises(P.ProfileError, match=r"startup.baro_noise: expected true or false"):
+        P.load(bad)
 
 
 def test_every_shipped_profile_loads_and_a_bad_name_gets_a_suggestion() -> None:
