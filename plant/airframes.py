@@ -23,12 +23,11 @@ the principal moments obeying the triangle inequality, ...): a file that breaks 
 from __future__ import annotations
 
 import difflib
-import hashlib
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from rig.plant.toml_file import TomlFileError, read_toml
 from rig.plant.variables import PARAMETERS, check_parameters, triangle_broken
 
 #: Where the shipped airframe files are
@@ -96,14 +95,10 @@ def load(name_or_file: str | Path = DEFAULT_AIRFRAME) -> Airframe:
     path = resolve(name_or_file)
     file = str(path)
     try:
-        raw = path.read_bytes()
-    except OSError as e:
-        raise AirframeError(file, "", f"cannot read: {e.strerror}") from None
-    try:
-        data = tomllib.loads(raw.decode("utf-8"))
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
-        raise AirframeError(file, "", f"not valid TOML: {e}") from None
-    return check(data, path, hashlib.sha256(raw).hexdigest())
+        toml = read_toml(path)
+    except TomlFileError as e:
+        raise AirframeError(file, "", str(e)) from None
+    return check(toml.data, path, toml.sha256)
 
 
 def _unknown(file: str, table: str, keys: Any, known: tuple[str, ...]) -> None:

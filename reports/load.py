@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from rig.reports import telemetry
+from rig.reports.values import from_json_number
 from rig.scenarios.criteria import Measurement
 from rig.scenarios.result import RunResult, ScenarioRecord
 from rig.scenarios.signals import SIGNALS
@@ -24,12 +25,6 @@ class NotAReportFolder(ValueError):
     pass
 
 
-def _number(v: object) -> float:
-    if isinstance(v, int | float):
-        return float(v)
-    return {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}.get(str(v), math.nan)
-
-
 def read_run(folder: Path) -> RunResult:
     data = json.loads((folder / "result.json").read_text())
     meta = data.get("metadata") or {}
@@ -40,7 +35,8 @@ def read_run(folder: Path) -> RunResult:
         str(meta.get("scenario_sha256") or ""),
     )
     measurements = [
-        Measurement(**{**{k: v for k, v in m.items() if k in FIELDS}, "value": _number(m.get("value"))})
+        Measurement(**{**{k: v for k, v in m.items() if k in FIELDS},
+                       "value": from_json_number(m.get("value"), m.get("value_reason"))})
         for m in data.get("measurements", [])
     ]
     csv = folder / "telemetry.csv"

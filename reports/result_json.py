@@ -23,7 +23,7 @@ def to_dict(r: RunResult) -> dict[str, object]:
         "error": r.error,
         "metadata": r.metadata,
         "notes": r.notes,
-        "measurements": [{**dataclasses.asdict(m), "value": json_number(m.value)} for m in r.measurements],
+        "measurements": [{**dataclasses.asdict(m), **json_number(m.value)} for m in r.measurements],
     }
 
 

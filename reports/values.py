@@ -56,9 +56,21 @@ def outcome_class(m: Measurement) -> str:
     return "marginal" if m.outcome == "pass" and m.marginal else m.outcome.replace(" ", "-")
 
 
-def json_number(v: float) -> float | str:
-    """JSON has no NaN or infinity: they are written as strings a reader cannot mistake for numbers."""
-    return v if math.isfinite(v) else ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf"))
+def json_number(v: float) -> dict[str, float | str | None]:
+    """A measurement's value as result.json keeps it (``rig-result/1``): JSON has no NaN or infinity,
+    so those are ``"value": null`` with ``"value_reason"`` saying which: ``"nan"`` (not measured: no
+    sample of the signal), ``"inf"`` or ``"-inf"`` (a time that never came; an unbounded value). A
+    finite value has no reason. Valid JSON for every reader; nothing to mistake for a number."""
+    if math.isfinite(v):
+        return {"value": v}
+    return {"value": None, "value_reason": "nan" if math.isnan(v) else ("inf" if v > 0 else "-inf")}
+
+
+def from_json_number(value: object, reason: object = None) -> float:
+    """``json_number``'s pair read back as a float (NaN for anything else)."""
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        return float(value)
+    return {"inf": math.inf, "-inf": -math.inf}.get(str(reason), math.nan)
 
 
 # ---- the run's metadata ---------------------------------------------------------------------------
@@ -237,4 +249,4 @@ def sim_times_in(text: str, clock_base_s: float | None) -> str:
 
 
 __all__ = ["MARGINAL_PCT", "bus_problems_text", "fmt_limits", "fmt_margin", "fmt_target", "fmt_value",
-           "json_number", "meta_rows"]
+           "from_json_number", "json_number", "meta_rows"]

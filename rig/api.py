@@ -15,10 +15,11 @@ import argparse
 import contextlib
 import io
 import os
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Final
 
 from rig.scenarios.schema import Scenario, ScenarioError
 
@@ -36,6 +37,20 @@ ARTIFACTS = {"result": "result.json", "telemetry": "telemetry.csv", "report": "r
 
 class RigError(Exception):
     """Bad options, an unreadable scenario, an engine that cannot be reached: nothing was run."""
+
+
+#: rig run's options that stand for an argument of run(): its problems name the argument, not the flag
+#: (``dut=""`` is "dut is empty"; the command line keeps "--dut is empty")
+API_NAMES: Final = {"--dut": "dut", "--mcu": "mcu", "--firmware": "mcu's firmware", "--bridge": "bridge",
+                    "--spin": "spin", "--seed": "seed", "--wall-timeout": "wall_timeout", "--out": "out",
+                    "--jobs": "jobs", "--engine": "engine", "--fresh": "fresh", "--eeprom": "eeprom",
+                    "--pwm-channels": "pwm_channels", "--topology": "topology", "--airframe": "airframe",
+                    "--fc": "fc"}
+
+
+def api_words(message: str) -> str:
+    """A problem ``rig run`` gave in its flags' words, in run()'s argument names."""
+    return re.sub(r"(?<![\w/.-])--[a-z][a-z-]*", lambda m: API_NAMES.get(m.group(0), m.group(0)), message)
 
 
 @dataclass(frozen=True)
@@ -257,7 +272,7 @@ def run(
                 raise KeyboardInterrupt(f"{r.error}; the run's files are in {run_dir}")
             interrupts.check()
     except UsageError as e:
-        raise RigError(str(e)) from None
+        raise RigError(api_words(str(e))) from None
     except interrupts.Interrupted as e:  # (a signal while the files were written: they are whole)
         raise KeyboardInterrupt(f"{e}; the run's files are in {run_dir}") from None
     criteria = tuple(
@@ -322,7 +337,7 @@ def sweep(
         code = sweep_cmd.main(args)
     table = Path(out) / store.TABLE
     if code == sweep_cmd.EXIT_USAGE or not table.is_file():
-        raise RigError(said.getvalue().strip() or f"rig sweep ended with status {code}")
+        raise RigError(api_words(said.getvalue().strip()) or f"rig sweep ended with status {code}")
     return pq.read_table(table)
 
 
@@ -336,5 +351,5 @@ def _options(command: str, words: list[str]) -> argparse.Namespace:
         with contextlib.redirect_stderr(said):
             return parser().parse_args([command, *words])
     except SystemExit:
-        raise RigError(said.getvalue().strip().splitlines()[-1] if said.getvalue().strip()
+        raise RigError(api_words(said.getvalue().strip().splitlines()[-1]) if said.getvalue().strip()
                        else f"rig {command}: bad options") from None

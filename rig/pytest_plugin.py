@@ -316,6 +316,20 @@ class RigFixture:
     explain = staticmethod(explain)
 
 
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Any:
+    """A test that failed on a RigError the rig raised (bad options such as a --rig-firmware that is
+    no image: nothing ran) says so in one line, as a scenario item does, not with a traceback into the
+    rig's own code."""
+    report = yield
+    from rig.api import RigError
+
+    error = call.excinfo.value if call.excinfo is not None else None
+    if report.failed and isinstance(error, RigError) and not isinstance(item, ScenarioItem):
+        report.longrepr = f"rig: {error}"
+    return report
+
+
 @pytest.fixture
 def rig(request: pytest.FixtureRequest) -> RigFixture:
     """The rig's API for this test (docs/pytest.md)."""

@@ -612,10 +612,11 @@ def _run_suite(args: argparse.Namespace, suite: Plan, folder: ReportFolder) -> i
     (suite.out / "index.html").write_text(
         html_report.render_index(results, [f"{r.scenario.stem}/report.html" for r in results], left, links)
     )
-    counts = {v: sum(r.verdict == v for r in results) for v in ("pass", "fail", "error", "skipped")}
-    skipped = f", {counts['skipped']} skipped" if counts["skipped"] else ""
+    counts = {v: sum(r.verdict == v for r in results)
+              for v in ("pass", "fail", "error", "skipped", "interrupted")}
+    more = "".join(f", {counts[v]} {v}" for v in ("skipped", "interrupted") if counts[v])
     print(
-        f"{counts['pass']} passed, {counts['fail']} failed, {counts['error']} errors{skipped} in "
+        f"{counts['pass']} passed, {counts['fail']} failed, {counts['error']} errors{more} in "
         f"{time.perf_counter() - t_suite:.1f} s; reports in {suite.out}/index.html",
         file=sys.stderr,
     )

@@ -22,14 +22,13 @@ every key.
 from __future__ import annotations
 
 import difflib
-import hashlib
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final
 
 from rig.emulators.sbus import CHANNELS, KNOBS, ChannelMap
+from rig.plant.toml_file import TomlFileError, read_toml
 from rig.scenarios import fc_keys
 from rig.scenarios.schema import ScenarioError, _Check
 from rig.scenarios.terms import FEATURES, MODES
@@ -266,11 +265,10 @@ def load(name: str | Path = DEFAULT) -> Profile:
         raise c.fail("", f"no such profile file, and no shipped profile of that name{hint} (shipped: "
                          f"{', '.join(names())})")
     try:
-        raw = path.read_bytes()
-        data = tomllib.loads(raw.decode("utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as err:
-        raise c.fail("", f"not a readable TOML file: {err}") from None
-    return check(data, path, hashlib.sha256(raw).hexdigest())
+        toml = read_toml(path)
+    except TomlFileError as e:
+        raise c.fail("", str(e)) from None
+    return check(toml.data, path, toml.sha256)
 
 
 def check(data: dict[str, Any], path: Path, sha256: str) -> Profile:

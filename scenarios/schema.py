@@ -12,7 +12,6 @@ import dataclasses
 import hashlib
 import json
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,6 +22,7 @@ from rig.emulators.faults import Fault, TargetedFault
 from rig.emulators.pwm_capture import TRANSPORTS as CAPTURE_TRANSPORTS
 from rig.plant import airframes
 from rig.plant.airframes import Airframe, AirframeError
+from rig.plant.toml_file import TomlFileError, read_toml
 from rig.plant.variables import SCENARIO_INPUTS, VARIABLES, check_parameters
 from rig.scenarios import fc_keys
 from rig.scenarios.bench import BenchPower, parse_psu
@@ -242,14 +242,10 @@ def load(path: str | Path) -> Scenario:
     path = Path(path)
     file = str(path)
     try:
-        raw = path.read_bytes()
-    except OSError as e:
-        raise ScenarioError(file, "", f"cannot read: {e.strerror}") from None
-    try:
-        data = tomllib.loads(raw.decode("utf-8"))
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
-        raise ScenarioError(file, "", f"not valid TOML: {e}") from None
-    return check(data, path, hashlib.sha256(raw).hexdigest())
+        toml = read_toml(path)
+    except TomlFileError as e:
+        raise ScenarioError(file, "", str(e)) from None
+    return check(toml.data, path, toml.sha256)
 
 
 def check(data: dict[str, Any], path: Path, sha256: str | None = None) -> Scenario:

@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from rig.plant import airframes
+from rig.plant.toml_file import TomlFileError, read_toml
 from rig.scenarios.schema import Scenario, ScenarioError, check
 
 SWEEP_KEYS = {"scenario", "seeds", "mode", "samples", "seed", "vary"}
@@ -224,13 +225,10 @@ def load_sweep(path: str | Path, library: Path, resolve: Callable[[str], Path | 
     replaces the scenario's [vehicle] airframe in every variant (a file: its absolute path)."""
     path = Path(path)
     try:
-        raw = path.read_bytes()
-    except OSError as e:
-        raise SweepError(str(path), f"cannot read: {e.strerror}") from None
-    try:
-        spec = tomllib.loads(raw.decode("utf-8"))
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
-        raise SweepError(str(path), f"not valid TOML: {e}") from None
+        toml = read_toml(path)
+        spec, raw = toml.data, toml.raw
+    except TomlFileError as e:
+        raise SweepError(str(path), str(e)) from None
     if set(spec) != {"sweep"}:
         raise SweepError(
             str(path), "expected one [sweep] table (and its [[sweep.vary]] tables), nothing else"

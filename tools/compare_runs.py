@@ -27,7 +27,7 @@ def _value(m: dict[str, object] | None) -> str:
         return "—"
     v = m.get("value")
     if not isinstance(v, int | float) or not math.isfinite(v):
-        return str(v)
+        return str(m.get("value_reason") or v)  # (result.json: null with its reason, nan/inf/-inf)
     return f"{v:.3g}"
 
 

@@ -4,10 +4,14 @@
  * (RCC_AHB1ENR.GPIOxEN), as on the chip: with the clock off, writes are lost and reads give 0.
  *
  * IDR shows the pins: a push-pull output its ODR bit; an open-drain output its ODR bit when 0, else
- * what drives the line from outside, else its pull-up; an input (or an alternate function, whose
- * peripheral is not wired here yet) what drives it from outside, else its pull (floating reads 0);
- * an analog pin 0 (its Schmitt trigger is off). The levels go out on 16 qdev GPIO outputs, and 16
- * qdev GPIO inputs are the outside drivers: the bus and board models connect there.
+ * what drives the line from outside, else its pull-up; an alternate-function pin the output of the
+ * peripheral its AFR selects (RM0090 8.3.2, the AF multiplexer), taken as an open drain when OTYPER says
+ * so, or like an input when that peripheral drives no output there (I2C1, whose bus drives the pins from
+ * outside); an input what drives it from outside, else its pull (floating reads 0); an analog pin 0 (its
+ * Schmitt trigger is off). The levels go out on 16 qdev GPIO outputs, and 16 qdev GPIO inputs are the
+ * outside drivers: the bus and board models connect there. The peripherals connect per pin and AF
+ * (line pin * 16 + AF): "af-drive" inputs take their outputs, "af-input" outputs give a pin in AF mode's
+ * level to the AF it selects only (a timer's input capture sees its pin only while the pin selects it).
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -43,6 +47,7 @@ static const uint32_t pupdr_reset[PORTS] = { 0x64000000, 0x00000100 };
 
 #define MODE_INPUT 0u
 #define MODE_OUTPUT 1u
+#define MODE_AF 2u
 #define MODE_ANALOG 3u
 #define PULL_UP 1u
 #define LCKK (1u << 16)
@@ -55,10 +60,15 @@ uint16_t rig_stm32_gpio_levels(RigStm32GpioState *s)
         bool odr = s->odr >> pin & 1, open_drain = s->otyper >> pin & 1;
         bool outside = s->ext_driven >> pin & 1, ext = s->ext_level >> pin & 1;
         bool level;
+        unsigned af = s->afr[pin / 8] >> (4 * (pin % 8)) & 0xF;
+        bool af_drives = mode == MODE_AF && (s->af_driven[af] >> pin & 1);
+        bool af_level = s->af_level[af] >> pin & 1;
         if (mode == MODE_ANALOG) {
             level = false;
         } else if (mode == MODE_OUTPUT && (!open_drain || !odr)) {
             level = odr;
+        } else if (af_drives && (!open_drain || !af_level)) {
+            level = af_level;
         } else {
             level = outside ? ext : pull == PULL_UP;
         }
@@ -75,6 +85,23 @@ static void gpio_update(RigStm32GpioState *s)
     for (unsigned pin = 0; pin < RIG_GPIO_PINS; pin++) {
         if (changed >> pin & 1) {
             qemu_set_irq(s->out[pin], levels >> pin & 1);
+        }
+    }
+    /* a pin in AF mode gives its level to the AF it selects, once per change of either (kept per pin in
+     * bytes: the same test on a bit of a uint16_t, a bool != (bool)(x >> pin & 1), is miscompiled by
+     * Debian 12's GCC 12.2 at -O2, whose jump threading drops the level's half of it) */
+    for (unsigned pin = 0; pin < RIG_GPIO_PINS; pin++) {
+        int level = levels >> pin & 1;
+        int af = -1;
+        if ((s->moder >> (2 * pin) & 3) == MODE_AF) {
+            af = (int)(s->afr[pin / 8] >> (4 * (pin % 8)) & 0xF);
+        }
+        if (af != s->af_input_sent[pin] || level != s->af_input_level[pin]) {
+            s->af_input_sent[pin] = (int8_t)af;
+            s->af_input_level[pin] = (int8_t)level;
+            if (af >= 0) {
+                qemu_set_irq(s->af_input[RIG_GPIO_AF_LINE(pin, af)], level);
+            }
         }
     }
 }
@@ -219,6 +246,17 @@ static void gpio_drive(void *opaque, int pin, int level)
     gpio_update(s);
 }
 
+/* A peripheral's output on @line (pin * 16 + AF): what the pin shows while it selects that AF, unless
+ * the peripheral released it (RIG_GPIO_AF_RELEASED) */
+static void gpio_af_drive(void *opaque, int line, int level)
+{
+    RigStm32GpioState *s = opaque;
+    unsigned pin = line / RIG_GPIO_AFS, af = line % RIG_GPIO_AFS;
+    s->af_driven[af] = (s->af_driven[af] & ~(1u << pin)) | (level == RIG_GPIO_AF_RELEASED ? 0 : 1u << pin);
+    s->af_level[af] = (s->af_level[af] & ~(1u << pin)) | (uint16_t)(level ? 1u << pin : 0);
+    gpio_update(s);
+}
+
 static void gpio_reset(DeviceState *dev)
 {
     RigStm32GpioState *s = RIG_STM32_GPIO(dev);
@@ -232,6 +270,10 @@ static void gpio_reset(DeviceState *dev)
     s->lckr = 0;
     s->lock_step = 0;
     s->lock_try = 0;
+    for (unsigned pin = 0; pin < RIG_GPIO_PINS; pin++) {
+        s->af_input_sent[pin] = -1;
+        s->af_input_level[pin] = -1;
+    }
     gpio_update(s);
 }
 
@@ -242,6 +284,8 @@ static void gpio_init(Object *obj)
     sysbus_init_mmio(SYS_BUS_DEVICE(obj), &s->iomem);
     qdev_init_gpio_out(DEVICE(obj), s->out, RIG_GPIO_PINS);
     qdev_init_gpio_in(DEVICE(obj), gpio_drive, RIG_GPIO_PINS);
+    qdev_init_gpio_in_named(DEVICE(obj), gpio_af_drive, "af-drive", RIG_GPIO_PINS * RIG_GPIO_AFS);
+    qdev_init_gpio_out_named(DEVICE(obj), s->af_input, "af-input", RIG_GPIO_PINS * RIG_GPIO_AFS);
 }
 
 static Property gpio_properties[] = {

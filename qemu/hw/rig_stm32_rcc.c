@@ -6,7 +6,9 @@
  * real crystal is not modelled. The system clock switch (CFGR.SWS) follows CFGR.SW when the selected
  * source is ready, and later when it becomes ready, as the hardware does; an oscillator that feeds the
  * system clock cannot be stopped. The AHB clock (HCLK = SYSCLK / HPRE) is the "hclk" clock output,
- * which drives the core, SysTick and DWT: a firmware that sets up 168 MHz runs SysTick at 168 MHz.
+ * which drives the core, SysTick and DWT: a firmware that sets up 168 MHz runs SysTick at 168 MHz. The
+ * timers' clocks ("apb1-tim", "apb2-tim") are PCLK1 = HCLK / PPRE1 and PCLK2 = HCLK / PPRE2, doubled when
+ * the prescaler is not 1 (RM0090 figure 21): 84 and 168 MHz under ST's 168 MHz set-up.
  * The reset registers reset the peripherals the machine attached to their bits (GPIO ports, PWR).
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
@@ -151,6 +153,14 @@ static uint64_t hclk_hz(const RigStm32RccState *s)
     return (hpre & 0x8) ? hz >> shift[hpre & 0x7] : hz;
 }
 
+uint64_t rig_stm32_rcc_timer_hz(RigStm32RccState *rcc, unsigned apb)
+{
+    /* PPRE1 (bits 12:10) and PPRE2 (15:13): 0xx: /1; 100..111: /2, /4, /8, /16 */
+    unsigned ppre = rcc->regs[R_CFGR] >> (apb == 1 ? 10 : 13) & 0x7;
+    uint64_t hz = hclk_hz(rcc);
+    return (ppre & 0x4) ? (hz >> ((ppre & 0x3) + 1)) * 2 : hz;
+}
+
 /* The hardware's side of CR, BDCR, CSR and CFGR.SWS after a write */
 static void rcc_settle(RigStm32RccState *s)
 {
@@ -179,6 +189,13 @@ static void rcc_settle(RigStm32RccState *s)
     uint64_t hz = hclk_hz(s);
     if (hz != clock_get_hz(s->hclk)) {
         clock_update_hz(s->hclk, hz);
+    }
+    for (unsigned apb = 1; apb <= 2; apb++) {
+        hz = rig_stm32_rcc_timer_hz(s, apb);
+        if (hz != s->tim_hz[apb - 1]) {
+            s->tim_hz[apb - 1] = hz;
+            clock_update_hz(s->tim_clk[apb - 1], hz);
+        }
     }
 }
 
@@ -234,6 +251,12 @@ static void rcc_init(Object *obj)
     sysbus_init_mmio(SYS_BUS_DEVICE(obj), &s->iomem);
     s->hclk = qdev_init_clock_out(DEVICE(obj), "hclk");
     clock_set_hz(s->hclk, HSI_HZ);
+    s->tim_clk[0] = qdev_init_clock_out(DEVICE(obj), "apb1-tim");
+    s->tim_clk[1] = qdev_init_clock_out(DEVICE(obj), "apb2-tim");
+    for (unsigned apb = 0; apb < 2; apb++) {
+        s->tim_hz[apb] = HSI_HZ;
+        clock_set_hz(s->tim_clk[apb], HSI_HZ);
+    }
 }
 
 static Property rcc_properties[] = {

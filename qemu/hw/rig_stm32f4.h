@@ -1,7 +1,7 @@
 /*
  * The rig's STM32F4 device models (RM0090, the STM32F405/415/407/417 reference manual): RCC and PWR,
- * the FLASH interface, GPIO ports, the I2C controllers, the Cortex-M4's DWT cycle counter, and the
- * GY-86 sensor board (the rig's chip core) as an I2C slave.
+ * the FLASH interface, GPIO ports, the I2C controllers, the timers TIM1-TIM14, the Cortex-M4's DWT cycle
+ * counter, and the GY-86 sensor board (the rig's chip core) as an I2C slave.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -12,6 +12,7 @@
 #include "hw/clock.h"
 #include "hw/i2c/i2c.h"
 #include "hw/sysbus.h"
+#include "qemu/timer.h"
 #include "qom/object.h"
 
 /*
@@ -32,14 +33,16 @@ int rig_register_index(const RigRegister *table, int count, hwaddr offset);
 #define TYPE_RIG_STM32_RCC "rig-stm32f4-rcc"
 OBJECT_DECLARE_SIMPLE_TYPE(RigStm32RccState, RIG_STM32_RCC)
 #define RIG_RCC_REGISTERS 23
-#define RIG_RCC_RESETS 32
+#define RIG_RCC_RESETS 48
 
 struct RigStm32RccState {
     SysBusDevice parent_obj;
     MemoryRegion iomem;
     uint32_t regs[RIG_RCC_REGISTERS];
-    uint32_t hse_hz; /* the board's crystal (property "hse-hz") */
-    Clock *hclk;     /* the AHB clock: the core, SysTick, DWT */
+    uint32_t hse_hz;    /* the board's crystal (property "hse-hz") */
+    Clock *hclk;        /* the AHB clock: the core, SysTick, DWT */
+    Clock *tim_clk[2];  /* the timers' clocks on APB1 and APB2 ("apb1-tim", "apb2-tim") */
+    uint64_t tim_hz[2]; /* their exact rates (a Clock keeps a period, which rounds) */
     /* the peripherals the reset registers (AHB1RSTR ... APB2RSTR) reset: register, bit, device */
     struct {
         hwaddr rstr_offset;
@@ -51,6 +54,10 @@ struct RigStm32RccState {
 
 /* Whether the clock of bit @bit of the enable register at @enr_offset (AHB1ENR, APB1ENR, ...) is on */
 bool rig_stm32_rcc_enabled(RigStm32RccState *rcc, hwaddr enr_offset, unsigned bit);
+
+/* The timer clock of APB1 (@apb 1) or APB2 (@apb 2) in Hz: PCLKx, doubled when the APB prescaler is not 1
+ * (RM0090 7.2, figure 21) */
+uint64_t rig_stm32_rcc_timer_hz(RigStm32RccState *rcc, unsigned apb);
 
 /* @dev is reset while bit @bit of the reset register at @rstr_offset is set (RM0090 7.3.5-7.3.9) */
 void rig_stm32_rcc_add_reset(RigStm32RccState *rcc, hwaddr rstr_offset, unsigned bit, DeviceState *dev);
@@ -82,6 +89,11 @@ struct RigStm32FlashIfState {
 #define TYPE_RIG_STM32_GPIO "rig-stm32f4-gpio"
 OBJECT_DECLARE_SIMPLE_TYPE(RigStm32GpioState, RIG_STM32_GPIO)
 #define RIG_GPIO_PINS 16
+#define RIG_GPIO_AFS 16
+/* a pin's alternate function lines (qdev GPIO "af-drive" in and "af-input" out): pin * 16 + AF number */
+#define RIG_GPIO_AF_LINE(pin, af) ((pin)*RIG_GPIO_AFS + (af))
+/* the "af-drive" level of a peripheral that lets go of the pin (an input, a disabled output): Hi-Z */
+#define RIG_GPIO_AF_RELEASED (-1)
 
 struct RigStm32GpioState {
     SysBusDevice parent_obj;
@@ -96,6 +108,13 @@ struct RigStm32GpioState {
     uint16_t ext_driven;
     uint16_t pins; /* the levels last sent out */
     qemu_irq out[RIG_GPIO_PINS];
+    /* the peripherals' outputs on each AF (a bit per pin): driven at all, and their levels */
+    uint16_t af_driven[RIG_GPIO_AFS];
+    uint16_t af_level[RIG_GPIO_AFS];
+    /* the peripherals' inputs: a pin in AF mode sends its level to the AF it selects */
+    qemu_irq af_input[RIG_GPIO_PINS * RIG_GPIO_AFS];
+    int8_t af_input_sent[RIG_GPIO_PINS];  /* the AF each pin last sent to (-1: none) */
+    int8_t af_input_level[RIG_GPIO_PINS]; /* and the level it sent */
 };
 
 /* The pin levels a port shows on its IDR */
@@ -135,6 +154,53 @@ struct RigStm32I2cState {
     bool sda_held;          /* that slave, abandoned without a STOP, holds SDA low */
     uint8_t unstick_clocks; /* SCL pulses by GPIO since */
     bool ack_next;          /* POS = 1: CR1.ACK at the end of the byte (or address) before this one */
+};
+
+/* A timer (RM0090 sections 17-20): the advanced TIM1/TIM8, the general-purpose TIM2-TIM5 (TIM2 and TIM5
+ * 32-bit) and TIM9-TIM14, the basic TIM6/TIM7 */
+#define TYPE_RIG_STM32_TIMER "rig-stm32f4-timer"
+OBJECT_DECLARE_SIMPLE_TYPE(RigStm32TimerState, RIG_STM32_TIMER)
+#define RIG_TIM_CHANNELS 4
+#define RIG_TIM_OUTPUTS 7          /* OC1..OC4, and TIM1/TIM8's complementary OC1N..OC3N */
+#define RIG_TIM_PINS_PER_CHANNEL 4 /* "channel-out" line = output * 4 + the n-th pin it reaches */
+#define RIG_TIM_REGS 21
+
+typedef enum {
+    RIG_TIM_IRQ_BRK, /* the advanced timers' four lines; the others raise only the first */
+    RIG_TIM_IRQ_UP,
+    RIG_TIM_IRQ_TRG_COM,
+    RIG_TIM_IRQ_CC,
+    RIG_TIM_IRQS,
+} RigTimerIrq;
+
+struct RigStm32TimerState {
+    SysBusDevice parent_obj;
+    MemoryRegion iomem;
+    RigStm32RccState *rcc;
+    uint8_t index;        /* 1..14 (property "index"): TIMn */
+    uint8_t apb, rcc_bit; /* its bus (1, 2) and bit in RCC_APBxENR/APBxRSTR (properties "apb", "rcc-bit") */
+    bool trace_pulses;    /* property "trace-pulses": each latched pulse on stderr */
+    const struct RigTimerKind *kind;
+    Clock *clk;                               /* the APB timer clock (RCC "apb1-tim" or "apb2-tim"): its changes */
+    uint64_t hz;                              /* its rate while the counter counted since base_ns */
+    QEMUTimer *timer;                         /* the next event: a compare match or the end of the counting period */
+    uint32_t regs[RIG_TIM_REGS];              /* as software reads them (ARR, PSC and CCRx: the preload registers) */
+    uint32_t arr, psc, ccr[RIG_TIM_CHANNELS]; /* the shadow (active) registers */
+    uint32_t prescaler;                       /* the prescaler's counter */
+    uint8_t repetition;                       /* the repetition down-counter (advanced timers) */
+    bool down;                                /* counting down (DIR as the counter sets it in center-aligned modes) */
+    bool counting;                            /* CEN with a clock: base_ns and ticks_done run */
+    int64_t base_ns;                          /* virtual time of timer-clock tick 0 */
+    uint64_t ticks_done;                      /* timer-clock ticks accounted since base_ns */
+    bool ref[RIG_TIM_CHANNELS];               /* OCxREF */
+    int8_t out[RIG_TIM_OUTPUTS];              /* last sent to the pins: 0, 1, released, -2 at reset */
+    bool input[RIG_TIM_CHANNELS];             /* TIx: the level of each channel's input pin */
+    uint8_t capture_count[RIG_TIM_CHANNELS];  /* edges since the last capture (ICxPSC) */
+    uint32_t pulse_ticks[RIG_TIM_OUTPUTS], period_ticks; /* the pulses latched at the last update */
+    uint64_t latched_hz;                                 /* the timer clock then */
+    qemu_irq irq[RIG_TIM_IRQS];
+    qemu_irq channel_out[RIG_TIM_OUTPUTS * RIG_TIM_PINS_PER_CHANNEL];
+    qemu_irq pulse_ns[RIG_TIM_OUTPUTS]; /* "pulse-ns": each output's latched high time in ns */
 };
 
 /* The GY-86 board (MPU-6050 at 0x68, the HMC5883L behind its bypass, MS5611 at 0x77): the rig's chip

@@ -2,9 +2,13 @@
  * rig-stm32f405: QEMU's STM32F405 SoC (Cortex-M4F with NVIC and SysTick, its USARTs, TIM2-5, ADCs, SPIs,
  * SYSCFG and EXTI) with the rig's models mapped over the regions that SoC leaves unimplemented: RCC,
  * PWR, the FLASH interface, GPIO A..I, I2C1 (RM0090) with the GY-86 board (the rig's chip core) on its
- * bus, and the core's DWT cycle counter. The RCC's AHB clock
+ * bus, the timers TIM1-TIM14 (over QEMU's TIM2-TIM5, which only count) with their channels on the pins
+ * of the datasheet's alternate function table, and the core's DWT cycle counter. The RCC's AHB clock
  * drives the core, SysTick and DWT, so the machine starts at 16 MHz (HSI) as the chip does, and runs at
  * what the firmware sets up (168 MHz from an 8 MHz crystal: -global rig-stm32f4-rcc.hse-hz=N for another).
+ * The machine's "wires" property joins pins as a board's traces or a test's jumper wires do: -M
+ * rig-stm32f405,wires=PD12-PA0 drives PA0 from outside with PD12's level (a PWM output into an input
+ * capture); several pairs go joined by "+".
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -15,9 +19,11 @@
 #include "hw/arm/boot.h"
 #include "hw/arm/stm32f405_soc.h"
 #include "hw/boards.h"
+#include "hw/or-irq.h"
 #include "hw/qdev-clock.h"
 #include "hw/qdev-properties.h"
 #include "qapi/error.h"
+#include "qemu/error-report.h"
 #include "rig_stm32f4.h"
 
 /* RM0090 table 10 (register boundary addresses) */
@@ -35,6 +41,83 @@
 #define IRQ_I2C1_EV 31 /* RM0090 table 61 (vector table) */
 #define IRQ_I2C1_ER 32
 #define I2C1_SCL_PIN 6 /* PB6, with SDA on PB7 */
+#define RCC_APB2RSTR 0x24
+/* the NVIC's inputs (QEMU's STM32F405 SoC has 96) */
+#define NVIC_LINES 96
+
+/* The timers: base (RM0090 table 10), APB and their bit in APBxENR and APBxRSTR (7.3.7, 7.3.8, 7.3.11,
+ * 7.3.12), NVIC lines (table 61): the
+ * advanced timers' BRK, UP, TRG_COM and CC, the others' one global line (-1: none) */
+static const struct {
+    hwaddr base;
+    uint8_t apb, reset_bit;
+    int8_t irq[RIG_TIM_IRQS];
+} timer_map[15] = {
+    [1] = { 0x40010000, 2, 0, { 24, 25, 26, 27 } },   [2] = { 0x40000000, 1, 0, { 28, -1, -1, -1 } },
+    [3] = { 0x40000400, 1, 1, { 29, -1, -1, -1 } },   [4] = { 0x40000800, 1, 2, { 30, -1, -1, -1 } },
+    [5] = { 0x40000C00, 1, 3, { 50, -1, -1, -1 } },   [6] = { 0x40001000, 1, 4, { 54, -1, -1, -1 } },
+    [7] = { 0x40001400, 1, 5, { 55, -1, -1, -1 } },   [8] = { 0x40010400, 2, 1, { 43, 44, 45, 46 } },
+    [9] = { 0x40014000, 2, 16, { 24, -1, -1, -1 } },  [10] = { 0x40014400, 2, 17, { 25, -1, -1, -1 } },
+    [11] = { 0x40014800, 2, 18, { 26, -1, -1, -1 } }, [12] = { 0x40001800, 1, 6, { 43, -1, -1, -1 } },
+    [13] = { 0x40001C00, 1, 7, { 44, -1, -1, -1 } },  [14] = { 0x40002000, 1, 8, { 45, -1, -1, -1 } },
+};
+
+/* The timer channels' pins (DS8626, the STM32F405xx datasheet, table 9: alternate function mapping):
+ * AF1 TIM1/TIM2, AF2 TIM3/TIM4/TIM5, AF3 TIM8..TIM11, AF9 TIM12..TIM14; the complementary outputs CH1N..
+ * CH3N of TIM1/TIM8 (output only) after the channels. ETR and BKIN are not listed (not modelled). */
+typedef struct {
+    uint8_t timer, channel; /* channel 1..4 */
+    char port;
+    uint8_t pin;
+    bool complementary; /* CHxN */
+} TimerPin;
+static const TimerPin timer_pins[] = {
+    { 1, 1, 'A', 8 },        { 1, 1, 'E', 9 },        { 1, 2, 'A', 9 },        { 1, 2, 'E', 11 },
+    { 1, 3, 'A', 10 },       { 1, 3, 'E', 13 },       { 1, 4, 'A', 11 },       { 1, 4, 'E', 14 },
+    { 2, 1, 'A', 0 },        { 2, 1, 'A', 5 },        { 2, 1, 'A', 15 },       { 2, 2, 'A', 1 },
+    { 2, 2, 'B', 3 },        { 2, 3, 'A', 2 },        { 2, 3, 'B', 10 },       { 2, 4, 'A', 3 },
+    { 2, 4, 'B', 11 },       { 3, 1, 'A', 6 },        { 3, 1, 'B', 4 },        { 3, 1, 'C', 6 },
+    { 3, 2, 'A', 7 },        { 3, 2, 'B', 5 },        { 3, 2, 'C', 7 },        { 3, 3, 'B', 0 },
+    { 3, 3, 'C', 8 },        { 3, 4, 'B', 1 },        { 3, 4, 'C', 9 },        { 4, 1, 'B', 6 },
+    { 4, 1, 'D', 12 },       { 4, 2, 'B', 7 },        { 4, 2, 'D', 13 },       { 4, 3, 'B', 8 },
+    { 4, 3, 'D', 14 },       { 4, 4, 'B', 9 },        { 4, 4, 'D', 15 },       { 5, 1, 'A', 0 },
+    { 5, 1, 'H', 10 },       { 5, 2, 'A', 1 },        { 5, 2, 'H', 11 },       { 5, 3, 'A', 2 },
+    { 5, 3, 'H', 12 },       { 5, 4, 'A', 3 },        { 5, 4, 'I', 0 },        { 8, 1, 'C', 6 },
+    { 8, 1, 'I', 5 },        { 8, 2, 'C', 7 },        { 8, 2, 'I', 6 },        { 8, 3, 'C', 8 },
+    { 8, 3, 'I', 7 },        { 8, 4, 'C', 9 },        { 8, 4, 'I', 2 },        { 9, 1, 'A', 2 },
+    { 9, 1, 'E', 5 },        { 9, 2, 'A', 3 },        { 9, 2, 'E', 6 },        { 10, 1, 'B', 8 },
+    { 10, 1, 'F', 6 },       { 11, 1, 'B', 9 },       { 11, 1, 'F', 7 },       { 12, 1, 'B', 14 },
+    { 12, 1, 'H', 6 },       { 12, 2, 'B', 15 },      { 12, 2, 'H', 9 },       { 13, 1, 'A', 6 },
+    { 13, 1, 'F', 8 },       { 14, 1, 'A', 7 },       { 14, 1, 'F', 9 },       { 1, 1, 'A', 7, true },
+    { 1, 1, 'B', 13, true }, { 1, 1, 'E', 8, true },  { 1, 2, 'B', 0, true },  { 1, 2, 'B', 14, true },
+    { 1, 2, 'E', 10, true }, { 1, 3, 'B', 1, true },  { 1, 3, 'B', 15, true }, { 1, 3, 'E', 12, true },
+    { 8, 1, 'A', 5, true },  { 8, 1, 'A', 7, true },  { 8, 1, 'H', 13, true }, { 8, 2, 'B', 0, true },
+    { 8, 2, 'B', 14, true }, { 8, 2, 'H', 14, true }, { 8, 3, 'B', 1, true },  { 8, 3, 'B', 15, true },
+    { 8, 3, 'H', 15, true },
+};
+
+static unsigned timer_af(unsigned timer)
+{
+    switch (timer) {
+    case 1:
+    case 2:
+        return 1;
+    case 3:
+    case 4:
+    case 5:
+        return 2;
+    case 12:
+    case 13:
+    case 14:
+        return 9;
+    default: /* 8..11 */
+        return 3;
+    }
+}
+
+/* The machine's "wires" property: pairs of pins joined, "PD12-PA0+PB0-PC1" */
+static char *wires_spec;
+
 /* ARMv7-M: the DWT in the private peripheral bus */
 #define DWT_BASE 0xE0001000
 /* the board's own address on QEMU's bus (it answers every address the chip core acknowledges) */
@@ -53,6 +136,105 @@ static SysBusDevice *map_device(const char *type, hwaddr base, RigStm32RccState 
     /* over the SoC's unimplemented-device placeholders (priority -1000) */
     sysbus_mmio_map(SYS_BUS_DEVICE(dev), 0, base);
     return SYS_BUS_DEVICE(dev);
+}
+
+/* TIM1..TIM14 over the SoC's placeholders and its TIM2-TIM5, their interrupts (an OR gate where two
+ * timers share a line), reset bits, clocks and pins */
+static void map_timers(RigStm32RccState *rcc, DeviceState *nvic, DeviceState **gpio_ports)
+{
+    DeviceState *tim[15] = { NULL };
+    unsigned users[NVIC_LINES] = { 0 }, wired[NVIC_LINES] = { 0 };
+    DeviceState *gate[NVIC_LINES] = { NULL };
+    for (unsigned t = 1; t <= 14; t++) {
+        for (unsigned k = 0; k < RIG_TIM_IRQS; k++) {
+            if (timer_map[t].irq[k] >= 0) {
+                users[timer_map[t].irq[k]]++;
+            }
+        }
+    }
+    for (unsigned t = 1; t <= 14; t++) {
+        DeviceState *dev = qdev_new(TYPE_RIG_STM32_TIMER);
+        g_autofree char *name = g_strdup_printf("tim%u", t);
+        object_property_add_child(qdev_get_machine(), name, OBJECT(dev)); /* /machine/timN */
+        qdev_prop_set_uint8(dev, "index", t);
+        qdev_prop_set_uint8(dev, "apb", timer_map[t].apb);
+        qdev_prop_set_uint8(dev, "rcc-bit", timer_map[t].reset_bit);
+        object_property_set_link(OBJECT(dev), "rcc", OBJECT(rcc), &error_fatal);
+        qdev_connect_clock_in(dev, "clk",
+                              qdev_get_clock_out(DEVICE(rcc), timer_map[t].apb == 1 ? "apb1-tim" : "apb2-tim"));
+        sysbus_realize_and_unref(SYS_BUS_DEVICE(dev), &error_fatal);
+        sysbus_mmio_map_overlap(SYS_BUS_DEVICE(dev), 0, timer_map[t].base, 1);
+        rig_stm32_rcc_add_reset(rcc, timer_map[t].apb == 1 ? RCC_APB1RSTR : RCC_APB2RSTR, timer_map[t].reset_bit, dev);
+        for (unsigned k = 0; k < RIG_TIM_IRQS; k++) {
+            int line = timer_map[t].irq[k];
+            if (line < 0) {
+                continue;
+            }
+            if (users[line] == 1) {
+                sysbus_connect_irq(SYS_BUS_DEVICE(dev), k, qdev_get_gpio_in(nvic, line));
+                continue;
+            }
+            if (gate[line] == NULL) {
+                gate[line] = qdev_new(TYPE_OR_IRQ);
+                qdev_prop_set_uint16(gate[line], "num-lines", users[line]);
+                qdev_realize_and_unref(gate[line], NULL, &error_fatal);
+                qdev_connect_gpio_out(gate[line], 0, qdev_get_gpio_in(nvic, line));
+            }
+            sysbus_connect_irq(SYS_BUS_DEVICE(dev), k, qdev_get_gpio_in(gate[line], wired[line]++));
+        }
+        tim[t] = dev;
+    }
+    unsigned slot[15][RIG_TIM_OUTPUTS] = { { 0 } };
+    for (unsigned i = 0; i < ARRAY_SIZE(timer_pins); i++) {
+        const TimerPin *p = &timer_pins[i];
+        DeviceState *port = gpio_ports[p->port - 'A'];
+        unsigned line = RIG_GPIO_AF_LINE(p->pin, timer_af(p->timer)), ch = p->channel - 1;
+        unsigned output = p->complementary ? RIG_TIM_CHANNELS + ch : ch;
+        assert(slot[p->timer][output] < RIG_TIM_PINS_PER_CHANNEL);
+        qdev_connect_gpio_out_named(tim[p->timer], "channel-out",
+                                    output * RIG_TIM_PINS_PER_CHANNEL + slot[p->timer][output]++,
+                                    qdev_get_gpio_in_named(port, "af-drive", line));
+        if (!p->complementary) {
+            qdev_connect_gpio_out_named(port, "af-input", line,
+                                        qdev_get_gpio_in_named(tim[p->timer], "channel-in", ch));
+        }
+    }
+}
+
+/* "PD12" as a port and pin, or false */
+static bool parse_pin(const char *text, unsigned *port, unsigned *pin)
+{
+    char *end;
+    if (text[0] != 'P' || text[1] < 'A' || text[1] >= 'A' + GPIO_PORTS) {
+        return false;
+    }
+    unsigned long n = strtoul(text + 2, &end, 10);
+    *port = text[1] - 'A';
+    *pin = n;
+    return end != text + 2 && *end == '\0' && n < RIG_GPIO_PINS;
+}
+
+/* The "wires" pairs: the first pin's level drives the second from outside */
+static void wire_pins(DeviceState **gpio_ports)
+{
+    if (wires_spec == NULL || wires_spec[0] == '\0') {
+        return;
+    }
+    g_auto(GStrv) pairs = g_strsplit(wires_spec, "+", -1);
+    for (char **pair = pairs; *pair != NULL; pair++) {
+        g_auto(GStrv) ends = g_strsplit(*pair, "-", -1);
+        unsigned from_port, from_pin, to_port, to_pin;
+        if (g_strv_length(ends) != 2 || !parse_pin(ends[0], &from_port, &from_pin) ||
+            !parse_pin(ends[1], &to_port, &to_pin)) {
+            error_report("rig-stm32f405: wires: '%s' is not a pair of pins like PD12-PA0", *pair);
+            exit(1);
+        }
+        if (qdev_get_gpio_out_connector(gpio_ports[from_port], NULL, from_pin) != NULL) {
+            error_report("rig-stm32f405: wires: %s already drives something (PB6/PB7 carry I2C1)", ends[0]);
+            exit(1);
+        }
+        qdev_connect_gpio_out(gpio_ports[from_port], from_pin, qdev_get_gpio_in(gpio_ports[to_port], to_pin));
+    }
 }
 
 static void rig_stm32f405_init(MachineState *machine)
@@ -91,6 +273,9 @@ static void rig_stm32f405_init(MachineState *machine)
         qdev_connect_gpio_out_named(i2c1, "scl-sda-drive", line, qdev_get_gpio_in(gpiob, I2C1_SCL_PIN + line));
     }
 
+    map_timers(r, DEVICE(&STM32F405_SOC(soc)->armv7m), gpio_ports);
+    wire_pins(gpio_ports);
+
     DeviceState *dwt = qdev_new(TYPE_RIG_DWT);
     qdev_connect_clock_in(dwt, "hclk", hclk);
     sysbus_realize_and_unref(SYS_BUS_DEVICE(dwt), &error_fatal);
@@ -100,10 +285,21 @@ static void rig_stm32f405_init(MachineState *machine)
     armv7m_load_kernel(ARM_CPU(first_cpu), machine->kernel_filename, 0, FLASH_SIZE);
 }
 
+static char *get_wires(Object *obj, Error **errp) { return g_strdup(wires_spec ? wires_spec : ""); }
+
+static void set_wires(Object *obj, const char *value, Error **errp)
+{
+    g_free(wires_spec);
+    wires_spec = g_strdup(value);
+}
+
 static void rig_stm32f405_machine_init(MachineClass *mc)
 {
-    mc->desc = "STM32F405 with the rig's RCC, PWR, FLASH, GPIO, I2C and DWT models and a GY-86 on I2C1";
+    mc->desc = "STM32F405 with the rig's RCC, PWR, FLASH, GPIO, I2C, timer and DWT models and a GY-86 on I2C1";
     mc->init = rig_stm32f405_init;
+    object_class_property_add_str(OBJECT_CLASS(mc), "wires", get_wires, set_wires);
+    object_class_property_set_description(OBJECT_CLASS(mc), "wires",
+                                          "pins joined, each pair driver-driven: PD12-PA0[+PB0-PC1...]");
 }
 
 DEFINE_MACHINE("rig-stm32f405", rig_stm32f405_machine_init)

@@ -27,7 +27,6 @@ rig/mcu/boards/; ``--mcu NAME`` finds them by name, ``--mcu path/to/board.toml``
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
@@ -37,6 +36,7 @@ from rig.emulators.chips.board import TOPOLOGIES
 from rig.emulators.mpu6050 import ADDRESS as MPU_ADDRESS
 from rig.emulators.sensor_models import FLAT_ON_BOARD
 from rig.mcu.mcus import MCUS, Mcu
+from rig.plant.toml_file import TomlFileError, read_toml
 from rig.scenarios.schema import ScenarioError, _Check
 
 BOARDS: Final = Path(__file__).resolve().parent / "boards"
@@ -142,9 +142,9 @@ def load(name: str | Path) -> Board:
         raise c.fail("", "no such board file, and no shipped board of that name (shipped: "
                          f"{', '.join(names())})")
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as err:
-        raise c.fail("", f"not a readable TOML file: {err}") from None
+        data = read_toml(path).data
+    except TomlFileError as unreadable:
+        raise c.fail("", str(unreadable)) from None
     c.table(data, "", TOP)
     b = c.table(data.get("board", {}), "board", BOARD_KEYS)
     mcu_name = c.string(b, "mcu", "board", choices=tuple(MCUS))

@@ -25,6 +25,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from rig import __version__
 from rig.service.db import SCHEMA_VERSION, SQLITE_INT, STATUSES, TERMINAL, Db
+from rig.service.images import AVR, describe
 from rig.service.store import MAX_SCENARIO, Store, UploadError
 from rig.service.worker import Workers
 
@@ -109,10 +110,13 @@ def check_run(req: RunRequest, store: Store, scenarios: bool = True) -> tuple[li
     if req.fc is not None:
         problems += fc_problems(req.fc)
     kinds = set(req.dut)
-    if kinds - {"command", "firmware"} or len(kinds) > 1:
-        problems.append("dut: {\"command\": \"...\"} or {\"firmware\": SHA256} (POST /api/firmware first)")
-    elif "firmware" in kinds and store.firmware(req.dut["firmware"]) is None:
-        problems.append(f"dut.firmware: no uploaded firmware {req.dut['firmware']!r} (POST /api/firmware)")
+    if (kinds - {"command", "firmware", "board"} or {"command", "firmware"} <= kinds
+            or ("board" in kinds and "firmware" not in kinds)):
+        problems.append("dut: {\"command\": \"...\"}, {\"firmware\": SHA256} (a Linux program) or "
+                        "{\"firmware\": SHA256, \"board\": BOARD} (an AVR image on a board; GET "
+                        "/api/boards); POST /api/firmware first")
+    elif "firmware" in kinds:
+        problems += firmware_problems(req.dut, req.mode, store)
     elif "command" in kinds:
         try:
             if not shlex.split(req.dut["command"]):
@@ -121,7 +125,45 @@ def check_run(req: RunRequest, store: Store, scenarios: bool = True) -> tuple[li
             problems.append(f"dut.command: {e}")
     if req.mode == "bridge" and (req.pwm_channels is not None or req.topology is not None):
         problems.append("pwm_channels and topology are a Linux DUT's board: not with mode bridge")
+    elif "board" in req.dut and (req.pwm_channels is not None or req.topology is not None):
+        problems.append("pwm_channels and topology are a Linux DUT's board: an AVR image's board file "
+                        "says them (dut.board)")
     return problems, versions
+
+
+def firmware_problems(dut: dict[str, str], mode: str, store: Store) -> list[str]:
+    """An uploaded firmware's problems as a run's DUT: a Linux program runs as it is; an AVR image
+    flies on a board (a shipped one's name or an uploaded one's SHA-256), whole and within the board's
+    MCU's flash, as ``rig run --mcu`` checks it. Each names what was received."""
+    from rig.mcu import board as boards
+    from rig.mcu.image import FirmwareError, load
+
+    sha, board = dut["firmware"], dut.get("board")
+    path, kind = store.firmware(sha), store.firmware_kind(sha)
+    if path is None:
+        return [f"dut.firmware: no uploaded firmware {sha!r} (POST /api/firmware)"]
+    if kind is None:
+        return [f"dut.firmware: {sha[:12]} is neither a Linux program nor an AVR image (upload it again)"]
+    if board is None:
+        if kind in AVR:
+            return [f"dut.firmware: {sha[:12]} is {describe(kind)}: it flies on a board; give dut.board, a "
+                    "shipped board's name or an uploaded board's SHA-256 (GET /api/boards)"]
+        return []
+    where = store.board(board)
+    if where is None:
+        return [f"dut.board: no shipped board {board!r} and no uploaded board of that SHA-256 "
+                f"(shipped: {', '.join(boards.names())}; GET /api/boards)"]
+    found = boards.load(where)
+    if kind not in AVR:
+        return [f"dut.firmware: the board {found.name} ({found.mcu.name}) flies an AVR image (ELF or Intel "
+                f"HEX); {sha[:12]} is {describe(kind)}"]
+    if mode != "lockstep":
+        return ["dut.board: a board's image flies under emulation in lockstep, not in mode bridge"]
+    try:
+        load(path, found.mcu.name)
+    except FirmwareError as e:
+        return [f"dut.firmware: {str(e).replace(str(path), sha[:12])}"]
+    return []
 
 
 def dut_of(req: RunRequest) -> dict[str, str]:
@@ -142,6 +184,17 @@ def bench_problems(req: RunRequest, workers: Workers) -> list[str]:
         return ["bench: this service has one bench of its own; selectors need a farm (rig serve --engine)"]
     problem = workers.farm.refuse(req.bench)
     return [] if problem is None else [problem]
+
+
+async def small_body(request: Request, what: str) -> bytes:
+    """A request's body of a text file (a scenario, a board file, a sweep spec), refused (413) as soon as
+    it grows over MAX_SCENARIO bytes, before the rest is read."""
+    body = b""
+    async for chunk in request.stream():
+        body += chunk
+        if len(body) > MAX_SCENARIO:
+            raise HTTPException(413, f"{what} over {MAX_SCENARIO} bytes")
+    return body
 
 
 def _query_names(dependant: Dependant) -> set[str]:
@@ -229,11 +282,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         (its words returned as they are, 422), stored once under its SHA-256 and NAME pointed at it:
         201 a new version of NAME, 200 the version NAME points at already, 409 NAME points at another
         version (``?replace=true`` points it at this one; runs queued already keep theirs)."""
-        body = b""
-        async for chunk in request.stream():
-            body += chunk
-            if len(body) > MAX_SCENARIO:
-                raise HTTPException(413, f"a scenario over {MAX_SCENARIO} bytes")
+        body = await small_body(request, "a scenario")
         try:
             stored = store.put_scenario(name, body, replace)
         except UploadError as e:
@@ -252,16 +301,34 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
 
     @app.post("/api/firmware", status_code=201)
     async def upload_firmware(request: Request) -> dict[str, Any]:
-        """A DUT program (the request's body), stored once under its SHA-256."""
+        """A firmware (the request's body): a Linux program (an ELF for this host, a #! script) or an AVR
+        image (ELF, Intel HEX) for a board, stored once under its SHA-256 with its ``kind``; anything
+        else is a 422 naming what it looks like."""
         try:
-            sha, size = await store.put_firmware(request.stream())
+            sha, size, kind = await store.put_firmware(request.stream())
         except UploadError as e:
             raise refusal(e.status, str(e)) from e
-        return {"sha256": sha, "size": size}
+        return {"sha256": sha, "size": size, "kind": kind}
 
     @app.get("/api/firmware")
     def firmware() -> list[dict[str, object]]:
         return store.firmware_list()
+
+    @app.post("/api/boards", status_code=201)
+    async def upload_board(request: Request) -> dict[str, Any]:
+        """A board file (TOML, the request's body; docs/mcu.md), checked as ``rig run --mcu`` checks
+        one and stored once under its SHA-256, which a run names as ``dut.board``."""
+        body = await small_body(request, "a board file")
+        try:
+            return store.put_board(body)
+        except UploadError as e:
+            raise refusal(e.status, str(e)) from e
+
+    @app.get("/api/boards")
+    def boards() -> list[dict[str, Any]]:
+        """The shipped boards (``board``: the name a run gives) and the uploaded ones (``board``: the
+        SHA-256), each with its name and MCU."""
+        return store.board_list()
 
     @app.post("/api/runs", status_code=201)
     def submit(req: RunRequest) -> dict[str, Any]:
@@ -289,11 +356,7 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
         from rig.run_cmd import LIBRARY
         from rig.scenarios.sweep import Sweep, SweepError, load_sweep
 
-        body = b""
-        async for chunk in request.stream():
-            body += chunk
-            if len(body) > MAX_SCENARIO:
-                raise HTTPException(413, f"a sweep spec over {MAX_SCENARIO} bytes")
+        body = await small_body(request, "a sweep spec")
         problems, _ = check_run(RunRequest(scenarios=["-"], dut={"command": dut} if dut is not None else {},
                                            fc=fc), store, scenarios=False)
         if problems:

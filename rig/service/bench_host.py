@@ -28,6 +28,10 @@ NAME: Final = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 RETRY_S: Final = 1.0
 
 
+class NameTaken(Exception):
+    """Another worker of the scheduler has this bench's name (two bench hosts, one --name)."""
+
+
 def resource(name: str) -> str:
     return RESOURCE + name
 
@@ -99,11 +103,26 @@ def main(args: argparse.Namespace) -> int:
              "labels": labels, "bridge_id": found.bridge_id, "firmware_sha256": found.firmware_sha256}
     try:
         asyncio.run(_serve(args.engine, BENCH, args.host, security))
+    except NameTaken:
+        print(f"rig bench-host: the scheduler at {args.engine} has a bench named {args.name!r} already "
+              "(another rig bench-host): give this one another --name", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("rig bench-host: stopped (Ctrl-C)", file=sys.stderr)
         return 130
     print("rig bench-host: stopped", file=sys.stderr)
     return 0
+
+
+async def _taken(address: str, worker_name: str, security: Any) -> bool:
+    """Whether a worker of the scheduler has this name already (asked before joining: Dask's own refusal
+    comes as a traceback after a page of its log)."""
+    from distributed import Client
+
+    async with Client(address, asynchronous=True, security=security, timeout=RETRY_S * 10,
+                      set_as_default=False) as client:
+        workers = (await client.scheduler.identity(n_workers=-1)).get("workers", {})
+    return any(w.get("name") == worker_name for w in workers.values())
 
 
 async def _serve(address: str, bench: dict[str, Any], host: str | None, security: Any) -> None:
@@ -116,9 +135,15 @@ async def _serve(address: str, bench: dict[str, Any], host: str | None, security
     name = bench["name"]
     while not stopping.is_set():
         try:
+            if await _taken(address, f"bench-{name}", security):
+                raise NameTaken(name)
             worker = Worker(address, nthreads=1, resources={resource(name): 1}, name=f"bench-{name}",
                             host=host, dashboard=False, security=security)
             await worker
+        except (ValueError, RuntimeError) as e:  # (Dask's answer to a name another worker took meanwhile)
+            if "name taken" in f"{e} {e.__cause__}":
+                raise NameTaken(name) from None
+            raise
         except (OSError, TimeoutError) as e:
             print(f"rig bench-host: no scheduler at {address} ({e}): trying again", file=sys.stderr,
                   flush=True)

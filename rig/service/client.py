@@ -1,11 +1,11 @@
 """``rig submit`` and ``rig status``: the command line as a client of ``rig serve`` (docs/service.md).
 
-``rig submit --server URL [SCENARIO…] [--seed N] [--dut CMD] [--pwm-channels N] [--topology T]
-[--bridge virtual] [--priority P] [--wait]`` queues a run and prints its id; with ``--wait`` it follows
-the run (one line per change of status or progress, on stderr) and exits as ``rig run`` would: 0
-passed, 1 failed, 3 error, 130 interrupted or cancelled. ``rig status --server URL [ID]`` prints one
-run, or the latest ones. The token comes from ``--token`` or ``$RIG_TOKEN``. Only the standard library
-speaks HTTP here.
+``rig submit --server URL [SCENARIO…] [--seed N] [--dut CMD | --firmware FILE [--board BOARD]]
+[--pwm-channels N] [--topology T] [--bridge virtual] [--priority P] [--wait]`` queues a run and prints
+its id; with ``--wait`` it follows the run (one line per change of status or progress, on stderr) and
+exits as ``rig run`` would: 0 passed, 1 failed, 3 error, 130 interrupted or cancelled. ``rig status
+--server URL [ID]`` prints one run, or the latest ones. The token comes from ``--token`` or
+``$RIG_TOKEN``. Only the standard library speaks HTTP here.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ import sys
 import urllib.error
 import urllib.parse
 import urllib.request
+from pathlib import Path
 from typing import Any
 
 EXIT_BY_STATUS = {"passed": 0, "failed": 1, "error": 3, "interrupted": 130, "cancelled": 130}
@@ -37,10 +38,11 @@ class ClientError(Exception):
 
 
 def call(server: str, method: str, path: str, token: str | None, body: object = None,
-         timeout: float = 90.0) -> Any:
-    req = urllib.request.Request(server.rstrip("/") + path, method=method,
-                                 data=None if body is None else json.dumps(body).encode())
-    req.add_header("content-type", "application/json")
+         timeout: float = 90.0, raw: bytes | None = None) -> Any:
+    """One request: ``body`` as JSON, or ``raw`` bytes as they are (an upload); the answer's JSON."""
+    data = raw if raw is not None else None if body is None else json.dumps(body).encode()
+    req = urllib.request.Request(server.rstrip("/") + path, method=method, data=data)
+    req.add_header("content-type", "application/octet-stream" if raw is not None else "application/json")
     if token:
         req.add_header("authorization", f"Bearer {token}")
     try:
@@ -82,6 +84,11 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     s.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="library scenario names")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--dut", help="the DUT command line (default: the reference FC)")
+    s.add_argument("--firmware", type=Path, metavar="FILE",
+                   help="upload FILE and fly it: a Linux program, or with --board an AVR image (.elf, .hex)")
+    s.add_argument("--board", metavar="BOARD",
+                   help="with --firmware: a shipped board's name (mega2560-gy86, ...) or a board file "
+                   "(uploaded)")
     s.add_argument("--pwm-channels", type=int, metavar="N", help="a Linux DUT's channels of pwmchip0 (1..16)")
     s.add_argument("--topology", choices=["gy86", "direct"], help="a Linux DUT's I2C wiring (default gy86)")
     s.add_argument("--fc", metavar="PROFILE",
@@ -132,6 +139,10 @@ def cmd_submit(args: argparse.Namespace) -> int:
             return EXIT_USAGE
     if args.dut:
         body["dut"] = {"command": args.dut}
+    problem = _usage_problem(args)
+    if problem is not None:
+        print(f"rig submit: {problem}", file=sys.stderr)
+        return EXIT_USAGE
     for option in ("pwm_channels", "topology"):  # (checked by the service, which says why in a 422)
         if getattr(args, option) is not None:
             body[option] = getattr(args, option)
@@ -139,7 +150,10 @@ def cmd_submit(args: argparse.Namespace) -> int:
         body["fc"] = args.fc
     run_id = None
     try:
-        run_id = call(server_url(args.server), "POST", "/api/runs", args.token, body)["id"]
+        server_url(args.server)
+        if args.firmware is not None:
+            body["dut"] = _upload_dut(args)
+        run_id = call(args.server, "POST", "/api/runs", args.token, body)["id"]
         print(run_id, flush=True)
         if not args.wait:
             return 0
@@ -165,6 +179,39 @@ def cmd_submit(args: argparse.Namespace) -> int:
         return EXIT_BY_STATUS["interrupted"]
 
 
+def _usage_problem(args: argparse.Namespace) -> str | None:
+    """What is wrong with ``--firmware``/``--board`` on this command line (None: nothing), before any
+    request: the files must be there to be uploaded."""
+    if args.board is not None and args.firmware is None:
+        return "--board goes with --firmware FILE (the image it flies)"
+    if args.firmware is not None and args.dut:
+        return "--firmware and --dut both name the DUT: give one"
+    if args.firmware is not None and not args.firmware.is_file():
+        return f"--firmware {args.firmware}: no such file"
+    return None
+
+
+def _upload_dut(args: argparse.Namespace) -> dict[str, str]:
+    """Uploads ``--firmware`` (and ``--board`` when it is a file, not a shipped board's name): the run's
+    ``dut``. The service tells the image's kind and refuses one that does not fit (ClientError)."""
+    try:
+        image = args.firmware.read_bytes()
+    except OSError as e:
+        raise ClientError(f"--firmware {args.firmware}: {e.strerror}", 400) from None
+    dut = {"firmware": call(args.server, "POST", "/api/firmware", args.token, raw=image)["sha256"]}
+    if args.board is not None:
+        board = Path(args.board)
+        if board.suffix == ".toml" or board.is_file():
+            try:
+                text = board.read_bytes()
+            except OSError as e:
+                raise ClientError(f"--board {args.board}: {e.strerror}", 400) from None
+            dut["board"] = call(args.server, "POST", "/api/boards", args.token, raw=text)["sha256"]
+        else:
+            dut["board"] = args.board
+    return dut
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     """``rig bench --server URL list|disable NAME|enable NAME``: the farm's benches, one a line."""
     try:
@@ -178,7 +225,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
                           f"{args.action}", args.token)]
         for b in found:
             labels = ",".join(f"{k}={v}" for k, v in sorted(b.get("labels", {}).items()))
-            run = f" with run {b['run']}" if b.get("run") else ""
+            run = (f" with run {b['run']}" if b.get("run") else f" ({b['problem']})" if b.get("problem")
+                   else "")
             print(f"{b['name']}: {b['state']}{run} — {labels} on {b.get('host')} ({b.get('bridge')})")
     except ClientError as e:
         for problem in str(e).splitlines():

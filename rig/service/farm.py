@@ -40,15 +40,16 @@ from rig.service.worker import (
     PINNED,
     POLL_S,
     STATUS_BY_EXIT,
+    RealtimeProgress,
     _die_with_parent,
     _end,
     command,
     count_runs,
-    ended,
     results,
     stopped_while_running,
     sweep_progress,
     sweep_results,
+    why,
 )
 
 #: stands for the run's folder on the worker in a task's command line (a NUL is in no real argument)
@@ -57,8 +58,10 @@ OUT: Final = "\0out\0"
 PYTHON: Final = "\0python\0"
 #: stands for the bench host's bridge in a bench run's command line (rig bench-host --bridge)
 BRIDGE: Final = "\0bridge\0"
-#: in the run's folder on the worker: the firmware it flies (hidden, not sent back)
+#: in the run's folder on the worker: the firmware it flies and an uploaded board file (hidden, not
+#: sent back)
 FIRMWARE: Final = ".firmware"
+BOARD: Final = ".board"
 #: how long a connection to the scheduler is tried before the service says it is unreachable
 CONNECT_S: Final = 5.0
 #: how often an unreachable scheduler is tried again
@@ -116,7 +119,8 @@ def fly(job: Job) -> dict[str, Any]:
                                     cwd=tmp, start_new_session=True, preexec_fn=_die_with_parent)
             code = _watch(proc, job, out)
         inputs = {Path(rel).parts[0] for rel in job.files}
-        return {"exit_code": code, "archive": _pack(out, inputs), "host": socket.gethostname()}
+        return {"exit_code": code, "archive": _pack(out, inputs), "host": socket.gethostname(),
+                "folder": str(out)}
 
 
 def _on_the_bench(argv: list[str], run_id: int) -> list[str]:
@@ -157,6 +161,7 @@ def _watch(proc: subprocess.Popen[bytes], job: Job, out: Path) -> int:
         pass
     looked = time.monotonic()
     progress = 0.0
+    realtime = RealtimeProgress(out / "rig-run.log") if "--bridge" in job.argv else None
     while True:
         try:
             return proc.wait(timeout=POLL_S)
@@ -167,6 +172,7 @@ def _watch(proc: subprocess.Popen[bytes], job: Job, out: Path) -> int:
         looked = time.monotonic()
         done = sum((out / r).is_file() for r in job.results)
         now = (sweep_progress(out, job.sweep_total) if job.sweep_total
+               else realtime(done, len(job.results)) if realtime is not None
                else round(100.0 * done / max(len(job.results), 1), 1))
         try:
             if now != progress:
@@ -224,14 +230,20 @@ def job_for(run: dict[str, Any], out: Path, store: Store) -> tuple[Job, dict[str
     cmd, flown = command(run, out, store)
     files = {f"{PINNED}/{p.name}": p.read_bytes() for p in sorted((out / PINNED).iterdir()) if p.is_file()}
     program = store.firmware(run["dut"]["firmware"]) if run["dut"].get("firmware") else None
+    board = store.board(run["dut"]["board"]) if run["dut"].get("board") else None
+    # the service's files the command names, as the worker's copies in the run's folder (a shipped
+    # board's name stays a name: the worker has the same rig)
+    inputs = {str(p): f"{where}/{p.name}" for p, where in ((program, FIRMWARE), (board, BOARD))
+              if isinstance(p, Path)}
     argv = []
     for k, arg in enumerate(cmd):
         if k == 0 and arg == sys.executable:
             argv.append(PYTHON)
             continue
-        if program is not None and str(program) in arg:
-            files[f"{FIRMWARE}/{program.name}"] = program.read_bytes()
-            arg = arg.replace(str(program), f"{OUT}/{FIRMWARE}/{program.name}")
+        for path, rel in inputs.items():
+            if path in arg:
+                files[rel] = Path(path).read_bytes()
+                arg = arg.replace(path, f"{OUT}/{rel}")
         argv.append(arg.replace(str(out), OUT))
     if run["mode"] == "bridge":  # (command gives the service's own bench: the virtual bridge)
         argv[argv.index("--bridge") + 1] = BRIDGE
@@ -322,15 +334,18 @@ class Farm:
 
     def benches(self) -> list[dict[str, Any]]:
         """Every bench the scheduler knows: its labels, host, bridge and state (free, busy with a run,
-        offline: its host is not connected, maintenance: disabled here)."""
+        offline: its host is not connected, maintenance: disabled here; unknown while the scheduler
+        cannot be reached, with the ``problem``: what was last seen of it is no news of it now)."""
         disabled = self.db.disabled_benches()
         running = {f.bench: f.run["id"] for f in list(self._flights.values()) if f.bench}
+        state_now = dict(self._state)
         out = []
         for name, b in sorted(self._benches.items()):
-            state = ("maintenance" if name in disabled else "offline" if not b.get("worker")
-                     else "busy" if name in running else "free")
+            state = ("maintenance" if name in disabled else "unknown" if not state_now["connected"]
+                     else "offline" if not b.get("worker") else "busy" if name in running else "free")
             out.append({"name": name, "state": state, "run": running.get(name), "labels": b.get("labels", {}),
-                        **{k: b.get(k) for k in ("host", "bridge", "psu", "bridge_id", "firmware_sha256")}})
+                        **{k: b.get(k) for k in ("host", "bridge", "psu", "bridge_id", "firmware_sha256")},
+                        **({"problem": state_now["problem"]} if state == "unknown" else {})})
         return out
 
     def refuse(self, selector: dict[str, str]) -> str | None:
@@ -587,6 +602,17 @@ class Farm:
         except Exception:  # (not published, or the scheduler is gone: nothing to forget)
             pass
 
+    def _here(self, text: str, folder: str, run: dict[str, Any], out: Path) -> str:
+        """Words from a worker with its temporary run folder (gone now) named as the service's: its
+        copies of the inputs as the store's files, the rest as the run's folder here."""
+        dut = run["dut"]
+        program = self.store.firmware(dut["firmware"]) if dut.get("firmware") else None
+        board = self.store.board(dut["board"]) if dut.get("board") else None
+        for path, where in ((program, FIRMWARE), (board, BOARD)):
+            if isinstance(path, Path):
+                text = text.replace(f"{folder}/{where}/{path.name}", str(path))
+        return text.replace(folder, str(out))
+
     def _land(self, flight: Flight) -> None:
         """A run's task has ended: its folder into the data folder, its status as rig run's exit says."""
         run, out = flight.run, self.artifacts / str(flight.run["id"])
@@ -603,8 +629,14 @@ class Farm:
             self.db.finish(run["id"], status, pid=None, error=f"{what} on the Dask cluster: {name}: {e}")
             return
         status = STATUS_BY_EXIT.get(code, "error")
-        error = None if status in ("passed", "failed") else ended(what, code, out / "rig-run.log")
         found = (sweep_results(out, *next(iter(flight.flown.items()))) if sweep
                  else results(out, run["scenarios"]))
+        folder = answer.get("folder")
+        for r in found if isinstance(folder, str) and folder else []:
+            if r.get("error"):
+                r["error"] = self._here(r["error"], folder, run, out)
+        error = None if status in ("passed", "failed") else why(what, code, out / "rig-run.log", found)
+        if error is not None and isinstance(folder, str) and folder:
+            error = self._here(error, folder, run, out)
         self.db.finish(run["id"], status, exit_code=code, error=error, progress=100.0, pid=None,
                        results=found)

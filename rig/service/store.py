@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any, Final, TypeVar
 
 from rig.service.db import Db
+from rig.service.images import HEAD, LINUX, ImageKindError, kind_of
 
 T = TypeVar("T")
 
@@ -41,7 +42,7 @@ class UploadError(ValueError):
 class Store:
     def __init__(self, data: Path, db: Db) -> None:
         self.firmware_dir, self.scenario_dir = data / "firmware", data / "scenarios"
-        self.sweep_dir = data / "sweeps"
+        self.sweep_dir, self.board_dir = data / "sweeps", data / "boards"
         self.db = db
         self.firmware_dir.mkdir(parents=True, exist_ok=True)
         self.scenario_dir.mkdir(parents=True, exist_ok=True)
@@ -49,8 +50,10 @@ class Store:
 
     # ---- firmware -----------------------------------------------------------------------------
 
-    async def put_firmware(self, chunks: AsyncIterator[bytes], limit: int = MAX_FIRMWARE) -> tuple[str, int]:
-        """Stores an upload (a program the DUT runs) under its SHA-256; (the hash, its size)."""
+    async def put_firmware(self, chunks: AsyncIterator[bytes], limit: int = MAX_FIRMWARE
+                           ) -> tuple[str, int, str]:
+        """Stores an upload (a Linux program the DUT runs, or an AVR image a board flies) under its
+        SHA-256; (the hash, its size, its kind: rig/service/images.py). Anything else is refused."""
         digest, size = hashlib.sha256(), 0
         fd, tmp = tempfile.mkstemp(dir=self.firmware_dir, prefix=".upload-")
         try:
@@ -63,13 +66,19 @@ class Store:
                     f.write(chunk)
             if size == 0:
                 raise UploadError("an empty upload is no firmware")
+            with open(tmp, "rb") as f:
+                try:
+                    kind = kind_of(f.read(HEAD))
+                except ImageKindError as e:
+                    raise UploadError(f"the upload is {e}") from None
             sha = digest.hexdigest()
             path = self.firmware_dir / sha
             if path.exists():  # stored once
-                return sha, size
-            os.chmod(tmp, 0o755)
+                return sha, size, kind
+            # (only a Linux program may be executed: an AVR image is data for the MCU tier)
+            os.chmod(tmp, 0o755 if kind in LINUX else 0o644)
             os.replace(tmp, path)
-            return sha, size
+            return sha, size, kind
         finally:
             if os.path.exists(tmp):
                 os.unlink(tmp)
@@ -80,9 +89,76 @@ class Store:
         path = self.firmware_dir / sha
         return path if path.is_file() else None
 
+    def firmware_kind(self, sha: str) -> str | None:
+        """An uploaded firmware's kind, from its head (a file uploaded before kinds were told apart is
+        told now); None when it is none the service runs, or not there."""
+        path = self.firmware(sha)
+        if path is None:
+            return None
+        with open(path, "rb") as f:
+            try:
+                return kind_of(f.read(HEAD))
+            except ImageKindError:
+                return None
+
     def firmware_list(self) -> list[dict[str, object]]:
-        return [{"sha256": p.name, "size": p.stat().st_size} for p in sorted(self.firmware_dir.iterdir())
-                if SHA256.fullmatch(p.name)]
+        return [{"sha256": p.name, "size": p.stat().st_size, "kind": self.firmware_kind(p.name)}
+                for p in sorted(self.firmware_dir.iterdir()) if SHA256.fullmatch(p.name)]
+
+    # ---- boards -------------------------------------------------------------------------------
+
+    def put_board(self, text: bytes) -> dict[str, Any]:
+        """A board file (TOML) checked as ``rig run --mcu`` checks one, stored once under its SHA-256.
+        An EEPROM image named by path is refused: it would be a file of the service's disk."""
+        from rig.mcu import board
+
+        if len(text) > MAX_SCENARIO:
+            raise UploadError(f"a board file over {MAX_SCENARIO} bytes", 413)
+        try:
+            eeprom = tomllib.loads(text.decode("utf-8")).get("eeprom")
+        except (UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
+            raise UploadError(f"the board file is not a readable TOML file: {e}") from None
+        if isinstance(eeprom, dict) and "image" in eeprom:
+            raise UploadError("board file: eeprom.image names a file on the service's disk: an uploaded "
+                              "board may say eeprom.fc = true, or no [eeprom]")
+        sha = hashlib.sha256(text).hexdigest()
+        self.board_dir.mkdir(exist_ok=True)
+        with tempfile.TemporaryDirectory(dir=self.board_dir, prefix=".upload-") as tmp:
+            path = Path(tmp) / "board.toml"
+            path.write_bytes(text)
+            try:
+                found = board.load(path)
+            except board.BoardError as e:
+                raise UploadError(str(e).replace(str(path), "board file")) from None
+            os.replace(path, self.board_dir / f"{sha}.toml")
+        return {"sha256": sha, "name": found.name, "mcu": found.mcu.name}
+
+    def board(self, name: str) -> Path | str | None:
+        """What ``rig run --mcu`` is given for a run's ``board``: a shipped board's name as it is, an
+        uploaded board's SHA-256 as its file; None for neither."""
+        from rig.mcu import board
+
+        if name in board.names():
+            return name
+        path = self.board_dir / f"{name}.toml"
+        return path if SHA256.fullmatch(name) and path.is_file() else None
+
+    def board_list(self) -> list[dict[str, Any]]:
+        """The shipped boards by name, then the uploaded ones by SHA-256, each with its MCU."""
+        from rig.mcu import board
+
+        out = []
+        shipped = [(n, None, board.BOARDS / f"{n}.toml") for n in board.names()]
+        uploaded = [(None, p.stem, p) for p in sorted(self.board_dir.glob("*.toml"))
+                    if SHA256.fullmatch(p.stem)]
+        for name, sha, path in shipped + uploaded:
+            try:
+                found = board.load(path)
+            except board.BoardError:
+                continue
+            out.append({"board": name or sha, "name": found.name, "mcu": found.mcu.name,
+                        "origin": "shipped" if sha is None else "uploaded"})
+        return out
 
     # ---- scenarios ----------------------------------------------------------------------------
 

@@ -14,6 +14,7 @@ import contextlib
 import ctypes
 import json
 import os
+import re
 import shlex
 import signal
 import socket
@@ -83,10 +84,58 @@ def command(run: dict[str, Any], out: Path, store: Store) -> tuple[list[str], di
         program = store.firmware(run["dut"]["firmware"])
         if program is None:
             raise LookupError(f"the firmware {run['dut']['firmware']} is no longer there")
-        cmd += ["--dut", shlex.quote(str(program))]
+        if run["dut"].get("board"):  # an AVR image on its board, under emulation (checked when queued)
+            board = store.board(run["dut"]["board"])
+            if board is None:
+                raise LookupError(f"the board {run['dut']['board']} is no longer there")
+            cmd += ["--mcu", str(board), "--firmware", str(program)]
+        else:
+            cmd += ["--dut", shlex.quote(str(program))]
     if run["dut"].get("fc"):
         cmd += ["--fc", run["dut"]["fc"]]
     return cmd, flown
+
+
+#: rig run's line as a scenario starts, its verdict added to it when it ends (rig/run_cmd.py)
+STARTED: Final = re.compile(r"\[(\d+)/(\d+)\] \S+ \(([0-9.e+]+) s sim\) \.\.\.$")
+
+
+class RealtimeProgress:
+    """A real-time run's progress within a scenario (a bench run, which would otherwise read 0 % for
+    its whole flight): in real time sim time runs at the wall clock's pace, so the wall time since
+    ``rig run`` wrote that a scenario started, over its duration, is the share of it flown (at most
+    99 % until its verdict; rounded to whole percent: one database write a second at most)."""
+
+    def __init__(self, log: Path) -> None:
+        self.log = log
+        self._line = ""
+        self._since = 0.0
+
+    def __call__(self, done: int, total: int) -> float:
+        started = STARTED.search(_tail(self.log))
+        if started is None or int(started.group(1)) != done + 1:
+            return round(100.0 * done / max(total, 1), 1)
+        if started.group(0) != self._line:
+            self._line, self._since = started.group(0), time.monotonic()
+        flown = min((time.monotonic() - self._since) / max(float(started.group(3)), 1e-3), 0.99)
+        return float(round(100.0 * (done + flown) / max(total, 1)))
+
+
+def _tail(log: Path) -> str:
+    """The log's last line, as far as it was written (no newline yet: a scenario under way)."""
+    try:
+        with open(log, "rb") as f:
+            f.seek(max(f.seek(0, os.SEEK_END) - 1024, 0))
+            return f.read().decode(errors="replace").rsplit("\n", 1)[-1]
+    except OSError:
+        return ""
+
+
+def why(what: str, code: int, log: Path, found: list[dict[str, Any]]) -> str:
+    """Why a run ended in error, for a person: each scenario's reason as its result.json says it ("the
+    DUT never read a sensor"), else how its process ended (``ended``)."""
+    reasons = [f"{r['scenario']}: {r['error']}" for r in found if r.get("error")]
+    return "; ".join(reasons) if reasons and code > 0 else ended(what, code, log)
 
 
 def sweep_results(out: Path, scenario: str, sha256: str) -> list[dict[str, Any]]:
@@ -251,6 +300,7 @@ class Workers:
             total = run["total"] if sweep else len(run["scenarios"])
             beat = counted = time.monotonic()
             progress = 0.0
+            realtime = RealtimeProgress(out / "rig-run.log") if run["mode"] == "bridge" else None
             while True:
                 try:
                     code = proc.wait(timeout=POLL_S)
@@ -259,7 +309,8 @@ class Workers:
                     now = time.monotonic()
                     if not sweep:
                         done = sum((out / Path(s).stem / "result.json").is_file() for s in run["scenarios"])
-                        now_progress = round(100.0 * done / total, 1)
+                        now_progress = (realtime(done, total) if realtime is not None
+                                        else round(100.0 * done / total, 1))
                     elif now - counted >= SWEEP_COUNT_S:  # (a listing of thousands of run folders)
                         counted = now
                         now_progress = sweep_progress(out, total)
@@ -276,10 +327,10 @@ class Workers:
             self._procs.pop(run["id"], None)
         status = STATUS_BY_EXIT.get(code, "error")
         what = "rig sweep" if sweep else "rig run"
-        error = None if status in ("passed", "failed") else ended(what, code, out / "rig-run.log")
+        found = sweep_results(out, *next(iter(flown.items()))) if sweep else results(out, run["scenarios"])
+        error = None if status in ("passed", "failed") else why(what, code, out / "rig-run.log", found)
         if self._stop:
             status, error = "interrupted", stopped_while_running(self._why)
-        found = sweep_results(out, *next(iter(flown.items()))) if sweep else results(out, run["scenarios"])
         self.db.finish(run["id"], status, exit_code=code, error=error, progress=100.0, pid=None,
                        results=found)
 

@@ -200,6 +200,18 @@ def test_rig_mcu_runs_the_image_and_names_its_hash(tmp_path, avr_fc):
     assert result["metadata"]["mode"] == "mcu"
 
 
+def test_a_bad_rig_firmware_is_one_line_in_a_fixture_test_too(tmp_path):
+    (tmp_path / "test_fixture.py").write_text(
+        "def test_flies(rig):\n    assert rig.run('seed000_roll_stand').passed\n")
+    (tmp_path / "not-an-image.hex").write_text("hello\n")
+    done = pytest_run(tmp_path, str(tmp_path), "--rig-mcu", "mega2560-gy86", "--rig-firmware",
+                      str(tmp_path / "not-an-image.hex"))
+    assert done.returncode == 1, done.stdout + done.stderr
+    [line] = [x for x in done.stdout.splitlines() if x.startswith("rig: ")]
+    assert line.startswith("rig: mcu: ") and "neither an AVR ELF nor an Intel HEX file" in line, line
+    assert "Traceback" not in done.stdout and "api.py" not in done.stdout, done.stdout
+
+
 def test_rig_mcu_without_firmware_stops_pytest(tmp_path):
     done = pytest_run(tmp_path, str(tmp_path), "--rig-mcu", "mega2560-gy86")
     assert done.returncode == 4, done.stdout + done.stderr  # pytest's usage error

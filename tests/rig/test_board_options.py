@@ -40,10 +40,10 @@ def test_by_default_the_compass_hides_behind_the_mpu(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(("options", "said"), [
-    ({"pwm_channels": 0}, "--pwm-channels must be between 1 and 16, got 0"),
-    ({"pwm_channels": 17}, "--pwm-channels must be between 1 and 16, got 17"),
-    ({"topology": "star"}, "argument --topology: invalid choice: 'star'"),
-    ({"topology": "direct", "bridge": "virtual"}, "not with --bridge or --mcu"),
+    ({"pwm_channels": 0}, "^pwm_channels must be between 1 and 16, got 0"),
+    ({"pwm_channels": 17}, "^pwm_channels must be between 1 and 16, got 17"),
+    ({"topology": "star"}, "argument topology: invalid choice: 'star'"),
+    ({"topology": "direct", "bridge": "virtual"}, "not with bridge or mcu"),
 ])
 def test_the_api_refuses_a_board_no_dut_has(tmp_path: Path, options: dict[str, object], said: str) -> None:
     with pytest.raises(api.RigError, match=said):

@@ -21,6 +21,7 @@ import pytest
 from rig.reports.telemetry import read
 from rig.runner import run
 from rig.scenarios.schema import Gust, load
+from tests.browser import chromium_page
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
 
@@ -142,9 +143,9 @@ def check_pdf_against_results(pdf: Path, results: list[dict]) -> str:
         assert f"Verdict: {result['verdict'].upper()}" in flat, r
         assert result["metadata"]["scenario_sha256"] in sec, r
         for m in result["measurements"]:
-            v = m["value"]
-            shown = "not measured" if v == "nan" else ("never" if v == "inf" and m["units"] == "s" else
-                                                        f"{v:.4g}")
+            v, why = m["value"], m.get("value_reason")
+            shown = "not measured" if why == "nan" else ("never" if why == "inf" and m["units"] == "s" else
+                                                          f"{v:.4g}")
             assert shown in flat, (r, m["name"], shown)
             if m["margin"] is not None:
                 assert f"{m['margin']:.1f} %" in flat, (r, m["name"])
@@ -239,9 +240,6 @@ def test_report_html_reads_in_words(library_run: tuple[Path, str]) -> None:
     assert motors.count('fill="none" stroke="#888"') == 4  # one lane per motor
 
 
-CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                  "--disable-component-update", "--disable-sync", "--no-first-run"]
-
 #: the pixels of a chart: how many are near a colour (uPlot draws with antialiasing)
 COUNT_COLOUR = """([sel, hex]) => {
   const want = [1, 3, 5].map(i => parseInt(hex.slice(i, i + 2), 16));
@@ -260,15 +258,8 @@ def test_report_html_in_chromium(library_run: tuple[Path, str], tmp_path: Path) 
     """Debian's Chromium through Playwright (never a downloaded browser): the interactive charts replace
     the static SVG, draw the traces and shade the RC loss only where there was one; without JavaScript
     and on paper the SVG shows; a screenshot is taken."""
-    from playwright.sync_api import sync_playwright
-
     out = library_run[0]
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_FLAGS)
-        page = browser.new_page(viewport={"width": 1000, "height": 1400})
-        errors: list[str] = []
-        page.on("pageerror", lambda e: errors.append(str(e)))
-        page.goto((out / "rc_loss_failsafe" / "report.html").as_uri())
+    with chromium_page((out / "rc_loss_failsafe" / "report.html").as_uri(), 1000, 1400) as (page, errors):
         assert page.locator("figure.plot.live").count() == 4 and not errors
         assert page.locator("figure.plot .uplot").count() == 3 + 4  # three charts and four motor lanes
         assert not page.locator("#plot-attitude .svg").is_visible()
@@ -283,7 +274,7 @@ def test_report_html_in_chromium(library_run: tuple[Path, str], tmp_path: Path) 
         page.goto((out / "step_roll" / "report.html").as_uri())
         assert page.locator("figure.plot.live").count() == 4
         assert page.evaluate(COUNT_COLOUR, ["#plot-altitude", "#cfe2f3"]) == 0  # no RC loss, no shade
-        static = browser.new_context(java_script_enabled=False).new_page()
+        assert page.context.browser is not None
+        static = page.context.browser.new_context(java_script_enabled=False).new_page()
         static.goto((out / "step_roll" / "report.html").as_uri())
         assert static.locator("#plot-attitude .svg").is_visible() and static.locator(".uplot").count() == 0
-        browser.close()

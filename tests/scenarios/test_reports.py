@@ -307,3 +307,28 @@ def test_telemetry_csv_is_the_csv_module_s_writing_of_its_rows() -> None:
     assert ",," in text and "inf" in text and "-0," in text and "e-" in text
     with pytest.raises(ValueError):
         telemetry.render({**signals, "roll": signals["roll"][:-1]})
+
+
+def test_non_finite_values_are_null_with_a_reason_in_result_json(tmp_path: Path) -> None:
+    """result.json is strict JSON (RFC 8259 has no NaN or Infinity): a value that is not a finite number
+    is null, and ``value_reason`` says which it was; read back as that float."""
+    import dataclasses
+
+    base = criterion([0.0, 1.0], 5.0)
+    kinds = [dataclasses.replace(base, name=n, value=v, outcome="not judged")
+             for n, v in (("nan", math.nan), ("inf", math.inf), ("-inf", -math.inf))]
+    r = a_run([base, *kinds])
+    text = result_json.render(r)
+
+    def refuse(word: str) -> None:
+        raise ValueError(f"{word} in strict JSON")
+
+    data = json.loads(text, parse_constant=refuse)  # (Python's reader would take NaN; JSON has none)
+    got = [(m["name"], m["value"], m.get("value_reason")) for m in data["measurements"]]
+    assert got == [("c", 1.0, None), ("nan", None, "nan"), ("inf", None, "inf"), ("-inf", None, "-inf")]
+    (tmp_path / "step_roll").mkdir()
+    (tmp_path / "step_roll" / "result.json").write_text(text)
+    (tmp_path / ".rig-run.json").write_text('["step_roll"]\n')
+    [back], _ = read_folder(tmp_path)
+    values = [m.value for m in back.measurements]
+    assert values[:1] == [1.0] and math.isnan(values[1]) and values[2:] == [math.inf, -math.inf]

@@ -190,6 +190,7 @@ def test_a_signal_stops_the_run_writes_the_reports_and_leaves_nothing(tmp_path: 
     stderr = proc.communicate(timeout=60)[1]
     assert proc.returncode == 128 + sig, stderr
     assert "Traceback" not in stderr
+    assert "0 passed, 0 failed, 0 errors, 1 interrupted in " in stderr  # the summary counts it
     result = read_result(out, "a")
     assert result["verdict"] == "interrupted" and signal.Signals(sig).name in result["error"]
     assert (out / "a" / "report.html").is_file() and (out / "junit.xml").is_file()

@@ -145,6 +145,11 @@ def test_selectors_choose_the_bench_and_a_disabled_bench_keeps_its_runs_queued(f
     with urllib.request.urlopen(svc.url + "/", timeout=30) as page:
         html = page.read().decode()
     assert "<td>a</td><td class=\"\">maintenance" in html and "put back" in html
+    # its page: its place, its selector, and the bench it waits for with that bench's state
+    with urllib.request.urlopen(f"{svc.url}/runs/{waits}", timeout=30) as page:
+        html = page.read().decode()
+    assert "position 1 in the bench queue" in html and '<code id="selector">site=x</code>' in html
+    assert 'waits for <span id="waits">a bench: a (maintenance)</span>' in html
     r = rig("bench", "--server", svc.url, "enable", "a")
     assert r.returncode == 0, r.stdout + r.stderr
     assert ended_on(svc, waits, "a")["mode"] == "bridge"  # put back, it takes its run
@@ -159,7 +164,7 @@ def test_a_bench_host_killed_mid_run_interrupts_its_run_and_the_other_bench_pass
     _, doomed = svc.call("POST", "/api/runs", {"scenarios": ["step_roll"], "mode": "bridge",
                                                "bench": {"site": "x"}})
     _, other = svc.call("POST", "/api/runs", {"scenarios": [QUICK], "mode": "bridge", "bench": {"site": "y"}})
-    svc.until(doomed["id"], "running")
+    svc.flying(doomed["id"])
     farm.hosts["a"].send_signal(signal.SIGKILL)  # (its run has 10 s of flight in real time)
     gone = svc.follow(doomed["id"])
     assert gone["status"] == "interrupted" and "not run again" in gone["error"], gone
@@ -167,3 +172,37 @@ def test_a_bench_host_killed_mid_run_interrupts_its_run_and_the_other_bench_pass
     assert done["status"] == "passed" and done["bench_name"] == "b", done
     benches = {b["name"]: b["state"] for b in svc.call("GET", "/api/benches")[1]}
     assert benches == {"a": "offline", "b": "free"}
+
+
+def test_a_scheduler_gone_leaves_the_benches_unknown(farm: Farm) -> None:
+    svc = farm.svc
+    # the scheduler dies: what was seen of the benches is no news of them now
+    _, last = svc.call("POST", "/api/runs", {"scenarios": ["step_roll"], "mode": "bridge",
+                                             "bench": {"site": "y"}})  # (10 s of flight in real time)
+    svc.flying(last["id"])
+    farm.procs[0].send_signal(signal.SIGKILL)
+    assert svc.follow(last["id"])["status"] == "interrupted"
+    assert svc.call("GET", "/api/health")[1]["status"] == "degraded"
+    benches = {b["name"]: b["state"] for b in svc.call("GET", "/api/benches")[1]}
+    assert benches == {"a": "unknown", "b": "unknown"}
+    listed = rig("bench", "--server", svc.url, "list")
+    assert listed.returncode == 0 and [line.split(":")[1].split()[0] for line in listed.stdout.splitlines()] \
+        == ["unknown", "unknown"] and "free" not in listed.stdout, listed.stdout
+    with urllib.request.urlopen(svc.url + "/", timeout=30) as page:
+        html = page.read().decode()
+    assert ">unknown<" in html.replace("\n", "") and ">free<" not in html.replace("\n", "")
+
+
+def test_a_bench_name_taken_is_one_line(farm: Farm) -> None:
+    """The refusal must leave the farm as it was: while this was written the scheduler was once seen
+    gone after it, under a heavily loaded host (not reproduced since: 4 of 4 runs), hence the checks
+    after the refusal."""
+    # a second bench host under a name taken: one line naming the clash and --name, exit 2
+    clash = rig("bench-host", "--engine", farm.address, "--bridge", "virtual", "--name", "b")
+    assert clash.returncode == 2 and clash.stderr.count("\n") == 1, clash.stderr
+    assert "a bench named 'b' already" in clash.stderr and "--name" in clash.stderr
+    # and the farm is as it was: the scheduler answers, both benches are there and free
+    health = farm.svc.call("GET", "/api/health")[1]
+    assert health["status"] == "ok", health
+    benches = {b["name"]: b["state"] for b in farm.svc.call("GET", "/api/benches")[1]}
+    assert benches == {"a": "free", "b": "free"}, benches

@@ -77,13 +77,7 @@ def test_a_service_killed_mid_run_re_attaches_and_the_clusters_results_equal_a_p
     svc = start(tmp_path / "data", "--engine", cluster.address)
     try:
         _, body = svc.call("POST", "/api/runs", {"scenarios": ["seed000_roll_stand", "step_roll"], "seed": 3})
-        svc.until(body["id"], "running")
-        # "running" is written when the run is claimed, before it is submitted and published on the
-        # cluster; a progress report comes from the worker's flight, after both: killed before then, the
-        # run is rightly interrupted (its future died with the service's client)
-        for _ in range(100):
-            if svc.call("GET", f"/api/runs/{body['id']}?wait=30")[1]["progress"] > 0:
-                break
+        svc.flying(body["id"])  # (published on the cluster: a restart can re-attach to it)
     finally:
         stop(svc, signal.SIGKILL)  # the service dies outright; the run flies on
     svc = start(tmp_path / "data", "--engine", cluster.address)
@@ -173,5 +167,36 @@ def test_a_scheduler_gone_stops_dispatch_and_the_queue_waits_across_a_restart(
         cluster.worker("w1")
         assert svc.follow(second["id"])["status"] == "passed"  # re-attached: the queue went on
         assert svc.call("GET", "/api/health")[1]["status"] == "ok"
+    finally:
+        stop(svc)
+
+
+def test_an_avr_image_on_an_uploaded_board_and_an_errors_words_on_the_cluster(cluster: Cluster,
+                                                                             tmp_path: Path) -> None:
+    import hashlib
+
+    from tests.service.test_firmware_kinds import avr_image, board_and_image
+    from tests.short_scenario import SHORT_BENCH
+
+    image = avr_image()
+    svc = start(tmp_path / "data", "--engine", cluster.address)
+    try:
+        assert post_bytes(svc, "/api/scenarios?name=short", SHORT_BENCH.encode())[0] == 201
+        board, fw = board_and_image(svc, image)
+        _, body = svc.call("POST", "/api/runs", {"scenarios": ["short"],
+                                                 "dut": {"firmware": fw, "board": board}})
+        # a program whose interpreter is nowhere: the reason names the service's copy, not the worker's
+        script = post_bytes(svc, "/api/firmware", b"#!/nonexistent/interpreter\n")[1]["sha256"]
+        _, bad = svc.call("POST", "/api/runs", {"scenarios": ["step_roll"], "dut": {"firmware": script}})
+        run = svc.follow(body["id"])
+        assert run["status"] == "passed", run
+        folder = tmp_path / "data" / "runs" / str(body["id"])
+        result = json.loads((folder / "short" / "result.json").read_text())
+        assert result["metadata"]["dut_firmware_sha256"] == hashlib.sha256(image.read_bytes()).hexdigest()
+        assert result["metadata"]["board"].startswith("my ")  # the uploaded board went with the task
+        failed = svc.follow(bad["id"])
+        assert failed["status"] == "error", failed
+        assert failed["error"] == f"step_roll: command not found: {tmp_path / 'data' / 'firmware' / script}"
+        assert str(cluster.private) not in json.dumps(failed)
     finally:
         stop(svc)

@@ -182,7 +182,7 @@ def test_benches_and_lockstep_runs_across_namespaces(hosts: Hosts) -> None:
                                              "bench": {"site": "a"}})
     _, on_b = svc.call("POST", "/api/runs", {"scenarios": ["gust_rejection"], "mode": "bridge",
                                              "bench": {"site": "b"}})
-    svc.until(on_a["id"], "running")
+    svc.flying(on_a["id"])
     hosts.bench_hosts["a"].send_signal(signal.SIGKILL)  # (its run has 10 s of flight in real time)
     gone = svc.follow(on_a["id"])
     assert gone["status"] == "interrupted" and gone["bench_name"] == "a" and "not run again" in gone["error"]

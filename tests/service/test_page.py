@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.scenarios.test_library_and_reports import CHROMIUM_FLAGS
+from tests.browser import chromium_page
 from tests.service.test_api import Service, start, stop
 
 HTMX = Path(__file__).resolve().parents[2] / "rig" / "service" / "static" / "htmx" / "htmx.min.js"
@@ -30,17 +30,12 @@ def test_the_vendored_htmx_is_the_pinned_one() -> None:
 
 
 def test_the_page_lists_filters_starts_and_plots_runs(service: Service, tmp_path: Path) -> None:
-    from playwright.sync_api import expect, sync_playwright
+    from playwright.sync_api import expect
 
     _, body = service.call("POST", "/api/runs", {"scenarios": ["step_roll"]})
     first = service.follow(body["id"])
     assert first["status"] == "passed"
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_FLAGS)
-        page = browser.new_page(viewport={"width": 1100, "height": 1300})
-        errors: list[str] = []
-        page.on("pageerror", lambda e: errors.append(str(e)))
-        page.goto(service.url + "/")
+    with chromium_page(service.url + "/", 1100, 1300) as (page, errors):
         history = page.locator("#history tr.run")
         expect(history).to_have_count(1)
         expect(history.first).to_contain_text("step_roll")
@@ -69,11 +64,10 @@ def test_the_page_lists_filters_starts_and_plots_runs(service: Service, tmp_path
         page.screenshot(path=str(tmp_path / "run-page.png"), full_page=True)
         assert (tmp_path / "run-page.png").stat().st_size > 10_000
         assert not errors, errors
-        browser.close()
 
 
 def test_two_runs_overlaid_and_a_measurements_trend(service: Service) -> None:
-    from playwright.sync_api import expect, sync_playwright
+    from playwright.sync_api import expect
 
     ids = []
     for seed in (0, 1):
@@ -87,12 +81,13 @@ def test_two_runs_overlaid_and_a_measurements_trend(service: Service) -> None:
     assert [(p["run"], p["value"], p["firmware"]) for p in points] == \
         [(a, values[0], "reference FC"), (b, values[1], "reference FC")]
     assert values[0] != values[1]  # two seeds: two flights
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_FLAGS)
-        page = browser.new_page(viewport={"width": 1100, "height": 1000})
-        errors: list[str] = []
-        page.on("pageerror", lambda e: errors.append(str(e)))
-        page.goto(f"{service.url}/compare?a={a}&b={b}&scenario=step_roll")
+    # what sets a series apart, in each point: the seed, the mode, the DUT, the version and its number
+    assert [(p["seed"], p["mode"], p["version_number"]) for p in points] == \
+        [(0, "lockstep", 1), (1, "lockstep", 1)]
+    assert len({p["series"] for p in points}) == 2  # two seeds: never one line
+    _, one = service.call("GET", "/api/trend?scenario=step_roll&measurement=overshoot%20of%20roll&seed=1")
+    assert [p["run"] for p in one] == [b]
+    with chromium_page(f"{service.url}/compare?a={a}&b={b}&scenario=step_roll", 1100, 1000) as (page, errors):
         overlay = page.locator("#overlay[data-series]")
         expect(overlay).to_have_count(1)
         named = f"run {a} roll,run {a} pitch,run {b} roll,run {b} pitch"
@@ -100,21 +95,23 @@ def test_two_runs_overlaid_and_a_measurements_trend(service: Service) -> None:
         expect(page.locator("table.criteria")).to_contain_text("overshoot of roll")
         page.goto(f"{service.url}/trend?scenario=step_roll&measurement=overshoot%20of%20roll")
         expect(page.locator("tr.point")).to_have_count(2)
-        expect(page.locator("#trend[data-points='2'] canvas").first).to_be_visible()
+        expect(page.locator("#trend[data-points='2'][data-series='2'] canvas").first).to_be_visible()
+        assert page.locator("tr.point td:nth-child(6)").all_inner_texts()[0].startswith("v1 ")
+        # the x axis: run numbers, whole (the labels uPlot drew at the first axis's ticks, on its canvas)
+        ticks = page.evaluate("document.getElementById('trend').uplot.axes[0]._values")
+        assert ticks and all(t == "" or t.isdigit() for t in ticks) and f"{b}" in ticks, ticks
+        # a filter keeps one seed (a form the page submits)
+        page.select_option("#trend-filters select[name=seed]", "1")
+        expect(page.locator("tr.point")).to_have_count(1)
+        expect(page.locator("tr.point td").first).to_have_text(str(b))
         assert not errors, errors
-        browser.close()
     assert service.call("GET", f"/compare?a={a}&b=999&scenario=step_roll")[0] == 404
 
 
 def test_the_form_shows_why_a_run_was_not_started(service: Service) -> None:
-    from playwright.sync_api import expect, sync_playwright
+    from playwright.sync_api import expect
 
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_FLAGS)
-        page = browser.new_page()
-        errors: list[str] = []
-        page.on("pageerror", lambda e: errors.append(str(e)))
-        page.goto(service.url + "/")
+    with chromium_page(service.url + "/") as (page, errors):
         page.select_option("#start select[name=scenarios]", ["step_roll"])
         refused = page.locator("#started #refused")
         # a seed the service refuses (the browser lets it through): the service's words, by the form
@@ -131,6 +128,5 @@ def test_the_form_shows_why_a_run_was_not_started(service: Service) -> None:
         page.click("#start button")
         expect(page.locator("#started")).to_contain_text("queued run")
         assert not errors, errors
-        browser.close()
     queued = service.call("GET", "/api/runs")[1]
     assert [r["seed"] for r in queued] == [2]  # the refused ones were not queued

@@ -19,7 +19,7 @@ import pytest
 from rig.service.db import Db
 from rig.service.store import Store
 from rig.sweep import store as sweep_store
-from tests.scenarios.test_library_and_reports import CHROMIUM_FLAGS
+from tests.browser import chromium_page
 from tests.service.test_api import SHORT, Service, blocked_dut, post_bytes, start, stop
 from tests.waits import BOUND_S, read_pid, wait_gone
 
@@ -110,18 +110,13 @@ def test_a_queued_run_flies_the_version_it_was_queued_with(service: Service, tmp
     assert 'id="versions-differ"' not in itself
     trend_page = page(service, "/trend?scenario=ver&measurement=level")
     assert trend_page.count("version-changed") == 1 and sha(SECOND)[:8] in trend_page
-    from playwright.sync_api import expect, sync_playwright
+    from playwright.sync_api import expect
 
-    with sync_playwright() as p:  # the plot draws a series per version
-        browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_FLAGS)
-        tab = browser.new_page()
-        errors: list[str] = []
-        tab.on("pageerror", lambda e: errors.append(str(e)))
-        tab.goto(f"{service.url}/trend?scenario=ver&measurement=level")
+    # the plot draws a series per version
+    with chromium_page(f"{service.url}/trend?scenario=ver&measurement=level") as (tab, errors):
         expect(tab.locator("#trend[data-versions='2'] canvas").first).to_be_visible()
         expect(tab.locator("#trend")).to_contain_text(f"ver@{sha(SECOND)[:8]}")  # (the legend)
         assert not errors, errors
-        browser.close()
 
 
 def test_a_sweep_of_an_uploaded_scenario_flies_the_version_it_was_queued_with(service: Service,

@@ -8,9 +8,24 @@ extern uint32_t __stack, __data_start, __data_end, __data_load, __bss_start, __b
 int main(void);
 void reset_handler(void);
 void fault_handler(void);
-/* I2C1's event and error interrupts (NVIC lines 31 and 32): a firmware that enables them defines these */
+/* I2C1's event and error interrupts (NVIC lines 31 and 32) and the timers' (24-30, 43-46, 50, 54, 55):
+   a firmware that enables them defines these */
 void i2c1_ev_handler(void) __attribute__((weak, alias("fault_handler")));
 void i2c1_er_handler(void) __attribute__((weak, alias("fault_handler")));
+void tim1_brk_tim9_handler(void) __attribute__((weak, alias("fault_handler")));
+void tim1_up_tim10_handler(void) __attribute__((weak, alias("fault_handler")));
+void tim1_trg_com_tim11_handler(void) __attribute__((weak, alias("fault_handler")));
+void tim1_cc_handler(void) __attribute__((weak, alias("fault_handler")));
+void tim2_handler(void) __attribute__((weak, alias("fault_handler")));
+void tim3_handler(void) __attribute__((weak, alias("fault_handler")));
+void tim4_handler(void) __attribute__((weak, alias("fault_handler")));
+void tim8_brk_tim12_handler(void) __attribute__((weak, alias("fault_handler")));
+void tim8_up_tim13_handler(void) __attribute__((weak, alias("fault_handler")));
+void tim8_trg_com_tim14_handler(void) __attribute__((weak, alias("fault_handler")));
+void tim8_cc_handler(void) __attribute__((weak, alias("fault_handler")));
+void tim5_handler(void) __attribute__((weak, alias("fault_handler")));
+void tim6_dac_handler(void) __attribute__((weak, alias("fault_handler")));
+void tim7_handler(void) __attribute__((weak, alias("fault_handler")));
 
 #define CFSR (*(volatile uint32_t *)0xE000ED28u)
 #define HFSR (*(volatile uint32_t *)0xE000ED2Cu)
@@ -35,8 +50,8 @@ void fault_handler(void)
 
 #define F fault_handler
 // clang-format off
-/* the core's 16 exceptions, then the STM32F405's interrupts up to I2C1_ER (RM0090 table 61) */
-__attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 33])(void) = {
+/* the core's 16 exceptions, then the STM32F405's interrupts up to TIM7 (RM0090 table 61) */
+__attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 56])(void) = {
     (void (*)(void))(uintptr_t)&__stack,
     reset_handler,
     fault_handler,
@@ -54,8 +69,25 @@ __attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 3
     fault_handler,
     fault_handler,
     F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, /* IRQ 0-15 */
-    F, F, F, F, F, F, F, F, F, F, F, F, F, F, F,    /* IRQ 16-30 */
+    F, F, F, F, F, F, F, F,                         /* IRQ 16-23 */
+    tim1_brk_tim9_handler, /* IRQ 24 */
+    tim1_up_tim10_handler, /* IRQ 25 */
+    tim1_trg_com_tim11_handler, /* IRQ 26 */
+    tim1_cc_handler, /* IRQ 27 */
+    tim2_handler, /* IRQ 28 */
+    tim3_handler, /* IRQ 29 */
+    tim4_handler, /* IRQ 30 */
     i2c1_ev_handler, /* IRQ 31 */
     i2c1_er_handler, /* IRQ 32 */
+    F, F, F, F, F, F, F, F, F, F,                   /* IRQ 33-42 */
+    tim8_brk_tim12_handler, /* IRQ 43 */
+    tim8_up_tim13_handler, /* IRQ 44 */
+    tim8_trg_com_tim14_handler, /* IRQ 45 */
+    tim8_cc_handler, /* IRQ 46 */
+    F, F, F,                                        /* IRQ 47-49 */
+    tim5_handler, /* IRQ 50 */
+    F, F, F,                                        /* IRQ 51-53 */
+    tim6_dac_handler, /* IRQ 54 */
+    tim7_handler, /* IRQ 55 */
 };
 // clang-format on

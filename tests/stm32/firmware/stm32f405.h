@@ -14,7 +14,9 @@
 #define RCC_AHB1RSTR REG(RCC_BASE + 0x10u)
 #define RCC_CIR REG(RCC_BASE + 0x0Cu)
 #define RCC_AHB1ENR REG(RCC_BASE + 0x30u)
+#define RCC_APB1RSTR REG(RCC_BASE + 0x20u)
 #define RCC_APB1ENR REG(RCC_BASE + 0x40u)
+#define RCC_APB2ENR REG(RCC_BASE + 0x44u)
 #define RCC_APB1LPENR REG(RCC_BASE + 0x60u)
 #define RCC_CSR REG(RCC_BASE + 0x74u)
 #define RCC_CR_HSION (1u << 0)
@@ -29,6 +31,8 @@
 #define RCC_CFGR_SWS 0xCu
 #define RCC_CFGR_SWS_PLL 0x8u
 #define RCC_CFGR_PPRE1_DIV4 (0x5u << 10)
+#define RCC_CFGR_PPRE1_DIV8 (0x6u << 10)
+#define RCC_CFGR_PPRE1 (0x7u << 10)
 #define RCC_CFGR_PPRE2_DIV2 (0x4u << 13)
 #define RCC_PLLCFGR_PLLSRC_HSE (1u << 22)
 #define RCC_APB1ENR_PWREN (1u << 28)
@@ -60,6 +64,8 @@
 #define PORT_A 0u
 #define PORT_B 1u
 #define PORT_D 3u
+#define PORT_E 4u
+#define PORT_C 2u
 
 /* I2C1 (RM0090 27.6, table 133) */
 #define I2C1_BASE 0x40005400u
@@ -92,6 +98,70 @@
 #define I2C_CCR_FS (1u << 15)
 #define I2C1_EV_IRQ 31u
 #define I2C1_ER_IRQ 32u
+
+/* The timers (RM0090 table 10; the registers of 17.4.21, 18.4.19, 19.4.13, 19.5.12, 20.4.9) */
+#define TIM1_BASE 0x40010000u
+#define TIM2_BASE 0x40000000u
+#define TIM3_BASE 0x40000400u
+#define TIM4_BASE 0x40000800u
+#define TIM5_BASE 0x40000C00u
+#define TIM6_BASE 0x40001000u
+#define TIM7_BASE 0x40001400u
+#define TIM8_BASE 0x40010400u
+#define TIM9_BASE 0x40014000u
+#define TIM10_BASE 0x40014400u
+#define TIM11_BASE 0x40014800u
+#define TIM12_BASE 0x40001800u
+#define TIM13_BASE 0x40001C00u
+#define TIM14_BASE 0x40002000u
+#define TIM_CR1(t) REG((t) + 0x00u)
+#define TIM_CR2(t) REG((t) + 0x04u)
+#define TIM_SMCR(t) REG((t) + 0x08u)
+#define TIM_DIER(t) REG((t) + 0x0Cu)
+#define TIM_SR(t) REG((t) + 0x10u)
+#define TIM_EGR(t) REG((t) + 0x14u)
+#define TIM_CCMR1(t) REG((t) + 0x18u)
+#define TIM_CCMR2(t) REG((t) + 0x1Cu)
+#define TIM_CCER(t) REG((t) + 0x20u)
+#define TIM_CNT(t) REG((t) + 0x24u)
+#define TIM_PSC(t) REG((t) + 0x28u)
+#define TIM_ARR(t) REG((t) + 0x2Cu)
+#define TIM_RCR(t) REG((t) + 0x30u)
+#define TIM_CCR(t, ch) REG((t) + 0x30u + 4u * (ch)) /* ch 1..4 */
+#define TIM_BDTR(t) REG((t) + 0x44u)
+#define TIM_CR1_CEN (1u << 0)
+#define TIM_CR1_OPM (1u << 3)
+#define TIM_CR1_DIR (1u << 4)
+#define TIM_CR1_CMS_CENTER1 (1u << 5)
+#define TIM_CR1_ARPE (1u << 7)
+#define TIM_SR_UIF (1u << 0)
+#define TIM_SR_TIF (1u << 6)
+#define TIM_SR_CCIF(ch) (1u << (ch))        /* ch 1..4 */
+#define TIM_SR_CCOF(ch) (1u << (8u + (ch))) /* ch 1..4 */
+#define TIM_DIER_UIE (1u << 0)
+#define TIM_DIER_CCIE(ch) (1u << (ch))
+#define TIM_EGR_UG (1u << 0)
+#define TIM_CR1_UDIS (1u << 1)
+#define TIM_CR1_URS (1u << 2)
+#define TIM_CCMR_TOGGLE (3u << 4)
+#define TIM_CCMR_FORCE_LOW (4u << 4)
+#define TIM_CCMR_FORCE_HIGH (5u << 4)
+#define TIM_CCMR_PWM1 (6u << 4)
+#define TIM_CCMR_PWM2 (7u << 4)
+#define TIM_CCMR_OCPE (1u << 3)
+#define TIM_CCMR_ICPSC_DIV2 (1u << 2)
+#define TIM_CCMR_IC_TI_OWN 1u   /* CCxS = 01: ICx on its own TIx */
+#define TIM_CCMR_IC_TI_OTHER 2u /* CCxS = 10: ICx on the pair's other TI */
+#define TIM_CCER_E(ch) (1u << (4u * ((ch)-1u)))
+#define TIM_CCER_P(ch) (2u << (4u * ((ch)-1u)))
+#define TIM_CCER_NE(ch) (4u << (4u * ((ch)-1u)))
+#define TIM_BDTR_MOE (1u << 15)
+/* NVIC lines (RM0090 table 61) */
+#define TIM1_UP_TIM10_IRQ 25u
+#define TIM1_CC_IRQ 27u
+#define TIM4_IRQ 30u
+#define TIM8_UP_TIM13_IRQ 44u
+#define GPIO_MODE_AF 2u
 
 #define NVIC_ISER(n) REG(0xE000E100u + 4u * (n))
 #define NVIC_ICER(n) REG(0xE000E180u + 4u * (n))
