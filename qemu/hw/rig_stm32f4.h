@@ -207,6 +207,16 @@ struct RigStm32TimerState {
  * core as one I2C slave that answers the addresses the chip core acknowledges */
 #define TYPE_RIG_GY86 "rig-gy86"
 
+/* The link to the rig's session (rig_link.c): lockstep in virtual time, and the GY-86's bus events
+ * answered by the session's chip core when the board is linked (the GY-86's "link" property) */
+#define TYPE_RIG_LINK "rig-link"
+typedef struct RigLinkState RigLinkState;
+bool rig_link_i2c_start(RigLinkState *s, uint64_t t_ns, uint8_t address, bool read);
+void rig_link_i2c_write(RigLinkState *s, uint8_t byte);
+uint8_t rig_link_i2c_read(RigLinkState *s);
+void rig_link_i2c_nack(RigLinkState *s);
+void rig_link_i2c_stop(RigLinkState *s);
+
 /* DWT (ARMv7-M ARM C1.8): CYCCNT counts HCLK cycles in virtual time */
 #define TYPE_RIG_DWT "rig-dwt"
 OBJECT_DECLARE_SIMPLE_TYPE(RigDwtState, RIG_DWT)

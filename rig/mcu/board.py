@@ -149,7 +149,7 @@ def load(name: str | Path) -> Board:
     b = c.table(data.get("board", {}), "board", BOARD_KEYS)
     mcu_name = c.string(b, "mcu", "board", choices=tuple(MCUS))
     mcu = MCUS[mcu_name]
-    clock = c.integer(b, "clock_hz", "board", 1_000_000, 32_000_000)
+    clock = c.integer(b, "clock_hz", "board", 1_000_000, mcu.max_clock_hz)
     s = c.table(data.get("sensors", {}), "sensors", SENSOR_KEYS)
     c.string(s, "bus", "sensors", "twi", choices=("twi",))
     yaw = c.integer(s, "mounting_yaw_deg", "sensors", 0, 270, default=0)
@@ -249,13 +249,16 @@ def _motor(c: _BoardCheck, mcu: Mcu, data: Any, k: int) -> MotorOut:
     timer: int | None = None
     channel = ""
     if "timer" in m or "channel" in m:
-        timer = c.integer(m, "timer", where, 0, 5)
-        channel = c.string(m, "channel", where, choices=("A", "B", "C"))
+        timer = c.integer(m, "timer", where, 0, max(t for t, _ in mcu.oc_pins))
+        channel = str(c.string(m, "channel", where, choices=mcu.channels))
+        output = mcu.output_name(timer, channel)
         oc = mcu.oc_pins.get((timer, channel))
         if oc is None:
-            raise c.fail(f"{where}.channel", f"the {mcu.name} has no OC{timer}{channel}")
+            raise c.fail(f"{where}.channel", f"the {mcu.name} has no {output}")
         if pin != oc:
-            raise c.fail(f"{where}.pin", f"OC{timer}{channel} of the {mcu.name} drives {oc}, not {pin}")
+            raise c.fail(f"{where}.pin", f"{output} of the {mcu.name} drives {oc}, not {pin}")
+    elif mcu.engine == "stm32":
+        raise c.fail(where, f"the {mcu.name}'s motors are measured from its timers: give timer and channel")
     elif len(pin) != 3 or pin[0] != "P" or pin[1] not in mcu.ports or pin[2] not in "01234567":
         raise c.fail(f"{where}.pin", f"the {mcu.name} has no pin {pin}: P, a port letter ({mcu.ports}) and "
                                      "a bit 0..7")
