@@ -45,6 +45,9 @@ static int gy86_event(I2CSlave *slave, enum i2c_event event)
 {
     RigGy86State *s = RIG_GY86(slave);
     uint64_t now_ns = (uint64_t)qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    if (event == I2C_FINISH && rig_i2c_repeated_start) {
+        return 0; /* the START that follows tells the chips */
+    }
     if (s->link != NULL) {
         switch (event) {
         case I2C_START_RECV:

@@ -117,6 +117,10 @@ struct RigStm32GpioState {
     int8_t af_input_level[RIG_GPIO_PINS]; /* and the level it sent */
 };
 
+/* True while an I2C controller ends a transfer for a repeated START (QEMU's bus has no such event): the
+ * slaves' I2C_FINISH then is no STOP */
+extern bool rig_i2c_repeated_start;
+
 /* The pin levels a port shows on its IDR */
 uint16_t rig_stm32_gpio_levels(RigStm32GpioState *s);
 

@@ -7,12 +7,12 @@ A board file is checked like a scenario: every error names the file and the dott
 its timer cannot drive (rig/mcu/mcus.py) is refused before anything runs. The shipped boards are in
 rig/mcu/boards/; ``--mcu NAME`` finds them by name, ``--mcu path/to/board.toml`` reads any other.
 
-    [board]      name, description, mcu ("atmega2560" | "atmega328p"), clock_hz
+    [board]      name, description, mcu ("atmega2560" | "atmega328p" | "stm32f405"), clock_hz
     [sensors]    bus ("twi"), topology ("gy86" | "direct" | "gy521": the MPU-6050 alone), twi_hz,
                  mounting_yaw_deg (0, 90, 180, 270), mpu_address (0x68, or 0x69 with AD0 high)
-    [[motors]]   motor (1..4: the plant's), pin ("PE4"), timer, channel ("A" | "B" | "C"),
-                 protocol ("pwm" | "oneshot125"), label ("D2": the board's silk-screen name); with no
-                 timer and channel, any port pin, its pulses measured from its edges
+    [[motors]]   motor (1..4: the plant's), pin ("PE4"), timer, channel ("A" | "B" | "C"; "1".."4" on
+                 an STM32), protocol ("pwm" | "oneshot125"), label ("D2": the board's silk-screen
+                 name); with no timer and channel, any port pin (AVR), its pulses measured from its edges
     [rc]         protocol ("sbus" | "ppm" | "msp" | "pwm"), uart (sbus, msp), baud (msp), pin (ppm: an
                  INTn or PCINT pin), pins (pwm: 4..8 PCINT or INTn pins, one a channel); optional
     [telemetry]  uart, baud, format ("text": the reference FC's ``T t=… key=value`` lines); optional
