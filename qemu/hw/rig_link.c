@@ -11,6 +11,11 @@
  * core (the lockstep session's own) answers: a START and each byte read wait for the answer, a byte
  * written and a STOP do not. The session serves the chip core's sample needs from the world meanwhile.
  *
+ * The USARTs (QEMU's, USART1..USART6 of the SoC) are ringbuf chardevs named rig-usart1..rig-usart6: what
+ * the firmware sent since the last stop goes to the session before each "reached", and bytes the session
+ * gives a USART reach its receiver one at a time, each at the end of its frame (start, 8 data bits,
+ * parity, stop bits at the session's baud), after the bytes before it.
+ *
  * Messages, both ways: a header of the kind (1 byte), 3 zero bytes and the payload's length (u32), then
  * the payload; little-endian; every length is checked against the kind's (a bad message ends QEMU with
  * an error: the session is gone or broken).
@@ -21,10 +26,12 @@
 #include "qemu/osdep.h"
 
 #include "chardev/char-fe.h"
+#include "chardev/char.h"
 #include "cpu.h"
 #include "hw/qdev-properties-system.h"
 #include "hw/qdev-properties.h"
 #include "qapi/error.h"
+#include "qapi/qapi-commands-char.h"
 #include "qemu/bswap.h"
 #include "qemu/error-report.h"
 #include "qemu/module.h"
@@ -35,6 +42,20 @@
 #define LINK_HEADER 8
 #define LINK_MAX_PAYLOAD 1024
 #define LINK_MOTORS 8
+#define LINK_UARTS 6
+#define LINK_RX_BYTES 4096
+#define LINK_UART_CHUNK 512 /* bytes read from a ringbuf at a time (base64 in QEMU's API) */
+
+/* the bytes waiting for one USART's receiver, each with the virtual time its frame ends */
+typedef struct {
+    RigLinkState *link;
+    Chardev *chr;
+    QEMUTimer *timer;
+    uint8_t bytes[LINK_RX_BYTES];
+    int64_t at_ns[LINK_RX_BYTES];
+    uint32_t head, len;
+    int64_t busy_until_ns; /* when the last byte queued ends */
+} LinkUart;
 
 /* QEMU -> session */
 #define MSG_HELLO 'H'     /* u16 version */
@@ -44,12 +65,14 @@
 #define MSG_I2C_READ 'D'  /* u64 t_ns: answered by MSG_BYTE */
 #define MSG_I2C_NACK 'N'  /* u64 t_ns: the master NACKs the byte it read last */
 #define MSG_I2C_STOP 'P'  /* u64 t_ns */
+#define MSG_UART_SENT 'T' /* u8 USART 1..6, the bytes the firmware sent */
 /* session -> QEMU */
-#define MSG_CONFIG 'C' /* u8 n, n x (u8 timer 1..14, u8 output 0..6: CH1..CH4, CH1N..CH3N) */
-#define MSG_GO 'G'     /* u64 t_ns: run until then */
-#define MSG_QUIT 'Q'   /* (none) */
-#define MSG_ACK 'a'    /* u8 acknowledged */
-#define MSG_BYTE 'b'   /* u8 byte */
+#define MSG_CONFIG 'C'  /* u8 n, n x (u8 timer 1..14, u8 output 0..6: CH1..CH4, CH1N..CH3N) */
+#define MSG_GO 'G'      /* u64 t_ns: run until then */
+#define MSG_UART_RX 'U' /* u8 USART 1..6, 3 zero bytes, u32 frame_ns, the bytes (from now, after those queued) */
+#define MSG_QUIT 'Q'    /* (none) */
+#define MSG_ACK 'a'     /* u8 acknowledged */
+#define MSG_BYTE 'b'    /* u8 byte */
 
 OBJECT_DECLARE_SIMPLE_TYPE(RigLinkState, RIG_LINK)
 
@@ -62,6 +85,7 @@ struct RigLinkState {
     uint8_t n_motors;
     Object *motor_timer[LINK_MOTORS];
     uint8_t motor_output[LINK_MOTORS];
+    LinkUart uarts[LINK_UARTS];
 };
 
 static const char *const high_names[RIG_TIM_OUTPUTS] = {
@@ -130,6 +154,66 @@ static void link_configure(RigLinkState *s, const uint8_t *p, uint32_t len)
     s->configured = true;
 }
 
+/* The head byte into the USART's receiver at its time, and the next one's time armed */
+static void link_uart_deliver(void *opaque)
+{
+    LinkUart *u = opaque;
+    if (u->len == 0) {
+        return;
+    }
+    qemu_chr_be_write(u->chr, &u->bytes[u->head], 1);
+    u->head = (u->head + 1) % LINK_RX_BYTES;
+    u->len--;
+    if (u->len) {
+        timer_mod(u->timer, u->at_ns[u->head]);
+    }
+}
+
+static void link_uart_receive(RigLinkState *s, const uint8_t *p, uint32_t len)
+{
+    unsigned n = len >= 8 ? p[0] : 0;
+    LinkUart *u = n >= 1 && n <= LINK_UARTS ? &s->uarts[n - 1] : NULL;
+    uint32_t frame_ns = len >= 8 ? ldl_le_p(p + 4) : 0;
+    if (u == NULL || u->chr == NULL || p[1] || p[2] || p[3] || frame_ns == 0 || u->len + (len - 8) > LINK_RX_BYTES) {
+        link_fail("UART: no such USART, a bad frame time or more than 4096 bytes waiting");
+    }
+    int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    int64_t t = u->busy_until_ns > now ? u->busy_until_ns : now;
+    for (uint32_t i = 8; i < len; i++) {
+        uint32_t slot = (u->head + u->len++) % LINK_RX_BYTES;
+        t += frame_ns;
+        u->bytes[slot] = p[i];
+        u->at_ns[slot] = t;
+    }
+    u->busy_until_ns = t;
+    if (u->len) {
+        timer_mod(u->timer, u->at_ns[u->head]);
+    }
+}
+
+/* What the firmware sent on each USART since the last stop */
+static void link_uart_send_sent(RigLinkState *s)
+{
+    for (unsigned n = 1; n <= LINK_UARTS; n++) {
+        if (s->uarts[n - 1].chr == NULL) {
+            continue;
+        }
+        g_autofree char *id = g_strdup_printf("rig-usart%u", n);
+        for (;;) {
+            g_autofree char *text = qmp_ringbuf_read(id, LINK_UART_CHUNK, true, DATA_FORMAT_BASE64, &error_abort);
+            gsize got = 0;
+            g_autofree guchar *bytes = g_base64_decode(text, &got);
+            if (got == 0) {
+                break;
+            }
+            uint8_t p[1 + LINK_UART_CHUNK];
+            p[0] = (uint8_t)n;
+            memcpy(p + 1, bytes, MIN(got, LINK_UART_CHUNK));
+            link_send(s, MSG_UART_SENT, p, 1 + (uint32_t)MIN(got, LINK_UART_CHUNK));
+        }
+    }
+}
+
 /* Commands until a GO to a time after now (then armed) */
 static void link_wait_command(RigLinkState *s)
 {
@@ -139,6 +223,8 @@ static void link_wait_command(RigLinkState *s)
         uint8_t kind = link_receive(s, p, sizeof p, &len);
         if (kind == MSG_CONFIG) {
             link_configure(s, p, len);
+        } else if (kind == MSG_UART_RX) {
+            link_uart_receive(s, p, len);
         } else if (kind == MSG_GO && len == 8 && s->configured) {
             int64_t t = (int64_t)ldq_le_p(p), now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
             timer_mod(s->timer, t > now ? t : now);
@@ -181,6 +267,7 @@ static void link_reached(void *opaque)
         stl_le_p(p + len + 4, hz ? (uint32_t)MIN(muldiv64(period, NANOSECONDS_PER_SECOND, hz), UINT32_MAX) : 0);
         len += 8;
     }
+    link_uart_send_sent(s);
     link_send(s, MSG_REACHED, p, len);
     link_wait_command(s);
 }
@@ -227,6 +314,13 @@ static void link_realize(DeviceState *dev, Error **errp)
         return;
     }
     s->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, link_reached, s);
+    for (unsigned n = 1; n <= LINK_UARTS; n++) {
+        g_autofree char *id = g_strdup_printf("rig-usart%u", n);
+        LinkUart *u = &s->uarts[n - 1];
+        u->link = s;
+        u->chr = qemu_chr_find(id);
+        u->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, link_uart_deliver, u);
+    }
     uint8_t hello[2];
     stw_le_p(hello, LINK_VERSION);
     link_send(s, MSG_HELLO, hello, sizeof hello);

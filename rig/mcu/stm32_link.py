@@ -44,6 +44,11 @@ MAX_PAYLOAD: Final = 1024
 SOCKET_TIMEOUT_S: Final = 60.0
 #: the exceptions that are faults (ARMv7-M B1.5.2): IPSR while their handler runs
 FAULTS: Final = {3: "HardFault", 4: "MemManage fault", 5: "BusFault", 6: "UsageFault"}
+#: the SoC's USART1..USART6 (UART4, UART5 among them), each a ringbuf chardev rig-usartN in this order
+UARTS: Final = 6
+UART_RING_BYTES: Final = 65536
+#: bytes of one UART message to QEMU (its payload's 1024 less the header of 8)
+UART_CHUNK: Final = 1016
 #: the timer outputs rig_link.c numbers: CH1..CH4, then CH1N..CH3N
 OUTPUTS: Final = ("1", "2", "3", "4", "1N", "2N", "3N")
 _REACHED = struct.Struct("<QIIIIB")
@@ -89,6 +94,8 @@ class Stm32Engine:
         self._pulses: list[list[tuple[int, int, int]]] = [[] for _ in self._motors]
         self._pulse_counts = [0 for _ in self._motors]
         self._state = (0, 0, 0, 0)  # ipsr, pc, cfsr, hfsr at the last stop
+        self._sent: dict[int, bytearray] = {n: bytearray() for n in cfg.board.mcu.usarts}
+        self._uart_counts: dict[int, list[int]] = {n: [0, 0] for n in cfg.board.mcu.usarts}  # in, out
         self._dir = tempfile.TemporaryDirectory(prefix="rig-stm32-")
         path = str(Path(self._dir.name) / "link")
         listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
@@ -96,8 +103,12 @@ class Stm32Engine:
         listener.listen(1)
         listener.settimeout(SOCKET_TIMEOUT_S)
         self._output = open(Path(self._dir.name) / "qemu.out", "w+b")  # noqa: SIM115 (closed in close())
+        uarts: list[str] = []
+        for n in range(1, UARTS + 1):
+            chardev = f"rig-usart{n}"
+            uarts += ["-chardev", f"ringbuf,id={chardev},size={UART_RING_BYTES}", "-serial", f"chardev:{chardev}"]
         cmd = [str(binary), "-M", MACHINE, "-nodefaults", "-display", "none", "-monitor", "none",
-               "-chardev", f"socket,id=rig-link,path={path}",
+               "-chardev", f"socket,id=rig-link,path={path}", *uarts,
                "-semihosting-config", "enable=on,target=native",
                "-icount", f"shift={ICOUNT_SHIFT},sleep=off", "-kernel", str(cfg.firmware)]
         self._proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=self._output,
@@ -188,6 +199,12 @@ class Stm32Engine:
                 kind, p = self._receive()
                 if kind == ord("R"):
                     return self._reached(p)
+                if kind == ord("T"):
+                    if not p or p[0] not in self._sent:
+                        raise LinkError(f"bytes from USART {p[0] if p else '?'}, which the board's MCU lacks")
+                    self._sent[p[0]] += p[1:]
+                    self._uart_counts[p[0]][1] += len(p) - 1
+                    continue
                 if len(p) < 8:
                     raise LinkError(f"an I2C message ({kind!r}) without its time")
                 (t_ns,) = struct.unpack_from("<Q", p)
@@ -300,11 +317,26 @@ class Stm32Engine:
         return list(self._last)
 
     def uart_take(self, uart: int) -> bytes:
-        """Nothing yet: the link does not carry the USARTs."""
-        return b""
+        """What the firmware transmitted on USARTn up to the last stop, since the last take."""
+        sent = self._sent.get(uart)
+        if sent is None:
+            return b""
+        out = bytes(sent)
+        sent.clear()
+        return out
 
     def uart_send(self, uart: int, data: bytes, baud: int, parity: str = "N", stop_bits: int = 1) -> None:
-        raise ValueError("the STM32 tier's link does not carry USART bytes yet")
+        """Bytes into USARTn's receiver from now on, each at the end of its frame (start bit, 8 data bits,
+        the parity bit, the stop bits: 8E2 at 100000 baud is 120 us a byte), after those queued before.
+        QEMU's USART takes any byte whatever its own baud and parity."""
+        if uart not in self._sent:
+            raise ValueError(f"the {self.cfg.board.mcu.name} has no USART{uart}")
+        if parity not in ("N", "E", "O") or stop_bits not in (1, 2) or baud <= 0:
+            raise ValueError(f"USART frame {baud} {parity}{stop_bits}: baud > 0, parity N/E/O, 1 or 2 stops")
+        frame_ns = round((1 + 8 + (parity != "N") + stop_bits) * 1e9 / baud)
+        for at in range(0, len(data), UART_CHUNK):
+            self._send(ord("U"), struct.pack("<B3xI", uart, frame_ns) + data[at:at + UART_CHUNK])
+        self._uart_counts[uart][0] += len(data)
 
     def pin_drive(self, pin: str, schedule: list[tuple[int, int]]) -> None:
         raise ValueError("the STM32 tier's link does not drive input pins yet")
@@ -320,6 +352,7 @@ class Stm32Engine:
             "twi_transactions": self._transactions, "twi_bytes": self._bytes, "twi_nacks": self._nacks,
             "pc": pc, "ipsr": ipsr, "cfsr": cfsr, "hfsr": hfsr,
             "last_twi": format_transaction(self._last), "motor_steps_pulsing": list(self._pulse_counts),
+            "uarts": {n: {"queued": c[0], "sent": c[1]} for n, c in self._uart_counts.items()},
         }
         if self._stop is not None:
             figs["stop"] = self._stop.describe()

@@ -92,6 +92,30 @@ def test_two_runs_give_the_same_bytes_at_the_same_times() -> None:
     assert first[1] and first[0].cycle == second[0].cycle
 
 
+def test_bytes_reach_a_usart_at_their_frame_times_and_come_back() -> None:
+    """uart_echo on USART1: an SBUS frame's 25 bytes at 100000 baud 8E2 (12 bits, 120 us a byte: the SBUS
+    definition) go in from 1 ms on, and the firmware's echo comes back; by each 100 us step's end no more
+    bytes are back than had ended their frames."""
+    frame_ns = 12 * 1_000_000_000 // 100_000
+    sent = bytes([0x0F, *range(1, 23), 0x00, 0x00])
+    board = boards.load("stm32f405-gy86")
+    engine = Stm32Engine(Stm32Config(board, firmware("uart_echo"), engine_or_skip()), None)
+    echoed = bytearray()
+    try:
+        t = 1_000_000
+        assert engine.run_until(t).kind == "reached"
+        engine.uart_send(1, sent, 100_000, "E", 2)
+        while t < 1_000_000 + 30 * frame_ns:
+            t += 100_000
+            assert engine.run_until(t).kind == "reached"
+            echoed += engine.uart_take(1)
+            assert len(echoed) <= (t - 1_000_000) // frame_ns
+        assert engine.uart_take(2) == b""
+    finally:
+        engine.close()
+    assert bytes(echoed) == sent
+
+
 def test_a_hardfault_ends_the_run_naming_it() -> None:
     """fault_spin: an undefined instruction, escalated to a HardFault whose handler spins."""
     stop, _, _, _ = run(firmware("fault_spin"), None, 5 * STEP_NS)
