@@ -106,7 +106,8 @@ class Stm32Engine:
         uarts: list[str] = []
         for n in range(1, UARTS + 1):
             chardev = f"rig-usart{n}"
-            uarts += ["-chardev", f"ringbuf,id={chardev},size={UART_RING_BYTES}", "-serial", f"chardev:{chardev}"]
+            uarts += ["-chardev", f"ringbuf,id={chardev},size={UART_RING_BYTES}",
+                      "-serial", f"chardev:{chardev}"]
         cmd = [str(binary), "-M", MACHINE, "-nodefaults", "-display", "none", "-monitor", "none",
                "-chardev", f"socket,id=rig-link,path={path}", *uarts,
                "-semihosting-config", "enable=on,target=native",
