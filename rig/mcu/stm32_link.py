@@ -259,17 +259,17 @@ class Stm32Engine:
         """QEMU is gone: a semihosting exit, a lockup (QEMU aborts), or a crash of its own."""
         with contextlib.suppress(subprocess.TimeoutExpired):
             self._proc.wait(SOCKET_TIMEOUT_S)
-        tail = self._tail()
-        lockup = "Lockup" in tail
+        text = self.output()
+        lockup = next((line.strip() for line in text.splitlines() if "Lockup" in line), None)
         status = self._proc.returncode
-        what = ("locked up (a fault in a fault handler, or no valid vector table)" if lockup else
-                f"ended the machine (exit status {status})")
+        what = (f"locked up ({lockup.removeprefix('qemu: fatal: ')})" if lockup is not None else
+                f"ended the machine (exit status {status}): {' '.join(text.split())[-300:]}")
         pc = self._state[1]
-        for word in tail.split():
+        for word in text.split():
             if word.startswith("R15="):
                 with contextlib.suppress(ValueError):
                     pc = int(word[4:], 16)
-        return self._final("crashed" if lockup or status != 0 else "exited", f"{what}: {tail[-300:]}", pc)
+        return self._final("crashed" if lockup is not None or status != 0 else "exited", what, pc)
 
     def _final(self, kind: str, what: str, pc: int) -> Stop:
         self._stop = Stop(kind, self._cycle(self._now_ns), pc, what, last_twi=format_transaction(self._last))

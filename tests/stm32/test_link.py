@@ -8,6 +8,7 @@ status bits (B3.2.15, B3.2.16)."""
 from __future__ import annotations
 
 import struct
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -123,6 +124,18 @@ def test_a_hardfault_ends_the_run_naming_it() -> None:
     assert "HardFault" in stop.what
     assert f"CFSR 0x{CFSR_UNDEFINSTR:08x}" in stop.what and f"HFSR 0x{HFSR_FORCED:08x}" in stop.what
     assert stop.pc != 0
+
+
+def test_a_lockup_ends_the_run_naming_it() -> None:
+    """fault_lockup: a fault with FAULTMASK set cannot escalate; QEMU stops with the registers, pc among
+    them: the undefined instruction's, main's second (CPSID is a 16-bit Thumb instruction)."""
+    elf = firmware("fault_lockup")
+    symbols = subprocess.run(["arm-none-eabi-nm", str(elf)], capture_output=True, text=True, check=True).stdout
+    main = next(int(line.split()[0], 16) for line in symbols.splitlines() if line.endswith(" main"))
+    stop, _, _, _ = run(elf, None, 5 * STEP_NS)
+    assert stop.kind == "crashed"
+    assert "locked up (Lockup: can't escalate" in stop.what
+    assert stop.pc == main + 2
 
 
 def _patched(tmp_path: Path, offset: int, value: bytes) -> Path:
