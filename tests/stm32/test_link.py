@@ -130,7 +130,8 @@ def test_a_lockup_ends_the_run_naming_it() -> None:
     """fault_lockup: a fault with FAULTMASK set cannot escalate; QEMU stops with the registers, pc among
     them: the undefined instruction's, main's second (CPSID is a 16-bit Thumb instruction)."""
     elf = firmware("fault_lockup")
-    symbols = subprocess.run(["arm-none-eabi-nm", str(elf)], capture_output=True, text=True, check=True).stdout
+    nm = subprocess.run(["arm-none-eabi-nm", str(elf)], capture_output=True, text=True, check=True)
+    symbols = nm.stdout
     main = next(int(line.split()[0], 16) for line in symbols.splitlines() if line.endswith(" main"))
     stop, _, _, _ = run(elf, None, 5 * STEP_NS)
     assert stop.kind == "crashed"
