@@ -40,10 +40,11 @@ def check_firmware(board: Board, firmware: Path) -> None:
 
 def open_engine(board: Board, firmware: Path, chips: ChipBoard | None, eeprom: bytes | None = None,
                 **limits: Any) -> Engine:
-    """The board's MCU running ``firmware`` with ``chips`` on its I2C/TWI; ``limits``: the AVR engine's
-    error limits (hang_ns, ...)."""
+    """The board's MCU running ``firmware`` with ``chips`` on its I2C/TWI; ``limits``: the engines' error
+    limits (hang_ns; the AVR's others)."""
     if board.mcu.engine == "stm32":
         from rig.mcu.stm32_link import Stm32Config, Stm32Engine
 
-        return Stm32Engine(Stm32Config(board, firmware), chips)
+        hang_ns = int(limits.get("hang_ns", round(board.hang_s * 1e9)))
+        return Stm32Engine(Stm32Config(board, firmware, hang_ns=hang_ns), chips)
     return AvrEngine(config_for(board, firmware, eeprom, **limits), chips)

@@ -65,6 +65,9 @@ class Stm32Config:
     firmware: Path
     #: the engine binary (stm32_engine.cached_binary()); None: built or taken from the cache
     binary: Path | None = None
+    #: no I2C event, USART byte sent or change of a motor's pulse for this long is a hang (0: not checked;
+    #: a timer's PWM runs on without the firmware, so its pulses alone are no sign of life)
+    hang_ns: int = 1_000_000_000
 
 
 class Stm32Engine:
@@ -93,6 +96,8 @@ class Stm32Engine:
         self._nacks = 0
         self._pulses: list[list[tuple[int, int, int]]] = [[] for _ in self._motors]
         self._pulse_counts = [0 for _ in self._motors]
+        self._widths = [0 for _ in self._motors]
+        self._active_ns = 0  # the last sign of life (hang_ns)
         self._state = (0, 0, 0, 0)  # ipsr, pc, cfsr, hfsr at the last stop
         self._sent: dict[int, bytearray] = {n: bytearray() for n in cfg.board.mcu.usarts}
         self._uart_counts: dict[int, list[int]] = {n: [0, 0] for n in cfg.board.mcu.usarts}  # in, out
@@ -204,11 +209,13 @@ class Stm32Engine:
                     if not p or p[0] not in self._sent:
                         raise LinkError(f"bytes from USART {p[0] if p else '?'}, which the board's MCU lacks")
                     self._sent[p[0]] += p[1:]
+                    self._active_ns = self._now_ns
                     self._uart_counts[p[0]][1] += len(p) - 1
                     continue
                 if len(p) < 8:
                     raise LinkError(f"an I2C message ({kind!r}) without its time")
                 (t_ns,) = struct.unpack_from("<Q", p)
+                self._active_ns = t_ns
                 if kind == ord("S") and len(p) == 10 and p[8] < 128 and p[9] < 2:
                     self._record(t_ns, "S", 0, True)
                     self._pending = (t_ns, p[8], bool(p[9]))
@@ -244,6 +251,9 @@ class Stm32Engine:
             raise LinkError(f"a REACHED with {n} motors ({len(p)} bytes); the board has {len(self._motors)}")
         for i in range(n):
             high, period = _PULSE.unpack_from(p, _REACHED.size + i * _PULSE.size)
+            if high != self._widths[i]:
+                self._widths[i] = high
+                self._active_ns = t_ns
             if high:
                 # (the pulse the timer latched at its last update: the output's pulses in force)
                 self._pulses[i].append((t_ns, high, period))
@@ -253,6 +263,10 @@ class Stm32Engine:
         fault = FAULTS.get(ipsr & 0x1FF)
         if fault is not None:
             return self._final("crashed", f"{fault} (CFSR 0x{cfsr:08x}, HFSR 0x{hfsr:08x})", pc)
+        hang_ns = self.cfg.hang_ns
+        if hang_ns and t_ns - self._active_ns >= hang_ns:
+            return self._final("hung", f"no I2C transaction, motor pulse change or USART byte sent for "
+                                       f"{hang_ns / 1e6:g} ms", pc)
         return Stop("reached", self._cycle(t_ns))
 
     def _ended(self) -> Stop:

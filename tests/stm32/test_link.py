@@ -117,6 +117,22 @@ def test_bytes_reach_a_usart_at_their_frame_times_and_come_back() -> None:
     assert bytes(echoed) == sent
 
 
+def test_a_firmware_that_does_nothing_for_the_hang_limit_is_hung() -> None:
+    """uart_echo with nothing to echo: no I2C, no pulse, no byte sent; with a 5 ms limit the run stops
+    at the first step at or after 5 ms."""
+    board = boards.load("stm32f405-gy86")
+    cfg = Stm32Config(board, firmware("uart_echo"), engine_or_skip(), hang_ns=5 * STEP_NS)
+    engine = Stm32Engine(cfg, None)
+    try:
+        t = 0
+        while (stop := engine.run_until(t + STEP_NS)).kind == "reached":
+            t += STEP_NS
+    finally:
+        engine.close()
+    assert stop.kind == "hung" and "for 5 ms" in stop.what
+    assert t + STEP_NS == 5 * STEP_NS
+
+
 def test_a_hardfault_ends_the_run_naming_it() -> None:
     """fault_spin: an undefined instruction, escalated to a HardFault whose handler spins."""
     stop, _, _, _ = run(firmware("fault_spin"), None, 5 * STEP_NS)
