@@ -130,7 +130,11 @@ class Stm32Engine:
         finally:
             listener.close()
         self._sock.settimeout(SOCKET_TIMEOUT_S)
-        self._hello()
+        try:
+            self._hello()
+        except BaseException:
+            self.close()  # (QEMU and the folder go with the engine that failed to start)
+            raise
 
     # ---- the link ----
     def _hello(self) -> None:
@@ -376,7 +380,7 @@ class Stm32Engine:
     def close(self) -> None:
         proc = getattr(self, "_proc", None)
         if proc is not None and proc.poll() is None:
-            with contextlib.suppress(OSError, AttributeError):
+            with contextlib.suppress(LinkError, AttributeError):  # (QEMU gone, or never connected)
                 self._send(ord("Q"))
             try:
                 proc.wait(SOCKET_TIMEOUT_S)
