@@ -58,8 +58,10 @@ typedef struct {
 } LinkUart;
 
 /* QEMU -> session */
-#define MSG_HELLO 'H'     /* u16 version */
-#define MSG_REACHED 'R'   /* u64 t_ns, u32 ipsr, u32 pc, u32 cfsr, u32 hfsr, u8 n, n x (u32 high_ns, u32 period_ns) */
+#define MSG_HELLO 'H' /* u16 version */
+/* u64 t_ns, u32 ipsr, u32 pc, u32 cfsr, u32 hfsr, u8 n, n x (u32 high_ns, u32 period_ns, u32 periods
+ * begun since the last stop, u64 the virtual time the last began) */
+#define MSG_REACHED 'R'
 #define MSG_I2C_START 'S' /* u64 t_ns, u8 7-bit address, u8 read: answered by MSG_ACK */
 #define MSG_I2C_WRITE 'W' /* u64 t_ns, u8 byte */
 #define MSG_I2C_READ 'D'  /* u64 t_ns: answered by MSG_BYTE */
@@ -85,6 +87,7 @@ struct RigLinkState {
     uint8_t n_motors;
     Object *motor_timer[LINK_MOTORS];
     uint8_t motor_output[LINK_MOTORS];
+    uint64_t motor_latches[LINK_MOTORS]; /* the timer's latches at the last stop */
     LinkUart uarts[LINK_UARTS];
 };
 
@@ -250,7 +253,7 @@ static void link_reached(void *opaque)
     }
     ARMCPU *cpu = ARM_CPU(first_cpu);
     CPUARMState *env = &cpu->env;
-    uint8_t p[29 + LINK_MOTORS * 8];
+    uint8_t p[25 + LINK_MOTORS * 20];
     stq_le_p(p, (uint64_t)qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL));
     stl_le_p(p + 8, env->v7m.exception);
     stl_le_p(p + 12, env->regs[15]);
@@ -265,7 +268,11 @@ static void link_reached(void *opaque)
         uint64_t hz = object_property_get_uint(tim, "clock-hz", &error_abort);
         stl_le_p(p + len, hz ? (uint32_t)MIN(muldiv64(high, NANOSECONDS_PER_SECOND, hz), UINT32_MAX) : 0);
         stl_le_p(p + len + 4, hz ? (uint32_t)MIN(muldiv64(period, NANOSECONDS_PER_SECOND, hz), UINT32_MAX) : 0);
-        len += 8;
+        uint64_t latches = object_property_get_uint(tim, "latches", &error_abort);
+        stl_le_p(p + len + 8, (uint32_t)MIN(latches - s->motor_latches[i], UINT32_MAX));
+        stq_le_p(p + len + 12, object_property_get_uint(tim, "latched-ns", &error_abort));
+        s->motor_latches[i] = latches;
+        len += 20;
     }
     link_uart_send_sent(s);
     link_send(s, MSG_REACHED, p, len);

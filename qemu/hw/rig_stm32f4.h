@@ -202,6 +202,8 @@ struct RigStm32TimerState {
     uint8_t capture_count[RIG_TIM_CHANNELS];  /* edges since the last capture (ICxPSC) */
     uint32_t pulse_ticks[RIG_TIM_OUTPUTS], period_ticks; /* the pulses latched at the last update */
     uint64_t latched_hz;                                 /* the timer clock then */
+    uint64_t latches;                                    /* periods latched since power-on ("latches") */
+    uint64_t latched_ns;                                 /* the virtual time of the last ("latched-ns") */
     qemu_irq irq[RIG_TIM_IRQS];
     qemu_irq channel_out[RIG_TIM_OUTPUTS * RIG_TIM_PINS_PER_CHANNEL];
     qemu_irq pulse_ns[RIG_TIM_OUTPUTS]; /* "pulse-ns": each output's latched high time in ns */

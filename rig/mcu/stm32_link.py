@@ -52,7 +52,9 @@ UART_CHUNK: Final = 1016
 #: the timer outputs rig_link.c numbers: CH1..CH4, then CH1N..CH3N
 OUTPUTS: Final = ("1", "2", "3", "4", "1N", "2N", "3N")
 _REACHED = struct.Struct("<QIIIIB")
-_PULSE = struct.Struct("<II")
+_PULSE = struct.Struct("<IIIQ")
+#: pulses kept per motor between two takes (the oldest are dropped)
+MAX_PULSES: Final = 256
 
 
 class LinkError(RuntimeError):
@@ -254,14 +256,18 @@ class Stm32Engine:
         if n != len(self._motors) or len(p) != _REACHED.size + n * _PULSE.size:
             raise LinkError(f"a REACHED with {n} motors ({len(p)} bytes); the board has {len(self._motors)}")
         for i in range(n):
-            high, period = _PULSE.unpack_from(p, _REACHED.size + i * _PULSE.size)
+            high, period, begun, last_ns = _PULSE.unpack_from(p, _REACHED.size + i * _PULSE.size)
             if high != self._widths[i]:
                 self._widths[i] = high
                 self._active_ns = t_ns
-            if high:
-                # (the pulse the timer latched at its last update: the output's pulses in force)
-                self._pulses[i].append((t_ns, high, period))
-                self._pulse_counts[i] += 1
+            if high and begun:
+                # (the periods begun since the last stop, each a pulse of the width latched last: one
+                # width a step, as the session takes the last pulse of a step)
+                self._pulse_counts[i] += begun
+                train = self._pulses[i]
+                kept = min(begun, MAX_PULSES)
+                train += [(last_ns - k * period, high, period) for k in range(kept - 1, -1, -1)]
+                del train[:-MAX_PULSES]
         self._now_ns = t_ns
         self._state = (ipsr, pc, cfsr, hfsr)
         fault = FAULTS.get(ipsr & 0x1FF)
@@ -314,8 +320,8 @@ class Stm32Engine:
         return self._until_reached()
 
     def pulses(self) -> list[list[tuple[int, int, int]]]:
-        """Per motor, the pulses in force at each step's end since the last call: (t_ns, width_ns,
-        period_ns), one a step (the timer's latched compare: what the ESC is being sent)."""
+        """Per motor, the pulses begun since the last call: (rise_ns, width_ns, period_ns), one a period of
+        its timer, with the width latched last (the timers latch each period's pulse at its start)."""
         out, self._pulses = self._pulses, [[] for _ in self._motors]
         return out
 
@@ -370,7 +376,7 @@ class Stm32Engine:
             "sim_ns": self._now_ns, "cycles": self._cycle(self._now_ns),
             "twi_transactions": self._transactions, "twi_bytes": self._bytes, "twi_nacks": self._nacks,
             "pc": pc, "ipsr": ipsr, "cfsr": cfsr, "hfsr": hfsr,
-            "last_twi": format_transaction(self._last), "motor_steps_pulsing": list(self._pulse_counts),
+            "last_twi": format_transaction(self._last), "motor_periods": list(self._pulse_counts),
             "uarts": {n: {"queued": c[0], "sent": c[1]} for n, c in self._uart_counts.items()},
         }
         if self._stop is not None:
