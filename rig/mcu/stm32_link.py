@@ -370,6 +370,11 @@ class Stm32Engine:
         """An STM32 has no EEPROM (its settings live in flash)."""
         return b""
 
+    def poll_figures(self) -> dict[str, int]:
+        """The AVR engine's polling-loop skip has no STM32 counterpart: QEMU's icount runs every
+        instruction (a summary's ``poll_skip`` is then empty)."""
+        return {}
+
     def figures(self) -> dict[str, Any]:
         ipsr, pc, cfsr, hfsr = self._state
         figs: dict[str, Any] = {

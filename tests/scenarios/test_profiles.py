@@ -161,9 +161,10 @@ def test_arducopter_maps_sbus_as_ardupilot_does() -> None:
 
 def test_the_barometer_s_noise_is_asked_for_by_the_profile(tmp_path: Path) -> None:
     assert not P.load(write(tmp_path, FULL)).baro_noise  # the default: an exact barometer
-    on = write(tmp_path, FULL.replace("mounting_yaw_deg = 90", "mounting_yaw_deg = 90\nbaro_noise = true"), "on.toml")
+    sensors = "mounting_yaw_deg = 90"
+    on = write(tmp_path, FULL.replace(sensors, f"{sensors}\nbaro_noise = true"), "on.toml")
     assert P.load(on).baro_noise
-    bad = write(tmp_path, FULL.replace("mounting_yaw_deg = 90", 'mounting_yaw_deg = 90\nbaro_noise = "yes"'), "bad.toml")
+    bad = write(tmp_path, FULL.replace(sensors, f'{sensors}\nbaro_noise = "yes"'), "bad.toml")
     with pytest.raises(P.ProfileError, match=r"sensors.baro_noise: expected true or false"):
         P.load(bad)
 
