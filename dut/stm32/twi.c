@@ -8,8 +8,13 @@
 #define I2C_SR1_BERR (1u << 8)
 #define I2C_SR1_ARLO (1u << 9)
 /* a safety net against a flag that never comes: a 9-byte transfer at 400 kHz is ~250 us, and each poll
-   at least a few cycles; 20000 polls are over a millisecond at 168 MHz */
+   about a microsecond (POLL_GAP); 20000 polls are 20 ms */
 #define POLL_LIMIT 20000u
+/* spin iterations between two reads of SR1: about a microsecond at 168 MHz, under half an SCL period at
+   400 kHz, so an event is seen at most that late (a byte takes 22.5 us). Under QEMU's icount each read
+   of a device register ends a translation block: polling back to back read SR1 1.97 M times a simulated
+   second and took most of QEMU's CPU time (docs/reference-fc.md, "Speed"); with the gap, 0.17 M. */
+#define POLL_GAP 40
 
 twi_stats twi_counters;
 
@@ -60,6 +65,8 @@ void twi_recover(void)
 static int32_t wait_sr1(uint32_t mask)
 {
     for (uint32_t i = 0; i < POLL_LIMIT; i++) {
+        for (int k = 0; k < POLL_GAP; k++)
+            __asm volatile("nop");
         uint32_t sr1 = I2C1_SR1;
         if (sr1 & I2C_SR1_AF) {
             I2C1_CR1 |= I2C_CR1_STOP;
