@@ -47,12 +47,14 @@ double clock_seconds(void)
     return ((double)wraps * 4294967296.0 + (double)t) / (double)BOARD_HCLK_HZ;
 }
 
-/* whole milliseconds asleep until SysTick's (a polled cycle counter costs QEMU an MMIO exit a poll), the
-   rest by the cycle counter */
+/* From a millisecond up: asleep until SysTick has ticked that many times (a polled cycle counter costs
+   QEMU an MMIO exit a poll). The first tick may come at once, but calls back to back (src/sensors.c
+   waits 100 ms as 100 waits of 1 ms) start on a tick, so all but the first wait whole milliseconds.
+   Below a millisecond, by the cycle counter. */
 void clock_wait_us(uint16_t us)
 {
     if (us >= 1000) {
-        clock_sleep_until_ms(ms + us / 1000u + 1u);
+        clock_sleep_until_ms(ms + (us + 999u) / 1000u);
         return;
     }
     uint32_t t0 = DWT_CYCCNT;

@@ -1,8 +1,9 @@
 """The reference FC as STM32F405 firmware (dut/stm32, `make stm32`) flies through the STM32 tier: a
 roll step in angle mode on the attitude stand, judged by the rig's criteria, with the FC's own telemetry
-on USART6 (the board file's [telemetry]). Expected values from the scenario and the board: the roll
-set point the sticks command, one pulse per 2041 us period on each motor (84 MHz / 84 / 2041), the
-telemetry's keys as the Linux FC writes them."""
+on USART6 (the board file's [telemetry]) and the scenario's [fc] table in its settings flash (the
+board file's [eeprom] fc = true: rig/mcu/stm32_image.py with_settings). Expected values from the
+scenario and the board: the roll set point the sticks command, one pulse per 2041 us period on each
+motor (84 MHz / 84 / 2041), the telemetry's keys as the Linux FC writes them."""
 
 from __future__ import annotations
 
@@ -24,6 +25,9 @@ duration = {DURATION_S}
 
 [vehicle]
 stand = 4
+
+[fc]
+estimator = 1
 
 [[timeline]]
 t = 1.2
@@ -85,10 +89,11 @@ def test_the_reference_fc_flies_a_roll_step(tmp_path: Path) -> None:
     # sticks at 1.2 s, and its estimate holding the commanded roll at the end
     text = (out / "dut-telemetry.txt").read_text().splitlines()
     assert text[0] == "# fc: STM32F405 reference FC"
+    assert text[1] == "# fc: configuration: flash image"
     assert "# fc: running" in text
     last = dict(kv.split("=", 1) for kv in [ln for ln in text if ln.startswith("T ")][-1].split()[1:])
     assert {"t", "roll", "pitch", "yaw", "alt", "armed", "rc", "gyro_fault", "loop_us", "max_us",
             "overruns"} <= last.keys()
-    assert last["armed"] == "1" and last["rc"] == "1" and last["overruns"] == "0"
+    assert last["armed"] == "1" and last["rc"] == "1" and last["overruns"] == "0" and last["cfg"] == "flash"
     assert abs(float(last["roll"]) - STEP_DEG) < 1.0
     assert float(last["t"]) > DURATION_S - 0.1
