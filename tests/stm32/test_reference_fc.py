@@ -12,7 +12,11 @@ import subprocess
 import sys
 from pathlib import Path
 
-from tests.stm32.conftest import REPO, engine_or_skip
+import pytest
+
+from rig.mcu.image import FirmwareError
+from rig.mcu.stm32_image import with_settings
+from tests.stm32.conftest import REPO, engine_or_skip, firmware
 
 DURATION_S = 3.5
 STEP_AT_S = 2.0
@@ -97,3 +101,25 @@ def test_the_reference_fc_flies_a_roll_step(tmp_path: Path) -> None:
     assert last["armed"] == "1" and last["rc"] == "1" and last["overruns"] == "0" and last["cfg"] == "flash"
     assert abs(float(last["roll"]) - STEP_DEG) < 1.0
     assert float(last["t"]) > DURATION_S - 0.1
+
+
+def test_the_settings_go_into_the_config_section_and_only_there(tmp_path: Path) -> None:
+    elf = reference_fc()
+    settings = bytes(range(40))
+    copy = with_settings(elf, settings, tmp_path / "fc.elf")
+
+    def section(path: Path) -> bytes:  # binutils' reading of the section, not ours
+        out = tmp_path / "section.bin"
+        subprocess.run(["arm-none-eabi-objcopy", "-O", "binary", "--only-section=.fc_config", str(path),
+                        str(out)], check=True)
+        return out.read_bytes()
+
+    built = section(elf)
+    assert built == b"\xff" * len(built) and len(built) > len(settings)
+    assert section(copy) == settings + b"\xff" * (len(built) - len(settings))
+    a, b = elf.read_bytes(), copy.read_bytes()
+    assert len(a) == len(b) and sum(x != y for x, y in zip(a, b, strict=True)) <= len(settings)
+    with pytest.raises(FirmwareError, match="fc_config section has"):
+        with_settings(elf, b"\0" * (len(built) + 1), tmp_path / "big.elf")
+    # a firmware without the section boots as built
+    assert with_settings(firmware("hover_rate"), settings, tmp_path / "h.elf") == firmware("hover_rate")
