@@ -29,7 +29,7 @@ BRIDGE_CHIPS := emulators/chips
 BRIDGE_CFLAGS := -std=c99 -pedantic -O2 -Wall -Wextra -Werror -ffp-contract=off -Ibuild/gen -I$(BRIDGE_CHIPS) \
 	-Ibridge/core -Irig/shim
 
-.PHONY: all venv fmu shim native chips compiled dut vbridge firmware avr avr-toolchain test-packages mcu-test-firmware stm32-engine stm32-test-firmware demo test test-slow lint lint-sources bench clean docs-images
+.PHONY: all venv fmu shim native chips compiled dut vbridge firmware avr stm32 avr-toolchain test-packages mcu-test-firmware stm32-engine stm32-test-firmware demo test test-slow lint lint-sources bench clean docs-images
 
 all: fmu shim native compiled dut vbridge
 
@@ -98,6 +98,11 @@ firmware: venv test-packages
 avr: avr-toolchain
 	$(MAKE) -s -C dut avr
 
+# the reference FC as STM32F405 firmware (docs/reference-fc.md): build/stm32/fc.elf and .map, with Debian's
+# arm-none-eabi-gcc and newlib (tools/test-packages.sh); prints its flash and RAM use
+stm32: test-packages
+	$(MAKE) -s -C dut stm32
+
 # avr-gcc, avr-libc and libsimavr (tools/avr-toolchain.sh), only when missing: the MCU tier and the AVR
 # firmware need them, the demo does not
 avr-toolchain:
@@ -143,10 +148,10 @@ STM32_FW_DIR := tests/stm32/firmware
 STM32_FW_NAMES := $(filter-out startup,$(basename $(notdir $(wildcard $(STM32_FW_DIR)/*.c))))
 STM32_FW := $(foreach n,$(STM32_FW_NAMES),build/stm32/test/$(n).elf)
 STM32_CFLAGS := -mcpu=cortex-m4 -mthumb -mfloat-abi=soft -std=c11 -O2 -g -Wall -Wextra -Werror -ffreestanding \
-	-nostdlib -nostartfiles -T$(STM32_FW_DIR)/stm32f405.ld
+	-nostdlib -nostartfiles -T$(STM32_FW_DIR)/stm32f405.ld -Idut/stm32
 stm32-test-firmware: test-packages $(STM32_FW)
 build/stm32/test/%.elf: $(STM32_FW_DIR)/%.c $(STM32_FW_DIR)/startup.c $(wildcard $(STM32_FW_DIR)/*.h) \
-		$(STM32_FW_DIR)/stm32f405.ld
+		$(STM32_FW_DIR)/stm32f405.ld dut/stm32/stm32f405.h
 	@mkdir -p $(@D)
 	arm-none-eabi-gcc $(STM32_CFLAGS) -o $@ $< $(STM32_FW_DIR)/startup.c
 
@@ -166,7 +171,7 @@ docs-images: venv fmu shim native compiled dut
 	$(PY) tools/mcap_screenshot.py build/docs-report/fault_gyro_stuck/run.mcap
 
 # our C, in one style (.clang-format); the FMI headers are vendored as they came
-C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/linux/*.[ch] dut/avr/*.[ch] dut/tests/*.c emulators/c/*.[ch] rig/lockstep/*.c rig/telemetry/*.c rig/pace/*.c emulators/chips/*.[ch] plant/c/*.[ch] \
+C_SOURCES := $(filter-out plant/fmi2/%,$(wildcard dut/src/*.[ch] dut/linux/*.[ch] dut/avr/*.[ch] dut/stm32/*.[ch] dut/tests/*.c emulators/c/*.[ch] rig/lockstep/*.c rig/telemetry/*.c rig/pace/*.c emulators/chips/*.[ch] plant/c/*.[ch] \
 	rig/shim/*.[ch] bridge/*/*.[ch] bench/*.c tests/rig/device_clients/*.c rig/mcu/*.[ch] tests/mcu/firmware/*.c \
 	tests/stm32/firmware/*.[ch] qemu/hw/*.[ch]))
 
@@ -189,7 +194,7 @@ lint-sources:
 # wall clock alone (marker paced: tests/realtime.py), which ends with the count of those that verified
 # nothing and fails above half of them (tests/suite_rules.py, tests/README.md). TEST_JOBS=1: one process.
 TEST_JOBS ?= $(shell nproc 2>/dev/null || echo 2)
-TEST_BUILDS := stm32-engine mcu-test-firmware $(STM32_FW) avr $(FMU) $(SHIM) $(NATIVE) $(DUT_BIN) $(VBRIDGE) firmware
+TEST_BUILDS := stm32-engine mcu-test-firmware $(STM32_FW) avr stm32 $(FMU) $(SHIM) $(NATIVE) $(DUT_BIN) $(VBRIDGE) firmware
 test: venv test-packages
 	$(MAKE) -s -j2 INSTALLED=1 $(COMPILED) lint-sources $(TEST_BUILDS)
 	$(PY) -m pytest -q -m "not slow and not paced" -n $(TEST_JOBS) --durations=25

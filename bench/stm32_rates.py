@@ -1,6 +1,8 @@
 """How fast the STM32 tier runs in lockstep (bench, not a test): simulated seconds per second of our
 hover firmware (tests/stm32/firmware/hover_rate.c: 168 MHz, the gyro over I2C1 by the HAL's polling,
-a 490 Hz rate loop on TIM3's interrupt, four PWM outputs) under the rig's QEMU at -icount shift=3.
+a 490 Hz rate loop on TIM3's interrupt, four PWM outputs), or with ``--fc`` of the reference FC
+(build/stm32/fc.elf, `make stm32`: the whole GY-86 burst at 250 Hz, the estimator, the controllers),
+under the rig's QEMU at -icount shift=3.
 
   link alone     the engine (rig/mcu/stm32_link.py) with a resting chip core, 1 ms steps, the needs
                  served: QEMU's CPU time (its process) and this process's, against the sim time
@@ -9,7 +11,7 @@ a 490 Hz rate loop on TIM3's interrupt, four PWM outputs) under the rig's QEMU a
 Wall time follows the neighbours on a shared machine; CPU seconds are the steadier figure. Needs
 `make stm32-engine stm32-test-firmware`.
 
-    .venv/bin/python bench/stm32_rates.py
+    .venv/bin/python bench/stm32_rates.py [--fc]
 """
 
 from __future__ import annotations
@@ -32,7 +34,8 @@ from rig.scenarios.schema import load  # noqa: E402
 from rig.targets.mcu import McuTarget  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
-FIRMWARE = REPO / "build" / "stm32" / "test" / "hover_rate.elf"
+HOVER_RATE = REPO / "build" / "stm32" / "test" / "hover_rate.elf"
+REFERENCE_FC = REPO / "build" / "stm32" / "fc.elf"
 LINK_SIM_S = 5.0
 
 
@@ -41,12 +44,12 @@ def cpu(who: int) -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def link_alone() -> tuple[float, float, float]:
+def link_alone(firmware: Path) -> tuple[float, float, float]:
     """(sim s per wall s, QEMU's CPU s and this process's CPU s per sim s)"""
     chips = build_chip_board(lambda t: ImuTruth((0.0, 0.0, 9.80665), (0.0, 0.0, 0.0)),
                              lambda t: (0.2, 0.0, 0.4), lambda t: BaroTruth(101325.0, 20.0))
     binary = stm32_engine.cached_binary()
-    engine = Stm32Engine(Stm32Config(boards.load("stm32f405-gy86"), FIRMWARE, binary), chips)
+    engine = Stm32Engine(Stm32Config(boards.load("stm32f405-gy86"), firmware, binary), chips)
     wall0, own0, children0 = time.perf_counter(), cpu(resource.RUSAGE_SELF), cpu(resource.RUSAGE_CHILDREN)
     t = 0
     while t < LINK_SIM_S * 1e9:
@@ -60,21 +63,23 @@ def link_alone() -> tuple[float, float, float]:
     return LINK_SIM_S / wall, (cpu(resource.RUSAGE_CHILDREN) - children0) / LINK_SIM_S, own / LINK_SIM_S
 
 
-def scenario(name: str = "hover_turbulence") -> float:
+def scenario(firmware: Path, name: str = "hover_turbulence") -> float:
     sc = load(REPO / "scenarios" / "library" / f"{name}.toml")
     wall0 = time.perf_counter()
-    run(sc, McuTarget("stm32f405-gy86", FIRMWARE), 0)
+    run(sc, McuTarget("stm32f405-gy86", firmware), 0)
     return sc.duration / (time.perf_counter() - wall0)
 
 
 def main() -> int:
-    if stm32_engine.cached_binary() is None or not FIRMWARE.is_file():
-        print("needs `make stm32-engine stm32-test-firmware` first", file=sys.stderr)
+    firmware = REFERENCE_FC if "--fc" in sys.argv[1:] else HOVER_RATE
+    if stm32_engine.cached_binary() is None or not firmware.is_file():
+        print("needs `make stm32-engine stm32-test-firmware stm32` first", file=sys.stderr)
         return 1
-    speed, qemu_cpu, own_cpu = link_alone()
+    print(f"{firmware.relative_to(REPO)}")
+    speed, qemu_cpu, own_cpu = link_alone(firmware)
     print(f"link alone: {speed:.2f}x real time; per sim second {qemu_cpu:.2f} s of QEMU's CPU, "
           f"{own_cpu:.2f} s of the session's")
-    print(f"scenario hover_turbulence: {scenario():.2f}x real time")
+    print(f"scenario hover_turbulence: {scenario(firmware):.2f}x real time")
     return 0
 
 

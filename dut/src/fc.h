@@ -17,6 +17,20 @@
 #include <stdint.h>
 #if defined(__AVR__)
 #include <math.h>
+#elif defined(FC_GENERIC_MATH)
+/* newlib (the STM32 build): its <tgmath.h> wants complex long double functions newlib lacks, so the
+   functions the algorithms call pick their float version by C11's _Generic, as <tgmath.h> would (a
+   double call on a single-precision FPU is a library routine in software) */
+#include <math.h>
+#define FC_TG1(fn, x) _Generic((x), float : fn##f, default : fn)(x)
+#define FC_TG2(fn, x, y) _Generic((x) + (y), float : fn##f, default : fn)(x, y)
+#define sin(x) FC_TG1(sin, x)
+#define cos(x) FC_TG1(cos, x)
+#define asin(x) FC_TG1(asin, x)
+#define sqrt(x) FC_TG1(sqrt, x)
+#define fabs(x) FC_TG1(fabs, x)
+#define atan2(y, x) FC_TG2(atan2, y, x)
+#define pow(x, y) FC_TG2(pow, x, y)
 #else
 #include <tgmath.h>
 #endif

@@ -30,7 +30,7 @@ from rig.emulators import native
 from rig.emulators.chips.board import ChipBoard
 from rig.mcu.board import Board
 from rig.mcu.engine import FirmwareError, Stop, TwiRecord, format_transaction
-from rig.mcu.stm32_image import check_image
+from rig.mcu.stm32_image import check_image, with_settings
 
 __all__ = ["ICOUNT_SHIFT", "LINK_VERSION", "LinkError", "Stm32Engine"]
 
@@ -70,6 +70,9 @@ class Stm32Config:
     #: no I2C event, USART byte sent or change of a motor's pulse for this long is a hang (0: not checked;
     #: a timer's PWM runs on without the firmware, so its pulses alone are no sign of life)
     hang_ns: int = 1_000_000_000
+    #: the settings image written into the firmware's flash before it boots (stm32_image.with_settings:
+    #: a scenario's [fc] table for the reference FC); None: the image as built
+    settings: bytes | None = None
 
 
 class Stm32Engine:
@@ -104,6 +107,13 @@ class Stm32Engine:
         self._sent: dict[int, bytearray] = {n: bytearray() for n in cfg.board.mcu.usarts}
         self._uart_counts: dict[int, list[int]] = {n: [0, 0] for n in cfg.board.mcu.usarts}  # in, out
         self._dir = tempfile.TemporaryDirectory(prefix="rig-stm32-")
+        firmware = cfg.firmware
+        if cfg.settings is not None:
+            try:
+                firmware = with_settings(cfg.firmware, cfg.settings, Path(self._dir.name) / "firmware.elf")
+            except FirmwareError:
+                self._dir.cleanup()
+                raise
         path = str(Path(self._dir.name) / "link")
         listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         listener.bind(path)
@@ -118,7 +128,7 @@ class Stm32Engine:
         cmd = [str(binary), "-M", MACHINE, "-nodefaults", "-display", "none", "-monitor", "none",
                "-chardev", f"socket,id=rig-link,path={path}", *uarts,
                "-semihosting-config", "enable=on,target=native",
-               "-icount", f"shift={ICOUNT_SHIFT},sleep=off", "-kernel", str(cfg.firmware)]
+               "-icount", f"shift={ICOUNT_SHIFT},sleep=off", "-kernel", str(firmware)]
         self._proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=self._output,
                                       stderr=subprocess.STDOUT)
         try:

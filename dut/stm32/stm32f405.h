@@ -1,5 +1,6 @@
-/* The STM32F405 registers the STM32 tier's test firmwares touch, at their addresses in RM0090 (table 10,
-   the register maps of sections 3.9, 5.4, 7.3 and 8.4) and the ARMv7-M ARM (SysTick, DWT). */
+/* The STM32F405 registers the STM32 tier's test firmwares and the reference FC (dut/stm32) touch, at their
+   addresses in RM0090 (table 10, the register maps of sections 3.9, 5.4, 7.3, 8.4 and 30.6) and the
+   ARMv7-M ARM (SysTick, DWT). */
 #ifndef STM32F405_H
 #define STM32F405_H
 
@@ -162,6 +163,31 @@
 #define TIM4_IRQ 30u
 #define TIM8_UP_TIM13_IRQ 44u
 #define GPIO_MODE_AF 2u
+
+/* USART1 and USART6 on APB2, USART2/3 on APB1 (RM0090 table 10; registers 30.6) */
+#define USART1_BASE 0x40011000u
+#define USART3_BASE 0x40004800u
+#define USART6_BASE 0x40011400u
+#define USART_SR(u) REG((u) + 0x00u)
+#define USART_DR(u) REG((u) + 0x04u)
+#define USART_BRR(u) REG((u) + 0x08u)
+#define USART_CR1(u) REG((u) + 0x0Cu)
+#define USART_CR2(u) REG((u) + 0x10u)
+#define USART_SR_PE (1u << 0)
+#define USART_SR_FE (1u << 1)
+#define USART_SR_ORE (1u << 3)
+#define USART_SR_RXNE (1u << 5)
+#define USART_SR_TXE (1u << 7)
+#define USART_CR1_RE (1u << 2)
+#define USART_CR1_TE (1u << 3)
+#define USART_CR1_RXNEIE (1u << 5)
+#define USART_CR1_PCE (1u << 10)
+#define USART_CR1_M (1u << 12)
+#define USART_CR1_UE (1u << 13)
+#define USART_CR2_STOP_2 (2u << 12)
+#define RCC_APB2ENR_USART1EN (1u << 4)
+#define RCC_APB2ENR_USART6EN (1u << 5)
+#define USART1_IRQ 37u
 
 #define NVIC_ISER(n) REG(0xE000E100u + 4u * (n))
 #define NVIC_ICER(n) REG(0xE000E180u + 4u * (n))

@@ -1,0 +1,137 @@
+/* The telemetry (telemetry.h), formatted without printf. Each byte waits for TXE, as a blocking HAL
+   transmit does: a 200-byte line at 500000 baud is 4 ms of a 4 ms cycle on the chip, so the loop sends
+   a line every telemetry_every cycles (QEMU's USART takes each byte at once). */
+#include "telemetry.h"
+
+#include "board.h"
+#include "stm32f405.h"
+
+#define LINE_MAX 240
+
+void telemetry_init(void)
+{
+    RCC_APB2ENR |= RCC_APB2ENR_USART6EN;
+    RCC_AHB1ENR |= 1u << PORT_C;
+    GPIO_MODER(PORT_C) = (GPIO_MODER(PORT_C) & ~(3u << 12)) | (GPIO_MODE_AF << 12);
+    GPIO_AFRL(PORT_C) = (GPIO_AFRL(PORT_C) & ~(0xFu << 24)) | (8u << 24); /* PC6 AF8: USART6_TX */
+    USART_BRR(USART6_BASE) = (uint32_t)((BOARD_APB2_HZ * 2 / TELEMETRY_BAUD + 1) / 2);
+    USART_CR1(USART6_BASE) = USART_CR1_UE | USART_CR1_TE;
+}
+
+void telemetry_send(const char *s, unsigned n)
+{
+    for (unsigned i = 0; i < n; i++) {
+        while (!(USART_SR(USART6_BASE) & USART_SR_TXE))
+            ;
+        USART_DR(USART6_BASE) = (uint8_t)s[i];
+    }
+}
+
+typedef struct {
+    char buf[LINE_MAX];
+    unsigned n;
+} line;
+
+static void put_str(line *l, const char *s)
+{
+    while (*s && l->n < LINE_MAX - 1)
+        l->buf[l->n++] = *s++;
+}
+
+static void put_uint(line *l, uint32_t v, unsigned min_digits)
+{
+    char d[10];
+    unsigned k = 0;
+    do {
+        d[k++] = (char)('0' + v % 10);
+        v /= 10;
+    } while (v || k < min_digits);
+    while (k && l->n < LINE_MAX - 1)
+        l->buf[l->n++] = d[--k];
+}
+
+static void put_int(line *l, int32_t v)
+{
+    if (v < 0) {
+        put_str(l, "-");
+        put_uint(l, (uint32_t)(-(int64_t)v), 1);
+    } else {
+        put_uint(l, (uint32_t)v, 1);
+    }
+}
+
+/* v to @decimals places (rounded); NaN "nan", beyond +-2e9 units "inf" */
+static void put_fixed(line *l, double v, unsigned decimals)
+{
+    if (v != v) {
+        put_str(l, "nan");
+        return;
+    }
+    uint32_t scale = 1;
+    for (unsigned i = 0; i < decimals; i++)
+        scale *= 10;
+    if (v < 0) {
+        put_str(l, "-");
+        v = -v;
+    }
+    if (v >= 2e9) {
+        put_str(l, "inf");
+        return;
+    }
+    uint64_t units = (uint64_t)(v * scale + 0.5);
+    put_uint(l, (uint32_t)(units / scale), 1);
+    if (decimals) {
+        put_str(l, ".");
+        put_uint(l, (uint32_t)(units % scale), decimals);
+    }
+}
+
+void telemetry_say(const char *a, const char *b)
+{
+    line l = { .n = 0 };
+    put_str(&l, "# fc: ");
+    put_str(&l, a);
+    put_str(&l, b);
+    l.buf[l.n++] = '\n';
+    telemetry_send(l.buf, l.n);
+}
+
+void telemetry_line(double t, const flight *fl, const tel_counters *k)
+{
+    const double deg = 180 / M_PI;
+    line l = { .n = 0 };
+    put_str(&l, "T t=");
+    put_fixed(&l, t, 4);
+    put_str(&l, " roll=");
+    put_fixed(&l, fl->att.roll * deg, 3);
+    put_str(&l, " pitch=");
+    put_fixed(&l, fl->att.pitch * deg, 3);
+    put_str(&l, " yaw=");
+    put_fixed(&l, fl->att.yaw * deg, 3);
+    put_str(&l, " alt=");
+    put_fixed(&l, fl->altf.h, 3);
+    put_str(&l, " armed=");
+    put_int(&l, fl->armed);
+    put_str(&l, " rc=");
+    put_int(&l, fl->rc_ok);
+    put_str(&l, " gyro_fault=");
+    put_int(&l, fl->gyro_fault);
+    put_str(&l, " loop_us=");
+    put_uint(&l, k->loop_us, 1);
+    put_str(&l, " max_us=");
+    put_uint(&l, k->max_us, 1);
+    put_str(&l, " overruns=");
+    put_uint(&l, k->overruns, 1);
+    put_str(&l, " cfg=");
+    put_str(&l, k->cfg);
+    put_str(&l, " twi_err=");
+    put_uint(&l, (uint32_t)k->twi.nacks + k->twi.timeouts + k->twi.bus_errors, 1);
+    put_str(&l, " twi_rec=");
+    put_uint(&l, k->twi.recoveries, 1);
+    put_str(&l, " sbus_ok=");
+    put_uint(&l, k->sbus.frames, 1);
+    put_str(&l, " sbus_bad=");
+    put_uint(&l, (uint32_t)k->sbus.bad_frames + k->sbus.byte_errors, 1);
+    l.buf[l.n++] = '\n';
+    telemetry_send(l.buf, l.n);
+}
