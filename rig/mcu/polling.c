@@ -16,6 +16,7 @@
  *     value, byte for byte (else the loop is never skipped again: the proof and simavr disagree);
  *  5. the clock jumps m periods and the machine becomes E1's form at iteration m's counter value: the
  *     registers, flags and stores iteration m leaves, as running the m iterations would.
+ * A counted loop (polling.h) proves iterations 1..m with its counters k + s*j instead of E1's bytes.
  * The instructions figure counts the skipped iterations' instructions: the same figures either way. */
 #include <stdlib.h>
 #include <string.h>
@@ -168,13 +169,80 @@ static uint64_t window_end(const mcu_engine *e)
     return t && t->when < w ? t->when : w;
 }
 
-/* iterations 1..m proved from E1's form (x->s on entry: E1 with the counter's bytes unknown) */
-static bool prove(loop_run *x, const loop_state *star, const loop_state *e1, uint64_t m)
+/* a counted loop's end state after iteration j has the form k + s*(j+1) in each counter (star: k + s*j),
+ * E1's known bytes elsewhere; a flag the iteration did not write is E1's (nothing read it: it was unknown) */
+static bool counted_form(loop_state *end, const loop_state *star, const loop_state *e1, const int8_t *step)
+{
+    for (int i = 0; i < 8; i++)
+        if (end->f[i].kind == FLAG_UNKNOWN)
+            end->f[i] = e1->f[i];
+    if (has_unknown(end) || end->sp != e1->sp || end->n_stores != e1->n_stores)
+        return false;
+    for (int i = 0; i < 32; i++) {
+        const loop_val *b = &end->r[i];
+        if (step[i] ? !b->sym || b->byte || b->sign != step[i] || (uint8_t)(b->k - star->r[i].k - (uint32_t)step[i])
+                    : !loop_is_known(b) || b->val != e1->r[i].val)
+            return false;
+    }
+    for (int i = 0; i < end->n_stores; i++)
+        if (end->store_at[i] != e1->store_at[i] || !loop_is_known(&end->store[i]) ||
+            end->store[i].val != e1->store[i].val)
+            return false;
+    return true;
+}
+
+/* iterations 1..m proved from E1's form (x->s on entry: E1 with the counter's bytes unknown; a counted
+ * loop's: its counters k + s*j, the flags unknown) */
+static bool prove(loop_run *x, const loop_state *star, const loop_state *e1, const int8_t *step, uint64_t m)
 {
     x->s = *star;
     x->j_first = 1;
     x->j_last = m;
-    return loop_eval(x) && !has_unknown(&x->s) && loop_same(&x->s, e1);
+    x->counted = step != NULL;
+    if (!loop_eval(x))
+        return false;
+    return step ? counted_form(&x->s, star, e1, step) : !has_unknown(&x->s) && loop_same(&x->s, e1);
+}
+
+/* a loop that read no timer counter and changed known registers: those that changed by the same step in
+ * iterations 0 and 1 are its counters (those that changed only in iteration 0 were set, not counted);
+ * false when there are none, or a register changed otherwise */
+static bool find_counters(loop_run *x, const loop_state *s0, const loop_state *e1, int8_t step[32])
+{
+    bool changed = false;
+    for (int i = 0; i < 32; i++)
+        changed |= loop_is_known(&s0->r[i]) && loop_is_known(&e1->r[i]) && s0->r[i].val != e1->r[i].val;
+    if (!changed)
+        return false;
+    x->s = *e1;
+    x->j_first = x->j_last = 1;
+    x->counted = false;
+    if (!loop_eval(x) || x->read_v)
+        return false;
+    bool any = false;
+    for (int i = 0; i < 32; i++) {
+        const loop_val *a = &s0->r[i], *b = &e1->r[i], *c = &x->s.r[i];
+        step[i] = 0;
+        if (!loop_is_known(a) || !loop_is_known(b) || !loop_is_known(c) || a->val == b->val)
+            continue;
+        int8_t d1 = (int8_t)(b->val - a->val), d2 = (int8_t)(c->val - b->val);
+        if (d2 && d2 != d1)
+            return false;
+        step[i] = d2;
+        any |= d2 != 0;
+    }
+    return any;
+}
+
+/* E1's form with each counter k + s*j (k its value before iteration 0) and the flags unknown */
+static void count_from(loop_state *star, const loop_state *s0, const int8_t step[32])
+{
+    for (int i = 0; i < 32; i++)
+        if (step[i])
+            star->r[i] = (loop_val){ .sym = true, .sign = step[i], .k = s0->r[i].val };
+    for (int i = 0; i < 8; i++)
+        star->f[i] = (loop_flag){ FLAG_UNKNOWN, 0, 0 };
+    star->n_chains = 0;
 }
 
 /* not provable now: recorded again later (the path may have been another one's, or the loop was not
@@ -200,16 +268,23 @@ static void try_arm(mcu_engine *e, mcu_poll *p, loop_head *lp)
         return;
     loop_run x = { .avr = avr, .io = &p->io, .t = &lp->t, .start = c };
     state_from_avr(&x.s, avr);
+    loop_state s0 = x.s;
     if (!loop_eval(&x)) {
         refuse(p, lp, c);
         return;
     }
     loop_state e1 = x.s, star = x.s;
     uint64_t v0 = x.v_lo;
+    int8_t counters[32];
+    const int8_t *step = NULL;
     forget_v(&star);
+    if (!x.read_v && find_counters(&x, &s0, &e1, counters)) {
+        step = counters;
+        count_from(&star, &s0, step);
+    }
     uint64_t m = room - 1;
-    if (!prove(&x, &star, &e1, m)) { /* the largest m that proves (a smaller range proves if a larger does) */
-        if (!prove(&x, &star, &e1, MIN_SKIP)) {
+    if (!prove(&x, &star, &e1, step, m)) { /* the largest m that proves (a smaller range proves if a larger does) */
+        if (!prove(&x, &star, &e1, step, MIN_SKIP)) {
             if (x.range_limited)
                 lp->retry_at = c + MIN_SKIP * period; /* (the loop ends within a few iterations) */
             else
@@ -219,13 +294,13 @@ static void try_arm(mcu_engine *e, mcu_poll *p, loop_head *lp)
         uint64_t good = MIN_SKIP, bad = m;
         while (bad - good > 1) {
             uint64_t mid = good + (bad - good) / 2;
-            if (prove(&x, &star, &e1, mid))
+            if (prove(&x, &star, &e1, step, mid))
                 good = mid;
             else
                 bad = mid;
         }
         m = good;
-        prove(&x, &star, &e1, m);
+        prove(&x, &star, &e1, step, m);
     }
     lp->fails = 0;
     p->armed = lp;
