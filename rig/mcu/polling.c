@@ -33,13 +33,14 @@
 #define BACK_OFF 16     /* a loop that failed is tried again after up to 2^16 of its periods */
 
 typedef struct {
-    loop_trace t;
+    /* (first: what each backward jump looks at, in the cache line of the trace's head) */
     bool have, dead; /* (dead: a prediction simavr did not confirm) */
     bool counted;    /* a counted loop last time, with these counters' steps */
-    int8_t step[32];
     uint16_t fails;
     uint64_t retry_at; /* the cycle before which it is not tried (after a failure) */
     uint64_t seen;     /* the last cycle it was reached at */
+    loop_trace t;
+    int8_t step[32];
 } loop_head;
 
 struct mcu_poll {
