@@ -133,7 +133,10 @@ def test_exec_mcu_traces_what_its_figures_count_and_the_same_bytes_twice(avr_fc:
     s = runs[0]
     assert s["verdict"] == "ok" and s["sim_time"] == 1.2 and s["realtime_factor"] > 0
     mcu = s["mcu"]
-    assert mcu["cycles"] == round(16e6 * 1.2) and mcu["twi_nacks"] == 0 and mcu["twi_collisions"] == 0
+    # the run stops at the first instruction boundary at or past 1.2 s: past it by at most 4 cycles (the
+    # longest an ATmega2560 instruction or interrupt entry takes is 5: its instruction set summary)
+    assert 0 <= mcu["cycles"] - round(16e6 * 1.2) <= 4
+    assert mcu["twi_nacks"] == 0 and mcu["twi_collisions"] == 0
     vcd = read(tmp_path / "a" / "fc.vcd")
     decoded = i2c_decode(vcd)
     starts = [i for i, d in enumerate(decoded) if d[0] == "S"]
