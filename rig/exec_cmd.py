@@ -19,7 +19,9 @@ from __future__ import annotations
 import argparse
 import difflib
 import json
+import shutil
 import sys
+import tempfile
 from dataclasses import asdict
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -171,7 +173,6 @@ def main(args: argparse.Namespace) -> int:
     profile = _profile(args, parser)
     motor_order: tuple[int, ...] = (1, 2, 3, 4)
     if profile is not None:
-        command = [*command, *profile.config.arguments()]
         motor_order = profile.motors.order
         if args.pwm_channels is None:
             args.pwm_channels = max(profile.motors.pwm_channels, 8)
@@ -196,16 +197,22 @@ def main(args: argparse.Namespace) -> int:
             parser.error(str(e))
     _writable(parser, "--log", args.log)
     _writable(parser, "--summary", args.summary)
+    world = World.at_rest(seed=args.seed, topology=args.topology, noise=not args.no_noise,
+                          params=params, pwm_channels=args.pwm_channels, motor_order=motor_order,
+                          baro_osr_noise=profile is not None and profile.baro_noise)
+    if args.bridge is not None and args.bridge != "virtual":
+        world.close()
+        parser.error("a command runs against the virtual bridge only (--bridge virtual); behind a real "
+                     "bridge the board is the DUT: use rig run --bridge PORT")
+    # (the FC's own files, {state} in its profile's arguments: a folder of the run's, removed after it)
+    state = Path(tempfile.mkdtemp(prefix="rig-fc-state-")) if profile and profile.config.keeps_state else None
+    if profile is not None:
+        command = [*command, *profile.config.arguments(state)]
     cfg = SessionConfig(command=command, lockstep=not args.realtime, i2c_bus=args.bus, serial=args.serial,
                         i2c_clock_hz=CLOCKS[args.i2c_clock], quantum_ns=args.quantum_ns,
                         duration=args.duration, sim_timeout=args.sim_timeout, wall_timeout=args.wall_timeout,
                         stall_timeout=args.stall_timeout, pin=args.pin, spin=args.spin, log_path=args.log,
                         allow_no_devices=args.allow_no_devices)
-    world = World.at_rest(seed=args.seed, topology=args.topology, noise=not args.no_noise,
-                          params=params, pwm_channels=args.pwm_channels, motor_order=motor_order)
-    if args.bridge is not None and args.bridge != "virtual":
-        parser.error("a command runs against the virtual bridge only (--bridge virtual); behind a real "
-                     "bridge the board is the DUT: use rig run --bridge PORT")
     try:
         with interrupts.handled():
             if args.bridge is not None:
@@ -218,6 +225,8 @@ def main(args: argparse.Namespace) -> int:
                 outcome = Session(cfg, world).run()
     finally:
         world.close()
+        if state is not None:
+            shutil.rmtree(state, ignore_errors=True)
     for note in outcome.notes:
         print(f"rig exec: note from the command's shim: {note}", file=sys.stderr)
     for why in outcome.malformed:

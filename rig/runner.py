@@ -221,11 +221,11 @@ def run(
     if why_not:
         return not_run(scenario, seed, why_not, target, profile, verdict=SKIPPED)
     notes: list[str] = []
-    first = scenario.first_action
+    first = first_action(scenario, profile)
     if first is not None and profile.startup_s > first:
         notes.append(f"the FC's profile {profile.name!r} needs {profile.startup_s:g} s to start up; the "
-                     f"scenario acts first at {first:g} s, so all of it runs {profile.startup_s - first:g} s "
-                     "later")
+                     f"scenario acts first at {first:g} s{_gesture_words(scenario, profile)}, so all of it "
+                     f"runs {profile.startup_s - first:g} s later")
         scenario = scenario.shifted(profile.startup_s - first)
     if profile.config.fc:  # (the reference FC made to fly as the profile says; the scenario's [fc] on top)
         scenario = dataclasses.replace(scenario, fc={**dict(profile.config.fc), **scenario.fc})
@@ -244,6 +244,7 @@ def run(
         mag_disturbance=scenario.mag_disturbance_at if any(scenario.mag_disturbance) else None,
         baro_noise_pa=scenario.baro_noise_pa,
         baro_drift_pa_per_s=scenario.baro_drift_pa_per_s,
+        baro_osr_noise=profile.baro_noise,
         **{"motor_order": profile.motors.order, "pwm_channels": max(profile.motors.pwm_channels, 8),
            **target.world_options(profile)},
     )
@@ -264,6 +265,11 @@ def run(
                 rec = _Recorder(scenario, world, rc, wind, [f.fault for f in scenario.faults], profile)
                 session.at(0.0, rec.tick)
                 for ev in scenario.timeline:
+                    lead = arming_lead(profile) if ev.arm else 0.0
+                    if lead:  # (the gesture ends at the arm's time: armed when the scenario says)
+                        session.at(ev.t - lead, functools.partial(_arming, rc=rc, arm=True, t=ev.t - lead,
+                                                                  profile=profile, notes=notes))
+                        ev = dataclasses.replace(ev, arm=None)
                     session.at(ev.t, apply_event(rc, ev, profile, notes))
                 _schedule_sends(scenario, target_run, session, notes)
                 watch = _watch(profile)
@@ -502,6 +508,26 @@ def apply_event(rc: StickEmulator, ev: Event, profile: Profile, notes: list[str]
             session.world.set_input(k, v)
 
     return apply
+
+
+def arming_lead(profile: Profile) -> float:
+    """How long before a scenario's ``arm`` the FC's arming begins: a stick gesture is held for its time
+    and ends at the arm's time, so the FC is armed when the scenario says and the sticks it gives after
+    the arm apply when it gives them (an FC such as ArduCopter wants the rudder held 3 s); a switch
+    acts at once."""
+    return profile.arming.hold_s if profile.arming.method == "sticks" else 0.0
+
+
+def first_action(scenario: Scenario, profile: Profile) -> float | None:
+    """When the FC is first acted on: the scenario's first action, or its first arming gesture's start."""
+    first = scenario.first_action
+    arms = [e.t - arming_lead(profile) for e in scenario.timeline if e.arm]
+    return min([first, *arms]) if first is not None else None
+
+
+def _gesture_words(scenario: Scenario, profile: Profile) -> str:
+    lead = arming_lead(profile)
+    return f" (its arming gesture, held {lead:g} s before the arm)" if lead and scenario.arms else ""
 
 
 def _arming(session: Host, rc: StickEmulator, arm: bool, t: float, profile: Profile,

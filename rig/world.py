@@ -166,6 +166,7 @@ class World:
         faults: Mapping[str, FaultSet] | None = None,
         mag_disturbance: Callable[[float], tuple[float, float, float]] | None = None,
         baro_noise_pa: float = 0.0,
+        baro_osr_noise: bool = False,
         baro_drift_pa_per_s: float = 0.0,
         mounting: tuple[tuple[float, float, float], ...] = FLAT_ON_BOARD,
         motor_order: tuple[int, ...] = (1, 2, 3, 4),
@@ -174,7 +175,10 @@ class World:
         """The default world of ``rig exec``: the vehicle resting on the ground, motors off, a GY-86.
         ``faults`` by name: signal faults "accel", "gyro", "mag", "baro" act in the sensor models; bus
         faults "mpu", "hmc", "baro_bus" act on the chip on the bus. The barometer's noise and drift
-        are its model's (the barometer is exact by default, so a reading can be checked to the pascal).
+        are its model's (the barometer is exact by default, so a reading can be checked to the pascal);
+        ``baro_osr_noise``: the MS5611 adds its datasheet RMS noise for the OSR asked (1.2 Pa at 4096),
+        for an FC that judges a reading unchanged for long a stuck barometer, as ArduPilot does (the
+        conversions are then made in Python, not by the chip core's C).
         ``motor_order``: the plant motor each of the DUT's PWM channels 0..3 drives. ``mounting``: body
         FRD to the sensors' frame (the board's; its default lies flat, facing forward). ``topology``
         "gy521" is the MPU-6050 alone, at ``mpu_address`` (0x69: AD0 high)."""
@@ -206,8 +210,8 @@ class World:
                          drift_pa_per_s=baro_drift_pa_per_s)
         # the chips are the chip core in C (emulators/chips/), fed by these models
         bus_faults: dict[str, FaultSet] = {k: faults[k] for k in ("mpu", "hmc", "baro_bus") if k in faults}
-        board = build_chip_board(imu, mag, baro, topology, faults=bus_faults, baro_seed=seed + 3,
-                                 mpu_address=mpu_address)
+        board = build_chip_board(imu, mag, baro, topology, faults=bus_faults, osr_noise=baro_osr_noise,
+                                 baro_seed=seed + 3, mpu_address=mpu_address)
         world = cls(plant, board, pwm=[PwmChannel() for _ in range(pwm_channels)], motor_order=motor_order)
         truth.world = world
         return world

@@ -14,10 +14,12 @@ every key.
     [modes]      channel, default, positions (mode -> µs), angle_deg, rate_dps, yaw_rate_dps
     [motors]     frame ("+" | "x"), order (the FC's outputs -> the plant's motors), pwm_channels, pins
                  (an MCU's: the pin of each output)
-    [sensors]    mounting_yaw_deg (an MCU's: the sensor board turned as the firmware expects it)
+    [sensors]    mounting_yaw_deg (an MCU's: the sensor board turned as the firmware expects it),
+                 baro_noise (the MS5611's datasheet noise)
     [startup]    seconds, ready ("telemetry")
     [telemetry]  kind ("none" | "text" | "msp" | "mavlink"), port, baud, poll_hz
-    [config]     eeprom, params (files, relative to the profile), args, fc (the reference FC's keys)
+    [config]     eeprom, params (files, relative to the profile), args ({params}, {state}), fc (the
+                 reference FC's keys)
 """
 
 from __future__ import annotations
@@ -45,9 +47,11 @@ ARMING_KEYS: Final = {"method", "channel", "on_us", "off_us", "arm", "disarm", "
 MODE_KEYS: Final = {"channel", "default", "positions", "angle_deg", "rate_dps", "yaw_rate_dps"}
 MOTOR_KEYS: Final = {"frame", "order", "pwm_channels", "pins"}
 STARTUP_KEYS: Final = {"seconds", "ready"}
-SENSOR_KEYS: Final = {"mounting_yaw_deg"}
+SENSOR_KEYS: Final = {"mounting_yaw_deg", "baro_noise"}
 TELEMETRY_KEYS: Final = {"kind", "port", "baud", "poll_hz"}
 CONFIG_KEYS: Final = {"eeprom", "params", "args", "fc"}
+#: in config.args: the folder of the FC's own files, fresh for every run
+STATE: Final = "{state}"
 #: modes whose sticks command rates (rate_dps per full stick), not angles
 RATE_MODES: Final = ("acro", "rate")
 ARMING_METHODS: Final = ("switch", "sticks", "telemetry")
@@ -144,9 +148,19 @@ class Config:
     #: scenario's own [fc] table: how the rig's own FC is made to fly as a third-party one does
     fc: tuple[tuple[str, str], ...] = ()
 
-    def arguments(self) -> list[str]:
-        """The FC's extra arguments, ``{params}`` in them replaced by the parameter file's path."""
-        return [a.replace("{params}", str(self.params or "")) for a in self.args]
+    @property
+    def keeps_state(self) -> bool:
+        """Whether the FC's arguments name a folder for its own files (``{state}``)."""
+        return any(STATE in a for a in self.args)
+
+    def arguments(self, state: Path | None = None) -> list[str]:
+        """The FC's extra arguments, ``{params}`` in them replaced by the parameter file's path and
+        ``{state}`` by ``state``: a folder, empty at the start of the run, for the files an FC keeps
+        between boots (ArduPilot's parameter storage): without it they would land in the caller's
+        folder and the next run would start from what this one saved."""
+        if self.keeps_state and state is None:
+            raise ValueError("the FC's arguments name {state}: a folder for its files is needed")
+        return [a.replace("{params}", str(self.params or "")).replace(STATE, str(state)) for a in self.args]
 
 
 @dataclass(frozen=True)
@@ -168,6 +182,9 @@ class Profile:
     #: an MCU's: how the FC's firmware expects its sensor board turned (clockwise from above, from facing
     #: forward), replacing the board file's; None: the board file's
     mounting_yaw_deg: int | None = None
+    #: the MS5611 reads its datasheet noise: the FC's start-up wants a barometer whose reading moves
+    #: (ArduPilot: a pressure unchanged for 2 s is a stuck barometer), and a plant at rest holds one
+    baro_noise: bool = False
 
     @property
     def mode_names(self) -> tuple[str, ...]:
@@ -304,7 +321,9 @@ def check(data: dict[str, Any], path: Path, sha256: str) -> Profile:
         motors = Motors(c.string(m, "frame", "motors", "+", choices=("+", "x")), tuple(order),
                         c.integer(m, "pwm_channels", "motors", 4, 16, default=8), tuple(pins))
     mounting: int | None = None
+    baro_noise = False
     with c.part():
+        baro_noise = c.boolean(t["sensors"], "baro_noise", "sensors", False)
         if "mounting_yaw_deg" in t["sensors"]:
             mounting = c.integer(t["sensors"], "mounting_yaw_deg", "sensors", 0, 270)
             if mounting % 90:
@@ -343,7 +362,7 @@ def check(data: dict[str, Any], path: Path, sha256: str) -> Profile:
                         tuple(args), _reference_keys(c, cf.get("fc", {})))
     c.done()
     return Profile(path.resolve(), name, description, source, features, rc, arming, modes, motors, startup_s,
-                   ready, telemetry, config, sha256, mounting)
+                   ready, telemetry, config, sha256, mounting, baro_noise)
 
 
 # ---- the tables ----------------------------------------------------------------------------------

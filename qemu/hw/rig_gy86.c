@@ -7,7 +7,9 @@
  * START -> chip_start (at the virtual time), a byte written -> chip_write_byte, a byte read ->
  * chip_read_byte, the end of the transfer -> chip_stop.
  *
- * The samples are the chip core's at-rest ones (nothing is pushed: a static world).
+ * Alone, the samples are the chip core's at-rest ones (nothing is pushed: a static world). Linked to the
+ * rig's session (its "link" property, rig_link.c), the events go to the session's chip core instead, fed
+ * by the world: one chip core, the lockstep session's, answers both tiers.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -15,6 +17,7 @@
 #include "qemu/osdep.h"
 
 #include "../chips/chip_core.h"
+#include "hw/qdev-properties.h"
 #include "qemu/module.h"
 #include "qemu/timer.h"
 #include "rig_stm32f4.h"
@@ -25,6 +28,7 @@ struct RigGy86State {
     I2CSlave parent_obj;
     chip_board board;
     uint8_t address; /* the 7-bit address of the transfer being started */
+    RigLinkState *link;
 };
 
 /* Every address is the board's to answer: the chip core decides at the START */
@@ -41,6 +45,24 @@ static int gy86_event(I2CSlave *slave, enum i2c_event event)
 {
     RigGy86State *s = RIG_GY86(slave);
     uint64_t now_ns = (uint64_t)qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    if (event == I2C_FINISH && rig_i2c_repeated_start) {
+        return 0; /* the START that follows tells the chips */
+    }
+    if (s->link != NULL) {
+        switch (event) {
+        case I2C_START_RECV:
+        case I2C_START_SEND:
+        case I2C_START_SEND_ASYNC:
+            return rig_link_i2c_start(s->link, now_ns, s->address, event == I2C_START_RECV) ? 0 : 1;
+        case I2C_FINISH:
+            rig_link_i2c_stop(s->link);
+            return 0;
+        case I2C_NACK:
+            rig_link_i2c_nack(s->link);
+            return 0;
+        }
+        return 0;
+    }
     switch (event) {
     case I2C_START_RECV:
     case I2C_START_SEND:
@@ -57,20 +79,35 @@ static int gy86_event(I2CSlave *slave, enum i2c_event event)
 
 static int gy86_send(I2CSlave *slave, uint8_t byte)
 {
-    chip_write_byte(&RIG_GY86(slave)->board, byte);
+    RigGy86State *s = RIG_GY86(slave);
+    if (s->link != NULL) {
+        rig_link_i2c_write(s->link, byte);
+    } else {
+        chip_write_byte(&s->board, byte);
+    }
     return 0;
 }
 
-static uint8_t gy86_recv(I2CSlave *slave) { return chip_read_byte(&RIG_GY86(slave)->board); }
+static uint8_t gy86_recv(I2CSlave *slave)
+{
+    RigGy86State *s = RIG_GY86(slave);
+    return s->link != NULL ? rig_link_i2c_read(s->link) : chip_read_byte(&s->board);
+}
 
 static void gy86_realize(DeviceState *dev, Error **errp)
 {
     chip_board_init(&RIG_GY86(dev)->board, CHIP_TOPOLOGY_GY86); /* power-on, at virtual time 0 */
 }
 
+static Property gy86_properties[] = {
+    DEFINE_PROP_LINK("link", RigGy86State, link, TYPE_RIG_LINK, RigLinkState *),
+    DEFINE_PROP_END_OF_LIST(),
+};
+
 static void gy86_class_init(ObjectClass *klass, void *data)
 {
     DeviceClass *dc = DEVICE_CLASS(klass);
+    device_class_set_props(dc, gy86_properties);
     I2CSlaveClass *sc = I2C_SLAVE_CLASS(klass);
     dc->realize = gy86_realize;
     sc->match_and_add = gy86_match;

@@ -123,13 +123,18 @@ static void kick(RigStm32I2cState *s)
     }
 }
 
+bool rig_i2c_repeated_start;
+
 static void start_done(RigStm32I2cState *s)
 {
     s->cr1 &= ~CR1_START;
     if (i2c_bus_busy(s->bus)) {
         /* a repeated START: QEMU's bus keeps the slave addressed before (it does not scan again), so
-         * that transfer ends here and the address byte starts the next one */
+         * that transfer ends here and the address byte starts the next one; the slaves are told it is
+         * no STOP (rig_i2c_repeated_start) */
+        rig_i2c_repeated_start = true;
         i2c_end_transfer(s->bus);
+        rig_i2c_repeated_start = false;
     }
     s->sr1 = (s->sr1 & ~(SR1_TXE | SR1_BTF)) | SR1_SB;
     s->sr2 = (s->sr2 & ~SR2_TRA) | SR2_MSL | SR2_BUSY;

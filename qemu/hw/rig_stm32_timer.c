@@ -25,7 +25,8 @@
  * For the rig, each channel's pulse is latched at the start of each period (at the UEV: the CCR, ARR and
  * PSC then in force, in timer-clock ticks), as the AVR tier reads motor pulses from its compare
  * registers: "pulse-ns" GPIO output lines carry each channel's high time in ns when it changes, the
- * read-only QOM properties chC-high-ticks (chCn- for CHxN), period-ticks and clock-hz hold them (the machine names the
+ * read-only QOM properties chC-high-ticks (chCn- for CHxN), period-ticks and clock-hz hold them (latches
+ * counts the periods since power-on, latched-ns is the virtual time of the last) (the machine names the
  * timers /machine/tim1 .. /machine/tim14), and with -global rig-stm32f4-timer.trace-pulses=on each
  * change prints a line on stderr:
  *   rig-stm32f4-timer: t_ns=T TIMn chC high_ticks=H period_ticks=P clock_hz=F
@@ -186,6 +187,8 @@ static void latch_pulses(RigStm32TimerState *s)
     }
     s->period_ticks = period;
     s->latched_hz = s->hz;
+    s->latches++;
+    s->latched_ns = (uint64_t)qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
 }
 
 /* The update event: the shadow registers take the preloads, UIF unless only software asked and URS
@@ -641,6 +644,10 @@ static void tim_instance_init(Object *obj)
     }
     object_property_add_uint32_ptr(obj, "period-ticks", &s->period_ticks, OBJ_PROP_FLAG_READ);
     object_property_add_uint64_ptr(obj, "clock-hz", &s->latched_hz, OBJ_PROP_FLAG_READ);
+    /* how many periods have started since power-on (a reset keeps counting), and when the last did: each
+     * a pulse at the pins of the channels in PWM */
+    object_property_add_uint64_ptr(obj, "latches", &s->latches, OBJ_PROP_FLAG_READ);
+    object_property_add_uint64_ptr(obj, "latched-ns", &s->latched_ns, OBJ_PROP_FLAG_READ);
 }
 
 static Property tim_properties[] = {

@@ -117,6 +117,10 @@ struct RigStm32GpioState {
     int8_t af_input_level[RIG_GPIO_PINS]; /* and the level it sent */
 };
 
+/* True while an I2C controller ends a transfer for a repeated START (QEMU's bus has no such event): the
+ * slaves' I2C_FINISH then is no STOP */
+extern bool rig_i2c_repeated_start;
+
 /* The pin levels a port shows on its IDR */
 uint16_t rig_stm32_gpio_levels(RigStm32GpioState *s);
 
@@ -198,6 +202,8 @@ struct RigStm32TimerState {
     uint8_t capture_count[RIG_TIM_CHANNELS];  /* edges since the last capture (ICxPSC) */
     uint32_t pulse_ticks[RIG_TIM_OUTPUTS], period_ticks; /* the pulses latched at the last update */
     uint64_t latched_hz;                                 /* the timer clock then */
+    uint64_t latches;                                    /* periods latched since power-on ("latches") */
+    uint64_t latched_ns;                                 /* the virtual time of the last ("latched-ns") */
     qemu_irq irq[RIG_TIM_IRQS];
     qemu_irq channel_out[RIG_TIM_OUTPUTS * RIG_TIM_PINS_PER_CHANNEL];
     qemu_irq pulse_ns[RIG_TIM_OUTPUTS]; /* "pulse-ns": each output's latched high time in ns */
@@ -206,6 +212,16 @@ struct RigStm32TimerState {
 /* The GY-86 board (MPU-6050 at 0x68, the HMC5883L behind its bypass, MS5611 at 0x77): the rig's chip
  * core as one I2C slave that answers the addresses the chip core acknowledges */
 #define TYPE_RIG_GY86 "rig-gy86"
+
+/* The link to the rig's session (rig_link.c): lockstep in virtual time, and the GY-86's bus events
+ * answered by the session's chip core when the board is linked (the GY-86's "link" property) */
+#define TYPE_RIG_LINK "rig-link"
+typedef struct RigLinkState RigLinkState;
+bool rig_link_i2c_start(RigLinkState *s, uint64_t t_ns, uint8_t address, bool read);
+void rig_link_i2c_write(RigLinkState *s, uint8_t byte);
+uint8_t rig_link_i2c_read(RigLinkState *s);
+void rig_link_i2c_nack(RigLinkState *s);
+void rig_link_i2c_stop(RigLinkState *s);
 
 /* DWT (ARMv7-M ARM C1.8): CYCCNT counts HCLK cycles in virtual time */
 #define TYPE_RIG_DWT "rig-dwt"

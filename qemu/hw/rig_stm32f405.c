@@ -15,12 +15,14 @@
 
 #include "qemu/osdep.h"
 
+#include "chardev/char.h"
 #include "exec/address-spaces.h"
 #include "hw/arm/boot.h"
 #include "hw/arm/stm32f405_soc.h"
 #include "hw/boards.h"
 #include "hw/or-irq.h"
 #include "hw/qdev-clock.h"
+#include "hw/qdev-properties-system.h"
 #include "hw/qdev-properties.h"
 #include "qapi/error.h"
 #include "qemu/error-report.h"
@@ -118,6 +120,8 @@ static unsigned timer_af(unsigned timer)
 /* The machine's "wires" property: pairs of pins joined, "PD12-PA0+PB0-PC1" */
 static char *wires_spec;
 
+/* the chardev id that links the machine to the rig's session */
+#define LINK_CHARDEV "rig-link"
 /* ARMv7-M: the DWT in the private peripheral bus */
 #define DWT_BASE 0xE0001000
 /* the board's own address on QEMU's bus (it answers every address the chip core acknowledges) */
@@ -264,7 +268,16 @@ static void rig_stm32f405_init(MachineState *machine)
     sysbus_connect_irq(SYS_BUS_DEVICE(i2c1), 0, qdev_get_gpio_in(nvic, IRQ_I2C1_EV));
     sysbus_connect_irq(SYS_BUS_DEVICE(i2c1), 1, qdev_get_gpio_in(nvic, IRQ_I2C1_ER));
     rig_stm32_rcc_add_reset(r, RCC_APB1RSTR, APB1_I2C1, i2c1);
-    i2c_slave_create_simple(RIG_STM32_I2C(i2c1)->bus, TYPE_RIG_GY86, CHIP_ADDR_MPU_SLAVE);
+    I2CSlave *gy86 = i2c_slave_new(TYPE_RIG_GY86, CHIP_ADDR_MPU_SLAVE);
+    /* a chardev named "rig-link": the rig's session runs the machine in lockstep (rig_link.c) */
+    Chardev *link_chr = qemu_chr_find(LINK_CHARDEV);
+    if (link_chr != NULL) {
+        DeviceState *link = qdev_new(TYPE_RIG_LINK);
+        qdev_prop_set_chr(link, "chardev", link_chr);
+        sysbus_realize_and_unref(SYS_BUS_DEVICE(link), &error_fatal);
+        object_property_set_link(OBJECT(gy86), "link", OBJECT(link), &error_fatal);
+    }
+    i2c_slave_realize_and_unref(gy86, RIG_STM32_I2C(i2c1)->bus, &error_fatal);
     /* PB6 (SCL) and PB7 (SDA): the pins' levels reach the controller, and the bus (its pull-ups, a slave
      * holding SDA) drives the pins from outside */
     DeviceState *gpiob = gpio_ports[1];

@@ -7,12 +7,12 @@ A board file is checked like a scenario: every error names the file and the dott
 its timer cannot drive (rig/mcu/mcus.py) is refused before anything runs. The shipped boards are in
 rig/mcu/boards/; ``--mcu NAME`` finds them by name, ``--mcu path/to/board.toml`` reads any other.
 
-    [board]      name, description, mcu ("atmega2560" | "atmega328p"), clock_hz
+    [board]      name, description, mcu ("atmega2560" | "atmega328p" | "stm32f405"), clock_hz
     [sensors]    bus ("twi"), topology ("gy86" | "direct" | "gy521": the MPU-6050 alone), twi_hz,
                  mounting_yaw_deg (0, 90, 180, 270), mpu_address (0x68, or 0x69 with AD0 high)
-    [[motors]]   motor (1..4: the plant's), pin ("PE4"), timer, channel ("A" | "B" | "C"),
-                 protocol ("pwm" | "oneshot125"), label ("D2": the board's silk-screen name); with no
-                 timer and channel, any port pin, its pulses measured from its edges
+    [[motors]]   motor (1..4: the plant's), pin ("PE4"), timer, channel ("A" | "B" | "C"; "1".."4" on
+                 an STM32), protocol ("pwm" | "oneshot125"), label ("D2": the board's silk-screen
+                 name); with no timer and channel, any port pin (AVR), its pulses measured from its edges
     [rc]         protocol ("sbus" | "ppm" | "msp" | "pwm"), uart (sbus, msp), baud (msp), pin (ppm: an
                  INTn or PCINT pin), pins (pwm: 4..8 PCINT or INTn pins, one a channel); optional
     [telemetry]  uart, baud, format ("text": the reference FC's ``T t=… key=value`` lines); optional
@@ -149,7 +149,7 @@ def load(name: str | Path) -> Board:
     b = c.table(data.get("board", {}), "board", BOARD_KEYS)
     mcu_name = c.string(b, "mcu", "board", choices=tuple(MCUS))
     mcu = MCUS[mcu_name]
-    clock = c.integer(b, "clock_hz", "board", 1_000_000, 32_000_000)
+    clock = c.integer(b, "clock_hz", "board", 1_000_000, mcu.max_clock_hz)
     s = c.table(data.get("sensors", {}), "sensors", SENSOR_KEYS)
     c.string(s, "bus", "sensors", "twi", choices=("twi",))
     yaw = c.integer(s, "mounting_yaw_deg", "sensors", 0, 270, default=0)
@@ -249,13 +249,16 @@ def _motor(c: _BoardCheck, mcu: Mcu, data: Any, k: int) -> MotorOut:
     timer: int | None = None
     channel = ""
     if "timer" in m or "channel" in m:
-        timer = c.integer(m, "timer", where, 0, 5)
-        channel = c.string(m, "channel", where, choices=("A", "B", "C"))
+        timer = c.integer(m, "timer", where, 0, max(t for t, _ in mcu.oc_pins))
+        channel = str(c.string(m, "channel", where, choices=mcu.channels))
+        output = mcu.output_name(timer, channel)
         oc = mcu.oc_pins.get((timer, channel))
         if oc is None:
-            raise c.fail(f"{where}.channel", f"the {mcu.name} has no OC{timer}{channel}")
+            raise c.fail(f"{where}.channel", f"the {mcu.name} has no {output}")
         if pin != oc:
-            raise c.fail(f"{where}.pin", f"OC{timer}{channel} of the {mcu.name} drives {oc}, not {pin}")
+            raise c.fail(f"{where}.pin", f"{output} of the {mcu.name} drives {oc}, not {pin}")
+    elif mcu.engine == "stm32":
+        raise c.fail(where, f"the {mcu.name}'s motors are measured from its timers: give timer and channel")
     elif len(pin) != 3 or pin[0] != "P" or pin[1] not in mcu.ports or pin[2] not in "01234567":
         raise c.fail(f"{where}.pin", f"the {mcu.name} has no pin {pin}: P, a port letter ({mcu.ports}) and "
                                      "a bit 0..7")

@@ -6,7 +6,11 @@ before anything runs.
 Sources: ATmega640/1280/1281/2560/2561 datasheet (2549Q), §13 "I/O-Ports" alternate functions, §7
 memories and the "Reset and Interrupt Vectors" table (57); ATmega48A/PA/88A/PA/168A/PA/328/P datasheet
 (DS40002061), §14.3, §8 and its vector table (26 for the 328P); avr-gcc's "AVR Options" (-mmcu): the
-ATmega328P is avr5, the ATmega2560 avr6."""
+ATmega328P is avr5, the ATmega2560 avr6. STM32F405: its datasheet (DS8626) table 9, "Alternate function
+mapping" (the timers' channels CH1..CH4, the USARTs' pins, I2C1), and RM0090 table 3 (memories).
+
+``engine`` says which engine runs the MCU (rig/mcu/engines.py): simavr ("avr") or the rig's QEMU
+("stm32")."""
 
 from __future__ import annotations
 
@@ -38,6 +42,16 @@ class Mcu:
     pcint: frozenset[str] = frozenset()
     #: analog input pin -> ADC channel (ADMUX's MUX bits)
     adc: dict[str, int] = field(default_factory=dict)
+    #: the engine that runs it: "avr" (simavr) or "stm32" (the rig's QEMU)
+    engine: str = "avr"
+    #: the fastest clock a board may give it
+    max_clock_hz: int = 32_000_000
+    #: a timer's compare channels as board files name them (OCnA.. on an AVR, TIMn CH1.. on an STM32)
+    channels: tuple[str, ...] = ("A", "B", "C")
+
+    def output_name(self, timer: int, channel: str) -> str:
+        """A timer output as the datasheet names it: OC1A, TIM4_CH1."""
+        return f"TIM{timer}_CH{channel}" if self.engine == "stm32" else f"OC{timer}{channel}"
 
 
 MCUS: dict[str, Mcu] = {m.name: m for m in (
@@ -67,5 +81,21 @@ MCUS: dict[str, Mcu] = {m.name: m for m in (
         twi=("PC4", "PC5"), avr_arch=5, vectors=26, ports="BCD",
         adc={f"PC{i}": i for i in range(6)},  # (ADC6 and ADC7 have no port pin: TQFP and QFN only)
         pcint=frozenset(f"P{port}{i}" for port, n in (("B", 8), ("C", 7), ("D", 8)) for i in range(n)),
+    ),
+    Mcu(
+        "stm32f405", flash=1024 * 1024, sram=192 * 1024, eeprom=0,
+        # (DS8626 table 9: each timer channel's pins, as qemu/hw/rig_stm32f405.c wires them)
+        oc_pins={
+            **{(1, c): p for c, p in (("1", "PA8"), ("2", "PA9"), ("3", "PA10"), ("4", "PA11"))},
+            **{(2, c): p for c, p in (("1", "PA0"), ("2", "PA1"), ("3", "PA2"), ("4", "PA3"))},
+            **{(3, c): p for c, p in (("1", "PA6"), ("2", "PA7"), ("3", "PB0"), ("4", "PB1"))},
+            **{(4, c): p for c, p in (("1", "PB6"), ("2", "PB7"), ("3", "PB8"), ("4", "PB9"))},
+            **{(5, c): p for c, p in (("1", "PA0"), ("2", "PA1"), ("3", "PA2"), ("4", "PA3"))},
+            **{(8, c): p for c, p in (("1", "PC6"), ("2", "PC7"), ("3", "PC8"), ("4", "PC9"))},
+        },
+        timers16=frozenset({1, 3, 4, 8}),
+        usarts={1: ("PA10", "PA9"), 2: ("PA3", "PA2"), 3: ("PB11", "PB10"), 6: ("PC7", "PC6")},
+        twi=("PB7", "PB6"), ports="ABCDEFGHI",
+        engine="stm32", max_clock_hz=168_000_000, channels=("1", "2", "3", "4"),
     ),
 )}

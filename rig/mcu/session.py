@@ -32,7 +32,7 @@ from rig import interrupts
 from rig.bridge.esc import esc_protocol
 from rig.emulators import sbus
 from rig.mcu.board import Board, uart_baud
-from rig.mcu.engine import AvrEngine, config_for
+from rig.mcu.engines import Engine, open_engine
 from rig.mcu.twi_log import TwiTransfers
 from rig.mcu.vcd import McuTrace, TraceOptions
 from rig.scheduler import EXIT_RIG_ERROR, EXIT_WATCHDOG, NS, Scheduler, Stop
@@ -95,12 +95,11 @@ class McuSession:
         self.world = world
         b = config.board
         self.sched = Scheduler(world, self, config.duration, config.sim_timeout)
-        limits = {} if config.hang_s is None else {"hang_ns": round(config.hang_s * NS)}
-        self.engine_config = config_for(b, config.firmware, config.eeprom, **limits)
+        self._limits = {} if config.hang_s is None else {"hang_ns": round(config.hang_s * NS)}
         # per motor: the plant's motor (0-based) and its ESC's pulse us to the plant's PWM us
         self._motor_index = [m.motor - 1 for m in b.motors]
         self._to_us = [esc_protocol(m.protocol).to_pwm_us for m in b.motors]
-        self.engine: AvrEngine | None = None
+        self.engine: Engine | None = None
         self._telemetry = bytearray()
         self._t_ns = 0
         self.transfers = TwiTransfers()  # what the chips saw, for run.mcap's /i2c
@@ -189,7 +188,8 @@ class McuSession:
 
     def run(self) -> Outcome:
         wall0 = time.perf_counter()
-        engine = AvrEngine(self.engine_config, self.world.board)
+        cfg = self.cfg
+        engine = open_engine(cfg.board, cfg.firmware, self.world.board, cfg.eeprom, **self._limits)
         self.engine = engine
         trace = None
         if self.cfg.trace is not None:
@@ -266,7 +266,7 @@ class McuSession:
                         comment=f"{self.cfg.firmware.name} on {b.name}: TWI and motor outputs, sim time",
                         options=self.cfg.trace_options)
 
-    def _run_mcu(self, engine: AvrEngine, t_ns: int) -> str | None:
+    def _run_mcu(self, engine: Engine, t_ns: int) -> str | None:
         """Runs the MCU to ``t_ns``, serving the chip core's needs; what went wrong, or None."""
         while True:
             stop = engine.run_until(t_ns)

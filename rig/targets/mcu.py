@@ -70,7 +70,7 @@ def capture_text(board: boards.Board, counts: list[dict[str, int]] | None = None
     edges while that is disconnected), else the pin's edges; after it, the ways its pulses came."""
     parts = []
     for i, m in enumerate(board.motors):
-        oc = f"OC{m.timer}{m.channel}"
+        oc = board.mcu.output_name(m.timer or 0, m.channel)
         edges = "pin edges" if m.timer is None else f"pin edges ({oc} disconnected)"
         if counts is None:
             how = "pin edges" if m.timer is None else f"{oc} registers or, disconnected, pin edges"
@@ -142,11 +142,12 @@ class McuTarget:
     def __init__(self, board: str | Path, firmware: Path, trace: Path | None = None,
                  eeprom: Path | None = None, hang_limit: float | None = None,
                  trace_options: TraceOptions | None = None) -> None:
-        from rig.mcu.image import load, load_eeprom
+        from rig.mcu.engines import check_firmware
+        from rig.mcu.image import load_eeprom
 
         self.board = boards.load(board)
         self.firmware = Path(firmware).resolve()
-        load(self.firmware, self.board.mcu.name)  # (FirmwareError: not an AVR image, or too big)
+        check_firmware(self.board, self.firmware)  # (FirmwareError: not an image for this MCU, or too big)
         self.firmware_sha256 = hashlib.sha256(self.firmware.read_bytes()).hexdigest()
         self.trace = trace
         self.hang_limit = hang_limit

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import shlex
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -78,7 +79,18 @@ def command_for(dut: list[str] | None, scenario: Scenario, work: Path, notes: li
         return reference_command(scenario, work)
     if scenario.fc:
         notes.append("the scenario's [fc] table configures the reference FC only; ignored for this DUT")
-    return [*dut, *(profile.config.arguments() if profile is not None else [])]
+    if profile is None:
+        return dut
+    return [*dut, *profile.config.arguments(fresh_state(work) if profile.config.keeps_state else None)]
+
+
+def fresh_state(work: Path) -> Path:
+    """The run's folder for the FC's own files (``{state}`` in its profile's arguments), emptied: a run
+    starts from the profile's parameters, never from what an earlier run into the same folder saved."""
+    state = work / "fc-state"
+    shutil.rmtree(state, ignore_errors=True)
+    state.mkdir(parents=True)
+    return state
 
 
 class ProcessRun(TargetRun):

@@ -72,3 +72,32 @@ def test_the_fc_s_output_order_decides_which_motor_a_channel_drives() -> None:
         assert probe.rows().tolist() == [[1300.0, 0.0, 0.0, 1100.0]]
     finally:
         world.close()
+
+
+def baro_conversions_at_rest(osr_noise: bool, n: int = 20) -> list[bytes]:
+    """n pressure conversions (D1, OSR 4096) of a world at rest, each read 10 ms after its start, as
+    ArduPilot's MS5611 driver reads them; the plant sits on the ground, so its pressure never moves."""
+    from rig.emulators.i2c_bus import read, write
+
+    world = World.at_rest(seed=5, baro_osr_noise=osr_noise)
+    try:
+        out = []
+        for k in range(n):
+            t = 1_000_000_000 + k * 20_000_000
+            world.transfer([write(0x77, 0x48)], t)  # convert D1 at OSR 4096 (0x40 + 2 * 4)
+            out.append(world.transfer([write(0x77, 0x00), read(0x77, 3)], t + 10_000_000)[-1])
+        return out
+    finally:
+        world.close()
+
+
+def test_a_barometer_at_rest_reads_its_datasheet_noise_when_asked() -> None:
+    # a real MS5611 at rest does not read one pressure for ever (1.2 Pa RMS at OSR 4096, its
+    # datasheet); ArduPilot judges a barometer whose reading has not changed for 2 s stuck, unhealthy
+    noisy = baro_conversions_at_rest(osr_noise=True)
+    assert all(len(d) == 3 and d != b"\x00\x00\x00" for d in noisy)
+    assert len(set(noisy)) >= 3
+    d1 = [int.from_bytes(d, "big") for d in noisy]
+    assert max(d1) - min(d1) < 0.01 * min(d1)  # noise, not another altitude
+    quiet = baro_conversions_at_rest(osr_noise=False)
+    assert len(set(quiet)) == 1  # (the default: exact, a reading checked to the pascal)

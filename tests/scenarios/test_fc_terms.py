@@ -1,7 +1,8 @@
 """Scenarios in the FC's neutral terms, flown by the reference FC under profiles made from its own:
 `arm`, `mode` and `roll_deg` send what the profile says; criteria on estimates an FC cannot give are
 "not measured" in every report, never passed; an FC that never arms fails every criterion saying so;
-a scenario the FC cannot fly is skipped; a stick gesture holds its sticks for its time; a slow start-up
+a scenario the FC cannot fly is skipped; a stick gesture holds its sticks for its time, ending at the arm's
+time; a slow start-up
 shifts the scenario. Expected SBUS values follow the reference FC's mapping (992 ± 819 per full stick)."""
 
 from __future__ import annotations
@@ -143,11 +144,15 @@ def test_a_stick_gesture_holds_its_sticks_for_its_time(tmp_path: Path) -> None:
                   'method = "sticks"\narm = { throttle = "low", yaw = "high" }\n'
                   'disarm = { throttle = "low", yaw = "low" }\nhold_s = 1.0\n'))
     r = run(load(scenario(tmp_path)), seed=0, profile=fc)
-    # 1.2 s: throttle low (173), yaw right (1811) held to 2.2 s, though the scenario asked throttle at 1.5
-    for t in (1.25, 1.6, 2.15):
+    # the gesture ends at the arm's time, 1.2 s: throttle low (173), yaw right (1811) from 0.2 s, but the
+    # profile's FC needs 1 s to start up, so the whole scenario runs 0.8 s later: held from 1.0 to 2.0 s
+    assert any("arming gesture" in n and "runs 0.8 s later" in n for n in r.notes), r.notes
+    assert channels_at(r, 0.95)[2:4] == (173, 992)  # (before it: throttle low, yaw centred)
+    for t in (1.05, 1.5, 1.95):
         assert channels_at(r, t)[2:4] == (173, 1811), t
-    assert channels_at(r, 2.3)[2:4] == (992, 992)  # then the scenario's: throttle 0.5 (mid travel), yaw 0
-    assert channels_at(r, 2.3)[4] == 992  # no arm switch: channel 5 rests at the centre
+    assert channels_at(r, 2.1)[2:4] == (173, 992)  # then the scenario's: throttle 0 at the arm, yaw 0
+    assert channels_at(r, 2.4)[2:4] == (992, 992)  # and throttle 0.5 (mid travel) at 1.5 + 0.8 s
+    assert channels_at(r, 2.4)[4] == 992  # no arm switch: channel 5 rests at the centre
     assert r.verdict == "fail" and "the FC never armed" in r.measurements[0].reason
 
 

@@ -152,7 +152,21 @@ def test_arducopter_maps_sbus_as_ardupilot_does() -> None:
     assert p.rc.us(200) == pytest.approx(999) and p.rc.us(1800) == pytest.approx(1999)
     assert p.modes.channel == 5 and p.telemetry.kind == "mavlink" and p.motors.pwm_channels == 14
     assert p.config.params is not None and p.config.params.name == "arducopter-4.parm"
-    assert p.config.arguments()[-1] == str(p.config.params)
+    args = p.config.arguments(Path("/run/fc-state"))
+    assert args[args.index("--defaults") + 1] == str(p.config.params)
+    assert args[args.index("--storage-directory") + 1] == "/run/fc-state"  # its storage starts empty
+    assert args[args.index("--serial2") + 1] == "/dev/ttyRC0"  # SBUS, SERIAL2_PROTOCOL 23
+    assert p.baro_noise  # (AP_Baro: a pressure unchanged for 2 s is unhealthy)
+
+
+def test_the_barometer_s_noise_is_asked_for_by_the_profile(tmp_path: Path) -> None:
+    assert not P.load(write(tmp_path, FULL)).baro_noise  # the default: an exact barometer
+    sensors = "mounting_yaw_deg = 90"
+    on = write(tmp_path, FULL.replace(sensors, f"{sensors}\nbaro_noise = true"), "on.toml")
+    assert P.load(on).baro_noise
+    bad = write(tmp_path, FULL.replace(sensors, f'{sensors}\nbaro_noise = "yes"'), "bad.toml")
+    with pytest.raises(P.ProfileError, match=r"sensors.baro_noise: expected true or false"):
+        P.load(bad)
 
 
 def test_every_shipped_profile_loads_and_a_bad_name_gets_a_suggestion() -> None:

@@ -26,12 +26,12 @@
 #define POLL_LIMIT 1000000u
 
 static int xfer(uint8_t addr, const uint8_t *tx, unsigned n_tx, uint8_t *rx, unsigned n_rx);
-static uint32_t nacks;
-static uint32_t nack_sr1; /* SR1 as the firmware found it at the last NACK */
+static uint32_t nacks __attribute__((unused));
+static uint32_t nack_sr1 __attribute__((unused)); /* SR1 as the firmware found it at the last NACK */
 
 /* I2C1 on PB6 (SCL) and PB7 (SDA), alternate function 4, open drain with pull-ups, as a board has it;
    then a software reset and the timing for @ccr (SCL) and @trise */
-static void i2c1_init(uint32_t ccr, uint32_t trise)
+static inline void i2c1_init(uint32_t ccr, uint32_t trise)
 {
     RCC_AHB1ENR |= RCC_AHB1ENR_GPIOBEN;
     RCC_APB1ENR |= RCC_APB1ENR_I2C1EN;
@@ -48,7 +48,7 @@ static void i2c1_init(uint32_t ccr, uint32_t trise)
     I2C1_CR1 = I2C_CR1_PE;
 }
 
-static void wait_bus_free(void)
+static inline void wait_bus_free(void)
 {
     for (uint32_t i = 0; i < POLL_LIMIT; i++) {
         if (!(I2C1_SR2 & I2C_SR2_BUSY)) {
@@ -59,13 +59,13 @@ static void wait_bus_free(void)
     exit_with(4);
 }
 
-static uint32_t read_reg(uint8_t addr, uint8_t reg)
+static inline uint32_t read_reg(uint8_t addr, uint8_t reg)
 {
     uint8_t value = 0;
     return xfer(addr, &reg, 1, &value, 1) == 0 ? value : 0xFFFFFFFFu;
 }
 
-static void write_reg(uint8_t addr, uint8_t reg, uint8_t value)
+static inline void write_reg(uint8_t addr, uint8_t reg, uint8_t value)
 {
     const uint8_t bytes[2] = { reg, value };
     if (xfer(addr, bytes, 2, 0, 0) != 0) {
@@ -75,7 +75,7 @@ static void write_reg(uint8_t addr, uint8_t reg, uint8_t value)
 
 /* The MS5611's PROM check, as its application note AN520 computes it: CRC-4 over the eight words with
    the CRC's own nibble (word 7's low four bits) taken as 0 */
-static uint32_t ms5611_crc4(const uint16_t prom[8])
+static inline uint32_t ms5611_crc4(const uint16_t prom[8])
 {
     uint32_t rem = 0;
     for (unsigned n = 0; n < 16; n++) {
@@ -88,7 +88,7 @@ static uint32_t ms5611_crc4(const uint16_t prom[8])
     return (rem >> 12) & 0xFu;
 }
 
-static uint32_t big_endian(const uint8_t *bytes, unsigned n)
+static inline uint32_t big_endian(const uint8_t *bytes, unsigned n)
 {
     uint32_t value = 0;
     for (unsigned i = 0; i < n; i++) {
@@ -97,7 +97,7 @@ static uint32_t big_endian(const uint8_t *bytes, unsigned n)
     return value;
 }
 
-static void run_checks(void)
+static inline void run_checks(void)
 {
     report("who_am_i", read_reg(MPU_ADDR, MPU_WHO_AM_I)); /* 1 byte */
     report("pwr_mgmt_1_reset", read_reg(MPU_ADDR, MPU_PWR_MGMT_1));

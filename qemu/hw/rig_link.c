@@ -1,0 +1,369 @@
+/*
+ * The rig's link: QEMU in lockstep with the rig's session (rig/mcu/stm32_link.py) over a chardev (a
+ * socket the session listens on). The machine creates it when a chardev named "rig-link" exists.
+ *
+ * Under -icount shift=N,sleep=off virtual time is the instruction count, and everything here happens at
+ * an instant of it, read synchronously (qemu_chr_fe_read_all blocks the vCPU), so a run is the same
+ * every time. The session says "go to t"; a QEMU_CLOCK_VIRTUAL timer at t answers "reached t" with the
+ * latched pulses of the board's motor outputs (the timers' chC-high-ticks, period-ticks, clock-hz) and
+ * the CPU's state (the exception being handled, pc, CFSR, HFSR: a HardFault ends the run in the session),
+ * then blocks for the next command. The I2C bus's events of the GY-86 slave go to the session, whose chip
+ * core (the lockstep session's own) answers: a START and each byte read wait for the answer, a byte
+ * written and a STOP do not. The session serves the chip core's sample needs from the world meanwhile.
+ *
+ * The USARTs (QEMU's, USART1..USART6 of the SoC) are ringbuf chardevs named rig-usart1..rig-usart6: what
+ * the firmware sent since the last stop goes to the session before each "reached", and bytes the session
+ * gives a USART reach its receiver one at a time, each at the end of its frame (start, 8 data bits,
+ * parity, stop bits at the session's baud), after the bytes before it.
+ *
+ * Messages, both ways: a header of the kind (1 byte), 3 zero bytes and the payload's length (u32), then
+ * the payload; little-endian; every length is checked against the kind's (a bad message ends QEMU with
+ * an error: the session is gone or broken).
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+
+#include "qemu/osdep.h"
+
+#include "chardev/char-fe.h"
+#include "chardev/char.h"
+#include "cpu.h"
+#include "hw/qdev-properties-system.h"
+#include "hw/qdev-properties.h"
+#include "qapi/error.h"
+#include "qapi/qapi-commands-char.h"
+#include "qemu/bswap.h"
+#include "qemu/error-report.h"
+#include "qemu/module.h"
+#include "qom/object.h"
+#include "rig_stm32f4.h"
+
+#define LINK_VERSION 1
+#define LINK_HEADER 8
+#define LINK_MAX_PAYLOAD 1024
+#define LINK_MOTORS 8
+#define LINK_UARTS 6
+#define LINK_RX_BYTES 4096
+#define LINK_UART_CHUNK 512 /* bytes read from a ringbuf at a time (base64 in QEMU's API) */
+
+/* the bytes waiting for one USART's receiver, each with the virtual time its frame ends */
+typedef struct {
+    RigLinkState *link;
+    Chardev *chr;
+    QEMUTimer *timer;
+    uint8_t bytes[LINK_RX_BYTES];
+    int64_t at_ns[LINK_RX_BYTES];
+    uint32_t head, len;
+    int64_t busy_until_ns; /* when the last byte queued ends */
+} LinkUart;
+
+/* QEMU -> session */
+#define MSG_HELLO 'H' /* u16 version */
+/* u64 t_ns, u32 ipsr, u32 pc, u32 cfsr, u32 hfsr, u8 n, n x (u32 high_ns, u32 period_ns, u32 periods
+ * begun since the last stop, u64 the virtual time the last began) */
+#define MSG_REACHED 'R'
+#define MSG_I2C_START 'S' /* u64 t_ns, u8 7-bit address, u8 read: answered by MSG_ACK */
+#define MSG_I2C_WRITE 'W' /* u64 t_ns, u8 byte */
+#define MSG_I2C_READ 'D'  /* u64 t_ns: answered by MSG_BYTE */
+#define MSG_I2C_NACK 'N'  /* u64 t_ns: the master NACKs the byte it read last */
+#define MSG_I2C_STOP 'P'  /* u64 t_ns */
+#define MSG_UART_SENT 'T' /* u8 USART 1..6, the bytes the firmware sent */
+/* session -> QEMU */
+#define MSG_CONFIG 'C'  /* u8 n, n x (u8 timer 1..14, u8 output 0..6: CH1..CH4, CH1N..CH3N) */
+#define MSG_GO 'G'      /* u64 t_ns: run until then */
+#define MSG_UART_RX 'U' /* u8 USART 1..6, 3 zero bytes, u32 frame_ns, the bytes (from now, after those queued) */
+#define MSG_QUIT 'Q'    /* (none) */
+#define MSG_ACK 'a'     /* u8 acknowledged */
+#define MSG_BYTE 'b'    /* u8 byte */
+
+OBJECT_DECLARE_SIMPLE_TYPE(RigLinkState, RIG_LINK)
+
+struct RigLinkState {
+    SysBusDevice parent_obj;
+    CharBackend chr;
+    QEMUTimer *timer;
+    bool configured;
+    bool started; /* the first stop (time 0) is armed */
+    uint8_t n_motors;
+    Object *motor_timer[LINK_MOTORS];
+    uint8_t motor_output[LINK_MOTORS];
+    uint64_t motor_latches[LINK_MOTORS]; /* the timer's latches at the last stop */
+    LinkUart uarts[LINK_UARTS];
+};
+
+static const char *const high_names[RIG_TIM_OUTPUTS] = {
+    "ch1-high-ticks",  "ch2-high-ticks",  "ch3-high-ticks",  "ch4-high-ticks",
+    "ch1n-high-ticks", "ch2n-high-ticks", "ch3n-high-ticks",
+};
+
+static void G_NORETURN link_fail(const char *what)
+{
+    error_report("rig-link: %s", what);
+    exit(1);
+}
+
+static void link_send(RigLinkState *s, uint8_t kind, const uint8_t *payload, uint32_t len)
+{
+    uint8_t header[LINK_HEADER] = { kind };
+    stl_le_p(header + 4, len);
+    if (qemu_chr_fe_write_all(&s->chr, header, LINK_HEADER) != LINK_HEADER ||
+        (len && qemu_chr_fe_write_all(&s->chr, payload, (int)len) != (int)len)) {
+        link_fail("the session is gone (write)");
+    }
+}
+
+/* The next message: its kind, its payload in @payload (its length in *len, checked to be within @max) */
+static uint8_t link_receive(RigLinkState *s, uint8_t *payload, uint32_t max, uint32_t *len)
+{
+    uint8_t header[LINK_HEADER];
+    if (qemu_chr_fe_read_all(&s->chr, header, LINK_HEADER) != LINK_HEADER) {
+        link_fail("the session is gone (read)");
+    }
+    *len = ldl_le_p(header + 4);
+    if (header[1] || header[2] || header[3] || *len > max) {
+        link_fail("a malformed message from the session");
+    }
+    if (*len && qemu_chr_fe_read_all(&s->chr, payload, (int)*len) != (int)*len) {
+        link_fail("the session is gone (read)");
+    }
+    return header[0];
+}
+
+/* A reply of @kind with exactly @len bytes */
+static void link_expect(RigLinkState *s, uint8_t kind, uint8_t *payload, uint32_t len)
+{
+    uint32_t got;
+    if (link_receive(s, payload, len, &got) != kind || got != len) {
+        link_fail("an unexpected reply from the session");
+    }
+}
+
+static void link_configure(RigLinkState *s, const uint8_t *p, uint32_t len)
+{
+    if (len < 1 || p[0] > LINK_MOTORS || len != 1u + 2u * p[0]) {
+        link_fail("CONFIG: a bad motor list");
+    }
+    for (unsigned i = 0; i < p[0]; i++) {
+        unsigned timer = p[1 + 2 * i], output = p[2 + 2 * i];
+        g_autofree char *path = g_strdup_printf("/machine/tim%u", timer);
+        Object *tim = timer >= 1 && timer <= 14 ? object_resolve_path(path, NULL) : NULL;
+        if (tim == NULL || output >= RIG_TIM_OUTPUTS) {
+            link_fail("CONFIG: no such timer output");
+        }
+        s->motor_timer[i] = tim;
+        s->motor_output[i] = (uint8_t)output;
+    }
+    s->n_motors = p[0];
+    s->configured = true;
+}
+
+/* The head byte into the USART's receiver at its time, and the next one's time armed */
+static void link_uart_deliver(void *opaque)
+{
+    LinkUart *u = opaque;
+    if (u->len == 0) {
+        return;
+    }
+    qemu_chr_be_write(u->chr, &u->bytes[u->head], 1);
+    u->head = (u->head + 1) % LINK_RX_BYTES;
+    u->len--;
+    if (u->len) {
+        timer_mod(u->timer, u->at_ns[u->head]);
+    }
+}
+
+static void link_uart_receive(RigLinkState *s, const uint8_t *p, uint32_t len)
+{
+    unsigned n = len >= 8 ? p[0] : 0;
+    LinkUart *u = n >= 1 && n <= LINK_UARTS ? &s->uarts[n - 1] : NULL;
+    uint32_t frame_ns = len >= 8 ? ldl_le_p(p + 4) : 0;
+    if (u == NULL || u->chr == NULL || p[1] || p[2] || p[3] || frame_ns == 0 || u->len + (len - 8) > LINK_RX_BYTES) {
+        link_fail("UART: no such USART, a bad frame time or more than 4096 bytes waiting");
+    }
+    int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    int64_t t = u->busy_until_ns > now ? u->busy_until_ns : now;
+    for (uint32_t i = 8; i < len; i++) {
+        uint32_t slot = (u->head + u->len++) % LINK_RX_BYTES;
+        t += frame_ns;
+        u->bytes[slot] = p[i];
+        u->at_ns[slot] = t;
+    }
+    u->busy_until_ns = t;
+    if (u->len) {
+        timer_mod(u->timer, u->at_ns[u->head]);
+    }
+}
+
+/* What the firmware sent on each USART since the last stop */
+static void link_uart_send_sent(RigLinkState *s)
+{
+    for (unsigned n = 1; n <= LINK_UARTS; n++) {
+        if (s->uarts[n - 1].chr == NULL) {
+            continue;
+        }
+        g_autofree char *id = g_strdup_printf("rig-usart%u", n);
+        for (;;) {
+            g_autofree char *text = qmp_ringbuf_read(id, LINK_UART_CHUNK, true, DATA_FORMAT_BASE64, &error_abort);
+            gsize got = 0;
+            g_autofree guchar *bytes = g_base64_decode(text, &got);
+            if (got == 0) {
+                break;
+            }
+            uint8_t p[1 + LINK_UART_CHUNK];
+            p[0] = (uint8_t)n;
+            memcpy(p + 1, bytes, MIN(got, LINK_UART_CHUNK));
+            link_send(s, MSG_UART_SENT, p, 1 + (uint32_t)MIN(got, LINK_UART_CHUNK));
+        }
+    }
+}
+
+/* Commands until a GO to a time after now (then armed) */
+static void link_wait_command(RigLinkState *s)
+{
+    uint8_t p[LINK_MAX_PAYLOAD];
+    for (;;) {
+        uint32_t len;
+        uint8_t kind = link_receive(s, p, sizeof p, &len);
+        if (kind == MSG_CONFIG) {
+            link_configure(s, p, len);
+        } else if (kind == MSG_UART_RX) {
+            link_uart_receive(s, p, len);
+        } else if (kind == MSG_GO && len == 8 && s->configured) {
+            int64_t t = (int64_t)ldq_le_p(p), now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+            timer_mod(s->timer, t > now ? t : now);
+            return;
+        } else if (kind == MSG_QUIT && len == 0) {
+            exit(0);
+        } else {
+            link_fail("an unexpected command from the session");
+        }
+    }
+}
+
+static void link_reached(void *opaque)
+{
+    RigLinkState *s = opaque;
+    if (!s->configured) { /* the first stop: the session's CONFIG answers the HELLO */
+        uint8_t config[LINK_MAX_PAYLOAD];
+        uint32_t len;
+        if (link_receive(s, config, sizeof config, &len) != MSG_CONFIG) {
+            link_fail("the session's first message is not a CONFIG");
+        }
+        link_configure(s, config, len);
+    }
+    ARMCPU *cpu = ARM_CPU(first_cpu);
+    CPUARMState *env = &cpu->env;
+    uint8_t p[25 + LINK_MOTORS * 20];
+    stq_le_p(p, (uint64_t)qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL));
+    stl_le_p(p + 8, env->v7m.exception);
+    stl_le_p(p + 12, env->regs[15]);
+    stl_le_p(p + 16, env->v7m.cfsr[M_REG_NS]);
+    stl_le_p(p + 20, env->v7m.hfsr);
+    p[24] = s->n_motors;
+    uint32_t len = 25;
+    for (unsigned i = 0; i < s->n_motors; i++) {
+        Object *tim = s->motor_timer[i];
+        uint64_t high = object_property_get_uint(tim, high_names[s->motor_output[i]], &error_abort);
+        uint64_t period = object_property_get_uint(tim, "period-ticks", &error_abort);
+        uint64_t hz = object_property_get_uint(tim, "clock-hz", &error_abort);
+        stl_le_p(p + len, hz ? (uint32_t)MIN(muldiv64(high, NANOSECONDS_PER_SECOND, hz), UINT32_MAX) : 0);
+        stl_le_p(p + len + 4, hz ? (uint32_t)MIN(muldiv64(period, NANOSECONDS_PER_SECOND, hz), UINT32_MAX) : 0);
+        uint64_t latches = object_property_get_uint(tim, "latches", &error_abort);
+        stl_le_p(p + len + 8, (uint32_t)MIN(latches - s->motor_latches[i], UINT32_MAX));
+        stq_le_p(p + len + 12, object_property_get_uint(tim, "latched-ns", &error_abort));
+        s->motor_latches[i] = latches;
+        len += 20;
+    }
+    link_uart_send_sent(s);
+    link_send(s, MSG_REACHED, p, len);
+    link_wait_command(s);
+}
+
+bool rig_link_i2c_start(RigLinkState *s, uint64_t t_ns, uint8_t address, bool read)
+{
+    uint8_t p[10], ack;
+    stq_le_p(p, t_ns);
+    p[8] = address;
+    p[9] = read;
+    link_send(s, MSG_I2C_START, p, sizeof p);
+    link_expect(s, MSG_ACK, &ack, 1);
+    return ack != 0;
+}
+
+/* A bus event at the virtual time now, with @len bytes of @extra after the time */
+static void link_send_event(RigLinkState *s, uint8_t kind, const uint8_t *extra, uint32_t len)
+{
+    uint8_t p[9];
+    stq_le_p(p, (uint64_t)qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL));
+    memcpy(p + 8, extra, len);
+    link_send(s, kind, p, 8 + len);
+}
+
+void rig_link_i2c_write(RigLinkState *s, uint8_t byte) { link_send_event(s, MSG_I2C_WRITE, &byte, 1); }
+
+uint8_t rig_link_i2c_read(RigLinkState *s)
+{
+    uint8_t byte;
+    link_send_event(s, MSG_I2C_READ, NULL, 0);
+    link_expect(s, MSG_BYTE, &byte, 1);
+    return byte;
+}
+
+void rig_link_i2c_nack(RigLinkState *s) { link_send_event(s, MSG_I2C_NACK, NULL, 0); }
+
+void rig_link_i2c_stop(RigLinkState *s) { link_send_event(s, MSG_I2C_STOP, NULL, 0); }
+
+static void link_realize(DeviceState *dev, Error **errp)
+{
+    RigLinkState *s = RIG_LINK(dev);
+    if (!qemu_chr_fe_backend_connected(&s->chr)) {
+        error_setg(errp, "rig-link: no chardev");
+        return;
+    }
+    s->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, link_reached, s);
+    for (unsigned n = 1; n <= LINK_UARTS; n++) {
+        g_autofree char *id = g_strdup_printf("rig-usart%u", n);
+        LinkUart *u = &s->uarts[n - 1];
+        u->link = s;
+        u->chr = qemu_chr_find(id);
+        u->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, link_uart_deliver, u);
+    }
+    uint8_t hello[2];
+    stw_le_p(hello, LINK_VERSION);
+    link_send(s, MSG_HELLO, hello, sizeof hello);
+}
+
+/* The first stop is at time 0, before the firmware's first instruction (a reset the firmware asks for
+ * later changes nothing: the session's stop stays armed) */
+static void link_reset(DeviceState *dev)
+{
+    RigLinkState *s = RIG_LINK(dev);
+    if (!s->started) {
+        s->started = true;
+        timer_mod(s->timer, 0);
+    }
+}
+
+static Property link_properties[] = {
+    DEFINE_PROP_CHR("chardev", RigLinkState, chr),
+    DEFINE_PROP_END_OF_LIST(),
+};
+
+static void link_class_init(ObjectClass *klass, void *data)
+{
+    DeviceClass *dc = DEVICE_CLASS(klass);
+    dc->realize = link_realize;
+    dc->reset = link_reset;
+    device_class_set_props(dc, link_properties);
+}
+
+static const TypeInfo link_info = {
+    .name = TYPE_RIG_LINK,
+    .parent = TYPE_SYS_BUS_DEVICE,
+    .instance_size = sizeof(RigLinkState),
+    .class_init = link_class_init,
+};
+
+static void link_register_types(void) { type_register_static(&link_info); }
+
+type_init(link_register_types)

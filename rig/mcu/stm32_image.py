@@ -1,0 +1,65 @@
+"""An STM32F405 firmware file checked before QEMU runs it: an ARM ELF (32-bit little-endian, machine 40)
+whose loadable segments lie in the file and in the chip's memories, with a vector table at the start of
+flash that QEMU can boot from (an initial stack pointer in RAM, a Thumb reset handler in flash). Anything
+else (an AVR image, a file cut short, a raw binary) is refused with the reason; otherwise QEMU would lock
+up at reset or load garbage (RM0090 2.3, memory map; ARMv7-M B1.5.3, the vector table)."""
+
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+from typing import Final
+
+from rig.mcu.image import FirmwareError, _elf_kind, _sections
+
+EM_ARM: Final = 40
+PT_LOAD: Final = 1
+#: RM0090 table 3: the main flash (also aliased at 0 when booting from it), SRAM1/2 and the CCM RAM
+FLASH: Final = (0x0800_0000, 1024 * 1024)
+RAMS: Final = ((0x2000_0000, 128 * 1024), (0x1000_0000, 64 * 1024))
+
+
+def _inside(address: int, size: int, region: tuple[int, int]) -> bool:
+    start, length = region
+    return start <= address and address + size <= start + length
+
+
+def check_image(path: Path) -> None:
+    """FirmwareError unless ``path`` is an ARM ELF the rig-stm32f405 machine can boot."""
+    path = Path(path)
+    if not path.is_file():
+        raise FirmwareError(f"{path}: no such file")
+    data = path.read_bytes()
+    if len(data) < 52 or data[:4] != b"\x7fELF":
+        raise FirmwareError(f"{path}: not an ELF file ({len(data)} bytes); the STM32 tier runs ARM ELF "
+                            "images (arm-none-eabi-gcc's output)")
+    if data[4] != 1 or data[5] != 1 or struct.unpack_from("<H", data, 18)[0] != EM_ARM:
+        raise FirmwareError(f"{path}: an ELF for {_elf_kind(data)}; an STM32 image is for ARM (machine "
+                            f"{EM_ARM}), 32-bit little-endian")
+    phoff, = struct.unpack_from("<I", data, 28)
+    phentsize, phnum = struct.unpack_from("<HH", data, 42)
+    vectors: bytes | None = None
+    for i in range(phnum):
+        at = phoff + i * phentsize
+        if phentsize < 32 or at + 32 > len(data):
+            raise FirmwareError(f"{path}: cut short: program header {i} lies outside the file")
+        kind, offset, _vaddr, paddr, filesz = struct.unpack_from("<IIIII", data, at)
+        if kind != PT_LOAD or filesz == 0:
+            continue
+        if offset + filesz > len(data):
+            raise FirmwareError(f"{path}: cut short: segment {i} ends at byte {offset + filesz}, the file "
+                                f"has {len(data)}")
+        if not (_inside(paddr, filesz, FLASH) or _inside(paddr, filesz, (0, FLASH[1]))):
+            raise FirmwareError(f"{path}: segment {i} loads at 0x{paddr:08x}..0x{paddr + filesz:08x}, "
+                                "outside the STM32F405's 1 MB flash (0x08000000)")
+        if paddr in (0, FLASH[0]) and filesz >= 8:
+            vectors = data[offset:offset + 8]
+    _sections(path, data)  # (FirmwareError when the section headers or a section lie past the file)
+    if vectors is None:
+        raise FirmwareError(f"{path}: nothing loads at the start of flash (0x08000000): no vector table to "
+                            "boot from")
+    sp, reset = struct.unpack("<II", vectors)
+    if not any(_inside(sp - 4, 4, ram) for ram in RAMS):
+        raise FirmwareError(f"{path}: the vector table's initial stack pointer 0x{sp:08x} is not in RAM")
+    if not reset & 1 or not (_inside(reset & ~1, 2, FLASH) or _inside(reset & ~1, 2, (0, FLASH[1]))):
+        raise FirmwareError(f"{path}: the reset vector 0x{reset:08x} is not a Thumb address in flash")

@@ -1,0 +1,412 @@
+"""The STM32 tier's engine in lockstep (docs/mcu.md): the rig's ``qemu-system-arm`` (rig/mcu/stm32_engine.py)
+running an ARM image on the rig-stm32f405 machine, linked to this process by a Unix socket
+(qemu/hw/rig_link.c), with AvrEngine's interface (rig/mcu/engine.py), so the MCU session runs either.
+
+Time is QEMU's virtual time under ``-icount shift=ICOUNT_SHIFT,sleep=off`` (each instruction 2**shift ns):
+the instruction count, so the same image, world and needs served give the same bytes and pulses, run
+after run. ``run_until(t)`` tells QEMU to run to t; QEMU answers "reached" with the motor outputs'
+latched pulses and the CPU's exception state, then waits. Meanwhile every event of the I2C bus comes
+here and the session's own chip core (the world's ChipBoard, as the AVR tier's) answers it: a START
+first runs the chips to its instant, and a sample the core lacks stops ``run_until`` with a ``need``,
+which the session serves (ChipBoard.serve) before calling ``run_until`` again; QEMU waits for the
+START's answer all the while.
+
+Messages (qemu/hw/rig_link.c): the kind (1 byte), 3 zero bytes, the payload's length (u32), the payload;
+little-endian. QEMU's bytes are checked as any input: a bad one ends the run with an error.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+import struct
+import subprocess
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final
+
+from rig.emulators import native
+from rig.emulators.chips.board import ChipBoard
+from rig.mcu.board import Board
+from rig.mcu.engine import FirmwareError, Stop, TwiRecord, format_transaction
+from rig.mcu.stm32_image import check_image
+
+__all__ = ["ICOUNT_SHIFT", "LINK_VERSION", "LinkError", "Stm32Engine"]
+
+LINK_VERSION: Final = 1
+#: 2**3 ns an instruction: 125 M instructions per virtual second
+ICOUNT_SHIFT: Final = 3
+MACHINE: Final = "rig-stm32f405"
+HEADER: Final = struct.Struct("<B3xI")
+MAX_PAYLOAD: Final = 1024
+#: a safety net for QEMU's start and for a QEMU that stops answering (not a timing of the run)
+SOCKET_TIMEOUT_S: Final = 60.0
+#: the exceptions that are faults (ARMv7-M B1.5.2): IPSR while their handler runs
+FAULTS: Final = {3: "HardFault", 4: "MemManage fault", 5: "BusFault", 6: "UsageFault"}
+#: the SoC's USART1..USART6 (UART4, UART5 among them), each a ringbuf chardev rig-usartN in this order
+UARTS: Final = 6
+UART_RING_BYTES: Final = 65536
+#: bytes of one UART message to QEMU (its payload's 1024 less the header of 8)
+UART_CHUNK: Final = 1016
+#: the timer outputs rig_link.c numbers: CH1..CH4, then CH1N..CH3N
+OUTPUTS: Final = ("1", "2", "3", "4", "1N", "2N", "3N")
+_REACHED = struct.Struct("<QIIIIB")
+_PULSE = struct.Struct("<IIIQ")
+#: pulses kept per motor between two takes (the oldest are dropped)
+MAX_PULSES: Final = 256
+
+
+class LinkError(RuntimeError):
+    """QEMU said something the link does not allow, or went away."""
+
+
+@dataclass(frozen=True)
+class Stm32Config:
+    board: Board
+    firmware: Path
+    #: the engine binary (stm32_engine.cached_binary()); None: built or taken from the cache
+    binary: Path | None = None
+    #: no I2C event, USART byte sent or change of a motor's pulse for this long is a hang (0: not checked;
+    #: a timer's PWM runs on without the firmware, so its pulses alone are no sign of life)
+    hang_ns: int = 1_000_000_000
+
+
+class Stm32Engine:
+    """One QEMU running one image, in lockstep. close() ends QEMU (and reaps it)."""
+
+    def __init__(self, cfg: Stm32Config, chips: ChipBoard | None) -> None:
+        check_image(cfg.firmware)
+        binary = cfg.binary
+        if binary is None:
+            from rig.mcu import stm32_engine
+
+            binary = stm32_engine.build()
+        self.cfg = cfg
+        self.chips = chips
+        self._fast = native.fast()
+        self._lib = native.chips()
+        self._motors = [(m.timer or 0, OUTPUTS.index(m.channel)) for m in cfg.board.motors]
+        self._now_ns = 0
+        self._stop: Stop | None = None
+        self._pending: tuple[int, int, bool] | None = None  # a START waiting for the chips' answer
+        self._records: list[TwiRecord] = []
+        self._last: list[TwiRecord] = []  # the last transaction's records
+        self._log = False
+        self._transactions = 0
+        self._bytes = 0
+        self._nacks = 0
+        self._pulses: list[list[tuple[int, int, int]]] = [[] for _ in self._motors]
+        self._pulse_counts = [0 for _ in self._motors]
+        self._widths = [0 for _ in self._motors]
+        self._active_ns = 0  # the last sign of life (hang_ns)
+        self._state = (0, 0, 0, 0)  # ipsr, pc, cfsr, hfsr at the last stop
+        self._sent: dict[int, bytearray] = {n: bytearray() for n in cfg.board.mcu.usarts}
+        self._uart_counts: dict[int, list[int]] = {n: [0, 0] for n in cfg.board.mcu.usarts}  # in, out
+        self._dir = tempfile.TemporaryDirectory(prefix="rig-stm32-")
+        path = str(Path(self._dir.name) / "link")
+        listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        listener.bind(path)
+        listener.listen(1)
+        listener.settimeout(SOCKET_TIMEOUT_S)
+        self._output = open(Path(self._dir.name) / "qemu.out", "w+b")  # noqa: SIM115 (closed in close())
+        uarts: list[str] = []
+        for n in range(1, UARTS + 1):
+            chardev = f"rig-usart{n}"
+            uarts += ["-chardev", f"ringbuf,id={chardev},size={UART_RING_BYTES}",
+                      "-serial", f"chardev:{chardev}"]
+        cmd = [str(binary), "-M", MACHINE, "-nodefaults", "-display", "none", "-monitor", "none",
+               "-chardev", f"socket,id=rig-link,path={path}", *uarts,
+               "-semihosting-config", "enable=on,target=native",
+               "-icount", f"shift={ICOUNT_SHIFT},sleep=off", "-kernel", str(cfg.firmware)]
+        self._proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=self._output,
+                                      stderr=subprocess.STDOUT)
+        try:
+            self._sock, _ = listener.accept()
+        except TimeoutError:
+            self.close()
+            raise LinkError(f"QEMU did not connect in {SOCKET_TIMEOUT_S:g} s: {self._tail()}") from None
+        except BaseException:
+            self.close()
+            raise
+        finally:
+            listener.close()
+        self._sock.settimeout(SOCKET_TIMEOUT_S)
+        try:
+            self._hello()
+        except BaseException:
+            self.close()  # (QEMU and the folder go with the engine that failed to start)
+            raise
+
+    # ---- the link ----
+    def _hello(self) -> None:
+        kind, payload = self._receive()
+        if kind != ord("H") or len(payload) != 2:
+            raise LinkError(f"QEMU's first message is not a HELLO ({kind!r}, {len(payload)} bytes)")
+        (version,) = struct.unpack("<H", payload)
+        if version != LINK_VERSION:
+            raise LinkError(f"the engine speaks link version {version}, this rig {LINK_VERSION}: "
+                            "rebuild it (make stm32-engine)")
+        config = bytes([len(self._motors)]) + b"".join(bytes([t, o]) for t, o in self._motors)
+        self._send(ord("C"), config)
+        stop = self._until_reached()  # (the stop at time 0, before the first instruction)
+        if stop.kind != "reached":
+            raise FirmwareError(f"{self.cfg.firmware}: {stop.describe()}")
+
+    def _send(self, kind: int, payload: bytes = b"") -> None:
+        try:
+            self._sock.sendall(HEADER.pack(kind, len(payload)) + payload)
+        except OSError as e:
+            raise LinkError(f"QEMU is gone ({e})") from None
+
+    def _read(self, n: int) -> bytes:
+        buf = bytearray()
+        while len(buf) < n:
+            chunk = self._sock.recv(n - len(buf))
+            if not chunk:
+                raise EOFError
+            buf += chunk
+        return bytes(buf)
+
+    def _receive(self) -> tuple[int, bytes]:
+        kind, length = HEADER.unpack(self._read(HEADER.size))
+        if length > MAX_PAYLOAD:
+            raise LinkError(f"a message of {length} bytes from QEMU (at most {MAX_PAYLOAD})")
+        return kind, self._read(length) if length else b""
+
+    def _record(self, t_ns: int, kind: str, value: int, ack: bool) -> None:
+        r = TwiRecord(t_ns, kind, value, ack)
+        if kind == "S":
+            self._last = []
+        self._last.append(r)
+        if self._log:
+            self._records.append(r)
+
+    def _answer_start(self) -> Stop | None:
+        """The pending START answered by the chip core once it has run to the START's instant, or a
+        need stop (the START stays pending)."""
+        assert self._pending is not None
+        t_ns, address, read = self._pending
+        if self.chips is not None:
+            need = self._fast.chip_advance(self.chips.addr, t_ns)
+            if need is not None:
+                return Stop("need", self._cycle(t_ns), need=tuple(need))
+            ack = bool(self._lib.chip_start(self.chips.addr, t_ns, address, read))
+        else:
+            ack = False
+        self._pending = None
+        self._transactions += 1
+        self._nacks += not ack
+        self._record(t_ns, "A", address << 1 | read, ack)
+        self._send(ord("a"), bytes([ack]))
+        return None
+
+    def _until_reached(self) -> Stop:
+        """QEMU's messages until it reaches the time asked (or a need, or the end)."""
+        chips, lib = self.chips, self._lib
+        try:
+            if self._pending is not None and (stop := self._answer_start()) is not None:
+                return stop
+            while True:
+                kind, p = self._receive()
+                if kind == ord("R"):
+                    return self._reached(p)
+                if kind == ord("T"):
+                    if not p or p[0] not in self._sent:
+                        raise LinkError(f"bytes from USART {p[0] if p else '?'}, which the board's MCU lacks")
+                    self._sent[p[0]] += p[1:]
+                    self._active_ns = self._now_ns
+                    self._uart_counts[p[0]][1] += len(p) - 1
+                    continue
+                if len(p) < 8:
+                    raise LinkError(f"an I2C message ({kind!r}) without its time")
+                (t_ns,) = struct.unpack_from("<Q", p)
+                self._active_ns = t_ns
+                if kind == ord("S") and len(p) == 10 and p[8] < 128 and p[9] < 2:
+                    self._record(t_ns, "S", 0, True)
+                    self._pending = (t_ns, p[8], bool(p[9]))
+                    if (stop := self._answer_start()) is not None:
+                        return stop
+                elif kind == ord("W") and len(p) == 9:
+                    if chips is not None:
+                        lib.chip_write_byte(chips.addr, p[8])
+                    self._bytes += 1
+                    self._record(t_ns, "W", p[8], chips is not None)
+                elif kind == ord("D") and len(p) == 8:
+                    value = lib.chip_read_byte(chips.addr) if chips is not None else 0xFF
+                    self._bytes += 1
+                    self._record(t_ns, "R", value, True)
+                    self._send(ord("b"), bytes([value]))
+                elif kind == ord("N") and len(p) == 8:
+                    if self._last and self._last[-1].kind == "R":
+                        self._last[-1].ack = False  # (the same record as in the log)
+                elif kind == ord("P") and len(p) == 8:
+                    if chips is not None:
+                        lib.chip_stop(chips.addr)
+                    self._record(t_ns, "P", 0, True)
+                else:
+                    raise LinkError(f"a malformed message from QEMU: kind {kind!r}, {len(p)} bytes")
+        except (EOFError, OSError):
+            return self._ended()
+
+    def _reached(self, p: bytes) -> Stop:
+        if len(p) < _REACHED.size:
+            raise LinkError(f"a REACHED of {len(p)} bytes")
+        t_ns, ipsr, pc, cfsr, hfsr, n = _REACHED.unpack_from(p)
+        if n != len(self._motors) or len(p) != _REACHED.size + n * _PULSE.size:
+            raise LinkError(f"a REACHED with {n} motors ({len(p)} bytes); the board has {len(self._motors)}")
+        for i in range(n):
+            high, period, begun, last_ns = _PULSE.unpack_from(p, _REACHED.size + i * _PULSE.size)
+            if high != self._widths[i]:
+                self._widths[i] = high
+                self._active_ns = t_ns
+            if high and begun:
+                # (the periods begun since the last stop, each a pulse of the width latched last: one
+                # width a step, as the session takes the last pulse of a step)
+                self._pulse_counts[i] += begun
+                train = self._pulses[i]
+                kept = min(begun, MAX_PULSES)
+                train += [(last_ns - k * period, high, period) for k in range(kept - 1, -1, -1)]
+                del train[:-MAX_PULSES]
+        self._now_ns = t_ns
+        self._state = (ipsr, pc, cfsr, hfsr)
+        fault = FAULTS.get(ipsr & 0x1FF)
+        if fault is not None:
+            return self._final("crashed", f"{fault} (CFSR 0x{cfsr:08x}, HFSR 0x{hfsr:08x})", pc)
+        hang_ns = self.cfg.hang_ns
+        if hang_ns and t_ns - self._active_ns >= hang_ns:
+            return self._final("hung", f"no I2C transaction, motor pulse change or USART byte sent for "
+                                       f"{hang_ns / 1e6:g} ms", pc)
+        return Stop("reached", self._cycle(t_ns))
+
+    def _ended(self) -> Stop:
+        """QEMU is gone: a semihosting exit, a lockup (QEMU aborts), or a crash of its own."""
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            self._proc.wait(SOCKET_TIMEOUT_S)
+        text = self.output()
+        lockup = next((line.strip() for line in text.splitlines() if "Lockup" in line), None)
+        status = self._proc.returncode
+        what = (f"locked up ({lockup.removeprefix('qemu: fatal: ')})" if lockup is not None else
+                f"ended the machine (exit status {status}): {' '.join(text.split())[-300:]}")
+        pc = self._state[1]
+        for word in text.split():
+            if word.startswith("R15="):
+                with contextlib.suppress(ValueError):
+                    pc = int(word[4:], 16)
+        return self._final("crashed" if lockup is not None or status != 0 else "exited", what, pc)
+
+    def _final(self, kind: str, what: str, pc: int) -> Stop:
+        self._stop = Stop(kind, self._cycle(self._now_ns), pc, what, last_twi=format_transaction(self._last))
+        return self._stop
+
+    def _tail(self) -> str:
+        return " ".join(self.output().split())[-2000:]
+
+    def _cycle(self, t_ns: int) -> int:
+        """The CPU's clock cycles at ``t_ns`` (the board's clock: SysTick's, DWT CYCCNT's)."""
+        return t_ns * self.cfg.board.clock_hz // 1_000_000_000
+
+    # ---- AvrEngine's interface ----
+    @property
+    def now_ns(self) -> int:
+        return self._now_ns
+
+    def run_until(self, t_ns: int) -> Stop:
+        """Runs until sim time ``t_ns`` or an earlier stop (a need: serve it and call again)."""
+        if self._stop is not None:
+            return self._stop
+        if self._pending is None:
+            self._send(ord("G"), struct.pack("<Q", max(t_ns, 0)))
+        return self._until_reached()
+
+    def pulses(self) -> list[list[tuple[int, int, int]]]:
+        """Per motor, the pulses begun since the last call: (rise_ns, width_ns, period_ns), one a period of
+        its timer, with the width latched last (the timers latch each period's pulse at its start)."""
+        out, self._pulses = self._pulses, [[] for _ in self._motors]
+        return out
+
+    def twi_log(self, on: bool = True) -> None:
+        self._log = on
+
+    def twi_take(self) -> list[TwiRecord]:
+        out, self._records = self._records, []
+        return out
+
+    def output(self) -> str:
+        """What QEMU printed: the firmware's semihosting output, QEMU's own errors."""
+        self._output.flush()
+        self._output.seek(0)
+        return self._output.read().decode(errors="replace")
+
+    def last_twi(self) -> list[TwiRecord]:
+        return list(self._last)
+
+    def uart_take(self, uart: int) -> bytes:
+        """What the firmware transmitted on USARTn up to the last stop, since the last take."""
+        sent = self._sent.get(uart)
+        if sent is None:
+            return b""
+        out = bytes(sent)
+        sent.clear()
+        return out
+
+    def uart_send(self, uart: int, data: bytes, baud: int, parity: str = "N", stop_bits: int = 1) -> None:
+        """Bytes into USARTn's receiver from now on, each at the end of its frame (start bit, 8 data bits,
+        the parity bit, the stop bits: 8E2 at 100000 baud is 120 us a byte), after those queued before.
+        QEMU's USART takes any byte whatever its own baud and parity."""
+        if uart not in self._sent:
+            raise ValueError(f"the {self.cfg.board.mcu.name} has no USART{uart}")
+        if parity not in ("N", "E", "O") or stop_bits not in (1, 2) or baud <= 0:
+            raise ValueError(f"USART frame {baud} {parity}{stop_bits}: baud > 0, parity N/E/O, 1 or 2 stops")
+        frame_ns = round((1 + 8 + (parity != "N") + stop_bits) * 1e9 / baud)
+        for at in range(0, len(data), UART_CHUNK):
+            self._send(ord("U"), struct.pack("<B3xI", uart, frame_ns) + data[at:at + UART_CHUNK])
+        self._uart_counts[uart][0] += len(data)
+
+    def pin_drive(self, pin: str, schedule: list[tuple[int, int]]) -> None:
+        raise ValueError("the STM32 tier's link does not drive input pins yet")
+
+    def eeprom(self) -> bytes:
+        """An STM32 has no EEPROM (its settings live in flash)."""
+        return b""
+
+    def poll_figures(self) -> dict[str, int]:
+        """The AVR engine's polling-loop skip has no STM32 counterpart: QEMU's icount runs every
+        instruction (a summary's ``poll_skip`` is then empty)."""
+        return {}
+
+    def figures(self) -> dict[str, Any]:
+        ipsr, pc, cfsr, hfsr = self._state
+        figs: dict[str, Any] = {
+            "sim_ns": self._now_ns, "cycles": self._cycle(self._now_ns),
+            "twi_transactions": self._transactions, "twi_bytes": self._bytes, "twi_nacks": self._nacks,
+            "pc": pc, "ipsr": ipsr, "cfsr": cfsr, "hfsr": hfsr,
+            "last_twi": format_transaction(self._last), "motor_periods": list(self._pulse_counts),
+            "uarts": {n: {"queued": c[0], "sent": c[1]} for n, c in self._uart_counts.items()},
+        }
+        if self._stop is not None:
+            figs["stop"] = self._stop.describe()
+        return figs
+
+    def close(self) -> None:
+        proc = getattr(self, "_proc", None)
+        if proc is not None and proc.poll() is None:
+            with contextlib.suppress(LinkError, AttributeError):  # (QEMU gone, or never connected)
+                self._send(ord("Q"))
+            try:
+                proc.wait(SOCKET_TIMEOUT_S)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+        if getattr(self, "_sock", None) is not None:
+            self._sock.close()
+        if getattr(self, "_output", None) is not None:
+            self._output.close()
+        if getattr(self, "_dir", None) is not None:
+            self._dir.cleanup()
+
+    def __enter__(self) -> Stm32Engine:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
