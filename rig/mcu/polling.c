@@ -285,7 +285,8 @@ static void refuse(mcu_poll *p, loop_head *lp, uint64_t now)
     lp->have = false;
     if (lp->fails < BACK_OFF - 4)
         lp->fails++;
-    lp->retry_at = now + ((uint64_t)(lp->t.period ? lp->t.period : 1) << (4 + lp->fails));
+    /* (a loop whose iteration outgrew the trace never got a period: it is at least LOOP_TRACE cycles) */
+    lp->retry_at = now + ((uint64_t)(lp->t.period ? lp->t.period : LOOP_TRACE) << (4 + lp->fails));
 }
 
 static void try_arm(mcu_engine *e, mcu_poll *p, loop_head *lp)
