@@ -19,16 +19,21 @@ this process's CPU time, best of three: the machine is shared, wall time measure
                  pulses and telemetry taken, the events and the recorder). With the polling-loop skip
                  (and the share of cycles it jumped), without it, and without it and with simavr's timers
                  in the modes it lacks overflowing every prescaler period (stock: before timer_modes.c)
+  MultiWii 2.4   its image at rest on the mega2560-gy86 board for 10 s as `rig exec --mcu ... --fc
+                 multiwii-2.4` runs it, unarmed (its main loop never waits; its TWI waits are counted
+                 loops), with the polling-loop skip and without: only with --multiwii mw.elf or
+                 $RIG_BENCH_MULTIWII (a local build, docs/multiwii.md; never in the repository)
 
 Each runs with the glue's fixes, then with simavr's own behaviour back (AvrEngine.stock), without the
 polling-loop skip (it would hide what the fixes measure) but where said. The goal is 2x real time;
 the anchor is ArduPilot's AVR build under Renode: 0.03-0.2x.
 
-    .venv/bin/python bench/mcu_rates.py
+    .venv/bin/python bench/mcu_rates.py [--multiwii mw.elf] [--targets-only]
 """
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 import time
@@ -38,6 +43,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from rig import cli  # noqa: E402
 from rig.emulators.chips.board import build_chip_board  # noqa: E402
 from rig.emulators.mpu6050 import ImuTruth  # noqa: E402
 from rig.emulators.ms5611 import BaroTruth  # noqa: E402
@@ -49,6 +55,9 @@ from rig.targets.mcu import McuTarget  # noqa: E402
 from tests.mcu.conftest import firmware  # noqa: E402
 
 CLOCK = 16_000_000
+#: MultiWii 2.4's image when --multiwii does not say (a local build: docs/multiwii.md)
+MULTIWII_ENV = "RIG_BENCH_MULTIWII"
+MULTIWII_S = 10.0
 ANCHOR = "ArduPilot under Renode: 0.03-0.2x"
 
 
@@ -109,15 +118,41 @@ def imu_rate(mcu: str, skip: bool) -> float:
 
 def fc_rate(scenario: str = "step_roll", skip: bool = True,
             stock_timers: bool = False) -> tuple[float, float, float, float, float]:
-    """The reference FC through the target, best of three: (sim s per CPU s of the whole run, the same
-    of the engine alone: time inside run_until, the session's loop per plant tick beyond the engine in
-    us, the engine per tick in us, the share of cycles the polling-loop skip jumped). run_until and the
-    session's run are timed by wrappers of this bench's own (process time); ``skip`` is set through
-    the environment variable the engine reads, ``stock_timers`` by AvrEngine.stock on each engine."""
+    """The reference FC flying ``scenario`` through the target, best of three (target_rate)."""
     fc = Path(__file__).resolve().parents[1] / "build" / "avr" / "fc.elf"
     if not fc.is_file():
         raise SystemExit(f"{fc} is not built: make avr")
     sc = load(Path(__file__).resolve().parents[1] / "scenarios" / "library" / f"{scenario}.toml")
+
+    def flight() -> float:
+        r = run(sc, McuTarget("mega2560-gy86", fc), 0)
+        assert r.verdict == "pass", r.error
+        return sc.duration
+
+    return target_rate(flight, skip, stock_timers)
+
+
+def multiwii_rate(elf: Path, skip: bool) -> tuple[float, float, float, float, float]:
+    """MultiWii 2.4 (a local image: never in the repository) at rest on the mega2560-gy86 board for
+    MULTIWII_S, as `rig exec --mcu ... --fc multiwii-2.4` runs it, best of three (target_rate)."""
+
+    def at_rest() -> float:
+        code = cli.main(["exec", "--mcu", "mega2560-gy86", "--fc", "multiwii-2.4", "--firmware", str(elf),
+                         "--duration", str(MULTIWII_S)])
+        assert code == 0, f"rig exec ended {code}"
+        return MULTIWII_S
+
+    return target_rate(at_rest, skip, False)
+
+
+def target_rate(job: Callable[[], float], skip: bool,
+                stock_timers: bool) -> tuple[float, float, float, float, float]:
+    """A firmware through the MCU target, best of three runs of ``job`` (which returns the sim seconds it
+    ran): (sim s per CPU s of the whole run, the same of the engine alone: time inside run_until, the
+    session's loop per plant tick beyond the engine in us, the engine per tick in us, the share of
+    cycles the polling-loop skip jumped). run_until and the session's run are timed by wrappers of this
+    bench's own (process time); ``skip`` is set through the environment variable the engine reads,
+    ``stock_timers`` by AvrEngine.stock on each engine."""
     spent = {"engine": 0.0, "session": 0.0, "skipped": 0.0, "cycles": 0.0}
 
     def timed(fn: Callable[..., Any], key: str) -> Callable[..., Any]:
@@ -153,12 +188,11 @@ def fc_rate(scenario: str = "step_roll", skip: bool = True,
         for _ in range(3):
             spent.update(engine=0.0, session=0.0, skipped=0.0, cycles=0.0)
             t0 = time.process_time()
-            r = run(sc, McuTarget("mega2560-gy86", fc), 0)
+            duration = job()
             whole = time.process_time() - t0
-            assert r.verdict == "pass", r.error
-            ticks = sc.duration * 1000
+            ticks = duration * 1000
             loop_us = (spent["session"] - spent["engine"]) / ticks * 1e6
-            best = max(best, (sc.duration / whole, sc.duration / spent["engine"], loop_us,
+            best = max(best, (duration / whole, duration / spent["engine"], loop_us,
                               spent["engine"] / ticks * 1e6, spent["skipped"] / max(spent["cycles"], 1.0)))
     finally:
         AvrEngine.run_until, McuSession.run = run_until, session_run  # type: ignore[method-assign]
@@ -176,8 +210,24 @@ def pwm_script() -> bytes:
     return b"".join(a.to_bytes(2, "little") + bytes([v]) for a, v in writes) + b"\xff\xff\x00"
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description="How fast the MCU tier's engine runs.")
+    parser.add_argument("--multiwii", type=Path, default=os.environ.get(MULTIWII_ENV) or None,
+                        help=f"MultiWii 2.4's image (mw.elf, built locally; default ${MULTIWII_ENV})")
+    parser.add_argument("--targets-only", action="store_true",
+                        help="only the firmwares through the target (the reference FC, MultiWii)")
+    args = parser.parse_args(argv)
+    if args.multiwii is not None and not args.multiwii.is_file():
+        parser.error(f"--multiwii {args.multiwii}: no such file")
     print(f"simulated s per CPU s at 16 MHz (goal >= 2x; {ANCHOR})")
+    if not args.targets_only:
+        engine_rows()
+    target_rows(args.multiwii)
+    return 0
+
+
+def engine_rows() -> None:
+    """The engine alone: test firmwares, with the glue's fixes and with simavr's own behaviour."""
     for mcu in ("atmega2560", "atmega328p"):
         busy = EngineConfig(mcu, CLOCK, firmware("busy", mcu), hang_ns=0, poll_skip=False)
         one = rate(busy, 2.0)
@@ -206,6 +256,10 @@ def main() -> int:
         on, off = rate(loops[0], 1.0), rate(loops[1], 1.0)
         print(f"atmega2560  polling loops  {on:6.2f}x with the polling-loop skip, {off:6.2f}x without "
               f"({on / off:.1f} times): {what}")
+
+
+def target_rows(multiwii: Path | None) -> None:
+    """The reference FC flying step_roll and MultiWii at rest, through the target, skip on and off."""
     whole, engine, rest_us, engine_us, share = fc_rate()
     fc_plain = fc_rate(skip=False)
     fc_stock = fc_rate(skip=False, stock_timers=True)
@@ -218,8 +272,16 @@ def main() -> int:
           f"{engine / fc_plain[1]:.2f} times)\n"
           f"{'':27s}without it and with simavr's timers in the modes it lacks (stock 1.6): "
           f"{fc_stock[0]:6.2f}x the whole run, {fc_stock[1]:6.2f}x the engine")
-    return 0
-
+    if multiwii is None:
+        print(f"atmega2560  MultiWii 2.4   skipped: no image (--multiwii mw.elf or ${MULTIWII_ENV}; "
+              f"docs/multiwii.md)")
+        return
+    mw, plain = multiwii_rate(multiwii, True), multiwii_rate(multiwii, False)
+    print(f"atmega2560  MultiWii 2.4   {mw[0]:6.2f}x at rest for {MULTIWII_S:g} s through the target (rig "
+          f"exec), the whole run; {mw[1]:6.2f}x the engine alone: {mw[3]:.0f} us a tick, the session's loop "
+          f"{mw[2]:.0f} us\n"
+          f"{'':27s}the polling-loop skip jumped {mw[4]:.0%} of the cycles; without it {plain[0]:6.2f}x the "
+          f"whole run, {plain[1]:6.2f}x the engine ({mw[0] / plain[0]:.2f} and {mw[1] / plain[1]:.2f} times)")
 
 if __name__ == "__main__":
     sys.exit(main())

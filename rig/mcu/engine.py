@@ -19,6 +19,7 @@ from __future__ import annotations
 import ctypes
 import functools
 import os
+import struct
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
@@ -88,12 +89,17 @@ class _Need(ctypes.Structure):  # chip_core.h chip_need
                 ("target_ns", ctypes.c_uint64)]
 
 
-_NEED_FIELDS: Final = tuple(f[0] for f in _Need._fields_)
+#: a _Need's fields in order, from its bytes (the C struct's layout: native sizes and alignment)
+_NEED: Final = struct.Struct("@6B3I4Q")
 
 
 class _Record(ctypes.Structure):  # glue.h mcu_twi_record
     _fields_ = [("t_ns", ctypes.c_uint64), ("kind", ctypes.c_uint8), ("value", ctypes.c_uint8),
                 ("ack", ctypes.c_uint8), ("pad", ctypes.c_uint8 * 5)]
+
+
+#: a _Record's bytes (the C struct's: native order, standard sizes, no padding but its own)
+_RECORD: Final = struct.Struct("=QBBB5x")
 
 
 class _Calls(ctypes.Structure):  # glue.h mcu_chip_calls
@@ -368,7 +374,7 @@ class AvrEngine:
         if kind == "need":
             n = self._need
             c.mcu_need(e, self._need_ref)
-            return Stop("need", c.mcu_cycle(e), need=tuple(getattr(n, f) for f in _NEED_FIELDS))
+            return Stop("need", c.mcu_cycle(e), need=_NEED.unpack_from(n))
         pc = int(c.mcu_stop_pc(e))
         what = c.mcu_what(e).decode(errors="replace")
         if kind == "hung":  # (what it was waiting on: a receiver, the EEPROM, ...)
@@ -452,11 +458,17 @@ class AvrEngine:
         self._lib.mcu_twi_log(self._e, on)
 
     def twi_take(self) -> list[TwiRecord]:
+        """The TWI records since the last take (twi_log), read from the buffer's bytes: a record's
+        fields one by one through ctypes cost more than the rest of a plant tick's Python."""
         out: list[TwiRecord] = []
-        buf = self._twi_buf
-        while (n := self._lib.mcu_twi_take(self._e, buf, 1024)) > 0:
-            out += [TwiRecord(r.t_ns, chr(r.kind), r.value, bool(r.ack)) for r in buf[:n]]
-        return out
+        buf, take, e = self._twi_buf, self._lib.mcu_twi_take, self._e
+        while True:
+            n = take(e, buf, 1024)
+            if n:
+                raw = ctypes.string_at(buf, n * _RECORD.size)
+                out += [TwiRecord(t, chr(k), v, a != 0) for t, k, v, a in _RECORD.iter_unpack(raw)]
+            if n < 1024:
+                return out
 
     def stock(self, extint_poll: bool = False, uart_poll_sleep: bool = False,
               timer_modes: bool = False) -> None:

@@ -139,6 +139,14 @@ static bool word_add(loop_run *x, int d, int k, bool sub)
 static bool one_operand(loop_run *x, int op, int d)
 {
     loop_val *v = &x->s.r[d];
+    if (v->sym && (op == 0xA || op == 0x3)) { /* DEC, INC of a counter: SUBI 1, SUBI 0xFF with C and H kept */
+        loop_flag carry = x->s.f[S_C], half = x->s.f[S_H];
+        if (!subtract(x, d, *v, loop_known(op == 0xA ? 1 : 0xFF), false, true))
+            return false;
+        x->s.f[S_C] = carry;
+        x->s.f[S_H] = half;
+        return true;
+    }
     if (!loop_is_known(v))
         return loop_fail(x, "an operation on an unknown byte");
     uint8_t a = v->val, r;
@@ -377,7 +385,8 @@ bool loop_eval(loop_run *x)
     uint32_t pc = t->head;
     uint64_t begin = t->end[t->n - 1] - t->period;
     x->read_v = x->range_limited = false;
-    x->v_lo = x->v_hi = 0;
+    x->v_lo = x->counted ? x->j_first : 0;
+    x->v_hi = x->counted ? x->j_last : 0;
     for (uint16_t i = 0; i < t->n; i++) {
         if (pc != t->pc[i])
             return loop_fail(x, "another path than the one run");

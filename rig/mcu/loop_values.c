@@ -21,7 +21,10 @@ bool loop_out_of_range(loop_run *x, const char *why)
     return loop_fail(x, why);
 }
 
-static uint32_t v_word(int8_t sign, uint32_t k, uint64_t v) { return sign > 0 ? k + (uint32_t)v : k - (uint32_t)v; }
+/* sign*V + k (sign: +1 or -1 for a timer counter, the step for an induction register) */
+static uint32_t v_word(int8_t sign, uint32_t k, uint64_t v) { return k + (uint32_t)((int64_t)sign * (int64_t)v); }
+
+static uint64_t step_size(int8_t sign) { return (uint64_t)(sign < 0 ? -(int)sign : sign); }
 
 void loop_io_find(avr_t *avr, loop_io *io)
 {
@@ -99,15 +102,20 @@ static bool chain_flag(const loop_chain *c, int which, uint64_t v)
     }
 }
 
-/* C, Z, N, V and S of the chain are the same for every V in [lo, hi]: V's side moves through a range with
- * no point where one of them can change (its wrap, its sign, the other side, the other side's sign) */
-static bool chain_constant(const loop_chain *c, uint64_t lo, uint64_t hi)
+/* flag `which` of the chain is the same for every V in [lo, hi]: V's side moves through a range with no
+ * point where it can change (Z: reaching the other side and leaving it; C: those and the wrap; N: those
+ * and half a turn past them; V and S: all of these and the sign of V's side) */
+static bool chain_constant(const loop_chain *c, int which, uint64_t lo, uint64_t hi)
 {
     unsigned n = 8u * c->m;
     uint64_t mod = 1ull << n, mask = mod - 1, half = mod >> 1, b = c->c & mask;
-    uint64_t a_min = v_word(c->sign, c->k, c->sign > 0 ? lo : hi) & mask, a_max = a_min + (hi - lo);
-    uint64_t points[6] = { 0, half, b, b + 1, b + half, b + half + 1 };
-    for (int i = 0; i < 6; i++) {
+    uint64_t a_min = v_word(c->sign, c->k, c->sign > 0 ? lo : hi) & mask;
+    uint64_t a_max = a_min + step_size(c->sign) * (hi - lo);
+    const uint64_t points[6] = { b, b + 1, 0, b + half, b + half + 1, half };
+    int count = which == S_Z ? 2 : which == S_C ? 3 : which == S_N ? 5 : 6;
+    for (int i = 0; i < count; i++) {
+        if (which == S_N && i == 2) /* (N does not change at the wrap) */
+            continue;
         uint64_t q = a_min + ((points[i] - a_min - 1) & mask) + 1; /* the first value past a_min that is it */
         if (q <= a_max)
             return false;
@@ -141,7 +149,7 @@ bool loop_flag_get(loop_run *x, int which, bool *out)
     }
     if (f->kind == FLAG_UNKNOWN || which == S_H)
         return loop_fail(x, "a branch on an unknown flag");
-    if (!chain_constant(&x->s.chains[f->chain], x->v_lo, x->v_hi))
+    if (!chain_constant(&x->s.chains[f->chain], which, x->v_lo, x->v_hi))
         return loop_out_of_range(x, "a branch on a flag that changes");
     *out = chain_flag(&x->s.chains[f->chain], which, x->v_lo);
     return true;
@@ -151,7 +159,8 @@ bool loop_bit_get(loop_run *x, const loop_val *b, int bit, bool *out)
 {
     if (b->sym) {
         unsigned g = 8u * b->byte + (unsigned)bit;
-        uint64_t w_min = v_word(b->sign, b->k, b->sign > 0 ? x->v_lo : x->v_hi), w_max = w_min + (x->v_hi - x->v_lo);
+        uint64_t w_min = v_word(b->sign, b->k, b->sign > 0 ? x->v_lo : x->v_hi),
+                 w_max = w_min + step_size(b->sign) * (x->v_hi - x->v_lo);
         if (w_min >> g != w_max >> g)
             return loop_out_of_range(x, "a bit test on a bit that changes");
         *out = w_min >> g & 1;
@@ -192,6 +201,8 @@ bool loop_put(loop_run *x, uint16_t addr, loop_val v)
 
 static bool read_v(loop_run *x, avr_timer_t *tm, uint32_t offset, loop_val *out)
 {
+    if (x->counted)
+        return loop_fail(x, "a timer counter read in a counted loop");
     if (x->read_v && x->timer != tm)
         return loop_fail(x, "two timer counters read");
     if (x->read_v && x->v_offset != offset)

@@ -16,7 +16,9 @@
  *     value, byte for byte (else the loop is never skipped again: the proof and simavr disagree);
  *  5. the clock jumps m periods and the machine becomes E1's form at iteration m's counter value: the
  *     registers, flags and stores iteration m leaves, as running the m iterations would.
+ * A counted loop (polling.h) proves iterations 1..m with its counters k + s*j instead of E1's bytes.
  * The instructions figure counts the skipped iterations' instructions: the same figures either way. */
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -31,11 +33,14 @@
 #define BACK_OFF 16     /* a loop that failed is tried again after up to 2^16 of its periods */
 
 typedef struct {
-    loop_trace t;
+    /* (first: what each backward jump looks at, in the cache line of the trace's head) */
     bool have, dead; /* (dead: a prediction simavr did not confirm) */
+    bool counted;    /* a counted loop last time, with these counters' steps */
     uint16_t fails;
     uint64_t retry_at; /* the cycle before which it is not tried (after a failure) */
     uint64_t seen;     /* the last cycle it was reached at */
+    loop_trace t;
+    int8_t step[32];
 } loop_head;
 
 struct mcu_poll {
@@ -98,12 +103,22 @@ MCU_API uint64_t mcu_poll_figure(const mcu_engine *e, int which)
 
 static void state_from_avr(loop_state *s, const avr_t *avr)
 {
-    memset(s, 0, sizeof *s);
     for (int i = 0; i < 32; i++)
-        s->r[i].val = avr->data[i];
+        s->r[i] = loop_known(avr->data[i]);
     for (int i = 0; i < 8; i++)
-        s->f[i].val = avr->sreg[i];
+        s->f[i] = (loop_flag){ FLAG_KNOWN, avr->sreg[i], 0 };
     s->sp = (uint16_t)(avr->data[R_SPL] | avr->data[R_SPH] << 8);
+    s->n_stores = s->n_chains = 0;
+}
+
+/* the parts of a state in use (most of one is room for stores and chains: a copy of all of it cost as
+ * much as the proof) */
+static void copy_state(loop_state *to, const loop_state *from)
+{
+    memcpy(to, from, offsetof(loop_state, store_at));
+    memcpy(to->store_at, from->store_at, from->n_stores * sizeof from->store_at[0]);
+    memcpy(to->store, from->store, from->n_stores * sizeof from->store[0]);
+    memcpy(to->chains, from->chains, from->n_chains * sizeof from->chains[0]);
 }
 
 static bool has_unknown(const loop_state *s)
@@ -136,16 +151,22 @@ static void forget_v(loop_state *s)
     s->n_chains = 0;
 }
 
+/* a byte's value at V (a known byte without a call) */
+static inline uint8_t value_at(const loop_state *s, const loop_val *b, uint64_t v)
+{
+    return b->sym || b->fsym ? loop_byte_value(s, b, v) : b->val;
+}
+
 static bool matches(const avr_t *avr, const loop_state *s, uint64_t v)
 {
     for (int i = 0; i < 32; i++)
-        if (avr->data[i] != loop_byte_value(s, &s->r[i], v))
+        if (avr->data[i] != value_at(s, &s->r[i], v))
             return false;
     for (int i = 0; i < 8; i++)
-        if (avr->sreg[i] != loop_flag_value(s, i, v))
+        if (avr->sreg[i] != (s->f[i].kind == FLAG_KNOWN ? s->f[i].val : loop_flag_value(s, i, v)))
             return false;
     for (int i = 0; i < s->n_stores; i++)
-        if (avr->data[s->store_at[i]] != loop_byte_value(s, &s->store[i], v))
+        if (avr->data[s->store_at[i]] != value_at(s, &s->store[i], v))
             return false;
     return (avr->data[R_SPL] | avr->data[R_SPH] << 8) == s->sp;
 }
@@ -153,11 +174,11 @@ static bool matches(const avr_t *avr, const loop_state *s, uint64_t v)
 static void become(avr_t *avr, const loop_state *s, uint64_t v)
 {
     for (int i = 0; i < 32; i++)
-        avr->data[i] = loop_byte_value(s, &s->r[i], v);
+        avr->data[i] = value_at(s, &s->r[i], v);
     for (int i = 0; i < 8; i++)
-        avr->sreg[i] = loop_flag_value(s, i, v);
+        avr->sreg[i] = s->f[i].kind == FLAG_KNOWN ? s->f[i].val : loop_flag_value(s, i, v);
     for (int i = 0; i < s->n_stores; i++)
-        avr->data[s->store_at[i]] = loop_byte_value(s, &s->store[i], v);
+        avr->data[s->store_at[i]] = value_at(s, &s->store[i], v);
 }
 
 /* the first cycle at which something the loop reads may change */
@@ -168,13 +189,91 @@ static uint64_t window_end(const mcu_engine *e)
     return t && t->when < w ? t->when : w;
 }
 
-/* iterations 1..m proved from E1's form (x->s on entry: E1 with the counter's bytes unknown) */
-static bool prove(loop_run *x, const loop_state *star, const loop_state *e1, uint64_t m)
+/* a counted loop's end state after iteration j has the form k + s*(j+1) in each counter (star: k + s*j),
+ * E1's known bytes elsewhere; a flag the iteration did not write is E1's (nothing read it: it was unknown) */
+static bool counted_form(loop_state *end, const loop_state *star, const loop_state *e1, const int8_t *step)
 {
-    x->s = *star;
+    for (int i = 0; i < 8; i++)
+        if (end->f[i].kind == FLAG_UNKNOWN)
+            end->f[i] = e1->f[i];
+    if (has_unknown(end) || end->sp != e1->sp || end->n_stores != e1->n_stores)
+        return false;
+    for (int i = 0; i < 32; i++) {
+        const loop_val *b = &end->r[i];
+        if (step[i] ? !b->sym || b->byte || b->sign != step[i] || (uint8_t)(b->k - star->r[i].k - (uint32_t)step[i])
+                    : !loop_is_known(b) || b->val != e1->r[i].val)
+            return false;
+    }
+    for (int i = 0; i < end->n_stores; i++)
+        if (end->store_at[i] != e1->store_at[i] || !loop_is_known(&end->store[i]) ||
+            end->store[i].val != e1->store[i].val)
+            return false;
+    return true;
+}
+
+/* iterations 1..m proved from E1's form (x->s on entry: E1 with the counter's bytes unknown; a counted
+ * loop's: its counters k + s*j, the flags unknown) */
+static bool prove(loop_run *x, const loop_state *star, const loop_state *e1, const int8_t *step, uint64_t m)
+{
+    copy_state(&x->s, star);
     x->j_first = 1;
     x->j_last = m;
-    return loop_eval(x) && !has_unknown(&x->s) && loop_same(&x->s, e1);
+    x->counted = step != NULL;
+    if (!loop_eval(x))
+        return false;
+    return step ? counted_form(&x->s, star, e1, step) : !has_unknown(&x->s) && loop_same(&x->s, e1);
+}
+
+/* a loop that read no timer counter and changed known registers: those that changed by the same step in
+ * iterations 0 and 1 are its counters (those that changed only in iteration 0 were set, not counted);
+ * false when there are none, or a register changed otherwise */
+static bool find_counters(loop_run *x, const loop_state *s0, const loop_state *e1, int8_t step[32])
+{
+    bool changed = false;
+    for (int i = 0; i < 32; i++)
+        changed |= loop_is_known(&s0->r[i]) && loop_is_known(&e1->r[i]) && s0->r[i].val != e1->r[i].val;
+    if (!changed)
+        return false;
+    copy_state(&x->s, e1);
+    x->j_first = x->j_last = 1;
+    x->counted = false;
+    if (!loop_eval(x) || x->read_v)
+        return false;
+    bool any = false;
+    for (int i = 0; i < 32; i++) {
+        const loop_val *a = &s0->r[i], *b = &e1->r[i], *c = &x->s.r[i];
+        step[i] = 0;
+        if (!loop_is_known(a) || !loop_is_known(b) || !loop_is_known(c) || a->val == b->val)
+            continue;
+        int8_t d1 = (int8_t)(b->val - a->val), d2 = (int8_t)(c->val - b->val);
+        if (d2 && d2 != d1)
+            return false;
+        step[i] = d2;
+        any |= d2 != 0;
+    }
+    return any;
+}
+
+/* the counters a counted loop had last time stepped as before in iteration 0 (any choice of counters
+ * whose steps iteration 0 took is sound: the proof checks the rest; this one saves iteration 1's run) */
+static bool same_counters(const int8_t step[32], const loop_state *s0, const loop_state *e1)
+{
+    for (int i = 0; i < 32; i++)
+        if (step[i] && (!loop_is_known(&s0->r[i]) || !loop_is_known(&e1->r[i]) ||
+                        (int8_t)(e1->r[i].val - s0->r[i].val) != step[i]))
+            return false;
+    return true;
+}
+
+/* E1's form with each counter k + s*j (k its value before iteration 0) and the flags unknown */
+static void count_from(loop_state *star, const loop_state *s0, const int8_t step[32])
+{
+    for (int i = 0; i < 32; i++)
+        if (step[i])
+            star->r[i] = (loop_val){ .sym = true, .sign = step[i], .k = s0->r[i].val };
+    for (int i = 0; i < 8; i++)
+        star->f[i] = (loop_flag){ FLAG_UNKNOWN, 0, 0 };
+    star->n_chains = 0;
 }
 
 /* not provable now: recorded again later (the path may have been another one's, or the loop was not
@@ -186,7 +285,8 @@ static void refuse(mcu_poll *p, loop_head *lp, uint64_t now)
     lp->have = false;
     if (lp->fails < BACK_OFF - 4)
         lp->fails++;
-    lp->retry_at = now + ((uint64_t)(lp->t.period ? lp->t.period : 1) << (4 + lp->fails));
+    /* (a loop whose iteration outgrew the trace never got a period: it is at least LOOP_TRACE cycles) */
+    lp->retry_at = now + ((uint64_t)(lp->t.period ? lp->t.period : LOOP_TRACE) << (4 + lp->fails));
 }
 
 static void try_arm(mcu_engine *e, mcu_poll *p, loop_head *lp)
@@ -200,16 +300,28 @@ static void try_arm(mcu_engine *e, mcu_poll *p, loop_head *lp)
         return;
     loop_run x = { .avr = avr, .io = &p->io, .t = &lp->t, .start = c };
     state_from_avr(&x.s, avr);
+    loop_state s0, e1, star;
+    copy_state(&s0, &x.s);
     if (!loop_eval(&x)) {
         refuse(p, lp, c);
         return;
     }
-    loop_state e1 = x.s, star = x.s;
+    copy_state(&e1, &x.s);
+    copy_state(&star, &x.s);
     uint64_t v0 = x.v_lo;
+    int8_t counters[32];
+    const int8_t *step = NULL;
     forget_v(&star);
+    if (!x.read_v && lp->counted && same_counters(lp->step, &s0, &e1))
+        step = lp->step;
+    else if (!x.read_v && find_counters(&x, &s0, &e1, counters))
+        step = counters;
+    lp->counted = false;
+    if (step)
+        count_from(&star, &s0, step);
     uint64_t m = room - 1;
-    if (!prove(&x, &star, &e1, m)) { /* the largest m that proves (a smaller range proves if a larger does) */
-        if (!prove(&x, &star, &e1, MIN_SKIP)) {
+    if (!prove(&x, &star, &e1, step, m)) { /* the largest m that proves (a smaller range proves if a larger does) */
+        if (!prove(&x, &star, &e1, step, MIN_SKIP)) {
             if (x.range_limited)
                 lp->retry_at = c + MIN_SKIP * period; /* (the loop ends within a few iterations) */
             else
@@ -219,14 +331,17 @@ static void try_arm(mcu_engine *e, mcu_poll *p, loop_head *lp)
         uint64_t good = MIN_SKIP, bad = m;
         while (bad - good > 1) {
             uint64_t mid = good + (bad - good) / 2;
-            if (prove(&x, &star, &e1, mid))
+            if (prove(&x, &star, &e1, step, mid))
                 good = mid;
             else
                 bad = mid;
         }
         m = good;
-        prove(&x, &star, &e1, m);
+        prove(&x, &star, &e1, step, m);
     }
+    if (step && step != lp->step)
+        memcpy(lp->step, step, sizeof lp->step);
+    lp->counted = step != NULL;
     lp->fails = 0;
     p->armed = lp;
     p->armed_start = c;
@@ -234,8 +349,8 @@ static void try_arm(mcu_engine *e, mcu_poll *p, loop_head *lp)
     p->armed_n = 0;
     p->armed_istate = avr->interrupt_state;
     p->armed_resets = e->resets;
-    p->e1 = e1;
-    p->e2 = x.s;
+    copy_state(&p->e1, &e1);
+    copy_state(&p->e2, &x.s);
     p->v0 = v0;
     p->vm = x.v_hi;
     e->poll_watch = true;
@@ -331,9 +446,10 @@ void mcu_poll_step(mcu_engine *e, uint32_t pc_before)
     uint32_t h = (avr->pc >> 1) % SEEN;
     uint64_t now = avr->cycle;
     if (p->seen[h].pc != avr->pc || now - p->seen[h].cycle >= LOOP_CLOSE) {
+        if (p->seen[h].pc != avr->pc) /* (the same pc keeps its entry: a search of the heads costs) */
+            p->seen[h].head = NULL;
         p->seen[h].pc = avr->pc;
         p->seen[h].cycle = now;
-        p->seen[h].head = NULL;
         return;
     }
     p->seen[h].cycle = now;

@@ -7,7 +7,11 @@
  * The proof is an abstract run of one iteration: every value is a known byte, or a byte of s*V + k where V
  * is the timer counter the iteration reads (s = +1 or -1), or unknown (a value of the iteration before,
  * which may only be moved). Each branch must go the same way for every V the skipped iterations read, and
- * the state at the loop's head after an iteration must have the same form as before it. */
+ * the state at the loop's head after an iteration must have the same form as before it.
+ *
+ * A counted loop (an induction register: a byte stepped by the same amount each iteration, a wait with a
+ * time-out such as MultiWii's for TWINT) reads no timer counter: V is then the iteration's number j and
+ * the register s*j + k, s its step; it must have the form k + s*(j+1) after iteration j. */
 #ifndef RIG_MCU_POLLING_H
 #define RIG_MCU_POLLING_H
 
@@ -82,6 +86,7 @@ typedef struct {
     const loop_trace *t;
     uint64_t start;
     uint64_t j_first, j_last;
+    bool counted; /* V is the iteration's number (a counted loop), not a timer counter */
     loop_state s;
     bool read_v;
     uint32_t v_offset; /* the cycle of V's read in the iteration */

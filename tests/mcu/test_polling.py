@@ -1,6 +1,7 @@
 """The polling-loop skip (rig/mcu/polling.c) changes nothing but the engine's speed: a firmware of ours
 waiting in each kind of polling loop (a timer's overflow flag, a 16-bit and an 8-bit timer counter, a flag
-in RAM an interrupt sets, TWINT, UDRE, RXC, an input pin) gives, with the skip on and off, the same USART
+in RAM an interrupt sets, TWINT, UDRE, RXC, an input pin, TWINT with a count that gives up, as MultiWii
+waits, when the byte ends first and when the count runs out) gives, with the skip on and off, the same USART
 bytes in the same 1 ms steps, the same figures (cycles, instructions, program counter, stack pointer) and
 the same data space, byte for byte, at the end; with it on, the loops were skipped (and rig exec's
 summary says how much). The reference FC flying a scenario writes the same trace, EEPROM and result.json
@@ -60,7 +61,7 @@ def steps_with(steps: list[bytes], marker: bytes) -> list[int]:
 
 
 @pytest.mark.parametrize("mcu", MCUS)
-@pytest.mark.parametrize("mode", [0, 1, 2, 3, 4, 5])
+@pytest.mark.parametrize("mode", [0, 1, 2, 3, 4, 5, 6, 7])
 def test_a_polling_loop_skipped_is_the_same_run(mcu: str, mode: int) -> None:
     sends = ((5, b"ab"), (20, b"xyz")) if mode == 4 else ()
     on = fly(mcu, mode, True, sends=sends)
@@ -83,6 +84,16 @@ def test_a_polling_loop_skipped_is_the_same_run(mcu: str, mode: int) -> None:
         assert len(steps_with(steps, b"W\x20")) > 10
     elif mode == 4:
         assert b"".join(steps[5:25]) == b"ab" + b"xyz"
+    elif mode == 6:  # the byte (9 SCL periods of 16 + 2 * TWBR cycles) ends before 255 polls of 5-8 cycles
+        sent = b"".join(steps)[1:]
+        waits = [sent[i:i + 3] for i in range(0, len(sent) - 2, 3)]
+        byte_cycles = 9 * (16 + 2 * 12)
+        polls_left = range(255 - byte_cycles // 5, 255 - byte_cycles // 8 + 1)
+        assert len(waits) > 10 and all(w[:2] == b"w\x20" and w[2] in polls_left for w in waits)
+    elif mode == 7:  # the count runs out every time: the waits given up are counted 1, 2, 3... (a byte)
+        sent = b"".join(steps)[1:]
+        counted = b"".join(b"e" + bytes([n % 256]) for n in range(1, len(sent) // 2 + 1))
+        assert len(sent) > 20 and sent[: len(counted)] == counted
     else:  # each edge answered in the step it falls in
         assert steps_with(steps, b"P") == [10, 40] and steps_with(steps, b"p") == [20]
 

@@ -9,7 +9,11 @@
  *   3 TWINT: a START and an address nobody answers on the TWI at 100 kHz, TWINT polled after each, 'W'
  *            with the address status (0x20: SLA+W not acknowledged), then a STOP;
  *   4 UCSR0A: a wait for a byte on USART0 (RXC0), echoed back;
- *   5 PIND:  a wait for PD3 high ('P'), then low ('p'), the pin driven by the test.
+ *   5 PIND:  a wait for PD3 high ('P'), then low ('p'), the pin driven by the test;
+ *   6 TWINT counted: mode 3's bus at 400 kHz, TWINT polled as MultiWii does (a count from 255, the wait
+ *            given up when it runs out), 'w' with the status and the count left; the byte ends first;
+ *   7 TWINT counted out: the same wait with the TWI never started (TWINT never comes): the count runs out,
+ *            'e' with the number of waits given up so far.
  * Any other value: an empty loop (a hang). */
 #include <avr/eeprom.h>
 #include <avr/interrupt.h>
@@ -31,6 +35,23 @@ static void twi_wait(void)
 {
     while (!(TWCR & _BV(TWINT)))
         ;
+}
+
+static uint8_t errors;
+
+/* MultiWii 2.4's waitTransmissionI2C: the count left (0: given up, the TWI turned off) */
+static uint8_t twi_wait_counted(uint8_t twcr)
+{
+    uint8_t count = 255;
+    TWCR = twcr;
+    while (!(TWCR & _BV(TWINT))) {
+        if (--count == 0) {
+            TWCR = 0;
+            errors++;
+            break;
+        }
+    }
+    return count;
 }
 
 int main(void)
@@ -111,6 +132,27 @@ int main(void)
             while (PIND & _BV(PD3))
                 ;
             send('p');
+        }
+    }
+    if (mode == 6) {
+        TWBR = 12; /* 400 kHz */
+        for (;;) {
+            uint8_t left = twi_wait_counted(_BV(TWINT) | _BV(TWSTA) | _BV(TWEN));
+            TWDR = 0x7E << 1;
+            left = twi_wait_counted(_BV(TWINT) | _BV(TWEN));
+            send('w');
+            send(TWSR & 0xF8);
+            send(left);
+            TWCR = _BV(TWINT) | _BV(TWSTO) | _BV(TWEN);
+            for (volatile uint16_t i = 0; i < 200; i++)
+                ;
+        }
+    }
+    if (mode == 7) {
+        for (;;) {
+            twi_wait_counted(0);
+            send('e');
+            send(errors);
         }
     }
     for (;;)
