@@ -1,4 +1,4 @@
-"""The STM32 tier's engine in lockstep (docs/mcu.md): the rig's ``qemu-system-arm`` (rig/mcu/stm32_engine.py)
+"""The STM32 tier's engine in lockstep (docs/stm32.md): the rig's ``qemu-system-arm`` (rig/mcu/stm32_engine.py)
 running an ARM image on the rig-stm32f405 machine, linked to this process by a Unix socket
 (qemu/hw/rig_link.c), with AvrEngine's interface (rig/mcu/engine.py), so the MCU session runs either.
 
