@@ -1,6 +1,7 @@
-"""The STM32 tier's engine in lockstep (docs/stm32.md): the rig's ``qemu-system-arm`` (rig/mcu/stm32_engine.py)
-running an ARM image on the rig-stm32f405 machine, linked to this process by a Unix socket
-(qemu/hw/rig_link.c), with AvrEngine's interface (rig/mcu/engine.py), so the MCU session runs either.
+"""The STM32 tier's engine in lockstep (docs/stm32.md): the rig's ``qemu-system-arm``
+(rig/mcu/stm32_engine.py) running an ARM image on the rig-stm32f405 machine, linked to this process by a
+Unix socket (qemu/hw/rig_link.c), with AvrEngine's interface (rig/mcu/engine.py), so the MCU session
+runs either.
 
 Time is QEMU's virtual time under ``-icount shift=ICOUNT_SHIFT,sleep=off`` (each instruction 2**shift ns):
 the instruction count, so the same image, world and needs served give the same bytes and pulses, run
