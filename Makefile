@@ -146,7 +146,7 @@ stm32-engine: venv
 # STM32F405, freestanding (their own start-up; semihosting to report), with Debian's arm-none-eabi-gcc
 STM32_FW_DIR := tests/stm32/firmware
 STM32_FW_NAMES := $(filter-out startup,$(basename $(notdir $(wildcard $(STM32_FW_DIR)/*.c))))
-STM32_FW := $(foreach n,$(STM32_FW_NAMES),build/stm32/test/$(n).elf)
+STM32_FW := $(foreach n,$(STM32_FW_NAMES),build/stm32/test/$(n).elf) build/stm32/test/i2c_poll_pb8.elf
 STM32_CFLAGS := -mcpu=cortex-m4 -mthumb -mfloat-abi=soft -std=c11 -O2 -g -Wall -Wextra -Werror -ffreestanding \
 	-nostdlib -nostartfiles -T$(STM32_FW_DIR)/stm32f405.ld -Idut/stm32
 stm32-test-firmware: test-packages $(STM32_FW)
@@ -154,6 +154,11 @@ build/stm32/test/%.elf: $(STM32_FW_DIR)/%.c $(STM32_FW_DIR)/startup.c $(wildcard
 		$(STM32_FW_DIR)/stm32f405.ld dut/stm32/stm32f405.h
 	@mkdir -p $(@D)
 	arm-none-eabi-gcc $(STM32_CFLAGS) -o $@ $< $(STM32_FW_DIR)/startup.c
+# i2c_poll.c again with I2C1 on PB8/PB9 (the Black Pill's pins)
+build/stm32/test/i2c_poll_pb8.elf: $(STM32_FW_DIR)/i2c_poll.c $(STM32_FW_DIR)/startup.c \
+		$(wildcard $(STM32_FW_DIR)/*.h) $(STM32_FW_DIR)/stm32f405.ld dut/stm32/stm32f405.h
+	@mkdir -p $(@D)
+	arm-none-eabi-gcc $(STM32_CFLAGS) -DI2C1_SCL_PIN=8u -o $@ $< $(STM32_FW_DIR)/startup.c
 
 # the builds two at a time, mypyc's first (the longest): 40-50 s of the demo's 2-3 minutes went to it
 # while everything else waited

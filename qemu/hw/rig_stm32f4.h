@@ -117,6 +117,9 @@ struct RigStm32GpioState {
     int8_t af_input_level[RIG_GPIO_PINS]; /* and the level it sent */
 };
 
+/* Connects I2C1's lines to the port B pins the firmware's AFR selects (rig_stm32_i2c_pins.c) */
+void rig_stm32_route_i2c1(DeviceState *i2c1, DeviceState *gpiob);
+
 /* True while an I2C controller ends a transfer for a repeated START (QEMU's bus has no such event): the
  * slaves' I2C_FINISH then is no STOP */
 extern bool rig_i2c_repeated_start;

@@ -42,7 +42,6 @@
 #define APB1_I2C1 21   /* RCC_APB1ENR.I2C1EN and RCC_APB1RSTR.I2C1RST */
 #define IRQ_I2C1_EV 31 /* RM0090 table 61 (vector table) */
 #define IRQ_I2C1_ER 32
-#define I2C1_SCL_PIN 6 /* PB6, with SDA on PB7 */
 #define RCC_APB2RSTR 0x24
 /* the NVIC's inputs (QEMU's STM32F405 SoC has 96) */
 #define NVIC_LINES 96
@@ -234,7 +233,7 @@ static void wire_pins(DeviceState **gpio_ports)
             exit(1);
         }
         if (qdev_get_gpio_out_connector(gpio_ports[from_port], NULL, from_pin) != NULL) {
-            error_report("rig-stm32f405: wires: %s already drives something (PB6/PB7 carry I2C1)", ends[0]);
+            error_report("rig-stm32f405: wires: %s already drives something (PB6-PB9 may carry I2C1)", ends[0]);
             exit(1);
         }
         qdev_connect_gpio_out(gpio_ports[from_port], from_pin, qdev_get_gpio_in(gpio_ports[to_port], to_pin));
@@ -278,13 +277,9 @@ static void rig_stm32f405_init(MachineState *machine)
         object_property_set_link(OBJECT(gy86), "link", OBJECT(link), &error_fatal);
     }
     i2c_slave_realize_and_unref(gy86, RIG_STM32_I2C(i2c1)->bus, &error_fatal);
-    /* PB6 (SCL) and PB7 (SDA): the pins' levels reach the controller, and the bus (its pull-ups, a slave
-     * holding SDA) drives the pins from outside */
-    DeviceState *gpiob = gpio_ports[1];
-    for (int line = 0; line < 2; line++) {
-        qdev_connect_gpio_out(gpiob, I2C1_SCL_PIN + line, qdev_get_gpio_in_named(i2c1, "scl-sda", line));
-        qdev_connect_gpio_out_named(i2c1, "scl-sda-drive", line, qdev_get_gpio_in(gpiob, I2C1_SCL_PIN + line));
-    }
+    /* PB6/PB7 or PB8/PB9, as the firmware's AFR selects (rig_stm32_i2c_pins.c): the pins' levels reach the
+     * controller, and the bus (its pull-ups, a slave holding SDA) drives the pins from outside */
+    rig_stm32_route_i2c1(i2c1, gpio_ports[1]);
 
     map_timers(r, DEVICE(&STM32F405_SOC(soc)->armv7m), gpio_ports);
     wire_pins(gpio_ports);

@@ -12,7 +12,7 @@ import pytest
 
 from tests.stm32.conftest import engine_or_skip, firmware, reports, run_firmware
 
-FIRMWARES = ("i2c_poll", "i2c_irq")
+FIRMWARES = ("i2c_poll", "i2c_irq", "i2c_poll_pb8")
 #: MS5611 datasheet's example coefficients C1..C6 (docs/sensors.md §5.4), the chip core's default PROM
 MS5611_C = (40127, 36924, 23317, 23282, 33464, 28312)
 #: RM0090 27.6.6/27.6.7
@@ -135,8 +135,18 @@ def test_an_abandoned_read_holds_the_bus_until_the_unstick() -> None:
     (27.6.7: set while SDA or SCL is low), as the F4's stuck-bus erratum describes, and PB7's IDR reads
     0. INAV's unstick by GPIO frees it: nine SCL pulses clock the byte out and SDA is released, and a STOP
     made by hand (SDA rising while SCL is high) clears BUSY; then the bus works again."""
-    r = reported("i2c_poll")
-    scl, sda = 1 << 6, 1 << 7
+    check_unstick(reported("i2c_poll"), scl_pin=6)
+
+
+def test_on_pb8_pb9_the_unstick_by_gpio_reaches_the_bus() -> None:
+    """The F405 datasheet's table 9: I2C1_SCL and I2C1_SDA are AF4 on PB8 and PB9 too (the Black Pill's
+    pins). i2c_poll.c built for them reads the same registers, and its unstick by GPIO on PB8/PB9 frees
+    the bus the abandoned read left held."""
+    check_unstick(reported("i2c_poll_pb8"), scl_pin=8)
+
+
+def check_unstick(r: dict[str, int], scl_pin: int) -> None:
+    scl, sda = 1 << scl_pin, 1 << (scl_pin + 1)
     assert r["abandoned_bytes"] == 0  # ACCEL_XOUT_H/L of the sample at rest
     # 27.6.1: under SWRST the registers hold their reset values (27.6.9: TRISE resets to 2)
     assert (r["cr1_in_reset"], r["cr2_in_reset"], r["trise_in_reset"]) == (1 << 15, 0, 0x0002)
@@ -147,3 +157,12 @@ def test_an_abandoned_read_holds_the_bus_until_the_unstick() -> None:
     assert r["sr2_sda_low"] == SR2_BUSY
     assert r["sr2_after_stop"] == 0
     assert r["who_am_i_after_unstick"] == 0x68
+
+
+def test_pb8_pb9_carry_the_same_transfers_as_pb6_pb7() -> None:
+    """Every register the polling firmware reports reads the same on either pair, but the pins' IDR."""
+    on_pb6, on_pb8 = reported("i2c_poll"), reported("i2c_poll_pb8")
+    assert set(on_pb6) == set(on_pb8)
+    same = [k for k in on_pb6 if not k.startswith("idr_")]
+    assert len(same) >= 30
+    assert {k: on_pb6[k] for k in same} == {k: on_pb8[k] for k in same}

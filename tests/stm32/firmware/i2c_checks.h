@@ -29,16 +29,27 @@ static int xfer(uint8_t addr, const uint8_t *tx, unsigned n_tx, uint8_t *rx, uns
 static uint32_t nacks __attribute__((unused));
 static uint32_t nack_sr1 __attribute__((unused)); /* SR1 as the firmware found it at the last NACK */
 
-/* I2C1 on PB6 (SCL) and PB7 (SDA), alternate function 4, open drain with pull-ups, as a board has it;
-   then a software reset and the timing for @ccr (SCL) and @trise */
+/* I2C1's pins, alternate function 4 (RM0090 / the F405 datasheet's table 9): PB6 (SCL) and PB7 (SDA), or
+   PB8 and PB9 when built with -DI2C1_SCL_PIN=8u (as on the Black Pill) */
+#ifndef I2C1_SCL_PIN
+#define I2C1_SCL_PIN 6u
+#endif
+#define I2C1_SDA_PIN (I2C1_SCL_PIN + 1u)
+#define I2C1_PINS ((1u << I2C1_SCL_PIN) | (1u << I2C1_SDA_PIN))
+#define I2C1_MODER_SHIFT (2u * I2C1_SCL_PIN)
+#define I2C1_AFR REG(GPIO_BASE(PORT_B) + 0x20u + 4u * (I2C1_SCL_PIN / 8u)) /* AFRL or AFRH */
+#define I2C1_AF4_BOTH (0x44u << (4u * (I2C1_SCL_PIN % 8u)))
+
+/* I2C1 on its two pins, alternate function 4, open drain with pull-ups, as a board has it; then a
+   software reset and the timing for @ccr (SCL) and @trise */
 static inline void i2c1_init(uint32_t ccr, uint32_t trise)
 {
     RCC_AHB1ENR |= RCC_AHB1ENR_GPIOBEN;
     RCC_APB1ENR |= RCC_APB1ENR_I2C1EN;
-    GPIO_MODER(PORT_B) = (GPIO_MODER(PORT_B) & ~(0xFu << 12)) | (0xAu << 12);
-    GPIO_OTYPER(PORT_B) |= 0xC0u;
-    GPIO_PUPDR(PORT_B) = (GPIO_PUPDR(PORT_B) & ~(0xFu << 12)) | (0x5u << 12);
-    GPIO_AFRL(PORT_B) = (GPIO_AFRL(PORT_B) & ~(0xFFu << 24)) | (0x44u << 24);
+    GPIO_MODER(PORT_B) = (GPIO_MODER(PORT_B) & ~(0xFu << I2C1_MODER_SHIFT)) | (0xAu << I2C1_MODER_SHIFT);
+    GPIO_OTYPER(PORT_B) |= I2C1_PINS;
+    GPIO_PUPDR(PORT_B) = (GPIO_PUPDR(PORT_B) & ~(0xFu << I2C1_MODER_SHIFT)) | (0x5u << I2C1_MODER_SHIFT);
+    I2C1_AFR = (I2C1_AFR & ~(0xFFu << (4u * (I2C1_SCL_PIN % 8u)))) | I2C1_AF4_BOTH;
     I2C1_CR1 = I2C_CR1_SWRST;
     I2C1_CR1 = 0;
     I2C1_CR2 = APB1_MHZ;

@@ -4,9 +4,9 @@
    status registers at the first START and address of each direction. */
 #include "i2c_hal_poll.h"
 
-#define SCL_PIN 6u
-#define SDA_PIN 7u
-#define I2C_PINS ((1u << SCL_PIN) | (1u << SDA_PIN))
+#define SCL_PIN I2C1_SCL_PIN
+#define SDA_PIN I2C1_SDA_PIN
+#define I2C_PINS I2C1_PINS
 
 /* A burst read left after two bytes: the controller reset in the middle, as by a watchdog, no STOP */
 static void abandon_a_read(void)
@@ -40,7 +40,7 @@ static void abandon_a_read(void)
 static void unstick(void)
 {
     GPIO_BSRR(PORT_B) = I2C_PINS;
-    GPIO_MODER(PORT_B) = (GPIO_MODER(PORT_B) & ~(0xFu << 12)) | (0x5u << 12);
+    GPIO_MODER(PORT_B) = (GPIO_MODER(PORT_B) & ~(0xFu << I2C1_MODER_SHIFT)) | (0x5u << I2C1_MODER_SHIFT);
     report("sr2_stuck", I2C1_SR2);
     report("idr_stuck", GPIO_IDR(PORT_B) & I2C_PINS);
     for (unsigned pulse = 0; pulse < 9; pulse++) {
@@ -52,7 +52,7 @@ static void unstick(void)
     report("sr2_sda_low", I2C1_SR2);
     GPIO_BSRR(PORT_B) = 1u << SDA_PIN; /* SDA rises with SCL high: STOP */
     report("sr2_after_stop", I2C1_SR2);
-    GPIO_MODER(PORT_B) = (GPIO_MODER(PORT_B) & ~(0xFu << 12)) | (0xAu << 12);
+    GPIO_MODER(PORT_B) = (GPIO_MODER(PORT_B) & ~(0xFu << I2C1_MODER_SHIFT)) | (0xAu << I2C1_MODER_SHIFT);
 }
 
 int main(void)
