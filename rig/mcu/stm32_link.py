@@ -85,7 +85,8 @@ class Stm32Engine:
         if binary is None:
             from rig.mcu import stm32_engine
 
-            binary = stm32_engine.build()
+            # a built engine is taken without the build's lock: the service's runs see the cache read-only
+            binary = stm32_engine.cached_binary() or stm32_engine.build()
         self.cfg = cfg
         self.chips = chips
         self._fast = native.fast()

@@ -25,7 +25,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from rig import __version__
 from rig.service.db import SCHEMA_VERSION, SQLITE_INT, STATUSES, TERMINAL, Db
-from rig.service.images import AVR, describe
+from rig.service.images import BOARD_KINDS, ENGINE_IMAGES, ENGINE_KINDS, describe
 from rig.service.store import MAX_SCENARIO, Store, UploadError
 from rig.service.worker import Workers
 
@@ -113,7 +113,7 @@ def check_run(req: RunRequest, store: Store, scenarios: bool = True) -> tuple[li
     if (kinds - {"command", "firmware", "board"} or {"command", "firmware"} <= kinds
             or ("board" in kinds and "firmware" not in kinds)):
         problems.append("dut: {\"command\": \"...\"}, {\"firmware\": SHA256} (a Linux program) or "
-                        "{\"firmware\": SHA256, \"board\": BOARD} (an AVR image on a board; GET "
+                        "{\"firmware\": SHA256, \"board\": BOARD} (an AVR or ARM image on a board; GET "
                         "/api/boards); POST /api/firmware first")
     elif "firmware" in kinds:
         problems += firmware_problems(req.dut, req.mode, store)
@@ -132,20 +132,22 @@ def check_run(req: RunRequest, store: Store, scenarios: bool = True) -> tuple[li
 
 
 def firmware_problems(dut: dict[str, str], mode: str, store: Store) -> list[str]:
-    """An uploaded firmware's problems as a run's DUT: a Linux program runs as it is; an AVR image
-    flies on a board (a shipped one's name or an uploaded one's SHA-256), whole and within the board's
-    MCU's flash, as ``rig run --mcu`` checks it. Each names what was received."""
+    """An uploaded firmware's problems as a run's DUT: a Linux program runs as it is; an MCU image
+    flies on a board (a shipped one's name or an uploaded one's SHA-256) whose MCU's engine takes its
+    kind (an AVR image on an AVR, an ARM image on an STM32), whole and within the board's MCU's
+    memories, as ``rig run --mcu`` checks it. Each names what was received."""
     from rig.mcu import board as boards
-    from rig.mcu.image import FirmwareError, load
+    from rig.mcu.engines import check_firmware
+    from rig.mcu.image import FirmwareError
 
     sha, board = dut["firmware"], dut.get("board")
     path, kind = store.firmware(sha), store.firmware_kind(sha)
     if path is None:
         return [f"dut.firmware: no uploaded firmware {sha!r} (POST /api/firmware)"]
     if kind is None:
-        return [f"dut.firmware: {sha[:12]} is neither a Linux program nor an AVR image (upload it again)"]
+        return [f"dut.firmware: {sha[:12]} is neither a Linux program nor an MCU image (upload it again)"]
     if board is None:
-        if kind in AVR:
+        if kind in BOARD_KINDS:
             return [f"dut.firmware: {sha[:12]} is {describe(kind)}: it flies on a board; give dut.board, a "
                     "shipped board's name or an uploaded board's SHA-256 (GET /api/boards)"]
         return []
@@ -154,13 +156,14 @@ def firmware_problems(dut: dict[str, str], mode: str, store: Store) -> list[str]
         return [f"dut.board: no shipped board {board!r} and no uploaded board of that SHA-256 "
                 f"(shipped: {', '.join(boards.names())}; GET /api/boards)"]
     found = boards.load(where)
-    if kind not in AVR:
-        return [f"dut.firmware: the board {found.name} ({found.mcu.name}) flies an AVR image (ELF or Intel "
-                f"HEX); {sha[:12]} is {describe(kind)}"]
+    engine = found.mcu.engine
+    if kind not in ENGINE_KINDS[engine]:
+        return [f"dut.firmware: the board {found.name} ({found.mcu.name}) flies {ENGINE_IMAGES[engine]}; "
+                f"{sha[:12]} is {describe(kind)}"]
     if mode != "lockstep":
         return ["dut.board: a board's image flies under emulation in lockstep, not in mode bridge"]
     try:
-        load(path, found.mcu.name)
+        check_firmware(found, path)
     except FirmwareError as e:
         return [f"dut.firmware: {str(e).replace(str(path), sha[:12])}"]
     return []
@@ -301,9 +304,9 @@ def create_app(db: Db, workers: Workers, token: str | None, store: Store, artifa
 
     @app.post("/api/firmware", status_code=201)
     async def upload_firmware(request: Request) -> dict[str, Any]:
-        """A firmware (the request's body): a Linux program (an ELF for this host, a #! script) or an AVR
-        image (ELF, Intel HEX) for a board, stored once under its SHA-256 with its ``kind``; anything
-        else is a 422 naming what it looks like."""
+        """A firmware (the request's body): a Linux program (an ELF for this host, a #! script) or an MCU
+        image for a board (AVR: ELF, Intel HEX; ARM: ELF), stored once under its SHA-256 with its
+        ``kind``; anything else is a 422 naming what it looks like."""
         try:
             sha, size, kind = await store.put_firmware(request.stream())
         except UploadError as e:

@@ -85,7 +85,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--dut", help="the DUT command line (default: the reference FC)")
     s.add_argument("--firmware", type=Path, metavar="FILE",
-                   help="upload FILE and fly it: a Linux program, or with --board an AVR image (.elf, .hex)")
+                   help="upload FILE and fly it: a Linux program, or with --board an AVR image (.elf, .hex) "
+                        "or an ARM image (.elf) for an STM32 board")
     s.add_argument("--board", metavar="BOARD",
                    help="with --firmware: a shipped board's name (mega2560-gy86, ...) or a board file "
                    "(uploaded)")

@@ -1,8 +1,9 @@
 """A firmware image through the service (a real uvicorn on 127.0.0.1): an upload's kind is told from its
-bytes and anything that is neither a Linux program nor an AVR image is refused naming what it looks
-like; a board (shipped by name, or uploaded and checked as ``rig run --mcu`` checks one) goes with an
-AVR image; a run of the AVR reference FC (make avr) on a board flies it under emulation, locally and
-through ``rig submit --firmware --board``."""
+bytes and anything that is neither a Linux program nor an MCU image (AVR or ARM) is refused naming what
+it looks like; a board (shipped by name, or uploaded and checked as ``rig run --mcu`` checks one) goes
+with an image its MCU's engine runs (AVR on an AVR, ARM on an STM32); a run of the AVR reference FC
+(make avr) on a board flies it under emulation, locally and through ``rig submit --firmware --board``,
+and the STM32 tier's hover firmware flies on stm32f405-gy86 through the API."""
 
 from __future__ import annotations
 
@@ -17,6 +18,8 @@ import pytest
 
 from tests.service.test_api import Service, post_bytes, start, stop
 from tests.short_scenario import SHORT_BENCH
+from tests.stm32.conftest import engine_or_skip, firmware
+from tests.stm32.test_run import SCENARIO as STM32_HOVER
 
 REPO = Path(__file__).resolve().parents[2]
 BOARD = REPO / "rig" / "mcu" / "boards" / "mega2560-gy86.toml"
@@ -66,7 +69,9 @@ def problems(answer: object) -> str:
 def test_uploads_are_told_apart_and_the_rest_refused_by_what_they_are(service: Service, avr_fc: Path,
                                                                       tmp_path: Path) -> None:
     for data, words in ((b"\x89PNG\r\n\x1a\n" + bytes(20), "a PNG image"),
-                        (elf_header(40), "an ELF for ARM: neither an AVR image nor a program this host"),
+                        (elf_header(8), "an ELF for MIPS: neither an MCU image (AVR, or ARM 32-bit "
+                                        "little-endian) nor a program this host"),
+                        (elf_header(40)[:4] + b"\x02" + elf_header(40)[5:], "an ELF for ARM: neither"),
                         (b"hello, I am a text file\n", "text without a #! line"),
                         (bytes([0, 1, 2, 250, 251]), "binary data beginning 00 01 02 fa fb")):
         status, answer = post_bytes(service, "/api/firmware", data)
@@ -174,3 +179,42 @@ def test_the_page_uploads_an_image_and_a_board_and_flies_them(service: Service, 
         assert not errors, errors
     run = service.follow(started)
     assert run["dut"] == {"firmware": image, "board": board} and run["status"] == "passed", run
+
+
+def test_an_arm_image_flies_on_an_stm32_board_and_the_wrong_pairs_are_refused(service: Service,
+                                                                             avr_fc: Path) -> None:
+    """An ARM ELF (the ELF specification: EM_ARM = 40, ELFCLASS32, little-endian) is kind arm-elf; on
+    stm32f405-gy86 it flies (the STM32 tier's hover firmware, as tests/stm32/test_run.py flies it with
+    rig run); an ARM image on an AVR board and an AVR image on an STM32 board are refused naming both."""
+    engine_or_skip()
+    hover = firmware("hover_rate")
+    status, arm = post_bytes(service, "/api/firmware", hover.read_bytes())
+    assert status == 201 and arm["kind"] == "arm-elf", arm
+    assert arm["sha256"] == hashlib.sha256(hover.read_bytes()).hexdigest()
+    status, avr = post_bytes(service, "/api/firmware", avr_fc.read_bytes())
+    assert status == 201 and avr["kind"] == "avr-elf", avr
+    status, header_only = post_bytes(service, "/api/firmware", elf_header(40))
+    assert status == 201 and header_only["kind"] == "arm-elf", header_only
+    for dut, words in (({"firmware": arm["sha256"], "board": "mega2560-gy86"},
+                        "the board mega2560-gy86 (atmega2560) flies an AVR image (ELF or Intel HEX); "
+                        f"{arm['sha256'][:12]} is an ARM image (ELF)"),
+                       ({"firmware": avr["sha256"], "board": "stm32f405-gy86"},
+                        "the board stm32f405-gy86 (stm32f405) flies an ARM image (ELF); "
+                        f"{avr['sha256'][:12]} is an AVR image (ELF)"),
+                       ({"firmware": arm["sha256"]}, "is an ARM image (ELF): it flies on a board"),
+                       ({"firmware": header_only["sha256"], "board": "stm32f405-gy86"},
+                        "nothing loads at the start of flash")):
+        status, answer = service.call("POST", "/api/runs", {"scenarios": ["step_roll"], "dut": dut})
+        assert status == 422 and words in problems(answer), (dut, answer)
+        assert len(problems(answer).splitlines()) == 1
+    assert service.call("GET", "/api/runs")[1] == []  # nothing was queued
+    assert post_bytes(service, "/api/scenarios?name=stm32_hover", STM32_HOVER.encode())[0] == 201
+    status, body = service.call("POST", "/api/runs", {"scenarios": ["stm32_hover"],
+                                                      "dut": {"firmware": arm["sha256"],
+                                                              "board": "stm32f405-gy86"}})
+    assert status == 201, body
+    run = service.follow(body["id"])
+    assert run["status"] == "passed", (run, service.call("GET", f"/api/runs/{body['id']}/artifacts")[1])
+    result = service.call("GET", f"/api/runs/{body['id']}/artifacts/stm32_hover/result.json")[1]
+    assert result["metadata"]["dut_firmware_sha256"] == arm["sha256"]
+    assert result["metadata"]["board"] == "stm32f405-gy86" and result["metadata"]["mode"] == "mcu"
