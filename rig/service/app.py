@@ -126,7 +126,7 @@ def check_run(req: RunRequest, store: Store, scenarios: bool = True) -> tuple[li
     if req.mode == "bridge" and (req.pwm_channels is not None or req.topology is not None):
         problems.append("pwm_channels and topology are a Linux DUT's board: not with mode bridge")
     elif "board" in req.dut and (req.pwm_channels is not None or req.topology is not None):
-        problems.append("pwm_channels and topology are a Linux DUT's board: an AVR image's board file "
+        problems.append("pwm_channels and topology are a Linux DUT's board: an MCU image's board file "
                         "says them (dut.board)")
     return problems, versions
 

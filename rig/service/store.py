@@ -52,7 +52,7 @@ class Store:
 
     async def put_firmware(self, chunks: AsyncIterator[bytes], limit: int = MAX_FIRMWARE
                            ) -> tuple[str, int, str]:
-        """Stores an upload (a Linux program the DUT runs, or an AVR image a board flies) under its
+        """Stores an upload (a Linux program the DUT runs, or an AVR or ARM image a board flies) under its
         SHA-256; (the hash, its size, its kind: rig/service/images.py). Anything else is refused."""
         digest, size = hashlib.sha256(), 0
         fd, tmp = tempfile.mkstemp(dir=self.firmware_dir, prefix=".upload-")
@@ -75,7 +75,7 @@ class Store:
             path = self.firmware_dir / sha
             if path.exists():  # stored once
                 return sha, size, kind
-            # (only a Linux program may be executed: an AVR image is data for the MCU tier)
+            # (only a Linux program may be executed: an MCU image is data for the MCU tier)
             os.chmod(tmp, 0o755 if kind in LINUX else 0o644)
             os.replace(tmp, path)
             return sha, size, kind

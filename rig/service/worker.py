@@ -84,7 +84,7 @@ def command(run: dict[str, Any], out: Path, store: Store) -> tuple[list[str], di
         program = store.firmware(run["dut"]["firmware"])
         if program is None:
             raise LookupError(f"the firmware {run['dut']['firmware']} is no longer there")
-        if run["dut"].get("board"):  # an AVR image on its board, under emulation (checked when queued)
+        if run["dut"].get("board"):  # an MCU image on its board, under emulation (checked when queued)
             board = store.board(run["dut"]["board"])
             if board is None:
                 raise LookupError(f"the board {run['dut']['board']} is no longer there")

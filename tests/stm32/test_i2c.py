@@ -1,8 +1,9 @@
 """The rig's STM32F405 I2C controller (qemu/hw/rig_stm32_i2c.c) against RM0090 section 27, with the chip
 core's GY-86 on I2C1 (qemu/hw/rig_gy86.c): two test firmwares make the same transfers, one by polling
 with ST's HAL sequences (tests/stm32/firmware/i2c_poll.c), one from the event and error interrupts
-(i2c_irq.c). Expected values are the sensors' datasheets' (docs/sensors.md), RM0090's status bits and
-the MS5611 application note's CRC-4, written here."""
+(i2c_irq.c), and the polling one again with I2C1 on PB8/PB9 (i2c_poll_pb8.elf). Expected values are
+the sensors' datasheets' (docs/sensors.md), RM0090's status bits and the MS5611 application note's
+CRC-4, written here."""
 
 from __future__ import annotations
 
