@@ -1,22 +1,13 @@
 /* A battery monitor as voltage-compensating FCs have one: reads ADC0 (PC0 on the 328P, PF0 on the 2560)
  * against AVCC every 10 ms and sends the 10-bit result as a line, "# adc 640", on USART0 at 115200 8N1. */
+#include "uart0_115200.h"
 #include <avr/io.h>
 #include <stdint.h>
 #include <util/delay.h>
 
-static void put(uint8_t b)
-{
-    while (!(UCSR0A & _BV(UDRE0))) {
-    }
-    UDR0 = b;
-}
-
 int main(void)
 {
-    UBRR0 = 16; /* 115200 with U2X */
-    UCSR0A = _BV(U2X0);
-    UCSR0C = _BV(UCSZ01) | _BV(UCSZ00);
-    UCSR0B = _BV(TXEN0);
+    uart0_init(_BV(TXEN0));
     ADMUX = _BV(REFS0); /* AVCC, ADC0 */
     ADCSRA = _BV(ADEN) | _BV(ADPS2) | _BV(ADPS1) | _BV(ADPS0);
     for (;;) {

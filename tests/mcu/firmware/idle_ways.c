@@ -4,6 +4,7 @@
  *   2: waits for a byte on USART0 (polling RXC0), then toggles PB0 every 10 ms;
  *   3: reads EEPROM byte 1 until it is 0x5A (a firmware waiting for a configuration it likes), then
  *      toggles PB0 every 10 ms. */
+#include "uart0_115200.h"
 #include <avr/eeprom.h>
 #include <avr/io.h>
 #include <stdint.h>
@@ -21,10 +22,7 @@ static void blink(void)
 int main(void)
 {
     uint8_t mode = eeprom_read_byte((const uint8_t *)0);
-    UBRR0 = 16; /* 115200 with U2X */
-    UCSR0A = _BV(U2X0);
-    UCSR0C = _BV(UCSZ01) | _BV(UCSZ00);
-    UCSR0B = _BV(RXEN0) | _BV(TXEN0);
+    uart0_init(_BV(RXEN0) | _BV(TXEN0));
     if (mode == 1) {
         for (;;) {
             UDR0 = 'x';

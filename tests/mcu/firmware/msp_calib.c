@@ -8,6 +8,7 @@
  *   0-5 and 'C' at 6, replies $M> 0 205 with its checksum, and says "# acc calibrated" on a line.
  *   MSP_IDENT (100): replies with 7 bytes (version 240, type 3, MSP version 0, capability 0).
  *   Any other command: $M! 0 command (MultiWii's refusal). */
+#include "uart0_115200.h"
 #include <avr/eeprom.h>
 #include <avr/interrupt.h>
 #include <avr/io.h>
@@ -18,13 +19,6 @@ static volatile uint8_t tick;
 static uint8_t mpu;
 
 ISR(TIMER2_COMPA_vect) { tick++; }
-
-static void put(uint8_t b)
-{
-    while (!(UCSR0A & _BV(UDRE0))) {
-    }
-    UDR0 = b;
-}
 
 static void say(const char *s)
 {
@@ -142,10 +136,7 @@ static void msp_byte(uint8_t b)
 
 int main(void)
 {
-    UBRR0 = 16; /* 115200 with U2X (2.1 % off, as on the hardware) */
-    UCSR0A = _BV(U2X0);
-    UCSR0C = _BV(UCSZ01) | _BV(UCSZ00);
-    UCSR0B = _BV(RXEN0) | _BV(TXEN0);
+    uart0_init(_BV(RXEN0) | _BV(TXEN0));
     TWBR = 12; /* 400 kHz */
     uint8_t who = 0;
     if (read_regs(0x68, 0x75, &who, 1))

@@ -2,6 +2,7 @@
  * (PCINT16-19) on the ATmega2560, PD4-PD7 (PCINT20-23) on the ATmega328P, both PCINT2_vect, each high
  * pulse timed by Timer1 at 2 MHz. When the fourth channel's pulse ends, the four widths in microseconds
  * go out on USART0 (115200 8N1) as 0xE3, 4, and each 16-bit little-endian. */
+#include "uart0_115200.h"
 #include <avr/interrupt.h>
 #include <avr/io.h>
 #include <stdint.h>
@@ -39,19 +40,9 @@ ISR(PCINT2_vect)
     }
 }
 
-static void put(uint8_t b)
-{
-    while (!(UCSR0A & _BV(UDRE0))) {
-    }
-    UDR0 = b;
-}
-
 int main(void)
 {
-    UBRR0 = 16; /* 115200 with U2X */
-    UCSR0A = _BV(U2X0);
-    UCSR0C = _BV(UCSZ01) | _BV(UCSZ00);
-    UCSR0B = _BV(TXEN0);
+    uart0_init(_BV(TXEN0));
     TCCR1B = _BV(CS11);
     RC_MASK_REG = (uint8_t)(0x0F << RC_SHIFT);
     PCICR = _BV(PCIE2);

@@ -6,6 +6,7 @@
  * Each decoded frame goes out on USART0 as 0xE0 + source (0 SBUS, 1 MSP, 2 PPM), the channel count, the
  * channels as 16-bit little-endian (SBUS raw 11-bit values, MSP and PPM microseconds). On the 328P the
  * echo shares USART0 with SBUS, at SBUS's frame. */
+#include "uart0_115200.h"
 #include <avr/interrupt.h>
 #include <avr/io.h>
 #include <stdint.h>
@@ -57,13 +58,6 @@ ISR(INT4_vect) { ppm_edge(); }
 #else
 ISR(INT0_vect) { ppm_edge(); }
 #endif
-
-static void put(uint8_t b)
-{
-    while (!(UCSR0A & _BV(UDRE0))) {
-    }
-    UDR0 = b;
-}
 
 static void echo(uint8_t source, const uint16_t *ch, uint8_t n)
 {
@@ -137,10 +131,7 @@ int main(void)
     SBUS_C = _BV(UPM01) | _BV(USBS0) | _BV(UCSZ01) | _BV(UCSZ00);
     SBUS_B = _BV(RXEN0) | _BV(TXEN0);
 #if HAS_MSP
-    UBRR0 = 16; /* 115200 with U2X (2.1 % off, as on the hardware) */
-    UCSR0A = _BV(U2X0);
-    UCSR0C = _BV(UCSZ01) | _BV(UCSZ00);
-    UCSR0B = _BV(RXEN0) | _BV(TXEN0);
+    uart0_init(_BV(RXEN0) | _BV(TXEN0));
     EICRB = _BV(ISC41) | _BV(ISC40);
     EIMSK = _BV(INT4);
 #else
