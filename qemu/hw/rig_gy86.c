@@ -44,7 +44,7 @@ static bool gy86_match(I2CSlave *candidate, uint8_t address, bool broadcast, I2C
 static int gy86_event(I2CSlave *slave, enum i2c_event event)
 {
     RigGy86State *s = RIG_GY86(slave);
-    uint64_t now_ns = (uint64_t)qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    uint64_t now_ns = (uint64_t)rig_i2c_now_ns(); /* the instant on the wire */
     if (event == I2C_FINISH && rig_i2c_repeated_start) {
         return 0; /* the START that follows tells the chips */
     }

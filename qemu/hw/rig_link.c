@@ -8,8 +8,17 @@
  * latched pulses of the board's motor outputs (the timers' chC-high-ticks, period-ticks, clock-hz) and
  * the CPU's state (the exception being handled, pc, CFSR, HFSR: a HardFault ends the run in the session),
  * then blocks for the next command. The I2C bus's events of the GY-86 slave go to the session, whose chip
- * core (the lockstep session's own) answers: a START and each byte read wait for the answer, a byte
- * written and a STOP do not. The session serves the chip core's sample needs from the world meanwhile.
+ * core (the lockstep session's own) answers: a START waits for the answer, a byte written and a STOP do
+ * not. The session serves the chip core's sample needs from the world meanwhile.
+ *
+ * Reads come ahead: a round trip per byte read cost more than everything else of a run (the kernel's
+ * time for two blocking socket calls per byte, 8 000 bytes a simulated second for the reference FC), so
+ * the answer to a read START, and to a read with nothing ahead, carries the bytes the session expects the
+ * master to read (a burst's length, as the same transfer read last time). They are kept here and given
+ * to the master one by one at their own instants; which were taken, and when, goes to the session
+ * (MSG_I2C_READS) before any other message, so its log is the bus's byte for byte. Bytes the master did
+ * not read are dropped at the STOP or the next START, and the session takes its chip core back to where
+ * the master left it (a chip's register pointer and FIFO move with each byte read).
  *
  * The USARTs (QEMU's, USART1..USART6 of the SoC) are ringbuf chardevs named rig-usart1..rig-usart6: what
  * the firmware sent since the last stop goes to the session before each "reached", and bytes the session
@@ -38,13 +47,14 @@
 #include "qom/object.h"
 #include "rig_stm32f4.h"
 
-#define LINK_VERSION 1
+#define LINK_VERSION 2
 #define LINK_HEADER 8
 #define LINK_MAX_PAYLOAD 1024
 #define LINK_MOTORS 8
 #define LINK_UARTS 6
 #define LINK_RX_BYTES 4096
 #define LINK_UART_CHUNK 512 /* bytes read from a ringbuf at a time (base64 in QEMU's API) */
+#define LINK_READS 120      /* bytes read ahead and taken, told in one MSG_I2C_READS (its u64 times) */
 
 /* the bytes waiting for one USART's receiver, each with the virtual time its frame ends */
 typedef struct {
@@ -64,7 +74,8 @@ typedef struct {
 #define MSG_REACHED 'R'
 #define MSG_I2C_START 'S' /* u64 t_ns, u8 7-bit address, u8 read: answered by MSG_ACK */
 #define MSG_I2C_WRITE 'W' /* u64 t_ns, u8 byte */
-#define MSG_I2C_READ 'D'  /* u64 t_ns: answered by MSG_BYTE */
+#define MSG_I2C_READ 'D'  /* u64 t_ns: a byte read with none ahead, answered by MSG_BYTE */
+#define MSG_I2C_READS 'd' /* n x u64 t_ns: bytes the master read of those ahead, in order */
 #define MSG_I2C_NACK 'N'  /* u64 t_ns: the master NACKs the byte it read last */
 #define MSG_I2C_STOP 'P'  /* u64 t_ns */
 #define MSG_UART_SENT 'T' /* u8 USART 1..6, the bytes the firmware sent */
@@ -73,8 +84,8 @@ typedef struct {
 #define MSG_GO 'G'      /* u64 t_ns: run until then */
 #define MSG_UART_RX 'U' /* u8 USART 1..6, 3 zero bytes, u32 frame_ns, the bytes (from now, after those queued) */
 #define MSG_QUIT 'Q'    /* (none) */
-#define MSG_ACK 'a'     /* u8 acknowledged */
-#define MSG_BYTE 'b'    /* u8 byte */
+#define MSG_ACK 'a'     /* u8 acknowledged, then the bytes ahead (a read START) */
+#define MSG_BYTE 'b'    /* the byte read, then the bytes ahead */
 
 OBJECT_DECLARE_SIMPLE_TYPE(RigLinkState, RIG_LINK)
 
@@ -89,6 +100,10 @@ struct RigLinkState {
     uint8_t motor_output[LINK_MOTORS];
     uint64_t motor_latches[LINK_MOTORS]; /* the timer's latches at the last stop */
     LinkUart uarts[LINK_UARTS];
+    uint8_t ahead[LINK_MAX_PAYLOAD]; /* the bytes the session gave ahead of the master's reads */
+    uint32_t ahead_at, ahead_len;
+    uint8_t taken[LINK_READS * 8]; /* the times (u64) of the bytes taken from ahead, not yet told */
+    uint32_t n_taken;
 };
 
 static const char *const high_names[RIG_TIM_OUTPUTS] = {
@@ -102,7 +117,24 @@ static void G_NORETURN link_fail(const char *what)
     exit(1);
 }
 
-static void link_send(RigLinkState *s, uint8_t kind, const uint8_t *payload, uint32_t len)
+/* The lazy models' catch-ups (rig_link_sync_add), run before each "reached" */
+#define LINK_SYNCS 4
+static struct {
+    void (*fn)(void *opaque);
+    void *opaque;
+} link_syncs[LINK_SYNCS];
+static unsigned n_link_syncs;
+
+void rig_link_sync_add(void (*sync)(void *opaque), void *opaque)
+{
+    if (n_link_syncs == LINK_SYNCS) {
+        link_fail("more lazy models than the link can bring up to time");
+    }
+    link_syncs[n_link_syncs].fn = sync;
+    link_syncs[n_link_syncs++].opaque = opaque;
+}
+
+static void link_send_now(RigLinkState *s, uint8_t kind, const uint8_t *payload, uint32_t len)
 {
     uint8_t header[LINK_HEADER] = { kind };
     stl_le_p(header + 4, len);
@@ -110,6 +142,16 @@ static void link_send(RigLinkState *s, uint8_t kind, const uint8_t *payload, uin
         (len && qemu_chr_fe_write_all(&s->chr, payload, (int)len) != (int)len)) {
         link_fail("the session is gone (write)");
     }
+}
+
+/* Every message goes after the reads taken before it, so the session sees the bus in order */
+static void link_send(RigLinkState *s, uint8_t kind, const uint8_t *payload, uint32_t len)
+{
+    if (s->n_taken) {
+        link_send_now(s, MSG_I2C_READS, s->taken, s->n_taken * 8);
+        s->n_taken = 0;
+    }
+    link_send_now(s, kind, payload, len);
 }
 
 /* The next message: its kind, its payload in @payload (its length in *len, checked to be within @max) */
@@ -127,15 +169,6 @@ static uint8_t link_receive(RigLinkState *s, uint8_t *payload, uint32_t max, uin
         link_fail("the session is gone (read)");
     }
     return header[0];
-}
-
-/* A reply of @kind with exactly @len bytes */
-static void link_expect(RigLinkState *s, uint8_t kind, uint8_t *payload, uint32_t len)
-{
-    uint32_t got;
-    if (link_receive(s, payload, len, &got) != kind || got != len) {
-        link_fail("an unexpected reply from the session");
-    }
 }
 
 static void link_configure(RigLinkState *s, const uint8_t *p, uint32_t len)
@@ -251,6 +284,9 @@ static void link_reached(void *opaque)
         }
         link_configure(s, config, len);
     }
+    for (unsigned i = 0; i < n_link_syncs; i++) {
+        link_syncs[i].fn(link_syncs[i].opaque);
+    }
     ARMCPU *cpu = ARM_CPU(first_cpu);
     CPUARMState *env = &cpu->env;
     uint8_t p[25 + LINK_MOTORS * 20];
@@ -279,14 +315,30 @@ static void link_reached(void *opaque)
     link_wait_command(s);
 }
 
+/* A reply of @kind with 1 to LINK_MAX_PAYLOAD bytes: the first is returned, the rest are the bytes ahead */
+static uint8_t link_expect_ahead(RigLinkState *s, uint8_t kind)
+{
+    uint32_t len;
+    if (link_receive(s, s->ahead, sizeof s->ahead, &len) != kind || len == 0) {
+        link_fail("an unexpected reply from the session");
+    }
+    s->ahead_at = 1;
+    s->ahead_len = len - 1;
+    return s->ahead[0];
+}
+
 bool rig_link_i2c_start(RigLinkState *s, uint64_t t_ns, uint8_t address, bool read)
 {
-    uint8_t p[10], ack;
+    uint8_t p[10];
     stq_le_p(p, t_ns);
     p[8] = address;
     p[9] = read;
+    s->ahead_len = 0; /* what the last transfer did not read is dropped (the session knows) */
     link_send(s, MSG_I2C_START, p, sizeof p);
-    link_expect(s, MSG_ACK, &ack, 1);
+    uint8_t ack = link_expect_ahead(s, MSG_ACK);
+    if (!read || !ack) {
+        s->ahead_len = 0;
+    }
     return ack != 0;
 }
 
@@ -294,7 +346,7 @@ bool rig_link_i2c_start(RigLinkState *s, uint64_t t_ns, uint8_t address, bool re
 static void link_send_event(RigLinkState *s, uint8_t kind, const uint8_t *extra, uint32_t len)
 {
     uint8_t p[9];
-    stq_le_p(p, (uint64_t)qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL));
+    stq_le_p(p, (uint64_t)rig_i2c_now_ns());
     memcpy(p + 8, extra, len);
     link_send(s, kind, p, 8 + len);
 }
@@ -303,15 +355,26 @@ void rig_link_i2c_write(RigLinkState *s, uint8_t byte) { link_send_event(s, MSG_
 
 uint8_t rig_link_i2c_read(RigLinkState *s)
 {
-    uint8_t byte;
-    link_send_event(s, MSG_I2C_READ, NULL, 0);
-    link_expect(s, MSG_BYTE, &byte, 1);
-    return byte;
+    if (s->ahead_len == 0) {
+        link_send_event(s, MSG_I2C_READ, NULL, 0);
+        return link_expect_ahead(s, MSG_BYTE);
+    }
+    if (s->n_taken == LINK_READS) {
+        link_send_now(s, MSG_I2C_READS, s->taken, s->n_taken * 8);
+        s->n_taken = 0;
+    }
+    stq_le_p(s->taken + 8 * s->n_taken++, (uint64_t)rig_i2c_now_ns());
+    s->ahead_len--;
+    return s->ahead[s->ahead_at++];
 }
 
 void rig_link_i2c_nack(RigLinkState *s) { link_send_event(s, MSG_I2C_NACK, NULL, 0); }
 
-void rig_link_i2c_stop(RigLinkState *s) { link_send_event(s, MSG_I2C_STOP, NULL, 0); }
+void rig_link_i2c_stop(RigLinkState *s)
+{
+    s->ahead_len = 0;
+    link_send_event(s, MSG_I2C_STOP, NULL, 0);
+}
 
 static void link_realize(DeviceState *dev, Error **errp)
 {

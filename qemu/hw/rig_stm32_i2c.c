@@ -9,6 +9,11 @@
  * The bus moves in virtual time: a START, an address or data byte (nine SCL periods) and a STOP take the
  * time their SCL clock gives (CCR, with CR2.FREQ as the APB clock), so an interrupt-driven driver meets
  * its events one at a time, as on the chip. The slaves are QEMU I2C devices on the controller's bus.
+ * A phase's end is carried out at its instant by a QEMU timer only when something must happen then (an
+ * interrupt enabled); otherwise when the firmware next touches the controller, or the link reaches a
+ * time, at the instant the phase ended (the slaves see that time, rig_i2c_event_ns). What the firmware
+ * reads is the same either way; a QEMU timer under icount costs a wake-up of QEMU's main loop, and a
+ * polling driver's transfers were twelve thousand of them a simulated second.
  * SCL and SDA as the GPIO pins show them (qdev GPIO inputs "scl-sda" 0 and 1) reach the controller and
  * the bus, and the bus drives the pins from outside ("scl-sda-drive": the pull-ups, or a slave holding
  * SDA low), so the pins' IDR shows the lines. A software reset or PE = 0 puts nothing on the wire: a slave that was sending a byte is left
@@ -58,6 +63,7 @@ enum { R_CR1, R_CR2, R_OAR1, R_OAR2, R_DR, R_SR1, R_SR2, R_CCR, R_TRISE };
 #define CR2_ITERREN (1u << 8)
 #define CR2_ITEVTEN (1u << 9)
 #define CR2_ITBUFEN (1u << 10)
+#define CR2_DMAEN (1u << 11)
 #define SR1_SB (1u << 0)
 #define SR1_ADDR (1u << 1)
 #define SR1_BTF (1u << 2)
@@ -99,11 +105,23 @@ static void update_irqs(RigStm32I2cState *s)
     qemu_set_irq(s->er_irq, (s->cr2 & CR2_ITERREN) && (s->sr1 & SR1_ERRORS));
 }
 
-/* The bus takes @ns for @phase; the timer ends it */
+/* The phase under way ends by the QEMU timer when its end must be seen at once: an interrupt (or a DMA
+ * request) may follow it */
+static void arm(RigStm32I2cState *s)
+{
+    if (s->phase != RIG_I2C_IDLE && (s->cr2 & (CR2_ITEVTEN | CR2_ITERREN | CR2_DMAEN))) {
+        timer_mod(s->timer, s->phase_end_ns);
+    } else {
+        timer_del(s->timer);
+    }
+}
+
+/* The bus takes @ns for @phase, from now or from the end of the phase before */
 static void schedule(RigStm32I2cState *s, RigI2cPhase phase, int64_t ns)
 {
     s->phase = phase;
-    timer_mod(s->timer, qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL) + ns);
+    s->phase_end_ns = (s->event_ns >= 0 ? s->event_ns : qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL)) + ns;
+    arm(s);
 }
 
 /* The slave sends the next byte */
@@ -124,6 +142,7 @@ static void kick(RigStm32I2cState *s)
 }
 
 bool rig_i2c_repeated_start;
+int64_t rig_i2c_event_ns = -1;
 
 static void start_done(RigStm32I2cState *s)
 {
@@ -207,9 +226,8 @@ static void stop_done(RigStm32I2cState *s)
     s->receiving = false;
 }
 
-static void phase_done(void *opaque)
+static void phase_done(RigStm32I2cState *s)
 {
-    RigStm32I2cState *s = opaque;
     RigI2cPhase phase = s->phase;
     s->phase = RIG_I2C_IDLE;
     switch (phase) {
@@ -233,6 +251,19 @@ static void phase_done(void *opaque)
     }
     kick(s);
     update_irqs(s);
+}
+
+/* Every phase that has ended by now carried out, each at its own instant */
+static void catch_up(void *opaque)
+{
+    RigStm32I2cState *s = opaque;
+    int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    while (s->phase != RIG_I2C_IDLE && s->phase_end_ns <= now) {
+        s->event_ns = rig_i2c_event_ns = s->phase_end_ns;
+        phase_done(s);
+        s->event_ns = rig_i2c_event_ns = -1;
+    }
+    arm(s);
 }
 
 /* Everything back to reset (nothing goes on the wire: the slave of a transfer under way still waits) */
@@ -350,6 +381,7 @@ static uint64_t i2c_read(void *opaque, hwaddr offset, unsigned size)
     if (!i2c_clocked(s)) {
         return 0;
     }
+    catch_up(s);
     switch (rig_register_index(i2c_registers, ARRAY_SIZE(i2c_registers), offset)) {
     case R_CR1:
         return s->cr1;
@@ -391,12 +423,14 @@ static void i2c_write(void *opaque, hwaddr offset, uint64_t value, unsigned size
     if (!i2c_clocked(s)) {
         return;
     }
+    catch_up(s);
     switch (rig_register_index(i2c_registers, ARRAY_SIZE(i2c_registers), offset)) {
     case R_CR1:
         write_cr1(s, v);
         break;
     case R_CR2:
         s->cr2 = v & i2c_registers[R_CR2].writable;
+        arm(s);
         break;
     case R_OAR1:
         s->oar1 = v & i2c_registers[R_OAR1].writable;
@@ -444,6 +478,7 @@ static const MemoryRegionOps i2c_ops = {
 static void line_changed(void *opaque, int line, int level)
 {
     RigStm32I2cState *s = opaque;
+    catch_up(s);
     bool sda_before = sda_level(s);
     if (line == 0) {
         bool falling = s->scl && !level;
@@ -492,7 +527,9 @@ static void i2c_init(Object *obj)
     s->scl = s->sda = true;
     qdev_init_gpio_in_named(DEVICE(obj), line_changed, "scl-sda", 2);
     qdev_init_gpio_out_named(DEVICE(obj), s->line_out, "scl-sda-drive", 2);
-    s->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, phase_done, s);
+    s->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, catch_up, s);
+    s->event_ns = -1;
+    rig_link_sync_add(catch_up, s);
 }
 
 static Property i2c_properties[] = {

@@ -124,6 +124,18 @@ void rig_stm32_route_i2c1(DeviceState *i2c1, DeviceState *gpiob);
  * slaves' I2C_FINISH then is no STOP */
 extern bool rig_i2c_repeated_start;
 
+/* The virtual time of the bus event an I2C controller is carrying out (-1: none), which may lie before
+ * now: a controller without its interrupts enabled ends a phase of the bus when the firmware next looks
+ * (rig_stm32_i2c.c), and the slaves see it at the instant it ended on the wire */
+extern int64_t rig_i2c_event_ns;
+static inline int64_t rig_i2c_now_ns(void)
+{
+    return rig_i2c_event_ns >= 0 ? rig_i2c_event_ns : qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+}
+
+/* What a lazy model brings up to now before the link tells the session a time is reached (rig_link.c) */
+void rig_link_sync_add(void (*sync)(void *opaque), void *opaque);
+
 /* The pin levels a port shows on its IDR */
 uint16_t rig_stm32_gpio_levels(RigStm32GpioState *s);
 
@@ -151,6 +163,8 @@ struct RigStm32I2cState {
     qemu_irq line_out[2]; /* the bus's drive of SCL and SDA: 1 released (pull-up), 0 held low */
     QEMUTimer *timer;
     RigI2cPhase phase;
+    int64_t phase_end_ns; /* when the phase under way ends on the wire */
+    int64_t event_ns;     /* while a phase's end is carried out: its time (else -1) */
     uint32_t cr1, cr2, oar1, oar2, ccr, trise, sr1, sr2;
     uint32_t sr1_seen; /* SR1 as last read: the first half of the SB and ADDR clear sequences */
     uint8_t dr, shift, address;

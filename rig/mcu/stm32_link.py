@@ -12,6 +12,13 @@ first runs the chips to its instant, and a sample the core lacks stops ``run_unt
 which the session serves (ChipBoard.serve) before calling ``run_until`` again; QEMU waits for the
 START's answer all the while.
 
+Reads come ahead: a read START's answer carries the bytes the master is expected to read (as many as the
+same transfer, the address and the bytes written before it, read last time), QEMU hands them to the
+master at their instants and tells which it took and when (the READS message) before anything else; the
+bytes it did not take are given back by taking the chip core back to its state before them and reading
+again those that were (a chip's register pointer and FIFO move with each byte read). A transfer costs one
+round trip, not one per byte.
+
 Messages (qemu/hw/rig_link.c): the kind (1 byte), 3 zero bytes, the payload's length (u32), the payload;
 little-endian. QEMU's bytes are checked as any input: a bad one ends the run with an error.
 """
@@ -19,6 +26,7 @@ little-endian. QEMU's bytes are checked as any input: a bad one ends the run wit
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import socket
 import struct
 import subprocess
@@ -35,7 +43,7 @@ from rig.mcu.stm32_image import check_image, with_settings
 
 __all__ = ["ICOUNT_SHIFT", "LINK_VERSION", "LinkError", "Stm32Engine"]
 
-LINK_VERSION: Final = 1
+LINK_VERSION: Final = 2
 #: 2**3 ns an instruction: 125 M instructions per virtual second
 ICOUNT_SHIFT: Final = 3
 MACHINE: Final = "rig-stm32f405"
@@ -56,6 +64,10 @@ _REACHED = struct.Struct("<QIIIIB")
 _PULSE = struct.Struct("<IIIQ")
 #: pulses kept per motor between two takes (the oldest are dropped)
 MAX_PULSES: Final = 256
+#: bytes read ahead at most (an answer's payload is 1024 bytes; the MPU-6050's FIFO holds 1024)
+MAX_AHEAD: Final = 512
+#: the bytes written before a read that tell one transfer from another (a register address, a command)
+AHEAD_KEY_BYTES: Final = 4
 
 
 class LinkError(RuntimeError):
@@ -101,6 +113,15 @@ class Stm32Engine:
         self._transactions = 0
         self._bytes = 0
         self._nacks = 0
+        self._board_size = int(self._lib.rig_chip_board_size())
+        self._written = bytearray()  # the bytes written since the last STOP (a read's key)
+        self._in_transfer = False
+        self._read_key: tuple[int, bytes] = (0, b"")
+        self._read_count = 0  # bytes the master read in this read transfer
+        self._read_lengths: dict[tuple[int, bytes], int] = {}  # how many the same transfer read last time
+        self._ahead: list[int] = []  # the bytes QEMU holds ahead, of which the first _taken were read
+        self._taken = 0
+        self._before_ahead: bytes | None = None  # the chip core's state before the bytes ahead
         self._pulses: list[list[tuple[int, int, int]]] = [[] for _ in self._motors]
         self._pulse_counts = [0 for _ in self._motors]
         self._widths = [0 for _ in self._motors]
@@ -196,7 +217,7 @@ class Stm32Engine:
 
     def _answer_start(self) -> Stop | None:
         """The pending START answered by the chip core once it has run to the START's instant, or a
-        need stop (the START stays pending)."""
+        need stop (the START stays pending). A read START's answer carries the bytes ahead."""
         assert self._pending is not None
         t_ns, address, read = self._pending
         if self.chips is not None:
@@ -210,8 +231,53 @@ class Stm32Engine:
         self._transactions += 1
         self._nacks += not ack
         self._record(t_ns, "A", address << 1 | read, ack)
-        self._send(ord("a"), bytes([ack]))
+        ahead = b""
+        if read and ack:
+            self._read_key = (address, bytes(self._written[-AHEAD_KEY_BYTES:]))
+            self._read_count = 0
+            ahead = self._read_ahead(self._read_lengths.get(self._read_key, 0))
+        self._send(ord("a"), bytes([ack]) + ahead)
         return None
+
+    def _read_ahead(self, n: int) -> bytes:
+        """``n`` bytes of the chip core (at most MAX_AHEAD), its state before them kept to give back those
+        the master will not read."""
+        n = max(0, min(n, MAX_AHEAD))
+        self._taken = 0
+        if self.chips is None or n == 0:
+            self._ahead, self._before_ahead = [0xFF] * n, None  # (no chips: the bus's pull-ups)
+        else:
+            self._before_ahead = ctypes.string_at(self.chips.addr, self._board_size)
+            read_byte, addr = self._lib.chip_read_byte, self.chips.addr
+            self._ahead = [read_byte(addr) for _ in range(n)]
+        return bytes(self._ahead)
+
+    def _take(self, t_ns: int) -> None:
+        """The master read the next byte ahead at ``t_ns``."""
+        if self._taken >= len(self._ahead):
+            raise LinkError("QEMU read more bytes ahead than it was given")
+        self._read_byte_done(t_ns, self._ahead[self._taken])
+        self._taken += 1
+
+    def _read_byte_done(self, t_ns: int, value: int) -> None:
+        self._bytes += 1
+        self._read_count += 1
+        self._record(t_ns, "R", value, True)
+
+    def _settle(self) -> None:
+        """The transfer ended (a STOP, a START): the bytes ahead the master did not read given back (the
+        chip core as it was before them, then those it read read again), and the transfer's length kept
+        for the next time."""
+        if self._read_count:
+            self._read_lengths[self._read_key] = self._read_count
+            self._read_count = 0
+        if self._taken < len(self._ahead) and self.chips is not None and self._before_ahead is not None:
+            ctypes.memmove(self.chips.addr, self._before_ahead, self._board_size)
+            read_byte, addr = self._lib.chip_read_byte, self.chips.addr
+            again = [read_byte(addr) for _ in range(self._taken)]
+            if again != self._ahead[:self._taken]:
+                raise LinkError("the chip core read other bytes the second time")
+        self._ahead, self._taken, self._before_ahead = [], 0, None
 
     def _until_reached(self) -> Stop:
         """QEMU's messages until it reaches the time asked (or a need, or the end)."""
@@ -234,7 +300,15 @@ class Stm32Engine:
                     raise LinkError(f"an I2C message ({kind!r}) without its time")
                 (t_ns,) = struct.unpack_from("<Q", p)
                 self._active_ns = t_ns
-                if kind == ord("S") and len(p) == 10 and p[8] < 128 and p[9] < 2:
+                if kind == ord("d") and len(p) % 8 == 0:
+                    for (t,) in struct.iter_unpack("<Q", p):
+                        self._take(t)
+                    self._active_ns = t
+                elif kind == ord("S") and len(p) == 10 and p[8] < 128 and p[9] < 2:
+                    self._settle()
+                    if not self._in_transfer:
+                        self._written.clear()
+                    self._in_transfer = True
                     self._record(t_ns, "S", 0, True)
                     self._pending = (t_ns, p[8], bool(p[9]))
                     if (stop := self._answer_start()) is not None:
@@ -242,17 +316,22 @@ class Stm32Engine:
                 elif kind == ord("W") and len(p) == 9:
                     if chips is not None:
                         lib.chip_write_byte(chips.addr, p[8])
+                    self._written.append(p[8])
                     self._bytes += 1
                     self._record(t_ns, "W", p[8], chips is not None)
                 elif kind == ord("D") and len(p) == 8:
-                    value = lib.chip_read_byte(chips.addr) if chips is not None else 0xFF
-                    self._bytes += 1
-                    self._record(t_ns, "R", value, True)
-                    self._send(ord("b"), bytes([value]))
+                    if self._taken < len(self._ahead):
+                        raise LinkError("QEMU asked for a byte with bytes ahead left")
+                    guess = self._read_lengths.get(self._read_key, 0) - self._read_count
+                    ahead = self._read_ahead(max(guess, 1))
+                    self._take(t_ns)
+                    self._send(ord("b"), ahead)
                 elif kind == ord("N") and len(p) == 8:
                     if self._last and self._last[-1].kind == "R":
                         self._last[-1].ack = False  # (the same record as in the log)
                 elif kind == ord("P") and len(p) == 8:
+                    self._settle()
+                    self._in_transfer = False
                     if chips is not None:
                         lib.chip_stop(chips.addr)
                     self._record(t_ns, "P", 0, True)
