@@ -255,6 +255,7 @@ typedef struct RigStm32Chip {
     const char *name;                   /* the machine's */
     uint32_t rcc_chip;                  /* the RCC's register table: 405 or 411 */
     uint32_t flash_size;                /* bytes at 0x08000000 (and aliased at 0) */
+    uint32_t ccm_size;                  /* the CCM data RAM's bytes at 0x10000000 (QEMU's SoC has none) */
     uint16_t timers;                    /* bit n: TIMn */
     uint16_t port_pins[RIG_GPIO_PORTS]; /* each port's pins (bit n: Pxn); 0: the chip has no such port */
     const RigStm32Region *absent;       /* what the F405 SoC maps and the chip lacks: a bus error there */

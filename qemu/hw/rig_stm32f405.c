@@ -119,6 +119,10 @@ static unsigned timer_af(unsigned timer)
 /* The machine's "wires" property: pairs of pins joined, "PD12-PA0+PB0-PC1" */
 static char *wires_spec;
 
+/* RM0090 table 3: the CCM data RAM; QEMU's SoC has 192 KB of SRAM from 0x20000000 instead */
+#define CCM_BASE 0x10000000
+#define SRAM_SIZE_F4 (128 * 1024)
+
 /* the chardev id that links the machine to the rig's session */
 #define LINK_CHARDEV "rig-link"
 /* ARMv7-M: the DWT in the private peripheral bus */
@@ -345,6 +349,11 @@ void rig_stm32f4_machine_init(MachineState *machine, const RigStm32Chip *chip)
     memory_region_add_subregion_overlap(&STM32F405_SOC(soc)->armv7m.container, DWT_BASE,
                                         sysbus_mmio_get_region(SYS_BUS_DEVICE(dwt), 0), 0);
 
+    if (chip->ccm_size != 0) {
+        MemoryRegion *ccm = g_new0(MemoryRegion, 1);
+        memory_region_init_ram(ccm, NULL, "rig-stm32f4.ccm", chip->ccm_size, &error_fatal);
+        memory_region_add_subregion(get_system_memory(), CCM_BASE, ccm);
+    }
     armv7m_load_kernel(ARM_CPU(first_cpu), machine->kernel_filename, 0, chip->flash_size);
 }
 
@@ -364,11 +373,19 @@ void rig_stm32f4_machine_class_init(MachineClass *mc, const char *desc)
                                           "pins joined, each pair driver-driven: PD12-PA0[+PB0-PC1...]");
 }
 
-/* The STM32F405 (RM0090, DS8626): everything QEMU's SoC and the models have */
+/* The STM32F405 (RM0090, DS8626): everything QEMU's SoC and the models have, its SRAM as the chip's 128 KB
+ * (SRAM1 and SRAM2) and the other 64 KB as the CCM data RAM at 0x10000000 */
+static const RigStm32Region f405_absent[] = {
+    { 0x20000000 + SRAM_SIZE_F4, 64 * 1024, "SRAM beyond the F405's 128 KB (its CCM RAM is at 0x10000000)" },
+};
+
 static const RigStm32Chip f405 = {
     .name = "rig-stm32f405",
     .rcc_chip = 405,
     .flash_size = 1024 * 1024,
+    .ccm_size = 64 * 1024,
+    .absent = f405_absent,
+    .n_absent = ARRAY_SIZE(f405_absent),
     .timers = 0x7FFE, /* TIM1..TIM14 */
     .port_pins = { 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF },
 };

@@ -93,12 +93,14 @@ def test_the_memory_map_is_the_f411s(r: dict[str, int], done: subprocess.Complet
 
 
 def test_the_f405_machine_has_what_the_f411_lacks() -> None:
-    """The same firmware on rig-stm32f405: its CCM RAM, TIM6, TIM8, USART3, GPIOF and GPIOI answer."""
+    """The same firmware on rig-stm32f405: its 1 MB of flash, CCM RAM, TIM6, TIM8, USART3, GPIOF and GPIOI
+    answer; its SRAM ends at 128 KB as the F411's (RM0090 2.3: SRAM1 and SRAM2, 112 + 16 KB)."""
     done = _run("rig-stm32f405")
     assert done.returncode == 0, done.stdout + done.stderr
     r = reports(done.stdout)
-    for name in ("ccm", "tim6", "tim8", "usart3", "gpiof", "gpioi", *PRESENT):
+    for name in ("flash_end", "alias_end", "ccm", "tim6", "tim8", "usart3", "gpiof", "gpioi", *PRESENT):
         assert r[f"{name}_faults"] == 0, name
+    assert r["sram_end_faults"] == 1 and r["sram_end_bfar"] == ABSENT["sram_end"]
     assert r["rcc_ahb1enr_reset"] == 0x0010_0000  # RM0090 7.3.10: CCMDATARAMEN
 
 
