@@ -244,7 +244,7 @@ static void wire_pins(const RigStm32Chip *chip, DeviceState **gpio_ports)
         unsigned from_port, from_pin, to_port, to_pin;
         if (g_strv_length(ends) != 2 || !parse_pin(chip, ends[0], &from_port, &from_pin) ||
             !parse_pin(chip, ends[1], &to_port, &to_pin)) {
-            error_report("%s: wires: '%s' is not a pair of the chip's pins like PD12-PA0", chip->name, *pair);
+            error_report("%s: wires: '%s' is not a pair of pins like PD12-PA0 that the chip has", chip->name, *pair);
             exit(1);
         }
         if (qdev_get_gpio_out_connector(gpio_ports[from_port], NULL, from_pin) != NULL) {
