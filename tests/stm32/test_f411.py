@@ -157,6 +157,17 @@ def test_the_image_check_refuses_what_only_an_f405_holds(tmp_path: Path) -> None
         check_image(high_code, f411)
 
 
+def test_rig_run_refuses_an_f405_only_image_for_the_black_pill(tmp_path: Path) -> None:
+    """Before QEMU starts: exit 2, the reason on one line."""
+    elf = _elf(tmp_path, [(0x0800_0000, struct.pack("<II", 0x1001_0000, 0x0800_0009))])
+    done = subprocess.run([sys.executable, "-m", "rig.cli", "run", "--mcu", BOARD, "--firmware", str(elf),
+                           "hover_turbulence", "--out", str(tmp_path / "out")],
+                          capture_output=True, text=True, timeout=120, cwd=REPO)
+    assert done.returncode == 2, done.stdout + done.stderr
+    lines = [ln for ln in done.stderr.splitlines() if "stack pointer 0x10010000" in ln]
+    assert len(lines) == 1 and "STM32F411's RAM" in lines[0], done.stderr
+
+
 def test_the_board_file() -> None:
     """DS10314 table 9: I2C1 on PB8/PB9 (AF4), TIM3 CH1-CH4 on PA6, PA7, PB0, PB1 (AF2), USART1 RX PA10,
     USART2 TX PA2; the Black Pill's 25 MHz crystal; the F411's 100 MHz."""
