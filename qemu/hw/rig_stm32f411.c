@@ -37,6 +37,18 @@ static const RigStm32Region f411_absent[] = {
     { 0x40021400, KB, "GPIOF (not on the F411)" },
     { 0x40021800, KB, "GPIOG (not on the F411)" },
     { 0x40022000, KB, "GPIOI (not on the F411)" },
+    /* and what QEMU's SoC places as the F405's or beyond it (its UART7/UART8 and SPI6) */
+    { 0x40006400, KB, "CAN1 (not on the F411)" },
+    { 0x40006800, KB, "CAN2 (not on the F411)" },
+    { 0x40007400, KB, "DAC (not on the F411)" },
+    { 0x40007800, KB, "UART7 (not on the F411)" },
+    { 0x40007C00, KB, "UART8 (not on the F411)" },
+    { 0x40015400, KB, "SPI6 (not on the F411)" },
+    { 0x40024000, 4 * KB, "backup SRAM (not on the F411)" },
+    { 0x40028000, 5 * KB, "Ethernet MAC (not on the F411)" },
+    { 0x40040000, 256 * KB, "USB OTG HS (not on the F411)" },
+    { 0x50050000, KB, "DCMI (not on the F411)" },
+    { 0x50060800, KB, "RNG (not on the F411)" },
 };
 
 static const RigStm32Chip f411 = {

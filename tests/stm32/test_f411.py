@@ -28,7 +28,7 @@ BOARD = "stm32f411-blackpill-gy86"
 #: RM0383 2.3 (memory map) and table 1 (register boundary addresses): what the F405 has and the F411 not
 ABSENT = {"flash_end": 0x0808_0000, "alias_end": 0x0008_0000, "sram_end": 0x2002_0000, "ccm": 0x1000_0000,
           "tim6": 0x4000_1000, "tim8": 0x4001_0400, "usart3": 0x4000_4800, "gpiof": 0x4002_1400,
-          "gpioi": 0x4002_2000}
+          "gpioi": 0x4002_2000, "can1": 0x4000_6400, "uart7": 0x4000_7800}
 PRESENT = ("flash_last", "sram_last", "tim3", "tim11", "gpioh")
 #: ARMv7-M B3.2.15, the BusFault status register (CFSR bits 15:8): BFARVALID and PRECISERR
 BFSR_PRECISE = (1 << 15) | (1 << 9)
@@ -98,7 +98,7 @@ def test_the_f405_machine_has_what_the_f411_lacks() -> None:
     done = _run("rig-stm32f405")
     assert done.returncode == 0, done.stdout + done.stderr
     r = reports(done.stdout)
-    for name in ("flash_end", "alias_end", "ccm", "tim6", "tim8", "usart3", "gpiof", "gpioi", *PRESENT):
+    for name in ("flash_end", "alias_end", "ccm", "tim6", "tim8", "usart3", "gpiof", "gpioi", "can1", *PRESENT):
         assert r[f"{name}_faults"] == 0, name
     assert r["sram_end_faults"] == 1 and r["sram_end_bfar"] == ABSENT["sram_end"]
     assert r["rcc_ahb1enr_reset"] == 0x0010_0000  # RM0090 7.3.10: CCMDATARAMEN

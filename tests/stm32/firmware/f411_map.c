@@ -1,6 +1,7 @@
 /* The STM32F411 test firmware (run on rig-stm32f411 with a 25 MHz crystal): the F411's RCC at reset and
    its writable enable bits, its memory map (the last word of its 512 KB of flash and 128 KB of SRAM, and
-   the word after each; the CCM RAM and the F405's peripherals it lacks: TIM6, TIM8, USART3, GPIOF, GPIOI),
+   the word after each; the CCM RAM and the F405's peripherals it lacks: TIM6, TIM8, USART3, GPIOF, GPIOI,
+   CAN1; and UART7, which QEMU's F405 SoC places and neither chip has),
    each probe's BusFault counted with BFAR, then 100 MHz from the 25 MHz HSE through the PLL as a Black
    Pill's SystemClock_Config does, the same loop timed with DWT_CYCCNT and SysTick at 16 and at 100 MHz.
    tests/stm32/test_f411.py judges the NAME=0xVALUE lines against RM0383. */
@@ -123,6 +124,8 @@ static void memory_map(void)
     PROBE("usart3", USART3_BASE);
     PROBE("gpiof", GPIO_BASE(5u));
     PROBE("gpioi", GPIO_BASE(8u));
+    PROBE("can1", 0x40006400u);
+    PROBE("uart7", 0x40007800u);
     report("bus_fault_bfsr", fault_bfsr);
     uint32_t before = faults;
     REG(TIM6_BASE) = 1u; /* a store there: a bus error too */
