@@ -1,35 +1,32 @@
-/* The board: an STM32F405 flight controller (8 MHz crystal, 168 MHz) with a GY-86 on I2C1 (SCL PB6,
-   SDA PB7), the Omnibus F4's motor outputs, SBUS on USART1 RX (PA10), telemetry on USART6 TX (PC6).
-   These match the STM32 tier's board file stm32f405-gy86; docs/reference-fc.md has the wiring. */
+/* The board the reference FC is built for, chosen at compile time: -DBOARD_BLACKPILL_F411 for the STM32F411
+   Black Pill (build/stm32/fc-f411.elf), else the STM32F405 board (build/stm32/fc.elf). Each board's
+   header is data: its clock set-up, motor outputs, I2C1 pins and USARTs, as the STM32 tier's board files
+   (rig/mcu/boards/) wire them; the sources read only these names. */
 #ifndef BOARD_H
 #define BOARD_H
 
-#define BOARD_HCLK_HZ 168000000UL
-#define BOARD_APB1_HZ 42000000UL /* HCLK / 4; its timers run at twice this */
-#define BOARD_APB2_HZ 84000000UL /* HCLK / 2 */
+#include "stm32f405.h"
 
-/* motors 1..4 (the plant's numbering, the mixer's order): S1 PB0 TIM3_CH3, S2 PB1 TIM3_CH4, S3 PA3
-   TIM2_CH4, S4 PA2 TIM2_CH3. The timers count 1 us ticks (84 MHz / 84) to ARR 2040: a period of
-   2041 us (490 Hz, the AVR build's ESC rate), PWM mode 1 with CCR preloaded, so CCR = the pulse in us */
-#define PWM_PSC 83u
-#define PWM_ARR 2040u
-#define PWM_MIN_US 1000
-#define PWM_MAX_US 2000
+#ifdef BOARD_BLACKPILL_F411
+#include "board_blackpill_f411.h"
+#else
+#include "board_f405_gy86.h"
+#endif
 
-/* I2C1 at 400 kHz from the 42 MHz APB1 (RM0090 27.6.8: fast mode, duty 2, CCR = 42 MHz / (3 x 400 kHz)),
-   TRISE for 300 ns */
-#define I2C_FREQ_MHZ 42u
-#define I2C_FAST_CCR 35u
-#define I2C_FAST_TRISE 13u
+/* a motor output: its timer's base, channel 1..4, and its pin with the alternate function giving it */
+typedef struct {
+    uint32_t timer;
+    uint8_t channel, port, pin, af;
+} board_motor;
 
-#define SBUS_BAUD 100000UL      /* 8E2; 84 MHz / (16 x 52.5): exact */
-#define TELEMETRY_BAUD 500000UL /* 84 MHz / (16 x 10.5): exact */
-
-/* the clock: DWT's cycle counter at HCLK */
-#define TICKS_PER_S BOARD_HCLK_HZ
-
-/* the loop's time base: SysTick every millisecond, the core asleep in WFI between (under QEMU's
-   icount a sleeping core costs nothing; docs/mcu.md "Speed") */
-#define SYSTICK_HZ 1000u
+/* @pin of @port in alternate function @af (its port's clock on): a motor's timer channel, a USART's TX */
+static inline void board_pin_af(uint32_t port, unsigned pin, unsigned af)
+{
+    RCC_AHB1ENR |= 1u << port;
+    GPIO_MODER(port) = (GPIO_MODER(port) & ~(3u << (2 * pin))) | (GPIO_MODE_AF << (2 * pin));
+    volatile uint32_t *afr = pin < 8 ? &GPIO_AFRL(port) : &GPIO_AFRH(port);
+    unsigned shift = 4 * (pin % 8);
+    *afr = (*afr & ~(0xFu << shift)) | (af << shift);
+}
 
 #endif

@@ -1,6 +1,6 @@
-/* The clock (clock.h): ST's SystemClock_Config for an 8 MHz HSE (PLL M 8, N 336, P 2: 168 MHz; APB1
-   HCLK / 4, APB2 HCLK / 2; five flash wait states, RM0090 table 10 for 2.7-3.6 V), then DWT_CYCCNT and
-   SysTick from HCLK. */
+/* The clock (clock.h): ST's SystemClock_Config sequence with the board's PLL, bus prescalers, flash wait
+   states and regulator scale (board.h: 168 MHz from an 8 MHz HSE on the F405 board, 100 MHz from 25 MHz
+   on the Black Pill), then DWT_CYCCNT and SysTick from HCLK. */
 #include "clock.h"
 
 #include "board.h"
@@ -15,16 +15,16 @@ void systick_handler(void) { ms++; }
 void clock_init(void)
 {
     RCC_APB1ENR |= RCC_APB1ENR_PWREN;
-    PWR_CR |= PWR_CR_VOS;
+    PWR_CR |= BOARD_PWR_VOS;
     RCC_CR |= RCC_CR_HSEON;
     while (!(RCC_CR & RCC_CR_HSERDY))
         ;
-    RCC_CFGR |= RCC_CFGR_PPRE2_DIV2 | RCC_CFGR_PPRE1_DIV4;
-    RCC_PLLCFGR = 8u | (336u << 6) | RCC_PLLCFGR_PLLSRC_HSE | (7u << 24);
+    RCC_CFGR |= BOARD_CFGR_PPRE;
+    RCC_PLLCFGR = BOARD_PLLCFGR;
     RCC_CR |= RCC_CR_PLLON;
     while (!(RCC_CR & RCC_CR_PLLRDY))
         ;
-    FLASH_ACR = FLASH_ACR_ICEN | FLASH_ACR_DCEN | FLASH_ACR_PRFTEN | FLASH_ACR_LATENCY_5WS;
+    FLASH_ACR = FLASH_ACR_ICEN | FLASH_ACR_DCEN | FLASH_ACR_PRFTEN | BOARD_FLASH_LATENCY;
     RCC_CFGR = (RCC_CFGR & ~RCC_CFGR_SW) | RCC_CFGR_SW_PLL;
     while ((RCC_CFGR & RCC_CFGR_SWS) != RCC_CFGR_SWS_PLL)
         ;

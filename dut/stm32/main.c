@@ -1,13 +1,14 @@
-/* The reference flight controller as STM32F405 firmware (docs/reference-fc.md). The same flight logic as
-   the Linux FC (src/flight.c) in the Linux FC's loop: the GY-86 on I2C1, motors on TIM3 and TIM2, SBUS on
-   USART1, telemetry on USART6, the configuration from an image in flash (blank: the defaults).
+/* The reference flight controller as STM32F405 or STM32F411 firmware (docs/reference-fc.md; the board's
+   pins, timers and clock in board.h). The same flight logic as the Linux FC (src/flight.c) in the Linux
+   FC's loop: the GY-86 on I2C1, the board's four motor timer channels, SBUS on USART1, telemetry on the
+   board's USART, the configuration from an image in flash (blank: the defaults).
 
    Start-up: motors at 1000 us at once (ESCs arm on it); the configuration; the chips (failure: a
    message, the motor outputs off, as the Linux FC exits without motor output); the gyro bias from 500
    samples 2 ms apart; then a loop at est_rate_hz on absolute millisecond deadlines of SysTick, the core
    asleep in WFI between, with overruns counted: read the burst, estimate, the barometer, the RC
    frames, control, the motors, a "T ..." line every telemetry_every cycles. With a single-precision
-   FPU at 168 MHz the whole cycle fits at the Linux FC's 250 Hz (the AVR splits it over two slots). */
+   FPU at 168 MHz (or the F411's 100 MHz) the whole cycle fits at the Linux FC's 250 Hz (the AVR splits it over two slots). */
 #include "board.h"
 #include "clock.h"
 #include "config_image.h"
@@ -47,7 +48,7 @@ int main(void)
     sbus_rx_init();
     twi_init();
     __asm volatile("cpsie i");
-    telemetry_say("STM32F405 reference FC", "");
+    telemetry_say(BOARD_NAME " reference FC", "");
     int st = config_from_image(&cfg, config_image, sizeof config_image);
     const char *cfg_why = st == FC_IMAGE_OK ? "flash" : fc_image_why(st); /* anything else: the defaults */
     telemetry_say(st == FC_IMAGE_OK ? "configuration: flash image" : "configuration: the defaults; flash image: ",

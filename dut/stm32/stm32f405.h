@@ -1,6 +1,7 @@
 /* The STM32F405 registers the STM32 tier's test firmwares and the reference FC (dut/stm32) touch, at their
    addresses in RM0090 (table 10, the register maps of sections 3.9, 5.4, 7.3, 8.4 and 30.6) and the
-   ARMv7-M ARM (SysTick, DWT). */
+   ARMv7-M ARM (SysTick, DWT). The STM32F411 has these at the same addresses (RM0383), less what it lacks
+   (TIM6-8, TIM12-14, USART3, UART4/5, GPIO F/G/I). */
 #ifndef STM32F405_H
 #define STM32F405_H
 
@@ -31,6 +32,7 @@
 #define RCC_CFGR_SW_PLL 0x2u
 #define RCC_CFGR_SWS 0xCu
 #define RCC_CFGR_SWS_PLL 0x8u
+#define RCC_CFGR_PPRE1_DIV2 (0x4u << 10)
 #define RCC_CFGR_PPRE1_DIV4 (0x5u << 10)
 #define RCC_CFGR_PPRE1_DIV8 (0x6u << 10)
 #define RCC_CFGR_PPRE1 (0x7u << 10)
@@ -166,6 +168,7 @@
 
 /* USART1 and USART6 on APB2, USART2/3 on APB1 (RM0090 table 10; registers 30.6) */
 #define USART1_BASE 0x40011000u
+#define USART2_BASE 0x40004400u
 #define USART3_BASE 0x40004800u
 #define USART6_BASE 0x40011400u
 #define USART_SR(u) REG((u) + 0x00u)
@@ -187,6 +190,7 @@
 #define USART_CR2_STOP_2 (2u << 12)
 #define RCC_APB2ENR_USART1EN (1u << 4)
 #define RCC_APB2ENR_USART6EN (1u << 5)
+#define RCC_APB1ENR_USART2EN (1u << 17)
 #define USART1_IRQ 37u
 
 #define NVIC_ISER(n) REG(0xE000E100u + 4u * (n))

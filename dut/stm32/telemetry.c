@@ -10,20 +10,18 @@
 
 void telemetry_init(void)
 {
-    RCC_APB2ENR |= RCC_APB2ENR_USART6EN;
-    RCC_AHB1ENR |= 1u << PORT_C;
-    GPIO_MODER(PORT_C) = (GPIO_MODER(PORT_C) & ~(3u << 12)) | (GPIO_MODE_AF << 12);
-    GPIO_AFRL(PORT_C) = (GPIO_AFRL(PORT_C) & ~(0xFu << 24)) | (8u << 24); /* PC6 AF8: USART6_TX */
-    USART_BRR(USART6_BASE) = (uint32_t)((BOARD_APB2_HZ * 2 / TELEMETRY_BAUD + 1) / 2);
-    USART_CR1(USART6_BASE) = USART_CR1_UE | USART_CR1_TE;
+    TELEMETRY_USART_ENR |= TELEMETRY_USART_EN;
+    board_pin_af(TELEMETRY_TX_PORT, TELEMETRY_TX_PIN, TELEMETRY_TX_AF); /* the board's USART TX */
+    USART_BRR(TELEMETRY_USART) = (uint32_t)((TELEMETRY_USART_HZ * 2 / TELEMETRY_BAUD + 1) / 2);
+    USART_CR1(TELEMETRY_USART) = USART_CR1_UE | USART_CR1_TE;
 }
 
 void telemetry_send(const char *s, unsigned n)
 {
     for (unsigned i = 0; i < n; i++) {
-        while (!(USART_SR(USART6_BASE) & USART_SR_TXE))
+        while (!(USART_SR(TELEMETRY_USART) & USART_SR_TXE))
             ;
-        USART_DR(USART6_BASE) = (uint8_t)s[i];
+        USART_DR(TELEMETRY_USART) = (uint8_t)s[i];
     }
 }
 

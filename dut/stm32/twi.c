@@ -18,12 +18,18 @@
 
 twi_stats twi_counters;
 
+/* the board's pair (board.h): SCL on I2C1_SCL_PIN of port B, SDA on the next */
+#define SCL I2C1_SCL_PIN
+#define SDA (I2C1_SCL_PIN + 1u)
+#define PINS ((1u << SCL) | (1u << SDA))
+#define MODER_SHIFT (2u * SCL)
+
 static void pins_i2c(void)
 {
-    GPIO_MODER(PORT_B) = (GPIO_MODER(PORT_B) & ~(0xFu << 12)) | (0xAu << 12);
-    GPIO_OTYPER(PORT_B) |= 0xC0u;
-    GPIO_PUPDR(PORT_B) = (GPIO_PUPDR(PORT_B) & ~(0xFu << 12)) | (0x5u << 12);
-    GPIO_AFRL(PORT_B) = (GPIO_AFRL(PORT_B) & ~(0xFFu << 24)) | (0x44u << 24); /* AF4 */
+    GPIO_OTYPER(PORT_B) |= PINS;
+    GPIO_PUPDR(PORT_B) = (GPIO_PUPDR(PORT_B) & ~(0xFu << MODER_SHIFT)) | (0x5u << MODER_SHIFT);
+    board_pin_af(PORT_B, SCL, 4);
+    board_pin_af(PORT_B, SDA, 4);
 }
 
 void twi_init(void)
@@ -46,17 +52,17 @@ void twi_recover(void)
 {
     twi_counters.recoveries++;
     I2C1_CR1 = I2C_CR1_SWRST;
-    GPIO_ODR(PORT_B) |= 0xC0u;
-    GPIO_MODER(PORT_B) = (GPIO_MODER(PORT_B) & ~(0xFu << 12)) | (0x5u << 12);
+    GPIO_ODR(PORT_B) |= PINS;
+    GPIO_MODER(PORT_B) = (GPIO_MODER(PORT_B) & ~(0xFu << MODER_SHIFT)) | (0x5u << MODER_SHIFT);
     for (int i = 0; i < 9; i++) {
-        GPIO_BSRR(PORT_B) = 1u << (6 + 16);
+        GPIO_BSRR(PORT_B) = 1u << (SCL + 16);
         clock_wait_us(5);
-        GPIO_BSRR(PORT_B) = 1u << 6;
+        GPIO_BSRR(PORT_B) = 1u << SCL;
         clock_wait_us(5);
     }
-    GPIO_BSRR(PORT_B) = 1u << (7 + 16);
+    GPIO_BSRR(PORT_B) = 1u << (SDA + 16);
     clock_wait_us(5);
-    GPIO_BSRR(PORT_B) = 1u << 7;
+    GPIO_BSRR(PORT_B) = 1u << SDA;
     clock_wait_us(5);
     twi_init();
 }

@@ -1,5 +1,6 @@
 /*
- * The STM32F405's reset and clock control (RCC), RM0090 section 7.3.
+ * The STM32F405's reset and clock control (RCC), RM0090 section 7.3, and the STM32F411's (RM0383 section
+ * 6.3: the same clock tree and registers, fewer enable bits; the "chip" property picks the table).
  *
  * What start-up code waits for: each oscillator's ready flag follows its enable (HSIRDY after HSION,
  * HSERDY after HSEON, PLLRDY after PLLON, PLLI2SRDY, LSERDY, LSIRDY), at once: the ready time of a
@@ -18,6 +19,7 @@
 
 #include "hw/qdev-clock.h"
 #include "hw/qdev-properties.h"
+#include "qapi/error.h"
 #include "qemu/log.h"
 #include "qemu/module.h"
 #include "rig_stm32f4.h"
@@ -54,7 +56,7 @@
  * RM0090 rev 19, table 34 (RCC register map and reset values) for the STM32F405/407; the writable
  * masks are the bits each register's description marks rw.
  */
-static const RigRegister rcc_registers[RIG_RCC_REGISTERS] = {
+static const RigRegister rcc_f405[] = {
     { 0x00, "CR", 0x00000083, 0x050D00F9 }, /* HSITRIM = 16, HSION, HSIRDY */
     { 0x04, "PLLCFGR", 0x24003010, 0x0F437FFF },   { 0x08, "CFGR", 0x00000000, 0xFFFFFCF3 },
     { 0x0C, "CIR", 0x00000000, 0x00003F00 },       { 0x10, "AHB1RSTR", 0x00000000, 0x226011FF },
@@ -69,7 +71,31 @@ static const RigRegister rcc_registers[RIG_RCC_REGISTERS] = {
     { 0x80, "SSCGR", 0x00000000, 0xCFFFFFFF },     { 0x84, "PLLI2SCFGR", 0x20003000, 0x70007FC0 },
 };
 
-enum { R_CR = 0, R_PLLCFGR = 1, R_CFGR = 2, R_BDCR = 19, R_CSR = 20 };
+/*
+ * RM0383 section 6.3 (the RCC register map and reset values) for the STM32F411xC/E: no AHB3 (no FSMC),
+ * fewer clock enables (GPIOA-E and H, CRC, DMA1/2; TIM1-5, TIM9-11, USART1/2/6, I2C1-3, SPI1-5, SDIO,
+ * ADC1, WWDG, PWR, SYSCFG, OTG FS), no CCM RAM clock (AHB1ENR resets to 0), PLLI2SM in PLLI2SCFGR, and
+ * DCKCFGR's TIMPRE. The same registers in the same order as the F405's up to PLLI2SCFGR (the R_ indexes
+ * below hold for both); the low-power enables' reset values are the manual's (TIM1 and SPI5 not set).
+ */
+static const RigRegister rcc_f411[] = {
+    { 0x00, "CR", 0x00000083, 0x050D00F9 },        { 0x04, "PLLCFGR", 0x24003010, 0x0F437FFF },
+    { 0x08, "CFGR", 0x00000000, 0xFFFFFCF3 },      { 0x0C, "CIR", 0x00000000, 0x00003F00 },
+    { 0x10, "AHB1RSTR", 0x00000000, 0x0060109F },  { 0x14, "AHB2RSTR", 0x00000000, 0x00000080 },
+    { 0x20, "APB1RSTR", 0x00000000, 0x10E2C80F },  { 0x24, "APB2RSTR", 0x00000000, 0x00177931 },
+    { 0x30, "AHB1ENR", 0x00000000, 0x0060109F },   { 0x34, "AHB2ENR", 0x00000000, 0x00000080 },
+    { 0x40, "APB1ENR", 0x00000000, 0x10E2C80F },   { 0x44, "APB2ENR", 0x00000000, 0x00177931 },
+    { 0x50, "AHB1LPENR", 0x0061900F, 0x0061909F }, { 0x54, "AHB2LPENR", 0x00000080, 0x00000080 },
+    { 0x60, "APB1LPENR", 0x10E2C80F, 0x10E2C80F }, { 0x64, "APB2LPENR", 0x00077930, 0x00177931 },
+    { 0x70, "BDCR", 0x00000000, 0x00018305 },      { 0x74, "CSR", 0x0E000000, 0x00000001 },
+    { 0x80, "SSCGR", 0x00000000, 0xCFFFFFFF },     { 0x84, "PLLI2SCFGR", 0x24003000, 0x70007FFF },
+    { 0x8C, "DCKCFGR", 0x00000000, 0x01000000 },
+};
+
+/* the indexes of the first registers, the same in both tables; BDCR and CSR are found by offset */
+enum { R_CR = 0, R_PLLCFGR = 1, R_CFGR = 2 };
+#define BDCR 0x70
+#define CSR 0x74
 
 int rig_register_index(const RigRegister *table, int count, hwaddr offset)
 {
@@ -83,7 +109,7 @@ int rig_register_index(const RigRegister *table, int count, hwaddr offset)
 
 bool rig_stm32_rcc_enabled(RigStm32RccState *rcc, hwaddr enr_offset, unsigned bit)
 {
-    int i = rig_register_index(rcc_registers, RIG_RCC_REGISTERS, enr_offset);
+    int i = rig_register_index(rcc->table, rcc->count, enr_offset);
     return i >= 0 && (rcc->regs[i] >> bit & 1u);
 }
 
@@ -179,8 +205,10 @@ static void rcc_settle(RigStm32RccState *s)
     cr = (cr & ~(CR_HSIRDY | CR_HSERDY | CR_PLLRDY | CR_PLLI2SRDY)) | (cr & CR_HSION ? CR_HSIRDY : 0) |
          (cr & CR_HSEON ? CR_HSERDY : 0) | (cr & CR_PLLON ? CR_PLLRDY : 0) | (cr & CR_PLLI2SON ? CR_PLLI2SRDY : 0);
     s->regs[R_CR] = cr;
-    s->regs[R_BDCR] = (s->regs[R_BDCR] & ~BDCR_LSERDY) | (s->regs[R_BDCR] & BDCR_LSEON ? BDCR_LSERDY : 0);
-    s->regs[R_CSR] = (s->regs[R_CSR] & ~CSR_LSIRDY) | (s->regs[R_CSR] & CSR_LSION ? CSR_LSIRDY : 0);
+    uint32_t *bdcr = &s->regs[rig_register_index(s->table, s->count, BDCR)];
+    uint32_t *csr = &s->regs[rig_register_index(s->table, s->count, CSR)];
+    *bdcr = (*bdcr & ~BDCR_LSERDY) | (*bdcr & BDCR_LSEON ? BDCR_LSERDY : 0);
+    *csr = (*csr & ~CSR_LSIRDY) | (*csr & CSR_LSION ? CSR_LSIRDY : 0);
 
     unsigned sw = s->regs[R_CFGR] & CFGR_SW_MASK;
     if (sw != sws && source_ready(s, sw)) {
@@ -202,7 +230,7 @@ static void rcc_settle(RigStm32RccState *s)
 static uint64_t rcc_read(void *opaque, hwaddr offset, unsigned size)
 {
     RigStm32RccState *s = opaque;
-    int i = rig_register_index(rcc_registers, RIG_RCC_REGISTERS, offset);
+    int i = rig_register_index(s->table, s->count, offset);
     if (i < 0) {
         qemu_log_mask(LOG_GUEST_ERROR, "rig-stm32f4-rcc: read of reserved offset 0x%" HWADDR_PRIx "\n", offset);
         return 0;
@@ -213,13 +241,13 @@ static uint64_t rcc_read(void *opaque, hwaddr offset, unsigned size)
 static void rcc_write(void *opaque, hwaddr offset, uint64_t value, unsigned size)
 {
     RigStm32RccState *s = opaque;
-    int i = rig_register_index(rcc_registers, RIG_RCC_REGISTERS, offset);
+    int i = rig_register_index(s->table, s->count, offset);
     if (i < 0) {
         qemu_log_mask(LOG_GUEST_ERROR, "rig-stm32f4-rcc: write of reserved offset 0x%" HWADDR_PRIx "\n", offset);
         return;
     }
-    uint32_t mask = rcc_registers[i].writable;
-    if (i == R_CSR && (value & CSR_RMVF)) { /* RMVF clears the reset flags */
+    uint32_t mask = s->table[i].writable;
+    if (offset == CSR && (value & CSR_RMVF)) { /* RMVF clears the reset flags */
         s->regs[i] &= ~CSR_RESET_FLAGS;
     }
     s->regs[i] = (s->regs[i] & ~mask) | ((uint32_t)value & mask);
@@ -238,8 +266,8 @@ static const MemoryRegionOps rcc_ops = {
 static void rcc_reset(DeviceState *dev)
 {
     RigStm32RccState *s = RIG_STM32_RCC(dev);
-    for (int i = 0; i < RIG_RCC_REGISTERS; i++) {
-        s->regs[i] = rcc_registers[i].reset;
+    for (unsigned i = 0; i < s->count; i++) {
+        s->regs[i] = s->table[i].reset;
     }
     rcc_settle(s);
 }
@@ -259,8 +287,29 @@ static void rcc_init(Object *obj)
     }
 }
 
+/* The register table of the chip the machine says ("chip": 405 or 411) */
+static void rcc_realize(DeviceState *dev, Error **errp)
+{
+    RigStm32RccState *s = RIG_STM32_RCC(dev);
+    switch (s->chip) {
+    case 405:
+        s->table = rcc_f405;
+        s->count = ARRAY_SIZE(rcc_f405);
+        break;
+    case 411:
+        s->table = rcc_f411;
+        s->count = ARRAY_SIZE(rcc_f411);
+        break;
+    default:
+        error_setg(errp, "rig-stm32f4-rcc: chip %u is not 405 or 411", s->chip);
+        return;
+    }
+    assert(s->count <= RIG_RCC_REGISTERS);
+}
+
 static Property rcc_properties[] = {
     DEFINE_PROP_UINT32("hse-hz", RigStm32RccState, hse_hz, 8000000),
+    DEFINE_PROP_UINT32("chip", RigStm32RccState, chip, 405),
     DEFINE_PROP_END_OF_LIST(),
 };
 
@@ -268,6 +317,7 @@ static void rcc_class_init(ObjectClass *klass, void *data)
 {
     DeviceClass *dc = DEVICE_CLASS(klass);
     dc->reset = rcc_reset;
+    dc->realize = rcc_realize;
     device_class_set_props(dc, rcc_properties);
 }
 

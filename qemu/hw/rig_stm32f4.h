@@ -9,6 +9,7 @@
 #ifndef RIG_STM32F4_H
 #define RIG_STM32F4_H
 
+#include "hw/boards.h"
 #include "hw/clock.h"
 #include "hw/i2c/i2c.h"
 #include "hw/sysbus.h"
@@ -32,17 +33,20 @@ int rig_register_index(const RigRegister *table, int count, hwaddr offset);
 /* RCC (RM0090 section 7.3) */
 #define TYPE_RIG_STM32_RCC "rig-stm32f4-rcc"
 OBJECT_DECLARE_SIMPLE_TYPE(RigStm32RccState, RIG_STM32_RCC)
-#define RIG_RCC_REGISTERS 23
+#define RIG_RCC_REGISTERS 24 /* the most a chip has (the F411: 23 and DCKCFGR) */
 #define RIG_RCC_RESETS 48
 
 struct RigStm32RccState {
     SysBusDevice parent_obj;
     MemoryRegion iomem;
-    uint32_t regs[RIG_RCC_REGISTERS];
-    uint32_t hse_hz;    /* the board's crystal (property "hse-hz") */
-    Clock *hclk;        /* the AHB clock: the core, SysTick, DWT */
-    Clock *tim_clk[2];  /* the timers' clocks on APB1 and APB2 ("apb1-tim", "apb2-tim") */
-    uint64_t tim_hz[2]; /* their exact rates (a Clock keeps a period, which rounds) */
+    uint32_t chip;                    /* property "chip": 405 (RM0090) or 411 (RM0383) */
+    const RigRegister *table;         /* that chip's register table */
+    unsigned count;                   /* its registers */
+    uint32_t regs[RIG_RCC_REGISTERS]; /* in the table's order */
+    uint32_t hse_hz;                  /* the board's crystal (property "hse-hz") */
+    Clock *hclk;                      /* the AHB clock: the core, SysTick, DWT */
+    Clock *tim_clk[2];                /* the timers' clocks on APB1 and APB2 ("apb1-tim", "apb2-tim") */
+    uint64_t tim_hz[2];               /* their exact rates (a Clock keeps a period, which rounds) */
     /* the peripherals the reset registers (AHB1RSTR ... APB2RSTR) reset: register, bit, device */
     struct {
         hwaddr rstr_offset;
@@ -252,5 +256,28 @@ struct RigDwtState {
     uint32_t cyccnt_base; /* CYCCNT when counting last (re)started */
     int64_t base_ns;      /* the virtual time then */
 };
+
+/* What one chip of the family has, as data (its datasheet's and reference manual's): the machines
+ * rig-stm32f405 and rig-stm32f411 are one construction (rig_stm32f405.c) over QEMU's STM32F405 SoC,
+ * each from its chip's table */
+#define RIG_GPIO_PORTS 9 /* A..I, the most a chip of the family has */
+typedef struct RigStm32Region {
+    hwaddr base, size;
+    const char *what;
+} RigStm32Region;
+typedef struct RigStm32Chip {
+    const char *name;                   /* the machine's */
+    uint32_t rcc_chip;                  /* the RCC's register table: 405 or 411 */
+    uint32_t flash_size;                /* bytes at 0x08000000 (and aliased at 0) */
+    uint32_t ccm_size;                  /* the CCM data RAM's bytes at 0x10000000 (QEMU's SoC has none) */
+    uint16_t timers;                    /* bit n: TIMn */
+    uint16_t port_pins[RIG_GPIO_PORTS]; /* each port's pins (bit n: Pxn); 0: the chip has no such port */
+    const RigStm32Region *absent;       /* what the F405 SoC maps and the chip lacks: a bus error there */
+    unsigned n_absent;
+} RigStm32Chip;
+
+/* The machine's init for @chip, and its class's (description, the "wires" property) */
+void rig_stm32f4_machine_init(MachineState *machine, const RigStm32Chip *chip);
+void rig_stm32f4_machine_class_init(MachineClass *mc, const char *desc);
 
 #endif

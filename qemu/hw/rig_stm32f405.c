@@ -26,6 +26,7 @@
 #include "hw/qdev-properties.h"
 #include "qapi/error.h"
 #include "qemu/error-report.h"
+#include "qemu/log.h"
 #include "rig_stm32f4.h"
 
 /* RM0090 table 10 (register boundary addresses) */
@@ -37,7 +38,6 @@
 #define FLASH_IF_BASE 0x40023C00
 #define GPIOA_BASE 0x40020000
 #define GPIO_STRIDE 0x400
-#define GPIO_PORTS 9
 #define I2C1_BASE 0x40005400
 #define APB1_I2C1 21   /* RCC_APB1ENR.I2C1EN and RCC_APB1RSTR.I2C1RST */
 #define IRQ_I2C1_EV 31 /* RM0090 table 61 (vector table) */
@@ -119,6 +119,10 @@ static unsigned timer_af(unsigned timer)
 /* The machine's "wires" property: pairs of pins joined, "PD12-PA0+PB0-PC1" */
 static char *wires_spec;
 
+/* RM0090 table 3: the CCM data RAM; QEMU's SoC has 192 KB of SRAM from 0x20000000 instead */
+#define CCM_BASE 0x10000000
+#define SRAM_SIZE_F4 (128 * 1024)
+
 /* the chardev id that links the machine to the rig's session */
 #define LINK_CHARDEV "rig-link"
 /* ARMv7-M: the DWT in the private peripheral bus */
@@ -143,12 +147,15 @@ static SysBusDevice *map_device(const char *type, hwaddr base, RigStm32RccState 
 
 /* TIM1..TIM14 over the SoC's placeholders and its TIM2-TIM5, their interrupts (an OR gate where two
  * timers share a line), reset bits, clocks and pins */
-static void map_timers(RigStm32RccState *rcc, DeviceState *nvic, DeviceState **gpio_ports)
+static void map_timers(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceState *nvic, DeviceState **gpio_ports)
 {
     DeviceState *tim[15] = { NULL };
     unsigned users[NVIC_LINES] = { 0 }, wired[NVIC_LINES] = { 0 };
     DeviceState *gate[NVIC_LINES] = { NULL };
     for (unsigned t = 1; t <= 14; t++) {
+        if (!(chip->timers >> t & 1u)) {
+            continue;
+        }
         for (unsigned k = 0; k < RIG_TIM_IRQS; k++) {
             if (timer_map[t].irq[k] >= 0) {
                 users[timer_map[t].irq[k]]++;
@@ -156,6 +163,9 @@ static void map_timers(RigStm32RccState *rcc, DeviceState *nvic, DeviceState **g
         }
     }
     for (unsigned t = 1; t <= 14; t++) {
+        if (!(chip->timers >> t & 1u)) {
+            continue;
+        }
         DeviceState *dev = qdev_new(TYPE_RIG_STM32_TIMER);
         g_autofree char *name = g_strdup_printf("tim%u", t);
         object_property_add_child(qdev_get_machine(), name, OBJECT(dev)); /* /machine/timN */
@@ -190,6 +200,11 @@ static void map_timers(RigStm32RccState *rcc, DeviceState *nvic, DeviceState **g
     unsigned slot[15][RIG_TIM_OUTPUTS] = { { 0 } };
     for (unsigned i = 0; i < ARRAY_SIZE(timer_pins); i++) {
         const TimerPin *p = &timer_pins[i];
+        /* the family's table, less what the chip lacks: the timer, or the pin (DS10314 table 9 is DS8626's
+         * for the timers and pins the F411 has) */
+        if (tim[p->timer] == NULL || !(chip->port_pins[p->port - 'A'] >> p->pin & 1u)) {
+            continue;
+        }
         DeviceState *port = gpio_ports[p->port - 'A'];
         unsigned line = RIG_GPIO_AF_LINE(p->pin, timer_af(p->timer)), ch = p->channel - 1;
         unsigned output = p->complementary ? RIG_TIM_CHANNELS + ch : ch;
@@ -204,21 +219,21 @@ static void map_timers(RigStm32RccState *rcc, DeviceState *nvic, DeviceState **g
     }
 }
 
-/* "PD12" as a port and pin, or false */
-static bool parse_pin(const char *text, unsigned *port, unsigned *pin)
+/* "PD12" as a port and pin the chip has, or false */
+static bool parse_pin(const RigStm32Chip *chip, const char *text, unsigned *port, unsigned *pin)
 {
     char *end;
-    if (text[0] != 'P' || text[1] < 'A' || text[1] >= 'A' + GPIO_PORTS) {
+    if (text[0] != 'P' || text[1] < 'A' || text[1] >= 'A' + RIG_GPIO_PORTS) {
         return false;
     }
     unsigned long n = strtoul(text + 2, &end, 10);
     *port = text[1] - 'A';
     *pin = n;
-    return end != text + 2 && *end == '\0' && n < RIG_GPIO_PINS;
+    return end != text + 2 && *end == '\0' && n < RIG_GPIO_PINS && (chip->port_pins[*port] >> n & 1u);
 }
 
 /* The "wires" pairs: the first pin's level drives the second from outside */
-static void wire_pins(DeviceState **gpio_ports)
+static void wire_pins(const RigStm32Chip *chip, DeviceState **gpio_ports)
 {
     if (wires_spec == NULL || wires_spec[0] == '\0') {
         return;
@@ -227,22 +242,62 @@ static void wire_pins(DeviceState **gpio_ports)
     for (char **pair = pairs; *pair != NULL; pair++) {
         g_auto(GStrv) ends = g_strsplit(*pair, "-", -1);
         unsigned from_port, from_pin, to_port, to_pin;
-        if (g_strv_length(ends) != 2 || !parse_pin(ends[0], &from_port, &from_pin) ||
-            !parse_pin(ends[1], &to_port, &to_pin)) {
-            error_report("rig-stm32f405: wires: '%s' is not a pair of pins like PD12-PA0", *pair);
+        if (g_strv_length(ends) != 2 || !parse_pin(chip, ends[0], &from_port, &from_pin) ||
+            !parse_pin(chip, ends[1], &to_port, &to_pin)) {
+            error_report("%s: wires: '%s' is not a pair of pins like PD12-PA0 that the chip has", chip->name, *pair);
             exit(1);
         }
         if (qdev_get_gpio_out_connector(gpio_ports[from_port], NULL, from_pin) != NULL) {
-            error_report("rig-stm32f405: wires: %s already drives something (PB6-PB9 may carry I2C1)", ends[0]);
+            error_report("%s: wires: %s already drives something (PB6-PB9 may carry I2C1)", chip->name, ends[0]);
             exit(1);
         }
         qdev_connect_gpio_out(gpio_ports[from_port], from_pin, qdev_get_gpio_in(gpio_ports[to_port], to_pin));
     }
 }
 
-static void rig_stm32f405_init(MachineState *machine)
+/* An access where the chip has nothing ("Reserved" in its reference manual's memory map): a bus error,
+ * as the bus matrix answers an address none of its slaves decodes (a precise BusFault, or a HardFault
+ * without BusFault enabled), and a guest_errors log */
+static MemTxResult absent_read(void *opaque, hwaddr offset, uint64_t *data, unsigned size, MemTxAttrs attrs)
+{
+    const RigStm32Region *r = opaque;
+    qemu_log_mask(LOG_GUEST_ERROR, "rig-stm32f4: read of 0x%" HWADDR_PRIx ": %s\n", r->base + offset, r->what);
+    *data = 0;
+    return MEMTX_ERROR;
+}
+
+static MemTxResult absent_write(void *opaque, hwaddr offset, uint64_t data, unsigned size, MemTxAttrs attrs)
+{
+    const RigStm32Region *r = opaque;
+    qemu_log_mask(LOG_GUEST_ERROR, "rig-stm32f4: write of 0x%" HWADDR_PRIx ": %s\n", r->base + offset, r->what);
+    return MEMTX_ERROR;
+}
+
+static const MemoryRegionOps absent_ops = {
+    .read_with_attrs = absent_read,
+    .write_with_attrs = absent_write,
+    .endianness = DEVICE_NATIVE_ENDIAN,
+    .valid.min_access_size = 1,
+    .valid.max_access_size = 4,
+};
+
+/* over the SoC's memories and devices (priority 0) and the rig's models (1) */
+#define ABSENT_PRIORITY 10
+
+static void map_absent(const RigStm32Chip *chip)
+{
+    for (unsigned i = 0; i < chip->n_absent; i++) {
+        MemoryRegion *mr = g_new0(MemoryRegion, 1);
+        memory_region_init_io(mr, NULL, &absent_ops, (void *)&chip->absent[i], chip->absent[i].what,
+                              chip->absent[i].size);
+        memory_region_add_subregion_overlap(get_system_memory(), chip->absent[i].base, mr, ABSENT_PRIORITY);
+    }
+}
+
+void rig_stm32f4_machine_init(MachineState *machine, const RigStm32Chip *chip)
 {
     DeviceState *rcc = qdev_new(TYPE_RIG_STM32_RCC);
+    qdev_prop_set_uint32(rcc, "chip", chip->rcc_chip);
     sysbus_realize_and_unref(SYS_BUS_DEVICE(rcc), &error_fatal);
     sysbus_mmio_map(SYS_BUS_DEVICE(rcc), 0, RCC_BASE);
     Clock *hclk = qdev_get_clock_out(rcc, "hclk");
@@ -255,8 +310,11 @@ static void rig_stm32f405_init(MachineState *machine)
     RigStm32RccState *r = RIG_STM32_RCC(rcc);
     rig_stm32_rcc_add_reset(r, RCC_APB1RSTR, APB1RSTR_PWRRST, DEVICE(map_device(TYPE_RIG_STM32_PWR, PWR_BASE, r, -1)));
     map_device(TYPE_RIG_STM32_FLASH_IF, FLASH_IF_BASE, NULL, -1);
-    DeviceState *gpio_ports[GPIO_PORTS];
-    for (int port = 0; port < GPIO_PORTS; port++) {
+    DeviceState *gpio_ports[RIG_GPIO_PORTS] = { NULL };
+    for (int port = 0; port < RIG_GPIO_PORTS; port++) {
+        if (chip->port_pins[port] == 0) {
+            continue; /* a port the chip lacks: its slot is in chip->absent */
+        }
         SysBusDevice *gpio = map_device(TYPE_RIG_STM32_GPIO, GPIOA_BASE + port * GPIO_STRIDE, r, port);
         gpio_ports[port] = DEVICE(gpio);
         rig_stm32_rcc_add_reset(r, RCC_AHB1RSTR, port, DEVICE(gpio)); /* GPIOxRST: bit x */
@@ -281,8 +339,9 @@ static void rig_stm32f405_init(MachineState *machine)
      * controller, and the bus (its pull-ups, a slave holding SDA) drives the pins from outside */
     rig_stm32_route_i2c1(i2c1, gpio_ports[1]);
 
-    map_timers(r, DEVICE(&STM32F405_SOC(soc)->armv7m), gpio_ports);
-    wire_pins(gpio_ports);
+    map_timers(chip, r, DEVICE(&STM32F405_SOC(soc)->armv7m), gpio_ports);
+    wire_pins(chip, gpio_ports);
+    map_absent(chip);
 
     DeviceState *dwt = qdev_new(TYPE_RIG_DWT);
     qdev_connect_clock_in(dwt, "hclk", hclk);
@@ -290,7 +349,12 @@ static void rig_stm32f405_init(MachineState *machine)
     memory_region_add_subregion_overlap(&STM32F405_SOC(soc)->armv7m.container, DWT_BASE,
                                         sysbus_mmio_get_region(SYS_BUS_DEVICE(dwt), 0), 0);
 
-    armv7m_load_kernel(ARM_CPU(first_cpu), machine->kernel_filename, 0, FLASH_SIZE);
+    if (chip->ccm_size != 0) {
+        MemoryRegion *ccm = g_new0(MemoryRegion, 1);
+        memory_region_init_ram(ccm, NULL, "rig-stm32f4.ccm", chip->ccm_size, &error_fatal);
+        memory_region_add_subregion(get_system_memory(), CCM_BASE, ccm);
+    }
+    armv7m_load_kernel(ARM_CPU(first_cpu), machine->kernel_filename, 0, chip->flash_size);
 }
 
 static char *get_wires(Object *obj, Error **errp) { return g_strdup(wires_spec ? wires_spec : ""); }
@@ -301,13 +365,38 @@ static void set_wires(Object *obj, const char *value, Error **errp)
     wires_spec = g_strdup(value);
 }
 
-static void rig_stm32f405_machine_init(MachineClass *mc)
+void rig_stm32f4_machine_class_init(MachineClass *mc, const char *desc)
 {
-    mc->desc = "STM32F405 with the rig's RCC, PWR, FLASH, GPIO, I2C, timer and DWT models and a GY-86 on I2C1";
-    mc->init = rig_stm32f405_init;
+    mc->desc = desc;
     object_class_property_add_str(OBJECT_CLASS(mc), "wires", get_wires, set_wires);
     object_class_property_set_description(OBJECT_CLASS(mc), "wires",
                                           "pins joined, each pair driver-driven: PD12-PA0[+PB0-PC1...]");
+}
+
+/* The STM32F405 (RM0090, DS8626): everything QEMU's SoC and the models have, its SRAM as the chip's 128 KB
+ * (SRAM1 and SRAM2) and the other 64 KB as the CCM data RAM at 0x10000000 */
+static const RigStm32Region f405_absent[] = {
+    { 0x20000000 + SRAM_SIZE_F4, 64 * 1024, "SRAM beyond the F405's 128 KB (its CCM RAM is at 0x10000000)" },
+};
+
+static const RigStm32Chip f405 = {
+    .name = "rig-stm32f405",
+    .rcc_chip = 405,
+    .flash_size = 1024 * 1024,
+    .ccm_size = 64 * 1024,
+    .absent = f405_absent,
+    .n_absent = ARRAY_SIZE(f405_absent),
+    .timers = 0x7FFE, /* TIM1..TIM14 */
+    .port_pins = { 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF },
+};
+
+static void rig_stm32f405_init(MachineState *machine) { rig_stm32f4_machine_init(machine, &f405); }
+
+static void rig_stm32f405_machine_init(MachineClass *mc)
+{
+    rig_stm32f4_machine_class_init(
+        mc, "STM32F405 with the rig's RCC, PWR, FLASH, GPIO, I2C, timer and DWT models and a GY-86 on I2C1");
+    mc->init = rig_stm32f405_init;
 }
 
 DEFINE_MACHINE("rig-stm32f405", rig_stm32f405_machine_init)

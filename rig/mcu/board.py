@@ -7,7 +7,8 @@ A board file is checked like a scenario: every error names the file and the dott
 its timer cannot drive (rig/mcu/mcus.py) is refused before anything runs. The shipped boards are in
 rig/mcu/boards/; ``--mcu NAME`` finds them by name, ``--mcu path/to/board.toml`` reads any other.
 
-    [board]      name, description, mcu ("atmega2560" | "atmega328p" | "stm32f405"), clock_hz
+    [board]      name, description, mcu ("atmega2560" | "atmega328p" | "stm32f405" | "stm32f411"), clock_hz,
+                 hse_hz (an STM32's crystal: 8 MHz unless given; the Black Pill's is 25 MHz)
     [sensors]    bus ("twi"), topology ("gy86" | "direct" | "gy521": the MPU-6050 alone), twi_hz,
                  mounting_yaw_deg (0, 90, 180, 270), mpu_address (0x68, or 0x69 with AD0 high)
     [[motors]]   motor (1..4: the plant's), pin ("PE4"), timer, channel ("A" | "B" | "C"; "1".."4" on
@@ -44,7 +45,11 @@ TOP: Final = {"board", "sensors", "motors", "rc", "telemetry", "eeprom", "fuses"
 BATTERY_KEYS: Final = {"pin", "divider", "volts"}
 #: a board's supply and ADC reference (AVCC): an Arduino's 5 V; a divided battery above it is clamped
 VCC: Final = 5.0
-BOARD_KEYS: Final = {"name", "description", "mcu", "clock_hz"}
+BOARD_KEYS: Final = {"name", "description", "mcu", "clock_hz", "hse_hz"}
+#: an STM32's crystal unless the board says (the common boards'), and the range its HSE oscillator takes
+#: (DS8626 and DS10314, "HSE 4-26 MHz oscillator characteristics")
+HSE_HZ: Final = 8_000_000
+HSE_RANGE: Final = (4_000_000, 26_000_000)
 SENSOR_KEYS: Final = {"bus", "topology", "twi_hz", "mounting_yaw_deg", "mpu_address"}
 MOTOR_KEYS: Final = {"motor", "pin", "timer", "channel", "protocol", "label"}
 RC_KEYS: Final = {"protocol", "uart", "baud", "pin", "pins"}
@@ -107,6 +112,7 @@ class Board:
     description: str
     mcu: Mcu
     clock_hz: int
+    hse_hz: int  # an STM32's crystal (0 on an AVR board)
     topology: str
     mpu_address: int
     twi_hz: int
@@ -150,6 +156,11 @@ def load(name: str | Path) -> Board:
     mcu_name = c.string(b, "mcu", "board", choices=tuple(MCUS))
     mcu = MCUS[mcu_name]
     clock = c.integer(b, "clock_hz", "board", 1_000_000, mcu.max_clock_hz)
+    hse = 0
+    if mcu.engine == "stm32":
+        hse = c.integer(b, "hse_hz", "board", *HSE_RANGE, default=HSE_HZ)
+    elif "hse_hz" in b:
+        raise c.fail("board.hse_hz", f"the {mcu.name} has no HSE crystal input: its clock is clock_hz")
     s = c.table(data.get("sensors", {}), "sensors", SENSOR_KEYS)
     c.string(s, "bus", "sensors", "twi", choices=("twi",))
     yaw = c.integer(s, "mounting_yaw_deg", "sensors", 0, 270, default=0)
@@ -200,6 +211,7 @@ def load(name: str | Path) -> Board:
         description=c.string(b, "description", "board", ""),
         mcu=mcu,
         clock_hz=clock,
+        hse_hz=hse,
         topology=c.string(s, "topology", "sensors", "gy86", choices=TOPOLOGIES),
         mpu_address=mpu_address,
         twi_hz=c.integer(s, "twi_hz", "sensors", 10_000, 1_000_000, default=400_000),

@@ -32,7 +32,7 @@ def check_firmware(board: Board, firmware: Path) -> None:
     if board.mcu.engine == "stm32":
         from rig.mcu.stm32_image import check_image
 
-        check_image(firmware)
+        check_image(firmware, board.mcu)
         return
     from rig.mcu.image import load
 

@@ -8,9 +8,13 @@ memories and the "Reset and Interrupt Vectors" table (57); ATmega48A/PA/88A/PA/1
 (DS40002061), §14.3, §8 and its vector table (26 for the 328P); avr-gcc's "AVR Options" (-mmcu): the
 ATmega328P is avr5, the ATmega2560 avr6. STM32F405: its datasheet (DS8626) table 9, "Alternate function
 mapping" (the timers' channels CH1..CH4, the USARTs' pins, I2C1), and RM0090 table 3 (memories).
+STM32F411xC/E: its datasheet (DS10314) table 9, "Alternate function mapping", and RM0383 section 2.3
+(memory map): 512 KB of flash, 128 KB of SRAM, no CCM RAM; TIM1-5 and TIM9-11; USART1, 2 and 6; GPIO
+ports A-E and H.
 
 ``engine`` says which engine runs the MCU (rig/mcu/engines.py): simavr ("avr") or the rig's QEMU
-("stm32")."""
+("stm32"); ``machine`` which of QEMU's machines (qemu/hw/) is the chip, and ``rams`` where its RAMs are,
+which the image check (rig/mcu/stm32_image.py) holds an image's stack to."""
 
 from __future__ import annotations
 
@@ -48,6 +52,12 @@ class Mcu:
     max_clock_hz: int = 32_000_000
     #: a timer's compare channels as board files name them (OCnA.. on an AVR, TIMn CH1.. on an STM32)
     channels: tuple[str, ...] = ("A", "B", "C")
+    #: the QEMU machine that is this chip (the STM32 tier's engine: rig/mcu/stm32_link.py)
+    machine: str = ""
+    #: where the flash starts (its size: ``flash``; an STM32 boots from it, aliased at 0)
+    flash_base: int = 0
+    #: the RAMs an image may put its stack and data in: (address, bytes)
+    rams: tuple[tuple[int, int], ...] = ()
 
     def output_name(self, timer: int, channel: str) -> str:
         """A timer output as the datasheet names it: OC1A, TIM4_CH1."""
@@ -97,5 +107,26 @@ MCUS: dict[str, Mcu] = {m.name: m for m in (
         usarts={1: ("PA10", "PA9"), 2: ("PA3", "PA2"), 3: ("PB11", "PB10"), 6: ("PC7", "PC6")},
         twi=("PB7", "PB6"), ports="ABCDEFGHI",
         engine="stm32", max_clock_hz=168_000_000, channels=("1", "2", "3", "4"),
+        machine="rig-stm32f405", flash_base=0x0800_0000,
+        # (RM0090 table 3: SRAM1 and SRAM2, then the CCM data RAM)
+        rams=((0x2000_0000, 128 * 1024), (0x1000_0000, 64 * 1024)),
+    ),
+    Mcu(
+        "stm32f411", flash=512 * 1024, sram=128 * 1024, eeprom=0,
+        # (DS10314 table 9: each timer channel's first pin, as qemu/hw/rig_stm32f411.c wires them; TIM5's
+        # channels share TIM2's pins, TIM9's USART2's, TIM10/11's I2C1's PB8/PB9)
+        oc_pins={
+            **{(1, c): p for c, p in (("1", "PA8"), ("2", "PA9"), ("3", "PA10"), ("4", "PA11"))},
+            **{(2, c): p for c, p in (("1", "PA0"), ("2", "PA1"), ("3", "PA2"), ("4", "PA3"))},
+            **{(3, c): p for c, p in (("1", "PA6"), ("2", "PA7"), ("3", "PB0"), ("4", "PB1"))},
+            **{(4, c): p for c, p in (("1", "PB6"), ("2", "PB7"), ("3", "PB8"), ("4", "PB9"))},
+            **{(5, c): p for c, p in (("1", "PA0"), ("2", "PA1"), ("3", "PA2"), ("4", "PA3"))},
+            (9, "1"): "PA2", (9, "2"): "PA3", (10, "1"): "PB8", (11, "1"): "PB9",
+        },
+        timers16=frozenset({1, 3, 4, 9, 10, 11}),
+        usarts={1: ("PA10", "PA9"), 2: ("PA3", "PA2"), 6: ("PA12", "PA11")},
+        twi=("PB7", "PB6"), ports="ABCDEH",
+        engine="stm32", max_clock_hz=100_000_000, channels=("1", "2", "3", "4"),
+        machine="rig-stm32f411", flash_base=0x0800_0000, rams=((0x2000_0000, 128 * 1024),),
     ),
 )}

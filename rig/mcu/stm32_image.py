@@ -1,8 +1,10 @@
-"""An STM32F405 firmware file checked before QEMU runs it: an ARM ELF (32-bit little-endian, machine 40)
+"""An STM32 firmware file checked before QEMU runs it: an ARM ELF (32-bit little-endian, machine 40)
 whose loadable segments lie in the file and in the chip's memories, with a vector table at the start of
 flash that QEMU can boot from (an initial stack pointer in RAM, a Thumb reset handler in flash). Anything
 else (an AVR image, a file cut short, a raw binary) is refused with the reason; otherwise QEMU would lock
-up at reset or load garbage (RM0090 2.3, memory map; ARMv7-M B1.5.3, the vector table)."""
+up at reset or load garbage (RM0090 and RM0383 2.3, memory map; ARMv7-M B1.5.3, the vector table). The
+memories are the MCU's (rig/mcu/mcus.py): an F405 image with code above 512 KB or its stack in the CCM
+RAM is refused for an F411."""
 
 from __future__ import annotations
 
@@ -11,12 +13,10 @@ from pathlib import Path
 from typing import Final
 
 from rig.mcu.image import FirmwareError, _elf_kind, _sections
+from rig.mcu.mcus import MCUS, Mcu
 
 EM_ARM: Final = 40
 PT_LOAD: Final = 1
-#: RM0090 table 3: the main flash (also aliased at 0 when booting from it), SRAM1/2 and the CCM RAM
-FLASH: Final = (0x0800_0000, 1024 * 1024)
-RAMS: Final = ((0x2000_0000, 128 * 1024), (0x1000_0000, 64 * 1024))
 
 
 def _inside(address: int, size: int, region: tuple[int, int]) -> bool:
@@ -24,9 +24,12 @@ def _inside(address: int, size: int, region: tuple[int, int]) -> bool:
     return start <= address and address + size <= start + length
 
 
-def check_image(path: Path) -> None:
-    """FirmwareError unless ``path`` is an ARM ELF the rig-stm32f405 machine can boot."""
+def check_image(path: Path, mcu: Mcu = MCUS["stm32f405"]) -> None:
+    """FirmwareError unless ``path`` is an ARM ELF ``mcu``'s machine can boot."""
     path = Path(path)
+    flash = (mcu.flash_base, mcu.flash)  # (also aliased at 0 when booting from it)
+    size = f"{mcu.flash // 1024} KB" if mcu.flash < 1024 * 1024 else f"{mcu.flash // (1024 * 1024)} MB"
+    chip = mcu.name.upper()
     if not path.is_file():
         raise FirmwareError(f"{path}: no such file")
     data = path.read_bytes()
@@ -49,19 +52,21 @@ def check_image(path: Path) -> None:
         if offset + filesz > len(data):
             raise FirmwareError(f"{path}: cut short: segment {i} ends at byte {offset + filesz}, the file "
                                 f"has {len(data)}")
-        if not (_inside(paddr, filesz, FLASH) or _inside(paddr, filesz, (0, FLASH[1]))):
+        if not (_inside(paddr, filesz, flash) or _inside(paddr, filesz, (0, flash[1]))):
             raise FirmwareError(f"{path}: segment {i} loads at 0x{paddr:08x}..0x{paddr + filesz:08x}, "
-                                "outside the STM32F405's 1 MB flash (0x08000000)")
-        if paddr in (0, FLASH[0]) and filesz >= 8:
+                                f"outside the {chip}'s {size} flash (0x{flash[0]:08x})")
+        if paddr in (0, flash[0]) and filesz >= 8:
             vectors = data[offset:offset + 8]
     _sections(path, data)  # (FirmwareError when the section headers or a section lie past the file)
     if vectors is None:
         raise FirmwareError(f"{path}: nothing loads at the start of flash (0x08000000): no vector table to "
                             "boot from")
     sp, reset = struct.unpack("<II", vectors)
-    if not any(_inside(sp - 4, 4, ram) for ram in RAMS):
-        raise FirmwareError(f"{path}: the vector table's initial stack pointer 0x{sp:08x} is not in RAM")
-    if not reset & 1 or not (_inside(reset & ~1, 2, FLASH) or _inside(reset & ~1, 2, (0, FLASH[1]))):
+    if not any(_inside(sp - 4, 4, ram) for ram in mcu.rams):
+        rams = ", ".join(f"0x{a:08x} {n // 1024} KB" for a, n in mcu.rams)
+        raise FirmwareError(f"{path}: the vector table's initial stack pointer 0x{sp:08x} is not in the "
+                            f"{chip}'s RAM ({rams})")
+    if not reset & 1 or not (_inside(reset & ~1, 2, flash) or _inside(reset & ~1, 2, (0, flash[1]))):
         raise FirmwareError(f"{path}: the reset vector 0x{reset:08x} is not a Thumb address in flash")
 
 

@@ -1,7 +1,7 @@
 """The STM32 tier's engine in lockstep (docs/stm32.md): the rig's ``qemu-system-arm``
-(rig/mcu/stm32_engine.py) running an ARM image on the rig-stm32f405 machine, linked to this process by a
-Unix socket (qemu/hw/rig_link.c), with AvrEngine's interface (rig/mcu/engine.py), so the MCU session
-runs either.
+(rig/mcu/stm32_engine.py) running an ARM image on the board MCU's machine (its ``machine``: rig-stm32f405,
+rig-stm32f411) with the board's crystal, linked to this process by a Unix socket (qemu/hw/rig_link.c),
+with AvrEngine's interface (rig/mcu/engine.py), so the MCU session runs either.
 
 Time is QEMU's virtual time under ``-icount shift=ICOUNT_SHIFT,sleep=off`` (each instruction 2**shift ns):
 the instruction count, so the same image, world and needs served give the same bytes and pulses, run
@@ -46,7 +46,6 @@ __all__ = ["ICOUNT_SHIFT", "LINK_VERSION", "LinkError", "Stm32Engine"]
 LINK_VERSION: Final = 2
 #: 2**3 ns an instruction: 125 M instructions per virtual second
 ICOUNT_SHIFT: Final = 3
-MACHINE: Final = "rig-stm32f405"
 HEADER: Final = struct.Struct("<B3xI")
 MAX_PAYLOAD: Final = 1024
 #: a safety net for QEMU's start and for a QEMU that stops answering (not a timing of the run)
@@ -92,7 +91,7 @@ class Stm32Engine:
     """One QEMU running one image, in lockstep. close() ends QEMU (and reaps it)."""
 
     def __init__(self, cfg: Stm32Config, chips: ChipBoard | None) -> None:
-        check_image(cfg.firmware)
+        check_image(cfg.firmware, cfg.board.mcu)
         binary = cfg.binary
         if binary is None:
             from rig.mcu import stm32_engine
@@ -148,8 +147,10 @@ class Stm32Engine:
             chardev = f"rig-usart{n}"
             uarts += ["-chardev", f"ringbuf,id={chardev},size={UART_RING_BYTES}",
                       "-serial", f"chardev:{chardev}"]
-        cmd = [str(binary), "-M", MACHINE, "-nodefaults", "-display", "none", "-monitor", "none",
-               "-chardev", f"socket,id=rig-link,path={path}", *uarts,
+        # (the machine is the MCU's, its crystal the board's)
+        cmd = [str(binary), "-M", cfg.board.mcu.machine,
+               "-global", f"rig-stm32f4-rcc.hse-hz={cfg.board.hse_hz}", "-nodefaults",
+               "-display", "none", "-monitor", "none", "-chardev", f"socket,id=rig-link,path={path}", *uarts,
                "-semihosting-config", "enable=on,target=native",
                "-icount", f"shift={ICOUNT_SHIFT},sleep=off", "-kernel", str(firmware)]
         self._proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=self._output,

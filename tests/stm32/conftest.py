@@ -40,10 +40,11 @@ def firmware(name: str) -> Path:
     return REPO / target
 
 
-def run_firmware(engine: Path, elf: Path, *qemu_args: str) -> subprocess.CompletedProcess[str]:
-    """``elf`` on the rig-stm32f405 machine, in icount time, its semihosting on QEMU's standard output;
-    no display, monitor or serial port."""
-    cmd = [str(engine), "-M", "rig-stm32f405", "-nodefaults", "-display", "none",
+def run_firmware(engine: Path, elf: Path, *qemu_args: str,
+                 machine: str = "rig-stm32f405") -> subprocess.CompletedProcess[str]:
+    """``elf`` on ``machine``, in icount time, its semihosting on QEMU's standard output; no display,
+    monitor or serial port."""
+    cmd = [str(engine), "-M", machine, "-nodefaults", "-display", "none",
            "-chardev", "stdio,id=semi", "-semihosting-config", "enable=on,target=native,chardev=semi",
            "-icount", f"shift={ICOUNT_SHIFT},sleep=off", *qemu_args, "-kernel", str(elf)]
     return subprocess.run(cmd, stdin=subprocess.DEVNULL, capture_output=True, text=True,

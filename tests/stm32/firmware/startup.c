@@ -26,6 +26,8 @@ void tim8_cc_handler(void) __attribute__((weak, alias("fault_handler")));
 void tim5_handler(void) __attribute__((weak, alias("fault_handler")));
 void tim6_dac_handler(void) __attribute__((weak, alias("fault_handler")));
 void tim7_handler(void) __attribute__((weak, alias("fault_handler")));
+/* the BusFault (exception 5): a firmware that probes absent memory (f411_map.c) defines it */
+void bus_fault_handler(void) __attribute__((weak, alias("fault_handler")));
 
 #define CFSR (*(volatile uint32_t *)0xE000ED28u)
 #define HFSR (*(volatile uint32_t *)0xE000ED2Cu)
@@ -57,7 +59,7 @@ __attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 5
     fault_handler,
     fault_handler,
     fault_handler,
-    fault_handler,
+    bus_fault_handler,
     fault_handler,
     0,
     0,
