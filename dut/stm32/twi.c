@@ -15,6 +15,13 @@
    of a device register ends a translation block: polling back to back read SR1 1.97 M times a simulated
    second and took most of QEMU's CPU time (docs/reference-fc.md, "Speed"); with the gap, 0.17 M. */
 #define POLL_GAP 40
+/* An event the bus needs some SCL periods for is not polled for until 90 % of them have passed (the
+   spin is of no device register): a byte is nine periods, so its wait polls twice or three times, not
+   twenty. SCL's period at the fast-mode set-up (RM0090 27.6.8, duty 2: T = 3 CCR / f_PCLK1). */
+#define SCL_PERIOD_NS (3000u * I2C_FAST_CCR / I2C_FREQ_MHZ)
+#define SPINS_FOR_PERIODS(n) ((n)*SCL_PERIOD_NS * POLL_GAP * 9u / 10u / 1000u)
+#define PERIODS_START 1u
+#define PERIODS_BYTE 9u
 
 twi_stats twi_counters;
 
@@ -67,9 +74,12 @@ void twi_recover(void)
     twi_init();
 }
 
-/* any of @mask in SR1: SR1; an error flag (cleared here): -1 NACK, -3 bus error; never: -2 */
-static int32_t wait_sr1(uint32_t mask)
+/* any of @mask in SR1, which the bus gives after about @periods of SCL: SR1; an error flag (cleared
+   here): -1 NACK, -3 bus error; never: -2 */
+static int32_t wait_sr1(uint32_t mask, uint32_t periods)
 {
+    for (uint32_t k = 0; k < SPINS_FOR_PERIODS(periods); k++)
+        __asm volatile("nop");
     for (uint32_t i = 0; i < POLL_LIMIT; i++) {
         for (int k = 0; k < POLL_GAP; k++)
             __asm volatile("nop");
@@ -99,11 +109,11 @@ static void clear_addr(void)
 static int address(uint8_t byte)
 {
     I2C1_CR1 |= I2C_CR1_START;
-    int32_t r = wait_sr1(I2C_SR1_SB);
+    int32_t r = wait_sr1(I2C_SR1_SB, PERIODS_START);
     if (r < 0)
         return (int)r;
     I2C1_DR = byte; /* SR1 read, then DR written: SB clears */
-    r = wait_sr1(I2C_SR1_ADDR);
+    r = wait_sr1(I2C_SR1_ADDR, PERIODS_BYTE);
     return r < 0 ? (int)r : 0;
 }
 
@@ -114,14 +124,14 @@ static int receive(uint8_t *rx, uint8_t n)
         I2C1_CR1 &= ~I2C_CR1_ACK;
         clear_addr();
         I2C1_CR1 |= I2C_CR1_STOP;
-        if ((r = wait_sr1(I2C_SR1_RXNE)) < 0)
+        if ((r = wait_sr1(I2C_SR1_RXNE, PERIODS_BYTE)) < 0)
             return (int)r;
         rx[0] = (uint8_t)I2C1_DR;
     } else if (n == 2) {
         I2C1_CR1 &= ~I2C_CR1_ACK;
         I2C1_CR1 |= I2C_CR1_POS;
         clear_addr();
-        if ((r = wait_sr1(I2C_SR1_BTF)) < 0)
+        if ((r = wait_sr1(I2C_SR1_BTF, PERIODS_BYTE)) < 0)
             return (int)r;
         I2C1_CR1 |= I2C_CR1_STOP;
         rx[0] = (uint8_t)I2C1_DR;
@@ -130,15 +140,15 @@ static int receive(uint8_t *rx, uint8_t n)
         uint8_t i = 0;
         clear_addr();
         while (n - i > 3) {
-            if ((r = wait_sr1(I2C_SR1_RXNE)) < 0)
+            if ((r = wait_sr1(I2C_SR1_RXNE, PERIODS_BYTE)) < 0)
                 return (int)r;
             rx[i++] = (uint8_t)I2C1_DR;
         }
-        if ((r = wait_sr1(I2C_SR1_BTF)) < 0) /* N-2 in DR, N-1 in the shift register */
+        if ((r = wait_sr1(I2C_SR1_BTF, PERIODS_BYTE)) < 0) /* N-2 in DR, N-1 in the shift register */
             return (int)r;
         I2C1_CR1 &= ~I2C_CR1_ACK;
         rx[i++] = (uint8_t)I2C1_DR; /* N comes in, NACKed */
-        if ((r = wait_sr1(I2C_SR1_BTF)) < 0)
+        if ((r = wait_sr1(I2C_SR1_BTF, PERIODS_BYTE)) < 0)
             return (int)r;
         I2C1_CR1 |= I2C_CR1_STOP;
         rx[i++] = (uint8_t)I2C1_DR;
@@ -161,12 +171,13 @@ static int transfer(uint8_t addr, const uint8_t *w, uint8_t wn, uint8_t *r, uint
             return st;
         clear_addr();
         for (uint8_t k = 0; k < wn; k++) {
-            int32_t s = wait_sr1(I2C_SR1_TXE);
+            /* DR and the shift register take the first two bytes at once */
+            int32_t s = wait_sr1(I2C_SR1_TXE, k < 2 ? 0u : PERIODS_BYTE);
             if (s < 0)
                 return (int)s;
             I2C1_DR = w[k];
         }
-        int32_t s = wait_sr1(I2C_SR1_BTF);
+        int32_t s = wait_sr1(I2C_SR1_BTF, PERIODS_BYTE);
         if (s < 0)
             return (int)s;
         if (rn == 0) {
