@@ -38,10 +38,15 @@
 #include "qapi/error.h"
 #include "qemu/log.h"
 #include "qemu/module.h"
+#include "qemu/timer.h"
 #include "rig_stm32f4.h"
 
 #define AHB1ENR 0x30
 #define AHB1ENR_DMA1EN 21 /* DMA2EN: 22 */
+/* the DMA requests served at one virtual instant before the rest wait for the next microsecond (about the
+ * pace of the chip's AHB, a few cycles an item) */
+#define RIG_DMA_ROUNDS_AT_ONCE 16
+#define RIG_DMA_PACE_NS 1000
 
 /* RM0090 10.5.1-10.5.4 (table 44, the DMA register map): the interrupt status and clear registers */
 static const RigRegister dma_registers[] = {
@@ -247,14 +252,18 @@ static int stream_of(RigStm32DmaState *s, unsigned source)
     return -1;
 }
 
-/* Serves the pending requests, those raised while serving included */
+/* Serves the pending requests, those raised while serving included. A firmware whose transfers raise
+ * their own requests again (a timer's UG written by its update DMA) would never let virtual time move:
+ * after RIG_DMA_ROUNDS_AT_ONCE rounds of them the rest wait a while, and the core runs on */
 static void serve(RigStm32DmaState *s)
 {
+    unsigned rounds = 0;
+    bool any = true;
     if (s->busy) {
         return;
     }
     s->busy = true;
-    for (bool any = true; any;) {
+    while (any && rounds++ < RIG_DMA_ROUNDS_AT_ONCE) {
         any = false;
         for (unsigned source = 0; source < RIG_DMA_SOURCES; source++) {
             if (s->pending[source]) {
@@ -269,7 +278,12 @@ static void serve(RigStm32DmaState *s)
     }
     s->busy = false;
     update_irqs(s);
+    if (any) { /* (armed last: with the core asleep, arming moves virtual time on to it at once) */
+        timer_mod(s->later, qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL) + RIG_DMA_PACE_NS);
+    }
 }
+
+static void serve_later(void *opaque) { serve(opaque); }
 
 static void request_changed(void *opaque, int source, int level)
 {
@@ -412,6 +426,7 @@ static void dma_reset(DeviceState *dev)
         st->fcr = stream_registers[S_FCR].reg.reset;
     }
     memset(s->pending, 0, sizeof(s->pending));
+    timer_del(s->later);
     update_irqs(s);
 }
 
@@ -433,6 +448,7 @@ static void dma_init(Object *obj)
     }
     qdev_init_gpio_in_named(DEVICE(obj), request_changed, "request", RIG_DMA_SOURCES);
     qdev_init_gpio_out_named(DEVICE(obj), s->eot1, "eot1", RIG_DMA_SOURCES);
+    s->later = timer_new_ns(QEMU_CLOCK_VIRTUAL, serve_later, s);
 }
 
 static Property dma_properties[] = {

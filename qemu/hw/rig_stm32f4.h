@@ -161,6 +161,7 @@ struct RigStm32DmaState {
     bool level[RIG_DMA_SOURCES];    /* the request lines' levels */
     bool pending[RIG_DMA_SOURCES];  /* requests raised while the controller was moving an item */
     bool busy;
+    QEMUTimer *later; /* the requests left when too many came at one instant */
 };
 
 /* I2C v1 (RM0090 section 27), master mode */

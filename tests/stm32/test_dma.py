@@ -147,6 +147,26 @@ def test_timer_update_requests_write_ccr1_each_period(r: dict[str, int]) -> None
     assert r["tim_cr_en"] == 1
 
 
+def test_double_buffer_mode(r: dict[str, int]) -> None:
+    """10.3.10: with DBM each round of NDTR items goes to the memory CT names, and CT switches at its end
+    (set after rounds one and three, clear after two); the address of the memory not in use can be written
+    while the stream runs (10.5.8, 10.5.9: M0AR while CT = 1), the one in use cannot. The source's words
+    are 0x1000 (i + 1), 0x10 more after each round."""
+    for b in range(3):
+        assert r[f"db_buffer{b}_first"] == 0x1000 + 0x10 * b, b
+        assert r[f"db_buffer{b}_last"] == 0x4000 + 0x10 * b, b
+    assert [r[f"db_ct{k}"] for k in range(3)] == [1 << 19, 0, 1 << 19]
+    assert r["db_m0ar_is_buffer2"] == 1
+    assert r["db_m1ar_is_buffer1"] == 1
+
+
+def test_a_request_storm_lets_the_core_run(r: dict[str, int]) -> None:
+    """TIM7's update DMA writing UG into its own EGR requests again at every item (circular): the engine
+    must not serve that forever at one instant; the firmware, still running, disables the stream."""
+    assert r["storm_stopped_cr_en"] == 0
+    assert r["storm_tcif"] == TCIF  # stream 4: HISR bits 0-5
+
+
 def test_i2c_read_by_dma_with_last(r: dict[str, int]) -> None:
     """27.3.8: I2C1's RXNE requests (DMA1 stream 0, channel 1, table 42) move the MPU-6050's 14-byte burst
     into memory; with LAST the controller NACKs the byte after the DMA's EOT_1, the last, so nothing more

@@ -40,11 +40,13 @@
 #define FLAGS 0x3Du
 #define RCC_AHB1ENR_DMA1EN (1u << 21)
 #define RCC_AHB1ENR_DMA2EN (1u << 22)
+#define RCC_APB1ENR_TIM3EN (1u << 1)
 #define RCC_APB1ENR_TIM4EN (1u << 2)
 #define TIM_DIER_UDE (1u << 8)
 #define I2C_CR2_DMAEN (1u << 11)
 #define I2C_CR2_LAST (1u << 12)
 #define DMA1_STREAM0_IRQ 11u
+#define DMA1_STREAM2_IRQ 13u
 #define DMA1_STREAM6_IRQ 17u
 #define DMA2_STREAM0_IRQ 56u
 #define UNMAPPED 0x60000000u /* FSMC bank 1: nothing there on this board */
@@ -55,7 +57,7 @@ static void report2(const char *prefix, unsigned index, const char *suffix, uint
 {
     char name[40];
     unsigned n = 0;
-    while (*prefix) {
+    while (*prefix && n < sizeof name - 2) {
         name[n++] = *prefix++;
     }
     name[n++] = (char)('0' + index);
@@ -213,6 +215,38 @@ static void memory_to_memory(void)
 static const uint16_t table[8] = { 10, 25, 40, 55, 70, 85, 30, 60 };
 static volatile uint32_t rounds, halves;
 
+/* Double-buffer mode on TIM3's update requests (DMA1 stream 2, channel 5): four words from a source in SRAM (PINC) into M0AR's
+   buffer, then M1AR's, each round; the interrupt adds 0x10 to the source at each TC, keeps CT, and after
+   the first round (M1 current) points M0AR at a third buffer (allowed) and M1AR at the first (refused) */
+#define CR_DBM (1u << 18)
+#define CR_CT (1u << 19)
+static volatile uint32_t db_source[4];
+static volatile uint32_t db_buffers[3][4];
+static volatile uint32_t db_rounds, db_ct[3];
+
+static void double_buffer_tc(void)
+{
+    db_ct[db_rounds] = DMA_SCR(DMA1_BASE, 2) & CR_CT;
+    for (unsigned i = 0; i < 4; i++) {
+        db_source[i] += 0x10u;
+    }
+    if (++db_rounds == 1) {
+        DMA_SM0AR(DMA1_BASE, 2) = (uint32_t)db_buffers[2];
+        DMA_SM1AR(DMA1_BASE, 2) = (uint32_t)db_buffers[0];
+    } else if (db_rounds == 3) {
+        TIM_CR1(TIM3_BASE) &= ~TIM_CR1_CEN;
+    }
+}
+
+void dma1_stream2_handler(void)
+{
+    uint32_t flags = DMA_LISR(DMA1_BASE) >> 16 & FLAGS; /* stream 2: bits 16-21 of LISR */
+    DMA_LIFCR(DMA1_BASE) = flags << 16;
+    if (flags & FLAG_TCIF) {
+        double_buffer_tc();
+    }
+}
+
 void dma1_stream6_handler(void)
 {
     uint32_t flags = DMA_HISR(DMA1_BASE) >> 16 & FLAGS; /* stream 6: bits 16-21 of HISR */
@@ -221,6 +255,57 @@ void dma1_stream6_handler(void)
     if ((flags & FLAG_TCIF) && ++rounds == 2) {
         TIM_CR1(TIM4_BASE) &= ~TIM_CR1_CEN; /* two rounds of the table */
     }
+}
+
+static void double_buffer_mode(void)
+{
+    for (unsigned i = 0; i < 4; i++) {
+        db_source[i] = 0x1000u * (i + 1u);
+    }
+    RCC_APB1ENR |= RCC_APB1ENR_TIM3EN;
+    TIM_DIER(TIM3_BASE) = TIM_DIER_UDE;
+    DMA_SPAR(DMA1_BASE, 2) = (uint32_t)db_source;
+    DMA_SM0AR(DMA1_BASE, 2) = (uint32_t)db_buffers[0];
+    DMA_SM1AR(DMA1_BASE, 2) = (uint32_t)db_buffers[1];
+    DMA_SNDTR(DMA1_BASE, 2) = 4u;
+    DMA_SCR(DMA1_BASE, 2) = CR_CHSEL(5u) | CR_DBM | CR_PINC | CR_MINC | CR_PSIZE(2u) | CR_MSIZE(2u) | CR_TCIE;
+    DMA_SCR(DMA1_BASE, 2) |= CR_EN;
+    nvic_enable(DMA1_STREAM2_IRQ);
+    timer_start(TIM3_BASE, TIM4_PSC, TIM4_ARR, TIM_CR1_ARPE);
+    while (db_rounds < 3) {
+        __asm volatile("wfi");
+    }
+    DMA_SCR(DMA1_BASE, 2) &= ~CR_EN;
+    for (unsigned b = 0; b < 3; b++) {
+        report2("db_buffer", b, "_first", db_buffers[b][0]);
+        report2("db_buffer", b, "_last", db_buffers[b][3]);
+        report2("db_ct", b, "", db_ct[b]);
+    }
+    report("db_m0ar_is_buffer2", DMA_SM0AR(DMA1_BASE, 2) == (uint32_t)db_buffers[2]);
+    report("db_m1ar_is_buffer1", DMA_SM1AR(DMA1_BASE, 2) == (uint32_t)db_buffers[1]);
+}
+
+/* A request storm: TIM7's update DMA writing UG into TIM7_EGR, each write an update and a request again
+   (circular, DMA1 stream 4, channel 1). The engine paces it; the core goes on and stops it. */
+#define RCC_APB1ENR_TIM7EN (1u << 5)
+static void request_storm(void)
+{
+    static const uint32_t ug = TIM_EGR_UG;
+    RCC_APB1ENR |= RCC_APB1ENR_TIM7EN;
+    TIM_DIER(TIM7_BASE) = TIM_DIER_UDE;
+    DMA_SPAR(DMA1_BASE, 4) = (uint32_t)&TIM_EGR(TIM7_BASE);
+    DMA_SM0AR(DMA1_BASE, 4) = (uint32_t)&ug;
+    DMA_SNDTR(DMA1_BASE, 4) = 1u;
+    DMA_SCR(DMA1_BASE, 4) = CR_CHSEL(1u) | CR_M2P | CR_CIRC | CR_PSIZE(2u) | CR_MSIZE(2u);
+    DMA_SCR(DMA1_BASE, 4) |= CR_EN;
+    TIM_EGR(TIM7_BASE) = TIM_EGR_UG;
+    for (unsigned i = 0; i < 100u; i++) {
+        __asm volatile("nop");
+    }
+    DMA_SCR(DMA1_BASE, 4) &= ~CR_EN;
+    report("storm_stopped_cr_en", DMA_SCR(DMA1_BASE, 4) & CR_EN);
+    report("storm_tcif", DMA_HISR(DMA1_BASE) & FLAG_TCIF);
+    DMA_HIFCR(DMA1_BASE) = 0xFFFFFFFFu;
 }
 
 static void timer_update_dma(void)
@@ -326,6 +411,8 @@ int main(void)
     registers();
     memory_to_memory();
     timer_update_dma();
+    double_buffer_mode();
+    request_storm();
     i2c_dma();
     put_text("done\n");
     return 0;

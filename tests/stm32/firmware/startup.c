@@ -29,6 +29,7 @@ void tim7_handler(void) __attribute__((weak, alias("fault_handler")));
 /* the DMA streams' interrupts: DMA1 stream 0-6 on 11-17 and stream 7 on 47, DMA2 stream 0-4 on 56-60 and
    stream 5-7 on 68-70 */
 void dma1_stream0_handler(void) __attribute__((weak, alias("fault_handler")));
+void dma1_stream2_handler(void) __attribute__((weak, alias("fault_handler")));
 void dma1_stream6_handler(void) __attribute__((weak, alias("fault_handler")));
 void dma2_stream0_handler(void) __attribute__((weak, alias("fault_handler")));
 
@@ -75,7 +76,9 @@ __attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 7
     fault_handler,
     F, F, F, F, F, F, F, F, F, F, F,                /* IRQ 0-10 */
     dma1_stream0_handler, /* IRQ 11 */
-    F, F, F, F, F,                                  /* IRQ 12-16: DMA1 stream 1-5 */
+    F,                                              /* IRQ 12: DMA1 stream 1 */
+    dma1_stream2_handler, /* IRQ 13 */
+    F, F, F,                                        /* IRQ 14-16: DMA1 stream 3-5 */
     dma1_stream6_handler, /* IRQ 17 */
     F, F, F, F, F, F,                               /* IRQ 18-23 */
     tim1_brk_tim9_handler, /* IRQ 24 */
