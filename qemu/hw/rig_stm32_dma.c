@@ -25,7 +25,7 @@
  *
  * Not modelled: bursts (PBURST/MBURST move single items), priorities (requests are served at once, so
  * streams never wait on each other), the FIFO's threshold and errors, peripheral flow control (PFCTRL
- * stored), the DMA1 peripheral port's limit to APB1.
+ * stored), the DMA1 peripheral port's limit to APB1 (but for memory-to-memory on DMA1: a transfer error).
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -309,7 +309,10 @@ static void stream_enabled(RigStm32DmaState *s, unsigned n)
         st->cr = (st->cr & ~(3u << CR_MSIZE_SHIFT | CR_PINCOS)) | (st->cr >> CR_PSIZE_SHIFT & 3) << CR_MSIZE_SHIFT;
     }
     if (direction(st) == DIR_M2M && s->controller == 1) {
+        /* 10.3.6: DMA1's peripheral port is not on the bus matrix, so it reads no memory: a bus error */
         qemu_log_mask(LOG_GUEST_ERROR, "rig-stm32f4-dma: DMA1 stream %u: memory-to-memory is DMA2's only\n", n);
+        set_flags(s, n, TEIF);
+        st->cr &= ~CR_EN;
         return;
     }
     if (direction(st) == DIR_M2M) {

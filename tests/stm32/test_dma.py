@@ -128,6 +128,15 @@ def test_transfer_error(r: dict[str, int]) -> None:
     assert r["error_ndtr"] == 4
 
 
+def test_memory_to_memory_on_dma1_is_a_transfer_error(r: dict[str, int]) -> None:
+    """10.3.6: only DMA2 copies memory to memory (DMA1's peripheral port is not on the bus matrix): on DMA1
+    the stream stops with TEIF and nothing moves, whatever its (here reserved) sizes and count."""
+    assert r["dma1_m2m_lisr"] == TEIF << FLAG_OFFSET[1]
+    assert r["dma1_m2m_cr_en"] == 0
+    assert r["dma1_m2m_ndtr"] == 0xFFFF
+    assert r["dma1_m2m_destination"] == 0
+
+
 def test_timer_update_requests_write_ccr1_each_period(r: dict[str, int]) -> None:
     """Table 42: TIM4_UP is DMA1 stream 6, channel 2. UG's request writes the first value into CCR1's
     preload, and each update event after takes the preload into the shadow register (the period's pulse,

@@ -207,6 +207,19 @@ static void memory_to_memory(void)
     report("error_cr", DMA_SCR(DMA2_BASE, 1));
     report("error_ndtr", DMA_SNDTR(DMA2_BASE, 1));
     DMA_LIFCR(DMA2_BASE) = 0xFFFFFFFFu;
+
+    /* DMA1 stream 1 memory-to-memory, reserved PSIZE (11) and all of NDTR: DMA2's only, nothing moves */
+    destination[0] = 0;
+    DMA_SPAR(DMA1_BASE, 1) = (uint32_t)source;
+    DMA_SM0AR(DMA1_BASE, 1) = (uint32_t)destination;
+    DMA_SNDTR(DMA1_BASE, 1) = 0xFFFFu;
+    DMA_SCR(DMA1_BASE, 1) = CR_M2M | CR_PSIZE(3u) | CR_PINC | CR_MINC;
+    DMA_SCR(DMA1_BASE, 1) |= CR_EN;
+    report("dma1_m2m_lisr", DMA_LISR(DMA1_BASE));
+    report("dma1_m2m_cr_en", DMA_SCR(DMA1_BASE, 1) & CR_EN);
+    report("dma1_m2m_ndtr", DMA_SNDTR(DMA1_BASE, 1));
+    report("dma1_m2m_destination", destination[0]);
+    DMA_LIFCR(DMA1_BASE) = 0xFFFFFFFFu;
 }
 
 /* DShot-like: TIM4 CH1's compare values, one a period, from TIM4_UP's requests (DMA1 stream 6, channel 2) */
