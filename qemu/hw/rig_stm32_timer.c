@@ -32,8 +32,8 @@
  *   rig-stm32f4-timer: t_ns=T TIMn chC high_ticks=H period_ticks=P clock_hz=F
  *
  * Not modelled: the other slave modes (gated, encoder, external clock) and triggers (ITRx: timer
- * chaining, TI1F_ED, ETR), hall-sensor mode, dead time, break, COM, DMA bursts
- * (DMAR reads 0), ICxF, OCxFE, OCxCE.
+ * chaining, TI1F_ED, ETR), hall-sensor mode, dead time, break, COM, ICxF, OCxFE, OCxCE. DMA bursts
+ * through DMAR: rig_stm32_timer_burst.c.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -368,6 +368,7 @@ static void settle(RigStm32TimerState *s)
     bool outermost = !s->settling;
     uint8_t requests = s->dma_pending;
     s->dma_pending = 0;
+    s->dma_sent = requests ? requests : s->dma_sent; /* (a DMAR burst goes on with them) */
     s->settling = true;
     drive_outputs(s);
     update_irqs(s);
@@ -528,7 +529,7 @@ static uint64_t tim_read(void *opaque, hwaddr offset, unsigned size)
     if (i == CR1) { /* DIR: as the counter goes (read-only when center-aligned) */
         return (s->regs[CR1] & ~CR1_DIR) | (s->down ? CR1_DIR : 0);
     }
-    return i == EGR || i == DMAR ? 0 : s->regs[i];
+    return i == EGR ? 0 : i == DMAR ? rig_stm32_timer_dmar(s, false, 0) : s->regs[i];
 }
 
 static void tim_write(void *opaque, hwaddr offset, uint64_t value, unsigned size)
@@ -591,7 +592,7 @@ static void tim_write(void *opaque, hwaddr offset, uint64_t value, unsigned size
         s->regs[CCER] = v;
         break;
     case DMAR:
-        qemu_log_mask(LOG_UNIMP, "rig-stm32f4-timer: TIM%u: DMA burst (DMAR) not modelled\n", s->index);
+        rig_stm32_timer_dmar(s, true, (uint32_t)value);
         break;
     default:
         s->regs[i] = v;
@@ -618,7 +619,7 @@ static void tim_reset(DeviceState *dev)
     memset(s->out, -2, sizeof(s->out));
     s->arr = s->psc = s->prescaler = s->repetition = s->period_ticks = s->latched_hz = 0;
     s->down = s->counting = false;
-    s->dma_pending = 0;
+    s->dma_pending = s->dma_sent = s->burst = 0;
     s->settling = false;
     s->hz = timer_hz(s);
     timer_del(s->timer);

@@ -1,6 +1,6 @@
 /*
  * The STM32F405 timers' register map and bits (RM0090 sections 17.4, 18.4, 19.4, 19.5, 20.4) as data,
- * for the timer model (rig_stm32_timer.c) alone.
+ * for the timer model (rig_stm32_timer.c) and its DMA bursts (rig_stm32_timer_burst.c).
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -89,6 +89,10 @@ static inline int register_at(const RigStm32TimerState *s, hwaddr offset)
     }
     return -1;
 }
+
+/* A transfer through TIMx_DMAR: the register the DMA burst reaches now (rig_stm32_timer_burst.c); what it
+ * read when not a write */
+uint32_t rig_stm32_timer_dmar(RigStm32TimerState *s, bool write, uint32_t value);
 
 #define APB1ENR 0x40
 #define APB2ENR 0x44

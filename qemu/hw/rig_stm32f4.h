@@ -253,6 +253,8 @@ struct RigStm32TimerState {
     qemu_irq dma[RIG_DMA_TIM_REQS];     /* "dma": the DMA requests (RIG_DMA_UP ...), a pulse each */
     uint8_t dma_pending;                /* requests of the events being handled, sent once they are */
     bool settling;                      /* in settle(): the next event is armed by the outermost */
+    uint8_t dma_sent;                   /* the requests last sent: a DMAR burst raises them again */
+    uint8_t burst;                      /* the DMAR burst's next register, from DCR.DBA */
 };
 
 /* The GY-86 board (MPU-6050 at 0x68, the HMC5883L behind its bypass, MS5611 at 0x77): the rig's chip

@@ -156,6 +156,29 @@ def test_timer_update_requests_write_ccr1_each_period(r: dict[str, int]) -> None
     assert r["tim_cr_en"] == 1
 
 
+#: dma.c's frames for TIM1's DMA burst (CCR1-CCR4 each period)
+FRAMES = [[100, 200, 300, 400], [150, 250, 350, 450], [120, 220, 320, 420]]
+TIM1_ARR = 499
+
+
+def test_timer_dma_burst_writes_four_ccrs_each_period(r: dict[str, int]) -> None:
+    """17.3.19, 17.4.20-21: TIM1_UP's request (DMA2 stream 5, channel 6, table 43) with DCR.DBA = 13 (CCR1)
+    and DBL = 3 writes CCR1..CCR4 through DMAR, four transfers an update event. UG sends frame 0, each
+    update latches a frame and sends the next; TIM1 stops at the second TC (frame 2 of round two sent at
+    the fifth update): five periods latched, frames 0, 1, 2, 0, 1 on the four channels, 500 ticks of
+    (PSC + 1) apart (TIM1 on APB2, 16 MHz at reset)."""
+    trace = list(TRACE.finditer(run()))
+    period_ticks = (TIM4_PSC + 1) * (TIM1_ARR + 1)
+    for ch in range(1, 5):
+        lines = [m for m in trace if (int(m[2]), int(m[3])) == (1, ch)]
+        assert [int(m[4]) for m in lines] == [FRAMES[k][ch - 1] * (TIM4_PSC + 1) for k in (0, 1, 2, 0, 1)], ch
+        assert {(int(m[5]), int(m[6])) for m in lines} == {(period_ticks, TIM4_HZ)}
+        times = [int(m[1]) for m in lines]
+        assert {b - a for a, b in itertools.pairwise(times)} == {period_ticks * 1_000_000_000 // TIM4_HZ}
+        assert r[f"burst_ccr{ch}"] == FRAMES[2][ch - 1]  # the last frame sent, in the preloads
+    assert r["burst_dcr"] == 13 | 3 << 8
+
+
 def test_double_buffer_mode(r: dict[str, int]) -> None:
     """10.3.10: with DBM each round of NDTR items goes to the memory CT names, and CT switches at its end
     (set after rounds one and three, clear after two); the address of the memory not in use can be written

@@ -228,6 +228,53 @@ static void memory_to_memory(void)
 static const uint16_t table[8] = { 10, 25, 40, 55, 70, 85, 30, 60 };
 static volatile uint32_t rounds, halves;
 
+/* Betaflight's DShot by "DMA burst" (RM0090 17.3.19): TIM1's update requests (DMA2 stream 5, channel 6)
+   write TIM1_DMAR, which DCR points at CCR1 for four transfers (DBA 13, DBL 3): one frame of four compare
+   values a period, three frames in circular mode; the interrupt stops TIM1 at the second TC */
+#define TIM1_DMAR REG(TIM1_BASE + 0x4Cu)
+#define TIM1_DCR REG(TIM1_BASE + 0x48u)
+#define DCR_CCR1_BURST_OF_4 (13u | 3u << 8)
+#define TIM1_ARR 499u /* 500 us */
+#define DMA2_STREAM5_IRQ 68u
+#define RCC_APB2ENR_TIM1EN (1u << 0)
+static const uint32_t frames[3][4] = { { 100, 200, 300, 400 }, { 150, 250, 350, 450 }, { 120, 220, 320, 420 } };
+static volatile uint32_t burst_rounds;
+
+void dma2_stream5_handler(void)
+{
+    uint32_t flags = DMA_HISR(DMA2_BASE) >> 6 & FLAGS; /* stream 5: bits 6-11 of HISR */
+    DMA_HIFCR(DMA2_BASE) = flags << 6;
+    if ((flags & FLAG_TCIF) && ++burst_rounds == 2) {
+        TIM_CR1(TIM1_BASE) &= ~TIM_CR1_CEN;
+    }
+}
+
+static void timer_burst_dma(void)
+{
+    RCC_APB2ENR |= RCC_APB2ENR_TIM1EN;
+    TIM_CCMR1(TIM1_BASE) = (TIM_CCMR_PWM1 | TIM_CCMR_OCPE) * 0x101u; /* channels 1 and 2 */
+    TIM_CCMR2(TIM1_BASE) = (TIM_CCMR_PWM1 | TIM_CCMR_OCPE) * 0x101u; /* 3 and 4 */
+    TIM_CCER(TIM1_BASE) = TIM_CCER_E(1) | TIM_CCER_E(2) | TIM_CCER_E(3) | TIM_CCER_E(4);
+    TIM_BDTR(TIM1_BASE) = TIM_BDTR_MOE;
+    TIM1_DCR = DCR_CCR1_BURST_OF_4;
+    TIM_DIER(TIM1_BASE) = TIM_DIER_UDE;
+    DMA_SPAR(DMA2_BASE, 5) = (uint32_t)&TIM1_DMAR;
+    DMA_SM0AR(DMA2_BASE, 5) = (uint32_t)frames;
+    DMA_SNDTR(DMA2_BASE, 5) = 12u;
+    DMA_SCR(DMA2_BASE, 5) = CR_CHSEL(6u) | CR_M2P | CR_CIRC | CR_MINC | CR_PSIZE(2u) | CR_MSIZE(2u) | CR_TCIE;
+    DMA_SCR(DMA2_BASE, 5) |= CR_EN;
+    nvic_enable(DMA2_STREAM5_IRQ);
+    timer_start(TIM1_BASE, TIM4_PSC, TIM1_ARR, TIM_CR1_ARPE);
+    while (burst_rounds < 2) {
+        __asm volatile("wfi");
+    }
+    for (unsigned ch = 1; ch <= 4; ch++) {
+        report2("burst_ccr", ch, "", TIM_CCR(TIM1_BASE, ch));
+    }
+    report("burst_dcr", TIM1_DCR);
+    DMA_SCR(DMA2_BASE, 5) &= ~CR_EN;
+}
+
 /* Double-buffer mode on TIM3's update requests (DMA1 stream 2, channel 5): four words from a source in SRAM (PINC) into M0AR's
    buffer, then M1AR's, each round; the interrupt adds 0x10 to the source at each TC, keeps CT, and after
    the first round (M1 current) points M0AR at a third buffer (allowed) and M1AR at the first (refused) */
@@ -424,6 +471,7 @@ int main(void)
     registers();
     memory_to_memory();
     timer_update_dma();
+    timer_burst_dma();
     double_buffer_mode();
     request_storm();
     i2c_dma();

@@ -32,6 +32,7 @@ void dma1_stream0_handler(void) __attribute__((weak, alias("fault_handler")));
 void dma1_stream2_handler(void) __attribute__((weak, alias("fault_handler")));
 void dma1_stream6_handler(void) __attribute__((weak, alias("fault_handler")));
 void dma2_stream0_handler(void) __attribute__((weak, alias("fault_handler")));
+void dma2_stream5_handler(void) __attribute__((weak, alias("fault_handler")));
 
 #define CFSR (*(volatile uint32_t *)0xE000ED28u)
 #define HFSR (*(volatile uint32_t *)0xE000ED2Cu)
@@ -101,6 +102,8 @@ __attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 7
     tim6_dac_handler, /* IRQ 54 */
     tim7_handler, /* IRQ 55 */
     dma2_stream0_handler, /* IRQ 56 */
-    F, F, F, F, F, F, F, F, F, F, F, F, F, F,       /* IRQ 57-70: DMA2 stream 1-4, ..., DMA2 stream 5-7 */
+    F, F, F, F, F, F, F, F, F, F, F,                /* IRQ 57-67: DMA2 stream 1-4, ... */
+    dma2_stream5_handler, /* IRQ 68 */
+    F, F,                                           /* IRQ 69-70: DMA2 stream 6-7 */
 };
 // clang-format on
