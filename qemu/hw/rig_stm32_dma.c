@@ -17,11 +17,12 @@
  * line. The registers answer, and requests are served, only with the controller's clock enabled
  * (RCC_AHB1ENR.DMA1EN, DMA2EN); RCC_AHB1RSTR resets it.
  *
- * Requests are levels ("request" inputs, numbered as RIG_DMA_TIMER and RIG_DMA_I2C1_RX/TX): each raise
- * moves one item on the stream whose CHSEL selects it (the timers pulse theirs; I2C1 lowers its own when the
- * DMA takes DR); a request raised while an item is moving (its access to the peripheral raised it) is
- * served after. A stream enabled while its request is up is served at once. "eot1" outputs pulse when the last-but-one item of a transfer is taken (the EOT_1
- * signal I2C's CR2.LAST uses to NACK the last byte, RM0090 27.3.8).
+ * Requests are levels ("request" inputs, numbered as RIG_DMA_TIMER and RIG_DMA_I2C1_RX/TX): each raise moves
+ * one item on the stream whose CHSEL selects it (the timers pulse theirs; I2C1 lowers its own when the DMA
+ * takes DR); a request raised while an item is moving (its access to the peripheral raised it) is served
+ * after. A stream enabled while its request is up is served at once. "eot1" outputs pulse when the
+ * last-but-one item of a transfer is taken (the EOT_1 signal I2C's CR2.LAST uses to NACK the last byte,
+ * RM0090 27.3.8).
  *
  * Not modelled: bursts (PBURST/MBURST move single items), priorities (requests are served at once, so
  * streams never wait on each other), the FIFO's threshold and errors, peripheral flow control (PFCTRL

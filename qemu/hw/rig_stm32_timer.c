@@ -10,12 +10,12 @@
  * toggle on match, forced levels, PWM modes 1 and 2) with CCRx preloaded under OCxPE, CCxE and CCxP, the
  * advanced timers' complementary outputs (CCxNE, CCxNP; no dead time), BDTR.MOE gating their outputs; input
  * capture (CCxS = 01, 10: the channel's own input or its pair's; CCxP/CCxNP pick rising, falling or both
- * edges; ICxPSC; ICxF is ignored, the edges are clean) with the overcapture flag; the slave mode
- * controller's reset and trigger modes on TI1FP1 and TI2FP2 (PWM input mode: a rising edge captured and
- * restarting the counter). SR's flags are cleared by writing 0; DIER's interrupt enables raise the NVIC
- * lines, the advanced timers' four (BRK, UP, TRG_COM, CC), the others' one; the DMA requests (UDE, CCxDE,
- * COMDE, TDE; CR2.CCDS) go out as pulses on the "dma" lines at their events. The registers answer only with the timer's RCC enable bit on (properties
- * "apb", 1 or 2, and "rcc-bit": APBxENR, APBxRSTR); the RCC's reset bit resets the timer.
+ * edges; ICxPSC; ICxF is ignored, the edges are clean) with the overcapture flag; the slave mode controller's
+ * reset and trigger modes on TI1FP1 and TI2FP2 (PWM input mode: a rising edge captured and restarting the
+ * counter). SR's flags are cleared by writing 0; DIER's interrupt enables raise the NVIC lines, the advanced
+ * timers' four (BRK, UP, TRG_COM, CC), the others' one; the DMA requests (UDE, CCxDE, COMDE, TDE; CR2.CCDS)
+ * go out as pulses on the "dma" lines at their events. The registers answer only with the timer's RCC enable
+ * bit on (properties "apb", 1 or 2, and "rcc-bit": APBxENR, APBxRSTR); the RCC's reset bit resets the timer.
  *
  * Nothing runs per tick: a QEMU timer is armed for the next event (a compare match, the end of the
  * period), and reads of CNT compute it from the virtual time: a 490 Hz PWM costs two events a period.

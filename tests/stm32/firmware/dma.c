@@ -275,9 +275,10 @@ static void timer_burst_dma(void)
     DMA_SCR(DMA2_BASE, 5) &= ~CR_EN;
 }
 
-/* Double-buffer mode on TIM3's update requests (DMA1 stream 2, channel 5): four words from a source in SRAM (PINC) into M0AR's
-   buffer, then M1AR's, each round; the interrupt adds 0x10 to the source at each TC, keeps CT, and after
-   the first round (M1 current) points M0AR at a third buffer (allowed) and M1AR at the first (refused) */
+/* Double-buffer mode on TIM3's update requests (DMA1 stream 2, channel 5): four words from a source in
+   SRAM (PINC) into M0AR's buffer, then M1AR's, each round; the interrupt adds 0x10 to the source at each
+   TC, keeps CT, and after the first round (M1 current) points M0AR at a third buffer (allowed) and M1AR
+   at the first (refused) */
 #define CR_DBM (1u << 18)
 #define CR_CT (1u << 19)
 static volatile uint32_t db_source[4];
