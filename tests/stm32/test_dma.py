@@ -222,3 +222,12 @@ def test_two_runs_print_the_same_bytes() -> None:
     again = run_firmware(engine_or_skip(), firmware("dma"), *TRACE_PULSES)
     assert again.returncode == 0
     assert again.stdout + again.stderr == run()
+
+
+def test_i2c_write_by_dma(r: dict[str, int]) -> None:
+    """27.3.8: TXE's requests (DMA1 stream 7, channel 1, table 42) give DR the MPU-6050's register address
+    and value; the register reads back what was written (SMPLRT_DIV resets to 0, MPU-6000/6050 register
+    map 4.2)."""
+    assert r["smplrt_div_before"] == 0
+    assert r["dma_write_hisr"] == (HTIF | TCIF) << FLAG_OFFSET[3]  # the flags set whatever the enables
+    assert r["smplrt_div_after"] == 0x07

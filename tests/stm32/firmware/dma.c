@@ -467,6 +467,33 @@ static void i2c_dma(void)
     report("who_am_i_after_dma", read_reg(MPU_ADDR, MPU_WHO_AM_I));
 }
 
+/* A write by DMA (HAL_I2C_Master_Transmit_DMA's order: DMAEN, then ADDR cleared; TXE's requests give
+   DR the register address and its value; after TC, BTF then STOP): the MPU-6050's SMPLRT_DIV, read back
+   by polling */
+#define MPU_SMPLRT_DIV 0x19u
+static void i2c_dma_write(void)
+{
+    static const uint8_t bytes[2] = { MPU_SMPLRT_DIV, 0x07u };
+    DMA_SPAR(DMA1_BASE, 7) = (uint32_t)&I2C1_DR;
+    DMA_SM0AR(DMA1_BASE, 7) = (uint32_t)bytes;
+    DMA_SNDTR(DMA1_BASE, 7) = 2u;
+    DMA_SCR(DMA1_BASE, 7) = CR_CHSEL(1u) | CR_M2P | CR_MINC;
+    DMA_SCR(DMA1_BASE, 7) |= CR_EN;
+    report("smplrt_div_before", read_reg(MPU_ADDR, MPU_SMPLRT_DIV));
+    wait_bus_free();
+    address(MPU_ADDR << 1);
+    I2C1_CR2 |= I2C_CR2_DMAEN;
+    clear_addr(&sr1_addr_write, &sr2_addr_write);
+    for (uint32_t i = 0; i < POLL_LIMIT && !(DMA_HISR(DMA1_BASE) & FLAG_TCIF << 22); i++) {
+    }
+    report("dma_write_hisr", DMA_HISR(DMA1_BASE)); /* stream 7: bits 22-27 */
+    DMA_HIFCR(DMA1_BASE) = 0xFFFFFFFFu;
+    I2C1_CR2 &= ~I2C_CR2_DMAEN;
+    wait_sr1(I2C_SR1_BTF, "stuck_btf_dma_write");
+    I2C1_CR1 |= I2C_CR1_STOP;
+    report("smplrt_div_after", read_reg(MPU_ADDR, MPU_SMPLRT_DIV));
+}
+
 int main(void)
 {
     registers();
@@ -476,6 +503,7 @@ int main(void)
     double_buffer_mode();
     request_storm();
     i2c_dma();
+    i2c_dma_write();
     put_text("done\n");
     return 0;
 }
