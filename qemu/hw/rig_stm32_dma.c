@@ -188,12 +188,14 @@ static bool move_item(RigDmaStream *st)
     hwaddr paddr = st->par + st->p_off;
     bool ok = true;
     if (direction(st) == DIR_M2P) {
-        while (ok && st->fifo_len < psize) {
-            ok = bus_read(memory_address(st), st->fifo + st->fifo_len, msize);
+        while (st->fifo_len < psize) {
+            if (!bus_read(memory_address(st), st->fifo + st->fifo_len, msize)) {
+                return false;
+            }
             st->fifo_len += msize;
             st->m_off += (st->cr & CR_MINC) ? msize : 0;
         }
-        ok = ok && bus_write(paddr, st->fifo, psize);
+        ok = bus_write(paddr, st->fifo, psize);
         st->fifo_len -= psize;
         memmove(st->fifo, st->fifo + psize, st->fifo_len);
     } else {

@@ -128,6 +128,14 @@ def test_transfer_error(r: dict[str, int]) -> None:
     assert r["error_ndtr"] == 4
 
 
+def test_a_peripheral_transfer_error(r: dict[str, int]) -> None:
+    """10.3.16: TIM6_UP's request (DMA1 stream 1, channel 7) on a stream reading memory nothing answers
+    (FIFO mode, bytes into words) stops the stream with TEIF, NDTR untouched."""
+    assert r["m2p_error_lisr"] == TEIF << FLAG_OFFSET[1]
+    assert r["m2p_error_cr_en"] == 0
+    assert r["m2p_error_ndtr"] == 2
+
+
 def test_memory_to_memory_on_dma1_is_a_transfer_error(r: dict[str, int]) -> None:
     """10.3.6: only DMA2 copies memory to memory (DMA1's peripheral port is not on the bus matrix): on DMA1
     the stream stops with TEIF and nothing moves, whatever its (here reserved) sizes and count."""

@@ -369,6 +369,28 @@ static void request_storm(void)
     DMA_HIFCR(DMA1_BASE) = 0xFFFFFFFFu;
 }
 
+/* Memory-to-peripheral from an address nothing answers, in FIFO mode with bytes packed into words: TIM6's
+   update request (DMA1 stream 1, channel 7) finds a bus error on the first byte */
+#define RCC_APB1ENR_TIM6EN (1u << 4)
+#define FCR_DMDIS (1u << 2)
+static void peripheral_transfer_error(void)
+{
+    static volatile uint32_t target;
+    RCC_APB1ENR |= RCC_APB1ENR_TIM6EN;
+    TIM_DIER(TIM6_BASE) = TIM_DIER_UDE;
+    DMA_SPAR(DMA1_BASE, 1) = (uint32_t)&target;
+    DMA_SM0AR(DMA1_BASE, 1) = UNMAPPED;
+    DMA_SNDTR(DMA1_BASE, 1) = 2u;
+    DMA_SFCR(DMA1_BASE, 1) = FCR_DMDIS;
+    DMA_SCR(DMA1_BASE, 1) = CR_CHSEL(7u) | CR_M2P | CR_MINC | CR_PSIZE(2u) | CR_MSIZE(0u);
+    DMA_SCR(DMA1_BASE, 1) |= CR_EN;
+    TIM_EGR(TIM6_BASE) = TIM_EGR_UG;
+    report("m2p_error_lisr", DMA_LISR(DMA1_BASE));
+    report("m2p_error_cr_en", DMA_SCR(DMA1_BASE, 1) & CR_EN);
+    report("m2p_error_ndtr", DMA_SNDTR(DMA1_BASE, 1));
+    DMA_LIFCR(DMA1_BASE) = 0xFFFFFFFFu;
+}
+
 static void timer_update_dma(void)
 {
     pin_af(PORT_D, 12, 2);
@@ -502,6 +524,7 @@ int main(void)
     timer_burst_dma();
     double_buffer_mode();
     request_storm();
+    peripheral_transfer_error();
     i2c_dma();
     i2c_dma_write();
     put_text("done\n");
