@@ -22,8 +22,14 @@
  * out (the slave gives it and sees it NACKed) and release SDA; SDA rising while SCL is high is a STOP
  * condition, which ends the transfer on the bus and clears BUSY.
  *
- * Not modelled: slave mode, SMBus, PEC, DMA requests (DMAEN and LAST are stored), arbitration and bus
- * errors (no other master, no misplaced START or STOP), the TRISE rise-time limit.
+ * DMA requests (27.3.8): with CR2.DMAEN, RXNE of a receiver and TXE of a transmitter (its address
+ * acknowledged) raise the "dma" lines (0: receive, 1: transmit), which the DMA's read of DR or write to it
+ * takes down; the DMA's EOT_1 ("dma-eot1", when it has taken the last-but-one byte) with CR2.LAST makes
+ * the master NACK the next byte received, the last, so the firmware sends the STOP when the DMA's
+ * transfer completes. DR takes byte accesses (the DMA's, PSIZE 8 bits) as the chip's APB does.
+ *
+ * Not modelled: slave mode, SMBus, PEC, arbitration and bus errors (no other master, no misplaced START or
+ * STOP), the TRISE rise-time limit.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -64,6 +70,7 @@ enum { R_CR1, R_CR2, R_OAR1, R_OAR2, R_DR, R_SR1, R_SR2, R_CCR, R_TRISE };
 #define CR2_ITEVTEN (1u << 9)
 #define CR2_ITBUFEN (1u << 10)
 #define CR2_DMAEN (1u << 11)
+#define CR2_LAST (1u << 12)
 #define SR1_SB (1u << 0)
 #define SR1_ADDR (1u << 1)
 #define SR1_BTF (1u << 2)
@@ -103,6 +110,34 @@ static void update_irqs(RigStm32I2cState *s)
     bool event = (s->sr1 & (SR1_SB | SR1_ADDR | SR1_BTF | SR1_ADD10 | SR1_STOPF)) || buffer;
     qemu_set_irq(s->ev_irq, (s->cr2 & CR2_ITEVTEN) && event);
     qemu_set_irq(s->er_irq, (s->cr2 & CR2_ITERREN) && (s->sr1 & SR1_ERRORS));
+    bool dma[2] = {
+        (s->cr2 & CR2_DMAEN) && (s->sr1 & SR1_RXNE) && !(s->sr2 & SR2_TRA),
+        (s->cr2 & CR2_DMAEN) && (s->sr1 & SR1_TXE) && (s->sr2 & SR2_TRA) && !(s->sr1 & SR1_ADDR),
+    };
+    for (unsigned k = 0; k < 2; k++) {
+        if (dma[k] != s->dma_level[k]) {
+            s->dma_level[k] = dma[k];
+            qemu_set_irq(s->dma[k], dma[k]);
+        }
+    }
+}
+
+/* The DMA took DR (@k 0) or filled it (1): its request is down until the flag is raised again */
+static void dma_served(RigStm32I2cState *s, unsigned k)
+{
+    if (s->dma_level[k]) {
+        s->dma_level[k] = false;
+        qemu_set_irq(s->dma[k], 0);
+    }
+}
+
+/* The DMA's EOT_1 (27.3.8): with LAST, the byte after the one it just took is NACKed */
+static void dma_eot1(void *opaque, int line, int level)
+{
+    RigStm32I2cState *s = opaque;
+    if (level && (s->cr2 & CR2_LAST) && !(s->sr2 & SR2_TRA)) {
+        s->nack_last = true;
+    }
 }
 
 /* The phase under way ends by the QEMU timer when its end must be seen at once: an interrupt (or a DMA
@@ -121,7 +156,9 @@ static void schedule(RigStm32I2cState *s, RigI2cPhase phase, int64_t ns)
 {
     s->phase = phase;
     s->phase_end_ns = (s->event_ns >= 0 ? s->event_ns : qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL)) + ns;
-    arm(s);
+    if (s->event_ns < 0) {
+        arm(s); /* (a phase's end arms the next after its interrupt: catch_up) */
+    }
 }
 
 /* The slave sends the next byte */
@@ -196,8 +233,9 @@ static void receive_done(RigStm32I2cState *s)
     uint8_t byte = i2c_recv(s->bus);
     /* POS = 0: ACK decides the byte just received; POS = 1: it decided at the end of the byte before
      * (or of the address), so RM0090's two-byte sequence clears ACK before the first byte ends */
-    bool ack = (s->cr1 & CR1_POS) ? s->ack_next : (s->cr1 & CR1_ACK);
+    bool ack = ((s->cr1 & CR1_POS) ? s->ack_next : (s->cr1 & CR1_ACK)) && !s->nack_last;
     s->ack_next = s->cr1 & CR1_ACK;
+    s->nack_last = false;
     if (!ack) {
         i2c_nack(s->bus);
     }
@@ -253,10 +291,16 @@ static void phase_done(RigStm32I2cState *s)
     update_irqs(s);
 }
 
-/* Every phase that has ended by now carried out, each at its own instant */
+/* Every phase that has ended by now carried out, each at its own instant, then the QEMU timer armed for
+ * the next: after the phase's interrupt is raised, since under icount with the core asleep (WFI) arming a
+ * timer moves virtual time to it at once, and the interrupt would come a phase late. Not again from
+ * inside (a DMA the phase's request started reads DR) */
 static void catch_up(void *opaque)
 {
     RigStm32I2cState *s = opaque;
+    if (s->event_ns >= 0) {
+        return;
+    }
     int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
     while (s->phase != RIG_I2C_IDLE && s->phase_end_ns <= now) {
         s->event_ns = rig_i2c_event_ns = s->phase_end_ns;
@@ -273,7 +317,7 @@ static void i2c_clear(RigStm32I2cState *s)
     s->cr1 = s->cr2 = s->oar1 = s->oar2 = s->ccr = s->sr1 = s->sr2 = s->sr1_seen = 0;
     s->trise = i2c_registers[R_TRISE].reset;
     s->dr = s->shift = s->address = 0;
-    s->shift_full = s->receiving = s->ack_next = s->slave_sends = false;
+    s->shift_full = s->receiving = s->ack_next = s->slave_sends = s->nack_last = false;
     s->phase = RIG_I2C_IDLE;
 }
 
@@ -344,6 +388,7 @@ static void write_dr(RigStm32I2cState *s, uint8_t value)
     }
     s->dr = value;
     s->sr1 &= ~SR1_BTF;
+    dma_served(s, 1);
     if ((s->sr2 & SR2_TRA) && !(s->sr1 & (SR1_ADDR | SR1_AF)) && s->phase == RIG_I2C_IDLE &&
         !(s->cr1 & (CR1_START | CR1_STOP))) {
         s->shift = value; /* straight into the shift register: DR empty again */
@@ -360,6 +405,7 @@ static uint8_t read_dr(RigStm32I2cState *s)
     if (!(s->sr1 & SR1_RXNE)) {
         return value;
     }
+    dma_served(s, 0);
     if (s->shift_full) { /* the stretched byte moves up; the slave goes on if it was acknowledged */
         s->dr = s->shift;
         s->shift_full = false;
@@ -467,7 +513,7 @@ static const MemoryRegionOps i2c_ops = {
     .read = i2c_read,
     .write = i2c_write,
     .endianness = DEVICE_NATIVE_ENDIAN,
-    .valid.min_access_size = 2,
+    .valid.min_access_size = 1, /* (RM0090: half-words or words; the DMA reads DR a byte at a time) */
     .valid.max_access_size = 4,
     .impl.min_access_size = 4,
     .impl.max_access_size = 4,
@@ -520,6 +566,7 @@ static void i2c_init(Object *obj)
 {
     RigStm32I2cState *s = RIG_STM32_I2C(obj);
     memory_region_init_io(&s->iomem, obj, &i2c_ops, s, TYPE_RIG_STM32_I2C, 0x400);
+    s->iomem.disable_reentrancy_guard = true; /* the DMA a register write asked for reads DR (update_irqs) */
     sysbus_init_mmio(SYS_BUS_DEVICE(obj), &s->iomem);
     sysbus_init_irq(SYS_BUS_DEVICE(obj), &s->ev_irq);
     sysbus_init_irq(SYS_BUS_DEVICE(obj), &s->er_irq);
@@ -530,6 +577,8 @@ static void i2c_init(Object *obj)
     s->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, catch_up, s);
     s->event_ns = -1;
     rig_link_sync_add(catch_up, s);
+    qdev_init_gpio_out_named(DEVICE(obj), s->dma, "dma", 2);
+    qdev_init_gpio_in_named(DEVICE(obj), dma_eot1, "dma-eot1", 1);
 }
 
 static Property i2c_properties[] = {

@@ -10,12 +10,12 @@
  * toggle on match, forced levels, PWM modes 1 and 2) with CCRx preloaded under OCxPE, CCxE and CCxP, the
  * advanced timers' complementary outputs (CCxNE, CCxNP; no dead time), BDTR.MOE gating their outputs; input
  * capture (CCxS = 01, 10: the channel's own input or its pair's; CCxP/CCxNP pick rising, falling or both
- * edges; ICxPSC; ICxF is ignored, the edges are clean) with the overcapture flag; the slave mode
- * controller's reset and trigger modes on TI1FP1 and TI2FP2 (PWM input mode: a rising edge captured and
- * restarting the counter). SR's flags are cleared by writing 0; DIER's interrupt enables raise the NVIC
- * lines, the advanced timers' four (BRK, UP, TRG_COM, CC), the others' one; the DMA request enables are
- * stored (DMA is not modelled). The registers answer only with the timer's RCC enable bit on (properties
- * "apb", 1 or 2, and "rcc-bit": APBxENR, APBxRSTR); the RCC's reset bit resets the timer.
+ * edges; ICxPSC; ICxF is ignored, the edges are clean) with the overcapture flag; the slave mode controller's
+ * reset and trigger modes on TI1FP1 and TI2FP2 (PWM input mode: a rising edge captured and restarting the
+ * counter). SR's flags are cleared by writing 0; DIER's interrupt enables raise the NVIC lines, the advanced
+ * timers' four (BRK, UP, TRG_COM, CC), the others' one; the DMA requests (UDE, CCxDE, COMDE, TDE; CR2.CCDS)
+ * go out as pulses on the "dma" lines at their events. The registers answer only with the timer's RCC enable
+ * bit on (properties "apb", 1 or 2, and "rcc-bit": APBxENR, APBxRSTR); the RCC's reset bit resets the timer.
  *
  * Nothing runs per tick: a QEMU timer is armed for the next event (a compare match, the end of the
  * period), and reads of CNT compute it from the virtual time: a 490 Hz PWM costs two events a period.
@@ -32,8 +32,8 @@
  *   rig-stm32f4-timer: t_ns=T TIMn chC high_ticks=H period_ticks=P clock_hz=F
  *
  * Not modelled: the other slave modes (gated, encoder, external clock) and triggers (ITRx: timer
- * chaining, TI1F_ED, ETR), hall-sensor mode, dead time, break, COM, DMA bursts
- * (DMAR reads 0), ICxF, OCxFE, OCxCE.
+ * chaining, TI1F_ED, ETR), hall-sensor mode, dead time, break, COM, ICxF, OCxFE, OCxCE. DMA bursts
+ * through DMAR: rig_stm32_timer_burst.c.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -125,6 +125,18 @@ static void drive_outputs(RigStm32TimerState *s)
     }
 }
 
+/* Flags set in SR, and the DMA requests their DIER enables (UDE, CCxDE, COMDE, TDE; RM0090 17.4.4) ask for,
+ * sent once the event is handled (settle); CR2.CCDS sends the CCx requests at the update event instead */
+static void raise_flags(RigStm32TimerState *s, uint32_t flags)
+{
+    uint32_t enabled = s->regs[DIER] >> DIER_DMA_SHIFT & 0x7F, requests = flags & enabled;
+    s->regs[SR] |= flags;
+    if (s->regs[CR2] & CR2_CCDS) {
+        requests = (requests & ~0x1Eu) | ((flags & SR_UIF) ? enabled & 0x1Eu : 0);
+    }
+    s->dma_pending |= requests;
+}
+
 static void update_irqs(RigStm32TimerState *s)
 {
     uint32_t pending = s->regs[SR] & s->regs[DIER] & 0xFF;
@@ -209,7 +221,7 @@ static void update_event(RigStm32TimerState *s, bool by_software)
         s->repetition = s->regs[RCR];
     }
     if (!(by_software && (s->regs[CR1] & CR1_URS))) {
-        s->regs[SR] |= SR_UIF;
+        raise_flags(s, SR_UIF);
     }
     latch_pulses(s);
 }
@@ -221,7 +233,7 @@ static void compare_match(RigStm32TimerState *s, unsigned ch)
     if ((center == 1 && !s->down) || (center == 2 && s->down)) { /* CMS 01: flags counting down only */
         return;
     }
-    s->regs[SR] |= SR_CCIF(ch);
+    raise_flags(s, SR_CCIF(ch));
     if (mode == OCM_ACTIVE || mode == OCM_INACTIVE) {
         s->ref[ch] = mode == OCM_ACTIVE;
     } else if (mode == OCM_TOGGLE) {
@@ -347,11 +359,28 @@ static void schedule(RigStm32TimerState *s)
     timer_mod(s->timer, s->base_ns + (int64_t)MIN(ns, (unsigned __int128)INT64_MAX / 2));
 }
 
+/* After a change: the pins, the interrupt lines, the DMA requests (a pulse each; the DMA may write this
+ * timer's registers, settling it again), then the next event. Under -icount with the core asleep, arming
+ * the QEMU timer moves virtual time on to its deadline at once, so it comes last and once, after what the
+ * DMA and the pins (back as the channels' inputs) did */
 static void settle(RigStm32TimerState *s)
 {
+    bool outermost = !s->settling;
+    uint8_t requests = s->dma_pending;
+    s->dma_pending = 0;
+    s->dma_sent = requests ? requests : s->dma_sent; /* (a DMAR burst goes on with them) */
+    s->settling = true;
     drive_outputs(s);
     update_irqs(s);
-    schedule(s);
+    for (unsigned k = 0; k < RIG_DMA_TIM_REQS; k++) {
+        if (requests >> k & 1) {
+            qemu_irq_pulse(s->dma[k]);
+        }
+    }
+    if (outermost) {
+        s->settling = false;
+        schedule(s);
+    }
 }
 
 static void tim_event(void *opaque)
@@ -381,7 +410,7 @@ static void capture(RigStm32TimerState *s, unsigned ch)
         s->regs[SR] |= SR_CCOF(ch);
     }
     s->regs[CCR1 + ch] = s->regs[CNT];
-    s->regs[SR] |= SR_CCIF(ch);
+    raise_flags(s, SR_CCIF(ch));
 }
 
 /* EGR.UG, or a reset trigger: the counter and prescaler restart, then the UEV (RM0090 17.3.1) */
@@ -417,7 +446,7 @@ static void trigger_input(RigStm32TimerState *s, unsigned line, int level)
         !edge_selected(s, line, level)) {
         return;
     }
-    s->regs[SR] |= SR_TIF;
+    raise_flags(s, SR_TIF);
     if (sms == SMS_RESET) {
         reinitialize(s);
     } else if (!(s->regs[CR1] & CR1_CEN)) {
@@ -468,28 +497,13 @@ static void event_generation(RigStm32TimerState *s, uint32_t egr)
     for (unsigned ch = 0; ch < s->kind->channels; ch++) {
         if (egr & EGR_CCG(ch)) {
             if (is_output(s, ch)) {
-                s->regs[SR] |= SR_CCIF(ch);
+                raise_flags(s, SR_CCIF(ch));
             } else {
                 capture(s, ch);
             }
         }
     }
-    s->regs[SR] |= egr & (SR_COMIF | SR_TIF | SR_BIF);
-}
-
-static uint32_t writable(const RigStm32TimerState *s, int reg)
-{
-    return registers[reg].writable[s->kind->kind] & (reg == OR ? or_writable[s->index] : 0xFFFFFFFFu);
-}
-
-static int register_at(const RigStm32TimerState *s, hwaddr offset)
-{
-    for (int i = 0; i < RIG_TIM_REGS; i++) {
-        if (registers[i].offset == offset && writable(s, i)) {
-            return i;
-        }
-    }
-    return -1;
+    raise_flags(s, egr & (SR_COMIF | SR_TIF | SR_BIF));
 }
 
 static uint64_t tim_read(void *opaque, hwaddr offset, unsigned size)
@@ -515,7 +529,7 @@ static uint64_t tim_read(void *opaque, hwaddr offset, unsigned size)
     if (i == CR1) { /* DIR: as the counter goes (read-only when center-aligned) */
         return (s->regs[CR1] & ~CR1_DIR) | (s->down ? CR1_DIR : 0);
     }
-    return i == EGR || i == DMAR ? 0 : s->regs[i];
+    return i == EGR ? 0 : i == DMAR ? rig_stm32_timer_dmar(s, false, 0) : s->regs[i];
 }
 
 static void tim_write(void *opaque, hwaddr offset, uint64_t value, unsigned size)
@@ -578,7 +592,7 @@ static void tim_write(void *opaque, hwaddr offset, uint64_t value, unsigned size
         s->regs[CCER] = v;
         break;
     case DMAR:
-        qemu_log_mask(LOG_UNIMP, "rig-stm32f4-timer: TIM%u: DMA burst (DMAR) not modelled\n", s->index);
+        rig_stm32_timer_dmar(s, true, (uint32_t)value);
         break;
     default:
         s->regs[i] = v;
@@ -605,6 +619,8 @@ static void tim_reset(DeviceState *dev)
     memset(s->out, -2, sizeof(s->out));
     s->arr = s->psc = s->prescaler = s->repetition = s->period_ticks = s->latched_hz = 0;
     s->down = s->counting = false;
+    s->dma_pending = s->dma_sent = s->burst = 0;
+    s->settling = false;
     s->hz = timer_hz(s);
     timer_del(s->timer);
     drive_outputs(s);
@@ -626,6 +642,7 @@ static void tim_instance_init(Object *obj)
 {
     RigStm32TimerState *s = RIG_STM32_TIMER(obj);
     memory_region_init_io(&s->iomem, obj, &tim_ops, s, TYPE_RIG_STM32_TIMER, 0x400);
+    s->iomem.disable_reentrancy_guard = true; /* the DMA a register write asked for writes CCRx (settle) */
     sysbus_init_mmio(SYS_BUS_DEVICE(obj), &s->iomem);
     for (unsigned k = 0; k < RIG_TIM_IRQS; k++) {
         sysbus_init_irq(SYS_BUS_DEVICE(obj), &s->irq[k]);
@@ -634,6 +651,7 @@ static void tim_instance_init(Object *obj)
     qdev_init_gpio_out_named(DEVICE(obj), s->channel_out, "channel-out", RIG_TIM_OUTPUTS * RIG_TIM_PINS_PER_CHANNEL);
     qdev_init_gpio_in_named(DEVICE(obj), channel_input, "channel-in", RIG_TIM_CHANNELS);
     qdev_init_gpio_out_named(DEVICE(obj), s->pulse_ns, "pulse-ns", RIG_TIM_OUTPUTS);
+    qdev_init_gpio_out_named(DEVICE(obj), s->dma, "dma", RIG_DMA_TIM_REQS);
     /* the latched pulses as read-only QOM properties too (QMP qom-get /machine/timN chC-high-ticks) */
     static const char *const high_names[RIG_TIM_OUTPUTS] = {
         "ch1-high-ticks",  "ch2-high-ticks",  "ch3-high-ticks",  "ch4-high-ticks",

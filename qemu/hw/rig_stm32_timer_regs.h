@@ -1,6 +1,6 @@
 /*
  * The STM32F405 timers' register map and bits (RM0090 sections 17.4, 18.4, 19.4, 19.5, 20.4) as data,
- * for the timer model (rig_stm32_timer.c) alone.
+ * for the timer model (rig_stm32_timer.c) and its DMA bursts (rig_stm32_timer_burst.c).
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -73,6 +73,27 @@ static const uint8_t kind_of[15] = {
     [11] = ONE_CHANNEL, [12] = TWO_CHANNEL, [13] = ONE_CHANNEL, [14] = ONE_CHANNEL
 };
 
+/* The bits of register @reg software can write on timer @s */
+static inline uint32_t writable(const RigStm32TimerState *s, int reg)
+{
+    return registers[reg].writable[s->kind->kind] & (reg == OR ? or_writable[s->index] : 0xFFFFFFFFu);
+}
+
+/* The register at @offset of timer @s, or -1 when its kind has none there */
+static inline int register_at(const RigStm32TimerState *s, hwaddr offset)
+{
+    for (int i = 0; i < RIG_TIM_REGS; i++) {
+        if (registers[i].offset == offset && writable(s, i)) {
+            return i;
+        }
+    }
+    return -1;
+}
+
+/* A transfer through TIMx_DMAR: the register the DMA burst reaches now (rig_stm32_timer_burst.c); what it
+ * read when not a write */
+uint32_t rig_stm32_timer_dmar(RigStm32TimerState *s, bool write, uint32_t value);
+
 #define APB1ENR 0x40
 #define APB2ENR 0x44
 
@@ -84,6 +105,8 @@ static const uint8_t kind_of[15] = {
 #define CR1_DIR (1u << 4)
 #define CR1_CMS_SHIFT 5
 #define CR1_ARPE (1u << 7)
+#define CR2_CCDS (1u << 3) /* the CCx DMA requests at the update event */
+#define DIER_DMA_SHIFT 8   /* UDE, CC1DE..CC4DE, COMDE, TDE: the SR flag's bit plus 8 */
 /* SR, DIER, EGR */
 #define SR_UIF (1u << 0)
 #define SR_CCIF(ch) (1u << (1 + (ch)))

@@ -1,7 +1,7 @@
 /*
- * The rig's STM32F4 device models (RM0090, the STM32F405/415/407/417 reference manual): RCC and PWR,
- * the FLASH interface, GPIO ports, the I2C controllers, the timers TIM1-TIM14, the Cortex-M4's DWT cycle
- * counter, and the GY-86 sensor board (the rig's chip core) as an I2C slave.
+ * The rig's STM32F4 device models (RM0090, the STM32F405/415/407/417 reference manual): RCC and PWR, the
+ * FLASH interface, GPIO ports, the DMA controllers, the I2C controllers, the timers TIM1-TIM14, the
+ * Cortex-M4's DWT cycle counter, and the GY-86 sensor board (the rig's chip core) as an I2C slave.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -143,6 +143,43 @@ void rig_link_sync_add(void (*sync)(void *opaque), void *opaque);
 /* The pin levels a port shows on its IDR */
 uint16_t rig_stm32_gpio_levels(RigStm32GpioState *s);
 
+/* The DMA controllers DMA1 and DMA2 (RM0090 section 10): one model, property "controller" 1 or 2 */
+#define TYPE_RIG_STM32_DMA "rig-stm32f4-dma"
+OBJECT_DECLARE_SIMPLE_TYPE(RigStm32DmaState, RIG_STM32_DMA)
+#define RIG_DMA_STREAMS 8
+#define RIG_DMA_FIFO 16
+/* The DMA requests of the modelled peripherals: the DMA's "request" inputs and "eot1" outputs by number. A
+ * timer's seven are numbered as their flags in TIMx_SR (UIF bit 0, CCxIF bit x, COMIF 5, TIF 6), whose DMA
+ * enables in DIER are the same bits plus 8 */
+enum { RIG_DMA_UP, RIG_DMA_CC1, RIG_DMA_CC2, RIG_DMA_CC3, RIG_DMA_CC4, RIG_DMA_COM, RIG_DMA_TRIG, RIG_DMA_TIM_REQS };
+#define RIG_DMA_TIMER(n, request) ((n)*RIG_DMA_TIM_REQS + (request)) /* TIMn, n 1..14 */
+#define RIG_DMA_I2C1_RX RIG_DMA_TIMER(15, 0)
+#define RIG_DMA_I2C1_TX (RIG_DMA_I2C1_RX + 1)
+#define RIG_DMA_SOURCES (RIG_DMA_I2C1_TX + 1)
+
+typedef struct RigDmaStream {
+    uint32_t cr, ndtr, par, m0ar, m1ar, fcr;
+    uint32_t reload;            /* NDTR at the enable: circular and double-buffer rounds start from it */
+    uint32_t p_off, m_off;      /* bytes the peripheral and memory addresses have moved on this round */
+    uint8_t fifo[RIG_DMA_FIFO]; /* bytes read and not yet written (packing when PSIZE and MSIZE differ) */
+    unsigned fifo_len;
+} RigDmaStream;
+
+struct RigStm32DmaState {
+    SysBusDevice parent_obj;
+    MemoryRegion iomem;
+    RigStm32RccState *rcc;
+    uint8_t controller; /* 1 (DMA1) or 2 (DMA2) */
+    uint32_t isr[2];    /* LISR (streams 0-3), HISR (4-7) */
+    RigDmaStream stream[RIG_DMA_STREAMS];
+    qemu_irq irq[RIG_DMA_STREAMS];
+    qemu_irq eot1[RIG_DMA_SOURCES]; /* "eot1": the last-but-one item of a transfer taken (I2C's LAST) */
+    bool level[RIG_DMA_SOURCES];    /* the request lines' levels */
+    bool pending[RIG_DMA_SOURCES];  /* requests raised while the controller was moving an item */
+    bool busy;
+    QEMUTimer *later; /* the requests left when too many came at one instant */
+};
+
 /* I2C v1 (RM0090 section 27), master mode */
 #define TYPE_RIG_STM32_I2C "rig-stm32f4-i2c"
 OBJECT_DECLARE_SIMPLE_TYPE(RigStm32I2cState, RIG_STM32_I2C)
@@ -179,6 +216,9 @@ struct RigStm32I2cState {
     bool sda_held;          /* that slave, abandoned without a STOP, holds SDA low */
     uint8_t unstick_clocks; /* SCL pulses by GPIO since */
     bool ack_next;          /* POS = 1: CR1.ACK at the end of the byte (or address) before this one */
+    qemu_irq dma[2];        /* "dma": the receive (RXNE) and transmit (TXE) requests with CR2.DMAEN */
+    bool dma_level[2];
+    bool nack_last; /* CR2.LAST and the DMA's EOT_1: the next byte received is NACKed */
 };
 
 /* A timer (RM0090 sections 17-20): the advanced TIM1/TIM8, the general-purpose TIM2-TIM5 (TIM2 and TIM5
@@ -228,6 +268,11 @@ struct RigStm32TimerState {
     qemu_irq irq[RIG_TIM_IRQS];
     qemu_irq channel_out[RIG_TIM_OUTPUTS * RIG_TIM_PINS_PER_CHANNEL];
     qemu_irq pulse_ns[RIG_TIM_OUTPUTS]; /* "pulse-ns": each output's latched high time in ns */
+    qemu_irq dma[RIG_DMA_TIM_REQS];     /* "dma": the DMA requests (RIG_DMA_UP ...), a pulse each */
+    uint8_t dma_pending;                /* requests of the events being handled, sent once they are */
+    bool settling;                      /* in settle(): the next event is armed by the outermost */
+    uint8_t dma_sent;                   /* the requests last sent: a DMAR burst raises them again */
+    uint8_t burst;                      /* the DMAR burst's next register, from DCR.DBA */
 };
 
 /* The GY-86 board (MPU-6050 at 0x68, the HMC5883L behind its bypass, MS5611 at 0x77): the rig's chip

@@ -1,7 +1,7 @@
 /*
  * rig-stm32f405: QEMU's STM32F405 SoC (Cortex-M4F with NVIC and SysTick, its USARTs, TIM2-5, ADCs, SPIs,
  * SYSCFG and EXTI) with the rig's models mapped over the regions that SoC leaves unimplemented: RCC,
- * PWR, the FLASH interface, GPIO A..I, I2C1 (RM0090) with the GY-86 board (the rig's chip core) on its
+ * PWR, the FLASH interface, GPIO A..I, DMA1 and DMA2, I2C1 (RM0090) with the GY-86 board (the rig's chip core) on its
  * bus, the timers TIM1-TIM14 (over QEMU's TIM2-TIM5, which only count) with their channels on the pins
  * of the datasheet's alternate function table, and the core's DWT cycle counter. The RCC's AHB clock
  * drives the core, SysTick and DWT, so the machine starts at 16 MHz (HSI) as the chip does, and runs at
@@ -43,6 +43,16 @@
 #define IRQ_I2C1_EV 31 /* RM0090 table 61 (vector table) */
 #define IRQ_I2C1_ER 32
 #define RCC_APB2RSTR 0x24
+/* DMA1 and DMA2 (table 10), their reset bits in AHB1RSTR (7.3.5: DMA1RST 21, DMA2RST 22) and the streams'
+ * NVIC lines (table 61) */
+static const struct {
+    hwaddr base;
+    uint8_t reset_bit;
+    uint8_t irq[RIG_DMA_STREAMS];
+} dma_map[2] = {
+    { 0x40026000, 21, { 11, 12, 13, 14, 15, 16, 17, 47 } },
+    { 0x40026400, 22, { 56, 57, 58, 59, 60, 68, 69, 70 } },
+};
 /* the NVIC's inputs (QEMU's STM32F405 SoC has 96) */
 #define NVIC_LINES 96
 
@@ -147,7 +157,8 @@ static SysBusDevice *map_device(const char *type, hwaddr base, RigStm32RccState 
 
 /* TIM1..TIM14 over the SoC's placeholders and its TIM2-TIM5, their interrupts (an OR gate where two
  * timers share a line), reset bits, clocks and pins */
-static void map_timers(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceState *nvic, DeviceState **gpio_ports)
+static void map_timers(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceState *nvic, DeviceState **gpio_ports,
+                       DeviceState **dma)
 {
     DeviceState *tim[15] = { NULL };
     unsigned users[NVIC_LINES] = { 0 }, wired[NVIC_LINES] = { 0 };
@@ -194,6 +205,11 @@ static void map_timers(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceSt
                 qdev_connect_gpio_out(gate[line], 0, qdev_get_gpio_in(nvic, line));
             }
             sysbus_connect_irq(SYS_BUS_DEVICE(dev), k, qdev_get_gpio_in(gate[line], wired[line]++));
+        }
+        /* the DMA requests: TIM1 and TIM8 on DMA2, the others on DMA1 (the request mapping is the DMA's) */
+        for (unsigned k = 0; k < RIG_DMA_TIM_REQS; k++) {
+            qdev_connect_gpio_out_named(dev, "dma", k,
+                                        qdev_get_gpio_in_named(dma[t == 1 || t == 8], "request", RIG_DMA_TIMER(t, k)));
         }
         tim[t] = dev;
     }
@@ -320,8 +336,24 @@ void rig_stm32f4_machine_init(MachineState *machine, const RigStm32Chip *chip)
         rig_stm32_rcc_add_reset(r, RCC_AHB1RSTR, port, DEVICE(gpio)); /* GPIOxRST: bit x */
     }
 
-    DeviceState *i2c1 = DEVICE(map_device(TYPE_RIG_STM32_I2C, I2C1_BASE, r, -1));
     DeviceState *nvic = DEVICE(&STM32F405_SOC(soc)->armv7m);
+    DeviceState *dma[2];
+    for (unsigned d = 0; d < 2; d++) {
+        dma[d] = qdev_new(TYPE_RIG_STM32_DMA);
+        qdev_prop_set_uint8(dma[d], "controller", d + 1);
+        object_property_set_link(OBJECT(dma[d]), "rcc", OBJECT(r), &error_fatal);
+        sysbus_realize_and_unref(SYS_BUS_DEVICE(dma[d]), &error_fatal);
+        sysbus_mmio_map(SYS_BUS_DEVICE(dma[d]), 0, dma_map[d].base);
+        for (unsigned n = 0; n < RIG_DMA_STREAMS; n++) {
+            sysbus_connect_irq(SYS_BUS_DEVICE(dma[d]), n, qdev_get_gpio_in(nvic, dma_map[d].irq[n]));
+        }
+        rig_stm32_rcc_add_reset(r, RCC_AHB1RSTR, dma_map[d].reset_bit, dma[d]);
+    }
+
+    DeviceState *i2c1 = DEVICE(map_device(TYPE_RIG_STM32_I2C, I2C1_BASE, r, -1));
+    qdev_connect_gpio_out_named(i2c1, "dma", 0, qdev_get_gpio_in_named(dma[0], "request", RIG_DMA_I2C1_RX));
+    qdev_connect_gpio_out_named(i2c1, "dma", 1, qdev_get_gpio_in_named(dma[0], "request", RIG_DMA_I2C1_TX));
+    qdev_connect_gpio_out_named(dma[0], "eot1", RIG_DMA_I2C1_RX, qdev_get_gpio_in_named(i2c1, "dma-eot1", 0));
     sysbus_connect_irq(SYS_BUS_DEVICE(i2c1), 0, qdev_get_gpio_in(nvic, IRQ_I2C1_EV));
     sysbus_connect_irq(SYS_BUS_DEVICE(i2c1), 1, qdev_get_gpio_in(nvic, IRQ_I2C1_ER));
     rig_stm32_rcc_add_reset(r, RCC_APB1RSTR, APB1_I2C1, i2c1);
@@ -339,7 +371,7 @@ void rig_stm32f4_machine_init(MachineState *machine, const RigStm32Chip *chip)
      * controller, and the bus (its pull-ups, a slave holding SDA) drives the pins from outside */
     rig_stm32_route_i2c1(i2c1, gpio_ports[1]);
 
-    map_timers(chip, r, DEVICE(&STM32F405_SOC(soc)->armv7m), gpio_ports);
+    map_timers(chip, r, DEVICE(&STM32F405_SOC(soc)->armv7m), gpio_ports, dma);
     wire_pins(chip, gpio_ports);
     map_absent(chip);
 
@@ -395,7 +427,7 @@ static void rig_stm32f405_init(MachineState *machine) { rig_stm32f4_machine_init
 static void rig_stm32f405_machine_init(MachineClass *mc)
 {
     rig_stm32f4_machine_class_init(
-        mc, "STM32F405 with the rig's RCC, PWR, FLASH, GPIO, I2C, timer and DWT models and a GY-86 on I2C1");
+        mc, "STM32F405 with the rig's RCC, PWR, FLASH, GPIO, DMA, I2C, timer and DWT models and a GY-86 on I2C1");
     mc->init = rig_stm32f405_init;
 }
 

@@ -66,7 +66,7 @@ static void rig_stm32f411_init(MachineState *machine) { rig_stm32f4_machine_init
 static void rig_stm32f411_machine_init(MachineClass *mc)
 {
     rig_stm32f4_machine_class_init(
-        mc, "STM32F411 with the rig's RCC, PWR, FLASH, GPIO, I2C, timer and DWT models and a GY-86 on I2C1");
+        mc, "STM32F411 with the rig's RCC, PWR, FLASH, GPIO, DMA, I2C, timer and DWT models and a GY-86 on I2C1");
     mc->init = rig_stm32f411_init;
 }
 

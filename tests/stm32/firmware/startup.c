@@ -8,8 +8,8 @@ extern uint32_t __stack, __data_start, __data_end, __data_load, __bss_start, __b
 int main(void);
 void reset_handler(void);
 void fault_handler(void);
-/* I2C1's event and error interrupts (NVIC lines 31 and 32) and the timers' (24-30, 43-46, 50, 54, 55):
-   a firmware that enables them defines these */
+/* I2C1's event and error interrupts (NVIC lines 31 and 32), the timers' (24-30, 43-46, 50, 54, 55) and
+   the DMA streams' the tests use: a firmware that enables them defines these */
 void i2c1_ev_handler(void) __attribute__((weak, alias("fault_handler")));
 void i2c1_er_handler(void) __attribute__((weak, alias("fault_handler")));
 void tim1_brk_tim9_handler(void) __attribute__((weak, alias("fault_handler")));
@@ -28,6 +28,13 @@ void tim6_dac_handler(void) __attribute__((weak, alias("fault_handler")));
 void tim7_handler(void) __attribute__((weak, alias("fault_handler")));
 /* the BusFault (exception 5): a firmware that probes absent memory (f411_map.c) defines it */
 void bus_fault_handler(void) __attribute__((weak, alias("fault_handler")));
+/* the DMA streams' interrupts: DMA1 stream 0-6 on 11-17 and stream 7 on 47, DMA2 stream 0-4 on 56-60 and
+   stream 5-7 on 68-70 */
+void dma1_stream0_handler(void) __attribute__((weak, alias("fault_handler")));
+void dma1_stream2_handler(void) __attribute__((weak, alias("fault_handler")));
+void dma1_stream6_handler(void) __attribute__((weak, alias("fault_handler")));
+void dma2_stream0_handler(void) __attribute__((weak, alias("fault_handler")));
+void dma2_stream5_handler(void) __attribute__((weak, alias("fault_handler")));
 
 #define CFSR (*(volatile uint32_t *)0xE000ED28u)
 #define HFSR (*(volatile uint32_t *)0xE000ED2Cu)
@@ -52,8 +59,8 @@ void fault_handler(void)
 
 #define F fault_handler
 // clang-format off
-/* the core's 16 exceptions, then the STM32F405's interrupts up to TIM7 (RM0090 table 61) */
-__attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 56])(void) = {
+/* the core's 16 exceptions, then the STM32F405's interrupts up to DMA2 stream 7 (RM0090 table 61) */
+__attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 71])(void) = {
     (void (*)(void))(uintptr_t)&__stack,
     reset_handler,
     fault_handler,
@@ -70,8 +77,13 @@ __attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 5
     0,
     fault_handler,
     fault_handler,
-    F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, /* IRQ 0-15 */
-    F, F, F, F, F, F, F, F,                         /* IRQ 16-23 */
+    F, F, F, F, F, F, F, F, F, F, F,                /* IRQ 0-10 */
+    dma1_stream0_handler, /* IRQ 11 */
+    F,                                              /* IRQ 12: DMA1 stream 1 */
+    dma1_stream2_handler, /* IRQ 13 */
+    F, F, F,                                        /* IRQ 14-16: DMA1 stream 3-5 */
+    dma1_stream6_handler, /* IRQ 17 */
+    F, F, F, F, F, F,                               /* IRQ 18-23 */
     tim1_brk_tim9_handler, /* IRQ 24 */
     tim1_up_tim10_handler, /* IRQ 25 */
     tim1_trg_com_tim11_handler, /* IRQ 26 */
@@ -91,5 +103,9 @@ __attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 5
     F, F, F,                                        /* IRQ 51-53 */
     tim6_dac_handler, /* IRQ 54 */
     tim7_handler, /* IRQ 55 */
+    dma2_stream0_handler, /* IRQ 56 */
+    F, F, F, F, F, F, F, F, F, F, F,                /* IRQ 57-67: DMA2 stream 1-4, ... */
+    dma2_stream5_handler, /* IRQ 68 */
+    F, F,                                           /* IRQ 69-70: DMA2 stream 6-7 */
 };
 // clang-format on
