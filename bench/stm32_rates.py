@@ -6,7 +6,9 @@ under the rig's QEMU at -icount shift=3.
 
   link alone     the engine (rig/mcu/stm32_link.py) with a resting chip core, 1 ms steps, the needs
                  served: QEMU's CPU time (its process) and this process's, against the sim time
-  scenario       hover_turbulence through the MCU target (the runner, the world, the session), whole run
+  scenario       hover_turbulence through the MCU target (the runner, the world, the session), whole run,
+                 with its CPU seconds: QEMU and the session take turns, so one over their sum is the rate
+                 on a machine with nothing else to do
 
 Wall time follows the neighbours on a shared machine; CPU seconds are the steadier figure. Needs
 `make stm32-engine stm32-test-firmware`.
@@ -37,6 +39,9 @@ REPO = Path(__file__).resolve().parents[1]
 HOVER_RATE = REPO / "build" / "stm32" / "test" / "hover_rate.elf"
 REFERENCE_FC = REPO / "build" / "stm32" / "fc.elf"
 LINK_SIM_S = 5.0
+#: the published precedent (ArduPilot's STM32 build on Renode, 2026) and the AVR tier (bench/mcu_rates.py)
+ANCHOR = ("ArduPilot on Renode 0.03x stock, 0.2x patched; the AVR tier's reference FC 6.8x "
+          "(bench/mcu_rates.py); the goal 5x")
 
 
 def cpu(who: int) -> float:
@@ -63,11 +68,13 @@ def link_alone(firmware: Path) -> tuple[float, float, float]:
     return LINK_SIM_S / wall, (cpu(resource.RUSAGE_CHILDREN) - children0) / LINK_SIM_S, own / LINK_SIM_S
 
 
-def scenario(firmware: Path, name: str = "hover_turbulence") -> float:
+def scenario(firmware: Path, name: str = "hover_turbulence") -> tuple[float, float, float]:
+    """(sim s per wall s, QEMU's CPU s and this process's CPU s per sim s) of the whole run"""
     sc = load(REPO / "scenarios" / "library" / f"{name}.toml")
-    wall0 = time.perf_counter()
+    wall0, own0, children0 = time.perf_counter(), cpu(resource.RUSAGE_SELF), cpu(resource.RUSAGE_CHILDREN)
     run(sc, McuTarget("stm32f405-gy86", firmware), 0)
-    return sc.duration / (time.perf_counter() - wall0)
+    wall, own = time.perf_counter() - wall0, cpu(resource.RUSAGE_SELF) - own0
+    return sc.duration / wall, (cpu(resource.RUSAGE_CHILDREN) - children0) / sc.duration, own / sc.duration
 
 
 def main() -> int:
@@ -79,7 +86,11 @@ def main() -> int:
     speed, qemu_cpu, own_cpu = link_alone(firmware)
     print(f"link alone: {speed:.2f}x real time; per sim second {qemu_cpu:.2f} s of QEMU's CPU, "
           f"{own_cpu:.2f} s of the session's")
-    print(f"scenario hover_turbulence: {scenario(firmware):.2f}x real time")
+    speed, qemu_cpu, own_cpu = scenario(firmware)
+    print(f"scenario hover_turbulence: {speed:.2f}x real time; per sim second {qemu_cpu:.2f} s of QEMU's "
+          f"CPU, {own_cpu:.2f} s of the session's: {1 / (qemu_cpu + own_cpu):.2f}x on CPU time (the two "
+          "take turns in lockstep: the rate of a machine with nothing else to do)")
+    print(f"anchors: {ANCHOR}")
     return 0
 
 

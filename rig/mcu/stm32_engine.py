@@ -20,6 +20,7 @@ the build tree stay in the cache too, so a change of a model recompiles only tha
 from __future__ import annotations
 
 import argparse
+import contextlib
 import fcntl
 import hashlib
 import json
@@ -68,8 +69,10 @@ BUILD_DEPENDS = {
     "libfdt-dev": ("file", "/usr/include/libfdt.h"),  # (Debian's ships no .pc file)
     "zlib1g-dev": ("pkg-config", "zlib"),
 }
-#: how many engines (one per set of inputs, e.g. one per branch) the cache keeps
-KEEP_ENGINES = 4
+#: how many engines (one per set of inputs, e.g. one per branch or worktree) the cache keeps, those used
+#: last: with four, worktrees building in turn removed each other's engine while its tests ran, and the
+#: tests skipped
+KEEP_ENGINES = 12
 #: the lines that make QEMU's build see hw/rig (appended once to the unpacked source's files)
 HOOKS = {Path("hw/meson.build"): "subdir('rig')\n", Path("hw/Kconfig"): "source rig/Kconfig\n"}
 
@@ -135,7 +138,11 @@ def cached_binary(cache: Path | None = None) -> Path | None:
     if dsc is None:
         return None
     binary = cache / inputs_hash(dsc)[:16] / BINARY
-    return binary if binary.is_file() else None
+    if not binary.is_file():
+        return None
+    with contextlib.suppress(OSError):  # (used now: the last to be pruned; a read-only cache stays as it is)
+        os.utime(binary.parent)
+    return binary
 
 
 def _missing_build_depends() -> list[str]:

@@ -63,6 +63,8 @@ _REACHED = struct.Struct("<QIIIIB")
 _PULSE = struct.Struct("<IIIQ")
 #: pulses kept per motor between two takes (the oldest are dropped)
 MAX_PULSES: Final = 256
+#: what one recv from QEMU takes at most
+RECV_BYTES: Final = 65536
 #: bytes read ahead at most (an answer's payload is 1024 bytes; the MPU-6050's FIFO holds 1024)
 MAX_AHEAD: Final = 512
 #: the bytes written before a read that tell one transfer from another (a register address, a command)
@@ -128,6 +130,8 @@ class Stm32Engine:
         self._state = (0, 0, 0, 0)  # ipsr, pc, cfsr, hfsr at the last stop
         self._sent: dict[int, bytearray] = {n: bytearray() for n in cfg.board.mcu.usarts}
         self._uart_counts: dict[int, list[int]] = {n: [0, 0] for n in cfg.board.mcu.usarts}  # in, out
+        self._inbox = bytearray()  # bytes from QEMU not yet taken (_read), from _inbox_at on
+        self._inbox_at = 0
         self._dir = tempfile.TemporaryDirectory(prefix="rig-stm32-")
         firmware = cfg.firmware
         if cfg.settings is not None:
@@ -194,13 +198,18 @@ class Stm32Engine:
             raise LinkError(f"QEMU is gone ({e})") from None
 
     def _read(self, n: int) -> bytes:
-        buf = bytearray()
-        while len(buf) < n:
-            chunk = self._sock.recv(n - len(buf))
+        """``n`` bytes from QEMU: what one recv brought is kept for the next messages (a message's header
+        and payload, and the messages QEMU sends without waiting, cost one system call, not one each)."""
+        buf, at = self._inbox, self._inbox_at
+        while len(buf) - at < n:
+            chunk = self._sock.recv(RECV_BYTES)
             if not chunk:
                 raise EOFError
+            del buf[:at]
+            at = 0
             buf += chunk
-        return bytes(buf)
+        self._inbox_at = at + n
+        return bytes(buf[at:at + n])
 
     def _receive(self) -> tuple[int, bytes]:
         kind, length = HEADER.unpack(self._read(HEADER.size))

@@ -108,7 +108,8 @@ def test_uploads_are_told_apart_and_the_rest_refused_by_what_they_are(service: S
 def test_boards_are_shipped_or_uploaded_and_checked(service: Service) -> None:
     shipped = {b["board"]: b["mcu"] for b in service.call("GET", "/api/boards")[1]}
     assert shipped == {"mega2560-gy86": "atmega2560", "promini328-gy86": "atmega328p",
-                       "nano328-gy521": "atmega328p", "stm32f405-gy86": "stm32f405"}
+                       "nano328-gy521": "atmega328p", "stm32f405-gy86": "stm32f405",
+                       "stm32f411-blackpill-gy86": "stm32f411"}
     text = BOARD.read_text()
     z80 = text.replace('mcu = "atmega2560"', 'mcu = "z80"').encode()
     status, answer = post_bytes(service, "/api/boards", z80)
