@@ -10,6 +10,7 @@
  * timers' clocks ("apb1-tim", "apb2-tim") are PCLK1 = HCLK / PPRE1 and PCLK2 = HCLK / PPRE2, doubled when
  * the prescaler is not 1 (RM0090 figure 21): 84 and 168 MHz under ST's 168 MHz set-up.
  * The reset registers reset the peripherals the machine attached to their bits (GPIO ports, PWR).
+ * CSR's reset flags survive a system reset (a watchdog's sets its own: IWDGRSTF, WWDGRSTF).
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -21,6 +22,7 @@
 #include "qemu/log.h"
 #include "qemu/module.h"
 #include "rig_stm32f4.h"
+#include "sysemu/runstate.h"
 
 #define HSI_HZ 16000000u
 
@@ -49,6 +51,7 @@
 #define CSR_LSIRDY (1u << 1)
 #define CSR_RMVF (1u << 24)
 #define CSR_RESET_FLAGS 0xFE000000u
+#define CSR_PINRSTF (1u << 26)
 
 /*
  * RM0090 rev 19, table 34 (RCC register map and reset values) for the STM32F405/407; the writable
@@ -235,12 +238,29 @@ static const MemoryRegionOps rcc_ops = {
     .impl.max_access_size = 4,
 };
 
+RigResetCause rig_reset_cause;
+
+void rig_stm32_rcc_watchdog_reset(RigStm32RccState *rcc, uint32_t csr_flag, RigResetCause cause)
+{
+    rcc->regs[R_CSR] |= csr_flag;
+    rig_reset_cause = cause;
+    qemu_system_reset_request(SHUTDOWN_CAUSE_GUEST_RESET);
+}
+
+/* A system reset restores every register but CSR's reset flags, which only a power-on reset (or RMVF)
+ * clears; the reset pulses NRST whatever its source, so PINRSTF is set too (RM0090 6.1.2, 7.3.21) */
 static void rcc_reset(DeviceState *dev)
 {
     RigStm32RccState *s = RIG_STM32_RCC(dev);
+    uint32_t flags = s->regs[R_CSR] & CSR_RESET_FLAGS;
     for (int i = 0; i < RIG_RCC_REGISTERS; i++) {
         s->regs[i] = rcc_registers[i].reset;
     }
+    if (s->powered) {
+        s->regs[R_CSR] = (s->regs[R_CSR] & ~CSR_RESET_FLAGS) | flags | CSR_PINRSTF;
+    }
+    s->powered = true;
+    rig_reset_cause = RIG_RESET_SYSTEM; /* (the link has named it: its reset hook runs first) */
     rcc_settle(s);
 }
 

@@ -43,6 +43,7 @@ struct RigStm32RccState {
     Clock *hclk;        /* the AHB clock: the core, SysTick, DWT */
     Clock *tim_clk[2];  /* the timers' clocks on APB1 and APB2 ("apb1-tim", "apb2-tim") */
     uint64_t tim_hz[2]; /* their exact rates (a Clock keeps a period, which rounds) */
+    bool powered;       /* past the power-on reset: CSR's reset flags survive the next resets */
     /* the peripherals the reset registers (AHB1RSTR ... APB2RSTR) reset: register, bit, device */
     struct {
         hwaddr rstr_offset;
@@ -77,13 +78,46 @@ struct RigStm32PwrState {
 #define TYPE_RIG_STM32_FLASH_IF "rig-stm32f4-flash-if"
 OBJECT_DECLARE_SIMPLE_TYPE(RigStm32FlashIfState, RIG_STM32_FLASH_IF)
 
+#define RIG_FLASH_BYTES (1024 * 1024) /* the F405's main flash at 0x08000000 (RM0090 table 5) */
+
 struct RigStm32FlashIfState {
     SysBusDevice parent_obj;
     MemoryRegion iomem;
+    MemoryRegion cells; /* the main flash (sysbus MMIO 1): a ROM device, read from its RAM, written to program */
+    qemu_irq irq;       /* the FLASH global interrupt */
+    QEMUTimer *busy;    /* the end of the operation under way (SR.BSY) */
+    int64_t busy_until_ns;
     uint32_t acr, sr, cr, optcr;
     uint8_t key_step; /* 1 after KEY1 was written to KEYR */
     bool locked_out;  /* a wrong key: CR stays locked until reset */
 };
+
+/* The watchdogs (RM0090 sections 19, 20) */
+#define TYPE_RIG_STM32_IWDG "rig-stm32f4-iwdg"
+OBJECT_DECLARE_SIMPLE_TYPE(RigStm32IwdgState, RIG_STM32_IWDG)
+
+struct RigStm32IwdgState {
+    SysBusDevice parent_obj;
+    MemoryRegion iomem;
+    RigStm32RccState *rcc;
+    QEMUTimer *timer; /* the down-counter reaching 0 */
+    uint32_t pr, rlr;
+    bool running;                       /* started by KR = 0xCCCC (only a reset stops it) */
+    bool unlocked;                      /* KR = 0x5555: PR and RLR writable */
+    int64_t pvu_until_ns, rvu_until_ns; /* PR and RLR updates under way (SR.PVU, SR.RVU) */
+};
+
+/* What caused the system reset under way (rig_reset_cause): the link names it to the session */
+typedef enum {
+    RIG_RESET_SYSTEM = 0, /* a reset request (AIRCR.SYSRESETREQ) or anything but a watchdog */
+    RIG_RESET_IWDG = 1,
+    RIG_RESET_WWDG = 2,
+} RigResetCause;
+extern RigResetCause rig_reset_cause;
+
+/* A watchdog's reset: its flag in RCC_CSR (@csr_flag, kept through the reset as on the chip) and a system
+ * reset requested */
+void rig_stm32_rcc_watchdog_reset(RigStm32RccState *rcc, uint32_t csr_flag, RigResetCause cause);
 
 /* GPIO ports A..I (RM0090 section 8.4) */
 #define TYPE_RIG_STM32_GPIO "rig-stm32f4-gpio"

@@ -35,6 +35,9 @@
 #define APB1RSTR_PWRRST 28
 #define PWR_BASE 0x40007000
 #define FLASH_IF_BASE 0x40023C00
+#define FLASH_BASE 0x08000000 /* RM0090 2.3: the main flash, also at 0 when booting from it */
+#define IRQ_FLASH 4           /* RM0090 table 61 */
+#define IWDG_BASE 0x40003000
 #define GPIOA_BASE 0x40020000
 #define GPIO_STRIDE 0x400
 #define GPIO_PORTS 9
@@ -139,6 +142,19 @@ static SysBusDevice *map_device(const char *type, hwaddr base, RigStm32RccState 
     /* over the SoC's unimplemented-device placeholders (priority -1000) */
     sysbus_mmio_map(SYS_BUS_DEVICE(dev), 0, base);
     return SYS_BUS_DEVICE(dev);
+}
+
+/* The FLASH interface's cells over the SoC's flash ROM, at 0x08000000 and at 0, in the core's own address
+ * space: the loader checks the system memory (the SoC's ROM), finds a ROM and writes the image once, at
+ * the first reset, through the core's (into the cells), so a system reset keeps what the firmware wrote */
+static void map_flash(SysBusDevice *soc, SysBusDevice *flash_if)
+{
+    MemoryRegion *container = &STM32F405_SOC(soc)->armv7m.container, *cells = sysbus_mmio_get_region(flash_if, 1);
+    MemoryRegion *alias = g_new0(MemoryRegion, 1);
+    memory_region_init_alias(alias, OBJECT(flash_if), "rig-stm32f4-flash-alias", cells, 0, RIG_FLASH_BYTES);
+    memory_region_add_subregion_overlap(container, FLASH_BASE, cells, 1);
+    memory_region_add_subregion_overlap(container, 0, alias, 1);
+    sysbus_connect_irq(flash_if, 0, qdev_get_gpio_in(DEVICE(&STM32F405_SOC(soc)->armv7m), IRQ_FLASH));
 }
 
 /* TIM1..TIM14 over the SoC's placeholders and its TIM2-TIM5, their interrupts (an OR gate where two
@@ -254,7 +270,8 @@ static void rig_stm32f405_init(MachineState *machine)
 
     RigStm32RccState *r = RIG_STM32_RCC(rcc);
     rig_stm32_rcc_add_reset(r, RCC_APB1RSTR, APB1RSTR_PWRRST, DEVICE(map_device(TYPE_RIG_STM32_PWR, PWR_BASE, r, -1)));
-    map_device(TYPE_RIG_STM32_FLASH_IF, FLASH_IF_BASE, NULL, -1);
+    map_flash(SYS_BUS_DEVICE(soc), map_device(TYPE_RIG_STM32_FLASH_IF, FLASH_IF_BASE, NULL, -1));
+    map_device(TYPE_RIG_STM32_IWDG, IWDG_BASE, r, -1);
     DeviceState *gpio_ports[GPIO_PORTS];
     for (int port = 0; port < GPIO_PORTS; port++) {
         SysBusDevice *gpio = map_device(TYPE_RIG_STM32_GPIO, GPIOA_BASE + port * GPIO_STRIDE, r, port);
