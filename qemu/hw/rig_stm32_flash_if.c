@@ -4,8 +4,8 @@
  * CR; a wrong key locks it until reset; CR.LOCK written 1 locks it again), and programming and erasing
  * the main flash (3.5-3.7): sector erase (SER, SNB, STRT) of the 12 sectors of table 5 and mass erase
  * (MER) to 0xFF, and programming by a write to a flash address while CR.PG is set, in the size PSIZE
- * gives (x8, x16, x32); a cell only goes from 1 to 0 (a write ANDs). SR's error flags (PGSERR, PGPERR,
- * PGAERR) as 3.9.4 sets them, BSY for the datasheet's typical time of the operation in virtual time,
+ * gives (x8, x16, x32); a cell only goes from 1 to 0 (a write ANDs). SR's error flags PGSERR and PGPERR
+ * as 3.9.4 sets them, BSY for the datasheet's typical time of the operation in virtual time,
  * then EOP (only with EOPIE, as 3.9.4 says) and the FLASH interrupt.
  *
  * The flash itself is this device's second MMIO region, a ROM device mapped over the SoC's ROM (at
@@ -48,7 +48,6 @@ static const RigRegister flash_registers[] = {
 #define CR_ERRIE (1u << 25)
 #define SR_EOP (1u << 0)
 #define SR_OPERR (1u << 1)
-#define SR_PGAERR (1u << 5)
 #define SR_PGPERR (1u << 6)
 #define SR_PGSERR (1u << 7)
 #define SR_BSY (1u << 16)
@@ -133,9 +132,9 @@ static void flash_cells_write(void *opaque, hwaddr offset, uint64_t value, unsig
     if ((s->cr & CR_LOCK) || !(s->cr & CR_PG)) {
         error = SR_PGSERR; /* a write to the flash without the program sequence set up */
     } else if (size != 1u << psize) {
-        error = SR_PGPERR; /* the access's size is not PSIZE's */
-    } else if (offset % size) {
-        error = SR_PGAERR; /* (an aligned access lies in one 128-bit row) */
+        /* the access's size is not PSIZE's; the core splits a misaligned access into bytes (ARMv7-M A3.2.1,
+         * QEMU likewise), so it lands here too, and PGAERR (a row crossed: x64 only) never comes */
+        error = SR_PGPERR;
     }
     if (error) {
         qemu_log_mask(LOG_GUEST_ERROR,
@@ -159,10 +158,8 @@ static const MemoryRegionOps flash_cells_ops = {
     .endianness = DEVICE_LITTLE_ENDIAN,
     .valid.min_access_size = 1,
     .valid.max_access_size = 4,
-    .valid.unaligned = true,
     .impl.min_access_size = 1,
     .impl.max_access_size = 4,
-    .impl.unaligned = true,
 };
 
 static uint64_t flash_if_read(void *opaque, hwaddr offset, unsigned size)

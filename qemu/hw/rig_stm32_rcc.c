@@ -52,6 +52,7 @@
 #define CSR_RMVF (1u << 24)
 #define CSR_RESET_FLAGS 0xFE000000u
 #define CSR_PINRSTF (1u << 26)
+#define CSR_SFTRSTF (1u << 28)
 
 /*
  * RM0090 rev 19, table 34 (RCC register map and reset values) for the STM32F405/407; the writable
@@ -257,7 +258,9 @@ static void rcc_reset(DeviceState *dev)
         s->regs[i] = rcc_registers[i].reset;
     }
     if (s->powered) {
-        s->regs[R_CSR] = (s->regs[R_CSR] & ~CSR_RESET_FLAGS) | flags | CSR_PINRSTF;
+        /* a reset that is not a watchdog's is the firmware's request (AIRCR.SYSRESETREQ): SFTRSTF */
+        uint32_t source = rig_reset_cause == RIG_RESET_SYSTEM ? CSR_SFTRSTF : 0;
+        s->regs[R_CSR] = (s->regs[R_CSR] & ~CSR_RESET_FLAGS) | flags | CSR_PINRSTF | source;
     }
     s->powered = true;
     rig_reset_cause = RIG_RESET_SYSTEM; /* (the link has named it: its reset hook runs first) */
