@@ -6,7 +6,8 @@ runs either.
 Time is QEMU's virtual time under ``-icount shift=ICOUNT_SHIFT,sleep=off`` (each instruction 2**shift ns):
 the instruction count, so the same image, world and needs served give the same bytes and pulses, run
 after run. ``run_until(t)`` tells QEMU to run to t; QEMU answers "reached" with the motor outputs'
-latched pulses and the CPU's exception state, then waits. Meanwhile every event of the I2C bus comes
+latched pulses and the CPU's exception state, then waits. A system reset is told at its instant: a
+watchdog's ends the run as a crash naming the pc it came at. Meanwhile every event of the I2C bus comes
 here and the session's own chip core (the world's ChipBoard, as the AVR tier's) answers it: a START
 first runs the chips to its instant, and a sample the core lacks stops ``run_until`` with a ``need``,
 which the session serves (ChipBoard.serve) before calling ``run_until`` again; QEMU waits for the
@@ -53,6 +54,10 @@ UART_CHUNK: Final = 1016
 #: the timer outputs rig_link.c numbers: CH1..CH4, then CH1N..CH3N
 OUTPUTS: Final = ("1", "2", "3", "4", "1N", "2N", "3N")
 _REACHED = struct.Struct("<QIIIIB")
+#: a system reset: its time, its cause, the CPU's IPSR, pc, CFSR and HFSR as it came
+_RESET = struct.Struct("<QIIIII")
+#: rig_link.c's reset causes (RigResetCause) that are errors of the firmware: a watchdog ran out
+WATCHDOG_RESETS: Final = {1: "IWDG", 2: "WWDG"}
 _PULSE = struct.Struct("<IIIQ")
 #: pulses kept per motor between two takes (the oldest are dropped)
 MAX_PULSES: Final = 256
@@ -106,6 +111,7 @@ class Stm32Engine:
         self._widths = [0 for _ in self._motors]
         self._active_ns = 0  # the last sign of life (hang_ns)
         self._state = (0, 0, 0, 0)  # ipsr, pc, cfsr, hfsr at the last stop
+        self._resets = 0  # system resets after power-on
         self._sent: dict[int, bytearray] = {n: bytearray() for n in cfg.board.mcu.usarts}
         self._uart_counts: dict[int, list[int]] = {n: [0, 0] for n in cfg.board.mcu.usarts}  # in, out
         self._dir = tempfile.TemporaryDirectory(prefix="rig-stm32-")
@@ -230,6 +236,10 @@ class Stm32Engine:
                     self._active_ns = self._now_ns
                     self._uart_counts[p[0]][1] += len(p) - 1
                     continue
+                if kind == ord("X"):
+                    if (stop := self._reset(p)) is not None:
+                        return stop
+                    continue
                 if len(p) < 8:
                     raise LinkError(f"an I2C message ({kind!r}) without its time")
                 (t_ns,) = struct.unpack_from("<Q", p)
@@ -290,6 +300,21 @@ class Stm32Engine:
             return self._final("hung", f"no I2C transaction, motor pulse change or USART byte sent for "
                                        f"{hang_ns / 1e6:g} ms", pc)
         return Stop("reached", self._cycle(t_ns))
+
+    def _reset(self, p: bytes) -> Stop | None:
+        """A system reset: a watchdog's ends the run naming where the firmware was; the firmware's own
+        request (AIRCR.SYSRESETREQ: a reboot, after saving settings) is counted and the run goes on."""
+        if len(p) != _RESET.size:
+            raise LinkError(f"a RESET of {len(p)} bytes")
+        t_ns, cause, ipsr, pc, cfsr, hfsr = _RESET.unpack(p)
+        self._resets += 1
+        self._state = (ipsr, pc, cfsr, hfsr)
+        watchdog = WATCHDOG_RESETS.get(cause)
+        if watchdog is None:
+            return None
+        self._now_ns = t_ns
+        what = f"watchdog reset ({watchdog}) (CFSR 0x{cfsr:08x}, HFSR 0x{hfsr:08x})"
+        return self._final("crashed", what, pc)
 
     def _ended(self) -> Stop:
         """QEMU is gone: a semihosting exit, a lockup (QEMU aborts), or a crash of its own."""
@@ -395,6 +420,7 @@ class Stm32Engine:
             "pc": pc, "ipsr": ipsr, "cfsr": cfsr, "hfsr": hfsr,
             "last_twi": format_transaction(self._last), "motor_periods": list(self._pulse_counts),
             "uarts": {n: {"queued": c[0], "sent": c[1]} for n, c in self._uart_counts.items()},
+            "resets": self._resets,
         }
         if self._stop is not None:
             figs["stop"] = self._stop.describe()
