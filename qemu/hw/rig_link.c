@@ -8,7 +8,8 @@
  * latched pulses of the board's motor outputs (the timers' chC-high-ticks, period-ticks, clock-hz) and
  * the CPU's state (the exception being handled, pc, CFSR, HFSR: a HardFault ends the run in the session),
  * then blocks for the next command. A system reset (a watchdog's, the firmware's request) is told to the
- * session at its instant with its cause and the CPU's state then. The I2C bus's events of the GY-86 slave go to the session, whose chip
+ * session at its instant with its cause and the CPU's state then; between steps the session may read
+ * the flash (the settings the firmware keeps there). The I2C bus's events of the GY-86 slave go to the session, whose chip
  * core (the lockstep session's own) answers: a START and each byte read wait for the answer, a byte
  * written and a STOP do not. The session serves the chip core's sample needs from the world meanwhile.
  *
@@ -80,6 +81,10 @@ typedef struct {
 #define MSG_QUIT 'Q'    /* (none) */
 #define MSG_ACK 'a'     /* u8 acknowledged */
 #define MSG_BYTE 'b'    /* u8 byte */
+/* u32 address, u32 length (at most 1024, within the flash): answered by an 'M' of the flash's bytes there,
+ * as the firmware left them (the settings it keeps in flash) */
+#define MSG_MEMORY 'M'
+#define FLASH_BASE 0x08000000u
 
 OBJECT_DECLARE_SIMPLE_TYPE(RigLinkState, RIG_LINK)
 
@@ -222,6 +227,18 @@ static void link_uart_send_sent(RigLinkState *s)
     }
 }
 
+/* The flash's bytes the session asks for, read as the core reads them */
+static void link_memory(RigLinkState *s, const uint8_t *p)
+{
+    uint32_t address = ldl_le_p(p), len = ldl_le_p(p + 4);
+    uint8_t bytes[LINK_MAX_PAYLOAD];
+    if (len > sizeof bytes || address < FLASH_BASE || address - FLASH_BASE > RIG_FLASH_BYTES - len) {
+        link_fail("MEMORY: not within the flash, or more than 1024 bytes");
+    }
+    address_space_read(first_cpu->as, address, MEMTXATTRS_UNSPECIFIED, bytes, len);
+    link_send(s, MSG_MEMORY, bytes, len);
+}
+
 /* Commands until a GO to a time after now (then armed) */
 static void link_wait_command(RigLinkState *s)
 {
@@ -237,6 +254,8 @@ static void link_wait_command(RigLinkState *s)
             int64_t t = (int64_t)ldq_le_p(p), now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
             timer_mod(s->timer, t > now ? t : now);
             return;
+        } else if (kind == MSG_MEMORY && len == 8) {
+            link_memory(s, p);
         } else if (kind == MSG_QUIT && len == 0) {
             exit(0);
         } else {

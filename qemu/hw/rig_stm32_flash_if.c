@@ -10,7 +10,10 @@
  *
  * The flash itself is this device's second MMIO region, a ROM device mapped over the SoC's ROM (at
  * 0x08000000 and its alias at 0): the core reads and executes from its RAM at full speed, and its
- * writes come here. The operation is done at once and BSY only times it: on the chip a read of the flash
+ * writes come here. QEMU's loader writes the image into a ROM once, but into anything else again at each
+ * reset (which would undo what the firmware programmed): so the cells stay disabled while the loader
+ * looks and writes, the image goes into the SoC's ROM (erased to 0xFF first), and when the machine
+ * first starts the cells take the ROM's contents and its place. The operation is done at once and BSY only times it: on the chip a read of the flash
  * during an operation stalls the bus until the end; here it returns the new data at once. An operation
  * started while one is under way (the chip would stall the write) is queued after it: BSY lasts for both.
  * Option bytes (OPTCR, write protection: WRPERR) and the OTP area are not modelled.
@@ -25,6 +28,7 @@
 #include "qemu/module.h"
 #include "qemu/timer.h"
 #include "rig_stm32f4.h"
+#include "sysemu/runstate.h"
 
 /* RM0090 table 12 (FLASH interface register map) */
 enum { ACR, KEYR, OPTKEYR, SR, CR, OPTCR };
@@ -259,8 +263,26 @@ static void flash_if_init(Object *obj)
     s->busy = timer_new_ns(QEMU_CLOCK_VIRTUAL, flash_done, s);
 }
 
-/* The cells, erased (0xFF) at power-on: the loader writes the image into them, and a system reset keeps
- * them as the chip's flash keeps its contents */
+void rig_stm32_flash_if_over(RigStm32FlashIfState *s, MemoryRegion *rom)
+{
+    s->rom = rom;
+    memset(memory_region_get_ram_ptr(rom), 0xFF, RIG_FLASH_BYTES); /* erased, as the chip comes */
+    memory_region_set_enabled(&s->cells, false);
+}
+
+/* The machine's first start (after the loader wrote the image into the ROM): the cells take over */
+static void flash_if_first_start(void *opaque, bool running, RunState state)
+{
+    RigStm32FlashIfState *s = opaque;
+    if (!running || s->rom == NULL || s->cells.enabled) {
+        return;
+    }
+    memcpy(memory_region_get_ram_ptr(&s->cells), memory_region_get_ram_ptr(s->rom), RIG_FLASH_BYTES);
+    memory_region_flush_rom_device(&s->cells, 0, RIG_FLASH_BYTES);
+    memory_region_set_enabled(&s->cells, true);
+}
+
+/* The cells: a system reset keeps them as the chip's flash keeps its contents */
 static void flash_if_realize(DeviceState *dev, Error **errp)
 {
     RigStm32FlashIfState *s = RIG_STM32_FLASH_IF(dev);
@@ -273,6 +295,7 @@ static void flash_if_realize(DeviceState *dev, Error **errp)
     }
     memset(memory_region_get_ram_ptr(&s->cells), 0xFF, RIG_FLASH_BYTES);
     sysbus_init_mmio(SYS_BUS_DEVICE(dev), &s->cells);
+    qemu_add_vm_change_state_handler(flash_if_first_start, s);
 }
 
 static void flash_if_class_init(ObjectClass *klass, void *data)

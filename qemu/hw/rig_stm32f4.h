@@ -84,6 +84,7 @@ struct RigStm32FlashIfState {
     SysBusDevice parent_obj;
     MemoryRegion iomem;
     MemoryRegion cells; /* the main flash (sysbus MMIO 1): a ROM device, read from its RAM, written to program */
+    MemoryRegion *rom;  /* the SoC's flash ROM, which the loader writes the image into */
     qemu_irq irq;       /* the FLASH global interrupt */
     QEMUTimer *busy;    /* the end of the operation under way (SR.BSY) */
     int64_t busy_until_ns;
@@ -91,6 +92,10 @@ struct RigStm32FlashIfState {
     uint8_t key_step; /* 1 after KEY1 was written to KEYR */
     bool locked_out;  /* a wrong key: CR stays locked until reset */
 };
+
+/* The flash's cells over the SoC's flash ROM @rom: disabled until the machine first starts, when they take
+ * the image the loader wrote into @rom */
+void rig_stm32_flash_if_over(RigStm32FlashIfState *s, MemoryRegion *rom);
 
 /* The watchdogs (RM0090 sections 19, 20) */
 #define TYPE_RIG_STM32_IWDG "rig-stm32f4-iwdg"

@@ -145,8 +145,7 @@ static SysBusDevice *map_device(const char *type, hwaddr base, RigStm32RccState 
 }
 
 /* The FLASH interface's cells over the SoC's flash ROM, at 0x08000000 and at 0, in the core's own address
- * space: the loader checks the system memory (the SoC's ROM), finds a ROM and writes the image once, at
- * the first reset, through the core's (into the cells), so a system reset keeps what the firmware wrote */
+ * space (rig_stm32_flash_if.c: they take the ROM's place when the machine first starts) */
 static void map_flash(SysBusDevice *soc, SysBusDevice *flash_if)
 {
     MemoryRegion *container = &STM32F405_SOC(soc)->armv7m.container, *cells = sysbus_mmio_get_region(flash_if, 1);
@@ -155,6 +154,7 @@ static void map_flash(SysBusDevice *soc, SysBusDevice *flash_if)
     memory_region_add_subregion_overlap(container, FLASH_BASE, cells, 1);
     memory_region_add_subregion_overlap(container, 0, alias, 1);
     sysbus_connect_irq(flash_if, 0, qdev_get_gpio_in(DEVICE(&STM32F405_SOC(soc)->armv7m), IRQ_FLASH));
+    rig_stm32_flash_if_over(RIG_STM32_FLASH_IF(flash_if), &STM32F405_SOC(soc)->flash);
 }
 
 /* TIM1..TIM14 over the SoC's placeholders and its TIM2-TIM5, their interrupts (an OR gate where two

@@ -32,7 +32,7 @@ from rig.emulators import native
 from rig.emulators.chips.board import ChipBoard
 from rig.mcu.board import Board
 from rig.mcu.engine import FirmwareError, Stop, TwiRecord, format_transaction
-from rig.mcu.stm32_image import check_image, with_settings
+from rig.mcu.stm32_image import check_image, config_section, with_settings
 
 __all__ = ["ICOUNT_SHIFT", "LINK_VERSION", "LinkError", "Stm32Engine"]
 
@@ -112,6 +112,7 @@ class Stm32Engine:
         self._active_ns = 0  # the last sign of life (hang_ns)
         self._state = (0, 0, 0, 0)  # ipsr, pc, cfsr, hfsr at the last stop
         self._resets = 0  # system resets after power-on
+        self._waiting = False  # QEMU waits for a command (after a REACHED)
         self._sent: dict[int, bytearray] = {n: bytearray() for n in cfg.board.mcu.usarts}
         self._uart_counts: dict[int, list[int]] = {n: [0, 0] for n in cfg.board.mcu.usarts}  # in, out
         self._dir = tempfile.TemporaryDirectory(prefix="rig-stm32-")
@@ -274,6 +275,7 @@ class Stm32Engine:
     def _reached(self, p: bytes) -> Stop:
         if len(p) < _REACHED.size:
             raise LinkError(f"a REACHED of {len(p)} bytes")
+        self._waiting = True  # (for the next command)
         t_ns, ipsr, pc, cfsr, hfsr, n = _REACHED.unpack_from(p)
         if n != len(self._motors) or len(p) != _REACHED.size + n * _PULSE.size:
             raise LinkError(f"a REACHED with {n} motors ({len(p)} bytes); the board has {len(self._motors)}")
@@ -353,6 +355,7 @@ class Stm32Engine:
         if self._stop is not None:
             return self._stop
         if self._pending is None:
+            self._waiting = False
             self._send(ord("G"), struct.pack("<Q", max(t_ns, 0)))
         return self._until_reached()
 
@@ -404,8 +407,25 @@ class Stm32Engine:
         raise ValueError("the STM32 tier's link does not drive input pins yet")
 
     def eeprom(self) -> bytes:
-        """An STM32 has no EEPROM (its settings live in flash)."""
-        return b""
+        """An STM32 keeps its settings in flash: the firmware's CONFIG_SECTION as it is now (what the
+        firmware programmed there), read over the link while QEMU waits at a step's end; b"" for a firmware
+        without that section, or when QEMU is not waiting (gone, or running on past a watchdog's reset)."""
+        section = config_section(self.cfg.firmware.read_bytes())
+        if section is None or not self._waiting:
+            return b""
+        addr, _offset, size = section
+        out = bytearray()
+        for at in range(0, size, MAX_PAYLOAD):
+            n = min(MAX_PAYLOAD, size - at)
+            self._send(ord("M"), struct.pack("<II", addr + at, n))
+            try:
+                kind, p = self._receive()
+            except (EOFError, OSError):
+                return b""
+            if kind != ord("M") or len(p) != n:
+                raise LinkError(f"a reply of {kind!r}, {len(p)} bytes to a read of {n} bytes of flash")
+            out += p
+        return bytes(out)
 
     def poll_figures(self) -> dict[str, int]:
         """The AVR engine's polling-loop skip has no STM32 counterpart: QEMU's icount runs every

@@ -7,10 +7,14 @@ programming), written here."""
 
 from __future__ import annotations
 
+import struct
 import subprocess
 
 import pytest
 
+from rig.mcu import board as boards
+from rig.mcu.stm32_image import config_section
+from rig.mcu.stm32_link import Stm32Config, Stm32Engine
 from tests.stm32.conftest import engine_or_skip, firmware, reports, run_firmware
 
 HSI_HZ = 16_000_000
@@ -24,7 +28,7 @@ SR_EOP, SR_PGPERR, SR_PGSERR, SR_BSY = 1 << 0, 1 << 6, 1 << 7, 1 << 16
 CR_SER, CR_EOPIE, CR_LOCK = 1 << 1, 1 << 24, 1 << 31
 #: RM0090 7.3.21 (RCC_CSR): the reset flags
 PINRSTF, SFTRSTF = 1 << 26, 1 << 28
-#: what the firmware writes into sector 10 (flash_prog.c)
+#: what the firmware writes into its .fc_config section, sector 1 (flash_prog.c)
 SETTINGS = (0x52494731, 0x0000_01F4, 0x3F80_0000, 0xC0FF_EE00)
 
 
@@ -110,6 +114,28 @@ def test_settings_written_survive_a_system_reset(r: dict[str, int]) -> None:
     PINRSTF (7.3.21; the power-on flags were cleared by RMVF on the first boot)."""
     assert r["boot2_csr"] == SFTRSTF | PINRSTF
     assert tuple(r[f"settings_{i}"] for i in range(4)) == SETTINGS
+    assert r["settings_at"] == 0x0800_4000  # (RM0090 table 5: sector 1)
+
+
+def test_the_rig_reads_the_settings_the_firmware_wrote() -> None:
+    """Through the link, at 1 ms steps: the firmware's reset request does not end the run (it is counted),
+    and at the end the engine's eeprom() is the .fc_config section as the firmware programmed it: the
+    settings, the rest of the sector erased."""
+    elf = firmware("flash_prog")
+    section = config_section(elf.read_bytes())
+    assert section is not None and section[2] == 0x4000
+    engine = Stm32Engine(Stm32Config(boards.load("stm32f405-gy86"), elf, engine_or_skip(), hang_ns=0), None)
+    try:
+        t = 0
+        while "boot2_cr=" not in engine.output():
+            stop = engine.run_until(t := t + 1_000_000)
+            assert stop.kind == "reached", stop.describe()
+        settings = engine.eeprom()
+        resets = engine.figures()["resets"]
+    finally:
+        engine.close()
+    assert resets == 1
+    assert settings == struct.pack("<4I", *SETTINGS) + b"\xff" * (0x4000 - 16)
 
 
 def test_two_runs_are_identical(run: subprocess.CompletedProcess[str]) -> None:

@@ -2,7 +2,7 @@
    without CR.PG, the unlock, sector erases (16, 64 and 128 KB sectors) timed from STRT to EOP with
    DWT_CYCCNT at the 16 MHz HSI, a word programmed and timed, the 1->0 rule, a write of the wrong size for
    PSIZE, a misaligned one (bytes on the bus), byte and half-word programming, the alias at 0, the FLASH interrupt's count;
-   then settings written into sector 10, a wrong key, and a system reset (AIRCR.SYSRESETREQ). Its second
+   then settings written into its .fc_config section (sector 1), a wrong key, and a system reset (AIRCR.SYSRESETREQ). Its second
    boot (RCC_CSR's reset flags tell it) reports the reset flags, the CR lock and the settings read back. */
 #include "semihost.h"
 #include "stm32f405.h"
@@ -10,7 +10,6 @@
 #define FLASH_BASE 0x08000000u
 #define SECTOR1 (FLASH_BASE + 0x4000u)   /* 16 KB */
 #define SECTOR4 (FLASH_BASE + 0x10000u)  /* 64 KB */
-#define SECTOR10 (FLASH_BASE + 0xC0000u) /* 128 KB: the settings */
 #define SECTOR11 (FLASH_BASE + 0xE0000u) /* 128 KB */
 #define WORD(addr) (*(volatile uint32_t *)(addr))
 #define HALF(addr) (*(volatile uint16_t *)(addr))
@@ -23,6 +22,11 @@
 
 static volatile uint32_t eop_interrupts;
 static const uint32_t settings[SETTINGS_WORDS] = { 0x52494731u, 0x000001F4u, 0x3F800000u, 0xC0FFEE00u };
+/* the settings' place: the section the rig reads a firmware's settings from (rig/mcu/stm32_image.py),
+   sector 1 (16 KB) to itself */
+__attribute__((section(".fc_config"), aligned(0x4000), used)) static const uint8_t fc_config[0x4000];
+#define SETTINGS_SECTOR 1u
+#define SETTINGS ((uint32_t)(uintptr_t)fc_config)
 
 void flash_handler(void);
 void flash_handler(void)
@@ -124,10 +128,11 @@ static void first_boot(void)
     report("cr_after_erase", FLASH_CR);
     report("eop_interrupts", eop_interrupts);
 
-    /* the settings, into sector 10, erased first */
-    erase(10);
+    /* the settings, into their sector, erased first */
+    report("settings_at", SETTINGS);
+    erase(SETTINGS_SECTOR);
     for (unsigned i = 0; i < SETTINGS_WORDS; i++) {
-        program_word(SECTOR10 + 4u * i, settings[i]);
+        program_word(SETTINGS + 4u * i, settings[i]);
     }
     FLASH_CR = FLASH_CR_LOCK;
     report("cr_relocked", FLASH_CR);
@@ -152,11 +157,14 @@ int main(void)
     for (unsigned i = 0; i < SETTINGS_WORDS; i++) {
         char name[] = "settings_0";
         name[9] = (char)('0' + i);
-        report(name, WORD(SECTOR10 + 4u * i));
+        report(name, WORD(SETTINGS + 4u * i));
     }
     FLASH_KEYR = FLASH_KEY1;
     FLASH_KEYR = FLASH_KEY2;
     report("boot2_cr_unlocked", FLASH_CR);
+    for (uint32_t i = 0; i < 200000u; i++) { /* a few ms, so a linked session sees it running before the exit */
+        __asm volatile("nop");
+    }
     put_text("done\n");
     return 0;
 }
