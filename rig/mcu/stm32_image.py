@@ -90,7 +90,7 @@ def with_settings(path: Path, settings: bytes, out: Path) -> Path:
     section (a firmware that keeps its settings elsewhere, as an AVR firmware may ignore its EEPROM);
     FirmwareError when the section is smaller than the settings."""
     data = bytearray(Path(path).read_bytes())
-    section = config_section(data)
+    section = config_section(bytes(data))
     if section is None:
         return Path(path)
     _addr, offset, size = section

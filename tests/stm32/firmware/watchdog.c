@@ -15,8 +15,8 @@
 #define IWDG_SR_PVU (1u << 0)
 #define IWDG_SR_RVU (1u << 1)
 #define HSI_HZ 16000000u
-#define TIMEOUT_PR 1u                 /* LSI / 8 */
-#define TIMEOUT_RLR 199u              /* 200 ticks of 8 LSI cycles: 50 ms */
+#define TIMEOUT_PR 1u                  /* LSI / 8 */
+#define TIMEOUT_RLR 199u               /* 200 ticks of 8 LSI cycles: 50 ms */
 #define REFRESH_CYCLES (HSI_HZ / 100u) /* SysTick's reload: a tick every 10 ms or so */
 #define REFRESHES 40u
 
