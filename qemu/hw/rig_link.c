@@ -9,9 +9,9 @@
  * the CPU's state (the exception being handled, pc, CFSR, HFSR: a HardFault ends the run in the session),
  * then blocks for the next command. A system reset (a watchdog's, the firmware's request) is told to the
  * session at its instant with its cause and the CPU's state then; between steps the session may read
- * the flash (the settings the firmware keeps there). The I2C bus's events of the GY-86 slave go to the session, whose chip
- * core (the lockstep session's own) answers: a START and each byte read wait for the answer, a byte
- * written and a STOP do not. The session serves the chip core's sample needs from the world meanwhile.
+ * the flash (the settings the firmware keeps there). The I2C bus's events of the GY-86 slave go to the
+ * session, whose chip core (the lockstep session's own) answers: a START and each byte read wait for the
+ * answer, a byte written and a STOP do not. The session serves the chip core's sample needs from the world meanwhile.
  *
  * The USARTs (QEMU's, USART1..USART6 of the SoC) are ringbuf chardevs named rig-usart1..rig-usart6: what
  * the firmware sent since the last stop goes to the session before each "reached", and bytes the session

@@ -13,9 +13,10 @@
  * writes come here. QEMU's loader writes the image into a ROM once, but into anything else again at each
  * reset (which would undo what the firmware programmed): so the cells stay disabled while the loader
  * looks and writes, the image goes into the SoC's ROM (erased to 0xFF first), and when the machine
- * first starts the cells take the ROM's contents and its place. The operation is done at once and BSY only times it: on the chip a read of the flash
- * during an operation stalls the bus until the end; here it returns the new data at once. An operation
- * started while one is under way (the chip would stall the write) is queued after it: BSY lasts for both.
+ * first starts the cells take the ROM's contents and its place.
+ * An operation is done at once and BSY only times it: on the chip a read of the flash during an operation
+ * stalls the bus until the end; here it returns the new data at once. An operation started while one is
+ * under way (the chip would stall the write) is queued after it: BSY lasts for both.
  * Option bytes (OPTCR, write protection: WRPERR) and the OTP area are not modelled.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later

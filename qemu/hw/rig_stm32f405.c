@@ -1,9 +1,10 @@
 /*
  * rig-stm32f405: QEMU's STM32F405 SoC (Cortex-M4F with NVIC and SysTick, its USARTs, TIM2-5, ADCs, SPIs,
  * SYSCFG and EXTI) with the rig's models mapped over the regions that SoC leaves unimplemented: RCC,
- * PWR, the FLASH interface, GPIO A..I, I2C1 (RM0090) with the GY-86 board (the rig's chip core) on its
- * bus, the timers TIM1-TIM14 (over QEMU's TIM2-TIM5, which only count) with their channels on the pins
- * of the datasheet's alternate function table, and the core's DWT cycle counter. The RCC's AHB clock
+ * PWR, the FLASH interface (its flash cells over the SoC's ROM), the IWDG, GPIO A..I, I2C1 (RM0090) with
+ * the GY-86 board (the rig's chip core) on its bus, the timers TIM1-TIM14 (over QEMU's TIM2-TIM5, which
+ * only count) with their channels on the pins of the datasheet's alternate function table, and the
+ * core's DWT cycle counter. The RCC's AHB clock
  * drives the core, SysTick and DWT, so the machine starts at 16 MHz (HSI) as the chip does, and runs at
  * what the firmware sets up (168 MHz from an 8 MHz crystal: -global rig-stm32f4-rcc.hse-hz=N for another).
  * The machine's "wires" property joins pins as a board's traces or a test's jumper wires do: -M
@@ -320,7 +321,7 @@ static void set_wires(Object *obj, const char *value, Error **errp)
 
 static void rig_stm32f405_machine_init(MachineClass *mc)
 {
-    mc->desc = "STM32F405 with the rig's RCC, PWR, FLASH, GPIO, I2C, timer and DWT models and a GY-86 on I2C1";
+    mc->desc = "STM32F405 with the rig's RCC, PWR, FLASH, IWDG, GPIO, I2C, timer and DWT models and a GY-86 on I2C1";
     mc->init = rig_stm32f405_init;
     object_class_property_add_str(OBJECT_CLASS(mc), "wires", get_wires, set_wires);
     object_class_property_set_description(OBJECT_CLASS(mc), "wires",
