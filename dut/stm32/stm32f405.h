@@ -68,6 +68,10 @@
 #define IWDG_RLR REG(0x40003008u)
 #define IWDG_SR REG(0x4000300Cu)
 #define RCC_CSR_RMVF (1u << 24)
+#define WWDG_CR REG(0x40002C00u)
+#define WWDG_CFR REG(0x40002C04u)
+#define WWDG_SR REG(0x40002C08u)
+#define RCC_APB1ENR_WWDGEN (1u << 11)
 #define FLASH_ACR_LATENCY_5WS 5u
 #define FLASH_ACR_PRFTEN (1u << 8)
 #define FLASH_ACR_ICEN (1u << 9)

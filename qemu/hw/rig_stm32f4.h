@@ -57,6 +57,9 @@ struct RigStm32RccState {
 /* Whether the clock of bit @bit of the enable register at @enr_offset (AHB1ENR, APB1ENR, ...) is on */
 bool rig_stm32_rcc_enabled(RigStm32RccState *rcc, hwaddr enr_offset, unsigned bit);
 
+/* PCLK1 (@apb 1) or PCLK2 (@apb 2) in Hz: HCLK / PPREx */
+uint64_t rig_stm32_rcc_pclk_hz(RigStm32RccState *rcc, unsigned apb);
+
 /* The timer clock of APB1 (@apb 1) or APB2 (@apb 2) in Hz: PCLKx, doubled when the APB prescaler is not 1
  * (RM0090 7.2, figure 21) */
 uint64_t rig_stm32_rcc_timer_hz(RigStm32RccState *rcc, unsigned apb);
@@ -111,6 +114,21 @@ struct RigStm32IwdgState {
     bool running;                       /* started by KR = 0xCCCC (only a reset stops it) */
     bool unlocked;                      /* KR = 0x5555: PR and RLR writable */
     int64_t pvu_until_ns, rvu_until_ns; /* PR and RLR updates under way (SR.PVU, SR.RVU) */
+};
+
+#define TYPE_RIG_STM32_WWDG "rig-stm32f4-wwdg"
+OBJECT_DECLARE_SIMPLE_TYPE(RigStm32WwdgState, RIG_STM32_WWDG)
+
+struct RigStm32WwdgState {
+    SysBusDevice parent_obj;
+    MemoryRegion iomem;
+    RigStm32RccState *rcc;
+    qemu_irq irq;     /* the early wakeup interrupt */
+    QEMUTimer *timer; /* the counter's next event: reaching 0x40 (EWIF), or 0x3F with WDGA (a reset) */
+    uint32_t cr, cfr, sr;
+    uint8_t base_count; /* the counter at base_ns */
+    int64_t base_ns;
+    uint64_t hz; /* counting PCLK1 at this rate (0: take it at the next use) */
 };
 
 /* What caused the system reset under way (rig_reset_cause): the link names it to the session */

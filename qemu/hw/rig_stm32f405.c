@@ -1,7 +1,7 @@
 /*
  * rig-stm32f405: QEMU's STM32F405 SoC (Cortex-M4F with NVIC and SysTick, its USARTs, TIM2-5, ADCs, SPIs,
  * SYSCFG and EXTI) with the rig's models mapped over the regions that SoC leaves unimplemented: RCC,
- * PWR, the FLASH interface (its flash cells over the SoC's ROM), the IWDG, GPIO A..I, I2C1 (RM0090) with
+ * PWR, the FLASH interface (its flash cells over the SoC's ROM), the IWDG and WWDG, GPIO A..I, I2C1 (RM0090) with
  * the GY-86 board (the rig's chip core) on its bus, the timers TIM1-TIM14 (over QEMU's TIM2-TIM5, which
  * only count) with their channels on the pins of the datasheet's alternate function table, and the
  * core's DWT cycle counter. The RCC's AHB clock
@@ -39,6 +39,9 @@
 #define FLASH_BASE 0x08000000 /* RM0090 2.3: the main flash, also at 0 when booting from it */
 #define IRQ_FLASH 4           /* RM0090 table 61 */
 #define IWDG_BASE 0x40003000
+#define WWDG_BASE 0x40002C00
+#define APB1_WWDG 11 /* RCC_APB1ENR.WWDGEN and RCC_APB1RSTR.WWDGRST */
+#define IRQ_WWDG 0
 #define GPIOA_BASE 0x40020000
 #define GPIO_STRIDE 0x400
 #define GPIO_PORTS 9
@@ -273,6 +276,8 @@ static void rig_stm32f405_init(MachineState *machine)
     rig_stm32_rcc_add_reset(r, RCC_APB1RSTR, APB1RSTR_PWRRST, DEVICE(map_device(TYPE_RIG_STM32_PWR, PWR_BASE, r, -1)));
     map_flash(SYS_BUS_DEVICE(soc), map_device(TYPE_RIG_STM32_FLASH_IF, FLASH_IF_BASE, NULL, -1));
     map_device(TYPE_RIG_STM32_IWDG, IWDG_BASE, r, -1);
+    SysBusDevice *wwdg = map_device(TYPE_RIG_STM32_WWDG, WWDG_BASE, r, -1);
+    rig_stm32_rcc_add_reset(r, RCC_APB1RSTR, APB1_WWDG, DEVICE(wwdg));
     DeviceState *gpio_ports[GPIO_PORTS];
     for (int port = 0; port < GPIO_PORTS; port++) {
         SysBusDevice *gpio = map_device(TYPE_RIG_STM32_GPIO, GPIOA_BASE + port * GPIO_STRIDE, r, port);
@@ -282,6 +287,7 @@ static void rig_stm32f405_init(MachineState *machine)
 
     DeviceState *i2c1 = DEVICE(map_device(TYPE_RIG_STM32_I2C, I2C1_BASE, r, -1));
     DeviceState *nvic = DEVICE(&STM32F405_SOC(soc)->armv7m);
+    sysbus_connect_irq(wwdg, 0, qdev_get_gpio_in(nvic, IRQ_WWDG));
     sysbus_connect_irq(SYS_BUS_DEVICE(i2c1), 0, qdev_get_gpio_in(nvic, IRQ_I2C1_EV));
     sysbus_connect_irq(SYS_BUS_DEVICE(i2c1), 1, qdev_get_gpio_in(nvic, IRQ_I2C1_ER));
     rig_stm32_rcc_add_reset(r, RCC_APB1RSTR, APB1_I2C1, i2c1);
@@ -321,7 +327,8 @@ static void set_wires(Object *obj, const char *value, Error **errp)
 
 static void rig_stm32f405_machine_init(MachineClass *mc)
 {
-    mc->desc = "STM32F405 with the rig's RCC, PWR, FLASH, IWDG, GPIO, I2C, timer and DWT models and a GY-86 on I2C1";
+    mc->desc =
+        "STM32F405 with the rig's RCC, PWR, FLASH, IWDG, WWDG, GPIO, I2C, timer and DWT models and a GY-86 on I2C1";
     mc->init = rig_stm32f405_init;
     object_class_property_add_str(OBJECT_CLASS(mc), "wires", get_wires, set_wires);
     object_class_property_set_description(OBJECT_CLASS(mc), "wires",

@@ -104,3 +104,64 @@ def test_a_watchdog_reset_ends_the_run_naming_the_pc() -> None:
     assert start <= stop.pc < start + size and out["starve_pc"] == start
     assert figures["resets"] == 1
     assert "refreshed_for_cycles" in out and "boot2_csr" not in out
+
+
+# ---- the window watchdog (qemu/hw/rig_stm32_wwdg.c, RM0090 section 20; tests/stm32/firmware/wwdg.c) ----
+WDGTB = 3
+WWDGRSTF = 1 << 30
+#: the interrupt's entry after the event (the core's stacking, the handler's DWT read)
+ENTRY_CYCLES = 16
+
+
+def wwdg_count_cycles(wdgtb: int) -> int:
+    """20.3: the counter counts once every 4096 * 2^WDGTB PCLK1 cycles."""
+    return 4096 * 2 ** wdgtb
+
+
+@pytest.fixture(scope="module")
+def w() -> dict[str, int]:
+    done = run_firmware(engine_or_skip(), firmware("wwdg"))
+    assert done.returncode == 0, f"status {done.returncode}\n{done.stdout}\n{done.stderr}"
+    assert done.stdout.endswith("done\n"), done.stdout
+    return reports(done.stdout)
+
+
+def test_wwdg_registers_at_reset_and_without_its_clock(w: dict[str, int]) -> None:
+    """20.6: CR 0x7F, CFR 0x7F, SR 0; nothing answers without RCC_APB1ENR.WWDGEN (7.3.13)."""
+    assert w["cr_unclocked"] == 0
+    assert (w["cr_reset"], w["cfr_reset"], w["sr_reset"]) == (0x7F, 0x7F, 0)
+    assert w["cr_running"] == 1 << 7  # WDGA
+    assert w["cfr_window"] == 1 << 9 | WDGTB << 7 | 0x50  # EWI stays set: only a reset clears it
+
+
+def test_the_early_wakeup_comes_at_0x40(w: dict[str, int]) -> None:
+    """20.3: EWIF when the counter reaches 0x40: 0x7F - 0x40 counts after each refresh to 0x7F; the
+    interrupt refreshes it, so the watchdog never resets meanwhile."""
+    period = (0x7F - 0x40) * wwdg_count_cycles(WDGTB)
+    assert period <= w["wakeup_0"] <= period + ENTRY_CYCLES
+    for i in range(1, 4):
+        gap = w[f"wakeup_{i}"] - w[f"wakeup_{i - 1}"]
+        assert period <= gap <= period + ENTRY_CYCLES, i
+
+
+def test_a_refresh_above_the_window_and_a_timeout_reset(w: dict[str, int]) -> None:
+    """20.3: a refresh while the counter is above W resets (WWDGRSTF, PINRSTF); not refreshed, the reset
+    comes t_PCLK1 * 4096 * 2^WDGTB * (T[5:0] + 1) after the last refresh (T = 0x7F)."""
+    assert w["boot2_csr"] == WWDGRSTF | PINRSTF
+    assert w["boot2_cr"] == 0  # (its clock off again after the reset)
+    assert w["boot3_csr"] == WWDGRSTF | PINRSTF
+    timeout = wwdg_count_cycles(WDGTB) * (0x3F + 1)
+    assert timeout == 2_097_152  # (PCLK1 cycles, which are DWT's: APB1 is undivided at reset)
+    assert timeout - LOOP_CYCLES <= w["reset_after_cycles"] <= timeout
+
+
+def test_a_wwdg_reset_ends_the_run_naming_it() -> None:
+    engine = Stm32Engine(Stm32Config(boards.load("stm32f405-gy86"), firmware("wwdg"), engine_or_skip(),
+                                     hang_ns=0), None)
+    try:
+        t = 0
+        while (stop := engine.run_until(t := t + STEP_NS)).kind == "reached":
+            assert t < 5_000_000_000
+    finally:
+        engine.close()
+    assert stop.kind == "crashed" and stop.what.startswith("watchdog reset (WWDG)")

@@ -8,11 +8,12 @@ extern uint32_t __stack, __data_start, __data_end, __data_load, __bss_start, __b
 int main(void);
 void reset_handler(void);
 void fault_handler(void);
-/* SysTick, the FLASH interrupt (NVIC line 4), I2C1's event and error interrupts (31 and 32) and the timers' (24-30, 43-46, 50, 54, 55):
+/* SysTick, the WWDG's and the FLASH's interrupts (NVIC lines 0 and 4), I2C1's event and error interrupts (31 and 32) and the timers' (24-30, 43-46, 50, 54, 55):
    a firmware that enables them defines these */
 void i2c1_ev_handler(void) __attribute__((weak, alias("fault_handler")));
 void i2c1_er_handler(void) __attribute__((weak, alias("fault_handler")));
 void systick_handler(void) __attribute__((weak, alias("fault_handler")));
+void wwdg_handler(void) __attribute__((weak, alias("fault_handler")));
 void flash_handler(void) __attribute__((weak, alias("fault_handler")));
 void tim1_brk_tim9_handler(void) __attribute__((weak, alias("fault_handler")));
 void tim1_up_tim10_handler(void) __attribute__((weak, alias("fault_handler")));
@@ -70,7 +71,8 @@ __attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 5
     0,
     fault_handler,
     systick_handler,
-    F, F, F, F,                                     /* IRQ 0-3 */
+    wwdg_handler, /* IRQ 0 */
+    F, F, F,                                        /* IRQ 1-3 */
     flash_handler, /* IRQ 4 */
     F, F, F, F, F, F, F, F, F, F, F,                /* IRQ 5-15 */
     F, F, F, F, F, F, F, F,                         /* IRQ 16-23 */
