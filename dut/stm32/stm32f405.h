@@ -48,6 +48,32 @@
 #define FLASH_ACR REG(0x40023C00u)
 #define FLASH_KEYR REG(0x40023C04u)
 #define FLASH_CR REG(0x40023C10u)
+#define FLASH_SR REG(0x40023C0Cu)
+#define FLASH_KEY1 0x45670123u
+#define FLASH_KEY2 0xCDEF89ABu
+#define FLASH_CR_PG (1u << 0)
+#define FLASH_CR_SER (1u << 1)
+#define FLASH_CR_MER (1u << 2)
+#define FLASH_CR_SNB(n) ((uint32_t)(n) << 3)
+#define FLASH_CR_PSIZE(n) ((uint32_t)(n) << 8) /* 0 x8, 1 x16, 2 x32, 3 x64 */
+#define FLASH_CR_STRT (1u << 16)
+#define FLASH_CR_EOPIE (1u << 24)
+#define FLASH_CR_LOCK (1u << 31)
+#define FLASH_SR_EOP (1u << 0)
+#define FLASH_SR_PGAERR (1u << 5)
+#define FLASH_SR_PGPERR (1u << 6)
+#define FLASH_SR_PGSERR (1u << 7)
+#define FLASH_SR_BSY (1u << 16)
+#define FLASH_IRQ 4u
+#define IWDG_KR REG(0x40003000u)
+#define IWDG_PR REG(0x40003004u)
+#define IWDG_RLR REG(0x40003008u)
+#define IWDG_SR REG(0x4000300Cu)
+#define RCC_CSR_RMVF (1u << 24)
+#define WWDG_CR REG(0x40002C00u)
+#define WWDG_CFR REG(0x40002C04u)
+#define WWDG_SR REG(0x40002C08u)
+#define RCC_APB1ENR_WWDGEN (1u << 11)
 #define FLASH_ACR_LATENCY_5WS 5u
 #define FLASH_ACR_PRFTEN (1u << 8)
 #define FLASH_ACR_ICEN (1u << 9)
@@ -197,6 +223,9 @@
 #define NVIC_ICER(n) REG(0xE000E180u + 4u * (n))
 
 #define SCB_VTOR REG(0xE000ED08u)
+#define SCB_AIRCR REG(0xE000ED0Cu)
+#define SYST_CSR_ENABLE_TICKINT_CORE 0x7u               /* ENABLE, TICKINT, CLKSOURCE = the core clock */
+#define SCB_AIRCR_SYSRESETREQ (0x05FAu << 16 | 1u << 2) /* VECTKEY and SYSRESETREQ */
 #define SCB_CPACR REG(0xE000ED88u)
 #define SYST_CSR REG(0xE000E010u)
 #define SYST_RVR REG(0xE000E014u)

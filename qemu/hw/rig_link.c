@@ -7,7 +7,9 @@
  * every time. The session says "go to t"; a QEMU_CLOCK_VIRTUAL timer at t answers "reached t" with the
  * latched pulses of the board's motor outputs (the timers' chC-high-ticks, period-ticks, clock-hz) and
  * the CPU's state (the exception being handled, pc, CFSR, HFSR: a HardFault ends the run in the session),
- * then blocks for the next command. The I2C bus's events of the GY-86 slave go to the session, whose chip
+ * then blocks for the next command. A system reset (a watchdog's, the firmware's request) is told to the
+ * session at its instant with its cause and the CPU's state then; between steps the session may read
+ * the flash (the settings the firmware keeps there). The I2C bus's events of the GY-86 slave go to the session, whose chip
  * core (the lockstep session's own) answers: a START waits for the answer, a byte written and a STOP do
  * not. The session serves the chip core's sample needs from the world meanwhile.
  *
@@ -46,6 +48,7 @@
 #include "qemu/module.h"
 #include "qom/object.h"
 #include "rig_stm32f4.h"
+#include "sysemu/reset.h"
 
 #define LINK_VERSION 2
 #define LINK_HEADER 8
@@ -79,6 +82,9 @@ typedef struct {
 #define MSG_I2C_NACK 'N'  /* u64 t_ns: the master NACKs the byte it read last */
 #define MSG_I2C_STOP 'P'  /* u64 t_ns */
 #define MSG_UART_SENT 'T' /* u8 USART 1..6, the bytes the firmware sent */
+/* u64 t_ns, u32 cause (RigResetCause), u32 ipsr, u32 pc, u32 cfsr, u32 hfsr: the chip resets (not at
+ * power-on), its CPU's state as the reset came */
+#define MSG_RESET 'X'
 /* session -> QEMU */
 #define MSG_CONFIG 'C'  /* u8 n, n x (u8 timer 1..14, u8 output 0..6: CH1..CH4, CH1N..CH3N) */
 #define MSG_GO 'G'      /* u64 t_ns: run until then */
@@ -86,6 +92,10 @@ typedef struct {
 #define MSG_QUIT 'Q'    /* (none) */
 #define MSG_ACK 'a'     /* u8 acknowledged, then the bytes ahead (a read START) */
 #define MSG_BYTE 'b'    /* the byte read, then the bytes ahead */
+/* u32 address, u32 length (at most 1024, within the flash): answered by an 'M' of the flash's bytes there,
+ * as the firmware left them (the settings it keeps in flash) */
+#define MSG_MEMORY 'M'
+#define FLASH_BASE 0x08000000u
 
 OBJECT_DECLARE_SIMPLE_TYPE(RigLinkState, RIG_LINK)
 
@@ -250,6 +260,18 @@ static void link_uart_send_sent(RigLinkState *s)
     }
 }
 
+/* The flash's bytes the session asks for, read as the core reads them */
+static void link_memory(RigLinkState *s, const uint8_t *p)
+{
+    uint32_t address = ldl_le_p(p), len = ldl_le_p(p + 4);
+    uint8_t bytes[LINK_MAX_PAYLOAD];
+    if (len > sizeof bytes || address < FLASH_BASE || address - FLASH_BASE > RIG_FLASH_BYTES - len) {
+        link_fail("MEMORY: not within the flash, or more than 1024 bytes");
+    }
+    address_space_read(first_cpu->as, address, MEMTXATTRS_UNSPECIFIED, bytes, len);
+    link_send(s, MSG_MEMORY, bytes, len);
+}
+
 /* Commands until a GO to a time after now (then armed) */
 static void link_wait_command(RigLinkState *s)
 {
@@ -265,12 +287,39 @@ static void link_wait_command(RigLinkState *s)
             int64_t t = (int64_t)ldq_le_p(p), now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
             timer_mod(s->timer, t > now ? t : now);
             return;
+        } else if (kind == MSG_MEMORY && len == 8) {
+            link_memory(s, p);
         } else if (kind == MSG_QUIT && len == 0) {
             exit(0);
         } else {
             link_fail("an unexpected command from the session");
         }
     }
+}
+
+/* The CPU's state: the exception being handled (IPSR), pc, CFSR, HFSR (16 bytes at @p) */
+static void link_put_cpu(uint8_t *p)
+{
+    CPUARMState *env = &ARM_CPU(first_cpu)->env;
+    stl_le_p(p, env->v7m.exception);
+    stl_le_p(p + 4, env->regs[15]);
+    stl_le_p(p + 8, env->v7m.cfsr[M_REG_NS]);
+    stl_le_p(p + 12, env->v7m.hfsr);
+}
+
+/* A system reset (a handler of QEMU's reset, registered before the CPU's, so the CPU's state is still the
+ * one the reset came on): its cause and that state to the session; the power-on reset is not told */
+static void link_system_reset(void *opaque)
+{
+    RigLinkState *s = opaque;
+    if (!s->started) {
+        return;
+    }
+    uint8_t p[28];
+    stq_le_p(p, (uint64_t)qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL));
+    stl_le_p(p + 8, rig_reset_cause);
+    link_put_cpu(p + 12);
+    link_send(s, MSG_RESET, p, sizeof p);
 }
 
 static void link_reached(void *opaque)
@@ -287,14 +336,9 @@ static void link_reached(void *opaque)
     for (unsigned i = 0; i < n_link_syncs; i++) {
         link_syncs[i].fn(link_syncs[i].opaque);
     }
-    ARMCPU *cpu = ARM_CPU(first_cpu);
-    CPUARMState *env = &cpu->env;
     uint8_t p[25 + LINK_MOTORS * 20];
     stq_le_p(p, (uint64_t)qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL));
-    stl_le_p(p + 8, env->v7m.exception);
-    stl_le_p(p + 12, env->regs[15]);
-    stl_le_p(p + 16, env->v7m.cfsr[M_REG_NS]);
-    stl_le_p(p + 20, env->v7m.hfsr);
+    link_put_cpu(p + 8);
     p[24] = s->n_motors;
     uint32_t len = 25;
     for (unsigned i = 0; i < s->n_motors; i++) {
@@ -391,6 +435,7 @@ static void link_realize(DeviceState *dev, Error **errp)
         u->chr = qemu_chr_find(id);
         u->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, link_uart_deliver, u);
     }
+    qemu_register_reset(link_system_reset, s);
     uint8_t hello[2];
     stw_le_p(hello, LINK_VERSION);
     link_send(s, MSG_HELLO, hello, sizeof hello);

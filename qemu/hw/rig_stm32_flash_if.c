@@ -1,17 +1,35 @@
 /*
- * The STM32F405's FLASH interface registers, RM0090 section 3.9: ACR (wait states, which 168 MHz needs
- * five of, read back as written: HAL checks them), and the CR lock with its key sequence (KEY1 then
- * KEY2 to KEYR unlocks CR; a wrong key locks it until reset; CR.LOCK written 1 locks it again).
- * Programming and erasing the flash are not modelled yet: CR's PG, SER and STRT are stored, SR stays 0.
+ * The STM32F405's FLASH interface, RM0090 section 3: ACR (wait states, which 168 MHz needs five of, read
+ * back as written: HAL checks them), the CR lock with its key sequence (KEY1 then KEY2 to KEYR unlocks
+ * CR; a wrong key locks it until reset; CR.LOCK written 1 locks it again), and programming and erasing
+ * the main flash (3.5-3.7): sector erase (SER, SNB, STRT) of the 12 sectors of table 5 and mass erase
+ * (MER) to 0xFF, and programming by a write to a flash address while CR.PG is set, in the size PSIZE
+ * gives (x8, x16, x32); a cell only goes from 1 to 0 (a write ANDs). SR's error flags PGSERR and PGPERR
+ * as 3.9.4 sets them, BSY for the datasheet's typical time of the operation in virtual time,
+ * then EOP (only with EOPIE, as 3.9.4 says) and the FLASH interrupt.
+ *
+ * The flash itself is this device's second MMIO region, a ROM device mapped over the SoC's ROM (at
+ * 0x08000000 and its alias at 0): the core reads and executes from its RAM at full speed, and its
+ * writes come here. QEMU's loader writes the image into a ROM once, but into anything else again at each
+ * reset (which would undo what the firmware programmed): so the cells stay disabled while the loader
+ * looks and writes, the image goes into the SoC's ROM (erased to 0xFF first), and when the machine
+ * first starts the cells take the ROM's contents and its place.
+ * An operation is done at once and BSY only times it: on the chip a read of the flash during an operation
+ * stalls the bus until the end; here it returns the new data at once. An operation started while one is
+ * under way (the chip would stall the write) is queued after it: BSY lasts for both.
+ * Option bytes (OPTCR, write protection: WRPERR) and the OTP area are not modelled.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
 
 #include "qemu/osdep.h"
 
+#include "qapi/error.h"
 #include "qemu/log.h"
 #include "qemu/module.h"
+#include "qemu/timer.h"
 #include "rig_stm32f4.h"
+#include "sysemu/runstate.h"
 
 /* RM0090 table 12 (FLASH interface register map) */
 enum { ACR, KEYR, OPTKEYR, SR, CR, OPTCR };
@@ -19,12 +37,135 @@ static const RigRegister flash_registers[] = {
     [ACR] = { 0x00, "ACR", 0x00000000, 0x00000707 }, /* LATENCY[2:0], PRFTEN, ICEN, DCEN */
     [KEYR] = { 0x04, "KEYR", 0x00000000, 0x00000000 },   [OPTKEYR] = { 0x08, "OPTKEYR", 0x00000000, 0x00000000 },
     [SR] = { 0x0C, "SR", 0x00000000, 0x000000F3 }, /* EOP, OPERR, WRPERR, PGAERR, PGPERR, PGSERR: w1c */
-    [CR] = { 0x10, "CR", 0x80000000, 0x0301037F }, /* PG, SER, MER, SNB, PSIZE, STRT, EOPIE, ERRIE */
+    [CR] = { 0x10, "CR", 0x80000000, 0x0301037F }, /* PG, SER, MER, SNB, PSIZE, STRT (below), EOPIE, ERRIE */
     [OPTCR] = { 0x14, "OPTCR", 0x0FFFAAED, 0x00000000 },
 };
 #define KEY1 0x45670123u
 #define KEY2 0xCDEF89ABu
 #define CR_LOCK (1u << 31)
+#define CR_PG (1u << 0)
+#define CR_SER (1u << 1)
+#define CR_MER (1u << 2)
+#define CR_SNB_SHIFT 3
+#define CR_PSIZE_SHIFT 8
+#define CR_STRT (1u << 16)
+#define CR_EOPIE (1u << 24)
+#define CR_ERRIE (1u << 25)
+#define SR_EOP (1u << 0)
+#define SR_OPERR (1u << 1)
+#define SR_PGPERR (1u << 6)
+#define SR_PGSERR (1u << 7)
+#define SR_BSY (1u << 16)
+
+/* RM0090 table 5: the main flash's sectors, 4 x 16 KB, 64 KB, 7 x 128 KB */
+#define SECTORS 12
+static hwaddr sector_start(unsigned n) { return n < 4 ? n * 0x4000 : n == 4 ? 0x10000 : (n - 4) * 0x20000; }
+static hwaddr sector_size(unsigned n) { return n < 4 ? 0x4000 : n == 4 ? 0x10000 : 0x20000; }
+
+/* DS8626 (the STM32F405xx datasheet), flash memory programming: the typical times (x32 parallelism) */
+#define PROGRAM_NS (16 * SCALE_US)
+#define ERASE_16K_NS (400 * SCALE_MS)
+#define ERASE_64K_NS (1200 * SCALE_MS)
+#define ERASE_128K_NS (2000 * SCALE_MS)
+#define MASS_ERASE_NS (16000 * SCALE_MS)
+
+static void flash_irq_update(RigStm32FlashIfState *s)
+{
+    bool eop = (s->sr & SR_EOP) && (s->cr & CR_EOPIE), err = (s->sr & SR_OPERR) && (s->cr & CR_ERRIE);
+    qemu_set_irq(s->irq, eop || err);
+}
+
+/* BSY for @ns more, after the operation under way if there is one */
+static void flash_busy(RigStm32FlashIfState *s, int64_t ns)
+{
+    int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    s->busy_until_ns = MAX(s->busy_until_ns, now) + ns;
+    s->sr |= SR_BSY;
+    timer_mod(s->busy, s->busy_until_ns);
+}
+
+/* The end of the operation: BSY and STRT clear, EOP (3.9.4: only when EOPIE is set) */
+static void flash_done(void *opaque)
+{
+    RigStm32FlashIfState *s = opaque;
+    s->sr &= ~SR_BSY;
+    s->cr &= ~CR_STRT;
+    if (s->cr & CR_EOPIE) {
+        s->sr |= SR_EOP;
+    }
+    flash_irq_update(s);
+}
+
+/* The cells from @start, @size bytes, erased to 0xFF */
+static void flash_erase(RigStm32FlashIfState *s, hwaddr start, hwaddr size)
+{
+    memset((uint8_t *)memory_region_get_ram_ptr(&s->cells) + start, 0xFF, size);
+    memory_region_flush_rom_device(&s->cells, start, size);
+}
+
+/* CR.STRT: a sector erase (SER and SNB) or a mass erase (MER) */
+static void flash_start(RigStm32FlashIfState *s)
+{
+    static const int64_t erase_ns[3] = { ERASE_16K_NS, ERASE_64K_NS, ERASE_128K_NS };
+    unsigned snb = s->cr >> CR_SNB_SHIFT & 0xF;
+    if (s->cr & CR_MER) {
+        flash_erase(s, 0, RIG_FLASH_BYTES);
+        flash_busy(s, MASS_ERASE_NS);
+    } else if ((s->cr & CR_SER) && snb < SECTORS) {
+        flash_erase(s, sector_start(snb), sector_size(snb));
+        flash_busy(s, erase_ns[snb < 4 ? 0 : snb == 4 ? 1 : 2]);
+    } else {
+        qemu_log_mask(LOG_GUEST_ERROR, "rig-stm32f4-flash-if: STRT without MER, or SER with sector %u (of 0..11)\n",
+                      snb);
+        s->cr &= ~CR_STRT;
+    }
+}
+
+/* The core reads the cells from their RAM (ROMD mode); this only answers other readers */
+static uint64_t flash_cells_read(void *opaque, hwaddr offset, unsigned size)
+{
+    RigStm32FlashIfState *s = opaque;
+    return ldn_le_p((uint8_t *)memory_region_get_ram_ptr(&s->cells) + offset, size);
+}
+
+/* A write to the flash: a program operation (RM0090 3.5.4), or an error flag */
+static void flash_cells_write(void *opaque, hwaddr offset, uint64_t value, unsigned size)
+{
+    RigStm32FlashIfState *s = opaque;
+    unsigned psize = s->cr >> CR_PSIZE_SHIFT & 0x3;
+    uint32_t error = 0;
+    if ((s->cr & CR_LOCK) || !(s->cr & CR_PG)) {
+        error = SR_PGSERR; /* a write to the flash without the program sequence set up */
+    } else if (size != 1u << psize) {
+        /* the access's size is not PSIZE's; the core splits a misaligned access into bytes (ARMv7-M A3.2.1,
+         * QEMU likewise), so it lands here too, and PGAERR (a row crossed: x64 only) never comes */
+        error = SR_PGPERR;
+    }
+    if (error) {
+        qemu_log_mask(LOG_GUEST_ERROR,
+                      "rig-stm32f4-flash-if: a %u-byte write to flash offset 0x%" HWADDR_PRIx
+                      " with CR 0x%08x: SR 0x%02x\n",
+                      size, offset, s->cr, error);
+        s->sr |= error;
+        return;
+    }
+    uint8_t *cells = (uint8_t *)memory_region_get_ram_ptr(&s->cells) + offset;
+    for (unsigned i = 0; i < size; i++) {
+        cells[i] &= (uint8_t)(value >> (8 * i)); /* programming only clears bits */
+    }
+    memory_region_flush_rom_device(&s->cells, offset, size);
+    flash_busy(s, PROGRAM_NS);
+}
+
+static const MemoryRegionOps flash_cells_ops = {
+    .read = flash_cells_read,
+    .write = flash_cells_write,
+    .endianness = DEVICE_LITTLE_ENDIAN,
+    .valid.min_access_size = 1,
+    .valid.max_access_size = 4,
+    .impl.min_access_size = 1,
+    .impl.max_access_size = 4,
+};
 
 static uint64_t flash_if_read(void *opaque, hwaddr offset, unsigned size)
 {
@@ -71,12 +212,18 @@ static void flash_if_write(void *opaque, hwaddr offset, uint64_t value, unsigned
         break;
     case SR:
         s->sr &= ~(v & flash_registers[SR].writable);
+        flash_irq_update(s);
         break;
     case CR:
         if (s->cr & CR_LOCK) {
             break;
         }
-        s->cr = (v & flash_registers[CR].writable) | (v & CR_LOCK);
+        /* STRT is set by software and cleared only by the hardware at the end of the erase */
+        s->cr = (v & flash_registers[CR].writable) | (v & CR_LOCK) | (s->cr & CR_STRT);
+        if ((v & CR_STRT) && !(s->sr & SR_BSY)) {
+            flash_start(s);
+        }
+        flash_irq_update(s);
         break;
     case OPTKEYR:
     case OPTCR:
@@ -103,6 +250,9 @@ static void flash_if_reset(DeviceState *dev)
     s->optcr = flash_registers[OPTCR].reset;
     s->key_step = 0;
     s->locked_out = false;
+    s->busy_until_ns = 0;
+    timer_del(s->busy);
+    qemu_set_irq(s->irq, 0);
 }
 
 static void flash_if_init(Object *obj)
@@ -110,9 +260,50 @@ static void flash_if_init(Object *obj)
     RigStm32FlashIfState *s = RIG_STM32_FLASH_IF(obj);
     memory_region_init_io(&s->iomem, obj, &flash_if_ops, s, TYPE_RIG_STM32_FLASH_IF, 0x400);
     sysbus_init_mmio(SYS_BUS_DEVICE(obj), &s->iomem);
+    sysbus_init_irq(SYS_BUS_DEVICE(obj), &s->irq);
+    s->busy = timer_new_ns(QEMU_CLOCK_VIRTUAL, flash_done, s);
 }
 
-static void flash_if_class_init(ObjectClass *klass, void *data) { DEVICE_CLASS(klass)->reset = flash_if_reset; }
+void rig_stm32_flash_if_over(RigStm32FlashIfState *s, MemoryRegion *rom)
+{
+    s->rom = rom;
+    memset(memory_region_get_ram_ptr(rom), 0xFF, RIG_FLASH_BYTES); /* erased, as the chip comes */
+    memory_region_set_enabled(&s->cells, false);
+}
+
+/* The machine's first start (after the loader wrote the image into the ROM): the cells take over */
+static void flash_if_first_start(void *opaque, bool running, RunState state)
+{
+    RigStm32FlashIfState *s = opaque;
+    if (!running || s->rom == NULL || s->cells.enabled) {
+        return;
+    }
+    memcpy(memory_region_get_ram_ptr(&s->cells), memory_region_get_ram_ptr(s->rom), RIG_FLASH_BYTES);
+    memory_region_flush_rom_device(&s->cells, 0, RIG_FLASH_BYTES);
+    memory_region_set_enabled(&s->cells, true);
+}
+
+/* The cells: a system reset keeps them as the chip's flash keeps its contents */
+static void flash_if_realize(DeviceState *dev, Error **errp)
+{
+    RigStm32FlashIfState *s = RIG_STM32_FLASH_IF(dev);
+    Error *err = NULL;
+    memory_region_init_rom_device(&s->cells, OBJECT(dev), &flash_cells_ops, s, "rig-stm32f4-flash", RIG_FLASH_BYTES,
+                                  &err);
+    if (err != NULL) {
+        error_propagate(errp, err);
+        return;
+    }
+    memset(memory_region_get_ram_ptr(&s->cells), 0xFF, RIG_FLASH_BYTES);
+    sysbus_init_mmio(SYS_BUS_DEVICE(dev), &s->cells);
+    qemu_add_vm_change_state_handler(flash_if_first_start, s);
+}
+
+static void flash_if_class_init(ObjectClass *klass, void *data)
+{
+    DEVICE_CLASS(klass)->reset = flash_if_reset;
+    DEVICE_CLASS(klass)->realize = flash_if_realize;
+}
 
 static const TypeInfo flash_if_info = {
     .name = TYPE_RIG_STM32_FLASH_IF,

@@ -11,6 +11,7 @@
  * timers' clocks ("apb1-tim", "apb2-tim") are PCLK1 = HCLK / PPRE1 and PCLK2 = HCLK / PPRE2, doubled when
  * the prescaler is not 1 (RM0090 figure 21): 84 and 168 MHz under ST's 168 MHz set-up.
  * The reset registers reset the peripherals the machine attached to their bits (GPIO ports, PWR).
+ * CSR's reset flags survive a system reset (a watchdog's sets its own: IWDGRSTF, WWDGRSTF).
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -23,6 +24,7 @@
 #include "qemu/log.h"
 #include "qemu/module.h"
 #include "rig_stm32f4.h"
+#include "sysemu/runstate.h"
 
 #define HSI_HZ 16000000u
 
@@ -51,6 +53,8 @@
 #define CSR_LSIRDY (1u << 1)
 #define CSR_RMVF (1u << 24)
 #define CSR_RESET_FLAGS 0xFE000000u
+#define CSR_PINRSTF (1u << 26)
+#define CSR_SFTRSTF (1u << 28)
 
 /*
  * RM0090 rev 19, table 34 (RCC register map and reset values) for the STM32F405/407; the writable
@@ -106,6 +110,9 @@ int rig_register_index(const RigRegister *table, int count, hwaddr offset)
     }
     return -1;
 }
+
+/* RCC_CSR (its place differs between the chips' tables) */
+static uint32_t *rcc_csr(RigStm32RccState *s) { return &s->regs[rig_register_index(s->table, s->count, CSR)]; }
 
 bool rig_stm32_rcc_enabled(RigStm32RccState *rcc, hwaddr enr_offset, unsigned bit)
 {
@@ -179,12 +186,18 @@ static uint64_t hclk_hz(const RigStm32RccState *s)
     return (hpre & 0x8) ? hz >> shift[hpre & 0x7] : hz;
 }
 
-uint64_t rig_stm32_rcc_timer_hz(RigStm32RccState *rcc, unsigned apb)
+uint64_t rig_stm32_rcc_pclk_hz(RigStm32RccState *rcc, unsigned apb)
 {
     /* PPRE1 (bits 12:10) and PPRE2 (15:13): 0xx: /1; 100..111: /2, /4, /8, /16 */
     unsigned ppre = rcc->regs[R_CFGR] >> (apb == 1 ? 10 : 13) & 0x7;
     uint64_t hz = hclk_hz(rcc);
-    return (ppre & 0x4) ? (hz >> ((ppre & 0x3) + 1)) * 2 : hz;
+    return (ppre & 0x4) ? hz >> ((ppre & 0x3) + 1) : hz;
+}
+
+uint64_t rig_stm32_rcc_timer_hz(RigStm32RccState *rcc, unsigned apb)
+{
+    uint64_t pclk = rig_stm32_rcc_pclk_hz(rcc, apb);
+    return pclk == hclk_hz(rcc) ? pclk : 2 * pclk;
 }
 
 /* The hardware's side of CR, BDCR, CSR and CFGR.SWS after a write */
@@ -263,12 +276,31 @@ static const MemoryRegionOps rcc_ops = {
     .impl.max_access_size = 4,
 };
 
+RigResetCause rig_reset_cause;
+
+void rig_stm32_rcc_watchdog_reset(RigStm32RccState *rcc, uint32_t csr_flag, RigResetCause cause)
+{
+    *rcc_csr(rcc) |= csr_flag;
+    rig_reset_cause = cause;
+    qemu_system_reset_request(SHUTDOWN_CAUSE_GUEST_RESET);
+}
+
+/* A system reset restores every register but CSR's reset flags, which only a power-on reset (or RMVF)
+ * clears; the reset pulses NRST whatever its source, so PINRSTF is set too (RM0090 6.1.2, 7.3.21) */
 static void rcc_reset(DeviceState *dev)
 {
     RigStm32RccState *s = RIG_STM32_RCC(dev);
+    uint32_t flags = *rcc_csr(s) & CSR_RESET_FLAGS;
     for (unsigned i = 0; i < s->count; i++) {
         s->regs[i] = s->table[i].reset;
     }
+    if (s->powered) {
+        /* a reset that is not a watchdog's is the firmware's request (AIRCR.SYSRESETREQ): SFTRSTF */
+        uint32_t source = rig_reset_cause == RIG_RESET_SYSTEM ? CSR_SFTRSTF : 0;
+        *rcc_csr(s) = (*rcc_csr(s) & ~CSR_RESET_FLAGS) | flags | CSR_PINRSTF | source;
+    }
+    s->powered = true;
+    rig_reset_cause = RIG_RESET_SYSTEM; /* (the link has named it: its reset hook runs first) */
     rcc_settle(s);
 }
 

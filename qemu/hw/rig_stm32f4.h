@@ -1,7 +1,8 @@
 /*
  * The rig's STM32F4 device models (RM0090, the STM32F405/415/407/417 reference manual): RCC and PWR, the
- * FLASH interface, GPIO ports, the DMA controllers, the I2C controllers, the timers TIM1-TIM14, the
- * Cortex-M4's DWT cycle counter, and the GY-86 sensor board (the rig's chip core) as an I2C slave.
+ * FLASH interface and the flash, the independent and window watchdogs, GPIO ports, the DMA controllers,
+ * the I2C controllers, the timers TIM1-TIM14, the Cortex-M4's DWT cycle counter, and the GY-86 sensor
+ * board (the rig's chip core) as an I2C slave.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -47,6 +48,7 @@ struct RigStm32RccState {
     Clock *hclk;                      /* the AHB clock: the core, SysTick, DWT */
     Clock *tim_clk[2];                /* the timers' clocks on APB1 and APB2 ("apb1-tim", "apb2-tim") */
     uint64_t tim_hz[2];               /* their exact rates (a Clock keeps a period, which rounds) */
+    bool powered;                     /* past the power-on reset: CSR's reset flags survive the next resets */
     /* the peripherals the reset registers (AHB1RSTR ... APB2RSTR) reset: register, bit, device */
     struct {
         hwaddr rstr_offset;
@@ -58,6 +60,9 @@ struct RigStm32RccState {
 
 /* Whether the clock of bit @bit of the enable register at @enr_offset (AHB1ENR, APB1ENR, ...) is on */
 bool rig_stm32_rcc_enabled(RigStm32RccState *rcc, hwaddr enr_offset, unsigned bit);
+
+/* PCLK1 (@apb 1) or PCLK2 (@apb 2) in Hz: HCLK / PPREx */
+uint64_t rig_stm32_rcc_pclk_hz(RigStm32RccState *rcc, unsigned apb);
 
 /* The timer clock of APB1 (@apb 1) or APB2 (@apb 2) in Hz: PCLKx, doubled when the APB prescaler is not 1
  * (RM0090 7.2, figure 21) */
@@ -81,13 +86,66 @@ struct RigStm32PwrState {
 #define TYPE_RIG_STM32_FLASH_IF "rig-stm32f4-flash-if"
 OBJECT_DECLARE_SIMPLE_TYPE(RigStm32FlashIfState, RIG_STM32_FLASH_IF)
 
+#define RIG_FLASH_BYTES (1024 * 1024) /* the F405's main flash at 0x08000000 (RM0090 table 5) */
+
 struct RigStm32FlashIfState {
     SysBusDevice parent_obj;
     MemoryRegion iomem;
+    MemoryRegion cells; /* the main flash (sysbus MMIO 1): a ROM device, read from its RAM, written to program */
+    MemoryRegion *rom;  /* the SoC's flash ROM, which the loader writes the image into */
+    qemu_irq irq;       /* the FLASH global interrupt */
+    QEMUTimer *busy;    /* the end of the operation under way (SR.BSY) */
+    int64_t busy_until_ns;
     uint32_t acr, sr, cr, optcr;
     uint8_t key_step; /* 1 after KEY1 was written to KEYR */
     bool locked_out;  /* a wrong key: CR stays locked until reset */
 };
+
+/* The flash's cells over the SoC's flash ROM @rom: disabled until the machine first starts, when they take
+ * the image the loader wrote into @rom */
+void rig_stm32_flash_if_over(RigStm32FlashIfState *s, MemoryRegion *rom);
+
+/* The watchdogs (RM0090 sections 19, 20) */
+#define TYPE_RIG_STM32_IWDG "rig-stm32f4-iwdg"
+OBJECT_DECLARE_SIMPLE_TYPE(RigStm32IwdgState, RIG_STM32_IWDG)
+
+struct RigStm32IwdgState {
+    SysBusDevice parent_obj;
+    MemoryRegion iomem;
+    RigStm32RccState *rcc;
+    QEMUTimer *timer; /* the down-counter reaching 0 */
+    uint32_t pr, rlr;
+    bool running;                       /* started by KR = 0xCCCC (only a reset stops it) */
+    bool unlocked;                      /* KR = 0x5555: PR and RLR writable */
+    int64_t pvu_until_ns, rvu_until_ns; /* PR and RLR updates under way (SR.PVU, SR.RVU) */
+};
+
+#define TYPE_RIG_STM32_WWDG "rig-stm32f4-wwdg"
+OBJECT_DECLARE_SIMPLE_TYPE(RigStm32WwdgState, RIG_STM32_WWDG)
+
+struct RigStm32WwdgState {
+    SysBusDevice parent_obj;
+    MemoryRegion iomem;
+    RigStm32RccState *rcc;
+    qemu_irq irq;     /* the early wakeup interrupt */
+    QEMUTimer *timer; /* the counter's next event: reaching 0x40 (EWIF), or 0x3F with WDGA (a reset) */
+    uint32_t cr, cfr, sr;
+    uint8_t base_count; /* the counter at base_ns */
+    int64_t base_ns;
+    uint64_t hz; /* counting PCLK1 at this rate (0: take it at the next use) */
+};
+
+/* What caused the system reset under way (rig_reset_cause): the link names it to the session */
+typedef enum {
+    RIG_RESET_SYSTEM = 0, /* a reset request (AIRCR.SYSRESETREQ) or anything but a watchdog */
+    RIG_RESET_IWDG = 1,
+    RIG_RESET_WWDG = 2,
+} RigResetCause;
+extern RigResetCause rig_reset_cause;
+
+/* A watchdog's reset: its flag in RCC_CSR (@csr_flag, kept through the reset as on the chip) and a system
+ * reset requested */
+void rig_stm32_rcc_watchdog_reset(RigStm32RccState *rcc, uint32_t csr_flag, RigResetCause cause);
 
 /* GPIO ports A..I (RM0090 section 8.4) */
 #define TYPE_RIG_STM32_GPIO "rig-stm32f4-gpio"

@@ -1,7 +1,7 @@
 /*
  * rig-stm32f405: QEMU's STM32F405 SoC (Cortex-M4F with NVIC and SysTick, its USARTs, TIM2-5, ADCs, SPIs,
  * SYSCFG and EXTI) with the rig's models mapped over the regions that SoC leaves unimplemented: RCC,
- * PWR, the FLASH interface, GPIO A..I, DMA1 and DMA2, I2C1 (RM0090) with the GY-86 board (the rig's chip core) on its
+ * PWR, the FLASH interface (its flash cells over the SoC's ROM), the IWDG and WWDG, GPIO A..I, DMA1 and DMA2, I2C1 (RM0090) with the GY-86 board (the rig's chip core) on its
  * bus, the timers TIM1-TIM14 (over QEMU's TIM2-TIM5, which only count) with their channels on the pins
  * of the datasheet's alternate function table, and the core's DWT cycle counter. The RCC's AHB clock
  * drives the core, SysTick and DWT, so the machine starts at 16 MHz (HSI) as the chip does, and runs at
@@ -36,6 +36,12 @@
 #define APB1RSTR_PWRRST 28
 #define PWR_BASE 0x40007000
 #define FLASH_IF_BASE 0x40023C00
+#define FLASH_BASE 0x08000000 /* RM0090 2.3: the main flash, also at 0 when booting from it */
+#define IRQ_FLASH 4           /* RM0090 table 61 */
+#define IWDG_BASE 0x40003000
+#define WWDG_BASE 0x40002C00
+#define APB1_WWDG 11 /* RCC_APB1ENR.WWDGEN and RCC_APB1RSTR.WWDGRST */
+#define IRQ_WWDG 0
 #define GPIOA_BASE 0x40020000
 #define GPIO_STRIDE 0x400
 #define I2C1_BASE 0x40005400
@@ -153,6 +159,22 @@ static SysBusDevice *map_device(const char *type, hwaddr base, RigStm32RccState 
     /* over the SoC's unimplemented-device placeholders (priority -1000) */
     sysbus_mmio_map(SYS_BUS_DEVICE(dev), 0, base);
     return SYS_BUS_DEVICE(dev);
+}
+
+/* The FLASH interface's cells over the SoC's flash ROM, at 0x08000000 and at 0, in the core's own address
+ * space (rig_stm32_flash_if.c: they take the ROM's place when the machine first starts) */
+static void map_flash(SysBusDevice *soc, SysBusDevice *flash_if, uint32_t flash_size)
+{
+    MemoryRegion *container = &STM32F405_SOC(soc)->armv7m.container, *cells = sysbus_mmio_get_region(flash_if, 1);
+    /* as much of the cells as the chip has (the F411's 512 KB: what lies above is absent, map_absent) */
+    MemoryRegion *main = g_new0(MemoryRegion, 1), *alias = g_new0(MemoryRegion, 1);
+    memory_region_init_alias(main, OBJECT(flash_if), "rig-stm32f4-flash", cells, 0, MIN(flash_size, RIG_FLASH_BYTES));
+    memory_region_init_alias(alias, OBJECT(flash_if), "rig-stm32f4-flash-alias", cells, 0,
+                             MIN(flash_size, RIG_FLASH_BYTES));
+    memory_region_add_subregion_overlap(container, FLASH_BASE, main, 1);
+    memory_region_add_subregion_overlap(container, 0, alias, 1);
+    sysbus_connect_irq(flash_if, 0, qdev_get_gpio_in(DEVICE(&STM32F405_SOC(soc)->armv7m), IRQ_FLASH));
+    rig_stm32_flash_if_over(RIG_STM32_FLASH_IF(flash_if), &STM32F405_SOC(soc)->flash);
 }
 
 /* TIM1..TIM14 over the SoC's placeholders and its TIM2-TIM5, their interrupts (an OR gate where two
@@ -325,7 +347,10 @@ void rig_stm32f4_machine_init(MachineState *machine, const RigStm32Chip *chip)
 
     RigStm32RccState *r = RIG_STM32_RCC(rcc);
     rig_stm32_rcc_add_reset(r, RCC_APB1RSTR, APB1RSTR_PWRRST, DEVICE(map_device(TYPE_RIG_STM32_PWR, PWR_BASE, r, -1)));
-    map_device(TYPE_RIG_STM32_FLASH_IF, FLASH_IF_BASE, NULL, -1);
+    map_flash(SYS_BUS_DEVICE(soc), map_device(TYPE_RIG_STM32_FLASH_IF, FLASH_IF_BASE, NULL, -1), chip->flash_size);
+    map_device(TYPE_RIG_STM32_IWDG, IWDG_BASE, r, -1);
+    SysBusDevice *wwdg = map_device(TYPE_RIG_STM32_WWDG, WWDG_BASE, r, -1);
+    rig_stm32_rcc_add_reset(r, RCC_APB1RSTR, APB1_WWDG, DEVICE(wwdg));
     DeviceState *gpio_ports[RIG_GPIO_PORTS] = { NULL };
     for (int port = 0; port < RIG_GPIO_PORTS; port++) {
         if (chip->port_pins[port] == 0) {
@@ -337,6 +362,8 @@ void rig_stm32f4_machine_init(MachineState *machine, const RigStm32Chip *chip)
     }
 
     DeviceState *nvic = DEVICE(&STM32F405_SOC(soc)->armv7m);
+    sysbus_connect_irq(wwdg, 0, qdev_get_gpio_in(nvic, IRQ_WWDG));
+
     DeviceState *dma[2];
     for (unsigned d = 0; d < 2; d++) {
         dma[d] = qdev_new(TYPE_RIG_STM32_DMA);

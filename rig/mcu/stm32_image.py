@@ -75,24 +75,33 @@ def check_image(path: Path, mcu: Mcu = MCUS["stm32f405"]) -> None:
 CONFIG_SECTION: Final = ".fc_config"
 
 
+def config_section(data: bytes) -> tuple[int, int, int] | None:
+    """CONFIG_SECTION's address in flash, its offset in the ELF file ``data`` and its size; None when the
+    firmware has none (``data`` passed check_image)."""
+    shoff, = struct.unpack_from("<I", data, 32)
+    shentsize, shnum, shstrndx = struct.unpack_from("<HHH", data, 46)
+    headers = [struct.unpack_from("<IIIIII", data, shoff + i * shentsize) for i in range(shnum)]
+    strtab_at = headers[shstrndx][4] if shstrndx < shnum else 0
+    for name_at, _kind, _flags, addr, offset, size in headers:
+        name = bytes(data[strtab_at + name_at:]).split(b"\0", 1)[0].decode("ascii", "replace")
+        if name == CONFIG_SECTION:
+            return addr, offset, size
+    return None
+
+
 def with_settings(path: Path, settings: bytes, out: Path) -> Path:
     """A copy of ``path`` at ``out`` whose CONFIG_SECTION starts with ``settings`` (the rest erased
     flash, 0xFF), as a board whose settings sector was written; ``path`` itself when it has no such
     section (a firmware that keeps its settings elsewhere, as an AVR firmware may ignore its EEPROM);
     FirmwareError when the section is smaller than the settings."""
     data = bytearray(Path(path).read_bytes())
-    shoff, = struct.unpack_from("<I", data, 32)
-    shentsize, shnum, shstrndx = struct.unpack_from("<HHH", data, 46)
-    headers = [struct.unpack_from("<IIIIII", data, shoff + i * shentsize) for i in range(shnum)]
-    strtab_at = headers[shstrndx][4] if shstrndx < shnum else 0
-    for name_at, _kind, _flags, _addr, offset, size in headers:
-        name = bytes(data[strtab_at + name_at:]).split(b"\0", 1)[0].decode("ascii", "replace")
-        if name != CONFIG_SECTION:
-            continue
-        if size < len(settings):
-            raise FirmwareError(f"{path}: its {CONFIG_SECTION} section has {size} bytes, the settings "
-                                f"{len(settings)}")
-        data[offset:offset + size] = settings + b"\xff" * (size - len(settings))
-        out.write_bytes(bytes(data))
-        return out
-    return Path(path)
+    section = config_section(bytes(data))
+    if section is None:
+        return Path(path)
+    _addr, offset, size = section
+    if size < len(settings):
+        raise FirmwareError(f"{path}: its {CONFIG_SECTION} section has {size} bytes, the settings "
+                            f"{len(settings)}")
+    data[offset:offset + size] = settings + b"\xff" * (size - len(settings))
+    out.write_bytes(bytes(data))
+    return out

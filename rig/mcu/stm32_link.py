@@ -6,7 +6,8 @@ with AvrEngine's interface (rig/mcu/engine.py), so the MCU session runs either.
 Time is QEMU's virtual time under ``-icount shift=ICOUNT_SHIFT,sleep=off`` (each instruction 2**shift ns):
 the instruction count, so the same image, world and needs served give the same bytes and pulses, run
 after run. ``run_until(t)`` tells QEMU to run to t; QEMU answers "reached" with the motor outputs'
-latched pulses and the CPU's exception state, then waits. Meanwhile every event of the I2C bus comes
+latched pulses and the CPU's exception state, then waits. A system reset is told at its instant: a
+watchdog's ends the run as a crash naming the pc it came at. Meanwhile every event of the I2C bus comes
 here and the session's own chip core (the world's ChipBoard, as the AVR tier's) answers it: a START
 first runs the chips to its instant, and a sample the core lacks stops ``run_until`` with a ``need``,
 which the session serves (ChipBoard.serve) before calling ``run_until`` again; QEMU waits for the
@@ -39,7 +40,7 @@ from rig.emulators import native
 from rig.emulators.chips.board import ChipBoard
 from rig.mcu.board import Board
 from rig.mcu.engine import FirmwareError, Stop, TwiRecord, format_transaction
-from rig.mcu.stm32_image import check_image, with_settings
+from rig.mcu.stm32_image import check_image, config_section, with_settings
 
 __all__ = ["ICOUNT_SHIFT", "LINK_VERSION", "LinkError", "Stm32Engine"]
 
@@ -60,6 +61,10 @@ UART_CHUNK: Final = 1016
 #: the timer outputs rig_link.c numbers: CH1..CH4, then CH1N..CH3N
 OUTPUTS: Final = ("1", "2", "3", "4", "1N", "2N", "3N")
 _REACHED = struct.Struct("<QIIIIB")
+#: a system reset: its time, its cause, the CPU's IPSR, pc, CFSR and HFSR as it came
+_RESET = struct.Struct("<QIIIII")
+#: rig_link.c's reset causes (RigResetCause) that are errors of the firmware: a watchdog ran out
+WATCHDOG_RESETS: Final = {1: "IWDG", 2: "WWDG"}
 _PULSE = struct.Struct("<IIIQ")
 #: pulses kept per motor between two takes (the oldest are dropped)
 MAX_PULSES: Final = 256
@@ -128,6 +133,8 @@ class Stm32Engine:
         self._widths = [0 for _ in self._motors]
         self._active_ns = 0  # the last sign of life (hang_ns)
         self._state = (0, 0, 0, 0)  # ipsr, pc, cfsr, hfsr at the last stop
+        self._resets = 0  # system resets after power-on
+        self._waiting = False  # QEMU waits for a command (after a REACHED)
         self._sent: dict[int, bytearray] = {n: bytearray() for n in cfg.board.mcu.usarts}
         self._uart_counts: dict[int, list[int]] = {n: [0, 0] for n in cfg.board.mcu.usarts}  # in, out
         self._inbox = bytearray()  # bytes from QEMU not yet taken (_read), from _inbox_at on
@@ -306,6 +313,10 @@ class Stm32Engine:
                     self._active_ns = self._now_ns
                     self._uart_counts[p[0]][1] += len(p) - 1
                     continue
+                if kind == ord("X"):
+                    if (stop := self._reset(p)) is not None:
+                        return stop
+                    continue
                 if len(p) < 8:
                     raise LinkError(f"an I2C message ({kind!r}) without its time")
                 (t_ns,) = struct.unpack_from("<Q", p)
@@ -353,6 +364,7 @@ class Stm32Engine:
     def _reached(self, p: bytes) -> Stop:
         if len(p) < _REACHED.size:
             raise LinkError(f"a REACHED of {len(p)} bytes")
+        self._waiting = True  # (for the next command)
         t_ns, ipsr, pc, cfsr, hfsr, n = _REACHED.unpack_from(p)
         if n != len(self._motors) or len(p) != _REACHED.size + n * _PULSE.size:
             raise LinkError(f"a REACHED with {n} motors ({len(p)} bytes); the board has {len(self._motors)}")
@@ -379,6 +391,21 @@ class Stm32Engine:
             return self._final("hung", f"no I2C transaction, motor pulse change or USART byte sent for "
                                        f"{hang_ns / 1e6:g} ms", pc)
         return Stop("reached", self._cycle(t_ns))
+
+    def _reset(self, p: bytes) -> Stop | None:
+        """A system reset: a watchdog's ends the run naming where the firmware was; the firmware's own
+        request (AIRCR.SYSRESETREQ: a reboot, after saving settings) is counted and the run goes on."""
+        if len(p) != _RESET.size:
+            raise LinkError(f"a RESET of {len(p)} bytes")
+        t_ns, cause, ipsr, pc, cfsr, hfsr = _RESET.unpack(p)
+        self._resets += 1
+        self._state = (ipsr, pc, cfsr, hfsr)
+        watchdog = WATCHDOG_RESETS.get(cause)
+        if watchdog is None:
+            return None
+        self._now_ns = t_ns
+        what = f"watchdog reset ({watchdog}) (CFSR 0x{cfsr:08x}, HFSR 0x{hfsr:08x})"
+        return self._final("crashed", what, pc)
 
     def _ended(self) -> Stop:
         """QEMU is gone: a semihosting exit, a lockup (QEMU aborts), or a crash of its own."""
@@ -417,6 +444,7 @@ class Stm32Engine:
         if self._stop is not None:
             return self._stop
         if self._pending is None:
+            self._waiting = False
             self._send(ord("G"), struct.pack("<Q", max(t_ns, 0)))
         return self._until_reached()
 
@@ -468,8 +496,25 @@ class Stm32Engine:
         raise ValueError("the STM32 tier's link does not drive input pins yet")
 
     def eeprom(self) -> bytes:
-        """An STM32 has no EEPROM (its settings live in flash)."""
-        return b""
+        """An STM32 keeps its settings in flash: the firmware's CONFIG_SECTION as it is now (what the
+        firmware programmed there), read over the link while QEMU waits at a step's end; b"" for a firmware
+        without that section, or when QEMU is not waiting (gone, or running on past a watchdog's reset)."""
+        section = config_section(self.cfg.firmware.read_bytes())
+        if section is None or not self._waiting:
+            return b""
+        addr, _offset, size = section
+        out = bytearray()
+        for at in range(0, size, MAX_PAYLOAD):
+            n = min(MAX_PAYLOAD, size - at)
+            self._send(ord("M"), struct.pack("<II", addr + at, n))
+            try:
+                kind, p = self._receive()
+            except (EOFError, OSError):
+                return b""
+            if kind != ord("M") or len(p) != n:
+                raise LinkError(f"a reply of {kind!r}, {len(p)} bytes to a read of {n} bytes of flash")
+            out += p
+        return bytes(out)
 
     def poll_figures(self) -> dict[str, int]:
         """The AVR engine's polling-loop skip has no STM32 counterpart: QEMU's icount runs every
@@ -484,6 +529,7 @@ class Stm32Engine:
             "pc": pc, "ipsr": ipsr, "cfsr": cfsr, "hfsr": hfsr,
             "last_twi": format_transaction(self._last), "motor_periods": list(self._pulse_counts),
             "uarts": {n: {"queued": c[0], "sent": c[1]} for n, c in self._uart_counts.items()},
+            "resets": self._resets,
         }
         if self._stop is not None:
             figs["stop"] = self._stop.describe()

@@ -8,10 +8,14 @@ extern uint32_t __stack, __data_start, __data_end, __data_load, __bss_start, __b
 int main(void);
 void reset_handler(void);
 void fault_handler(void);
-/* I2C1's event and error interrupts (NVIC lines 31 and 32), the timers' (24-30, 43-46, 50, 54, 55) and
-   the DMA streams' the tests use: a firmware that enables them defines these */
+/* SysTick, the WWDG's and the FLASH's interrupts (NVIC lines 0 and 4), I2C1's event and error interrupts
+   (31 and 32), the timers' (24-30, 43-46, 50, 54, 55) and the DMA streams' the tests use: a firmware that
+   enables them defines these */
 void i2c1_ev_handler(void) __attribute__((weak, alias("fault_handler")));
 void i2c1_er_handler(void) __attribute__((weak, alias("fault_handler")));
+void systick_handler(void) __attribute__((weak, alias("fault_handler")));
+void wwdg_handler(void) __attribute__((weak, alias("fault_handler")));
+void flash_handler(void) __attribute__((weak, alias("fault_handler")));
 void tim1_brk_tim9_handler(void) __attribute__((weak, alias("fault_handler")));
 void tim1_up_tim10_handler(void) __attribute__((weak, alias("fault_handler")));
 void tim1_trg_com_tim11_handler(void) __attribute__((weak, alias("fault_handler")));
@@ -76,14 +80,17 @@ __attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 7
     fault_handler,
     0,
     fault_handler,
-    fault_handler,
-    F, F, F, F, F, F, F, F, F, F, F,                /* IRQ 0-10 */
+    systick_handler,
+    wwdg_handler, /* IRQ 0 */
+    F, F, F,      /* IRQ 1-3 */
+    flash_handler, /* IRQ 4 */
+    F, F, F, F, F, F, /* IRQ 5-10 */
     dma1_stream0_handler, /* IRQ 11 */
-    F,                                              /* IRQ 12: DMA1 stream 1 */
+    F,                    /* IRQ 12: DMA1 stream 1 */
     dma1_stream2_handler, /* IRQ 13 */
-    F, F, F,                                        /* IRQ 14-16: DMA1 stream 3-5 */
+    F, F, F,              /* IRQ 14-16: DMA1 stream 3-5 */
     dma1_stream6_handler, /* IRQ 17 */
-    F, F, F, F, F, F,                               /* IRQ 18-23 */
+    F, F, F, F, F, F,     /* IRQ 18-23 */
     tim1_brk_tim9_handler, /* IRQ 24 */
     tim1_up_tim10_handler, /* IRQ 25 */
     tim1_trg_com_tim11_handler, /* IRQ 26 */
