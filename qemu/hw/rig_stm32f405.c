@@ -365,6 +365,15 @@ void rig_stm32f4_machine_init(MachineState *machine, const RigStm32Chip *chip)
         qdev_prop_set_chr(link, "chardev", link_chr);
         sysbus_realize_and_unref(SYS_BUS_DEVICE(link), &error_fatal);
         object_property_set_link(OBJECT(gy86), "link", OBJECT(link), &error_fatal);
+        /* the pins the session drives (a PPM sum): from outside, as a receiver's wire does */
+        for (unsigned port = 0; port < RIG_GPIO_PORTS; port++) {
+            for (unsigned pin = 0; gpio_ports[port] != NULL && pin < RIG_GPIO_PINS; pin++) {
+                if (chip->port_pins[port] >> pin & 1u) {
+                    qdev_connect_gpio_out_named(link, "pin", port * RIG_GPIO_PINS + pin,
+                                                qdev_get_gpio_in(gpio_ports[port], pin));
+                }
+            }
+        }
     }
     i2c_slave_realize_and_unref(gy86, RIG_STM32_I2C(i2c1)->bus, &error_fatal);
     /* PB6/PB7 or PB8/PB9, as the firmware's AFR selects (rig_stm32_i2c_pins.c): the pins' levels reach the
