@@ -469,7 +469,7 @@ class Stm32Engine:
         puts each on the pin at its virtual instant, as a receiver's wire would (the GPIO port's outside
         driver), so a timer's input capture or an EXTI line sees the edge then."""
         port, bit = _stm32_pin(self.cfg.board.mcu, pin)
-        queued = [t for t in self._pin_edges.get(pin, []) if t > self._now_ns]
+        queued = [t for t in self._pin_edges.get(pin, []) if t >= self._now_ns]  # (at now: maybe not yet)
         times = [t for t, _ in schedule]
         if times != sorted(times) or (times and times[0] < max([self._now_ns, *queued[-1:]])):
             raise ValueError(f"pin {pin}: edges must ascend, from now on and after those queued: "
