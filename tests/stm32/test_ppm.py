@@ -135,3 +135,22 @@ def test_the_sessions_rc_frames_reach_the_firmware_as_ppm(tmp_path: Path) -> Non
     # one PPM frame a period from the first period after the first RC frame (20 ms): at 22.5, 45, ...
     # 180 ms, each over within the 0.2 s run
     assert len(lines) == 180_000_000 // PPM_FRAME_NS
+
+
+@pytest.mark.parametrize(("payload", "why"), [
+    (bytes([0, 0, 0, 0]) + (5 * STEP_NS).to_bytes(8, "little") + bytes([2]), "a level other than 0 or 1"),
+    (bytes([9, 0, 0, 0]), "a malformed pin"),
+    (bytes([0, 0, 0, 0, 1]), "a malformed pin or edge list"),
+], ids=["level", "port", "length"])
+def test_the_link_ends_qemu_on_a_malformed_pin_message(tmp_path: Path, payload: bytes, why: str) -> None:
+    """QEMU checks the PIN message as any input (qemu/hw/rig_link.c): a bad one ends it with a message,
+    which the engine's stop carries, and never reaches a pin."""
+    board = boards.load(ppm_board(tmp_path, "PA0"))
+    engine = Stm32Engine(Stm32Config(board, firmware("ppm_rx"), engine_or_skip()), None)
+    try:
+        assert engine.run_until(STEP_NS).kind == "reached"
+        engine._send(ord("I"), payload)  # (what pin_drive refuses to send)
+        stop = engine.run_until(2 * STEP_NS)
+    finally:
+        engine.close()
+    assert stop.kind == "crashed" and "rig-link: PIN: " + why in stop.what, stop.what
