@@ -27,6 +27,10 @@
  * gives a USART reach its receiver one at a time, each at the end of its frame (start, 8 data bits,
  * parity, stop bits at the session's baud), after the bytes before it.
  *
+ * Input pins the session drives (a PPM sum, a switch) get their levels at the virtual instants the
+ * session gives (MSG_PIN_DRIVE), each pin's edges queued as a USART's bytes are, through the GPIO port's
+ * outside-driver input (the "pin" outputs, port * 16 + pin, which the machine connects there).
+ *
  * Messages, both ways: a header of the kind (1 byte), 3 zero bytes and the payload's length (u32), then
  * the payload; little-endian; every length is checked against the kind's (a bad message ends QEMU with
  * an error: the session is gone or broken).
@@ -39,6 +43,7 @@
 #include "chardev/char-fe.h"
 #include "chardev/char.h"
 #include "cpu.h"
+#include "hw/irq.h"
 #include "hw/qdev-properties-system.h"
 #include "hw/qdev-properties.h"
 #include "qapi/error.h"
@@ -58,6 +63,10 @@
 #define LINK_RX_BYTES 4096
 #define LINK_UART_CHUNK 512 /* bytes read from a ringbuf at a time (base64 in QEMU's API) */
 #define LINK_READS 120      /* bytes read ahead and taken, told in one MSG_I2C_READS (its u64 times) */
+#define LINK_PIN_QUEUES 9   /* pins driven at once (a PPM sum; a parallel PWM receiver's 8 channels) */
+#define LINK_PIN_EDGES 1024 /* edges waiting per pin (a PPM frame of 8 channels is 18) */
+#define LINK_PIN_LINES (RIG_GPIO_PORTS * RIG_GPIO_PINS)
+#define LINK_EDGE 9 /* u64 t_ns, u8 level */
 
 /* the bytes waiting for one USART's receiver, each with the virtual time its frame ends */
 typedef struct {
@@ -69,6 +78,16 @@ typedef struct {
     uint32_t head, len;
     int64_t busy_until_ns; /* when the last byte queued ends */
 } LinkUart;
+
+/* the edges waiting for one driven pin, each with its virtual time */
+typedef struct {
+    RigLinkState *link;
+    QEMUTimer *timer;
+    int line; /* port * 16 + pin; -1: a free queue */
+    int64_t at_ns[LINK_PIN_EDGES];
+    uint8_t level[LINK_PIN_EDGES];
+    uint32_t head, len;
+} LinkPin;
 
 /* QEMU -> session */
 #define MSG_HELLO 'H' /* u16 version */
@@ -90,8 +109,11 @@ typedef struct {
 #define MSG_GO 'G'      /* u64 t_ns: run until then */
 #define MSG_UART_RX 'U' /* u8 USART 1..6, 3 zero bytes, u32 frame_ns, the bytes (from now, after those queued) */
 #define MSG_QUIT 'Q'    /* (none) */
-#define MSG_ACK 'a'     /* u8 acknowledged, then the bytes ahead (a read START) */
-#define MSG_BYTE 'b'    /* the byte read, then the bytes ahead */
+/* u8 port 0..8 (A..I), u8 pin 0..15, 2 zero bytes, n x (u64 t_ns, u8 level): edges from now on, ascending,
+ * after those queued */
+#define MSG_PIN_DRIVE 'I'
+#define MSG_ACK 'a'  /* u8 acknowledged, then the bytes ahead (a read START) */
+#define MSG_BYTE 'b' /* the byte read, then the bytes ahead */
 /* u32 address, u32 length (at most 1024, within the flash): answered by an 'M' of the flash's bytes there,
  * as the firmware left them (the settings it keeps in flash) */
 #define MSG_MEMORY 'M'
@@ -114,6 +136,8 @@ struct RigLinkState {
     uint32_t ahead_at, ahead_len;
     uint8_t taken[LINK_READS * 8]; /* the times (u64) of the bytes taken from ahead, not yet told */
     uint32_t n_taken;
+    qemu_irq pin_out[LINK_PIN_LINES]; /* each pin's outside driver (the GPIO port's input) */
+    LinkPin pins[LINK_PIN_QUEUES];
 };
 
 static const char *const high_names[RIG_TIM_OUTPUTS] = {
@@ -237,6 +261,67 @@ static void link_uart_receive(RigLinkState *s, const uint8_t *p, uint32_t len)
     }
 }
 
+/* The head edge onto its pin at its time, and the next one's time armed */
+static void link_pin_deliver(void *opaque)
+{
+    LinkPin *q = opaque;
+    int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    while (q->len && q->at_ns[q->head] <= now) {
+        qemu_set_irq(q->link->pin_out[q->line], q->level[q->head]);
+        q->head = (q->head + 1) % LINK_PIN_EDGES;
+        q->len--;
+    }
+    if (q->len) {
+        timer_mod(q->timer, q->at_ns[q->head]);
+    }
+}
+
+static void link_pin_receive(RigLinkState *s, const uint8_t *p, uint32_t len)
+{
+    if (len < 4 || (len - 4) % LINK_EDGE || p[0] >= RIG_GPIO_PORTS || p[1] >= RIG_GPIO_PINS || p[2] || p[3]) {
+        link_fail("PIN: a malformed pin or edge list");
+    }
+    int line = p[0] * RIG_GPIO_PINS + p[1];
+    if (s->pin_out[line] == NULL) {
+        link_fail("PIN: the chip has no such pin");
+    }
+    LinkPin *q = NULL;
+    for (unsigned i = 0; i < LINK_PIN_QUEUES && q == NULL; i++) {
+        if (s->pins[i].line == line) {
+            q = &s->pins[i];
+        }
+    }
+    for (unsigned i = 0; i < LINK_PIN_QUEUES && q == NULL; i++) {
+        if (s->pins[i].line < 0) {
+            q = &s->pins[i];
+            q->line = line;
+        }
+    }
+    uint32_t n = (len - 4) / LINK_EDGE;
+    if (q == NULL || q->len + n > LINK_PIN_EDGES) {
+        link_fail("PIN: more than 9 pins driven or more than 1024 edges waiting on one");
+    }
+    /* an edge the session dated before now (or before the last queued) happens then: time never goes back */
+    int64_t t = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    if (q->len) {
+        t = MAX(t, q->at_ns[(q->head + q->len - 1) % LINK_PIN_EDGES]);
+    }
+    for (uint32_t i = 0; i < n; i++) {
+        const uint8_t *e = p + 4 + i * LINK_EDGE;
+        uint64_t at = ldq_le_p(e);
+        if (e[8] > 1 || at > INT64_MAX) {
+            link_fail("PIN: a level other than 0 or 1, or a time past the end of time");
+        }
+        t = MAX(t, (int64_t)at);
+        uint32_t slot = (q->head + q->len++) % LINK_PIN_EDGES;
+        q->at_ns[slot] = t;
+        q->level[slot] = e[8];
+    }
+    if (q->len) {
+        timer_mod(q->timer, q->at_ns[q->head]);
+    }
+}
+
 /* What the firmware sent on each USART since the last stop */
 static void link_uart_send_sent(RigLinkState *s)
 {
@@ -283,6 +368,8 @@ static void link_wait_command(RigLinkState *s)
             link_configure(s, p, len);
         } else if (kind == MSG_UART_RX) {
             link_uart_receive(s, p, len);
+        } else if (kind == MSG_PIN_DRIVE) {
+            link_pin_receive(s, p, len);
         } else if (kind == MSG_GO && len == 8 && s->configured) {
             int64_t t = (int64_t)ldq_le_p(p), now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
             timer_mod(s->timer, t > now ? t : now);
@@ -436,6 +523,12 @@ static void link_realize(DeviceState *dev, Error **errp)
         u->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, link_uart_deliver, u);
     }
     qemu_register_reset(link_system_reset, s);
+    for (unsigned i = 0; i < LINK_PIN_QUEUES; i++) {
+        LinkPin *q = &s->pins[i];
+        q->link = s;
+        q->line = -1;
+        q->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, link_pin_deliver, q);
+    }
     uint8_t hello[2];
     stw_le_p(hello, LINK_VERSION);
     link_send(s, MSG_HELLO, hello, sizeof hello);
@@ -450,6 +543,12 @@ static void link_reset(DeviceState *dev)
         s->started = true;
         timer_mod(s->timer, 0);
     }
+}
+
+static void link_init(Object *obj)
+{
+    RigLinkState *s = RIG_LINK(obj);
+    qdev_init_gpio_out_named(DEVICE(obj), s->pin_out, "pin", LINK_PIN_LINES);
 }
 
 static Property link_properties[] = {
@@ -469,6 +568,7 @@ static const TypeInfo link_info = {
     .name = TYPE_RIG_LINK,
     .parent = TYPE_SYS_BUS_DEVICE,
     .instance_size = sizeof(RigLinkState),
+    .instance_init = link_init,
     .class_init = link_class_init,
 };
 

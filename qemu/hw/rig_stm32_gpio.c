@@ -8,7 +8,8 @@
  * peripheral its AFR selects (RM0090 8.3.2, the AF multiplexer), taken as an open drain when OTYPER says
  * so, or like an input when that peripheral drives no output there (I2C1, whose bus drives the pins from
  * outside); an input what drives it from outside, else its pull (floating reads 0); an analog pin 0 (its
- * Schmitt trigger is off). The levels go out on 16 qdev GPIO outputs, and 16 qdev GPIO inputs are the
+ * Schmitt trigger is off). The levels go out on 16 qdev GPIO outputs (and again on "level", for SYSCFG's
+ * EXTI multiplexer), and 16 qdev GPIO inputs are the
  * outside drivers: the bus and board models connect there. The peripherals connect per pin and AF
  * (line pin * 16 + AF): "af-drive" inputs take their outputs, "af-input" outputs give a pin in AF mode's
  * level to the AF it selects only (a timer's input capture sees its pin only while the pin selects it).
@@ -85,6 +86,7 @@ static void gpio_update(RigStm32GpioState *s)
     for (unsigned pin = 0; pin < RIG_GPIO_PINS; pin++) {
         if (changed >> pin & 1) {
             qemu_set_irq(s->out[pin], levels >> pin & 1);
+            qemu_set_irq(s->level[pin], levels >> pin & 1);
         }
     }
     /* a pin in AF mode gives its level to the AF it selects, once per change of either (kept per pin in
@@ -283,6 +285,7 @@ static void gpio_init(Object *obj)
     memory_region_init_io(&s->iomem, obj, &gpio_ops, s, TYPE_RIG_STM32_GPIO, 0x400);
     sysbus_init_mmio(SYS_BUS_DEVICE(obj), &s->iomem);
     qdev_init_gpio_out(DEVICE(obj), s->out, RIG_GPIO_PINS);
+    qdev_init_gpio_out_named(DEVICE(obj), s->level, "level", RIG_GPIO_PINS);
     qdev_init_gpio_in(DEVICE(obj), gpio_drive, RIG_GPIO_PINS);
     qdev_init_gpio_in_named(DEVICE(obj), gpio_af_drive, "af-drive", RIG_GPIO_PINS * RIG_GPIO_AFS);
     qdev_init_gpio_out_named(DEVICE(obj), s->af_input, "af-input", RIG_GPIO_PINS * RIG_GPIO_AFS);

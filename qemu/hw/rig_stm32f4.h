@@ -170,6 +170,7 @@ struct RigStm32GpioState {
     uint16_t ext_driven;
     uint16_t pins; /* the levels last sent out */
     qemu_irq out[RIG_GPIO_PINS];
+    qemu_irq level[RIG_GPIO_PINS]; /* the same levels for SYSCFG's EXTI multiplexer ("level") */
     /* the peripherals' outputs on each AF (a bit per pin): driven at all, and their levels */
     uint16_t af_driven[RIG_GPIO_AFS];
     uint16_t af_level[RIG_GPIO_AFS];
@@ -177,6 +178,34 @@ struct RigStm32GpioState {
     qemu_irq af_input[RIG_GPIO_PINS * RIG_GPIO_AFS];
     int8_t af_input_sent[RIG_GPIO_PINS];  /* the AF each pin last sent to (-1: none) */
     int8_t af_input_level[RIG_GPIO_PINS]; /* and the level it sent */
+};
+
+/* SYSCFG (RM0090 9.2): EXTICR's multiplexer from the ports' pins ("pin", port * 16 + pin) to EXTI's
+ * lines 0..15 ("line"); EXTI (12.3): edges and SWIER into PR, PR & IMR to the NVIC (rig_stm32_exti.c) */
+#define TYPE_RIG_STM32_SYSCFG "rig-stm32f4-syscfg"
+OBJECT_DECLARE_SIMPLE_TYPE(RigStm32SyscfgState, RIG_STM32_SYSCFG)
+#define TYPE_RIG_STM32_EXTI "rig-stm32f4-exti"
+OBJECT_DECLARE_SIMPLE_TYPE(RigStm32ExtiState, RIG_STM32_EXTI)
+#define RIG_EXTI_LINES 23
+#define RIG_EXTI_IRQS 14 /* the NVIC inputs the lines raise (rig_exti_nvic) */
+extern const uint8_t rig_exti_nvic[RIG_EXTI_IRQS];
+
+struct RigStm32SyscfgState {
+    SysBusDevice parent_obj;
+    MemoryRegion iomem;
+    RigStm32RccState *rcc;
+    uint32_t regs[7];
+    uint16_t pins[9];      /* each port's pin levels (the ports' "level" outputs) */
+    int8_t line_level[16]; /* the level each line was last sent */
+    qemu_irq line[16];
+};
+
+struct RigStm32ExtiState {
+    SysBusDevice parent_obj;
+    MemoryRegion iomem;
+    uint32_t regs[6];
+    uint32_t inputs; /* the lines' levels, for their edges */
+    qemu_irq irq[RIG_EXTI_IRQS];
 };
 
 /* Connects I2C1's lines to the port B pins the firmware's AFR selects (rig_stm32_i2c_pins.c) */

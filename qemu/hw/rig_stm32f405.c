@@ -1,7 +1,7 @@
 /*
  * rig-stm32f405: QEMU's STM32F405 SoC (Cortex-M4F with NVIC and SysTick, its USARTs, TIM2-5, ADCs, SPIs,
  * SYSCFG and EXTI) with the rig's models mapped over the regions that SoC leaves unimplemented: RCC,
- * PWR, the FLASH interface (its flash cells over the SoC's ROM), the IWDG and WWDG, GPIO A..I, DMA1 and DMA2, I2C1 (RM0090) with the GY-86 board (the rig's chip core) on its
+ * PWR, the FLASH interface (its flash cells over the SoC's ROM), the IWDG and WWDG, GPIO A..I, SYSCFG and EXTI (over the SoC's), DMA1 and DMA2, I2C1 (RM0090) with the GY-86 board (the rig's chip core) on its
  * bus, the timers TIM1-TIM14 (over QEMU's TIM2-TIM5, which only count) with their channels on the pins
  * of the datasheet's alternate function table, and the core's DWT cycle counter. The RCC's AHB clock
  * drives the core, SysTick and DWT, so the machine starts at 16 MHz (HSI) as the chip does, and runs at
@@ -49,6 +49,9 @@
 #define IRQ_I2C1_EV 31 /* RM0090 table 61 (vector table) */
 #define IRQ_I2C1_ER 32
 #define RCC_APB2RSTR 0x24
+#define SYSCFG_BASE 0x40013800
+#define EXTI_BASE 0x40013C00
+#define APB2_SYSCFG 14 /* RCC_APB2RSTR.SYSCFGRST */
 /* DMA1 and DMA2 (table 10), their reset bits in AHB1RSTR (7.3.5: DMA1RST 21, DMA2RST 22) and the streams'
  * NVIC lines (table 61) */
 static const struct {
@@ -257,6 +260,32 @@ static void map_timers(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceSt
     }
 }
 
+/* SYSCFG and EXTI over the SoC's (which take port A's pins only): every pin into SYSCFG's multiplexer, its
+ * lines into EXTI, EXTI's requests to the NVIC */
+static void map_exti(RigStm32RccState *rcc, DeviceState *nvic, DeviceState **gpio_ports)
+{
+    DeviceState *syscfg = qdev_new(TYPE_RIG_STM32_SYSCFG);
+    object_property_set_link(OBJECT(syscfg), "rcc", OBJECT(rcc), &error_fatal);
+    sysbus_realize_and_unref(SYS_BUS_DEVICE(syscfg), &error_fatal);
+    sysbus_mmio_map_overlap(SYS_BUS_DEVICE(syscfg), 0, SYSCFG_BASE, 1);
+    rig_stm32_rcc_add_reset(rcc, RCC_APB2RSTR, APB2_SYSCFG, syscfg);
+    DeviceState *exti = qdev_new(TYPE_RIG_STM32_EXTI);
+    sysbus_realize_and_unref(SYS_BUS_DEVICE(exti), &error_fatal);
+    sysbus_mmio_map_overlap(SYS_BUS_DEVICE(exti), 0, EXTI_BASE, 1);
+    for (unsigned k = 0; k < RIG_EXTI_IRQS; k++) {
+        sysbus_connect_irq(SYS_BUS_DEVICE(exti), k, qdev_get_gpio_in(nvic, rig_exti_nvic[k]));
+    }
+    for (unsigned line = 0; line < RIG_GPIO_PINS; line++) {
+        qdev_connect_gpio_out_named(syscfg, "line", line, qdev_get_gpio_in_named(exti, "line", line));
+    }
+    for (unsigned port = 0; port < RIG_GPIO_PORTS; port++) {
+        for (unsigned pin = 0; gpio_ports[port] != NULL && pin < RIG_GPIO_PINS; pin++) {
+            qdev_connect_gpio_out_named(gpio_ports[port], "level", pin,
+                                        qdev_get_gpio_in_named(syscfg, "pin", port * RIG_GPIO_PINS + pin));
+        }
+    }
+}
+
 /* "PD12" as a port and pin the chip has, or false */
 static bool parse_pin(const RigStm32Chip *chip, const char *text, unsigned *port, unsigned *pin)
 {
@@ -392,12 +421,22 @@ void rig_stm32f4_machine_init(MachineState *machine, const RigStm32Chip *chip)
         qdev_prop_set_chr(link, "chardev", link_chr);
         sysbus_realize_and_unref(SYS_BUS_DEVICE(link), &error_fatal);
         object_property_set_link(OBJECT(gy86), "link", OBJECT(link), &error_fatal);
+        /* the pins the session drives (a PPM sum): from outside, as a receiver's wire does */
+        for (unsigned port = 0; port < RIG_GPIO_PORTS; port++) {
+            for (unsigned pin = 0; gpio_ports[port] != NULL && pin < RIG_GPIO_PINS; pin++) {
+                if (chip->port_pins[port] >> pin & 1u) {
+                    qdev_connect_gpio_out_named(link, "pin", port * RIG_GPIO_PINS + pin,
+                                                qdev_get_gpio_in(gpio_ports[port], pin));
+                }
+            }
+        }
     }
     i2c_slave_realize_and_unref(gy86, RIG_STM32_I2C(i2c1)->bus, &error_fatal);
     /* PB6/PB7 or PB8/PB9, as the firmware's AFR selects (rig_stm32_i2c_pins.c): the pins' levels reach the
      * controller, and the bus (its pull-ups, a slave holding SDA) drives the pins from outside */
     rig_stm32_route_i2c1(i2c1, gpio_ports[1]);
 
+    map_exti(r, nvic, gpio_ports);
     map_timers(chip, r, DEVICE(&STM32F405_SOC(soc)->armv7m), gpio_ports, dma);
     wire_pins(chip, gpio_ports);
     map_absent(chip);

@@ -15,7 +15,8 @@ rig/mcu/boards/; ``--mcu NAME`` finds them by name, ``--mcu path/to/board.toml``
                  an STM32), protocol ("pwm" | "oneshot125"), label ("D2": the board's silk-screen
                  name); with no timer and channel, any port pin (AVR), its pulses measured from its edges
     [rc]         protocol ("sbus" | "ppm" | "msp" | "pwm"), uart (sbus, msp), baud (msp), pin (ppm: an
-                 INTn or PCINT pin), pins (pwm: 4..8 PCINT or INTn pins, one a channel); optional
+                 INTn or PCINT pin; on an STM32 a timer channel's), pins (pwm: 4..8 PCINT or INTn pins,
+                 one a channel); optional
     [telemetry]  uart, baud, format ("text": the reference FC's ``T t=… key=value`` lines); optional
     [eeprom]     image (a file of raw bytes, relative to the board file), or fc = true: built from the
                  scenario's [fc] table by the reference firmware's layout
@@ -304,7 +305,11 @@ def _rc(c: _BoardCheck, mcu: Mcu, r: dict[str, Any]) -> RcIn:
     interrupting = set(mcu.ints.values()) | mcu.pcint
     if protocol == "ppm":
         pin = c.string(r, "pin", "rc").upper()
-        if pin not in interrupting:
+        if mcu.engine == "stm32":  # (decoded by a timer's input capture, as STM32 flight controllers do)
+            if pin not in mcu.oc_pins.values():
+                raise c.fail("rc.pin", f"a PPM sum needs a timer channel's pin (input capture); the "
+                                       f"{mcu.name}'s {pin} is none")
+        elif pin not in interrupting:
             raise c.fail("rc.pin", f"a PPM sum needs a pin with an external or pin change interrupt; the "
                                    f"{mcu.name}'s {pin} has neither")
         return RcIn("ppm", None, 0, pin)

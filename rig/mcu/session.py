@@ -310,13 +310,20 @@ class McuSession:
                     self.engine.pin_drive(pin, [(t, 1), (t + us * 1000, 0)])
                     t += us * 1000
                 continue
-            edges: list[tuple[int, int]] = []
-            for us in self._ppm_channels:
-                edges += [(t, 0), (t + PPM_PULSE_NS, 1)]
-                t += us * 1000
-            edges += [(t, 0), (t + PPM_PULSE_NS, 1)]
             assert rc.pin is not None
-            self.engine.pin_drive(rc.pin, edges)
+            self.engine.pin_drive(rc.pin, ppm_edges(t, self._ppm_channels))
+
+
+def ppm_edges(start_ns: int, channels_us: list[int]) -> list[tuple[int, int]]:
+    """One PPM frame from ``start_ns``: a PPM_PULSE_NS low pulse at the start of each channel and one
+    after the last, so each channel's width is the time between two falling edges (the line idles high
+    through the sync gap until the next frame)."""
+    edges: list[tuple[int, int]] = []
+    t = start_ns
+    for us in channels_us:
+        edges += [(t, 0), (t + PPM_PULSE_NS, 1)]
+        t += us * 1000
+    return edges + [(t, 0), (t + PPM_PULSE_NS, 1)]
 
 
 def sbus_to_us(raw: int) -> float:

@@ -40,6 +40,7 @@ from rig.emulators import native
 from rig.emulators.chips.board import ChipBoard
 from rig.mcu.board import Board
 from rig.mcu.engine import FirmwareError, Stop, TwiRecord, format_transaction
+from rig.mcu.mcus import Mcu
 from rig.mcu.stm32_image import check_image, config_section, with_settings
 
 __all__ = ["ICOUNT_SHIFT", "LINK_VERSION", "LinkError", "Stm32Engine"]
@@ -60,6 +61,12 @@ UART_RING_BYTES: Final = 65536
 UART_CHUNK: Final = 1016
 #: the timer outputs rig_link.c numbers: CH1..CH4, then CH1N..CH3N
 OUTPUTS: Final = ("1", "2", "3", "4", "1N", "2N", "3N")
+#: pins driven at once, and edges waiting per pin (qemu/hw/rig_link.c's queues)
+PIN_QUEUES: Final = 9
+PIN_EDGES: Final = 1024
+_EDGE = struct.Struct("<QB")
+#: edges of one PIN message (its payload's 1024 less the pin's 4 bytes, 9 bytes an edge)
+PIN_CHUNK: Final = (MAX_PAYLOAD - 4) // _EDGE.size
 _REACHED = struct.Struct("<QIIIIB")
 #: a system reset: its time, its cause, the CPU's IPSR, pc, CFSR and HFSR as it came
 _RESET = struct.Struct("<QIIIII")
@@ -139,6 +146,7 @@ class Stm32Engine:
         self._uart_counts: dict[int, list[int]] = {n: [0, 0] for n in cfg.board.mcu.usarts}  # in, out
         self._inbox = bytearray()  # bytes from QEMU not yet taken (_read), from _inbox_at on
         self._inbox_at = 0
+        self._pin_edges: dict[str, list[int]] = {}  # each driven pin's edge times, those past pruned
         self._dir = tempfile.TemporaryDirectory(prefix="rig-stm32-")
         firmware = cfg.firmware
         if cfg.settings is not None:
@@ -493,7 +501,24 @@ class Stm32Engine:
         self._uart_counts[uart][0] += len(data)
 
     def pin_drive(self, pin: str, schedule: list[tuple[int, int]]) -> None:
-        raise ValueError("the STM32 tier's link does not drive input pins yet")
+        """An input pin driven from outside to ``level`` at each ``(t_ns, level)`` (ascending, not before
+        now), after the edges queued before: a PPM sum, a switch. QEMU's link queues them per pin and
+        puts each on the pin at its virtual instant, as a receiver's wire would (the GPIO port's outside
+        driver), so a timer's input capture or an EXTI line sees the edge then."""
+        port, bit = _stm32_pin(self.cfg.board.mcu, pin)
+        queued = [t for t in self._pin_edges.get(pin, []) if t >= self._now_ns]  # (at now: maybe not yet)
+        times = [t for t, _ in schedule]
+        if times != sorted(times) or (times and times[0] < max([self._now_ns, *queued[-1:]])):
+            raise ValueError(f"pin {pin}: edges must ascend, from now on and after those queued: "
+                             f"{schedule!r}")
+        if len(queued) + len(schedule) > PIN_EDGES or (pin not in self._pin_edges and
+                                                        len(self._pin_edges) == PIN_QUEUES):
+            raise ValueError(f"pin {pin}: more than {PIN_EDGES} edges waiting, or more than {PIN_QUEUES} "
+                             "pins driven")
+        self._pin_edges[pin] = queued + times
+        for at in range(0, len(schedule), PIN_CHUNK):
+            edges = b"".join(_EDGE.pack(t, 1 if v else 0) for t, v in schedule[at:at + PIN_CHUNK])
+            self._send(ord("I"), bytes([port, bit, 0, 0]) + edges)
 
     def eeprom(self) -> bytes:
         """An STM32 keeps its settings in flash: the firmware's CONFIG_SECTION as it is now (what the
@@ -557,3 +582,12 @@ class Stm32Engine:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _stm32_pin(mcu: Mcu, pin: str) -> tuple[int, int]:
+    """A pin such as PA0 as (port 0..8 for A..I, bit 0..15), the port one the MCU has."""
+    if len(pin) not in (3, 4) or pin[0] != "P" or pin[1] not in mcu.ports or not pin[2:].isdigit() or \
+            int(pin[2:]) > 15:
+        raise ValueError(f"pin {pin!r}: expected P, a port letter of the {mcu.name} ({mcu.ports}) and a bit "
+                         "0..15")
+    return ord(pin[1]) - ord("A"), int(pin[2:])

@@ -34,6 +34,11 @@ void tim7_handler(void) __attribute__((weak, alias("fault_handler")));
 void bus_fault_handler(void) __attribute__((weak, alias("fault_handler")));
 /* the DMA streams' interrupts: DMA1 stream 0-6 on 11-17 and stream 7 on 47, DMA2 stream 0-4 on 56-60 and
    stream 5-7 on 68-70 */
+void exti0_handler(void) __attribute__((weak, alias("fault_handler")));
+void exti1_handler(void) __attribute__((weak, alias("fault_handler")));
+void exti2_handler(void) __attribute__((weak, alias("fault_handler")));
+void exti9_5_handler(void) __attribute__((weak, alias("fault_handler")));
+void exti15_10_handler(void) __attribute__((weak, alias("fault_handler")));
 void dma1_stream0_handler(void) __attribute__((weak, alias("fault_handler")));
 void dma1_stream2_handler(void) __attribute__((weak, alias("fault_handler")));
 void dma1_stream6_handler(void) __attribute__((weak, alias("fault_handler")));
@@ -84,13 +89,18 @@ __attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 7
     wwdg_handler, /* IRQ 0 */
     F, F, F,      /* IRQ 1-3 */
     flash_handler, /* IRQ 4 */
-    F, F, F, F, F, F, /* IRQ 5-10 */
+    F,            /* IRQ 5 */
+    exti0_handler, /* IRQ 6 */
+    exti1_handler, /* IRQ 7 */
+    exti2_handler, /* IRQ 8 */
+    F, F,          /* IRQ 9-10: EXTI3, EXTI4 */
     dma1_stream0_handler, /* IRQ 11 */
     F,                    /* IRQ 12: DMA1 stream 1 */
     dma1_stream2_handler, /* IRQ 13 */
     F, F, F,              /* IRQ 14-16: DMA1 stream 3-5 */
     dma1_stream6_handler, /* IRQ 17 */
-    F, F, F, F, F, F,     /* IRQ 18-23 */
+    F, F, F, F, F,                                  /* IRQ 18-22 */
+    exti9_5_handler, /* IRQ 23 */
     tim1_brk_tim9_handler, /* IRQ 24 */
     tim1_up_tim10_handler, /* IRQ 25 */
     tim1_trg_com_tim11_handler, /* IRQ 26 */
@@ -100,7 +110,9 @@ __attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 7
     tim4_handler, /* IRQ 30 */
     i2c1_ev_handler, /* IRQ 31 */
     i2c1_er_handler, /* IRQ 32 */
-    F, F, F, F, F, F, F, F, F, F,                   /* IRQ 33-42 */
+    F, F, F, F, F, F, F,                            /* IRQ 33-39 */
+    exti15_10_handler, /* IRQ 40 */
+    F, F,                                           /* IRQ 41-42 */
     tim8_brk_tim12_handler, /* IRQ 43 */
     tim8_up_tim13_handler, /* IRQ 44 */
     tim8_trg_com_tim14_handler, /* IRQ 45 */
