@@ -20,10 +20,11 @@
  * not read are dropped at the STOP or the next START, and the session takes its chip core back to where
  * the master left it (a chip's register pointer and FIFO move with each byte read).
  *
- * The USARTs (QEMU's, USART1..USART6 of the SoC) are ringbuf chardevs named rig-usart1..rig-usart6: what
- * the firmware sent since the last stop goes to the session before each "reached", and bytes the session
- * gives a USART reach its receiver one at a time, each at the end of its frame (start, 8 data bits,
- * parity, stop bits at the session's baud), after the bytes before it.
+ * The USARTs (rig_stm32_usart.c, /machine/usart1..usart6) send into ringbuf chardevs named rig-usart1..
+ * rig-usart6: what the firmware sent since the last stop goes to the session before each "reached". Bytes
+ * the session gives a USART go onto its RX line one frame at a time (start, 8 data bits, parity, stop bits
+ * at the session's baud), each frame from its start, after the bytes before it; the USART's receiver
+ * reads the line with its own set-up, so a sender's wrong baud or parity gives the chip's errors.
  *
  * Messages, both ways: a header of the kind (1 byte), 3 zero bytes and the payload's length (u32), then
  * the payload; little-endian; every length is checked against the kind's (a bad message ends QEMU with
@@ -56,13 +57,18 @@
 #define LINK_UART_CHUNK 512 /* bytes read from a ringbuf at a time (base64 in QEMU's API) */
 #define LINK_READS 120      /* bytes read ahead and taken, told in one MSG_I2C_READS (its u64 times) */
 
-/* the bytes waiting for one USART's receiver, each with the virtual time its frame ends */
+/* the bytes waiting for one USART's receiver, each with the virtual time its frame starts and the frame's
+ * baud, parity and stop bits */
 typedef struct {
     RigLinkState *link;
-    Chardev *chr;
+    DeviceState *usart; /* the machine's /machine/usartN (none: the chip lacks it) */
+    Chardev *chr;       /* rig-usartN, where the USART puts what it sends */
     QEMUTimer *timer;
     uint8_t bytes[LINK_RX_BYTES];
     int64_t at_ns[LINK_RX_BYTES];
+    uint32_t baud[LINK_RX_BYTES];
+    char parity[LINK_RX_BYTES];
+    uint8_t stop_bits[LINK_RX_BYTES];
     uint32_t head, len;
     int64_t busy_until_ns; /* when the last byte queued ends */
 } LinkUart;
@@ -80,12 +86,15 @@ typedef struct {
 #define MSG_I2C_STOP 'P'  /* u64 t_ns */
 #define MSG_UART_SENT 'T' /* u8 USART 1..6, the bytes the firmware sent */
 /* session -> QEMU */
-#define MSG_CONFIG 'C'  /* u8 n, n x (u8 timer 1..14, u8 output 0..6: CH1..CH4, CH1N..CH3N) */
-#define MSG_GO 'G'      /* u64 t_ns: run until then */
-#define MSG_UART_RX 'U' /* u8 USART 1..6, 3 zero bytes, u32 frame_ns, the bytes (from now, after those queued) */
-#define MSG_QUIT 'Q'    /* (none) */
-#define MSG_ACK 'a'     /* u8 acknowledged, then the bytes ahead (a read START) */
-#define MSG_BYTE 'b'    /* the byte read, then the bytes ahead */
+#define MSG_CONFIG 'C' /* u8 n, n x (u8 timer 1..14, u8 output 0..6: CH1..CH4, CH1N..CH3N) */
+#define MSG_GO 'G'     /* u64 t_ns: run until then */
+/* u8 USART 1..6, 3 zero bytes, u32 frame_ns, u32 baud, u8 parity ('N', 'E', 'O'), u8 stop bits (1, 2), 2 zero
+ * bytes, the bytes (from now, after those queued, one each frame_ns) */
+#define MSG_UART_RX 'U'
+#define UART_RX_HEADER 16
+#define MSG_QUIT 'Q' /* (none) */
+#define MSG_ACK 'a'  /* u8 acknowledged, then the bytes ahead (a read START) */
+#define MSG_BYTE 'b' /* the byte read, then the bytes ahead */
 
 OBJECT_DECLARE_SIMPLE_TYPE(RigLinkState, RIG_LINK)
 
@@ -188,16 +197,23 @@ static void link_configure(RigLinkState *s, const uint8_t *p, uint32_t len)
     }
     s->n_motors = p[0];
     s->configured = true;
+    for (unsigned n = 1; n <= LINK_UARTS; n++) { /* (the machine makes its USARTs after the link) */
+        g_autofree char *path = g_strdup_printf("/machine/usart%u", n);
+        Object *usart = object_resolve_path(path, NULL);
+        s->uarts[n - 1].usart = usart ? DEVICE(usart) : NULL;
+    }
 }
 
-/* The head byte into the USART's receiver at its time, and the next one's time armed */
+/* The head byte's frame begins on the USART's RX line (the USART reads it as its own set-up makes it),
+ * and the next one's start armed */
 static void link_uart_deliver(void *opaque)
 {
     LinkUart *u = opaque;
     if (u->len == 0) {
         return;
     }
-    qemu_chr_be_write(u->chr, &u->bytes[u->head], 1);
+    uint32_t h = u->head;
+    rig_stm32_usart_receive(u->usart, u->bytes[h], u->baud[h], u->parity[h], u->stop_bits[h]);
     u->head = (u->head + 1) % LINK_RX_BYTES;
     u->len--;
     if (u->len) {
@@ -207,19 +223,28 @@ static void link_uart_deliver(void *opaque)
 
 static void link_uart_receive(RigLinkState *s, const uint8_t *p, uint32_t len)
 {
-    unsigned n = len >= 8 ? p[0] : 0;
+    unsigned n = len >= UART_RX_HEADER ? p[0] : 0;
     LinkUart *u = n >= 1 && n <= LINK_UARTS ? &s->uarts[n - 1] : NULL;
-    uint32_t frame_ns = len >= 8 ? ldl_le_p(p + 4) : 0;
-    if (u == NULL || u->chr == NULL || p[1] || p[2] || p[3] || frame_ns == 0 || u->len + (len - 8) > LINK_RX_BYTES) {
-        link_fail("UART: no such USART, a bad frame time or more than 4096 bytes waiting");
+    if (u == NULL || u->usart == NULL || p[1] || p[2] || p[3] || p[14] || p[15]) {
+        link_fail("UART: no such USART, or a malformed frame description");
+    }
+    uint32_t frame_ns = ldl_le_p(p + 4), baud = ldl_le_p(p + 8);
+    char parity = (char)p[12];
+    uint8_t stop_bits = p[13];
+    if (frame_ns == 0 || baud == 0 || (parity != 'N' && parity != 'E' && parity != 'O') ||
+        (stop_bits != 1 && stop_bits != 2) || u->len + (len - UART_RX_HEADER) > LINK_RX_BYTES) {
+        link_fail("UART: a bad frame time, baud, parity or stop bits, or more than 4096 bytes waiting");
     }
     int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
     int64_t t = u->busy_until_ns > now ? u->busy_until_ns : now;
-    for (uint32_t i = 8; i < len; i++) {
+    for (uint32_t i = UART_RX_HEADER; i < len; i++) {
         uint32_t slot = (u->head + u->len++) % LINK_RX_BYTES;
-        t += frame_ns;
         u->bytes[slot] = p[i];
         u->at_ns[slot] = t;
+        u->baud[slot] = baud;
+        u->parity[slot] = parity;
+        u->stop_bits[slot] = stop_bits;
+        t += frame_ns;
     }
     u->busy_until_ns = t;
     if (u->len) {
@@ -231,7 +256,7 @@ static void link_uart_receive(RigLinkState *s, const uint8_t *p, uint32_t len)
 static void link_uart_send_sent(RigLinkState *s)
 {
     for (unsigned n = 1; n <= LINK_UARTS; n++) {
-        if (s->uarts[n - 1].chr == NULL) {
+        if (s->uarts[n - 1].chr == NULL || s->uarts[n - 1].usart == NULL) {
             continue;
         }
         g_autofree char *id = g_strdup_printf("rig-usart%u", n);

@@ -179,12 +179,19 @@ static uint64_t hclk_hz(const RigStm32RccState *s)
     return (hpre & 0x8) ? hz >> shift[hpre & 0x7] : hz;
 }
 
-uint64_t rig_stm32_rcc_timer_hz(RigStm32RccState *rcc, unsigned apb)
+uint64_t rig_stm32_rcc_pclk_hz(RigStm32RccState *rcc, unsigned apb)
 {
     /* PPRE1 (bits 12:10) and PPRE2 (15:13): 0xx: /1; 100..111: /2, /4, /8, /16 */
     unsigned ppre = rcc->regs[R_CFGR] >> (apb == 1 ? 10 : 13) & 0x7;
     uint64_t hz = hclk_hz(rcc);
-    return (ppre & 0x4) ? (hz >> ((ppre & 0x3) + 1)) * 2 : hz;
+    return (ppre & 0x4) ? hz >> ((ppre & 0x3) + 1) : hz;
+}
+
+uint64_t rig_stm32_rcc_timer_hz(RigStm32RccState *rcc, unsigned apb)
+{
+    unsigned ppre = rcc->regs[R_CFGR] >> (apb == 1 ? 10 : 13) & 0x7;
+    uint64_t hz = rig_stm32_rcc_pclk_hz(rcc, apb);
+    return (ppre & 0x4) ? hz * 2 : hz;
 }
 
 /* The hardware's side of CR, BDCR, CSR and CFGR.SWS after a write */

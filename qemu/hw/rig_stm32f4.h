@@ -59,6 +59,9 @@ struct RigStm32RccState {
 /* Whether the clock of bit @bit of the enable register at @enr_offset (AHB1ENR, APB1ENR, ...) is on */
 bool rig_stm32_rcc_enabled(RigStm32RccState *rcc, hwaddr enr_offset, unsigned bit);
 
+/* PCLK1 (@apb 1) or PCLK2 (@apb 2) in Hz: HCLK through the APB prescaler (RM0090 7.2) */
+uint64_t rig_stm32_rcc_pclk_hz(RigStm32RccState *rcc, unsigned apb);
+
 /* The timer clock of APB1 (@apb 1) or APB2 (@apb 2) in Hz: PCLKx, doubled when the APB prescaler is not 1
  * (RM0090 7.2, figure 21) */
 uint64_t rig_stm32_rcc_timer_hz(RigStm32RccState *rcc, unsigned apb);
@@ -230,6 +233,13 @@ struct RigStm32TimerState {
     qemu_irq pulse_ns[RIG_TIM_OUTPUTS]; /* "pulse-ns": each output's latched high time in ns */
 };
 
+/* A USART or UART (RM0090 section 30, rig_stm32_usart.c): qdev GPIO outputs "dma-rx" (RXNE with
+ * CR3.DMAR) and "dma-tx" (TXE with CR3.DMAT) are its DMA requests */
+#define TYPE_RIG_STM32_USART "rig-stm32f4-usart"
+/* A frame begins now on the USART's RX line, after the sender's frames before it: the start bit, @byte's
+ * 8 data bits, a parity bit ('E' even, 'O' odd, 'N' none) and @stop_bits stop bits at @baud */
+void rig_stm32_usart_receive(DeviceState *dev, uint8_t byte, uint32_t baud, char parity, unsigned stop_bits);
+
 /* The GY-86 board (MPU-6050 at 0x68, the HMC5883L behind its bypass, MS5611 at 0x77): the rig's chip
  * core as one I2C slave that answers the addresses the chip core acknowledges */
 #define TYPE_RIG_GY86 "rig-gy86"
@@ -271,6 +281,7 @@ typedef struct RigStm32Chip {
     uint32_t flash_size;                /* bytes at 0x08000000 (and aliased at 0) */
     uint32_t ccm_size;                  /* the CCM data RAM's bytes at 0x10000000 (QEMU's SoC has none) */
     uint16_t timers;                    /* bit n: TIMn */
+    uint8_t usarts;                     /* bit n: USARTn (UART4, UART5 among them) */
     uint16_t port_pins[RIG_GPIO_PORTS]; /* each port's pins (bit n: Pxn); 0: the chip has no such port */
     const RigStm32Region *absent;       /* what the F405 SoC maps and the chip lacks: a bus error there */
     unsigned n_absent;

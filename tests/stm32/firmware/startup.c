@@ -26,6 +26,8 @@ void tim8_cc_handler(void) __attribute__((weak, alias("fault_handler")));
 void tim5_handler(void) __attribute__((weak, alias("fault_handler")));
 void tim6_dac_handler(void) __attribute__((weak, alias("fault_handler")));
 void tim7_handler(void) __attribute__((weak, alias("fault_handler")));
+/* USART1 (NVIC line 37): usart.c */
+void usart1_handler(void) __attribute__((weak, alias("fault_handler")));
 /* the BusFault (exception 5): a firmware that probes absent memory (f411_map.c) defines it */
 void bus_fault_handler(void) __attribute__((weak, alias("fault_handler")));
 
@@ -81,7 +83,9 @@ __attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 5
     tim4_handler, /* IRQ 30 */
     i2c1_ev_handler, /* IRQ 31 */
     i2c1_er_handler, /* IRQ 32 */
-    F, F, F, F, F, F, F, F, F, F,                   /* IRQ 33-42 */
+    F, F, F, F,                                     /* IRQ 33-36 */
+    usart1_handler, /* IRQ 37 */
+    F, F, F, F, F,                                  /* IRQ 38-42 */
     tim8_brk_tim12_handler, /* IRQ 43 */
     tim8_up_tim13_handler, /* IRQ 44 */
     tim8_trg_com_tim14_handler, /* IRQ 45 */
