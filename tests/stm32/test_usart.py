@@ -23,14 +23,15 @@ SBUS = bytes([0x0F, *range(1, 23), 0x00, 0x00])
 SBUS_BIT_CYCLES = HCLK // 100_000
 #: what the session sends and when (ms): SBUS 8E2 at 100000, then a lone 0xFF and the burst FF 00 00 at
 #: 115200 8N1, then three bytes at 22 ms, after the firmware stopped reading (overrun)
-SCHEDULE = [(5, SBUS, 100_000, "E", 2), (10, b"\xff", 115_200, "N", 1), (12, b"\xff\x00\x00", 115_200, "N", 1),
-            (22, b"\x11\x22\x33", 100_000, "E", 2)]
+SCHEDULE = [(5, SBUS, 100_000, "E", 2), (10, b"\xff", 115_200, "N", 1),
+            (12, b"\xff\x00\x00", 115_200, "N", 1), (22, b"\x11\x22\x33", 100_000, "E", 2)]
 
 
 @functools.cache
 def run() -> tuple[str, bytes, bytes]:
     """usart.elf through the link with SCHEDULE's bytes: its output and what USART1 and USART2 sent."""
-    engine = Stm32Engine(Stm32Config(boards.load("stm32f405-gy86"), firmware("usart"), engine_or_skip()), None)
+    cfg = Stm32Config(boards.load("stm32f405-gy86"), firmware("usart"), engine_or_skip())
+    engine = Stm32Engine(cfg, None)
     sent1, sent2 = bytearray(), bytearray()
     try:
         stop = None
@@ -60,10 +61,12 @@ def test_registers_at_reset_with_ones_and_after_an_rcc_reset() -> None:
     r = reports(run()[0])
     # RM0090 table 146: SR resets to 0x00C0 (TXE, TC), the others to 0
     for prefix in ("reset_", "rst_"):
-        assert [r[prefix + n] for n in ("sr", "dr", "brr", "cr1", "cr2", "cr3", "gtpr")] == [0xC0, 0, 0, 0, 0, 0, 0]
+        values = [r[prefix + n] for n in ("sr", "dr", "brr", "cr1", "cr2", "cr3", "gtpr")]
+        assert values == [0xC0, 0, 0, 0, 0, 0, 0]
     assert r["w0_sr"] == TXE  # 30.6.1: TC is rc_w0, TXE read only
-    # writable bits (30.6.3-30.6.7): BRR 16 bits; CR1 all but bit 14 (TXEIE, TCIE left 0 by the firmware;
-    # SBK, bit 0, ends at once: the model sends no break); CR2 bits 14:8, 6:5, 3:0; CR3 bits 11:0; GTPR 16 bits
+    # writable bits (30.6.3-30.6.7): BRR 16 bits; CR1 all but bit 14 (TXEIE, TCIE left 0 by the
+    # firmware; SBK, bit 0, ends at once: the model sends no break); CR2 bits 14:8, 6:5, 3:0; CR3 bits
+    # 11:0; GTPR 16 bits
     assert (r["ones_brr"], r["ones_cr1"], r["ones_cr2"], r["ones_cr3"], r["ones_gtpr"]) == \
         (0xFFFF, 0xBFFF & ~(TXE | TC | 1), 0x7F6F, 0x0FFF, 0xFFFF)
     # UART4: no CLKEN/CPOL/CPHA/LBCL, no CTSIE/CTSE/RTSE/SCEN/NACK, no GTPR (30.6: "not available")
@@ -104,7 +107,7 @@ def test_sbus_frames_arrive_without_error_then_idle() -> None:
         # 30.3.7: with PCE and M = 1 the ninth bit read is the parity bit, even parity by PS = 0
         assert (sr & ERRORS_AND_RX, dr) == (RXNE, byte | (bin(byte).count("1") & 1) << 8)
     # one byte each 120 us frame (exact to the cycle, the interrupt's latency being the same each time)
-    assert all(abs(b[2] - a[2] - 12 * SBUS_BIT_CYCLES) <= 1 for a, b in zip(rx, rx[1:]))
+    assert all(abs(b[2] - a[2] - 12 * SBUS_BIT_CYCLES) <= 1 for a, b in zip(rx, rx[1:], strict=False))
     # the first at 5 ms + 10.5 bits (less the cycles before main enabled DWT's counter)
     assert 0 <= (5 * MS * HCLK // 1_000_000_000 + 105 * SBUS_BIT_CYCLES // 10) - rx[0][2] < 200
     # IDLE (30.6.1): a whole frame of idle line after the last frame's end (which is 1.5 bits after RXNE)
