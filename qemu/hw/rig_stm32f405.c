@@ -1,9 +1,10 @@
 /*
- * rig-stm32f405: QEMU's STM32F405 SoC (Cortex-M4F with NVIC and SysTick, its USARTs, TIM2-5, ADCs, SPIs,
+ * rig-stm32f405: QEMU's STM32F405 SoC (Cortex-M4F with NVIC and SysTick, TIM2-5, ADCs, SPIs,
  * SYSCFG and EXTI) with the rig's models mapped over the regions that SoC leaves unimplemented: RCC,
  * PWR, the FLASH interface, GPIO A..I, I2C1 (RM0090) with the GY-86 board (the rig's chip core) on its
  * bus, the timers TIM1-TIM14 (over QEMU's TIM2-TIM5, which only count) with their channels on the pins
- * of the datasheet's alternate function table, and the core's DWT cycle counter. The RCC's AHB clock
+ * of the datasheet's alternate function table, USART1-USART6 (over QEMU's, which get no chardev: ours send
+ * into the chardevs named rig-usart1..rig-usart6), and the core's DWT cycle counter. The RCC's AHB clock
  * drives the core, SysTick and DWT, so the machine starts at 16 MHz (HSI) as the chip does, and runs at
  * what the firmware sets up (168 MHz from an 8 MHz crystal: -global rig-stm32f4-rcc.hse-hz=N for another).
  * The machine's "wires" property joins pins as a board's traces or a test's jumper wires do: -M
