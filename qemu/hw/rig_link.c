@@ -22,9 +22,10 @@
  *
  * The USARTs (rig_stm32_usart.c, /machine/usart1..usart6) send into ringbuf chardevs named rig-usart1..
  * rig-usart6: what the firmware sent since the last stop goes to the session before each "reached". Bytes
- * the session gives a USART go onto its RX line one frame at a time (start, 8 data bits, parity, stop bits
- * at the session's baud), each frame from its start, after the bytes before it; the USART's receiver
- * reads the line with its own set-up, so a sender's wrong baud or parity gives the chip's errors.
+ * the session gives a USART are frames on its RX line one after another (start, 8 data bits, parity,
+ * stop bits at the session's baud) from now, after the bytes before them, handed to the USART at once
+ * with their start times; its receiver reads the line with its own set-up, so a sender's wrong baud or
+ * parity gives the chip's errors.
  *
  * Messages, both ways: a header of the kind (1 byte), 3 zero bytes and the payload's length (u32), then
  * the payload; little-endian; every length is checked against the kind's (a bad message ends QEMU with
@@ -53,24 +54,15 @@
 #define LINK_MAX_PAYLOAD 1024
 #define LINK_MOTORS 8
 #define LINK_UARTS 6
-#define LINK_RX_BYTES 4096
 #define LINK_UART_CHUNK 512 /* bytes read from a ringbuf at a time (base64 in QEMU's API) */
 #define LINK_READS 120      /* bytes read ahead and taken, told in one MSG_I2C_READS (its u64 times) */
 
-/* the bytes waiting for one USART's receiver, each with the virtual time its frame starts and the frame's
- * baud, parity and stop bits */
+/* One USART's receiving side: the frames are handed to the USART as they come, with their start times
+ * (the USART holds what its line will carry; a QEMU timer per byte here cost a main-loop wake-up each) */
 typedef struct {
-    RigLinkState *link;
-    DeviceState *usart; /* the machine's /machine/usartN (none: the chip lacks it) */
-    Chardev *chr;       /* rig-usartN, where the USART puts what it sends */
-    QEMUTimer *timer;
-    uint8_t bytes[LINK_RX_BYTES];
-    int64_t at_ns[LINK_RX_BYTES];
-    uint32_t baud[LINK_RX_BYTES];
-    char parity[LINK_RX_BYTES];
-    uint8_t stop_bits[LINK_RX_BYTES];
-    uint32_t head, len;
-    int64_t busy_until_ns; /* when the last byte queued ends */
+    DeviceState *usart;    /* the machine's /machine/usartN (none: the chip lacks it) */
+    Chardev *chr;          /* rig-usartN, where the USART puts what it sends */
+    int64_t busy_until_ns; /* when the last frame given ends */
 } LinkUart;
 
 /* QEMU -> session */
@@ -204,23 +196,7 @@ static void link_configure(RigLinkState *s, const uint8_t *p, uint32_t len)
     }
 }
 
-/* The head byte's frame begins on the USART's RX line (the USART reads it as its own set-up makes it),
- * and the next one's start armed */
-static void link_uart_deliver(void *opaque)
-{
-    LinkUart *u = opaque;
-    if (u->len == 0) {
-        return;
-    }
-    uint32_t h = u->head;
-    rig_stm32_usart_receive(u->usart, u->bytes[h], u->baud[h], u->parity[h], u->stop_bits[h]);
-    u->head = (u->head + 1) % LINK_RX_BYTES;
-    u->len--;
-    if (u->len) {
-        timer_mod(u->timer, u->at_ns[u->head]);
-    }
-}
-
+/* The bytes' frames onto the USART's RX line, one after another from now or the end of those before */
 static void link_uart_receive(RigLinkState *s, const uint8_t *p, uint32_t len)
 {
     unsigned n = len >= UART_RX_HEADER ? p[0] : 0;
@@ -232,24 +208,18 @@ static void link_uart_receive(RigLinkState *s, const uint8_t *p, uint32_t len)
     char parity = (char)p[12];
     uint8_t stop_bits = p[13];
     if (frame_ns == 0 || baud == 0 || (parity != 'N' && parity != 'E' && parity != 'O') ||
-        (stop_bits != 1 && stop_bits != 2) || u->len + (len - UART_RX_HEADER) > LINK_RX_BYTES) {
-        link_fail("UART: a bad frame time, baud, parity or stop bits, or more than 4096 bytes waiting");
+        (stop_bits != 1 && stop_bits != 2)) {
+        link_fail("UART: a bad frame time, baud, parity or stop bits");
     }
     int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
     int64_t t = u->busy_until_ns > now ? u->busy_until_ns : now;
     for (uint32_t i = UART_RX_HEADER; i < len; i++) {
-        uint32_t slot = (u->head + u->len++) % LINK_RX_BYTES;
-        u->bytes[slot] = p[i];
-        u->at_ns[slot] = t;
-        u->baud[slot] = baud;
-        u->parity[slot] = parity;
-        u->stop_bits[slot] = stop_bits;
+        if (!rig_stm32_usart_receive(u->usart, p[i], t, baud, parity, stop_bits)) {
+            link_fail("UART: more than 4096 bytes waiting for a USART");
+        }
         t += frame_ns;
     }
     u->busy_until_ns = t;
-    if (u->len) {
-        timer_mod(u->timer, u->at_ns[u->head]);
-    }
 }
 
 /* What the firmware sent on each USART since the last stop */
@@ -411,10 +381,7 @@ static void link_realize(DeviceState *dev, Error **errp)
     s->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, link_reached, s);
     for (unsigned n = 1; n <= LINK_UARTS; n++) {
         g_autofree char *id = g_strdup_printf("rig-usart%u", n);
-        LinkUart *u = &s->uarts[n - 1];
-        u->link = s;
-        u->chr = qemu_chr_find(id);
-        u->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, link_uart_deliver, u);
+        s->uarts[n - 1].chr = qemu_chr_find(id);
     }
     uint8_t hello[2];
     stw_le_p(hello, LINK_VERSION);

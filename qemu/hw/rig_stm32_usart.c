@@ -9,8 +9,8 @@
  * frame with none waiting. Setting TE sends an idle frame first (30.3.2). Each byte goes to the USART's
  * chardev when its frame ends; nothing else reaches QEMU's main loop.
  *
- * Receiver: the sender's frames (rig_stm32_usart_receive, at each frame's start: its bits and baud) make
- * the line's level in time, and the receiver reads it as the chip does (30.3.3): a falling edge starts a
+ * Receiver: the sender's frames (rig_stm32_usart_receive: each frame's start, bits and baud, given ahead)
+ * make the line's level in time, and the receiver reads it as the chip does (30.3.3): a falling edge starts a
  * frame, each bit is sampled at its middle (three samples, the majority taken; NF when they differ,
  * unless ONEBIT), the parity checked (PE) and the stop bit sampled (FE when low). So a sender whose baud,
  * word length or parity differ from the set-up gives the errors the chip gives: its bits fall where the
@@ -108,7 +108,7 @@ typedef struct {
     uint8_t n_bits;
     uint16_t bits; /* bit i: the level of the i-th bit on the wire */
 } UsartFrame;
-#define FRAMES 16
+#define FRAMES RIG_USART_FRAMES
 
 typedef struct RigStm32UsartState {
     SysBusDevice parent_obj;
@@ -265,8 +265,8 @@ static bool sample_bit(const RigStm32UsartState *s, int64_t start, unsigned k, b
 }
 
 /* What the receiver sees next: a frame (its data and error flags at *at, the stop bit's middle) or IDLE
- * (flags SR_IDLE); false when the line stays idle. The line after the sender's last frame is taken as
- * idle: a frame that comes later makes the next look again. */
+ * (flags SR_IDLE); false when the line stays idle. The line after the sender's last frame is idle: a frame
+ * given later starts after now, and makes the next look again. */
 static bool rx_next(const RigStm32UsartState *s, int64_t *at, uint16_t *data, uint32_t *flags)
 {
     int64_t idle_at = s->idle_armed ? s->idle_from_ns + bit_ns(s, frame_sixteenths(s)) : INT64_MAX;
@@ -386,14 +386,14 @@ static void usarts_sync(void *opaque)
     }
 }
 
-void rig_stm32_usart_receive(DeviceState *dev, uint8_t byte, uint32_t baud, char parity, unsigned stop_bits)
+bool rig_stm32_usart_receive(DeviceState *dev, uint8_t byte, int64_t start_ns, uint32_t baud, char parity,
+                             unsigned stop_bits)
 {
     RigStm32UsartState *s = RIG_STM32_USART(dev);
     int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
     catch_up(s);
-    if (s->n_frames == FRAMES) { /* the receiver lags a frame at most: only a stopped clock keeps them */
-        s->frame_head = (s->frame_head + 1) % FRAMES;
-        s->n_frames--;
+    if (s->n_frames == FRAMES) {
+        return false;
     }
     UsartFrame *f = &s->frames[(s->frame_head + s->n_frames++) % FRAMES];
     unsigned n = 1 + 8;
@@ -406,10 +406,11 @@ void rig_stm32_usart_receive(DeviceState *dev, uint8_t byte, uint32_t baud, char
     }
     f->n_bits = (uint8_t)n;
     f->baud = MAX(baud, 1);
-    f->start_ns = MAX(now, s->line_end_ns);
+    f->start_ns = MAX(MAX(start_ns, now), s->line_end_ns);
     s->line_end_ns = f->start_ns + (int64_t)muldiv64(n, NS, f->baud);
     update_irqs(s);
     arm(s);
+    return true;
 }
 
 static uint64_t usart_read(void *opaque, hwaddr offset, unsigned size)
@@ -532,8 +533,8 @@ static void usart_reset(DeviceState *dev)
     s->sr_seen = 0;
     s->tdr = 0;
     s->tx_busy = s->tx_idle_frame = s->idle_armed = false;
-    s->n_frames = 0; /* the sender's frames still on the line are not seen */
-    s->rx_pos_ns = s->line_end_ns = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    /* (the sender's frames stay: the line is outside the chip; those before now go unseen) */
+    s->rx_pos_ns = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
     update_irqs(s);
 }
 

@@ -236,9 +236,12 @@ struct RigStm32TimerState {
 /* A USART or UART (RM0090 section 30, rig_stm32_usart.c): qdev GPIO outputs "dma-rx" (RXNE with
  * CR3.DMAR) and "dma-tx" (TXE with CR3.DMAT) are its DMA requests */
 #define TYPE_RIG_STM32_USART "rig-stm32f4-usart"
-/* A frame begins now on the USART's RX line, after the sender's frames before it: the start bit, @byte's
- * 8 data bits, a parity bit ('E' even, 'O' odd, 'N' none) and @stop_bits stop bits at @baud */
-void rig_stm32_usart_receive(DeviceState *dev, uint8_t byte, uint32_t baud, char parity, unsigned stop_bits);
+/* A frame on the USART's RX line from @start_ns (not before now, nor before the end of the frames given
+ * before): the start bit, @byte's 8 data bits, a parity bit ('E' even, 'O' odd, 'N' none) and @stop_bits
+ * stop bits at @baud. False when the USART holds RIG_USART_FRAMES frames not yet over. */
+#define RIG_USART_FRAMES 4096
+bool rig_stm32_usart_receive(DeviceState *dev, uint8_t byte, int64_t start_ns, uint32_t baud, char parity,
+                             unsigned stop_bits);
 
 /* The GY-86 board (MPU-6050 at 0x68, the HMC5883L behind its bypass, MS5611 at 0x77): the rig's chip
  * core as one I2C slave that answers the addresses the chip core acknowledges */
