@@ -21,10 +21,11 @@ ERRORS_AND_RX = 0x3F  # PE, FE, NF, ORE, IDLE, RXNE: what the receiver sets
 SBUS = bytes([0x0F, *range(1, 23), 0x00, 0x00])
 #: RM0090 30.3.3: RXNE comes at the stop bit's sampling, its middle: 10.5 bits of a 12-bit 8E2 frame
 SBUS_BIT_CYCLES = HCLK // 100_000
-#: what the session sends and when (ms): SBUS 8E2 at 100000, then a lone 0xFF and the burst FF 00 00 at
-#: 115200 8N1, then three bytes at 22 ms, after the firmware stopped reading (overrun)
+#: what the session sends and when (ms): SBUS 8E2 at 100000, a lone 0xFF and the burst FF 00 00 at 115200
+#: 8N1, SBUS 8E2 3 % slow and 0x00 5 % slow, then three bytes at 22 ms, after the firmware stopped reading
 SCHEDULE = [(5, SBUS, 100_000, "E", 2), (10, b"\xff", 115_200, "N", 1),
-            (12, b"\xff\x00\x00", 115_200, "N", 1), (22, b"\x11\x22\x33", 100_000, "E", 2)]
+            (12, b"\xff\x00\x00", 115_200, "N", 1), (14, SBUS, 97_000, "E", 2), (18, b"\x00", 95_000, "E", 2),
+            (22, b"\x11\x22\x33", 100_000, "E", 2)]
 
 
 @functools.cache
@@ -127,10 +128,24 @@ def test_bytes_at_another_baud_and_framing_give_the_chips_errors() -> None:
     in the second byte's data bit 1, low: FE (30.6.1: de-synchronisation). The line stays low through the
     second byte's zeros, so the next frame starts at the third byte's start bit (173.6 us): samples up to
     248.6 us low, 258.6 us in its stop bit, 268.6 us idle: DR 0x180, two ones, stop high: no error."""
-    entries = log()[26:]
+    entries = log()[26:31]
     flags = [(sr & ERRORS_AND_RX, dr) for sr, dr, _ in entries]
     assert flags == [(RXNE | PE, 0x1FF), (IDLE, 0x1FF), (RXNE | FE, 0x0FF), (RXNE, 0x180), (IDLE, 0x180)]
     assert not any(sr & NF for sr, _, _ in entries)  # every sample group falls within one bit
+
+
+def test_the_baud_tolerance_is_the_sampling_points() -> None:
+    """30.3.5 (receiver's tolerance to clock deviation): a sender 3 % slow (97000 baud, bit 10.31 us)
+    still has every sample group inside one bit (the last, the stop bit's 10.56 bit times, falls before
+    10.31 x 11 us and after 10.31 x 10): SBUS arrives clean, within RM0090's 3.41 % for 9-bit words.
+    5 % slow (95000, bit 10.53 us), 0x00 (its even parity bit 0): the stop bit's samples at 104.4, 105
+    and 105.6 us fall in the parity bit (low, to 105.3 us) twice and in the stop bit once: FE by the
+    majority, NF as they differ."""
+    entries = log()[31:]
+    assert [(sr & ERRORS_AND_RX, dr) for sr, dr, _ in entries[:25]] == \
+        [(RXNE, b | (bin(b).count("1") & 1) << 8) for b in SBUS]
+    assert [(sr & ERRORS_AND_RX, dr) for sr, dr, _ in entries[25:]] == \
+        [(IDLE, 0), (RXNE | FE | NF, 0), (IDLE, 0)]
 
 
 def test_a_byte_not_read_is_overrun() -> None:
