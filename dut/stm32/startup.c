@@ -11,6 +11,9 @@ void reset_handler(void);
 void fault_handler(void);
 void systick_handler(void);
 void usart1_handler(void);
+/* the telemetry's USART (USART2 on the Black Pill, USART6 on the F405 board): the one in use is defined */
+void usart2_handler(void) __attribute__((weak, alias("fault_handler")));
+void usart6_handler(void) __attribute__((weak, alias("fault_handler")));
 
 void reset_handler(void)
 {
@@ -34,8 +37,8 @@ void fault_handler(void)
 
 #define F fault_handler
 // clang-format off
-/* the core's 16 exceptions, then the STM32F405's interrupts up to USART1 (IRQ 37, RM0090 table 61) */
-__attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 38])(void) = {
+/* the core's 16 exceptions, then the STM32F405's interrupts up to USART6 (IRQ 71, RM0090 table 61) */
+__attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 72])(void) = {
     (void (*)(void))(uintptr_t)&__stack,
     reset_handler,
     F, F, F, F, F, /* NMI, HardFault, MemManage, BusFault, UsageFault */
@@ -46,5 +49,9 @@ __attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 3
     F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, /* IRQ 16-31 */
     F, F, F, F, F,                                  /* IRQ 32-36 */
     usart1_handler,                                 /* IRQ 37 */
+    usart2_handler,                                 /* IRQ 38 */
+    F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, /* IRQ 39-54 */
+    F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, /* IRQ 55-70 */
+    usart6_handler,                                 /* IRQ 71 */
 };
 // clang-format on

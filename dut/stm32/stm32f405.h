@@ -210,6 +210,7 @@
 #define USART_CR1_RE (1u << 2)
 #define USART_CR1_TE (1u << 3)
 #define USART_CR1_RXNEIE (1u << 5)
+#define USART_CR1_TXEIE (1u << 7)
 #define USART_CR1_PCE (1u << 10)
 #define USART_CR1_M (1u << 12)
 #define USART_CR1_UE (1u << 13)
@@ -218,6 +219,8 @@
 #define RCC_APB2ENR_USART6EN (1u << 5)
 #define RCC_APB1ENR_USART2EN (1u << 17)
 #define USART1_IRQ 37u
+#define USART2_IRQ 38u
+#define USART6_IRQ 71u
 
 #define NVIC_ISER(n) REG(0xE000E100u + 4u * (n))
 #define NVIC_ICER(n) REG(0xE000E180u + 4u * (n))

@@ -1,12 +1,19 @@
-/* The telemetry (telemetry.h), formatted without printf. Each byte waits for TXE, as a blocking HAL
-   transmit does: a 200-byte line at 500000 baud is 4 ms of a 4 ms cycle on the chip, so the loop sends
-   a line every telemetry_every cycles (QEMU's USART takes each byte at once). */
+/* The telemetry (telemetry.h), formatted without printf. A line goes into a ring that the USART's TXE
+   interrupt empties, a byte each frame: a 200-byte line at 500000 baud is 4 ms on the wire, the whole
+   4 ms cycle had the loop waited for TXE as a blocking HAL transmit does. A line that does not fit
+   in the ring is dropped whole (a line every telemetry_every cycles leaves the ring time to drain). */
 #include "telemetry.h"
 
 #include "board.h"
 #include "stm32f405.h"
 
 #define LINE_MAX 240
+#define RING 1024u /* a power of two */
+
+void TELEMETRY_USART_HANDLER(void);
+
+static volatile char ring[RING];
+static volatile uint32_t ring_head, ring_tail; /* written by telemetry_send, by the interrupt */
 
 void telemetry_init(void)
 {
@@ -14,15 +21,29 @@ void telemetry_init(void)
     board_pin_af(TELEMETRY_TX_PORT, TELEMETRY_TX_PIN, TELEMETRY_TX_AF); /* the board's USART TX */
     USART_BRR(TELEMETRY_USART) = (uint32_t)((TELEMETRY_USART_HZ * 2 / TELEMETRY_BAUD + 1) / 2);
     USART_CR1(TELEMETRY_USART) = USART_CR1_UE | USART_CR1_TE;
+    NVIC_ISER(TELEMETRY_USART_IRQ / 32u) = 1u << (TELEMETRY_USART_IRQ % 32u);
 }
 
 void telemetry_send(const char *s, unsigned n)
 {
-    for (unsigned i = 0; i < n; i++) {
-        while (!(USART_SR(TELEMETRY_USART) & USART_SR_TXE))
-            ;
-        USART_DR(TELEMETRY_USART) = (uint8_t)s[i];
+    uint32_t head = ring_head;
+    if (RING - (head - ring_tail) < n)
+        return;
+    for (unsigned i = 0; i < n; i++)
+        ring[(head + i) % RING] = s[i];
+    ring_head = head + n;
+    USART_CR1(TELEMETRY_USART) |= USART_CR1_TXEIE; /* (an interrupt in between turns it off: it comes back) */
+}
+
+void TELEMETRY_USART_HANDLER(void)
+{
+    uint32_t tail = ring_tail;
+    if (tail == ring_head) {
+        USART_CR1(TELEMETRY_USART) &= ~USART_CR1_TXEIE;
+        return;
     }
+    USART_DR(TELEMETRY_USART) = (uint8_t)ring[tail % RING];
+    ring_tail = tail + 1;
 }
 
 typedef struct {

@@ -18,7 +18,7 @@ typedef struct {
 } tel_counters;
 
 void telemetry_init(void);
-void telemetry_send(const char *s, unsigned n);   /* bytes out, each when the transmitter takes it */
+void telemetry_send(const char *s, unsigned n);   /* bytes queued for the USART (all of them, or none when full) */
 void telemetry_say(const char *a, const char *b); /* "# fc: " a b "\n" */
 void telemetry_line(double t, const flight *fl, const tel_counters *k);
 

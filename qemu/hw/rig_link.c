@@ -22,10 +22,12 @@
  * not read are dropped at the STOP or the next START, and the session takes its chip core back to where
  * the master left it (a chip's register pointer and FIFO move with each byte read).
  *
- * The USARTs (QEMU's, USART1..USART6 of the SoC) are ringbuf chardevs named rig-usart1..rig-usart6: what
- * the firmware sent since the last stop goes to the session before each "reached", and bytes the session
- * gives a USART reach its receiver one at a time, each at the end of its frame (start, 8 data bits,
- * parity, stop bits at the session's baud), after the bytes before it.
+ * The USARTs (rig_stm32_usart.c, /machine/usart1..usart6) send into ringbuf chardevs named rig-usart1..
+ * rig-usart6: what the firmware sent since the last stop goes to the session before each "reached". Bytes
+ * the session gives a USART are frames on its RX line one after another (start, 8 data bits, parity,
+ * stop bits at the session's baud) from now, after the bytes before them, handed to the USART at once
+ * with their start times; its receiver reads the line with its own set-up, so a sender's wrong baud or
+ * parity gives the chip's errors.
  *
  * Input pins the session drives (a PPM sum, a switch) get their levels at the virtual instants the
  * session gives (MSG_PIN_DRIVE), each pin's edges queued as a USART's bytes are, through the GPIO port's
@@ -60,7 +62,6 @@
 #define LINK_MAX_PAYLOAD 1024
 #define LINK_MOTORS 8
 #define LINK_UARTS 6
-#define LINK_RX_BYTES 4096
 #define LINK_UART_CHUNK 512 /* bytes read from a ringbuf at a time (base64 in QEMU's API) */
 #define LINK_READS 120      /* bytes read ahead and taken, told in one MSG_I2C_READS (its u64 times) */
 #define LINK_PIN_QUEUES 9   /* pins driven at once (a PPM sum; a parallel PWM receiver's 8 channels) */
@@ -68,15 +69,12 @@
 #define LINK_PIN_LINES (RIG_GPIO_PORTS * RIG_GPIO_PINS)
 #define LINK_EDGE 9 /* u64 t_ns, u8 level */
 
-/* the bytes waiting for one USART's receiver, each with the virtual time its frame ends */
+/* One USART's receiving side: the frames are handed to the USART as they come, with their start times
+ * (the USART holds what its line will carry; a QEMU timer per byte here cost a main-loop wake-up each) */
 typedef struct {
-    RigLinkState *link;
-    Chardev *chr;
-    QEMUTimer *timer;
-    uint8_t bytes[LINK_RX_BYTES];
-    int64_t at_ns[LINK_RX_BYTES];
-    uint32_t head, len;
-    int64_t busy_until_ns; /* when the last byte queued ends */
+    DeviceState *usart;    /* the machine's /machine/usartN (none: the chip lacks it) */
+    Chardev *chr;          /* rig-usartN, where the USART puts what it sends */
+    int64_t busy_until_ns; /* when the last frame given ends */
 } LinkUart;
 
 /* the edges waiting for one driven pin, each with its virtual time */
@@ -105,10 +103,13 @@ typedef struct {
  * power-on), its CPU's state as the reset came */
 #define MSG_RESET 'X'
 /* session -> QEMU */
-#define MSG_CONFIG 'C'  /* u8 n, n x (u8 timer 1..14, u8 output 0..6: CH1..CH4, CH1N..CH3N) */
-#define MSG_GO 'G'      /* u64 t_ns: run until then */
-#define MSG_UART_RX 'U' /* u8 USART 1..6, 3 zero bytes, u32 frame_ns, the bytes (from now, after those queued) */
-#define MSG_QUIT 'Q'    /* (none) */
+#define MSG_CONFIG 'C' /* u8 n, n x (u8 timer 1..14, u8 output 0..6: CH1..CH4, CH1N..CH3N) */
+#define MSG_GO 'G'     /* u64 t_ns: run until then */
+/* u8 USART 1..6, 3 zero bytes, u32 frame_ns, u32 baud, u8 parity ('N', 'E', 'O'), u8 stop bits (1, 2), 2 zero
+ * bytes, the bytes (from now, after those queued, one each frame_ns) */
+#define MSG_UART_RX 'U'
+#define UART_RX_HEADER 16
+#define MSG_QUIT 'Q' /* (none) */
 /* u8 port 0..8 (A..I), u8 pin 0..15, 2 zero bytes, n x (u64 t_ns, u8 level): edges from now on, ascending,
  * after those queued */
 #define MSG_PIN_DRIVE 'I'
@@ -222,43 +223,37 @@ static void link_configure(RigLinkState *s, const uint8_t *p, uint32_t len)
     }
     s->n_motors = p[0];
     s->configured = true;
-}
-
-/* The head byte into the USART's receiver at its time, and the next one's time armed */
-static void link_uart_deliver(void *opaque)
-{
-    LinkUart *u = opaque;
-    if (u->len == 0) {
-        return;
-    }
-    qemu_chr_be_write(u->chr, &u->bytes[u->head], 1);
-    u->head = (u->head + 1) % LINK_RX_BYTES;
-    u->len--;
-    if (u->len) {
-        timer_mod(u->timer, u->at_ns[u->head]);
+    for (unsigned n = 1; n <= LINK_UARTS; n++) { /* (the machine makes its USARTs after the link) */
+        g_autofree char *path = g_strdup_printf("/machine/usart%u", n);
+        Object *usart = object_resolve_path(path, NULL);
+        s->uarts[n - 1].usart = usart ? DEVICE(usart) : NULL;
     }
 }
 
+/* The bytes' frames onto the USART's RX line, one after another from now or the end of those before */
 static void link_uart_receive(RigLinkState *s, const uint8_t *p, uint32_t len)
 {
-    unsigned n = len >= 8 ? p[0] : 0;
+    unsigned n = len >= UART_RX_HEADER ? p[0] : 0;
     LinkUart *u = n >= 1 && n <= LINK_UARTS ? &s->uarts[n - 1] : NULL;
-    uint32_t frame_ns = len >= 8 ? ldl_le_p(p + 4) : 0;
-    if (u == NULL || u->chr == NULL || p[1] || p[2] || p[3] || frame_ns == 0 || u->len + (len - 8) > LINK_RX_BYTES) {
-        link_fail("UART: no such USART, a bad frame time or more than 4096 bytes waiting");
+    if (u == NULL || u->usart == NULL || p[1] || p[2] || p[3] || p[14] || p[15]) {
+        link_fail("UART: no such USART, or a malformed frame description");
+    }
+    uint32_t frame_ns = ldl_le_p(p + 4), baud = ldl_le_p(p + 8);
+    char parity = (char)p[12];
+    uint8_t stop_bits = p[13];
+    if (frame_ns == 0 || baud == 0 || (parity != 'N' && parity != 'E' && parity != 'O') ||
+        (stop_bits != 1 && stop_bits != 2)) {
+        link_fail("UART: a bad frame time, baud, parity or stop bits");
     }
     int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
     int64_t t = u->busy_until_ns > now ? u->busy_until_ns : now;
-    for (uint32_t i = 8; i < len; i++) {
-        uint32_t slot = (u->head + u->len++) % LINK_RX_BYTES;
+    for (uint32_t i = UART_RX_HEADER; i < len; i++) {
+        if (!rig_stm32_usart_receive(u->usart, p[i], t, baud, parity, stop_bits)) {
+            link_fail("UART: more than 4096 bytes waiting for a USART");
+        }
         t += frame_ns;
-        u->bytes[slot] = p[i];
-        u->at_ns[slot] = t;
     }
     u->busy_until_ns = t;
-    if (u->len) {
-        timer_mod(u->timer, u->at_ns[u->head]);
-    }
 }
 
 /* The head edge onto its pin at its time, and the next one's time armed */
@@ -326,7 +321,7 @@ static void link_pin_receive(RigLinkState *s, const uint8_t *p, uint32_t len)
 static void link_uart_send_sent(RigLinkState *s)
 {
     for (unsigned n = 1; n <= LINK_UARTS; n++) {
-        if (s->uarts[n - 1].chr == NULL) {
+        if (s->uarts[n - 1].chr == NULL || s->uarts[n - 1].usart == NULL) {
             continue;
         }
         g_autofree char *id = g_strdup_printf("rig-usart%u", n);
@@ -517,10 +512,7 @@ static void link_realize(DeviceState *dev, Error **errp)
     s->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, link_reached, s);
     for (unsigned n = 1; n <= LINK_UARTS; n++) {
         g_autofree char *id = g_strdup_printf("rig-usart%u", n);
-        LinkUart *u = &s->uarts[n - 1];
-        u->link = s;
-        u->chr = qemu_chr_find(id);
-        u->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, link_uart_deliver, u);
+        s->uarts[n - 1].chr = qemu_chr_find(id);
     }
     qemu_register_reset(link_system_reset, s);
     for (unsigned i = 0; i < LINK_PIN_QUEUES; i++) {

@@ -1,7 +1,7 @@
 /*
  * The rig's STM32F4 device models (RM0090, the STM32F405/415/407/417 reference manual): RCC and PWR, the
  * FLASH interface and the flash, the independent and window watchdogs, GPIO ports, the DMA controllers,
- * the I2C controllers, the timers TIM1-TIM14, the Cortex-M4's DWT cycle counter, and the GY-86 sensor
+ * the I2C controllers, the timers TIM1-TIM14, the USARTs, the Cortex-M4's DWT cycle counter, and the GY-86 sensor
  * board (the rig's chip core) as an I2C slave.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
@@ -61,7 +61,7 @@ struct RigStm32RccState {
 /* Whether the clock of bit @bit of the enable register at @enr_offset (AHB1ENR, APB1ENR, ...) is on */
 bool rig_stm32_rcc_enabled(RigStm32RccState *rcc, hwaddr enr_offset, unsigned bit);
 
-/* PCLK1 (@apb 1) or PCLK2 (@apb 2) in Hz: HCLK / PPREx */
+/* PCLK1 (@apb 1) or PCLK2 (@apb 2) in Hz: HCLK through the APB prescaler (RM0090 7.2) */
 uint64_t rig_stm32_rcc_pclk_hz(RigStm32RccState *rcc, unsigned apb);
 
 /* The timer clock of APB1 (@apb 1) or APB2 (@apb 2) in Hz: PCLKx, doubled when the APB prescaler is not 1
@@ -362,6 +362,16 @@ struct RigStm32TimerState {
     uint8_t burst;                      /* the DMAR burst's next register, from DCR.DBA */
 };
 
+/* A USART or UART (RM0090 section 30, rig_stm32_usart.c): qdev GPIO outputs "dma-rx" (RXNE with
+ * CR3.DMAR) and "dma-tx" (TXE with CR3.DMAT) are its DMA requests */
+#define TYPE_RIG_STM32_USART "rig-stm32f4-usart"
+/* A frame on the USART's RX line from @start_ns (not before now, nor before the end of the frames given
+ * before): the start bit, @byte's 8 data bits, a parity bit ('E' even, 'O' odd, 'N' none) and @stop_bits
+ * stop bits at @baud. False when the USART holds RIG_USART_FRAMES frames not yet over. */
+#define RIG_USART_FRAMES 4096
+bool rig_stm32_usart_receive(DeviceState *dev, uint8_t byte, int64_t start_ns, uint32_t baud, char parity,
+                             unsigned stop_bits);
+
 /* The GY-86 board (MPU-6050 at 0x68, the HMC5883L behind its bypass, MS5611 at 0x77): the rig's chip
  * core as one I2C slave that answers the addresses the chip core acknowledges */
 #define TYPE_RIG_GY86 "rig-gy86"
@@ -403,6 +413,7 @@ typedef struct RigStm32Chip {
     uint32_t flash_size;                /* bytes at 0x08000000 (and aliased at 0) */
     uint32_t ccm_size;                  /* the CCM data RAM's bytes at 0x10000000 (QEMU's SoC has none) */
     uint16_t timers;                    /* bit n: TIMn */
+    uint8_t usarts;                     /* bit n: USARTn (UART4, UART5 among them) */
     uint16_t port_pins[RIG_GPIO_PORTS]; /* each port's pins (bit n: Pxn); 0: the chip has no such port */
     const RigStm32Region *absent;       /* what the F405 SoC maps and the chip lacks: a bus error there */
     unsigned n_absent;

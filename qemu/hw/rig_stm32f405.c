@@ -1,9 +1,10 @@
 /*
- * rig-stm32f405: QEMU's STM32F405 SoC (Cortex-M4F with NVIC and SysTick, its USARTs, TIM2-5, ADCs, SPIs,
+ * rig-stm32f405: QEMU's STM32F405 SoC (Cortex-M4F with NVIC and SysTick, TIM2-5, ADCs, SPIs,
  * SYSCFG and EXTI) with the rig's models mapped over the regions that SoC leaves unimplemented: RCC,
  * PWR, the FLASH interface (its flash cells over the SoC's ROM), the IWDG and WWDG, GPIO A..I, SYSCFG and EXTI (over the SoC's), DMA1 and DMA2, I2C1 (RM0090) with the GY-86 board (the rig's chip core) on its
  * bus, the timers TIM1-TIM14 (over QEMU's TIM2-TIM5, which only count) with their channels on the pins
- * of the datasheet's alternate function table, and the core's DWT cycle counter. The RCC's AHB clock
+ * of the datasheet's alternate function table, USART1-USART6 (over QEMU's, which get no chardev: ours send
+ * into the chardevs named rig-usart1..rig-usart6), and the core's DWT cycle counter. The RCC's AHB clock
  * drives the core, SysTick and DWT, so the machine starts at 16 MHz (HSI) as the chip does, and runs at
  * what the firmware sets up (168 MHz from an 8 MHz crystal: -global rig-stm32f4-rcc.hse-hz=N for another).
  * The machine's "wires" property joins pins as a board's traces or a test's jumper wires do: -M
@@ -80,6 +81,16 @@ static const struct {
     [9] = { 0x40014000, 2, 16, { 24, -1, -1, -1 } },  [10] = { 0x40014400, 2, 17, { 25, -1, -1, -1 } },
     [11] = { 0x40014800, 2, 18, { 26, -1, -1, -1 } }, [12] = { 0x40001800, 1, 6, { 43, -1, -1, -1 } },
     [13] = { 0x40001C00, 1, 7, { 44, -1, -1, -1 } },  [14] = { 0x40002000, 1, 8, { 45, -1, -1, -1 } },
+};
+
+/* The USARTs: base (RM0090 table 10), APB and bit in APBxENR/APBxRSTR (7.3.13, 7.3.14), NVIC line (table
+ * 61); UART4 and UART5 have no synchronous mode */
+static const struct {
+    hwaddr base;
+    uint8_t apb, rcc_bit, irq;
+} usart_map[7] = {
+    [1] = { 0x40011000, 2, 4, 37 },  [2] = { 0x40004400, 1, 17, 38 }, [3] = { 0x40004800, 1, 18, 39 },
+    [4] = { 0x40004C00, 1, 19, 52 }, [5] = { 0x40005000, 1, 20, 53 }, [6] = { 0x40011400, 2, 5, 71 },
 };
 
 /* The timer channels' pins (DS8626, the STM32F405xx datasheet, table 9: alternate function mapping):
@@ -286,6 +297,38 @@ static void map_exti(RigStm32RccState *rcc, DeviceState *nvic, DeviceState **gpi
     }
 }
 
+/* USART1..USART6 over QEMU's (which keep no chardev: the engine names its chardevs rig-usartN, and the
+ * machine gives them to these), as /machine/usartN for the link */
+static void map_usarts(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceState *nvic)
+{
+    for (unsigned n = 1; n <= 6; n++) {
+        if (!(chip->usarts >> n & 1u)) {
+            continue;
+        }
+        DeviceState *dev = qdev_new(TYPE_RIG_STM32_USART);
+        g_autofree char *name = g_strdup_printf("usart%u", n);
+        g_autofree char *chardev = g_strdup_printf("rig-usart%u", n);
+        object_property_add_child(qdev_get_machine(), name, OBJECT(dev));
+        qdev_prop_set_uint8(dev, "apb", usart_map[n].apb);
+        qdev_prop_set_uint8(dev, "rcc-bit", usart_map[n].rcc_bit);
+        qdev_prop_set_bit(dev, "uart", n == 4 || n == 5);
+        object_property_set_link(OBJECT(dev), "rcc", OBJECT(rcc), &error_fatal);
+        Chardev *chr = qemu_chr_find(chardev);
+        if (chr != NULL && chr->be != NULL) {
+            error_report("%s: chardev %s is taken (by a -serial?): the machine's USART%u sends to it", chip->name,
+                         chardev, n);
+            exit(1);
+        }
+        if (chr != NULL) {
+            qdev_prop_set_chr(dev, "chardev", chr);
+        }
+        sysbus_realize_and_unref(SYS_BUS_DEVICE(dev), &error_fatal);
+        sysbus_mmio_map_overlap(SYS_BUS_DEVICE(dev), 0, usart_map[n].base, 1);
+        sysbus_connect_irq(SYS_BUS_DEVICE(dev), 0, qdev_get_gpio_in(nvic, usart_map[n].irq));
+        rig_stm32_rcc_add_reset(rcc, usart_map[n].apb == 1 ? RCC_APB1RSTR : RCC_APB2RSTR, usart_map[n].rcc_bit, dev);
+    }
+}
+
 /* "PD12" as a port and pin the chip has, or false */
 static bool parse_pin(const RigStm32Chip *chip, const char *text, unsigned *port, unsigned *pin)
 {
@@ -438,6 +481,7 @@ void rig_stm32f4_machine_init(MachineState *machine, const RigStm32Chip *chip)
 
     map_exti(r, nvic, gpio_ports);
     map_timers(chip, r, DEVICE(&STM32F405_SOC(soc)->armv7m), gpio_ports, dma);
+    map_usarts(chip, r, DEVICE(&STM32F405_SOC(soc)->armv7m));
     wire_pins(chip, gpio_ports);
     map_absent(chip);
 
@@ -485,6 +529,7 @@ static const RigStm32Chip f405 = {
     .absent = f405_absent,
     .n_absent = ARRAY_SIZE(f405_absent),
     .timers = 0x7FFE, /* TIM1..TIM14 */
+    .usarts = 0x7E,   /* USART1..USART6 */
     .port_pins = { 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF },
 };
 

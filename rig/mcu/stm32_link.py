@@ -57,8 +57,8 @@ FAULTS: Final = {3: "HardFault", 4: "MemManage fault", 5: "BusFault", 6: "UsageF
 #: the SoC's USART1..USART6 (UART4, UART5 among them), each a ringbuf chardev rig-usartN in this order
 UARTS: Final = 6
 UART_RING_BYTES: Final = 65536
-#: bytes of one UART message to QEMU (its payload's 1024 less the header of 8)
-UART_CHUNK: Final = 1016
+#: bytes of one UART message to QEMU (its payload's 1024 less the frame's description, 16 bytes)
+UART_CHUNK: Final = 1008
 #: the timer outputs rig_link.c numbers: CH1..CH4, then CH1N..CH3N
 OUTPUTS: Final = ("1", "2", "3", "4", "1N", "2N", "3N")
 #: pins driven at once, and edges waiting per pin (qemu/hw/rig_link.c's queues)
@@ -164,8 +164,8 @@ class Stm32Engine:
         uarts: list[str] = []
         for n in range(1, UARTS + 1):
             chardev = f"rig-usart{n}"
-            uarts += ["-chardev", f"ringbuf,id={chardev},size={UART_RING_BYTES}",
-                      "-serial", f"chardev:{chardev}"]
+            # (the machine's USARTs send into them by their ids; QEMU's own USARTs get none)
+            uarts += ["-chardev", f"ringbuf,id={chardev},size={UART_RING_BYTES}"]
         # (the machine is the MCU's, its crystal the board's)
         cmd = [str(binary), "-M", cfg.board.mcu.machine,
                "-global", f"rig-stm32f4-rcc.hse-hz={cfg.board.hse_hz}", "-nodefaults",
@@ -488,16 +488,18 @@ class Stm32Engine:
         return out
 
     def uart_send(self, uart: int, data: bytes, baud: int, parity: str = "N", stop_bits: int = 1) -> None:
-        """Bytes into USARTn's receiver from now on, each at the end of its frame (start bit, 8 data bits,
-        the parity bit, the stop bits: 8E2 at 100000 baud is 120 us a byte), after those queued before.
-        QEMU's USART takes any byte whatever its own baud and parity."""
+        """Bytes onto USARTn's RX line from now on, one frame after another (start bit, 8 data bits, the
+        parity bit, the stop bits: 8E2 at 100000 baud is 120 us a byte), after those queued before. The
+        USART reads the line with its own set-up: a baud, word length or parity other than the firmware's
+        gives the framing, parity and noise errors the chip would."""
         if uart not in self._sent:
             raise ValueError(f"the {self.cfg.board.mcu.name} has no USART{uart}")
         if parity not in ("N", "E", "O") or stop_bits not in (1, 2) or baud <= 0:
             raise ValueError(f"USART frame {baud} {parity}{stop_bits}: baud > 0, parity N/E/O, 1 or 2 stops")
         frame_ns = round((1 + 8 + (parity != "N") + stop_bits) * 1e9 / baud)
         for at in range(0, len(data), UART_CHUNK):
-            self._send(ord("U"), struct.pack("<B3xI", uart, frame_ns) + data[at:at + UART_CHUNK])
+            head = struct.pack("<B3xIIBB2x", uart, frame_ns, baud, ord(parity), stop_bits)
+            self._send(ord("U"), head + data[at:at + UART_CHUNK])
         self._uart_counts[uart][0] += len(data)
 
     def pin_drive(self, pin: str, schedule: list[tuple[int, int]]) -> None:

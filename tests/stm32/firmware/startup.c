@@ -30,6 +30,8 @@ void tim8_cc_handler(void) __attribute__((weak, alias("fault_handler")));
 void tim5_handler(void) __attribute__((weak, alias("fault_handler")));
 void tim6_dac_handler(void) __attribute__((weak, alias("fault_handler")));
 void tim7_handler(void) __attribute__((weak, alias("fault_handler")));
+/* USART1 (NVIC line 37): usart.c */
+void usart1_handler(void) __attribute__((weak, alias("fault_handler")));
 /* the BusFault (exception 5): a firmware that probes absent memory (f411_map.c) defines it */
 void bus_fault_handler(void) __attribute__((weak, alias("fault_handler")));
 /* the DMA streams' interrupts: DMA1 stream 0-6 on 11-17 and stream 7 on 47, DMA2 stream 0-4 on 56-60 and
@@ -110,9 +112,11 @@ __attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 7
     tim4_handler, /* IRQ 30 */
     i2c1_ev_handler, /* IRQ 31 */
     i2c1_er_handler, /* IRQ 32 */
-    F, F, F, F, F, F, F,                            /* IRQ 33-39 */
+    F, F, F, F,                                     /* IRQ 33-36 */
+    usart1_handler, /* IRQ 37 */
+    F, F,           /* IRQ 38-39 */
     exti15_10_handler, /* IRQ 40 */
-    F, F,                                           /* IRQ 41-42 */
+    F, F,              /* IRQ 41-42 */
     tim8_brk_tim12_handler, /* IRQ 43 */
     tim8_up_tim13_handler, /* IRQ 44 */
     tim8_trg_com_tim14_handler, /* IRQ 45 */

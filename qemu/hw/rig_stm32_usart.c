@@ -1,0 +1,594 @@
+/*
+ * The STM32F4's USART (RM0090 section 30) in asynchronous mode: SR, DR, BRR, CR1, CR2, CR3 and GTPR, the
+ * baud rate from BRR and the APB clock (USART1/USART6 on APB2, the others on APB1) with OVER8, and the
+ * line in virtual time.
+ *
+ * Transmitter: a byte written to DR waits there (TXE = 0) until the shift register is free, then goes
+ * out in its frame's time (start bit, M data bits, the stop bits of CR2.STOP; the parity bit is the last
+ * data bit when PCE is set); TXE comes as the byte moves into the shift register, TC at the end of a
+ * frame with none waiting. Setting TE sends an idle frame first (30.3.2). Each byte goes to the USART's
+ * chardev when its frame ends; nothing else reaches QEMU's main loop.
+ *
+ * Receiver: the sender's frames (rig_stm32_usart_receive: each frame's start, bits and baud, given ahead)
+ * make the line's level in time, and the receiver reads it as the chip does (30.3.3): a falling edge starts a
+ * frame, each bit is sampled at its middle (three samples, the majority taken; NF when they differ,
+ * unless ONEBIT), the parity checked (PE) and the stop bit sampled (FE when low). So a sender whose baud,
+ * word length or parity differ from the set-up gives the errors the chip gives: its bits fall where the
+ * receiver samples them. RXNE (ORE when RXNE was still set: the byte is lost) comes at the stop bit's
+ * middle, IDLE after a whole frame of idle line following a received frame.
+ *
+ * Time is lazy, as in rig_stm32_i2c.c: what happened by now is carried out when the firmware touches a
+ * register, when the link reaches a time (rig_link_sync_add) or when the sender's next frame comes; a
+ * QEMU timer runs only when an interrupt or a DMA request may need an event's instant.
+ *
+ * Not modelled: the synchronous mode (CLKEN), smartcard, IrDA, LIN and half-duplex modes, hardware flow
+ * control (CTS stays 0), mute mode and wake-up (RWU, WAKE, ADD), break characters (SBK is cleared at
+ * once, nothing goes on the wire), the start bit's extra samples (a start bit is its middle's majority).
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+
+#include "qemu/osdep.h"
+
+#include "chardev/char-fe.h"
+#include "hw/irq.h"
+#include "hw/qdev-properties-system.h"
+#include "hw/qdev-properties.h"
+#include "qapi/error.h"
+#include "qemu/log.h"
+#include "qemu/module.h"
+#include "qemu/timer.h"
+#include "rig_stm32f4.h"
+
+#define APB1ENR 0x40
+#define APB2ENR 0x44
+
+/* RM0090 table 146 (USART register map and reset values); UART4/UART5 lack the synchronous, smartcard
+ * and flow-control bits (30.6: "not available for UART4 & UART5") */
+static const RigRegister usart_registers[] = {
+    { 0x00, "SR", 0x00C0, 0x0360 },   /* CTS, LBD, TC, RXNE cleared by writing 0 (rc_w0) */
+    { 0x04, "DR", 0x0000, 0x01FF },   /* DR[8:0] */
+    { 0x08, "BRR", 0x0000, 0xFFFF },  /* DIV_Mantissa[11:0], DIV_Fraction[3:0] */
+    { 0x0C, "CR1", 0x0000, 0xBFFF },  /* OVER8, UE ... RWU, SBK (bit 14 reserved) */
+    { 0x10, "CR2", 0x0000, 0x7F6F },  /* LINEN, STOP, CLKEN, CPOL, CPHA, LBCL, LBDIE, LBDL, ADD */
+    { 0x14, "CR3", 0x0000, 0x0FFF },  /* ONEBIT, CTSIE, CTSE, RTSE, DMAT, DMAR, SCEN, NACK, HDSEL, IRLP, IREN, EIE */
+    { 0x18, "GTPR", 0x0000, 0xFFFF }, /* GT, PSC */
+};
+static const RigRegister uart_registers[] = {
+    { 0x00, "SR", 0x00C0, 0x0160 },   /* LBD, TC, RXNE */
+    { 0x04, "DR", 0x0000, 0x01FF },   /* DR[8:0] */
+    { 0x08, "BRR", 0x0000, 0xFFFF },  /* DIV_Mantissa[11:0], DIV_Fraction[3:0] */
+    { 0x0C, "CR1", 0x0000, 0xBFFF },  /* as the USARTs' */
+    { 0x10, "CR2", 0x0000, 0x706F },  /* LINEN, STOP, LBDIE, LBDL, ADD */
+    { 0x14, "CR3", 0x0000, 0x08CF },  /* ONEBIT, DMAT, DMAR, HDSEL, IRLP, IREN, EIE */
+    { 0x18, "GTPR", 0x0000, 0x0000 }, /* reserved */
+};
+enum { R_SR, R_DR, R_BRR, R_CR1, R_CR2, R_CR3, R_GTPR, R_COUNT };
+
+#define SR_PE (1u << 0)
+#define SR_FE (1u << 1)
+#define SR_NF (1u << 2)
+#define SR_ORE (1u << 3)
+#define SR_IDLE (1u << 4)
+#define SR_RXNE (1u << 5)
+#define SR_TC (1u << 6)
+#define SR_TXE (1u << 7)
+#define SR_LBD (1u << 8)
+#define SR_CTS (1u << 9)
+#define SR_READ_CLEARED (SR_PE | SR_FE | SR_NF | SR_ORE | SR_IDLE) /* by SR read then DR read */
+#define CR1_SBK (1u << 0)
+#define CR1_RE (1u << 2)
+#define CR1_TE (1u << 3)
+#define CR1_IDLEIE (1u << 4)
+#define CR1_RXNEIE (1u << 5)
+#define CR1_TCIE (1u << 6)
+#define CR1_TXEIE (1u << 7)
+#define CR1_PEIE (1u << 8)
+#define CR1_PS (1u << 9)
+#define CR1_PCE (1u << 10)
+#define CR1_M (1u << 12)
+#define CR1_UE (1u << 13)
+#define CR1_OVER8 (1u << 15)
+#define CR2_STOP_SHIFT 12
+#define CR2_LBDIE (1u << 6)
+#define CR3_EIE (1u << 0)
+#define CR3_DMAR (1u << 6)
+#define CR3_DMAT (1u << 7)
+#define CR3_CTSIE (1u << 10)
+#define CR3_ONEBIT (1u << 11)
+
+#define NS 1000000000ull
+#define SIXTEENTHS 16
+
+/* The line as the sender drives it: its frames, each from its start (start bit, data bits, parity,
+ * stop bits at its baud); idle (high) between them */
+typedef struct {
+    int64_t start_ns;
+    uint32_t baud;
+    uint8_t n_bits;
+    uint16_t bits; /* bit i: the level of the i-th bit on the wire */
+} UsartFrame;
+#define FRAMES RIG_USART_FRAMES
+
+typedef struct RigStm32UsartState {
+    SysBusDevice parent_obj;
+    MemoryRegion iomem;
+    RigStm32RccState *rcc;
+    CharBackend chr;
+    uint8_t apb, rcc_bit; /* its bus (1, 2) and bit in RCC_APBxENR/APBxRSTR (properties "apb", "rcc-bit") */
+    bool uart;            /* property "uart": UART4/UART5, without the synchronous and flow-control bits */
+    const RigRegister *table;
+    qemu_irq irq, dma_rx, dma_tx;
+    QEMUTimer *timer;
+    uint32_t regs[R_COUNT]; /* DR: the received data register (RDR) */
+    uint32_t sr_seen;       /* SR as last read: the first half of the clear sequences */
+    /* transmitter */
+    uint16_t tdr;       /* the byte written to DR, waiting while TXE = 0 */
+    bool tx_busy;       /* the shift register sends a frame, until tx_end_ns */
+    bool tx_idle_frame; /* that frame is TE's idle frame (nothing to the chardev) */
+    uint8_t tx_byte;    /* the byte it sends */
+    int64_t tx_end_ns;
+    /* receiver */
+    UsartFrame frames[FRAMES];
+    unsigned frame_head, n_frames;
+    int64_t rx_pos_ns;    /* the receiver looks for a start bit from here */
+    int64_t line_end_ns;  /* the end of the last frame the sender began */
+    bool idle_armed;      /* a frame was received since the last IDLE (30.6.1: IDLE once per RXNE) */
+    int64_t idle_from_ns; /* the end of that frame: IDLE a frame's time later if the line stays high */
+} RigStm32UsartState;
+
+OBJECT_DECLARE_SIMPLE_TYPE(RigStm32UsartState, RIG_STM32_USART)
+
+static bool usart_clocked(RigStm32UsartState *s)
+{
+    return s->rcc == NULL || rig_stm32_rcc_enabled(s->rcc, s->apb == 1 ? APB1ENR : APB2ENR, s->rcc_bit);
+}
+
+/* PCLK ticks per bit: 16 x USARTDIV (OVER8 = 0, BRR as it is) or 8 x USARTDIV (OVER8 = 1, DIV_Fraction[2:0]
+ * in eighths; BRR[3] must be kept clear); 30.3.4: baud = f_PCLK / (8 x (2 - OVER8) x USARTDIV) */
+static uint64_t ticks_per_bit(const RigStm32UsartState *s)
+{
+    uint32_t brr = s->regs[R_BRR];
+    uint64_t ticks = (s->regs[R_CR1] & CR1_OVER8) ? (brr >> 4) * 8 + (brr & 7) : brr;
+    return MAX(ticks, 1); /* BRR = 0 is no rate the manual allows: the fastest there is */
+}
+
+static uint64_t pclk_hz(const RigStm32UsartState *s)
+{
+    uint64_t hz = s->rcc ? rig_stm32_rcc_pclk_hz(s->rcc, s->apb) : 16000000;
+    return MAX(hz, 1);
+}
+
+/* @sixteenths of a bit at the USART's baud in ns */
+static int64_t bit_ns(const RigStm32UsartState *s, uint64_t sixteenths)
+{
+    return (int64_t)muldiv64(sixteenths * ticks_per_bit(s), NS, pclk_hz(s) * SIXTEENTHS);
+}
+
+static unsigned data_bits(const RigStm32UsartState *s) { return (s->regs[R_CR1] & CR1_M) ? 9 : 8; }
+
+/* A whole frame in sixteenths of a bit: start, data (with parity), stop (CR2.STOP: 1, 0.5, 2, 1.5) */
+static uint64_t frame_sixteenths(const RigStm32UsartState *s)
+{
+    static const unsigned stop[4] = { 16, 8, 32, 24 };
+    return (1 + data_bits(s)) * SIXTEENTHS + stop[s->regs[R_CR2] >> CR2_STOP_SHIFT & 3];
+}
+
+static void update_irqs(RigStm32UsartState *s)
+{
+    uint32_t sr = s->regs[R_SR], cr1 = s->regs[R_CR1], cr3 = s->regs[R_CR3];
+    bool irq = ((cr1 & CR1_TXEIE) && (sr & SR_TXE)) || ((cr1 & CR1_TCIE) && (sr & SR_TC)) ||
+               ((cr1 & CR1_RXNEIE) && (sr & (SR_RXNE | SR_ORE))) || ((cr1 & CR1_IDLEIE) && (sr & SR_IDLE)) ||
+               ((cr1 & CR1_PEIE) && (sr & SR_PE)) ||
+               ((cr3 & CR3_EIE) && (cr3 & CR3_DMAR) && (sr & (SR_FE | SR_ORE | SR_NF))) ||
+               ((s->regs[R_CR2] & CR2_LBDIE) && (sr & SR_LBD)) || ((cr3 & CR3_CTSIE) && (sr & SR_CTS));
+    qemu_set_irq(s->irq, irq);
+    qemu_set_irq(s->dma_rx, (cr3 & CR3_DMAR) && (sr & SR_RXNE));
+    qemu_set_irq(s->dma_tx, (cr3 & CR3_DMAT) && (sr & SR_TXE));
+}
+
+/* The transmitter: the next frame starts at @at_ns if a byte waits and TE and UE allow */
+static void tx_next(RigStm32UsartState *s, int64_t at_ns)
+{
+    uint32_t cr1 = s->regs[R_CR1];
+    s->tx_busy = false;
+    if (!(s->regs[R_SR] & SR_TXE) && (cr1 & CR1_TE) && (cr1 & CR1_UE)) {
+        s->tx_byte = (uint8_t)s->tdr;
+        s->tx_idle_frame = false;
+        s->tx_busy = true;
+        s->tx_end_ns = at_ns + bit_ns(s, frame_sixteenths(s));
+        s->regs[R_SR] |= SR_TXE;
+    } else if (s->regs[R_SR] & SR_TXE) {
+        s->regs[R_SR] |= SR_TC;
+    }
+}
+
+static void tx_catch_up(RigStm32UsartState *s, int64_t now)
+{
+    while (s->tx_busy && s->tx_end_ns <= now) {
+        if (!s->tx_idle_frame && qemu_chr_fe_backend_connected(&s->chr)) {
+            qemu_chr_fe_write_all(&s->chr, &s->tx_byte, 1);
+        }
+        tx_next(s, s->tx_end_ns);
+    }
+}
+
+/* The level of the line at @t (idle, high, outside the sender's frames) */
+static bool line_level(const RigStm32UsartState *s, int64_t t)
+{
+    for (unsigned i = 0; i < s->n_frames; i++) {
+        const UsartFrame *f = &s->frames[(s->frame_head + i) % FRAMES];
+        if (t < f->start_ns) {
+            break;
+        }
+        uint64_t bit = muldiv64((uint64_t)(t - f->start_ns), f->baud, NS);
+        if (bit < f->n_bits) {
+            return f->bits >> bit & 1;
+        }
+    }
+    return true;
+}
+
+/* The first falling edge of the line at or after @from, or INT64_MAX */
+static int64_t next_falling_edge(const RigStm32UsartState *s, int64_t from)
+{
+    for (unsigned i = 0; i < s->n_frames; i++) {
+        const UsartFrame *f = &s->frames[(s->frame_head + i) % FRAMES];
+        for (unsigned b = 0; b < f->n_bits; b++) {
+            if ((f->bits >> b & 1) || (b > 0 && !(f->bits >> (b - 1) & 1))) {
+                continue;
+            }
+            int64_t edge = f->start_ns + (int64_t)((b * NS + f->baud - 1) / f->baud);
+            if (edge >= from) {
+                return edge;
+            }
+        }
+    }
+    return INT64_MAX;
+}
+
+/* Bit @k of a frame starting at @start as the receiver samples it (30.3.3: samples 8, 9 and 10 of 16,
+ * or 4, 5 and 6 of 8 with OVER8, the majority taken; ONEBIT: the middle one); *noisy when they differ */
+static bool sample_bit(const RigStm32UsartState *s, int64_t start, unsigned k, bool *noisy)
+{
+    static const unsigned over16[3] = { 7, 8, 9 }, over8[3] = { 6, 8, 10 };
+    const unsigned *at = (s->regs[R_CR1] & CR1_OVER8) ? over8 : over16;
+    if (s->regs[R_CR3] & CR3_ONEBIT) {
+        return line_level(s, start + bit_ns(s, k * SIXTEENTHS + 8));
+    }
+    unsigned ones = 0;
+    for (unsigned i = 0; i < 3; i++) {
+        ones += line_level(s, start + bit_ns(s, k * SIXTEENTHS + at[i]));
+    }
+    *noisy |= ones == 1 || ones == 2;
+    return ones >= 2;
+}
+
+/* What the receiver sees next: a frame (its data and error flags at *at, the stop bit's middle) or IDLE
+ * (flags SR_IDLE); false when the line stays idle. The line after the sender's last frame is idle: a frame
+ * given later starts after now, and makes the next look again. */
+static bool rx_next(const RigStm32UsartState *s, int64_t *at, uint16_t *data, uint32_t *flags)
+{
+    int64_t idle_at = s->idle_armed ? s->idle_from_ns + bit_ns(s, frame_sixteenths(s)) : INT64_MAX;
+    for (int64_t from = s->rx_pos_ns;;) {
+        int64_t edge = next_falling_edge(s, from);
+        if (edge == INT64_MAX || edge >= idle_at) {
+            *at = idle_at;
+            *flags = SR_IDLE;
+            return idle_at != INT64_MAX;
+        }
+        bool noisy = false;
+        if (sample_bit(s, edge, 0, &noisy)) {
+            from = edge + 1; /* no start bit: a glitch (or the sender's bits out of step) */
+            continue;
+        }
+        unsigned n = data_bits(s), ones = 0;
+        *data = 0;
+        for (unsigned k = 0; k < n; k++) {
+            bool bit = sample_bit(s, edge, 1 + k, &noisy);
+            *data |= (uint16_t)bit << k;
+            ones += bit;
+        }
+        bool stop = sample_bit(s, edge, 1 + n, &noisy);
+        *flags = (stop ? 0 : SR_FE) | (noisy && !(s->regs[R_CR3] & CR3_ONEBIT) ? SR_NF : 0);
+        /* 30.3.7: even parity (PS = 0) makes the ones of the data and parity bits even, odd makes them odd */
+        if ((s->regs[R_CR1] & CR1_PCE) && (ones & 1) != !!(s->regs[R_CR1] & CR1_PS)) {
+            *flags |= SR_PE;
+        }
+        *at = edge + bit_ns(s, (1 + n) * SIXTEENTHS + 8);
+        return true;
+    }
+}
+
+static void rx_catch_up(RigStm32UsartState *s, int64_t now)
+{
+    uint32_t cr1 = s->regs[R_CR1];
+    if (!(cr1 & CR1_RE) || !(cr1 & CR1_UE)) { /* the receiver is off: what passes is not seen */
+        s->rx_pos_ns = MAX(s->rx_pos_ns, now);
+        s->idle_armed = false;
+    }
+    int64_t at;
+    uint16_t data;
+    uint32_t flags;
+    while (rx_next(s, &at, &data, &flags) && at <= now) {
+        if (flags == SR_IDLE) {
+            s->regs[R_SR] |= SR_IDLE;
+            s->idle_armed = false;
+            continue;
+        }
+        s->rx_pos_ns = at;
+        s->idle_armed = true;
+        s->idle_from_ns = at + bit_ns(s, frame_sixteenths(s) - (1 + data_bits(s)) * SIXTEENTHS - 8);
+        if (s->regs[R_SR] & SR_RXNE) {
+            s->regs[R_SR] |= SR_ORE; /* 30.6.1: the new byte is lost, DR keeps the one before */
+        } else {
+            s->regs[R_DR] = data;
+            s->regs[R_SR] = (s->regs[R_SR] & ~(SR_PE | SR_FE | SR_NF)) | flags | SR_RXNE;
+        }
+    }
+    /* frames the receiver is done with */
+    while (s->n_frames) {
+        const UsartFrame *f = &s->frames[s->frame_head];
+        if (f->start_ns + (int64_t)muldiv64(f->n_bits, NS, f->baud) > MIN(s->rx_pos_ns, now)) {
+            break;
+        }
+        s->frame_head = (s->frame_head + 1) % FRAMES;
+        s->n_frames--;
+    }
+}
+
+/* The QEMU timer only when an interrupt or DMA request may follow the next event */
+static void arm(RigStm32UsartState *s)
+{
+    uint32_t cr1 = s->regs[R_CR1], cr3 = s->regs[R_CR3];
+    int64_t when = INT64_MAX, at;
+    uint16_t data;
+    uint32_t flags;
+    if (s->tx_busy && ((cr1 & (CR1_TXEIE | CR1_TCIE)) || (cr3 & CR3_DMAT))) {
+        when = s->tx_end_ns;
+    }
+    if ((cr1 & (CR1_RXNEIE | CR1_IDLEIE | CR1_PEIE)) || (cr3 & (CR3_DMAR | CR3_EIE))) {
+        if (rx_next(s, &at, &data, &flags)) {
+            when = MIN(when, at);
+        }
+    }
+    if (when == INT64_MAX) {
+        timer_del(s->timer);
+    } else if (!timer_pending(s->timer) || timer_expire_time_ns(s->timer) != when) {
+        timer_mod(s->timer, when); /* (a timer moved to the front of the list wakes the main loop) */
+    }
+}
+
+static void catch_up(RigStm32UsartState *s)
+{
+    int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    tx_catch_up(s, now);
+    rx_catch_up(s, now);
+}
+
+static void usart_tick(void *opaque)
+{
+    RigStm32UsartState *s = opaque;
+    catch_up(s);
+    update_irqs(s);
+    arm(s);
+}
+
+/* The link's sync: every USART up to now before a time is reached (its bytes sent in the chardev) */
+#define USARTS 6
+static RigStm32UsartState *usarts[USARTS];
+static unsigned n_usarts;
+
+static void usarts_sync(void *opaque)
+{
+    for (unsigned i = 0; i < n_usarts; i++) {
+        usart_tick(usarts[i]);
+    }
+}
+
+bool rig_stm32_usart_receive(DeviceState *dev, uint8_t byte, int64_t start_ns, uint32_t baud, char parity,
+                             unsigned stop_bits)
+{
+    RigStm32UsartState *s = RIG_STM32_USART(dev);
+    int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    catch_up(s);
+    if (s->n_frames == FRAMES) {
+        return false;
+    }
+    UsartFrame *f = &s->frames[(s->frame_head + s->n_frames++) % FRAMES];
+    unsigned n = 1 + 8;
+    f->bits = (uint16_t)byte << 1; /* the start bit low, then the data bits, LSB first */
+    if (parity == 'E' || parity == 'O') {
+        f->bits |= (uint16_t)((ctpop8(byte) & 1) ^ (parity == 'O')) << n++;
+    }
+    for (unsigned i = 0; i < stop_bits; i++) {
+        f->bits |= 1u << n++;
+    }
+    f->n_bits = (uint8_t)n;
+    f->baud = MAX(baud, 1);
+    f->start_ns = MAX(MAX(start_ns, now), s->line_end_ns);
+    s->line_end_ns = f->start_ns + (int64_t)muldiv64(n, NS, f->baud);
+    update_irqs(s);
+    arm(s);
+    return true;
+}
+
+static uint64_t usart_read(void *opaque, hwaddr offset, unsigned size)
+{
+    RigStm32UsartState *s = opaque;
+    uint64_t value = 0;
+    if (!usart_clocked(s)) {
+        return 0;
+    }
+    catch_up(s);
+    switch (rig_register_index(s->table, R_COUNT, offset)) {
+    case R_SR:
+        s->sr_seen = s->regs[R_SR];
+        value = s->regs[R_SR];
+        break;
+    case R_DR:
+        value = s->regs[R_DR] & ((s->regs[R_CR1] & CR1_M) ? 0x1FF : 0xFF);
+        s->regs[R_SR] &= ~(SR_RXNE | (s->sr_seen & SR_READ_CLEARED));
+        s->sr_seen &= ~SR_READ_CLEARED;
+        break;
+    case R_BRR:
+    case R_CR1:
+    case R_CR2:
+    case R_CR3:
+    case R_GTPR:
+        value = s->regs[rig_register_index(s->table, R_COUNT, offset)];
+        break;
+    default:
+        qemu_log_mask(LOG_GUEST_ERROR, "rig-stm32f4-usart: read of reserved offset 0x%" HWADDR_PRIx "\n", offset);
+        return 0;
+    }
+    update_irqs(s);
+    arm(s);
+    return value;
+}
+
+static void write_dr(RigStm32UsartState *s, uint32_t value)
+{
+    if (s->sr_seen & SR_TC) { /* TC's clear sequence: SR read, then DR written */
+        s->regs[R_SR] &= ~SR_TC;
+        s->sr_seen &= ~SR_TC;
+    }
+    if (!(s->regs[R_SR] & SR_TXE)) {
+        qemu_log_mask(LOG_GUEST_ERROR, "rig-stm32f4-usart: DR written while TXE = 0: the waiting byte is lost\n");
+    }
+    s->tdr = (uint16_t)(value & 0x1FF);
+    s->regs[R_SR] &= ~SR_TXE;
+    if (!s->tx_busy) {
+        tx_next(s, qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL));
+    }
+}
+
+static void write_cr1(RigStm32UsartState *s, uint32_t value)
+{
+    bool te_was = (s->regs[R_CR1] & (CR1_TE | CR1_UE)) == (CR1_TE | CR1_UE);
+    bool rx_was = (s->regs[R_CR1] & (CR1_RE | CR1_UE)) == (CR1_RE | CR1_UE);
+    s->regs[R_CR1] = value & s->table[R_CR1].writable & ~CR1_SBK; /* no break on the wire */
+    bool te_now = (s->regs[R_CR1] & (CR1_TE | CR1_UE)) == (CR1_TE | CR1_UE);
+    bool rx_now = (s->regs[R_CR1] & (CR1_RE | CR1_UE)) == (CR1_RE | CR1_UE);
+    int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    if (!rx_was && rx_now) {
+        s->rx_pos_ns = now; /* the receiver looks for a start bit from now on */
+    }
+    if (!te_was && te_now && !s->tx_busy) { /* 30.3.2: TE set sends an idle frame (the preamble) first */
+        s->tx_busy = s->tx_idle_frame = true;
+        s->tx_end_ns = now + bit_ns(s, frame_sixteenths(s));
+    }
+}
+
+static void usart_write(void *opaque, hwaddr offset, uint64_t value, unsigned size)
+{
+    RigStm32UsartState *s = opaque;
+    uint32_t v = (uint32_t)value;
+    if (!usart_clocked(s)) {
+        return;
+    }
+    catch_up(s);
+    int index = rig_register_index(s->table, R_COUNT, offset);
+    switch (index) {
+    case R_SR: /* rc_w0: writing 0 clears, 1 leaves */
+        s->regs[R_SR] &= v | ~s->table[R_SR].writable;
+        break;
+    case R_DR:
+        write_dr(s, v);
+        break;
+    case R_CR1:
+        write_cr1(s, v);
+        break;
+    case R_BRR:
+    case R_CR2:
+    case R_CR3:
+    case R_GTPR:
+        s->regs[index] = v & s->table[index].writable;
+        break;
+    default:
+        qemu_log_mask(LOG_GUEST_ERROR, "rig-stm32f4-usart: write of reserved offset 0x%" HWADDR_PRIx "\n", offset);
+        return;
+    }
+    update_irqs(s);
+    arm(s);
+}
+
+static const MemoryRegionOps usart_ops = {
+    .read = usart_read,
+    .write = usart_write,
+    .endianness = DEVICE_NATIVE_ENDIAN,
+    .valid.min_access_size = 1,
+    .valid.max_access_size = 4,
+    .impl.min_access_size = 4,
+    .impl.max_access_size = 4,
+};
+
+static void usart_reset(DeviceState *dev)
+{
+    RigStm32UsartState *s = RIG_STM32_USART(dev);
+    timer_del(s->timer);
+    for (unsigned i = 0; i < R_COUNT; i++) {
+        s->regs[i] = s->table[i].reset;
+    }
+    s->sr_seen = 0;
+    s->tdr = 0;
+    s->tx_busy = s->tx_idle_frame = s->idle_armed = false;
+    /* (the sender's frames stay: the line is outside the chip; those before now go unseen) */
+    s->rx_pos_ns = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    update_irqs(s);
+}
+
+static void usart_realize(DeviceState *dev, Error **errp)
+{
+    RigStm32UsartState *s = RIG_STM32_USART(dev);
+    s->table = s->uart ? uart_registers : usart_registers;
+    if (n_usarts == 0) {
+        rig_link_sync_add(usarts_sync, NULL);
+    }
+    if (n_usarts == USARTS) {
+        error_setg(errp, "rig-stm32f4-usart: more than %d USARTs", USARTS);
+        return;
+    }
+    usarts[n_usarts++] = s;
+}
+
+static void usart_init(Object *obj)
+{
+    RigStm32UsartState *s = RIG_STM32_USART(obj);
+    memory_region_init_io(&s->iomem, obj, &usart_ops, s, TYPE_RIG_STM32_USART, 0x400);
+    sysbus_init_mmio(SYS_BUS_DEVICE(obj), &s->iomem);
+    sysbus_init_irq(SYS_BUS_DEVICE(obj), &s->irq);
+    qdev_init_gpio_out_named(DEVICE(obj), &s->dma_rx, "dma-rx", 1);
+    qdev_init_gpio_out_named(DEVICE(obj), &s->dma_tx, "dma-tx", 1);
+    s->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, usart_tick, s);
+    s->table = usart_registers;
+}
+
+static Property usart_properties[] = {
+    DEFINE_PROP_LINK("rcc", RigStm32UsartState, rcc, TYPE_RIG_STM32_RCC, RigStm32RccState *),
+    DEFINE_PROP_CHR("chardev", RigStm32UsartState, chr),
+    DEFINE_PROP_UINT8("apb", RigStm32UsartState, apb, 2),
+    DEFINE_PROP_UINT8("rcc-bit", RigStm32UsartState, rcc_bit, 4),
+    DEFINE_PROP_BOOL("uart", RigStm32UsartState, uart, false),
+    DEFINE_PROP_END_OF_LIST(),
+};
+
+static void usart_class_init(ObjectClass *klass, void *data)
+{
+    DeviceClass *dc = DEVICE_CLASS(klass);
+    dc->realize = usart_realize;
+    dc->reset = usart_reset;
+    device_class_set_props(dc, usart_properties);
+}
+
+static const TypeInfo usart_info = {
+    .name = TYPE_RIG_STM32_USART,
+    .parent = TYPE_SYS_BUS_DEVICE,
+    .instance_size = sizeof(RigStm32UsartState),
+    .instance_init = usart_init,
+    .class_init = usart_class_init,
+};
+
+static void usart_register_types(void) { type_register_static(&usart_info); }
+
+type_init(usart_register_types)
