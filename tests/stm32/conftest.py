@@ -51,6 +51,15 @@ def run_firmware(engine: Path, elf: Path, *qemu_args: str,
                           timeout=RUN_TIMEOUT_S)
 
 
+def run_to_done(name: str, *qemu_args: str,
+                machine: str = "rig-stm32f405") -> subprocess.CompletedProcess[str]:
+    """The test firmware ``name`` run to its end: it exits 0 with "done" last (it reported everything)."""
+    done = run_firmware(engine_or_skip(), firmware(name), *qemu_args, machine=machine)
+    assert done.returncode == 0, f"status {done.returncode}\n{done.stdout}\n{done.stderr}"
+    assert done.stdout.endswith("done\n"), done.stdout
+    return done
+
+
 def reports(stdout: str) -> dict[str, int]:
     """The NAME=0xVALUE lines a test firmware wrote."""
     return {m.group(1): int(m.group(2), 16) for m in REPORT_LINE.finditer(stdout)}

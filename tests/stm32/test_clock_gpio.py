@@ -9,7 +9,7 @@ import subprocess
 
 import pytest
 
-from tests.stm32.conftest import engine_or_skip, firmware, reports, run_firmware
+from tests.stm32.conftest import engine_or_skip, firmware, reports, run_firmware, run_to_done
 
 HSI_HZ = 16_000_000
 HSE_HZ = 8_000_000  # the machine's default crystal, as on the common F405 boards
@@ -17,9 +17,7 @@ HSE_HZ = 8_000_000  # the machine's default crystal, as on the common F405 board
 
 @pytest.fixture(scope="module")
 def run() -> tuple[str, dict[str, int]]:
-    done = run_firmware(engine_or_skip(), firmware("clock_gpio"))
-    assert done.returncode == 0, f"status {done.returncode}\n{done.stdout}\n{done.stderr}"
-    assert done.stdout.endswith("done\n"), done.stdout
+    done = run_to_done("clock_gpio")
     return done.stdout, reports(done.stdout)
 
 

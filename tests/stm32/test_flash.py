@@ -15,7 +15,7 @@ import pytest
 from rig.mcu import board as boards
 from rig.mcu.stm32_image import config_section
 from rig.mcu.stm32_link import Stm32Config, Stm32Engine
-from tests.stm32.conftest import engine_or_skip, firmware, reports, run_firmware
+from tests.stm32.conftest import engine_or_skip, firmware, reports, run_firmware, run_to_done
 
 HSI_HZ = 16_000_000
 #: DS8626, flash memory programming, typical (x32 parallelism): a word, a 16, 64 and 128 KB sector
@@ -34,9 +34,7 @@ SETTINGS = (0x52494731, 0x0000_01F4, 0x3F80_0000, 0xC0FF_EE00)
 
 @pytest.fixture(scope="module")
 def run() -> subprocess.CompletedProcess[str]:
-    done = run_firmware(engine_or_skip(), firmware("flash_prog"))
-    assert done.returncode == 0, f"status {done.returncode}\n{done.stdout}\n{done.stderr}"
-    assert done.stdout.endswith("done\n"), done.stdout
+    done = run_to_done("flash_prog")
     return done
 
 

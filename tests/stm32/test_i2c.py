@@ -11,7 +11,7 @@ import functools
 
 import pytest
 
-from tests.stm32.conftest import engine_or_skip, firmware, reports, run_firmware
+from tests.stm32.conftest import engine_or_skip, firmware, reports, run_firmware, run_to_done
 
 FIRMWARES = ("i2c_poll", "i2c_irq", "i2c_poll_pb8")
 #: MS5611 datasheet's example coefficients C1..C6 (docs/sensors.md §5.4), the chip core's default PROM
@@ -42,9 +42,7 @@ def mpu_temp_out(celsius: float) -> int:
 
 @functools.cache
 def reported(name: str) -> dict[str, int]:
-    done = run_firmware(engine_or_skip(), firmware(name))
-    assert done.returncode == 0, f"status {done.returncode}\n{done.stdout}\n{done.stderr}"
-    assert done.stdout.endswith("done\n"), done.stdout
+    done = run_to_done(name)
     return reports(done.stdout)
 
 

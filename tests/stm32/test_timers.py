@@ -17,7 +17,15 @@ from pathlib import Path
 
 import pytest
 
-from tests.stm32.conftest import ICOUNT_SHIFT, RUN_TIMEOUT_S, engine_or_skip, firmware, reports, run_firmware
+from tests.stm32.conftest import (
+    ICOUNT_SHIFT,
+    RUN_TIMEOUT_S,
+    engine_or_skip,
+    firmware,
+    reports,
+    run_firmware,
+    run_to_done,
+)
 
 CORE_HZ = 168_000_000
 #: ST's 168 MHz set-up: APB1 = HCLK / 4, APB2 = HCLK / 2, so each timer clock is twice its bus's
@@ -47,10 +55,7 @@ def cycles(seconds: float) -> int:
 @functools.cache
 def checked_run(name: str, *qemu_args: str) -> subprocess.CompletedProcess[str]:
     """A test firmware's run (once per test session), which must have reported to its end."""
-    done = run_firmware(engine_or_skip(), firmware(name), *qemu_args)
-    assert done.returncode == 0, f"status {done.returncode}\n{done.stdout}\n{done.stderr}"
-    assert done.stdout.endswith("done\n"), done.stdout
-    return done
+    return run_to_done(name, *qemu_args)
 
 
 def traced_run() -> subprocess.CompletedProcess[str]:

@@ -13,7 +13,7 @@ import pytest
 
 from rig.mcu import board as boards
 from rig.mcu.stm32_link import Stm32Config, Stm32Engine
-from tests.stm32.conftest import engine_or_skip, firmware, reports, run_firmware
+from tests.stm32.conftest import engine_or_skip, firmware, reports, run_firmware, run_to_done
 
 HSI_HZ = 16_000_000
 #: the LSI's nominal frequency (DS8626: 32 kHz typical), the IWDG's clock
@@ -36,9 +36,7 @@ def timeout_s(pr: int, rlr: int) -> float:
 
 @pytest.fixture(scope="module")
 def run() -> subprocess.CompletedProcess[str]:
-    done = run_firmware(engine_or_skip(), firmware("watchdog"))
-    assert done.returncode == 0, f"status {done.returncode}\n{done.stdout}\n{done.stderr}"
-    assert done.stdout.endswith("done\n"), done.stdout
+    done = run_to_done("watchdog")
     return done
 
 
@@ -120,9 +118,7 @@ def wwdg_count_cycles(wdgtb: int) -> int:
 
 @pytest.fixture(scope="module")
 def w() -> dict[str, int]:
-    done = run_firmware(engine_or_skip(), firmware("wwdg"))
-    assert done.returncode == 0, f"status {done.returncode}\n{done.stdout}\n{done.stderr}"
-    assert done.stdout.endswith("done\n"), done.stdout
+    done = run_to_done("wwdg")
     return reports(done.stdout)
 
 
