@@ -7,7 +7,9 @@ over. A ``T `` line is items separated by whitespace, each ``key=value`` (split 
 a key given twice counts its last; a line without ``t``, with an item that is not ``key=value``, with
 a value read that ``float()`` refuses, or whose ``t`` is not finite after the clock's base is taken
 off, is counted and skipped, as is any other line that is not blank. A value the DUT gives as NaN or
-infinite is kept as NaN (the rest of its line stands) and its key's first such time is reported.
+infinite is kept as NaN (the rest of its line stands) and its key's first such time is reported. A
+last line without its line end is one the run's end cut while its bytes were still on the wire (a
+USART's frames take their time): it is not read.
 
 Why C (lines.c, the extension module ``build/_rigtelemetry*.so``, built on first use as the other
 extensions are): the same reading as Python string methods cost 27 k instructions a line, 5 k per FC
@@ -45,7 +47,9 @@ def read_columns(text: bytes | bytearray | memoryview, clock_base_s: float, keys
     """The lines of ``text`` as columns: ``t`` (sim seconds: the DUT's clock minus ``clock_base_s``)
     and each of ``keys`` (NaN where a line lacks it), one row per line read; the count of lines
     skipped; and per key, the sim time it was first not finite."""
-    t, columns, bad, nonfinite = native().parse(text, clock_base_s, ("t", *keys))
+    data = bytes(text)
+    data = data[:data.rfind(b"\n") + 1]  # (a last line cut by the run's end is not read)
+    t, columns, bad, nonfinite = native().parse(data, clock_base_s, ("t", *keys))
     out = {"t": np.frombuffer(t, dtype=float)}
     for k, col in zip(keys, columns, strict=True):
         out[k] = np.frombuffer(col, dtype=float)
