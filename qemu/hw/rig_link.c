@@ -3,7 +3,7 @@
  * socket the session listens on). The machine creates it when a chardev named "rig-link" exists.
  *
  * Under -icount shift=N,sleep=off virtual time is the instruction count, and everything here happens at
- * an instant of it, read synchronously (qemu_chr_fe_read_all blocks the vCPU), so a run is the same
+ * an instant of it, read synchronously (the socket is read blocking in the vCPU), so a run is the same
  * every time. The session says "go to t"; a QEMU_CLOCK_VIRTUAL timer at t answers "reached t" with the
  * latched pulses of the board's motor outputs (the timers' chC-high-ticks, period-ticks, clock-hz) and
  * the CPU's state (the exception being handled, pc, CFSR, HFSR: a HardFault ends the run in the session),
@@ -68,6 +68,11 @@
 #define LINK_PIN_EDGES 1024 /* edges waiting per pin (a PPM frame of 8 channels is 18) */
 #define LINK_PIN_LINES (RIG_GPIO_PORTS * RIG_GPIO_PINS)
 #define LINK_EDGE 9 /* u64 t_ns, u8 level */
+/* Messages to the session wait in a buffer until QEMU blocks for an answer (or the buffer is full, or
+ * QEMU exits): a socket write per message cost a system call and a wake-up of the session for each of
+ * the 7 000 messages a simulated second the reference FC's bus gives, most of which need no answer */
+#define LINK_OUT_BYTES (16 * (LINK_HEADER + LINK_MAX_PAYLOAD))
+#define LINK_IN_BYTES (4 * (LINK_HEADER + LINK_MAX_PAYLOAD)) /* the session's messages, read in blocks */
 
 /* One USART's receiving side: the frames are handed to the USART as they come, with their start times
  * (the USART holds what its line will carry; a QEMU timer per byte here cost a main-loop wake-up each) */
@@ -139,6 +144,10 @@ struct RigLinkState {
     uint32_t n_taken;
     qemu_irq pin_out[LINK_PIN_LINES]; /* each pin's outside driver (the GPIO port's input) */
     LinkPin pins[LINK_PIN_QUEUES];
+    uint8_t out[LINK_OUT_BYTES]; /* messages not yet written */
+    uint32_t out_len;
+    uint8_t in[LINK_IN_BYTES]; /* bytes read from the session, from in_at to in_len not yet taken */
+    uint32_t in_at, in_len;
 };
 
 static const char *const high_names[RIG_TIM_OUTPUTS] = {
@@ -153,7 +162,7 @@ static void G_NORETURN link_fail(const char *what)
 }
 
 /* The lazy models' catch-ups (rig_link_sync_add), run before each "reached" */
-#define LINK_SYNCS 4
+#define LINK_SYNCS 32
 static struct {
     void (*fn)(void *opaque);
     void *opaque;
@@ -169,40 +178,90 @@ void rig_link_sync_add(void (*sync)(void *opaque), void *opaque)
     link_syncs[n_link_syncs++].opaque = opaque;
 }
 
-static void link_send_now(RigLinkState *s, uint8_t kind, const uint8_t *payload, uint32_t len)
+static void link_flush(RigLinkState *s)
 {
-    uint8_t header[LINK_HEADER] = { kind };
-    stl_le_p(header + 4, len);
-    if (qemu_chr_fe_write_all(&s->chr, header, LINK_HEADER) != LINK_HEADER ||
-        (len && qemu_chr_fe_write_all(&s->chr, payload, (int)len) != (int)len)) {
+    if (s->out_len && qemu_chr_fe_write_all(&s->chr, s->out, (int)s->out_len) != (int)s->out_len) {
         link_fail("the session is gone (write)");
+    }
+    s->out_len = 0;
+}
+
+/* The link whose messages an exit still owes the session (the firmware's own exit: semihosting) */
+static RigLinkState *link_at_exit;
+
+static void link_flush_at_exit(void)
+{
+    RigLinkState *s = link_at_exit;
+    link_at_exit = NULL;
+    if (s && s->out_len) {
+        qemu_chr_fe_write_all(&s->chr, s->out, (int)s->out_len); /* (a session gone: nothing to tell) */
+    }
+}
+
+static void link_put(RigLinkState *s, uint8_t kind, const uint8_t *payload, uint32_t len)
+{
+    if (s->out_len + LINK_HEADER + len > sizeof s->out) {
+        link_flush(s);
+    }
+    uint8_t *header = s->out + s->out_len;
+    memset(header, 0, LINK_HEADER);
+    header[0] = kind;
+    stl_le_p(header + 4, len);
+    if (len) {
+        memcpy(header + LINK_HEADER, payload, len);
+    }
+    s->out_len += LINK_HEADER + len;
+}
+
+/* The times of the bytes read ahead that the master took, told before anything after them */
+static void link_put_reads(RigLinkState *s)
+{
+    if (s->n_taken) {
+        link_put(s, MSG_I2C_READS, s->taken, s->n_taken * 8);
+        s->n_taken = 0;
     }
 }
 
 /* Every message goes after the reads taken before it, so the session sees the bus in order */
 static void link_send(RigLinkState *s, uint8_t kind, const uint8_t *payload, uint32_t len)
 {
-    if (s->n_taken) {
-        link_send_now(s, MSG_I2C_READS, s->taken, s->n_taken * 8);
-        s->n_taken = 0;
+    link_put_reads(s);
+    link_put(s, kind, payload, len);
+}
+
+/* @len bytes from the session, blocking (after what is buffered is written: the session answers it) */
+static void link_read(RigLinkState *s, uint8_t *to, uint32_t len)
+{
+    link_flush(s);
+    Chardev *chr = qemu_chr_fe_get_driver(&s->chr);
+    while (len) {
+        if (s->in_at == s->in_len) {
+            /* as much as has come, at least a byte (the socket chardev reads blocking here) */
+            int got = CHARDEV_GET_CLASS(chr)->chr_sync_read(chr, s->in, sizeof s->in);
+            if (got <= 0) {
+                link_fail("the session is gone (read)");
+            }
+            s->in_at = 0;
+            s->in_len = (uint32_t)got;
+        }
+        uint32_t n = MIN(len, s->in_len - s->in_at);
+        memcpy(to, s->in + s->in_at, n);
+        s->in_at += n;
+        to += n;
+        len -= n;
     }
-    link_send_now(s, kind, payload, len);
 }
 
 /* The next message: its kind, its payload in @payload (its length in *len, checked to be within @max) */
 static uint8_t link_receive(RigLinkState *s, uint8_t *payload, uint32_t max, uint32_t *len)
 {
     uint8_t header[LINK_HEADER];
-    if (qemu_chr_fe_read_all(&s->chr, header, LINK_HEADER) != LINK_HEADER) {
-        link_fail("the session is gone (read)");
-    }
+    link_read(s, header, LINK_HEADER);
     *len = ldl_le_p(header + 4);
     if (header[1] || header[2] || header[3] || *len > max) {
         link_fail("a malformed message from the session");
     }
-    if (*len && qemu_chr_fe_read_all(&s->chr, payload, (int)*len) != (int)*len) {
-        link_fail("the session is gone (read)");
-    }
+    link_read(s, payload, *len);
     return header[0];
 }
 
@@ -486,8 +545,7 @@ uint8_t rig_link_i2c_read(RigLinkState *s)
         return link_expect_ahead(s, MSG_BYTE);
     }
     if (s->n_taken == LINK_READS) {
-        link_send_now(s, MSG_I2C_READS, s->taken, s->n_taken * 8);
-        s->n_taken = 0;
+        link_put_reads(s);
     }
     stq_le_p(s->taken + 8 * s->n_taken++, (uint64_t)rig_i2c_now_ns());
     s->ahead_len--;
@@ -521,6 +579,8 @@ static void link_realize(DeviceState *dev, Error **errp)
         q->line = -1;
         q->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, link_pin_deliver, q);
     }
+    link_at_exit = s;
+    atexit(link_flush_at_exit);
     uint8_t hello[2];
     stw_le_p(hello, LINK_VERSION);
     link_send(s, MSG_HELLO, hello, sizeof hello);
