@@ -134,7 +134,7 @@ struct RigLinkState {
     bool configured;
     bool started; /* the first stop (time 0) is armed */
     uint8_t n_motors;
-    Object *motor_timer[LINK_MOTORS];
+    RigStm32TimerState *motor_timer[LINK_MOTORS];
     uint8_t motor_output[LINK_MOTORS];
     uint64_t motor_latches[LINK_MOTORS]; /* the timer's latches at the last stop */
     LinkUart uarts[LINK_UARTS];
@@ -148,11 +148,6 @@ struct RigLinkState {
     uint32_t out_len;
     uint8_t in[LINK_IN_BYTES]; /* bytes read from the session, from in_at to in_len not yet taken */
     uint32_t in_at, in_len;
-};
-
-static const char *const high_names[RIG_TIM_OUTPUTS] = {
-    "ch1-high-ticks",  "ch2-high-ticks",  "ch3-high-ticks",  "ch4-high-ticks",
-    "ch1n-high-ticks", "ch2n-high-ticks", "ch3n-high-ticks",
 };
 
 static void G_NORETURN link_fail(const char *what)
@@ -273,11 +268,11 @@ static void link_configure(RigLinkState *s, const uint8_t *p, uint32_t len)
     for (unsigned i = 0; i < p[0]; i++) {
         unsigned timer = p[1 + 2 * i], output = p[2 + 2 * i];
         g_autofree char *path = g_strdup_printf("/machine/tim%u", timer);
-        Object *tim = timer >= 1 && timer <= 14 ? object_resolve_path(path, NULL) : NULL;
+        Object *tim = timer >= 1 && timer <= 14 ? object_resolve_path_type(path, TYPE_RIG_STM32_TIMER, NULL) : NULL;
         if (tim == NULL || output >= RIG_TIM_OUTPUTS) {
             link_fail("CONFIG: no such timer output");
         }
-        s->motor_timer[i] = tim;
+        s->motor_timer[i] = RIG_STM32_TIMER(tim);
         s->motor_output[i] = (uint8_t)output;
     }
     s->n_motors = p[0];
@@ -483,15 +478,15 @@ static void link_reached(void *opaque)
     p[24] = s->n_motors;
     uint32_t len = 25;
     for (unsigned i = 0; i < s->n_motors; i++) {
-        Object *tim = s->motor_timer[i];
-        uint64_t high = object_property_get_uint(tim, high_names[s->motor_output[i]], &error_abort);
-        uint64_t period = object_property_get_uint(tim, "period-ticks", &error_abort);
-        uint64_t hz = object_property_get_uint(tim, "clock-hz", &error_abort);
+        /* (what the timer's read-only properties give, read in place: a lookup by name, a visitor each,
+         * five per motor at every stop, is more than the stop needs) */
+        const RigStm32TimerState *tim = s->motor_timer[i];
+        uint64_t high = tim->pulse_ticks[s->motor_output[i]], hz = tim->latched_hz, latches = tim->latches;
         stl_le_p(p + len, hz ? (uint32_t)MIN(muldiv64(high, NANOSECONDS_PER_SECOND, hz), UINT32_MAX) : 0);
-        stl_le_p(p + len + 4, hz ? (uint32_t)MIN(muldiv64(period, NANOSECONDS_PER_SECOND, hz), UINT32_MAX) : 0);
-        uint64_t latches = object_property_get_uint(tim, "latches", &error_abort);
+        stl_le_p(p + len + 4,
+                 hz ? (uint32_t)MIN(muldiv64(tim->period_ticks, NANOSECONDS_PER_SECOND, hz), UINT32_MAX) : 0);
         stl_le_p(p + len + 8, (uint32_t)MIN(latches - s->motor_latches[i], UINT32_MAX));
-        stq_le_p(p + len + 12, object_property_get_uint(tim, "latched-ns", &error_abort));
+        stq_le_p(p + len + 12, tim->latched_ns);
         s->motor_latches[i] = latches;
         len += 20;
     }
