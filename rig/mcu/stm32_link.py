@@ -281,13 +281,10 @@ class Stm32Engine:
         """The master read the next byte ahead at ``t_ns``."""
         if self._taken >= len(self._ahead):
             raise LinkError("QEMU read more bytes ahead than it was given")
-        self._read_byte_done(t_ns, self._ahead[self._taken])
-        self._taken += 1
-
-    def _read_byte_done(self, t_ns: int, value: int) -> None:
         self._bytes += 1
         self._read_count += 1
-        self._record(t_ns, "R", value, True)
+        self._record(t_ns, "R", self._ahead[self._taken], True)
+        self._taken += 1
 
     def _settle(self) -> None:
         """The transfer ended (a STOP, a START): the bytes ahead the master did not read given back (the
