@@ -91,7 +91,7 @@ def test_a_ppm_receiver_needs_an_interrupt_pin(tmp_path: Path) -> None:
     p = tmp_path / "bad.toml"
     sbus = 'protocol = "sbus"    # RX1 D19 (PD2)\nuart = 1'
     p.write_text(board.find("mega2560-gy86").read_text().replace(sbus, 'protocol = "ppm"\npin = "PA0"'))
-    with pytest.raises(BoardError, match=r"rc.pin: a PPM sum needs a pin with an external or pin change"):
+    with pytest.raises(BoardError, match=r"rc.pin: the atmega2560.s PA0 has no external or pin change"):
         board.load(str(p))
 
 
