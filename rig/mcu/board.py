@@ -192,7 +192,15 @@ def load(name: str | Path) -> Board:
             raise c.fail("telemetry.baud", f"{tel_baud} baud is over {BAUD_TOLERANCE:.0%} off anything a "
                                            f"USART makes at {clock} Hz")
     # (the RC input and the telemetry may share a USART: RX and TX are separate lines, as a Pro Mini's
-    # one USART takes SBUS in and sends telemetry out, and MSP is both on one port)
+    # one USART takes SBUS in and sends telemetry out, and MSP is both on one port; a receiver's pulses
+    # on the telemetry USART's pins may not: two things would drive one line)
+    if rc is not None and tel_uart is not None:
+        rx, tx = mcu.usarts[tel_uart]
+        for rc_pin in (rc.pin, *rc.pins):
+            if rc_pin in (rx, tx):
+                line = "RX" if rc_pin == rx else "TX"
+                raise c.fail("rc.pin" if rc.pin else "rc.pins", f"pin {rc_pin} is USART{tel_uart}'s {line}, "
+                                                                "the telemetry's")
     e = c.table(data.get("eeprom", {}), "eeprom", EEPROM_KEYS)
     image: Path | None = None
     if "image" in e:

@@ -138,3 +138,26 @@ def test_four_to_eight_timer_channel_pins_are_a_receiver(tmp_path: Path) -> None
     assert board.rc is not None and (board.rc.protocol, board.rc.pins) == ("pwm", tuple(PINS[:4]))
     board = boards.load(pwm_board(tmp_path, PINS))
     assert board.rc is not None and board.rc.pins == tuple(PINS)
+
+
+def test_the_f411s_own_timer_channels_are_its_receiver_pins(tmp_path: Path) -> None:
+    """DS10314 table 9: the F411 has TIM9 (CH1 PA2, CH2 PA3, USART2's TX and RX, the Black Pill's
+    telemetry) and no TIM8, so PC8 (the F405's TIM8_CH3) is no receiver pin on the Black Pill; PA6 is
+    TIM3_CH1, the board's motor 1; PA0 and PA1 are TIM2's or TIM5's CH1 and CH2, PA8 TIM1_CH1."""
+    text = (boards.BOARDS / "stm32f411-blackpill-gy86.toml").read_text()
+    start, end = text.index("[rc]"), text.index("[telemetry]")
+    path = tmp_path / "blackpill-pwm.toml"
+
+    def board_with(pins: list[str]) -> Board:
+        listed = ", ".join(f'"{p}"' for p in pins)
+        path.write_text(text[:start] + f'[rc]\nprotocol = "pwm"\npins = [{listed}]\n\n' + text[end:])
+        return boards.load(path)
+
+    board = board_with(["PA8", "PA0", "PA1", "PB6"])
+    assert board.rc is not None and board.rc.pins == ("PA8", "PA0", "PA1", "PB6")
+    with pytest.raises(BoardError, match="rc.pins: pin PA2 is USART2's TX, the telemetry's"):
+        board_with(["PA8", "PA0", "PA1", "PA2"])
+    with pytest.raises(BoardError, match="rc.pins: the stm32f411's PC8 has no timer channel"):
+        board_with(["PA8", "PA0", "PA1", "PC8"])
+    with pytest.raises(BoardError, match="rc.pins: pin PA6 drives motor 1"):
+        board_with(["PA8", "PA0", "PA1", "PA6"])
