@@ -14,9 +14,10 @@ rig/mcu/boards/; ``--mcu NAME`` finds them by name, ``--mcu path/to/board.toml``
     [[motors]]   motor (1..4: the plant's), pin ("PE4"), timer, channel ("A" | "B" | "C"; "1".."4" on
                  an STM32), protocol ("pwm" | "oneshot125"), label ("D2": the board's silk-screen
                  name); with no timer and channel, any port pin (AVR), its pulses measured from its edges
-    [rc]         protocol ("sbus" | "ppm" | "msp" | "pwm"), uart (sbus, msp), baud (msp), pin (ppm: an
-                 INTn or PCINT pin; on an STM32 a timer channel's), pins (pwm: 4..8 PCINT or INTn pins,
-                 one a channel); optional
+    [rc]         protocol ("sbus" | "ppm" | "msp" | "pwm"), uart (sbus, msp), baud (msp), pin (ppm),
+                 pins (pwm: 4..8, one a channel); each pin one the MCU times a receiver's pulses on
+                 (rig/mcu/mcus.py rc_pins: an AVR's INTn or PCINTn pins, an STM32's timer channels) and
+                 no motor's; optional
     [telemetry]  uart, baud, format ("text": the reference FC's ``T t=… key=value`` lines); optional
     [eeprom]     image (a file of raw bytes, relative to the board file), or fc = true: built from the
                  scenario's [fc] table by the reference firmware's layout
@@ -179,7 +180,7 @@ def load(name: str | Path) -> Board:
     for p in pins:
         if pins.count(p) > 1:
             raise c.fail("motors", f"pin {p} drives two motors")
-    rc = _rc(c, mcu, c.table(data["rc"], "rc", RC_KEYS)) if "rc" in data else None
+    rc = _rc(c, mcu, c.table(data["rc"], "rc", RC_KEYS), motors) if "rc" in data else None
     tel_uart: int | None = None
     tel_baud = 0
     if "telemetry" in data:
@@ -191,7 +192,15 @@ def load(name: str | Path) -> Board:
             raise c.fail("telemetry.baud", f"{tel_baud} baud is over {BAUD_TOLERANCE:.0%} off anything a "
                                            f"USART makes at {clock} Hz")
     # (the RC input and the telemetry may share a USART: RX and TX are separate lines, as a Pro Mini's
-    # one USART takes SBUS in and sends telemetry out, and MSP is both on one port)
+    # one USART takes SBUS in and sends telemetry out, and MSP is both on one port; a receiver's pulses
+    # on the telemetry USART's pins may not: two things would drive one line)
+    if rc is not None and tel_uart is not None:
+        rx, tx = mcu.usarts[tel_uart]
+        for rc_pin in (rc.pin, *rc.pins):
+            if rc_pin in (rx, tx):
+                line = "RX" if rc_pin == rx else "TX"
+                raise c.fail("rc.pin" if rc.pin else "rc.pins", f"pin {rc_pin} is USART{tel_uart}'s {line}, "
+                                                                "the telemetry's")
     e = c.table(data.get("eeprom", {}), "eeprom", EEPROM_KEYS)
     image: Path | None = None
     if "image" in e:
@@ -300,18 +309,11 @@ def _battery(c: _BoardCheck, mcu: Mcu, data: Any) -> Battery:
     return Battery(pin, mcu.adc[pin], (float(divider[0]), float(divider[1])), volts)
 
 
-def _rc(c: _BoardCheck, mcu: Mcu, r: dict[str, Any]) -> RcIn:
+def _rc(c: _BoardCheck, mcu: Mcu, r: dict[str, Any], motors: tuple[MotorOut, ...]) -> RcIn:
     protocol = c.string(r, "protocol", "rc", choices=RC_PROTOCOLS)
-    interrupting = set(mcu.ints.values()) | mcu.pcint
     if protocol == "ppm":
         pin = c.string(r, "pin", "rc").upper()
-        if mcu.engine == "stm32":  # (decoded by a timer's input capture, as STM32 flight controllers do)
-            if pin not in mcu.oc_pins.values():
-                raise c.fail("rc.pin", f"a PPM sum needs a timer channel's pin (input capture); the "
-                                       f"{mcu.name}'s {pin} is none")
-        elif pin not in interrupting:
-            raise c.fail("rc.pin", f"a PPM sum needs a pin with an external or pin change interrupt; the "
-                                   f"{mcu.name}'s {pin} has neither")
+        _rc_pin(c, mcu, "rc.pin", pin, motors)
         return RcIn("ppm", None, 0, pin)
     if protocol == "pwm":
         pins = r.get("pins")
@@ -322,8 +324,7 @@ def _rc(c: _BoardCheck, mcu: Mcu, r: dict[str, Any]) -> RcIn:
                                     f"{pins!r}")
         names = tuple(p.upper() for p in pins)
         for p in names:
-            if p not in interrupting:
-                raise c.fail("rc.pins", f"the {mcu.name}'s {p} has no external or pin change interrupt")
+            _rc_pin(c, mcu, "rc.pins", p, motors)
             if names.count(p) > 1:
                 raise c.fail("rc.pins", f"pin {p} is two channels")
         return RcIn("pwm", None, 0, None, names)
@@ -332,6 +333,16 @@ def _rc(c: _BoardCheck, mcu: Mcu, r: dict[str, Any]) -> RcIn:
     if protocol == "sbus" and r.get("baud", SBUS_BAUD) != SBUS_BAUD:
         raise c.fail("rc.baud", f"SBUS runs at {SBUS_BAUD} baud")
     return RcIn(protocol, uart, baud, None)
+
+
+def _rc_pin(c: _BoardCheck, mcu: Mcu, key: str, pin: str, motors: tuple[MotorOut, ...]) -> None:
+    """A receiver's pulses come in on a pin the MCU's flight controllers time them on (Mcu.rc_timing),
+    and not on a motor's pin."""
+    if pin not in mcu.rc_pins():
+        raise c.fail(key, f"the {mcu.name}'s {pin} has no {mcu.rc_pin_kind()}")
+    for m in motors:
+        if m.pin == pin:
+            raise c.fail(key, f"pin {pin} drives motor {m.motor}")
 
 
 def baud_error(clock_hz: int, baud: int) -> float:

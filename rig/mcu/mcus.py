@@ -58,6 +58,23 @@ class Mcu:
     flash_base: int = 0
     #: the RAMs an image may put its stack and data in: (address, bytes)
     rams: tuple[tuple[int, int], ...] = ()
+    #: how its flight controllers time a receiver's pulses (a PPM sum, a parallel PWM receiver's
+    #: channels), which says the pins a board may wire them to (``rc_pins``): "interrupt", an edge's
+    #: interrupt timed in software (an AVR's INTn and PCINTn pins, as MultiWii does); "capture", a timer
+    #: channel's input capture (an STM32's, as Betaflight's PPM and PWM inputs do)
+    rc_timing: str = "interrupt"
+
+    def rc_pins(self) -> frozenset[str]:
+        """The pins a PPM sum or a PWM receiver's channel may come in on (``rc_timing``)."""
+        if self.rc_timing == "capture":
+            return frozenset(self.oc_pins.values())
+        return frozenset(self.ints.values()) | self.pcint
+
+    def rc_pin_kind(self) -> str:
+        """What a pin of ``rc_pins`` has, for a board check's message."""
+        if self.rc_timing == "capture":
+            return "timer channel (a receiver's pulses are timed by its input capture)"
+        return "external or pin change interrupt"
 
     def output_name(self, timer: int, channel: str) -> str:
         """A timer output as the datasheet names it: OC1A, TIM4_CH1."""
@@ -109,7 +126,7 @@ MCUS: dict[str, Mcu] = {m.name: m for m in (
         engine="stm32", max_clock_hz=168_000_000, channels=("1", "2", "3", "4"),
         machine="rig-stm32f405", flash_base=0x0800_0000,
         # (RM0090 table 3: SRAM1 and SRAM2, then the CCM data RAM)
-        rams=((0x2000_0000, 128 * 1024), (0x1000_0000, 64 * 1024)),
+        rams=((0x2000_0000, 128 * 1024), (0x1000_0000, 64 * 1024)), rc_timing="capture",
     ),
     Mcu(
         "stm32f411", flash=512 * 1024, sram=128 * 1024, eeprom=0,
@@ -128,5 +145,6 @@ MCUS: dict[str, Mcu] = {m.name: m for m in (
         twi=("PB7", "PB6"), ports="ABCDEH",
         engine="stm32", max_clock_hz=100_000_000, channels=("1", "2", "3", "4"),
         machine="rig-stm32f411", flash_base=0x0800_0000, rams=((0x2000_0000, 128 * 1024),),
+        rc_timing="capture",
     ),
 )}

@@ -91,7 +91,7 @@ def test_a_ppm_receiver_needs_an_interrupt_pin(tmp_path: Path) -> None:
     p = tmp_path / "bad.toml"
     sbus = 'protocol = "sbus"    # RX1 D19 (PD2)\nuart = 1'
     p.write_text(board.find("mega2560-gy86").read_text().replace(sbus, 'protocol = "ppm"\npin = "PA0"'))
-    with pytest.raises(BoardError, match=r"rc.pin: a PPM sum needs a pin with an external or pin change"):
+    with pytest.raises(BoardError, match=r"rc.pin: the atmega2560.s PA0 has no external or pin change"):
         board.load(str(p))
 
 
@@ -117,3 +117,11 @@ def test_a_board_turned_90_degrees_sees_the_nose_on_its_right() -> None:
     assert forward == [0.0, 1.0, 0.0]
     assert down == [0.0, 0.0, -1.0]
     assert mounting(0) == ((1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (0.0, 0.0, -1.0))
+
+
+def test_a_receiver_pin_on_the_telemetry_usart_is_refused(tmp_path: Path) -> None:
+    """The 328P's PD1 is TXD (USART0, the Pro Mini's telemetry) and PCINT17: two drivers on one line."""
+    p = tmp_path / "bad.toml"
+    p.write_text(board.find("promini328-gy86").read_text().replace('pin = "PD2"', 'pin = "PD1"'))
+    with pytest.raises(BoardError, match=r"rc.pin: pin PD1 is USART0's TX, the telemetry's"):
+        board.load(str(p))

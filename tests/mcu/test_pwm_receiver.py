@@ -72,7 +72,8 @@ def test_a_ppm_sum_on_a_pin_change_pin(tmp_path: Path) -> None:
     [('protocol = "pwm"\npins = ["PK0", "PK1", "PK2"]', "expected 4 to 8 pins"),
      ('protocol = "pwm"\npins = ["PK0", "PK1", "PK2", "PA0"]', "PA0 has no external or pin change interrupt"),
      ('protocol = "pwm"\npins = ["PK0", "PK1", "PK2", "PK0"]', "pin PK0 is two channels"),
-     ('protocol = "ppm"\npin = "PA0"', "PA0 has neither")],
+     ('protocol = "ppm"\npin = "PA0"', "PA0 has no external or pin change interrupt"),
+     ('protocol = "ppm"\npin = "PE4"', "pin PE4 drives motor 1")],  # (INT4, the board's motor 1)
 )
 def test_receiver_pin_mistakes_name_the_key(tmp_path: Path, rc: str, words: str) -> None:
     path = tmp_path / "b.toml"

@@ -8,6 +8,7 @@
    the MCU session logs as telemetry. */
 #include "semihost.h"
 #include "stm32f405.h"
+#include "text_out.h"
 
 #define CHANNELS 8u
 #define REPORTED 3u
@@ -37,31 +38,6 @@ void tim2_handler(void)
     }
 }
 
-static void usart6_text(const char *s)
-{
-    for (; *s; s++) {
-        while (!(USART_SR(USART6_BASE) & USART_SR_TXE)) {
-        }
-        USART_DR(USART6_BASE) = (uint8_t)*s;
-    }
-}
-
-/* " 1234" (a space, then @value in decimal) at @out, returning the end */
-static char *decimal(char *out, uint32_t value)
-{
-    char digits[10];
-    unsigned n = 0;
-    do {
-        digits[n++] = (char)('0' + value % 10u);
-        value /= 10u;
-    } while (value);
-    *out++ = ' ';
-    while (n) {
-        *out++ = digits[--n];
-    }
-    return out;
-}
-
 static void send_frame(unsigned f)
 {
     uint32_t w[CHANNELS];
@@ -75,24 +51,9 @@ static void send_frame(unsigned f)
         char name[] = "ppm_0_sync";
         name[4] = (char)('0' + f);
         report(name, gap);
-        for (unsigned c = 0; c < CHANNELS; c++) {
-            char channel_name[] = "ppm_0_0";
-            channel_name[4] = (char)('0' + f);
-            channel_name[6] = (char)('1' + c);
-            report(channel_name, w[c]);
-        }
+        report_widths("ppm", f, w, CHANNELS);
     }
-    char line[3 + CHANNELS * 11 + 2];
-    char *end = line;
-    *end++ = 'P';
-    *end++ = 'P';
-    *end++ = 'M';
-    for (unsigned c = 0; c < CHANNELS; c++) {
-        end = decimal(end, w[c]);
-    }
-    *end++ = '\n';
-    *end = '\0';
-    usart6_text(line);
+    send_widths("PPM", w, CHANNELS);
 }
 
 int main(void)

@@ -1,0 +1,163 @@
+"""A parallel PWM receiver on the STM32 tier: a pulse per channel on its own pin, the engine's pin_drive
+(rig/mcu/stm32_link.py) putting each on its pin through the link, and tests/stm32/firmware/pwm_rx.c
+timing each by a timer channel's input capture (rising edge, then falling: CCxP turned at each capture),
+as Betaflight's PWM input does, at 1 MHz (the 16 MHz HSI, PSC 15: RM0090 17.3.1, CK_CNT = f_CK_PSC /
+(PSC + 1)). So the board check wants a timer channel's pin for each channel, as for a PPM sum
+(rig/mcu/mcus.py, rc_timing).
+
+Independent truth: the widths the test puts on the pins, and DS8626 table 9 for which pins are timer
+channels. At a 1 MHz count the two captures of a pulse differ by exactly its width in microseconds."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from rig.emulators import sbus
+from rig.mcu import board as boards
+from rig.mcu.board import Board, BoardError
+from rig.mcu.session import PWM_FRAME_NS, McuConfig, McuSession
+from rig.mcu.stm32_link import Stm32Config, Stm32Engine
+from rig.world import World
+from tests.stm32.conftest import engine_or_skip, firmware, reports
+
+STEP_NS = 1_000_000
+FIRST_FRAME_NS = 2_000_000
+#: pwm_rx's channels in order (DS8626 table 9): TIM1_CH1, TIM1_CH4, TIM3_CH1, TIM3_CH2, TIM5_CH1,
+#: TIM5_CH2, TIM8_CH3, TIM8_CH4
+PINS = ["PA8", "PA11", "PA6", "PA7", "PA0", "PA1", "PC8", "PC9"]
+#: three frames of 8 channels (the firmware reports three), each frame's own widths in microseconds
+FRAMES = [
+    [1000, 1100, 1234, 1500, 1777, 1900, 2000, 1050],
+    [1500, 1500, 1000, 1999, 1001, 1250, 1750, 1600],
+    [2000, 1000, 1500, 1500, 1200, 1800, 1333, 1667],
+]
+SHIPPED = boards.BOARDS / "stm32f405-gy86.toml"
+RC, TEL = "/dev/ttyRC0", "/dev/ttyTEL0"
+#: SBUS values as a scenario's sticks send them (172..1811; 16 channels, of which the receiver puts 8 out)
+SBUS_CHANNELS = [172, 992, 1811, 500, 1500, 992, 300, 1700, 992, 992, 992, 992, 992, 992, 992, 992]
+
+
+def pwm_board(tmp_path: Path, pins: list[str]) -> Path:
+    """The shipped STM32F405 board with a parallel PWM receiver on ``pins`` instead of SBUS on USART1."""
+    text = SHIPPED.read_text()
+    start = text.index("[rc]")
+    end = text.index("[telemetry]")
+    path = tmp_path / "stm32f405-gy86-pwm.toml"
+    listed = ", ".join(f'"{p}"' for p in pins)
+    path.write_text(text[:start] + f'[rc]\nprotocol = "pwm"\npins = [{listed}]\n\n' + text[end:])
+    return path
+
+
+def frame_edges(start_ns: int, widths_us: list[int]) -> dict[str, list[tuple[int, int]]]:
+    """One frame from ``start_ns``: each channel's pulse on its pin, the next rising as one falls."""
+    edges: dict[str, list[tuple[int, int]]] = {}
+    t = start_ns
+    for pin, us in zip(PINS, widths_us, strict=True):
+        edges[pin] = [(t, 1), (t + us * 1000, 0)]
+        t += us * 1000
+    return edges
+
+
+def drive_pwm(board: Board) -> str:
+    """pwm_rx on ``board``: each frame given to the engine in the step before it starts, 1 ms steps until
+    the firmware has had the three; QEMU's output."""
+    engine = Stm32Engine(Stm32Config(board, firmware("pwm_rx"), engine_or_skip()), None)
+    try:
+        t = 0
+        for k, widths in enumerate(FRAMES):
+            start = FIRST_FRAME_NS + k * PWM_FRAME_NS
+            while t + STEP_NS < start:
+                t += STEP_NS
+                assert engine.run_until(t).kind == "reached"
+            for pin, edges in frame_edges(start, widths).items():
+                engine.pin_drive(pin, edges)
+        end = FIRST_FRAME_NS + len(FRAMES) * PWM_FRAME_NS
+        while t < end:
+            t += STEP_NS
+            assert engine.run_until(t).kind == "reached"
+        return engine.output()
+    finally:
+        engine.close()
+
+
+def test_the_firmware_times_each_channel_to_the_microsecond(tmp_path: Path) -> None:
+    out = drive_pwm(boards.load(pwm_board(tmp_path, PINS)))
+    got = reports(out)
+    for f, widths in enumerate(FRAMES):
+        assert [got[f"pwm_{f}_{c + 1}"] for c in range(8)] == widths, out
+    assert "pwm_3_1" not in got
+
+
+def test_two_runs_print_the_same_bytes(tmp_path: Path) -> None:
+    board = boards.load(pwm_board(tmp_path, PINS))
+    first = drive_pwm(board)
+    assert "pwm_2_8=" in first
+    assert drive_pwm(board) == first
+
+
+def test_the_sessions_rc_frames_reach_the_firmware_as_pulses(tmp_path: Path) -> None:
+    """The MCU session with the PWM board: the scenario's RC frames (SBUS, as the scenarios write them)
+    become a pulse on each channel's pin every PWM_FRAME_NS (rig/mcu/session.py), and pwm_rx's telemetry
+    lines on USART6 carry the widths back exactly, each as a receiver maps SBUS to microseconds."""
+    engine_or_skip()
+    board = boards.load(pwm_board(tmp_path, PINS))
+    world = World.at_rest(seed=0, topology=board.topology)
+    session = McuSession(McuConfig(board, firmware("pwm_rx"), 0.2, RC, TEL), world)
+    frame = sbus.encode(SBUS_CHANNELS)
+    for t in (0.02, 0.04, 0.06):
+        session.at(t, lambda s: s.serial_write(RC, frame))
+    outcome = session.run()
+    world.close()
+    assert outcome.verdict == "ok", outcome.error
+    lines = session.serial_output(TEL).decode().splitlines()
+    # the receiver's line through its two ends, written here: 172 -> 1000 us, 1811 -> 2000 us
+    want = [round(1000 + (c - 172) * (2000 - 1000) / (1811 - 172)) for c in SBUS_CHANNELS[:8]]
+    assert lines and all(line == "PWM " + " ".join(map(str, want)) for line in lines), lines
+    # a frame each period from the first period after the first RC frame (20 ms): at 40, 60, ... 180 ms
+    # (the one at 200 ms ends after the run), each over within its 20 ms
+    assert len(lines) == 8
+
+
+@pytest.mark.parametrize(("pins", "words"), [
+    (["PA8", "PA11", "PA6", "PC13"], "rc.pins: the stm32f405's PC13 has no timer channel"),
+    (["PA8", "PA11", "PA6", "PB0"], "rc.pins: pin PB0 drives motor 1"),
+    (["PA8", "PA11", "PA6", "PA8"], "rc.pins: pin PA8 is two channels"),
+    (["PA8", "PA11", "PA6"], "rc.pins: expected 4 to 8 pins"),
+], ids=["no-timer", "motor", "twice", "three"])
+def test_a_board_puts_each_channel_on_a_free_timer_channel_pin(tmp_path: Path, pins: list[str],
+                                                                words: str) -> None:
+    """DS8626 table 9: PC13 is no timer's channel; PB0 is TIM3_CH3, the board's motor 1."""
+    with pytest.raises(BoardError, match=words):
+        boards.load(pwm_board(tmp_path, pins))
+
+
+def test_four_to_eight_timer_channel_pins_are_a_receiver(tmp_path: Path) -> None:
+    board = boards.load(pwm_board(tmp_path, [p.lower() for p in PINS[:4]]))
+    assert board.rc is not None and (board.rc.protocol, board.rc.pins) == ("pwm", tuple(PINS[:4]))
+    board = boards.load(pwm_board(tmp_path, PINS))
+    assert board.rc is not None and board.rc.pins == tuple(PINS)
+
+
+def test_the_f411s_own_timer_channels_are_its_receiver_pins(tmp_path: Path) -> None:
+    """DS10314 table 9: the F411 has TIM9 (CH1 PA2, CH2 PA3, USART2's TX and RX, the Black Pill's
+    telemetry) and no TIM8, so PC8 (the F405's TIM8_CH3) is no receiver pin on the Black Pill; PA6 is
+    TIM3_CH1, the board's motor 1; PA0 and PA1 are TIM2's or TIM5's CH1 and CH2, PA8 TIM1_CH1."""
+    text = (boards.BOARDS / "stm32f411-blackpill-gy86.toml").read_text()
+    start, end = text.index("[rc]"), text.index("[telemetry]")
+    path = tmp_path / "blackpill-pwm.toml"
+
+    def board_with(pins: list[str]) -> Board:
+        listed = ", ".join(f'"{p}"' for p in pins)
+        path.write_text(text[:start] + f'[rc]\nprotocol = "pwm"\npins = [{listed}]\n\n' + text[end:])
+        return boards.load(path)
+
+    board = board_with(["PA8", "PA0", "PA1", "PB6"])
+    assert board.rc is not None and board.rc.pins == ("PA8", "PA0", "PA1", "PB6")
+    with pytest.raises(BoardError, match="rc.pins: pin PA2 is USART2's TX, the telemetry's"):
+        board_with(["PA8", "PA0", "PA1", "PA2"])
+    with pytest.raises(BoardError, match="rc.pins: the stm32f411's PC8 has no timer channel"):
+        board_with(["PA8", "PA0", "PA1", "PC8"])
+    with pytest.raises(BoardError, match="rc.pins: pin PA6 drives motor 1"):
+        board_with(["PA8", "PA0", "PA1", "PA6"])
