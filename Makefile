@@ -202,8 +202,8 @@ TEST_JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 TEST_BUILDS := stm32-engine mcu-test-firmware $(STM32_FW) avr stm32 $(FMU) $(SHIM) $(NATIVE) $(DUT_BIN) $(VBRIDGE) firmware
 test: venv test-packages
 	$(MAKE) -s -j2 INSTALLED=1 $(COMPILED) lint-sources $(TEST_BUILDS)
-	$(PY) -m pytest -q -m "not slow and not paced" -n $(TEST_JOBS) --durations=25
-	$(PY) -m pytest -q -m "paced and not slow" --durations=5
+	$(PY) -m pytest -q -m "not slow and not paced" -n $(TEST_JOBS) --built --durations=25
+	$(PY) -m pytest -q -m "paced and not slow" --built --durations=5
 
 test-slow: venv $(FMU) $(SHIM) $(NATIVE) $(COMPILED)
 	$(PY) -m pytest -q -m slow

@@ -8,6 +8,10 @@
 * A test that ends inconclusive (``pytest.skip`` with ``INCONCLUSIVE``: tests/realtime.py, the host
   could not keep real time) is a ``paced`` test; one that is not fails, saying so, so that every
   inconclusive test is counted below.
+* A test skipped because a build it needs is missing (``pytest.skip`` with ``NOT_BUILT``) fails in a run
+  given ``--built``, as make test's runs are: make test built everything first, so such a skip means a
+  build went missing (an engine pruned from the cache by another worktree's build, say) and the run
+  would go green having checked none of it.
 * At the end of a run with paced tests the count is printed: how many were inconclusive, how many
   skipped for another reason (a missing privilege, say). Either way the test verified no real-time
   path; more than ``MAX_UNVERIFIED_SHARE`` of the paced tests unverified fails the run, which is then
@@ -29,6 +33,8 @@ from tests.realtime import INCONCLUSIVE
 
 #: the share of the paced tests that may end unverified (inconclusive or skipped) without failing the run
 MAX_UNVERIFIED_SHARE = 0.5
+#: the start of a skip's reason when a build the test needs is missing (fails under --built)
+NOT_BUILT = "not built: "
 #: how a slow test's reason names the default-run test that covers it
 COVERED_BY = re.compile(r"(tests/[\w/]+\.py)::(\w+)")
 
@@ -37,6 +43,9 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addoption("--max-unverified-paced", type=float, default=MAX_UNVERIFIED_SHARE, metavar="SHARE",
                      help="fail the run when more than this share of its paced tests ended inconclusive or "
                           f"skipped (default {MAX_UNVERIFIED_SHARE})")
+    parser.addoption("--built", action="store_true",
+                     help="every build the tests need was made before the run (make test): a test skipped "
+                          "because one is missing fails")
 
 
 def _skip_reason(report: pytest.TestReport) -> str:
@@ -86,6 +95,10 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
         report.outcome = "failed"
         report.longrepr = (f"{_skip_reason(report)}\n(tests/suite_rules.py: a test that can end inconclusive "
                            "is paced by the wall clock: mark it paced, so that make test counts it)")
+    elif _skip_reason(report).startswith(NOT_BUILT) and item.config.getoption("built"):
+        report.outcome = "failed"
+        report.longrepr = (f"{_skip_reason(report)}\n(tests/suite_rules.py: this run was told every build "
+                           "was made (--built), so a missing one is a failure, not a skip)")
     return report
 
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from tests.realtime import INCONCLUSIVE
-from tests.suite_rules import MAX_UNVERIFIED_SHARE
+from tests.suite_rules import MAX_UNVERIFIED_SHARE, NOT_BUILT
 
 REPO = Path(__file__).resolve().parents[1]
 INI = """[pytest]
@@ -81,3 +81,16 @@ def test_a_slow_test_names_a_default_run_test_covering_it(tmp_path: Path) -> Non
     assert "test_it.py::test_lost: its slow marker names tests/nowhere.py::test_x, which is not there" \
         in done.stderr
     assert "test_it.py::test_loop: slow without naming" in done.stderr  # (a test outside tests/: none)
+
+
+def test_a_skip_for_a_missing_build_fails_a_run_told_everything_was_built(tmp_path: Path) -> None:
+    """make test builds first and says so (--built): a test that then finds its build missing fails
+    (a green run would have checked none of it); without --built (a developer's partial run) it skips."""
+    body = (f"def test_needs_an_engine():\n    pytest.skip({NOT_BUILT + 'the engine (make engine)'!r})\n\n"
+            "def test_needs_root():\n    pytest.skip('needs root')\n")
+    told = suite(tmp_path, body, "--built", "-n", "1")
+    assert told.returncode == 1, told.stdout
+    assert "1 failed, 1 skipped" in told.stdout, told.stdout
+    assert "FAILED test_it.py::test_needs_an_engine" in told.stdout and "(--built)" in told.stdout
+    untold = suite(tmp_path, body)
+    assert untold.returncode == 0 and "2 skipped" in untold.stdout, untold.stdout

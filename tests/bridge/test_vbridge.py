@@ -24,6 +24,7 @@ from rig.bridge.link import Decoded, Receiver, encode
 from rig.bridge.messages import PROTOCOL_VERSION
 from rig.emulators import sbus
 from tests.bridge.tools import REPO, vbridge
+from tests.suite_rules import NOT_BUILT
 from tests.waits import BOUND_S, wait_gone
 
 SHIM = REPO / "build" / "librigshim.so"
@@ -112,7 +113,7 @@ def start_vbridge() -> tuple[subprocess.Popen[bytes], dict[str, str]]:
 @pytest.fixture
 def vb() -> Iterator[VBridge]:
     if not SHIM.is_file():
-        pytest.skip("build/librigshim.so not built (make shim)")
+        pytest.skip(f"{NOT_BUILT}build/librigshim.so (make shim)")
     proc, ends = start_vbridge()
     v = VBridge(proc, ends)
     try:

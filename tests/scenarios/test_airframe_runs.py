@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from rig.scenarios.schema import ScenarioError, load
+from tests.suite_rules import NOT_BUILT
 
 LIB = Path(__file__).resolve().parents[2] / "scenarios" / "library"
 PY = sys.executable
@@ -71,7 +72,7 @@ def test_vehicle_keys_that_break_the_triangle_on_the_airframe_are_refused(tmp_pa
 @pytest.mark.usefixtures("fmu_path")
 def test_the_reference_fc_flies_the_450_class_airframe_and_the_reports_say_which(tmp_path):
     if not REFERENCE_FC.is_file():
-        pytest.skip("the reference FC is not built (make dut)")
+        pytest.skip(f"{NOT_BUILT}the reference FC (make dut)")
     out = tmp_path / "out"
     done = rig("run", "step_roll", "--airframe", "f450", "--out", out)
     assert done.returncode == 0, done.stdout + done.stderr  # every step_roll criterion, on the F450
@@ -87,7 +88,7 @@ def test_the_reference_fc_flies_the_450_class_airframe_and_the_reports_say_which
 @pytest.mark.usefixtures("fmu_path")
 def test_a_run_on_the_seeds_airframe_says_it_is_physically_inconsistent(tmp_path):
     if not REFERENCE_FC.is_file():
-        pytest.skip("the reference FC is not built (make dut)")
+        pytest.skip(f"{NOT_BUILT}the reference FC (make dut)")
     out = tmp_path / "out"
     rig("run", "step_roll", "--out", out)
     meta = json.loads((out / "step_roll" / "result.json").read_text())["metadata"]
@@ -115,7 +116,7 @@ def test_a_bad_airframe_is_a_usage_error_on_every_command(tmp_path, command):
 @pytest.mark.usefixtures("fmu_path")
 def test_the_api_flies_an_airframe(tmp_path):
     if not REFERENCE_FC.is_file():
-        pytest.skip("the reference FC is not built (make dut)")
+        pytest.skip(f"{NOT_BUILT}the reference FC (make dut)")
     from rig import api
 
     result = api.run("step_roll", airframe="racer-250", out=tmp_path)
@@ -125,7 +126,7 @@ def test_the_api_flies_an_airframe(tmp_path):
 @pytest.mark.usefixtures("fmu_path")
 def test_a_sweep_flies_every_variant_on_the_airframe(tmp_path):
     if not REFERENCE_FC.is_file():
-        pytest.skip("the reference FC is not built (make dut)")
+        pytest.skip(f"{NOT_BUILT}the reference FC (make dut)")
     _scenario(tmp_path, "mass = 1.5")
     spec = tmp_path / "spec.toml"
     spec.write_text('[sweep]\nscenario = "on_airframe.toml"\nseeds = 1\n'

@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from rig.mcu import stm32_engine
+from tests.suite_rules import NOT_BUILT
 
 REPO = Path(__file__).resolve().parents[2]
 #: the instruction count's period under -icount: 2**3 ns, 125 M instructions per virtual second
@@ -26,7 +27,7 @@ REPORT_LINE = re.compile(r"([a-z0-9_]+)=0x([0-9a-f]{8})")
 def engine_or_skip() -> Path:
     binary = stm32_engine.cached_binary()
     if binary is None:
-        pytest.skip("the STM32 engine is not built for the current sources: `make stm32-engine` builds it "
+        pytest.skip(f"{NOT_BUILT}the STM32 engine for the current sources: `make stm32-engine` builds it "
                     "(QEMU from source, many minutes on 2 cores; docs/build.md)")
     return binary
 
