@@ -118,7 +118,9 @@ typedef struct RigStm32UsartState {
     uint8_t apb, rcc_bit; /* its bus (1, 2) and bit in RCC_APBxENR/APBxRSTR (properties "apb", "rcc-bit") */
     bool uart;            /* property "uart": UART4/UART5, without the synchronous and flow-control bits */
     const RigRegister *table;
-    qemu_irq irq, dma_rx, dma_tx;
+    qemu_irq irq, dma[2]; /* "dma-rx", "dma-tx" */
+    bool dma_level[2];
+    bool catching_up; /* in catch_up(): the DMA's accesses it makes do not catch up again */
     QEMUTimer *timer;
     uint32_t regs[R_COUNT]; /* DR: the received data register (RDR) */
     uint32_t sr_seen;       /* SR as last read: the first half of the clear sequences */
@@ -183,8 +185,23 @@ static void update_irqs(RigStm32UsartState *s)
                ((cr3 & CR3_EIE) && (cr3 & CR3_DMAR) && (sr & (SR_FE | SR_ORE | SR_NF))) ||
                ((s->regs[R_CR2] & CR2_LBDIE) && (sr & SR_LBD)) || ((cr3 & CR3_CTSIE) && (sr & SR_CTS));
     qemu_set_irq(s->irq, irq);
-    qemu_set_irq(s->dma_rx, (cr3 & CR3_DMAR) && (sr & SR_RXNE));
-    qemu_set_irq(s->dma_tx, (cr3 & CR3_DMAT) && (sr & SR_TXE));
+    bool dma[2] = { (cr3 & CR3_DMAR) && (sr & SR_RXNE), (cr3 & CR3_DMAT) && (sr & SR_TXE) };
+    for (unsigned k = 0; k < 2; k++) {
+        if (dma[k] != s->dma_level[k]) {
+            s->dma_level[k] = dma[k];
+            qemu_set_irq(s->dma[k], dma[k]);
+        }
+    }
+}
+
+/* DR read (@k 0) or written (1), by the DMA or the core: the request is down until RXNE or TXE comes again
+ * (a request is a level the DMA serves once a rise) */
+static void dma_served(RigStm32UsartState *s, unsigned k)
+{
+    if (s->dma_level[k]) {
+        s->dma_level[k] = false;
+        qemu_set_irq(s->dma[k], 0);
+    }
 }
 
 /* The transmitter: the next frame starts at @at_ns if a byte waits and TE and UE allow */
@@ -210,6 +227,7 @@ static void tx_catch_up(RigStm32UsartState *s, int64_t now)
             qemu_chr_fe_write_all(&s->chr, &s->tx_byte, 1);
         }
         tx_next(s, s->tx_end_ns);
+        update_irqs(s); /* (with DMAT the DMA fills DR at this instant, before the next frame) */
     }
 }
 
@@ -325,6 +343,7 @@ static void rx_catch_up(RigStm32UsartState *s, int64_t now)
             s->regs[R_DR] = data;
             s->regs[R_SR] = (s->regs[R_SR] & ~(SR_PE | SR_FE | SR_NF)) | flags | SR_RXNE;
         }
+        update_irqs(s); /* (with DMAR the DMA takes DR at this instant, before the next byte) */
     }
     /* frames the receiver is done with */
     while (s->n_frames) {
@@ -344,6 +363,9 @@ static void arm(RigStm32UsartState *s)
     int64_t when = INT64_MAX, at;
     uint16_t data;
     uint32_t flags;
+    if (s->catching_up) {
+        return; /* (a DMA access inside catch_up: the caller arms once it is done) */
+    }
     if (s->tx_busy && ((cr1 & (CR1_TXEIE | CR1_TCIE)) || (cr3 & CR3_DMAT))) {
         when = s->tx_end_ns;
     }
@@ -361,9 +383,14 @@ static void arm(RigStm32UsartState *s)
 
 static void catch_up(RigStm32UsartState *s)
 {
+    if (s->catching_up) {
+        return;
+    }
     int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    s->catching_up = true;
     tx_catch_up(s, now);
     rx_catch_up(s, now);
+    s->catching_up = false;
 }
 
 static void usart_tick(void *opaque)
@@ -430,6 +457,7 @@ static uint64_t usart_read(void *opaque, hwaddr offset, unsigned size)
         value = s->regs[R_DR] & ((s->regs[R_CR1] & CR1_M) ? 0x1FF : 0xFF);
         s->regs[R_SR] &= ~(SR_RXNE | (s->sr_seen & SR_READ_CLEARED));
         s->sr_seen &= ~SR_READ_CLEARED;
+        dma_served(s, 0);
         break;
     case R_BRR:
     case R_CR1:
@@ -458,6 +486,7 @@ static void write_dr(RigStm32UsartState *s, uint32_t value)
     }
     s->tdr = (uint16_t)(value & 0x1FF);
     s->regs[R_SR] &= ~SR_TXE;
+    dma_served(s, 1);
     if (!s->tx_busy) {
         tx_next(s, qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL));
     }
@@ -533,6 +562,7 @@ static void usart_reset(DeviceState *dev)
     s->sr_seen = 0;
     s->tdr = 0;
     s->tx_busy = s->tx_idle_frame = s->idle_armed = false;
+    s->catching_up = false;
     /* (the sender's frames stay: the line is outside the chip; those before now go unseen) */
     s->rx_pos_ns = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
     update_irqs(s);
@@ -558,8 +588,8 @@ static void usart_init(Object *obj)
     memory_region_init_io(&s->iomem, obj, &usart_ops, s, TYPE_RIG_STM32_USART, 0x400);
     sysbus_init_mmio(SYS_BUS_DEVICE(obj), &s->iomem);
     sysbus_init_irq(SYS_BUS_DEVICE(obj), &s->irq);
-    qdev_init_gpio_out_named(DEVICE(obj), &s->dma_rx, "dma-rx", 1);
-    qdev_init_gpio_out_named(DEVICE(obj), &s->dma_tx, "dma-tx", 1);
+    qdev_init_gpio_out_named(DEVICE(obj), &s->dma[0], "dma-rx", 1);
+    qdev_init_gpio_out_named(DEVICE(obj), &s->dma[1], "dma-tx", 1);
     s->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, usart_tick, s);
     s->table = usart_registers;
 }

@@ -242,7 +242,9 @@ enum { RIG_DMA_UP, RIG_DMA_CC1, RIG_DMA_CC2, RIG_DMA_CC3, RIG_DMA_CC4, RIG_DMA_C
 #define RIG_DMA_TIMER(n, request) ((n)*RIG_DMA_TIM_REQS + (request)) /* TIMn, n 1..14 */
 #define RIG_DMA_I2C1_RX RIG_DMA_TIMER(15, 0)
 #define RIG_DMA_I2C1_TX (RIG_DMA_I2C1_RX + 1)
-#define RIG_DMA_SOURCES (RIG_DMA_I2C1_TX + 1)
+#define RIG_DMA_USART_RX(n) (RIG_DMA_I2C1_TX + 2 * (n)-1) /* USARTn's RXNE request, n 1..6 (UART4, UART5 among them) */
+#define RIG_DMA_USART_TX(n) (RIG_DMA_USART_RX(n) + 1)     /* its TXE request */
+#define RIG_DMA_SOURCES (RIG_DMA_USART_TX(6) + 1)
 
 typedef struct RigDmaStream {
     uint32_t cr, ndtr, par, m0ar, m1ar, fcr;

@@ -299,7 +299,7 @@ static void map_exti(RigStm32RccState *rcc, DeviceState *nvic, DeviceState **gpi
 
 /* USART1..USART6 over QEMU's (which keep no chardev: the engine names its chardevs rig-usartN, and the
  * machine gives them to these), as /machine/usartN for the link */
-static void map_usarts(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceState *nvic)
+static void map_usarts(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceState *nvic, DeviceState **dma)
 {
     for (unsigned n = 1; n <= 6; n++) {
         if (!(chip->usarts >> n & 1u)) {
@@ -325,6 +325,12 @@ static void map_usarts(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceSt
         sysbus_realize_and_unref(SYS_BUS_DEVICE(dev), &error_fatal);
         sysbus_mmio_map_overlap(SYS_BUS_DEVICE(dev), 0, usart_map[n].base, 1);
         sysbus_connect_irq(SYS_BUS_DEVICE(dev), 0, qdev_get_gpio_in(nvic, usart_map[n].irq));
+        /* the DMA requests: USART1 and USART6 on DMA2, the others on DMA1 (the request mapping is the DMA's) */
+        DeviceState *controller = dma[n == 1 || n == 6];
+        qdev_connect_gpio_out_named(dev, "dma-rx", 0,
+                                    qdev_get_gpio_in_named(controller, "request", RIG_DMA_USART_RX(n)));
+        qdev_connect_gpio_out_named(dev, "dma-tx", 0,
+                                    qdev_get_gpio_in_named(controller, "request", RIG_DMA_USART_TX(n)));
         rig_stm32_rcc_add_reset(rcc, usart_map[n].apb == 1 ? RCC_APB1RSTR : RCC_APB2RSTR, usart_map[n].rcc_bit, dev);
     }
 }
@@ -481,7 +487,7 @@ void rig_stm32f4_machine_init(MachineState *machine, const RigStm32Chip *chip)
 
     map_exti(r, nvic, gpio_ports);
     map_timers(chip, r, DEVICE(&STM32F405_SOC(soc)->armv7m), gpio_ports, dma);
-    map_usarts(chip, r, DEVICE(&STM32F405_SOC(soc)->armv7m));
+    map_usarts(chip, r, DEVICE(&STM32F405_SOC(soc)->armv7m), dma);
     wire_pins(chip, gpio_ports);
     map_absent(chip);
 
