@@ -7,7 +7,8 @@
  * out in its frame's time (start bit, M data bits, the stop bits of CR2.STOP; the parity bit is the last
  * data bit when PCE is set); TXE comes as the byte moves into the shift register, TC at the end of a
  * frame with none waiting. Setting TE sends an idle frame first (30.3.2). Each byte goes to the USART's
- * chardev when its frame ends; nothing else reaches QEMU's main loop.
+ * chardev when its frame ends; nothing else reaches QEMU's main loop (with -global
+ * rig-stm32f4-usart.trace-bytes=on each is also a line on stderr with the instant its frame ended).
  *
  * Receiver: the sender's frames (rig_stm32_usart_receive: each frame's start, bits and baud, given ahead)
  * make the line's level in time, and the receiver reads it as the chip does (30.3.3): a falling edge starts a
@@ -117,6 +118,8 @@ typedef struct RigStm32UsartState {
     CharBackend chr;
     uint8_t apb, rcc_bit; /* its bus (1, 2) and bit in RCC_APBxENR/APBxRSTR (properties "apb", "rcc-bit") */
     bool uart;            /* property "uart": UART4/UART5, without the synchronous and flow-control bits */
+    uint8_t index;        /* property "index": n of USARTn (its DMA requests' numbers, the trace's name) */
+    bool trace_bytes;     /* property "trace-bytes": each byte sent on stderr with its frame's end */
     const RigRegister *table;
     qemu_irq irq, dma[2]; /* "dma-rx", "dma-tx" */
     bool dma_level[2];
@@ -225,6 +228,10 @@ static void tx_catch_up(RigStm32UsartState *s, int64_t now)
     while (s->tx_busy && s->tx_end_ns <= now) {
         if (!s->tx_idle_frame && qemu_chr_fe_backend_connected(&s->chr)) {
             qemu_chr_fe_write_all(&s->chr, &s->tx_byte, 1);
+        }
+        if (!s->tx_idle_frame && s->trace_bytes) {
+            fprintf(stderr, "rig-stm32f4-usart: t_ns=%" PRId64 " USART%u byte=0x%02x\n", s->tx_end_ns, s->index,
+                    s->tx_byte);
         }
         tx_next(s, s->tx_end_ns);
         update_irqs(s); /* (with DMAT the DMA fills DR at this instant, before the next frame) */
@@ -600,6 +607,8 @@ static Property usart_properties[] = {
     DEFINE_PROP_UINT8("apb", RigStm32UsartState, apb, 2),
     DEFINE_PROP_UINT8("rcc-bit", RigStm32UsartState, rcc_bit, 4),
     DEFINE_PROP_BOOL("uart", RigStm32UsartState, uart, false),
+    DEFINE_PROP_UINT8("index", RigStm32UsartState, index, 0),
+    DEFINE_PROP_BOOL("trace-bytes", RigStm32UsartState, trace_bytes, false),
     DEFINE_PROP_END_OF_LIST(),
 };
 

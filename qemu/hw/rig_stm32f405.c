@@ -312,6 +312,7 @@ static void map_usarts(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceSt
         qdev_prop_set_uint8(dev, "apb", usart_map[n].apb);
         qdev_prop_set_uint8(dev, "rcc-bit", usart_map[n].rcc_bit);
         qdev_prop_set_bit(dev, "uart", n == 4 || n == 5);
+        qdev_prop_set_uint8(dev, "index", n);
         object_property_set_link(OBJECT(dev), "rcc", OBJECT(rcc), &error_fatal);
         Chardev *chr = qemu_chr_find(chardev);
         if (chr != NULL && chr->be != NULL) {
