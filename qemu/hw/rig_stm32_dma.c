@@ -299,6 +299,33 @@ static void serve(RigStm32DmaState *s)
 
 static void serve_later(void *opaque) { serve(opaque); }
 
+void rig_stm32_dma_add_sync(RigStm32DmaState *s, void (*fn)(void *opaque), void *opaque)
+{
+    assert(s->n_sync < RIG_DMA_SYNCS);
+    s->sync[s->n_sync].fn = fn;
+    s->sync[s->n_sync++].opaque = opaque;
+}
+
+bool rig_stm32_dma_request_stream(RigStm32DmaState *s, unsigned source, uint32_t *cr, uint32_t *ndtr, uint32_t *reload)
+{
+    int n = dma_clocked(s) ? stream_of(s, source) : -1;
+    if (n < 0) {
+        return false;
+    }
+    *cr = s->stream[n].cr;
+    *ndtr = s->stream[n].ndtr;
+    *reload = s->stream[n].reload;
+    return true;
+}
+
+/* The lazy peripherals up to now before a register access (rig_stm32_dma_add_sync) */
+static void sync_peripherals(RigStm32DmaState *s)
+{
+    for (unsigned i = 0; i < s->n_sync; i++) {
+        s->sync[i].fn(s->sync[i].opaque);
+    }
+}
+
 static void request_changed(void *opaque, int source, int level)
 {
     RigStm32DmaState *s = opaque;
@@ -374,6 +401,7 @@ static uint64_t dma_read(void *opaque, hwaddr offset, unsigned size)
     if (!dma_clocked(s)) {
         return 0;
     }
+    sync_peripherals(s);
     if (offset >= STREAM_BASE && offset < STREAM_BASE + RIG_DMA_STREAMS * STREAM_STRIDE) {
         const RigDmaStream *st = &s->stream[(offset - STREAM_BASE) / STREAM_STRIDE];
         const uint32_t values[S_REGS] = { st->cr, st->ndtr, st->par, st->m0ar, st->m1ar, st->fcr };
@@ -399,6 +427,7 @@ static void dma_write(void *opaque, hwaddr offset, uint64_t value, unsigned size
     if (!dma_clocked(s)) {
         return;
     }
+    sync_peripherals(s);
     if (offset >= STREAM_BASE && offset < STREAM_BASE + RIG_DMA_STREAMS * STREAM_STRIDE) {
         write_stream(s, (offset - STREAM_BASE) / STREAM_STRIDE, (offset - STREAM_BASE) % STREAM_STRIDE / 4, v);
         update_irqs(s);

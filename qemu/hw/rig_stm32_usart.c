@@ -115,6 +115,7 @@ typedef struct RigStm32UsartState {
     SysBusDevice parent_obj;
     MemoryRegion iomem;
     RigStm32RccState *rcc;
+    RigStm32DmaState *dma_ctl; /* property "dma": the controller its requests go to */
     CharBackend chr;
     uint8_t apb, rcc_bit; /* its bus (1, 2) and bit in RCC_APBxENR/APBxRSTR (properties "apb", "rcc-bit") */
     bool uart;            /* property "uart": UART4/UART5, without the synchronous and flow-control bits */
@@ -363,6 +364,57 @@ static void rx_catch_up(RigStm32UsartState *s, int64_t now)
     }
 }
 
+#define DMA_CR_HTIE (1u << 3) /* RM0090 10.5.5, SxCR */
+#define DMA_CR_TCIE (1u << 4)
+#define DMA_CR_DIR_M2P (1u << 6)
+#define DMA_CR_DIR_MASK (3u << 6)
+#define DMA_CR_CIRC (1u << 8)
+#define DMA_CR_DBM (1u << 18)
+
+/* The instant the transmitter needs its QEMU timer for (INT64_MAX: none). Each frame's end while TXEIE,
+ * TCIE or DMAT may want it; but with DMAT and the stream feeding it enabled (memory-to-peripheral, neither
+ * circular nor double-buffer) every byte's frame is known ahead: the DMA fills DR at each TXE, so with DR
+ * full now (the shift register sending until tx_end) the k-th item left is transferred at tx_end + (k - 1)
+ * frames and leaves the line at tx_end + (k + 1) frames. Then only the instant an interrupt is due needs
+ * the timer: the stream's HTIF or TCIF (with HTIE, TCIE) or the USART's TC (with TCIE); the bytes between
+ * go out when the firmware next touches the USART or the DMA, or the link reaches a time (catch_up), at the
+ * instants they would have. (A transfer error, a bus error reading memory, shows at that catch-up; the
+ * memory is read then too, and the frame's time is the one PCLK gives then.) With DMAT and no stream
+ * serving it, nothing but TCIE needs the frame's end: a stream enabled later first brings the USART up to
+ * now (rig_stm32_dma_add_sync) and takes the request then. */
+static int64_t tx_deadline(RigStm32UsartState *s)
+{
+    uint32_t cr1 = s->regs[R_CR1], cr, ndtr, reload;
+    if (!s->tx_busy) {
+        return INT64_MAX;
+    }
+    if ((cr1 & CR1_TXEIE) || ((s->regs[R_CR3] & CR3_DMAT) && s->dma_ctl == NULL)) {
+        return s->tx_end_ns;
+    }
+    if (!(s->regs[R_CR3] & CR3_DMAT) ||
+        !rig_stm32_dma_request_stream(s->dma_ctl, RIG_DMA_USART_TX(s->index), &cr, &ndtr, &reload)) {
+        /* TC: when the shift register is done with nothing in DR, or with the byte in DR sent too */
+        int64_t last = s->tx_end_ns + ((s->regs[R_SR] & SR_TXE) ? 0 : bit_ns(s, frame_sixteenths(s)));
+        return (cr1 & CR1_TCIE) ? last : INT64_MAX;
+    }
+    if ((s->regs[R_SR] & SR_TXE) || (cr1 & (CR1_UE | CR1_TE)) != (CR1_UE | CR1_TE) ||
+        (cr & DMA_CR_DIR_MASK) != DMA_CR_DIR_M2P || (cr & (DMA_CR_CIRC | DMA_CR_DBM))) {
+        return s->tx_end_ns;
+    }
+    int64_t frame = bit_ns(s, frame_sixteenths(s)), when = INT64_MAX;
+    uint32_t done = reload - ndtr, half = (reload + 1) / 2; /* (HTIF: the first item with 2 x done >= reload) */
+    if (cr & DMA_CR_TCIE) {
+        when = s->tx_end_ns + (int64_t)(ndtr - 1) * frame;
+    }
+    if ((cr & DMA_CR_HTIE) && done < half) {
+        when = MIN(when, s->tx_end_ns + (int64_t)(half - done - 1) * frame);
+    }
+    if (cr1 & CR1_TCIE) {
+        when = MIN(when, s->tx_end_ns + (int64_t)(ndtr + 1) * frame);
+    }
+    return when;
+}
+
 /* The QEMU timer only when an interrupt or DMA request may follow the next event */
 static void arm(RigStm32UsartState *s)
 {
@@ -373,9 +425,7 @@ static void arm(RigStm32UsartState *s)
     if (s->catching_up) {
         return; /* (a DMA access inside catch_up: the caller arms once it is done) */
     }
-    if (s->tx_busy && ((cr1 & (CR1_TXEIE | CR1_TCIE)) || (cr3 & CR3_DMAT))) {
-        when = s->tx_end_ns;
-    }
+    when = tx_deadline(s);
     if ((cr1 & (CR1_RXNEIE | CR1_IDLEIE | CR1_PEIE)) || (cr3 & (CR3_DMAR | CR3_EIE))) {
         if (rx_next(s, &at, &data, &flags)) {
             when = MIN(when, at);
@@ -587,6 +637,9 @@ static void usart_realize(DeviceState *dev, Error **errp)
         return;
     }
     usarts[n_usarts++] = s;
+    if (s->dma_ctl != NULL) {
+        rig_stm32_dma_add_sync(s->dma_ctl, usart_tick, s);
+    }
 }
 
 static void usart_init(Object *obj)
@@ -603,6 +656,7 @@ static void usart_init(Object *obj)
 
 static Property usart_properties[] = {
     DEFINE_PROP_LINK("rcc", RigStm32UsartState, rcc, TYPE_RIG_STM32_RCC, RigStm32RccState *),
+    DEFINE_PROP_LINK("dma", RigStm32UsartState, dma_ctl, TYPE_RIG_STM32_DMA, RigStm32DmaState *),
     DEFINE_PROP_CHR("chardev", RigStm32UsartState, chr),
     DEFINE_PROP_UINT8("apb", RigStm32UsartState, apb, 2),
     DEFINE_PROP_UINT8("rcc-bit", RigStm32UsartState, rcc_bit, 4),

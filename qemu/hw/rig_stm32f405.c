@@ -314,6 +314,9 @@ static void map_usarts(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceSt
         qdev_prop_set_bit(dev, "uart", n == 4 || n == 5);
         qdev_prop_set_uint8(dev, "index", n);
         object_property_set_link(OBJECT(dev), "rcc", OBJECT(rcc), &error_fatal);
+        /* the DMA requests: USART1 and USART6 on DMA2, the others on DMA1 (the request mapping is the DMA's) */
+        DeviceState *controller = dma[n == 1 || n == 6];
+        object_property_set_link(OBJECT(dev), "dma", OBJECT(controller), &error_fatal);
         Chardev *chr = qemu_chr_find(chardev);
         if (chr != NULL && chr->be != NULL) {
             error_report("%s: chardev %s is taken (by a -serial?): the machine's USART%u sends to it", chip->name,
@@ -326,8 +329,6 @@ static void map_usarts(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceSt
         sysbus_realize_and_unref(SYS_BUS_DEVICE(dev), &error_fatal);
         sysbus_mmio_map_overlap(SYS_BUS_DEVICE(dev), 0, usart_map[n].base, 1);
         sysbus_connect_irq(SYS_BUS_DEVICE(dev), 0, qdev_get_gpio_in(nvic, usart_map[n].irq));
-        /* the DMA requests: USART1 and USART6 on DMA2, the others on DMA1 (the request mapping is the DMA's) */
-        DeviceState *controller = dma[n == 1 || n == 6];
         qdev_connect_gpio_out_named(dev, "dma-rx", 0,
                                     qdev_get_gpio_in_named(controller, "request", RIG_DMA_USART_RX(n)));
         qdev_connect_gpio_out_named(dev, "dma-tx", 0,
