@@ -14,6 +14,8 @@ void usart1_handler(void);
 /* the telemetry's USART (USART2 on the Black Pill, USART6 on the F405 board): the one in use is defined */
 void usart2_handler(void) __attribute__((weak, alias("fault_handler")));
 void usart6_handler(void) __attribute__((weak, alias("fault_handler")));
+void dma1_stream6_handler(void) __attribute__((weak, alias("fault_handler")));
+void dma2_stream6_handler(void) __attribute__((weak, alias("fault_handler")));
 
 void reset_handler(void)
 {
@@ -46,12 +48,16 @@ __attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 7
     F, F, 0, F, /* SVCall, DebugMonitor, -, PendSV */
     systick_handler,
     F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, /* IRQ 0-15 */
-    F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, /* IRQ 16-31 */
+    F,                                              /* IRQ 16 */
+    dma1_stream6_handler,                           /* IRQ 17 */
+    F, F, F, F, F, F, F, F, F, F, F, F, F, F,       /* IRQ 18-31 */
     F, F, F, F, F,                                  /* IRQ 32-36 */
     usart1_handler,                                 /* IRQ 37 */
     usart2_handler,                                 /* IRQ 38 */
     F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, /* IRQ 39-54 */
-    F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, F, /* IRQ 55-70 */
+    F, F, F, F, F, F, F, F, F, F, F, F, F, F,       /* IRQ 55-68 */
+    dma2_stream6_handler,                           /* IRQ 69 */
+    F,                                              /* IRQ 70 */
     usart6_handler,                                 /* IRQ 71 */
 };
 // clang-format on

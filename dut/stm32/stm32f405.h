@@ -215,12 +215,34 @@
 #define USART_CR1_M (1u << 12)
 #define USART_CR1_UE (1u << 13)
 #define USART_CR2_STOP_2 (2u << 12)
+#define USART_CR3(u) REG((u) + 0x14u)
+#define USART_CR3_DMAT (1u << 7)
 #define RCC_APB2ENR_USART1EN (1u << 4)
 #define RCC_APB2ENR_USART6EN (1u << 5)
 #define RCC_APB1ENR_USART2EN (1u << 17)
 #define USART1_IRQ 37u
 #define USART2_IRQ 38u
 #define USART6_IRQ 71u
+
+/* DMA1 and DMA2 (RM0090 10.5): LISR/HISR and LIFCR/HIFCR, a stream's SxCR, SxNDTR, SxPAR, SxM0AR */
+#define DMA1_BASE 0x40026000u
+#define DMA2_BASE 0x40026400u
+#define DMA_ISR(d, n) REG((d) + 0x00u + 4u * ((n) / 4u)) /* stream n's flags: LISR for 0-3, HISR for 4-7 */
+#define DMA_IFCR(d, n) REG((d) + 0x08u + 4u * ((n) / 4u))
+#define DMA_FLAGS_SHIFT(n) ((const uint8_t[]){ 0u, 6u, 16u, 22u }[(n) % 4u])
+#define DMA_FLAGS_ALL 0x3Du /* FEIF, DMEIF, TEIF, HTIF, TCIF */
+#define DMA_TCIF (1u << 5)
+#define DMA_SCR(d, n) REG((d) + 0x10u + 0x18u * (n))
+#define DMA_SNDTR(d, n) REG((d) + 0x14u + 0x18u * (n))
+#define DMA_SPAR(d, n) REG((d) + 0x18u + 0x18u * (n))
+#define DMA_SM0AR(d, n) REG((d) + 0x1Cu + 0x18u * (n))
+#define DMA_SCR_EN (1u << 0)
+#define DMA_SCR_TCIE (1u << 4)
+#define DMA_SCR_M2P (1u << 6)
+#define DMA_SCR_MINC (1u << 10)
+#define DMA_SCR_CHSEL(c) ((uint32_t)(c) << 25)
+#define RCC_AHB1ENR_DMA1EN (1u << 21)
+#define RCC_AHB1ENR_DMA2EN (1u << 22)
 
 #define NVIC_ISER(n) REG(0xE000E100u + 4u * (n))
 #define NVIC_ICER(n) REG(0xE000E180u + 4u * (n))

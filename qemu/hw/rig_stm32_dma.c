@@ -6,10 +6,10 @@
  *
  * Transfers: peripheral-to-memory and memory-to-peripheral on the requests of the channel CHSEL selects
  * (RM0090 tables 42 and 43, the request mapping, as data below: the requests of the peripherals that are
- * modelled, the timers and I2C1), one data item (PSIZE) per request at the virtual instant of the
- * request; memory-to-memory (DMA2 only) all at once when the stream is enabled. Items move through QEMU's
- * system address space with the PSIZE and MSIZE widths, the addresses incrementing by PINC (PINCOS: by
- * 4) and MINC; NDTR counts down; circular mode starts again from the NDTR written; double-buffer mode
+ * modelled, the timers, I2C1 and the USARTs), one data item (PSIZE) per request at the virtual instant
+ * of the request; memory-to-memory (DMA2 only) all at once when the stream is enabled. Items move through
+ * QEMU's system address space with the PSIZE and MSIZE widths, the addresses incrementing by PINC
+ * (PINCOS: by 4) and MINC; NDTR counts down; circular mode starts again from the NDTR written; double-buffer mode
  * switches CT at each end. FIFO mode is stored and moves the items as direct mode does, packing when
  * PSIZE and MSIZE differ; no FIFO or direct-mode error arises (FEIF and DMEIF stay clear). Flags: HTIF at
  * half the items, TCIF at the end (or when software disables a stream under way), TEIF on a bus error
@@ -17,12 +17,12 @@
  * line. The registers answer, and requests are served, only with the controller's clock enabled
  * (RCC_AHB1ENR.DMA1EN, DMA2EN); RCC_AHB1RSTR resets it.
  *
- * Requests are levels ("request" inputs, numbered as RIG_DMA_TIMER and RIG_DMA_I2C1_RX/TX): each raise moves
- * one item on the stream whose CHSEL selects it (the timers pulse theirs; I2C1 lowers its own when the DMA
- * takes DR); a request raised while an item is moving (its access to the peripheral raised it) is served
- * after. A stream enabled while its request is up is served at once. "eot1" outputs pulse when the
- * last-but-one item of a transfer is taken (the EOT_1 signal I2C's CR2.LAST uses to NACK the last byte,
- * RM0090 27.3.8).
+ * Requests are levels ("request" inputs, numbered as RIG_DMA_TIMER, RIG_DMA_I2C1_RX/TX and
+ * RIG_DMA_USART_RX/TX): each raise moves one item on the stream whose CHSEL selects it (the timers pulse
+ * theirs; I2C1 and the USARTs lower their own when the DMA takes or fills DR); a request raised while an
+ * item is moving (its access to the peripheral raised it) is served after. A stream enabled while its
+ * request is up is served at once. "eot1" outputs pulse when the last-but-one item of a transfer is taken
+ * (the EOT_1 signal I2C's CR2.LAST uses to NACK the last byte, RM0090 27.3.8).
  *
  * Not modelled: bursts (PBURST/MBURST move single items), priorities (requests are served at once, so
  * streams never wait on each other), the FIFO's threshold and errors, peripheral flow control (PFCTRL
@@ -103,8 +103,13 @@ enum { S_CR, S_NDTR, S_PAR, S_M0AR, S_M1AR, S_FCR, S_REGS };
 static const uint8_t flag_shift[4] = { 0, 6, 16, 22 }; /* streams 0-3 in LISR, 4-7 in HISR */
 
 /* RM0090 table 42 (DMA1) and table 43 (DMA2) request mapping: the requests of the modelled peripherals,
- * each on a stream and channel (several requests on one, as TIM2_UP/TIM2_CH3, are ORed) */
+ * each on a stream and channel (several requests on one, as TIM2_UP/TIM2_CH3, are ORed); the USARTs' are
+ * channel 4 of DMA1 (USART2, USART3, UART4, UART5; USART3_TX also on stream 4 channel 7) and channels 4
+ * and 5 of DMA2 (USART1, USART6). The F411's (RM0383 tables 27 and 28) are the same for what it has of
+ * these: its timers, I2C1, USART1, USART2 and USART6 */
 #define T(n, r) RIG_DMA_TIMER(n, RIG_DMA_##r)
+#define U_RX(n) RIG_DMA_USART_RX(n)
+#define U_TX(n) RIG_DMA_USART_TX(n)
 static const struct {
     uint8_t dma, stream, channel;
     uint8_t source;
@@ -122,9 +127,15 @@ static const struct {
     { 2, 2, 7, T(8, CC1) },       { 2, 3, 6, T(1, CC1) },  { 2, 3, 7, T(8, CC2) },  { 2, 4, 6, T(1, CC4) },
     { 2, 4, 6, T(1, TRIG) },      { 2, 4, 6, T(1, COM) },  { 2, 4, 7, T(8, CC3) },  { 2, 5, 6, T(1, UP) },
     { 2, 6, 0, T(1, CC1) },       { 2, 6, 0, T(1, CC2) },  { 2, 6, 0, T(1, CC3) },  { 2, 6, 6, T(1, CC3) },
-    { 2, 7, 7, T(8, CC4) },       { 2, 7, 7, T(8, TRIG) }, { 2, 7, 7, T(8, COM) },
+    { 2, 7, 7, T(8, CC4) },       { 2, 7, 7, T(8, TRIG) }, { 2, 7, 7, T(8, COM) },  { 1, 0, 4, U_RX(5) },
+    { 1, 1, 4, U_RX(3) },         { 1, 2, 4, U_RX(4) },    { 1, 3, 4, U_TX(3) },    { 1, 4, 4, U_TX(4) },
+    { 1, 4, 7, U_TX(3) },         { 1, 5, 4, U_RX(2) },    { 1, 6, 4, U_TX(2) },    { 1, 7, 4, U_TX(5) },
+    { 2, 2, 4, U_RX(1) },         { 2, 5, 4, U_RX(1) },    { 2, 7, 4, U_TX(1) },    { 2, 1, 5, U_RX(6) },
+    { 2, 2, 5, U_RX(6) },         { 2, 6, 5, U_TX(6) },    { 2, 7, 5, U_TX(6) },
 };
 #undef T
+#undef U_RX
+#undef U_TX
 
 static bool dma_clocked(RigStm32DmaState *s)
 {
@@ -288,6 +299,33 @@ static void serve(RigStm32DmaState *s)
 
 static void serve_later(void *opaque) { serve(opaque); }
 
+void rig_stm32_dma_add_sync(RigStm32DmaState *s, void (*fn)(void *opaque), void *opaque)
+{
+    assert(s->n_sync < RIG_DMA_SYNCS);
+    s->sync[s->n_sync].fn = fn;
+    s->sync[s->n_sync++].opaque = opaque;
+}
+
+bool rig_stm32_dma_request_stream(RigStm32DmaState *s, unsigned source, uint32_t *cr, uint32_t *ndtr, uint32_t *reload)
+{
+    int n = dma_clocked(s) ? stream_of(s, source) : -1;
+    if (n < 0) {
+        return false;
+    }
+    *cr = s->stream[n].cr;
+    *ndtr = s->stream[n].ndtr;
+    *reload = s->stream[n].reload;
+    return true;
+}
+
+/* The lazy peripherals up to now before a register access (rig_stm32_dma_add_sync) */
+static void sync_peripherals(RigStm32DmaState *s)
+{
+    for (unsigned i = 0; i < s->n_sync; i++) {
+        s->sync[i].fn(s->sync[i].opaque);
+    }
+}
+
 static void request_changed(void *opaque, int source, int level)
 {
     RigStm32DmaState *s = opaque;
@@ -363,6 +401,7 @@ static uint64_t dma_read(void *opaque, hwaddr offset, unsigned size)
     if (!dma_clocked(s)) {
         return 0;
     }
+    sync_peripherals(s);
     if (offset >= STREAM_BASE && offset < STREAM_BASE + RIG_DMA_STREAMS * STREAM_STRIDE) {
         const RigDmaStream *st = &s->stream[(offset - STREAM_BASE) / STREAM_STRIDE];
         const uint32_t values[S_REGS] = { st->cr, st->ndtr, st->par, st->m0ar, st->m1ar, st->fcr };
@@ -388,6 +427,7 @@ static void dma_write(void *opaque, hwaddr offset, uint64_t value, unsigned size
     if (!dma_clocked(s)) {
         return;
     }
+    sync_peripherals(s);
     if (offset >= STREAM_BASE && offset < STREAM_BASE + RIG_DMA_STREAMS * STREAM_STRIDE) {
         write_stream(s, (offset - STREAM_BASE) / STREAM_STRIDE, (offset - STREAM_BASE) % STREAM_STRIDE / 4, v);
         update_irqs(s);

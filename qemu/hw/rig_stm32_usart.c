@@ -7,7 +7,8 @@
  * out in its frame's time (start bit, M data bits, the stop bits of CR2.STOP; the parity bit is the last
  * data bit when PCE is set); TXE comes as the byte moves into the shift register, TC at the end of a
  * frame with none waiting. Setting TE sends an idle frame first (30.3.2). Each byte goes to the USART's
- * chardev when its frame ends; nothing else reaches QEMU's main loop.
+ * chardev when its frame ends; nothing else reaches QEMU's main loop (with -global
+ * rig-stm32f4-usart.trace-bytes=on each is also a line on stderr with the instant its frame ended).
  *
  * Receiver: the sender's frames (rig_stm32_usart_receive: each frame's start, bits and baud, given ahead)
  * make the line's level in time, and the receiver reads it as the chip does (30.3.3): a falling edge starts a
@@ -114,11 +115,16 @@ typedef struct RigStm32UsartState {
     SysBusDevice parent_obj;
     MemoryRegion iomem;
     RigStm32RccState *rcc;
+    RigStm32DmaState *dma_ctl; /* property "dma": the controller its requests go to */
     CharBackend chr;
     uint8_t apb, rcc_bit; /* its bus (1, 2) and bit in RCC_APBxENR/APBxRSTR (properties "apb", "rcc-bit") */
     bool uart;            /* property "uart": UART4/UART5, without the synchronous and flow-control bits */
+    uint8_t index;        /* property "index": n of USARTn (its DMA requests' numbers, the trace's name) */
+    bool trace_bytes;     /* property "trace-bytes": each byte sent on stderr with its frame's end */
     const RigRegister *table;
-    qemu_irq irq, dma_rx, dma_tx;
+    qemu_irq irq, dma[2]; /* "dma-rx", "dma-tx" */
+    bool dma_level[2];
+    bool catching_up; /* in catch_up(): the DMA's accesses it makes do not catch up again */
     QEMUTimer *timer;
     uint32_t regs[R_COUNT]; /* DR: the received data register (RDR) */
     uint32_t sr_seen;       /* SR as last read: the first half of the clear sequences */
@@ -183,8 +189,23 @@ static void update_irqs(RigStm32UsartState *s)
                ((cr3 & CR3_EIE) && (cr3 & CR3_DMAR) && (sr & (SR_FE | SR_ORE | SR_NF))) ||
                ((s->regs[R_CR2] & CR2_LBDIE) && (sr & SR_LBD)) || ((cr3 & CR3_CTSIE) && (sr & SR_CTS));
     qemu_set_irq(s->irq, irq);
-    qemu_set_irq(s->dma_rx, (cr3 & CR3_DMAR) && (sr & SR_RXNE));
-    qemu_set_irq(s->dma_tx, (cr3 & CR3_DMAT) && (sr & SR_TXE));
+    bool dma[2] = { (cr3 & CR3_DMAR) && (sr & SR_RXNE), (cr3 & CR3_DMAT) && (sr & SR_TXE) };
+    for (unsigned k = 0; k < 2; k++) {
+        if (dma[k] != s->dma_level[k]) {
+            s->dma_level[k] = dma[k];
+            qemu_set_irq(s->dma[k], dma[k]);
+        }
+    }
+}
+
+/* DR read (@k 0) or written (1), by the DMA or the core: the request is down until RXNE or TXE comes again
+ * (a request is a level the DMA serves once a rise) */
+static void dma_served(RigStm32UsartState *s, unsigned k)
+{
+    if (s->dma_level[k]) {
+        s->dma_level[k] = false;
+        qemu_set_irq(s->dma[k], 0);
+    }
 }
 
 /* The transmitter: the next frame starts at @at_ns if a byte waits and TE and UE allow */
@@ -209,7 +230,12 @@ static void tx_catch_up(RigStm32UsartState *s, int64_t now)
         if (!s->tx_idle_frame && qemu_chr_fe_backend_connected(&s->chr)) {
             qemu_chr_fe_write_all(&s->chr, &s->tx_byte, 1);
         }
+        if (!s->tx_idle_frame && s->trace_bytes) {
+            fprintf(stderr, "rig-stm32f4-usart: t_ns=%" PRId64 " USART%u byte=0x%02x\n", s->tx_end_ns, s->index,
+                    s->tx_byte);
+        }
         tx_next(s, s->tx_end_ns);
+        update_irqs(s); /* (with DMAT the DMA fills DR at this instant, before the next frame) */
     }
 }
 
@@ -325,6 +351,7 @@ static void rx_catch_up(RigStm32UsartState *s, int64_t now)
             s->regs[R_DR] = data;
             s->regs[R_SR] = (s->regs[R_SR] & ~(SR_PE | SR_FE | SR_NF)) | flags | SR_RXNE;
         }
+        update_irqs(s); /* (with DMAR the DMA takes DR at this instant, before the next byte) */
     }
     /* frames the receiver is done with */
     while (s->n_frames) {
@@ -337,6 +364,57 @@ static void rx_catch_up(RigStm32UsartState *s, int64_t now)
     }
 }
 
+#define DMA_CR_HTIE (1u << 3) /* RM0090 10.5.5, SxCR */
+#define DMA_CR_TCIE (1u << 4)
+#define DMA_CR_DIR_M2P (1u << 6)
+#define DMA_CR_DIR_MASK (3u << 6)
+#define DMA_CR_CIRC (1u << 8)
+#define DMA_CR_DBM (1u << 18)
+
+/* The instant the transmitter needs its QEMU timer for (INT64_MAX: none). Each frame's end while TXEIE,
+ * TCIE or DMAT may want it; but with DMAT and the stream feeding it enabled (memory-to-peripheral, neither
+ * circular nor double-buffer) every byte's frame is known ahead: the DMA fills DR at each TXE, so with DR
+ * full now (the shift register sending until tx_end) the k-th item left is transferred at tx_end + (k - 1)
+ * frames and leaves the line at tx_end + (k + 1) frames. Then only the instant an interrupt is due needs
+ * the timer: the stream's HTIF or TCIF (with HTIE, TCIE) or the USART's TC (with TCIE); the bytes between
+ * go out when the firmware next touches the USART or the DMA, or the link reaches a time (catch_up), at the
+ * instants they would have. (A transfer error, a bus error reading memory, shows at that catch-up; the
+ * memory is read then too, and the frame's time is the one PCLK gives then.) With DMAT and no stream
+ * serving it, nothing but TCIE needs the frame's end: a stream enabled later first brings the USART up to
+ * now (rig_stm32_dma_add_sync) and takes the request then. */
+static int64_t tx_deadline(RigStm32UsartState *s)
+{
+    uint32_t cr1 = s->regs[R_CR1], cr, ndtr, reload;
+    if (!s->tx_busy) {
+        return INT64_MAX;
+    }
+    if ((cr1 & CR1_TXEIE) || ((s->regs[R_CR3] & CR3_DMAT) && s->dma_ctl == NULL)) {
+        return s->tx_end_ns;
+    }
+    if (!(s->regs[R_CR3] & CR3_DMAT) ||
+        !rig_stm32_dma_request_stream(s->dma_ctl, RIG_DMA_USART_TX(s->index), &cr, &ndtr, &reload)) {
+        /* TC: when the shift register is done with nothing in DR, or with the byte in DR sent too */
+        int64_t last = s->tx_end_ns + ((s->regs[R_SR] & SR_TXE) ? 0 : bit_ns(s, frame_sixteenths(s)));
+        return (cr1 & CR1_TCIE) ? last : INT64_MAX;
+    }
+    if ((s->regs[R_SR] & SR_TXE) || (cr1 & (CR1_UE | CR1_TE)) != (CR1_UE | CR1_TE) ||
+        (cr & DMA_CR_DIR_MASK) != DMA_CR_DIR_M2P || (cr & (DMA_CR_CIRC | DMA_CR_DBM))) {
+        return s->tx_end_ns;
+    }
+    int64_t frame = bit_ns(s, frame_sixteenths(s)), when = INT64_MAX;
+    uint32_t done = reload - ndtr, half = (reload + 1) / 2; /* (HTIF: the first item with 2 x done >= reload) */
+    if (cr & DMA_CR_TCIE) {
+        when = s->tx_end_ns + (int64_t)(ndtr - 1) * frame;
+    }
+    if ((cr & DMA_CR_HTIE) && done < half) {
+        when = MIN(when, s->tx_end_ns + (int64_t)(half - done - 1) * frame);
+    }
+    if (cr1 & CR1_TCIE) {
+        when = MIN(when, s->tx_end_ns + (int64_t)(ndtr + 1) * frame);
+    }
+    return when;
+}
+
 /* The QEMU timer only when an interrupt or DMA request may follow the next event */
 static void arm(RigStm32UsartState *s)
 {
@@ -344,9 +422,10 @@ static void arm(RigStm32UsartState *s)
     int64_t when = INT64_MAX, at;
     uint16_t data;
     uint32_t flags;
-    if (s->tx_busy && ((cr1 & (CR1_TXEIE | CR1_TCIE)) || (cr3 & CR3_DMAT))) {
-        when = s->tx_end_ns;
+    if (s->catching_up) {
+        return; /* (a DMA access inside catch_up: the caller arms once it is done) */
     }
+    when = tx_deadline(s);
     if ((cr1 & (CR1_RXNEIE | CR1_IDLEIE | CR1_PEIE)) || (cr3 & (CR3_DMAR | CR3_EIE))) {
         if (rx_next(s, &at, &data, &flags)) {
             when = MIN(when, at);
@@ -361,9 +440,14 @@ static void arm(RigStm32UsartState *s)
 
 static void catch_up(RigStm32UsartState *s)
 {
+    if (s->catching_up) {
+        return;
+    }
     int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    s->catching_up = true;
     tx_catch_up(s, now);
     rx_catch_up(s, now);
+    s->catching_up = false;
 }
 
 static void usart_tick(void *opaque)
@@ -430,6 +514,7 @@ static uint64_t usart_read(void *opaque, hwaddr offset, unsigned size)
         value = s->regs[R_DR] & ((s->regs[R_CR1] & CR1_M) ? 0x1FF : 0xFF);
         s->regs[R_SR] &= ~(SR_RXNE | (s->sr_seen & SR_READ_CLEARED));
         s->sr_seen &= ~SR_READ_CLEARED;
+        dma_served(s, 0);
         break;
     case R_BRR:
     case R_CR1:
@@ -458,6 +543,7 @@ static void write_dr(RigStm32UsartState *s, uint32_t value)
     }
     s->tdr = (uint16_t)(value & 0x1FF);
     s->regs[R_SR] &= ~SR_TXE;
+    dma_served(s, 1);
     if (!s->tx_busy) {
         tx_next(s, qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL));
     }
@@ -533,6 +619,7 @@ static void usart_reset(DeviceState *dev)
     s->sr_seen = 0;
     s->tdr = 0;
     s->tx_busy = s->tx_idle_frame = s->idle_armed = false;
+    s->catching_up = false;
     /* (the sender's frames stay: the line is outside the chip; those before now go unseen) */
     s->rx_pos_ns = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
     update_irqs(s);
@@ -550,6 +637,9 @@ static void usart_realize(DeviceState *dev, Error **errp)
         return;
     }
     usarts[n_usarts++] = s;
+    if (s->dma_ctl != NULL) {
+        rig_stm32_dma_add_sync(s->dma_ctl, usart_tick, s);
+    }
 }
 
 static void usart_init(Object *obj)
@@ -558,18 +648,21 @@ static void usart_init(Object *obj)
     memory_region_init_io(&s->iomem, obj, &usart_ops, s, TYPE_RIG_STM32_USART, 0x400);
     sysbus_init_mmio(SYS_BUS_DEVICE(obj), &s->iomem);
     sysbus_init_irq(SYS_BUS_DEVICE(obj), &s->irq);
-    qdev_init_gpio_out_named(DEVICE(obj), &s->dma_rx, "dma-rx", 1);
-    qdev_init_gpio_out_named(DEVICE(obj), &s->dma_tx, "dma-tx", 1);
+    qdev_init_gpio_out_named(DEVICE(obj), &s->dma[0], "dma-rx", 1);
+    qdev_init_gpio_out_named(DEVICE(obj), &s->dma[1], "dma-tx", 1);
     s->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, usart_tick, s);
     s->table = usart_registers;
 }
 
 static Property usart_properties[] = {
     DEFINE_PROP_LINK("rcc", RigStm32UsartState, rcc, TYPE_RIG_STM32_RCC, RigStm32RccState *),
+    DEFINE_PROP_LINK("dma", RigStm32UsartState, dma_ctl, TYPE_RIG_STM32_DMA, RigStm32DmaState *),
     DEFINE_PROP_CHR("chardev", RigStm32UsartState, chr),
     DEFINE_PROP_UINT8("apb", RigStm32UsartState, apb, 2),
     DEFINE_PROP_UINT8("rcc-bit", RigStm32UsartState, rcc_bit, 4),
     DEFINE_PROP_BOOL("uart", RigStm32UsartState, uart, false),
+    DEFINE_PROP_UINT8("index", RigStm32UsartState, index, 0),
+    DEFINE_PROP_BOOL("trace-bytes", RigStm32UsartState, trace_bytes, false),
     DEFINE_PROP_END_OF_LIST(),
 };
 

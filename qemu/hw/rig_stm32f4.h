@@ -235,6 +235,7 @@ uint16_t rig_stm32_gpio_levels(RigStm32GpioState *s);
 OBJECT_DECLARE_SIMPLE_TYPE(RigStm32DmaState, RIG_STM32_DMA)
 #define RIG_DMA_STREAMS 8
 #define RIG_DMA_FIFO 16
+#define RIG_DMA_SYNCS 8
 /* The DMA requests of the modelled peripherals: the DMA's "request" inputs and "eot1" outputs by number. A
  * timer's seven are numbered as their flags in TIMx_SR (UIF bit 0, CCxIF bit x, COMIF 5, TIF 6), whose DMA
  * enables in DIER are the same bits plus 8 */
@@ -242,7 +243,9 @@ enum { RIG_DMA_UP, RIG_DMA_CC1, RIG_DMA_CC2, RIG_DMA_CC3, RIG_DMA_CC4, RIG_DMA_C
 #define RIG_DMA_TIMER(n, request) ((n)*RIG_DMA_TIM_REQS + (request)) /* TIMn, n 1..14 */
 #define RIG_DMA_I2C1_RX RIG_DMA_TIMER(15, 0)
 #define RIG_DMA_I2C1_TX (RIG_DMA_I2C1_RX + 1)
-#define RIG_DMA_SOURCES (RIG_DMA_I2C1_TX + 1)
+#define RIG_DMA_USART_RX(n) (RIG_DMA_I2C1_TX + 2 * (n)-1) /* USARTn's RXNE request, n 1..6 (UART4, UART5 among them) */
+#define RIG_DMA_USART_TX(n) (RIG_DMA_USART_RX(n) + 1)     /* its TXE request */
+#define RIG_DMA_SOURCES (RIG_DMA_USART_TX(6) + 1)
 
 typedef struct RigDmaStream {
     uint32_t cr, ndtr, par, m0ar, m1ar, fcr;
@@ -265,7 +268,19 @@ struct RigStm32DmaState {
     bool pending[RIG_DMA_SOURCES];  /* requests raised while the controller was moving an item */
     bool busy;
     QEMUTimer *later; /* the requests left when too many came at one instant */
+    struct {
+        void (*fn)(void *opaque);
+        void *opaque;
+    } sync[RIG_DMA_SYNCS]; /* what a lazy peripheral brings up to now before the registers are accessed */
+    unsigned n_sync;
 };
+
+/* @fn(@opaque) runs before each access to the DMA's registers: a peripheral that feeds a stream lazily (a
+ * USART's transmitter) moves the items due by now first, so NDTR and the flags read are the chip's */
+void rig_stm32_dma_add_sync(RigStm32DmaState *s, void (*fn)(void *opaque), void *opaque);
+/* The stream @source's requests reach now (the controller clocked, the stream enabled, its CHSEL the
+ * request's channel, items left): its SxCR, NDTR and the NDTR it was enabled with; false when there is none */
+bool rig_stm32_dma_request_stream(RigStm32DmaState *s, unsigned source, uint32_t *cr, uint32_t *ndtr, uint32_t *reload);
 
 /* I2C v1 (RM0090 section 27), master mode */
 #define TYPE_RIG_STM32_I2C "rig-stm32f4-i2c"

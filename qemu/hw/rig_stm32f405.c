@@ -299,7 +299,7 @@ static void map_exti(RigStm32RccState *rcc, DeviceState *nvic, DeviceState **gpi
 
 /* USART1..USART6 over QEMU's (which keep no chardev: the engine names its chardevs rig-usartN, and the
  * machine gives them to these), as /machine/usartN for the link */
-static void map_usarts(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceState *nvic)
+static void map_usarts(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceState *nvic, DeviceState **dma)
 {
     for (unsigned n = 1; n <= 6; n++) {
         if (!(chip->usarts >> n & 1u)) {
@@ -312,7 +312,11 @@ static void map_usarts(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceSt
         qdev_prop_set_uint8(dev, "apb", usart_map[n].apb);
         qdev_prop_set_uint8(dev, "rcc-bit", usart_map[n].rcc_bit);
         qdev_prop_set_bit(dev, "uart", n == 4 || n == 5);
+        qdev_prop_set_uint8(dev, "index", n);
         object_property_set_link(OBJECT(dev), "rcc", OBJECT(rcc), &error_fatal);
+        /* the DMA requests: USART1 and USART6 on DMA2, the others on DMA1 (the request mapping is the DMA's) */
+        DeviceState *controller = dma[n == 1 || n == 6];
+        object_property_set_link(OBJECT(dev), "dma", OBJECT(controller), &error_fatal);
         Chardev *chr = qemu_chr_find(chardev);
         if (chr != NULL && chr->be != NULL) {
             error_report("%s: chardev %s is taken (by a -serial?): the machine's USART%u sends to it", chip->name,
@@ -325,6 +329,10 @@ static void map_usarts(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceSt
         sysbus_realize_and_unref(SYS_BUS_DEVICE(dev), &error_fatal);
         sysbus_mmio_map_overlap(SYS_BUS_DEVICE(dev), 0, usart_map[n].base, 1);
         sysbus_connect_irq(SYS_BUS_DEVICE(dev), 0, qdev_get_gpio_in(nvic, usart_map[n].irq));
+        qdev_connect_gpio_out_named(dev, "dma-rx", 0,
+                                    qdev_get_gpio_in_named(controller, "request", RIG_DMA_USART_RX(n)));
+        qdev_connect_gpio_out_named(dev, "dma-tx", 0,
+                                    qdev_get_gpio_in_named(controller, "request", RIG_DMA_USART_TX(n)));
         rig_stm32_rcc_add_reset(rcc, usart_map[n].apb == 1 ? RCC_APB1RSTR : RCC_APB2RSTR, usart_map[n].rcc_bit, dev);
     }
 }
@@ -481,7 +489,7 @@ void rig_stm32f4_machine_init(MachineState *machine, const RigStm32Chip *chip)
 
     map_exti(r, nvic, gpio_ports);
     map_timers(chip, r, DEVICE(&STM32F405_SOC(soc)->armv7m), gpio_ports, dma);
-    map_usarts(chip, r, DEVICE(&STM32F405_SOC(soc)->armv7m));
+    map_usarts(chip, r, DEVICE(&STM32F405_SOC(soc)->armv7m), dma);
     wire_pins(chip, gpio_ports);
     map_absent(chip);
 

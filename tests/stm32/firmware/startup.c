@@ -46,6 +46,8 @@ void dma1_stream2_handler(void) __attribute__((weak, alias("fault_handler")));
 void dma1_stream6_handler(void) __attribute__((weak, alias("fault_handler")));
 void dma2_stream0_handler(void) __attribute__((weak, alias("fault_handler")));
 void dma2_stream5_handler(void) __attribute__((weak, alias("fault_handler")));
+void dma2_stream6_handler(void) __attribute__((weak, alias("fault_handler")));
+void usart6_handler(void) __attribute__((weak, alias("fault_handler")));
 
 #define CFSR (*(volatile uint32_t *)0xE000ED28u)
 #define HFSR (*(volatile uint32_t *)0xE000ED2Cu)
@@ -70,8 +72,8 @@ void fault_handler(void)
 
 #define F fault_handler
 // clang-format off
-/* the core's 16 exceptions, then the STM32F405's interrupts up to DMA2 stream 7 (RM0090 table 61) */
-__attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 71])(void) = {
+/* the core's 16 exceptions, then the STM32F405's interrupts up to USART6 (RM0090 table 61) */
+__attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 72])(void) = {
     (void (*)(void))(uintptr_t)&__stack,
     reset_handler,
     fault_handler,
@@ -129,6 +131,8 @@ __attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 7
     dma2_stream0_handler, /* IRQ 56 */
     F, F, F, F, F, F, F, F, F, F, F,                /* IRQ 57-67: DMA2 stream 1-4, ... */
     dma2_stream5_handler, /* IRQ 68 */
-    F, F,                                           /* IRQ 69-70: DMA2 stream 6-7 */
+    dma2_stream6_handler, /* IRQ 69 */
+    F,                    /* IRQ 70: DMA2 stream 7 */
+    usart6_handler,       /* IRQ 71 */
 };
 // clang-format on
