@@ -22,6 +22,7 @@
 
 #include "hw/irq.h"
 #include "hw/qdev-properties.h"
+#include "qapi/error.h"
 #include "qemu/log.h"
 #include "qemu/module.h"
 #include "rig_stm32f4.h"
@@ -276,7 +277,7 @@ static void gpio_af_drive(void *opaque, int line, int level)
 static void gpio_reset(DeviceState *dev)
 {
     RigStm32GpioState *s = RIG_STM32_GPIO(dev);
-    const GpioDebugResets *r = s->chip == 411 ? &gpio_f411 : &gpio_f405;
+    const GpioDebugResets *r = s->chip == 411 ? &gpio_f411 : &gpio_f405; /* (realize checked it) */
     bool debug = s->port < 2;
     s->moder = debug ? r->moder[s->port] : 0;
     s->otyper = 0;
@@ -292,6 +293,14 @@ static void gpio_reset(DeviceState *dev)
         s->af_input_level[pin] = -1;
     }
     gpio_update(s);
+}
+
+static void gpio_realize(DeviceState *dev, Error **errp)
+{
+    RigStm32GpioState *s = RIG_STM32_GPIO(dev);
+    if (s->chip != 405 && s->chip != 411) {
+        error_setg(errp, "rig-stm32f4-gpio: chip %u is not 405 or 411", s->chip);
+    }
 }
 
 static void gpio_init(Object *obj)
@@ -317,6 +326,7 @@ static void gpio_class_init(ObjectClass *klass, void *data)
 {
     DeviceClass *dc = DEVICE_CLASS(klass);
     dc->reset = gpio_reset;
+    dc->realize = gpio_realize;
     device_class_set_props(dc, gpio_properties);
 }
 
