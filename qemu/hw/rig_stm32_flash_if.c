@@ -61,12 +61,13 @@ static const RigFlashChip flash_f405 = {
     .erase_ns = { { MS(400), MS(400), MS(400) }, { MS(1200), MS(1200), MS(1200) }, { MS(2000), MS(2000), MS(2000) } },
     .mass_erase_ns = { MS(16000), MS(16000), MS(16000) },
 };
-/* The F411: RM0383 3.8's registers (ACR's LATENCY is LATENCY[3:0]; SR adds RDERR, bit 8, for PCROP reads;
- * OPTCR resets to the same value) and 3.3's 8 sectors (table 4: 512 KB); DS10314's typical erase times
+/* The F411: RM0383 3.8's registers (ACR's LATENCY is three bits as the F405's, ST's stm32f411xe.h masks it
+ * 0x7, where the F42x's and F446's have four; SR adds RDERR, bit 8, for PCROP reads; OPTCR resets to the
+ * same value) and 3.3's 8 sectors (table 4: 512 KB); DS10314's typical erase times
  * (its flash memory programming table), which shorten as the parallelism (PSIZE) widens */
 static const RigFlashChip flash_f411 = {
     .registers = {
-        [ACR] = { 0x00, "ACR", 0x00000000, 0x0000070F }, /* LATENCY[3:0], PRFTEN, ICEN, DCEN */
+        [ACR] = { 0x00, "ACR", 0x00000000, 0x00000707 }, /* LATENCY[2:0], PRFTEN, ICEN, DCEN */
         [KEYR] = { 0x04, "KEYR", 0x00000000, 0x00000000 },
         [OPTKEYR] = { 0x08, "OPTKEYR", 0x00000000, 0x00000000 },
         [SR] = { 0x0C, "SR", 0x00000000, 0x000001F3 }, /* the F405's and RDERR: w1c */

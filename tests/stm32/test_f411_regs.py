@@ -23,8 +23,9 @@ F405_PWR_CR_WRITABLE = 1 << 0 | 1 << 1 | 1 << 4 | 0x7 << 5 | 1 << 8 | 1 << 9 | 1
 F405_PWR_CR_RESET = 1 << 14
 #: PWR_CSR (RM0383 5.4.2, RM0090 5.4.2): BRR (3) follows BRE (9), EWUP (8), VOSRDY (14)
 CSR_BRR, CSR_EWUP, CSR_BRE, CSR_VOSRDY = 1 << 3, 1 << 8, 1 << 9, 1 << 14
-#: FLASH_ACR: RM0383 3.8.1 LATENCY[3:0], PRFTEN, ICEN, DCEN; RM0090 3.9.1 LATENCY[2:0] and the same
-ACR_CACHES = 1 << 8 | 1 << 9 | 1 << 10
+#: FLASH_ACR (RM0383 3.8.1, RM0090 3.9.1): LATENCY[2:0] on both (ST's stm32f411xe.h and stm32f405xx.h mask
+#: it 0x7; the F42x's is four bits), PRFTEN, ICEN, DCEN
+ACR_LATENCY, ACR_CACHES = 0x7, 1 << 8 | 1 << 9 | 1 << 10
 #: FLASH_SR and FLASH_CR (RM0383 3.8.4, 3.8.5)
 SR_BSY = 1 << 16
 CR_SER, CR_STRT, CR_EOPIE, CR_LOCK = 1 << 1, 1 << 16, 1 << 24, 1 << 31
@@ -98,10 +99,10 @@ def test_each_voltage_scale_reads_back_with_vosrdy(r: dict[str, int]) -> None:
 
 
 def test_the_flash_interface_is_the_f411s(r: dict[str, int]) -> None:
-    """RM0383 3.8.1: ACR resets to 0 and takes LATENCY[3:0] (the F405's LATENCY is three bits); 3.8.4 SR
-    resets to 0; 3.8.5 CR to LOCK; 3.8.6 OPTCR to 0x0FFFAAED."""
+    """RM0383 3.8.1: ACR resets to 0 and takes LATENCY[2:0] and the caches' enables; 3.8.4 SR resets to 0;
+    3.8.5 CR to LOCK; 3.8.6 OPTCR to 0x0FFFAAED."""
     assert r["flash_acr_reset"] == 0
-    assert r["flash_acr_ones"] == ACR_CACHES | 0xF
+    assert r["flash_acr_ones"] == ACR_CACHES | ACR_LATENCY
     assert r["flash_sr_reset"] == 0
     assert r["flash_cr_reset"] == CR_LOCK
     assert r["flash_optcr_reset"] == 0x0FFF_AAED
@@ -146,12 +147,12 @@ def test_timpre_sets_the_timers_clock(r: dict[str, int], div: int, timpre: bool)
 
 def test_the_f405_keeps_its_own_tables(f405: dict[str, int]) -> None:
     """The same firmware on rig-stm32f405: RM0090 5.4.1's PWR_CR (one VOS bit, scale 1 at reset), 3.9.1's
-    LATENCY[2:0], 8.4.3's port A OSPEEDR (0 in RM0090 rev 19), DS8626's erase times (one per sector size),
+    ACR, 8.4.3's port A OSPEEDR (0 in RM0090 rev 19), DS8626's erase times (one per sector size),
     a sector 8 that exists (table 5: the erase starts, BSY), and no DCKCFGR (offset 0x8C is reserved:
     reads 0, writes ignored, so the timers' clock stays 2 x PCLK1)."""
     assert f405["pwr_cr_reset"] == F405_PWR_CR_RESET
     assert f405["pwr_cr_ones"] == F405_PWR_CR_WRITABLE
-    assert f405["flash_acr_ones"] == ACR_CACHES | 0x7
+    assert f405["flash_acr_ones"] == ACR_CACHES | ACR_LATENCY
     assert f405["gpioa_ospeedr_reset"] == 0
     for (sector, psize), seconds in F405_ERASE_S.items():
         name = f"{sector}_{psize}_cycles"
