@@ -38,6 +38,8 @@ F411_GPIO_RESET = {"gpioa_moder": 0xA800_0000, "gpioa_ospeedr": 0x0C00_0000, "gp
 F411_ERASE_S = {("erase5", "x32"): 1.0, ("erase2", "x16"): 0.3, ("erase4", "x8"): 1.2}
 #: DS8626's (the F405's): one typical time per sector size, whatever the parallelism
 F405_ERASE_S = {("erase5", "x32"): 2.0, ("erase2", "x16"): 0.4, ("erase4", "x8"): 1.2}
+#: a mass erase at x32: DS10314's typical 4 s (8 at x8, 5.5 at x16), DS8626's 16 s
+F411_MASS_ERASE_S, F405_MASS_ERASE_S = 4.0, 16.0
 #: the firmware's wait after EOP (the WFI loop that sees it, one DWT read), and the polling loop that sees
 #: TIM2's UIF
 LOOP_CYCLES = 8
@@ -124,6 +126,12 @@ def test_sector_erases_take_ds10314s_times(r: dict[str, int]) -> None:
         assert r[f"{sector}_next"] == NEXT_PROGRAMMED, sector
 
 
+def test_a_mass_erase_takes_ds10314s_time(r: dict[str, int]) -> None:
+    """The firmware's last act, run from RAM (it erases the firmware's own code): MER at x32, STRT to EOP."""
+    seconds = F411_MASS_ERASE_S
+    assert cycles(seconds) <= r["mass_erase_x32_cycles"] <= cycles(seconds) + LOOP_CYCLES
+
+
 def test_there_is_no_sector_8(r: dict[str, int], done: subprocess.CompletedProcess[str]) -> None:
     """RM0383 3.8.5: SNB 0-7 are the sectors, other values are "not allowed" and no flag of SR (3.8.4) is
     named for them: the erase does not start (no BSY, STRT cleared), no sector is erased, and the machine
@@ -158,6 +166,8 @@ def test_the_f405_keeps_its_own_tables(f405_done: subprocess.CompletedProcess[st
     for (sector, psize), seconds in F405_ERASE_S.items():
         name = f"{sector}_{psize}_cycles"
         assert cycles(seconds) <= f405[name] <= cycles(seconds) + LOOP_CYCLES, name
+    seconds = F405_MASS_ERASE_S
+    assert cycles(seconds) <= f405["mass_erase_x32_cycles"] <= cycles(seconds) + LOOP_CYCLES
     assert f405["snb8_sr"] & SR_BSY
     assert f405["snb8_sector7"] == SECTOR7_PROGRAMMED
     assert f405["rcc_dckcfgr_ones"] == 0

@@ -2,8 +2,9 @@
    HSI: PWR, the FLASH interface and ports A, B, C and H at reset; PWR_CR and FLASH_ACR with all ones
    written; CSR.VOSRDY after each VOS; sector erases timed from STRT to EOP with DWT_CYCCNT (sector 5, 128
    KB, at x32; sector 2, 16 KB, at x16; sector 4, 64 KB, at x8), each with a word programmed in it before
-   and one in the next sector that must stay; an erase of sector 8 (none on the F411); and TIM2's period
-   with APB1 divided by 1, 4 and 8, with and without RCC_DCKCFGR.TIMPRE (which only the F411 has).
+   and one in the next sector that must stay; an erase of sector 8 (none on the F411); TIM2's period with
+   APB1 divided by 1, 4 and 8, with and without RCC_DCKCFGR.TIMPRE (which only the F411 has); and last a
+   mass erase at x32, timed from RAM.
    tests/stm32/test_f411_regs.py judges the NAME=0xVALUE lines against RM0383, RM0090 and DS10314. */
 #include "semihost.h"
 #include "stm32f405.h"
@@ -151,6 +152,37 @@ static uint32_t tim2_periods(void)
     return cycles;
 }
 
+/* A mass erase (MER) at x32, timed from STRT to EOP, reported, then the end of the run: it erases the code,
+   this firmware's included, so what runs after it is here, in RAM (.ramfunc, copied with .data by
+   startup.c), and calls nothing in flash; interrupts stay masked (the vectors are erased too: the FLASH
+   interrupt only pends and wakes WFI). The line's text and its digits are in RAM as well. */
+#define MASS_ERASE_NAME "mass_erase_x32_cycles=0x"
+__attribute__((section(".ramfunc"), noinline, long_call)) static void mass_erase_and_exit(void)
+{
+    static char line[] = MASS_ERASE_NAME "00000000\ndone\n";
+    static uint32_t exit_block[2] = { ADP_STOPPED_APPLICATION_EXIT, 0 };
+    __asm volatile("cpsid i");
+    FLASH_CR = FLASH_CR_MER | FLASH_CR_PSIZE(PSIZE_X32) | FLASH_CR_EOPIE;
+    uint32_t start = DWT_CYCCNT;
+    FLASH_CR |= FLASH_CR_STRT;
+    while (!(FLASH_SR & FLASH_SR_EOP)) {
+        __asm volatile("wfi");
+    }
+    uint32_t cycles = DWT_CYCCNT - start;
+    for (unsigned i = 0; i < 8u; i++) {
+        uint32_t digit = cycles >> (28u - 4u * i) & 0xFu;
+        line[sizeof MASS_ERASE_NAME - 1u + i] = (char)(digit < 10u ? '0' + digit : 'a' + digit - 10u);
+    }
+    register uint32_t r0 __asm("r0") = SYS_WRITE0;
+    register const void *r1 __asm("r1") = line;
+    __asm volatile("bkpt 0xab" : "+r"(r0) : "r"(r1) : "memory");
+    r0 = SYS_EXIT_EXTENDED;
+    r1 = exit_block;
+    __asm volatile("bkpt 0xab" : "+r"(r0) : "r"(r1) : "memory");
+    for (;;) {
+    }
+}
+
 static void timpre(void)
 {
     static const struct {
@@ -184,6 +216,8 @@ int main(void)
     writable();
     flash();
     timpre();
-    put_text("done\n");
-    return 0;
+    FLASH_KEYR = FLASH_KEY1;
+    FLASH_KEYR = FLASH_KEY2;
+    mass_erase_and_exit();
+    return 1; /* (not reached) */
 }
