@@ -1,8 +1,9 @@
 /*
- * The STM32F405's FLASH interface, RM0090 section 3: ACR (wait states, which 168 MHz needs five of, read
- * back as written: HAL checks them), the CR lock with its key sequence (KEY1 then KEY2 to KEYR unlocks
+ * The STM32F405's FLASH interface, RM0090 section 3, and the STM32F411's (RM0383 section 3: its 512 KB in
+ * 8 sectors, its datasheet's erase times; the "chip" property picks the table): ACR (wait states, which
+ * 168 MHz needs five of, read back as written: HAL checks them), the CR lock with its key sequence (KEY1 then KEY2 to KEYR unlocks
  * CR; a wrong key locks it until reset; CR.LOCK written 1 locks it again), and programming and erasing
- * the main flash (3.5-3.7): sector erase (SER, SNB, STRT) of the 12 sectors of table 5 and mass erase
+ * the main flash (3.5-3.7): sector erase (SER, SNB, STRT) of the chip's sectors (RM0090 table 5, RM0383 table 4) and mass erase
  * (MER) to 0xFF, and programming by a write to a flash address while CR.PG is set, in the size PSIZE
  * gives (x8, x16, x32); a cell only goes from 1 to 0 (a write ANDs). SR's error flags PGSERR and PGPERR
  * as 3.9.4 sets them, BSY for the datasheet's typical time of the operation in virtual time,
@@ -24,6 +25,7 @@
 
 #include "qemu/osdep.h"
 
+#include "hw/qdev-properties.h"
 #include "qapi/error.h"
 #include "qemu/log.h"
 #include "qemu/module.h"
@@ -31,14 +33,50 @@
 #include "rig_stm32f4.h"
 #include "sysemu/runstate.h"
 
-/* RM0090 table 12 (FLASH interface register map) */
-enum { ACR, KEYR, OPTKEYR, SR, CR, OPTCR };
-static const RigRegister flash_registers[] = {
-    [ACR] = { 0x00, "ACR", 0x00000000, 0x00000707 }, /* LATENCY[2:0], PRFTEN, ICEN, DCEN */
-    [KEYR] = { 0x04, "KEYR", 0x00000000, 0x00000000 },   [OPTKEYR] = { 0x08, "OPTKEYR", 0x00000000, 0x00000000 },
-    [SR] = { 0x0C, "SR", 0x00000000, 0x000000F3 }, /* EOP, OPERR, WRPERR, PGAERR, PGPERR, PGSERR: w1c */
-    [CR] = { 0x10, "CR", 0x80000000, 0x0301037F }, /* PG, SER, MER, SNB, PSIZE, STRT (below), EOPIE, ERRIE */
-    [OPTCR] = { 0x14, "OPTCR", 0x0FFFAAED, 0x00000000 },
+/* The FLASH interface's registers (RM0090 3.9 and table 12, RM0383 3.8) */
+enum { ACR, KEYR, OPTKEYR, SR, CR, OPTCR, FLASH_REGISTERS };
+
+/* What differs between the chips: the registers' reset values and writable bits, the main flash's sectors
+ * (4 x 16 KB, one of 64 KB, then 128 KB each: sector_start) and the datasheet's typical erase times */
+typedef struct RigFlashChip {
+    RigRegister registers[FLASH_REGISTERS];
+    unsigned sectors;
+    int64_t erase_ns[3][3];   /* a sector of 16, 64 and 128 KB, with PSIZE x8, x16 and x32 (x64 as x32) */
+    int64_t mass_erase_ns[3]; /* MER, with PSIZE x8, x16 and x32 */
+} RigFlashChip;
+
+#define MS(n) ((int64_t)(n)*SCALE_MS)
+/* The F405: RM0090 table 12's registers and table 5's 12 sectors (1 MB); DS8626's typical erase times
+ * (its flash programming table gives one for the three parallelisms) */
+static const RigFlashChip flash_f405 = {
+    .registers = {
+        [ACR] = { 0x00, "ACR", 0x00000000, 0x00000707 }, /* LATENCY[2:0], PRFTEN, ICEN, DCEN */
+        [KEYR] = { 0x04, "KEYR", 0x00000000, 0x00000000 },
+        [OPTKEYR] = { 0x08, "OPTKEYR", 0x00000000, 0x00000000 },
+        [SR] = { 0x0C, "SR", 0x00000000, 0x000000F3 }, /* EOP, OPERR, WRPERR, PGAERR, PGPERR, PGSERR: w1c */
+        [CR] = { 0x10, "CR", 0x80000000, 0x0301037F }, /* PG, SER, MER, SNB[3:0], PSIZE, STRT (below), EOPIE, ERRIE */
+        [OPTCR] = { 0x14, "OPTCR", 0x0FFFAAED, 0x00000000 },
+    },
+    .sectors = 12,
+    .erase_ns = { { MS(400), MS(400), MS(400) }, { MS(1200), MS(1200), MS(1200) }, { MS(2000), MS(2000), MS(2000) } },
+    .mass_erase_ns = { MS(16000), MS(16000), MS(16000) },
+};
+/* The F411: RM0383 3.8's registers (ACR's LATENCY is three bits as the F405's, ST's stm32f411xe.h masks it
+ * 0x7, where the F42x's and F446's have four; SR adds RDERR, bit 8, for PCROP reads; OPTCR resets to the
+ * same value) and 3.3's 8 sectors (table 4: 512 KB); DS10314's typical erase times
+ * (its flash memory programming table), which shorten as the parallelism (PSIZE) widens */
+static const RigFlashChip flash_f411 = {
+    .registers = {
+        [ACR] = { 0x00, "ACR", 0x00000000, 0x00000707 }, /* LATENCY[2:0], PRFTEN, ICEN, DCEN */
+        [KEYR] = { 0x04, "KEYR", 0x00000000, 0x00000000 },
+        [OPTKEYR] = { 0x08, "OPTKEYR", 0x00000000, 0x00000000 },
+        [SR] = { 0x0C, "SR", 0x00000000, 0x000001F3 }, /* the F405's and RDERR: w1c */
+        [CR] = { 0x10, "CR", 0x80000000, 0x0301037F }, /* as the F405's: SNB[3:0], of which 0-7 are sectors */
+        [OPTCR] = { 0x14, "OPTCR", 0x0FFFAAED, 0x00000000 },
+    },
+    .sectors = 8,
+    .erase_ns = { { MS(400), MS(300), MS(250) }, { MS(1200), MS(700), MS(550) }, { MS(2000), MS(1300), MS(1000) } },
+    .mass_erase_ns = { MS(8000), MS(5500), MS(4000) },
 };
 #define KEY1 0x45670123u
 #define KEY2 0xCDEF89ABu
@@ -57,17 +95,12 @@ static const RigRegister flash_registers[] = {
 #define SR_PGSERR (1u << 7)
 #define SR_BSY (1u << 16)
 
-/* RM0090 table 5: the main flash's sectors, 4 x 16 KB, 64 KB, 7 x 128 KB */
-#define SECTORS 12
+/* RM0090 table 5, RM0383 table 4: the main flash's sectors, 4 x 16 KB, 64 KB, then 128 KB each */
 static hwaddr sector_start(unsigned n) { return n < 4 ? n * 0x4000 : n == 4 ? 0x10000 : (n - 4) * 0x20000; }
 static hwaddr sector_size(unsigned n) { return n < 4 ? 0x4000 : n == 4 ? 0x10000 : 0x20000; }
 
-/* DS8626 (the STM32F405xx datasheet), flash memory programming: the typical times (x32 parallelism) */
+/* DS8626 and DS10314, flash memory programming: a word's typical programming time on both chips */
 #define PROGRAM_NS (16 * SCALE_US)
-#define ERASE_16K_NS (400 * SCALE_MS)
-#define ERASE_64K_NS (1200 * SCALE_MS)
-#define ERASE_128K_NS (2000 * SCALE_MS)
-#define MASS_ERASE_NS (16000 * SCALE_MS)
 
 static void flash_irq_update(RigStm32FlashIfState *s)
 {
@@ -106,17 +139,19 @@ static void flash_erase(RigStm32FlashIfState *s, hwaddr start, hwaddr size)
 /* CR.STRT: a sector erase (SER and SNB) or a mass erase (MER) */
 static void flash_start(RigStm32FlashIfState *s)
 {
-    static const int64_t erase_ns[3] = { ERASE_16K_NS, ERASE_64K_NS, ERASE_128K_NS };
-    unsigned snb = s->cr >> CR_SNB_SHIFT & 0xF;
+    const RigFlashChip *part = s->part;
+    unsigned snb = s->cr >> CR_SNB_SHIFT & 0xF, psize = MIN(s->cr >> CR_PSIZE_SHIFT & 0x3, 2u);
     if (s->cr & CR_MER) {
-        flash_erase(s, 0, RIG_FLASH_BYTES);
-        flash_busy(s, MASS_ERASE_NS);
-    } else if ((s->cr & CR_SER) && snb < SECTORS) {
+        flash_erase(s, 0, sector_start(part->sectors));
+        flash_busy(s, part->mass_erase_ns[psize]);
+    } else if ((s->cr & CR_SER) && snb < part->sectors) {
         flash_erase(s, sector_start(snb), sector_size(snb));
-        flash_busy(s, erase_ns[snb < 4 ? 0 : snb == 4 ? 1 : 2]);
+        flash_busy(s, part->erase_ns[snb < 4 ? 0 : snb == 4 ? 1 : 2][psize]);
     } else {
-        qemu_log_mask(LOG_GUEST_ERROR, "rig-stm32f4-flash-if: STRT without MER, or SER with sector %u (of 0..11)\n",
-                      snb);
+        /* RM0090 3.9.5 and RM0383 3.8.5 call other SNB values "not allowed" and name no flag for them: the
+         * erase does not start, nothing is erased, SR stays as it was */
+        qemu_log_mask(LOG_GUEST_ERROR, "rig-stm32f4-flash-if: STRT without MER, or SER with sector %u (of 0..%u)\n",
+                      snb, part->sectors - 1);
         s->cr &= ~CR_STRT;
     }
 }
@@ -170,7 +205,7 @@ static const MemoryRegionOps flash_cells_ops = {
 static uint64_t flash_if_read(void *opaque, hwaddr offset, unsigned size)
 {
     RigStm32FlashIfState *s = opaque;
-    switch (rig_register_index(flash_registers, ARRAY_SIZE(flash_registers), offset)) {
+    switch (rig_register_index(s->part->registers, FLASH_REGISTERS, offset)) {
     case ACR:
         return s->acr;
     case SR:
@@ -192,10 +227,10 @@ static void flash_if_write(void *opaque, hwaddr offset, uint64_t value, unsigned
 {
     RigStm32FlashIfState *s = opaque;
     uint32_t v = value;
-    switch (rig_register_index(flash_registers, ARRAY_SIZE(flash_registers), offset)) {
+    switch (rig_register_index(s->part->registers, FLASH_REGISTERS, offset)) {
     case ACR:
         /* ICRST and DCRST (bits 11, 12) reset the caches, which are not modelled; they read 0 */
-        s->acr = v & flash_registers[ACR].writable;
+        s->acr = v & s->part->registers[ACR].writable;
         break;
     case KEYR:
         if (!(s->cr & CR_LOCK) || s->locked_out) {
@@ -211,7 +246,7 @@ static void flash_if_write(void *opaque, hwaddr offset, uint64_t value, unsigned
         }
         break;
     case SR:
-        s->sr &= ~(v & flash_registers[SR].writable);
+        s->sr &= ~(v & s->part->registers[SR].writable);
         flash_irq_update(s);
         break;
     case CR:
@@ -219,7 +254,7 @@ static void flash_if_write(void *opaque, hwaddr offset, uint64_t value, unsigned
             break;
         }
         /* STRT is set by software and cleared only by the hardware at the end of the erase */
-        s->cr = (v & flash_registers[CR].writable) | (v & CR_LOCK) | (s->cr & CR_STRT);
+        s->cr = (v & s->part->registers[CR].writable) | (v & CR_LOCK) | (s->cr & CR_STRT);
         if ((v & CR_STRT) && !(s->sr & SR_BSY)) {
             flash_start(s);
         }
@@ -244,10 +279,10 @@ static const MemoryRegionOps flash_if_ops = {
 static void flash_if_reset(DeviceState *dev)
 {
     RigStm32FlashIfState *s = RIG_STM32_FLASH_IF(dev);
-    s->acr = flash_registers[ACR].reset;
-    s->sr = flash_registers[SR].reset;
-    s->cr = flash_registers[CR].reset;
-    s->optcr = flash_registers[OPTCR].reset;
+    s->acr = s->part->registers[ACR].reset;
+    s->sr = s->part->registers[SR].reset;
+    s->cr = s->part->registers[CR].reset;
+    s->optcr = s->part->registers[OPTCR].reset;
     s->key_step = 0;
     s->locked_out = false;
     s->busy_until_ns = 0;
@@ -288,6 +323,17 @@ static void flash_if_realize(DeviceState *dev, Error **errp)
 {
     RigStm32FlashIfState *s = RIG_STM32_FLASH_IF(dev);
     Error *err = NULL;
+    switch (s->chip) {
+    case 405:
+        s->part = &flash_f405;
+        break;
+    case 411:
+        s->part = &flash_f411;
+        break;
+    default:
+        error_setg(errp, "rig-stm32f4-flash-if: chip %u is not 405 or 411", s->chip);
+        return;
+    }
     memory_region_init_rom_device(&s->cells, OBJECT(dev), &flash_cells_ops, s, "rig-stm32f4-flash", RIG_FLASH_BYTES,
                                   &err);
     if (err != NULL) {
@@ -299,8 +345,14 @@ static void flash_if_realize(DeviceState *dev, Error **errp)
     qemu_add_vm_change_state_handler(flash_if_first_start, s);
 }
 
+static Property flash_if_properties[] = {
+    DEFINE_PROP_UINT32("chip", RigStm32FlashIfState, chip, 405),
+    DEFINE_PROP_END_OF_LIST(),
+};
+
 static void flash_if_class_init(ObjectClass *klass, void *data)
 {
+    device_class_set_props(DEVICE_CLASS(klass), flash_if_properties);
     DEVICE_CLASS(klass)->reset = flash_if_reset;
     DEVICE_CLASS(klass)->realize = flash_if_realize;
 }

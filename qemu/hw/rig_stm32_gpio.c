@@ -1,6 +1,7 @@
 /*
- * An STM32F405 GPIO port (A..I), RM0090 section 8.4: MODER, OTYPER, OSPEEDR, PUPDR, IDR, ODR, BSRR,
- * LCKR and AFRL/AFRH, with each port's own reset values. The port answers only while its clock is on
+ * An STM32F405 GPIO port (A..I), RM0090 section 8.4, or an STM32F411's (A..E, H: RM0383 section 8.4, the
+ * same registers; the "chip" property picks the reset values): MODER, OTYPER, OSPEEDR, PUPDR, IDR, ODR,
+ * BSRR, LCKR and AFRL/AFRH, with each port's own reset values. The port answers only while its clock is on
  * (RCC_AHB1ENR.GPIOxEN), as on the chip: with the clock off, writes are lost and reads give 0.
  *
  * IDR shows the pins: a push-pull output its ODR bit; an open-drain output its ODR bit when 0, else
@@ -21,12 +22,12 @@
 
 #include "hw/irq.h"
 #include "hw/qdev-properties.h"
+#include "qapi/error.h"
 #include "qemu/log.h"
 #include "qemu/module.h"
 #include "rig_stm32f4.h"
 
 #define AHB1ENR 0x30
-#define PORTS 9
 
 /* RM0090 table 39 (GPIO register map): ports A and B reset with their debug pins configured */
 enum { MODER, OTYPER, OSPEEDR, PUPDR, IDR, ODR, BSRR, LCKR, AFRL, AFRH };
@@ -42,9 +43,23 @@ static const RigRegister gpio_registers[] = {
     [AFRL] = { 0x20, "AFRL", 0, 0xFFFFFFFF },
     [AFRH] = { 0x24, "AFRH", 0, 0xFFFFFFFF },
 };
-static const uint32_t moder_reset[PORTS] = { 0xA8000000, 0x00000280 };
-static const uint32_t ospeedr_reset[PORTS] = { 0x00000000, 0x000000C0 };
-static const uint32_t pupdr_reset[PORTS] = { 0x64000000, 0x00000100 };
+/* The reset values of ports A and B (index 0, 1), whose debug pins (JTAG/SW-DP) come up as their
+ * alternate function; the other ports reset to 0 */
+typedef struct GpioDebugResets {
+    uint32_t moder[2], ospeedr[2], pupdr[2];
+} GpioDebugResets;
+/* RM0090 8.4.1, 8.4.3, 8.4.4 (the F405) */
+static const GpioDebugResets gpio_f405 = {
+    .moder = { 0xA8000000, 0x00000280 },
+    .ospeedr = { 0x00000000, 0x000000C0 },
+    .pupdr = { 0x64000000, 0x00000100 },
+};
+/* RM0383 8.4.1, 8.4.3, 8.4.4 (the F411): as the F405's, and PA13 (SWDIO) at very high speed */
+static const GpioDebugResets gpio_f411 = {
+    .moder = { 0xA8000000, 0x00000280 },
+    .ospeedr = { 0x0C000000, 0x000000C0 },
+    .pupdr = { 0x64000000, 0x00000100 },
+};
 
 #define MODE_INPUT 0u
 #define MODE_OUTPUT 1u
@@ -262,11 +277,12 @@ static void gpio_af_drive(void *opaque, int line, int level)
 static void gpio_reset(DeviceState *dev)
 {
     RigStm32GpioState *s = RIG_STM32_GPIO(dev);
-    unsigned port = s->port < PORTS ? s->port : 0;
-    s->moder = moder_reset[port];
+    const GpioDebugResets *r = s->chip == 411 ? &gpio_f411 : &gpio_f405; /* (realize checked it) */
+    bool debug = s->port < 2;
+    s->moder = debug ? r->moder[s->port] : 0;
     s->otyper = 0;
-    s->ospeedr = ospeedr_reset[port];
-    s->pupdr = pupdr_reset[port];
+    s->ospeedr = debug ? r->ospeedr[s->port] : 0;
+    s->pupdr = debug ? r->pupdr[s->port] : 0;
     s->odr = 0;
     s->afr[0] = s->afr[1] = 0;
     s->lckr = 0;
@@ -277,6 +293,14 @@ static void gpio_reset(DeviceState *dev)
         s->af_input_level[pin] = -1;
     }
     gpio_update(s);
+}
+
+static void gpio_realize(DeviceState *dev, Error **errp)
+{
+    RigStm32GpioState *s = RIG_STM32_GPIO(dev);
+    if (s->chip != 405 && s->chip != 411) {
+        error_setg(errp, "rig-stm32f4-gpio: chip %u is not 405 or 411", s->chip);
+    }
 }
 
 static void gpio_init(Object *obj)
@@ -293,6 +317,7 @@ static void gpio_init(Object *obj)
 
 static Property gpio_properties[] = {
     DEFINE_PROP_UINT8("port", RigStm32GpioState, port, 0),
+    DEFINE_PROP_UINT32("chip", RigStm32GpioState, chip, 405),
     DEFINE_PROP_LINK("rcc", RigStm32GpioState, rcc, TYPE_RIG_STM32_RCC, RigStm32RccState *),
     DEFINE_PROP_END_OF_LIST(),
 };
@@ -301,6 +326,7 @@ static void gpio_class_init(ObjectClass *klass, void *data)
 {
     DeviceClass *dc = DEVICE_CLASS(klass);
     dc->reset = gpio_reset;
+    dc->realize = gpio_realize;
     device_class_set_props(dc, gpio_properties);
 }
 

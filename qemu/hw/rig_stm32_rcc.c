@@ -9,7 +9,8 @@
  * system clock cannot be stopped. The AHB clock (HCLK = SYSCLK / HPRE) is the "hclk" clock output,
  * which drives the core, SysTick and DWT: a firmware that sets up 168 MHz runs SysTick at 168 MHz. The
  * timers' clocks ("apb1-tim", "apb2-tim") are PCLK1 = HCLK / PPRE1 and PCLK2 = HCLK / PPRE2, doubled when
- * the prescaler is not 1 (RM0090 figure 21): 84 and 168 MHz under ST's 168 MHz set-up.
+ * the prescaler is not 1 (RM0090 figure 21): 84 and 168 MHz under ST's 168 MHz set-up; on the F411 with
+ * DCKCFGR.TIMPRE set, HCLK when the prescaler is 1, 2 or 4, else four times PCLKx (RM0383 6.3.23).
  * The reset registers reset the peripherals the machine attached to their bits (GPIO ports, PWR).
  * CSR's reset flags survive a system reset (a watchdog's sets its own: IWDGRSTF, WWDGRSTF).
  *
@@ -186,18 +187,31 @@ static uint64_t hclk_hz(const RigStm32RccState *s)
     return (hpre & 0x8) ? hz >> shift[hpre & 0x7] : hz;
 }
 
-uint64_t rig_stm32_rcc_pclk_hz(RigStm32RccState *rcc, unsigned apb)
+/* log2 of the APB prescaler's division: PPRE1 (bits 12:10) and PPRE2 (15:13): 0xx: /1; 100..111: /2, /4,
+ * /8, /16 */
+static unsigned apb_shift(const RigStm32RccState *s, unsigned apb)
 {
-    /* PPRE1 (bits 12:10) and PPRE2 (15:13): 0xx: /1; 100..111: /2, /4, /8, /16 */
-    unsigned ppre = rcc->regs[R_CFGR] >> (apb == 1 ? 10 : 13) & 0x7;
-    uint64_t hz = hclk_hz(rcc);
-    return (ppre & 0x4) ? hz >> ((ppre & 0x3) + 1) : hz;
+    unsigned ppre = s->regs[R_CFGR] >> (apb == 1 ? 10 : 13) & 0x7;
+    return (ppre & 0x4) ? (ppre & 0x3) + 1 : 0;
 }
+
+uint64_t rig_stm32_rcc_pclk_hz(RigStm32RccState *rcc, unsigned apb) { return hclk_hz(rcc) >> apb_shift(rcc, apb); }
+
+/* DCKCFGR.TIMPRE, on a chip whose table has DCKCFGR (the F411: RM0383 6.3.23; the F405 has none) */
+#define DCKCFGR 0x8C
+#define DCKCFGR_TIMPRE (1u << 24)
 
 uint64_t rig_stm32_rcc_timer_hz(RigStm32RccState *rcc, unsigned apb)
 {
+    unsigned shift = apb_shift(rcc, apb);
     uint64_t pclk = rig_stm32_rcc_pclk_hz(rcc, apb);
-    return pclk == hclk_hz(rcc) ? pclk : 2 * pclk;
+    int dckcfgr = rig_register_index(rcc->table, rcc->count, DCKCFGR);
+    if (dckcfgr >= 0 && (rcc->regs[dckcfgr] & DCKCFGR_TIMPRE)) {
+        /* TIMPRE: HCLK while the APB prescaler divides by 1, 2 or 4, else four times PCLKx */
+        return shift <= 2 ? hclk_hz(rcc) : 4 * pclk;
+    }
+    /* PCLKx while the APB prescaler divides by 1, else twice PCLKx */
+    return shift == 0 ? pclk : 2 * pclk;
 }
 
 /* The hardware's side of CR, BDCR, CSR and CFGR.SWS after a write */

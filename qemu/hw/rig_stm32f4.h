@@ -65,7 +65,7 @@ bool rig_stm32_rcc_enabled(RigStm32RccState *rcc, hwaddr enr_offset, unsigned bi
 uint64_t rig_stm32_rcc_pclk_hz(RigStm32RccState *rcc, unsigned apb);
 
 /* The timer clock of APB1 (@apb 1) or APB2 (@apb 2) in Hz: PCLKx, doubled when the APB prescaler is not 1
- * (RM0090 7.2, figure 21) */
+ * (RM0090 7.2, figure 21); with the F411's DCKCFGR.TIMPRE, HCLK up to a prescaler of 4, else 4 x PCLKx */
 uint64_t rig_stm32_rcc_timer_hz(RigStm32RccState *rcc, unsigned apb);
 
 /* @dev is reset while bit @bit of the reset register at @rstr_offset is set (RM0090 7.3.5-7.3.9) */
@@ -78,6 +78,8 @@ OBJECT_DECLARE_SIMPLE_TYPE(RigStm32PwrState, RIG_STM32_PWR)
 struct RigStm32PwrState {
     SysBusDevice parent_obj;
     MemoryRegion iomem;
+    uint32_t chip;            /* property "chip": 405 (RM0090) or 411 (RM0383) */
+    const RigRegister *table; /* that chip's CR and CSR */
     uint32_t cr, csr;
     RigStm32RccState *rcc;
 };
@@ -88,9 +90,12 @@ OBJECT_DECLARE_SIMPLE_TYPE(RigStm32FlashIfState, RIG_STM32_FLASH_IF)
 
 #define RIG_FLASH_BYTES (1024 * 1024) /* the F405's main flash at 0x08000000 (RM0090 table 5) */
 
+struct RigFlashChip;
 struct RigStm32FlashIfState {
     SysBusDevice parent_obj;
     MemoryRegion iomem;
+    uint32_t chip;                   /* property "chip": 405 (RM0090) or 411 (RM0383) */
+    const struct RigFlashChip *part; /* that chip's registers, sectors and times */
     MemoryRegion cells; /* the main flash (sysbus MMIO 1): a ROM device, read from its RAM, written to program */
     MemoryRegion *rom;  /* the SoC's flash ROM, which the loader writes the image into */
     qemu_irq irq;       /* the FLASH global interrupt */
@@ -160,7 +165,8 @@ OBJECT_DECLARE_SIMPLE_TYPE(RigStm32GpioState, RIG_STM32_GPIO)
 struct RigStm32GpioState {
     SysBusDevice parent_obj;
     MemoryRegion iomem;
-    uint8_t port; /* 0 for A ... 8 for I (property "port") */
+    uint8_t port;  /* 0 for A ... 8 for I (property "port") */
+    uint32_t chip; /* property "chip": 405 (RM0090) or 411 (RM0383), whose ports A and B reset apart */
     RigStm32RccState *rcc;
     uint32_t moder, otyper, ospeedr, pupdr, odr, afr[2];
     uint32_t lckr;      /* LCK[15:0] and LCKK once the lock sequence has completed */
@@ -424,7 +430,7 @@ typedef struct RigStm32Region {
 } RigStm32Region;
 typedef struct RigStm32Chip {
     const char *name;                   /* the machine's */
-    uint32_t rcc_chip;                  /* the RCC's register table: 405 or 411 */
+    uint32_t part;                      /* 405 or 411: the register tables the models take ("chip") */
     uint32_t flash_size;                /* bytes at 0x08000000 (and aliased at 0) */
     uint32_t ccm_size;                  /* the CCM data RAM's bytes at 0x10000000 (QEMU's SoC has none) */
     uint16_t timers;                    /* bit n: TIMn */

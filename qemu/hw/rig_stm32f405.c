@@ -160,9 +160,14 @@ static char *wires_spec;
 /* the board's own address on QEMU's bus (it answers every address the chip core acknowledges) */
 #define CHIP_ADDR_MPU_SLAVE 0x68
 
-static SysBusDevice *map_device(const char *type, hwaddr base, RigStm32RccState *rcc, int port)
+/* @type at @base, linked to @rcc (unless NULL), its "port" set (unless -1) and its "chip" (unless 0: a
+ * model with one table for the family) */
+static SysBusDevice *map_device(const char *type, hwaddr base, RigStm32RccState *rcc, int port, uint32_t part)
 {
     DeviceState *dev = qdev_new(type);
+    if (part != 0) {
+        qdev_prop_set_uint32(dev, "chip", part);
+    }
     if (rcc != NULL) {
         object_property_set_link(OBJECT(dev), "rcc", OBJECT(rcc), &error_fatal);
     }
@@ -415,7 +420,7 @@ static void map_absent(const RigStm32Chip *chip)
 void rig_stm32f4_machine_init(MachineState *machine, const RigStm32Chip *chip)
 {
     DeviceState *rcc = qdev_new(TYPE_RIG_STM32_RCC);
-    qdev_prop_set_uint32(rcc, "chip", chip->rcc_chip);
+    qdev_prop_set_uint32(rcc, "chip", chip->part);
     sysbus_realize_and_unref(SYS_BUS_DEVICE(rcc), &error_fatal);
     sysbus_mmio_map(SYS_BUS_DEVICE(rcc), 0, RCC_BASE);
     Clock *hclk = qdev_get_clock_out(rcc, "hclk");
@@ -426,17 +431,19 @@ void rig_stm32f4_machine_init(MachineState *machine, const RigStm32Chip *chip)
     sysbus_realize_and_unref(SYS_BUS_DEVICE(soc), &error_fatal);
 
     RigStm32RccState *r = RIG_STM32_RCC(rcc);
-    rig_stm32_rcc_add_reset(r, RCC_APB1RSTR, APB1RSTR_PWRRST, DEVICE(map_device(TYPE_RIG_STM32_PWR, PWR_BASE, r, -1)));
-    map_flash(SYS_BUS_DEVICE(soc), map_device(TYPE_RIG_STM32_FLASH_IF, FLASH_IF_BASE, NULL, -1), chip->flash_size);
-    map_device(TYPE_RIG_STM32_IWDG, IWDG_BASE, r, -1);
-    SysBusDevice *wwdg = map_device(TYPE_RIG_STM32_WWDG, WWDG_BASE, r, -1);
+    rig_stm32_rcc_add_reset(r, RCC_APB1RSTR, APB1RSTR_PWRRST,
+                            DEVICE(map_device(TYPE_RIG_STM32_PWR, PWR_BASE, r, -1, chip->part)));
+    map_flash(SYS_BUS_DEVICE(soc), map_device(TYPE_RIG_STM32_FLASH_IF, FLASH_IF_BASE, NULL, -1, chip->part),
+              chip->flash_size);
+    map_device(TYPE_RIG_STM32_IWDG, IWDG_BASE, r, -1, 0);
+    SysBusDevice *wwdg = map_device(TYPE_RIG_STM32_WWDG, WWDG_BASE, r, -1, 0);
     rig_stm32_rcc_add_reset(r, RCC_APB1RSTR, APB1_WWDG, DEVICE(wwdg));
     DeviceState *gpio_ports[RIG_GPIO_PORTS] = { NULL };
     for (int port = 0; port < RIG_GPIO_PORTS; port++) {
         if (chip->port_pins[port] == 0) {
             continue; /* a port the chip lacks: its slot is in chip->absent */
         }
-        SysBusDevice *gpio = map_device(TYPE_RIG_STM32_GPIO, GPIOA_BASE + port * GPIO_STRIDE, r, port);
+        SysBusDevice *gpio = map_device(TYPE_RIG_STM32_GPIO, GPIOA_BASE + port * GPIO_STRIDE, r, port, chip->part);
         gpio_ports[port] = DEVICE(gpio);
         rig_stm32_rcc_add_reset(r, RCC_AHB1RSTR, port, DEVICE(gpio)); /* GPIOxRST: bit x */
     }
@@ -457,7 +464,7 @@ void rig_stm32f4_machine_init(MachineState *machine, const RigStm32Chip *chip)
         rig_stm32_rcc_add_reset(r, RCC_AHB1RSTR, dma_map[d].reset_bit, dma[d]);
     }
 
-    DeviceState *i2c1 = DEVICE(map_device(TYPE_RIG_STM32_I2C, I2C1_BASE, r, -1));
+    DeviceState *i2c1 = DEVICE(map_device(TYPE_RIG_STM32_I2C, I2C1_BASE, r, -1, 0));
     qdev_connect_gpio_out_named(i2c1, "dma", 0, qdev_get_gpio_in_named(dma[0], "request", RIG_DMA_I2C1_RX));
     qdev_connect_gpio_out_named(i2c1, "dma", 1, qdev_get_gpio_in_named(dma[0], "request", RIG_DMA_I2C1_TX));
     qdev_connect_gpio_out_named(dma[0], "eot1", RIG_DMA_I2C1_RX, qdev_get_gpio_in_named(i2c1, "dma-eot1", 0));
@@ -531,7 +538,7 @@ static const RigStm32Region f405_absent[] = {
 
 static const RigStm32Chip f405 = {
     .name = "rig-stm32f405",
-    .rcc_chip = 405,
+    .part = 405,
     .flash_size = 1024 * 1024,
     .ccm_size = 64 * 1024,
     .absent = f405_absent,

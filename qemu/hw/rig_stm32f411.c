@@ -53,7 +53,7 @@ static const RigStm32Region f411_absent[] = {
 
 static const RigStm32Chip f411 = {
     .name = "rig-stm32f411",
-    .rcc_chip = 411,
+    .part = 411,
     .flash_size = 512 * KB,
     .timers = 0x0E3E,                                                         /* TIM1..TIM5, TIM9..TIM11 */
     .usarts = 0x46,                                                           /* USART1, USART2, USART6 */

@@ -65,8 +65,8 @@ RC_PROTOCOLS: Final = ("sbus", "ppm", "msp", "pwm")
 #: a parallel PWM receiver's channels
 PWM_CHANNELS: Final = (4, 8)
 SBUS_BAUD: Final = 100_000
-#: how far a USART's nearest baud may be from the board's: 115200 at 16 MHz is 2.1 % off (Arduino's
-#: usual serial speed, read well by USB bridges); beyond 3 % a frame's last bits are misread
+#: how far a USART's nearest baud may be from the board's: 115200 at 16 MHz is 2.1 % off on an AVR
+#: (Arduino's usual serial speed, read well by USB bridges); beyond 3 % a frame's last bits are misread
 BAUD_TOLERANCE: Final = 0.03
 
 
@@ -188,7 +188,7 @@ def load(name: str | Path) -> Board:
         tel_uart = _uart(c, mcu, t, "telemetry")
         tel_baud = c.integer(t, "baud", "telemetry", 300, 2_000_000)
         c.string(t, "format", "telemetry", "text", choices=("text",))
-        if baud_error(clock, tel_baud) > BAUD_TOLERANCE:
+        if baud_error(mcu, clock, tel_uart, tel_baud) > BAUD_TOLERANCE:
             raise c.fail("telemetry.baud", f"{tel_baud} baud is over {BAUD_TOLERANCE:.0%} off anything a "
                                            f"USART makes at {clock} Hz")
     # (the RC input and the telemetry may share a USART: RX and TX are separate lines, as a Pro Mini's
@@ -345,13 +345,15 @@ def _rc_pin(c: _BoardCheck, mcu: Mcu, key: str, pin: str, motors: tuple[MotorOut
             raise c.fail(key, f"pin {pin} drives motor {m.motor}")
 
 
-def baud_error(clock_hz: int, baud: int) -> float:
-    """How far the nearest baud an AVR USART makes at ``clock_hz`` (normal or double speed) is from
-    ``baud``, as a fraction (BAUD_TOLERANCE is what a board may have)."""
+def baud_error(mcu: Mcu, clock_hz: int, uart: int, baud: int) -> float:
+    """How far the nearest baud ``mcu``'s USART ``uart`` makes at a CPU clock of ``clock_hz`` is from
+    ``baud``, as a fraction (BAUD_TOLERANCE is what a board may have): the MCU's formula
+    (``Mcu.baud_divisors``) with the divisor nearest, in each of its modes."""
+    f = mcu.usart_clock_hz(clock_hz, uart)
     best = math.inf
-    for div in (16, 8):
-        ubrr = max(0, round(clock_hz / (div * baud)) - 1)
-        best = min(best, abs(clock_hz / (div * (ubrr + 1)) / baud - 1))
+    for step, low, high in mcu.baud_divisors:
+        n = min(max(round(f / (step * baud)), low), high)
+        best = min(best, abs(f / (step * n) / baud - 1))
     return best
 
 

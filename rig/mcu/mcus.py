@@ -76,6 +76,24 @@ class Mcu:
             return "timer channel (a receiver's pulses are timed by its input capture)"
         return "external or pin change interrupt"
 
+    #: the bauds a USART makes, as the datasheet's formula: its clock over ``step`` x n, n an integer from
+    #: ``low`` to ``high``, one (step, low, high) for each of its modes. An AVR: f_OSC / (16 (UBRR + 1)),
+    #: or / (8 (UBRR + 1)) with U2X (UBRR 12 bits); an STM32 with OVER8 = 0: f_PCLK / (16 USARTDIV),
+    #: BRR = 16 USARTDIV (mantissa and a 4-bit fraction), so f_PCLK / BRR, BRR from 16 (RM0090 30.3.4)
+    baud_divisors: tuple[tuple[int, int, int], ...] = ((16, 1, 4096), (8, 1, 4096))
+    #: USART n -> the most the clock of its bus may be (an STM32's APB1 or APB2; a firmware divides HCLK
+    #: by the smallest power of 2 that keeps within it); a USART not here counts the CPU clock (an AVR's)
+    usart_bus_max_hz: dict[int, int] = field(default_factory=dict)
+
+    def usart_clock_hz(self, clock_hz: int, uart: int) -> int:
+        """The clock USART ``uart`` counts at a CPU clock of ``clock_hz``: its bus's (HCLK divided by 1,
+        2, 4, 8 or 16 to within ``usart_bus_max_hz``), else the CPU clock."""
+        limit = self.usart_bus_max_hz.get(uart, clock_hz)
+        div = 1
+        while clock_hz / div > limit and div < 16:
+            div *= 2
+        return clock_hz // div
+
     def output_name(self, timer: int, channel: str) -> str:
         """A timer output as the datasheet names it: OC1A, TIM4_CH1."""
         return f"TIM{timer}_CH{channel}" if self.engine == "stm32" else f"OC{timer}{channel}"
@@ -127,6 +145,10 @@ MCUS: dict[str, Mcu] = {m.name: m for m in (
         machine="rig-stm32f405", flash_base=0x0800_0000,
         # (RM0090 table 3: SRAM1 and SRAM2, then the CCM data RAM)
         rams=((0x2000_0000, 128 * 1024), (0x1000_0000, 64 * 1024)), rc_timing="capture",
+        # (RM0090 30.3.4, OVER8 = 0; DS8626, general operating conditions: f_PCLK1 at most
+        # 42 MHz, f_PCLK2 84 MHz; USART1 and USART6 are on APB2, USART2 and USART3 on APB1)
+        baud_divisors=((1, 16, 0xFFFF),),
+        usart_bus_max_hz={1: 84_000_000, 2: 42_000_000, 3: 42_000_000, 6: 84_000_000},
     ),
     Mcu(
         "stm32f411", flash=512 * 1024, sram=128 * 1024, eeprom=0,
@@ -146,5 +168,9 @@ MCUS: dict[str, Mcu] = {m.name: m for m in (
         engine="stm32", max_clock_hz=100_000_000, channels=("1", "2", "3", "4"),
         machine="rig-stm32f411", flash_base=0x0800_0000, rams=((0x2000_0000, 128 * 1024),),
         rc_timing="capture",
+        # (RM0383 19.3.4, as RM0090's; DS10314, general operating conditions: f_PCLK1 at most 50 MHz,
+        # f_PCLK2 100 MHz; USART1 and USART6 on APB2, USART2 on APB1)
+        baud_divisors=((1, 16, 0xFFFF),),
+        usart_bus_max_hz={1: 100_000_000, 2: 50_000_000, 6: 100_000_000},
     ),
 )}

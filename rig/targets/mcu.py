@@ -120,7 +120,7 @@ def profile_board(board: boards.Board, profile: Profile | None) -> boards.Board:
     if uart not in board.mcu.usarts:
         raise boards.BoardError(str(profile.path), "telemetry.port", f"the {board.mcu.name} has USART "
                                 f"{', '.join(map(str, board.mcu.usarts))} only, not {uart}")
-    if boards.baud_error(board.clock_hz, baud) > boards.BAUD_TOLERANCE:
+    if boards.baud_error(board.mcu, board.clock_hz, uart, baud) > boards.BAUD_TOLERANCE:
         raise boards.BoardError(str(profile.path), "telemetry.baud",
                                 f"{baud} baud is over {boards.BAUD_TOLERANCE:.0%} off anything a USART "
                                 f"makes at {board.clock_hz} Hz")

@@ -10,6 +10,7 @@ import pytest
 
 from rig.mcu import board
 from rig.mcu.board import BoardError, baud_error, mounting
+from rig.mcu.mcus import MCUS
 
 #: The Arduino boards' pin maps (Arduino's schematics: Mega 2560 rev3, Pro Mini), for the shipped
 #: boards' motors: silk-screen name -> port pin
@@ -103,9 +104,49 @@ def test_no_such_board_names_the_shipped_ones() -> None:
 def test_baud_errors_are_the_datasheets() -> None:
     # ATmega2560 datasheet, table 22-12 (16 MHz): 115.2k is -3.5 % at U2X 0 and 2.1 % at U2X 1;
     # 250k, 500k and 1M are exact
-    assert baud_error(16_000_000, 115_200) == pytest.approx(0.021, abs=0.001)
-    assert baud_error(16_000_000, 250_000) == 0.0
-    assert baud_error(16_000_000, 1_000_000) == 0.0
+    mega = MCUS["atmega2560"]
+    assert baud_error(mega, 16_000_000, 0, 115_200) == pytest.approx(0.021, abs=0.001)
+    assert baud_error(mega, 16_000_000, 0, 250_000) == 0.0
+    assert baud_error(mega, 16_000_000, 0, 1_000_000) == 0.0
+
+
+def stm32_baud(pclk_hz: int, baud: int) -> float:
+    """RM0090 30.3.4 with OVER8 = 0: Tx/Rx baud = f_PCLK / (16 USARTDIV), BRR = 16 USARTDIV (a 12-bit
+    mantissa and a 4-bit fraction), so the baud made is f_PCLK / BRR for the nearest BRR, at least 16."""
+    brr = max(16, round(pclk_hz / baud))
+    return pclk_hz / brr
+
+
+@pytest.mark.parametrize("mcu,clock_hz,uart,pclk_hz,baud", [
+    ("stm32f405", 168_000_000, 1, 84_000_000, 115_200),  # APB2 at its 84 MHz most (DS8626)
+    ("stm32f405", 168_000_000, 2, 42_000_000, 921_600),  # APB1 at 42 MHz
+    ("stm32f405", 16_000_000, 6, 16_000_000, 115_200),   # the HSI: both APBs undivided
+    ("stm32f405", 8_000_000, 2, 8_000_000, 1_000_000),   # BRR 8 is below 16: 500000 is the fastest
+    ("stm32f411", 100_000_000, 2, 50_000_000, 460_800),  # APB1 at its 50 MHz most (DS10314)
+    ("stm32f411", 100_000_000, 6, 100_000_000, 2_000_000),
+])
+def test_an_stm32_usarts_baud_error_is_its_brrs(mcu: str, clock_hz: int, uart: int, pclk_hz: int,
+                                                baud: int) -> None:
+    """An STM32 USART counts its APB's clock, HCLK divided to within the bus's maximum, and makes
+    f_PCLK / BRR: its error is the nearest BRR's, not an AVR's UBRR's."""
+    expected = abs(stm32_baud(pclk_hz, baud) / baud - 1)
+    assert baud_error(MCUS[mcu], clock_hz, uart, baud) == pytest.approx(expected, abs=1e-12)
+
+
+def test_an_stm32_refuses_what_only_an_avr_makes(tmp_path: Path) -> None:
+    """1 Mbaud at 8 MHz: an AVR makes it exactly (U2X, UBRR 0), an STM32 USART with OVER8 = 0 at most
+    8 MHz / 16 = 500000 baud (50 % off), so a board asking it is refused; 500000 is exact."""
+    assert baud_error(MCUS["atmega328p"], 8_000_000, 0, 1_000_000) == 0.0
+    assert baud_error(MCUS["stm32f405"], 8_000_000, 6, 1_000_000) == pytest.approx(0.5)
+    assert baud_error(MCUS["stm32f405"], 8_000_000, 6, 500_000) == 0.0
+    text = (board.BOARDS / "stm32f405-gy86.toml").read_text().replace("clock_hz = 168_000_000",
+                                                                       "clock_hz = 8_000_000", 1)
+    p = tmp_path / "slow.toml"
+    p.write_text(text)
+    assert board.load(str(p)).telemetry_baud == 500_000
+    p.write_text(text.replace("baud = 500_000", "baud = 1_000_000", 1))
+    with pytest.raises(BoardError, match="telemetry.baud: 1000000 baud is over 3% off"):
+        board.load(str(p))
 
 
 def test_a_board_turned_90_degrees_sees_the_nose_on_its_right() -> None:

@@ -5,33 +5,8 @@
    SysTick before and after, and drives GPIOD (PD12 as a Discovery board's LED). Every value goes out as
    a NAME=0xVALUE line through semihosting; tests/stm32/test_clock_gpio.py judges them against RM0090. */
 #include "semihost.h"
+#include "spin_timing.h"
 #include "stm32f405.h"
-
-#define SPIN_ROUNDS 10000u
-
-/* The same instructions every call: its time in cycles scales with the clock and nothing else */
-__attribute__((noinline)) static void spin(uint32_t rounds)
-{
-    for (volatile uint32_t i = 0; i < rounds; i++) {
-    }
-}
-
-static void time_spin(const char *dwt_name, const char *systick_name)
-{
-    SYST_RVR = 0x00FFFFFFu;
-    SYST_CVR = 0;
-    SYST_CSR = 0x5u;        /* ENABLE, CLKSOURCE = the processor clock */
-    while (SYST_CVR == 0) { /* the first tick loads RVR */
-    }
-    uint32_t tick0 = SYST_CVR;
-    uint32_t cyc0 = DWT_CYCCNT;
-    spin(SPIN_ROUNDS);
-    uint32_t cyc1 = DWT_CYCCNT;
-    uint32_t tick1 = SYST_CVR;
-    SYST_CSR = 0;
-    report(dwt_name, cyc1 - cyc0);
-    report(systick_name, (tick0 - tick1) & 0x00FFFFFFu); /* SysTick counts down */
-}
 
 static void clock_at_reset(void)
 {

@@ -6,9 +6,9 @@
    Pill's SystemClock_Config does, the same loop timed with DWT_CYCCNT and SysTick at 16 and at 100 MHz.
    tests/stm32/test_f411.py judges the NAME=0xVALUE lines against RM0383. */
 #include "semihost.h"
+#include "spin_timing.h"
 #include "stm32f405.h"
 
-#define SPIN_ROUNDS 10000u
 #define SHCSR REG(0xE000ED24u)
 #define SHCSR_BUSFAULTENA (1u << 17)
 #define CFSR REG(0xE000ED28u)
@@ -59,29 +59,6 @@ static void probe(const char *faults_name, const char *bfar_name, uint32_t addre
 }
 
 #define PROBE(name, address) probe(name "_faults", name "_bfar", address)
-
-__attribute__((noinline)) static void spin(uint32_t rounds)
-{
-    for (volatile uint32_t i = 0; i < rounds; i++) {
-    }
-}
-
-static void time_spin(const char *dwt_name, const char *systick_name)
-{
-    SYST_RVR = 0x00FFFFFFu;
-    SYST_CVR = 0;
-    SYST_CSR = 0x5u;
-    while (SYST_CVR == 0) {
-    }
-    uint32_t tick0 = SYST_CVR;
-    uint32_t cyc0 = DWT_CYCCNT;
-    spin(SPIN_ROUNDS);
-    uint32_t cyc1 = DWT_CYCCNT;
-    uint32_t tick1 = SYST_CVR;
-    SYST_CSR = 0;
-    report(dwt_name, cyc1 - cyc0);
-    report(systick_name, (tick0 - tick1) & 0x00FFFFFFu);
-}
 
 static void rcc(void)
 {
