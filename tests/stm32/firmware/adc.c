@@ -237,6 +237,7 @@ static void overrun(void)
     ADC_SR(1) = 0;
     report("ovr_cleared", convert(11));
     /* without DMA and with EOCS = 0 no overrun is detected: conversions go on unread */
+    ADC_SQR3(1) = 10;
     ADC_CR2(1) = CR2_ADON | CR2_CONT | CR2_SWSTART;
     wait_cycles(200000);
     report("cont_sr", ADC_SR(1));
