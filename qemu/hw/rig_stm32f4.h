@@ -1,7 +1,7 @@
 /*
  * The rig's STM32F4 device models (RM0090, the STM32F405/415/407/417 reference manual): RCC and PWR, the
  * FLASH interface and the flash, the independent and window watchdogs, GPIO ports, the DMA controllers,
- * the I2C controllers, the timers TIM1-TIM14, the USARTs, the Cortex-M4's DWT cycle counter, and the GY-86 sensor
+ * the I2C controllers, the timers TIM1-TIM14, the USARTs, the ADCs, the Cortex-M4's DWT cycle counter, and the GY-86 sensor
  * board (the rig's chip core) as an I2C slave.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
