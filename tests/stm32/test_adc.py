@@ -50,8 +50,12 @@ def pin_volts() -> Fraction:
 
 
 def battery_board(tmp_path: Path, battery: str = BATTERY) -> Path:
+    """The shipped F405 board with ``battery`` for its own [battery] table."""
+    text = SHIPPED.read_text()
+    start = text.index("[battery]")
+    end = text.index("\n[", start) + 1
     path = tmp_path / "stm32f405-gy86-battery.toml"
-    path.write_text(SHIPPED.read_text() + "\n" + battery)
+    path.write_text(text[:start] + battery + "\n" + text[end:])
     return path
 
 
@@ -193,6 +197,14 @@ def test_a_battery_needs_an_analog_pin(tmp_path: Path) -> None:
     assert boards.load(battery_board(tmp_path)).battery is not None
 
 
+def test_the_shipped_board_measures_its_battery_on_pc2() -> None:
+    """The Omnibus F4's battery pin (Betaflight's OMNIBUSF4 target) is ADC123_IN12 (DS8626's pin table);
+    its 10 k / 1 k divider puts 12.6 V at 1.145 V, 1421 of 4095."""
+    battery = boards.load("stm32f405-gy86").battery
+    assert battery is not None and (battery.pin, battery.channel) == ("PC2", 12)
+    assert code(Fraction(battery.pin_volts).limit_denominator(10**6)) == code(pin_volts()) == 1421
+
+
 def test_the_link_refuses_an_input_the_chip_lacks(run_dir: Path) -> None:
     """A channel with no pin is refused by the engine before QEMU hears of it."""
     board = boards.load(battery_board(run_dir))
@@ -206,3 +218,24 @@ def test_the_link_refuses_an_input_the_chip_lacks(run_dir: Path) -> None:
             engine.analog_input(10, -1.0)
     finally:
         engine.close()
+
+
+@pytest.mark.parametrize(("payload", "why"), [
+    (bytes([4, 10, 0, 0, 0, 0, 0, 0]), "ADC 4"),
+    (bytes([1, 16, 0, 0, 0, 0, 0, 0]), "channel 16 (an internal one)"),
+    (bytes([1, 10, 0, 0, 0, 0, 0]), "a short message"),
+    (bytes([1, 10, 1, 0, 0, 0, 0, 0]), "padding not zero"),
+], ids=["adc", "channel", "length", "padding"])
+def test_the_link_ends_qemu_on_a_malformed_adc_message(run_dir: Path, payload: bytes, why: str) -> None:
+    """QEMU checks the ADC message as any input (qemu/hw/rig_link.c): a bad one ends it with a message,
+    which the engine's stop carries."""
+    engine_or_skip()
+    engine = open_engine(boards.load(battery_board(run_dir)), firmware("adc"), None)
+    try:
+        assert isinstance(engine, Stm32Engine)
+        engine._send(ord("A"), payload)  # (what analog_input refuses to send)
+        stop = engine.run_until(STEP_NS)
+    finally:
+        engine.close()
+    assert stop.kind == "crashed" and "rig-link: ADC: " in stop.what, (why, stop.what)
+
