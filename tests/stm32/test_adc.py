@@ -37,7 +37,7 @@ STEP_NS = 1_000_000
 SAMPLING = [3, 15, 28, 56, 84, 112, 144, 480]
 #: adc.c's scan: channels 10, 11, 12 at 480 cycles each, ADCPRE /2, over this many CPU cycles
 SCAN_WINDOW_CYCLES = 295_200
-SR_EOC, SR_STRT, SR_OVR = 1 << 1, 1 << 4, 1 << 5
+SR_AWD, SR_EOC, SR_STRT, SR_OVR = 1 << 0, 1 << 1, 1 << 4, 1 << 5
 
 
 def code(volts: Fraction, bits: int = 12) -> int:
@@ -149,8 +149,17 @@ def test_overrun(r: dict[str, int]) -> None:
     assert r["ovr_dr"] == code(pin_volts())
     assert r["ovr_sr_ignored"] == SR_STRT | SR_OVR
     assert r["ovr_cleared"] == code(INPUTS[11])
+    assert r["ovr_dma_sr"] == SR_EOC | SR_STRT | SR_OVR  # (with DMA, the same with nobody to take DR)
     assert r["cont_sr"] == SR_EOC | SR_STRT
     assert r["cont_dr"] == code(pin_volts())
+
+
+def test_the_analog_watchdog(r: dict[str, int]) -> None:
+    """13.3.7: AWDEN with AWDSGL watches AWDCH (10) alone; its code (1421) over HTR (1000) sets AWD, channel
+    12's code (621) under it on an unwatched channel does not."""
+    assert code(INPUTS[12]) < 1000 < code(pin_volts())
+    assert r["awd_sr_12"] == SR_STRT
+    assert r["awd_sr_10"] == SR_STRT | SR_AWD
 
 
 def test_injected_conversions_less_their_offset(r: dict[str, int]) -> None:

@@ -4,7 +4,8 @@
    rig sets through the link) at 12, 10, 8 and 6 bits and left aligned; each conversion's time by
    DWT_CYCCNT for two sampling times and two ADC prescalers; a scan of channels 10, 11, 12 by DMA2 stream 0
    into a circular buffer in continuous mode (Betaflight's pattern), its transfer-complete interrupts
-   counted over a window; an overrun (EOCS, DR not read); continuous conversions nobody reads; an injected
+   counted over a window; overruns (EOCS, and DMA with no stream, DR not read); continuous conversions
+   nobody reads; the analog watchdog; an injected
    pair with an offset; the internal channels (temperature, VREFINT, VBAT); the EOC interrupt. */
 #include "semihost.h"
 #include "stm32f405.h"
@@ -33,6 +34,8 @@
 #define SR_OVR (1u << 5)
 #define CR1_EOCIE (1u << 5)
 #define CR1_SCAN (1u << 8)
+#define CR1_AWDSGL (1u << 9)
+#define CR1_AWDEN (1u << 23)
 #define CR1_RES(n) ((uint32_t)(n) << 24)
 #define CR2_ADON (1u << 0)
 #define CR2_CONT (1u << 1)
@@ -236,6 +239,12 @@ static void overrun(void)
     report("ovr_sr_ignored", ADC_SR(1));
     ADC_SR(1) = 0;
     report("ovr_cleared", convert(11));
+    /* with DMA and no stream to take DR: the second conversion overruns */
+    ADC_CR2(1) = CR2_ADON | CR2_CONT | CR2_DMA | CR2_SWSTART;
+    wait_cycles(1000);
+    report("ovr_dma_sr", ADC_SR(1));
+    ADC_CR2(1) = CR2_ADON;
+    ADC_SR(1) = 0;
     /* without DMA and with EOCS = 0 no overrun is detected: conversions go on unread */
     ADC_SQR3(1) = 10;
     ADC_CR2(1) = CR2_ADON | CR2_CONT | CR2_SWSTART;
@@ -244,6 +253,22 @@ static void overrun(void)
     report("cont_dr", ADC_DR(1));
     ADC_CR2(1) = 0;
     ADC_SR(1) = 0;
+}
+
+/* The analog watchdog on channel 10 alone, its high threshold under the battery's code */
+static void watchdog(void)
+{
+    ADC_HTR(1) = 1000;
+    ADC_LTR(1) = 0;
+    ADC_CR1(1) = CR1_AWDEN | CR1_AWDSGL | 10u;
+    ADC_CR2(1) = CR2_ADON;
+    (void)convert(12);
+    report("awd_sr_12", ADC_SR(1));
+    (void)convert(10);
+    report("awd_sr_10", ADC_SR(1));
+    ADC_CR1(1) = 0;
+    ADC_SR(1) = 0;
+    ADC_HTR(1) = 0xFFF;
 }
 
 static void injected(void)
@@ -297,6 +322,7 @@ int main(void)
     timing();
     scan_by_dma();
     overrun();
+    watchdog();
     injected();
     internal();
     interrupt();
