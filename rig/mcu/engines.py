@@ -10,7 +10,7 @@ from typing import Any, Protocol
 
 from rig.emulators.chips.board import ChipBoard
 from rig.mcu.board import Board
-from rig.mcu.engine import AvrEngine, Stop, TwiRecord, analog_inputs, config_for
+from rig.mcu.engine import AvrEngine, Stop, TwiRecord, config_for
 
 
 class Engine(Protocol):
@@ -47,6 +47,5 @@ def open_engine(board: Board, firmware: Path, chips: ChipBoard | None, eeprom: b
         from rig.mcu.stm32_link import Stm32Config, Stm32Engine
 
         hang_ns = int(limits.get("hang_ns", round(board.hang_s * 1e9)))
-        return Stm32Engine(Stm32Config(board, firmware, hang_ns=hang_ns, settings=eeprom,
-                                       analog=analog_inputs(board)), chips)
+        return Stm32Engine(Stm32Config(board, firmware, hang_ns=hang_ns, settings=eeprom), chips)
     return AvrEngine(config_for(board, firmware, eeprom, **limits), chips)

@@ -39,7 +39,7 @@ from typing import Any, Final
 from rig.emulators import native
 from rig.emulators.chips.board import ChipBoard
 from rig.mcu.board import Board
-from rig.mcu.engine import FirmwareError, Stop, TwiRecord, format_transaction
+from rig.mcu.engine import FirmwareError, Stop, TwiRecord, analog_inputs, format_transaction
 from rig.mcu.mcus import Mcu
 from rig.mcu.stm32_image import check_image, config_section, with_settings
 
@@ -102,8 +102,9 @@ class Stm32Config:
     #: a scenario's [fc] table for the reference FC); None: the image as built
     settings: bytes | None = None
     #: analog inputs as AvrEngine's EngineConfig has them: (ADC channel, volts at the pin), set before the
-    #: first instruction on every ADC that has that channel (the MCU's ``adc_units``)
-    analog: tuple[tuple[int, float], ...] = ()
+    #: first instruction on every ADC that has that channel (the MCU's ``adc_units``); None: the board's
+    #: (engine.analog_inputs: its battery through the divider)
+    analog: tuple[tuple[int, float], ...] | None = None
 
 
 class Stm32Engine:
@@ -210,7 +211,8 @@ class Stm32Engine:
         stop = self._until_reached()  # (the stop at time 0, before the first instruction)
         if stop.kind != "reached":
             raise FirmwareError(f"{self.cfg.firmware}: {stop.describe()}")
-        for channel, volts in self.cfg.analog:
+        analog = self.cfg.analog if self.cfg.analog is not None else analog_inputs(self.cfg.board)
+        for channel, volts in analog:
             self.analog_input(channel, volts)
 
     def _send(self, kind: int, payload: bytes = b"") -> None:
