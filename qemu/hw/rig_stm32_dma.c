@@ -17,7 +17,7 @@
  * line. The registers answer, and requests are served, only with the controller's clock enabled
  * (RCC_AHB1ENR.DMA1EN, DMA2EN); RCC_AHB1RSTR resets it.
  *
- * Requests are levels ("request" inputs, numbered as RIG_DMA_TIMER, RIG_DMA_I2C1_RX/TX and RIG_DMA_ADC): each raise moves
+ * Requests are levels ("request" inputs, numbered as RIG_DMA_TIMER and RIG_DMA_I2C1_RX/TX): each raise moves
  * one item on the stream whose CHSEL selects it (the timers pulse theirs; I2C1 lowers its own when the DMA
  * takes DR); a request raised while an item is moving (its access to the peripheral raised it) is served
  * after. A stream enabled while its request is up is served at once. "eot1" outputs pulse when the
@@ -105,33 +105,30 @@ static const uint8_t flag_shift[4] = { 0, 6, 16, 22 }; /* streams 0-3 in LISR, 4
 /* RM0090 table 42 (DMA1) and table 43 (DMA2) request mapping: the requests of the modelled peripherals,
  * each on a stream and channel (several requests on one, as TIM2_UP/TIM2_CH3, are ORed) */
 #define T(n, r) RIG_DMA_TIMER(n, RIG_DMA_##r)
+#define ADC(n) RIG_DMA_ADC(n)
 static const struct {
     uint8_t dma, stream, channel;
     uint8_t source;
 } request_map[] = {
-    { 1, 0, 1, RIG_DMA_I2C1_RX }, { 1, 0, 2, T(4, CC1) },       { 1, 0, 6, T(5, CC3) },
-    { 1, 0, 6, T(5, UP) },        { 1, 1, 3, T(2, UP) },        { 1, 1, 3, T(2, CC3) },
-    { 1, 1, 6, T(5, CC4) },       { 1, 1, 6, T(5, TRIG) },      { 1, 1, 7, T(6, UP) },
-    { 1, 2, 1, T(7, UP) },        { 1, 2, 5, T(3, CC4) },       { 1, 2, 5, T(3, UP) },
-    { 1, 2, 6, T(5, CC1) },       { 1, 3, 2, T(4, CC2) },       { 1, 3, 6, T(5, CC4) },
-    { 1, 3, 6, T(5, TRIG) },      { 1, 4, 1, T(7, UP) },        { 1, 4, 5, T(3, CC1) },
-    { 1, 4, 5, T(3, TRIG) },      { 1, 4, 6, T(5, CC2) },       { 1, 5, 1, RIG_DMA_I2C1_RX },
-    { 1, 5, 3, T(2, CC1) },       { 1, 5, 5, T(3, CC2) },       { 1, 6, 1, RIG_DMA_I2C1_TX },
-    { 1, 6, 2, T(4, UP) },        { 1, 6, 3, T(2, CC2) },       { 1, 6, 3, T(2, CC4) },
-    { 1, 6, 6, T(5, UP) },        { 1, 7, 1, RIG_DMA_I2C1_TX }, { 1, 7, 2, T(4, CC3) },
-    { 1, 7, 3, T(2, UP) },        { 1, 7, 3, T(2, CC4) },       { 1, 7, 5, T(3, CC3) },
-    { 2, 0, 6, T(1, TRIG) },      { 2, 1, 6, T(1, CC1) },       { 2, 1, 7, T(8, UP) },
-    { 2, 2, 0, T(8, CC1) },       { 2, 2, 0, T(8, CC2) },       { 2, 2, 0, T(8, CC3) },
-    { 2, 2, 6, T(1, CC2) },       { 2, 2, 7, T(8, CC1) },       { 2, 3, 6, T(1, CC1) },
-    { 2, 3, 7, T(8, CC2) },       { 2, 4, 6, T(1, CC4) },       { 2, 4, 6, T(1, TRIG) },
-    { 2, 4, 6, T(1, COM) },       { 2, 4, 7, T(8, CC3) },       { 2, 5, 6, T(1, UP) },
-    { 2, 6, 0, T(1, CC1) },       { 2, 6, 0, T(1, CC2) },       { 2, 6, 0, T(1, CC3) },
-    { 2, 6, 6, T(1, CC3) },       { 2, 7, 7, T(8, CC4) },       { 2, 7, 7, T(8, TRIG) },
-    { 2, 7, 7, T(8, COM) },       { 2, 0, 0, RIG_DMA_ADC(1) },  { 2, 4, 0, RIG_DMA_ADC(1) },
-    { 2, 2, 1, RIG_DMA_ADC(2) },  { 2, 3, 1, RIG_DMA_ADC(2) },  { 2, 0, 2, RIG_DMA_ADC(3) },
-    { 2, 1, 2, RIG_DMA_ADC(3) },
+    { 1, 0, 1, RIG_DMA_I2C1_RX }, { 1, 0, 2, T(4, CC1) },  { 1, 0, 6, T(5, CC3) },  { 1, 0, 6, T(5, UP) },
+    { 1, 1, 3, T(2, UP) },        { 1, 1, 3, T(2, CC3) },  { 1, 1, 6, T(5, CC4) },  { 1, 1, 6, T(5, TRIG) },
+    { 1, 1, 7, T(6, UP) },        { 1, 2, 1, T(7, UP) },   { 1, 2, 5, T(3, CC4) },  { 1, 2, 5, T(3, UP) },
+    { 1, 2, 6, T(5, CC1) },       { 1, 3, 2, T(4, CC2) },  { 1, 3, 6, T(5, CC4) },  { 1, 3, 6, T(5, TRIG) },
+    { 1, 4, 1, T(7, UP) },        { 1, 4, 5, T(3, CC1) },  { 1, 4, 5, T(3, TRIG) }, { 1, 4, 6, T(5, CC2) },
+    { 1, 5, 1, RIG_DMA_I2C1_RX }, { 1, 5, 3, T(2, CC1) },  { 1, 5, 5, T(3, CC2) },  { 1, 6, 1, RIG_DMA_I2C1_TX },
+    { 1, 6, 2, T(4, UP) },        { 1, 6, 3, T(2, CC2) },  { 1, 6, 3, T(2, CC4) },  { 1, 6, 6, T(5, UP) },
+    { 1, 7, 1, RIG_DMA_I2C1_TX }, { 1, 7, 2, T(4, CC3) },  { 1, 7, 3, T(2, UP) },   { 1, 7, 3, T(2, CC4) },
+    { 1, 7, 5, T(3, CC3) },       { 2, 0, 6, T(1, TRIG) }, { 2, 1, 6, T(1, CC1) },  { 2, 1, 7, T(8, UP) },
+    { 2, 2, 0, T(8, CC1) },       { 2, 2, 0, T(8, CC2) },  { 2, 2, 0, T(8, CC3) },  { 2, 2, 6, T(1, CC2) },
+    { 2, 2, 7, T(8, CC1) },       { 2, 3, 6, T(1, CC1) },  { 2, 3, 7, T(8, CC2) },  { 2, 4, 6, T(1, CC4) },
+    { 2, 4, 6, T(1, TRIG) },      { 2, 4, 6, T(1, COM) },  { 2, 4, 7, T(8, CC3) },  { 2, 5, 6, T(1, UP) },
+    { 2, 6, 0, T(1, CC1) },       { 2, 6, 0, T(1, CC2) },  { 2, 6, 0, T(1, CC3) },  { 2, 6, 6, T(1, CC3) },
+    { 2, 7, 7, T(8, CC4) },       { 2, 7, 7, T(8, TRIG) }, { 2, 7, 7, T(8, COM) },  { 2, 0, 0, ADC(1) },
+    { 2, 4, 0, ADC(1) },          { 2, 2, 1, ADC(2) },     { 2, 3, 1, ADC(2) },     { 2, 0, 2, ADC(3) },
+    { 2, 1, 2, ADC(3) },
 };
 #undef T
+#undef ADC
 
 static bool dma_clocked(RigStm32DmaState *s)
 {
