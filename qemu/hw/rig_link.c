@@ -31,7 +31,8 @@
  *
  * Input pins the session drives (a PPM sum, a switch) get their levels at the virtual instants the
  * session gives (MSG_PIN_DRIVE), each pin's edges queued as a USART's bytes are, through the GPIO port's
- * outside-driver input (the "pin" outputs, port * 16 + pin, which the machine connects there).
+ * outside-driver input (the "pin" outputs, port * 16 + pin, which the machine connects there). An ADC
+ * input's volts (MSG_ADC_INPUT: the board's battery through its divider) hold from the message's instant.
  *
  * Messages, both ways: a header of the kind (1 byte), 3 zero bytes and the payload's length (u32), then
  * the payload; little-endian; every length is checked against the kind's (a bad message ends QEMU with
@@ -118,6 +119,8 @@ typedef struct {
 /* u8 port 0..8 (A..I), u8 pin 0..15, 2 zero bytes, n x (u64 t_ns, u8 level): edges from now on, ascending,
  * after those queued */
 #define MSG_PIN_DRIVE 'I'
+/* u8 ADC 1..3, u8 channel 0..15, 2 zero bytes, u32 microvolts: that input's volts from now on */
+#define MSG_ADC_INPUT 'A'
 #define MSG_ACK 'a'  /* u8 acknowledged, then the bytes ahead (a read START) */
 #define MSG_BYTE 'b' /* the byte read, then the bytes ahead */
 /* u32 address, u32 length (at most 1024, within the flash): answered by an 'M' of the flash's bytes there,
@@ -371,6 +374,15 @@ static void link_pin_receive(RigLinkState *s, const uint8_t *p, uint32_t len)
     }
 }
 
+/* An ADC input's volts from now on (a battery through its divider) */
+static void link_adc_input(const uint8_t *p, uint32_t len)
+{
+    Object *adc = object_resolve_path("/machine/adc", NULL);
+    if (len != 8 || p[2] || p[3] || adc == NULL || !rig_stm32_adc_set_input(DEVICE(adc), p[0], p[1], ldl_le_p(p + 4))) {
+        link_fail("ADC: no such ADC or input, or a malformed message");
+    }
+}
+
 /* What the firmware sent on each USART since the last stop */
 static void link_uart_send_sent(RigLinkState *s)
 {
@@ -419,6 +431,8 @@ static void link_wait_command(RigLinkState *s)
             link_uart_receive(s, p, len);
         } else if (kind == MSG_PIN_DRIVE) {
             link_pin_receive(s, p, len);
+        } else if (kind == MSG_ADC_INPUT) {
+            link_adc_input(p, len);
         } else if (kind == MSG_GO && len == 8 && s->configured) {
             int64_t t = (int64_t)ldq_le_p(p), now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
             timer_mod(s->timer, t > now ? t : now);

@@ -6,7 +6,7 @@
  *
  * Transfers: peripheral-to-memory and memory-to-peripheral on the requests of the channel CHSEL selects
  * (RM0090 tables 42 and 43, the request mapping, as data below: the requests of the peripherals that are
- * modelled, the timers, I2C1 and the USARTs), one data item (PSIZE) per request at the virtual instant
+ * modelled, the timers, I2C1, the USARTs and the ADCs), one data item (PSIZE) per request at the virtual instant
  * of the request; memory-to-memory (DMA2 only) all at once when the stream is enabled. Items move through
  * QEMU's system address space with the PSIZE and MSIZE widths, the addresses incrementing by PINC
  * (PINCOS: by 4) and MINC; NDTR counts down; circular mode starts again from the NDTR written; double-buffer mode
@@ -110,6 +110,7 @@ static const uint8_t flag_shift[4] = { 0, 6, 16, 22 }; /* streams 0-3 in LISR, 4
 #define T(n, r) RIG_DMA_TIMER(n, RIG_DMA_##r)
 #define U_RX(n) RIG_DMA_USART_RX(n)
 #define U_TX(n) RIG_DMA_USART_TX(n)
+#define ADC(n) RIG_DMA_ADC(n)
 static const struct {
     uint8_t dma, stream, channel;
     uint8_t source;
@@ -131,11 +132,14 @@ static const struct {
     { 1, 1, 4, U_RX(3) },         { 1, 2, 4, U_RX(4) },    { 1, 3, 4, U_TX(3) },    { 1, 4, 4, U_TX(4) },
     { 1, 4, 7, U_TX(3) },         { 1, 5, 4, U_RX(2) },    { 1, 6, 4, U_TX(2) },    { 1, 7, 4, U_TX(5) },
     { 2, 2, 4, U_RX(1) },         { 2, 5, 4, U_RX(1) },    { 2, 7, 4, U_TX(1) },    { 2, 1, 5, U_RX(6) },
-    { 2, 2, 5, U_RX(6) },         { 2, 6, 5, U_TX(6) },    { 2, 7, 5, U_TX(6) },
+    { 2, 2, 5, U_RX(6) },         { 2, 6, 5, U_TX(6) },    { 2, 7, 5, U_TX(6) },    { 2, 0, 0, ADC(1) },
+    { 2, 4, 0, ADC(1) },          { 2, 2, 1, ADC(2) },     { 2, 3, 1, ADC(2) },     { 2, 0, 2, ADC(3) },
+    { 2, 1, 2, ADC(3) },
 };
 #undef T
 #undef U_RX
 #undef U_TX
+#undef ADC
 
 static bool dma_clocked(RigStm32DmaState *s)
 {

@@ -1,7 +1,7 @@
 /*
  * The rig's STM32F4 device models (RM0090, the STM32F405/415/407/417 reference manual): RCC and PWR, the
  * FLASH interface and the flash, the independent and window watchdogs, GPIO ports, the DMA controllers,
- * the I2C controllers, the timers TIM1-TIM14, the USARTs, the Cortex-M4's DWT cycle counter, and the GY-86 sensor
+ * the I2C controllers, the timers TIM1-TIM14, the USARTs, the ADCs, the Cortex-M4's DWT cycle counter, and the GY-86 sensor
  * board (the rig's chip core) as an I2C slave.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
@@ -251,7 +251,8 @@ enum { RIG_DMA_UP, RIG_DMA_CC1, RIG_DMA_CC2, RIG_DMA_CC3, RIG_DMA_CC4, RIG_DMA_C
 #define RIG_DMA_I2C1_TX (RIG_DMA_I2C1_RX + 1)
 #define RIG_DMA_USART_RX(n) (RIG_DMA_I2C1_TX + 2 * (n)-1) /* USARTn's RXNE request, n 1..6 (UART4, UART5 among them) */
 #define RIG_DMA_USART_TX(n) (RIG_DMA_USART_RX(n) + 1)     /* its TXE request */
-#define RIG_DMA_SOURCES (RIG_DMA_USART_TX(6) + 1)
+#define RIG_DMA_ADC(n) (RIG_DMA_USART_TX(6) + (n))        /* ADCn, n 1..3 */
+#define RIG_DMA_SOURCES (RIG_DMA_ADC(3) + 1)
 
 typedef struct RigDmaStream {
     uint32_t cr, ndtr, par, m0ar, m1ar, fcr;
@@ -393,6 +394,13 @@ struct RigStm32TimerState {
 bool rig_stm32_usart_receive(DeviceState *dev, uint8_t byte, int64_t start_ns, uint32_t baud, char parity,
                              unsigned stop_bits);
 
+/* ADC1..ADC3 and their common registers (RM0090 section 13, rig_stm32_adc.c): one device, properties "count"
+ * (the ADCs the chip has) and "chip" (405, 411); qdev GPIO outputs "dma" 0..2 are ADCn's DMA requests */
+#define TYPE_RIG_STM32_ADC "rig-stm32f4-adc"
+OBJECT_DECLARE_SIMPLE_TYPE(RigStm32AdcState, RIG_STM32_ADC)
+/* External channel @channel (0..15) of ADC @adc (1..) at @microvolts from now on; false when there is none */
+bool rig_stm32_adc_set_input(DeviceState *dev, unsigned adc, unsigned channel, uint32_t microvolts);
+
 /* The GY-86 board (MPU-6050 at 0x68, the HMC5883L behind its bypass, MS5611 at 0x77): the rig's chip
  * core as one I2C slave that answers the addresses the chip core acknowledges */
 #define TYPE_RIG_GY86 "rig-gy86"
@@ -435,6 +443,7 @@ typedef struct RigStm32Chip {
     uint32_t ccm_size;                  /* the CCM data RAM's bytes at 0x10000000 (QEMU's SoC has none) */
     uint16_t timers;                    /* bit n: TIMn */
     uint8_t usarts;                     /* bit n: USARTn (UART4, UART5 among them) */
+    uint8_t adcs;                       /* ADC1..ADCn */
     uint16_t port_pins[RIG_GPIO_PORTS]; /* each port's pins (bit n: Pxn); 0: the chip has no such port */
     const RigStm32Region *absent;       /* what the F405 SoC maps and the chip lacks: a bus error there */
     unsigned n_absent;

@@ -4,7 +4,7 @@
  * PWR, the FLASH interface (its flash cells over the SoC's ROM), the IWDG and WWDG, GPIO A..I, SYSCFG and EXTI (over the SoC's), DMA1 and DMA2, I2C1 (RM0090) with the GY-86 board (the rig's chip core) on its
  * bus, the timers TIM1-TIM14 (over QEMU's TIM2-TIM5, which only count) with their channels on the pins
  * of the datasheet's alternate function table, USART1-USART6 (over QEMU's, which get no chardev: ours send
- * into the chardevs named rig-usart1..rig-usart6), and the core's DWT cycle counter. The RCC's AHB clock
+ * into the chardevs named rig-usart1..rig-usart6), ADC1-ADC3 (over QEMU's), and the core's DWT cycle counter. The RCC's AHB clock
  * drives the core, SysTick and DWT, so the machine starts at 16 MHz (HSI) as the chip does, and runs at
  * what the firmware sets up (168 MHz from an 8 MHz crystal: -global rig-stm32f4-rcc.hse-hz=N for another).
  * The machine's "wires" property joins pins as a board's traces or a test's jumper wires do: -M
@@ -52,7 +52,10 @@
 #define RCC_APB2RSTR 0x24
 #define SYSCFG_BASE 0x40013800
 #define EXTI_BASE 0x40013C00
-#define APB2_SYSCFG 14 /* RCC_APB2RSTR.SYSCFGRST */
+#define APB2_SYSCFG 14      /* RCC_APB2RSTR.SYSCFGRST */
+#define ADC_BASE 0x40012000 /* ADC1, ADC2, ADC3 a 0x100 apart, the common registers at 0x300 */
+#define APB2_ADC 8          /* RCC_APB2RSTR.ADCRST: all of them */
+#define IRQ_ADC 18          /* ADC1, ADC2 and ADC3 share it */
 /* DMA1 and DMA2 (table 10), their reset bits in AHB1RSTR (7.3.5: DMA1RST 21, DMA2RST 22) and the streams'
  * NVIC lines (table 61) */
 static const struct {
@@ -342,6 +345,27 @@ static void map_usarts(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceSt
     }
 }
 
+/* The ADCs over QEMU's (which convert nothing and raise neither interrupt nor DMA request), as
+ * /machine/adc for the link; QEMU's SoC places three more past the common registers, where both reference
+ * manuals' memory maps have nothing (0x40012400-0x40012BFF): a bus error there */
+static const RigStm32Region adc_absent = { 0x40012400, 0x800, "reserved (after the ADCs)" };
+
+static void map_adcs(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceState *nvic, DeviceState *dma2)
+{
+    DeviceState *dev = qdev_new(TYPE_RIG_STM32_ADC);
+    object_property_add_child(qdev_get_machine(), "adc", OBJECT(dev));
+    qdev_prop_set_uint8(dev, "count", chip->adcs);
+    qdev_prop_set_uint32(dev, "chip", chip->rcc_chip);
+    object_property_set_link(OBJECT(dev), "rcc", OBJECT(rcc), &error_fatal);
+    sysbus_realize_and_unref(SYS_BUS_DEVICE(dev), &error_fatal);
+    sysbus_mmio_map_overlap(SYS_BUS_DEVICE(dev), 0, ADC_BASE, 1);
+    sysbus_connect_irq(SYS_BUS_DEVICE(dev), 0, qdev_get_gpio_in(nvic, IRQ_ADC));
+    for (unsigned n = 1; n <= chip->adcs; n++) {
+        qdev_connect_gpio_out_named(dev, "dma", n - 1, qdev_get_gpio_in_named(dma2, "request", RIG_DMA_ADC(n)));
+    }
+    rig_stm32_rcc_add_reset(rcc, RCC_APB2RSTR, APB2_ADC, dev);
+}
+
 /* "PD12" as a port and pin the chip has, or false */
 static bool parse_pin(const RigStm32Chip *chip, const char *text, unsigned *port, unsigned *pin)
 {
@@ -407,14 +431,19 @@ static const MemoryRegionOps absent_ops = {
 /* over the SoC's memories and devices (priority 0) and the rig's models (1) */
 #define ABSENT_PRIORITY 10
 
+static void map_absent_region(const RigStm32Region *r)
+{
+    MemoryRegion *mr = g_new0(MemoryRegion, 1);
+    memory_region_init_io(mr, NULL, &absent_ops, (void *)r, r->what, r->size);
+    memory_region_add_subregion_overlap(get_system_memory(), r->base, mr, ABSENT_PRIORITY);
+}
+
 static void map_absent(const RigStm32Chip *chip)
 {
     for (unsigned i = 0; i < chip->n_absent; i++) {
-        MemoryRegion *mr = g_new0(MemoryRegion, 1);
-        memory_region_init_io(mr, NULL, &absent_ops, (void *)&chip->absent[i], chip->absent[i].what,
-                              chip->absent[i].size);
-        memory_region_add_subregion_overlap(get_system_memory(), chip->absent[i].base, mr, ABSENT_PRIORITY);
+        map_absent_region(&chip->absent[i]);
     }
+    map_absent_region(&adc_absent);
 }
 
 void rig_stm32f4_machine_init(MachineState *machine, const RigStm32Chip *chip)
@@ -497,6 +526,7 @@ void rig_stm32f4_machine_init(MachineState *machine, const RigStm32Chip *chip)
     map_exti(r, nvic, gpio_ports);
     map_timers(chip, r, DEVICE(&STM32F405_SOC(soc)->armv7m), gpio_ports, dma);
     map_usarts(chip, r, DEVICE(&STM32F405_SOC(soc)->armv7m), dma);
+    map_adcs(chip, r, nvic, dma[1]);
     wire_pins(chip, gpio_ports);
     map_absent(chip);
 
@@ -545,6 +575,7 @@ static const RigStm32Chip f405 = {
     .n_absent = ARRAY_SIZE(f405_absent),
     .timers = 0x7FFE, /* TIM1..TIM14 */
     .usarts = 0x7E,   /* USART1..USART6 */
+    .adcs = 3,
     .port_pins = { 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF },
 };
 

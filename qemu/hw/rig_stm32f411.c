@@ -57,6 +57,7 @@ static const RigStm32Chip f411 = {
     .flash_size = 512 * KB,
     .timers = 0x0E3E,                                                         /* TIM1..TIM5, TIM9..TIM11 */
     .usarts = 0x46,                                                           /* USART1, USART2, USART6 */
+    .adcs = 1,                                                                /* ADC1 (RM0383 section 11) */
     .port_pins = { 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0xFFFF, 0, 0, 0x0003, 0 }, /* A..E, PH0/PH1 */
     .absent = f411_absent,
     .n_absent = ARRAY_SIZE(f411_absent),

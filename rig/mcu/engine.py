@@ -217,9 +217,14 @@ def config_for(board: Board, firmware: Path, eeprom: bytes | None = None, **limi
     motors = tuple(Motor(m.pin, m.timer, m.channel or "A")
                    for m in sorted(board.motors, key=lambda m: m.motor))
     limits.setdefault("hang_ns", round(board.hang_s * 1e9))
-    analog = () if board.battery is None else ((board.battery.channel, board.battery.pin_volts),)
     return EngineConfig(board.mcu.name, board.clock_hz, firmware, motors, eeprom=eeprom,
-                        watchdog_always_on=board.watchdog_always_on, analog=analog, **limits)
+                        watchdog_always_on=board.watchdog_always_on, analog=analog_inputs(board), **limits)
+
+
+def analog_inputs(board: Board) -> tuple[tuple[int, float], ...]:
+    """The board's analog inputs as both engines take them: (ADC channel, volts at the pin), its battery
+    through the divider."""
+    return () if board.battery is None else ((board.battery.channel, board.battery.pin_volts),)
 
 
 @dataclass(frozen=True)

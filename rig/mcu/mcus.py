@@ -8,7 +8,11 @@ memories and the "Reset and Interrupt Vectors" table (57); ATmega48A/PA/88A/PA/1
 (DS40002061), §14.3, §8 and its vector table (26 for the 328P); avr-gcc's "AVR Options" (-mmcu): the
 ATmega328P is avr5, the ATmega2560 avr6. STM32F405: its datasheet (DS8626) table 9, "Alternate function
 mapping" (the timers' channels CH1..CH4, the USARTs' pins, I2C1), and RM0090 table 3 (memories).
-STM32F411xC/E: its datasheet (DS10314) table 9, "Alternate function mapping", and RM0383 section 2.3
+The STM32s' analog inputs: DS8626's and DS10314's pin definitions tables ("additional functions":
+ADC123_IN0-3 on PA0-PA3, ADC12_IN4-7 on PA4-PA7, ADC12_IN8/9 on PB0/PB1, ADC123_IN10-13 on PC0-PC3,
+ADC12_IN14/15 on PC4/PC5; the F411 has ADC1 alone, on the same pins; the F405's ADC3-only inputs on
+port F, which its 64-pin package lacks, are left out). STM32F411xC/E: its datasheet (DS10314) table 9,
+"Alternate function mapping", and RM0383 section 2.3
 (memory map): 512 KB of flash, 128 KB of SRAM, no CCM RAM; TIM1-5 and TIM9-11; USART1, 2 and 6; GPIO
 ports A-E and H.
 
@@ -19,6 +23,13 @@ which the image check (rig/mcu/stm32_image.py) holds an image's stack to."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+
+#: the STM32s' analog pins, each the same channel number on every ADC that has it (the module's sources)
+STM32_ADC_PINS = {**{f"PA{i}": i for i in range(8)}, "PB0": 8, "PB1": 9,
+                  **{f"PC{i}": 10 + i for i in range(6)}}
+#: the F405's ADC3 has IN0-3 and IN10-13 on the same pins as ADC1 and ADC2 (its others are on port F)
+STM32F405_ADC_UNITS: dict[int, tuple[int, ...]] = {
+    ch: (1, 2, 3) if ch in (0, 1, 2, 3, 10, 11, 12, 13) else (1, 2) for ch in STM32_ADC_PINS.values()}
 
 
 @dataclass(frozen=True)
@@ -44,8 +55,10 @@ class Mcu:
     ports: str = ""
     #: pins with a pin change interrupt the engine raises (PCINTn): a PWM receiver's or a PPM sum's
     pcint: frozenset[str] = frozenset()
-    #: analog input pin -> ADC channel (ADMUX's MUX bits)
+    #: analog input pin -> ADC channel (ADMUX's MUX bits; an STM32's ADCx_INn)
     adc: dict[str, int] = field(default_factory=dict)
+    #: an STM32's ADC channel -> the ADCs whose input of that number is its pin (an AVR has one ADC)
+    adc_units: dict[int, tuple[int, ...]] = field(default_factory=dict)
     #: the engine that runs it: "avr" (simavr) or "stm32" (the rig's QEMU)
     engine: str = "avr"
     #: the fastest clock a board may give it
@@ -143,6 +156,7 @@ MCUS: dict[str, Mcu] = {m.name: m for m in (
         twi=("PB7", "PB6"), ports="ABCDEFGHI",
         engine="stm32", max_clock_hz=168_000_000, channels=("1", "2", "3", "4"),
         machine="rig-stm32f405", flash_base=0x0800_0000,
+        adc=STM32_ADC_PINS, adc_units=STM32F405_ADC_UNITS,
         # (RM0090 table 3: SRAM1 and SRAM2, then the CCM data RAM)
         rams=((0x2000_0000, 128 * 1024), (0x1000_0000, 64 * 1024)), rc_timing="capture",
         # (RM0090 30.3.4, OVER8 = 0; DS8626, general operating conditions: f_PCLK1 at most
@@ -172,5 +186,6 @@ MCUS: dict[str, Mcu] = {m.name: m for m in (
         # f_PCLK2 100 MHz; USART1 and USART6 on APB2, USART2 on APB1)
         baud_divisors=((1, 16, 0xFFFF),),
         usart_bus_max_hz={1: 100_000_000, 2: 50_000_000, 6: 100_000_000},
+        adc=STM32_ADC_PINS, adc_units={ch: (1,) for ch in STM32_ADC_PINS.values()},
     ),
 )}

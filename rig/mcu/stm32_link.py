@@ -39,7 +39,7 @@ from typing import Any, Final
 from rig.emulators import native
 from rig.emulators.chips.board import ChipBoard
 from rig.mcu.board import Board
-from rig.mcu.engine import FirmwareError, Stop, TwiRecord, format_transaction
+from rig.mcu.engine import FirmwareError, Stop, TwiRecord, analog_inputs, format_transaction
 from rig.mcu.mcus import Mcu
 from rig.mcu.stm32_image import check_image, config_section, with_settings
 
@@ -59,6 +59,8 @@ UARTS: Final = 6
 UART_RING_BYTES: Final = 65536
 #: bytes of one UART message to QEMU (its payload's 1024 less the frame's description, 16 bytes)
 UART_CHUNK: Final = 1008
+#: the most an ADC input message carries (u32 microvolts; a board's battery divider is checked to 60 V)
+ADC_MAX_VOLTS: Final = 60.0
 #: the timer outputs rig_link.c numbers: CH1..CH4, then CH1N..CH3N
 OUTPUTS: Final = ("1", "2", "3", "4", "1N", "2N", "3N")
 #: pins driven at once, and edges waiting per pin (qemu/hw/rig_link.c's queues)
@@ -99,6 +101,10 @@ class Stm32Config:
     #: the settings image written into the firmware's flash before it boots (stm32_image.with_settings:
     #: a scenario's [fc] table for the reference FC); None: the image as built
     settings: bytes | None = None
+    #: analog inputs as AvrEngine's EngineConfig has them: (ADC channel, volts at the pin), set before the
+    #: first instruction on every ADC that has that channel (the MCU's ``adc_units``); None: the board's
+    #: (engine.analog_inputs: its battery through the divider)
+    analog: tuple[tuple[int, float], ...] | None = None
 
 
 class Stm32Engine:
@@ -205,6 +211,9 @@ class Stm32Engine:
         stop = self._until_reached()  # (the stop at time 0, before the first instruction)
         if stop.kind != "reached":
             raise FirmwareError(f"{self.cfg.firmware}: {stop.describe()}")
+        analog = self.cfg.analog if self.cfg.analog is not None else analog_inputs(self.cfg.board)
+        for channel, volts in analog:
+            self.analog_input(channel, volts)
 
     def _send(self, kind: int, payload: bytes = b"") -> None:
         try:
@@ -518,6 +527,16 @@ class Stm32Engine:
         for at in range(0, len(schedule), PIN_CHUNK):
             edges = b"".join(_EDGE.pack(t, 1 if v else 0) for t, v in schedule[at:at + PIN_CHUNK])
             self._send(ord("I"), bytes([port, bit, 0, 0]) + edges)
+
+    def analog_input(self, channel: int, volts: float) -> None:
+        """ADC ``channel``'s pin at ``volts`` from now on, on every ADC that has it: each conversion that
+        ends later reads it (against the 3.3 V reference; above it, full scale)."""
+        units = self.cfg.board.mcu.adc_units.get(channel)
+        if units is None or not 0 <= volts <= ADC_MAX_VOLTS:
+            raise ValueError(f"the {self.cfg.board.mcu.name} has no analog input {channel}, or {volts} V is "
+                             f"outside 0..{ADC_MAX_VOLTS} V")
+        for unit in units:
+            self._send(ord("A"), struct.pack("<BB2xI", unit, channel, round(volts * 1e6)))
 
     def eeprom(self) -> bytes:
         """An STM32 keeps its settings in flash: the firmware's CONFIG_SECTION as it is now (what the

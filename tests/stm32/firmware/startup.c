@@ -45,6 +45,7 @@ void dma1_stream0_handler(void) __attribute__((weak, alias("fault_handler")));
 void dma1_stream2_handler(void) __attribute__((weak, alias("fault_handler")));
 void dma1_stream6_handler(void) __attribute__((weak, alias("fault_handler")));
 void dma2_stream0_handler(void) __attribute__((weak, alias("fault_handler")));
+void adc_handler(void) __attribute__((weak, alias("fault_handler")));
 void dma2_stream5_handler(void) __attribute__((weak, alias("fault_handler")));
 void dma2_stream6_handler(void) __attribute__((weak, alias("fault_handler")));
 void usart6_handler(void) __attribute__((weak, alias("fault_handler")));
@@ -103,7 +104,8 @@ __attribute__((section(".isr_vector"), used)) static void (*const vectors[16 + 7
     dma1_stream2_handler, /* IRQ 13 */
     F, F, F,              /* IRQ 14-16: DMA1 stream 3-5 */
     dma1_stream6_handler, /* IRQ 17 */
-    F, F, F, F, F,                                  /* IRQ 18-22 */
+    adc_handler,  /* IRQ 18 */
+    F, F, F, F,                                     /* IRQ 19-22 */
     exti9_5_handler, /* IRQ 23 */
     tim1_brk_tim9_handler, /* IRQ 24 */
     tim1_up_tim10_handler, /* IRQ 25 */
