@@ -25,6 +25,7 @@
 
 #include "qemu/osdep.h"
 
+#include "hw/irq.h"
 #include "hw/qdev-properties.h"
 #include "qapi/error.h"
 #include "qemu/log.h"

@@ -355,7 +355,7 @@ static void map_adcs(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceStat
     DeviceState *dev = qdev_new(TYPE_RIG_STM32_ADC);
     object_property_add_child(qdev_get_machine(), "adc", OBJECT(dev));
     qdev_prop_set_uint8(dev, "count", chip->adcs);
-    qdev_prop_set_uint32(dev, "chip", chip->rcc_chip);
+    qdev_prop_set_uint32(dev, "chip", chip->part);
     object_property_set_link(OBJECT(dev), "rcc", OBJECT(rcc), &error_fatal);
     sysbus_realize_and_unref(SYS_BUS_DEVICE(dev), &error_fatal);
     sysbus_mmio_map_overlap(SYS_BUS_DEVICE(dev), 0, ADC_BASE, 1);
