@@ -19,6 +19,9 @@ this process's CPU time, best of three: the machine is shared, wall time measure
                  pulses and telemetry taken, the events and the recorder). With the polling-loop skip
                  (and the share of cycles it jumped), without it, and without it and with simavr's timers
                  in the modes it lacks overflowing every prescaler period (stock: before timer_modes.c)
+  STM32F405      the reference FC built for the STM32 tier (build/stm32/fc.elf, `make stm32`) flying
+                 hover_turbulence through the MCU target on QEMU with our models, whole run, on CPU time (QEMU
+                 and the session take turns); bench/stm32_rates.py has the split and the link alone
   MultiWii 2.4   its image at rest on the mega2560-gy86 board for 10 s as `rig exec --mcu ... --fc
                  multiwii-2.4` runs it, unarmed (its main loop never waits; its TWI waits are counted
                  loops), with the polling-loop skip and without: only with --multiwii mw.elf or
@@ -47,6 +50,7 @@ from rig import cli  # noqa: E402
 from rig.emulators.chips.board import build_chip_board  # noqa: E402
 from rig.emulators.mpu6050 import ImuTruth  # noqa: E402
 from rig.emulators.ms5611 import BaroTruth  # noqa: E402
+from rig.mcu import stm32_engine  # noqa: E402
 from rig.mcu.engine import POLL_SKIP_ENV, TIMERS, AvrEngine, EngineConfig, Motor  # noqa: E402
 from rig.mcu.session import McuSession  # noqa: E402
 from rig.runner import run  # noqa: E402
@@ -258,6 +262,21 @@ def engine_rows() -> None:
               f"({on / off:.1f} times): {what}")
 
 
+def stm32_row() -> None:
+    """The STM32 tier's reference FC beside the AVR's (bench/stm32_rates.py measures it)."""
+    fc = Path(__file__).resolve().parents[1] / "build" / "stm32" / "fc.elf"
+    if stm32_engine.cached_binary() is None or not fc.is_file():
+        print("stm32f405   reference FC   skipped: needs `make stm32-engine stm32`")
+        return
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import stm32_rates  # (a bench script beside this one, not a package)
+
+    speed, qemu_cpu, own_cpu = stm32_rates.scenario(fc)
+    print(f"stm32f405   reference FC   {1 / (qemu_cpu + own_cpu):6.2f}x hover_turbulence through the target "
+          f"on CPU time ({speed:.2f}x wall; QEMU {qemu_cpu:.2f} s and the session {own_cpu:.2f} s a "
+          f"simulated second); {ANCHOR}; the tier's goal 5x")
+
+
 def target_rows(multiwii: Path | None) -> None:
     """The reference FC flying step_roll and MultiWii at rest, through the target, skip on and off."""
     whole, engine, rest_us, engine_us, share = fc_rate()
@@ -272,6 +291,7 @@ def target_rows(multiwii: Path | None) -> None:
           f"{engine / fc_plain[1]:.2f} times)\n"
           f"{'':27s}without it and with simavr's timers in the modes it lacks (stock 1.6): "
           f"{fc_stock[0]:6.2f}x the whole run, {fc_stock[1]:6.2f}x the engine")
+    stm32_row()
     if multiwii is None:
         print(f"atmega2560  MultiWii 2.4   skipped: no image (--multiwii mw.elf or ${MULTIWII_ENV}; "
               f"docs/multiwii.md)")
