@@ -17,8 +17,16 @@
  * go out as pulses on the "dma" lines at their events. The registers answer only with the timer's RCC enable
  * bit on (properties "apb", 1 or 2, and "rcc-bit": APBxENR, APBxRSTR); the RCC's reset bit resets the timer.
  *
- * Nothing runs per tick: a QEMU timer is armed for the next event (a compare match, the end of the
- * period), and reads of CNT compute it from the virtual time: a 490 Hz PWM costs two events a period.
+ * Nothing runs per tick: reads of CNT compute it from the virtual time, and a QEMU timer is armed for
+ * the next event (a compare match, the end of the period) only when something needs its instant: an
+ * interrupt or DMA request enabled (any DIER bit), a channel capturing or the slave mode controller on
+ * (an edge of the timer's own pins fed back must find CNT at its time), one-pulse mode, an EXTI line with
+ * an edge enabled (it may watch a pin of the timer's), or the property "eager" (the reference lazy runs
+ * are checked against). Otherwise the events are counted when something looks: a register access, a
+ * read of a GPIO port's IDR, and each stop of the rig's link (rig_link_sync_add), so the PWM of motors
+ * costs no QEMU timer at all; the pins of such a lazy timer are brought up to date then, while the pulses
+ * latched carry each update event's own virtual time (latched-ns, the trace's t_ns). Read over QMP
+ * between the link's stops, the properties are those of the last catch-up.
  * The outputs go to the GPIO pins whose AFR selects the timer ("channel-out" lines, four pins per
  * channel), and the pins' levels come back as the channels' inputs ("channel-in").
  *
@@ -185,15 +193,24 @@ static bool count(RigStm32TimerState *s, uint64_t steps)
     return events;
 }
 
-/* Brings the counter to the present: the timer-clock ticks since the last sync, through the prescaler;
- * whether an event (a match, a boundary) came on the way */
+/* The first virtual ns at which catch_up() has counted @ticks timer-clock ticks since base_ns */
+static int64_t tick_ns(const RigStm32TimerState *s, unsigned __int128 ticks)
+{
+    unsigned __int128 ns = (ticks * NANOSECONDS_PER_SECOND + s->hz - 1) / s->hz;
+    return s->base_ns + (int64_t)MIN(ns, (unsigned __int128)INT64_MAX / 2);
+}
+
+/* Brings the counter to the present: the timer-clock ticks since the last sync, through the prescaler,
+ * each event at the time of its tick (event_ns, now for what software does after); whether an event (a
+ * match, a boundary) came on the way */
 static bool catch_up(RigStm32TimerState *s)
 {
     bool events = false;
+    int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    s->event_ns = now;
     if (!s->counting) {
         return false;
     }
-    int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
     uint64_t total = muldiv64(now - s->base_ns, (uint32_t)s->hz, NANOSECONDS_PER_SECOND);
     uint64_t ticks = total - s->ticks_done;
     s->ticks_done = total;
@@ -208,26 +225,46 @@ static bool catch_up(RigStm32TimerState *s)
         /* this step and the whole steps that fit before the next event (where PSC may change) */
         uint64_t more = MIN(ticks / div, steps_to_event(s) - 1);
         ticks -= more * div;
+        s->event_ns = tick_ns(s, total - ticks); /* (an event comes only at the last step) */
         events |= count(s, 1 + more);
     }
+    s->event_ns = now;
     if (!(s->regs[CR1] & CR1_CEN)) {
         s->counting = false;
     }
     return events;
 }
 
-/* Arms the QEMU timer for the next event, when the counter runs */
+/* Whether something sees the timer's events at their instants (the head comment): with none, they wait
+ * for the next catch-up */
+static bool needs_instant(const RigStm32TimerState *s)
+{
+    if (s->eager || s->regs[DIER] || (s->regs[CR1] & CR1_OPM) || (s->regs[SMCR] & SMCR_SMS) ||
+        rig_stm32_exti_watches_pins()) {
+        return true;
+    }
+    for (unsigned ch = 0; ch < s->kind->channels; ch++) {
+        if (!is_output(s, ch) && (ccer(s, ch) & CCER_E)) {
+            return true;
+        }
+    }
+    return false;
+}
+
+/* Arms the QEMU timer for the next event, when the counter runs and the event needs its instant */
 static void schedule(RigStm32TimerState *s)
 {
-    if (!s->counting || s->arr == 0 || s->hz == 0) {
+    if (!s->counting || s->arr == 0 || s->hz == 0 || !needs_instant(s)) {
         timer_del(s->timer);
         return;
     }
     uint64_t div = (uint64_t)s->psc + 1;
-    unsigned __int128 ticks = s->ticks_done + (div - s->prescaler) + (steps_to_event(s) - 1) * div;
-    /* the first virtual ns at which catch_up() counts that many ticks */
-    unsigned __int128 ns = (ticks * NANOSECONDS_PER_SECOND + s->hz - 1) / s->hz;
-    timer_mod(s->timer, s->base_ns + (int64_t)MIN(ns, (unsigned __int128)INT64_MAX / 2));
+    int64_t deadline = tick_ns(s, s->ticks_done + (div - s->prescaler) + (steps_to_event(s) - 1) * div);
+    /* (armed again at the same deadline, a timer first in the list would move virtual time on to it at once
+     * when the core sleeps: inside the link's stop, whose own timer is not armed, past the stop) */
+    if (!timer_pending(s->timer) || timer_expire_time_ns(s->timer) != deadline) {
+        timer_mod(s->timer, deadline);
+    }
 }
 
 /* After a change: the pins, the interrupt lines, the DMA requests (a pulse each; the DMA may write this
@@ -260,6 +297,22 @@ static void tim_event(void *opaque)
     catch_up(s);
     settle(s);
 }
+
+/* Every timer of the machine, by index, for the syncs */
+static RigStm32TimerState *timers[15];
+
+void rig_stm32_timers_sync(bool rearm)
+{
+    for (unsigned n = 1; n < ARRAY_SIZE(timers); n++) {
+        RigStm32TimerState *s = timers[n];
+        if (s != NULL && (catch_up(s) || rearm)) {
+            settle(s);
+        }
+    }
+}
+
+/* The link's stop: the pulses it reads are those of the events up to now */
+static void timers_link_sync(void *opaque) { rig_stm32_timers_sync(false); }
 
 /* Starts counting from now (CEN set, or a new clock) */
 static void start_counting(RigStm32TimerState *s)
@@ -312,7 +365,7 @@ static bool edge_selected(const RigStm32TimerState *s, unsigned ch, int level)
  * mode starts it; both set TIF */
 static void trigger_input(RigStm32TimerState *s, unsigned line, int level)
 {
-    unsigned sms = s->regs[SMCR] & 7, ts = s->regs[SMCR] >> 4 & 7;
+    unsigned sms = s->regs[SMCR] & SMCR_SMS, ts = s->regs[SMCR] >> 4 & 7;
     if ((sms != SMS_RESET && sms != SMS_TRIGGER) || line > 1 || ts != TS_TI1FP1 + line ||
         !edge_selected(s, line, level)) {
         return;
@@ -505,8 +558,20 @@ static void tim_realize(DeviceState *dev, Error **errp)
         error_setg(errp, "rig-stm32f4-timer: index is 1..14 (TIMn), apb 1 or 2; not %u and %u", s->index, s->apb);
         return;
     }
+    if (timers[s->index] != NULL) {
+        error_setg(errp, "rig-stm32f4-timer: a second TIM%u", s->index);
+        return;
+    }
     s->kind = &kinds[kind_of[s->index]];
     s->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, tim_event, s);
+    bool first = true;
+    for (unsigned n = 1; n < ARRAY_SIZE(timers); n++) {
+        first &= timers[n] == NULL;
+    }
+    if (first) {
+        rig_link_sync_add(timers_link_sync, NULL);
+    }
+    timers[s->index] = s;
 }
 
 static void tim_instance_init(Object *obj)
@@ -544,6 +609,7 @@ static Property tim_properties[] = {
     DEFINE_PROP_UINT8("apb", RigStm32TimerState, apb, 0),
     DEFINE_PROP_UINT8("rcc-bit", RigStm32TimerState, rcc_bit, 0),
     DEFINE_PROP_BOOL("trace-pulses", RigStm32TimerState, trace_pulses, false),
+    DEFINE_PROP_BOOL("eager", RigStm32TimerState, eager, false),
     DEFINE_PROP_LINK("rcc", RigStm32TimerState, rcc, TYPE_RIG_STM32_RCC, RigStm32RccState *),
     DEFINE_PROP_END_OF_LIST(),
 };

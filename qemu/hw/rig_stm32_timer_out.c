@@ -122,12 +122,12 @@ void rig_stm32_timer_latch(RigStm32TimerState *s)
             fprintf(stderr,
                     "rig-stm32f4-timer: t_ns=%" PRId64 " TIM%u ch%u%s high_ticks=%" PRIu32 " period_ticks=%" PRIu32
                     " clock_hz=%" PRIu64 "\n",
-                    qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL), s->index, o % RIG_TIM_CHANNELS + 1,
-                    o >= RIG_TIM_CHANNELS ? "n" : "", high, period, s->hz);
+                    s->event_ns, s->index, o % RIG_TIM_CHANNELS + 1, o >= RIG_TIM_CHANNELS ? "n" : "", high, period,
+                    s->hz);
         }
     }
     s->period_ticks = period;
     s->latched_hz = s->hz;
     s->latches++;
-    s->latched_ns = (uint64_t)qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    s->latched_ns = (uint64_t)s->event_ns;
 }

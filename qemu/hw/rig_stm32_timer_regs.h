@@ -134,6 +134,7 @@ uint32_t rig_stm32_timer_dmar(RigStm32TimerState *s, bool write, uint32_t value)
 #define CCER_NP 8u
 #define BDTR_MOE (1u << 15)
 /* SMCR: the slave modes and trigger inputs modelled */
+#define SMCR_SMS 7u
 #define SMS_RESET 4u
 #define SMS_TRIGGER 6u
 #define TS_TI1FP1 5u
