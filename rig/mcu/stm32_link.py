@@ -99,6 +99,8 @@ class Stm32Config:
     #: the settings image written into the firmware's flash before it boots (stm32_image.with_settings:
     #: a scenario's [fc] table for the reference FC); None: the image as built
     settings: bytes | None = None
+    #: more of QEMU's command line (-global MODEL.PROPERTY=VALUE: a model's test setting)
+    qemu_args: tuple[str, ...] = ()
 
 
 class Stm32Engine:
@@ -171,7 +173,7 @@ class Stm32Engine:
                "-global", f"rig-stm32f4-rcc.hse-hz={cfg.board.hse_hz}", "-nodefaults",
                "-display", "none", "-monitor", "none", "-chardev", f"socket,id=rig-link,path={path}", *uarts,
                "-semihosting-config", "enable=on,target=native",
-               "-icount", f"shift={ICOUNT_SHIFT},sleep=off", "-kernel", str(firmware)]
+               "-icount", f"shift={ICOUNT_SHIFT},sleep=off", *cfg.qemu_args, "-kernel", str(firmware)]
         self._proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=self._output,
                                       stderr=subprocess.STDOUT)
         try:
