@@ -164,6 +164,14 @@ static void syscfg_class_init(ObjectClass *klass, void *data)
 
 /* ---- EXTI ---- */
 
+/* The machine's EXTI, for rig_stm32_exti_watches_pins() */
+static RigStm32ExtiState *the_exti;
+
+bool rig_stm32_exti_watches_pins(void)
+{
+    return the_exti != NULL && ((the_exti->regs[RTSR] | the_exti->regs[FTSR]) & 0xFFFF);
+}
+
 static void exti_update(RigStm32ExtiState *s)
 {
     uint32_t raised = s->regs[PR] & s->regs[IMR];
@@ -204,6 +212,7 @@ static void exti_write(void *opaque, hwaddr offset, uint64_t value, unsigned siz
     RigStm32ExtiState *s = opaque;
     int i = rig_register_index(exti_registers, ARRAY_SIZE(exti_registers), offset);
     uint32_t v = (uint32_t)value & LINES_MASK;
+    bool watched = rig_stm32_exti_watches_pins();
     if (i < 0) {
         qemu_log_mask(LOG_GUEST_ERROR, "rig-stm32f4-exti: write of reserved offset 0x%" HWADDR_PRIx "\n", offset);
         return;
@@ -218,6 +227,9 @@ static void exti_write(void *opaque, hwaddr offset, uint64_t value, unsigned siz
         s->regs[i] = v;
     }
     exti_update(s);
+    if (rig_stm32_exti_watches_pins() != watched) { /* (the timers' pins: edges at their instants, or not) */
+        rig_stm32_timers_sync(true);
+    }
 }
 
 static const MemoryRegionOps exti_ops = {
@@ -248,10 +260,13 @@ static void exti_init(Object *obj)
     }
 }
 
+static void exti_realize(DeviceState *dev, Error **errp) { the_exti = RIG_STM32_EXTI(dev); }
+
 static void exti_class_init(ObjectClass *klass, void *data)
 {
     DeviceClass *dc = DEVICE_CLASS(klass);
     dc->reset = exti_reset;
+    dc->realize = exti_realize;
 }
 
 static const TypeInfo exti_types[] = {

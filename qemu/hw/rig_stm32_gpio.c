@@ -182,6 +182,7 @@ static uint64_t gpio_read(void *opaque, hwaddr offset, unsigned size)
     case PUPDR:
         return s->pupdr;
     case IDR:
+        rig_stm32_timers_sync(false); /* (the pins of the timers whose events wait for a look) */
         return rig_stm32_gpio_levels(s);
     case ODR:
         return s->odr;

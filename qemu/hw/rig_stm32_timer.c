@@ -17,8 +17,16 @@
  * go out as pulses on the "dma" lines at their events. The registers answer only with the timer's RCC enable
  * bit on (properties "apb", 1 or 2, and "rcc-bit": APBxENR, APBxRSTR); the RCC's reset bit resets the timer.
  *
- * Nothing runs per tick: a QEMU timer is armed for the next event (a compare match, the end of the
- * period), and reads of CNT compute it from the virtual time: a 490 Hz PWM costs two events a period.
+ * Nothing runs per tick: reads of CNT compute it from the virtual time, and a QEMU timer is armed for
+ * the next event (a compare match, the end of the period) only when something needs its instant: an
+ * interrupt or DMA request enabled (any DIER bit), a channel capturing or the slave mode controller on
+ * (an edge of the timer's own pins fed back must find CNT at its time), one-pulse mode, an EXTI line with
+ * an edge enabled (it may watch a pin of the timer's), or the property "eager" (the reference lazy runs
+ * are checked against). Otherwise the events are counted when something looks: a register access, a
+ * read of a GPIO port's IDR, and each stop of the rig's link (rig_link_sync_add), so the PWM of motors
+ * costs no QEMU timer at all; the pins of such a lazy timer are brought up to date then, while the pulses
+ * latched carry each update event's own virtual time (latched-ns, the trace's t_ns). Read over QMP
+ * between the link's stops, the properties are those of the last catch-up.
  * The outputs go to the GPIO pins whose AFR selects the timer ("channel-out" lines, four pins per
  * channel), and the pins' levels come back as the channels' inputs ("channel-in").
  *
@@ -33,7 +41,7 @@
  *
  * Not modelled: the other slave modes (gated, encoder, external clock) and triggers (ITRx: timer
  * chaining, TI1F_ED, ETR), hall-sensor mode, dead time, break, COM, ICxF, OCxFE, OCxCE. DMA bursts
- * through DMAR: rig_stm32_timer_burst.c.
+ * through DMAR: rig_stm32_timer_burst.c; the outputs, interrupt lines and pulses: rig_stm32_timer_out.c.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -62,69 +70,6 @@ static uint64_t timer_hz(RigStm32TimerState *s)
 
 static uint32_t counter_mask(const RigStm32TimerState *s) { return s->kind->wide ? 0xFFFFFFFFu : C16; }
 
-static unsigned ccmr(const RigStm32TimerState *s, unsigned ch)
-{
-    return s->regs[ch < 2 ? CCMR1 : CCMR2] >> (8 * (ch % 2)) & 0xFF;
-}
-
-static unsigned ccer(const RigStm32TimerState *s, unsigned ch) { return s->regs[CCER] >> (4 * ch) & 0xF; }
-static unsigned oc_mode(const RigStm32TimerState *s, unsigned ch) { return ccmr(s, ch) >> 4 & 0x7; }
-static bool is_output(const RigStm32TimerState *s, unsigned ch) { return (ccmr(s, ch) & 3) == CCS_OUTPUT; }
-static unsigned cms(const RigStm32TimerState *s) { return s->regs[CR1] >> CR1_CMS_SHIFT & 3; }
-
-/* OCxREF of a PWM mode as a function of the counter (RM0090 17.3.10): mode 1 active while CNT < CCR
- * counting up, while CNT <= CCR counting down; mode 2 the opposite */
-static bool pwm_ref(const RigStm32TimerState *s, unsigned ch)
-{
-    uint32_t cnt = s->regs[CNT], ccr = s->ccr[ch];
-    bool active = s->down ? cnt <= ccr : cnt < ccr;
-    return oc_mode(s, ch) == OCM_PWM1 ? active : !active;
-}
-
-/* Whether output @o (OC1..OC4 as 0..3, the advanced timers' OC1N..OC3N as 4..6) exists */
-static bool has_output(const RigStm32TimerState *s, unsigned o)
-{
-    return o < s->kind->channels || (s->kind->advanced && o < RIG_TIM_OUTPUTS);
-}
-
-/* Output @o's level for OCxREF = @ref: OCx drives with CCxE, through CCxP; OCxN with CCxNE, through CCxNP, the
- * complement of OCxREF while OCx is on too (RM0090 17.3.11, dead time taken as 0); on TIM1/TIM8 only
- * with BDTR.MOE. Off, an output lets go of its pins (18.4.9: OCx_EN = 0): RIG_GPIO_AF_RELEASED */
-static int output_level(const RigStm32TimerState *s, unsigned o, bool ref)
-{
-    unsigned ch = o % RIG_TIM_CHANNELS, bits = ccer(s, ch);
-    bool n = o >= RIG_TIM_CHANNELS;
-    if (!is_output(s, ch) || !(bits & (n ? CCER_NE : CCER_E)) || (s->kind->advanced && !(s->regs[BDTR] & BDTR_MOE))) {
-        return RIG_GPIO_AF_RELEASED;
-    }
-    bool invert = n ? !!(bits & CCER_NP) ^ !!(bits & CCER_E) : !!(bits & CCER_P);
-    return ref ^ invert;
-}
-
-/* The pins follow each output */
-static void drive_outputs(RigStm32TimerState *s)
-{
-    for (unsigned ch = 0; ch < s->kind->channels; ch++) {
-        unsigned mode = oc_mode(s, ch);
-        if (is_output(s, ch)) {
-            if (mode == OCM_PWM1 || mode == OCM_PWM2) {
-                s->ref[ch] = pwm_ref(s, ch);
-            } else if (mode == OCM_FORCE_LOW || mode == OCM_FORCE_HIGH) {
-                s->ref[ch] = mode == OCM_FORCE_HIGH;
-            }
-        }
-    }
-    for (unsigned o = 0; o < RIG_TIM_OUTPUTS; o++) {
-        int level = has_output(s, o) ? output_level(s, o, s->ref[o % RIG_TIM_CHANNELS]) : RIG_GPIO_AF_RELEASED;
-        if (level != s->out[o]) {
-            s->out[o] = level;
-            for (unsigned pin = 0; pin < RIG_TIM_PINS_PER_CHANNEL; pin++) {
-                qemu_set_irq(s->channel_out[o * RIG_TIM_PINS_PER_CHANNEL + pin], level);
-            }
-        }
-    }
-}
-
 /* Flags set in SR, and the DMA requests their DIER enables (UDE, CCxDE, COMDE, TDE; RM0090 17.4.4) ask for,
  * sent once the event is handled (settle); CR2.CCDS sends the CCx requests at the update event instead */
 static void raise_flags(RigStm32TimerState *s, uint32_t flags)
@@ -135,72 +80,6 @@ static void raise_flags(RigStm32TimerState *s, uint32_t flags)
         requests = (requests & ~0x1Eu) | ((flags & SR_UIF) ? enabled & 0x1Eu : 0);
     }
     s->dma_pending |= requests;
-}
-
-static void update_irqs(RigStm32TimerState *s)
-{
-    uint32_t pending = s->regs[SR] & s->regs[DIER] & 0xFF;
-    bool line[RIG_TIM_IRQS] = {
-        [RIG_TIM_IRQ_BRK] = pending & SR_BIF,
-        [RIG_TIM_IRQ_UP] = pending & SR_UIF,
-        [RIG_TIM_IRQ_TRG_COM] = pending & (SR_TIF | SR_COMIF),
-        [RIG_TIM_IRQ_CC] = pending & 0x1E,
-    };
-    if (s->kind->advanced) {
-        for (unsigned k = 0; k < RIG_TIM_IRQS; k++) {
-            qemu_set_irq(s->irq[k], line[k]);
-        }
-    } else {
-        qemu_set_irq(s->irq[0], pending != 0);
-    }
-}
-
-/* High ticks of the timer clock per period at output @o's pins, for a channel in PWM mode (0 otherwise) */
-static uint32_t pulse_ticks(const RigStm32TimerState *s, unsigned o, uint32_t period)
-{
-    unsigned ch = o % RIG_TIM_CHANNELS, mode = oc_mode(s, ch);
-    uint64_t arr = s->arr, ccr = s->ccr[ch], active;
-    int level_while_active = output_level(s, o, true);
-    if ((mode != OCM_PWM1 && mode != OCM_PWM2) || level_while_active == RIG_GPIO_AF_RELEASED) {
-        return 0;
-    }
-    if (cms(s)) {
-        active = 2 * MIN(ccr, arr);
-    } else if (s->down) {
-        active = MIN(ccr, arr) + 1;
-    } else {
-        active = MIN(ccr, arr + 1);
-    }
-    uint64_t counts = cms(s) ? 2 * arr : arr + 1;
-    active = (mode == OCM_PWM1 ? active : counts - active) * ((uint64_t)s->psc + 1);
-    return level_while_active ? (uint32_t)active : period - (uint32_t)active;
-}
-
-/* The pulses for the rig: latched at the start of each period, sent and traced when they change */
-static void latch_pulses(RigStm32TimerState *s)
-{
-    uint64_t counts = cms(s) ? 2 * (uint64_t)s->arr : (uint64_t)s->arr + 1;
-    uint32_t period = (uint32_t)MIN(counts * ((uint64_t)s->psc + 1), UINT32_MAX);
-    for (unsigned o = 0; o < RIG_TIM_OUTPUTS; o++) {
-        uint32_t high = has_output(s, o) ? pulse_ticks(s, o, period) : 0;
-        /* (an output without pulses stays silent while only the period or the clock changes) */
-        if (high == s->pulse_ticks[o] && ((period == s->period_ticks && s->hz == s->latched_hz) || high == 0)) {
-            continue;
-        }
-        s->pulse_ticks[o] = high;
-        qemu_set_irq(s->pulse_ns[o], s->hz ? (int)muldiv64(high, NANOSECONDS_PER_SECOND, s->hz) : 0);
-        if (s->trace_pulses) {
-            fprintf(stderr,
-                    "rig-stm32f4-timer: t_ns=%" PRId64 " TIM%u ch%u%s high_ticks=%" PRIu32 " period_ticks=%" PRIu32
-                    " clock_hz=%" PRIu64 "\n",
-                    qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL), s->index, o % RIG_TIM_CHANNELS + 1,
-                    o >= RIG_TIM_CHANNELS ? "n" : "", high, period, s->hz);
-        }
-    }
-    s->period_ticks = period;
-    s->latched_hz = s->hz;
-    s->latches++;
-    s->latched_ns = (uint64_t)qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
 }
 
 /* The update event: the shadow registers take the preloads, UIF unless only software asked and URS
@@ -223,7 +102,7 @@ static void update_event(RigStm32TimerState *s, bool by_software)
     if (!(by_software && (s->regs[CR1] & CR1_URS))) {
         raise_flags(s, SR_UIF);
     }
-    latch_pulses(s);
+    rig_stm32_timer_latch(s);
 }
 
 /* A compare match: CCxIF, and the levels of the match modes (RM0090 17.3.8) */
@@ -314,15 +193,24 @@ static bool count(RigStm32TimerState *s, uint64_t steps)
     return events;
 }
 
-/* Brings the counter to the present: the timer-clock ticks since the last sync, through the prescaler;
- * whether an event (a match, a boundary) came on the way */
+/* The first virtual ns at which catch_up() has counted @ticks timer-clock ticks since base_ns */
+static int64_t tick_ns(const RigStm32TimerState *s, unsigned __int128 ticks)
+{
+    unsigned __int128 ns = (ticks * NANOSECONDS_PER_SECOND + s->hz - 1) / s->hz;
+    return s->base_ns + (int64_t)MIN(ns, (unsigned __int128)INT64_MAX / 2);
+}
+
+/* Brings the counter to the present: the timer-clock ticks since the last sync, through the prescaler,
+ * each event at the time of its tick (event_ns, now for what software does after); whether an event (a
+ * match, a boundary) came on the way */
 static bool catch_up(RigStm32TimerState *s)
 {
     bool events = false;
+    int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    s->event_ns = now;
     if (!s->counting) {
         return false;
     }
-    int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
     uint64_t total = muldiv64(now - s->base_ns, (uint32_t)s->hz, NANOSECONDS_PER_SECOND);
     uint64_t ticks = total - s->ticks_done;
     s->ticks_done = total;
@@ -337,26 +225,46 @@ static bool catch_up(RigStm32TimerState *s)
         /* this step and the whole steps that fit before the next event (where PSC may change) */
         uint64_t more = MIN(ticks / div, steps_to_event(s) - 1);
         ticks -= more * div;
+        s->event_ns = tick_ns(s, total - ticks); /* (an event comes only at the last step) */
         events |= count(s, 1 + more);
     }
+    s->event_ns = now;
     if (!(s->regs[CR1] & CR1_CEN)) {
         s->counting = false;
     }
     return events;
 }
 
-/* Arms the QEMU timer for the next event, when the counter runs */
+/* Whether something sees the timer's events at their instants (the head comment): with none, they wait
+ * for the next catch-up */
+static bool needs_instant(const RigStm32TimerState *s)
+{
+    if (s->eager || s->regs[DIER] || (s->regs[CR1] & CR1_OPM) || (s->regs[SMCR] & SMCR_SMS) ||
+        rig_stm32_exti_watches_pins()) {
+        return true;
+    }
+    for (unsigned ch = 0; ch < s->kind->channels; ch++) {
+        if (!is_output(s, ch) && (ccer(s, ch) & CCER_E)) {
+            return true;
+        }
+    }
+    return false;
+}
+
+/* Arms the QEMU timer for the next event, when the counter runs and the event needs its instant */
 static void schedule(RigStm32TimerState *s)
 {
-    if (!s->counting || s->arr == 0 || s->hz == 0) {
+    if (!s->counting || s->arr == 0 || s->hz == 0 || !needs_instant(s)) {
         timer_del(s->timer);
         return;
     }
     uint64_t div = (uint64_t)s->psc + 1;
-    unsigned __int128 ticks = s->ticks_done + (div - s->prescaler) + (steps_to_event(s) - 1) * div;
-    /* the first virtual ns at which catch_up() counts that many ticks */
-    unsigned __int128 ns = (ticks * NANOSECONDS_PER_SECOND + s->hz - 1) / s->hz;
-    timer_mod(s->timer, s->base_ns + (int64_t)MIN(ns, (unsigned __int128)INT64_MAX / 2));
+    int64_t deadline = tick_ns(s, s->ticks_done + (div - s->prescaler) + (steps_to_event(s) - 1) * div);
+    /* (armed again at the same deadline, a timer first in the list would move virtual time on to it at once
+     * when the core sleeps: inside the link's stop, whose own timer is not armed, past the stop) */
+    if (!timer_pending(s->timer) || timer_expire_time_ns(s->timer) != deadline) {
+        timer_mod(s->timer, deadline);
+    }
 }
 
 /* After a change: the pins, the interrupt lines, the DMA requests (a pulse each; the DMA may write this
@@ -370,8 +278,8 @@ static void settle(RigStm32TimerState *s)
     s->dma_pending = 0;
     s->dma_sent = requests ? requests : s->dma_sent; /* (a DMAR burst goes on with them) */
     s->settling = true;
-    drive_outputs(s);
-    update_irqs(s);
+    rig_stm32_timer_drive(s);
+    rig_stm32_timer_irqs(s);
     for (unsigned k = 0; k < RIG_DMA_TIM_REQS; k++) {
         if (requests >> k & 1) {
             qemu_irq_pulse(s->dma[k]);
@@ -389,6 +297,22 @@ static void tim_event(void *opaque)
     catch_up(s);
     settle(s);
 }
+
+/* Every timer of the machine, by index, for the syncs */
+static RigStm32TimerState *timers[15];
+
+void rig_stm32_timers_sync(bool rearm)
+{
+    for (unsigned n = 1; n < ARRAY_SIZE(timers); n++) {
+        RigStm32TimerState *s = timers[n];
+        if (s != NULL && (catch_up(s) || rearm)) {
+            settle(s);
+        }
+    }
+}
+
+/* The link's stop: the pulses it reads are those of the events up to now */
+static void timers_link_sync(void *opaque) { rig_stm32_timers_sync(false); }
 
 /* Starts counting from now (CEN set, or a new clock) */
 static void start_counting(RigStm32TimerState *s)
@@ -441,7 +365,7 @@ static bool edge_selected(const RigStm32TimerState *s, unsigned ch, int level)
  * mode starts it; both set TIF */
 static void trigger_input(RigStm32TimerState *s, unsigned line, int level)
 {
-    unsigned sms = s->regs[SMCR] & 7, ts = s->regs[SMCR] >> 4 & 7;
+    unsigned sms = s->regs[SMCR] & SMCR_SMS, ts = s->regs[SMCR] >> 4 & 7;
     if ((sms != SMS_RESET && sms != SMS_TRIGGER) || line > 1 || ts != TS_TI1FP1 + line ||
         !edge_selected(s, line, level)) {
         return;
@@ -563,7 +487,7 @@ static void tim_write(void *opaque, hwaddr offset, uint64_t value, unsigned size
             s->counting = false;
         } else if (!was_enabled) {
             start_counting(s);
-            latch_pulses(s);
+            rig_stm32_timer_latch(s);
         }
         break;
     case ARR:
@@ -623,8 +547,8 @@ static void tim_reset(DeviceState *dev)
     s->settling = false;
     s->hz = timer_hz(s);
     timer_del(s->timer);
-    drive_outputs(s);
-    update_irqs(s);
+    rig_stm32_timer_drive(s);
+    rig_stm32_timer_irqs(s);
 }
 
 static void tim_realize(DeviceState *dev, Error **errp)
@@ -634,8 +558,20 @@ static void tim_realize(DeviceState *dev, Error **errp)
         error_setg(errp, "rig-stm32f4-timer: index is 1..14 (TIMn), apb 1 or 2; not %u and %u", s->index, s->apb);
         return;
     }
+    if (timers[s->index] != NULL) {
+        error_setg(errp, "rig-stm32f4-timer: a second TIM%u", s->index);
+        return;
+    }
     s->kind = &kinds[kind_of[s->index]];
     s->timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, tim_event, s);
+    bool first = true;
+    for (unsigned n = 1; n < ARRAY_SIZE(timers); n++) {
+        first &= timers[n] == NULL;
+    }
+    if (first) {
+        rig_link_sync_add(timers_link_sync, NULL);
+    }
+    timers[s->index] = s;
 }
 
 static void tim_instance_init(Object *obj)
@@ -673,6 +609,7 @@ static Property tim_properties[] = {
     DEFINE_PROP_UINT8("apb", RigStm32TimerState, apb, 0),
     DEFINE_PROP_UINT8("rcc-bit", RigStm32TimerState, rcc_bit, 0),
     DEFINE_PROP_BOOL("trace-pulses", RigStm32TimerState, trace_pulses, false),
+    DEFINE_PROP_BOOL("eager", RigStm32TimerState, eager, false),
     DEFINE_PROP_LINK("rcc", RigStm32TimerState, rcc, TYPE_RIG_STM32_RCC, RigStm32RccState *),
     DEFINE_PROP_END_OF_LIST(),
 };

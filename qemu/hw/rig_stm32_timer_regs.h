@@ -1,6 +1,7 @@
 /*
  * The STM32F405 timers' register map and bits (RM0090 sections 17.4, 18.4, 19.4, 19.5, 20.4) as data,
- * for the timer model (rig_stm32_timer.c) and its DMA bursts (rig_stm32_timer_burst.c).
+ * for the timer model (rig_stm32_timer.c), its outputs (rig_stm32_timer_out.c) and its DMA bursts
+ * (rig_stm32_timer_burst.c).
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -133,8 +134,26 @@ uint32_t rig_stm32_timer_dmar(RigStm32TimerState *s, bool write, uint32_t value)
 #define CCER_NP 8u
 #define BDTR_MOE (1u << 15)
 /* SMCR: the slave modes and trigger inputs modelled */
+#define SMCR_SMS 7u
 #define SMS_RESET 4u
 #define SMS_TRIGGER 6u
 #define TS_TI1FP1 5u
+
+/* Channel @ch's byte of CCMRx and nibble of CCER, its output compare mode, whether it is an output;
+ * CR1.CMS */
+static inline unsigned ccmr(const RigStm32TimerState *s, unsigned ch)
+{
+    return s->regs[ch < 2 ? CCMR1 : CCMR2] >> (8 * (ch % 2)) & 0xFF;
+}
+static inline unsigned ccer(const RigStm32TimerState *s, unsigned ch) { return s->regs[CCER] >> (4 * ch) & 0xF; }
+static inline unsigned oc_mode(const RigStm32TimerState *s, unsigned ch) { return ccmr(s, ch) >> 4 & 0x7; }
+static inline bool is_output(const RigStm32TimerState *s, unsigned ch) { return (ccmr(s, ch) & 3) == CCS_OUTPUT; }
+static inline unsigned cms(const RigStm32TimerState *s) { return s->regs[CR1] >> CR1_CMS_SHIFT & 3; }
+
+/* The timer's outputs (rig_stm32_timer_out.c): the pins following OCxREF and the output enables, the
+ * interrupt lines following SR and DIER, and the pulses latched for the rig at the start of each period */
+void rig_stm32_timer_drive(RigStm32TimerState *s);
+void rig_stm32_timer_irqs(RigStm32TimerState *s);
+void rig_stm32_timer_latch(RigStm32TimerState *s);
 
 #endif

@@ -233,6 +233,13 @@ static inline int64_t rig_i2c_now_ns(void)
 /* What a lazy model brings up to now before the link tells the session a time is reached (rig_link.c) */
 void rig_link_sync_add(void (*sync)(void *opaque), void *opaque);
 
+/* Every timer whose events need no QEMU timer brought up to now, its pins with it (rig_stm32_timer.c):
+ * for a read of the pins (GPIO IDR), and, with @rearm, when what needs the events' instants changed
+ * (EXTI starting or stopping to watch edges) */
+void rig_stm32_timers_sync(bool rearm);
+/* Whether an EXTI line 0..15 has an edge enabled (RTSR, FTSR): pins are watched (rig_stm32_exti.c) */
+bool rig_stm32_exti_watches_pins(void);
+
 /* The pin levels a port shows on its IDR */
 uint16_t rig_stm32_gpio_levels(RigStm32GpioState *s);
 
@@ -354,10 +361,11 @@ struct RigStm32TimerState {
     uint8_t index;        /* 1..14 (property "index"): TIMn */
     uint8_t apb, rcc_bit; /* its bus (1, 2) and bit in RCC_APBxENR/APBxRSTR (properties "apb", "rcc-bit") */
     bool trace_pulses;    /* property "trace-pulses": each latched pulse on stderr */
+    bool eager;           /* property "eager": the QEMU timer for every event, needed or not */
     const struct RigTimerKind *kind;
-    Clock *clk;                               /* the APB timer clock (RCC "apb1-tim" or "apb2-tim"): its changes */
-    uint64_t hz;                              /* its rate while the counter counted since base_ns */
-    QEMUTimer *timer;                         /* the next event: a compare match or the end of the counting period */
+    Clock *clk;       /* the APB timer clock (RCC "apb1-tim" or "apb2-tim"): its changes */
+    uint64_t hz;      /* its rate while the counter counted since base_ns */
+    QEMUTimer *timer; /* the next event (a compare match, the end of the counting period) when it needs its instant */
     uint32_t regs[RIG_TIM_REGS];              /* as software reads them (ARR, PSC and CCRx: the preload registers) */
     uint32_t arr, psc, ccr[RIG_TIM_CHANNELS]; /* the shadow (active) registers */
     uint32_t prescaler;                       /* the prescaler's counter */
@@ -366,6 +374,7 @@ struct RigStm32TimerState {
     bool counting;                            /* CEN with a clock: base_ns and ticks_done run */
     int64_t base_ns;                          /* virtual time of timer-clock tick 0 */
     uint64_t ticks_done;                      /* timer-clock ticks accounted since base_ns */
+    int64_t event_ns;                         /* the virtual time of the event being counted (its tick's) */
     bool ref[RIG_TIM_CHANNELS];               /* OCxREF */
     int8_t out[RIG_TIM_OUTPUTS];              /* last sent to the pins: 0, 1, released, -2 at reset */
     bool input[RIG_TIM_CHANNELS];             /* TIx: the level of each channel's input pin */

@@ -105,6 +105,8 @@ class Stm32Config:
     #: first instruction on every ADC that has that channel (the MCU's ``adc_units``); None: the board's
     #: (engine.analog_inputs: its battery through the divider)
     analog: tuple[tuple[int, float], ...] | None = None
+    #: more of QEMU's command line (-global MODEL.PROPERTY=VALUE: a model's test setting)
+    qemu_args: tuple[str, ...] = ()
 
 
 class Stm32Engine:
@@ -177,7 +179,7 @@ class Stm32Engine:
                "-global", f"rig-stm32f4-rcc.hse-hz={cfg.board.hse_hz}", "-nodefaults",
                "-display", "none", "-monitor", "none", "-chardev", f"socket,id=rig-link,path={path}", *uarts,
                "-semihosting-config", "enable=on,target=native",
-               "-icount", f"shift={ICOUNT_SHIFT},sleep=off", "-kernel", str(firmware)]
+               "-icount", f"shift={ICOUNT_SHIFT},sleep=off", *cfg.qemu_args, "-kernel", str(firmware)]
         self._proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=self._output,
                                       stderr=subprocess.STDOUT)
         try:
