@@ -483,6 +483,11 @@ static void link_reached(void *opaque)
         }
         link_configure(s, config, len);
     }
+    /* The stop holds the earliest deadline while it lasts: with the core asleep, a model arming its timer
+     * here (a lazy model catching up) makes QEMU warp virtual time at once to the earliest deadline
+     * (timerlist_rearm, icount_start_warp_timer), which without this would be that model's, past the
+     * next stop the session is about to ask for. The GO re-arms the stop's timer. */
+    timer_mod(s->timer, qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL));
     for (unsigned i = 0; i < n_link_syncs; i++) {
         link_syncs[i].fn(link_syncs[i].opaque);
     }
