@@ -91,13 +91,14 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Generator[None, Any, Any]:
     report: pytest.TestReport = yield
-    if _skip_reason(report).startswith(INCONCLUSIVE) and item.get_closest_marker("paced") is None:
+    reason = _skip_reason(report)  # (read before the outcome changes: a failed report has none)
+    if reason.startswith(INCONCLUSIVE) and item.get_closest_marker("paced") is None:
         report.outcome = "failed"
-        report.longrepr = (f"{_skip_reason(report)}\n(tests/suite_rules.py: a test that can end inconclusive "
+        report.longrepr = (f"{reason}\n(tests/suite_rules.py: a test that can end inconclusive "
                            "is paced by the wall clock: mark it paced, so that make test counts it)")
-    elif _skip_reason(report).startswith(NOT_BUILT) and item.config.getoption("built"):
+    elif reason.startswith(NOT_BUILT) and item.config.getoption("built"):
         report.outcome = "failed"
-        report.longrepr = (f"{_skip_reason(report)}\n(tests/suite_rules.py: this run was told every build "
+        report.longrepr = (f"{reason}\n(tests/suite_rules.py: this run was told every build "
                            "was made (--built), so a missing one is a failure, not a skip)")
     return report
 

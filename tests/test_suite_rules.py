@@ -62,6 +62,7 @@ def test_unverified_paced_tests_are_counted_and_an_unpaced_inconclusive_test_fai
     assert "test_it.py::test_no_root_0: needs root" in done.stdout and "FAILED: " not in done.stdout
     assert "1 failed, 3 passed, 2 skipped" in done.stdout, done.stdout  # the soak ran, as asked
     assert "FAILED test_others.py::test_unmarked" in done.stdout and "mark it paced" in done.stdout
+    assert "inconclusive: starved" in done.stdout, done.stdout  # (the reason kept)
 
 
 def test_over_half_unverified_fails_the_run_under_xdist_too(tmp_path: Path) -> None:
@@ -92,5 +93,6 @@ def test_a_skip_for_a_missing_build_fails_a_run_told_everything_was_built(tmp_pa
     assert told.returncode == 1, told.stdout
     assert "1 failed, 1 skipped" in told.stdout, told.stdout
     assert "FAILED test_it.py::test_needs_an_engine" in told.stdout and "(--built)" in told.stdout
+    assert "not built: the engine (make engine)" in told.stdout, told.stdout  # (the reason kept)
     untold = suite(tmp_path, body)
     assert untold.returncode == 0 and "2 skipped" in untold.stdout, untold.stdout

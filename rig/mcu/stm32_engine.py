@@ -69,10 +69,12 @@ BUILD_DEPENDS = {
     "libfdt-dev": ("file", "/usr/include/libfdt.h"),  # (Debian's ships no .pc file)
     "zlib1g-dev": ("pkg-config", "zlib"),
 }
-#: how many engines (one per set of inputs, e.g. one per branch or worktree) the cache keeps, those used
-#: last: with four, worktrees building in turn removed each other's engine while its tests ran, and the
-#: tests skipped
+#: how many engines (one per set of inputs, e.g. one per branch or worktree) the cache keeps at least,
+#: those used last, and for how long it keeps any engine since its last use: by count alone, worktrees
+#: building in turn (an edit a build) removed another's engine while its suite was busy elsewhere, and
+#: that suite's STM32 tests found no engine
 KEEP_ENGINES = 12
+KEEP_USED_S = 2 * 24 * 3600
 #: the lines that make QEMU's build see hw/rig (appended once to the unpacked source's files)
 HOOKS = {Path("hw/meson.build"): "subdir('rig')\n", Path("hw/Kconfig"): "source rig/Kconfig\n"}
 
@@ -122,12 +124,15 @@ def inputs_hash(dsc: Path, models: Path = MODELS, chips: Path = CHIP_CORE) -> st
     return h.hexdigest()
 
 
-def prune(cache: Path, keep: int = KEEP_ENGINES) -> None:
-    """Removes all but the ``keep`` engines used last (each is about 9 MB; the work tree stays)."""
+def prune(cache: Path, keep: int = KEEP_ENGINES, keep_used_s: float = KEEP_USED_S) -> None:
+    """Removes the engines beyond the ``keep`` used last that have not been used for ``keep_used_s``
+    (each is about 9 MB; the work tree stays)."""
     engines = [d for d in cache.iterdir() if d.is_dir() and re.fullmatch(r"[0-9a-f]{16}", d.name)]
     engines.sort(key=lambda d: d.stat().st_mtime, reverse=True)
+    unused_since = time.time() - keep_used_s
     for old in engines[keep:]:
-        shutil.rmtree(old, ignore_errors=True)
+        if old.stat().st_mtime < unused_since:
+            shutil.rmtree(old, ignore_errors=True)
 
 
 def cached_binary(cache: Path | None = None) -> Path | None:

@@ -8,6 +8,7 @@ import os
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 from rig.mcu import stm32_engine
@@ -80,16 +81,26 @@ def test_the_cached_engine_is_found_without_building(tmp_path: Path) -> None:
     assert stm32_engine.cached_binary(cache) == binary
 
 
-def test_the_cache_keeps_the_engines_used_last(tmp_path: Path) -> None:
-    for i in range(6):
+def test_the_cache_keeps_the_engines_used_last_and_those_used_lately(tmp_path: Path) -> None:
+    """Six engines, the oldest two unused for long: kept are the four used last; then, with four new
+    ones built, the four before them stay too while they were used lately (another worktree's suite may
+    be busy with other tests before it comes back to its engine)."""
+    now = time.time()
+    ages = [10_000, 9_000, 600, 500, 400, 300]  # seconds since each was last used
+    for i, age in enumerate(ages):
         engine = tmp_path / f"{i:016x}"
         engine.mkdir()
-        os.utime(engine, (1_000_000 + i, 1_000_000 + i))
+        os.utime(engine, (now - age, now - age))
     (tmp_path / "src").mkdir()
     (tmp_path / "work-7.2").mkdir()
-    stm32_engine.prune(tmp_path, keep=4)
-    newest_four = [f"{i:016x}" for i in range(2, 6)]
-    assert sorted(p.name for p in tmp_path.iterdir()) == [*newest_four, "src", "work-7.2"]
+    stm32_engine.prune(tmp_path, keep=4, keep_used_s=3_600)
+    kept = [f"{i:016x}" for i in range(2, 6)]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [*kept, "src", "work-7.2"]
+    for i in range(6, 10):
+        (tmp_path / f"{i:016x}").mkdir()
+    stm32_engine.prune(tmp_path, keep=4, keep_used_s=3_600)
+    lately = [f"{i:016x}" for i in range(2, 10)]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [*lately, "src", "work-7.2"]
 
 
 def test_the_private_apt_state_takes_the_machines_debian_archives(tmp_path: Path) -> None:
