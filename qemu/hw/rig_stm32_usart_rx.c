@@ -154,6 +154,8 @@ void rig_usart_rx_catch_up(RigStm32UsartState *s, int64_t now)
  * it does not wrap (the eager path after it). The memory is written at that catch-up: a firmware polling
  * the buffer with no register access sees its bytes late (one reading NDTR sees them in time); a bus
  * error writing memory (TEIF) shows then too. */
+#define RX_LOOKAHEAD 256 /* bytes looked at ahead at most (a long burst: the timer looks again there) */
+
 int64_t rig_usart_rx_deadline(RigStm32UsartState *s)
 {
     uint32_t cr1 = s->regs[R_CR1], cr3 = s->regs[R_CR3], cr, ndtr, reload, flags;
@@ -184,7 +186,7 @@ int64_t rig_usart_rx_deadline(RigStm32UsartState *s)
             if (cr1 & CR1_IDLEIE) {
                 return at;
             }
-        } else if (++bytes == left || ((cr1 & CR1_PEIE) && (flags & SR_PE)) ||
+        } else if (++bytes == MIN(left, RX_LOOKAHEAD) || ((cr1 & CR1_PEIE) && (flags & SR_PE)) ||
                    ((cr3 & CR3_EIE) && (flags & (SR_FE | SR_NF)))) {
             return at;
         }
