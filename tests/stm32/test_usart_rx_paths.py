@@ -4,7 +4,9 @@ own) with tests/stm32/firmware/usart_rx_paths.c: the same SBUS frames through th
 in memory, the same IDLE instants and the same error flags. IDLE comes a whole frame's time of idle line
 after the last stop bit (RM0090 30.6.1); at 100000 baud 8E2 a frame is 12 bits (30.3.3), so the IDLE of a
 frame of 25 bytes sent back to back is 26 frames after its start. PE is set for a byte with the wrong
-parity (30.3.7, 30.6.1)."""
+parity (30.3.7, 30.6.1). With the DMA's HTIE and TCIE the stream's HTIF and TCIF come at the bytes that
+set them (RM0090 10.3.9), each at its RXNE: the stop bit's middle, 10.5 bits after the byte's start
+(30.3.3) with 9-bit words (M = 1, the parity the ninth)."""
 
 from __future__ import annotations
 
@@ -81,3 +83,14 @@ def test_the_same_error_flags() -> None:
 
 def test_two_runs_give_the_same_reports() -> None:
     assert run() == linked()
+
+
+def test_the_streams_half_and_full_at_their_bytes() -> None:
+    """The 32-byte ring fills from the DMA phase's first frame: HTIF at its 16th byte, TCIF at the 32nd,
+    the 7th of the second frame."""
+    r = linked()
+    bit = HCLK // BAUD
+    ht = SENT_AT[1][0] * HCLK // 1000 + 15 * FRAME_CYCLES + 21 * bit // 2
+    tc = SENT_AT[1][1] * HCLK // 1000 + 6 * FRAME_CYCLES + 21 * bit // 2
+    assert abs(r["ht_at"] - ht) <= LATENCY, r["ht_at"] - ht
+    assert abs(r["tc_at"] - tc) <= LATENCY, r["tc_at"] - tc

@@ -4,7 +4,8 @@
    interrupt off, as Betaflight's SBUS receiver does. Both with the IDLE interrupt: at each IDLE the
    firmware notes CYCCNT and the error flags the frame left (the RXNE path: those seen with each byte;
    the DMA path: SR at IDLE), and the DMA path copies the bytes from its last position to 32 - NDTR.
-   Each phase gets three frames, the third with odd parity (PE on each byte, 30.6.1). The core runs on
+   Each phase gets three frames, the third with odd parity (PE on each byte, 30.6.1). The DMA path has
+   the stream's HTIE and TCIE on too: their first instants are noted in its interrupt. The core runs on
    the 16 MHz HSI; everything is reported once the six frames came or 60 ms passed. */
 #include "semihost.h"
 #include <stdint.h>
@@ -34,11 +35,17 @@
 #define CR3_DMAR (1u << 6)
 #define BRR_100K 160u /* 16 MHz / (16 x 10) */
 #define DMA2 0x40026400u
+#define DMA_HISR REG(DMA2 + 0x04u)
+#define DMA_HIFCR REG(DMA2 + 0x0Cu)
+#define HISR_HTIF5 (1u << 10) /* stream 5: its flags from bit 6 */
+#define HISR_TCIF5 (1u << 11)
 #define SCR REG(DMA2 + 0x10u + 0x18u * 5u)
 #define SNDTR REG(DMA2 + 0x14u + 0x18u * 5u)
 #define SPAR REG(DMA2 + 0x18u + 0x18u * 5u)
 #define SM0AR REG(DMA2 + 0x1Cu + 0x18u * 5u)
 #define CR_EN (1u << 0)
+#define CR_HTIE (1u << 3)
+#define CR_TCIE (1u << 4)
 #define CR_CIRC (1u << 8)
 #define CR_MINC (1u << 10)
 #define CR_CHSEL(c) ((uint32_t)(c) << 25)
@@ -47,6 +54,7 @@
 #define CYCCNT REG(0xE0001004u)
 #define NVIC_ISER(n) REG(0xE000E100u + 4u * (n))
 #define IRQ_USART1 37u
+#define IRQ_DMA2_STREAM5 68u
 #define MS 16000u /* CYCCNT at 16 MHz */
 
 #define RX_SIZE 32u
@@ -55,6 +63,7 @@
 
 static volatile uint8_t rx_buffer[RX_SIZE];
 static volatile uint8_t got[2][FRAMES * FRAME_LEN];
+static volatile uint32_t ht_at, tc_at, dma_start;
 static volatile uint32_t n_got[2], idle_at[2][FRAMES], idle_flags[2][FRAMES], n_idle[2], rx_pos, errors, by_dma;
 
 void usart1_handler(void)
@@ -84,6 +93,18 @@ void usart1_handler(void)
         }
         errors = 0;
     }
+}
+
+void dma2_stream5_handler(void)
+{
+    uint32_t now = CYCCNT, hisr = DMA_HISR;
+    if ((hisr & HISR_HTIF5) && ht_at == 0) {
+        ht_at = now;
+    }
+    if ((hisr & HISR_TCIF5) && tc_at == 0) {
+        tc_at = now;
+    }
+    DMA_HIFCR = hisr & (HISR_HTIF5 | HISR_TCIF5);
 }
 
 static void report_phase(unsigned p)
@@ -120,7 +141,8 @@ int main(void)
     SPAR = USART1 + 0x04u;
     SM0AR = (uint32_t)rx_buffer;
     SNDTR = RX_SIZE;
-    SCR = CR_CHSEL(4) | CR_MINC | CR_CIRC; /* peripheral-to-memory, bytes */
+    SCR = CR_CHSEL(4) | CR_MINC | CR_CIRC | CR_HTIE | CR_TCIE; /* peripheral-to-memory, bytes */
+    NVIC_ISER(IRQ_DMA2_STREAM5 / 32u) = 1u << (IRQ_DMA2_STREAM5 % 32u);
     SCR |= CR_EN;
     CR3 = CR3_DMAR;
     CR1 = CR1_UE | CR1_M | CR1_PCE | CR1_RE | CR1_IDLEIE;
@@ -129,6 +151,8 @@ int main(void)
     }
     report_phase(0);
     report_phase(1);
+    report("ht_at", ht_at);
+    report("tc_at", tc_at);
     put_text("done\n");
     return 0;
 }
