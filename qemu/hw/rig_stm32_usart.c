@@ -20,7 +20,9 @@
  *
  * Time is lazy, as in rig_stm32_i2c.c: what happened by now is carried out when the firmware touches a
  * register, when the link reaches a time (rig_link_sync_add) or when the sender's next frame comes; a
- * QEMU timer runs only when an interrupt or a DMA request may need an event's instant.
+ * QEMU timer runs only when an interrupt or a DMA request may need an event's instant; and with a DMA
+ * stream feeding the transmitter or draining the receiver, only at the instant an interrupt is due
+ * (tx_deadline here, rig_usart_rx_deadline in rig_stm32_usart_rx.c, the receiver's half).
  *
  * Not modelled: the synchronous mode (CLKEN), smartcard, IrDA, LIN and half-duplex modes, hardware flow
  * control (CTS stays 0), mute mode and wake-up (RWU, WAKE, ADD), break characters (SBK is cleared at
