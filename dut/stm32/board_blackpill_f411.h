@@ -38,7 +38,12 @@
 #define I2C_FAST_TRISE 16u
 #define I2C1_SCL_PIN 8u /* PB8, SDA PB9 (AF4) */
 
-#define SBUS_BAUD 100000UL      /* 8E2 on USART1 (PCLK2 100 MHz / (16 x 62.5)): exact */
+#define SBUS_BAUD 100000UL /* 8E2 on USART1 (PCLK2 100 MHz / (16 x 62.5)): exact */
+/* ... received into a circular buffer by DMA2 stream 5 channel 4 (USART1_RX, RM0383 table 28) */
+#define SBUS_DMA DMA2_BASE
+#define SBUS_DMA_EN RCC_AHB1ENR_DMA2EN
+#define SBUS_DMA_STREAM 5u
+#define SBUS_DMA_CHANNEL 4u
 #define TELEMETRY_BAUD 500000UL /* 50 MHz / (16 x 6.25): exact */
 /* telemetry on USART2 TX, PA2 AF7, its clock PCLK1 */
 #define TELEMETRY_USART USART2_BASE

@@ -37,7 +37,12 @@
 #define I2C_FAST_TRISE 13u
 #define I2C1_SCL_PIN 6u /* PB6, SDA PB7 (AF4) */
 
-#define SBUS_BAUD 100000UL      /* 8E2; 84 MHz / (16 x 52.5): exact */
+#define SBUS_BAUD 100000UL /* 8E2; 84 MHz / (16 x 52.5): exact */
+/* ... received into a circular buffer by DMA2 stream 5 channel 4 (USART1_RX, RM0090 table 43) */
+#define SBUS_DMA DMA2_BASE
+#define SBUS_DMA_EN RCC_AHB1ENR_DMA2EN
+#define SBUS_DMA_STREAM 5u
+#define SBUS_DMA_CHANNEL 4u
 #define TELEMETRY_BAUD 500000UL /* 84 MHz / (16 x 10.5): exact */
 /* telemetry on USART6 TX, PC6 AF8 (the Omnibus F4's UART6), its clock PCLK2 */
 #define TELEMETRY_USART USART6_BASE

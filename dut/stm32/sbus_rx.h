@@ -1,14 +1,12 @@
 /* SBUS on USART1 RX (PA10): 100000 baud, 8 data bits, even parity, 2 stop bits, the signal un-inverted
-   before the pin. A frame is found by the gap before it: a byte after more than SBUS_GAP_US of silence
-   starts one; 25 bytes make it. A byte with a parity or framing error or an overrun spoils its frame. */
+   before the pin. A frame is found by the gap after it (the USART's IDLE): 25 bytes since the last gap
+   make it. A parity or framing error or an overrun the USART shows at the gap spoils its frame. */
 #ifndef SBUS_RX_H
 #define SBUS_RX_H
 
 #include <stdint.h>
 
 #include "fc.h"
-
-#define SBUS_GAP_US 1500 /* a frame's 25 bytes are 3 ms back to back; frames are 7 or 14 ms apart */
 
 typedef struct {
     uint16_t frames;      /* complete frames handed over */

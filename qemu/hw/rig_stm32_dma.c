@@ -435,6 +435,7 @@ static void dma_write(void *opaque, hwaddr offset, uint64_t value, unsigned size
     if (offset >= STREAM_BASE && offset < STREAM_BASE + RIG_DMA_STREAMS * STREAM_STRIDE) {
         write_stream(s, (offset - STREAM_BASE) / STREAM_STRIDE, (offset - STREAM_BASE) % STREAM_STRIDE / 4, v);
         update_irqs(s);
+        sync_peripherals(s); /* (again: a lazy peripheral sets its timer by the stream as it is now) */
         return;
     }
     switch (rig_register_index(dma_registers, ARRAY_SIZE(dma_registers), offset)) {

@@ -20,7 +20,9 @@
  *
  * Time is lazy, as in rig_stm32_i2c.c: what happened by now is carried out when the firmware touches a
  * register, when the link reaches a time (rig_link_sync_add) or when the sender's next frame comes; a
- * QEMU timer runs only when an interrupt or a DMA request may need an event's instant.
+ * QEMU timer runs only when an interrupt or a DMA request may need an event's instant; and with a DMA
+ * stream feeding the transmitter or draining the receiver, only at the instant an interrupt is due
+ * (tx_deadline here, rig_usart_rx_deadline in rig_stm32_usart_rx.c, the receiver's half).
  *
  * Not modelled: the synchronous mode (CLKEN), smartcard, IrDA, LIN and half-duplex modes, hardware flow
  * control (CTS stays 0), mute mode and wake-up (RWU, WAKE, ADD), break characters (SBK is cleared at
@@ -31,7 +33,6 @@
 
 #include "qemu/osdep.h"
 
-#include "chardev/char-fe.h"
 #include "hw/irq.h"
 #include "hw/qdev-properties-system.h"
 #include "hw/qdev-properties.h"
@@ -39,7 +40,7 @@
 #include "qemu/log.h"
 #include "qemu/module.h"
 #include "qemu/timer.h"
-#include "rig_stm32f4.h"
+#include "rig_stm32_usart.h"
 
 #define APB1ENR 0x40
 #define APB2ENR 0x44
@@ -64,123 +65,13 @@ static const RigRegister uart_registers[] = {
     { 0x14, "CR3", 0x0000, 0x08CF },  /* ONEBIT, DMAT, DMAR, HDSEL, IRLP, IREN, EIE */
     { 0x18, "GTPR", 0x0000, 0x0000 }, /* reserved */
 };
-enum { R_SR, R_DR, R_BRR, R_CR1, R_CR2, R_CR3, R_GTPR, R_COUNT };
-
-#define SR_PE (1u << 0)
-#define SR_FE (1u << 1)
-#define SR_NF (1u << 2)
-#define SR_ORE (1u << 3)
-#define SR_IDLE (1u << 4)
-#define SR_RXNE (1u << 5)
-#define SR_TC (1u << 6)
-#define SR_TXE (1u << 7)
-#define SR_LBD (1u << 8)
-#define SR_CTS (1u << 9)
-#define SR_READ_CLEARED (SR_PE | SR_FE | SR_NF | SR_ORE | SR_IDLE) /* by SR read then DR read */
-#define CR1_SBK (1u << 0)
-#define CR1_RE (1u << 2)
-#define CR1_TE (1u << 3)
-#define CR1_IDLEIE (1u << 4)
-#define CR1_RXNEIE (1u << 5)
-#define CR1_TCIE (1u << 6)
-#define CR1_TXEIE (1u << 7)
-#define CR1_PEIE (1u << 8)
-#define CR1_PS (1u << 9)
-#define CR1_PCE (1u << 10)
-#define CR1_M (1u << 12)
-#define CR1_UE (1u << 13)
-#define CR1_OVER8 (1u << 15)
-#define CR2_STOP_SHIFT 12
-#define CR2_LBDIE (1u << 6)
-#define CR3_EIE (1u << 0)
-#define CR3_DMAR (1u << 6)
-#define CR3_DMAT (1u << 7)
-#define CR3_CTSIE (1u << 10)
-#define CR3_ONEBIT (1u << 11)
-
-#define NS 1000000000ull
-#define SIXTEENTHS 16
-
-/* The line as the sender drives it: its frames, each from its start (start bit, data bits, parity,
- * stop bits at its baud); idle (high) between them */
-typedef struct {
-    int64_t start_ns;
-    uint32_t baud;
-    uint8_t n_bits;
-    uint16_t bits; /* bit i: the level of the i-th bit on the wire */
-} UsartFrame;
-#define FRAMES RIG_USART_FRAMES
-
-typedef struct RigStm32UsartState {
-    SysBusDevice parent_obj;
-    MemoryRegion iomem;
-    RigStm32RccState *rcc;
-    RigStm32DmaState *dma_ctl; /* property "dma": the controller its requests go to */
-    CharBackend chr;
-    uint8_t apb, rcc_bit; /* its bus (1, 2) and bit in RCC_APBxENR/APBxRSTR (properties "apb", "rcc-bit") */
-    bool uart;            /* property "uart": UART4/UART5, without the synchronous and flow-control bits */
-    uint8_t index;        /* property "index": n of USARTn (its DMA requests' numbers, the trace's name) */
-    bool trace_bytes;     /* property "trace-bytes": each byte sent on stderr with its frame's end */
-    const RigRegister *table;
-    qemu_irq irq, dma[2]; /* "dma-rx", "dma-tx" */
-    bool dma_level[2];
-    bool catching_up; /* in catch_up(): the DMA's accesses it makes do not catch up again */
-    QEMUTimer *timer;
-    uint32_t regs[R_COUNT]; /* DR: the received data register (RDR) */
-    uint32_t sr_seen;       /* SR as last read: the first half of the clear sequences */
-    /* transmitter */
-    uint16_t tdr;       /* the byte written to DR, waiting while TXE = 0 */
-    bool tx_busy;       /* the shift register sends a frame, until tx_end_ns */
-    bool tx_idle_frame; /* that frame is TE's idle frame (nothing to the chardev) */
-    uint8_t tx_byte;    /* the byte it sends */
-    int64_t tx_end_ns;
-    /* receiver */
-    UsartFrame frames[FRAMES];
-    unsigned frame_head, n_frames;
-    int64_t rx_pos_ns;    /* the receiver looks for a start bit from here */
-    int64_t line_end_ns;  /* the end of the last frame the sender began */
-    bool idle_armed;      /* a frame was received since the last IDLE (30.6.1: IDLE once per RXNE) */
-    int64_t idle_from_ns; /* the end of that frame: IDLE a frame's time later if the line stays high */
-} RigStm32UsartState;
-
-OBJECT_DECLARE_SIMPLE_TYPE(RigStm32UsartState, RIG_STM32_USART)
 
 static bool usart_clocked(RigStm32UsartState *s)
 {
     return s->rcc == NULL || rig_stm32_rcc_enabled(s->rcc, s->apb == 1 ? APB1ENR : APB2ENR, s->rcc_bit);
 }
 
-/* PCLK ticks per bit: 16 x USARTDIV (OVER8 = 0, BRR as it is) or 8 x USARTDIV (OVER8 = 1, DIV_Fraction[2:0]
- * in eighths; BRR[3] must be kept clear); 30.3.4: baud = f_PCLK / (8 x (2 - OVER8) x USARTDIV) */
-static uint64_t ticks_per_bit(const RigStm32UsartState *s)
-{
-    uint32_t brr = s->regs[R_BRR];
-    uint64_t ticks = (s->regs[R_CR1] & CR1_OVER8) ? (brr >> 4) * 8 + (brr & 7) : brr;
-    return MAX(ticks, 1); /* BRR = 0 is no rate the manual allows: the fastest there is */
-}
-
-static uint64_t pclk_hz(const RigStm32UsartState *s)
-{
-    uint64_t hz = s->rcc ? rig_stm32_rcc_pclk_hz(s->rcc, s->apb) : 16000000;
-    return MAX(hz, 1);
-}
-
-/* @sixteenths of a bit at the USART's baud in ns */
-static int64_t bit_ns(const RigStm32UsartState *s, uint64_t sixteenths)
-{
-    return (int64_t)muldiv64(sixteenths * ticks_per_bit(s), NS, pclk_hz(s) * SIXTEENTHS);
-}
-
-static unsigned data_bits(const RigStm32UsartState *s) { return (s->regs[R_CR1] & CR1_M) ? 9 : 8; }
-
-/* A whole frame in sixteenths of a bit: start, data (with parity), stop (CR2.STOP: 1, 0.5, 2, 1.5) */
-static uint64_t frame_sixteenths(const RigStm32UsartState *s)
-{
-    static const unsigned stop[4] = { 16, 8, 32, 24 };
-    return (1 + data_bits(s)) * SIXTEENTHS + stop[s->regs[R_CR2] >> CR2_STOP_SHIFT & 3];
-}
-
-static void update_irqs(RigStm32UsartState *s)
+void rig_usart_update_irqs(RigStm32UsartState *s)
 {
     uint32_t sr = s->regs[R_SR], cr1 = s->regs[R_CR1], cr3 = s->regs[R_CR3];
     bool irq = ((cr1 & CR1_TXEIE) && (sr & SR_TXE)) || ((cr1 & CR1_TCIE) && (sr & SR_TC)) ||
@@ -235,141 +126,9 @@ static void tx_catch_up(RigStm32UsartState *s, int64_t now)
                     s->tx_byte);
         }
         tx_next(s, s->tx_end_ns);
-        update_irqs(s); /* (with DMAT the DMA fills DR at this instant, before the next frame) */
+        rig_usart_update_irqs(s); /* (with DMAT the DMA fills DR at this instant, before the next frame) */
     }
 }
-
-/* The level of the line at @t (idle, high, outside the sender's frames) */
-static bool line_level(const RigStm32UsartState *s, int64_t t)
-{
-    for (unsigned i = 0; i < s->n_frames; i++) {
-        const UsartFrame *f = &s->frames[(s->frame_head + i) % FRAMES];
-        if (t < f->start_ns) {
-            break;
-        }
-        uint64_t bit = muldiv64((uint64_t)(t - f->start_ns), f->baud, NS);
-        if (bit < f->n_bits) {
-            return f->bits >> bit & 1;
-        }
-    }
-    return true;
-}
-
-/* The first falling edge of the line at or after @from, or INT64_MAX */
-static int64_t next_falling_edge(const RigStm32UsartState *s, int64_t from)
-{
-    for (unsigned i = 0; i < s->n_frames; i++) {
-        const UsartFrame *f = &s->frames[(s->frame_head + i) % FRAMES];
-        for (unsigned b = 0; b < f->n_bits; b++) {
-            if ((f->bits >> b & 1) || (b > 0 && !(f->bits >> (b - 1) & 1))) {
-                continue;
-            }
-            int64_t edge = f->start_ns + (int64_t)((b * NS + f->baud - 1) / f->baud);
-            if (edge >= from) {
-                return edge;
-            }
-        }
-    }
-    return INT64_MAX;
-}
-
-/* Bit @k of a frame starting at @start as the receiver samples it (30.3.3: samples 8, 9 and 10 of 16,
- * or 4, 5 and 6 of 8 with OVER8, the majority taken; ONEBIT: the middle one); *noisy when they differ */
-static bool sample_bit(const RigStm32UsartState *s, int64_t start, unsigned k, bool *noisy)
-{
-    static const unsigned over16[3] = { 7, 8, 9 }, over8[3] = { 6, 8, 10 };
-    const unsigned *at = (s->regs[R_CR1] & CR1_OVER8) ? over8 : over16;
-    if (s->regs[R_CR3] & CR3_ONEBIT) {
-        return line_level(s, start + bit_ns(s, k * SIXTEENTHS + 8));
-    }
-    unsigned ones = 0;
-    for (unsigned i = 0; i < 3; i++) {
-        ones += line_level(s, start + bit_ns(s, k * SIXTEENTHS + at[i]));
-    }
-    *noisy |= ones == 1 || ones == 2;
-    return ones >= 2;
-}
-
-/* What the receiver sees next: a frame (its data and error flags at *at, the stop bit's middle) or IDLE
- * (flags SR_IDLE); false when the line stays idle. The line after the sender's last frame is idle: a frame
- * given later starts after now, and makes the next look again. */
-static bool rx_next(const RigStm32UsartState *s, int64_t *at, uint16_t *data, uint32_t *flags)
-{
-    int64_t idle_at = s->idle_armed ? s->idle_from_ns + bit_ns(s, frame_sixteenths(s)) : INT64_MAX;
-    for (int64_t from = s->rx_pos_ns;;) {
-        int64_t edge = next_falling_edge(s, from);
-        if (edge == INT64_MAX || edge >= idle_at) {
-            *at = idle_at;
-            *flags = SR_IDLE;
-            return idle_at != INT64_MAX;
-        }
-        bool noisy = false;
-        if (sample_bit(s, edge, 0, &noisy)) {
-            from = edge + 1; /* no start bit: a glitch (or the sender's bits out of step) */
-            continue;
-        }
-        unsigned n = data_bits(s), ones = 0;
-        *data = 0;
-        for (unsigned k = 0; k < n; k++) {
-            bool bit = sample_bit(s, edge, 1 + k, &noisy);
-            *data |= (uint16_t)bit << k;
-            ones += bit;
-        }
-        bool stop = sample_bit(s, edge, 1 + n, &noisy);
-        *flags = (stop ? 0 : SR_FE) | (noisy && !(s->regs[R_CR3] & CR3_ONEBIT) ? SR_NF : 0);
-        /* 30.3.7: even parity (PS = 0) makes the ones of the data and parity bits even, odd makes them odd */
-        if ((s->regs[R_CR1] & CR1_PCE) && (ones & 1) != !!(s->regs[R_CR1] & CR1_PS)) {
-            *flags |= SR_PE;
-        }
-        *at = edge + bit_ns(s, (1 + n) * SIXTEENTHS + 8);
-        return true;
-    }
-}
-
-static void rx_catch_up(RigStm32UsartState *s, int64_t now)
-{
-    uint32_t cr1 = s->regs[R_CR1];
-    if (!(cr1 & CR1_RE) || !(cr1 & CR1_UE)) { /* the receiver is off: what passes is not seen */
-        s->rx_pos_ns = MAX(s->rx_pos_ns, now);
-        s->idle_armed = false;
-    }
-    int64_t at;
-    uint16_t data;
-    uint32_t flags;
-    while (rx_next(s, &at, &data, &flags) && at <= now) {
-        if (flags == SR_IDLE) {
-            s->regs[R_SR] |= SR_IDLE;
-            s->idle_armed = false;
-            continue;
-        }
-        s->rx_pos_ns = at;
-        s->idle_armed = true;
-        s->idle_from_ns = at + bit_ns(s, frame_sixteenths(s) - (1 + data_bits(s)) * SIXTEENTHS - 8);
-        if (s->regs[R_SR] & SR_RXNE) {
-            s->regs[R_SR] |= SR_ORE; /* 30.6.1: the new byte is lost, DR keeps the one before */
-        } else {
-            s->regs[R_DR] = data;
-            s->regs[R_SR] = (s->regs[R_SR] & ~(SR_PE | SR_FE | SR_NF)) | flags | SR_RXNE;
-        }
-        update_irqs(s); /* (with DMAR the DMA takes DR at this instant, before the next byte) */
-    }
-    /* frames the receiver is done with */
-    while (s->n_frames) {
-        const UsartFrame *f = &s->frames[s->frame_head];
-        if (f->start_ns + (int64_t)muldiv64(f->n_bits, NS, f->baud) > MIN(s->rx_pos_ns, now)) {
-            break;
-        }
-        s->frame_head = (s->frame_head + 1) % FRAMES;
-        s->n_frames--;
-    }
-}
-
-#define DMA_CR_HTIE (1u << 3) /* RM0090 10.5.5, SxCR */
-#define DMA_CR_TCIE (1u << 4)
-#define DMA_CR_DIR_M2P (1u << 6)
-#define DMA_CR_DIR_MASK (3u << 6)
-#define DMA_CR_CIRC (1u << 8)
-#define DMA_CR_DBM (1u << 18)
 
 /* The instant the transmitter needs its QEMU timer for (INT64_MAX: none). Each frame's end while TXEIE,
  * TCIE or DMAT may want it; but with DMAT and the stream feeding it enabled (memory-to-peripheral, neither
@@ -418,19 +177,10 @@ static int64_t tx_deadline(RigStm32UsartState *s)
 /* The QEMU timer only when an interrupt or DMA request may follow the next event */
 static void arm(RigStm32UsartState *s)
 {
-    uint32_t cr1 = s->regs[R_CR1], cr3 = s->regs[R_CR3];
-    int64_t when = INT64_MAX, at;
-    uint16_t data;
-    uint32_t flags;
     if (s->catching_up) {
         return; /* (a DMA access inside catch_up: the caller arms once it is done) */
     }
-    when = tx_deadline(s);
-    if ((cr1 & (CR1_RXNEIE | CR1_IDLEIE | CR1_PEIE)) || (cr3 & (CR3_DMAR | CR3_EIE))) {
-        if (rx_next(s, &at, &data, &flags)) {
-            when = MIN(when, at);
-        }
-    }
+    int64_t when = MIN(tx_deadline(s), rig_usart_rx_deadline(s));
     if (when == INT64_MAX) {
         timer_del(s->timer);
     } else if (!timer_pending(s->timer) || timer_expire_time_ns(s->timer) != when) {
@@ -446,7 +196,7 @@ static void catch_up(RigStm32UsartState *s)
     int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
     s->catching_up = true;
     tx_catch_up(s, now);
-    rx_catch_up(s, now);
+    rig_usart_rx_catch_up(s, now);
     s->catching_up = false;
 }
 
@@ -454,7 +204,7 @@ static void usart_tick(void *opaque)
 {
     RigStm32UsartState *s = opaque;
     catch_up(s);
-    update_irqs(s);
+    rig_usart_update_irqs(s);
     arm(s);
 }
 
@@ -492,7 +242,7 @@ bool rig_stm32_usart_receive(DeviceState *dev, uint8_t byte, int64_t start_ns, u
     f->baud = MAX(baud, 1);
     f->start_ns = MAX(MAX(start_ns, now), s->line_end_ns);
     s->line_end_ns = f->start_ns + (int64_t)muldiv64(n, NS, f->baud);
-    update_irqs(s);
+    rig_usart_update_irqs(s);
     arm(s);
     return true;
 }
@@ -527,7 +277,7 @@ static uint64_t usart_read(void *opaque, hwaddr offset, unsigned size)
         qemu_log_mask(LOG_GUEST_ERROR, "rig-stm32f4-usart: read of reserved offset 0x%" HWADDR_PRIx "\n", offset);
         return 0;
     }
-    update_irqs(s);
+    rig_usart_update_irqs(s);
     arm(s);
     return value;
 }
@@ -558,7 +308,7 @@ static void write_cr1(RigStm32UsartState *s, uint32_t value)
     bool rx_now = (s->regs[R_CR1] & (CR1_RE | CR1_UE)) == (CR1_RE | CR1_UE);
     int64_t now = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
     if (!rx_was && rx_now) {
-        s->rx_pos_ns = now; /* the receiver looks for a start bit from now on */
+        s->rx.pos_ns = now; /* the receiver looks for a start bit from now on */
     }
     if (!te_was && te_now && !s->tx_busy) { /* 30.3.2: TE set sends an idle frame (the preamble) first */
         s->tx_busy = s->tx_idle_frame = true;
@@ -595,7 +345,7 @@ static void usart_write(void *opaque, hwaddr offset, uint64_t value, unsigned si
         qemu_log_mask(LOG_GUEST_ERROR, "rig-stm32f4-usart: write of reserved offset 0x%" HWADDR_PRIx "\n", offset);
         return;
     }
-    update_irqs(s);
+    rig_usart_update_irqs(s);
     arm(s);
 }
 
@@ -618,11 +368,11 @@ static void usart_reset(DeviceState *dev)
     }
     s->sr_seen = 0;
     s->tdr = 0;
-    s->tx_busy = s->tx_idle_frame = s->idle_armed = false;
+    s->tx_busy = s->tx_idle_frame = s->rx.idle_armed = false;
     s->catching_up = false;
     /* (the sender's frames stay: the line is outside the chip; those before now go unseen) */
-    s->rx_pos_ns = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
-    update_irqs(s);
+    s->rx.pos_ns = qemu_clock_get_ns(QEMU_CLOCK_VIRTUAL);
+    rig_usart_update_irqs(s);
 }
 
 static void usart_realize(DeviceState *dev, Error **errp)

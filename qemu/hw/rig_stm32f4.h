@@ -290,7 +290,8 @@ struct RigStm32DmaState {
 };
 
 /* @fn(@opaque) runs before each access to the DMA's registers: a peripheral that feeds a stream lazily (a
- * USART's transmitter) moves the items due by now first, so NDTR and the flags read are the chip's */
+ * USART's transmitter or receiver) moves the items due by now first, so NDTR and the flags read are the
+ * chip's; and after a stream's register is written, so it sets its timer by the stream as it is then */
 void rig_stm32_dma_add_sync(RigStm32DmaState *s, void (*fn)(void *opaque), void *opaque);
 /* The stream @source's requests reach now (the controller clocked, the stream enabled, its CHSEL the
  * request's channel, items left): its SxCR, NDTR and the NDTR it was enabled with; false when there is none */
