@@ -2,8 +2,9 @@
  * The STM32F4's ADCs, RM0090 section 13 (the F405's ADC1, ADC2 and ADC3 at 0x40012000, 0x40012100 and
  * 0x40012200, their common registers at 0x40012300) and RM0383 section 11 (the F411's ADC1 alone): one
  * device for the block, property "count" (the ADCs the chip has) and "chip" (405 or 411: the internal
- * channels). The registers are tables of data (13.13.18, the ADC register map): SR, CR1, CR2, SMPR1/2,
- * JOFR1-4, HTR, LTR, SQR1-3, JSQR, JDR1-4, DR per ADC, and CSR, CCR, CDR in common.
+ * channels), "dma" (DMA2, for its lazy scans) and "eager" (below). The registers are tables of data
+ * (13.13.18, the ADC register map; rig_stm32_adc_regs.h): SR, CR1, CR2, SMPR1/2, JOFR1-4, HTR, LTR,
+ * SQR1-3, JSQR, JDR1-4, DR per ADC, and CSR, CCR, CDR in common.
  *
  * A conversion takes its channel's sampling time (SMPx: 3 ... 480 cycles) and the resolution's bits (RES:
  * 12, 10, 8 or 6 cycles; 13.5) of the ADC clock, PCLK2 / 2, 4, 6 or 8 (CCR.ADCPRE), taken as the conversion
@@ -463,10 +464,8 @@ static void catch_up_all(RigStm32AdcState *s)
     }
 }
 
-static void timer_due(void *opaque) { catch_up_all(opaque); }
-
-/* What the DMA's register access or the link's stop sees: the ADCs up to now */
-static void sync_all(void *opaque) { catch_up_all(opaque); }
+/* The QEMU timer, an access to DMA2's registers, the link's stop: the ADCs up to now */
+static void up_to_now(void *opaque) { catch_up_all(opaque); }
 
 /* CR2's start bits (13.3.5, 13.3.9): SWSTART and JSWSTART read 1 until their conversion starts, at once */
 static void write_cr2(RigStm32AdcState *s, unsigned n, uint32_t value)
@@ -645,11 +644,11 @@ static void adc_realize(DeviceState *dev, Error **errp)
         return;
     }
     for (unsigned n = 0; n < ADC_UNITS; n++) {
-        s->unit[n].timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, timer_due, s);
+        s->unit[n].timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, up_to_now, s);
     }
-    rig_link_sync_add(sync_all, s);
+    rig_link_sync_add(up_to_now, s);
     if (s->dma_ctl != NULL) {
-        rig_stm32_dma_add_sync(s->dma_ctl, sync_all, s);
+        rig_stm32_dma_add_sync(s->dma_ctl, up_to_now, s);
     }
 }
 

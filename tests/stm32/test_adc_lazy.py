@@ -4,8 +4,9 @@ set), a QEMU timer only for the stream's interrupt instants and, after each chan
 until every item of the buffer was written again. What the firmware sees must not tell it from the ADC
 eager (the model's property "eager": a QEMU timer for every conversion): tests/stm32/firmware/adc_lazy.c
 copies the buffer with no register access, reads the stream's flags and NDTR, and takes the half- and
-transfer-complete interrupts, while the rig sets channel 11 to new volts at every 1 ms stop; both runs
-print the same bytes.
+transfer-complete interrupts, then copies a buffer of four items (no whole number of three-channel
+sequences: each round puts other channels at each place, so each conversion keeps its QEMU timer), while
+the rig sets channel 11 to new volts at every 1 ms stop; both runs print the same bytes.
 
 Independent truth, written here: each item is the code of its channel's volts (V / 3.3 V x 4095,
 rounded; RM0090 13.3.4's scan order SQ1, SQ2, SQ3 into consecutive half-words, 10.3.9's circular mode),
@@ -33,7 +34,7 @@ def ch11_volts(stop: int) -> Fraction:
 
 
 CONVERSION_CYCLES = (480 + 12) * 2  # ADC cycles at PCLK2 / 2, in 16 MHz CPU cycles
-ITEMS, SAMPLES, SAMPLE_CYCLES, INTERRUPTS = 6, 48, 2500, 12
+ITEMS, SAMPLES, SAMPLE_CYCLES, INTERRUPTS, ROTATING_SAMPLES = 6, 48, 2500, 12, 16
 HTIF, TCIF = 1 << 4, 1 << 5  # RM0090 10.5.1: stream 0's flags in LISR
 
 
@@ -106,3 +107,13 @@ def test_half_and_transfer_complete_interrupts_three_conversions_apart() -> None
     for k in range(INTERRUPTS):
         items = [r[f"irq{k:02d}_{i}"] for i in range(ITEMS)]
         assert items[0] == items[3] == code(FIXED[10]) and items[2] == items[5] == code(FIXED[12])
+
+
+def test_a_buffer_of_no_whole_number_of_sequences_rotates_the_channels() -> None:
+    """Four items of a three-channel scan: round r puts rank (4 r + i) mod 3 at place i, so the first place
+    sees channel 10's, 12's and 11's codes in turn, as copied with no register access."""
+    r = reports(output())
+    fixed = {code(FIXED[10]), code(FIXED[12])}
+    firsts = [r[f"rotating{k:02d}_0"] for k in range(ROTATING_SAMPLES)]
+    assert fixed <= set(firsts)
+    assert len(set(firsts) - fixed) >= 1  # (channel 11's)

@@ -4,7 +4,9 @@
    again into a circular buffer of two sequences by DMA2 stream 0, as Betaflight reads its battery and
    current. First with no interrupt: the buffer copied every SAMPLE_CYCLES with no register access (the
    memory as the core sees it between catch-ups), and every fourth time the stream's flags and NDTR too
-   (the flags then cleared); then with HTIE and TCIE, each interrupt's cycle, flags, NDTR and buffer. */
+   (the flags then cleared); then with HTIE and TCIE, each interrupt's cycle, flags, NDTR and buffer; then
+   into a buffer of ROTATING items, no whole number of sequences (each round puts other channels at each
+   place), copied every SAMPLE_CYCLES with no register access. */
 #include "semihost.h"
 #include "stm32f405.h"
 
@@ -44,6 +46,8 @@
 #define SAMPLES 48u
 #define SAMPLE_CYCLES 2500u /* (no multiple of a conversion's 984: the samples fall at every phase) */
 #define INTERRUPTS 12u
+#define ROTATING 4u
+#define ROTATING_SAMPLES 16u
 
 static volatile uint16_t buffer[ITEMS];
 static uint16_t samples[SAMPLES][ITEMS];
@@ -51,6 +55,7 @@ static uint32_t sample_lisr[SAMPLES], sample_ndtr[SAMPLES];
 static volatile uint32_t interrupts;
 static uint32_t irq_cycle[INTERRUPTS], irq_lisr[INTERRUPTS], irq_ndtr[INTERRUPTS];
 static uint16_t irq_buffer[INTERRUPTS][ITEMS];
+static uint16_t rotating[ROTATING_SAMPLES][ROTATING];
 
 void dma2_stream0_handler(void);
 void dma2_stream0_handler(void)
@@ -120,6 +125,22 @@ int main(void)
     }
     ADC1_CR2 = 0;
     DMA2_S0CR &= ~DMA_EN;
+    NVIC_ICER(DMA2_STREAM0_IRQ / 32u) = 1u << (DMA2_STREAM0_IRQ % 32u);
+    DMA2_LIFCR = STREAM0_FLAGS;
+    DMA2_S0NDTR = ROTATING;
+    DMA2_S0CR = DMA_HALFWORDS | DMA_MINC | DMA_CIRC;
+    DMA2_S0CR |= DMA_EN;
+    start = DWT_CYCCNT;
+    ADC1_CR2 = CR2_ADON | CR2_CONT | CR2_DMA | CR2_DDS | CR2_SWSTART;
+    for (unsigned k = 0; k < ROTATING_SAMPLES; k++) {
+        while (DWT_CYCCNT - start < (k + 1u) * SAMPLE_CYCLES) {
+        }
+        for (unsigned i = 0; i < ROTATING; i++) {
+            rotating[k][i] = buffer[i];
+        }
+    }
+    ADC1_CR2 = 0;
+    DMA2_S0CR &= ~DMA_EN;
     for (unsigned k = 0; k < SAMPLES; k++) {
         for (unsigned i = 0; i < ITEMS; i++) {
             report_at("sample", k, i, samples[k][i]);
@@ -136,6 +157,11 @@ int main(void)
         report_at("irq", k, 6, irq_lisr[k]);
         report_at("irq", k, 7, irq_ndtr[k]);
         report_at("irq", k, 8, irq_cycle[k]);
+    }
+    for (unsigned k = 0; k < ROTATING_SAMPLES; k++) {
+        for (unsigned i = 0; i < ROTATING; i++) {
+            report_at("rotating", k, i, rotating[k][i]);
+        }
     }
     put_text("done\n");
     exit_with(0);
