@@ -1,6 +1,7 @@
 /*
  * The STM32F4 ADCs' register map and bits (RM0090 section 13.13, table 71; RM0383 section 11.12) as data,
- * with the sampling times and resolutions, for the ADC model (rig_stm32_adc.c).
+ * with the sampling times, the resolutions and the analog supply and internal channels' volts, for the ADC
+ * model (rig_stm32_adc.c).
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
