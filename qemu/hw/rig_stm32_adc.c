@@ -2,8 +2,9 @@
  * The STM32F4's ADCs, RM0090 section 13 (the F405's ADC1, ADC2 and ADC3 at 0x40012000, 0x40012100 and
  * 0x40012200, their common registers at 0x40012300) and RM0383 section 11 (the F411's ADC1 alone): one
  * device for the block, property "count" (the ADCs the chip has) and "chip" (405 or 411: the internal
- * channels). The registers are tables of data (13.13.18, the ADC register map): SR, CR1, CR2, SMPR1/2,
- * JOFR1-4, HTR, LTR, SQR1-3, JSQR, JDR1-4, DR per ADC, and CSR, CCR, CDR in common.
+ * channels), "dma" (DMA2, for its lazy scans) and "eager" (below). The registers are tables of data
+ * (13.13.18, the ADC register map; rig_stm32_adc_regs.h): SR, CR1, CR2, SMPR1/2, JOFR1-4, HTR, LTR,
+ * SQR1-3, JSQR, JDR1-4, DR per ADC, and CSR, CCR, CDR in common.
  *
  * A conversion takes its channel's sampling time (SMPx: 3 ... 480 cycles) and the resolution's bits (RES:
  * 12, 10, 8 or 6 cycles; 13.5) of the ADC clock, PCLK2 / 2, 4, 6 or 8 (CCR.ADCPRE), taken as the conversion
@@ -27,9 +28,21 @@
  * F411's sensor on the channel they share).
  *
  * Lazy: what finished by now is worked out when the firmware touches the ADC (or an input changes), at
- * the instants it finished; a QEMU timer ends a conversion only while an interrupt or a DMA request must
- * come at that instant (each QEMU timer under icount wakes QEMU's main loop). A long run of continuous
- * conversions nobody reads is skipped by whole sequences.
+ * the instants it finished; a QEMU timer ends a conversion only while an interrupt must come at that
+ * instant (each QEMU timer under icount wakes QEMU's main loop). A long run of continuous conversions
+ * nobody reads is skipped by whole sequences. A scan feeding a DMA stream (CR2.DMA; DMA2's stream reading
+ * DR into memory) is lazy too, its transfers made at each conversion's instant in the catch-up, which also
+ * comes before each access to DMA2's registers (rig_stm32_dma_add_sync) and at each stop of the rig's link
+ * (rig_link_sync_add), so NDTR and the stream's flags read are the chip's; a QEMU timer then only for the
+ * instant of the stream's HTIF or TCIF with HTIE or TCIE (worked out ahead: the regular sequence repeats),
+ * and for each conversion until the memory the stream writes is settled: the core reads that memory with
+ * no catch-up, but once every item of the buffer (both, in double-buffer mode) was written after the last
+ * change (an ADC register or input, the stream's configuration), each later round writes the values
+ * already there, the buffer a whole number of sequences long. So the memory holds at every instant what
+ * the chip's would, unless something else writes it (the core: then the stream overwrites it at the next
+ * catch-up, not at the conversion's instant). Eager (a QEMU timer for every DMA conversion): a stream's
+ * transfer-error interrupt (TEIE: a bus error's instant is not known ahead), one not reading DR, a buffer
+ * that is no whole number of sequences, injected conversions under way or JAUTO, or the property "eager".
  *
  * Not modelled: external triggers (EXTEN, EXTSEL, JEXTEN, JEXTSEL stored), discontinuous mode (DISCEN,
  * JDISCEN, DISCNUM stored), the multi-ADC modes (CCR.MULTI, DELAY, DMA, DDS stored; CDR reads 0), the
@@ -47,97 +60,13 @@
 #include "qemu/log.h"
 #include "qemu/module.h"
 #include "qemu/timer.h"
+#include "rig_stm32_adc_regs.h"
 #include "rig_stm32f4.h"
 
 #define APB2ENR 0x44
 #define APB2ENR_ADC1EN 8 /* ADC2EN 9, ADC3EN 10 */
 #define UNIT_STRIDE 0x100
 #define COMMON_BASE 0x300
-
-/* RM0090 13.13.1-13.13.15 (table 71, the ADC register map): each ADC's registers */
-static const RigRegister adc_registers[] = {
-    { 0x00, "SR", 0x00000000, 0x0000003F },    /* AWD, EOC, JEOC, JSTRT, STRT, OVR: rc_w0 */
-    { 0x04, "CR1", 0x00000000, 0x07C0FFFF },   /* AWDCH ... DISCNUM, JAWDEN, AWDEN, RES, OVRIE */
-    { 0x08, "CR2", 0x00000000, 0x7F7F0F03 },   /* ADON, CONT, DMA, DDS, EOCS, ALIGN, J/EXTSEL, J/EXTEN, J/SWSTART */
-    { 0x0C, "SMPR1", 0x00000000, 0x07FFFFFF }, /* SMP10 ... SMP18 */
-    { 0x10, "SMPR2", 0x00000000, 0x3FFFFFFF }, /* SMP0 ... SMP9 */
-    { 0x14, "JOFR1", 0x00000000, 0x00000FFF }, { 0x18, "JOFR2", 0x00000000, 0x00000FFF },
-    { 0x1C, "JOFR3", 0x00000000, 0x00000FFF }, { 0x20, "JOFR4", 0x00000000, 0x00000FFF },
-    { 0x24, "HTR", 0x00000FFF, 0x00000FFF },   { 0x28, "LTR", 0x00000000, 0x00000FFF },
-    { 0x2C, "SQR1", 0x00000000, 0x00FFFFFF }, /* SQ13 ... SQ16, L */
-    { 0x30, "SQR2", 0x00000000, 0x3FFFFFFF }, /* SQ7 ... SQ12 */
-    { 0x34, "SQR3", 0x00000000, 0x3FFFFFFF }, /* SQ1 ... SQ6 */
-    { 0x38, "JSQR", 0x00000000, 0x003FFFFF }, /* JSQ1 ... JSQ4, JL */
-    { 0x3C, "JDR1", 0x00000000, 0x00000000 },  { 0x40, "JDR2", 0x00000000, 0x00000000 },
-    { 0x44, "JDR3", 0x00000000, 0x00000000 },  { 0x48, "JDR4", 0x00000000, 0x00000000 },
-    { 0x4C, "DR", 0x00000000, 0x00000000 },
-};
-enum {
-    R_SR,
-    R_CR1,
-    R_CR2,
-    R_SMPR1,
-    R_SMPR2,
-    R_JOFR1,
-    R_HTR = R_JOFR1 + 4,
-    R_LTR,
-    R_SQR1,
-    R_SQR2,
-    R_SQR3,
-    R_JSQR,
-    R_JDR1,
-    R_DR = R_JDR1 + 4,
-    R_REGS
-};
-
-/* 13.13.16-13.13.18: the common registers, from 0x300 */
-static const RigRegister common_registers[] = {
-    { 0x00, "CSR", 0x00000000, 0x00000000 }, /* the three SRs, read only */
-    { 0x04, "CCR", 0x00000000, 0x00C3EF1F }, /* MULTI, DELAY, DDS, DMA, ADCPRE, VBATE, TSVREFE */
-    { 0x08, "CDR", 0x00000000, 0x00000000 }, /* multi mode's data: not modelled */
-};
-enum { C_CSR, C_CCR, C_CDR };
-
-#define SR_AWD (1u << 0)
-#define SR_EOC (1u << 1)
-#define SR_JEOC (1u << 2)
-#define SR_JSTRT (1u << 3)
-#define SR_STRT (1u << 4)
-#define SR_OVR (1u << 5)
-#define CR1_AWDCH 0x1Fu
-#define CR1_EOCIE (1u << 5)
-#define CR1_AWDIE (1u << 6)
-#define CR1_JEOCIE (1u << 7)
-#define CR1_SCAN (1u << 8)
-#define CR1_AWDSGL (1u << 9)
-#define CR1_JAUTO (1u << 10)
-#define CR1_JAWDEN (1u << 22)
-#define CR1_AWDEN (1u << 23)
-#define CR1_RES_SHIFT 24
-#define CR1_OVRIE (1u << 26)
-#define CR2_ADON (1u << 0)
-#define CR2_CONT (1u << 1)
-#define CR2_DMA (1u << 8)
-#define CR2_EOCS (1u << 10)
-#define CR2_ALIGN (1u << 11)
-#define CR2_JSWSTART (1u << 22)
-#define CR2_SWSTART (1u << 30)
-#define CCR_MULTI 0x1Fu
-#define CCR_ADCPRE_SHIFT 16
-#define CCR_VBATE (1u << 22)
-#define CCR_TSVREFE (1u << 23)
-
-#define ADC_UNITS 3
-#define ADC_INPUTS 16 /* the external channels */
-#define ADC_CHANNELS 19
-#define VDDA_UV 3300000u   /* the board's analog supply and reference */
-#define TEMP_25C_UV 760000 /* DS8626 table 68 (temperature sensor): V25 */
-#define VREFINT_UV 1210000 /* DS8626 table 69 (internal reference voltage): typical */
-#define VBAT_UV 3000000    /* the backup battery: a fixed 3.0 V coin cell */
-
-/* 13.13.4, 13.13.5: SMPx, the sampling time in ADC clock cycles; 13.13.2: RES, the bits (conversion cycles) */
-static const uint16_t sampling_cycles[8] = { 3, 15, 28, 56, 84, 112, 144, 480 };
-static const uint8_t resolution_bits[4] = { 12, 10, 8, 6 };
 
 typedef enum { CONV_NONE, CONV_REGULAR, CONV_INJECTED } ConvKind;
 
@@ -152,14 +81,24 @@ typedef struct RigAdcUnit {
     int64_t conv_start_ns, conv_end_ns;
     bool dr_full; /* DR holds a regular result not yet read (overrun detection) */
     bool dma_level;
+    /* the stream the lazy scan feeds as last seen (a change: its memory unsettled again), and the
+     * conversions still to be made at their own instants before that memory is settled */
+    struct {
+        const RigDmaStream *stream;
+        uint32_t cr, par, m0ar, m1ar, reload;
+    } seen;
+    bool seen_valid;
+    uint32_t unsettled;
 } RigAdcUnit;
 
 struct RigStm32AdcState {
     SysBusDevice parent_obj;
     MemoryRegion iomem;
     RigStm32RccState *rcc;
-    uint8_t count; /* property "count": the ADCs the chip has (3 on the F405, 1 on the F411) */
-    uint32_t chip; /* property "chip": 405 or 411 */
+    RigStm32DmaState *dma_ctl; /* property "dma": DMA2, which the requests reach */
+    bool eager;                /* property "eager": a QEMU timer for every DMA conversion, needed or not */
+    uint8_t count;             /* property "count": the ADCs the chip has (3 on the F405, 1 on the F411) */
+    uint32_t chip;             /* property "chip": 405 or 411 */
     uint32_t ccr;
     qemu_irq irq; /* the ADCs' global interrupt */
     qemu_irq dma[ADC_UNITS];
@@ -355,6 +294,7 @@ static void finish(RigStm32AdcState *s, unsigned n)
         }
     }
     if (u->regs[R_CR2] & CR2_DMA) {
+        u->unsettled -= u->unsettled > 0;
         set_dma(s, n, true);
     }
     start_next(s, u, at);
@@ -394,15 +334,122 @@ static void catch_up_unit(RigStm32AdcState *s, unsigned n)
     update_irq(s);
 }
 
-/* A QEMU timer at the end of the conversion under way only when something must happen then */
+#define DMA_CR_TEIE (1u << 2) /* RM0090 10.5.5, SxCR */
+#define DMA_CR_HTIE (1u << 3)
+#define DMA_CR_TCIE (1u << 4)
+#define DMA_CR_DIR_MASK (3u << 6) /* 00: peripheral to memory */
+#define DMA_CR_PINC (1u << 9)
+#define DMA_CR_MINC (1u << 10)
+#define DMA_CR_DBM (1u << 18)
+#define DMA_CR_CT (1u << 19)
+
+/* The end of the @k-th regular conversion from the one under way (its own end: k = 1), with no injected
+ * one between; INT64_MAX past the sequence's end without CONT */
+static int64_t regular_end(RigStm32AdcState *s, const RigAdcUnit *u, uint64_t k)
+{
+    unsigned length = regular_length(u), rank = u->reg_rank;
+    int64_t at = u->conv_end_ns;
+    bool cont = u->regs[R_CR2] & CR2_CONT;
+    if (--k >= length && cont) { /* (any run of @length conversions takes one sequence's time) */
+        int64_t sequence_ns = 0;
+        for (unsigned r = 0; r < length; r++) {
+            sequence_ns += conversion_ns(s, u, regular_channel(u, r));
+        }
+        at += (int64_t)(k / length) * sequence_ns;
+        k %= length;
+    }
+    for (; k > 0; k--) {
+        if (++rank >= length) {
+            if (!cont) {
+                return INT64_MAX;
+            }
+            rank = 0;
+        }
+        at += conversion_ns(s, u, regular_channel(u, rank));
+    }
+    return at;
+}
+
+/* The stream reads DR into memory, one item a regular conversion, each memory address always getting the
+ * same rank's value (a buffer of whole sequences, or a single conversion), and raises no interrupt whose
+ * instant is not known ahead: its transfers can wait for a catch-up */
+static bool stream_lazy(RigStm32AdcState *s, unsigned n, const RigDmaStream *st)
+{
+    const RigAdcUnit *u = &s->unit[n];
+    hwaddr dr = SYS_BUS_DEVICE(s)->mmio[0].addr + n * UNIT_STRIDE + adc_registers[R_DR].offset;
+    unsigned length = regular_length(u);
+    return !s->eager && u->conv == CONV_REGULAR && !u->injected && !(u->regs[R_CR1] & CR1_JAUTO) &&
+           !(st->cr & (DMA_CR_DIR_MASK | DMA_CR_PINC | DMA_CR_TEIE)) && st->par == dr && st->reload % length == 0 &&
+           ((st->cr & DMA_CR_MINC) || length == 1);
+}
+
+/* The memory the stream writes is unsettled again when it is not the one last seen (the stream's
+ * configuration less CT, which each double-buffer round toggles) */
+static void see_stream(RigAdcUnit *u, const RigDmaStream *st)
+{
+    uint32_t cr = st->cr & ~DMA_CR_CT;
+    if (!u->seen_valid || u->seen.stream != st || u->seen.cr != cr || u->seen.par != st->par ||
+        u->seen.m0ar != st->m0ar || u->seen.m1ar != st->m1ar || u->seen.reload != st->reload) {
+        u->seen.stream = st;
+        u->seen.cr = cr;
+        u->seen.par = st->par;
+        u->seen.m0ar = st->m0ar;
+        u->seen.m1ar = st->m1ar;
+        u->seen.reload = st->reload;
+        u->seen_valid = true;
+        u->unsettled = st->reload * ((st->cr & DMA_CR_DBM) ? 2 : 1);
+    }
+}
+
+/* The instant ADC @n needs a QEMU timer for (INT64_MAX: none): the conversion under way's end while an
+ * interrupt may follow it, or while its DMA request must be served then; a lazy scan's stream's HTIF or
+ * TCIF with their interrupts enabled. With CR2.DMA and no stream to take the request, nothing needs its
+ * instant: it stays up (an overrun at the next conversion), and a stream enabled later brings the ADC up
+ * to now first */
+static int64_t deadline(RigStm32AdcState *s, unsigned n)
+{
+    RigAdcUnit *u = &s->unit[n];
+    if (u->conv == CONV_NONE) {
+        return INT64_MAX;
+    }
+    if (u->regs[R_CR1] & (CR1_EOCIE | CR1_JEOCIE | CR1_AWDIE | CR1_OVRIE) || (s->eager && (u->regs[R_CR2] & CR2_DMA))) {
+        return u->conv_end_ns;
+    }
+    const RigDmaStream *st = NULL;
+    if ((u->regs[R_CR2] & CR2_DMA) && s->dma_ctl != NULL) {
+        st = rig_stm32_dma_request_target(s->dma_ctl, RIG_DMA_ADC(n + 1));
+    }
+    if (st == NULL) {
+        u->seen_valid = false;
+        return INT64_MAX;
+    }
+    if (!stream_lazy(s, n, st)) {
+        u->seen_valid = false;
+        return u->conv_end_ns;
+    }
+    see_stream(u, st);
+    if (u->unsettled > 0) {
+        return u->conv_end_ns;
+    }
+    int64_t when = INT64_MAX;
+    if (st->cr & DMA_CR_TCIE) {
+        when = regular_end(s, u, st->ndtr);
+    }
+    if (st->cr & DMA_CR_HTIE) { /* (HTIF: the item with 2 x done >= reload first; rig_stm32_dma.c) */
+        uint32_t done = st->reload - st->ndtr, half = (st->reload + 1) / 2;
+        when = MIN(when, regular_end(s, u, done < half ? half - done : st->ndtr + half));
+    }
+    return when;
+}
+
 static void arm(RigStm32AdcState *s, unsigned n)
 {
     RigAdcUnit *u = &s->unit[n];
-    bool needed = (u->regs[R_CR2] & CR2_DMA) || (u->regs[R_CR1] & (CR1_EOCIE | CR1_JEOCIE | CR1_AWDIE | CR1_OVRIE));
-    if (u->conv != CONV_NONE && needed) {
-        timer_mod(u->timer, u->conv_end_ns);
-    } else {
+    int64_t when = deadline(s, n);
+    if (when == INT64_MAX) {
         timer_del(u->timer);
+    } else if (!timer_pending(u->timer) || timer_expire_time_ns(u->timer) != when) {
+        timer_mod(u->timer, when);
     }
 }
 
@@ -417,7 +464,8 @@ static void catch_up_all(RigStm32AdcState *s)
     }
 }
 
-static void timer_due(void *opaque) { catch_up_all(opaque); }
+/* The QEMU timer, an access to DMA2's registers, the link's stop: the ADCs up to now */
+static void up_to_now(void *opaque) { catch_up_all(opaque); }
 
 /* CR2's start bits (13.3.5, 13.3.9): SWSTART and JSWSTART read 1 until their conversion starts, at once */
 static void write_cr2(RigStm32AdcState *s, unsigned n, uint32_t value)
@@ -508,6 +556,10 @@ static void adc_write(void *opaque, hwaddr offset, uint64_t v64, unsigned size)
         if (s->ccr & CCR_MULTI) {
             qemu_log_mask(LOG_UNIMP, "rig-stm32f4-adc: multi-ADC mode %u not modelled\n", s->ccr & CCR_MULTI);
         }
+        for (unsigned k = 0; k < s->count; k++) { /* (the internal channels' volts, the clock) */
+            s->unit[k].seen_valid = false;
+            arm(s, k);
+        }
         return;
     }
     int r = rig_register_index(adc_registers, ARRAY_SIZE(adc_registers), offset % UNIT_STRIDE);
@@ -528,6 +580,7 @@ static void adc_write(void *opaque, hwaddr offset, uint64_t v64, unsigned size)
     } else {
         u->regs[r] = (u->regs[r] & ~adc_registers[r].writable) | (value & adc_registers[r].writable);
     }
+    u->seen_valid = false; /* (what a scan writes may differ from now on) */
     update_irq(s);
     arm(s, n);
 }
@@ -539,7 +592,12 @@ bool rig_stm32_adc_set_input(DeviceState *dev, unsigned adc, unsigned channel, u
         return false;
     }
     catch_up_all(s); /* (conversions that ended before now read the volts before) */
-    s->unit[adc - 1].input_uv[channel] = microvolts;
+    RigAdcUnit *u = &s->unit[adc - 1];
+    if (u->input_uv[channel] != microvolts) {
+        u->input_uv[channel] = microvolts;
+        u->seen_valid = false;
+        arm(s, adc - 1);
+    }
     return true;
 }
 
@@ -565,6 +623,8 @@ static void adc_reset(DeviceState *dev)
         u->regular = u->injected = false;
         u->conv = CONV_NONE;
         u->dr_full = false;
+        u->seen_valid = false;
+        u->unsettled = 0;
         if (u->timer != NULL) {
             timer_del(u->timer);
         }
@@ -584,7 +644,11 @@ static void adc_realize(DeviceState *dev, Error **errp)
         return;
     }
     for (unsigned n = 0; n < ADC_UNITS; n++) {
-        s->unit[n].timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, timer_due, s);
+        s->unit[n].timer = timer_new_ns(QEMU_CLOCK_VIRTUAL, up_to_now, s);
+    }
+    rig_link_sync_add(up_to_now, s);
+    if (s->dma_ctl != NULL) {
+        rig_stm32_dma_add_sync(s->dma_ctl, up_to_now, s);
     }
 }
 
@@ -599,6 +663,8 @@ static void adc_init(Object *obj)
 
 static Property adc_properties[] = {
     DEFINE_PROP_LINK("rcc", RigStm32AdcState, rcc, TYPE_RIG_STM32_RCC, RigStm32RccState *),
+    DEFINE_PROP_LINK("dma", RigStm32AdcState, dma_ctl, TYPE_RIG_STM32_DMA, RigStm32DmaState *),
+    DEFINE_PROP_BOOL("eager", RigStm32AdcState, eager, false),
     DEFINE_PROP_UINT8("count", RigStm32AdcState, count, 3),
     DEFINE_PROP_UINT32("chip", RigStm32AdcState, chip, 405),
     DEFINE_PROP_END_OF_LIST(),

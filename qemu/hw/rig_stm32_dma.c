@@ -270,6 +270,15 @@ static int stream_of(RigStm32DmaState *s, unsigned source)
     return -1;
 }
 
+/* The lazy peripherals up to now before a register access, and again after a write (rig_stm32_dma_add_sync):
+ * a stream enabled or reconfigured changes the instants they need a QEMU timer for */
+static void sync_peripherals(RigStm32DmaState *s)
+{
+    for (unsigned i = 0; i < s->n_sync; i++) {
+        s->sync[i].fn(s->sync[i].opaque);
+    }
+}
+
 /* Serves the pending requests, those raised while serving included. A firmware whose transfers raise
  * their own requests again (a timer's UG written by its update DMA) would never let virtual time move:
  * after RIG_DMA_ROUNDS_AT_ONCE rounds of them the rest wait a while, and the core runs on */
@@ -301,7 +310,12 @@ static void serve(RigStm32DmaState *s)
     }
 }
 
-static void serve_later(void *opaque) { serve(opaque); }
+/* (the lazy peripherals after: their requests' streams moved on outside their catch-ups) */
+static void serve_later(void *opaque)
+{
+    serve(opaque);
+    sync_peripherals(opaque);
+}
 
 void rig_stm32_dma_add_sync(RigStm32DmaState *s, void (*fn)(void *opaque), void *opaque)
 {
@@ -310,24 +324,22 @@ void rig_stm32_dma_add_sync(RigStm32DmaState *s, void (*fn)(void *opaque), void 
     s->sync[s->n_sync++].opaque = opaque;
 }
 
-bool rig_stm32_dma_request_stream(RigStm32DmaState *s, unsigned source, uint32_t *cr, uint32_t *ndtr, uint32_t *reload)
+const RigDmaStream *rig_stm32_dma_request_target(RigStm32DmaState *s, unsigned source)
 {
     int n = dma_clocked(s) ? stream_of(s, source) : -1;
-    if (n < 0) {
-        return false;
-    }
-    *cr = s->stream[n].cr;
-    *ndtr = s->stream[n].ndtr;
-    *reload = s->stream[n].reload;
-    return true;
+    return n < 0 ? NULL : &s->stream[n];
 }
 
-/* The lazy peripherals up to now before a register access (rig_stm32_dma_add_sync) */
-static void sync_peripherals(RigStm32DmaState *s)
+bool rig_stm32_dma_request_stream(RigStm32DmaState *s, unsigned source, uint32_t *cr, uint32_t *ndtr, uint32_t *reload)
 {
-    for (unsigned i = 0; i < s->n_sync; i++) {
-        s->sync[i].fn(s->sync[i].opaque);
+    const RigDmaStream *st = rig_stm32_dma_request_target(s, source);
+    if (st == NULL) {
+        return false;
     }
+    *cr = st->cr;
+    *ndtr = st->ndtr;
+    *reload = st->reload;
+    return true;
 }
 
 static void request_changed(void *opaque, int source, int level)

@@ -289,13 +289,15 @@ struct RigStm32DmaState {
     unsigned n_sync;
 };
 
-/* @fn(@opaque) runs before each access to the DMA's registers: a peripheral that feeds a stream lazily (a
- * USART's transmitter or receiver) moves the items due by now first, so NDTR and the flags read are the
- * chip's; and after a stream's register is written, so it sets its timer by the stream as it is then */
+/* @fn(@opaque) runs before each access to the DMA's registers, and after a write to a stream's: a peripheral
+ * that feeds a stream lazily (a USART's transmitter or receiver, an ADC's scan) moves the items due by now first, so NDTR
+ * and the flags read are the chip's, and arms its QEMU timer again for the stream as written */
 void rig_stm32_dma_add_sync(RigStm32DmaState *s, void (*fn)(void *opaque), void *opaque);
 /* The stream @source's requests reach now (the controller clocked, the stream enabled, its CHSEL the
  * request's channel, items left): its SxCR, NDTR and the NDTR it was enabled with; false when there is none */
 bool rig_stm32_dma_request_stream(RigStm32DmaState *s, unsigned source, uint32_t *cr, uint32_t *ndtr, uint32_t *reload);
+/* The same stream itself (its addresses too), or NULL */
+const RigDmaStream *rig_stm32_dma_request_target(RigStm32DmaState *s, unsigned source);
 
 /* I2C v1 (RM0090 section 27), master mode */
 #define TYPE_RIG_STM32_I2C "rig-stm32f4-i2c"

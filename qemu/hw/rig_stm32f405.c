@@ -357,6 +357,7 @@ static void map_adcs(const RigStm32Chip *chip, RigStm32RccState *rcc, DeviceStat
     qdev_prop_set_uint8(dev, "count", chip->adcs);
     qdev_prop_set_uint32(dev, "chip", chip->part);
     object_property_set_link(OBJECT(dev), "rcc", OBJECT(rcc), &error_fatal);
+    object_property_set_link(OBJECT(dev), "dma", OBJECT(dma2), &error_fatal);
     sysbus_realize_and_unref(SYS_BUS_DEVICE(dev), &error_fatal);
     sysbus_mmio_map_overlap(SYS_BUS_DEVICE(dev), 0, ADC_BASE, 1);
     sysbus_connect_irq(SYS_BUS_DEVICE(dev), 0, qdev_get_gpio_in(nvic, IRQ_ADC));
