@@ -12,7 +12,11 @@ from pathlib import Path
 
 import pytest
 
+from rig.emulators import sbus
+from rig.mcu import board as boards
 from rig.mcu import stm32_engine
+from rig.mcu.session import McuConfig, McuSession
+from rig.world import World
 from tests.suite_rules import NOT_BUILT
 
 REPO = Path(__file__).resolve().parents[2]
@@ -64,3 +68,24 @@ def run_to_done(name: str, *qemu_args: str,
 def reports(stdout: str) -> dict[str, int]:
     """The NAME=0xVALUE lines a test firmware wrote."""
     return {m.group(1): int(m.group(2), 16) for m in REPORT_LINE.finditer(stdout)}
+
+
+#: the serial ports of the receiver tests' MCU sessions (the board's RC and telemetry USARTs)
+RC_PORT, TEL_PORT = "/dev/ttyRC0", "/dev/ttyTEL0"
+
+
+def receiver_session_lines(board_file: Path, name: str, channels: list[int]) -> tuple[list[str], list[int]]:
+    """Firmware ``name`` flown 0.2 s on the board through the MCU session, the scenario's RC frames
+    (SBUS, as the scenarios write them) sent at 20, 40 and 60 ms: its telemetry lines, and the widths in
+    microseconds a receiver maps the first 8 channels to (172 -> 1000 us, 1811 -> 2000 us, written here)."""
+    board = boards.load(board_file)
+    world = World.at_rest(seed=0, topology=board.topology)
+    session = McuSession(McuConfig(board, firmware(name), 0.2, RC_PORT, TEL_PORT), world)
+    frame = sbus.encode(channels)
+    for t in (0.02, 0.04, 0.06):
+        session.at(t, lambda s: s.serial_write(RC_PORT, frame))
+    outcome = session.run()
+    world.close()
+    assert outcome.verdict == "ok", outcome.error
+    want = [round(1000 + (c - 172) * (2000 - 1000) / (1811 - 172)) for c in channels[:8]]
+    return session.serial_output(TEL_PORT).decode().splitlines(), want

@@ -14,13 +14,11 @@ from pathlib import Path
 
 import pytest
 
-from rig.emulators import sbus
 from rig.mcu import board as boards
 from rig.mcu.board import Board, BoardError
-from rig.mcu.session import PWM_FRAME_NS, McuConfig, McuSession
+from rig.mcu.session import PWM_FRAME_NS
 from rig.mcu.stm32_link import Stm32Config, Stm32Engine
-from rig.world import World
-from tests.stm32.conftest import engine_or_skip, firmware, reports
+from tests.stm32.conftest import engine_or_skip, firmware, receiver_session_lines, reports
 
 STEP_NS = 1_000_000
 FIRST_FRAME_NS = 2_000_000
@@ -34,7 +32,6 @@ FRAMES = [
     [2000, 1000, 1500, 1500, 1200, 1800, 1333, 1667],
 ]
 SHIPPED = boards.BOARDS / "stm32f405-gy86.toml"
-RC, TEL = "/dev/ttyRC0", "/dev/ttyTEL0"
 #: SBUS values as a scenario's sticks send them (172..1811; 16 channels, of which the receiver puts 8 out)
 SBUS_CHANNELS = [172, 992, 1811, 500, 1500, 992, 300, 1700, 992, 992, 992, 992, 992, 992, 992, 992]
 
@@ -102,18 +99,7 @@ def test_the_sessions_rc_frames_reach_the_firmware_as_pulses(tmp_path: Path) -> 
     become a pulse on each channel's pin every PWM_FRAME_NS (rig/mcu/session.py), and pwm_rx's telemetry
     lines on USART6 carry the widths back exactly, each as a receiver maps SBUS to microseconds."""
     engine_or_skip()
-    board = boards.load(pwm_board(tmp_path, PINS))
-    world = World.at_rest(seed=0, topology=board.topology)
-    session = McuSession(McuConfig(board, firmware("pwm_rx"), 0.2, RC, TEL), world)
-    frame = sbus.encode(SBUS_CHANNELS)
-    for t in (0.02, 0.04, 0.06):
-        session.at(t, lambda s: s.serial_write(RC, frame))
-    outcome = session.run()
-    world.close()
-    assert outcome.verdict == "ok", outcome.error
-    lines = session.serial_output(TEL).decode().splitlines()
-    # the receiver's line through its two ends, written here: 172 -> 1000 us, 1811 -> 2000 us
-    want = [round(1000 + (c - 172) * (2000 - 1000) / (1811 - 172)) for c in SBUS_CHANNELS[:8]]
+    lines, want = receiver_session_lines(pwm_board(tmp_path, PINS), "pwm_rx", SBUS_CHANNELS)
     assert lines and all(line == "PWM " + " ".join(map(str, want)) for line in lines), lines
     # a frame each period from the first period after the first RC frame (20 ms): at 40, 60, ... 180 ms
     # (the one at 200 ms ends after the run), each over within its 20 ms
