@@ -113,6 +113,13 @@ def test_an_installed_wheel_runs_from_anywhere(installed: Path, tmp_path: Path) 
     assert Path(result["metadata"]["scenario_file"]).is_relative_to(installed.parent)
     assert result["metadata"]["dut_command"].startswith(str(installed.parent))
 
+    # the STM32 tier needs a clone (QEMU's models are not in the wheel): a clear error, not a traceback
+    stm32 = run([str(installed / "rig"), "run", "--mcu", "stm32f405-gy86", "--firmware",
+                 str(TREE / "build" / "stm32" / "fc.elf"), "step_roll", "--out", "stm32"], cwd=elsewhere)
+    said = stm32.stdout + stm32.stderr
+    assert stm32.returncode != 0 and "is built from a clone of the rig" in said, said
+    assert "Traceback" not in said and "FileNotFoundError" not in said, said
+
     (dist,) = Path(module).parents[1].glob("quadrotor_hil_rig-*.dist-info")
     assert all((dist / "licenses" / n).read_bytes() == (TREE / n).read_bytes() for n in NOTICES)
     assert "License-Expression: MIT AND BSD-2-Clause AND 0BSD" in (dist / "METADATA").read_text()

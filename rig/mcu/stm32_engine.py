@@ -135,9 +135,21 @@ def prune(cache: Path, keep: int = KEEP_ENGINES, keep_used_s: float = KEEP_USED_
             shutil.rmtree(old, ignore_errors=True)
 
 
+def sources_missing() -> str | None:
+    """Why this rig cannot make its engine, or None: a rig installed from a wheel carries the chip core's
+    headers but not QEMU's models (qemu/) nor the chip core's C, so it has no inputs to build or find one."""
+    if (MODELS / "devices.mak").is_file() and any(CHIP_CORE.glob("*.c")):
+        return None
+    return ("the STM32 tier's engine (QEMU with the rig's models) is built from a clone of the rig: this "
+            f"rig has no model sources ({MODELS} is not there; an installed rig does not carry them). "
+            "Run the STM32 tier from a clone: `make stm32-engine`, then its `.venv/bin/rig run --mcu ...`")
+
+
 def cached_binary(cache: Path | None = None) -> Path | None:
-    """The engine built from the current inputs, or None when it has not been built (nothing is
-    downloaded or built here: the tests ask this)."""
+    """The engine built from the current inputs, or None when it has not been built, or cannot be
+    (nothing is downloaded or built here: the tests ask this)."""
+    if sources_missing() is not None:
+        return None
     cache = cache or cache_dir()
     dsc = source_dsc(cache)
     if dsc is None:
@@ -288,6 +300,9 @@ def _children_cpu_s() -> float:
 def build(cache: Path | None = None, jobs: int | None = None) -> Path:
     """The engine for the current inputs: from the cache when it is there, else built and cached. One
     build at a time per cache (a lock file): a second caller waits, then finds the first one's binary."""
+    why = sources_missing()
+    if why is not None:
+        raise EngineBuildError(why)
     cache = cache or cache_dir()
     cache.mkdir(parents=True, exist_ok=True)
     with (cache / "lock").open("w") as lock:
