@@ -70,6 +70,16 @@ def reports(stdout: str) -> dict[str, int]:
     return {m.group(1): int(m.group(2), 16) for m in REPORT_LINE.finditer(stdout)}
 
 
+def board_with_rc(tmp_path: Path, rc: str, name: str, shipped: str = "stm32f405-gy86") -> Path:
+    """The shipped board ``shipped``'s file with the body of its [rc] table replaced by ``rc`` (TOML lines),
+    written as ``tmp_path``/SHIPPED-NAME.toml: the receiver tests' boards (MSP, PPM, PWM instead of SBUS)."""
+    text = (boards.BOARDS / f"{shipped}.toml").read_text()
+    start, end = text.index("[rc]"), text.index("[telemetry]")
+    path = tmp_path / f"{shipped}-{name}.toml"
+    path.write_text(text[:start] + "[rc]\n" + rc.rstrip("\n") + "\n\n" + text[end:])
+    return path
+
+
 #: the serial ports of the receiver tests' MCU sessions (the board's RC and telemetry USARTs)
 RC_PORT, TEL_PORT = "/dev/ttyRC0", "/dev/ttyTEL0"
 

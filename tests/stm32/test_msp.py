@@ -24,12 +24,11 @@ from rig.mcu.session import McuConfig, McuSession
 from rig.mcu.stm32_link import Stm32Config, Stm32Engine
 from rig.telemetry.msp import ReplyReader
 from rig.world import World
-from tests.stm32.conftest import REPO, engine_or_skip, firmware, reports
+from tests.stm32.conftest import REPO, board_with_rc, engine_or_skip, firmware, reports
 from tests.stm32.test_link import level_world
 
 STEP_NS = 1_000_000
 BAUD = 115_200
-SHIPPED = boards.BOARDS / "stm32f405-gy86.toml"
 RC, TEL = "/dev/ttyRC0", "/dev/ttyTEL0"
 #: three SET_RAW_RC frames: MultiWii's 8 channels, 4, and Betaflight's 18 (microseconds)
 FRAMES = [
@@ -56,12 +55,7 @@ def channels(us: list[int]) -> bytes:
 
 def msp_board(tmp_path: Path, rc: str = 'protocol = "msp"\nuart = 1\nbaud = 115_200\n') -> Path:
     """The shipped STM32F405 board with MSP on USART1 (RX PA10, TX PA9) instead of SBUS."""
-    text = SHIPPED.read_text()
-    start = text.index("[rc]")
-    end = text.index("[telemetry]")
-    path = tmp_path / "stm32f405-gy86-msp.toml"
-    path.write_text(text[:start] + f"[rc]\n{rc}\n" + text[end:])
-    return path
+    return board_with_rc(tmp_path, rc, "msp")
 
 
 def drive(board: Board, sends: list[bytes], until_ns: int) -> tuple[str, bytes]:

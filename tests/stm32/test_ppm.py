@@ -18,7 +18,7 @@ from rig.mcu import board as boards
 from rig.mcu.board import Board, BoardError
 from rig.mcu.session import PPM_FRAME_NS, ppm_edges
 from rig.mcu.stm32_link import Stm32Config, Stm32Engine
-from tests.stm32.conftest import engine_or_skip, firmware, receiver_session_lines, reports
+from tests.stm32.conftest import board_with_rc, engine_or_skip, firmware, receiver_session_lines, reports
 
 STEP_NS = 1_000_000
 FIRST_FRAME_NS = 2_000_000
@@ -28,7 +28,6 @@ FRAMES = [
     [1500, 1500, 1000, 1999, 1001, 1250, 1750, 1600],
     [2000, 1000, 1500, 1500, 1200, 1800, 1333, 1667],
 ]
-SHIPPED = boards.BOARDS / "stm32f405-gy86.toml"
 #: SBUS values as a scenario's sticks send them (172..1811; 16 channels, of which PPM carries 8)
 SBUS_CHANNELS = [172, 992, 1811, 500, 1500, 992, 300, 1700, 992, 992, 992, 992, 992, 992, 992, 992]
 
@@ -57,12 +56,7 @@ def drive_ppm(board: Board) -> str:
 
 def ppm_board(tmp_path: Path, pin: str) -> Path:
     """The shipped STM32F405 board with its receiver's PPM sum on ``pin`` instead of SBUS on USART1."""
-    text = SHIPPED.read_text()
-    start = text.index("[rc]")
-    end = text.index("[telemetry]")
-    path = tmp_path / "stm32f405-gy86-ppm.toml"
-    path.write_text(text[:start] + f'[rc]\nprotocol = "ppm"\npin = "{pin}"\n\n' + text[end:])
-    return path
+    return board_with_rc(tmp_path, f'protocol = "ppm"\npin = "{pin}"', "ppm")
 
 
 def test_the_firmware_decodes_each_channel_to_the_microsecond(tmp_path: Path) -> None:

@@ -18,7 +18,7 @@ from rig.mcu import board as boards
 from rig.mcu.board import Board, BoardError
 from rig.mcu.session import PWM_FRAME_NS
 from rig.mcu.stm32_link import Stm32Config, Stm32Engine
-from tests.stm32.conftest import engine_or_skip, firmware, receiver_session_lines, reports
+from tests.stm32.conftest import board_with_rc, engine_or_skip, firmware, receiver_session_lines, reports
 
 STEP_NS = 1_000_000
 FIRST_FRAME_NS = 2_000_000
@@ -31,20 +31,18 @@ FRAMES = [
     [1500, 1500, 1000, 1999, 1001, 1250, 1750, 1600],
     [2000, 1000, 1500, 1500, 1200, 1800, 1333, 1667],
 ]
-SHIPPED = boards.BOARDS / "stm32f405-gy86.toml"
 #: SBUS values as a scenario's sticks send them (172..1811; 16 channels, of which the receiver puts 8 out)
 SBUS_CHANNELS = [172, 992, 1811, 500, 1500, 992, 300, 1700, 992, 992, 992, 992, 992, 992, 992, 992]
 
 
 def pwm_board(tmp_path: Path, pins: list[str]) -> Path:
     """The shipped STM32F405 board with a parallel PWM receiver on ``pins`` instead of SBUS on USART1."""
-    text = SHIPPED.read_text()
-    start = text.index("[rc]")
-    end = text.index("[telemetry]")
-    path = tmp_path / "stm32f405-gy86-pwm.toml"
-    listed = ", ".join(f'"{p}"' for p in pins)
-    path.write_text(text[:start] + f'[rc]\nprotocol = "pwm"\npins = [{listed}]\n\n' + text[end:])
-    return path
+    return board_with_rc(tmp_path, pwm_rc(pins), "pwm")
+
+
+def pwm_rc(pins: list[str]) -> str:
+    """An [rc] table's body: a parallel PWM receiver on ``pins``."""
+    return 'protocol = "pwm"\npins = [' + ", ".join(f'"{p}"' for p in pins) + "]"
 
 
 def frame_edges(start_ns: int, widths_us: list[int]) -> dict[str, list[tuple[int, int]]]:
@@ -130,14 +128,8 @@ def test_the_f411s_own_timer_channels_are_its_receiver_pins(tmp_path: Path) -> N
     """DS10314 table 9: the F411 has TIM9 (CH1 PA2, CH2 PA3, USART2's TX and RX, the Black Pill's
     telemetry) and no TIM8, so PC8 (the F405's TIM8_CH3) is no receiver pin on the Black Pill; PA6 is
     TIM3_CH1, the board's motor 1; PA0 and PA1 are TIM2's or TIM5's CH1 and CH2, PA8 TIM1_CH1."""
-    text = (boards.BOARDS / "stm32f411-blackpill-gy86.toml").read_text()
-    start, end = text.index("[rc]"), text.index("[telemetry]")
-    path = tmp_path / "blackpill-pwm.toml"
-
     def board_with(pins: list[str]) -> Board:
-        listed = ", ".join(f'"{p}"' for p in pins)
-        path.write_text(text[:start] + f'[rc]\nprotocol = "pwm"\npins = [{listed}]\n\n' + text[end:])
-        return boards.load(path)
+        return boards.load(board_with_rc(tmp_path, pwm_rc(pins), "pwm", "stm32f411-blackpill-gy86"))
 
     board = board_with(["PA8", "PA0", "PA1", "PB6"])
     assert board.rc is not None and board.rc.pins == ("PA8", "PA0", "PA1", "PB6")
