@@ -260,8 +260,9 @@ static void schedule(RigStm32TimerState *s)
     }
     uint64_t div = (uint64_t)s->psc + 1;
     int64_t deadline = tick_ns(s, s->ticks_done + (div - s->prescaler) + (steps_to_event(s) - 1) * div);
-    /* (armed again at the same deadline, a timer first in the list would move virtual time on to it at once
-     * when the core sleeps: inside the link's stop, whose own timer is not armed, past the stop) */
+    /* (an unchanged deadline is left armed: re-arming it takes the timer out of QEMU's list and back, which
+     * with the core asleep makes QEMU warp virtual time to the earliest deadline; the link's stop holds
+     * the earliest deadline while it lasts, so that warp goes nowhere, but costs a notification) */
     if (!timer_pending(s->timer) || timer_expire_time_ns(s->timer) != deadline) {
         timer_mod(s->timer, deadline);
     }
