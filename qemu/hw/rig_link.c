@@ -8,7 +8,8 @@
  * latched pulses of the board's motor outputs (the timers' chC-high-ticks, period-ticks, clock-hz) and
  * the CPU's state (the exception being handled, pc, CFSR, HFSR: a HardFault ends the run in the session),
  * then blocks for the next command. A system reset (a watchdog's, the firmware's request) is told to the
- * session at its instant with its cause and the CPU's state then; between steps the session may read
+ * session at its instant with its cause and the CPU's state then (a watchdog's ends the run: QEMU goes
+ * no further); between steps the session may read
  * the flash (the settings the firmware keeps there). The I2C bus's events of the GY-86 slave go to the session, whose chip
  * core (the lockstep session's own) answers: a START waits for the answer, a byte written and a STOP do
  * not. The session serves the chip core's sample needs from the world meanwhile.
@@ -470,6 +471,15 @@ static void link_system_reset(void *opaque)
     stl_le_p(p + 8, rig_reset_cause);
     link_put_cpu(p + 12);
     link_send(s, MSG_RESET, p, sizeof p);
+    if (rig_reset_cause != RIG_RESET_SYSTEM) {
+        /* A watchdog's reset ends the run there (the session reports it as a crash at this instant): the
+         * chip goes no further, so nothing of the next boot (its output, its exit) can reach the run,
+         * however far before the next stop the reset came. Waits for the session to close the link. */
+        uint8_t none[1];
+        uint32_t len;
+        link_receive(s, none, 0, &len);
+        link_fail("a message after a watchdog's reset");
+    }
 }
 
 static void link_reached(void *opaque)
