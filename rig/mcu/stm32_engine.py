@@ -1,7 +1,7 @@
 """Builds the STM32 tier's engine: QEMU's ``qemu-system-arm`` from Debian's source package with the
 rig's STM32F4 device models (qemu/, QEMU's licence) compiled in, and nothing else that QEMU can leave
 out (one target, no GUI, no tools, no documentation, no user networking, only the devices qemu/devices.mak
-names).
+names), and with our patches to QEMU itself (qemu/patches/: each says what it fixes).
 
 QEMU loads no device from outside its own build, so the models must be compiled in; the build takes
 minutes, so its binary is cached outside the tree, in ``~/.cache/rig/stm32-engine/<key>/`` (or under
@@ -37,6 +37,9 @@ from rig.emulators.chips import gen as chip_registers
 
 REPO = Path(__file__).resolve().parents[2]
 MODELS = REPO / "qemu"
+#: changes to QEMU itself (unified diffs, applied in name order to the unpacked source), kept apart from
+#: the models that go into hw/rig: each says what it fixes and why
+PATCHES = "patches"
 #: the chip core (MIT, ours): compiled into the engine as the slaves on the STM32's I2C, in hw/rig/chips
 CHIP_CORE = REPO / "emulators" / "chips"
 APT_INSTALL = REPO / "tools" / "apt-install.sh"
@@ -64,6 +67,7 @@ BUILD_DEPENDS = {
     "ninja-build": ("command", "ninja"),
     "pkg-config": ("command", "pkg-config"),
     "dpkg-dev": ("command", "dpkg-source"),
+    "patch": ("command", "patch"),
     "libglib2.0-dev": ("pkg-config", "glib-2.0"),
     "libpixman-1-dev": ("pkg-config", "pixman-1"),
     "libfdt-dev": ("file", "/usr/include/libfdt.h"),  # (Debian's ships no .pc file)
@@ -89,7 +93,11 @@ def cache_dir() -> Path:
 
 
 def model_files(models: Path = MODELS) -> list[Path]:
-    return sorted(p for p in models.rglob("*") if p.is_file())
+    return sorted(p for p in models.rglob("*") if p.is_file() and p.relative_to(models).parts[0] != PATCHES)
+
+
+def patch_files(models: Path = MODELS) -> list[Path]:
+    return sorted((models / PATCHES).glob("*.patch"))
 
 
 def chip_core_sources(chips: Path = CHIP_CORE) -> dict[str, bytes]:
@@ -119,6 +127,7 @@ def inputs_hash(dsc: Path, models: Path = MODELS, chips: Path = CHIP_CORE) -> st
     h.update(dsc.name.encode() + b"\0" + dsc.read_bytes())
     for name, data in sorted(engine_sources(models, chips).items()):
         h.update(name.encode() + b"\0" + data)
+    h.update(_unpacked_stamp(dsc, models).encode())
     h.update("\0".join(CONFIGURE_FLAGS).encode())
     h.update(Path(__file__).read_bytes())
     return h.hexdigest()
@@ -245,21 +254,37 @@ def _write_if_changed(path: Path, data: bytes) -> None:
         path.write_bytes(data)
 
 
-def prepare_tree(dsc: Path, work: Path) -> Path:
-    """The unpacked source (Debian's patches applied) with hw/rig = qemu/ and the chip core, and the
-    device config."""
+def _unpacked_stamp(dsc: Path, models: Path = MODELS) -> str:
+    """What an unpacked tree was made from: the source package and our patches (name and SHA-256)."""
+    patches = [f"{p.name} {hashlib.sha256(p.read_bytes()).hexdigest()}" for p in patch_files(models)]
+    lines = [dsc.name, *patches]
+    return "\n".join(lines) + "\n"
+
+
+def prepare_tree(dsc: Path, work: Path, models: Path = MODELS) -> Path:
+    """The unpacked source (Debian's patches applied, then ours) with hw/rig = qemu/ and the chip core, and
+    the device config. A tree unpacked from another package or with other patches is unpacked afresh (a
+    whole rebuild), since a patch cannot be taken back out of an edited tree reliably."""
     src = work / "src"
-    if not (src / ".rig-unpacked").is_file():
+    stamp = _unpacked_stamp(dsc, models)
+    marker = src / ".rig-unpacked"
+    if not marker.is_file() or marker.read_text() != stamp:
         shutil.rmtree(src, ignore_errors=True)
         work.mkdir(parents=True, exist_ok=True)
         tmp = work / "src.tmp"
         shutil.rmtree(tmp, ignore_errors=True)
         subprocess.run(["dpkg-source", "--no-check", "-x", str(dsc), str(tmp)], check=True,
                        stdout=subprocess.DEVNULL)
+        for patch in patch_files(models):
+            done = subprocess.run(["patch", "-p1", "--forward", "--batch", "--no-backup-if-mismatch", "-i",
+                                   str(patch)], cwd=tmp, capture_output=True, text=True, check=False)
+            if done.returncode:
+                raise EngineBuildError(f"{patch.name} does not apply to {dsc.name}:\n"
+                                       f"{done.stdout}{done.stderr}")
         tmp.rename(src)
-        (src / ".rig-unpacked").write_text(dsc.name + "\n")
+        marker.write_text(stamp)
     rig = src / "hw" / "rig"
-    sources = engine_sources()
+    sources = engine_sources(models)
     wanted = {Path(name) for name in sources}
     for name, data in sources.items():
         _write_if_changed(rig / name, data)
@@ -268,7 +293,7 @@ def prepare_tree(dsc: Path, work: Path) -> Path:
             if p.is_file() and p.relative_to(rig) not in wanted:
                 p.unlink()
     _write_if_changed(src / "configs" / "devices" / "arm-softmmu" / "default.mak",
-                      (MODELS / "devices.mak").read_bytes())
+                      (models / "devices.mak").read_bytes())
     for rel, line in HOOKS.items():
         text = (src / rel).read_text()
         if line not in text:

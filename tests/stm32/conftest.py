@@ -45,15 +45,19 @@ def firmware(name: str) -> Path:
     return REPO / target
 
 
+def run_command(engine: Path, elf: Path, *qemu_args: str, machine: str = "rig-stm32f405") -> list[str]:
+    """QEMU's command line for ``elf`` on ``machine``, in icount time, its semihosting on QEMU's standard
+    output; no display, monitor or serial port."""
+    return [str(engine), "-M", machine, "-nodefaults", "-display", "none",
+            "-chardev", "stdio,id=semi", "-semihosting-config", "enable=on,target=native,chardev=semi",
+            "-icount", f"shift={ICOUNT_SHIFT},sleep=off", *qemu_args, "-kernel", str(elf)]
+
+
 def run_firmware(engine: Path, elf: Path, *qemu_args: str,
                  machine: str = "rig-stm32f405") -> subprocess.CompletedProcess[str]:
-    """``elf`` on ``machine``, in icount time, its semihosting on QEMU's standard output; no display,
-    monitor or serial port."""
-    cmd = [str(engine), "-M", machine, "-nodefaults", "-display", "none",
-           "-chardev", "stdio,id=semi", "-semihosting-config", "enable=on,target=native,chardev=semi",
-           "-icount", f"shift={ICOUNT_SHIFT},sleep=off", *qemu_args, "-kernel", str(elf)]
-    return subprocess.run(cmd, stdin=subprocess.DEVNULL, capture_output=True, text=True,
-                          timeout=RUN_TIMEOUT_S)
+    """``elf`` run to its end (run_command)."""
+    return subprocess.run(run_command(engine, elf, *qemu_args, machine=machine), stdin=subprocess.DEVNULL,
+                          capture_output=True, text=True, timeout=RUN_TIMEOUT_S)
 
 
 def run_to_done(name: str, *qemu_args: str,

@@ -11,6 +11,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from rig.mcu import stm32_engine
 from tests.stm32.conftest import REPO, engine_or_skip
 
@@ -68,6 +70,60 @@ def test_every_chip_core_file_is_compiled_into_the_engine() -> None:
     meson = (stm32_engine.MODELS / "meson.build").read_text()
     for source in sorted(stm32_engine.CHIP_CORE.glob("*.c")):
         assert f"'chips/{source.name}'" in meson, source.name
+
+
+def _patch(old: str, new: str) -> str:
+    return (f"a change to QEMU: why\n\n--- a/softmmu/icount.c\n+++ b/softmmu/icount.c\n@@ -1 +1 @@\n"
+            f"-{old}\n+{new}\n")
+
+
+def test_our_patches_to_qemu_are_inputs_and_not_models(tmp_path: Path) -> None:
+    """qemu/patches/ changes QEMU's own files: a changed patch is a new engine, and no patch is copied
+    into hw/rig with the models."""
+    models, dsc = _models(tmp_path), _dsc(tmp_path)
+    assert stm32_engine.patch_files(models), "the engine carries its icount patch"
+    key = stm32_engine.inputs_hash(dsc, models)
+    patch = stm32_engine.patch_files(models)[0]
+    patch.write_text(patch.read_text() + "\n")
+    assert stm32_engine.inputs_hash(dsc, models) != key
+    assert not [name for name in stm32_engine.engine_sources(models) if name.startswith("patches/")]
+
+
+def _tiny_source_package(tmp: Path) -> Path:
+    """A Debian source package with just the files prepare_tree touches, made by dpkg-source."""
+    tree = tmp / "qemu-7.2"
+    files = {"softmmu/icount.c": "int x = 1;\n", "hw/meson.build": "", "hw/Kconfig": "",
+             "configs/devices/arm-softmmu/default.mak": "", "debian/source/format": "3.0 (native)\n",
+             "debian/control": "Source: qemu\nMaintainer: T <t@example.org>\n\nPackage: qemu\n"
+                               "Architecture: any\nDescription: t\n t\n",
+             "debian/changelog": "qemu (1:7.2) unstable; urgency=low\n\n  * t\n\n"
+                                 " -- T <t@example.org>  Thu, 03 Dec 2026 00:00:00 +0000\n"}
+    for name, text in files.items():
+        (tree / name).parent.mkdir(parents=True, exist_ok=True)
+        (tree / name).write_text(text)
+    subprocess.run(["dpkg-source", "-b", tree.name], cwd=tmp, check=True, capture_output=True)
+    return tmp / "qemu_7.2.dsc"
+
+
+def test_the_unpacked_source_gets_our_patches_and_is_unpacked_again_when_they_change(tmp_path: Path) -> None:
+    engine_or_skip()  # (dpkg-source and patch come with the engine's build dependencies)
+    models, dsc = _models(tmp_path), _tiny_source_package(tmp_path)
+    shutil.rmtree(models / "patches")
+    (models / "patches").mkdir()
+    (models / "patches" / "one.patch").write_text(_patch("int x = 1;", "int x = 2;"))
+    work = tmp_path / "work"
+    src = stm32_engine.prepare_tree(dsc, work, models)
+    assert (src / "softmmu" / "icount.c").read_text() == "int x = 2;\n"
+    assert (src / "hw" / "rig" / "hw" / "rig_link.c").is_file()  # the models, as before
+    assert not (src / "hw" / "rig" / "patches").exists()
+
+    (models / "patches" / "one.patch").write_text(_patch("int x = 1;", "int x = 3;"))
+    src = stm32_engine.prepare_tree(dsc, work, models)  # from the pristine source again, not on top
+    assert (src / "softmmu" / "icount.c").read_text() == "int x = 3;\n"
+
+    (models / "patches" / "one.patch").write_text(_patch("int y = 1;", "int y = 3;"))
+    with pytest.raises(stm32_engine.EngineBuildError, match="one.patch does not apply"):
+        stm32_engine.prepare_tree(dsc, work, models)
 
 
 def test_the_cached_engine_is_found_without_building(tmp_path: Path) -> None:
