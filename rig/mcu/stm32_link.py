@@ -28,10 +28,12 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import os
 import socket
 import struct
 import subprocess
 import tempfile
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
@@ -107,6 +109,20 @@ class Stm32Config:
     analog: tuple[tuple[int, float], ...] | None = None
     #: more of QEMU's command line (-global MODEL.PROPERTY=VALUE: a model's test setting)
     qemu_args: tuple[str, ...] = ()
+    #: QEMU and the calling thread on one core for the run (the thread's own affinity back at close()):
+    #: in lockstep only one of them runs at a time, and a round trip between two cores costs each side's
+    #: core a wake-up from idle, which in a virtual machine is most of the link's cost
+    #: (bench/stm32_rates.py: hover_turbulence 3.1x real time on two cores, 5.2x on one)
+    one_core: bool = True
+
+
+def current_cpu() -> int:
+    """The CPU the calling thread runs on now (glibc's sched_getcpu), else the first it may run on."""
+    with contextlib.suppress(OSError, AttributeError):
+        cpu = int(ctypes.CDLL(None, use_errno=True).sched_getcpu())
+        if cpu >= 0:
+            return cpu
+    return min(os.sched_getaffinity(0))
 
 
 class Stm32Engine:
@@ -180,6 +196,10 @@ class Stm32Engine:
                "-display", "none", "-monitor", "none", "-chardev", f"socket,id=rig-link,path={path}", *uarts,
                "-semihosting-config", "enable=on,target=native",
                "-icount", f"shift={ICOUNT_SHIFT},sleep=off", *cfg.qemu_args, "-kernel", str(firmware)]
+        self._affinity: tuple[int, set[int]] | None = None  # the pinned thread and its own affinity
+        if cfg.one_core:
+            self._affinity = (threading.get_native_id(), os.sched_getaffinity(0))
+            os.sched_setaffinity(0, {current_cpu()})  # (QEMU's threads inherit it)
         self._proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=self._output,
                                       stderr=subprocess.STDOUT)
         try:
@@ -596,6 +616,12 @@ class Stm32Engine:
             self._output.close()
         if getattr(self, "_dir", None) is not None:
             self._dir.cleanup()
+        pinned: tuple[int, set[int]] | None = getattr(self, "_affinity", None)
+        if pinned is not None:
+            tid, cpus = pinned
+            with contextlib.suppress(OSError):  # (the thread gone: nothing to give back)
+                os.sched_setaffinity(tid, cpus)
+            self._affinity = None
 
     def __enter__(self) -> Stm32Engine:
         return self

@@ -7,6 +7,7 @@ status bits (B3.2.15, B3.2.16)."""
 
 from __future__ import annotations
 
+import os
 import struct
 import subprocess
 from pathlib import Path
@@ -181,3 +182,25 @@ def test_a_truncated_image_is_refused(tmp_path: Path) -> None:
 
 def test_a_good_image_passes() -> None:
     check_image(firmware("i2c_poll"))
+
+
+@pytest.mark.parametrize("one_core", [True, False])
+def test_qemu_runs_on_the_callers_core_and_the_callers_affinity_comes_back(one_core: bool) -> None:
+    """In lockstep QEMU and the session take turns: with one_core (the default) QEMU's threads run on the
+    one core the calling thread is pinned to for the run, and the thread's own affinity is given back at
+    close(); without it, QEMU may run wherever the caller may."""
+    before = os.sched_getaffinity(0)
+    engine = Stm32Engine(Stm32Config(boards.load("stm32f405-gy86"), firmware("i2c_poll"), engine_or_skip(),
+                                     one_core=one_core), level_world())
+    try:
+        assert engine.run_until(STEP_NS).kind in ("reached", "need")
+        during = os.sched_getaffinity(0)
+        threads = [int(tid) for tid in os.listdir(f"/proc/{engine._proc.pid}/task")]
+        qemu = {frozenset(os.sched_getaffinity(tid)) for tid in threads}
+    finally:
+        engine.close()
+    if one_core:
+        assert len(during) == 1 and qemu == {frozenset(during)}
+    else:
+        assert during == before and qemu == {frozenset(before)}
+    assert os.sched_getaffinity(0) == before
