@@ -241,6 +241,7 @@ bool rig_stm32_usart_receive(DeviceState *dev, uint8_t byte, int64_t start_ns, u
     f->n_bits = (uint8_t)n;
     f->baud = MAX(baud, 1);
     f->start_ns = MAX(MAX(start_ns, now), s->line_end_ns);
+    f->end_ns = f->start_ns + (int64_t)(((uint64_t)n * NS + f->baud - 1) / f->baud);
     s->line_end_ns = f->start_ns + (int64_t)muldiv64(n, NS, f->baud);
     rig_usart_update_irqs(s);
     arm(s);

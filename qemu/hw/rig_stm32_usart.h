@@ -60,6 +60,7 @@ enum { R_SR, R_DR, R_BRR, R_CR1, R_CR2, R_CR3, R_GTPR, R_COUNT };
  * stop bits at its baud); idle (high) between them */
 typedef struct {
     int64_t start_ns;
+    int64_t end_ns; /* the first whole ns past its last bit: start_ns + n_bits bits, rounded up */
     uint32_t baud;
     uint8_t n_bits;
     uint16_t bits; /* bit i: the level of the i-th bit on the wire */
@@ -120,10 +121,18 @@ static inline uint64_t pclk_hz(const RigStm32UsartState *s)
     return MAX(hz, 1);
 }
 
+/* @sixteenths of a bit of @ticks PCLK ticks at @pclk_hz in ns: muldiv64's result, in 64 bits when the
+ * product fits (the receiver's samples: a 128-bit division each was a tenth of QEMU's time with SBUS) */
+static inline int64_t sixteenths_ns(uint64_t sixteenths, uint64_t ticks, uint64_t pclk_hz)
+{
+    uint64_t a = sixteenths * ticks;
+    return (int64_t)(a <= UINT64_MAX / NS ? a * NS / (pclk_hz * SIXTEENTHS) : muldiv64(a, NS, pclk_hz * SIXTEENTHS));
+}
+
 /* @sixteenths of a bit at the USART's baud in ns */
 static inline int64_t bit_ns(const RigStm32UsartState *s, uint64_t sixteenths)
 {
-    return (int64_t)muldiv64(sixteenths * ticks_per_bit(s), NS, pclk_hz(s) * SIXTEENTHS);
+    return sixteenths_ns(sixteenths, ticks_per_bit(s), pclk_hz(s));
 }
 
 static inline unsigned data_bits(const RigStm32UsartState *s) { return (s->regs[R_CR1] & CR1_M) ? 9 : 8; }

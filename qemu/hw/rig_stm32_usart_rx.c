@@ -18,7 +18,11 @@ static bool line_level(const RigStm32UsartState *s, int64_t t)
         if (t < f->start_ns) {
             break;
         }
-        uint64_t bit = muldiv64((uint64_t)(t - f->start_ns), f->baud, NS);
+        if (t >= f->end_ns) {
+            continue;
+        }
+        /* (within the frame, (t - start) x baud < (n_bits x NS / baud + 1) x baud: no overflow) */
+        uint64_t bit = (uint64_t)(t - f->start_ns) * f->baud / NS;
         if (bit < f->n_bits) {
             return f->bits >> bit & 1;
         }
@@ -44,18 +48,23 @@ static int64_t next_falling_edge(const RigStm32UsartState *s, int64_t from)
     return INT64_MAX;
 }
 
+/* The receiver's bit clock while it reads a frame: PCLK ticks per bit and PCLK (bit_ns's, taken once) */
+typedef struct {
+    uint64_t ticks, pclk_hz;
+} RxClock;
+
 /* Bit @k of a frame starting at @start as the receiver samples it (30.3.3: samples 8, 9 and 10 of 16,
  * or 4, 5 and 6 of 8 with OVER8, the majority taken; ONEBIT: the middle one); *noisy when they differ */
-static bool sample_bit(const RigStm32UsartState *s, int64_t start, unsigned k, bool *noisy)
+static bool sample_bit(const RigStm32UsartState *s, const RxClock *clk, int64_t start, unsigned k, bool *noisy)
 {
     static const unsigned over16[3] = { 7, 8, 9 }, over8[3] = { 6, 8, 10 };
     const unsigned *at = (s->regs[R_CR1] & CR1_OVER8) ? over8 : over16;
     if (s->regs[R_CR3] & CR3_ONEBIT) {
-        return line_level(s, start + bit_ns(s, k * SIXTEENTHS + 8));
+        return line_level(s, start + sixteenths_ns(k * SIXTEENTHS + 8, clk->ticks, clk->pclk_hz));
     }
     unsigned ones = 0;
     for (unsigned i = 0; i < 3; i++) {
-        ones += line_level(s, start + bit_ns(s, k * SIXTEENTHS + at[i]));
+        ones += line_level(s, start + sixteenths_ns(k * SIXTEENTHS + at[i], clk->ticks, clk->pclk_hz));
     }
     *noisy |= ones == 1 || ones == 2;
     return ones >= 2;
@@ -68,6 +77,7 @@ static bool rx_next(const RigStm32UsartState *s, const RigUsartRxCursor *c, int6
                     uint32_t *flags)
 {
     int64_t idle_at = c->idle_armed ? c->idle_from_ns + bit_ns(s, frame_sixteenths(s)) : INT64_MAX;
+    const RxClock clk = { ticks_per_bit(s), pclk_hz(s) };
     for (int64_t from = c->pos_ns;;) {
         int64_t edge = next_falling_edge(s, from);
         if (edge == INT64_MAX || edge >= idle_at) {
@@ -76,24 +86,24 @@ static bool rx_next(const RigStm32UsartState *s, const RigUsartRxCursor *c, int6
             return idle_at != INT64_MAX;
         }
         bool noisy = false;
-        if (sample_bit(s, edge, 0, &noisy)) {
+        if (sample_bit(s, &clk, edge, 0, &noisy)) {
             from = edge + 1; /* no start bit: a glitch (or the sender's bits out of step) */
             continue;
         }
         unsigned n = data_bits(s), ones = 0;
         *data = 0;
         for (unsigned k = 0; k < n; k++) {
-            bool bit = sample_bit(s, edge, 1 + k, &noisy);
+            bool bit = sample_bit(s, &clk, edge, 1 + k, &noisy);
             *data |= (uint16_t)bit << k;
             ones += bit;
         }
-        bool stop = sample_bit(s, edge, 1 + n, &noisy);
+        bool stop = sample_bit(s, &clk, edge, 1 + n, &noisy);
         *flags = (stop ? 0 : SR_FE) | (noisy && !(s->regs[R_CR3] & CR3_ONEBIT) ? SR_NF : 0);
         /* 30.3.7: even parity (PS = 0) makes the ones of the data and parity bits even, odd makes them odd */
         if ((s->regs[R_CR1] & CR1_PCE) && (ones & 1) != !!(s->regs[R_CR1] & CR1_PS)) {
             *flags |= SR_PE;
         }
-        *at = edge + bit_ns(s, (1 + n) * SIXTEENTHS + 8);
+        *at = edge + sixteenths_ns((1 + n) * SIXTEENTHS + 8, clk.ticks, clk.pclk_hz);
         return true;
     }
 }
