@@ -163,6 +163,9 @@ class McuTarget:
             if uart not in mcu.usarts:
                 raise ValueError(f"the scenario talks to USART {uart}; the {mcu.name} has USART "
                                  f"{', '.join(map(str, mcu.usarts))} only")
+        if self.board.battery is None and any(f.target == "battery" for f in scenario.faults):
+            raise ValueError(f"the scenario has a fault on the battery; the board {self.board.name} measures "
+                             "none (no [battery] in its file)")
         if scenario.bench.psu is not None:
             notes.append(NO_SUPPLY)
         fc_eeprom = self.board.eeprom_from_fc and self.eeprom is None
@@ -190,7 +193,8 @@ class McuTarget:
         # on top of it)
         board = profile_board(self.board, profile)
         return {"topology": board.topology, "mounting": boards.mounting(board.mounting_yaw_deg),
-                "motor_order": (1, 2, 3, 4), "mpu_address": board.mpu_address}
+                "motor_order": (1, 2, 3, 4), "mpu_address": board.mpu_address,
+                "battery": None if board.battery is None else board.battery.pack}
 
     def open(self, ctx: RunContext) -> McuRun:
         trace = None if self.trace is None else self.trace / f"{ctx.scenario.stem}{self.trace_options.suffix}"
