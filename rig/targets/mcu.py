@@ -11,6 +11,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from rig.mcu import board as boards
 from rig.mcu.engine import BUS_PROBLEMS
 from rig.mcu.session import McuConfig, McuSession
@@ -45,6 +47,14 @@ class McuRun(TargetRun):
         if "motor_capture" in f:
             out["capture"] = capture_text(s.cfg.board, f["motor_capture"])
         return out
+
+    def signals(self, t: np.ndarray) -> dict[str, np.ndarray]:
+        """battery_volts, the flight pack's terminal volts on the run's grid (a board with a [battery])."""
+        s = self.session
+        if s.cfg.board.battery is None:
+            return {}
+        k = np.searchsorted(np.frombuffer(s.pack_t_ns, dtype=np.int64), np.round(t * 1e9), side="right") - 1
+        return {"battery_volts": np.frombuffer(s.pack_volts)[np.clip(k, 0, None)]}
 
     def transactions(self) -> list[I2CRecord] | None:
         return self.session.transfers.records

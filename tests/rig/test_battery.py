@@ -85,8 +85,8 @@ magnitude = -1.0
 [[criteria]]
 name = "level"
 metric = "max"
-signal = "tilt"
-max = 5.0
+signal = "battery_volts"
+max = 13.0
 """
 
 
