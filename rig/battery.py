@@ -8,10 +8,9 @@ randomness, no wall clock):
 * ``cells`` in series, each at the open-circuit voltage OCV_TABLE gives for the state of charge (a
   common LiPo discharge table at rest, piecewise linear between its points: 4.20 V full, 3.27 V empty);
 * the current is ``idle_amps`` plus, for each motor, ``motor_amps x throttle ** 1.5``, the throttle the
-  ESC's pulse (1000 us: 0, 2000 us: 1, clamped). The 1.5 power is an assumption: a propeller's power goes
-  as the cube of its speed and its thrust as the square, so the current at a throttle (roughly the speed)
-  rises faster than linearly; measured motors sit between the square and the cube of the speed, and
-  the 1.5 power of the throttle is a middle that keeps the hover draw a fraction of the full one;
+  ESC's pulse (1000 us: 0, 2000 us: 1, clamped). The 1.5 power is an assumption, not a fit to a motor:
+  the current grows faster than the throttle, as a propeller's power does with its speed, so half
+  throttle draws 35 % of the full current, not half of it;
 * the charge drawn is the current integrated over time (coulomb counting), each current held from the
   update that set it to the next one (the ESC commands change at the session's step ends);
 * the terminal voltage is the cells' OCV less the current through ``internal_ohms`` (Ohm's law), then
