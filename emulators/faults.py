@@ -1,7 +1,8 @@
 """One fault vocabulary for every device, switched on and off by sim time (after PX4's failure
 injection): off (NACK), stuck, noise burst, bias step, drift, scale error, delay, intermittent,
 garbage bytes. Signal faults act in the sensor models; bus faults (off, intermittent, garbage) act on
-the device's presence and bytes."""
+the device's presence and bytes; the battery's (a board's flight pack, rig/battery.py) act on its
+terminal volts, in volts."""
 
 from __future__ import annotations
 
@@ -21,7 +22,12 @@ KINDS = SIGNAL_KINDS + BUS_KINDS
 #: (mpu, hmc, baro_bus: it stops answering, answers some of the time, or answers garbage)
 SIGNAL_TARGETS = ("accel", "gyro", "mag", "baro")
 BUS_TARGETS = ("mpu", "hmc", "baro_bus")
-TARGETS = SIGNAL_TARGETS + BUS_TARGETS
+#: the flight pack's terminal volts (a board's [battery]), and the signal faults that mean something on a
+#: voltage: a reading frozen, ripple, a step (a cell going bad: a negative one), a drift, a scale error (a
+#: divider's resistor off); a delay does not (nothing in the pack holds an old voltage)
+BATTERY_TARGETS = ("battery",)
+BATTERY_KINDS = ("stuck", "noise_burst", "bias_step", "drift", "scale_error")
+TARGETS = SIGNAL_TARGETS + BUS_TARGETS + BATTERY_TARGETS
 
 
 _MASK64 = (1 << 64) - 1
@@ -72,6 +78,9 @@ class TargetedFault:
     def __post_init__(self) -> None:
         if self.target not in TARGETS:
             raise ValueError(f"unknown fault target {self.target!r}; known: {', '.join(TARGETS)}")
+        if self.target in BATTERY_TARGETS and self.fault.kind not in BATTERY_KINDS:
+            raise ValueError(f"a {self.fault.kind} fault means nothing on the battery's volts; its faults: "
+                             f"{', '.join(BATTERY_KINDS)}")
 
 
 def fault_sets(faults: Iterable[TargetedFault], seed: int) -> dict[str, FaultSet]:

@@ -40,14 +40,14 @@ from rig.reports import foxglove, result_json
 from rig.reports.mcap_container import ContainerWriter
 from rig.scenarios.result import I2CRecord, RcFrame, RunResult
 from rig.scenarios.schema import Scenario
-from rig.scenarios.signals import SIGNALS
+from rig.scenarios.signals import BENCH_SIGNALS, SIGNALS
 
 NS: Final = 1_000_000_000
 PROFILE: Final = ""  # (no ROS profile: plain JSON channels)
 #: the channels, in the order they are declared
-ATTITUDE: Final = tuple(n for n in SIGNALS if not n.startswith("pwm") and n not in ("psu_volts", "psu_amps"))
+ATTITUDE: Final = tuple(n for n in SIGNALS if not n.startswith("pwm") and n not in BENCH_SIGNALS)
 MOTORS_GROUP: Final = tuple(n for n in SIGNALS if n.startswith("pwm"))
-BENCH: Final = ("psu_volts", "psu_amps")
+BENCH: Final = BENCH_SIGNALS
 #: the rig's own channels (plot-only JSON), then those in Foxglove's well-known schemas (reports/foxglove.py)
 RIG_TOPICS: Final = ("/attitude", "/motors", "/sensors", "/i2c", "/rc", "/faults", "/criteria")
 TOPICS: Final = RIG_TOPICS + foxglove.TOPICS

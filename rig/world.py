@@ -17,6 +17,7 @@ from typing import Final
 
 import numpy as np
 
+from rig.battery import Pack, PackState
 from rig.emulators.chips.board import ChipBoard, build_chip_board
 from rig.emulators.faults import TARGETS as FAULT_TARGETS
 from rig.emulators.faults import FaultSet
@@ -135,6 +136,8 @@ class World:
     direct_pwm: bool = True
     #: the plant motor (1..4) each of the DUT's first four PWM channels drives (its FC profile's order)
     motor_order: tuple[int, ...] = (1, 2, 3, 4)
+    #: the flight pack, when the DUT's board measures one (rig/battery.py): battery_volts
+    battery: PackState | None = None
 
     def __post_init__(self) -> None:
         # the plant steps taken (``_k``), in a cell C reads and moves in place (rig/lockstep: the fast
@@ -171,6 +174,7 @@ class World:
         mounting: tuple[tuple[float, float, float], ...] = FLAT_ON_BOARD,
         motor_order: tuple[int, ...] = (1, 2, 3, 4),
         mpu_address: int = 0x68,
+        battery: Pack | None = None,
     ) -> World:
         """The default world of ``rig exec``: the vehicle resting on the ground, motors off, a GY-86.
         ``faults`` by name: signal faults "accel", "gyro", "mag", "baro" act in the sensor models; bus
@@ -181,11 +185,15 @@ class World:
         conversions are then made in Python, not by the chip core's C).
         ``motor_order``: the plant motor each of the DUT's PWM channels 0..3 drives. ``mounting``: body
         FRD to the sensors' frame (the board's; its default lies flat, facing forward). ``topology``
-        "gy521" is the MPU-6050 alone, at ``mpu_address`` (0x69: AD0 high)."""
+        "gy521" is the MPU-6050 alone, at ``mpu_address`` (0x69: AD0 high). ``battery``: the flight pack
+        a board measures, with the faults "battery" on its volts (ValueError: such a fault without one)."""
         faults = dict(faults or {})
         unknown = set(faults) - set(FAULT_TARGETS)
         if unknown:
             raise ValueError(f"unknown fault target(s) {sorted(unknown)}; known: {', '.join(FAULT_TARGETS)}")
+        if "battery" in faults and battery is None:
+            raise ValueError("a fault on the battery, and no battery: only an MCU board with a [battery] "
+                             "has one")
         plant = Plant(params=params or {}, inputs=dict.fromkeys(PWM_INPUTS, 0.0))
 
         truth = _WorldTruth(plant)  # the models need the world that holds them
@@ -212,7 +220,9 @@ class World:
         bus_faults: dict[str, FaultSet] = {k: faults[k] for k in ("mpu", "hmc", "baro_bus") if k in faults}
         board = build_chip_board(imu, mag, baro, topology, faults=bus_faults, osr_noise=baro_osr_noise,
                                  baro_seed=seed + 3, mpu_address=mpu_address)
-        world = cls(plant, board, pwm=[PwmChannel() for _ in range(pwm_channels)], motor_order=motor_order)
+        pack = None if battery is None else PackState(battery, faults.get("battery"))
+        world = cls(plant, board, pwm=[PwmChannel() for _ in range(pwm_channels)], motor_order=motor_order,
+                    battery=pack)
         truth.world = world
         return world
 
@@ -280,6 +290,14 @@ class World:
         if index is None:
             raise KeyError(f"{name!r} is not an input of the world; known: {', '.join(self._u_named)}")
         self._u_cells[index] = value
+
+    def battery_volts(self, t_ns: int) -> float:
+        """The flight pack's terminal volts at ``t_ns``, the ESC pulses as they are now setting its current
+        from there on (rig/battery.py PackState.update); call it after the step's motor commands."""
+        if self.battery is None:
+            raise ValueError("this world has no battery")
+        cells = self._u_cells
+        return self.battery.update(t_ns, [cells[i] for i in self._u_pwm])
 
     def probe(self, outputs: Sequence[str], extras: int = 0, rows: int = 1024) -> Probe:
         """A table of rows of the named plant outputs, the motors' pulse widths and ``extras`` more values

@@ -483,9 +483,9 @@ def _fault(c: _Check, raw: Any, key: str, duration: float) -> TargetedFault:
         fault = Fault(kind, start, end, c.number(f, "magnitude", key, 0.0),
                       c.number(f, "period", key, 0.1, positive=True),
                       c.number(f, "duty", key, 0.5, low=0, high=1))
+        return TargetedFault(target, fault)
     except ValueError as err:
         raise c.fail(key, str(err)) from None
-    return TargetedFault(target, fault)
 
 
 def _criterion(c: _Check, raw: Any, key: str, duration: float) -> CriterionSpec | None:

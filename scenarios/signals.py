@@ -54,6 +54,7 @@ SIGNALS: dict[str, Signal] = {
     "alt_est_error": Signal("m", "est_alt - alt"),
     "psu_volts": Signal("V", "the bench supply's output voltage (a bench run with a supply only)"),
     "psu_amps": Signal("A", "the current the board draws from the bench supply (likewise)"),
+    "battery_volts": Signal("V", "the flight pack's terminal voltage (an MCU board with a [battery] only)"),
 }
 #: recorded only when the run has what they measure (telemetry.csv leaves them out otherwise)
-BENCH_SIGNALS = ("psu_volts", "psu_amps")
+BENCH_SIGNALS = ("psu_volts", "psu_amps", "battery_volts")

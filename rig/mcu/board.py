@@ -22,8 +22,12 @@ rig/mcu/boards/; ``--mcu NAME`` finds them by name, ``--mcu path/to/board.toml``
     [eeprom]     image (a file of raw bytes, relative to the board file), or fc = true: built from the
                  scenario's [fc] table by the reference firmware's layout
     [fuses]      watchdog_always_on (WDTON programmed)
-    [battery]    pin (an ADC input, "PF0"), divider ([ohms battery->pin, ohms pin->ground]), volts (the
-                 pack's, 12.6 by default: the world has no battery model yet)
+    [battery]    pin (an ADC input, "PF0"), divider ([ohms battery->pin, ohms pin->ground]); the pack
+                 (rig/battery.py, its voltage sagging with the motors' current and falling with the
+                 charge drawn): volts (at the start, at rest: 12.6 by default, a full 3S), cells
+                 (round(volts / 4.2) unless given), capacity_mah (1300), internal_ohms (the pack's:
+                 0.015 a cell), motor_amps (each motor's at full throttle: 20), idle_amps (the rest of the
+                 quad's draw: 0, so a pack at rest reads its volts for the whole run)
     [limits]     hang_s (1: no TWI, pulse, USART byte or output pin change for this long is a hang; 0 off)
 """
 
@@ -34,6 +38,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
+from rig.battery import CELL_EMPTY, CELL_FULL, Pack
 from rig.bridge.esc import ESC_PROTOCOLS
 from rig.emulators.chips.board import TOPOLOGIES
 from rig.emulators.mpu6050 import ADDRESS as MPU_ADDRESS
@@ -44,7 +49,14 @@ from rig.scenarios.schema import ScenarioError, _Check
 
 BOARDS: Final = Path(__file__).resolve().parent / "boards"
 TOP: Final = {"board", "sensors", "motors", "rc", "telemetry", "eeprom", "fuses", "limits", "battery"}
-BATTERY_KEYS: Final = {"pin", "divider", "volts"}
+BATTERY_KEYS: Final = {"pin", "divider", "volts", "cells", "capacity_mah", "internal_ohms", "motor_amps",
+                       "idle_amps"}
+#: a pack's defaults (rig/battery.py): a full 3S of a 5-inch quad's usual size, its motors' full-throttle
+#: current; an internal resistance a cell of such a pack has when new (10-20 milliohms)
+PACK_VOLTS: Final = 12.6
+PACK_CAPACITY_MAH: Final = 1300.0
+CELL_OHMS: Final = 0.015
+MOTOR_AMPS: Final = 20.0
 #: a board's supply and ADC reference (AVCC): an Arduino's 5 V; a divided battery above it is clamped
 VCC: Final = 5.0
 BOARD_KEYS: Final = {"name", "description", "mcu", "clock_hz", "hse_hz"}
@@ -98,13 +110,23 @@ class Battery:
     pin: str
     channel: int  # the ADC channel
     divider: tuple[float, float]  # ohms: battery to pin, pin to ground
-    volts: float  # the pack's
+    pack: Pack
+
+    @property
+    def volts(self) -> float:
+        """The pack's at the start (at rest)."""
+        return self.pack.volts
 
     @property
     def pin_volts(self) -> float:
-        """What the ADC pin sees: the pack through the divider, clamped at VCC (the pin's diodes)."""
+        """What the ADC pin sees at the start."""
+        return self.pin_volts_at(self.pack.volts)
+
+    def pin_volts_at(self, volts: float) -> float:
+        """What the ADC pin sees with the pack at ``volts``: through the divider, clamped at VCC (the
+        pin's diodes)."""
         top, bottom = self.divider
-        return min(VCC, self.volts * bottom / (top + bottom))
+        return min(VCC, volts * bottom / (top + bottom))
 
 
 @dataclass(frozen=True)
@@ -305,8 +327,18 @@ def _battery(c: _BoardCheck, mcu: Mcu, data: Any) -> Battery:
             not divider[1] > 0):
         raise c.fail("battery.divider", f"expected [ohms from the battery to the pin, ohms from the pin to "
                                         f"ground], the second > 0, got {divider!r}")
-    volts = c.number(b, "volts", "battery", 12.6, low=0, high=60)
-    return Battery(pin, mcu.adc[pin], (float(divider[0]), float(divider[1])), volts)
+    volts = c.number(b, "volts", "battery", PACK_VOLTS, low=0, high=60)
+    cells = c.integer(b, "cells", "battery", 1, 14, default=max(round(volts / CELL_FULL), 1))
+    if not CELL_EMPTY <= volts / cells <= CELL_FULL:
+        raise c.fail("battery.volts", f"{volts:g} V is {volts / cells:.3f} V a cell for {cells} cell(s): a "
+                                      f"LiPo cell is {CELL_EMPTY}..{CELL_FULL} V (give cells, or volts)")
+    pack = Pack(volts, cells,
+                capacity_mah=c.number(b, "capacity_mah", "battery", PACK_CAPACITY_MAH, positive=True,
+                                      high=1_000_000),
+                internal_ohms=c.number(b, "internal_ohms", "battery", CELL_OHMS * cells, low=0, high=10),
+                motor_amps=c.number(b, "motor_amps", "battery", MOTOR_AMPS, low=0, high=1000),
+                idle_amps=c.number(b, "idle_amps", "battery", 0.0, low=0, high=1000))
+    return Battery(pin, mcu.adc[pin], (float(divider[0]), float(divider[1])), pack)
 
 
 def _rc(c: _BoardCheck, mcu: Mcu, r: dict[str, Any], motors: tuple[MotorOut, ...]) -> RcIn:

@@ -322,8 +322,7 @@ class AvrEngine:
             if self._lib.mcu_uart_define(self._e, n, base):
                 self._uarts[n] = _Uart()
         for channel, volts in cfg.analog:
-            if not self._lib.mcu_adc_set(self._e, channel, round(volts * 1000)):
-                raise ValueError(f"the {cfg.mcu} has no ADC{channel}")
+            self.analog_input(channel, volts)
         for port, pin_addr in PORTS[cfg.mcu].items():
             if not self._lib.mcu_watch_port(self._e, port.encode(), pin_addr + 1):
                 raise ValueError(f"the {cfg.mcu}'s port {port} cannot be watched")
@@ -417,6 +416,12 @@ class AvrEngine:
     def uart_counts(self, uart: int) -> dict[str, int]:
         names = ("delivered", "frame_errors", "waiting", "tx_dropped", "receiver_off")
         return {k: int(self._lib.mcu_uart_count(self._e, uart, i)) for i, k in enumerate(names)}
+
+    def analog_input(self, channel: int, volts: float) -> None:
+        """ADC ``channel``'s pin at ``volts`` (to the millivolt, as simavr takes it) from now on: each
+        conversion that starts later reads it (against AVCC; above it, full scale)."""
+        if volts < 0 or not self._lib.mcu_adc_set(self._e, channel, round(volts * 1000)):
+            raise ValueError(f"the {self.cfg.mcu} has no ADC{channel}, or {volts} V is below 0")
 
     def pin_drive(self, pin: str, schedule: list[tuple[int, int]]) -> None:
         """An input pin driven to ``level`` at each ``(t_ns, level)`` (ascending, not before now): a PPM

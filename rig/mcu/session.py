@@ -10,7 +10,9 @@ next plant tick (1 ms) or the next scheduled event, whichever is first:
    the engine stops there, the world's producers make exactly that sample from the plant's history,
    and the MCU resumes: the bytes on the TWI are the lockstep session's;
 3. the pulses that ended become the motors' commands (an ESC that sees no pulse for ESC_TIMEOUT_S
-   stops its motor, as on the bench);
+   stops its motor, as on the bench); on a board with a [battery], the flight pack's volts at the
+   step's end (rig/battery.py: its current follows these commands) reach the ADC pin through the
+   divider when the pin's volts moved by PIN_STEP_V or more;
 4. the scheduled events at the step's end run: sticks as SBUS bytes into the RC USART at their
    frame timing, wind, faults, the recorder.
 
@@ -22,6 +24,7 @@ and the last TWI transaction: the engine says so (rig/mcu/engine.py Stop).
 
 from __future__ import annotations
 
+import array
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -29,9 +32,10 @@ from pathlib import Path
 from typing import Final
 
 from rig import interrupts
+from rig.battery import PackState
 from rig.bridge.esc import esc_protocol
 from rig.emulators import sbus
-from rig.mcu.board import Board, uart_baud
+from rig.mcu.board import Battery, Board, uart_baud
 from rig.mcu.engines import Engine, open_engine
 from rig.mcu.twi_log import TwiTransfers
 from rig.mcu.vcd import McuTrace, TraceOptions
@@ -52,6 +56,9 @@ PPM_FRAME_NS: Final = 22_500_000
 PWM_FRAME_NS: Final = 20_000_000
 #: a [[serial]] send's baud on a USART the board gives none (Arduino's usual serial speed)
 DEFAULT_BAUD: Final = 115_200
+#: the battery's pin volts go to the engine when they moved by this much since the last sent: an AVR's
+#: ADC takes millivolts, and a message every step would cost an STM32 run a link round trip a step
+PIN_STEP_V: Final = 0.001
 
 
 @dataclass
@@ -112,6 +119,12 @@ class McuSession:
         self._ports: dict[str, tuple[int, int]] = {}  # serial_port's paths: (USART, baud)
         #: what the polling-loop skip did (AvrEngine.poll_figures), once run: rig exec's summary has it
         self.poll_at_end: dict[str, int] = {}
+        if b.battery is not None and world.battery is None:  # (a world made without the board's pack)
+            world.battery = PackState(b.battery.pack)
+        self._pin_sent = 0.0 if b.battery is None else b.battery.pin_volts  # (the engine's at its start)
+        #: the pack's terminal volts: (step end in sim ns, volts), one entry each time they changed
+        self.pack_t_ns = array.array("q", [0])
+        self.pack_volts = array.array("d", [world.battery.volts if world.battery is not None else 0.0])
 
     # ---- the Host the scenario's events use ---------------------------------------------------
 
@@ -197,6 +210,7 @@ class McuSession:
         engine.twi_log(True)  # (the transfers for run.mcap, and the trace's)
         ppm = self.cfg.board.rc is not None and self.cfg.board.rc.protocol in ("ppm", "pwm")
         telemetry_uart = self.cfg.board.telemetry_uart
+        battery = self.cfg.board.battery
         logs = self.uart_log
         try:
             while not self.sched.over:
@@ -222,6 +236,8 @@ class McuSession:
                     self._telemetry += engine.uart_take(telemetry_uart)
                 trains = engine.pulses()
                 self._motors(trains, nxt)
+                if battery is not None:
+                    self._battery(engine, battery, nxt)
                 events = engine.twi_take()
                 self.transfers.feed(events)
                 if trace is not None:
@@ -290,6 +306,18 @@ class McuSession:
             elif state.last_pulse_ns >= 0 and t_ns - state.last_pulse_ns > ESC_TIMEOUT_NS:
                 state.last_pulse_ns = -1
                 set_motor(motor, 0.0)
+
+    def _battery(self, engine: Engine, battery: Battery, t_ns: int) -> None:
+        """The pack's volts at the step's end, the motors' commands just set; to the ADC pin when they
+        moved by PIN_STEP_V there (the same volts, the same messages: run after run, the same bytes)."""
+        volts = self.world.battery_volts(t_ns)
+        if volts != self.pack_volts[-1]:
+            self.pack_t_ns.append(t_ns)
+            self.pack_volts.append(volts)
+        pin = battery.pin_volts_at(volts)
+        if abs(pin - self._pin_sent) >= PIN_STEP_V:
+            engine.analog_input(battery.channel, pin)
+            self._pin_sent = pin
 
     def _rc_pins(self, t_ns: int) -> None:
         """A PPM sum on the RC pin, or a parallel PWM receiver's pulses on its pins (each channel's after

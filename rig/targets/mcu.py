@@ -11,6 +11,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from rig.mcu import board as boards
 from rig.mcu.engine import BUS_PROBLEMS
 from rig.mcu.session import McuConfig, McuSession
@@ -45,6 +47,14 @@ class McuRun(TargetRun):
         if "motor_capture" in f:
             out["capture"] = capture_text(s.cfg.board, f["motor_capture"])
         return out
+
+    def signals(self, t: np.ndarray) -> dict[str, np.ndarray]:
+        """battery_volts, the flight pack's terminal volts on the run's grid (a board with a [battery])."""
+        s = self.session
+        if s.cfg.board.battery is None:
+            return {}
+        k = np.searchsorted(np.frombuffer(s.pack_t_ns, dtype=np.int64), np.round(t * 1e9), side="right") - 1
+        return {"battery_volts": np.frombuffer(s.pack_volts)[np.clip(k, 0, None)]}
 
     def transactions(self) -> list[I2CRecord] | None:
         return self.session.transfers.records
@@ -163,6 +173,9 @@ class McuTarget:
             if uart not in mcu.usarts:
                 raise ValueError(f"the scenario talks to USART {uart}; the {mcu.name} has USART "
                                  f"{', '.join(map(str, mcu.usarts))} only")
+        if self.board.battery is None and any(f.target == "battery" for f in scenario.faults):
+            raise ValueError(f"the scenario has a fault on the battery; the board {self.board.name} measures "
+                             "none (no [battery] in its file)")
         if scenario.bench.psu is not None:
             notes.append(NO_SUPPLY)
         fc_eeprom = self.board.eeprom_from_fc and self.eeprom is None
@@ -190,7 +203,8 @@ class McuTarget:
         # on top of it)
         board = profile_board(self.board, profile)
         return {"topology": board.topology, "mounting": boards.mounting(board.mounting_yaw_deg),
-                "motor_order": (1, 2, 3, 4), "mpu_address": board.mpu_address}
+                "motor_order": (1, 2, 3, 4), "mpu_address": board.mpu_address,
+                "battery": None if board.battery is None else board.battery.pack}
 
     def open(self, ctx: RunContext) -> McuRun:
         trace = None if self.trace is None else self.trace / f"{ctx.scenario.stem}{self.trace_options.suffix}"

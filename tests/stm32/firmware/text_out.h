@@ -1,6 +1,7 @@
 /* What the RC test firmwares (ppm_rx.c, pwm_rx.c) say of a frame of channel widths: text lines out on
    USART6 TX (the STM32F405 board's telemetry port, byte by byte as TXE allows), which the MCU session
-   keeps as telemetry, and "NAME_F_C=0xWIDTH" lines through semihosting. */
+   keeps as telemetry, and "NAME_F_C=0xWIDTH" lines through semihosting (a firmware that sends other
+   lines uses the first two alone). */
 #ifndef TEXT_OUT_H
 #define TEXT_OUT_H
 
@@ -33,7 +34,7 @@ static char *decimal(char *out, uint32_t value)
 }
 
 /* "NAME w1 w2 ... wN\n" on USART6 */
-static void send_widths(const char *name, const uint32_t *w, unsigned n)
+__attribute__((unused)) static void send_widths(const char *name, const uint32_t *w, unsigned n)
 {
     char line[8 + 8u * 11u + 2u];
     char *end = line;
@@ -49,7 +50,7 @@ static void send_widths(const char *name, const uint32_t *w, unsigned n)
 }
 
 /* Frame @f's @n widths (at most 9) through semihosting: "ppm_F_C=0x..." for @prefix "ppm" */
-static void report_widths(const char *prefix, unsigned f, const uint32_t *w, unsigned n)
+__attribute__((unused)) static void report_widths(const char *prefix, unsigned f, const uint32_t *w, unsigned n)
 {
     char name[16];
     unsigned k = 0;
