@@ -154,6 +154,9 @@ build/stm32/test/%.elf: $(STM32_FW_DIR)/%.c $(STM32_FW_DIR)/startup.c $(wildcard
 		$(STM32_FW_DIR)/stm32f405.ld dut/stm32/stm32f405.h
 	@mkdir -p $(@D)
 	arm-none-eabi-gcc $(STM32_CFLAGS) -o $@ $< $(STM32_FW_DIR)/startup.c
+# the I2C replayer plays the MCU tier's trace tables (build/mcu/test/traces.h)
+build/stm32/test/i2c_replay.elf: build/mcu/test/traces.h
+build/stm32/test/i2c_replay.elf: STM32_CFLAGS += -Ibuild/mcu/test
 # i2c_poll.c again with I2C1 on PB8/PB9 (the Black Pill's pins)
 build/stm32/test/i2c_poll_pb8.elf: $(STM32_FW_DIR)/i2c_poll.c $(STM32_FW_DIR)/startup.c \
 		$(wildcard $(STM32_FW_DIR)/*.h) $(STM32_FW_DIR)/stm32f405.ld dut/stm32/stm32f405.h

@@ -1,5 +1,6 @@
-"""The TWI replayer firmware's table (build/mcu/test/traces.h), generated from emulators/traces/*.json: one
-program per trace, in the order of TRACE_NAMES. Per step: dt in us (uint32, little-endian), the message
+"""The trace replayer firmwares' table (build/mcu/test/traces.h: the AVR's tests/mcu/firmware/twi_replay.c
+and the STM32's tests/stm32/firmware/i2c_replay.c), generated from emulators/traces/*.json: one program per
+trace, in the order of TRACE_NAMES. Per step: dt in us (uint32, little-endian), the message
 count, then per message its 7-bit address, 1 for a read (0 write) and its length, a write's bytes after;
 a count of 0xFF ends a trace."""
 

@@ -9,23 +9,15 @@ import pytest
 
 from rig.emulators.chips.board import ChipBoard, build_chip_board
 from rig.emulators.faults import Fault, FaultSet
-from rig.emulators.i2c_bus import I2CNack, Msg
 from rig.emulators.mpu6050 import ImuTruth
 from rig.emulators.ms5611 import BaroTruth
-from rig.emulators.trace import TRACE_DIR, load, parse_msg
+from rig.emulators.trace import TRACE_DIR, load
 from rig.mcu.engine import AvrEngine, EngineConfig, Motor, TwiRecord
 from tests.mcu.conftest import firmware
 from tests.mcu.gen_traces import TRACE_NAMES
+from tests.trace_replay import board_for, check_replay, transfers
 
 CLOCK = 16_000_000
-
-
-def board_for(trace: dict, faults: dict[str, FaultSet] | None = None) -> ChipBoard:
-    tr = trace["truth"]
-    return build_chip_board(lambda t: ImuTruth(tuple(tr["accel"]), tuple(tr["gyro"]), tr["temperature"]),
-                            lambda t: tuple(tr["field"]),
-                            lambda t: BaroTruth(tr["pressure"], tr["temperature"]),
-                            trace["topology"], dlpf=False, faults=faults)
 
 
 def replay_on_mcu(name: str, mcu: str,
@@ -63,61 +55,11 @@ def parse(out: bytes, counts: list[int]) -> list[tuple[int, bytes]]:
     return steps
 
 
-def transfers(records: list[TwiRecord]) -> list[tuple[int, list[Msg], list[bytes], bool]]:
-    """The TWI's records as transfers: (first START's time, messages, bytes read per read, NACKed)."""
-    out: list[tuple[int, list[Msg], list[bytes], bool]] = []
-    msgs: list[Msg] = []
-    reads: list[bytes] = []
-    t0, nack = -1, False
-    for r in records:
-        if r.kind == "S" and t0 < 0:
-            t0, msgs, reads, nack = r.t_ns, [], [], False
-        elif r.kind == "A":
-            if not r.ack:
-                nack = True
-            msgs.append(Msg(r.value >> 1, bool(r.value & 1), b"", 0))
-            if r.value & 1:
-                reads.append(b"")
-        elif r.kind == "W":
-            msgs[-1] = Msg(msgs[-1].addr, False, msgs[-1].data + bytes([r.value]))
-        elif r.kind == "R":
-            reads[-1] += bytes([r.value])
-            msgs[-1] = Msg(msgs[-1].addr, True, b"", msgs[-1].length + 1)
-        elif r.kind == "P":
-            out.append((t0, msgs, reads, nack))
-            t0 = -1
-    return out
-
-
 @pytest.mark.parametrize("name", TRACE_NAMES)
 def test_a_trace_through_the_twi_reads_what_lockstep_reads(name: str) -> None:
     trace = load(TRACE_DIR / f"{name}.json")
     steps, records, _ = replay_on_mcu(name, "atmega2560", board_for(trace))
-    assert len(steps) == len(trace["steps"])
-    lockstep = board_for(trace)
-    done = transfers(records)
-    assert len(done) == len(steps)
-    for i, ((t0, msgs, reads, nacked), (reported_nack, reported)) in enumerate(zip(done, steps, strict=True)):
-        assert reported_nack == nacked, f"step {i}"
-        assert b"".join(reads) == reported, f"step {i}: the firmware reports what the TWI carried"
-        try:
-            got = lockstep.bus.transfer_ns(msgs, t0)
-        except I2CNack:
-            assert nacked, f"step {i}: lockstep NACKs, the TWI did not"
-            continue
-        assert not nacked, f"step {i}: the TWI NACKed, lockstep did not"
-        assert got == reads, f"step {i}: {msgs}"
-    # the TWI carried the trace's messages (up to a NACK), so the bytes compared above answer them. (The
-    # trace's expected bytes are lockstep's at the trace's times, tests/emulators/test_traces.py: on the
-    # TWI a transfer takes time, a 70-byte FIFO read 1.6 ms, and the steps after it start later)
-    for i, (step, (flag, _), (_, msgs, _, _)) in enumerate(zip(trace["steps"], steps, done, strict=True)):
-        assert bool(step.get("nack")) == bool(flag), f"step {i}"
-        sent = [parse_msg(m) for m in step["msgs"]]
-        if flag:  # the message NACKed carried its address only, and the ones after it nothing
-            assert (msgs[-1].addr, msgs[-1].read) == (sent[len(msgs) - 1].addr, sent[len(msgs) - 1].read)
-            msgs, sent = msgs[:-1], sent[:len(msgs) - 1]
-        assert [(m.addr, m.read, m.data, m.length) for m in msgs] == [(m.addr, m.read, m.data, m.length)
-                                                                      for m in sent], f"step {i}"
+    check_replay(trace, steps, records)
 
 
 def test_the_engine_stops_for_samples_and_the_bytes_do_not_change() -> None:

@@ -13,9 +13,12 @@ from pathlib import Path
 import pytest
 
 from rig.emulators import sbus
+from rig.emulators.chips.board import ChipBoard
 from rig.mcu import board as boards
 from rig.mcu import stm32_engine
+from rig.mcu.engine import Stop, TwiRecord
 from rig.mcu.session import McuConfig, McuSession
+from rig.mcu.stm32_link import Stm32Config, Stm32Engine
 from rig.world import World
 from tests.suite_rules import NOT_BUILT
 
@@ -25,6 +28,8 @@ ICOUNT_SHIFT = 3
 #: a safety net against a firmware that never ends (a test fails, QEMU is killed and reaped): not a
 #: timing threshold, these firmwares end in well under a second
 RUN_TIMEOUT_S = 60.0
+#: the lockstep runs' step (run_linked)
+STEP_NS = 1_000_000
 REPORT_LINE = re.compile(r"([a-z0-9_]+)=0x([0-9a-f]{8})")
 
 
@@ -67,6 +72,32 @@ def run_to_done(name: str, *qemu_args: str,
     assert done.returncode == 0, f"status {done.returncode}\n{done.stdout}\n{done.stderr}"
     assert done.stdout.endswith("done\n"), done.stdout
     return done
+
+
+def run_linked(elf: Path, chips: ChipBoard | None, limit_ns: int = 50 * STEP_NS,
+               settings: bytes | None = None) -> tuple[Stop, list[TwiRecord], str, int]:
+    """``elf`` in lockstep on the stm32f405-gy86 board (its flash's settings image ``settings``), 1 ms
+    steps, the needs served: the final stop, every I2C record, QEMU's output (the firmware's semihosting
+    reports) and how many needs were served."""
+    board = boards.load("stm32f405-gy86")
+    engine = Stm32Engine(Stm32Config(board, elf, engine_or_skip(), settings=settings), chips)
+    needs = 0
+    try:
+        engine.twi_log(True)
+        t = 0
+        while t < limit_ns:
+            t += STEP_NS
+            stop = engine.run_until(t)
+            while stop.kind == "need":
+                assert chips is not None
+                needs += 1
+                chips.serve(stop.need)
+                stop = engine.run_until(t)
+            if stop.kind != "reached":
+                break
+        return stop, engine.twi_take(), engine.output(), needs
+    finally:
+        engine.close()
 
 
 def reports(stdout: str) -> dict[str, int]:

@@ -18,13 +18,12 @@ from rig.emulators.chips.board import ChipBoard, build_chip_board
 from rig.emulators.mpu6050 import ImuTruth
 from rig.emulators.ms5611 import BaroTruth
 from rig.mcu import board as boards
-from rig.mcu.engine import FirmwareError, Stop, TwiRecord
+from rig.mcu.engine import FirmwareError
 from rig.mcu.stm32_image import check_image
 from rig.mcu.stm32_link import Stm32Config, Stm32Engine
-from tests.stm32.conftest import engine_or_skip, firmware, reports
+from tests.stm32.conftest import STEP_NS, engine_or_skip, firmware, reports, run_linked
 
 G = 9.80665
-STEP_NS = 1_000_000
 #: ARMv7-M ARM B3.2.15: CFSR's UsageFault UNDEFINSTR; B3.2.16: HFSR.FORCED (an escalated fault)
 CFSR_UNDEFINSTR = 1 << 16
 HFSR_FORCED = 1 << 30
@@ -36,36 +35,11 @@ def level_world() -> ChipBoard:
                             lambda t: (0.2, 0.0, 0.4), lambda t: BaroTruth(101325.0, 20.0))
 
 
-def run(elf: Path, chips: ChipBoard | None, limit_ns: int = 50 * STEP_NS) -> tuple[Stop, list[TwiRecord], str,
-                                                                                 int]:
-    """``elf`` in lockstep, 1 ms steps, the needs served: the final stop, every I2C record, QEMU's output
-    (the firmware's semihosting reports) and how many needs were served."""
-    board = boards.load("stm32f405-gy86")
-    engine = Stm32Engine(Stm32Config(board, elf, engine_or_skip()), chips)
-    needs = 0
-    try:
-        engine.twi_log(True)
-        t = 0
-        while t < limit_ns:
-            t += STEP_NS
-            stop = engine.run_until(t)
-            while stop.kind == "need":
-                assert chips is not None
-                needs += 1
-                chips.serve(stop.need)
-                stop = engine.run_until(t)
-            if stop.kind != "reached":
-                break
-        return stop, engine.twi_take(), engine.output(), needs
-    finally:
-        engine.close()
-
-
 def test_the_firmware_reads_the_session_chip_core() -> None:
     """i2c_poll's HAL transfers reach the session's chip core through the link: WHO_AM_I, and a burst of
     the accelerometer, temperature and gyro that is the level world's (needs served on the way); the
     bytes the firmware reports are the bytes the log shows the chip core answered."""
-    stop, records, out, needs = run(firmware("i2c_poll"), level_world())
+    stop, records, out, needs = run_linked(firmware("i2c_poll"), level_world())
     assert stop.kind == "exited", stop.describe()
     r = reports(out)
     assert r["who_am_i"] == 0x68
@@ -87,8 +61,8 @@ def test_the_firmware_reads_the_session_chip_core() -> None:
 
 
 def test_two_runs_give_the_same_bytes_at_the_same_times() -> None:
-    first = run(firmware("i2c_poll"), level_world())
-    second = run(firmware("i2c_poll"), level_world())
+    first = run_linked(firmware("i2c_poll"), level_world())
+    second = run_linked(firmware("i2c_poll"), level_world())
     assert [(r.t_ns, r.kind, r.value, r.ack) for r in first[1]] == \
         [(r.t_ns, r.kind, r.value, r.ack) for r in second[1]]
     assert first[1] and first[0].cycle == second[0].cycle
@@ -136,7 +110,7 @@ def test_a_firmware_that_does_nothing_for_the_hang_limit_is_hung() -> None:
 
 def test_a_hardfault_ends_the_run_naming_it() -> None:
     """fault_spin: an undefined instruction, escalated to a HardFault whose handler spins."""
-    stop, _, _, _ = run(firmware("fault_spin"), None, 5 * STEP_NS)
+    stop, _, _, _ = run_linked(firmware("fault_spin"), None, 5 * STEP_NS)
     assert stop.kind == "crashed"
     assert "HardFault" in stop.what
     assert f"CFSR 0x{CFSR_UNDEFINSTR:08x}" in stop.what and f"HFSR 0x{HFSR_FORCED:08x}" in stop.what
@@ -150,7 +124,7 @@ def test_a_lockup_ends_the_run_naming_it() -> None:
     nm = subprocess.run(["arm-none-eabi-nm", str(elf)], capture_output=True, text=True, check=True)
     symbols = nm.stdout
     main = next(int(line.split()[0], 16) for line in symbols.splitlines() if line.endswith(" main"))
-    stop, _, _, _ = run(elf, None, 5 * STEP_NS)
+    stop, _, _, _ = run_linked(elf, None, 5 * STEP_NS)
     assert stop.kind == "crashed"
     assert "locked up (Lockup: can't escalate" in stop.what
     assert stop.pc == main + 2

@@ -1,6 +1,7 @@
 /* ST's HAL polling sequences on I2C1 (HAL_I2C_Mem_Read and _Write of the STM32F4 HAL: 1 byte with ACK
    cleared before ADDR is, 2 bytes with POS, N bytes with the last three taken at BTF): xfer() for
-   i2c_checks.h, shared by the I2C test firmware (i2c_poll.c) and the hover firmware (hover_rate.c). The
+   i2c_checks.h, shared by the I2C test firmware (i2c_poll.c), the hover firmware (hover_rate.c) and the
+   trace replayer (i2c_replay.c, which probes an address alone with probe()). The
    status registers at the first START and address of each direction are kept for the reports. */
 #ifndef I2C_HAL_POLL_H
 #define I2C_HAL_POLL_H
@@ -88,6 +89,20 @@ static void receive(uint8_t *rx, unsigned n)
         rx[i++] = (uint8_t)I2C1_DR;
         rx[i++] = (uint8_t)I2C1_DR;
     }
+}
+
+/* HAL_I2C_IsDeviceReady's one attempt: the address alone, as a write; STOP, then ADDR cleared. 0, or -1
+   on a NACK */
+static inline int probe(uint8_t addr)
+{
+    wait_bus_free();
+    I2C1_CR1 &= ~I2C_CR1_POS;
+    if (address((uint8_t)(addr << 1)) != 0) {
+        return -1;
+    }
+    I2C1_CR1 |= I2C_CR1_STOP;
+    clear_addr(&sr1_addr_write, &sr2_addr_write);
+    return 0;
 }
 
 static int xfer(uint8_t addr, const uint8_t *tx, unsigned n_tx, uint8_t *rx, unsigned n_rx)
