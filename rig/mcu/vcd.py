@@ -219,8 +219,14 @@ class TwiDrawing:
     def draw(self, records: Iterable[TwiRecord]) -> list[tuple[int, int, int]]:
         out: list[tuple[int, int, int]] = []
         bit_ns = self.bit_ns
-        for r in records:
+        batch = list(records)
+        for i, r in enumerate(batch):
             t = max(r.t_ns, self.prev)
+            after = batch[i + 1] if i + 1 < len(batch) else None
+            if r.kind == "S" and after is not None and after.kind == "A" and after.t_ns == r.t_ns:
+                # an engine that has the START when the address byte ended (the STM32 link: QEMU's slaves
+                # see a START with its address): the START drawn that byte's nine clocks and one before
+                t = max(r.t_ns - 10 * bit_ns, self.prev)
             room = t - self.prev
             if r.kind == "S" and not self.busy:  # from an idle bus (both lines high): SDA falls
                 out += [(t, SDA, 0), (t, BUSY, 1)]
