@@ -8,6 +8,7 @@ from __future__ import annotations
 import functools
 import re
 import subprocess
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -16,6 +17,7 @@ from rig.emulators import sbus
 from rig.emulators.chips.board import ChipBoard
 from rig.mcu import board as boards
 from rig.mcu import stm32_engine
+from rig.mcu.board import Board
 from rig.mcu.engine import Stop, TwiRecord
 from rig.mcu.session import McuConfig, McuSession
 from rig.mcu.stm32_link import Stm32Config, Stm32Engine
@@ -117,6 +119,41 @@ def board_with_rc(tmp_path: Path, rc: str, name: str, shipped: str = "stm32f405-
 
 #: the serial ports of the receiver tests' MCU sessions (the board's RC and telemetry USARTs)
 RC_PORT, TEL_PORT = "/dev/ttyRC0", "/dev/ttyTEL0"
+#: the receiver tests' frames (PPM, parallel PWM): three of 8 channels (the firmwares report three), each
+#: frame's own widths in microseconds, the first starting at RC_FIRST_FRAME_NS
+RC_FRAMES = [
+    [1000, 1100, 1234, 1500, 1777, 1900, 2000, 1050],
+    [1500, 1500, 1000, 1999, 1001, 1250, 1750, 1600],
+    [2000, 1000, 1500, 1500, 1200, 1800, 1333, 1667],
+]
+RC_FIRST_FRAME_NS = 2_000_000
+#: SBUS values as a scenario's sticks send them (172..1811; 16 channels, of which a receiver puts 8 out)
+RC_SBUS_CHANNELS = [172, 992, 1811, 500, 1500, 992, 300, 1700, 992, 992, 992, 992, 992, 992, 992, 992]
+
+
+def drive_rc_frames(board: Board, name: str, frame_ns: int,
+                    edges: Callable[[int, list[int]], dict[str, list[tuple[int, int]]]]) -> str:
+    """Firmware ``name`` on ``board`` with RC_FRAMES on its receiver's pins, one every ``frame_ns``: each
+    frame's ``edges`` (pin -> (t_ns, level) from its start and widths) given to the engine in the step
+    before it starts (as the MCU session does), 1 ms steps until the firmware has had the three; QEMU's
+    output."""
+    engine = Stm32Engine(Stm32Config(board, firmware(name), engine_or_skip()), None)
+    try:
+        t = 0
+        for k, widths in enumerate(RC_FRAMES):
+            start = RC_FIRST_FRAME_NS + k * frame_ns
+            while t + STEP_NS < start:
+                t += STEP_NS
+                assert engine.run_until(t).kind == "reached"
+            for pin, pin_edges in edges(start, widths).items():
+                engine.pin_drive(pin, pin_edges)
+        end = RC_FIRST_FRAME_NS + len(RC_FRAMES) * frame_ns
+        while t < end:
+            t += STEP_NS
+            assert engine.run_until(t).kind == "reached"
+        return engine.output()
+    finally:
+        engine.close()
 
 
 def receiver_session_lines(board_file: Path, name: str, channels: list[int]) -> tuple[list[str], list[int]]:

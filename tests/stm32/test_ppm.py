@@ -18,40 +18,26 @@ from rig.mcu import board as boards
 from rig.mcu.board import Board, BoardError
 from rig.mcu.session import PPM_FRAME_NS, ppm_edges
 from rig.mcu.stm32_link import Stm32Config, Stm32Engine
-from tests.stm32.conftest import board_with_rc, engine_or_skip, firmware, receiver_session_lines, reports
+from tests.stm32.conftest import (
+    RC_FRAMES,
+    RC_SBUS_CHANNELS,
+    board_with_rc,
+    drive_rc_frames,
+    engine_or_skip,
+    firmware,
+    receiver_session_lines,
+    reports,
+)
 
 STEP_NS = 1_000_000
-FIRST_FRAME_NS = 2_000_000
-#: three frames of 8 channels (the firmware reports three), each frame's own widths in microseconds
-FRAMES = [
-    [1000, 1100, 1234, 1500, 1777, 1900, 2000, 1050],
-    [1500, 1500, 1000, 1999, 1001, 1250, 1750, 1600],
-    [2000, 1000, 1500, 1500, 1200, 1800, 1333, 1667],
-]
-#: SBUS values as a scenario's sticks send them (172..1811; 16 channels, of which PPM carries 8)
-SBUS_CHANNELS = [172, 992, 1811, 500, 1500, 992, 300, 1700, 992, 992, 992, 992, 992, 992, 992, 992]
 
 
 def drive_ppm(board: Board) -> str:
-    """ppm_rx on ``board``: each frame given to the engine in the step before it starts (as the MCU
-    session does), 1 ms steps until the firmware has had the three; QEMU's output."""
-    assert board.rc is not None and board.rc.pin is not None
-    engine = Stm32Engine(Stm32Config(board, firmware("ppm_rx"), engine_or_skip()), None)
-    try:
-        t = 0
-        for k, channels in enumerate(FRAMES):
-            start = FIRST_FRAME_NS + k * PPM_FRAME_NS
-            while t + STEP_NS < start:
-                t += STEP_NS
-                assert engine.run_until(t).kind == "reached"
-            engine.pin_drive(board.rc.pin, ppm_edges(start, channels))
-        end = FIRST_FRAME_NS + len(FRAMES) * PPM_FRAME_NS
-        while t < end:
-            t += STEP_NS
-            assert engine.run_until(t).kind == "reached"
-        return engine.output()
-    finally:
-        engine.close()
+    """ppm_rx on ``board``, RC_FRAMES as PPM sums on its receiver's pin; QEMU's output."""
+    pin = board.rc.pin if board.rc is not None else None
+    assert pin is not None
+    return drive_rc_frames(board, "ppm_rx", PPM_FRAME_NS,
+                           lambda start, widths: {pin: ppm_edges(start, widths)})
 
 
 def ppm_board(tmp_path: Path, pin: str) -> Path:
@@ -62,12 +48,12 @@ def ppm_board(tmp_path: Path, pin: str) -> Path:
 def test_the_firmware_decodes_each_channel_to_the_microsecond(tmp_path: Path) -> None:
     out = drive_ppm(boards.load(ppm_board(tmp_path, "PA0")))
     got = reports(out)
-    for f, channels in enumerate(FRAMES):
+    for f, channels in enumerate(RC_FRAMES):
         assert [got[f"ppm_{f}_{c + 1}"] for c in range(8)] == channels, out
     # (the first capture starts the first frame; each later one follows the previous frame's gap)
     assert got["ppm_0_sync"] == 0
     for f in (1, 2):
-        assert got[f"ppm_{f}_sync"] == PPM_FRAME_NS // 1000 - sum(FRAMES[f - 1])
+        assert got[f"ppm_{f}_sync"] == PPM_FRAME_NS // 1000 - sum(RC_FRAMES[f - 1])
 
 
 def test_two_runs_print_the_same_bytes(tmp_path: Path) -> None:
@@ -110,7 +96,7 @@ def test_the_sessions_rc_frames_reach_the_firmware_as_ppm(tmp_path: Path) -> Non
     become a PPM sum on the board's pin every PPM_FRAME_NS (rig/mcu/session.py), and ppm_rx's telemetry
     lines on USART6 carry the widths back exactly, each as a receiver maps SBUS to microseconds."""
     engine_or_skip()
-    lines, want = receiver_session_lines(ppm_board(tmp_path, "PA0"), "ppm_rx", SBUS_CHANNELS)
+    lines, want = receiver_session_lines(ppm_board(tmp_path, "PA0"), "ppm_rx", RC_SBUS_CHANNELS)
     assert lines and all(line == "PPM " + " ".join(map(str, want)) for line in lines), lines
     # one PPM frame a period from the first period after the first RC frame (20 ms): at 22.5, 45, ...
     # 180 ms, each over within the 0.2 s run

@@ -17,22 +17,20 @@ import pytest
 from rig.mcu import board as boards
 from rig.mcu.board import Board, BoardError
 from rig.mcu.session import PWM_FRAME_NS
-from rig.mcu.stm32_link import Stm32Config, Stm32Engine
-from tests.stm32.conftest import board_with_rc, engine_or_skip, firmware, receiver_session_lines, reports
+from tests.stm32.conftest import (
+    RC_FRAMES,
+    RC_SBUS_CHANNELS,
+    board_with_rc,
+    drive_rc_frames,
+    engine_or_skip,
+    receiver_session_lines,
+    reports,
+)
 
 STEP_NS = 1_000_000
-FIRST_FRAME_NS = 2_000_000
 #: pwm_rx's channels in order (DS8626 table 9): TIM1_CH1, TIM1_CH4, TIM3_CH1, TIM3_CH2, TIM5_CH1,
 #: TIM5_CH2, TIM8_CH3, TIM8_CH4
 PINS = ["PA8", "PA11", "PA6", "PA7", "PA0", "PA1", "PC8", "PC9"]
-#: three frames of 8 channels (the firmware reports three), each frame's own widths in microseconds
-FRAMES = [
-    [1000, 1100, 1234, 1500, 1777, 1900, 2000, 1050],
-    [1500, 1500, 1000, 1999, 1001, 1250, 1750, 1600],
-    [2000, 1000, 1500, 1500, 1200, 1800, 1333, 1667],
-]
-#: SBUS values as a scenario's sticks send them (172..1811; 16 channels, of which the receiver puts 8 out)
-SBUS_CHANNELS = [172, 992, 1811, 500, 1500, 992, 300, 1700, 992, 992, 992, 992, 992, 992, 992, 992]
 
 
 def pwm_board(tmp_path: Path, pins: list[str]) -> Path:
@@ -56,31 +54,14 @@ def frame_edges(start_ns: int, widths_us: list[int]) -> dict[str, list[tuple[int
 
 
 def drive_pwm(board: Board) -> str:
-    """pwm_rx on ``board``: each frame given to the engine in the step before it starts, 1 ms steps until
-    the firmware has had the three; QEMU's output."""
-    engine = Stm32Engine(Stm32Config(board, firmware("pwm_rx"), engine_or_skip()), None)
-    try:
-        t = 0
-        for k, widths in enumerate(FRAMES):
-            start = FIRST_FRAME_NS + k * PWM_FRAME_NS
-            while t + STEP_NS < start:
-                t += STEP_NS
-                assert engine.run_until(t).kind == "reached"
-            for pin, edges in frame_edges(start, widths).items():
-                engine.pin_drive(pin, edges)
-        end = FIRST_FRAME_NS + len(FRAMES) * PWM_FRAME_NS
-        while t < end:
-            t += STEP_NS
-            assert engine.run_until(t).kind == "reached"
-        return engine.output()
-    finally:
-        engine.close()
+    """pwm_rx on ``board``, RC_FRAMES as a pulse per channel on PINS; QEMU's output."""
+    return drive_rc_frames(board, "pwm_rx", PWM_FRAME_NS, frame_edges)
 
 
 def test_the_firmware_times_each_channel_to_the_microsecond(tmp_path: Path) -> None:
     out = drive_pwm(boards.load(pwm_board(tmp_path, PINS)))
     got = reports(out)
-    for f, widths in enumerate(FRAMES):
+    for f, widths in enumerate(RC_FRAMES):
         assert [got[f"pwm_{f}_{c + 1}"] for c in range(8)] == widths, out
     assert "pwm_3_1" not in got
 
@@ -97,7 +78,7 @@ def test_the_sessions_rc_frames_reach_the_firmware_as_pulses(tmp_path: Path) -> 
     become a pulse on each channel's pin every PWM_FRAME_NS (rig/mcu/session.py), and pwm_rx's telemetry
     lines on USART6 carry the widths back exactly, each as a receiver maps SBUS to microseconds."""
     engine_or_skip()
-    lines, want = receiver_session_lines(pwm_board(tmp_path, PINS), "pwm_rx", SBUS_CHANNELS)
+    lines, want = receiver_session_lines(pwm_board(tmp_path, PINS), "pwm_rx", RC_SBUS_CHANNELS)
     assert lines and all(line == "PWM " + " ".join(map(str, want)) for line in lines), lines
     # a frame each period from the first period after the first RC frame (20 ms): at 40, 60, ... 180 ms
     # (the one at 200 ms ends after the run), each over within its 20 ms
