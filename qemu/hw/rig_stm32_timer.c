@@ -102,7 +102,7 @@ static void update_event(RigStm32TimerState *s, bool by_software)
     if (!(by_software && (s->regs[CR1] & CR1_URS))) {
         raise_flags(s, SR_UIF);
     }
-    rig_stm32_timer_latch(s);
+    rig_stm32_timer_latch(s, s->counting); /* (with the counter stopped, the period begins with CEN) */
 }
 
 /* A compare match: CCxIF, and the levels of the match modes (RM0090 17.3.8) */
@@ -488,7 +488,7 @@ static void tim_write(void *opaque, hwaddr offset, uint64_t value, unsigned size
             s->counting = false;
         } else if (!was_enabled) {
             start_counting(s);
-            rig_stm32_timer_latch(s);
+            rig_stm32_timer_latch(s, true);
         }
         break;
     case ARR:

@@ -105,8 +105,10 @@ static uint32_t pulse_ticks(const RigStm32TimerState *s, unsigned o, uint32_t pe
     return level_while_active ? (uint32_t)active : period - (uint32_t)active;
 }
 
-/* The pulses for the rig: latched at the start of each period, sent and traced when they change */
-void rig_stm32_timer_latch(RigStm32TimerState *s)
+/* The pulses for the rig: latched at the start of each period (@begins: a period of the counter begins
+ * here, counted in latches; an update event with the counter stopped, the set-up's EGR.UG, only takes the
+ * values: its period begins when CEN starts the counter), sent and traced when they change */
+void rig_stm32_timer_latch(RigStm32TimerState *s, bool begins)
 {
     uint64_t counts = cms(s) ? 2 * (uint64_t)s->arr : (uint64_t)s->arr + 1;
     uint32_t period = (uint32_t)MIN(counts * ((uint64_t)s->psc + 1), UINT32_MAX);
@@ -128,6 +130,8 @@ void rig_stm32_timer_latch(RigStm32TimerState *s)
     }
     s->period_ticks = period;
     s->latched_hz = s->hz;
-    s->latches++;
-    s->latched_ns = (uint64_t)s->event_ns;
+    if (begins) {
+        s->latches++;
+        s->latched_ns = (uint64_t)s->event_ns;
+    }
 }

@@ -154,6 +154,6 @@ static inline unsigned cms(const RigStm32TimerState *s) { return s->regs[CR1] >>
  * interrupt lines following SR and DIER, and the pulses latched for the rig at the start of each period */
 void rig_stm32_timer_drive(RigStm32TimerState *s);
 void rig_stm32_timer_irqs(RigStm32TimerState *s);
-void rig_stm32_timer_latch(RigStm32TimerState *s);
+void rig_stm32_timer_latch(RigStm32TimerState *s, bool begins);
 
 #endif

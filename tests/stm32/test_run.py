@@ -59,8 +59,7 @@ def test_the_hover_firmware_flies_a_scenario_to_a_result(tmp_path: Path) -> None
     # a write of GYRO_XOUT_H's address and a read of it per period: the first four transactions set it up
     assert abs(mcu["twi_transactions"] - 4 - 2 * periods) <= 2
     assert mcu["twi_nacks"] == 0 and mcu["ipsr"] == 0
-    # a pulse every period on each motor, the first at the start (a few milliseconds of set-up before it;
-    # the set-up's EGR.UG, with the counter still stopped, latches once more)
+    # a pulse every period on each motor, the first at the start (a few milliseconds of set-up before it)
     assert all(periods - 5 <= n <= periods + 2 for n in mcu["motor_pulses"]), mcu["motor_pulses"]
     # run.mcap's /i2c: every transaction, the gyro's reads 6 bytes from 0x43 (GYRO_XOUT_H)
     _, by_topic, _ = read(tmp_path / "out" / "stm32_hover" / "run.mcap")
