@@ -198,8 +198,10 @@ class Stm32Engine:
                "-icount", f"shift={ICOUNT_SHIFT},sleep=off", *cfg.qemu_args, "-kernel", str(firmware)]
         self._affinity: tuple[int, set[int]] | None = None  # the pinned thread and its own affinity
         if cfg.one_core:
-            self._affinity = (threading.get_native_id(), os.sched_getaffinity(0))
-            os.sched_setaffinity(0, {current_cpu()})  # (QEMU's threads inherit it)
+            own = os.sched_getaffinity(0)
+            with contextlib.suppress(OSError):  # (a machine that refuses: both run wherever they may)
+                os.sched_setaffinity(0, {current_cpu()})  # (QEMU's threads inherit it)
+                self._affinity = (threading.get_native_id(), own)
         self._proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=self._output,
                                       stderr=subprocess.STDOUT)
         try:
