@@ -137,14 +137,21 @@ def test_exec_mcu_traces_what_its_figures_count_and_the_same_bytes_twice(avr_fc:
     # longest an ATmega2560 instruction or interrupt entry takes is 5: its instruction set summary)
     assert 0 <= mcu["cycles"] - round(16e6 * 1.2) <= 4
     assert mcu["twi_nacks"] == 0 and mcu["twi_collisions"] == 0
-    vcd = read(tmp_path / "a" / "fc.vcd")
+    motors = ["m1_PE4", "m2_PE5", "m3_PE3", "m4_PH3"]
+    check_trace_against_figures(read(tmp_path / "a" / "fc.vcd"), mcu, motors)
+
+
+def check_trace_against_figures(vcd: vcdvcd.VCDVCD, mcu: dict, motors: list[str]) -> None:
+    """A run's trace against its figures (either tier): the decoded STARTs followed by an address are the
+    transactions counted, the bytes the transactions (their addresses) and the bytes counted, and each
+    motor output (``motors``: the VCD's names) rises once for each pulse counted."""
     decoded = i2c_decode(vcd)
     starts = [i for i, d in enumerate(decoded) if d[0] == "S"]
     assert len(starts) >= mcu["twi_transactions"] > 100  # (a repeated START is a START, not a transfer)
     addresses = sum(1 for i in starts if i + 1 < len(decoded) and decoded[i + 1][0] == "B")
     assert addresses == mcu["twi_transactions"]
     assert sum(d[0] == "B" for d in decoded) == mcu["twi_transactions"] + mcu["twi_bytes"]
-    for m, name in enumerate(("m1_PE4", "m2_PE5", "m3_PE3", "m4_PH3")):
+    for m, name in enumerate(motors):
         rises = sum(v == "1" for _, v in vcd[f"motors.{name}"].tv)
         assert rises == mcu["motor_pulses"][m] > 400
 
